@@ -1,0 +1,172 @@
+"""The Python API; the ``grasp`` CLI only wraps these functions."""
+
+from __future__ import annotations
+
+import fcntl
+import logging
+import os
+import time
+from collections import Counter
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from planner import hands as hand_specs, objects
+from planner.database import Database, GraspRow, open_db
+from planner.errors import DatabaseError, InputError
+from planner.pipeline import UnitResult, UnitSpec, run_unit
+from planner.sweep import SweepSettings
+from planner.writer import write_unit
+
+log = logging.getLogger(__name__)
+
+DEFAULT_DB = Path("grasps.db")
+
+
+@dataclass
+class Summary:
+    """What a ``generate`` run did."""
+
+    units: int = 0
+    skipped: int = 0
+    failed: dict[str, str] = field(default_factory=dict)
+    candidates: int = 0
+    grasps: int = 0
+    force_closure: int = 0
+    rejected: Counter = field(default_factory=Counter)
+    seconds: float = 0.0
+    per_object: list[dict] = field(default_factory=list)
+
+    def to_json(self) -> dict:
+        return {"units": self.units, "skipped": self.skipped, "failed": self.failed, "candidates": self.candidates,
+                "grasps": self.grasps, "force_closure": self.force_closure, "rejected": dict(self.rejected),
+                "seconds": round(self.seconds, 3), "objects": self.per_object}
+
+
+@contextmanager
+def writer_lock(db_path: Path) -> Iterator[None]:
+    """One ``generate`` per database at a time: a second one refuses clearly."""
+    lock_path = db_path.with_name(db_path.name + ".lock")
+    try:
+        fh = open(lock_path, "a+")
+    except OSError as exc:
+        raise DatabaseError(f"{db_path}: cannot create lock file {lock_path}: {exc}") from exc
+    try:
+        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        fh.close()
+        raise DatabaseError(f"{db_path}: another `grasp generate` is writing to this database; "
+                            "wait for it to finish or use another --db") from None
+    try:
+        yield
+    finally:
+        fcntl.flock(fh, fcntl.LOCK_UN)
+        fh.close()
+
+
+def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: int,
+               scale: float | None = None) -> list[UnitSpec]:
+    """Check every input up front (names, hand, preshapes) before any work."""
+    if not names:
+        raise InputError("no objects given")
+    hand_spec = hand_specs.load(hand)
+    from planner import preshapes
+
+    preshapes.load(hand_spec, list(settings.preshapes) if settings.preshapes else None)
+    units, seen = [], set()
+    for name in names:
+        spec = objects.resolve_spec(name, scale=scale)
+        if spec.kind == "mesh" and not spec.source.startswith("pybullet_data:") and not Path(spec.source).exists():
+            raise InputError(f"{spec.source}: file not found")
+        if spec.name in seen:
+            continue
+        seen.add(spec.name)
+        units.append(UnitSpec(name, hand, settings, seed, scale))
+    return units
+
+
+def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, settings: SweepSettings | None = None,
+             seed: int = 0, workers: int = 1, scale: float | None = None,
+             progress: Callable[[UnitResult], None] | None = None) -> Summary:
+    """Build (or extend) a grasp database; finished units are skipped."""
+    settings = settings or SweepSettings()
+    units = plan_units(names, hand, settings, seed, scale)
+    summary = Summary()
+    start = time.perf_counter()
+    with writer_lock(Path(db_path)), open_db(Path(db_path)) as db:
+        todo = []
+        for unit in units:
+            key = objects.resolve_spec(unit.object_name, scale=scale).name
+            if db.unit_done(key, hand, settings.digest, seed):
+                summary.skipped += 1
+            else:
+                todo.append(unit)
+        for result, seconds in _execute(todo, workers):
+            write_unit(db, result, seconds)
+            _tally(summary, result, seconds)
+            if progress:
+                progress(result)
+    summary.seconds = time.perf_counter() - start
+    return summary
+
+
+def _execute(units: list[UnitSpec], workers: int) -> Iterator[tuple[UnitResult, float]]:
+    if workers <= 1 or len(units) <= 1:
+        for unit in units:
+            t = time.perf_counter()
+            yield run_unit(unit), time.perf_counter() - t
+        return
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        starts = {}
+        futures = []
+        for unit in units:
+            fut = pool.submit(run_unit, unit)
+            starts[fut] = time.perf_counter()
+            futures.append(fut)
+        for fut in as_completed(futures):
+            yield fut.result(), time.perf_counter() - starts[fut]
+
+
+def _tally(summary: Summary, result: UnitResult, seconds: float) -> None:
+    summary.units += 1
+    name = result.obj.name if result.obj else result.spec.object_name
+    if result.error:
+        summary.failed[name] = result.error
+    summary.candidates += result.candidates
+    summary.grasps += len(result.grasps)
+    summary.force_closure += result.force_closure
+    summary.rejected.update(result.rejected)
+    summary.per_object.append({"object": name, "candidates": result.candidates, "grasps": len(result.grasps),
+                               "force_closure": result.force_closure, "seconds": round(seconds, 3),
+                               "error": result.error})
+
+
+def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1) -> list[GraspRow]:
+    """The ``top`` best grasps of an object for a hand, in rank order."""
+    if top < 1:
+        raise InputError(f"--top must be at least 1, got {top}")
+    hand_specs.load(hand)
+    key = objects.resolve_spec(name).name
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        rows = db.best(key, hand, top)
+        if not rows:
+            known = db.objects_for(hand)
+            raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}; objects with grasps: "
+                             f"{', '.join(known) or '(none)'}; run `grasp generate {name} --hand {hand}`")
+    return rows
+
+
+def check_db(db_path: Path) -> list[str]:
+    """``PRAGMA integrity_check`` problems (empty list: healthy)."""
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        return db.integrity_check()
+
+
+def open_database(db_path: Path) -> Database:
+    return open_db(Path(db_path), create=False, readonly=True)
+
+
+def default_workers() -> int:
+    return max(1, os.cpu_count() or 1)

@@ -1,0 +1,209 @@
+"""The ``grasp`` command: parse, call :mod:`planner.api`, print.
+
+Errors become one line on stderr and an exit code (2 bad input, 3 database,
+4 simulator, 1 anything else); ``grasp --debug ...`` shows the traceback.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+from pathlib import Path
+
+import click
+import numpy as np
+
+from planner import api, hands as hand_specs, objects, preshapes
+from planner.database import GraspRow
+from planner.errors import PlannerError
+from planner.sweep import SweepSettings
+
+EXIT_INTERNAL = 1
+EXIT_INTERRUPTED = 130
+
+
+class Group(click.Group):
+    """Maps every error to a one-line message and an exit code."""
+
+    def invoke(self, ctx: click.Context) -> object:
+        debug = "--debug" in sys.argv[1:] or (ctx.params or {}).get("debug", False)
+        try:
+            return super().invoke(ctx)
+        except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
+            raise
+        except PlannerError as exc:
+            if debug:
+                raise
+            click.echo(f"grasp: error: {exc}", err=True)
+            ctx.exit(exc.exit_code)
+        except KeyboardInterrupt:
+            click.echo("grasp: interrupted; finished units are saved, run the same command to resume", err=True)
+            ctx.exit(EXIT_INTERRUPTED)
+        except Exception as exc:
+            if debug:
+                raise
+            click.echo(f"grasp: internal error: {type(exc).__name__}: {exc} (rerun with --debug for details)",
+                       err=True)
+            ctx.exit(EXIT_INTERNAL)
+        return None
+
+
+@click.group(cls=Group)
+@click.option("--debug", is_flag=True, help="Show tracebacks and debug logging.")
+@click.version_option(package_name="grasp-planner")
+def main(debug: bool) -> None:
+    """Knowledge-based grasp planner: build, query and export grasp databases."""
+    logging.basicConfig(level=logging.DEBUG if debug else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+
+
+def _floats(text: str | None) -> tuple[float, ...] | None:
+    if text is None:
+        return None
+    try:
+        return tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise click.BadParameter(f"'{text}' is not a comma-separated list of numbers") from None
+
+
+@main.command()
+@click.argument("objects_", metavar="OBJECT...", nargs=-1, required=True)
+@click.option("--hand", required=True, help="Hand name (see `grasp hands`).")
+@click.option("--db", "db_path", type=click.Path(path_type=Path), default=api.DEFAULT_DB, show_default=True)
+@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--approaches", type=int, default=SweepSettings.approaches, show_default=True,
+              help="Approach rays per object (surface sampler).")
+@click.option("--sampler", type=click.Choice(["surface", "box"]), default="surface", show_default=True)
+@click.option("--box-delta", type=float, default=SweepSettings.box_delta, show_default=True,
+              help="Grid spacing of the box sampler [m].")
+@click.option("--rolls", type=int, default=SweepSettings.rolls, show_default=True)
+@click.option("--fan", "fan_count", type=int, default=0, show_default=True, help="Tilted directions per ray.")
+@click.option("--standoffs", help="Comma-separated standoffs [m] (default: each preshape's).")
+@click.option("--preshapes", "preshape_names", help="Comma-separated preshape names (default: all).")
+@click.option("--scale", type=float, help="Scale for mesh files (e.g. 0.001 for millimetres).")
+@click.option("--workers", type=int, default=1, show_default=True, help="Worker processes.")
+@click.option("--quiet", is_flag=True, help="No progress bar and no summary table.")
+@click.option("--json", "as_json", is_flag=True, help="Print a machine-readable summary.")
+def generate(objects_: tuple[str, ...], hand: str, db_path: Path, seed: int, approaches: int, sampler: str,
+             box_delta: float, rolls: int, fan_count: int, standoffs: str | None, preshape_names: str | None,
+             scale: float | None, workers: int, quiet: bool, as_json: bool) -> None:
+    """Sweep preshapes x approaches x rolls x standoffs and store the grasps."""
+    settings = SweepSettings(approaches=approaches, sampler=sampler, box_delta=box_delta, rolls=rolls,
+                             fan_count=fan_count, standoffs=_floats(standoffs),
+                             preshapes=tuple(preshape_names.split(",")) if preshape_names else None)
+    show = not quiet and not as_json
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total} objects"),
+                  TextColumn("{task.fields[grasps]} grasps"), TimeElapsedColumn(), TimeRemainingColumn(),
+                  disable=not show, transient=False) as bar:
+        task = bar.add_task("generating", total=len(objects_), grasps=0)
+        count = [0]
+
+        def advance(result: api.UnitResult) -> None:
+            count[0] += len(result.grasps)
+            bar.update(task, advance=1, grasps=count[0])
+
+        summary = api.generate(objects_, hand, db_path=db_path, settings=settings, seed=seed, workers=workers,
+                               scale=scale, progress=advance)
+    if as_json:
+        click.echo(json.dumps(summary.to_json(), indent=2))
+    elif not quiet:
+        _print_summary(summary, db_path)
+    if summary.failed and not summary.units - len(summary.failed):
+        sys.exit(2)
+
+
+def _print_summary(summary: api.Summary, db_path: Path) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"grasp generate -> {db_path}")
+    for col in ("object", "candidates", "grasps", "force-closure", "seconds", "error"):
+        table.add_column(col)
+    for row in summary.per_object:
+        table.add_row(row["object"], str(row["candidates"]), str(row["grasps"]), str(row["force_closure"]),
+                      f"{row['seconds']:.1f}", row["error"] or "")
+    console = Console()
+    console.print(table)
+    console.print(f"candidates tried: {summary.candidates}, grasps with contacts: {summary.grasps}, "
+                  f"force-closure: {summary.force_closure}, skipped (already done): {summary.skipped}, "
+                  f"time: {summary.seconds:.1f} s")
+    if summary.rejected:
+        console.print("rejected: " + ", ".join(f"{k} {v}" for k, v in sorted(summary.rejected.items())))
+
+
+def grasp_json(row: GraspRow) -> dict:
+    return {"object": row.object, "hand": row.hand, "preshape": row.preshape, "pose": row.pose,
+            "joints": row.closed_joints, "open_joints": row.open_joints, "width": row.width,
+            "epsilon": row.epsilon, "volume": row.volume, "force_closure": row.force_closure,
+            "contacts": row.contacts, "rank": row.rank, "score": row.score, "candidate": row.candidate,
+            "seed": row.seed}
+
+
+@main.command()
+@click.argument("object_name", metavar="OBJECT")
+@click.option("--hand", required=True)
+@click.option("--db", "db_path", type=click.Path(path_type=Path), default=api.DEFAULT_DB, show_default=True)
+@click.option("--top", type=int, default=1, show_default=True)
+@click.option("--json", "as_json", is_flag=True)
+def best(object_name: str, hand: str, db_path: Path, top: int, as_json: bool) -> None:
+    """The best grasps of OBJECT for a hand, from the database."""
+    rows = api.best(object_name, hand, db_path=db_path, top=top)
+    if as_json:
+        click.echo(json.dumps([grasp_json(r) for r in rows], indent=2))
+        return
+    for r in rows:
+        pos = np.array(r.pose)[:3, 3]
+        click.echo(f"#{r.rank} {r.object}/{r.hand} preshape={r.preshape} epsilon={r.epsilon:.4f} "
+                   f"volume={r.volume:.3g} force_closure={r.force_closure} contacts={len(r.contacts)} "
+                   f"position=({pos[0]:.3f}, {pos[1]:.3f}, {pos[2]:.3f}) m")
+
+
+@main.command(name="hands")
+@click.argument("name", required=False)
+def hands_cmd(name: str | None) -> None:
+    """List the built-in hands, or show one in detail."""
+    if name is None:
+        for hand_name in hand_specs.available():
+            spec = hand_specs.load(hand_name)
+            shapes = ", ".join(s.name for s in preshapes.load(spec))
+            click.echo(f"{hand_name:12s} {len(spec.joints):2d} finger joints  preshapes: {shapes}  "
+                       f"- {spec.description}")
+        return
+    spec = hand_specs.load(name)
+    click.echo(f"{spec.name}: {spec.description}\n  urdf: {spec.urdf}\n  root link: {spec.root_link}\n"
+               f"  approach: {spec.approach.tolist()}  tcp: {spec.tcp.tolist()} m\n"
+               f"  contact links: {', '.join(spec.contact_links)}")
+    for j in spec.joints:
+        extra = f" mimics {j.mimic} x{j.multiplier}" if j.mimic else f" close rate {j.close}"
+        click.echo(f"  joint {j.name} ({j.kind}) [{j.lower}, {j.upper}]{extra}")
+    for s in preshapes.load(spec):
+        click.echo(f"  preshape {s.name} tags={','.join(s.tags)} '{s.taxonomy}' standoffs={list(s.standoffs)}")
+
+
+@main.command(name="objects")
+def objects_cmd() -> None:
+    """List the built-in objects."""
+    for name, spec in objects.builtin_specs().items():
+        click.echo(f"{name:10s} {spec.kind:8s} mass {spec.mass:.3f} kg  friction {spec.friction:.2f}  "
+                   f"- {spec.description}")
+    click.echo(f"{objects.RANDOM_PREFIX}000 .. {objects.RANDOM_PREFIX}999  the procedurally generated objects "
+               "of pybullet_data/random_urdfs")
+
+
+@main.group()
+def db() -> None:
+    """Database maintenance."""
+
+
+@db.command()
+@click.option("--db", "db_path", type=click.Path(path_type=Path), default=api.DEFAULT_DB, show_default=True)
+def check(db_path: Path) -> None:
+    """Run SQLite's integrity check on the database."""
+    problems = api.check_db(db_path)
+    if problems:
+        for p in problems:
+            click.echo(p, err=True)
+        raise PlannerError(f"{db_path}: integrity check failed ({len(problems)} problems)")
+    click.echo(f"{db_path}: ok")

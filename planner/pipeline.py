@@ -1,0 +1,130 @@
+"""One unit of work end to end: object -> rays -> closing -> contacts ->
+quality, returning plain records for the single database writer.
+
+This runs inside worker processes: it reads descriptions and simulates, but
+never touches the database.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+import traceback
+from collections import Counter
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from planner import hands as hand_specs, objects, preshapes, quality, sampling
+from planner.closing import Closed, Grasper
+from planner.errors import PlannerError
+from planner.sim import Sim
+from planner.sweep import SweepSettings, candidates, unit_rng
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class UnitSpec:
+    """What a worker needs to run one unit (plain, picklable by value)."""
+
+    object_name: str
+    hand: str
+    settings: SweepSettings
+    seed: int
+    scale: float | None = None
+
+
+@dataclass(frozen=True)
+class GraspRecord:
+    """One evaluated grasp, ready to be written (see database.grasps)."""
+
+    candidate: int
+    preshape: str
+    approach_point: np.ndarray  # (3,) [m] object frame
+    approach_dir: np.ndarray  # (3,) unit
+    roll: float  # [rad]
+    standoff: float  # [m]
+    closed: Closed
+    epsilon: float
+    volume: float
+    force_closure: bool
+    width: float | None  # [m] parallel jaws: distance between the fingers
+
+
+@dataclass
+class UnitResult:
+    spec: UnitSpec
+    obj: objects.PreparedObject | None = None
+    grasps: list[GraspRecord] = field(default_factory=list)
+    candidates: int = 0
+    rejected: Counter = field(default_factory=Counter)
+    timing: dict[str, float] = field(default_factory=lambda: dict.fromkeys(
+        ("prepare", "sampling", "closing", "quality"), 0.0))
+    error: str | None = None
+
+    @property
+    def force_closure(self) -> int:
+        return sum(g.force_closure for g in self.grasps)
+
+
+def run_unit(spec: UnitSpec) -> UnitResult:
+    """Run a unit; a failure is recorded in the result, never raised."""
+    result = UnitResult(spec)
+    try:
+        _run(spec, result)
+    except PlannerError as exc:
+        result.error = str(exc)
+    except Exception as exc:  # a simulator or library crash: keep the batch going
+        log.debug("unit %s failed:\n%s", spec, traceback.format_exc())
+        result.error = f"{type(exc).__name__}: {exc}"
+    return result
+
+
+def _run(spec: UnitSpec, result: UnitResult) -> None:
+    t0 = time.perf_counter()
+    obj = objects.load(spec.object_name, scale=spec.scale)
+    hand = hand_specs.load(spec.hand)
+    shapes = preshapes.load(hand, list(spec.settings.preshapes) if spec.settings.preshapes else None)
+    result.obj = obj
+    t1 = time.perf_counter()
+    result.timing["prepare"] += t1 - t0
+    rng = unit_rng(spec.seed, obj.name, hand.name)
+    rays = sampling.sample(obj.mesh, sampler=spec.settings.sampler, count=spec.settings.approaches, rng=rng,
+                           delta=spec.settings.box_delta, fan_count=spec.settings.fan_count,
+                           fan_angle=spec.settings.fan_angle)
+    todo = candidates(rays, shapes, spec.settings)
+    result.candidates = len(todo)
+    t2 = time.perf_counter()
+    result.timing["sampling"] += t2 - t1
+    radius = obj.torque_scale + float(np.linalg.norm(obj.com))
+    with Sim() as sim:
+        grasper = Grasper(sim, hand, sim.add_static_mesh(obj.mesh.vertices, obj.mesh.faces))
+        for cand in todo:
+            ta = time.perf_counter()
+            closed = grasper.close(rays.points[cand.ray], rays.directions[cand.ray], cand.roll, cand.standoff,
+                                   cand.preshape, radius)
+            tb = time.perf_counter()
+            result.timing["closing"] += tb - ta
+            if not isinstance(closed, Closed):
+                result.rejected[closed.reason] += 1
+                continue
+            q = evaluate(closed, obj, spec.settings.cone_edges)
+            result.timing["quality"] += time.perf_counter() - tb
+            result.grasps.append(GraspRecord(
+                candidate=cand.index, preshape=cand.preshape.name, approach_point=rays.points[cand.ray],
+                approach_dir=rays.directions[cand.ray], roll=cand.roll, standoff=cand.standoff, closed=closed,
+                epsilon=q.epsilon, volume=q.volume, force_closure=q.force_closure, width=_width(hand, closed)))
+
+
+def evaluate(closed: Closed, obj: objects.PreparedObject, cone_edges: int) -> quality.Quality:
+    """Ferrari-Canny epsilon (L1), GWS volume and force closure of a closed hand."""
+    c = closed.contacts
+    return quality.evaluate(c.points, c.frames, mu=obj.friction, center=obj.com, torque_scale=obj.torque_scale,
+                            cone_edges=cone_edges, model=list(c.models), torsion=c.torsion)
+
+
+def _width(hand: hand_specs.HandSpec, closed: Closed) -> float | None:
+    if not hand.centering:
+        return None
+    return float(sum(closed.closed_joints[j.name] for j in hand.joints if j.kind == "prismatic"))

@@ -1,0 +1,58 @@
+"""The single database writer: one transaction per unit of work."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+
+from planner.database import Database
+from planner.pipeline import UnitResult
+from planner.ranking import RERANK_SQL, RankingRule
+
+
+def _j(values: object) -> str:
+    return json.dumps(values, separators=(",", ":"))
+
+
+def _vec(a: np.ndarray, digits: int = 7) -> list[float]:
+    return [round(float(v), digits) for v in np.ravel(a)]
+
+
+def write_unit(db: Database, result: UnitResult, seconds: float, rule: RankingRule | None = None) -> None:
+    """Store a finished (or failed) unit and its grasps atomically, then re-rank."""
+    rule = rule or RankingRule()
+    spec = result.spec
+    obj = result.obj
+    name = obj.name if obj is not None else spec.object_name
+    status = "failed" if result.error else "done"
+    with db.transaction() as conn:
+        db.set_meta(conn, "ranking", rule.to_json())
+        conn.execute("DELETE FROM units WHERE object = ? AND hand = ? AND settings_hash = ? AND seed = ?",
+                     (name, spec.hand, spec.settings.digest, spec.seed))
+        cur = conn.execute(
+            "INSERT INTO units (object, hand, settings_hash, seed, settings, status, error, candidates, grasps,"
+            " force_closure, rejected, seconds, finished_at) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?)",
+            (name, spec.hand, spec.settings.digest, spec.seed, spec.settings.to_json(), status, result.error,
+             result.candidates, len(result.grasps), result.force_closure, _j(dict(result.rejected)), seconds,
+             time.strftime("%Y-%m-%dT%H:%M:%S")))
+        unit_id = cur.lastrowid
+        if obj is not None:
+            conn.execute(
+                "INSERT OR REPLACE INTO objects (name, source, scale, mesh_sha256, mass, friction, density, volume,"
+                " com, inertia, torque_scale, extents) VALUES (?,?,?,?,?,?,?,?,?,?,?,?)",
+                (name, obj.source_file, obj.spec.scale, obj.mesh_hash, obj.mass, obj.friction, obj.density,
+                 obj.volume, _j(_vec(obj.com)), _j(_vec(obj.inertia, 10)), obj.torque_scale,
+                 _j(_vec(obj.mesh.extents))))
+        conn.executemany(
+            "INSERT INTO grasps (unit_id, object, hand, preshape, candidate, approach_point, approach_dir, roll,"
+            " standoff, pose, open_joints, closed_joints, width, contacts, n_contacts, links_touching, epsilon,"
+            " volume, force_closure, seed, score) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
+            [(unit_id, name, spec.hand, g.preshape, g.candidate, _j(_vec(g.approach_point)),
+              _j(_vec(g.approach_dir)), g.roll, g.standoff, _j(_vec(g.closed.pose)),
+              _j(g.closed.open_joints), _j(g.closed.closed_joints), g.width, _j(g.closed.contacts.to_json()),
+              len(g.closed.contacts), len(g.closed.contacts.touching_links), g.epsilon, g.volume,
+              int(g.force_closure), spec.seed, rule.score(g.epsilon, g.force_closure))
+             for g in result.grasps])
+        conn.execute(RERANK_SQL, (name, spec.hand))

@@ -1,0 +1,52 @@
+import math
+
+import numpy as np
+import pytest
+from helpers import assert_close
+
+from planner import objects
+from planner.errors import UnknownNameError
+
+
+def test_sphere_known_answers() -> None:
+    o = objects.load("sphere")
+    r = o.spec.dims[0]
+    assert_close(o.com, [0, 0, 0], 1e-9)
+    assert o.torque_scale == pytest.approx(r, rel=1e-6)
+    # icosphere volume is slightly under the sphere's
+    assert o.volume == pytest.approx(4 / 3 * math.pi * r**3, rel=0.02)
+    assert o.density == pytest.approx(o.mass / o.volume)
+    # radius of gyration about the centre of mass, k^2 = trace(I) / (2 m):
+    # for a solid sphere (I = 2/5 m r^2 per axis) k = sqrt(3/5) r
+    assert o.gyration_radius == pytest.approx(math.sqrt(0.6) * r, rel=0.02)
+
+
+def test_box_torque_scale_is_half_diagonal() -> None:
+    o = objects.load("box")
+    assert o.torque_scale == pytest.approx(0.5 * np.linalg.norm(o.spec.dims), rel=1e-9)
+
+
+@pytest.mark.parametrize("name", ["mug", "duck", "teddy", "bunny", "box", "cylinder", "sphere", "random_007"])
+def test_builtins_load_as_closed_solids_of_hand_size(name: str) -> None:
+    o = objects.load(name)
+    assert o.mesh.is_watertight and o.volume > 0
+    assert 0.02 < max(o.mesh.extents) < 0.2
+    assert np.all(np.isfinite(o.inertia))
+
+
+def test_mug_keeps_its_handle_and_cavity() -> None:
+    o = objects.load("mug")
+    # the cavity: a point on the axis inside the cup is outside the solid
+    assert not o.mesh.contains([[0.0, 0.0, 0.06]])[0]
+    # the handle: a solid piece beyond the cup's radius
+    assert o.mesh.bounds[1][1] > 0.07
+
+
+def test_unknown_object_lists_builtins() -> None:
+    with pytest.raises(UnknownNameError, match="mug.*sphere|Available objects"):
+        objects.resolve_spec("teapot")
+
+
+def test_scale_multiplies_builtin_mesh_scale() -> None:
+    plain, half = objects.load("duck"), objects.load("duck", scale=0.5)
+    assert_close(half.mesh.extents, plain.mesh.extents * 0.5, 1e-9)
