@@ -20,6 +20,7 @@ The object frame is the world frame here (the object sits at the origin).
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -29,6 +30,10 @@ from planner.hands import HandSpec
 from planner.preshapes import Preshape
 from planner.sampling import hand_rotation
 from planner.sim import Body, Closest, Sim
+
+
+#: Pairs closing in slower than this (per unit travel) count as sliding past.
+CLOSING_SPEED_MIN = 0.05
 
 
 @dataclass(frozen=True)
@@ -89,7 +94,9 @@ class Grasper:
         self.names = {index: name for name, index in self.body.links.items()}
         self.geometry = tuple(n for n in self.hand.links if self.sim.has_collision(self.body, n))
         self._front: dict[str, float] = {}
+        self._axes: dict[str, np.ndarray] = {}
         self.queries = 0
+        self.contact_seconds = 0.0  # time spent reading contacts (benchmarks)
 
     # -- queries -------------------------------------------------------------
     def _closest(self, reach: float, link: str | None = None) -> Closest:
@@ -129,19 +136,19 @@ class Grasper:
         pose[:3, 3] = point - direction * start - rotation @ self.hand.tcp
         joints = dict(preshape.joints)
         self._place(pose, joints)
-        backed = 0.0
-        while self._gap(self._closest(0.0)) <= 0.0:  # back off while colliding
+        backed, jump = 0.0, s.coarse_step
+        while self._gap(self._closest(0.0)) <= 0.0:  # back off while colliding, in doubling jumps
             if backed > 2 * object_radius:
                 return Rejected("start_collision", self.queries)
-            pose[:3, 3] -= direction * s.coarse_step
-            backed += s.coarse_step
-            self._place(pose, joints)
+            pose[:3, 3] -= direction * jump
+            backed += jump
+            jump *= 2
+            self.sim.set_pose(self.body, pose)
         travelled, limit = 0.0, start + backed + 2 * object_radius
         while True:
-            gap = self._gap(self._closest(s.coarse_step + s.gap))
-            if gap <= s.contact_tol:
+            touching, step = self._translation_step(self._closest(s.coarse_step + s.gap), direction)
+            if touching:
                 break
-            step = s.coarse_step if not np.isfinite(gap) else gap - s.gap
             travelled += step
             if travelled > limit:
                 return Rejected("missed", self.queries)
@@ -153,7 +160,32 @@ class Grasper:
         if self.hand.centering:
             pose, closed = self._centre(pose, closed)
             self._place(pose, closed)
-        return self._read(pose, preshape.joints, closed)
+        t = time.perf_counter()
+        out = self._read(pose, preshape.joints, closed)
+        self.contact_seconds += time.perf_counter() - t
+        return out
+
+    def _translation_step(self, pairs: Closest, velocity: np.ndarray) -> tuple[bool, float]:
+        """(touching, safe travel [m]) for links translating along unit ``velocity``.
+
+        Each closest-point pair is a convex link piece and a convex object piece
+        (a triangle); their distance is a convex function of the travel, so it
+        cannot reach zero before ``gap / closing speed`` along the pair's
+        normal, and a pair that is not closing in never collides. Pairs beyond
+        the query range are at least ``coarse_step`` away.
+        """
+        s = self.settings
+        if len(pairs) == 0:
+            return False, s.coarse_step
+        gaps = pairs.distance + self.hand.distance_offset
+        speed = -(pairs.normal_b @ velocity)
+        closing = speed > CLOSING_SPEED_MIN
+        if np.any(closing & (gaps <= s.contact_tol)):
+            return True, 0.0
+        if not np.any(closing):
+            return False, s.coarse_step
+        step = float(np.min((gaps[closing] - s.gap) / speed[closing]))
+        return False, min(max(step, 0.0), s.coarse_step)
 
     def _dofs(self, preshape: Preshape) -> list[_Dof]:
         dofs: list[_Dof] = []
@@ -182,26 +214,34 @@ class Grasper:
             if not live:
                 break
             speed = {id(d): self._speeds(d) for d in live}
-            caps = {id(d): min((s.coarse_angle if self.hand.joint(j).kind == "revolute" else s.coarse_step) / abs(r)
-                               for j, r in d.rates.items()) for d in live}
+            caps = {id(d): self._cap(d, q) for d in live}
             sharing = {}
             for d in live:
                 for link in d.links:
                     sharing[link] = sharing.get(link, 0) + 1
-            gaps = {}
+            pairs = {}
             for link in sharing:
                 reach = max(speed[id(d)].get(link, 0.0) * caps[id(d)] for d in live) + s.contact_tol + s.gap
-                gaps[link] = self._gap(self._closest(reach, link))
+                pairs[link] = self._closest(reach, link)
             steps = {}
             for d in live:
-                if any(gaps[link] <= s.contact_tol for link in d.links):
+                touching, ds = False, caps[id(d)]
+                for link in d.links:
+                    velocity = self._translation(d, link) if sharing[link] == 1 else None
+                    if velocity is not None:  # a translating link: directional bound
+                        rate = float(np.linalg.norm(velocity))
+                        hit, travel = self._translation_step(pairs[link], velocity / rate)
+                        touching |= hit
+                        ds = min(ds, travel / rate)
+                        continue
+                    gap = self._gap(pairs[link])
+                    touching |= gap <= s.contact_tol
+                    v = speed[id(d)][link]
+                    if v > 0 and np.isfinite(gap):
+                        ds = min(ds, (gap - s.gap) / (sharing[link] * v))
+                if touching:
                     d.active = False
                     continue
-                ds = caps[id(d)]
-                for link in d.links:
-                    v = speed[id(d)][link]
-                    if v > 0 and np.isfinite(gaps[link]):
-                        ds = min(ds, (gaps[link] - s.gap) / (sharing[link] * v))
                 room = min(self._headroom(j, q[j], r) for j, r in d.rates.items())
                 if room <= 1e-9:
                     d.active = False
@@ -213,6 +253,31 @@ class Grasper:
                         q[j] += r * steps[id(d)]
             self.sim.set_joints(self.body, q)
         return q
+
+    def _cap(self, dof: _Dof, q: dict[str, float]) -> float:
+        """Largest closing step considered in one iteration (units of s).
+
+        Prismatic-only DOFs look at their whole remaining travel at once (the
+        directional bound makes that safe); revolute ones turn at most
+        ``coarse_angle`` per step."""
+        room = min(self._headroom(j, q[j], r) for j, r in dof.rates.items())
+        if all(self.hand.joint(j).kind == "prismatic" for j in dof.rates):
+            return max(room, 1e-9)
+        return min(self.settings.coarse_angle / abs(r) for r in dof.rates.values())
+
+    def _translation(self, dof: _Dof, link: str) -> np.ndarray | None:
+        """World velocity of ``link`` per unit closing if only prismatic joints move it."""
+        movers = [self.hand.joint(j) for j in dof.rates if link in self.hand.joint(j).moves]
+        if not movers or any(j.kind != "prismatic" for j in movers):
+            return None
+        root = self.sim.link_pose(self.body, self.hand.root_link)
+        velocity = sum(dof.rates[j.name] * (root[:3, :3] @ self._axis_in_root(j.name)) for j in movers)
+        return velocity if np.linalg.norm(velocity) > 0 else None
+
+    def _axis_in_root(self, joint: str) -> np.ndarray:
+        if joint not in self._axes:
+            self._axes[joint] = self.sim.joint_axis_in_base(self.body, joint)
+        return self._axes[joint]
 
     def _headroom(self, joint: str, value: float, rate: float) -> float:
         spec = self.hand.joint(joint)

@@ -229,11 +229,11 @@ def _migrate(db: Database, version: int) -> None:
         log.warning("%s: migrating schema v%d -> v%d; backup at %s", db.path, version, SCHEMA_VERSION, backup)
     try:
         with db.transaction() as conn:
-            if version == 0:
-                conn.executescript("SAVEPOINT s;" + SCHEMA + "RELEASE s;")
-            else:
-                for v in range(version, SCHEMA_VERSION):
-                    conn.executescript("SAVEPOINT s;" + MIGRATIONS[v] + "RELEASE s;")
+            scripts = [SCHEMA] if version == 0 else [MIGRATIONS[v] for v in range(version, SCHEMA_VERSION)]
+            for script in scripts:
+                # not executescript(): it would COMMIT the open transaction first
+                for statement in filter(str.strip, script.split(";")):
+                    conn.execute(statement)
             db.set_meta(conn, "schema_version", str(SCHEMA_VERSION))
     except sqlite3.OperationalError as exc:
         raise DatabaseError(f"{db.path}: cannot write the database ({exc}); is it read-only?") from exc

@@ -85,6 +85,7 @@ class HandSpec:
     contacts: dict[str, ContactModel]
     centering: bool  # a self-centring parallel jaw: re-centre after closing
     distance_offset: float  # [m] PyBullet's collision margins: true gap = reported + offset
+    roll_symmetry: int  # the hand looks the same after 2 pi / roll_symmetry about the approach
     links: tuple[str, ...]
     arm: ArmSpec | None
 
@@ -148,8 +149,16 @@ def load_folder(folder: Path) -> HandSpec:
         root_link=root_link, approach=approach / np.linalg.norm(approach), tcp=np.array(f.floats("tcp", 3)),
         joints=joints, contact_links=contact_links, contacts=contacts, centering=f.bool("centering", False),
         distance_offset=f.float("distance_offset", DEFAULT_DISTANCE_OFFSET),
+        roll_symmetry=_symmetry(f),
         links=tuple(tree.links), arm=_arm(f, folder),
     )
+
+
+def _symmetry(f: Fields) -> int:
+    value = f.data.get("roll_symmetry", 1)
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ConfigError(f"{f.where} field 'roll_symmetry': must be a whole number >= 1")
+    return value
 
 
 def _joint(tree: _UrdfTree, f: Fields) -> JointSpec:

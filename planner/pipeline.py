@@ -60,7 +60,7 @@ class UnitResult:
     candidates: int = 0
     rejected: Counter = field(default_factory=Counter)
     timing: dict[str, float] = field(default_factory=lambda: dict.fromkeys(
-        ("prepare", "sampling", "closing", "quality"), 0.0))
+        ("prepare", "sampling", "closing", "contacts", "quality"), 0.0))
     error: str | None = None
 
     @property
@@ -93,7 +93,7 @@ def _run(spec: UnitSpec, result: UnitResult) -> None:
     rays = sampling.sample(obj.mesh, sampler=spec.settings.sampler, count=spec.settings.approaches, rng=rng,
                            delta=spec.settings.box_delta, fan_count=spec.settings.fan_count,
                            fan_angle=spec.settings.fan_angle)
-    todo = candidates(rays, shapes, spec.settings)
+    todo = candidates(rays, shapes, spec.settings, hand.roll_symmetry)
     result.candidates = len(todo)
     t2 = time.perf_counter()
     result.timing["sampling"] += t2 - t1
@@ -115,6 +115,9 @@ def _run(spec: UnitSpec, result: UnitResult) -> None:
                 candidate=cand.index, preshape=cand.preshape.name, approach_point=rays.points[cand.ray],
                 approach_dir=rays.directions[cand.ray], roll=cand.roll, standoff=cand.standoff, closed=closed,
                 epsilon=q.epsilon, volume=q.volume, force_closure=q.force_closure, width=_width(hand, closed)))
+        # contact reading happens inside closing; report it as its own stage
+        result.timing["contacts"] = grasper.contact_seconds
+        result.timing["closing"] -= grasper.contact_seconds
 
 
 def evaluate(closed: Closed, obj: objects.PreparedObject, cone_edges: int) -> quality.Quality:

@@ -35,7 +35,7 @@ class SweepSettings:
     box_delta: float = 0.02  # box sampler: grid spacing [m]
     fan_count: int = 0  # extra tilted directions per ray
     fan_angle: float = 0.3  # their tilt [rad]
-    rolls: int = 4  # rolls about the approach axis, evenly spaced in [0, 2 pi)
+    rolls: int = 4  # rolls about the approach axis, evenly spaced in [0, 2 pi / hand symmetry)
     standoffs: tuple[float, ...] | None = None  # None: each preshape's own
     preshapes: tuple[str, ...] | None = None  # None: all of the hand's
     cone_edges: int = 8  # friction cone edges m
@@ -57,9 +57,9 @@ class SweepSettings:
     def digest(self) -> str:
         return hashlib.sha256(self.to_json().encode()).hexdigest()[:16]
 
-    @property
-    def roll_angles(self) -> np.ndarray:
-        return 2 * np.pi * np.arange(self.rolls) / self.rolls
+    def roll_angles(self, symmetry: int = 1) -> np.ndarray:
+        """Rolls [rad]; a hand symmetric under a half turn needs only [0, pi)."""
+        return 2 * np.pi * np.arange(self.rolls) / (self.rolls * symmetry)
 
 
 def unit_rng(seed: int, object_name: str, hand_name: str) -> np.random.Generator:
@@ -78,10 +78,11 @@ class Candidate:
     standoff: float
 
 
-def candidates(approaches: Approaches, shapes: tuple[Preshape, ...], settings: SweepSettings) -> list[Candidate]:
+def candidates(approaches: Approaches, shapes: tuple[Preshape, ...], settings: SweepSettings,
+               symmetry: int = 1) -> list[Candidate]:
     """Every (ray, preshape, roll, standoff), in a fixed order."""
     out = []
-    for ray, shape, roll in product(range(len(approaches)), shapes, settings.roll_angles):
+    for ray, shape, roll in product(range(len(approaches)), shapes, settings.roll_angles(symmetry)):
         for standoff in settings.standoffs or shape.standoffs:
             out.append(Candidate(len(out), ray, shape, float(roll), float(standoff)))
     return out

@@ -1,0 +1,64 @@
+"""Candidates evaluated per second per core, with a per-stage breakdown.
+
+    python bench/throughput.py [--object mug] [--hand panda ...] [--approaches 24]
+
+Runs one unit per hand in this process (one core), writes it to a scratch
+database, and prints figures for sampling, closing, contacts, quality and the
+database write.
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import tempfile
+import time
+from pathlib import Path
+
+from planner import hands
+from planner.database import open_db
+from planner.pipeline import UnitSpec, run_unit
+from planner.sweep import SweepSettings
+from planner.writer import write_unit
+
+
+def bench(obj: str, hand: str, approaches: int, seed: int) -> dict:
+    settings = SweepSettings(approaches=approaches)
+    t0 = time.perf_counter()
+    result = run_unit(UnitSpec(obj, hand, settings, seed))
+    total = time.perf_counter() - t0
+    if result.error:
+        raise SystemExit(f"{hand}: {result.error}")
+    with tempfile.TemporaryDirectory() as tmp, open_db(Path(tmp) / "bench.db") as db:
+        t1 = time.perf_counter()
+        write_unit(db, result, total)
+        db_seconds = time.perf_counter() - t1
+    timing = dict(result.timing, database=db_seconds)
+    work = total + db_seconds
+    return {"hand": hand, "candidates": result.candidates, "grasps": len(result.grasps),
+            "fc": result.force_closure, "seconds": work, "rate": result.candidates / work, "timing": timing,
+            "rejected": dict(result.rejected)}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--object", default="mug")
+    parser.add_argument("--hand", action="append", help="hand name (repeat); default: every hand")
+    parser.add_argument("--approaches", type=int, default=24)
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+    print(f"# throughput on '{args.object}', {args.approaches} approaches, one process "
+          f"({platform.processor() or platform.machine()}, Python {platform.python_version()})")
+    print(f"{'hand':10s} {'cand':>6s} {'grasps':>6s} {'FC':>5s} {'cand/s/core':>11s} | "
+          "stage ms/candidate: prepare sampling closing contacts quality database")
+    for hand in args.hand or hands.available():
+        r = bench(args.object, hand, args.approaches, args.seed)
+        per = {k: 1000 * v / max(r["candidates"], 1) for k, v in r["timing"].items()}
+        print(f"{hand:10s} {r['candidates']:6d} {r['grasps']:6d} {r['fc']:5d} {r['rate']:11.1f} | "
+              + " ".join(f"{per[k]:.2f}" for k in ("prepare", "sampling", "closing", "contacts", "quality",
+                                                   "database"))
+              + f"   rejected: {r['rejected']}")
+
+
+if __name__ == "__main__":
+    main()
