@@ -83,13 +83,17 @@ def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: i
         if spec.name in seen:
             continue
         seen.add(spec.name)
-        units.append(UnitSpec(name, hand, settings, seed, scale))
+        units += [UnitSpec(name, hand, settings, seed, scale, chunk) for chunk in range(settings.chunks())]
+    if len(seen) == 1:
+        # One object: a broken mesh is the user's input error, reported before
+        # the database is opened. In a batch it is recorded and the rest go on.
+        objects.load(names[0], scale=scale)
     return units
 
 
 def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, settings: SweepSettings | None = None,
              seed: int = 0, workers: int = 1, scale: float | None = None,
-             progress: Callable[[UnitResult], None] | None = None) -> Summary:
+             progress: Callable[[UnitResult, int, int], None] | None = None) -> Summary:
     """Build (or extend) a grasp database; finished units are skipped."""
     settings = settings or SweepSettings()
     units = plan_units(names, hand, settings, seed, scale)
@@ -97,17 +101,20 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
     start = time.perf_counter()
     with writer_lock(Path(db_path)), open_db(Path(db_path)) as db:
         todo = []
+        done = db.units_done(hand, settings.digest, seed)
         for unit in units:
             key = objects.resolve_spec(unit.object_name, scale=scale).name
-            if db.unit_done(key, hand, settings.digest, seed):
+            if (key, unit.chunk) in done:
                 summary.skipped += 1
             else:
                 todo.append(unit)
-        for result, seconds in _execute(todo, workers):
+        if progress:
+            progress(None, 0, len(todo))  # type: ignore[arg-type]
+        for done_count, (result, seconds) in enumerate(_execute(todo, workers), start=1):
             write_unit(db, result, seconds)
             _tally(summary, result, seconds)
             if progress:
-                progress(result)
+                progress(result, done_count, len(todo))
     summary.seconds = time.perf_counter() - start
     return summary
 
@@ -138,9 +145,17 @@ def _tally(summary: Summary, result: UnitResult, seconds: float) -> None:
     summary.grasps += len(result.grasps)
     summary.force_closure += result.force_closure
     summary.rejected.update(result.rejected)
-    summary.per_object.append({"object": name, "candidates": result.candidates, "grasps": len(result.grasps),
-                               "force_closure": result.force_closure, "seconds": round(seconds, 3),
-                               "error": result.error})
+    row = next((r for r in summary.per_object if r["object"] == name), None)
+    if row is None:
+        row = {"object": name, "units": 0, "candidates": 0, "grasps": 0, "force_closure": 0, "seconds": 0.0,
+               "error": None}
+        summary.per_object.append(row)
+    row["units"] += 1
+    row["candidates"] += result.candidates
+    row["grasps"] += len(result.grasps)
+    row["force_closure"] += result.force_closure
+    row["seconds"] = round(row["seconds"] + seconds, 3)
+    row["error"] = row["error"] or result.error
 
 
 def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1) -> list[GraspRow]:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import logging
 import sys
+import time
 from pathlib import Path
 
 import click
@@ -81,28 +82,38 @@ def _floats(text: str | None) -> tuple[float, ...] | None:
 @click.option("--standoffs", help="Comma-separated standoffs [m] (default: each preshape's).")
 @click.option("--preshapes", "preshape_names", help="Comma-separated preshape names (default: all).")
 @click.option("--scale", type=float, help="Scale for mesh files (e.g. 0.001 for millimetres).")
-@click.option("--workers", type=int, default=1, show_default=True, help="Worker processes.")
+@click.option("--workers", type=int, default=api.default_workers(), show_default="all cores",
+              help="Worker processes.")
+@click.option("--chunk", type=int, default=SweepSettings.chunk, show_default=True,
+              help="Approach rays per unit of work (0: one unit per object).")
 @click.option("--quiet", is_flag=True, help="No progress bar and no summary table.")
 @click.option("--json", "as_json", is_flag=True, help="Print a machine-readable summary.")
 def generate(objects_: tuple[str, ...], hand: str, db_path: Path, seed: int, approaches: int, sampler: str,
              box_delta: float, rolls: int, fan_count: int, standoffs: str | None, preshape_names: str | None,
-             scale: float | None, workers: int, quiet: bool, as_json: bool) -> None:
+             scale: float | None, workers: int, chunk: int, quiet: bool, as_json: bool) -> None:
     """Sweep preshapes x approaches x rolls x standoffs and store the grasps."""
     settings = SweepSettings(approaches=approaches, sampler=sampler, box_delta=box_delta, rolls=rolls,
-                             fan_count=fan_count, standoffs=_floats(standoffs),
+                             fan_count=fan_count, standoffs=_floats(standoffs), chunk=chunk,
                              preshapes=tuple(preshape_names.split(",")) if preshape_names else None)
     show = not quiet and not as_json
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total} objects"),
-                  TextColumn("{task.fields[grasps]} grasps"), TimeElapsedColumn(), TimeRemainingColumn(),
-                  disable=not show, transient=False) as bar:
-        task = bar.add_task("generating", total=len(objects_), grasps=0)
-        count = [0]
+    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total} units"),
+                  TextColumn("{task.fields[grasps]} grasps, {task.fields[fc]} force-closure, {task.fields[rate]}"),
+                  TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), disable=not show) as bar:
+        task = bar.add_task("generating", total=None, grasps=0, fc=0, rate="")
+        counts = {"grasps": 0, "fc": 0, "candidates": 0}
+        started = time.perf_counter()
 
-        def advance(result: api.UnitResult) -> None:
-            count[0] += len(result.grasps)
-            bar.update(task, advance=1, grasps=count[0])
+        def advance(result: api.UnitResult | None, done: int, total: int) -> None:
+            if result is None:
+                bar.update(task, total=total)
+                return
+            counts["grasps"] += len(result.grasps)
+            counts["fc"] += result.force_closure
+            counts["candidates"] += result.candidates
+            rate = counts["candidates"] / max(time.perf_counter() - started, 1e-9)
+            bar.update(task, completed=done, grasps=counts["grasps"], fc=counts["fc"], rate=f"{rate:.0f} cand/s")
 
         summary = api.generate(objects_, hand, db_path=db_path, settings=settings, seed=seed, workers=workers,
                                scale=scale, progress=advance)
@@ -110,7 +121,9 @@ def generate(objects_: tuple[str, ...], hand: str, db_path: Path, seed: int, app
         click.echo(json.dumps(summary.to_json(), indent=2))
     elif not quiet:
         _print_summary(summary, db_path)
-    if summary.failed and not summary.units - len(summary.failed):
+    for name, error in summary.failed.items():
+        click.echo(f"grasp: error: {name}: {error}", err=True)
+    if summary.failed:
         sys.exit(2)
 
 
@@ -119,10 +132,11 @@ def _print_summary(summary: api.Summary, db_path: Path) -> None:
     from rich.table import Table
 
     table = Table(title=f"grasp generate -> {db_path}")
-    for col in ("object", "candidates", "grasps", "force-closure", "seconds", "error"):
+    for col in ("object", "units", "candidates", "grasps", "force-closure", "worker s", "error"):
         table.add_column(col)
     for row in summary.per_object:
-        table.add_row(row["object"], str(row["candidates"]), str(row["grasps"]), str(row["force_closure"]),
+        table.add_row(row["object"], str(row["units"]), str(row["candidates"]), str(row["grasps"]),
+                      str(row["force_closure"]),
                       f"{row['seconds']:.1f}", row["error"] or "")
     console = Console()
     console.print(table)

@@ -5,7 +5,7 @@ Tables (see the README for every column):
 - ``meta``: key/value -- schema version, ranking rule (JSON).
 - ``objects``: one row per object name: source, scale, mesh hash, mass
   properties, friction, torque scale.
-- ``units``: one row per unit of work (object, hand, settings hash, seed);
+- ``units``: one row per unit of work (object, hand, settings hash, seed, chunk);
   a unit's grasps are written in the same transaction that marks it done, so
   an interrupted run leaves either all of a unit or none of it.
 - ``grasps``: one row per evaluated grasp (a hand that closed on the object
@@ -43,10 +43,10 @@ CREATE TABLE IF NOT EXISTS objects (
 );
 CREATE TABLE IF NOT EXISTS units (
     id INTEGER PRIMARY KEY, object TEXT NOT NULL, hand TEXT NOT NULL, settings_hash TEXT NOT NULL,
-    seed INTEGER NOT NULL, settings TEXT NOT NULL, status TEXT NOT NULL, error TEXT,
+    seed INTEGER NOT NULL, chunk INTEGER NOT NULL, settings TEXT NOT NULL, status TEXT NOT NULL, error TEXT,
     candidates INTEGER NOT NULL DEFAULT 0, grasps INTEGER NOT NULL DEFAULT 0,
     force_closure INTEGER NOT NULL DEFAULT 0, rejected TEXT, seconds REAL, finished_at TEXT,
-    UNIQUE (object, hand, settings_hash, seed)
+    UNIQUE (object, hand, settings_hash, seed, chunk)
 );
 CREATE TABLE IF NOT EXISTS grasps (
     id INTEGER PRIMARY KEY, unit_id INTEGER NOT NULL REFERENCES units(id) ON DELETE CASCADE,
@@ -129,11 +129,12 @@ class Database:
                      (key, value))
 
     # -- units --------------------------------------------------------------
-    def unit_done(self, obj: str, hand: str, settings_hash: str, seed: int) -> bool:
-        row = self.conn.execute(
-            "SELECT status FROM units WHERE object = ? AND hand = ? AND settings_hash = ? AND seed = ?",
-            (obj, hand, settings_hash, seed)).fetchone()
-        return row is not None and row[0] == "done"
+    def units_done(self, hand: str, settings_hash: str, seed: int) -> set[tuple[str, int]]:
+        """(object, chunk) of every finished unit with these settings."""
+        rows = self.conn.execute(
+            "SELECT object, chunk FROM units WHERE hand = ? AND settings_hash = ? AND seed = ? AND status = 'done'",
+            (hand, settings_hash, seed))
+        return {(r[0], r[1]) for r in rows}
 
     def integrity_check(self) -> list[str]:
         try:

@@ -33,6 +33,7 @@ class UnitSpec:
     settings: SweepSettings
     seed: int
     scale: float | None = None
+    chunk: int = 0  # which slice of the object's rays (see SweepSettings.chunk)
 
 
 @dataclass(frozen=True)
@@ -93,7 +94,7 @@ def _run(spec: UnitSpec, result: UnitResult) -> None:
     rays = sampling.sample(obj.mesh, sampler=spec.settings.sampler, count=spec.settings.approaches, rng=rng,
                            delta=spec.settings.box_delta, fan_count=spec.settings.fan_count,
                            fan_angle=spec.settings.fan_angle)
-    todo = candidates(rays, shapes, spec.settings, hand.roll_symmetry)
+    todo = candidates(rays, shapes, spec.settings, hand.roll_symmetry, spec.settings.ray_range(spec.chunk, len(rays)))
     result.candidates = len(todo)
     t2 = time.perf_counter()
     result.timing["sampling"] += t2 - t1

@@ -39,12 +39,15 @@ class SweepSettings:
     standoffs: tuple[float, ...] | None = None  # None: each preshape's own
     preshapes: tuple[str, ...] | None = None  # None: all of the hand's
     cone_edges: int = 8  # friction cone edges m
+    chunk: int = 32  # rays per unit of work (surface sampler); 0: one unit per object
 
     def __post_init__(self) -> None:
         if self.sampler not in SAMPLERS:
             raise InputError(f"unknown sampler '{self.sampler}'; use {', '.join(SAMPLERS)}")
         if self.approaches < 1 or self.rolls < 1 or self.cone_edges < 3 or self.fan_count < 0:
             raise InputError("approaches and rolls must be >= 1, cone edges >= 3, fan count >= 0")
+        if self.chunk < 0:
+            raise InputError("chunk must be >= 0")
         if self.standoffs is not None and (not self.standoffs or min(self.standoffs) < 0):
             raise InputError("standoffs must be non-negative distances in metres")
 
@@ -56,6 +59,23 @@ class SweepSettings:
     @property
     def digest(self) -> str:
         return hashlib.sha256(self.to_json().encode()).hexdigest()[:16]
+
+    @property
+    def rays_known(self) -> int | None:
+        """Rays per object when known before sampling (surface sampler)."""
+        return self.approaches * (1 + self.fan_count) if self.sampler == "surface" else None
+
+    def chunks(self) -> int:
+        """Units of work per object."""
+        rays = self.rays_known
+        if rays is None or self.chunk == 0:
+            return 1
+        return -(-rays // self.chunk)
+
+    def ray_range(self, chunk: int, total: int) -> range:
+        if self.chunks() == 1:
+            return range(total)
+        return range(chunk * self.chunk, min(total, (chunk + 1) * self.chunk))
 
     def roll_angles(self, symmetry: int = 1) -> np.ndarray:
         """Rolls [rad]; a hand symmetric under a half turn needs only [0, pi)."""
@@ -79,10 +99,14 @@ class Candidate:
 
 
 def candidates(approaches: Approaches, shapes: tuple[Preshape, ...], settings: SweepSettings,
-               symmetry: int = 1) -> list[Candidate]:
-    """Every (ray, preshape, roll, standoff), in a fixed order."""
-    out = []
+               symmetry: int = 1, rays: range | None = None) -> list[Candidate]:
+    """Every (ray, preshape, roll, standoff) in a fixed order, numbered over the
+    whole object; ``rays`` keeps only those of one chunk."""
+    out, index = [], 0
+    keep = range(len(approaches)) if rays is None else rays
     for ray, shape, roll in product(range(len(approaches)), shapes, settings.roll_angles(symmetry)):
         for standoff in settings.standoffs or shape.standoffs:
-            out.append(Candidate(len(out), ray, shape, float(roll), float(standoff)))
+            if ray in keep:
+                out.append(Candidate(index, ray, shape, float(roll), float(standoff)))
+            index += 1
     return out

@@ -29,12 +29,13 @@ def write_unit(db: Database, result: UnitResult, seconds: float, rule: RankingRu
     status = "failed" if result.error else "done"
     with db.transaction() as conn:
         db.set_meta(conn, "ranking", rule.to_json())
-        conn.execute("DELETE FROM units WHERE object = ? AND hand = ? AND settings_hash = ? AND seed = ?",
-                     (name, spec.hand, spec.settings.digest, spec.seed))
+        conn.execute("DELETE FROM units WHERE object = ? AND hand = ? AND settings_hash = ? AND seed = ? AND chunk = ?",
+                     (name, spec.hand, spec.settings.digest, spec.seed, spec.chunk))
         cur = conn.execute(
-            "INSERT INTO units (object, hand, settings_hash, seed, settings, status, error, candidates, grasps,"
-            " force_closure, rejected, seconds, finished_at) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?)",
-            (name, spec.hand, spec.settings.digest, spec.seed, spec.settings.to_json(), status, result.error,
+            "INSERT INTO units (object, hand, settings_hash, seed, chunk, settings, status, error, candidates, grasps,"
+            " force_closure, rejected, seconds, finished_at) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
+            (name, spec.hand, spec.settings.digest, spec.seed, spec.chunk, spec.settings.to_json(), status,
+             result.error,
              result.candidates, len(result.grasps), result.force_closure, _j(dict(result.rejected)), seconds,
              time.strftime("%Y-%m-%dT%H:%M:%S")))
         unit_id = cur.lastrowid
