@@ -18,7 +18,8 @@ from planner.database import Database, GraspRow, open_db
 from planner.errors import DatabaseError, InputError
 from planner.pipeline import UnitResult, UnitSpec, run_unit
 from planner.sweep import SweepSettings
-from planner.writer import write_unit
+from planner.ranking import RankingRule
+from planner.writer import apply_rule, write_unit
 
 log = logging.getLogger(__name__)
 
@@ -92,7 +93,7 @@ def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: i
 
 
 def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, settings: SweepSettings | None = None,
-             seed: int = 0, workers: int = 1, scale: float | None = None,
+             seed: int = 0, workers: int = 1, scale: float | None = None, rule: RankingRule | None = None,
              progress: Callable[[UnitResult, int, int], None] | None = None) -> Summary:
     """Build (or extend) a grasp database; finished units are skipped."""
     settings = settings or SweepSettings()
@@ -100,6 +101,8 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
     summary = Summary()
     start = time.perf_counter()
     with writer_lock(Path(db_path)), open_db(Path(db_path)) as db:
+        rule = rule or RankingRule.from_json(db.meta("ranking"))
+        apply_rule(db, rule)
         todo = []
         done = db.units_done(hand, settings.digest, seed)
         for unit in units:
@@ -111,7 +114,7 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
         if progress:
             progress(None, 0, len(todo))  # type: ignore[arg-type]
         for done_count, (result, seconds) in enumerate(_execute(todo, workers), start=1):
-            write_unit(db, result, seconds)
+            write_unit(db, result, seconds, rule)
             _tally(summary, result, seconds)
             if progress:
                 progress(result, done_count, len(todo))
@@ -171,6 +174,79 @@ def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1) -> l
             raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}; objects with grasps: "
                              f"{', '.join(known) or '(none)'}; run `grasp generate {name} --hand {hand}`")
     return rows
+
+
+@dataclass(frozen=True)
+class ReachableGrasp:
+    """A stored grasp with the arm solutions that reach it at a given pose."""
+
+    grasp: GraspRow
+    arm_grasp: dict[str, float]  # arm joint values [rad] at the grasp
+    arm_pregrasp: dict[str, float]  # ... and at the pre-grasp
+    manipulability: float
+    hand_pose_world: list[list[float]]  # (4, 4) where the hand frame ends up [m]
+
+
+def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path = DEFAULT_DB, top: int = 1,
+            robot_base: Sequence[float] | None = None, max_candidates: int = 300,
+            pregrasp_distance: float = 0.10, seed: int = 0) -> list[ReachableGrasp]:
+    """The best stored grasps that an arm reaches *now*, with the object at
+    ``object_pose`` (x, y, z, qx, qy, qz, qw, world frame) and the robot base at
+    ``robot_base`` (same form; default the origin). Candidates are tried in
+    rank order, at most ``max_candidates`` of them."""
+    import numpy as np
+
+    from planner.reach import ReachScene, ReachSettings
+    from planner.sim import Sim
+
+    if top < 1:
+        raise InputError(f"--top must be at least 1, got {top}")
+    obj_pose = _pose7(object_pose, "--object-pose")
+    base = _pose7(robot_base, "--robot-base") if robot_base is not None else np.eye(4)
+    spec = hand_specs.load(hand)
+    key = objects.resolve_spec(name).name
+    obj = objects.load(name)
+    rng = np.random.default_rng(seed)
+    found: list[ReachableGrasp] = []
+    with open_db(Path(db_path), create=False, readonly=True) as db, Sim() as sim:
+        scene = ReachScene(sim, spec, obj, ReachSettings(pregrasp_distance=pregrasp_distance), base)
+        scene.place_object(obj_pose)
+        offset = 0
+        while len(found) < top and offset < max_candidates:
+            batch = db.best(key, hand, min(50, max_candidates - offset), offset)
+            if not batch:
+                break
+            offset += len(batch)
+            for row in batch:
+                if not row.force_closure:
+                    continue
+                pose = np.array(row.pose)
+                reach = scene.check(pose, row.closed_joints, row.open_joints, rng)
+                if reach.reachable:
+                    found.append(ReachableGrasp(row, reach.grasp.joints, reach.pregrasp.joints,  # type: ignore[union-attr]
+                                                reach.grasp.manipulability,  # type: ignore[union-attr]
+                                                (obj_pose @ pose).tolist()))
+                    if len(found) == top:
+                        break
+        if offset == 0:
+            raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}; "
+                             f"run `grasp generate {name} --hand {hand}`")
+    return found
+
+
+def _pose7(values: Sequence[float], option: str):  # type: ignore[no-untyped-def]
+    import numpy as np
+
+    from planner.reach import pose_from_xyzquat
+
+    vals = [float(v) for v in values]
+    if len(vals) != 7 or not all(np.isfinite(vals)):
+        raise InputError(f"{option} needs 7 finite numbers x,y,z,qx,qy,qz,qw; got {values}")
+    q = np.array(vals[3:])
+    if not 0.5 < np.linalg.norm(q) < 2.0:
+        raise InputError(f"{option}: quaternion {vals[3:]} is not close to unit length")
+    vals[3:] = list(q / np.linalg.norm(q))
+    return pose_from_xyzquat(tuple(vals))
 
 
 def check_db(db_path: Path) -> list[str]:

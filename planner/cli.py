@@ -18,6 +18,7 @@ import numpy as np
 from planner import api, hands as hand_specs, objects, preshapes
 from planner.database import GraspRow
 from planner.errors import PlannerError
+from planner.ranking import RankingRule
 from planner.sweep import SweepSettings
 
 EXIT_INTERNAL = 1
@@ -86,14 +87,20 @@ def _floats(text: str | None) -> tuple[float, ...] | None:
               help="Worker processes.")
 @click.option("--chunk", type=int, default=SweepSettings.chunk, show_default=True,
               help="Approach rays per unit of work (0: one unit per object).")
+@click.option("--reach-placements", type=int, default=SweepSettings.reach_placements, show_default=True,
+              help="Table placements for the stored reachability score (0: skip).")
+@click.option("--reach-weight", type=float, help="Weight of reachability in the score, 0..1 (default: the "
+              "database's rule, else 0.5).")
 @click.option("--quiet", is_flag=True, help="No progress bar and no summary table.")
 @click.option("--json", "as_json", is_flag=True, help="Print a machine-readable summary.")
 def generate(objects_: tuple[str, ...], hand: str, db_path: Path, seed: int, approaches: int, sampler: str,
              box_delta: float, rolls: int, fan_count: int, standoffs: str | None, preshape_names: str | None,
-             scale: float | None, workers: int, chunk: int, quiet: bool, as_json: bool) -> None:
+             scale: float | None, workers: int, chunk: int, reach_placements: int, reach_weight: float | None,
+             quiet: bool, as_json: bool) -> None:
     """Sweep preshapes x approaches x rolls x standoffs and store the grasps."""
     settings = SweepSettings(approaches=approaches, sampler=sampler, box_delta=box_delta, rolls=rolls,
                              fan_count=fan_count, standoffs=_floats(standoffs), chunk=chunk,
+                             reach_placements=reach_placements,
                              preshapes=tuple(preshape_names.split(",")) if preshape_names else None)
     show = not quiet and not as_json
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
@@ -115,8 +122,9 @@ def generate(objects_: tuple[str, ...], hand: str, db_path: Path, seed: int, app
             rate = counts["candidates"] / max(time.perf_counter() - started, 1e-9)
             bar.update(task, completed=done, grasps=counts["grasps"], fc=counts["fc"], rate=f"{rate:.0f} cand/s")
 
+        rule = RankingRule(reach_weight) if reach_weight is not None else None
         summary = api.generate(objects_, hand, db_path=db_path, settings=settings, seed=seed, workers=workers,
-                               scale=scale, progress=advance)
+                               scale=scale, rule=rule, progress=advance)
     if as_json:
         click.echo(json.dumps(summary.to_json(), indent=2))
     elif not quiet:
@@ -151,7 +159,7 @@ def grasp_json(row: GraspRow) -> dict:
     return {"object": row.object, "hand": row.hand, "preshape": row.preshape, "pose": row.pose,
             "joints": row.closed_joints, "open_joints": row.open_joints, "width": row.width,
             "epsilon": row.epsilon, "volume": row.volume, "force_closure": row.force_closure,
-            "contacts": row.contacts, "rank": row.rank, "score": row.score, "candidate": row.candidate,
+            "reachability": row.reachability, "manipulability": row.manipulability, "contacts": row.contacts, "rank": row.rank, "score": row.score, "candidate": row.candidate,
             "seed": row.seed}
 
 
@@ -160,18 +168,47 @@ def grasp_json(row: GraspRow) -> dict:
 @click.option("--hand", required=True)
 @click.option("--db", "db_path", type=click.Path(path_type=Path), default=api.DEFAULT_DB, show_default=True)
 @click.option("--top", type=int, default=1, show_default=True)
+@click.option("--object-pose", help="x,y,z,qx,qy,qz,qw of the object on the table (world frame): return only "
+              "grasps an arm reaches there now, with joint solutions.")
+@click.option("--robot-base", help="x,y,z,qx,qy,qz,qw of the robot base (default: the origin).")
+@click.option("--max-candidates", type=int, default=300, show_default=True,
+              help="With --object-pose: how many top-ranked grasps to try at most.")
 @click.option("--json", "as_json", is_flag=True)
-def best(object_name: str, hand: str, db_path: Path, top: int, as_json: bool) -> None:
+def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str | None, robot_base: str | None,
+         max_candidates: int, as_json: bool) -> None:
     """The best grasps of OBJECT for a hand, from the database."""
-    rows = api.best(object_name, hand, db_path=db_path, top=top)
-    if as_json:
-        click.echo(json.dumps([grasp_json(r) for r in rows], indent=2))
+    if object_pose is None:
+        if robot_base is not None:
+            raise click.BadParameter("--robot-base needs --object-pose")
+        rows = api.best(object_name, hand, db_path=db_path, top=top)
+        if as_json:
+            click.echo(json.dumps([grasp_json(r) for r in rows], indent=2))
+            return
+        for r in rows:
+            _print_grasp(r)
         return
-    for r in rows:
-        pos = np.array(r.pose)[:3, 3]
-        click.echo(f"#{r.rank} {r.object}/{r.hand} preshape={r.preshape} epsilon={r.epsilon:.4f} "
-                   f"volume={r.volume:.3g} force_closure={r.force_closure} contacts={len(r.contacts)} "
-                   f"position=({pos[0]:.3f}, {pos[1]:.3f}, {pos[2]:.3f}) m")
+    found = api.best_at(object_name, hand, _floats(object_pose) or (), db_path=db_path, top=top,
+                        robot_base=_floats(robot_base), max_candidates=max_candidates)
+    if as_json:
+        click.echo(json.dumps([{**grasp_json(g.grasp), "arm": {"grasp": g.arm_grasp, "pregrasp": g.arm_pregrasp},
+                                "arm_manipulability": g.manipulability, "hand_pose_world": g.hand_pose_world}
+                               for g in found], indent=2))
+        return
+    if not found:
+        click.echo(f"no grasp among the top {max_candidates} is reachable at that pose", err=True)
+        sys.exit(1)
+    for g in found:
+        _print_grasp(g.grasp)
+        click.echo("    arm at grasp: " + ", ".join(f"{k}={v:.3f}" for k, v in g.arm_grasp.items()))
+        click.echo("    arm at pre-grasp: " + ", ".join(f"{k}={v:.3f}" for k, v in g.arm_pregrasp.items()))
+
+
+def _print_grasp(r: GraspRow) -> None:
+    pos = np.array(r.pose)[:3, 3]
+    reach = "n/a" if r.reachability is None else f"{r.reachability:.2f}"
+    click.echo(f"#{r.rank} {r.object}/{r.hand} preshape={r.preshape} score={r.score:.4f} epsilon={r.epsilon:.4f} "
+               f"reachability={reach} volume={r.volume:.3g} force_closure={r.force_closure} "
+               f"contacts={len(r.contacts)} position=({pos[0]:.3f}, {pos[1]:.3f}, {pos[2]:.3f}) m")
 
 
 @main.command(name="hands")

@@ -120,7 +120,7 @@ class Grasper:
             for link in self.geometry:
                 lo, hi = self.sim.link_aabb(self.body, link)
                 corners = np.array(np.meshgrid(*zip(lo, hi))).T.reshape(-1, 3)
-                reach = max(reach, float(np.max((corners - self.hand.tcp) @ self.hand.approach)))
+                reach = max(reach, float(np.max((corners - preshape.tcp) @ self.hand.approach)))
             self._front[preshape.name] = reach
         return self._front[preshape.name]
 
@@ -133,7 +133,7 @@ class Grasper:
         pose = np.eye(4)
         pose[:3, :3] = rotation
         start = self.front(preshape) + s.start_margin
-        pose[:3, 3] = point - direction * start - rotation @ self.hand.tcp
+        pose[:3, 3] = point - direction * start - rotation @ preshape.tcp
         joints = dict(preshape.joints)
         self._place(pose, joints)
         backed, jump = 0.0, s.coarse_step
@@ -144,7 +144,9 @@ class Grasper:
             backed += jump
             jump *= 2
             self.sim.set_pose(self.body, pose)
-        travelled, limit = 0.0, start + backed + 2 * object_radius
+        # the hand may travel until its back (not just its tcp) has passed the object
+        depth = float(np.linalg.norm(preshape.tcp))
+        travelled, limit = 0.0, start + backed + 2 * object_radius + depth
         while True:
             touching, step = self._translation_step(self._closest(s.coarse_step + s.gap), direction)
             if touching:
@@ -221,7 +223,8 @@ class Grasper:
                     sharing[link] = sharing.get(link, 0) + 1
             pairs = {}
             for link in sharing:
-                reach = max(speed[id(d)].get(link, 0.0) * caps[id(d)] for d in live) + s.contact_tol + s.gap
+                # several DOFs may move one link (a fingertip under three joints): their motions add up
+                reach = sum(speed[id(d)].get(link, 0.0) * caps[id(d)] for d in live) + s.contact_tol + s.gap
                 pairs[link] = self._closest(reach, link)
             steps = {}
             for d in live:

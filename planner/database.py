@@ -55,6 +55,7 @@ CREATE TABLE IF NOT EXISTS grasps (
     pose TEXT NOT NULL, open_joints TEXT NOT NULL, closed_joints TEXT NOT NULL, width REAL,
     contacts TEXT NOT NULL, n_contacts INTEGER NOT NULL, links_touching INTEGER NOT NULL,
     epsilon REAL NOT NULL, volume REAL NOT NULL, force_closure INTEGER NOT NULL,
+    reachability REAL, manipulability REAL,
     seed INTEGER NOT NULL, score REAL NOT NULL, rank INTEGER,
     UNIQUE (unit_id, candidate)
 );
@@ -83,6 +84,8 @@ class GraspRow:
     epsilon: float
     volume: float
     force_closure: bool
+    reachability: float | None
+    manipulability: float | None
     seed: int
     score: float
     rank: int | None
@@ -146,10 +149,10 @@ class Database:
     def count(self, where: str = "1", params: Sequence[object] = ()) -> int:
         return int(self.conn.execute(f"SELECT COUNT(*) FROM grasps WHERE {where}", params).fetchone()[0])
 
-    def best(self, obj: str, hand: str, top: int) -> list[GraspRow]:
+    def best(self, obj: str, hand: str, top: int, offset: int = 0) -> list[GraspRow]:
         rows = self.conn.execute(
-            "SELECT * FROM grasps WHERE object = ? AND hand = ? AND rank IS NOT NULL ORDER BY rank LIMIT ?",
-            (obj, hand, top)).fetchall()
+            "SELECT * FROM grasps WHERE object = ? AND hand = ? AND rank IS NOT NULL ORDER BY rank LIMIT ? OFFSET ?",
+            (obj, hand, top, offset)).fetchall()
         return [row_to_grasp(r) for r in rows]
 
     def objects_for(self, hand: str) -> list[str]:
@@ -164,7 +167,8 @@ def row_to_grasp(r: sqlite3.Row) -> GraspRow:
         roll=r["roll"], standoff=r["standoff"], pose=[pose[i:i + 4] for i in range(0, 16, 4)],
         open_joints=json.loads(r["open_joints"]), closed_joints=json.loads(r["closed_joints"]), width=r["width"],
         contacts=json.loads(r["contacts"]), epsilon=r["epsilon"], volume=r["volume"],
-        force_closure=bool(r["force_closure"]), seed=r["seed"], score=r["score"], rank=r["rank"],
+        force_closure=bool(r["force_closure"]), reachability=r["reachability"], manipulability=r["manipulability"],
+        seed=r["seed"], score=r["score"], rank=r["rank"],
     )
 
 

@@ -27,8 +27,10 @@ from planner.config import Fields, read_toml
 from planner.errors import ConfigError, UnknownNameError
 
 CONTACT_MODELS = ("frictionless", "point", "soft")
-#: PyBullet inflates convex hull meshes and triangle meshes by 1 mm each, so
-#: a reported closest distance is the true gap minus 2 mm (measured on a box).
+#: PyBullet inflates convex hull meshes, cylinders and triangle meshes by 1 mm
+#: each, so a reported closest distance is the true gap minus 2 mm (measured
+#: on a box). URDF <box> and <sphere> links are off by less (0.4-1 mm, 0 mm):
+#: model hand links as meshes or cylinders, or set ``distance_offset``.
 DEFAULT_DISTANCE_OFFSET = 0.002
 
 

@@ -19,7 +19,7 @@ from planner import hands as hand_specs, objects, preshapes, quality, sampling
 from planner.closing import Closed, Grasper
 from planner.errors import PlannerError
 from planner.sim import Sim
-from planner.sweep import SweepSettings, candidates, unit_rng
+from planner.sweep import IK_STREAM, PLACEMENT_STREAM, SweepSettings, candidates, unit_rng
 
 log = logging.getLogger(__name__)
 
@@ -51,6 +51,8 @@ class GraspRecord:
     volume: float
     force_closure: bool
     width: float | None  # [m] parallel jaws: distance between the fingers
+    reachability: float | None = None  # fraction of sampled placements reachable (None: not computed)
+    manipulability: float | None = None  # best arm manipulability over reachable placements
 
 
 @dataclass
@@ -61,7 +63,7 @@ class UnitResult:
     candidates: int = 0
     rejected: Counter = field(default_factory=Counter)
     timing: dict[str, float] = field(default_factory=lambda: dict.fromkeys(
-        ("prepare", "sampling", "closing", "contacts", "quality"), 0.0))
+        ("prepare", "sampling", "closing", "contacts", "quality", "reachability"), 0.0))
     error: str | None = None
 
     @property
@@ -119,6 +121,39 @@ def _run(spec: UnitSpec, result: UnitResult) -> None:
         # contact reading happens inside closing; report it as its own stage
         result.timing["contacts"] = grasper.contact_seconds
         result.timing["closing"] -= grasper.contact_seconds
+    if spec.settings.reach_placements and hand.arm is not None:
+        t3 = time.perf_counter()
+        result.grasps = add_reachability(result.grasps, obj, hand, spec)
+        result.timing["reachability"] += time.perf_counter() - t3
+
+
+def add_reachability(grasps: list[GraspRecord], obj: objects.PreparedObject, hand: hand_specs.HandSpec,
+                     spec: UnitSpec) -> list[GraspRecord]:
+    """Reachability of each force-closure grasp over the unit's sampled placements."""
+    from dataclasses import replace
+
+    from planner.reach import ReachScene, ReachSettings
+
+    settings = ReachSettings(placements=spec.settings.reach_placements,
+                             pregrasp_distance=spec.settings.pregrasp_distance)
+    out = []
+    with Sim() as sim:
+        scene = ReachScene(sim, hand, obj, settings)
+        placements = scene.placements(unit_rng(spec.seed, obj.name, hand.name, PLACEMENT_STREAM))
+        for g in grasps:
+            if not g.force_closure:
+                out.append(g)
+                continue
+            rng = unit_rng(spec.seed, obj.name, hand.name, IK_STREAM, g.candidate)
+            reached, manip = 0, 0.0
+            for pose in placements:
+                scene.place_object(pose)
+                r = scene.check(g.closed.pose, g.closed.closed_joints, g.closed.open_joints, rng)
+                if r.reachable:
+                    reached += 1
+                    manip = max(manip, r.grasp.manipulability)  # type: ignore[union-attr]
+            out.append(replace(g, reachability=reached / len(placements), manipulability=manip))
+    return out
 
 
 def evaluate(closed: Closed, obj: objects.PreparedObject, cone_edges: int) -> quality.Quality:

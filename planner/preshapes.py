@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from planner import assets
 from planner.config import Fields, read_toml
 from planner.errors import ConfigError, UnknownNameError
@@ -27,6 +29,7 @@ class Preshape:
     joints: dict[str, float]  # every finger joint (mimics filled in)
     close: dict[str, float]  # synergy: closing rate per driven joint
     standoffs: tuple[float, ...]  # [m]
+    tcp: np.ndarray  # (3,) [m] hand frame: where the approach ray passes (default: the hand's)
 
 
 def load(hand: HandSpec, names: list[str] | None = None) -> tuple[Preshape, ...]:
@@ -75,5 +78,6 @@ def _preshape(hand: HandSpec, f: Fields) -> Preshape:
     standoffs = tuple(f.floats("standoffs", default=[0.0]))
     if any(s < 0 for s in standoffs) or not standoffs:
         raise ConfigError(f"{f.where} field 'standoffs': needs non-negative distances [m]")
+    tcp = np.array(f.floats("tcp", 3)) if f.has("tcp") else hand.tcp
     return Preshape(name=f.str("name"), tags=tags, taxonomy=f.data.get("taxonomy", ""),
-                    joints=hand.full_configuration(open_driven), close=close, standoffs=standoffs)
+                    joints=hand.full_configuration(open_driven), close=close, standoffs=standoffs, tcp=tcp)

@@ -1,8 +1,16 @@
 """The ranking rule: how a grasp's score is computed from its measures.
 
 The rule is stored with the database (``meta.ranking``) so anyone reading it
-knows what ``score`` and ``rank`` mean. For now the score is the L1
-Ferrari-Canny epsilon; grasps that are not force-closure score 0. Rank 1 is
+knows what ``score`` and ``rank`` mean::
+
+    score = epsilon * ((1 - reach_weight) + reach_weight * reachability)
+
+with epsilon the L1 Ferrari-Canny epsilon and reachability the fraction of
+sampled table placements at which an arm reaches the grasp and its
+pre-grasp; grasps that are not force-closure score 0; when reachability was
+not computed it counts as 1. ``reach_weight`` in [0, 1] is the user's
+(``--reach-weight``): 0 ranks by epsilon alone, 1 makes unreachable grasps
+score 0. Rank 1 is
 the best grasp of an (object, hand); ties are broken by epsilon, then GWS
 volume, then by the unit seed and candidate number (never by insertion
 order, so the rank does not depend on which worker finished first).
@@ -16,14 +24,31 @@ from dataclasses import asdict, dataclass
 
 @dataclass(frozen=True)
 class RankingRule:
-    epsilon_weight: float = 1.0
+    reach_weight: float = 0.5
 
-    def score(self, epsilon: float, force_closure: bool) -> float:
-        return self.epsilon_weight * epsilon if force_closure else 0.0
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.reach_weight <= 1.0:
+            from planner.errors import InputError
+
+            raise InputError(f"--reach-weight must be in [0, 1], got {self.reach_weight}")
+
+    def score(self, epsilon: float, force_closure: bool, reachability: float | None = None) -> float:
+        if not force_closure:
+            return 0.0
+        reach = 1.0 if reachability is None else reachability
+        return epsilon * ((1.0 - self.reach_weight) + self.reach_weight * reach)
 
     def to_json(self) -> str:
-        return json.dumps({"formula": "score = epsilon_weight * epsilon (0 unless force-closure)", **asdict(self)},
-                          sort_keys=True)
+        formula = ("score = epsilon * ((1 - reach_weight) + reach_weight * reachability); 0 unless force-closure;"
+                   " reachability counts as 1 when not computed")
+        return json.dumps({"formula": formula, **asdict(self)}, sort_keys=True)
+
+    @classmethod
+    def from_json(cls, text: str | None) -> RankingRule:
+        if not text:
+            return cls()
+        data = json.loads(text)
+        return cls(reach_weight=float(data.get("reach_weight", cls.reach_weight)))
 
 
 ORDER_BY = "score DESC, epsilon DESC, volume DESC, seed, candidate, unit_id"

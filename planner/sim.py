@@ -167,6 +167,52 @@ class Sim:
         base = self.link_pose(body, next(n for n, i in body.links.items() if i == -1))
         return base[:3, :3].T @ self.link_pose(body, child)[:3, :3] @ body.joint_axes[joint]
 
+    def add_box(self, half_extents: tuple[float, float, float], pose: np.ndarray) -> int:
+        """A fixed box (e.g. a table)."""
+        shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=list(half_extents), physicsClientId=self.client)
+        position, orientation = pose_to_pb(pose)
+        return pb.createMultiBody(0.0, shape, basePosition=position, baseOrientation=orientation,
+                                  physicsClientId=self.client)
+
+    def set_base_pose(self, uid: int, pose: np.ndarray) -> None:
+        """Place a body created here (no inertial offset) at ``pose``."""
+        position, orientation = pose_to_pb(pose)
+        pb.resetBasePositionAndOrientation(uid, position, orientation, physicsClientId=self.client)
+
+    def joint_limits(self, body: Body, joint: str) -> tuple[float, float]:
+        info = pb.getJointInfo(body.uid, body.joints[joint], physicsClientId=self.client)
+        return float(info[8]), float(info[9])
+
+    def movable_joints(self, body: Body) -> list[str]:
+        """Names of the revolute/prismatic joints, in PyBullet's DOF order."""
+        out = []
+        for index in range(pb.getNumJoints(body.uid, physicsClientId=self.client)):
+            info = pb.getJointInfo(body.uid, index, physicsClientId=self.client)
+            if info[2] in (pb.JOINT_REVOLUTE, pb.JOINT_PRISMATIC):
+                out.append(info[1].decode())
+        return out
+
+    def joint_values(self, body: Body, names: list[str]) -> list[float]:
+        return [pb.getJointState(body.uid, body.joints[n], physicsClientId=self.client)[0] for n in names]
+
+    def inverse_kinematics(self, body: Body, link: str, pose: np.ndarray, lower: list[float], upper: list[float],
+                           rest: list[float], iterations: int = 200) -> list[float]:
+        """PyBullet's damped least-squares IK from the current joint state; one
+        value per movable joint (PyBullet's DOF order)."""
+        position, orientation = pose_to_pb(pose)
+        ranges = [u - lo for lo, u in zip(lower, upper)]
+        return list(pb.calculateInverseKinematics(
+            body.uid, body.links[link], position, orientation, lowerLimits=lower, upperLimits=upper,
+            jointRanges=ranges, restPoses=rest, maxNumIterations=iterations, residualThreshold=1e-7,
+            physicsClientId=self.client))
+
+    def jacobian(self, body: Body, link: str, dof_values: list[float]) -> np.ndarray:
+        """(6, n_dof) geometric Jacobian of ``link``'s frame origin (linear; angular)."""
+        zeros = [0.0] * len(dof_values)
+        linear, angular = pb.calculateJacobian(body.uid, body.links[link], [0.0, 0.0, 0.0], list(dof_values),
+                                               zeros, zeros, physicsClientId=self.client)
+        return np.vstack([np.asarray(linear), np.asarray(angular)])
+
     def link_aabb(self, body: Body, link: str) -> tuple[np.ndarray, np.ndarray]:
         lo, hi = pb.getAABB(body.uid, body.links[link], physicsClientId=self.client)
         return np.asarray(lo), np.asarray(hi)

@@ -40,14 +40,16 @@ class SweepSettings:
     preshapes: tuple[str, ...] | None = None  # None: all of the hand's
     cone_edges: int = 8  # friction cone edges m
     chunk: int = 32  # rays per unit of work (surface sampler); 0: one unit per object
+    reach_placements: int = 6  # object placements for the reachability score; 0: skip reachability
+    pregrasp_distance: float = 0.10  # [m] pre-grasp back-off along the approach
 
     def __post_init__(self) -> None:
         if self.sampler not in SAMPLERS:
             raise InputError(f"unknown sampler '{self.sampler}'; use {', '.join(SAMPLERS)}")
         if self.approaches < 1 or self.rolls < 1 or self.cone_edges < 3 or self.fan_count < 0:
             raise InputError("approaches and rolls must be >= 1, cone edges >= 3, fan count >= 0")
-        if self.chunk < 0:
-            raise InputError("chunk must be >= 0")
+        if self.chunk < 0 or self.reach_placements < 0 or self.pregrasp_distance < 0:
+            raise InputError("chunk, reach placements and pre-grasp distance must be >= 0")
         if self.standoffs is not None and (not self.standoffs or min(self.standoffs) < 0):
             raise InputError("standoffs must be non-negative distances in metres")
 
@@ -82,9 +84,15 @@ class SweepSettings:
         return 2 * np.pi * np.arange(self.rolls) / (self.rolls * symmetry)
 
 
-def unit_rng(seed: int, object_name: str, hand_name: str) -> np.random.Generator:
-    """The unit's generator: a function of (seed, object, hand) only."""
-    return np.random.default_rng([seed, zlib.crc32(object_name.encode()), zlib.crc32(hand_name.encode())])
+def unit_rng(seed: int, object_name: str, hand_name: str, *stream: int) -> np.random.Generator:
+    """The unit's generator: a function of (seed, object, hand) only; ``stream``
+    numbers give independent sub-streams (placements, one per candidate...)."""
+    return np.random.default_rng([seed, zlib.crc32(object_name.encode()), zlib.crc32(hand_name.encode()), *stream])
+
+
+#: Sub-stream numbers of :func:`unit_rng`.
+PLACEMENT_STREAM = 1
+IK_STREAM = 2
 
 
 @dataclass(frozen=True)

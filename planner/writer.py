@@ -22,13 +22,12 @@ def _vec(a: np.ndarray, digits: int = 7) -> list[float]:
 
 def write_unit(db: Database, result: UnitResult, seconds: float, rule: RankingRule | None = None) -> None:
     """Store a finished (or failed) unit and its grasps atomically, then re-rank."""
-    rule = rule or RankingRule()
+    rule = rule or RankingRule.from_json(db.meta("ranking"))
     spec = result.spec
     obj = result.obj
     name = obj.name if obj is not None else spec.object_name
     status = "failed" if result.error else "done"
     with db.transaction() as conn:
-        db.set_meta(conn, "ranking", rule.to_json())
         conn.execute("DELETE FROM units WHERE object = ? AND hand = ? AND settings_hash = ? AND seed = ? AND chunk = ?",
                      (name, spec.hand, spec.settings.digest, spec.seed, spec.chunk))
         cur = conn.execute(
@@ -49,11 +48,29 @@ def write_unit(db: Database, result: UnitResult, seconds: float, rule: RankingRu
         conn.executemany(
             "INSERT INTO grasps (unit_id, object, hand, preshape, candidate, approach_point, approach_dir, roll,"
             " standoff, pose, open_joints, closed_joints, width, contacts, n_contacts, links_touching, epsilon,"
-            " volume, force_closure, seed, score) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
+            " volume, force_closure, reachability, manipulability, seed, score)"
+            " VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
             [(unit_id, name, spec.hand, g.preshape, g.candidate, _j(_vec(g.approach_point)),
               _j(_vec(g.approach_dir)), g.roll, g.standoff, _j(_vec(g.closed.pose)),
               _j(g.closed.open_joints), _j(g.closed.closed_joints), g.width, _j(g.closed.contacts.to_json()),
               len(g.closed.contacts), len(g.closed.contacts.touching_links), g.epsilon, g.volume,
-              int(g.force_closure), spec.seed, rule.score(g.epsilon, g.force_closure))
+              int(g.force_closure), g.reachability, g.manipulability, spec.seed,
+              rule.score(g.epsilon, g.force_closure, g.reachability))
              for g in result.grasps])
         conn.execute(RERANK_SQL, (name, spec.hand))
+
+
+def apply_rule(db: Database, rule: RankingRule) -> bool:
+    """Store ``rule``; if it differs from the stored one, re-score and re-rank
+    every grasp in one transaction. Returns whether anything changed."""
+    if db.meta("ranking") == rule.to_json():
+        return False
+    w = rule.reach_weight
+    with db.transaction() as conn:
+        db.set_meta(conn, "ranking", rule.to_json())
+        conn.execute("UPDATE grasps SET score = CASE WHEN force_closure = 1 THEN"
+                     " epsilon * ((1.0 - ?) + ? * COALESCE(reachability, 1.0)) ELSE 0.0 END", (w, w))
+        pairs = conn.execute("SELECT DISTINCT object, hand FROM grasps").fetchall()
+        for obj, hand in pairs:
+            conn.execute(RERANK_SQL, (obj, hand))
+    return True

@@ -20,7 +20,8 @@ def box_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def rows(path: Path) -> list[tuple]:
     with sqlite3.connect(path) as conn:
-        return conn.execute("SELECT object, preshape, candidate, pose, epsilon, rank FROM grasps ORDER BY id").fetchall()
+        return conn.execute("SELECT object, preshape, candidate, pose, epsilon, rank, score, reachability,"
+                            " force_closure FROM grasps ORDER BY id").fetchall()
 
 
 def test_generate_writes_ranked_grasps(box_db: Path) -> None:
@@ -29,7 +30,29 @@ def test_generate_writes_ranked_grasps(box_db: Path) -> None:
     ranks = sorted(r[5] for r in got)
     assert ranks == list(range(1, len(got) + 1))
     by_rank = sorted(got, key=lambda r: r[5])
-    assert [r[4] for r in by_rank] == sorted((r[4] for r in got), reverse=True)
+    assert [r[6] for r in by_rank] == sorted((r[6] for r in got), reverse=True)
+    for *_, eps, _rank, score, reach, fc in got:
+        expected = eps * (0.5 + 0.5 * reach) if fc else 0.0
+        assert score == pytest.approx(expected)
+        assert (reach is not None) == bool(fc)  # reachability is computed for force-closure grasps
+
+
+def test_changing_the_rule_rescores_everything(box_db: Path, tmp_path: Path) -> None:
+    import shutil
+
+    from planner.database import open_db as _open
+    from planner.ranking import RankingRule
+    from planner.writer import apply_rule
+
+    copy = tmp_path / "copy.db"
+    shutil.copy(box_db, copy)
+    with _open(copy) as db:
+        assert apply_rule(db, RankingRule(reach_weight=0.0))
+        assert not apply_rule(db, RankingRule(reach_weight=0.0))
+    got = rows(copy)
+    assert all(score == pytest.approx(eps if fc else 0.0) for *_, eps, _r, score, _reach, fc in got)
+    by_rank = sorted(got, key=lambda r: r[5])
+    assert [r[6] for r in by_rank] == sorted((r[6] for r in got), reverse=True)
 
 
 def test_rerun_adds_nothing(box_db: Path) -> None:
