@@ -258,3 +258,7 @@ def check(db_path: Path) -> None:
             click.echo(p, err=True)
         raise PlannerError(f"{db_path}: integrity check failed ({len(problems)} problems)")
     click.echo(f"{db_path}: ok")
+
+
+if __name__ == "__main__":
+    main()

@@ -192,8 +192,12 @@ class ReachScene:
         (one call often stops a few millimetres short)."""
         self.sim.set_joints(self.arm, dict(zip(self.dofs, start)))
         config: dict[str, float] = {}
-        for _ in range(IK_REFINEMENTS):
-            values = self.sim.inverse_kinematics(self.arm, self.ee_link, target, self.lower, self.upper, self.rest)
+        for attempt in range(IK_REFINEMENTS):
+            if attempt == 0:  # null-space IK: a configuration inside the limits, near the rest pose
+                values = self.sim.inverse_kinematics(self.arm, self.ee_link, target, self.lower, self.upper,
+                                                     self.rest)
+            else:  # then plain IK from there, which converges to the target
+                values = self.sim.inverse_kinematics(self.arm, self.ee_link, target)
             config = {j: v for j, v in zip(self.dofs, values) if j in self.arm_joints}
             self.sim.set_joints(self.arm, config)
             ee = self.sim.link_pose(self.arm, self.ee_link)

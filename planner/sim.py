@@ -195,16 +195,21 @@ class Sim:
     def joint_values(self, body: Body, names: list[str]) -> list[float]:
         return [pb.getJointState(body.uid, body.joints[n], physicsClientId=self.client)[0] for n in names]
 
-    def inverse_kinematics(self, body: Body, link: str, pose: np.ndarray, lower: list[float], upper: list[float],
-                           rest: list[float], iterations: int = 200) -> list[float]:
+    def inverse_kinematics(self, body: Body, link: str, pose: np.ndarray, lower: list[float] | None = None,
+                           upper: list[float] | None = None, rest: list[float] | None = None,
+                           iterations: int = 200) -> list[float]:
         """PyBullet's damped least-squares IK from the current joint state; one
-        value per movable joint (PyBullet's DOF order)."""
+        value per movable joint (PyBullet's DOF order). With limits and rest
+        poses it uses the null-space variant (stays inside limits, but stops a
+        few millimetres short); without, the plain one (converges tightly)."""
         position, orientation = pose_to_pb(pose)
-        ranges = [u - lo for lo, u in zip(lower, upper)]
+        extra = {}
+        if lower is not None and upper is not None and rest is not None:
+            extra = dict(lowerLimits=lower, upperLimits=upper, jointRanges=[u - lo for lo, u in zip(lower, upper)],
+                         restPoses=rest)
         return list(pb.calculateInverseKinematics(
-            body.uid, body.links[link], position, orientation, lowerLimits=lower, upperLimits=upper,
-            jointRanges=ranges, restPoses=rest, maxNumIterations=iterations, residualThreshold=1e-7,
-            physicsClientId=self.client))
+            body.uid, body.links[link], position, orientation, maxNumIterations=iterations, residualThreshold=1e-8,
+            physicsClientId=self.client, **extra))
 
     def jacobian(self, body: Body, link: str, dof_values: list[float]) -> np.ndarray:
         """(6, n_dof) geometric Jacobian of ``link``'s frame origin (linear; angular)."""
