@@ -8,7 +8,6 @@ import os
 import time
 from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -69,31 +68,35 @@ def writer_lock(db_path: Path) -> Iterator[None]:
 
 def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: int,
                scale: float | None = None) -> list[UnitSpec]:
-    """Check every input up front (names, hand, preshapes) before any work."""
-    if not names:
+    """Expand the object arguments and check every input up front (names,
+    hand, preshapes) before any work."""
+    from planner import inputs, preshapes
+
+    refs = inputs.expand(list(names), scale)
+    if not refs:
         raise InputError("no objects given")
     hand_spec = hand_specs.load(hand)
-    from planner import preshapes
-
     preshapes.load(hand_spec, list(settings.preshapes) if settings.preshapes else None)
     units, seen = [], set()
-    for name in names:
-        spec = objects.resolve_spec(name, scale=scale)
+    for ref in refs:
+        spec = objects.resolve_spec(ref.source, scale=ref.scale, label=ref.label)
         if spec.kind == "mesh" and not spec.source.startswith("pybullet_data:") and not Path(spec.source).exists():
             raise InputError(f"{spec.source}: file not found")
         if spec.name in seen:
             continue
         seen.add(spec.name)
-        units += [UnitSpec(name, hand, settings, seed, scale, chunk) for chunk in range(settings.chunks())]
-    if len(seen) == 1:
+        units += [UnitSpec(ref.source, hand, settings, seed, ref.scale, chunk, label=spec.name)
+                  for chunk in range(settings.chunks())]
+    if len(refs) == 1:
         # One object: a broken mesh is the user's input error, reported before
         # the database is opened. In a batch it is recorded and the rest go on.
-        objects.load(names[0], scale=scale)
+        objects.load(refs[0].source, scale=refs[0].scale)
     return units
 
 
 def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, settings: SweepSettings | None = None,
              seed: int = 0, workers: int = 1, scale: float | None = None, rule: RankingRule | None = None,
+             use_ray: bool = False, ray_address: str | None = None, unit_timeout: float | None = None,
              progress: Callable[[UnitResult, int, int], None] | None = None) -> Summary:
     """Build (or extend) a grasp database; finished units are skipped."""
     settings = settings or SweepSettings()
@@ -106,14 +109,19 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
         todo = []
         done = db.units_done(hand, settings.digest, seed)
         for unit in units:
-            key = objects.resolve_spec(unit.object_name, scale=scale).name
-            if (key, unit.chunk) in done:
+            if (unit.label, unit.chunk) in done:
                 summary.skipped += 1
             else:
                 todo.append(unit)
         if progress:
             progress(None, 0, len(todo))  # type: ignore[arg-type]
-        for done_count, (result, seconds) in enumerate(_execute(todo, workers), start=1):
+        if unit_timeout:
+            from dataclasses import replace
+
+            todo = [replace(u, timeout=unit_timeout) for u in todo]
+        from planner.distributed import execute
+
+        for done_count, (result, seconds) in enumerate(execute(todo, workers, ray_address, use_ray), start=1):
             write_unit(db, result, seconds, rule)
             _tally(summary, result, seconds)
             if progress:
@@ -122,26 +130,9 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
     return summary
 
 
-def _execute(units: list[UnitSpec], workers: int) -> Iterator[tuple[UnitResult, float]]:
-    if workers <= 1 or len(units) <= 1:
-        for unit in units:
-            t = time.perf_counter()
-            yield run_unit(unit), time.perf_counter() - t
-        return
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        starts = {}
-        futures = []
-        for unit in units:
-            fut = pool.submit(run_unit, unit)
-            starts[fut] = time.perf_counter()
-            futures.append(fut)
-        for fut in as_completed(futures):
-            yield fut.result(), time.perf_counter() - starts[fut]
-
-
 def _tally(summary: Summary, result: UnitResult, seconds: float) -> None:
     summary.units += 1
-    name = result.obj.name if result.obj else result.spec.object_name
+    name = result.obj.name if result.obj else (result.spec.label or result.spec.object_name)
     if result.error:
         summary.failed[name] = result.error
     summary.candidates += result.candidates

@@ -85,6 +85,10 @@ def _floats(text: str | None) -> tuple[float, ...] | None:
 @click.option("--scale", type=float, help="Scale for mesh files (e.g. 0.001 for millimetres).")
 @click.option("--workers", type=int, default=api.default_workers(), show_default="all cores",
               help="Worker processes.")
+@click.option("--ray", "ray_target", is_flag=False, flag_value="local", default=None, metavar="[ADDRESS]",
+              help="Run on Ray: a cluster address (e.g. ray://head:10001 or auto), or no value for a local "
+                   "Ray instance with --workers CPUs. Needs pip install -e '.[ray]'.")
+@click.option("--unit-timeout", type=float, help="Give up on a unit of work after this many seconds.")
 @click.option("--chunk", type=int, default=SweepSettings.chunk, show_default=True,
               help="Approach rays per unit of work (0: one unit per object).")
 @click.option("--reach-placements", type=int, default=SweepSettings.reach_placements, show_default=True,
@@ -95,9 +99,15 @@ def _floats(text: str | None) -> tuple[float, ...] | None:
 @click.option("--json", "as_json", is_flag=True, help="Print a machine-readable summary.")
 def generate(objects_: tuple[str, ...], hand: str, db_path: Path, seed: int, approaches: int, sampler: str,
              box_delta: float, rolls: int, fan_count: int, standoffs: str | None, preshape_names: str | None,
-             scale: float | None, workers: int, chunk: int, reach_placements: int, reach_weight: float | None,
+             scale: float | None, workers: int, ray_target: str | None, unit_timeout: float | None, chunk: int,
+             reach_placements: int, reach_weight: float | None,
              quiet: bool, as_json: bool) -> None:
-    """Sweep preshapes x approaches x rolls x standoffs and store the grasps."""
+    """Sweep preshapes x approaches x rolls x standoffs and store the grasps.
+
+    OBJECT: a built-in name, random_NNN, a mesh file, a folder, a glob,
+    @manifest.txt (one object per line, optional scale), builtin:all,
+    builtin:random[:COUNT | :FIRST-LAST].
+    """
     settings = SweepSettings(approaches=approaches, sampler=sampler, box_delta=box_delta, rolls=rolls,
                              fan_count=fan_count, standoffs=_floats(standoffs), chunk=chunk,
                              reach_placements=reach_placements,
@@ -124,7 +134,9 @@ def generate(objects_: tuple[str, ...], hand: str, db_path: Path, seed: int, app
 
         rule = RankingRule(reach_weight) if reach_weight is not None else None
         summary = api.generate(objects_, hand, db_path=db_path, settings=settings, seed=seed, workers=workers,
-                               scale=scale, rule=rule, progress=advance)
+                               scale=scale, rule=rule, progress=advance, use_ray=ray_target is not None,
+                               ray_address=None if ray_target in (None, "local") else ray_target,
+                               unit_timeout=unit_timeout)
     if as_json:
         click.echo(json.dumps(summary.to_json(), indent=2))
     elif not quiet:

@@ -138,8 +138,9 @@ def random_spec(index: int) -> ObjectSpec:
 
 
 def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = None,
-                 friction: float | None = None) -> ObjectSpec:
-    """A built-in name, ``random_NNN``, or a path to a mesh file."""
+                 friction: float | None = None, label: str | None = None) -> ObjectSpec:
+    """A built-in name, ``random_NNN``, or a path to a mesh file; ``label``
+    renames it (two mesh files of one run with the same stem)."""
     builtin = builtin_specs()
     if name in builtin:
         spec = builtin[name]
@@ -152,6 +153,8 @@ def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = 
         spec = ObjectSpec(name=path.stem, kind="mesh", source=str(path), scale=scale or 1.0)
     else:
         raise UnknownNameError("object", name, [*builtin, f"{RANDOM_PREFIX}000..{RANDOM_PREFIX}999", "or a mesh file path"])
+    if label:
+        spec = _replace(spec, name=label)
     overrides = {k: v for k, v in (("mass", mass), ("friction", friction)) if v is not None}
     for key, value in overrides.items():
         if not math.isfinite(value) or value <= 0:
@@ -165,13 +168,13 @@ def _replace(spec: ObjectSpec, **changes: object) -> ObjectSpec:
     return replace(spec, **changes)  # type: ignore[arg-type]
 
 
-def load(name: str, **overrides: float | None) -> PreparedObject:
+def load(name: str, *, label: str | None = None, **overrides: float | None) -> PreparedObject:
     """Resolve and prepare an object by name or mesh path."""
-    return prepare(resolve_spec(name, **overrides))
+    return prepare(resolve_spec(name, label=label, **overrides))
 
 
 def prepare(spec: ObjectSpec) -> PreparedObject:
-    mesh, source_file = _build_mesh(spec)
+    mesh, source_file = _cached_mesh(spec)
     volume = float(mesh.volume)
     density = spec.mass / volume
     mesh.density = density
@@ -183,6 +186,50 @@ def prepare(spec: ObjectSpec) -> PreparedObject:
         spec=spec, mesh=mesh, source_file=source_file, mesh_hash=meshes.mesh_hash(mesh), volume=volume,
         density=density, com=com, inertia=inertia, torque_scale=rho, gyration_radius=gyration,
     )
+
+
+CACHE_VERSION = 1
+
+
+def _cached_mesh(spec: ObjectSpec) -> tuple[trimesh.Trimesh, str]:
+    """The checked, repaired mesh, cached on disk by source content and scale
+    (``.npz`` of plain arrays, no pickle) and shared by runs and workers."""
+    if spec.kind in ("box", "cylinder", "sphere"):
+        return _build_mesh(spec)
+    import hashlib
+    import json
+
+    source = _source_file(spec)
+    if not source.is_file():
+        raise MeshError(f"{source}: file not found")
+    h = hashlib.sha256(json.dumps([CACHE_VERSION, spec.kind, spec.geometry, spec.scale]).encode())
+    h.update(source.read_bytes())
+    if spec.kind == "urdf":  # the mesh the URDF points at matters as much as the URDF
+        mesh_file, _ = _urdf_mesh(source, spec.geometry, f"object '{spec.name}'")
+        if mesh_file.is_file():
+            h.update(mesh_file.read_bytes())
+    path = assets.cache_dir("objects") / f"{h.hexdigest()[:24]}.npz"
+    if path.is_file():
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                mesh = trimesh.Trimesh(data["vertices"], data["faces"], process=False)
+                return mesh, str(data["source"])
+        except (OSError, ValueError, KeyError):
+            path.unlink(missing_ok=True)  # a damaged cache entry is rebuilt
+    mesh, source_file = _build_mesh(spec)
+    import io
+
+    buffer = io.BytesIO()
+    np.savez(buffer, vertices=np.asarray(mesh.vertices), faces=np.asarray(mesh.faces), source=np.array(source_file))
+    assets.atomic_write(path, buffer.getvalue())
+    return mesh, source_file
+
+
+def _source_file(spec: ObjectSpec) -> Path:
+    """The file whose bytes define the object (the URDF for ``urdf`` objects)."""
+    if spec.source.startswith(assets.PYBULLET_DATA_PREFIX):
+        return assets.resolve(spec.source, assets.project_dir("objects"), f"object '{spec.name}'")
+    return Path(spec.source)
 
 
 def _build_mesh(spec: ObjectSpec) -> tuple[trimesh.Trimesh, str]:

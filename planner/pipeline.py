@@ -34,6 +34,8 @@ class UnitSpec:
     seed: int
     scale: float | None = None
     chunk: int = 0  # which slice of the object's rays (see SweepSettings.chunk)
+    label: str | None = None  # database name of the object (None: its default name)
+    timeout: float | None = None  # [s] give up on the unit after this long (checked between candidates)
 
 
 @dataclass(frozen=True)
@@ -86,7 +88,7 @@ def run_unit(spec: UnitSpec) -> UnitResult:
 
 def _run(spec: UnitSpec, result: UnitResult) -> None:
     t0 = time.perf_counter()
-    obj = objects.load(spec.object_name, scale=spec.scale)
+    obj = objects.load(spec.object_name, scale=spec.scale, label=spec.label)
     hand = hand_specs.load(spec.hand)
     shapes = preshapes.load(hand, list(spec.settings.preshapes) if spec.settings.preshapes else None)
     result.obj = obj
@@ -105,6 +107,8 @@ def _run(spec: UnitSpec, result: UnitResult) -> None:
         grasper = Grasper(sim, hand, sim.add_static_mesh(obj.mesh.vertices, obj.mesh.faces))
         for cand in todo:
             ta = time.perf_counter()
+            if spec.timeout is not None and ta - t0 > spec.timeout:
+                raise PlannerError(f"time-out: unit not finished after {spec.timeout:g} s")
             closed = grasper.close(rays.points[cand.ray], rays.directions[cand.ray], cand.roll, cand.standoff,
                                    cand.preshape, radius)
             tb = time.perf_counter()

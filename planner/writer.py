@@ -25,7 +25,7 @@ def write_unit(db: Database, result: UnitResult, seconds: float, rule: RankingRu
     rule = rule or RankingRule.from_json(db.meta("ranking"))
     spec = result.spec
     obj = result.obj
-    name = obj.name if obj is not None else spec.object_name
+    name = obj.name if obj is not None else (spec.label or spec.object_name)
     status = "failed" if result.error else "done"
     with db.transaction() as conn:
         conn.execute("DELETE FROM units WHERE object = ? AND hand = ? AND settings_hash = ? AND seed = ? AND chunk = ?",
