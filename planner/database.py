@@ -10,6 +10,9 @@ Tables (see the README for every column):
   an interrupted run leaves either all of a unit or none of it.
 - ``grasps``: one row per evaluated grasp (a hand that closed on the object
   with contacts), with its pose, joints, contacts, quality, score and rank.
+- ``validation`` (v2): the dynamic PyBullet trial of a grasp (success, object
+  motion during closing and shaking, settings).
+- ``robust`` (v2): robust epsilon under pose and friction noise.
 
 No pickle: arrays are JSON text. A newer schema refuses politely; an older one
 is migrated after a backup copy is written next to the file.
@@ -31,7 +34,7 @@ from planner.errors import DatabaseError
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 BUSY_TIMEOUT_S = 60.0
 
 SCHEMA = """
@@ -223,7 +226,24 @@ def _schema_version(conn: sqlite3.Connection, path: Path) -> int:
     return int(row[0]) if row else 0
 
 
-MIGRATIONS: dict[int, str] = {}  # from version -> SQL bringing it to version + 1
+#: from version -> SQL bringing it to version + 1. A new database runs
+#: ``SCHEMA`` (version 1) and then every migration.
+MIGRATIONS: dict[int, str] = {
+    1: """
+CREATE TABLE IF NOT EXISTS validation (
+    grasp_id INTEGER PRIMARY KEY REFERENCES grasps(id) ON DELETE CASCADE,
+    success INTEGER NOT NULL, fingers_in_contact INTEGER NOT NULL,
+    closing_linear REAL NOT NULL, closing_angular REAL NOT NULL,
+    shaking_linear REAL NOT NULL, shaking_angular REAL NOT NULL,
+    seed INTEGER NOT NULL, settings TEXT NOT NULL
+);
+CREATE TABLE IF NOT EXISTS robust (
+    grasp_id INTEGER PRIMARY KEY REFERENCES grasps(id) ON DELETE CASCADE,
+    mean REAL NOT NULL, quantile REAL NOT NULL, samples INTEGER NOT NULL,
+    seed INTEGER NOT NULL, settings TEXT NOT NULL
+)
+""",
+}
 
 
 def _migrate(db: Database, version: int) -> None:
@@ -234,7 +254,8 @@ def _migrate(db: Database, version: int) -> None:
         log.warning("%s: migrating schema v%d -> v%d; backup at %s", db.path, version, SCHEMA_VERSION, backup)
     try:
         with db.transaction() as conn:
-            scripts = [SCHEMA] if version == 0 else [MIGRATIONS[v] for v in range(version, SCHEMA_VERSION)]
+            scripts = ([SCHEMA] if version == 0 else []) + [MIGRATIONS[v] for v in range(max(version, 1),
+                                                                                       SCHEMA_VERSION)]
             for script in scripts:
                 # not executescript(): it would COMMIT the open transaction first
                 for statement in filter(str.strip, script.split(";")):

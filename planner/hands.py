@@ -90,6 +90,7 @@ class HandSpec:
     roll_symmetry: int  # the hand looks the same after 2 pi / roll_symmetry about the approach
     links: tuple[str, ...]
     arm: ArmSpec | None
+    export_frame: np.ndarray  # (4, 4) dataset gripper frame in the hand frame (ACRONYM convention)
 
     def joint(self, name: str) -> JointSpec:
         for joint in self.joints:
@@ -152,7 +153,7 @@ def load_folder(folder: Path) -> HandSpec:
         joints=joints, contact_links=contact_links, contacts=contacts, centering=f.bool("centering", False),
         distance_offset=f.float("distance_offset", DEFAULT_DISTANCE_OFFSET),
         roll_symmetry=_symmetry(f),
-        links=tuple(tree.links), arm=_arm(f, folder),
+        links=tuple(tree.links), arm=_arm(f, folder), export_frame=_export_frame(f),
     )
 
 
@@ -209,6 +210,17 @@ def _contact_model(f: Fields) -> ContactModel:
     if model == "soft" and torsion <= 0:
         raise ConfigError(f"{f.where} field 'torsion': a soft contact needs a positive torsion [m]")
     return ContactModel(model, torsion)
+
+
+def _export_frame(f: Fields) -> np.ndarray:
+    """``[export] xyz, rpy``: the dataset gripper frame in the hand frame."""
+    from scipy.spatial.transform import Rotation
+
+    e = f.table("export", {})
+    frame = np.eye(4)
+    frame[:3, :3] = Rotation.from_euler("xyz", e.floats("rpy", 3, [0, 0, 0])).as_matrix()
+    frame[:3, 3] = e.floats("xyz", 3, [0, 0, 0])
+    return frame
 
 
 def _arm(f: Fields, folder: Path) -> ArmSpec | None:
