@@ -240,6 +240,28 @@ def _pose7(values: Sequence[float], option: str):  # type: ignore[no-untyped-def
     return pose_from_xyzquat(tuple(vals))
 
 
+def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: int = 1, top: int | None = None
+         ) -> list[GraspRow]:
+    """Render grasp ``rank`` (or the ``top`` K as a contact sheet) to a PNG."""
+    from planner import render
+
+    count = top or 1
+    first = 1 if top else rank
+    if count < 1 or first < 1:
+        raise InputError("--rank and --top must be at least 1")
+    spec = hand_specs.load(hand)
+    key = objects.resolve_spec(name).name
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        rows = db.best(key, hand, count, first - 1)
+    if not rows:
+        raise InputError(f"no grasp of rank {first} for '{key}' and hand '{hand}' in {db_path}")
+    if Path(out).suffix.lower() != ".png":
+        raise InputError(f"{out}: the picture is written as PNG; give a .png path")
+    obj = objects.load(name)
+    render.save_sheet([(render.grasp_views(spec, obj, row), render.title(row)) for row in rows], Path(out))
+    return rows
+
+
 def check_db(db_path: Path) -> list[str]:
     """``PRAGMA integrity_check`` problems (empty list: healthy)."""
     with open_db(Path(db_path), create=False, readonly=True) as db:

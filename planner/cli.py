@@ -223,6 +223,19 @@ def _print_grasp(r: GraspRow) -> None:
                f"contacts={len(r.contacts)} position=({pos[0]:.3f}, {pos[1]:.3f}, {pos[2]:.3f}) m")
 
 
+@main.command()
+@click.argument("object_name", metavar="OBJECT")
+@click.option("--hand", required=True)
+@click.option("--db", "db_path", type=click.Path(path_type=Path), default=api.DEFAULT_DB, show_default=True)
+@click.option("--rank", type=int, default=1, show_default=True, help="Which grasp (1 = best).")
+@click.option("--top", type=int, help="A contact sheet of the K best grasps instead.")
+@click.option("--out", type=click.Path(path_type=Path), default=Path("grasp.png"), show_default=True)
+def show(object_name: str, hand: str, db_path: Path, rank: int, top: int | None, out: Path) -> None:
+    """Render grasps (hand closed on the object, contacts, friction cones) to a PNG."""
+    rows = api.show(object_name, hand, out, db_path=db_path, rank=rank, top=top)
+    click.echo(f"{out}: {len(rows)} grasp(s) from {len(rows) and 3} viewpoints")
+
+
 @main.command(name="hands")
 @click.argument("name", required=False)
 def hands_cmd(name: str | None) -> None:

@@ -218,6 +218,31 @@ class Sim:
                                                zeros, zeros, physicsClientId=self.client)
         return np.vstack([np.asarray(linear), np.asarray(angular)])
 
+    def add_visual_mesh(self, vertices: np.ndarray, faces: np.ndarray, rgba: tuple[float, ...],
+                        pose: np.ndarray | None = None) -> int:
+        """A body that is only seen (no collision), for pictures."""
+        tri = np.asarray(faces, int)
+        shape = pb.createVisualShape(pb.GEOM_MESH, vertices=np.asarray(vertices, float).tolist(),
+                                     indices=tri.reshape(-1).tolist(), rgbaColor=list(rgba),
+                                     physicsClientId=self.client)
+        position, orientation = pose_to_pb(np.eye(4) if pose is None else pose)
+        return pb.createMultiBody(0.0, -1, shape, basePosition=position, baseOrientation=orientation,
+                                  physicsClientId=self.client)
+
+    def set_color(self, body: Body, rgba: tuple[float, ...]) -> None:
+        for index in body.links.values():
+            pb.changeVisualShape(body.uid, index, rgbaColor=list(rgba), physicsClientId=self.client)
+
+    def render(self, eye: np.ndarray, target: np.ndarray, up: np.ndarray, size: tuple[int, int],
+               fov: float = 40.0, near: float = 0.01, far: float = 5.0) -> np.ndarray:
+        """(h, w, 3) uint8 RGB picture from PyBullet's CPU TinyRenderer."""
+        width, height = size
+        view = pb.computeViewMatrix(list(eye), list(target), list(up), physicsClientId=self.client)
+        proj = pb.computeProjectionMatrixFOV(fov, width / height, near, far, physicsClientId=self.client)
+        _, _, rgba, _, _ = pb.getCameraImage(width, height, view, proj, renderer=pb.ER_TINY_RENDERER,
+                                             lightDirection=[1, 1, 2], shadow=0, physicsClientId=self.client)
+        return np.reshape(np.asarray(rgba, np.uint8), (height, width, 4))[:, :, :3]
+
     def link_aabb(self, body: Body, link: str) -> tuple[np.ndarray, np.ndarray]:
         lo, hi = pb.getAABB(body.uid, body.links[link], physicsClientId=self.client)
         return np.asarray(lo), np.asarray(hi)
