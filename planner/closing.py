@@ -136,14 +136,9 @@ class Grasper:
         pose[:3, 3] = point - direction * start - rotation @ preshape.tcp
         joints = dict(preshape.joints)
         self._place(pose, joints)
-        backed, jump = 0.0, s.coarse_step
-        while self._gap(self._closest(0.0)) <= 0.0:  # back off while colliding, in doubling jumps
-            if backed > 2 * object_radius:
-                return Rejected("start_collision", self.queries)
-            pose[:3, 3] -= direction * jump
-            backed += jump
-            jump *= 2
-            self.sim.set_pose(self.body, pose)
+        backed = self._back_off(pose, direction, 2 * object_radius)
+        if backed is None:
+            return Rejected("start_collision", self.queries)
         # the hand may travel until its back (not just its tcp) has passed the object
         depth = float(np.linalg.norm(preshape.tcp))
         travelled, limit = 0.0, start + backed + 2 * object_radius + depth
@@ -158,6 +153,34 @@ class Grasper:
             self.sim.set_pose(self.body, pose)
         pose[:3, 3] -= direction * standoff
         self.sim.set_pose(self.body, pose)
+        return self._finish(pose, preshape, joints)
+
+    def close_at(self, pose: np.ndarray, preshape: Preshape, max_back_off: float = 0.05) -> Closed | Rejected:
+        """Close the fingers with the hand at ``pose`` (no approach): for
+        re-scoring a given grasp pose (imports, noisy copies of a grasp). The
+        open hand is backed off along the approach only while it collides."""
+        self.queries = 0
+        pose = np.array(pose, float)
+        joints = dict(preshape.joints)
+        self._place(pose, joints)
+        if self._back_off(pose, pose[:3, :3] @ self.hand.approach, max_back_off) is None:
+            return Rejected("start_collision", self.queries)
+        return self._finish(pose, preshape, joints)
+
+    def _back_off(self, pose: np.ndarray, direction: np.ndarray, limit: float) -> float | None:
+        """Move the hand back along ``direction`` in doubling jumps until it is
+        free; how far it went, or None past ``limit``. Moves ``pose`` in place."""
+        backed, jump = 0.0, self.settings.coarse_step
+        while self._gap(self._closest(0.0)) <= 0.0:
+            if backed > limit:
+                return None
+            pose[:3, 3] -= direction * jump
+            backed += jump
+            jump *= 2
+            self.sim.set_pose(self.body, pose)
+        return backed
+
+    def _finish(self, pose: np.ndarray, preshape: Preshape, joints: dict[str, float]) -> Closed | Rejected:
         closed = self._close_fingers(preshape, joints)
         if self.hand.centering:
             pose, closed = self._centre(pose, closed)

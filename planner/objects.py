@@ -57,9 +57,9 @@ class PreparedObject:
         inertia: (3, 3) inertia about the centre of mass, object axes [kg m^2].
         torque_scale: rho [m], largest distance from ``com`` to the surface
             (seed section 2.2.1).
-        gyration_radius: radius of gyration about the centre of mass [m],
-            k = sqrt(trace(I) / (2 m)) (the RMS distance of the mass from the
-            centre of mass), the other choice of rho.
+        gyration_radius: radius of gyration [m], the other choice of rho
+            (``planner.quality.radius_of_gyration``: sqrt(trace(I) / (3 m)),
+            from the mean principal moment).
         mesh_hash: sha256 of the geometry, the key of every cache.
     """
 
@@ -180,8 +180,10 @@ def prepare(spec: ObjectSpec) -> PreparedObject:
     mesh.density = density
     com = np.asarray(mesh.center_mass, float)
     inertia = np.asarray(mesh.moment_inertia, float)
-    rho = float(np.max(np.linalg.norm(mesh.vertices - com, axis=1)))
-    gyration = math.sqrt(float(np.trace(inertia)) / (2.0 * spec.mass))
+    from planner import quality
+
+    rho = quality.torque_scale_max_distance(mesh.vertices, com)
+    gyration = quality.radius_of_gyration(spec.mass, inertia)
     return PreparedObject(
         spec=spec, mesh=mesh, source_file=source_file, mesh_hash=meshes.mesh_hash(mesh), volume=volume,
         density=density, com=com, inertia=inertia, torque_scale=rho, gyration_radius=gyration,

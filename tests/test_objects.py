@@ -16,9 +16,9 @@ def test_sphere_known_answers() -> None:
     # icosphere volume is slightly under the sphere's
     assert o.volume == pytest.approx(4 / 3 * math.pi * r**3, rel=0.02)
     assert o.density == pytest.approx(o.mass / o.volume)
-    # radius of gyration about the centre of mass, k^2 = trace(I) / (2 m):
-    # for a solid sphere (I = 2/5 m r^2 per axis) k = sqrt(3/5) r
-    assert o.gyration_radius == pytest.approx(math.sqrt(0.6) * r, rel=0.02)
+    # radius of gyration from the mean principal moment, k^2 = trace(I) / (3 m):
+    # for a solid sphere (I = 2/5 m r^2 per axis) k = sqrt(2/5) r
+    assert o.gyration_radius == pytest.approx(math.sqrt(0.4) * r, rel=0.02)
 
 
 def test_box_torque_scale_is_half_diagonal() -> None:

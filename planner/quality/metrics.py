@@ -1,0 +1,153 @@
+"""Ferrari-Canny epsilon, GWS volume and force closure (sec. 2.3.2).
+
+The grasp wrench space (GWS) is built from the primitive wrenches W_i of
+each contact (see wrenches.py):
+
+* norm="L1":   conv(union_i W_i)            (sum of normal forces <= 1)
+* norm="Linf": sum_i conv({0} U W_i)         (each normal force <= 1)
+
+epsilon is the radius of the largest origin-centred ball inside the GWS.
+Force closure is decided once, on the L1 GWS (the two GWS are force closure
+together), as "L1 epsilon > FORCE_CLOSURE_TOL"; epsilon returns exactly 0.0
+for grasps that fail it, so ``force_closure(...) == (epsilon(...) > 0)``.
+
+Cost: the hull-free certificates of closure.py reject non-closure grasps in
+well under a millisecond; closure grasps then pay one hull (evaluate,
+volume) or an active-set hull of a few dozen wrenches (epsilon).  The
+L-infinity volume needs every vertex of the Minkowski sum, which grows
+quickly with the number of contacts; its epsilon does not.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from planner.quality.closure import check_closure
+from planner.quality.contacts import ModelArg, as_center, as_contacts, as_norm, as_torque_scale
+from planner.quality.hull import L1Support, LinfSupport, active_set_epsilon, hull_epsilon, minkowski_vertices, qhull
+from planner.quality.tolerances import FORCE_CLOSURE_TOL
+from planner.quality.wrenches import PrimitiveWrenches, as_cone_edges, contact_wrenches, dedupe
+
+#: Up to this many L1 generators one full hull is cheaper than the active set
+#: (measured crossover: 3 point contacts x 8 edges).
+FULL_HULL_MAX_POINTS = 24
+
+
+@dataclass(frozen=True)
+class Quality:
+    """Grasp quality from one GWS hull.
+
+    epsilon : Ferrari-Canny radius in wrench units (N per N of total normal
+        force for L1, per N of largest normal force for Linf); 0.0 when not
+        force closure.
+    volume : GWS volume in wrench units^6; 0.0 when not force closure (the
+        hull is skipped for those grasps; call ``volume`` if you need it).
+    force_closure : L1 epsilon > FORCE_CLOSURE_TOL.
+    """
+
+    epsilon: float
+    volume: float
+    force_closure: bool
+
+
+@dataclass(frozen=True)
+class _Gws:
+    union: np.ndarray            # (k, 6) deduplicated L1 generators
+    grouped: PrimitiveWrenches   # per-contact deduplicated generators
+    norm: str
+    scale: float                 # largest |coordinate|, for tolerances
+
+
+def _gws(points: ArrayLike, frames: ArrayLike, mu: ArrayLike, center: ArrayLike,
+         torque_scale: float, cone_edges: int, model: ModelArg, norm: str,
+         torsion: ArrayLike) -> _Gws:
+    contacts = as_contacts(points, frames, mu=mu, model=model, torsion=torsion)
+    raw = contact_wrenches(contacts, as_center(center), as_torque_scale(torque_scale),
+                           as_cone_edges(cone_edges))
+    norm = as_norm(norm)
+    union = dedupe(raw, per_contact=False).wrenches
+    grouped = dedupe(raw, per_contact=True) if norm == "Linf" else raw
+    return _Gws(union, grouped, norm, max(float(np.abs(union).max(initial=0.0)), 1.0))
+
+
+def _l1_epsilon(gws: _Gws) -> float:
+    eps = None
+    if len(gws.union) > FULL_HULL_MAX_POINTS:
+        eps = active_set_epsilon(L1Support(gws.union), gws.scale)
+    if eps is None:
+        hull = qhull(gws.union)
+        eps = 0.0 if hull is None else hull_epsilon(hull)
+    return eps
+
+
+def _linf_epsilon(gws: _Gws) -> float:
+    eps = active_set_epsilon(LinfSupport(*gws.grouped), gws.scale)
+    if eps is None:
+        hull = qhull(minkowski_vertices(*gws.grouped))
+        eps = 0.0 if hull is None else hull_epsilon(hull)
+    return eps
+
+
+def _closure_lower(gws: _Gws) -> float:
+    """A lower bound > TOL on the L1 epsilon, or 0.0 if not force closure."""
+    check = check_closure(gws.union)
+    if check.verdict is not None:
+        return check.lower if check.verdict else 0.0
+    eps = _l1_epsilon(gws)
+    return eps if eps > FORCE_CLOSURE_TOL else 0.0
+
+
+def epsilon(points: ArrayLike, frames: ArrayLike, *, mu: ArrayLike, center: ArrayLike,
+            torque_scale: float, cone_edges: int = 8, model: ModelArg = "point",
+            norm: str = "L1", torsion: ArrayLike = 0.0) -> float:
+    """Ferrari-Canny epsilon of the grasp; 0.0 when not force closure.
+
+    points : (n, 3) c_i [m]; frames : (n, 3, 3) R_i, columns (n_i, l_i, o_i)
+    with n_i into the object; mu, torsion [m] : scalar or (n,); center : (3,)
+    p [m]; torque_scale : rho [m]; model : name or n names from MODELS;
+    norm : "L1" or "Linf".  Raises DegenerateGraspError on malformed input.
+    """
+    gws = _gws(points, frames, mu, center, torque_scale, cone_edges, model, norm, torsion)
+    lower = _closure_lower(gws)
+    if lower <= 0.0:
+        return 0.0
+    eps = _l1_epsilon(gws) if gws.norm == "L1" else _linf_epsilon(gws)
+    return max(eps, lower)      # lower is proven; this only guards round-off
+
+
+def force_closure(points: ArrayLike, frames: ArrayLike, *, mu: ArrayLike, center: ArrayLike,
+                  torque_scale: float, cone_edges: int = 8, model: ModelArg = "point",
+                  norm: str = "L1", torsion: ArrayLike = 0.0) -> bool:
+    """True iff the L1 epsilon exceeds FORCE_CLOSURE_TOL, decided by hull-free
+    certificates (a hull only when they are inconclusive, i.e. epsilon within
+    a small factor of the tolerance).  ``norm`` does not change the answer."""
+    gws = _gws(points, frames, mu, center, torque_scale, cone_edges, model, norm, torsion)
+    return _closure_lower(gws) > 0.0
+
+
+def volume(points: ArrayLike, frames: ArrayLike, *, mu: ArrayLike, center: ArrayLike,
+           torque_scale: float, cone_edges: int = 8, model: ModelArg = "point",
+           norm: str = "L1", torsion: ArrayLike = 0.0) -> float:
+    """GWS volume (wrench units^6) whether or not the grasp is force closure;
+    0.0 when the GWS is not full-dimensional.  Arguments as ``epsilon``."""
+    gws = _gws(points, frames, mu, center, torque_scale, cone_edges, model, norm, torsion)
+    hull = qhull(gws.union if gws.norm == "L1" else minkowski_vertices(*gws.grouped))
+    return 0.0 if hull is None else float(hull.volume)
+
+
+def evaluate(points: ArrayLike, frames: ArrayLike, *, mu: ArrayLike, center: ArrayLike,
+             torque_scale: float, cone_edges: int = 8, model: ModelArg = "point",
+             norm: str = "L1", torsion: ArrayLike = 0.0) -> Quality:
+    """epsilon, volume and force closure together: certificates first (no
+    hull for non-closure grasps), then one hull.  Arguments as ``epsilon``."""
+    gws = _gws(points, frames, mu, center, torque_scale, cone_edges, model, norm, torsion)
+    lower = _closure_lower(gws)
+    if lower <= 0.0:
+        return Quality(0.0, 0.0, False)
+    hull = qhull(gws.union if gws.norm == "L1" else minkowski_vertices(*gws.grouped))
+    if hull is None:            # cannot happen for a GWS holding a ball of radius > TOL
+        return Quality(lower, 0.0, True)
+    return Quality(max(hull_epsilon(hull), lower), float(hull.volume), True)

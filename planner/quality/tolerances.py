@@ -1,0 +1,55 @@
+"""Every numerical tolerance of the grasp-quality package, in one place.
+
+Wrench units: a primitive wrench has a unit normal force component, so the
+force part is in newtons per newton of normal force and the torque part, after
+division by the torque scale rho, is too.  Tolerances in "wrench units" are
+therefore dimensionless multiples of the normal force.
+"""
+
+from __future__ import annotations
+
+#: A grasp is force closure iff its L1 epsilon exceeds this (wrench units).
+#: ``force_closure`` and ``epsilon`` decide with this single number, so
+#: ``force_closure(...) == (epsilon(...) > 0)`` always.  1e-9 is OpenRAVE's
+#: threshold; it sits far above qhull round-off (~1e-15) and far below any
+#: grasp worth keeping.
+FORCE_CLOSURE_TOL = 1e-9
+
+#: A wrench that lies beyond a hull facet's plane by less than this times the
+#: largest wrench coordinate counts as on the plane (about 500 ulps).  It bounds
+#: the error of the active-set epsilon.
+FACET_TOL = 1e-13
+
+#: Primitive wrenches whose coordinates agree to this times the largest wrench
+#: coordinate are merged before any hull (mu = 0 cones, repeated contacts).
+DEDUP_TOL = 1e-12
+
+#: Allowed deviation of R_i^T R_i from the identity: normals and tangents must
+#: be unit and orthogonal to this accuracy (float32 frames pass).
+FRAME_TOL = 1e-6
+
+#: Relative residual above which an NNLS solution is read as "this direction is
+#: not in the positive span" and its residual is tried as a separating plane.
+NNLS_RESIDUAL_TOL = 1e-12
+
+#: An inscribed simplex whose barycentric matrix has a worse condition number
+#: than this is not trusted as a force-closure certificate.
+SIMPLEX_COND_MAX = 1e8
+
+#: contact_forces: accepted equilibrium error |G f + w_ext| relative to
+#: max(1, |w_ext|), and accepted friction-cone violation |f_t| - mu f_n
+#: relative to max(1, |f|).
+EQUILIBRIUM_TOL = 1e-6
+CONE_TOL = 1e-6
+
+#: contact_forces: smoothing d of the cone constraint mu f_n - sqrt(|f_t|^2 +
+#: d^2) + d >= 0, in units of the largest external wrench component; the
+#: smoothed cone exceeds the true one by at most d, far inside CONE_TOL.
+CONE_SMOOTHING = 1e-9
+
+#: Singular values below this times the largest count as zero when finding the
+#: linear span of a partial Minkowski sum (the L-infinity GWS).
+RANK_TOL = 1e-12
+
+#: Relative asymmetry / negative eigenvalue accepted in an inertia tensor.
+INERTIA_TOL = 1e-9

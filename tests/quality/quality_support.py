@@ -1,0 +1,77 @@
+"""Builders and the one tolerance helper shared by the grasp-quality tests."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import strategies as st
+
+#: Named test tolerances (relative unless the name says otherwise).
+EXACT = 1e-12          # identities that only suffer round-off
+REFERENCE = 1e-9       # fast epsilon / volume vs the plain qhull reference
+FINITE_DIFF = 1e-6     # central differences with step 1e-6 on O(1) kinematics
+
+SPHERE_RADIUS = 0.05   # [m]
+
+
+def assert_close(actual: object, expected: object, rel: float = EXACT, abs_: float = EXACT,
+                 what: str = "") -> None:
+    """|actual - expected| <= abs_ + rel * |expected|, elementwise."""
+    a, e = np.asarray(actual, dtype=float), np.asarray(expected, dtype=float)
+    err = np.abs(a - e)
+    bound = abs_ + rel * np.abs(e)
+    assert a.shape == e.shape, f"{what}: shape {a.shape} != {e.shape}"
+    assert (err <= bound).all(), (
+        f"{what}: max error {err.max():.3g} exceeds tolerance (rel {rel:g}, abs {abs_:g});"
+        f" actual {a.ravel()[:6]}, expected {e.ravel()[:6]}")
+
+
+def frames_from_normals(normals: np.ndarray, roll: np.ndarray | None = None) -> np.ndarray:
+    """(n, 3, 3) right-handed frames with first column the unit normal,
+    tangents rotated by ``roll`` (n,) [rad] about it."""
+    n = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+    helper = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
+    tan_l = np.cross(n, helper)
+    tan_l /= np.linalg.norm(tan_l, axis=1, keepdims=True)
+    tan_o = np.cross(n, tan_l)
+    if roll is not None:
+        c, s = np.cos(roll)[:, None], np.sin(roll)[:, None]
+        tan_l, tan_o = c * tan_l + s * tan_o, -s * tan_l + c * tan_o
+    return np.stack([n, tan_l, tan_o], axis=2)
+
+
+def sphere_grasp(rng: np.random.Generator, n: int,
+                 radius: float = SPHERE_RADIUS) -> tuple[np.ndarray, np.ndarray]:
+    """n contacts uniform on a sphere about the origin, normals inward."""
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    return radius * d, frames_from_normals(-d, rng.uniform(0, 2 * np.pi, n))
+
+
+def box_grasp(rng: np.random.Generator, n: int,
+              half: tuple[float, float, float] = (0.03, 0.02, 0.05)) -> tuple[np.ndarray, np.ndarray]:
+    """n contacts on random faces of an axis-aligned box, normals inward."""
+    half_arr = np.asarray(half)
+    axis = rng.integers(0, 3, n)
+    sign = rng.choice([-1.0, 1.0], n)
+    pts = rng.uniform(-1, 1, (n, 3)) * half_arr
+    pts[np.arange(n), axis] = sign * half_arr[axis]
+    normals = np.zeros((n, 3))
+    normals[np.arange(n), axis] = -sign
+    return pts, frames_from_normals(normals, rng.uniform(0, 2 * np.pi, n))
+
+
+def random_rotation(rng: np.random.Generator) -> np.ndarray:
+    """A uniformly random rotation matrix (3, 3)."""
+    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
+    q *= np.sign(np.diag(r))
+    return q if np.linalg.det(q) > 0 else -q
+
+
+def equator_grasp(k: int = 3, radius: float = SPHERE_RADIUS) -> tuple[np.ndarray, np.ndarray]:
+    """k contacts evenly spaced on the equator (z = 0) of a sphere, inward."""
+    ang = 2 * np.pi * np.arange(k) / k
+    d = np.stack([np.cos(ang), np.sin(ang), np.zeros(k)], axis=1)
+    return radius * d, frames_from_normals(-d)
+
+
+seeds = st.integers(min_value=0, max_value=2**32 - 1)

@@ -1,0 +1,139 @@
+"""Epsilon and volume: invariances, scaling, norms, evaluate, degenerate input."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from quality_support import (
+    REFERENCE,
+    assert_close,
+    box_grasp,
+    equator_grasp,
+    frames_from_normals,
+    random_rotation,
+    seeds,
+    sphere_grasp,
+)
+from scipy.spatial import ConvexHull
+
+from planner.quality import FORCE_CLOSURE_TOL, Quality, epsilon, evaluate, primitive_wrenches, volume
+
+R = 0.05
+
+
+def closure_grasp(seed: int, n: int, mu: float = 0.5) -> tuple[np.ndarray, np.ndarray, dict]:
+    """A random force-closure grasp on a box (retries until closure)."""
+    rng = np.random.default_rng(seed)
+    args = {"mu": mu, "center": rng.normal(size=3) * 0.005, "torque_scale": R}
+    while True:
+        pts, frames = box_grasp(rng, n)
+        if epsilon(pts, frames, **args) > 1e-4:
+            return pts, frames, args
+
+
+@given(seed=seeds, n=st.integers(3, 6), norm=st.sampled_from(["L1", "Linf"]))
+@settings(max_examples=25, deadline=None)
+def test_epsilon_is_invariant_under_rigid_motion(seed: int, n: int, norm: str) -> None:
+    pts, frames, args = closure_grasp(seed, n if norm == "L1" else min(n, 4))
+    rng = np.random.default_rng(seed + 1)
+    rot, shift = random_rotation(rng), rng.normal(size=3)
+    moved = args | {"center": rot @ args["center"] + shift}
+    assert_close(epsilon(pts @ rot.T + shift, rot @ frames, **moved, norm=norm),
+                 epsilon(pts, frames, **args, norm=norm), rel=REFERENCE)
+
+
+@given(seed=seeds, n=st.integers(3, 6), scale=st.floats(0.01, 100))
+@settings(max_examples=25, deadline=None)
+def test_epsilon_is_invariant_when_all_lengths_scale(seed: int, n: int, scale: float) -> None:
+    # (s c_i - s p) x f / (s rho) = (c_i - p) x f / rho: every wrench is unchanged.
+    pts, frames, args = closure_grasp(seed, n)
+    args = args | {"model": "soft", "torsion": 0.002}
+    scaled = args | {"center": scale * args["center"], "torque_scale": scale * R,
+                         "torsion": scale * 0.002}
+    assert_close(epsilon(scale * pts, frames, **scaled), epsilon(pts, frames, **args),
+                 rel=REFERENCE)
+
+
+@given(seed=seeds, n=st.integers(3, 6), ratio=st.floats(1.0, 50.0))
+@settings(max_examples=25, deadline=None)
+def test_epsilon_bounds_when_rho_grows(seed: int, n: int, ratio: float) -> None:
+    # W(rho2) = D W(rho1), D = diag(1, 1, 1, s, s, s), s = rho1 / rho2 <= 1: D shrinks
+    # the GWS, so eps2 <= eps1, and D maps the ball of radius eps1 onto an
+    # ellipsoid holding the ball of radius s eps1, so eps2 >= s eps1.
+    pts, frames, args = closure_grasp(seed, n)
+    eps1 = epsilon(pts, frames, **args)
+    eps2 = epsilon(pts, frames, **args | {"torque_scale": ratio * R})
+    assert eps1 / ratio * (1 - REFERENCE) <= eps2 <= eps1 * (1 + REFERENCE)
+
+
+@given(seed=seeds, ratio=st.sampled_from([0.3, 2.0, 7.0]))
+@settings(max_examples=10, deadline=None)
+def test_epsilon_follows_the_facets_when_rho_changes(seed: int, ratio: float) -> None:
+    # With rho2 = ratio rho1 the GWS is D K1, D = diag(1, 1, 1, s, s, s), s = 1 / ratio.
+    # A facet a.x = b of K1 (|a| = 1) becomes (a_f, a_t / s).y = b, whose distance
+    # from the origin is b s / sqrt(s^2 |a_f|^2 + |a_t|^2): eps2 is the least of these.
+    pts, frames = sphere_grasp(np.random.default_rng(seed), 4)
+    args = {"mu": 0.6, "center": np.zeros(3), "torque_scale": R}
+    wrenches, _ = primitive_wrenches(pts, frames, **args)
+    eqs = ConvexHull(wrenches).equations
+    s = 1.0 / ratio
+    dist = -eqs[:, -1] * s / np.hypot(s * np.linalg.norm(eqs[:, :3], axis=1),
+                                      np.linalg.norm(eqs[:, 3:6], axis=1))
+    predicted = max(float(dist.min()), 0.0)
+    actual = epsilon(pts, frames, **args | {"torque_scale": ratio * R})
+    assert_close(actual, predicted, rel=REFERENCE, abs_=FORCE_CLOSURE_TOL)
+
+
+@given(seed=seeds, n=st.integers(2, 6), mu=st.floats(0.05, 1.0))
+@settings(max_examples=25, deadline=None)
+def test_linf_epsilon_is_at_least_l1(seed: int, n: int, mu: float) -> None:
+    pts, frames = sphere_grasp(np.random.default_rng(seed), n)
+    args = {"mu": mu, "center": np.zeros(3), "torque_scale": R}
+    l1, linf = epsilon(pts, frames, **args), epsilon(pts, frames, **args, norm="Linf")
+    assert linf >= l1 * (1 - REFERENCE)
+
+
+def test_linf_volume_is_at_least_l1(rng: np.random.Generator) -> None:
+    # The Minkowski-sum hull has tens of thousands of facets already for 3
+    # contacts: keep this to a couple of small cases.
+    for n in (2, 3):
+        pts, frames = box_grasp(rng, n)
+        args = {"mu": 0.4, "center": np.zeros(3), "torque_scale": R}
+        assert volume(pts, frames, **args, norm="Linf") >= volume(pts, frames, **args)
+
+
+@given(seed=seeds, n=st.integers(3, 8))
+@settings(max_examples=25, deadline=None)
+def test_evaluate_matches_epsilon_and_volume(seed: int, n: int) -> None:
+    pts, frames = sphere_grasp(np.random.default_rng(seed), n)
+    args = {"mu": 0.4, "center": np.zeros(3), "torque_scale": R}
+    quality = evaluate(pts, frames, **args)
+    assert isinstance(quality, Quality)
+    if quality.force_closure:
+        assert_close(quality.epsilon, epsilon(pts, frames, **args), rel=REFERENCE)
+        assert_close(quality.volume, volume(pts, frames, **args), rel=REFERENCE)
+    else:
+        assert quality == Quality(0.0, 0.0, False)
+
+
+def test_degenerate_grasps_return_zero(rng: np.random.Generator) -> None:
+    args = {"mu": 0.5, "center": np.zeros(3), "torque_scale": R}
+    pts, frames = sphere_grasp(rng, 1)
+    repeated = (np.repeat(pts, 5, axis=0), np.repeat(frames, 5, axis=0))
+    assert epsilon(*repeated, **args) == 0.0 and volume(*repeated, **args) == 0.0
+    planar_pts, planar_frames = equator_grasp(8)
+    frictionless = args | {"model": "frictionless"}
+    assert epsilon(planar_pts, planar_frames, **frictionless) == 0.0
+    assert volume(planar_pts, planar_frames, **frictionless) == 0.0
+    assert evaluate(planar_pts, planar_frames, **frictionless) == Quality(0.0, 0.0, False)
+
+
+def test_volume_is_reported_for_grasps_without_closure() -> None:
+    pts = np.array([[R, 0, 0], [-R, 0, 0]])
+    frames = frames_from_normals(-pts)
+    args = {"mu": 0.5, "center": np.zeros(3), "torque_scale": R, "model": "soft", "torsion": 0.0}
+    assert epsilon(pts, frames, **args) == 0.0
+    assert volume(pts, frames, **args) == 0.0          # the spin axis is missing: flat
+    args["torsion"] = 1e-3
+    assert epsilon(pts, frames, **args) > FORCE_CLOSURE_TOL and volume(pts, frames, **args) > 0
