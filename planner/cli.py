@@ -236,6 +236,45 @@ def show(object_name: str, hand: str, db_path: Path, rank: int, top: int | None,
     click.echo(f"{out}: {len(rows)} grasp(s) from {len(rows) and 3} viewpoints")
 
 
+@main.command()
+@click.option("--db", "db_path", type=click.Path(path_type=Path), default=api.DEFAULT_DB, show_default=True)
+@click.option("--object", "objects_", multiple=True, help="Only these objects (repeat).")
+@click.option("--hand", "hands_", multiple=True, help="Only these hands (repeat).")
+@click.option("--top", type=int, default=10, show_default=True, help="Validate each object's K best grasps.")
+@click.option("--robust", "robust_samples", type=int, default=10, show_default=True,
+              help="Noise samples for robust epsilon (0: skip).")
+@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--workers", type=int, default=api.default_workers(), show_default="all cores")
+@click.option("--json", "as_json", is_flag=True)
+def validate(db_path: Path, objects_: tuple[str, ...], hands_: tuple[str, ...], top: int, robust_samples: int,
+             seed: int, workers: int, as_json: bool) -> None:
+    """Shake-test the best grasps in PyBullet, add robust epsilon, re-rank."""
+    from planner.validation_run import validate as run
+
+    summary = run(db_path, objects_=list(objects_) or None, hands_=list(hands_) or None, top=top,
+                  robust_samples=robust_samples, seed=seed, workers=workers)
+    if as_json:
+        click.echo(json.dumps(summary.to_json(), indent=2))
+    else:
+        click.echo(f"validated {summary.grasps} grasps: {summary.successes} held "
+                   f"({summary.successes / max(summary.grasps, 1):.0%})")
+    for name, error in summary.failed_tasks.items():
+        click.echo(f"grasp: error: {name}: {error}", err=True)
+    if summary.failed_tasks:
+        sys.exit(2)
+
+
+@main.command()
+@click.option("--db", "db_path", type=click.Path(path_type=Path), default=api.DEFAULT_DB, show_default=True)
+@click.option("--out", type=click.Path(path_type=Path), default=Path("report.html"), show_default=True,
+              help="report.html (one self-contained file) or a folder (report.md + PNGs).")
+def report(db_path: Path, out: Path) -> None:
+    """How well epsilon, robust epsilon and reachability predict simulated success."""
+    from planner import report as reporting
+
+    click.echo(str(reporting.write(db_path, out)))
+
+
 @main.command(name="hands")
 @click.argument("name", required=False)
 def hands_cmd(name: str | None) -> None:

@@ -27,6 +27,7 @@ from planner.config import Fields, read_toml
 from planner.errors import ConfigError, UnknownNameError
 
 CONTACT_MODELS = ("frictionless", "point", "soft")
+DEFAULT_FINGER_FORCE = 20.0  # [N or N m] per finger motor, when [dynamics] does not say
 #: PyBullet inflates convex hull meshes, cylinders and triangle meshes by 1 mm
 #: each, so a reported closest distance is the true gap minus 2 mm (measured
 #: on a box). URDF <box> and <sphere> links are off by less (0.4-1 mm, 0 mm):
@@ -91,6 +92,7 @@ class HandSpec:
     links: tuple[str, ...]
     arm: ArmSpec | None
     export_frame: np.ndarray  # (4, 4) dataset gripper frame in the hand frame (ACRONYM convention)
+    finger_force: float  # [N or N m] force limit of each finger motor in dynamic trials
 
     def joint(self, name: str) -> JointSpec:
         for joint in self.joints:
@@ -154,6 +156,7 @@ def load_folder(folder: Path) -> HandSpec:
         distance_offset=f.float("distance_offset", DEFAULT_DISTANCE_OFFSET),
         roll_symmetry=_symmetry(f),
         links=tuple(tree.links), arm=_arm(f, folder), export_frame=_export_frame(f),
+        finger_force=f.table("dynamics", {}).float("finger_force", DEFAULT_FINGER_FORCE, positive=True),
     )
 
 

@@ -9,7 +9,9 @@ import numpy as np
 
 from planner.database import Database
 from planner.pipeline import UnitResult
-from planner.ranking import RERANK_SQL, RankingRule
+import sqlite3
+
+from planner.ranking import RERANK_SQL, RESCORE_SQL, RankingRule
 
 
 def _j(values: object) -> str:
@@ -60,17 +62,25 @@ def write_unit(db: Database, result: UnitResult, seconds: float, rule: RankingRu
         conn.execute(RERANK_SQL, (name, spec.hand))
 
 
-def apply_rule(db: Database, rule: RankingRule) -> bool:
-    """Store ``rule``; if it differs from the stored one, re-score and re-rank
-    every grasp in one transaction. Returns whether anything changed."""
-    if db.meta("ranking") == rule.to_json():
+def apply_rule(db: Database, rule: RankingRule, force: bool = False) -> bool:
+    """Store ``rule``; if it differs from the stored one (or ``force``),
+    re-score and re-rank every grasp in one transaction."""
+    if db.meta("ranking") == rule.to_json() and not force:
         return False
-    w = rule.reach_weight
     with db.transaction() as conn:
         db.set_meta(conn, "ranking", rule.to_json())
-        conn.execute("UPDATE grasps SET score = CASE WHEN force_closure = 1 THEN"
-                     " epsilon * ((1.0 - ?) + ? * COALESCE(reachability, 1.0)) ELSE 0.0 END", (w, w))
-        pairs = conn.execute("SELECT DISTINCT object, hand FROM grasps").fetchall()
-        for obj, hand in pairs:
-            conn.execute(RERANK_SQL, (obj, hand))
+        rescore(conn, rule)
     return True
+
+
+def rescore(conn: sqlite3.Connection, rule: RankingRule, obj: str | None = None, hand: str | None = None) -> None:
+    """Recompute scores (all, or one object and hand) and re-rank, inside the caller's transaction."""
+    expr, params = rule.sql()
+    if obj is None:
+        conn.execute(RESCORE_SQL.format(expr=expr, where="1"), params)
+        pairs = conn.execute("SELECT DISTINCT object, hand FROM grasps").fetchall()
+    else:
+        conn.execute(RESCORE_SQL.format(expr=expr, where="object = ? AND hand = ?"), (*params, obj, hand))
+        pairs = [(obj, hand)]
+    for o, h in pairs:
+        conn.execute(RERANK_SQL, (o, h))
