@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import logging
+import sqlite3
 import sys
 import time
 from pathlib import Path
@@ -39,6 +40,11 @@ class Group(click.Group):
                 raise
             click.echo(f"grasp: error: {exc}", err=True)
             ctx.exit(exc.exit_code)
+        except sqlite3.Error as exc:
+            if debug:
+                raise
+            click.echo(f"grasp: error: database: {exc}", err=True)
+            ctx.exit(3)
         except KeyboardInterrupt:
             click.echo("grasp: interrupted; finished units are saved, run the same command to resume", err=True)
             ctx.exit(EXIT_INTERRUPTED)

@@ -119,11 +119,14 @@ class Database:
             raise DatabaseError(f"{self.path}: database is locked by another writer ({exc})") from exc
         try:
             yield self.conn
-        except BaseException:
-            self.conn.execute("ROLLBACK")
-            raise
-        else:
             self.conn.execute("COMMIT")
+        except BaseException as exc:
+            if self.conn.in_transaction:
+                self.conn.execute("ROLLBACK")
+            if isinstance(exc, sqlite3.Error):
+                raise DatabaseError(f"{self.path}: write failed, nothing was changed ({exc}); "
+                                    "is the file read-only or the disk full?") from exc
+            raise
 
     # -- meta ---------------------------------------------------------------
     def meta(self, key: str) -> str | None:

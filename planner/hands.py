@@ -140,6 +140,7 @@ def load_folder(folder: Path) -> HandSpec:
     root_link = f.str("root_link")
     urdf = _cut_urdf(source, root_link, f"{path} field 'root_link'")
     tree = _UrdfTree.parse(urdf)
+    tree.path = source  # name the user's URDF in messages, not the cut copy
     joints = tuple(_joint(tree, jf) for jf in f.tables("joints"))
     approach = np.array(f.floats("approach", 3))
     if np.linalg.norm(approach) < 1e-9:
