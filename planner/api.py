@@ -12,12 +12,13 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from planner import hands as hand_specs, objects
+from planner import hands as hand_specs
+from planner import objects
 from planner.database import Database, GraspRow, open_db
 from planner.errors import DatabaseError, InputError
-from planner.pipeline import UnitResult, UnitSpec, run_unit
-from planner.sweep import SweepSettings
+from planner.pipeline import UnitResult, UnitSpec
 from planner.ranking import RankingRule
+from planner.sweep import SweepSettings
 from planner.writer import apply_rule, write_unit
 
 log = logging.getLogger(__name__)

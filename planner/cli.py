@@ -16,7 +16,8 @@ from pathlib import Path
 import click
 import numpy as np
 
-from planner import api, hands as hand_specs, objects, preshapes
+from planner import api, objects, preshapes
+from planner import hands as hand_specs
 from planner.database import GraspRow
 from planner.errors import PlannerError
 from planner.ranking import RankingRule
@@ -177,7 +178,8 @@ def grasp_json(row: GraspRow) -> dict:
     return {"object": row.object, "hand": row.hand, "preshape": row.preshape, "pose": row.pose,
             "joints": row.closed_joints, "open_joints": row.open_joints, "width": row.width,
             "epsilon": row.epsilon, "volume": row.volume, "force_closure": row.force_closure,
-            "reachability": row.reachability, "manipulability": row.manipulability, "contacts": row.contacts, "rank": row.rank, "score": row.score, "candidate": row.candidate,
+            "reachability": row.reachability, "manipulability": row.manipulability, "contacts": row.contacts,
+            "rank": row.rank, "score": row.score, "candidate": row.candidate,
             "seed": row.seed}
 
 
@@ -329,6 +331,14 @@ def check(db_path: Path) -> None:
         raise PlannerError(f"{db_path}: integrity check failed ({len(problems)} problems)")
     click.echo(f"{db_path}: ok")
 
+
+def _register_export_commands() -> None:
+    from planner.cli_export import register
+
+    register(main)
+
+
+_register_export_commands()
 
 if __name__ == "__main__":
     main()

@@ -31,7 +31,6 @@ from planner.preshapes import Preshape
 from planner.sampling import hand_rotation
 from planner.sim import Body, Closest, Sim
 
-
 #: Pairs closing in slower than this (per unit travel) count as sliding past.
 CLOSING_SPEED_MIN = 0.05
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 import numpy as np
@@ -122,7 +122,7 @@ def available() -> list[str]:
     return sorted(p.name for p in hands_dir().iterdir() if (p / "hand.toml").is_file())
 
 
-@lru_cache(maxsize=None)
+@cache
 def load(name: str) -> HandSpec:
     """Load ``hands/<name>/hand.toml``; unknown names list the valid ones."""
     if "/" in name or "\\" in name or name.startswith("."):
@@ -280,9 +280,8 @@ def _cut_urdf(source: Path, root_link: str, where: str) -> Path:
         raise ConfigError(f"{where}: link '{root_link}' is not in {source.name}")
     keep = set(full.descendants(root_link))
     for el in list(robot):
-        if el.tag == "link" and el.get("name") not in keep:
-            robot.remove(el)
-        elif el.tag == "joint" and not {el.find("parent").get("link"), el.find("child").get("link")} <= keep:  # type: ignore[union-attr]
+        ends = {el.find("parent").get("link"), el.find("child").get("link")} if el.tag == "joint" else set()  # type: ignore[union-attr]
+        if (el.tag == "link" and el.get("name") not in keep) or (el.tag == "joint" and not ends <= keep):
             robot.remove(el)
     for mesh in robot.iter("mesh"):
         name = mesh.get("filename", "")

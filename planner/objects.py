@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from planner import assets, mesh as meshes
+from planner import assets
+from planner import mesh as meshes
 from planner.config import Fields, read_toml
 from planner.errors import ConfigError, InputError, MeshError, UnknownNameError
 
@@ -66,6 +67,7 @@ class PreparedObject:
     spec: ObjectSpec
     mesh: trimesh.Trimesh = field(repr=False)
     source_file: str
+    file_scale: float  # what turns ``source_file`` into this mesh [m] (a URDF's mesh scale included)
     mesh_hash: str
     volume: float
     density: float
@@ -118,7 +120,8 @@ def _spec_from_toml(name: str, f: Fields) -> ObjectSpec:
         geometry = f.str("geometry", "collision")
         if geometry not in ("collision", "visual"):
             raise ConfigError(f"{f.where} field 'geometry': must be 'collision' or 'visual'")
-        return ObjectSpec(source=f.str("source"), scale=f.float("scale", 1.0, positive=True), geometry=geometry, **common)
+        return ObjectSpec(source=f.str("source"), scale=f.float("scale", 1.0, positive=True), geometry=geometry,
+                          **common)
     raise ConfigError(f"{f.where} field 'kind': unknown kind '{kind}'; use mesh, urdf, box, cylinder or sphere")
 
 
@@ -152,7 +155,8 @@ def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = 
         path = Path(name).expanduser().resolve()
         spec = ObjectSpec(name=path.stem, kind="mesh", source=str(path), scale=scale or 1.0)
     else:
-        raise UnknownNameError("object", name, [*builtin, f"{RANDOM_PREFIX}000..{RANDOM_PREFIX}999", "or a mesh file path"])
+        raise UnknownNameError("object", name,
+                               [*builtin, f"{RANDOM_PREFIX}000..{RANDOM_PREFIX}999", "or a mesh file path"])
     if label:
         spec = _replace(spec, name=label)
     overrides = {k: v for k, v in (("mass", mass), ("friction", friction)) if v is not None}
@@ -185,12 +189,22 @@ def prepare(spec: ObjectSpec) -> PreparedObject:
     rho = quality.torque_scale_max_distance(mesh.vertices, com)
     gyration = quality.radius_of_gyration(spec.mass, inertia)
     return PreparedObject(
-        spec=spec, mesh=mesh, source_file=source_file, mesh_hash=meshes.mesh_hash(mesh), volume=volume,
-        density=density, com=com, inertia=inertia, torque_scale=rho, gyration_radius=gyration,
+        spec=spec, mesh=mesh, source_file=source_file, file_scale=file_scale(spec), mesh_hash=meshes.mesh_hash(mesh),
+        volume=volume, density=density, com=com, inertia=inertia, torque_scale=rho, gyration_radius=gyration,
     )
 
 
 CACHE_VERSION = 1
+
+
+def file_scale(spec: ObjectSpec) -> float:
+    """The factor turning the object's mesh file into metres: the registry's
+    ``scale`` times, for URDF objects, the URDF's own ``<mesh scale>``."""
+    if spec.kind in ("box", "cylinder", "sphere"):
+        return 1.0
+    if spec.kind == "urdf":
+        return _urdf_mesh(_source_file(spec), spec.geometry, f"object '{spec.name}'")[1] * spec.scale
+    return spec.scale
 
 
 def _cached_mesh(spec: ObjectSpec) -> tuple[trimesh.Trimesh, str]:
@@ -263,7 +277,8 @@ def _urdf_mesh(urdf: Path, geometry: str, where: str) -> tuple[Path, float]:
     if node is None or not node.get("filename"):
         raise ConfigError(f"{urdf}: {where} needs a <{geometry}> mesh in its first link")
     origin = root.find(f"link/{geometry}/origin")
-    if origin is not None and any(float(v) != 0 for v in (origin.get("xyz", "0 0 0") + " " + origin.get("rpy", "0 0 0")).split()):
+    offsets = "" if origin is None else origin.get("xyz", "0 0 0") + " " + origin.get("rpy", "0 0 0")
+    if any(float(v) != 0 for v in offsets.split()):
         raise MeshError(f"{urdf}: {geometry} origin offsets are not supported; export the mesh in the link frame")
     scales = [float(v) for v in node.get("scale", "1 1 1").split()]
     if len(set(scales)) != 1:

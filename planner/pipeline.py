@@ -15,7 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from planner import hands as hand_specs, objects, preshapes, quality, sampling
+from planner import hands as hand_specs
+from planner import objects, preshapes, quality, sampling
 from planner.closing import Closed, Grasper
 from planner.errors import PlannerError
 from planner.sim import Sim

@@ -57,7 +57,7 @@ def _preshape(hand: HandSpec, f: Fields) -> Preshape:
             raise ConfigError(f"{f.where} field 'tags': unknown tag '{tag}'; use {', '.join(TAGS)}")
     driven = {j.name: j for j in hand.driven}
     values = f.table("joints")
-    for name, value in values.data.items():
+    for name in values.data:
         if name not in driven:
             raise ConfigError(f"{values.where}: '{name}' is not a driven joint of hand '{hand.name}'; "
                               f"driven joints: {', '.join(driven)}")

@@ -96,7 +96,7 @@ def trial(hand: HandSpec, obj: PreparedObject, grasp: GraspRow, settings: TrialS
         rel0 = np.linalg.inv(hand_pose) @ dyn.object_pose(uid)
         weight = m * GRAVITY
         for direction in DIRECTIONS:
-            _run(dyn, s.tug_time, lambda: dyn.push(uid, weight * direction))
+            _run(dyn, s.tug_time, lambda d=direction: dyn.push(uid, weight * d))
         for axis in range(6):
             _shake(dyn, cid, pose, axis, s, lambda: dyn.push(uid, weight * DIRECTIONS[5]))
         dyn.move_hold(cid, pose, s.hold_force)

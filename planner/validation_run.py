@@ -13,7 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from planner import hands as hand_specs, objects
+from planner import hands as hand_specs
+from planner import objects
 from planner.database import Database, GraspRow, open_db
 from planner.errors import InputError, PlannerError
 from planner.ranking import RankingRule

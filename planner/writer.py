@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import json
+import sqlite3
 import time
 
 import numpy as np
 
 from planner.database import Database
 from planner.pipeline import UnitResult
-import sqlite3
-
 from planner.ranking import RERANK_SQL, RESCORE_SQL, RankingRule
 
 
@@ -44,7 +43,7 @@ def write_unit(db: Database, result: UnitResult, seconds: float, rule: RankingRu
             conn.execute(
                 "INSERT OR REPLACE INTO objects (name, source, scale, mesh_sha256, mass, friction, density, volume,"
                 " com, inertia, torque_scale, extents) VALUES (?,?,?,?,?,?,?,?,?,?,?,?)",
-                (name, obj.source_file, obj.spec.scale, obj.mesh_hash, obj.mass, obj.friction, obj.density,
+                (name, obj.source_file, obj.file_scale, obj.mesh_hash, obj.mass, obj.friction, obj.density,
                  obj.volume, _j(_vec(obj.com)), _j(_vec(obj.inertia, 10)), obj.torque_scale,
                  _j(_vec(obj.mesh.extents))))
         conn.executemany(

@@ -105,6 +105,5 @@ def test_best_on_missing_db_is_a_clear_error(tmp_path: Path) -> None:
 
 
 def test_second_writer_refuses(box_db: Path) -> None:
-    with api.writer_lock(box_db):
-        with pytest.raises(DatabaseError, match="another `grasp generate`"):
-            api.generate(["box"], "panda", db_path=box_db, settings=SMALL, seed=4)
+    with api.writer_lock(box_db), pytest.raises(DatabaseError, match="another `grasp generate`"):
+        api.generate(["box"], "panda", db_path=box_db, settings=SMALL, seed=4)

@@ -15,9 +15,11 @@ import numpy as np
 import pytest
 import trimesh
 from click.testing import CliRunner
-from hypothesis import HealthCheck, given, settings, strategies as st
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
-from planner import assets, hands, mesh as meshes
+from planner import assets, hands
+from planner import mesh as meshes
 from planner.cli import main
 from planner.database import SCHEMA, SCHEMA_VERSION, open_db
 from planner.errors import ConfigError, DatabaseError, MeshError, PlannerError

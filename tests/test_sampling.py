@@ -1,7 +1,8 @@
 import numpy as np
 import trimesh
 from helpers import assert_close
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from planner import sampling
 

@@ -15,6 +15,8 @@ from pathlib import Path
 import numpy as np
 import trimesh.transformations as tf
 
+from planner.errors import SimulationError
+
 
 def _import_quietly():  # type: ignore[no-untyped-def]
     """pybullet prints its build time on stderr at import, from C; keep the
@@ -33,8 +35,6 @@ def _import_quietly():  # type: ignore[no-untyped-def]
 
 
 pb = _import_quietly()
-
-from planner.errors import SimulationError
 
 
 @dataclass(frozen=True)
