@@ -29,7 +29,7 @@ from dataclasses import asdict, dataclass
 @dataclass(frozen=True)
 class RankingRule:
     reach_weight: float = 0.5
-    success_weight: float = 0.8
+    success_weight: float = 1.0
     robust_weight: float = 0.0
 
     def __post_init__(self) -> None:

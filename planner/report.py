@@ -33,6 +33,7 @@ ORDER BY g.hand, g.object, g.rank
 class HandReport:
     hand: str
     rows: list[tuple] = field(default_factory=list)
+    reach_weight: float = 0.5
 
     def column(self, index: int) -> np.ndarray:
         return np.array([np.nan if r[index] is None else r[index] for r in self.rows], float)
@@ -54,6 +55,16 @@ class HandReport:
         wins = 0
         for name in self.objects:
             wins += int(min((r for r in self.rows if r[0] == name), key=lambda r: r[2])[6])
+        return wins, len(self.objects)
+
+    def top1_analytic(self, reach_weight: float) -> tuple[int, int]:
+        """The same, picking each object's grasp by the analytic score alone
+        (epsilon and reachability, before any simulation was known)."""
+        wins = 0
+        for name in self.objects:
+            mine = [r for r in self.rows if r[0] == name]
+            best = max(mine, key=lambda r: r[3] * ((1 - reach_weight) + reach_weight * (1.0 if r[4] is None else r[4])))
+            wins += int(best[6])
         return wins, len(self.objects)
 
 
@@ -88,9 +99,13 @@ def collect(db_path: Path) -> list[HandReport]:
             raise InputError(f"{db_path}: no validation results ({exc}); run `grasp validate` first") from exc
     if not rows:
         raise InputError(f"{db_path}: no validated grasps; run `grasp validate --db {db_path}` first")
+    from planner.ranking import RankingRule
+
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        rule = RankingRule.from_json(db.meta("ranking"))
     reports: dict[str, HandReport] = {}
     for r in rows:
-        reports.setdefault(r[1], HandReport(r[1])).rows.append(tuple(r))
+        reports.setdefault(r[1], HandReport(r[1], reach_weight=rule.reach_weight)).rows.append(tuple(r))
     return list(reports.values())
 
 
@@ -124,7 +139,9 @@ def _summary_rows(report: HandReport) -> list[tuple[str, str]]:
         ("validated grasps", str(len(ok))),
         ("objects", str(n)),
         ("overall success rate", f"{np.nanmean(ok):.3f}"),
-        ("top-1 grasp succeeds (objects)", f"{wins}/{n} = {wins / max(n, 1):.1%}"),
+        ("top-1 grasp succeeds, final ranking (objects)", f"{wins}/{n} = {wins / max(n, 1):.1%}"),
+        ("top-1 grasp succeeds, analytic score only (objects)", "{}/{} = {:.1%}".format(
+            *report.top1_analytic(report.reach_weight), report.top1_analytic(report.reach_weight)[0] / max(n, 1))),
         ("top-10 success rate (mean over objects)", f"{top10:.3f}"),
         ("Spearman(epsilon, success)", f"{spearman(report.column(3), ok):.3f}"),
         ("Spearman(robust epsilon mean, success)", f"{spearman(report.column(7), ok):.3f}"),

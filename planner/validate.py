@@ -53,6 +53,9 @@ class TrialSettings:
     max_translation: float = 0.02  # [m] relative to the hand
     max_rotation: float = 0.35  # [rad] relative to the hand
     min_fingers: int = 2
+    overlap_tol: float = 0.0005  # [m] initial overlap tolerated before backing the hand off
+    back_off_step: float = 0.0005  # [m]
+    max_back_off: float = 0.01  # [m]
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), sort_keys=True)
@@ -82,8 +85,9 @@ def trial(hand: HandSpec, obj: PreparedObject, grasp: GraspRow, settings: TrialS
         body = sim.load_urdf(hand.urdf, fixed=False)
         dyn.set_friction(body.uid, mu)
         pose = np.array(grasp.pose, float)
-        cid = dyn.hold(body, pose, s.hold_force)
         sim.set_joints(body, grasp.open_joints)
+        pose = _clear(dyn, sim, body, uid, pose, hand.approach, s)
+        cid = dyn.hold(body, pose, s.hold_force)
         targets = _squeezed(hand, grasp, s.squeeze)
         start = dyn.object_pose(uid)
         dyn.drive(body, targets, hand.finger_force)
@@ -109,6 +113,22 @@ def trial(hand: HandSpec, obj: PreparedObject, grasp: GraspRow, settings: TrialS
     ang = angle_between(rel0[:3, :3], rel1[:3, :3])
     ok = fingers >= s.min_fingers and lin < s.max_translation and ang < s.max_rotation
     return TrialResult(bool(ok), fingers, closing_lin, closing_ang, lin, ang)
+
+
+def _clear(dyn: Dynamics, sim: Sim, body, uid: int, pose: np.ndarray, approach: np.ndarray,  # type: ignore[no-untyped-def]
+           s: TrialSettings) -> np.ndarray:
+    """Back the open hand off along its approach until it does not overlap the
+    object's convex parts (they are a little fatter than the exact mesh the
+    grasp was planned on), at most ``max_back_off``."""
+    pose = pose.copy()
+    direction = pose[:3, :3] @ approach
+    moved = 0.0
+    sim.set_pose(body, pose)
+    while dyn.overlap(body, uid) > s.overlap_tol and moved < s.max_back_off:
+        pose[:3, 3] -= direction * s.back_off_step
+        moved += s.back_off_step
+        sim.set_pose(body, pose)
+    return pose
 
 
 def _squeezed(hand: HandSpec, grasp: GraspRow, squeeze: float) -> dict[str, float]:

@@ -29,8 +29,10 @@ class Dynamics:
         self.sim = sim
         self.c = sim.client
         self.dt = dt
-        pb.setPhysicsEngineParameter(fixedTimeStep=dt, numSolverIterations=solver_iterations,
-                                     physicsClientId=self.c)
+        # split impulses: resolving an overlap must not add velocity (no "explosions"
+        # when a decomposed object starts slightly inside the hand)
+        pb.setPhysicsEngineParameter(fixedTimeStep=dt, numSolverIterations=solver_iterations, useSplitImpulse=1,
+                                     splitImpulsePenetrationThreshold=-0.001, physicsClientId=self.c)
         pb.setGravity(0, 0, 0, physicsClientId=self.c)
 
     def add_object(self, parts_vertices: tuple[np.ndarray, ...], parts_faces: tuple[np.ndarray, ...], mass: float,
@@ -102,6 +104,11 @@ class Dynamics:
     def step(self, n: int = 1) -> None:
         for _ in range(n):
             pb.stepSimulation(physicsClientId=self.c)
+
+    def overlap(self, body: Body, uid: int) -> float:
+        """Deepest overlap [m] between a hand and the object now (0 if none)."""
+        rows = pb.getClosestPoints(body.uid, uid, 0.0, physicsClientId=self.c)
+        return max([0.0] + [-row[8] for row in rows])
 
     def touching_links(self, hand: Body, uid: int) -> set[int]:
         """Hand link indices in contact with the object now."""
