@@ -94,3 +94,24 @@ def test_not_a_database_is_refused(tmp_path: Path) -> None:
 def test_db_check(box_db: Path) -> None:
     code, out, _ = run("db", "check", "--db", str(box_db))
     assert code == 0 and "ok" in out
+
+
+def test_best_grasp_fingers_really_touch_the_object(box_db: Path) -> None:
+    """Re-place the hand from the JSON alone and measure the true finger gaps."""
+    from planner import hands, objects
+    from planner.sim import Sim
+
+    code, out, err = run("best", "box", "--hand", "panda", "--db", str(box_db), "--json")
+    assert code == 0, err
+    top = json.loads(out)[0]
+    hand, obj = hands.load("panda"), objects.load("box")
+    with Sim() as sim:
+        body = sim.load_urdf(hand.urdf)
+        target = sim.add_static_mesh(obj.mesh.vertices, obj.mesh.faces)
+        sim.set_pose(body, np.array(top["pose"]))
+        sim.set_joints(body, top["joints"])
+        for finger in ("panda_leftfinger", "panda_rightfinger"):
+            pairs = sim.closest(body.uid, target, 0.01, body.links[finger])
+            gap = pairs.min_distance + hand.distance_offset
+            assert -0.001 <= gap <= 0.001, (finger, gap)
+    assert top["epsilon"] > 0
