@@ -94,3 +94,22 @@ def test_cli_best_at_pose_returns_fk_consistent_joint_solutions(tmp_path: Path) 
                 assert scene._gap(scene.arm, link, scene.table) > 0
     rows = sqlite3.connect(db).execute("SELECT COUNT(*) FROM grasps WHERE reachability IS NOT NULL").fetchone()[0]
     assert rows > 0
+
+
+def test_hand_on_the_kuka_arm_through_its_mount() -> None:
+    """Hands other than the Panda ride on the KUKA iiwa; the hand body follows the flange."""
+    hand = hands.load("barrett")
+    assert hand.arm is not None and hand.arm.ee_link == "lbr_iiwa_link_7"
+    with Sim() as sim:
+        scene = ReachScene(sim, hand, objects.load("box"))
+        assert scene.hand_body is not scene.arm
+        scene.place_object(scene.resting_pose(0.5, 0.0, 0.0))
+        top_down = np.diag([1.0, -1.0, -1.0, 1.0])
+        top_down[2, 3] = 0.04 + 0.12
+        r = scene.check(top_down, {}, {}, np.random.default_rng(0))
+        assert r.reachable
+        sim.set_joints(scene.arm, r.grasp.joints)
+        flange = sim.link_pose(scene.arm, "lbr_iiwa_link_7")
+        hand_pose = flange @ hand.arm.mount
+        target = scene.object_pose @ top_down
+        assert np.linalg.norm(hand_pose[:3, 3] - target[:3, 3]) <= POSITION_TOL
