@@ -1,7 +1,8 @@
 import numpy as np
 import trimesh
 
-from planner import decompose, mesh as meshes
+from planner import decompose
+from planner import mesh as meshes
 
 
 def test_convex_bodies_skip_coacd() -> None:
