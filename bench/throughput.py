@@ -50,12 +50,12 @@ def main() -> None:
     print(f"# throughput on '{args.object}', {args.approaches} approaches, one process "
           f"({platform.processor() or platform.machine()}, Python {platform.python_version()})")
     print(f"{'hand':10s} {'cand':>6s} {'grasps':>6s} {'FC':>5s} {'cand/s/core':>11s} | "
-          "stage ms/candidate: prepare sampling closing contacts quality database")
+          "stage ms/candidate: prepare sampling closing contacts quality reachability database")
     for hand in args.hand or hands.available():
         r = bench(args.object, hand, args.approaches, args.seed)
         per = {k: 1000 * v / max(r["candidates"], 1) for k, v in r["timing"].items()}
         print(f"{hand:10s} {r['candidates']:6d} {r['grasps']:6d} {r['fc']:5d} {r['rate']:11.1f} | "
-              + " ".join(f"{per[k]:.2f}" for k in ("prepare", "sampling", "closing", "contacts", "quality",
+              + " ".join(f"{per[k]:.2f}" for k in ("prepare", "sampling", "closing", "contacts", "quality", "reachability",
                                                    "database"))
               + f"   rejected: {r['rejected']}")
 
