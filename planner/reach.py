@@ -236,7 +236,9 @@ class ReachScene:
 
     def _collides(self, grasp: bool) -> bool:
         for link in self.arm_links:
-            if self._gap(self.arm, link, self.table) <= 0 or self._gap(self.arm, link, self.object_body) <= 0:
+            # the base link is bolted to the table: only the object counts for it
+            on_table = self.arm.links[link] >= 0 and self._gap(self.arm, link, self.table) <= 0
+            if on_table or self._gap(self.arm, link, self.object_body) <= 0:
                 return True
         floor = -self.settings.max_penetration if grasp else 0.0
         for link in self.hand_links:
