@@ -134,12 +134,48 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
                 start = time.perf_counter()
                 unit = _read(h5py, plan)
                 write_unit(db, unit, time.perf_counter() - start, rule)
+                if plan.lossless:
+                    _restore_simulation(db, h5py, plan, rule)
                 result = ImportResult(plan.path, plan.spec.name, plan.hand.name, len(unit.grasps),
                                       unit.force_closure, not plan.lossless, False, dict(unit.rejected))
             results.append(result)
             if progress:
                 progress(result)
     return results
+
+
+def _restore_simulation(db: Any, h5py: Any, plan: _Plan, rule: Any) -> None:
+    """Our own files carry shake-test results and robust epsilon per grasp:
+    put them back into ``validation`` / ``robust`` and re-score."""
+    from planner.writer import rescore
+
+    with h5py.File(plan.path, "r") as f:
+        q = f["grasps/qualities"]
+        if "simulated_success" not in q:
+            return
+        success = np.asarray(q["simulated_success"][()], int)
+        flex = q["flex"] if "flex" in q else {}
+        motion = {k: np.asarray(flex[f"object_motion_during_{k}"][()], float) if f"object_motion_during_{k}" in flex
+                  else np.full(len(success), np.nan) for k in ("closing_linear", "closing_angular",
+                                                               "shaking_linear", "shaking_angular")}
+        robust_mean = np.asarray(q["robust_epsilon_mean"][()], float) if "robust_epsilon_mean" in q else None
+        robust_q = np.asarray(q["robust_epsilon_quantile"][()], float) if "robust_epsilon_quantile" in q else None
+    source = json.dumps({"imported_from": str(plan.path)})
+    with db.transaction() as conn:
+        unit = conn.execute("SELECT id FROM units WHERE object = ? AND hand = ? AND settings_hash = ? AND chunk = 0",
+                            (plan.spec.name, plan.hand.name, plan.settings.digest)).fetchone()
+        ids = dict(conn.execute("SELECT candidate, id FROM grasps WHERE unit_id = ?", (unit[0],)).fetchall())
+        for i, grasp_id in ids.items():
+            if success[i] >= 0:
+                conn.execute("INSERT OR REPLACE INTO validation VALUES (?,?,?,?,?,?,?,?,?)",
+                             (grasp_id, int(success[i]), -1, *(float(np.nan_to_num(motion[k][i], nan=-1.0))
+                                                               for k in ("closing_linear", "closing_angular",
+                                                                         "shaking_linear", "shaking_angular")),
+                              0, source))
+            if robust_mean is not None and robust_q is not None and np.isfinite(robust_mean[i]):
+                conn.execute("INSERT OR REPLACE INTO robust VALUES (?,?,?,?,?,?)",
+                             (grasp_id, float(robust_mean[i]), float(robust_q[i]), 0, 0, source))
+        rescore(conn, rule, plan.spec.name, plan.hand.name)
 
 
 def _h5py() -> Any:
