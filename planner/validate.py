@@ -2,9 +2,9 @@
 
 The object is free (real mass, centre of mass and inertia from its mesh and
 density; convex parts from :mod:`planner.decompose`); the hand is held at
-the grasp pose by a fixed constraint, opened to its preshape, then its
-fingers close under position control limited to the hand's ``finger_force``
-(squeezing past the contact configuration). Then, with the hand held still,
+the grasp pose by a fixed constraint with its fingers just short of the
+planned grasp, then the fingers close under position control limited to the
+hand's ``finger_force`` (squeezing past the contact configuration). Then, with the hand held still,
 a force of 1 g x mass tugs the object along +-x, +-y, +-z in turn (six
 directions, as DexGraspNet), and finally the hand shakes: it oscillates
 along and about each of its three axes while the object feels gravity (-z).
@@ -49,6 +49,7 @@ class TrialSettings:
     shake_angle: float = 0.3  # [rad]
     shake_frequency: float = 2.0  # [Hz]
     squeeze: float = 0.01  # [m] prismatic / 10x that [rad] revolute, past the contact configuration
+    start_opening: float = 0.005  # [m] prismatic / 10x that [rad] revolute, short of the contact configuration
     hold_force: float = 2000.0  # [N] of the constraint holding the hand
     max_translation: float = 0.02  # [m] relative to the hand
     max_rotation: float = 0.35  # [rad] relative to the hand
@@ -85,7 +86,7 @@ def trial(hand: HandSpec, obj: PreparedObject, grasp: GraspRow, settings: TrialS
         body = sim.load_urdf(hand.urdf, fixed=False)
         dyn.set_friction(body.uid, mu)
         pose = np.array(grasp.pose, float)
-        sim.set_joints(body, grasp.open_joints)
+        sim.set_joints(body, _start(hand, grasp, s.start_opening))
         pose = _clear(dyn, sim, body, uid, pose, hand.approach, s)
         cid = dyn.hold(body, pose, s.hold_force)
         targets = _squeezed(hand, grasp, s.squeeze)
@@ -129,6 +130,19 @@ def _clear(dyn: Dynamics, sim: Sim, body, uid: int, pose: np.ndarray, approach: 
         moved += s.back_off_step
         sim.set_pose(body, pose)
     return pose
+
+
+def _start(hand: HandSpec, grasp: GraspRow, opening: float) -> dict[str, float]:
+    """The fingers just short of the planned grasp: the closed values moved back
+    towards the open preshape by ``opening`` (m, or 10x that in rad), so the
+    trial tests holding the grasp, not a long swing that knocks the object."""
+    out = {}
+    for joint in hand.joints:
+        closed = grasp.closed_joints.get(joint.name, joint.lower)
+        opened = grasp.open_joints.get(joint.name, closed)
+        step = opening * (10.0 if joint.kind == "revolute" else 1.0)
+        out[joint.name] = float(closed + np.clip(opened - closed, -step, step))
+    return out
 
 
 def _squeezed(hand: HandSpec, grasp: GraspRow, squeeze: float) -> dict[str, float]:

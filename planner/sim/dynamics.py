@@ -90,7 +90,7 @@ class Dynamics:
         """Position-controlled finger motors, each limited to ``force`` [N or N m]."""
         for name, value in targets.items():
             pb.setJointMotorControl2(body.uid, body.joints[name], pb.POSITION_CONTROL, targetPosition=value,
-                                     force=force, maxVelocity=1.0, physicsClientId=self.c)
+                                     force=force, maxVelocity=3.0, physicsClientId=self.c)
 
     def set_friction(self, uid: int, friction: float) -> None:
         for link in range(-1, pb.getNumJoints(uid, physicsClientId=self.c)):
