@@ -1,0 +1,40 @@
+"""Recompute the calibration split and check it equals bench/calibration_split.toml.
+
+The split was fixed before any score was tuned (issue 15): 100 objects, the 7
+built-ins and random_000..random_092, ordered by sha256(salt + ":" + name);
+the first 50 are the held-out set.  ``--check`` exits 1 if the file differs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import sys
+import tomllib
+from pathlib import Path
+
+FILE = Path(__file__).with_name("calibration_split.toml")
+BUILTINS = ("mug", "duck", "teddy", "bunny", "box", "cylinder", "sphere")
+RANDOM = 93
+HELD_OUT = 50
+
+
+def split(salt: str) -> tuple[list[str], list[str]]:
+    names = [*BUILTINS, *(f"random_{i:03d}" for i in range(RANDOM))]
+    order = sorted(names, key=lambda n: hashlib.sha256(f"{salt}:{n}".encode()).hexdigest())
+    return sorted(order[HELD_OUT:]), sorted(order[:HELD_OUT])
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--check", action="store_true")
+    args = parser.parse_args()
+    data = tomllib.loads(FILE.read_text())
+    tuning, held = split(data["salt"])
+    same = tuning == data["tuning"] and held == data["held_out"]
+    print(f"tuning {len(tuning)} objects, held out {len(held)}: file {'matches' if same else 'DIFFERS'}")
+    return 0 if same or not args.check else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
