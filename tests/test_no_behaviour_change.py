@@ -1,0 +1,86 @@
+"""The guard of every refactoring: a small database built with a fixed seed
+must hold the very grasps the recorded code produced.
+
+The golden digest (``tests/golden/digest.json``) is keyed by
+``ALGORITHM_VERSION``: a change that is *meant* to alter the grasps bumps the
+version and records a new digest; any other change must leave it alone.
+Floats are rounded to ``DIGITS`` decimals so that harmless round-off (another
+order of the same floating-point operations) does not count; anything larger
+does. The database is read with plain ``sqlite3`` so this test does not
+depend on the code it guards.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import sqlite3
+from pathlib import Path
+
+import pytest
+
+from planner import api
+from planner.sweep import ALGORITHM_VERSION, SweepSettings
+
+GOLDEN = Path(__file__).parent / "golden" / "digest.json"
+#: Decimals kept of every float: 1e-6 m, 1e-6 rad, 1e-6 in epsilon.
+DIGITS = 6
+#: Box, cylinder and the duck (a URDF object from pybullet_data), for a
+#: parallel jaw and a three-finger hand; reachability over two placements.
+RUNS = (("panda", ("box", "cylinder", "duck"), ("wide",)), ("barrett", ("box", "cylinder"), ("wrap", "pinch")))
+SEED = 7
+COLUMNS = ("object", "hand", "preshape", "candidate", "seed", "approach_point", "approach_dir", "roll", "standoff",
+           "pose", "open_joints", "closed_joints", "width", "contacts", "n_contacts", "links_touching", "epsilon",
+           "volume", "force_closure", "reachability", "manipulability", "score", "rank")
+
+
+def rounded(value: object) -> object:
+    """``value`` with every float rounded to DIGITS (and -0.0 made 0.0)."""
+    if isinstance(value, float):
+        return round(value, DIGITS) + 0.0
+    if isinstance(value, list):
+        return [rounded(v) for v in value]
+    if isinstance(value, dict):
+        return {k: rounded(v) for k, v in value.items()}
+    return value
+
+
+def canonical_rows(db: Path) -> list[str]:
+    """One canonical JSON text per grasp, in a fixed order."""
+    conn = sqlite3.connect(db)
+    conn.row_factory = sqlite3.Row
+    rows = conn.execute(f"SELECT {', '.join(COLUMNS)} FROM grasps ORDER BY hand, object, candidate").fetchall()
+    conn.close()
+    out = []
+    for row in rows:
+        item = {k: json.loads(row[k]) if isinstance(row[k], str) and row[k][:1] in "[{" else row[k] for k in COLUMNS}
+        out.append(json.dumps(rounded(item), sort_keys=True))
+    return out
+
+
+def digest(rows: list[str]) -> dict:
+    whole = hashlib.sha256("\n".join(rows).encode()).hexdigest()
+    return {"grasps": len(rows), "digest": whole, "rows": [hashlib.sha256(r.encode()).hexdigest()[:12] for r in rows]}
+
+
+def build(db: Path) -> list[str]:
+    for hand, names, shapes in RUNS:
+        settings = SweepSettings(approaches=4, rolls=2, preshapes=shapes, reach_placements=2)
+        summary = api.generate(list(names), hand, db_path=db, settings=settings, seed=SEED, workers=1)
+        assert not summary.failed, summary.failed
+    return canonical_rows(db)
+
+
+def test_the_same_seed_gives_the_recorded_grasps(tmp_path: Path) -> None:
+    got = digest(build(tmp_path / "golden.db"))
+    if os.environ.get("GRASP_RECORD_GOLDEN"):  # recording a new algorithm version, on purpose
+        recorded = json.loads(GOLDEN.read_text()) if GOLDEN.exists() else {}
+        recorded[str(ALGORITHM_VERSION)] = got
+        GOLDEN.write_text(json.dumps(recorded, indent=1) + "\n")
+    golden = json.loads(GOLDEN.read_text()).get(str(ALGORITHM_VERSION))
+    if golden is None:
+        pytest.fail(f"no golden digest for algorithm version {ALGORITHM_VERSION} in {GOLDEN}")
+    changed = [i for i, (a, b) in enumerate(zip(got["rows"], golden["rows"])) if a != b]
+    assert got["grasps"] == golden["grasps"], f"{got['grasps']} grasps, recorded {golden['grasps']}"
+    assert got["digest"] == golden["digest"], f"grasps that changed (row numbers): {changed}"
