@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 from planner import api
-from planner.sweep import SweepSettings
+from planner.plan.sweep import SweepSettings
 
 
 def content(db: Path) -> list[tuple]:

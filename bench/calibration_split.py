@@ -10,8 +10,9 @@ from __future__ import annotations
 import argparse
 import hashlib
 import sys
-import tomllib
 from pathlib import Path
+
+import tomllib
 
 FILE = Path(__file__).with_name("calibration_split.toml")
 BUILTINS = ("mug", "duck", "teddy", "bunny", "box", "cylinder", "sphere")

@@ -49,13 +49,13 @@ def build(path: Path, grasps: int, per_object: int) -> int:
             return count
         path.unlink()
     from planner import api
-    from planner.sweep import SweepSettings
+    from planner.plan.sweep import SweepSettings
 
     settings = SweepSettings(approaches=24, rolls=2, reach_placements=0)
     summary = api.generate(list(SOURCES), "panda", db_path=path, settings=settings, workers=1)
     if summary.failed:
         raise SystemExit(f"generate failed: {summary.failed}")
-    from planner.ranking import RERANK_SQL
+    from planner.db.ranking import RERANK_SQL
 
     conn = sqlite3.connect(path, isolation_level=None)
     units = conn.execute("SELECT id, object, (SELECT COUNT(*) FROM grasps g WHERE g.unit_id = u.id) FROM units u"
@@ -93,7 +93,7 @@ def build(path: Path, grasps: int, per_object: int) -> int:
 
 def child(db: Path, fmt: str, out: Path) -> None:
     """Run one export in this process; print a JSON line."""
-    from planner.export import export
+    from planner.datasets.exporter import export
 
     start = time.perf_counter()
     summary = export(db, fmt, out)

@@ -22,11 +22,14 @@ from pathlib import Path
 
 import numpy as np
 
-from planner import api, hands, objects
-from planner.ranking import RERANK_SQL
-from planner.reach import ReachScene, pose_from_xyzquat
+from planner import api
+from planner.db.ranking import RERANK_SQL
+from planner.geometry.frames import pose_from_xyzquat
+from planner.geometry.solid import load_object
+from planner.plan.reach import ReachScene
+from planner.plan.sweep import SweepSettings
 from planner.sim import Sim
-from planner.sweep import SweepSettings
+from planner.specs.hands import load_hand
 
 POSE = (0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
 
@@ -44,7 +47,7 @@ def main() -> None:
         rows = conn.execute("SELECT pose, closed_joints, open_joints FROM grasps WHERE force_closure = 1").fetchall()
         import json
 
-        obj, hand = objects.load("mug"), hands.load("panda")
+        obj, hand = load_object("mug"), load_hand("panda")
         with Sim() as sim:
             scene = ReachScene(sim, hand, obj)
             scene.place_object(pose_from_xyzquat(POSE))

@@ -15,11 +15,13 @@ import tempfile
 import time
 from pathlib import Path
 
-from planner import hands
-from planner.database import open_db
-from planner.pipeline import UnitSpec, run_unit
-from planner.sweep import SweepSettings
-from planner.writer import write_unit
+from planner.db.store import open_db
+from planner.db.writer import write_unit
+from planner.plan.sweep import SweepSettings
+from planner.plan.unit import UnitSpec, run_unit
+from planner.specs.hands import hand_names
+
+STAGES = ("prepare", "sampling", "closing", "contacts", "quality", "reachability", "database")
 
 
 def bench(obj: str, hand: str, approaches: int, seed: int) -> dict:
@@ -51,12 +53,11 @@ def main() -> None:
           f"({platform.processor() or platform.machine()}, Python {platform.python_version()})")
     print(f"{'hand':10s} {'cand':>6s} {'grasps':>6s} {'FC':>5s} {'cand/s/core':>11s} | "
           "stage ms/candidate: prepare sampling closing contacts quality reachability database")
-    for hand in args.hand or hands.available():
+    for hand in args.hand or hand_names():
         r = bench(args.object, hand, args.approaches, args.seed)
         per = {k: 1000 * v / max(r["candidates"], 1) for k, v in r["timing"].items()}
         print(f"{hand:10s} {r['candidates']:6d} {r['grasps']:6d} {r['fc']:5d} {r['rate']:11.1f} | "
-              + " ".join(f"{per[k]:.2f}" for k in ("prepare", "sampling", "closing", "contacts", "quality", "reachability",
-                                                   "database"))
+              + " ".join(f"{per[k]:.2f}" for k in STAGES)
               + f"   rejected: {r['rejected']}")
 
 

@@ -15,9 +15,10 @@ import argparse
 import time
 from pathlib import Path
 
-from planner import api, report
-from planner.sweep import SweepSettings
-from planner.validation_run import validate
+from planner import api
+from planner.plan.sweep import SweepSettings
+from planner.present import report
+from planner.validation.run import validate
 
 OBJECTS = ["mug", "duck", "teddy", "bunny", "box", "cylinder", "sphere"] + [f"random_{i:03d}" for i in range(13)]
 

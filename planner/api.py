@@ -2,24 +2,24 @@
 
 from __future__ import annotations
 
-import fcntl
 import logging
 import os
 import time
 from collections import Counter
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from planner import hands as hand_specs
-from planner import objects
-from planner.database import Database, GraspRow, open_db
-from planner.errors import DatabaseError, InputError
-from planner.pipeline import UnitResult, UnitSpec
-from planner.ranking import RankingRule
-from planner.sweep import SweepSettings
-from planner.writer import apply_rule, write_unit
+from planner.db.lock import writer_lock
+from planner.db.ranking import RankingRule
+from planner.db.store import Database, GraspRow, open_db
+from planner.db.writer import apply_rule, write_unit
+from planner.errors import InputError
+from planner.geometry.solid import load_object
+from planner.plan.sweep import SweepSettings
+from planner.plan.unit import UnitResult, UnitSpec
+from planner.specs.hands import load_hand
+from planner.specs.objects import resolve_spec
 
 log = logging.getLogger(__name__)
 
@@ -46,41 +46,21 @@ class Summary:
                 "seconds": round(self.seconds, 3), "objects": self.per_object}
 
 
-@contextmanager
-def writer_lock(db_path: Path) -> Iterator[None]:
-    """One ``generate`` per database at a time: a second one refuses clearly."""
-    lock_path = db_path.with_name(db_path.name + ".lock")
-    try:
-        fh = open(lock_path, "a+")
-    except OSError as exc:
-        raise DatabaseError(f"{db_path}: cannot create lock file {lock_path}: {exc}") from exc
-    try:
-        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        fh.close()
-        raise DatabaseError(f"{db_path}: another `grasp generate` is writing to this database; "
-                            "wait for it to finish or use another --db") from None
-    try:
-        yield
-    finally:
-        fcntl.flock(fh, fcntl.LOCK_UN)
-        fh.close()
-
-
 def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: int,
                scale: float | None = None) -> list[UnitSpec]:
     """Expand the object arguments and check every input up front (names,
     hand, preshapes) before any work."""
-    from planner import inputs, preshapes
+    from planner.specs.inputs import expand
+    from planner.specs.preshapes import load_preshapes
 
-    refs = inputs.expand(list(names), scale)
+    refs = expand(list(names), scale)
     if not refs:
         raise InputError("no objects given")
-    hand_spec = hand_specs.load(hand)
-    preshapes.load(hand_spec, list(settings.preshapes) if settings.preshapes else None)
+    hand_spec = load_hand(hand)
+    load_preshapes(hand_spec, list(settings.preshapes) if settings.preshapes else None)
     units, seen = [], set()
     for ref in refs:
-        spec = objects.resolve_spec(ref.source, scale=ref.scale, label=ref.label)
+        spec = resolve_spec(ref.source, scale=ref.scale, label=ref.label)
         if spec.kind == "mesh" and not spec.source.startswith("pybullet_data:") and not Path(spec.source).exists():
             raise InputError(f"{spec.source}: file not found")
         if spec.name in seen:
@@ -91,7 +71,7 @@ def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: i
     if len(refs) == 1:
         # One object: a broken mesh is the user's input error, reported before
         # the database is opened. In a batch it is recorded and the rest go on.
-        objects.load(refs[0].source, scale=refs[0].scale)
+        load_object(refs[0].source, scale=refs[0].scale)
     return units
 
 
@@ -120,7 +100,7 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
             from dataclasses import replace
 
             todo = [replace(u, timeout=unit_timeout) for u in todo]
-        from planner.distributed import execute
+        from planner.plan.pool import execute
 
         for done_count, (result, seconds) in enumerate(execute(todo, workers, ray_address, use_ray), start=1):
             write_unit(db, result, seconds, rule)
@@ -157,8 +137,8 @@ def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1) -> l
     """The ``top`` best grasps of an object for a hand, in rank order."""
     if top < 1:
         raise InputError(f"--top must be at least 1, got {top}")
-    hand_specs.load(hand)
-    key = objects.resolve_spec(name).name
+    load_hand(hand)
+    key = resolve_spec(name).name
     with open_db(Path(db_path), create=False, readonly=True) as db:
         rows = db.best(key, hand, top)
         if not rows:
@@ -188,16 +168,16 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
     rank order, at most ``max_candidates`` of them."""
     import numpy as np
 
-    from planner.reach import ReachScene, ReachSettings
+    from planner.plan.reach import ReachScene, ReachSettings
     from planner.sim import Sim
 
     if top < 1:
         raise InputError(f"--top must be at least 1, got {top}")
     obj_pose = _pose7(object_pose, "--object-pose")
     base = _pose7(robot_base, "--robot-base") if robot_base is not None else np.eye(4)
-    spec = hand_specs.load(hand)
-    key = objects.resolve_spec(name).name
-    obj = objects.load(name)
+    spec = load_hand(hand)
+    key = resolve_spec(name).name
+    obj = load_object(name)
     rng = np.random.default_rng(seed)
     found: list[ReachableGrasp] = []
     with open_db(Path(db_path), create=False, readonly=True) as db, Sim() as sim:
@@ -229,7 +209,7 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
 def _pose7(values: Sequence[float], option: str):  # type: ignore[no-untyped-def]
     import numpy as np
 
-    from planner.reach import pose_from_xyzquat
+    from planner.geometry.frames import pose_from_xyzquat
 
     vals = [float(v) for v in values]
     if len(vals) != 7 or not all(np.isfinite(vals)):
@@ -244,21 +224,21 @@ def _pose7(values: Sequence[float], option: str):  # type: ignore[no-untyped-def
 def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: int = 1, top: int | None = None
          ) -> list[GraspRow]:
     """Render grasp ``rank`` (or the ``top`` K as a contact sheet) to a PNG."""
-    from planner import render
+    from planner.present import render
 
     count = top or 1
     first = 1 if top else rank
     if count < 1 or first < 1:
         raise InputError("--rank and --top must be at least 1")
-    spec = hand_specs.load(hand)
-    key = objects.resolve_spec(name).name
+    spec = load_hand(hand)
+    key = resolve_spec(name).name
     with open_db(Path(db_path), create=False, readonly=True) as db:
         rows = db.best(key, hand, count, first - 1)
     if not rows:
         raise InputError(f"no grasp of rank {first} for '{key}' and hand '{hand}' in {db_path}")
     if Path(out).suffix.lower() != ".png":
         raise InputError(f"{out}: the picture is written as PNG; give a .png path")
-    obj = objects.load(name)
+    obj = load_object(name)
     render.save_sheet([(render.grasp_views(spec, obj, row), render.title(row)) for row in rows], Path(out))
     return rows
 

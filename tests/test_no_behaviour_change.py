@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 
 from planner import api
-from planner.sweep import ALGORITHM_VERSION, SweepSettings
+from planner.plan.sweep import ALGORITHM_VERSION, SweepSettings
 
 GOLDEN = Path(__file__).parent / "golden" / "digest.json"
 #: Decimals kept of every float: 1e-6 m, 1e-6 rad, 1e-6 in epsilon.

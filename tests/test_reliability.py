@@ -18,11 +18,12 @@ from click.testing import CliRunner
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from planner import assets, hands
-from planner import mesh as meshes
+from planner import assets
 from planner.cli import main
-from planner.database import SCHEMA, SCHEMA_VERSION, open_db
+from planner.db.store import SCHEMA, SCHEMA_VERSION, open_db
 from planner.errors import ConfigError, DatabaseError, MeshError, PlannerError
+from planner.geometry import mesh as meshes
+from planner.specs.hands import hands_dir, load_folder
 
 FAST = ["--approaches", "4", "--rolls", "2", "--preshapes", "wide", "--workers", "1", "--reach-placements", "1",
         "--quiet"]
@@ -147,7 +148,7 @@ def test_builtin_locators_cannot_escape(tmp_path: Path) -> None:
 
 def hand_copy(tmp_path: Path) -> Path:
     folder = tmp_path / "panda"
-    shutil.copytree(hands.hands_dir() / "panda", folder)
+    shutil.copytree(hands_dir() / "panda", folder)
     return folder
 
 
@@ -155,7 +156,7 @@ def test_malformed_toml_names_the_file(tmp_path: Path) -> None:
     folder = hand_copy(tmp_path)
     (folder / "hand.toml").write_text("approach = [0, 0, 1\n")
     with pytest.raises(ConfigError, match=r"hand\.toml: malformed TOML"):
-        hands.load_folder(folder)
+        load_folder(folder)
 
 
 def test_urdf_with_missing_mesh_and_unknown_joint(tmp_path: Path) -> None:
@@ -167,11 +168,11 @@ def test_urdf_with_missing_mesh_and_unknown_joint(tmp_path: Path) -> None:
     toml.write_text(toml.read_text().replace('urdf = "pybullet_data:franka_panda/panda.urdf"\nroot',
                                              'urdf = "hand.urdf"\nroot'))
     with pytest.raises(ConfigError, match="mesh file not found: .*nope.obj"):
-        hands.load_folder(folder)
+        load_folder(folder)
     (folder / "hand.urdf").write_text(source.read_text().replace("package://", str(source.parent) + "/"))
     toml.write_text(toml.read_text().replace('name = "panda_finger_joint1"', 'name = "thumb_joint"'))
     with pytest.raises(ConfigError, match="thumb_joint.*hand.urdf"):
-        hands.load_folder(folder)
+        load_folder(folder)
 
 
 # -- database files -----------------------------------------------------------------
@@ -308,7 +309,7 @@ def test_fuzz_hand_toml_loads_or_refuses_cleanly(tmp_path_factory, key, value, g
     import tomllib
 
     folder = tmp_path_factory.mktemp("fuzz") / "panda"
-    shutil.copytree(hands.hands_dir() / "panda", folder)
+    shutil.copytree(hands_dir() / "panda", folder)
     toml = folder / "hand.toml"
     data = tomllib.loads(toml.read_text())
     data[key] = value
@@ -318,7 +319,7 @@ def test_fuzz_hand_toml_loads_or_refuses_cleanly(tmp_path_factory, key, value, g
                                                ["[[joints]]" + toml.read_text().split("\n[[joints]]", 1)[1]])
     toml.write_text(text + ("\n# " + garbage.replace("\n", " ") if garbage else ""))
     try:
-        hands.load_folder(folder)
+        load_folder(folder)
     except PlannerError:
         pass
 
@@ -336,17 +337,14 @@ def _toml(value: object) -> str:
 @settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(text=st.text(max_size=200))
 def test_fuzz_arbitrary_toml_text_is_refused_cleanly(tmp_path_factory, text: str) -> None:  # type: ignore[no-untyped-def]
-    from planner import preshapes
-
     folder = tmp_path_factory.mktemp("fuzztext") / "panda"
-    shutil.copytree(hands.hands_dir() / "panda", folder)
+    shutil.copytree(hands_dir() / "panda", folder)
     (folder / "hand.toml").write_text(text)
     with pytest.raises(PlannerError):
-        hands.load_folder(folder)
+        load_folder(folder)
     presets = folder / "preshapes.toml"
     presets.write_text(text)
     with pytest.raises(PlannerError):
-        from planner.config import Fields, read_toml
+        from planner.specs.toml import Fields, read_toml
 
         Fields(read_toml(presets), str(presets)).tables("preshape")
-    del preshapes

@@ -7,12 +7,12 @@ B_i, partial grasp matrices G~_i, grasp matrix G, hand Jacobian J = B J~ and
 grasp Jacobian G_J.  Tolerances live in ``planner.quality.tolerances``.
 """
 
+from planner.geometry.mass import radius_of_gyration, torque_scale_max_distance
 from planner.quality.contacts import MODELS, NORMS, Contacts, as_contacts
 from planner.quality.forces import contact_forces
 from planner.quality.grasp_matrix import grasp_matrix, partial_grasp_matrix, selection_matrix, skew
 from planner.quality.jacobian import JOINT_TYPES, grasp_jacobian, hand_jacobian
 from planner.quality.metrics import Quality, epsilon, evaluate, force_closure, volume
-from planner.quality.scale import radius_of_gyration, torque_scale_max_distance
 from planner.quality.tolerances import FORCE_CLOSURE_TOL
 from planner.quality.wrenches import PrimitiveWrenches, primitive_wrenches
 

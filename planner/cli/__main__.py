@@ -1,0 +1,5 @@
+"""``python -m planner.cli``: the ``grasp`` command."""
+
+from planner.cli import main
+
+main()

@@ -1,0 +1,130 @@
+"""Export: the grasp database as files that learning pipelines read.
+
+Formats (one module each):
+
+- ``acronym``: HDF5 per (object, hand), ACRONYM's layout plus this
+  project's extras (:mod:`planner.datasets.acronym`);
+- ``graspgen``: the same content as JSON per (object, hand)
+  (:mod:`planner.datasets.graspgen`);
+- ``dexgraspnet``: ``.npy`` list of ``{scale, qpos}`` dicts per (object,
+  hand) (:mod:`planner.datasets.dexgraspnet`);
+- ``parquet`` / ``csv``: one flat table of every grasp
+  (:mod:`planner.datasets.table`, whose ``COLUMNS_DOC`` documents the columns).
+
+Per-(object, hand) files are named ``{object}__{hand}.{h5,json,npy}``, with
+'/' in object names replaced by '__'. Exports stream: rows are read from
+SQLite in batches of :data:`planner.datasets.source.BATCH_SIZE` and written as
+they come; every file is written under a temporary name and renamed when
+complete.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import os
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from itertools import chain
+from pathlib import Path
+from types import ModuleType
+
+from planner.datasets import source
+from planner.datasets.batch import Batch, Stream
+from planner.datasets.source import Selection
+from planner.db.store import Database, open_db
+from planner.errors import InputError, UnknownNameError
+from planner.specs.hands import HandSpec, load_hand
+
+log = logging.getLogger(__name__)
+
+#: format -> (module, what it needs installed)
+PER_PAIR = {"acronym": ("acronym", "h5py"), "graspgen": ("graspgen", ""), "dexgraspnet": ("dexgraspnet", "scipy")}
+#: format -> (file name, writer function of planner.datasets.table, what it needs)
+TABLES = {"parquet": ("grasps.parquet", "write_parquet", "pyarrow"), "csv": ("grasps.csv", "write_csv", "")}
+FORMATS = (*PER_PAIR, *TABLES)
+
+
+@dataclass
+class ExportSummary:
+    """What an export wrote."""
+
+    format: str
+    files: list[Path] = field(default_factory=list)
+    grasps: int = 0
+    seconds: float = 0.0
+
+    def to_json(self) -> dict:
+        return {"format": self.format, "files": [str(p) for p in self.files], "grasps": self.grasps,
+                "seconds": round(self.seconds, 3)}
+
+
+def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (), hands: Sequence[str] = (),
+           min_epsilon: float | None = None, top: int | None = None,
+           progress: Callable[[Path, int], None] | None = None) -> ExportSummary:
+    """Export the selected grasps of ``db_path`` as ``fmt`` into ``out_dir``
+    (created if missing). ``top``: rank <= top per (object, hand);
+    ``min_epsilon``: epsilon >= it. ``progress(file, grasps)`` after each file."""
+    if fmt not in FORMATS:
+        raise UnknownNameError("format", fmt, FORMATS)
+    sel = Selection(tuple(objects), tuple(hands), min_epsilon, top)
+    module = _module(fmt)
+    summary = ExportSummary(fmt)
+    start = time.perf_counter()
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        pairs = source.pairs(db, sel)
+        specs = {h: load_hand(h) for h in sorted({h for _, h in pairs})}  # unknown hands fail up front
+        out_dir = _out_dir(Path(out_dir))
+        if fmt in TABLES:
+            name, writer, _ = TABLES[fmt]
+            path = out_dir / name
+            tmp = path.with_name(path.name + ".tmp")
+            streams = (Stream(source.object_info(db, o), h, source.batches(db, o, h, sel)) for o, h in pairs)
+            summary.grasps = getattr(module, writer)(tmp, streams)
+            os.replace(tmp, path)
+            summary.files.append(path)
+            if progress:
+                progress(path, summary.grasps)
+        else:
+            for obj, hand in pairs:
+                path = out_dir / (source.file_stem(obj, hand) + module.SUFFIX)
+                count = _write_pair(db, module, path, obj, specs[hand], sel)
+                if count:
+                    summary.files.append(path)
+                    summary.grasps += count
+                    if progress:
+                        progress(path, count)
+    summary.seconds = time.perf_counter() - start
+    log.info("exported %d grasps as %s to %s in %.1f s", summary.grasps, fmt, out_dir, summary.seconds)
+    return summary
+
+
+def _write_pair(db: Database, module: ModuleType, path: Path, obj: str, hand: HandSpec,
+                sel: Selection) -> int:
+    """Write one (object, hand) file; none when the filters leave no grasp."""
+    batches: Iterator[Batch] = source.batches(db, obj, hand.name, sel)
+    first = next(batches, None)
+    if first is None:
+        return 0
+    return int(module.write(path, source.object_info(db, obj), hand, chain([first], batches)))
+
+
+def _module(fmt: str) -> ModuleType:
+    name, needs = (PER_PAIR[fmt][0], PER_PAIR[fmt][1]) if fmt in PER_PAIR else ("table", TABLES[fmt][2])
+    try:
+        if needs:
+            importlib.import_module(needs)
+        return importlib.import_module(f"planner.datasets.{name}")
+    except ImportError as exc:
+        raise InputError(f"format '{fmt}' needs {needs or exc.name}: pip install -e '.[export]' ({exc})") from None
+
+
+def _out_dir(path: Path) -> Path:
+    if path.exists() and not path.is_dir():
+        raise InputError(f"{path}: --out must be a folder, but it is a file")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot create the output folder ({exc.strerror})") from exc
+    return path

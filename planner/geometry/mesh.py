@@ -1,0 +1,145 @@
+"""Loading and checking object meshes: the only place that repairs geometry.
+
+All lengths are metres. A mesh that cannot be made into a closed, finite,
+non-flat solid of plausible size is refused with a :class:`MeshError` that
+says what to fix.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from planner.errors import MeshError
+from planner.specs.objects import MESH_SUFFIXES
+
+log = logging.getLogger(__name__)
+
+#: Files larger than this are refused before parsing (bounded memory).
+MAX_FILE_BYTES = 256 * 1024 * 1024
+#: Meshes with more faces are refused: ask the user to simplify them first.
+MAX_FACES = 1_000_000
+#: Largest extent [m] of an object any built-in hand could conceivably hold.
+MAX_EXTENT = 1.5
+#: Smallest extent [m]: below a millimetre the mesh is almost surely in the
+#: wrong units (or not an object at all).
+MIN_EXTENT = 1e-3
+#: Volume [m^3] under which a closed mesh counts as flat (a 1 mm^3 solid).
+MIN_VOLUME = 1e-9
+
+
+def load_mesh_file(path: Path, scale: float = 1.0) -> trimesh.Trimesh:
+    """Read a mesh file into one triangle mesh, scaled to metres, and check it."""
+    if not path.exists():
+        raise MeshError(f"{path}: file not found")
+    if path.suffix.lower() not in MESH_SUFFIXES:
+        raise MeshError(f"{path}: unsupported mesh type '{path.suffix}'; use one of {', '.join(MESH_SUFFIXES)}")
+    size = path.stat().st_size
+    if size == 0:
+        raise MeshError(f"{path}: file is empty")
+    if size > MAX_FILE_BYTES:
+        raise MeshError(f"{path}: {size / 2**20:.0f} MiB is too large; simplify the mesh below {MAX_FACES:,} faces")
+    if not np.isfinite(scale) or scale <= 0:
+        raise MeshError(f"{path}: scale must be a positive number, got {scale}")
+    try:
+        loaded = trimesh.load(str(path), force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many types for broken files
+        raise MeshError(f"{path}: cannot parse mesh: {exc}") from exc
+    if not isinstance(loaded, trimesh.Trimesh):
+        raise MeshError(f"{path}: holds no triangles")
+    mesh = trimesh.Trimesh(np.asarray(loaded.vertices, float) * scale, np.asarray(loaded.faces), process=False)
+    return checked_solid(mesh, str(path))
+
+
+def checked_solid(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh:
+    """Validate and repair ``mesh`` into a closed solid, or raise MeshError."""
+    if len(mesh.faces) == 0 or len(mesh.vertices) == 0:
+        raise MeshError(f"{where}: mesh has no triangles")
+    if len(mesh.faces) > MAX_FACES:
+        raise MeshError(f"{where}: {len(mesh.faces):,} faces; simplify it below {MAX_FACES:,} first")
+    if not np.all(np.isfinite(mesh.vertices)):
+        raise MeshError(f"{where}: mesh has NaN or infinite vertex coordinates")
+    mesh = mesh.copy()
+    mesh.merge_vertices()
+    mesh.update_faces(mesh.nondegenerate_faces())
+    mesh.remove_unreferenced_vertices()
+    if len(mesh.faces) == 0:
+        raise MeshError(f"{where}: every triangle is degenerate (zero area)")
+    check_extent(mesh, where)
+    if not mesh.is_watertight:
+        mesh = _repair(mesh, where)
+    trimesh.repair.fix_normals(mesh, multibody=True)
+    if mesh.volume < 0:
+        mesh.invert()
+    if mesh.volume < MIN_VOLUME:
+        raise MeshError(f"{where}: mesh encloses no volume ({mesh.volume:.3g} m^3): it is flat or open")
+    return mesh
+
+
+def check_extent(mesh: trimesh.Trimesh, where: str) -> None:
+    extent = float(np.max(mesh.extents))
+    if extent > MAX_EXTENT:
+        raise MeshError(
+            f"{where}: object is {extent:.3g} m across, larger than any hand can grasp; "
+            "if the mesh is in millimetres pass --scale 0.001"
+        )
+    if extent < MIN_EXTENT:
+        raise MeshError(
+            f"{where}: object is {extent * 1000:.3g} mm across, smaller than a millimetre; "
+            "if the mesh is in other units pass --scale"
+        )
+
+
+def _repair(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh:
+    """Close small holes: trimesh's fill, then a fan cap on each open loop."""
+    trimesh.repair.fill_holes(mesh)
+    if mesh.is_watertight:
+        log.info("%s: filled small holes", where)
+        return mesh
+    capped = cap_boundary_loops(mesh)
+    if not capped.is_watertight:
+        raise MeshError(
+            f"{where}: mesh is not watertight and could not be repaired "
+            "(non-manifold edges or self-overlapping holes); close it in a mesh editor"
+        )
+    log.info("%s: capped open boundary loops", where)
+    return capped
+
+
+def cap_boundary_loops(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """Close every open boundary loop with a fan around the loop's centroid.
+
+    A boundary edge is a directed edge ``a -> b`` (in face winding) whose
+    reverse is not in the mesh; its cap triangle ``(b, a, centre)`` keeps the
+    winding consistent.
+    """
+    edges = mesh.edges_sorted
+    single = trimesh.grouping.group_rows(edges, require_count=1)
+    if len(single) == 0:
+        return mesh
+    directed = mesh.edges[single]
+    loops = trimesh.graph.connected_components(directed, min_len=3)
+    vertices = [np.asarray(mesh.vertices)]
+    faces = [np.asarray(mesh.faces)]
+    next_index = len(mesh.vertices)
+    for loop in loops:
+        members = np.isin(directed[:, 0], loop) & np.isin(directed[:, 1], loop)
+        centre = mesh.vertices[np.asarray(loop)].mean(axis=0)
+        vertices.append(centre[None, :])
+        loop_edges = directed[members]
+        faces.append(np.column_stack([loop_edges[:, 1], loop_edges[:, 0], np.full(len(loop_edges), next_index)]))
+        next_index += 1
+    return trimesh.Trimesh(np.vstack(vertices), np.vstack(faces), process=False)
+
+
+def mesh_hash(mesh: trimesh.Trimesh) -> str:
+    """Content hash of the geometry (vertices rounded to 0.1 um, and faces)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    h.update(np.round(np.asarray(mesh.vertices, np.float64), 7).tobytes())
+    h.update(np.asarray(mesh.faces, np.int64).tobytes())
+    return h.hexdigest()

@@ -1,0 +1,139 @@
+"""The prepared object: a checked closed mesh with its mass properties, and
+the on-disk cache of checked meshes.
+
+The object frame is the frame of the (scaled) mesh file. Centre of mass,
+inertia and volume come from the closed mesh and the spec's mass (uniform
+density); the torque scale rho and the radius of gyration come from
+:mod:`planner.geometry.mass`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+from dataclasses import dataclass, field
+
+import numpy as np
+import trimesh
+
+from planner import assets
+from planner.errors import MeshError
+from planner.geometry.mass import radius_of_gyration, torque_scale_max_distance
+from planner.geometry.mesh import load_mesh_file, mesh_hash
+from planner.specs.objects import ObjectSpec, file_scale, resolve_spec, source_path, urdf_mesh
+
+#: Bumped when the checked mesh of the same source would come out differently.
+CACHE_VERSION = 1
+#: Faces around a built-in cylinder; subdivisions of a built-in sphere.
+CYLINDER_SECTIONS = 48
+SPHERE_SUBDIVISIONS = 3
+
+
+@dataclass(frozen=True)
+class PreparedObject:
+    """A checked object ready for simulation and analysis.
+
+    Attributes:
+        mesh: closed triangle mesh in the object frame [m].
+        source_file: the mesh file (``primitive:box`` etc. for primitives).
+        file_scale: what turns ``source_file`` into this mesh (a URDF's mesh scale included).
+        mesh_hash: sha256 of the geometry, the key of every cache.
+        volume: [m^3]; density: [kg/m^3] (uniform).
+        com: (3,) centre of mass in the object frame [m].
+        inertia: (3, 3) inertia about the centre of mass, object axes [kg m^2].
+        torque_scale: rho [m], largest distance from ``com`` to the surface
+            (seed section 2.2.1).
+        gyration_radius: radius of gyration [m], the other choice of rho
+            (sqrt(trace(I) / (3 m)), from the mean principal moment).
+    """
+
+    spec: ObjectSpec
+    mesh: trimesh.Trimesh = field(repr=False)
+    source_file: str
+    file_scale: float
+    mesh_hash: str
+    volume: float
+    density: float
+    com: np.ndarray
+    inertia: np.ndarray
+    torque_scale: float
+    gyration_radius: float
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    @property
+    def mass(self) -> float:
+        return self.spec.mass
+
+    @property
+    def friction(self) -> float:
+        return self.spec.friction
+
+
+def load_object(name: str, *, label: str | None = None, **overrides: float | None) -> PreparedObject:
+    """Resolve and prepare an object by name or mesh path."""
+    return prepare(resolve_spec(name, label=label, **overrides))
+
+
+def prepare(spec: ObjectSpec) -> PreparedObject:
+    mesh, source_file = _cached_mesh(spec)
+    volume = float(mesh.volume)
+    density = spec.mass / volume
+    mesh.density = density
+    com = np.asarray(mesh.center_mass, float)
+    inertia = np.asarray(mesh.moment_inertia, float)
+    return PreparedObject(
+        spec=spec, mesh=mesh, source_file=source_file, file_scale=file_scale(spec), mesh_hash=mesh_hash(mesh),
+        volume=volume, density=density, com=com, inertia=inertia,
+        torque_scale=torque_scale_max_distance(mesh.vertices, com),
+        gyration_radius=radius_of_gyration(spec.mass, inertia),
+    )
+
+
+def _cached_mesh(spec: ObjectSpec) -> tuple[trimesh.Trimesh, str]:
+    """The checked, repaired mesh, cached on disk by source content and scale
+    (``.npz`` of plain arrays, no pickle) and shared by runs and workers."""
+    if spec.kind in ("box", "cylinder", "sphere"):
+        return _build_mesh(spec)
+    source = source_path(spec)
+    if not source.is_file():
+        raise MeshError(f"{source}: file not found")
+    h = hashlib.sha256(json.dumps([CACHE_VERSION, spec.kind, spec.geometry, spec.scale]).encode())
+    h.update(source.read_bytes())
+    if spec.kind == "urdf":  # the mesh the URDF points at matters as much as the URDF
+        mesh_file, _ = urdf_mesh(spec)
+        if mesh_file.is_file():
+            h.update(mesh_file.read_bytes())
+    path = assets.cache_dir("objects") / f"{h.hexdigest()[:24]}.npz"
+    if path.is_file():
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                mesh = trimesh.Trimesh(data["vertices"], data["faces"], process=False)
+                return mesh, str(data["source"])
+        except (OSError, ValueError, KeyError):
+            path.unlink(missing_ok=True)  # a damaged cache entry is rebuilt
+    mesh, source_file = _build_mesh(spec)
+    buffer = io.BytesIO()
+    np.savez(buffer, vertices=np.asarray(mesh.vertices), faces=np.asarray(mesh.faces), source=np.array(source_file))
+    assets.atomic_write(path, buffer.getvalue())
+    return mesh, source_file
+
+
+def _build_mesh(spec: ObjectSpec) -> tuple[trimesh.Trimesh, str]:
+    if spec.kind == "box":
+        return trimesh.creation.box(extents=spec.dims), "primitive:box"
+    if spec.kind == "cylinder":
+        radius, height = spec.dims
+        return (trimesh.creation.cylinder(radius=radius, height=height, sections=CYLINDER_SECTIONS),
+                "primitive:cylinder")
+    if spec.kind == "sphere":
+        return trimesh.creation.icosphere(subdivisions=SPHERE_SUBDIVISIONS, radius=spec.dims[0]), "primitive:sphere"
+    if spec.kind == "mesh":
+        path = source_path(spec)
+        return load_mesh_file(path, spec.scale), str(path)
+    path, scale = urdf_mesh(spec)
+    return load_mesh_file(path, scale * spec.scale), str(path)
+

@@ -1,0 +1,3 @@
+"""The planning stages of one unit of work: approach samples, the sweep of
+candidates, closing the hand in the simulator, reading the contacts, scoring
+them (``planner.quality``), reachability; and the pools that run units."""

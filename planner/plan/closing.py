@@ -1,0 +1,366 @@
+"""Closing the hand on the object, OpenRAVE-grasper style, in PyBullet.
+
+For one candidate (approach ray, roll, standoff, preshape):
+
+1. place the open hand on the ray, the tool centre point ``start`` metres in
+   front of the surface point; back off along the ray while it collides;
+2. move along the approach until first contact (large steps while far, then
+   conservative advancement: never farther than the measured clearance);
+3. back off by the standoff;
+4. close the fingers along the preshape's synergy; every finger DOF stops
+   when a link it moves touches the object (the others keep closing) or at its
+   joint limit; mimic joints follow their master;
+5. a self-centring parallel jaw is re-centred (hand shifted along the finger
+   axis so both fingers are symmetric while staying where they touched);
+6. read the contacts. Rejected: start in collision, no contact, touching
+   with a link that may not touch, or interpenetration.
+
+The object frame is the world frame here (the object sits at the origin).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from planner.geometry.frames import hand_rotation
+from planner.plan.contacts import HandContacts, spread
+from planner.sim import Body, Closest, Sim
+from planner.specs.hands import HandSpec
+from planner.specs.preshapes import Preshape
+
+#: Pairs closing in slower than this (per unit travel) count as sliding past.
+CLOSING_SPEED_MIN = 0.05
+
+
+@dataclass(frozen=True)
+class CloseSettings:
+    """Tolerances of the closing stage (metres, radians)."""
+
+    contact_tol: float = 0.0005  # a true gap below this is a contact
+    gap: float = 0.0002  # conservative advancement stops this far short
+    coarse_step: float = 0.01  # largest approach / prismatic step
+    coarse_angle: float = 0.1  # largest revolute step
+    max_penetration: float = 0.001  # deeper overlap rejects the grasp
+    start_margin: float = 0.01  # start this far in front of the hand's tips
+    max_iterations: int = 400
+
+
+@dataclass(frozen=True)
+class Closed:
+    """A hand closed on the object.
+
+    Attributes:
+        pose: (4, 4) hand frame in the object frame [m].
+        open_joints / closed_joints: finger joint values by name [rad or m].
+        contacts: the contacts, object frame.
+        steps: simulator queries spent (for benchmarks).
+    """
+
+    pose: np.ndarray
+    open_joints: dict[str, float]
+    closed_joints: dict[str, float]
+    contacts: HandContacts
+    steps: int = 0
+
+
+@dataclass(frozen=True)
+class Rejected:
+    reason: str  # start_collision | missed | no_contact | bad_link | penetration
+    steps: int = 0
+
+
+@dataclass
+class _Dof:
+    rates: dict[str, float]  # joint name -> dq/ds
+    links: tuple[str, ...]  # links with geometry it moves
+    active: bool = True
+
+
+@dataclass
+class Grasper:
+    """Closes one hand on one static object inside one :class:`Sim`."""
+
+    sim: Sim
+    hand: HandSpec
+    object_body: int
+    settings: CloseSettings = field(default_factory=CloseSettings)
+
+    def __post_init__(self) -> None:
+        self.body: Body = self.sim.load_urdf(self.hand.urdf)
+        self.names = {index: name for name, index in self.body.links.items()}
+        self.geometry = tuple(n for n in self.hand.links if self.sim.has_collision(self.body, n))
+        self._front: dict[str, float] = {}
+        self._axes: dict[str, np.ndarray] = {}
+        self.queries = 0
+        self.contact_seconds = 0.0  # time spent reading contacts (benchmarks)
+
+    # -- queries -------------------------------------------------------------
+    def _closest(self, reach: float, link: str | None = None) -> Closest:
+        """Pairs whose *true* gap is below ``reach`` [m]."""
+        self.queries += 1
+        index = None if link is None else self.body.links[link]
+        return self.sim.closest(self.body.uid, self.object_body, reach - self.hand.distance_offset, index)
+
+    def _gap(self, closest: Closest) -> float:
+        return closest.min_distance + self.hand.distance_offset
+
+    def _place(self, pose: np.ndarray, joints: dict[str, float]) -> None:
+        self.sim.set_pose(self.body, pose)
+        self.sim.set_joints(self.body, joints)
+
+    def front(self, preshape: Preshape) -> float:
+        """How far [m] the open hand reaches past its tool centre point."""
+        if preshape.name not in self._front:
+            self._place(np.eye(4), preshape.joints)
+            reach = 0.0
+            for link in self.geometry:
+                lo, hi = self.sim.link_aabb(self.body, link)
+                corners = np.array(np.meshgrid(*zip(lo, hi))).T.reshape(-1, 3)
+                reach = max(reach, float(np.max((corners - preshape.tcp) @ self.hand.approach)))
+            self._front[preshape.name] = reach
+        return self._front[preshape.name]
+
+    # -- the stages ----------------------------------------------------------
+    def close(self, point: np.ndarray, direction: np.ndarray, roll: float, standoff: float,
+              preshape: Preshape, object_radius: float) -> Closed | Rejected:
+        s = self.settings
+        self.queries = 0
+        rotation = hand_rotation(self.hand.approach, direction, roll)
+        pose = np.eye(4)
+        pose[:3, :3] = rotation
+        start = self.front(preshape) + s.start_margin
+        pose[:3, 3] = point - direction * start - rotation @ preshape.tcp
+        joints = dict(preshape.joints)
+        self._place(pose, joints)
+        backed = self._back_off(pose, direction, 2 * object_radius)
+        if backed is None:
+            return Rejected("start_collision", self.queries)
+        # the hand may travel until its back (not just its tcp) has passed the object
+        depth = float(np.linalg.norm(preshape.tcp))
+        travelled, limit = 0.0, start + backed + 2 * object_radius + depth
+        while True:
+            touching, step = self._translation_step(self._closest(s.coarse_step + s.gap), direction)
+            if touching:
+                break
+            travelled += step
+            if travelled > limit:
+                return Rejected("missed", self.queries)
+            pose[:3, 3] += direction * step
+            self.sim.set_pose(self.body, pose)
+        pose[:3, 3] -= direction * standoff
+        self.sim.set_pose(self.body, pose)
+        return self._finish(pose, preshape, joints)
+
+    def close_at(self, pose: np.ndarray, preshape: Preshape, max_back_off: float = 0.05) -> Closed | Rejected:
+        """Close the fingers with the hand at ``pose`` (no approach): for
+        re-scoring a given grasp pose (imports, noisy copies of a grasp). The
+        open hand is backed off along the approach only while it collides."""
+        self.queries = 0
+        pose = np.array(pose, float)
+        joints = dict(preshape.joints)
+        self._place(pose, joints)
+        if self._back_off(pose, pose[:3, :3] @ self.hand.approach, max_back_off) is None:
+            return Rejected("start_collision", self.queries)
+        return self._finish(pose, preshape, joints)
+
+    def _back_off(self, pose: np.ndarray, direction: np.ndarray, limit: float) -> float | None:
+        """Move the hand back along ``direction`` in doubling jumps until it is
+        free; how far it went, or None past ``limit``. Moves ``pose`` in place."""
+        backed, jump = 0.0, self.settings.coarse_step
+        while self._gap(self._closest(0.0)) <= 0.0:
+            if backed > limit:
+                return None
+            pose[:3, 3] -= direction * jump
+            backed += jump
+            jump *= 2
+            self.sim.set_pose(self.body, pose)
+        return backed
+
+    def _finish(self, pose: np.ndarray, preshape: Preshape, joints: dict[str, float]) -> Closed | Rejected:
+        closed = self._close_fingers(preshape, joints)
+        if self.hand.centering:
+            pose, closed = self._centre(pose, closed)
+            self._place(pose, closed)
+        t = time.perf_counter()
+        out = self._read(pose, preshape.joints, closed)
+        self.contact_seconds += time.perf_counter() - t
+        return out
+
+    def _translation_step(self, pairs: Closest, velocity: np.ndarray) -> tuple[bool, float]:
+        """(touching, safe travel [m]) for links translating along unit ``velocity``.
+
+        Each closest-point pair is a convex link piece and a convex object piece
+        (a triangle); their distance is a convex function of the travel, so it
+        cannot reach zero before ``gap / closing speed`` along the pair's
+        normal, and a pair that is not closing in never collides. Pairs beyond
+        the query range are at least ``coarse_step`` away.
+        """
+        s = self.settings
+        if len(pairs) == 0:
+            return False, s.coarse_step
+        gaps = pairs.distance + self.hand.distance_offset
+        speed = -(pairs.normal_b @ velocity)
+        closing = speed > CLOSING_SPEED_MIN
+        if np.any(closing & (gaps <= s.contact_tol)):
+            return True, 0.0
+        if not np.any(closing):
+            return False, s.coarse_step
+        step = float(np.min((gaps[closing] - s.gap) / speed[closing]))
+        return False, min(max(step, 0.0), s.coarse_step)
+
+    def _dofs(self, preshape: Preshape) -> list[_Dof]:
+        dofs: list[_Dof] = []
+        for joint in self.hand.driven:
+            rate = preshape.close.get(joint.name, 0.0)
+            if rate == 0.0:
+                continue
+            groups = [{joint.name: rate}]
+            for mimic in self.hand.joints:
+                if mimic.mimic == joint.name:
+                    if self.hand.centering:
+                        groups.append({mimic.name: rate * mimic.multiplier})
+                    else:
+                        groups[0][mimic.name] = rate * mimic.multiplier
+            for rates in groups:
+                moved = {link for name in rates for link in self.hand.joint(name).moves}
+                dofs.append(_Dof(rates, tuple(n for n in self.geometry if n in moved)))
+        return dofs
+
+    def _close_fingers(self, preshape: Preshape, joints: dict[str, float]) -> dict[str, float]:
+        s = self.settings
+        q = dict(joints)
+        dofs = self._dofs(preshape)
+        for _ in range(s.max_iterations):
+            live = [d for d in dofs if d.active]
+            if not live:
+                break
+            speed = {id(d): self._speeds(d) for d in live}
+            caps = {id(d): self._cap(d, q) for d in live}
+            sharing = {}
+            for d in live:
+                for link in d.links:
+                    sharing[link] = sharing.get(link, 0) + 1
+            pairs = {}
+            for link in sharing:
+                # several DOFs may move one link (a fingertip under three joints): their motions add up
+                reach = sum(speed[id(d)].get(link, 0.0) * caps[id(d)] for d in live) + s.contact_tol + s.gap
+                pairs[link] = self._closest(reach, link)
+            steps = {}
+            for d in live:
+                touching, ds = False, caps[id(d)]
+                for link in d.links:
+                    velocity = self._translation(d, link) if sharing[link] == 1 else None
+                    if velocity is not None:  # a translating link: directional bound
+                        rate = float(np.linalg.norm(velocity))
+                        hit, travel = self._translation_step(pairs[link], velocity / rate)
+                        touching |= hit
+                        ds = min(ds, travel / rate)
+                        continue
+                    gap = self._gap(pairs[link])
+                    touching |= gap <= s.contact_tol
+                    v = speed[id(d)][link]
+                    if v > 0 and np.isfinite(gap):
+                        ds = min(ds, (gap - s.gap) / (sharing[link] * v))
+                if touching:
+                    d.active = False
+                    continue
+                room = min(self._headroom(j, q[j], r) for j, r in d.rates.items())
+                if room <= 1e-9:
+                    d.active = False
+                    continue
+                steps[id(d)] = min(ds, room)
+            for d in live:
+                if d.active:
+                    for j, r in d.rates.items():
+                        q[j] += r * steps[id(d)]
+            self.sim.set_joints(self.body, q)
+        return q
+
+    def _cap(self, dof: _Dof, q: dict[str, float]) -> float:
+        """Largest closing step considered in one iteration (units of s).
+
+        Prismatic-only DOFs look at their whole remaining travel at once (the
+        directional bound makes that safe); revolute ones turn at most
+        ``coarse_angle`` per step."""
+        room = min(self._headroom(j, q[j], r) for j, r in dof.rates.items())
+        if all(self.hand.joint(j).kind == "prismatic" for j in dof.rates):
+            return max(room, 1e-9)
+        return min(self.settings.coarse_angle / abs(r) for r in dof.rates.values())
+
+    def _translation(self, dof: _Dof, link: str) -> np.ndarray | None:
+        """World velocity of ``link`` per unit closing if only prismatic joints move it."""
+        movers = [self.hand.joint(j) for j in dof.rates if link in self.hand.joint(j).moves]
+        if not movers or any(j.kind != "prismatic" for j in movers):
+            return None
+        root = self.sim.link_pose(self.body, self.hand.root_link)
+        velocity = sum(dof.rates[j.name] * (root[:3, :3] @ self._axis_in_root(j.name)) for j in movers)
+        return velocity if np.linalg.norm(velocity) > 0 else None
+
+    def _axis_in_root(self, joint: str) -> np.ndarray:
+        if joint not in self._axes:
+            self._axes[joint] = self.sim.joint_axis_in_base(self.body, joint)
+        return self._axes[joint]
+
+    def _headroom(self, joint: str, value: float, rate: float) -> float:
+        spec = self.hand.joint(joint)
+        return (spec.upper - value) / rate if rate > 0 else (value - spec.lower) / -rate
+
+    def _speeds(self, dof: _Dof) -> dict[str, float]:
+        """Upper bound of each moved link's point speed [m per unit s]."""
+        speeds = dict.fromkeys(dof.links, 0.0)
+        for name, rate in dof.rates.items():
+            joint = self.hand.joint(name)
+            if joint.kind == "prismatic":
+                for link in joint.moves:
+                    if link in speeds:
+                        speeds[link] += abs(rate)
+                continue
+            frame = self.sim.link_pose(self.body, joint.child)
+            origin, axis = frame[:3, 3], frame[:3, :3] @ self.body.joint_axes[name]
+            for link in joint.moves:
+                if link in speeds:
+                    lo, hi = self.sim.link_aabb(self.body, link)
+                    corners = np.array(np.meshgrid(*zip(lo, hi))).T.reshape(-1, 3) - origin
+                    radius = np.max(np.linalg.norm(np.cross(corners, axis), axis=1))
+                    speeds[link] += abs(rate) * radius
+        return speeds
+
+    def _centre(self, pose: np.ndarray, q: dict[str, float]) -> tuple[np.ndarray, dict[str, float]]:
+        """Shift a self-centring parallel jaw so its two fingers are symmetric."""
+        master = next(j for j in self.hand.joints if j.mimic is None and j.kind == "prismatic")
+        slave = next(j for j in self.hand.joints if j.mimic == master.name)
+        axis = pose[:3, :3] @ self.body.joint_axes[master.name]
+        qa, qb = q[master.name], q[slave.name]
+        shifted = pose.copy()
+        shifted[:3, 3] += 0.5 * (qa - qb) * axis
+        out = dict(q)
+        out[master.name] = out[slave.name] = 0.5 * (qa + qb)
+        return shifted, out
+
+    def _read(self, pose: np.ndarray, open_joints: dict[str, float], closed: dict[str, float]) -> Closed | Rejected:
+        s = self.settings
+        pairs = self._closest(s.contact_tol)
+        if len(pairs) == 0:
+            return Rejected("no_contact", self.queries)
+        true_gap = pairs.distance + self.hand.distance_offset
+        if true_gap.min() < -s.max_penetration:
+            return Rejected("penetration", self.queries)
+        names = [self.names[i] for i in pairs.links]
+        if any(n not in self.hand.contact_links for n in names):
+            return Rejected("bad_link", self.queries)
+        normals = -pairs.normal_b
+        points = pairs.on_b - pairs.normal_b * (self.hand.distance_offset / 2)
+        keep_pts, keep_nrm, keep_links = [], [], []
+        for link in sorted(set(names)):
+            idx = np.flatnonzero(np.array(names) == link)
+            chosen = idx[spread(points[idx])]
+            keep_pts.append(points[chosen])
+            keep_nrm.append(normals[chosen])
+            keep_links += [link] * len(chosen)
+        models = tuple(self.hand.contacts[link].model for link in keep_links)
+        torsion = np.array([self.hand.contacts[link].torsion for link in keep_links])
+        contacts = HandContacts(np.vstack(keep_pts), np.vstack(keep_nrm), tuple(keep_links), models, torsion)
+        return Closed(pose.copy(), dict(open_joints), {k: float(v) for k, v in closed.items()}, contacts, self.queries)

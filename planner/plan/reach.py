@@ -1,0 +1,235 @@
+"""Reachability: can an arm put the hand at a grasp, and at its pre-grasp,
+without collision?
+
+The scene: the robot base at a configurable pose, a table whose top is the
+plane z = ``table_height`` in front of the robot, and the object resting on
+it at a given pose. For a grasp (hand pose in the object frame), the hand
+pose in the world is ``object_pose @ grasp_pose``; the arm's end-effector
+target is that pose times the inverse of the hand's mount. IK is PyBullet's
+damped least squares with seeded random restarts; a solution counts only if
+it respects the joint limits, forward kinematics puts the end effector
+within 1 mm and 0.5 degree of the target, and nothing collides: the arm
+never touches table or object; the hand never touches the table; at the
+grasp the hand may touch the object (that is the grasp) but not penetrate it
+by more than 1 mm; at the pre-grasp (backed off along the approach, fingers
+open) nothing touches.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from planner.geometry.frames import angle_between
+from planner.geometry.solid import PreparedObject
+from planner.sim import Body, Sim
+from planner.specs.hands import HandSpec
+
+POSITION_TOL = 1e-3  # [m]
+ANGLE_TOL = np.radians(0.5)  # [rad]
+IK_REFINEMENTS = 6  # IK calls per restart, each from the previous answer
+TABLE_HALF = (1.0, 1.0, 0.05)  # [m] table half extents (x, y, thickness)
+
+
+@dataclass(frozen=True)
+class ReachSettings:
+    """Scene and solver settings (metres, radians)."""
+
+    pregrasp_distance: float = 0.10
+    restarts: int = 4
+    placements: int = 6  # object placements for the stored reachability score
+    region_x: tuple[float, float] = (0.35, 0.65)  # placements, in the robot base frame
+    region_y: tuple[float, float] = (-0.30, 0.30)
+    table_height: float = 0.0  # table top, world z
+    max_penetration: float = 0.001
+
+
+@dataclass(frozen=True)
+class ArmSolution:
+    """Arm joint values [rad] by name, and how good the solution is."""
+
+    joints: dict[str, float]
+    position_error: float  # [m]
+    angle_error: float  # [rad]
+    manipulability: float  # sqrt(det(J J^T)) of the arm at this configuration
+
+
+@dataclass(frozen=True)
+class Reach:
+    grasp: ArmSolution | None
+    pregrasp: ArmSolution | None
+
+    @property
+    def reachable(self) -> bool:
+        return self.grasp is not None and self.pregrasp is not None
+
+
+@dataclass
+class ReachScene:
+    """Arm + hand + table + object, in one :class:`Sim`."""
+
+    sim: Sim
+    hand: HandSpec
+    obj: PreparedObject
+    settings: ReachSettings = field(default_factory=ReachSettings)
+    robot_base: np.ndarray = field(default_factory=lambda: np.eye(4))
+
+    def __post_init__(self) -> None:
+        if self.hand.arm is None:
+            from planner.errors import ConfigError
+
+            raise ConfigError(f"hand '{self.hand.name}' names no [arm] in its hand.toml")
+        arm = self.hand.arm
+        self.arm: Body = self.sim.load_urdf(arm.urdf, fixed=True)
+        self.sim.set_pose(self.arm, self.robot_base)
+        self.ee_link = arm.ee_link
+        self.mount_inv = np.linalg.inv(arm.mount)
+        hand_in_arm = self.hand.root_link in self.arm.links
+        self.hand_body: Body = self.arm if hand_in_arm else self.sim.load_urdf(self.hand.urdf, fixed=True)
+        self.dofs = self.sim.movable_joints(self.arm)
+        fingers = {j.name for j in self.hand.joints}
+        self.arm_joints = [j for j in self.dofs if j not in fingers]
+        limits = [self.sim.joint_limits(self.arm, j) for j in self.dofs]
+        self.lower = [lo for lo, _ in limits]
+        self.upper = [hi for _, hi in limits]
+        self.rest = [0.5 * (lo + hi) for lo, hi in limits]
+        hand_links = set(self.hand.links)
+        self.arm_links = [n for n, i in self.arm.links.items() if n not in hand_links and
+                          self.sim.has_collision(self.arm, n)]
+        self.hand_links = [n for n in self.hand.links if self.sim.has_collision(self.hand_body, n)]
+        top = self.settings.table_height
+        table_pose = np.eye(4)
+        table_pose[:3, 3] = (self.robot_base[0, 3] + TABLE_HALF[0] * 0.9, self.robot_base[1, 3], top - TABLE_HALF[2])
+        self.table = self.sim.add_box(TABLE_HALF, table_pose)
+        self.object_body = self.sim.add_static_mesh(self.obj.mesh.vertices, self.obj.mesh.faces)
+        self.object_pose = np.eye(4)
+        # a free copy of the hand: checks the hand alone against the table
+        # before any IK is spent on a grasp whose palm would go through it
+        self.probe: Body = self.sim.load_urdf(self.hand.urdf, fixed=True)
+        self._park_probe()
+
+    def _park_probe(self) -> None:
+        away = np.eye(4)
+        away[:3, 3] = (0.0, 0.0, -100.0)
+        self.sim.set_pose(self.probe, away)
+
+    def hand_hits_table(self, hand_pose: np.ndarray, fingers: dict[str, float]) -> bool:
+        self.sim.set_pose(self.probe, hand_pose)
+        self.sim.set_joints(self.probe, fingers)
+        hit = any(self._gap(self.probe, link, self.table) <= 0 for link in self.hand_links)
+        self._park_probe()
+        return hit
+
+    # -- scene ---------------------------------------------------------------
+    def place_object(self, pose: np.ndarray) -> None:
+        self.object_pose = pose
+        self.sim.set_base_pose(self.object_body, pose)
+
+    def resting_pose(self, x: float, y: float, yaw: float) -> np.ndarray:
+        """Object standing on the table (its own +z up), turned by ``yaw``."""
+        c, s = np.cos(yaw), np.sin(yaw)
+        pose = np.eye(4)
+        pose[:3, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
+        base = self.robot_base[:3, 3]
+        pose[:3, 3] = (base[0] + x, base[1] + y, self.settings.table_height - self.obj.mesh.bounds[0][2])
+        return pose
+
+    def placements(self, rng: np.random.Generator) -> list[np.ndarray]:
+        s = self.settings
+        xs = rng.uniform(*s.region_x, s.placements)
+        ys = rng.uniform(*s.region_y, s.placements)
+        yaws = rng.uniform(-np.pi, np.pi, s.placements)
+        return [self.resting_pose(x, y, yaw) for x, y, yaw in zip(xs, ys, yaws)]
+
+    # -- checks ----------------------------------------------------------------
+    def check(self, grasp_pose: np.ndarray, closed: dict[str, float], open_: dict[str, float],
+              rng: np.random.Generator) -> Reach:
+        """Grasp and pre-grasp IK at the current object placement."""
+        world = self.object_pose @ grasp_pose
+        pre = world.copy()
+        pre[:3, 3] -= (world[:3, :3] @ self.hand.approach) * self.settings.pregrasp_distance
+        if self.hand_hits_table(world, closed) or self.hand_hits_table(pre, open_):
+            return Reach(None, None)
+        grasp = self.solve(world, closed, rng, grasp=True)
+        if grasp is None:
+            return Reach(None, None)
+        return Reach(grasp, self.solve(pre, open_, rng, grasp=False, seed=grasp))
+
+    def solve(self, hand_pose: np.ndarray, fingers: dict[str, float], rng: np.random.Generator, *, grasp: bool,
+              seed: ArmSolution | None = None) -> ArmSolution | None:
+        """A verified, collision-free arm configuration putting the hand at ``hand_pose``."""
+        target = hand_pose @ self.mount_inv
+        for attempt in range(self.settings.restarts):
+            if attempt == 0 and seed is not None:
+                start = [seed.joints.get(j, r) for j, r in zip(self.dofs, self.rest)]
+            elif attempt == 0:
+                start = list(self.rest)
+            else:
+                start = list(rng.uniform(self.lower, self.upper))
+            config = self._ik(start, target)
+            solution = self._verify(config, fingers, target, grasp)
+            if solution is not None:
+                return solution
+        return None
+
+    def _ik(self, start: list[float], target: np.ndarray) -> dict[str, float]:
+        """PyBullet's IK, re-run from its own answer until FK is within tolerance
+        (one call often stops a few millimetres short)."""
+        self.sim.set_joints(self.arm, dict(zip(self.dofs, start)))
+        config: dict[str, float] = {}
+        for attempt in range(IK_REFINEMENTS):
+            if attempt == 0:  # null-space IK: a configuration inside the limits, near the rest pose
+                values = self.sim.inverse_kinematics(self.arm, self.ee_link, target, self.lower, self.upper,
+                                                     self.rest)
+            else:  # then plain IK from there, which converges to the target
+                values = self.sim.inverse_kinematics(self.arm, self.ee_link, target)
+            config = {j: v for j, v in zip(self.dofs, values) if j in self.arm_joints}
+            self.sim.set_joints(self.arm, config)
+            ee = self.sim.link_pose(self.arm, self.ee_link)
+            if (np.linalg.norm(ee[:3, 3] - target[:3, 3]) <= POSITION_TOL / 4
+                    and angle_between(ee[:3, :3], target[:3, :3]) <= ANGLE_TOL / 4):
+                break
+        return config
+
+    def _verify(self, config: dict[str, float], fingers: dict[str, float], target: np.ndarray,
+                grasp: bool) -> ArmSolution | None:
+        for j, v in config.items():
+            lo, hi = self.lower[self.dofs.index(j)], self.upper[self.dofs.index(j)]
+            if not lo - 1e-9 <= v <= hi + 1e-9:
+                return None
+        self.sim.set_joints(self.arm, config)
+        ee = self.sim.link_pose(self.arm, self.ee_link)
+        pos_err = float(np.linalg.norm(ee[:3, 3] - target[:3, 3]))
+        ang_err = angle_between(ee[:3, :3], target[:3, :3])
+        if pos_err > POSITION_TOL or ang_err > ANGLE_TOL:
+            return None
+        if self.hand_body is not self.arm:
+            self.sim.set_pose(self.hand_body, ee @ self.hand.arm.mount)  # type: ignore[union-attr]
+        self.sim.set_joints(self.hand_body, fingers)
+        if self._collides(grasp):
+            return None
+        dof_values = self.sim.joint_values(self.arm, self.dofs)
+        jac = self.sim.jacobian(self.arm, self.ee_link, dof_values)
+        cols = [self.dofs.index(j) for j in self.arm_joints]
+        j_arm = jac[:, cols]
+        manip = float(np.sqrt(max(np.linalg.det(j_arm @ j_arm.T), 0.0)))
+        return ArmSolution({j: float(v) for j, v in config.items()}, pos_err, ang_err, manip)
+
+    def _gap(self, body: Body, link: str, other: int, reach: float = 0.0) -> float:
+        pairs = self.sim.closest(body.uid, other, reach - self.hand.distance_offset, body.links[link])
+        return pairs.min_distance + self.hand.distance_offset
+
+    def _collides(self, grasp: bool) -> bool:
+        for link in self.arm_links:
+            # the base link is bolted to the table: only the object counts for it
+            on_table = self.arm.links[link] >= 0 and self._gap(self.arm, link, self.table) <= 0
+            if on_table or self._gap(self.arm, link, self.object_body) <= 0:
+                return True
+        floor = -self.settings.max_penetration if grasp else 0.0
+        for link in self.hand_links:
+            if self._gap(self.hand_body, link, self.table) <= 0:
+                return True
+            if self._gap(self.hand_body, link, self.object_body) <= floor:
+                return True
+        return False

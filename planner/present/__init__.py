@@ -1,0 +1,1 @@
+"""Presenting results: pictures of grasps and the calibration report."""

@@ -1,0 +1,86 @@
+"""Pictures of grasps: the hand closed on the object, contacts and friction
+cones, from a few viewpoints, rendered headless by PyBullet's TinyRenderer.
+Contact sheets of several grasps are laid out with matplotlib.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from planner.db.store import GraspRow
+from planner.geometry.solid import PreparedObject
+from planner.sim import Sim
+from planner.specs.hands import HandSpec
+
+OBJECT_RGBA = (0.85, 0.55, 0.25, 1.0)
+HAND_RGBA = (0.55, 0.6, 0.7, 1.0)
+CONTACT_RGBA = (0.9, 0.05, 0.05, 1.0)
+CONE_RGBA = (0.1, 0.75, 0.2, 1.0)
+CONE_LENGTH = 0.015  # [m] drawn height of a friction cone
+VIEW_SIZE = (360, 300)
+#: Viewing directions (from the target towards the eye), before scaling.
+VIEWS = (np.array([1.0, -1.2, 0.8]), np.array([-1.0, -0.4, 0.5]), np.array([0.3, 1.2, -0.25]))
+
+
+def grasp_views(hand: HandSpec, obj: PreparedObject, grasp: GraspRow, size: tuple[int, int] = VIEW_SIZE
+                ) -> list[np.ndarray]:
+    """One RGB image per viewpoint of ``VIEWS``."""
+    with Sim() as sim:
+        sim.add_visual_mesh(obj.mesh.vertices, obj.mesh.faces, OBJECT_RGBA)
+        body = sim.load_urdf(hand.urdf)
+        sim.set_pose(body, np.array(grasp.pose))
+        sim.set_joints(body, grasp.closed_joints)
+        sim.set_color(body, HAND_RGBA)
+        for contact in grasp.contacts:
+            _add_contact(sim, np.array(contact["point"]), np.array(contact["normal"]), obj.friction)
+        centre = 0.5 * (obj.mesh.bounds[0] + obj.mesh.bounds[1])
+        target = 0.5 * (centre + np.array(grasp.pose)[:3, 3])
+        radius = float(np.linalg.norm(obj.mesh.extents)) + 0.12
+        images = []
+        for view in VIEWS:
+            eye = target + view / np.linalg.norm(view) * radius * 1.25
+            images.append(sim.render(eye, target, np.array([0.0, 0.0, 1.0]), size))
+        return images
+
+
+def _add_contact(sim: Sim, point: np.ndarray, normal: np.ndarray, mu: float) -> None:
+    dot = trimesh.creation.icosphere(subdivisions=1, radius=0.004)
+    sim.add_visual_mesh(dot.vertices + point, dot.faces, CONTACT_RGBA)
+    # the friction cone opens outwards from the contact, around the outward
+    # normal (the hand pushes along the inward one), half-angle atan(mu)
+    cone = trimesh.creation.cone(radius=CONE_LENGTH * mu, height=CONE_LENGTH, sections=16)
+    cone.apply_translation([0.0, 0.0, -CONE_LENGTH])  # apex at the origin, opening towards -z
+    align = trimesh.geometry.align_vectors([0.0, 0.0, -1.0], -normal)
+    cone.apply_transform(align)
+    sim.add_visual_mesh(cone.vertices + point, cone.faces, CONE_RGBA)
+
+
+def save_sheet(panels: list[tuple[list[np.ndarray], str]], out: Path) -> None:
+    """One row per grasp (its views side by side), titled; saved as PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows, cols = len(panels), max(len(views) for views, _ in panels)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.8 * rows), squeeze=False)
+    for r, (views, title) in enumerate(panels):
+        for c in range(cols):
+            ax = axes[r][c]
+            ax.axis("off")
+            if c < len(views):
+                ax.imshow(views[c])
+        axes[r][0].set_title(title, loc="left", fontsize=9)
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=100)
+    plt.close(fig)
+
+
+def title(grasp: GraspRow) -> str:
+    reach = "n/a" if grasp.reachability is None else f"{grasp.reachability:.2f}"
+    return (f"#{grasp.rank} {grasp.object}/{grasp.hand} {grasp.preshape}: score {grasp.score:.4f}, "
+            f"epsilon {grasp.epsilon:.4f}, reach {reach}, {len(grasp.contacts)} contacts")

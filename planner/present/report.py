@@ -1,0 +1,203 @@
+"""``grasp report``: how well each score predicts simulated success.
+
+Per hand (and per object): success rate by epsilon decile, Spearman rank
+correlation of epsilon, robust epsilon and reachability with simulated
+success, and the success rate of the top-1 / top-10 grasps (by rank) among
+validated grasps. Written as one self-contained HTML file (plots embedded as
+PNG) or, for a path without ``.html``, a folder with ``report.md`` and PNGs.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import math
+import sqlite3
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from planner.db.ranking import RankingRule
+from planner.db.store import open_db
+from planner.errors import InputError
+
+QUERY = """
+SELECT g.object, g.hand, g.rank, g.epsilon, g.reachability, g.force_closure, v.success, r.mean, r.quantile
+FROM grasps g JOIN validation v ON v.grasp_id = g.id LEFT JOIN robust r ON r.grasp_id = g.id
+ORDER BY g.hand, g.object, g.rank
+"""
+
+
+@dataclass
+class HandReport:
+    hand: str
+    rows: list[tuple] = field(default_factory=list)
+    reach_weight: float = 0.5
+
+    def column(self, index: int) -> np.ndarray:
+        return np.array([np.nan if r[index] is None else r[index] for r in self.rows], float)
+
+    @property
+    def objects(self) -> list[str]:
+        return sorted({r[0] for r in self.rows})
+
+    def top_k(self, k: int) -> tuple[float, int]:
+        """Success rate of each object's k best-ranked validated grasps, and how many objects."""
+        rates = []
+        for name in self.objects:
+            mine = sorted((r for r in self.rows if r[0] == name), key=lambda r: r[2])[:k]
+            rates.append(np.mean([r[6] for r in mine]))
+        return (float(np.mean(rates)) if rates else math.nan), len(rates)
+
+    def top1_objects(self) -> tuple[int, int]:
+        """Objects whose best-ranked validated grasp succeeded, out of all objects."""
+        wins = 0
+        for name in self.objects:
+            wins += int(min((r for r in self.rows if r[0] == name), key=lambda r: r[2])[6])
+        return wins, len(self.objects)
+
+    def top1_analytic(self, reach_weight: float) -> tuple[int, int]:
+        """The same, picking each object's grasp by the analytic score alone
+        (epsilon and reachability, before any simulation was known)."""
+        wins = 0
+        for name in self.objects:
+            mine = [r for r in self.rows if r[0] == name]
+            best = max(mine, key=lambda r: r[3] * ((1 - reach_weight) + reach_weight * (1.0 if r[4] is None else r[4])))
+            wins += int(best[6])
+        return wins, len(self.objects)
+
+
+def spearman(x: np.ndarray, y: np.ndarray) -> float:
+    from scipy.stats import spearmanr
+
+    keep = np.isfinite(x) & np.isfinite(y)
+    if keep.sum() < 3 or np.ptp(x[keep]) == 0 or np.ptp(y[keep]) == 0:
+        return math.nan
+    return float(spearmanr(x[keep], y[keep]).statistic)
+
+
+def deciles(eps: np.ndarray, success: np.ndarray) -> list[tuple[float, float, float, int]]:
+    """(low, high, success rate, count) for each epsilon decile."""
+    if len(eps) == 0:
+        return []
+    edges = np.unique(np.quantile(eps, np.linspace(0, 1, 11)))
+    out = []
+    for i in range(len(edges) - 1):
+        lo, hi = edges[i], edges[i + 1]
+        sel = (eps >= lo) & ((eps <= hi) if i == len(edges) - 2 else (eps < hi))
+        if sel.any():
+            out.append((float(lo), float(hi), float(success[sel].mean()), int(sel.sum())))
+    return out
+
+
+def collect(db_path: Path) -> list[HandReport]:
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        try:
+            rows = db.conn.execute(QUERY).fetchall()
+        except sqlite3.OperationalError as exc:
+            raise InputError(f"{db_path}: no validation results ({exc}); run `grasp validate` first") from exc
+    if not rows:
+        raise InputError(f"{db_path}: no validated grasps; run `grasp validate --db {db_path}` first")
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        rule = RankingRule.from_json(db.meta("ranking"))
+    reports: dict[str, HandReport] = {}
+    for r in rows:
+        reports.setdefault(r[1], HandReport(r[1], reach_weight=rule.reach_weight)).rows.append(tuple(r))
+    return list(reports.values())
+
+
+def _plot(report: HandReport) -> bytes:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    eps, ok = report.column(3), report.column(6)
+    bins = deciles(eps, ok)
+    fig, ax = plt.subplots(figsize=(6, 3.2))
+    ax.bar(range(len(bins)), [b[2] for b in bins], color="#4a7bb7")
+    ax.set_xticks(range(len(bins)), [f"{b[0]:.3f}-\n{b[1]:.3f}" for b in bins], fontsize=6)
+    ax.set_ylim(0, 1)
+    ax.set_xlabel("epsilon decile")
+    ax.set_ylabel("simulated success rate")
+    ax.set_title(f"{report.hand}: success by epsilon decile ({len(eps)} grasps)")
+    fig.tight_layout()
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=100)
+    plt.close(fig)
+    return buffer.getvalue()
+
+
+def _summary_rows(report: HandReport) -> list[tuple[str, str]]:
+    ok = report.column(6)
+    wins, n = report.top1_objects()
+    top10, _ = report.top_k(10)
+    return [
+        ("validated grasps", str(len(ok))),
+        ("objects", str(n)),
+        ("overall success rate", f"{np.nanmean(ok):.3f}"),
+        ("top-1 grasp succeeds, final ranking (objects)", f"{wins}/{n} = {wins / max(n, 1):.1%}"),
+        ("top-1 grasp succeeds, analytic score only (objects)", "{}/{} = {:.1%}".format(
+            *report.top1_analytic(report.reach_weight), report.top1_analytic(report.reach_weight)[0] / max(n, 1))),
+        ("top-10 success rate (mean over objects)", f"{top10:.3f}"),
+        ("Spearman(epsilon, success)", f"{spearman(report.column(3), ok):.3f}"),
+        ("Spearman(robust epsilon mean, success)", f"{spearman(report.column(7), ok):.3f}"),
+        ("Spearman(robust epsilon quantile, success)", f"{spearman(report.column(8), ok):.3f}"),
+        ("Spearman(reachability, success)", f"{spearman(report.column(4), ok):.3f}"),
+        ("Spearman(rank, success) (negative is good)", f"{spearman(report.column(2), ok):.3f}"),
+    ]
+
+
+def _per_object(report: HandReport) -> list[tuple[str, ...]]:
+    out = []
+    for name in report.objects:
+        mine = sorted((r for r in report.rows if r[0] == name), key=lambda r: r[2])
+        ok = np.array([r[6] for r in mine], float)
+        eps = np.array([r[3] for r in mine], float)
+        out.append((name, str(len(mine)), f"{ok.mean():.2f}", "yes" if mine[0][6] else "no",
+                    f"{spearman(eps, ok):.2f}"))
+    return out
+
+
+def write(db_path: Path, out: Path) -> Path:
+    reports = collect(db_path)
+    if out.suffix.lower() == ".html":
+        return _write_html(reports, out, db_path)
+    return _write_markdown(reports, out, db_path)
+
+
+def _write_html(reports: list[HandReport], out: Path, db_path: Path) -> Path:
+    parts = [f"<html><head><meta charset='utf-8'><title>grasp report</title></head><body>"
+             f"<h1>Simulated success vs scores</h1><p>database: {html.escape(str(db_path))}</p>"]
+    for rep in reports:
+        parts.append(f"<h2>hand {html.escape(rep.hand)}</h2><table border=1 cellpadding=3>")
+        parts += [f"<tr><td>{html.escape(k)}</td><td>{html.escape(v)}</td></tr>" for k, v in _summary_rows(rep)]
+        parts.append("</table>")
+        parts.append(f"<img src='data:image/png;base64,{base64.b64encode(_plot(rep)).decode()}'>")
+        parts.append("<h3>per object</h3><table border=1 cellpadding=3><tr><th>object</th><th>validated</th>"
+                     "<th>success rate</th><th>top-1 succeeds</th><th>Spearman(epsilon, success)</th></tr>")
+        parts += ["<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in row) + "</tr>" for row in _per_object(rep)]
+        parts.append("</table>")
+    parts.append("</body></html>")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text("\n".join(parts), encoding="utf-8")
+    return out
+
+
+def _write_markdown(reports: list[HandReport], out: Path, db_path: Path) -> Path:
+    out.mkdir(parents=True, exist_ok=True)
+    lines = ["# Simulated success vs scores", "", f"database: `{db_path}`", ""]
+    for rep in reports:
+        png = out / f"deciles_{rep.hand}.png"
+        png.write_bytes(_plot(rep))
+        lines += [f"## hand {rep.hand}", "", "| measure | value |", "| --- | --- |"]
+        lines += [f"| {k} | {v} |" for k, v in _summary_rows(rep)]
+        lines += ["", f"![success by epsilon decile]({png.name})", "", "| object | validated | success rate |"
+                  " top-1 succeeds | Spearman(epsilon, success) |", "| --- | --- | --- | --- | --- |"]
+        lines += ["| " + " | ".join(row) + " |" for row in _per_object(rep)]
+        lines.append("")
+    path = out / "report.md"
+    path.write_text("\n".join(lines), encoding="utf-8")
+    return path

@@ -1,0 +1,240 @@
+"""Hand descriptions: ``hands/<name>/hand.toml`` plus a URDF, parsed once.
+
+The TOML names the palm frame, the approach axis, the finger joints with
+their closing synergy, and the contact-capable links with their contact
+model. The URDF is parsed with yourdfpy (kinematics, limits, mimic joints);
+PyBullet loads the very same file. A URDF that carries a whole robot is cut
+down to the subtree below ``root_link`` (e.g. the Panda hand without the arm)
+and written, with absolute mesh paths, into the cache.
+
+Frames: the *hand frame* is the frame of ``root_link``; grasp poses are the
+pose of that frame in the object frame. ``approach`` is the unit vector (in
+the hand frame) along which the hand moves onto the object, ``tcp`` the tool
+centre point [m] that the approach ray passes through.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+
+from planner import assets
+from planner.errors import ConfigError, UnknownNameError
+from planner.specs.toml import Fields, read_toml
+from planner.specs.urdf import UrdfTree, cut_subtree
+
+CONTACT_MODELS = ("frictionless", "point", "soft")
+DEFAULT_FINGER_FORCE = 20.0  # [N or N m] per finger motor, when [dynamics] does not say
+#: PyBullet inflates convex hull meshes, cylinders and triangle meshes by 1 mm
+#: each, so a reported closest distance is the true gap minus 2 mm (measured
+#: on a box). URDF <box> and <sphere> links are off by less (0.4-1 mm, 0 mm):
+#: model hand links as meshes or cylinders, or set ``distance_offset``.
+DEFAULT_DISTANCE_OFFSET = 0.002
+
+
+@dataclass(frozen=True)
+class JointSpec:
+    """One finger joint.
+
+    ``close`` is the synergy coefficient: how fast this joint moves (rad or m
+    per unit of closing) when the hand closes; 0 for joints that hold still.
+    A ``mimic`` joint follows ``q = multiplier * q[mimic] + offset``.
+    ``moves`` lists every link this joint (or a joint mimicking it) moves.
+    """
+
+    name: str
+    kind: str  # "revolute" or "prismatic"
+    lower: float
+    upper: float
+    close: float
+    mimic: str | None
+    multiplier: float
+    offset: float
+    child: str
+    moves: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class ContactModel:
+    """Contact model of one link: ``point``, ``soft`` (torsion [m]) or frictionless."""
+
+    model: str
+    torsion: float = 0.0
+
+
+@dataclass(frozen=True)
+class ArmSpec:
+    """The arm that carries the hand (reachability), located at run time."""
+
+    urdf: Path
+    ee_link: str
+    mount: np.ndarray  # (4, 4) hand frame in the arm's end-effector frame
+
+
+@dataclass(frozen=True)
+class HandSpec:
+    name: str
+    folder: Path
+    description: str
+    urdf: Path  # the (cut down) URDF PyBullet and yourdfpy load
+    root_link: str
+    approach: np.ndarray  # (3,) unit, hand frame
+    tcp: np.ndarray  # (3,) [m], hand frame
+    joints: tuple[JointSpec, ...]
+    contact_links: tuple[str, ...]
+    contacts: dict[str, ContactModel]
+    centering: bool  # a self-centring parallel jaw: re-centre after closing
+    distance_offset: float  # [m] PyBullet's collision margins: true gap = reported + offset
+    roll_symmetry: int  # the hand looks the same after 2 pi / roll_symmetry about the approach
+    links: tuple[str, ...]
+    arm: ArmSpec | None
+    export_frame: np.ndarray  # (4, 4) dataset gripper frame in the hand frame (ACRONYM convention)
+    finger_force: float  # [N or N m] force limit of each finger motor in dynamic trials
+
+    def joint(self, name: str) -> JointSpec:
+        for joint in self.joints:
+            if joint.name == name:
+                return joint
+        raise UnknownNameError("joint", name, [j.name for j in self.joints])
+
+    @property
+    def driven(self) -> tuple[JointSpec, ...]:
+        """Joints that are not mimics: the hand's independent finger DOFs."""
+        return tuple(j for j in self.joints if j.mimic is None)
+
+    def full_configuration(self, driven: dict[str, float]) -> dict[str, float]:
+        """Joint values of every finger joint from the driven ones (mimics follow)."""
+        values = {j.name: float(driven.get(j.name, j.lower)) for j in self.driven}
+        for j in self.joints:
+            if j.mimic is not None:
+                values[j.name] = j.multiplier * values[j.mimic] + j.offset
+        return values
+
+
+def hands_dir() -> Path:
+    return assets.project_dir("hands")
+
+
+def hand_names() -> list[str]:
+    return sorted(p.name for p in hands_dir().iterdir() if (p / "hand.toml").is_file())
+
+
+@cache
+def load_hand(name: str) -> HandSpec:
+    """Load ``hands/<name>/hand.toml``; unknown names list the valid ones."""
+    if "/" in name or "\\" in name or name.startswith("."):
+        raise ConfigError(f"hand name '{name}' must be a folder name under {hands_dir()}")
+    folder = hands_dir() / name
+    if not (folder / "hand.toml").is_file():
+        raise UnknownNameError("hand", name, hand_names())
+    return load_folder(folder)
+
+
+def load_folder(folder: Path) -> HandSpec:
+    path = folder / "hand.toml"
+    f = Fields(read_toml(path), str(path))
+    source = assets.resolve(f.str("urdf"), folder, f"{path} field 'urdf'")
+    root_link = f.str("root_link")
+    urdf = cut_subtree(source, root_link, f"{path} field 'root_link'")
+    tree = UrdfTree.parse(urdf)
+    tree.path = source  # name the user's URDF in messages, not the cut copy
+    joints = tuple(_joint(tree, jf) for jf in f.tables("joints"))
+    approach = np.array(f.floats("approach", 3))
+    if np.linalg.norm(approach) < 1e-9:
+        raise ConfigError(f"{path} field 'approach': must be a non-zero vector")
+    contact_links = tuple(f.strs("contact_links"))
+    for link in contact_links:
+        if link not in tree.links:
+            raise ConfigError(f"{path} field 'contact_links': unknown link '{link}'; links: {', '.join(tree.links)}")
+    contacts = _contact_models(f, contact_links)
+    return HandSpec(
+        name=folder.name, folder=folder, description=f.data.get("description", ""), urdf=urdf,
+        root_link=root_link, approach=approach / np.linalg.norm(approach), tcp=np.array(f.floats("tcp", 3)),
+        joints=joints, contact_links=contact_links, contacts=contacts, centering=f.bool("centering", False),
+        distance_offset=f.float("distance_offset", DEFAULT_DISTANCE_OFFSET),
+        roll_symmetry=_symmetry(f),
+        links=tuple(tree.links), arm=_arm(f, folder), export_frame=_export_frame(f),
+        finger_force=f.table("dynamics", {}).float("finger_force", DEFAULT_FINGER_FORCE, positive=True),
+    )
+
+
+def _symmetry(f: Fields) -> int:
+    value = f.data.get("roll_symmetry", 1)
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ConfigError(f"{f.where} field 'roll_symmetry': must be a whole number >= 1")
+    return value
+
+
+def _joint(tree: UrdfTree, f: Fields) -> JointSpec:
+    name = f.str("name")
+    node = tree.joints.get(name)
+    if node is None:
+        raise ConfigError(f"{f.where} field 'name': joint '{name}' is not in {tree.path.name}; "
+                          f"movable joints: {', '.join(tree.movable)}")
+    kind = node.get("type", "")
+    if kind not in ("revolute", "prismatic"):
+        raise ConfigError(f"{f.where}: joint '{name}' is {kind}; finger joints must be revolute or prismatic")
+    limit = node.find("limit")
+    lower = float(limit.get("lower", 0)) if limit is not None else 0.0
+    upper = float(limit.get("upper", 0)) if limit is not None else 0.0
+    lower, upper = f.float("lower", lower), f.float("upper", upper)
+    if upper < lower:
+        raise ConfigError(f"{f.where}: joint '{name}' has lower limit {lower} above upper {upper}")
+    mimic = node.find("mimic")
+    mimic_of = f.data.get("mimic", mimic.get("joint") if mimic is not None else None)
+    if mimic_of is not None and mimic_of not in tree.joints:
+        raise ConfigError(f"{f.where} field 'mimic': joint '{mimic_of}' is not in {tree.path.name}")
+    multiplier = f.float("multiplier", float(mimic.get("multiplier", 1.0)) if mimic is not None else 1.0)
+    offset = f.float("offset", float(mimic.get("offset", 0.0)) if mimic is not None else 0.0)
+    child = node.find("child").get("link")  # type: ignore[union-attr]
+    return JointSpec(name=name, kind=kind, lower=lower, upper=upper, close=f.float("close", 0.0), mimic=mimic_of,
+                     multiplier=multiplier, offset=offset, child=child, moves=tuple(tree.descendants(child)))
+
+
+def _contact_models(f: Fields, links: tuple[str, ...]) -> dict[str, ContactModel]:
+    table = f.table("contact", {})
+    default = _contact_model(table.table("default", {"model": "point"}))
+    per_link = table.table("links", {})
+    models = {link: default for link in links}
+    for link, spec in per_link.data.items():
+        if link not in links:
+            raise ConfigError(f"{per_link.where}: link '{link}' is not in contact_links")
+        models[link] = _contact_model(Fields(spec, f"{per_link.where}[{link}]"))
+    return models
+
+
+def _contact_model(f: Fields) -> ContactModel:
+    model = f.str("model", "point")
+    if model not in CONTACT_MODELS:
+        raise ConfigError(f"{f.where} field 'model': unknown contact model '{model}'; use {', '.join(CONTACT_MODELS)}")
+    torsion = f.float("torsion", 0.0)
+    if model == "soft" and torsion <= 0:
+        raise ConfigError(f"{f.where} field 'torsion': a soft contact needs a positive torsion [m]")
+    return ContactModel(model, torsion)
+
+
+def _export_frame(f: Fields) -> np.ndarray:
+    """``[export] xyz, rpy``: the dataset gripper frame in the hand frame."""
+    from scipy.spatial.transform import Rotation
+
+    e = f.table("export", {})
+    frame = np.eye(4)
+    frame[:3, :3] = Rotation.from_euler("xyz", e.floats("rpy", 3, [0, 0, 0])).as_matrix()
+    frame[:3, 3] = e.floats("xyz", 3, [0, 0, 0])
+    return frame
+
+
+def _arm(f: Fields, folder: Path) -> ArmSpec | None:
+    if not f.has("arm"):
+        return None
+    a = f.table("arm")
+    mount = np.eye(4)
+    if a.has("mount_xyz") or a.has("mount_rpy"):
+        from scipy.spatial.transform import Rotation
+
+        mount[:3, :3] = Rotation.from_euler("xyz", a.floats("mount_rpy", 3, [0, 0, 0])).as_matrix()
+        mount[:3, 3] = a.floats("mount_xyz", 3, [0, 0, 0])
+    return ArmSpec(assets.resolve(a.str("urdf"), folder, f"{a.where} field 'urdf'"), a.str("ee_link"), mount)

@@ -1,0 +1,83 @@
+"""Preshape taxonomies: ``preshapes/<hand>.toml``.
+
+A preshape is a named open hand posture with taxonomy tags (power /
+precision / intermediate and a class from a published taxonomy), an optional
+closing synergy overriding the hand's, and the standoffs that suit it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner import assets
+from planner.errors import ConfigError, UnknownNameError
+from planner.specs.hands import HandSpec
+from planner.specs.toml import Fields, read_toml
+
+TAGS = ("power", "precision", "intermediate")
+
+
+@dataclass(frozen=True)
+class Preshape:
+    """Open joint values [rad or m] of the driven joints, and how to close."""
+
+    name: str
+    tags: tuple[str, ...]
+    taxonomy: str
+    joints: dict[str, float]  # every finger joint (mimics filled in)
+    close: dict[str, float]  # synergy: closing rate per driven joint
+    standoffs: tuple[float, ...]  # [m]
+    tcp: np.ndarray  # (3,) [m] hand frame: where the approach ray passes (default: the hand's)
+
+
+def load_preshapes(hand: HandSpec, names: list[str] | None = None) -> tuple[Preshape, ...]:
+    """The hand's preshapes, all or the ``names`` asked for (in that order)."""
+    path = assets.project_dir("preshapes") / f"{hand.name}.toml"
+    f = Fields(read_toml(path), str(path))
+    if f.data.get("hand", hand.name) != hand.name:
+        raise ConfigError(f"{path} field 'hand': says '{f.data['hand']}', expected '{hand.name}'")
+    shapes = [_preshape(hand, item) for item in f.tables("preshape")]
+    by_name = {s.name: s for s in shapes}
+    if len(by_name) != len(shapes):
+        raise ConfigError(f"{path}: two preshapes share a name")
+    if not names:
+        return tuple(shapes)
+    for name in names:
+        if name not in by_name:
+            raise UnknownNameError("preshape", name, by_name)
+    return tuple(by_name[n] for n in names)
+
+
+def _preshape(hand: HandSpec, f: Fields) -> Preshape:
+    tags = tuple(f.strs("tags"))
+    for tag in tags:
+        if tag not in TAGS:
+            raise ConfigError(f"{f.where} field 'tags': unknown tag '{tag}'; use {', '.join(TAGS)}")
+    driven = {j.name: j for j in hand.driven}
+    values = f.table("joints")
+    for name in values.data:
+        if name not in driven:
+            raise ConfigError(f"{values.where}: '{name}' is not a driven joint of hand '{hand.name}'; "
+                              f"driven joints: {', '.join(driven)}")
+        joint = driven[name]
+        v = values.float(name)
+        if not joint.lower - 1e-9 <= v <= joint.upper + 1e-9:
+            raise ConfigError(f"{values.where}: {name} = {v} is outside its limits [{joint.lower}, {joint.upper}]")
+    open_driven = {name: values.float(name) if name in values.data else j.lower for name, j in driven.items()}
+    close = {j.name: j.close for j in hand.driven}
+    if f.has("close"):
+        override = f.table("close")
+        for name in override.data:
+            if name not in driven:
+                raise ConfigError(f"{override.where}: '{name}' is not a driven joint of hand '{hand.name}'")
+            close[name] = override.float(name)
+    if not any(close.values()):
+        raise ConfigError(f"{f.where}: the closing synergy moves no joint")
+    standoffs = tuple(f.floats("standoffs", default=[0.0]))
+    if any(s < 0 for s in standoffs) or not standoffs:
+        raise ConfigError(f"{f.where} field 'standoffs': needs non-negative distances [m]")
+    tcp = np.array(f.floats("tcp", 3)) if f.has("tcp") else hand.tcp
+    return Preshape(name=f.str("name"), tags=tags, taxonomy=f.data.get("taxonomy", ""),
+                    joints=hand.full_configuration(open_driven), close=close, standoffs=standoffs, tcp=tcp)

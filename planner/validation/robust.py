@@ -1,0 +1,80 @@
+"""Robust epsilon (Dex-Net style): epsilon averaged over noisy copies of a
+grasp, each re-closed in the simulator.
+
+Each sample perturbs the grasp pose (translation ~ N(0, sigma_t) per axis,
+rotation ~ N(0, sigma_r) axis-angle, in the hand frame), the object pose
+(the same, about the object's centre of mass; moving the object by T is
+moving the hand by T^-1) and the friction coefficient (mu (1 + N(0,
+sigma_mu)), at least 0.05). The hand is placed at the noisy pose with its
+preshape open and closed again (``Grasper.close_at``); a sample whose hand
+cannot close on the object scores 0.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from planner.db.store import GraspRow
+from planner.geometry.solid import PreparedObject
+from planner.plan.closing import Closed, Grasper
+from planner.plan.unit import grasp_quality
+from planner.sim import Sim
+from planner.specs.hands import HandSpec
+from planner.specs.preshapes import load_preshapes
+
+MIN_FRICTION = 0.05
+
+
+@dataclass(frozen=True)
+class NoiseSettings:
+    samples: int = 10
+    grasp_translation: float = 0.005  # [m] std per axis
+    grasp_rotation: float = 0.05  # [rad] std of the axis-angle components
+    object_translation: float = 0.005  # [m]
+    object_rotation: float = 0.05  # [rad]
+    friction: float = 0.1  # relative std of mu
+    quantile: float = 0.1  # the "low quantile" reported with the mean
+    cone_edges: int = 8
+
+    def to_json(self) -> str:
+        return json.dumps(asdict(self), sort_keys=True)
+
+
+@dataclass(frozen=True)
+class Robust:
+    mean: float
+    quantile: float
+    samples: np.ndarray  # (N,) epsilon of each sample
+
+
+def _jitter(rng: np.random.Generator, translation: float, rotation: float) -> np.ndarray:
+    t = np.eye(4)
+    t[:3, :3] = Rotation.from_rotvec(rng.normal(0.0, rotation, 3)).as_matrix()
+    t[:3, 3] = rng.normal(0.0, translation, 3)
+    return t
+
+
+def robust_epsilon(hand: HandSpec, obj: PreparedObject, grasp: GraspRow, rng: np.random.Generator,
+                   settings: NoiseSettings | None = None, grasper: Grasper | None = None) -> Robust:
+    s = settings or NoiseSettings()
+    shape = next(p for p in load_preshapes(hand) if p.name == grasp.preshape)
+    pose = np.array(grasp.pose, float)
+    about_com = np.eye(4)
+    about_com[:3, 3] = obj.com
+    values = np.zeros(s.samples)
+    with Sim() as sim:
+        g = grasper or Grasper(sim, hand, sim.add_static_mesh(obj.mesh.vertices, obj.mesh.faces))
+        for k in range(s.samples):
+            hand_noise = _jitter(rng, s.grasp_translation, s.grasp_rotation)
+            obj_noise = about_com @ _jitter(rng, s.object_translation, s.object_rotation) @ np.linalg.inv(about_com)
+            noisy = np.linalg.inv(obj_noise) @ pose @ hand_noise
+            mu = max(MIN_FRICTION, obj.friction * (1.0 + rng.normal(0.0, s.friction)))
+            closed = g.close_at(noisy, shape)
+            if isinstance(closed, Closed):
+                noisy_obj = replace(obj, spec=replace(obj.spec, friction=mu))
+                values[k] = grasp_quality(closed, noisy_obj, s.cone_edges).epsilon
+    return Robust(float(values.mean()), float(np.quantile(values, s.quantile)), values)

@@ -1,0 +1,158 @@
+"""``grasp validate``: shake-test and robust-epsilon the top grasps of a
+database, in worker processes, with one writer."""
+
+from __future__ import annotations
+
+import json
+import logging
+import zlib
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from planner.db.lock import writer_lock
+from planner.db.ranking import RankingRule
+from planner.db.store import Database, GraspRow, open_db
+from planner.db.writer import rescore
+from planner.errors import InputError, PlannerError
+from planner.geometry.solid import PreparedObject, load_object
+from planner.specs.hands import load_hand
+from planner.specs.objects import RANDOM_PREFIX, builtin_specs
+from planner.validation.robust import NoiseSettings, Robust, robust_epsilon
+from planner.validation.shake import TrialResult, TrialSettings, trial
+
+log = logging.getLogger(__name__)
+
+BATCH = 8  # grasps per worker task
+
+
+@dataclass(frozen=True)
+class Task:
+    object: str
+    source: str
+    scale: float
+    hand: str
+    grasps: tuple[GraspRow, ...]
+    seed: int
+    trial: TrialSettings
+    noise: NoiseSettings | None
+
+
+@dataclass
+class TaskResult:
+    task: Task
+    trials: list[TrialResult] = field(default_factory=list)
+    robust: list[Robust | None] = field(default_factory=list)
+    error: str | None = None
+
+
+def stored_object(name: str, source: str, scale: float) -> PreparedObject:
+    """A stored object: built-in names resolve directly, mesh files by path."""
+    builtin = name in builtin_specs() or name.startswith(RANDOM_PREFIX)
+    return load_object(name) if builtin else load_object(source, scale=scale, label=name)
+
+
+def run_task(task: Task) -> TaskResult:
+    out = TaskResult(task)
+    try:
+        hand = load_hand(task.hand)
+        obj = stored_object(task.object, task.source, task.scale)
+        for g in task.grasps:
+            out.trials.append(trial(hand, obj, g, task.trial))
+            if task.noise is not None:
+                rng = np.random.default_rng([task.seed, zlib.crc32(task.object.encode()), g.candidate, g.seed])
+                out.robust.append(robust_epsilon(hand, obj, g, rng, task.noise))
+            else:
+                out.robust.append(None)
+    except PlannerError as exc:
+        out.error = str(exc)
+    except Exception as exc:  # keep the other tasks going
+        out.error = f"{type(exc).__name__}: {exc}"
+    return out
+
+
+def plan(db: Database, objects: list[str] | None, hands: list[str] | None, top: int, seed: int,
+         trial_settings: TrialSettings, noise: NoiseSettings | None) -> list[Task]:
+    pairs = db.conn.execute("SELECT DISTINCT g.object, g.hand, o.source, o.scale FROM grasps g "
+                            "JOIN objects o ON o.name = g.object ORDER BY g.object, g.hand").fetchall()
+    known = {(p[0], p[1]) for p in pairs}
+    for name in objects or []:
+        if name not in {p[0] for p in known}:
+            raise InputError(f"no grasps of object '{name}' in {db.path}; objects: "
+                             f"{', '.join(sorted({p[0] for p in known})) or '(none)'}")
+    tasks = []
+    for obj, hand, source, scale in pairs:
+        if (objects and obj not in objects) or (hands and hand not in hands):
+            continue
+        rows = [r for r in db.best(obj, hand, top) if r.force_closure]
+        for i in range(0, len(rows), BATCH):
+            tasks.append(Task(obj, source, scale, hand, tuple(rows[i:i + BATCH]), seed, trial_settings, noise))
+    return tasks
+
+
+def execute(tasks: list[Task], workers: int) -> Iterator[TaskResult]:
+    if workers <= 1 or len(tasks) <= 1:
+        for task in tasks:
+            yield run_task(task)
+        return
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        for fut in as_completed([pool.submit(run_task, t) for t in tasks]):
+            yield fut.result()
+
+
+def write(db: Database, result: TaskResult, rule: RankingRule) -> None:
+    task = result.task
+    with db.transaction() as conn:
+        for g, t, r in zip(task.grasps, result.trials, result.robust):
+            conn.execute(
+                "INSERT OR REPLACE INTO validation (grasp_id, success, fingers_in_contact, closing_linear,"
+                " closing_angular, shaking_linear, shaking_angular, seed, settings) VALUES (?,?,?,?,?,?,?,?,?)",
+                (g.id, int(t.success), t.fingers_in_contact, t.closing_linear, t.closing_angular, t.shaking_linear,
+                 t.shaking_angular, task.seed, task.trial.to_json()))
+            if r is not None and task.noise is not None:
+                conn.execute("INSERT OR REPLACE INTO robust (grasp_id, mean, quantile, samples, seed, settings)"
+                             " VALUES (?,?,?,?,?,?)", (g.id, r.mean, r.quantile, len(r.samples), task.seed,
+                                                       task.noise.to_json()))
+        rescore(conn, rule, task.object, task.hand)
+
+
+@dataclass
+class ValidationSummary:
+    grasps: int = 0
+    successes: int = 0
+    failed_tasks: dict[str, str] = field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        return {"grasps": self.grasps, "successes": self.successes, "failed": self.failed_tasks}
+
+
+def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str] | None = None, top: int = 10,
+             robust_samples: int = 10, seed: int = 0, workers: int = 1, settings: TrialSettings | None = None,
+             progress: Callable[[int, int], None] | None = None) -> ValidationSummary:
+    if top < 1:
+        raise InputError(f"--top must be at least 1, got {top}")
+    trial_settings = settings or TrialSettings()
+    noise = NoiseSettings(samples=robust_samples) if robust_samples > 0 else None
+    summary = ValidationSummary()
+    with writer_lock(Path(db_path)), open_db(Path(db_path), create=False) as db:
+        rule = RankingRule.from_json(db.meta("ranking"))
+        tasks = plan(db, objects, hands, top, seed, trial_settings, noise)
+        if progress:
+            progress(0, len(tasks))
+        for done, result in enumerate(execute(tasks, workers), start=1):
+            if result.error:
+                summary.failed_tasks[f"{result.task.object}/{result.task.hand}"] = result.error
+            else:
+                write(db, result, rule)
+                summary.grasps += len(result.trials)
+                summary.successes += sum(t.success for t in result.trials)
+            if progress:
+                progress(done, len(tasks))
+        with db.transaction() as conn:
+            db.set_meta(conn, "validation_settings", json.dumps(
+                {"trial": json.loads(trial_settings.to_json()), "noise": json.loads(noise.to_json()) if noise
+                 else None, "seed": seed}))
+    return summary

@@ -1,0 +1,36 @@
+import numpy as np
+import trimesh
+
+from planner.geometry import decompose
+from planner.geometry.mesh import mesh_hash
+
+
+def test_convex_bodies_skip_coacd() -> None:
+    box = trimesh.creation.box(extents=[0.04, 0.04, 0.04])
+    two = trimesh.util.concatenate([box, box.copy().apply_translation([0.1, 0, 0])])
+    parts = decompose.convex_parts(two, mesh_hash(two))
+    assert parts.method == "bodies" and len(parts) == 2
+
+
+def test_concave_object_is_decomposed_once_and_cached(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    # an L made of two overlapping boxes, merged into one concave solid
+    a = trimesh.creation.box(extents=[0.06, 0.02, 0.02])
+    b = trimesh.creation.box(extents=[0.02, 0.06, 0.02]).apply_translation([-0.02, 0.02, 0])
+    ell = a.union(b, engine="manifold") if "manifold" in trimesh.boolean.engines_available else None
+    if ell is None:  # no boolean engine: build the L from its outline
+        outline = np.array([[-0.03, -0.01], [0.03, -0.01], [0.03, 0.01], [-0.01, 0.01], [-0.01, 0.05], [-0.03, 0.05]])
+        ell = trimesh.creation.extrude_polygon(trimesh.path.polygons.Polygon(outline), 0.02)
+    assert ell.volume < 0.95 * ell.convex_hull.volume  # really concave
+    settings = decompose.CoacdSettings(threshold=0.1, max_convex_hull=4, resolution=500)
+    key = mesh_hash(ell)
+    first = decompose.convex_parts(ell, key, settings)
+
+    def no_coacd(*_: object) -> None:
+        raise AssertionError("CoACD ran again instead of reading the cache")
+
+    monkeypatch.setattr(decompose, "_run_coacd", no_coacd)
+    again = decompose.convex_parts(ell, key, settings)
+    assert first.method == again.method == "coacd" and 2 <= len(first) <= 4
+    assert all(np.array_equal(x, y) for x, y in zip(first.vertices, again.vertices))
+    hull_volume = sum(trimesh.Trimesh(v, f).convex_hull.volume for v, f in zip(first.vertices, first.faces))
+    assert abs(hull_volume - ell.volume) < 0.3 * ell.volume

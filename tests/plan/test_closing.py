@@ -1,0 +1,74 @@
+import numpy as np
+import pytest
+from helpers import SIM_TOL, assert_close
+
+from planner.geometry.solid import load_object
+from planner.plan.closing import Closed, Grasper, Rejected
+from planner.sim import Sim
+from planner.specs.hands import load_hand
+from planner.specs.preshapes import load_preshapes
+
+DOWN = np.array([0.0, 0.0, -1.0])
+
+
+@pytest.fixture(scope="module")
+def panda():  # type: ignore[no-untyped-def]
+    h = load_hand("panda")
+    return h, {s.name: s for s in load_preshapes(h)}
+
+
+def close_on(obj_name: str, point, direction, roll, standoff, shape):  # type: ignore[no-untyped-def]
+    obj = load_object(obj_name)
+    h, shapes = shape
+    with Sim() as sim:
+        g = Grasper(sim, h, sim.add_static_mesh(obj.mesh.vertices, obj.mesh.faces))
+        return g.close(np.asarray(point, float), np.asarray(direction, float), roll, standoff, shapes["wide"],
+                       obj.torque_scale)
+
+
+def test_panda_pinches_box_symmetrically(panda) -> None:  # type: ignore[no-untyped-def]
+    # box 5 x 4 x 8 cm; from the top with roll 0 the fingers (hand y) close on the 4 cm faces
+    r = close_on("box", [0, 0, 0.04], DOWN, 0.0, 0.02, panda)
+    assert isinstance(r, Closed)
+    q = r.closed_joints
+    assert q["panda_finger_joint1"] == pytest.approx(q["panda_finger_joint2"])
+    finger_links = {"panda_leftfinger", "panda_rightfinger"}
+    assert finger_links <= set(r.contacts.links)
+    on_fingers = np.isin(r.contacts.links, list(finger_links))
+    # contacts lie on the two y faces with normals pointing into the box
+    assert_close(np.abs(r.contacts.points[on_fingers, 1]), np.full(on_fingers.sum(), 0.02), SIM_TOL)
+    assert np.all(r.contacts.normals[on_fingers, 1] * r.contacts.points[on_fingers, 1] < 0)
+    # the hand stays centred over the box and its z axis points down
+    assert_close(r.pose[:2, 3], [0, 0], SIM_TOL)
+    assert_close(r.pose[:3, 2], DOWN, 1e-9)
+
+
+def test_standoff_zero_touches_with_the_palm(panda) -> None:  # type: ignore[no-untyped-def]
+    r = close_on("box", [0, 0, 0.04], DOWN, 0.0, 0.0, panda)
+    assert isinstance(r, Closed) and "panda_hand" in r.contacts.links
+
+
+def test_too_wide_object_is_only_touched_on_the_near_face(panda) -> None:  # type: ignore[no-untyped-def]
+    # from +x with the fingers closing along z: the box is 8 cm tall, wider than
+    # the open hand's 7.8 cm between the pads, so the tips land on the +x face
+    for roll in (0.0, np.pi / 2):
+        r = close_on("box", [0.025, 0, 0], [-1, 0, 0], roll, 0.0, panda)
+        assert isinstance(r, Closed)
+        if abs(r.pose[2, 1]) > 0.99:  # hand y (the finger axis) along world z
+            assert np.all(r.contacts.normals[:, 0] < -0.99)  # all on the +x face (tips, edges)
+            assert set(r.contacts.links) == {"panda_leftfinger", "panda_rightfinger"}
+            return
+    raise AssertionError("no roll put the finger axis along z")
+
+
+def test_ray_that_misses_is_rejected(panda) -> None:  # type: ignore[no-untyped-def]
+    r = close_on("sphere", [0.5, 0.5, 0.5], DOWN, 0.0, 0.0, panda)
+    assert isinstance(r, Rejected) and r.reason == "missed"
+
+
+def test_sphere_contacts_have_radial_normals(panda) -> None:  # type: ignore[no-untyped-def]
+    r = close_on("sphere", [0, 0, 0.03], DOWN, 0.3, 0.02, panda)
+    assert isinstance(r, Closed)
+    radial = r.contacts.points / np.linalg.norm(r.contacts.points, axis=1, keepdims=True)
+    assert np.all(np.einsum("ij,ij->i", r.contacts.normals, -radial) > 0.95)
+    assert_close(np.linalg.norm(r.contacts.points, axis=1), np.full(len(r.contacts), 0.03), SIM_TOL)

@@ -1,0 +1,118 @@
+import json
+import sqlite3
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from planner import api
+from planner.cli import main
+from planner.geometry.frames import angle_between, pose_from_xyzquat
+from planner.geometry.solid import load_object
+from planner.plan.reach import ANGLE_TOL, POSITION_TOL, ReachScene, ReachSettings
+from planner.plan.sweep import SweepSettings
+from planner.plan.unit import UnitSpec, add_reachability, run_unit
+from planner.sim import Sim
+from planner.specs.hands import load_hand
+
+TOP_DOWN = np.array([[1.0, 0, 0, 0], [0, -1, 0, 0], [0, 0, -1, 0.04 + 0.1034], [0, 0, 0, 1]])  # above the box top
+
+
+@pytest.fixture(scope="module")
+def scene():  # type: ignore[no-untyped-def]
+    with Sim() as sim:
+        yield ReachScene(sim, load_hand("panda"), load_object("box"), ReachSettings())
+
+
+def fingers(q: float) -> dict[str, float]:
+    return {"panda_finger_joint1": q, "panda_finger_joint2": q}
+
+
+def test_top_down_grasp_in_front_is_reachable_and_verified_by_fk(scene) -> None:  # type: ignore[no-untyped-def]
+    scene.place_object(scene.resting_pose(0.5, 0.0, 0.0))
+    r = scene.check(TOP_DOWN, fingers(0.02), fingers(0.04), np.random.default_rng(0))
+    assert r.reachable
+    target = scene.object_pose @ TOP_DOWN
+    for solution, pose in ((r.grasp, target), (r.pregrasp, None)):
+        scene.sim.set_joints(scene.arm, solution.joints)
+        ee = scene.sim.link_pose(scene.arm, scene.ee_link)
+        if pose is None:  # pre-grasp: backed off 10 cm along the approach (+z of the hand = world -z)
+            pose = target.copy()
+            pose[2, 3] += 0.10
+        assert np.linalg.norm(ee[:3, 3] - pose[:3, 3]) <= POSITION_TOL
+        assert angle_between(ee[:3, :3], pose[:3, :3]) <= ANGLE_TOL
+        for name, value in solution.joints.items():
+            lo, hi = scene.sim.joint_limits(scene.arm, name)
+            assert lo <= value <= hi
+    assert r.grasp.manipulability > 0
+
+
+def test_far_outside_the_workspace_is_unreachable(scene) -> None:  # type: ignore[no-untyped-def]
+    scene.place_object(scene.resting_pose(2.0, 0.0, 0.0))
+    assert not scene.check(TOP_DOWN, fingers(0.02), fingers(0.04), np.random.default_rng(0)).reachable
+
+
+def test_hand_through_the_table_is_rejected(scene) -> None:  # type: ignore[no-untyped-def]
+    scene.place_object(scene.resting_pose(0.5, 0.0, 0.0))
+    from_below = TOP_DOWN.copy()
+    from_below[:3, :3] = np.diag([1.0, 1.0, 1.0])  # hand z up: approaching the box bottom from under the table
+    from_below[2, 3] = -0.04 - 0.1034
+    assert scene.hand_hits_table(scene.object_pose @ from_below, fingers(0.02))
+    assert not scene.check(from_below, fingers(0.02), fingers(0.04), np.random.default_rng(0)).reachable
+
+
+def test_stored_reachability_agrees_with_a_recheck() -> None:
+    settings = SweepSettings(approaches=16, rolls=2, preshapes=("wide",), reach_placements=3)
+    spec = UnitSpec("box", "panda", settings, seed=5)
+    result = run_unit(spec)
+    fc = [g for g in result.grasps if g.force_closure]
+    assert fc and all(g.reachability is not None for g in fc)
+    again = add_reachability([g for g in fc[:4]], result.obj, load_hand("panda"), spec)  # type: ignore[arg-type]
+    assert [g.reachability for g in again] == [g.reachability for g in fc[:4]]
+    assert any(g.reachability > 0 for g in fc)
+
+
+def test_cli_best_at_pose_returns_fk_consistent_joint_solutions(tmp_path: Path) -> None:
+    db = tmp_path / "g.db"
+    api.generate(["box"], "panda", db_path=db, settings=SweepSettings(approaches=8, rolls=2, reach_placements=2),
+                 workers=1)
+    result = CliRunner().invoke(main, ["best", "box", "--hand", "panda", "--db", str(db), "--object-pose",
+                                       "0.5,0,0.04,0,0,0,1", "--top", "2", "--json"])
+    assert result.exit_code == 0, result.stderr
+    found = json.loads(result.stdout)
+    assert found
+    obj_pose = pose_from_xyzquat((0.5, 0, 0.04, 0, 0, 0, 1))
+    with Sim() as sim:
+        scene = ReachScene(sim, load_hand("panda"), load_object("box"))
+        scene.place_object(obj_pose)
+        for g in found:
+            sim.set_joints(scene.arm, g["arm"]["grasp"])
+            sim.set_joints(scene.arm, g["joints"])
+            ee = sim.link_pose(scene.arm, "panda_hand")
+            target = obj_pose @ np.array(g["pose"])
+            assert np.linalg.norm(ee[:3, 3] - target[:3, 3]) <= POSITION_TOL
+            assert angle_between(ee[:3, :3], target[:3, :3]) <= ANGLE_TOL
+            for link in scene.arm_links:
+                assert scene._gap(scene.arm, link, scene.table) > 0
+    rows = sqlite3.connect(db).execute("SELECT COUNT(*) FROM grasps WHERE reachability IS NOT NULL").fetchone()[0]
+    assert rows > 0
+
+
+def test_hand_on_the_kuka_arm_through_its_mount() -> None:
+    """Hands other than the Panda ride on the KUKA iiwa; the hand body follows the flange."""
+    hand = load_hand("barrett")
+    assert hand.arm is not None and hand.arm.ee_link == "lbr_iiwa_link_7"
+    with Sim() as sim:
+        scene = ReachScene(sim, hand, load_object("box"))
+        assert scene.hand_body is not scene.arm
+        scene.place_object(scene.resting_pose(0.5, 0.0, 0.0))
+        top_down = np.diag([1.0, -1.0, -1.0, 1.0])
+        top_down[2, 3] = 0.04 + 0.12
+        r = scene.check(top_down, {}, {}, np.random.default_rng(0))
+        assert r.reachable
+        sim.set_joints(scene.arm, r.grasp.joints)
+        flange = sim.link_pose(scene.arm, "lbr_iiwa_link_7")
+        hand_pose = flange @ hand.arm.mount
+        target = scene.object_pose @ top_down
+        assert np.linalg.norm(hand_pose[:3, 3] - target[:3, 3]) <= POSITION_TOL

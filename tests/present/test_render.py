@@ -1,0 +1,45 @@
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from planner import api
+from planner.plan.sweep import SweepSettings
+from planner.present.render import HAND_RGBA, OBJECT_RGBA
+
+
+@pytest.fixture(scope="module")
+def db(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("show") / "g.db"
+    api.generate(["box"], "panda", db_path=path, settings=SweepSettings(approaches=8, rolls=2, reach_placements=0),
+                 workers=1)
+    return path
+
+
+def colour_share(image: np.ndarray, rgba: tuple[float, ...]) -> float:
+    """Share of pixels whose hue is close to ``rgba`` (lighting scales brightness)."""
+    rgb = image[..., :3].astype(float)
+    ref = np.array(rgba[:3]) / np.linalg.norm(rgba[:3])
+    norm = np.linalg.norm(rgb, axis=-1, keepdims=True)
+    cos = (rgb / np.maximum(norm, 1e-9)) @ ref
+    return float(np.mean((cos > 0.995) & (norm[..., 0] > 40)))
+
+
+def test_show_draws_hand_and_object(db: Path, tmp_path: Path) -> None:
+    import matplotlib.image as mpimg
+
+    out = tmp_path / "g.png"
+    rows = api.show("box", "panda", out, db_path=db, rank=1)
+    assert rows[0].rank == 1
+    image = (mpimg.imread(out) * 255).astype(np.uint8)
+    assert colour_share(image, OBJECT_RGBA) > 0.01
+    assert colour_share(image, HAND_RGBA) > 0.01
+
+
+def test_contact_sheet_has_one_row_per_grasp(db: Path, tmp_path: Path) -> None:
+    import matplotlib.image as mpimg
+
+    one, three = tmp_path / "1.png", tmp_path / "3.png"
+    api.show("box", "panda", one, db_path=db, top=1)
+    api.show("box", "panda", three, db_path=db, top=3)
+    assert mpimg.imread(three).shape[0] == pytest.approx(3 * mpimg.imread(one).shape[0], rel=0.05)
