@@ -55,7 +55,7 @@ def build(path: Path, grasps: int, per_object: int) -> int:
     summary = api.generate(list(SOURCES), "panda", db_path=path, settings=settings, workers=1)
     if summary.failed:
         raise SystemExit(f"generate failed: {summary.failed}")
-    from planner.db.ranking import RERANK_SQL
+    from planner.db.store import open_db
 
     conn = sqlite3.connect(path, isolation_level=None)
     units = conn.execute("SELECT id, object, (SELECT COUNT(*) FROM grasps g WHERE g.unit_id = u.id) FROM units u"
@@ -79,7 +79,6 @@ def build(path: Path, grasps: int, per_object: int) -> int:
                 f" INSERT INTO grasps (unit_id, object, hand, {GRASP_COLUMNS})"
                 f" SELECT ?, ?, hand, {GRASP_COLUMNS.replace('candidate', f'candidate + r.k * {SHIFT}')}"
                 f" FROM grasps, r WHERE unit_id = ? ORDER BY r.k, id", (repeats, new_unit, name, unit_id))
-            conn.execute(RERANK_SQL, (name, "panda"))
             total += n * repeats
         copy += 1
     conn.execute("INSERT INTO validation SELECT id, id % 2, 2, 0.001, 0.01, 0.002, 0.02, 0, '{}' FROM grasps"
@@ -88,6 +87,8 @@ def build(path: Path, grasps: int, per_object: int) -> int:
                  " WHERE id % 10 = 0")
     conn.execute("COMMIT")
     conn.close()
+    with open_db(path) as db:  # rank every copy as the database would
+        db.apply_rule(db.rule(), force=True)
     return total
 
 

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from planner import api
-from planner.db.ranking import RERANK_SQL
+from planner.db.store import open_db
 from planner.geometry.frames import pose_from_xyzquat
 from planner.geometry.solid import load_object
 from planner.plan.reach import ReachScene
@@ -67,10 +67,11 @@ def main() -> None:
             conn.execute(f"INSERT INTO grasps ({', '.join(cols)}, candidate) SELECT {', '.join(cols)}, "
                          f"candidate + {k * 1_000_000} FROM grasps WHERE candidate < 1000000")
         conn.execute("DELETE FROM grasps WHERE id > ?", (args.grasps,))
-        conn.execute(RERANK_SQL, ("mug", "panda"))
         conn.commit()
         total = conn.execute("SELECT COUNT(*) FROM grasps").fetchone()[0]
         conn.close()
+        with open_db(db) as handle:  # rank the copies as the database would
+            handle.apply_rule(handle.rule(), force=True)
         for attempt in range(3):
             t = time.perf_counter()
             found = api.best_at("mug", "panda", POSE, db_path=db, top=1)

@@ -15,8 +15,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from planner.api import unit_row
 from planner.db.store import open_db
-from planner.db.writer import write_unit
 from planner.plan.sweep import SweepSettings
 from planner.plan.unit import UnitSpec, run_unit
 from planner.specs.hands import hand_names
@@ -33,7 +33,7 @@ def bench(obj: str, hand: str, approaches: int, seed: int) -> dict:
         raise SystemExit(f"{hand}: {result.error}")
     with tempfile.TemporaryDirectory() as tmp, open_db(Path(tmp) / "bench.db") as db:
         t1 = time.perf_counter()
-        write_unit(db, result, total)
+        db.write_unit(unit_row(result, total), result.obj, result.grasps, db.rule())
         db_seconds = time.perf_counter() - t1
     timing = dict(result.timing, database=db_seconds)
     work = total + db_seconds

@@ -1,4 +1,13 @@
-"""The Python API; the ``grasp`` CLI only wraps these functions."""
+"""The Python API, the one facade of the project: the ``grasp`` CLI only
+wraps these functions (and the names re-exported here).
+
+- building: :func:`generate` (sweep objects for a hand into a database);
+- querying: :func:`best`, :func:`best_at` (grasps an arm reaches now), :func:`show`;
+- validating: :func:`validate`, :func:`report`;
+- datasets: :func:`export`, :func:`import_files`;
+- descriptions: :func:`hands`, :func:`hand`, :func:`objects`;
+- maintenance: :func:`check_db`.
+"""
 
 from __future__ import annotations
 
@@ -7,23 +16,52 @@ import os
 import time
 from collections import Counter
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import numpy as np
+
+from planner.datasets import exporter, importer
+from planner.datasets.exporter import ExportSummary, export
+from planner.datasets.importer import ImportResult, import_files
 from planner.db.lock import writer_lock
 from planner.db.ranking import RankingRule
-from planner.db.store import Database, GraspRow, open_db
-from planner.db.writer import apply_rule, write_unit
+from planner.db.store import UnitRow, open_db
 from planner.errors import InputError
+from planner.geometry.frames import pose_from_xyzquat
 from planner.geometry.solid import load_object
+from planner.grasp import Grasp
+from planner.plan.pool import execute
+from planner.plan.reach import ReachScene, ReachSettings
 from planner.plan.sweep import SweepSettings
+from planner.plan.tolerances import PREGRASP_DISTANCE
 from planner.plan.unit import UnitResult, UnitSpec
-from planner.specs.hands import load_hand
-from planner.specs.objects import resolve_spec
+from planner.present import report as reporting
+from planner.sim import Sim
+from planner.specs.hands import HandSpec, hand_names, load_hand
+from planner.specs.inputs import expand
+from planner.specs.objects import RANDOM_COUNT, RANDOM_PREFIX, ObjectSpec, builtin_specs, resolve_spec
+from planner.specs.preshapes import Preshape, load_preshapes
+from planner.validation.run import ValidationSummary, validate
+
+__all__ = [
+    "DEFAULT_DB", "EXPORT_FORMATS", "IMPORT_FORMATS", "RANDOM_COUNT", "RANDOM_PREFIX", "ExportSummary", "Grasp",
+    "ImportResult", "RankingRule", "ReachableGrasp", "Summary", "SweepSettings", "UnitResult", "ValidationSummary",
+    "best", "best_at", "check_db", "default_workers", "export", "generate", "hand", "hands", "import_files",
+    "objects", "plan_units", "report", "show", "validate",
+]
 
 log = logging.getLogger(__name__)
 
 DEFAULT_DB = Path("grasps.db")
+EXPORT_FORMATS = exporter.FORMATS
+IMPORT_FORMATS = importer.FORMATS
+#: ``best_at`` reads stored grasps in rank order this many at a time.
+CANDIDATE_BATCH = 50
+#: ``best_at`` tries at most this many top-ranked grasps by default.
+MAX_CANDIDATES = 300
+#: A typed quaternion whose norm lies outside this range is a mistake, not round-off.
+QUATERNION_NORM = (0.5, 2.0)
 
 
 @dataclass
@@ -46,18 +84,15 @@ class Summary:
                 "seconds": round(self.seconds, 3), "objects": self.per_object}
 
 
+# -- building -----------------------------------------------------------------------
 def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: int,
                scale: float | None = None) -> list[UnitSpec]:
     """Expand the object arguments and check every input up front (names,
     hand, preshapes) before any work."""
-    from planner.specs.inputs import expand
-    from planner.specs.preshapes import load_preshapes
-
     refs = expand(list(names), scale)
     if not refs:
         raise InputError("no objects given")
-    hand_spec = load_hand(hand)
-    load_preshapes(hand_spec, list(settings.preshapes) if settings.preshapes else None)
+    load_preshapes(load_hand(hand), list(settings.preshapes) if settings.preshapes else None)
     units, seen = [], set()
     for ref in refs:
         spec = resolve_spec(ref.source, scale=ref.scale, label=ref.label)
@@ -78,32 +113,25 @@ def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: i
 def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, settings: SweepSettings | None = None,
              seed: int = 0, workers: int = 1, scale: float | None = None, rule: RankingRule | None = None,
              use_ray: bool = False, ray_address: str | None = None, unit_timeout: float | None = None,
-             progress: Callable[[UnitResult, int, int], None] | None = None) -> Summary:
-    """Build (or extend) a grasp database; finished units are skipped."""
+             progress: Callable[[UnitResult | None, int, int], None] | None = None) -> Summary:
+    """Build (or extend) a grasp database; finished units are skipped.
+    ``progress(None, 0, total)`` first, then ``progress(result, done, total)``."""
     settings = settings or SweepSettings()
     units = plan_units(names, hand, settings, seed, scale)
     summary = Summary()
     start = time.perf_counter()
     with writer_lock(Path(db_path)), open_db(Path(db_path)) as db:
-        rule = rule or RankingRule.from_json(db.meta("ranking"))
-        apply_rule(db, rule)
-        todo = []
+        rule = rule or db.rule()
+        db.apply_rule(rule)
         done = db.units_done(hand, settings.digest, seed)
-        for unit in units:
-            if (unit.label, unit.chunk) in done:
-                summary.skipped += 1
-            else:
-                todo.append(unit)
+        todo = [u for u in units if (u.label, u.chunk) not in done]
+        summary.skipped = len(units) - len(todo)
         if progress:
-            progress(None, 0, len(todo))  # type: ignore[arg-type]
+            progress(None, 0, len(todo))
         if unit_timeout:
-            from dataclasses import replace
-
             todo = [replace(u, timeout=unit_timeout) for u in todo]
-        from planner.plan.pool import execute
-
         for done_count, (result, seconds) in enumerate(execute(todo, workers, ray_address, use_ray), start=1):
-            write_unit(db, result, seconds, rule)
+            db.write_unit(unit_row(result, seconds), result.obj, result.grasps, rule)
             _tally(summary, result, seconds)
             if progress:
                 progress(result, done_count, len(todo))
@@ -111,9 +139,16 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
     return summary
 
 
+def unit_row(result: UnitResult, seconds: float) -> UnitRow:
+    """The ``units`` row of a finished (or failed) unit."""
+    spec = result.spec
+    return UnitRow(result.object_name, spec.hand, spec.settings.digest, spec.settings.to_json(), spec.seed,
+                   spec.chunk, result.error, result.candidates, dict(result.rejected), seconds)
+
+
 def _tally(summary: Summary, result: UnitResult, seconds: float) -> None:
     summary.units += 1
-    name = result.obj.name if result.obj else (result.spec.label or result.spec.object_name)
+    name = result.object_name
     if result.error:
         summary.failed[name] = result.error
     summary.candidates += result.candidates
@@ -133,44 +168,44 @@ def _tally(summary: Summary, result: UnitResult, seconds: float) -> None:
     row["error"] = row["error"] or result.error
 
 
-def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1) -> list[GraspRow]:
+# -- querying -----------------------------------------------------------------------
+def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1) -> list[Grasp]:
     """The ``top`` best grasps of an object for a hand, in rank order."""
     if top < 1:
         raise InputError(f"--top must be at least 1, got {top}")
     load_hand(hand)
     key = resolve_spec(name).name
     with open_db(Path(db_path), create=False, readonly=True) as db:
-        rows = db.best(key, hand, top)
-        if not rows:
+        grasps = db.best(key, hand, top)
+        if not grasps:
             known = db.objects_for(hand)
             raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}; objects with grasps: "
                              f"{', '.join(known) or '(none)'}; run `grasp generate {name} --hand {hand}`")
-    return rows
+    return grasps
 
 
 @dataclass(frozen=True)
 class ReachableGrasp:
     """A stored grasp with the arm solutions that reach it at a given pose."""
 
-    grasp: GraspRow
+    grasp: Grasp
     arm_grasp: dict[str, float]  # arm joint values [rad] at the grasp
     arm_pregrasp: dict[str, float]  # ... and at the pre-grasp
     manipulability: float
     hand_pose_world: list[list[float]]  # (4, 4) where the hand frame ends up [m]
 
+    def to_json(self) -> dict:
+        return {**self.grasp.to_json(), "arm": {"grasp": self.arm_grasp, "pregrasp": self.arm_pregrasp},
+                "arm_manipulability": self.manipulability, "hand_pose_world": self.hand_pose_world}
+
 
 def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path = DEFAULT_DB, top: int = 1,
-            robot_base: Sequence[float] | None = None, max_candidates: int = 300,
-            pregrasp_distance: float = 0.10, seed: int = 0) -> list[ReachableGrasp]:
+            robot_base: Sequence[float] | None = None, max_candidates: int = MAX_CANDIDATES,
+            pregrasp_distance: float = PREGRASP_DISTANCE, seed: int = 0) -> list[ReachableGrasp]:
     """The best stored grasps that an arm reaches *now*, with the object at
     ``object_pose`` (x, y, z, qx, qy, qz, qw, world frame) and the robot base at
     ``robot_base`` (same form; default the origin). Candidates are tried in
     rank order, at most ``max_candidates`` of them."""
-    import numpy as np
-
-    from planner.plan.reach import ReachScene, ReachSettings
-    from planner.sim import Sim
-
     if top < 1:
         raise InputError(f"--top must be at least 1, got {top}")
     obj_pose = _pose7(object_pose, "--object-pose")
@@ -185,19 +220,17 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
         scene.place_object(obj_pose)
         offset = 0
         while len(found) < top and offset < max_candidates:
-            batch = db.best(key, hand, min(50, max_candidates - offset), offset)
+            batch = db.best(key, hand, min(CANDIDATE_BATCH, max_candidates - offset), offset)
             if not batch:
                 break
             offset += len(batch)
-            for row in batch:
-                if not row.force_closure:
+            for g in batch:
+                if not g.force_closure:
                     continue
-                pose = np.array(row.pose)
-                reach = scene.check(pose, row.closed_joints, row.open_joints, rng)
-                if reach.reachable:
-                    found.append(ReachableGrasp(row, reach.grasp.joints, reach.pregrasp.joints,  # type: ignore[union-attr]
-                                                reach.grasp.manipulability,  # type: ignore[union-attr]
-                                                (obj_pose @ pose).tolist()))
+                reach = scene.check(g.pose, g.closed_joints, g.open_joints, rng)
+                if reach.grasp is not None and reach.pregrasp is not None:
+                    found.append(ReachableGrasp(g, reach.grasp.joints, reach.pregrasp.joints,
+                                                reach.grasp.manipulability, (obj_pose @ g.pose).tolist()))
                     if len(found) == top:
                         break
         if offset == 0:
@@ -206,25 +239,22 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
     return found
 
 
-def _pose7(values: Sequence[float], option: str):  # type: ignore[no-untyped-def]
-    import numpy as np
-
-    from planner.geometry.frames import pose_from_xyzquat
-
+def _pose7(values: Sequence[float], option: str) -> np.ndarray:
     vals = [float(v) for v in values]
     if len(vals) != 7 or not all(np.isfinite(vals)):
         raise InputError(f"{option} needs 7 finite numbers x,y,z,qx,qy,qz,qw; got {values}")
     q = np.array(vals[3:])
-    if not 0.5 < np.linalg.norm(q) < 2.0:
+    lo, hi = QUATERNION_NORM
+    if not lo < np.linalg.norm(q) < hi:
         raise InputError(f"{option}: quaternion {vals[3:]} is not close to unit length")
     vals[3:] = list(q / np.linalg.norm(q))
-    return pose_from_xyzquat(tuple(vals))
+    return pose_from_xyzquat(vals)
 
 
 def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: int = 1, top: int | None = None
-         ) -> list[GraspRow]:
+         ) -> list[Grasp]:
     """Render grasp ``rank`` (or the ``top`` K as a contact sheet) to a PNG."""
-    from planner.present import render
+    from planner.present import render  # matplotlib: only for pictures
 
     count = top or 1
     first = 1 if top else rank
@@ -233,24 +263,43 @@ def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: i
     spec = load_hand(hand)
     key = resolve_spec(name).name
     with open_db(Path(db_path), create=False, readonly=True) as db:
-        rows = db.best(key, hand, count, first - 1)
-    if not rows:
+        grasps = db.best(key, hand, count, first - 1)
+    if not grasps:
         raise InputError(f"no grasp of rank {first} for '{key}' and hand '{hand}' in {db_path}")
     if Path(out).suffix.lower() != ".png":
         raise InputError(f"{out}: the picture is written as PNG; give a .png path")
     obj = load_object(name)
-    render.save_sheet([(render.grasp_views(spec, obj, row), render.title(row)) for row in rows], Path(out))
-    return rows
+    render.save_sheet([(render.grasp_views(spec, obj, g), render.title(g)) for g in grasps], Path(out))
+    return grasps
+
+
+def report(db_path: Path, out: Path) -> Path:
+    """The calibration report of ``db_path``: ``out.html``, or a folder with
+    ``report.md`` and PNGs; returns the file written."""
+    return reporting.write(Path(db_path), Path(out))
+
+
+# -- descriptions and maintenance ------------------------------------------------------
+def hands() -> list[tuple[HandSpec, tuple[Preshape, ...]]]:
+    """Every built-in hand with its preshapes."""
+    return [hand(name) for name in hand_names()]
+
+
+def hand(name: str) -> tuple[HandSpec, tuple[Preshape, ...]]:
+    """One hand and its preshapes."""
+    spec = load_hand(name)
+    return spec, load_preshapes(spec)
+
+
+def objects() -> dict[str, ObjectSpec]:
+    """The built-in objects by name (``random_NNN`` are not listed)."""
+    return builtin_specs()
 
 
 def check_db(db_path: Path) -> list[str]:
     """``PRAGMA integrity_check`` problems (empty list: healthy)."""
     with open_db(Path(db_path), create=False, readonly=True) as db:
         return db.integrity_check()
-
-
-def open_database(db_path: Path) -> Database:
-    return open_db(Path(db_path), create=False, readonly=True)
 
 
 def default_workers() -> int:

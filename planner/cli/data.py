@@ -1,9 +1,4 @@
-"""``grasp export`` and ``grasp import``: thin wrappers of
-:func:`planner.datasets.exporter.export` and :func:`planner.datasets.importer.import_files`.
-
-Added to the ``grasp`` group by :func:`register` (``planner.cli`` calls
-``register(main)``); errors are reported by the group like every command's.
-"""
+"""``grasp export`` and ``grasp import``: dataset files out of and into a database."""
 
 from __future__ import annotations
 
@@ -12,34 +7,33 @@ from pathlib import Path
 
 import click
 
-from planner.api import DEFAULT_DB
-from planner.datasets.exporter import FORMATS
+from planner import api
+from planner.cli.app import db_option
 
 
 @click.command(name="export")
-@click.option("--db", "db_path", type=click.Path(path_type=Path), default=DEFAULT_DB, show_default=True)
-@click.option("--format", "fmt", required=True, metavar="FORMAT", help=f"One of: {', '.join(FORMATS)}.")
+@db_option
+@click.option("--format", "fmt", required=True, metavar="FORMAT", help=f"One of: {', '.join(api.EXPORT_FORMATS)}.")
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), required=True,
               help="Output folder (created if missing).")
-@click.option("--object", "objects_", metavar="NAME", multiple=True, help="Only this object (repeat).")
+@click.option("--object", "objects", metavar="NAME", multiple=True, help="Only this object (repeat).")
 @click.option("--hand", "hands", metavar="H", multiple=True, help="Only this hand (repeat).")
 @click.option("--min-epsilon", type=float, help="Only grasps with epsilon >= this.")
 @click.option("--top", type=int, help="Only the K best-ranked grasps per (object, hand).")
 @click.option("--quiet", is_flag=True, help="Print nothing on success.")
 @click.option("--json", "as_json", is_flag=True, help="Print a machine-readable summary.")
-def export_cmd(db_path: Path, fmt: str, out_dir: Path, objects_: tuple[str, ...], hands: tuple[str, ...],
+def export(db_path: Path, fmt: str, out_dir: Path, objects: tuple[str, ...], hands: tuple[str, ...],
                min_epsilon: float | None, top: int | None, quiet: bool, as_json: bool) -> None:
     """Export grasps as dataset files: acronym (HDF5 per object and hand),
     graspgen (JSON per object and hand), dexgraspnet (.npy per object and
     hand), parquet or csv (one table of all grasps)."""
-    from planner.datasets.exporter import export
 
-    def report(path: Path, count: int) -> None:
+    def progress(path: Path, count: int) -> None:
         if not quiet and not as_json:
             click.echo(f"{path}: {count} grasps")
 
-    summary = export(db_path, fmt, out_dir, objects=objects_, hands=hands, min_epsilon=min_epsilon, top=top,
-                     progress=report)
+    summary = api.export(db_path, fmt, out_dir, objects=objects, hands=hands, min_epsilon=min_epsilon, top=top,
+                         progress=progress)
     if as_json:
         click.echo(json.dumps(summary.to_json(), indent=2))
     elif not quiet:
@@ -51,21 +45,20 @@ def export_cmd(db_path: Path, fmt: str, out_dir: Path, objects_: tuple[str, ...]
 @click.command(name="import")
 @click.argument("paths", metavar="PATH...", nargs=-1, required=True, type=click.Path(path_type=Path))
 @click.option("--format", "fmt", default="acronym", show_default=True, metavar="FORMAT",
-              help="Input format: acronym (HDF5, this project's or foreign).")
-@click.option("--db", "db_path", type=click.Path(path_type=Path), default=DEFAULT_DB, show_default=True)
+              help=f"Input format: {', '.join(api.IMPORT_FORMATS)} (HDF5, this project's or foreign).")
+@db_option
 @click.option("--hand", help="Hand name, when the file's gripper/type is not one (see `grasp hands`).")
 @click.option("--object", "object_name", metavar="NAME",
               help="Built-in object name or mesh path (default: the file's object/name or object/file).")
 @click.option("--rescore", is_flag=True, help="Re-close and re-score every pose even if the file has qualities.")
 @click.option("--json", "as_json", is_flag=True, help="Print a machine-readable summary.")
-def import_cmd(paths: tuple[Path, ...], fmt: str, db_path: Path, hand: str | None, object_name: str | None,
+def import_files(paths: tuple[Path, ...], fmt: str, db_path: Path, hand: str | None, object_name: str | None,
                rescore: bool, as_json: bool) -> None:
     """Import grasp files into the database (one unit per file; a file
     imported before is skipped). Files without this project's qualities are
     re-scored by closing the hand at each pose."""
-    from planner.datasets.importer import ImportResult, import_files
 
-    def report(r: ImportResult) -> None:
+    def progress(r: api.ImportResult) -> None:
         if as_json:
             return
         if r.skipped:
@@ -76,13 +69,7 @@ def import_cmd(paths: tuple[Path, ...], fmt: str, db_path: Path, hand: str | Non
         click.echo(f"{r.path}: {how} {r.grasps} grasps ({r.force_closure} force-closure) as {r.object}/{r.hand}"
                    f"{dropped}")
 
-    results = import_files(paths, db_path, fmt=fmt, hand=hand, object_name=object_name, rescore=rescore,
-                           progress=report)
+    results = api.import_files(paths, db_path, fmt=fmt, hand=hand, object_name=object_name, rescore=rescore,
+                               progress=progress)
     if as_json:
         click.echo(json.dumps([r.to_json() for r in results], indent=2))
-
-
-def register(main: click.Group) -> None:
-    """Add ``export`` and ``import`` to the ``grasp`` command group."""
-    main.add_command(export_cmd)
-    main.add_command(import_cmd)

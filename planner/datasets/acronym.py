@@ -1,4 +1,5 @@
-"""ACRONYM HDF5: one file ``{object}__{hand}.h5`` per (object, hand).
+"""ACRONYM HDF5: one file ``{object}__{hand}.h5`` per (object, hand), written
+and read back.
 
 ACRONYM's published layout, readable by its own tools (``acronym_tools``)::
 
@@ -28,57 +29,147 @@ link}]`` in the object frame; ``approach_point``, ``approach_dir`` (N, 3),
 frame in the object frame) and ``export_frame`` (4, 4) with transforms =
 poses_hand_frame @ export_frame.
 
-Datasets are chunked and resizable; each batch of rows is appended.
+The per-grasp content (:func:`per_grasp`) is shared with the GraspGen JSON
+writer. Datasets are chunked and resizable; each batch of rows is appended.
+Reading (:func:`read_header`, :func:`read_poses`, :func:`read_grasps`,
+:func:`read_simulation`) serves ``grasp import``: our own files come back
+losslessly, foreign ones give poses to re-score.
 """
 
 from __future__ import annotations
 
+import json
+import math
 import os
 from collections.abc import Iterable
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-import h5py
 import numpy as np
 
-from planner.datasets import fields
-from planner.datasets.batch import Batch, ObjectInfo
+from planner.datasets.columns import Column, grasp_columns, joint_matrix
+from planner.db.store import ObjectRow
+from planner.errors import InputError
+from planner.geometry.frames import roll_about
+from planner.grasp import Grasp, RobustEpsilon, Trial
+from planner.plan.contacts import HandContacts
 from planner.specs.hands import HandSpec
 
 SUFFIX = ".h5"
 #: Rows per HDF5 chunk: 1,024 transforms are 128 kB.
 CHUNK_ROWS = 1024
+#: A transform's rotation rows may deviate from orthonormal by this much (float32 files pass).
+ROTATION_TOL = 1e-5
+
+#: ``object_in_gripper`` label source, per file: every row validated in
+#: simulation, none (the force-closure flag), or some of each (then a row's
+#: ``simulated_success`` >= 0 says it was simulated).
+SIMULATION, FORCE_CLOSURE, MIXED = "simulation", "force_closure", "mixed"
+FLEX = "qualities/flex/"
+#: ACRONYM's motion datasets and the columns they come from.
+MOTIONS = {f"{FLEX}object_motion_during_{stage}_{kind}": f"validation_{stage}_{kind}"
+           for stage in ("closing", "shaking") for kind in ("linear", "angular")}
+#: Datasets whose presence marks a file with this project's extras.
+EXTRAS = ("qualities/epsilon", "qualities/volume", "qualities/force_closure", "joint_names", "joints_closed",
+          "joints_open", "contacts")
 
 
-def write(path: Path, info: ObjectInfo, hand: HandSpec, batches: Iterable[Batch]) -> int:
+# -- writing ------------------------------------------------------------------------
+def max_opening(hand: HandSpec) -> float:
+    """``gripper/configuration``: a parallel jaw's largest opening [m] (the sum
+    of its prismatic finger upper limits); 0 for other hands."""
+    if not hand.centering:
+        return 0.0
+    return float(sum(j.upper for j in hand.joints if j.kind == "prismatic"))
+
+
+def joint_names(hand: HandSpec) -> list[str]:
+    return [j.name for j in hand.joints]
+
+
+def per_grasp(grasps: list[Grasp], hand: HandSpec) -> dict[str, Column]:
+    """Every per-grasp field of one batch, keyed by its path below ``grasps/``;
+    (n, ...) arrays or n strings. ``transforms`` = pose @ export_frame: the
+    dataset gripper frame in the scaled mesh frame, metres."""
+    c = grasp_columns(grasps)
+    labels = np.where(c["validation_success"] >= 0, c["validation_success"], c["force_closure"]).astype(np.int64)
+    names = joint_names(hand)
+    return {
+        "transforms": c["pose"] @ hand.export_frame,
+        f"{FLEX}object_in_gripper": labels,
+        **{key: c[column] for key, column in MOTIONS.items()},
+        "qualities/epsilon": c["epsilon"],
+        "qualities/volume": c["volume"],
+        "qualities/force_closure": c["force_closure"],
+        "qualities/reachability": c["reachability"],
+        "qualities/manipulability": c["manipulability"],
+        "qualities/score": c["score"],
+        "qualities/rank": c["rank"],
+        "qualities/simulated_success": c["validation_success"],
+        "qualities/robust_epsilon_mean": c["robust_mean"],
+        "qualities/robust_epsilon_quantile": c["robust_quantile"],
+        "joints_closed": joint_matrix(c["closed_joints"], names),
+        "joints_open": joint_matrix(c["open_joints"], names),
+        "width": c["width"],
+        "preshape": c["preshape"],
+        "candidate": c["candidate"],
+        "seed": c["seed"],
+        "contacts": c["contacts"],
+        "poses_hand_frame": c["pose"],
+        "approach_point": c["approach_point"],
+        "approach_dir": c["approach_dir"],
+        "roll": c["roll"],
+        "standoff": c["standoff"],
+    }
+
+
+def label_source(validated: int, total: int) -> str:
+    if validated == 0:
+        return FORCE_CLOSURE
+    return SIMULATION if validated == total else MIXED
+
+
+def validated_count(grasps: list[Grasp]) -> int:
+    return sum(g.validation is not None for g in grasps)
+
+
+def write(path: Path, info: ObjectRow, hand: HandSpec, batches: Iterable[list[Grasp]]) -> int:
     """Write the file (atomically: a partial export never has the final name); returns N."""
+    import h5py
+
     tmp = path.with_name(path.name + ".tmp")
     total = validated = 0
     with h5py.File(tmp, "w") as f:
         _header(f, info, hand)
         for batch in batches:
-            for key, values in fields.per_grasp(batch, hand).items():
+            for key, values in per_grasp(batch, hand).items():
                 _append(f, f"grasps/{key}", values, total)
             total += len(batch)
-            validated += int(np.count_nonzero(batch.sim_success >= 0))
-        f[f"grasps/{fields.FLEX}object_in_gripper"].attrs["label_source"] = fields.label_source(validated, total)
+            validated += validated_count(batch)
+        f[f"grasps/{FLEX}object_in_gripper"].attrs["label_source"] = label_source(validated, total)
     os.replace(tmp, path)
     return total
 
 
-def _header(f: h5py.File, info: ObjectInfo, hand: HandSpec) -> None:
+def _header(f: Any, info: ObjectRow, hand: HandSpec) -> None:
+    import h5py
+
     f["gripper/type"] = hand.name
-    f["gripper/configuration"] = np.array([fields.max_opening(hand)], np.float64)
-    f["object/file"] = info.file
+    f["gripper/configuration"] = np.array([max_opening(hand)], np.float64)
+    f["object/file"] = info.source
     f["object/name"] = info.name
     for key in ("scale", "mass", "friction", "density", "volume"):
         f[f"object/{key}"] = np.float64(getattr(info, key))
     f["object/com"] = np.asarray(info.com, np.float64)
     f["object/inertia"] = np.asarray(info.inertia, np.float64)
-    f["grasps/joint_names"] = np.array(fields.joint_names(hand), dtype=h5py.string_dtype())
+    f["grasps/joint_names"] = np.array(joint_names(hand), dtype=h5py.string_dtype())
     f["grasps/export_frame"] = np.asarray(hand.export_frame, np.float64)
 
 
-def _append(f: h5py.File, key: str, values: np.ndarray | list[str], start: int) -> None:
+def _append(f: Any, key: str, values: Column, start: int) -> None:
+    import h5py
+
     if isinstance(values, list):
         data = np.array(values, dtype=h5py.string_dtype())
     else:
@@ -90,3 +181,155 @@ def _append(f: h5py.File, key: str, values: np.ndarray | list[str], start: int) 
     ds = f[key]
     ds.resize(start + len(data), axis=0)
     ds[start:] = data
+
+
+# -- reading ------------------------------------------------------------------------
+@dataclass(frozen=True)
+class AcronymHeader:
+    """What an ACRONYM file says about its gripper and object.
+
+    ``scale``, ``mass`` and ``friction`` are None when absent or not a
+    positive number; ``extras``: the file carries this project's qualities,
+    joints and contacts (it can be read back losslessly).
+    """
+
+    path: Path
+    gripper: str
+    object_name: str | None
+    object_file: str | None
+    scale: float | None
+    mass: float | None
+    friction: float | None
+    extras: bool
+
+
+def _open(path: Path) -> Any:
+    import h5py
+
+    if not path.is_file():
+        raise InputError(f"{path}: file not found")
+    try:
+        return h5py.File(path, "r")
+    except OSError as exc:
+        raise InputError(f"{path}: not an HDF5 file ({exc})") from None
+
+
+def read_header(path: Path) -> AcronymHeader:
+    """The file's gripper and object; a file without ACRONYM's grasps is refused."""
+    with _open(path) as f:
+        for key in ("grasps/transforms", "gripper/type"):
+            if key not in f:
+                raise InputError(f"{path}: no '{key}' dataset; not an ACRONYM grasp file")
+        return AcronymHeader(
+            path=path, gripper=_text(f["gripper/type"][()]),
+            object_name=_text(f["object/name"][()]) if "object/name" in f else None,
+            object_file=_text(f["object/file"][()]) if "object/file" in f else None,
+            scale=_positive(f, "object/scale"), mass=_positive(f, "object/mass"),
+            friction=_positive(f, "object/friction"), extras=all(f"grasps/{k}" in f for k in EXTRAS))
+
+
+def read_poses(path: Path, hand: HandSpec) -> np.ndarray:
+    """(N, 4, 4) grasp poses (hand frame in the object frame): the checked
+    transforms times the inverse of the file's export frame (else the hand's)."""
+    with _open(path) as f:
+        g = f["grasps"]
+        frame = np.asarray(g["export_frame"][()], float) if "export_frame" in g else hand.export_frame
+        return _rigid(path, np.asarray(g["transforms"][()], float)) @ np.linalg.inv(frame)
+
+
+def _rigid(path: Path, transforms: np.ndarray) -> np.ndarray:
+    """(N, 4, 4) checked rigid transforms."""
+    if transforms.ndim != 3 or transforms.shape[1:] != (4, 4):
+        raise InputError(f"{path}: grasps/transforms has shape {transforms.shape}; expected (N, 4, 4)")
+    rot = transforms[:, :3, :3]
+    bad = ~np.isfinite(transforms).all(axis=(1, 2))
+    bad |= np.abs(rot @ rot.transpose(0, 2, 1) - np.eye(3)).max(axis=(1, 2), initial=0) > ROTATION_TOL
+    bad |= np.abs(transforms[:, 3] - [0, 0, 0, 1]).max(axis=1, initial=0) > ROTATION_TOL
+    if bad.any():
+        raise InputError(f"{path}: grasps/transforms row {int(np.argmax(bad))} is not a rigid transform")
+    return transforms
+
+
+def read_grasps(path: Path, hand: HandSpec, obj: str, poses: np.ndarray) -> list[Grasp]:
+    """This project's grasps back from a file with its extras; candidate = the
+    row number, seed 0, the object named ``obj``."""
+    n = len(poses)
+    with _open(path) as f:
+        g = f["grasps"]
+        q = g["qualities"]
+        names = list(g["joint_names"].asstr()[()])
+        closed, opened = g["joints_closed"][()], g["joints_open"][()]
+        col = {k: (q[k][()] if k in q else np.full(n, np.nan))  # whole columns: h5py indexing per row is slow
+               for k in ("epsilon", "volume", "force_closure", "reachability", "manipulability")}
+        width = g["width"][()] if "width" in g else np.full(n, np.nan)
+        preshape = g["preshape"].asstr()[()] if "preshape" in g else ["imported"] * n
+        approach_dir = g["approach_dir"][()] if "approach_dir" in g else poses[:, :3, :3] @ hand.approach
+        approach_point = (g["approach_point"][()] if "approach_point" in g
+                          else poses[:, :3, :3] @ hand.tcp + poses[:, :3, 3])
+        roll = g["roll"][()] if "roll" in g else [roll_about(p[:3, :3], hand.approach, d)
+                                                  for p, d in zip(poses, approach_dir)]
+        standoff = g["standoff"][()] if "standoff" in g else np.zeros(n)
+        contacts = g["contacts"].asstr()[()]
+    return [Grasp(object=obj, hand=hand.name, preshape=str(preshape[i]), candidate=i, seed=0,
+                  approach_point=np.asarray(approach_point[i], float), approach_dir=np.asarray(approach_dir[i], float),
+                  roll=float(roll[i]), standoff=float(standoff[i]), pose=poses[i],
+                  open_joints=_joints(names, opened[i]), closed_joints=_joints(names, closed[i]),
+                  width=_maybe(width[i]), contacts=_contacts(path, json.loads(contacts[i]), hand),
+                  epsilon=float(col["epsilon"][i]), volume=float(col["volume"][i]),
+                  force_closure=bool(col["force_closure"][i]), reachability=_maybe(col["reachability"][i]),
+                  manipulability=_maybe(col["manipulability"][i]))
+            for i in range(n)]
+
+
+def read_simulation(path: Path) -> list[tuple[Trial | None, RobustEpsilon | None]]:
+    """Per row, the shake-test result and robust epsilon our own files carry
+    (None where the row was not simulated; an empty list for other files).
+    What ACRONYM does not store reads as -1 (fingers) or 0 (samples)."""
+    with _open(path) as f:
+        q = f["grasps/qualities"]
+        if "simulated_success" not in q:
+            return []
+        success = np.asarray(q["simulated_success"][()], int)
+        flex = q["flex"] if "flex" in q else {}
+        motion = {k: np.asarray(flex[f"object_motion_during_{k}"][()], float) if f"object_motion_during_{k}" in flex
+                  else np.full(len(success), np.nan) for k in ("closing_linear", "closing_angular",
+                                                               "shaking_linear", "shaking_angular")}
+        mean = np.asarray(q["robust_epsilon_mean"][()], float) if "robust_epsilon_mean" in q else None
+        quantile = np.asarray(q["robust_epsilon_quantile"][()], float) if "robust_epsilon_quantile" in q else None
+    out: list[tuple[Trial | None, RobustEpsilon | None]] = []
+    for i, ok in enumerate(success):
+        trial = None if ok < 0 else Trial(bool(ok), -1, *(float(np.nan_to_num(motion[k][i], nan=-1.0)) for k in (
+            "closing_linear", "closing_angular", "shaking_linear", "shaking_angular")))
+        robust = (RobustEpsilon(float(mean[i]), float(quantile[i]), 0)
+                  if mean is not None and quantile is not None and np.isfinite(mean[i]) else None)
+        out.append((trial, robust))
+    return out
+
+
+def _joints(names: list[str], values: np.ndarray) -> dict[str, float]:
+    return {k: float(v) for k, v in zip(names, values) if math.isfinite(v)}
+
+
+def _maybe(value: float) -> float | None:
+    return None if math.isnan(value) else float(value)
+
+
+def _contacts(path: Path, items: list[dict], hand: HandSpec) -> HandContacts:
+    links = tuple(c["link"] for c in items)
+    unknown = sorted(set(links) - set(hand.contacts))
+    if unknown:
+        raise InputError(f"{path}: contact on link {unknown} of hand '{hand.name}', "
+                         f"which has contact links {', '.join(hand.contact_links)}")
+    return HandContacts(np.array([c["point"] for c in items], float).reshape(-1, 3),
+                        np.array([c["normal"] for c in items], float).reshape(-1, 3), links)
+
+
+def _positive(f: Any, key: str) -> float | None:
+    if key not in f:
+        return None
+    value = float(np.asarray(f[key][()]).reshape(-1)[0])
+    return value if math.isfinite(value) and value > 0 else None
+
+
+def _text(value: object) -> str:
+    return value.decode() if isinstance(value, bytes) else str(value)

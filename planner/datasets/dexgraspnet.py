@@ -30,8 +30,10 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from planner.datasets import fields
-from planner.datasets.batch import Batch, ObjectInfo
+from planner.datasets.acronym import joint_names
+from planner.datasets.columns import grasp_columns, joint_matrix
+from planner.db.store import ObjectRow
+from planner.grasp import Grasp
 from planner.specs.hands import HandSpec
 
 SUFFIX = ".npy"
@@ -56,20 +58,21 @@ def pose_from_qpos(qpos: dict[str, float]) -> np.ndarray:
     return pose
 
 
-def write(path: Path, info: ObjectInfo, hand: HandSpec, batches: Iterable[Batch]) -> int:
+def write(path: Path, info: ObjectRow, hand: HandSpec, batches: Iterable[list[Grasp]]) -> int:
     """Write the file (atomically); returns the number of grasps."""
-    names = fields.joint_names(hand)
+    names = joint_names(hand)
     scale = float(info.scale)
     grasps: list[dict] = []
     for batch in batches:
-        base = wrist(batch.pose).tolist()
-        joints = batch.joints(names).tolist()
+        c = grasp_columns(batch)
+        base = wrist(c["pose"]).tolist()
+        joints = joint_matrix(c["closed_joints"], names).tolist()
         for i in range(len(batch)):
             qpos = dict(zip(WRIST, base[i]))
             qpos.update((k, v) for k, v in zip(names, joints[i]) if not math.isnan(v))  # NaN: not stored
-            grasps.append({"scale": scale, "qpos": qpos, "epsilon": float(batch.epsilon[i]),
-                           "score": float(batch.score[i]), "force_closure": bool(batch.force_closure[i]),
-                           "rank": int(batch.rank[i]), "width": float(batch.width[i])})
+            grasps.append({"scale": scale, "qpos": qpos, "epsilon": float(c["epsilon"][i]),
+                           "score": float(c["score"][i]), "force_closure": bool(c["force_closure"][i]),
+                           "rank": int(c["rank"][i]), "width": float(c["width"][i])})
     data = np.empty(len(grasps), dtype=object)
     data[:] = grasps
     tmp = path.with_name(path.name + ".tmp")

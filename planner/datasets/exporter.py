@@ -12,9 +12,10 @@ Formats (one module each):
   (:mod:`planner.datasets.table`, whose ``COLUMNS_DOC`` documents the columns).
 
 Per-(object, hand) files are named ``{object}__{hand}.{h5,json,npy}``, with
-'/' in object names replaced by '__'. Exports stream: rows are read from
-SQLite in batches of :data:`planner.datasets.source.BATCH_SIZE` and written as
-they come; every file is written under a temporary name and renamed when
+'/' in object names replaced by '__'. Exports stream: grasps are read from
+the database in batches of :data:`BATCH_SIZE` (rank order within a pair) and
+written as they come, so no exporter holds all grasps of a database in
+memory; every file is written under a temporary name and renamed when
 complete.
 """
 
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 import importlib
 import logging
+import math
 import os
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -30,20 +32,55 @@ from itertools import chain
 from pathlib import Path
 from types import ModuleType
 
-from planner.datasets import source
-from planner.datasets.batch import Batch, Stream
-from planner.datasets.source import Selection
-from planner.db.store import Database, open_db
+import numpy as np
+
+from planner.datasets.columns import Stream
+from planner.db.store import Database, ObjectRow, open_db
 from planner.errors import InputError, UnknownNameError
+from planner.grasp import Grasp
 from planner.specs.hands import HandSpec, load_hand
 
 log = logging.getLogger(__name__)
+
+#: Grasps per database read: about 10 MB of decoded records.
+BATCH_SIZE = 5000
 
 #: format -> (module, what it needs installed)
 PER_PAIR = {"acronym": ("acronym", "h5py"), "graspgen": ("graspgen", ""), "dexgraspnet": ("dexgraspnet", "scipy")}
 #: format -> (file name, writer function of planner.datasets.table, what it needs)
 TABLES = {"parquet": ("grasps.parquet", "write_parquet", "pyarrow"), "csv": ("grasps.csv", "write_csv", "")}
 FORMATS = (*PER_PAIR, *TABLES)
+
+
+@dataclass(frozen=True)
+class Selection:
+    """Which grasps to export (empty tuples: all)."""
+
+    objects: tuple[str, ...] = ()
+    hands: tuple[str, ...] = ()
+    min_epsilon: float | None = None  # keep epsilon >= this
+    top: int | None = None  # keep rank <= this per (object, hand)
+
+    def __post_init__(self) -> None:
+        if self.top is not None and self.top < 1:
+            raise InputError(f"--top must be at least 1, got {self.top}")
+        if self.min_epsilon is not None and not math.isfinite(self.min_epsilon):
+            raise InputError(f"--min-epsilon must be a finite number, got {self.min_epsilon}")
+
+    def pairs(self, db: Database) -> list[tuple[str, str]]:
+        """(object, hand) pairs to export; a named object or hand without grasps is an error."""
+        found = db.pairs()
+        for kind, wanted, index in (("object", self.objects, 0), ("hand", self.hands, 1)):
+            known = sorted({p[index] for p in found})
+            for name in wanted:
+                if name not in known:
+                    raise InputError(f"{db.path}: no grasps of {kind} '{name}'; {kind}s with grasps: "
+                                     f"{', '.join(known) or '(none)'}")
+        return [p for p in found if (not self.objects or p[0] in self.objects)
+                and (not self.hands or p[1] in self.hands)]
+
+    def batches(self, db: Database, obj: str, hand: str) -> Iterator[list[Grasp]]:
+        return db.grasp_batches(obj, hand, min_epsilon=self.min_epsilon, top=self.top, size=BATCH_SIZE)
 
 
 @dataclass
@@ -73,14 +110,14 @@ def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (
     summary = ExportSummary(fmt)
     start = time.perf_counter()
     with open_db(Path(db_path), create=False, readonly=True) as db:
-        pairs = source.pairs(db, sel)
+        pairs = sel.pairs(db)
         specs = {h: load_hand(h) for h in sorted({h for _, h in pairs})}  # unknown hands fail up front
         out_dir = _out_dir(Path(out_dir))
         if fmt in TABLES:
             name, writer, _ = TABLES[fmt]
             path = out_dir / name
             tmp = path.with_name(path.name + ".tmp")
-            streams = (Stream(source.object_info(db, o), h, source.batches(db, o, h, sel)) for o, h in pairs)
+            streams = (Stream(_object_row(db, o), h, sel.batches(db, o, h)) for o, h in pairs)
             summary.grasps = getattr(module, writer)(tmp, streams)
             os.replace(tmp, path)
             summary.files.append(path)
@@ -88,7 +125,7 @@ def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (
                 progress(path, summary.grasps)
         else:
             for obj, hand in pairs:
-                path = out_dir / (source.file_stem(obj, hand) + module.SUFFIX)
+                path = out_dir / (file_stem(obj, hand) + module.SUFFIX)
                 count = _write_pair(db, module, path, obj, specs[hand], sel)
                 if count:
                     summary.files.append(path)
@@ -103,11 +140,25 @@ def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (
 def _write_pair(db: Database, module: ModuleType, path: Path, obj: str, hand: HandSpec,
                 sel: Selection) -> int:
     """Write one (object, hand) file; none when the filters leave no grasp."""
-    batches: Iterator[Batch] = source.batches(db, obj, hand.name, sel)
+    batches = sel.batches(db, obj, hand.name)
     first = next(batches, None)
     if first is None:
         return 0
-    return int(module.write(path, source.object_info(db, obj), hand, chain([first], batches)))
+    return int(module.write(path, _object_row(db, obj), hand, chain([first], batches)))
+
+
+def _object_row(db: Database, name: str) -> ObjectRow:
+    """The object's stored properties; NaN / "" when its row is missing."""
+    row = db.object_row(name)
+    if row is not None:
+        return row
+    nan = math.nan
+    return ObjectRow(name, "", nan, nan, nan, nan, nan, np.full(3, nan), np.full((3, 3), nan))
+
+
+def file_stem(obj: str, hand: str) -> str:
+    """``{object}__{hand}`` with path separators in names replaced by ``__``."""
+    return f"{obj}__{hand}".replace("/", "__").replace("\\", "__")
 
 
 def _module(fmt: str) -> ModuleType:

@@ -31,30 +31,31 @@ from typing import IO
 
 import numpy as np
 
-from planner.datasets import fields
-from planner.datasets.batch import Batch, ObjectInfo
+from planner.datasets.acronym import joint_names, label_source, max_opening, per_grasp, validated_count
+from planner.db.store import ObjectRow
+from planner.grasp import Grasp
 from planner.specs.hands import HandSpec
 
 SUFFIX = ".json"
 
 
-def write(path: Path, info: ObjectInfo, hand: HandSpec, batches: Iterable[Batch]) -> int:
+def write(path: Path, info: ObjectRow, hand: HandSpec, batches: Iterable[list[Grasp]]) -> int:
     """Write the file (atomically); returns the number of grasps."""
     total = validated = 0
     with tempfile.TemporaryDirectory(dir=path.parent, prefix=".graspgen-") as spool, ExitStack() as stack:
         lists: dict[str, IO[str]] = {}
         for batch in batches:
-            for key, values in fields.per_grasp(batch, hand).items():
+            for key, values in per_grasp(batch, hand).items():
                 name = key.rsplit("/", 1)[-1]
                 if name not in lists:
                     lists[name] = stack.enter_context(open(Path(spool) / f"{len(lists)}.part", "w+", encoding="utf-8"))
                 _spool(lists[name], name, values, first=total == 0)
             total += len(batch)
-            validated += int(np.count_nonzero(batch.sim_success >= 0))
+            validated += validated_count(batch)
         tmp = path.with_name(path.name + ".tmp")
         with open(tmp, "w", encoding="utf-8") as out:
             out.write('{"object": ' + json.dumps(_object(info)) + ', "gripper": ' + json.dumps(_gripper(hand)))
-            out.write(', "grasps": {"label_source": ' + json.dumps(fields.label_source(validated, total)))
+            out.write(', "grasps": {"label_source": ' + json.dumps(label_source(validated, total)))
             for name, part in lists.items():
                 out.write(f', "{name}": [')
                 part.seek(0)
@@ -86,9 +87,9 @@ def _nulls(values: list) -> list:
     return [None if isinstance(v, float) and math.isnan(v) else v for v in values]
 
 
-def _object(info: ObjectInfo) -> dict:
+def _object(info: ObjectRow) -> dict:
     scalars = {k: getattr(info, k) for k in ("scale", "mass", "friction", "density", "volume")}
-    return {"file": info.file, "name": info.name, **_nulls_dict(scalars), "com": _nulls(info.com.tolist()),
+    return {"file": info.source, "name": info.name, **_nulls_dict(scalars), "com": _nulls(info.com.tolist()),
             "inertia": _nulls(info.inertia.tolist())}
 
 
@@ -97,5 +98,5 @@ def _nulls_dict(values: dict[str, float]) -> dict[str, float | None]:
 
 
 def _gripper(hand: HandSpec) -> dict:
-    return {"type": hand.name, "configuration": [fields.max_opening(hand)], "joint_names": fields.joint_names(hand),
+    return {"type": hand.name, "configuration": [max_opening(hand)], "joint_names": joint_names(hand),
             "export_frame": hand.export_frame.tolist()}

@@ -52,20 +52,22 @@ the ``csv`` module with a header row, floats written in full precision.
 from __future__ import annotations
 
 import csv
+import json
 from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
 
-from planner.datasets.batch import Batch, Stream
+from planner.datasets.columns import Stream, grasp_columns
+from planner.grasp import Grasp
 
 #: The column table above, for the README.
 COLUMNS_DOC = __doc__[__doc__.index("| column |"):].strip() + "\n"
 
 _AXES = ("x", "y", "z")
-#: (column, arrow type name, source: a Batch field, optionally with an index)
+#: (column, arrow type name, source: a column of :func:`grasp_columns`, optionally with an index)
 _SPEC: list[tuple[str, str, str]] = [
-    ("object", "string", ""), ("hand", "string", ""), ("grasp_id", "int64", "grasp_id"),
+    ("object", "string", ""), ("hand", "string", ""), ("grasp_id", "int64", "id"),
     ("unit_id", "int64", "unit_id"), ("preshape", "string", "preshape"), ("candidate", "int64", "candidate"),
     ("seed", "int64", "seed"),
     *((f"approach_point_{a}", "float64", f"approach_point:{i}") for i, a in enumerate(_AXES)),
@@ -78,32 +80,37 @@ _SPEC: list[tuple[str, str, str]] = [
     ("epsilon", "float64", "epsilon"), ("volume", "float64", "volume"),
     ("force_closure", "int64", "force_closure"), ("reachability", "float64", "reachability"),
     ("manipulability", "float64", "manipulability"), ("score", "float64", "score"), ("rank", "int64", "rank"),
-    ("validation_success", "int64", "sim_success"), ("validation_fingers_in_contact", "int64", "sim_fingers"),
-    *((f"validation_{s}_{k}", "float64", f"{s}_{k}") for s in ("closing", "shaking") for k in ("linear", "angular")),
+    ("validation_success", "int64", "validation_success"),
+    ("validation_fingers_in_contact", "int64", "validation_fingers_in_contact"),
+    *((f"validation_{s}_{k}", "float64", f"validation_{s}_{k}") for s in ("closing", "shaking")
+      for k in ("linear", "angular")),
     ("robust_epsilon_mean", "float64", "robust_mean"), ("robust_epsilon_quantile", "float64", "robust_quantile"),
     ("robust_samples", "int64", "robust_samples"),
     ("object_mass", "float64", ""), ("object_friction", "float64", ""), ("object_scale", "float64", ""),
     ("object_file", "string", ""),
 ]
 COLUMNS = [name for name, _, _ in _SPEC]
-#: Columns that may be null: NaN (floats) or -1 (integers) in a Batch.
+#: Columns that may be null: NaN (floats) or -1 (integers) in the grasp columns.
 NULLABLE = {"width", "reachability", "manipulability", "rank", *(c for c in COLUMNS if c.startswith(
     ("validation_", "robust_")))}
 
 
-def columns(stream: Stream, batch: Batch) -> dict[str, np.ndarray | list]:
+def columns(stream: Stream, batch: list[Grasp]) -> dict[str, np.ndarray | list]:
     """One batch as flat columns (numpy arrays or lists of str)."""
     n, info = len(batch), stream.info
     constants = {"object": info.name, "hand": stream.hand, "object_mass": info.mass,
-                 "object_friction": info.friction, "object_scale": info.scale, "object_file": info.file}
+                 "object_friction": info.friction, "object_scale": info.scale, "object_file": info.source}
+    grasps = grasp_columns(batch)
+    for name in ("open_joints", "closed_joints"):
+        grasps[name] = [json.dumps(j, separators=(",", ":")) for j in grasps[name]]
     out: dict[str, np.ndarray | list] = {}
     for name, _, source in _SPEC:
         if not source:
             out[name] = [constants[name]] * n
             continue
         field, *index = source.split(":")
-        values = getattr(batch, field)
-        out[name] = values[(slice(None), *map(int, index))] if index else values
+        values = grasps[field]
+        out[name] = values[(slice(None), *map(int, index))] if index else values  # type: ignore[call-overload]
     return out
 
 

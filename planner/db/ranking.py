@@ -1,23 +1,20 @@
-"""The ranking rule: how a grasp's score is computed from its measures.
+"""The ranking rule: how a grasp's score follows from its measures.
 
-The rule is stored with the database (``meta.ranking``) so anyone reading it
-knows what ``score`` and ``rank`` mean::
+The rule is :meth:`RankingRule.scores`, written once, over arrays of
+measures; :data:`FORMULA` says the same in words (it is stored with every
+database in ``meta.ranking`` and shown in the README). The database never
+computes a score itself: it reads the measures, calls the rule and writes
+the scores back (:mod:`planner.db.store`), then ranks by :data:`ORDER_BY`.
 
-    quality = (1 - robust_weight) * epsilon + robust_weight * robust_epsilon_quantile
-    score   = quality * ((1 - reach_weight)   + reach_weight   * reachability)
-                      * ((1 - success_weight) + success_weight * simulated_success)
-
-with epsilon the L1 Ferrari-Canny epsilon, reachability the fraction of
-sampled table placements at which an arm reaches the grasp and its
-pre-grasp, simulated_success 1/0 from the shake test and
-robust_epsilon_quantile the low quantile of epsilon under pose and friction
-noise. Grasps that are not force-closure score 0. A measure that was not
-computed for a grasp counts as neutral: reachability and success as 1, the
-robust quantile as epsilon. Each weight lies in [0, 1]; 0 ignores the
-measure, 1 lets it veto (an unreachable or failed grasp scores 0). Rank 1 is
-the best grasp of an (object, hand); ties are broken by epsilon, then GWS
-volume, then by the unit seed and candidate number (never by insertion
-order, so the rank does not depend on which worker finished first).
+epsilon is the L1 Ferrari-Canny epsilon, reachability the fraction of sampled
+table placements at which an arm reaches the grasp and its pre-grasp,
+simulated success 1/0 from the shake test and the robust quantile the low
+quantile of epsilon under pose and friction noise. Each weight lies in
+[0, 1]; 0 ignores the measure, 1 lets it veto (an unreachable or failed
+grasp scores 0). Rank 1 is the best grasp of an (object, hand); ties are
+broken by epsilon, then GWS volume, then by the unit seed and candidate
+number (never by insertion order, so the rank does not depend on which
+worker finished first).
 """
 
 from __future__ import annotations
@@ -25,9 +22,25 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, dataclass
 
+import numpy as np
+from numpy.typing import ArrayLike
+
+from planner.errors import InputError
+
+#: The rule of :meth:`RankingRule.scores` in words, as ``meta.ranking`` stores it.
+FORMULA = ("score = ((1 - robust_weight) * epsilon + robust_weight * robust_quantile)"
+           " * ((1 - reach_weight) + reach_weight * reachability)"
+           " * ((1 - success_weight) + success_weight * simulated_success); 0 unless force-closure;"
+           " a measure not computed counts as neutral (reachability, success 1; robust quantile = epsilon)")
+
+#: The rank order: score first, then the tie-breaks (columns of ``grasps``).
+ORDER_BY = "score DESC, epsilon DESC, volume DESC, seed, candidate, unit_id"
+
 
 @dataclass(frozen=True)
 class RankingRule:
+    """The weights of the rule, each in [0, 1]."""
+
     reach_weight: float = 0.5
     success_weight: float = 1.0
     robust_weight: float = 0.0
@@ -35,27 +48,23 @@ class RankingRule:
     def __post_init__(self) -> None:
         for name, value in asdict(self).items():
             if not 0.0 <= value <= 1.0:
-                from planner.errors import InputError
-
                 raise InputError(f"--{name.replace('_', '-')} must be in [0, 1], got {value}")
 
-    def score(self, epsilon: float, force_closure: bool, reachability: float | None = None,
-              success: bool | None = None, robust_quantile: float | None = None) -> float:
-        if not force_closure:
-            return 0.0
-        q = epsilon if robust_quantile is None else robust_quantile
-        quality = (1.0 - self.robust_weight) * epsilon + self.robust_weight * q
-        reach = 1.0 if reachability is None else reachability
-        ok = 1.0 if success is None else float(success)
-        return (quality * ((1.0 - self.reach_weight) + self.reach_weight * reach)
-                * ((1.0 - self.success_weight) + self.success_weight * ok))
+    def scores(self, epsilon: ArrayLike, force_closure: ArrayLike, reachability: ArrayLike | None = None,
+               success: ArrayLike | None = None, robust_quantile: ArrayLike | None = None) -> np.ndarray:
+        """(n,) scores of n grasps from (n,) measures; NaN (or None for a whole
+        measure) means not computed, which is neutral."""
+        eps = np.asarray(epsilon, float)
+        quantile = _neutral(robust_quantile, eps)
+        quality = (1.0 - self.robust_weight) * eps + self.robust_weight * quantile
+        reach = _neutral(reachability, np.ones_like(eps))
+        ok = _neutral(success, np.ones_like(eps))
+        score = (quality * ((1.0 - self.reach_weight) + self.reach_weight * reach)
+                 * ((1.0 - self.success_weight) + self.success_weight * ok))
+        return np.where(np.asarray(force_closure, bool), score, 0.0)
 
     def to_json(self) -> str:
-        formula = ("score = ((1 - robust_weight) * epsilon + robust_weight * robust_quantile)"
-                   " * ((1 - reach_weight) + reach_weight * reachability)"
-                   " * ((1 - success_weight) + success_weight * simulated_success); 0 unless force-closure;"
-                   " a measure not computed counts as neutral (reachability, success 1; robust quantile = epsilon)")
-        return json.dumps({"formula": formula, **asdict(self)}, sort_keys=True)
+        return json.dumps({"formula": FORMULA, **asdict(self)}, sort_keys=True)
 
     @classmethod
     def from_json(cls, text: str | None) -> RankingRule:
@@ -65,30 +74,10 @@ class RankingRule:
         return cls(**{k: float(data.get(k, getattr(cls, k))) for k in ("reach_weight", "success_weight",
                                                                          "robust_weight")})
 
-    def sql(self) -> tuple[str, tuple[float, ...]]:
-        """The same formula as an SQL expression over grasps g, validation v, robust r."""
-        expr = ("CASE WHEN g.force_closure = 1 THEN"
-                " ((1.0 - ?) * g.epsilon + ? * COALESCE(r.quantile, g.epsilon))"
-                " * ((1.0 - ?) + ? * COALESCE(g.reachability, 1.0))"
-                " * ((1.0 - ?) + ? * COALESCE(v.success, 1.0)) ELSE 0.0 END")
-        w = self
-        return expr, (w.robust_weight, w.robust_weight, w.reach_weight, w.reach_weight, w.success_weight,
-                      w.success_weight)
 
-
-RESCORE_SQL = """
-UPDATE grasps SET score = (
-    SELECT {expr} FROM grasps g LEFT JOIN validation v ON v.grasp_id = g.id LEFT JOIN robust r ON r.grasp_id = g.id
-    WHERE g.id = grasps.id)
-WHERE {where}
-"""
-
-
-ORDER_BY = "score DESC, epsilon DESC, volume DESC, seed, candidate, unit_id"
-
-RERANK_SQL = f"""
-WITH ranked AS (
-    SELECT id, ROW_NUMBER() OVER (ORDER BY {ORDER_BY}) AS r FROM grasps WHERE object = ? AND hand = ?
-)
-UPDATE grasps SET rank = ranked.r FROM ranked WHERE grasps.id = ranked.id
-"""
+def _neutral(values: ArrayLike | None, instead: np.ndarray) -> np.ndarray:
+    """``values`` as floats with NaN (not computed) replaced by ``instead``."""
+    if values is None:
+        return instead
+    array = np.asarray(values, float)
+    return np.where(np.isnan(array), instead, array)

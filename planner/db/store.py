@@ -1,97 +1,135 @@
-"""The grasp database: SQLite (WAL), a versioned schema, one writer.
+"""The grasp database: SQLite (WAL), one writer, and every SQL statement of
+the project (the schema's own statements live in :mod:`planner.db.schema`).
 
-Tables (see the README for every column):
-
-- ``meta``: key/value -- schema version, ranking rule (JSON).
-- ``objects``: one row per object name: source, scale, mesh hash, mass
-  properties, friction, torque scale.
-- ``units``: one row per unit of work (object, hand, settings hash, seed, chunk);
-  a unit's grasps are written in the same transaction that marks it done, so
-  an interrupted run leaves either all of a unit or none of it.
-- ``grasps``: one row per evaluated grasp (a hand that closed on the object
-  with contacts), with its pose, joints, contacts, quality, score and rank.
-- ``validation`` (v2): the dynamic PyBullet trial of a grasp (success, object
-  motion during closing and shaking, settings).
-- ``robust`` (v2): robust epsilon under pose and friction noise.
-
-No pickle: arrays are JSON text. A newer schema refuses politely; an older one
-is migrated after a backup copy is written next to the file.
+Grasps go in and come out as :class:`planner.grasp.Grasp` records; rows are
+read by column name. Scores are never computed in SQL: the store reads the
+measures, asks the :class:`~planner.db.ranking.RankingRule` for the scores,
+writes them and re-ranks each (object, hand) in the rule's tie-break order.
 """
 
 from __future__ import annotations
 
 import json
-import logging
-import shutil
+import math
 import sqlite3
 import time
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
-from dataclasses import dataclass
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
+import numpy as np
+
+from planner.db.ranking import ORDER_BY, RankingRule
+from planner.db.schema import EMPTY_V2_TABLES, SCHEMA_VERSION, migrate, schema_version, table_names, transaction
 from planner.errors import DatabaseError
+from planner.grasp import Grasp, RobustEpsilon, Trial
+from planner.plan.contacts import HandContacts
 
-log = logging.getLogger(__name__)
+if TYPE_CHECKING:
+    from planner.geometry.solid import PreparedObject
 
-SCHEMA_VERSION = 2
+#: How long a connection waits for another one's write lock [s].
 BUSY_TIMEOUT_S = 60.0
+#: Decimals kept of stored vectors (poses, approach rays, centre of mass: 0.1 um)
+#: and of the inertia tensor [kg m^2].
+VECTOR_DIGITS = 7
+INERTIA_DIGITS = 10
 
-SCHEMA = """
-CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
-CREATE TABLE IF NOT EXISTS objects (
-    name TEXT PRIMARY KEY, source TEXT NOT NULL, scale REAL NOT NULL, mesh_sha256 TEXT NOT NULL,
-    mass REAL NOT NULL, friction REAL NOT NULL, density REAL NOT NULL, volume REAL NOT NULL,
-    com TEXT NOT NULL, inertia TEXT NOT NULL, torque_scale REAL NOT NULL, extents TEXT NOT NULL
-);
-CREATE TABLE IF NOT EXISTS units (
-    id INTEGER PRIMARY KEY, object TEXT NOT NULL, hand TEXT NOT NULL, settings_hash TEXT NOT NULL,
-    seed INTEGER NOT NULL, chunk INTEGER NOT NULL, settings TEXT NOT NULL, status TEXT NOT NULL, error TEXT,
-    candidates INTEGER NOT NULL DEFAULT 0, grasps INTEGER NOT NULL DEFAULT 0,
-    force_closure INTEGER NOT NULL DEFAULT 0, rejected TEXT, seconds REAL, finished_at TEXT,
-    UNIQUE (object, hand, settings_hash, seed, chunk)
-);
-CREATE TABLE IF NOT EXISTS grasps (
-    id INTEGER PRIMARY KEY, unit_id INTEGER NOT NULL REFERENCES units(id) ON DELETE CASCADE,
-    object TEXT NOT NULL, hand TEXT NOT NULL, preshape TEXT NOT NULL, candidate INTEGER NOT NULL,
-    approach_point TEXT NOT NULL, approach_dir TEXT NOT NULL, roll REAL NOT NULL, standoff REAL NOT NULL,
-    pose TEXT NOT NULL, open_joints TEXT NOT NULL, closed_joints TEXT NOT NULL, width REAL,
-    contacts TEXT NOT NULL, n_contacts INTEGER NOT NULL, links_touching INTEGER NOT NULL,
-    epsilon REAL NOT NULL, volume REAL NOT NULL, force_closure INTEGER NOT NULL,
-    reachability REAL, manipulability REAL,
-    seed INTEGER NOT NULL, score REAL NOT NULL, rank INTEGER,
-    UNIQUE (unit_id, candidate)
-);
-CREATE INDEX IF NOT EXISTS grasps_rank ON grasps (object, hand, rank);
+_GRASP_COLUMNS = ("unit_id", "object", "hand", "preshape", "candidate", "approach_point", "approach_dir", "roll",
+                  "standoff", "pose", "open_joints", "closed_joints", "width", "contacts", "n_contacts",
+                  "links_touching", "epsilon", "volume", "force_closure", "reachability", "manipulability", "seed",
+                  "score")
+_VALIDATION_COLUMNS = ("grasp_id", "success", "fingers_in_contact", "closing_linear", "closing_angular",
+                       "shaking_linear", "shaking_angular", "seed", "settings")
+_ROBUST_COLUMNS = ("grasp_id", "mean", "quantile", "samples", "seed", "settings")
+_OBJECT_COLUMNS = ("name", "source", "scale", "mesh_sha256", "mass", "friction", "density", "volume", "com",
+                   "inertia", "torque_scale", "extents")
+_UNIT_COLUMNS = ("object", "hand", "settings_hash", "seed", "chunk", "settings", "status", "error", "candidates",
+                 "grasps", "force_closure", "rejected", "seconds", "finished_at")
+
+#: A grasp with its validation and robust rows (``v_*``, ``r_*``).
+_SELECT_GRASPS = """
+SELECT g.*, v.success AS v_success, v.fingers_in_contact AS v_fingers_in_contact,
+       v.closing_linear AS v_closing_linear, v.closing_angular AS v_closing_angular,
+       v.shaking_linear AS v_shaking_linear, v.shaking_angular AS v_shaking_angular,
+       r.mean AS r_mean, r.quantile AS r_quantile, r.samples AS r_samples
+FROM grasps g {join} {validation} v ON v.grasp_id = g.id LEFT JOIN {robust} r ON r.grasp_id = g.id
+"""
+_MEASURES = """
+SELECT g.id, g.object, g.hand, g.epsilon, g.force_closure, g.reachability, v.success, r.quantile
+FROM grasps g LEFT JOIN validation v ON v.grasp_id = g.id LEFT JOIN robust r ON r.grasp_id = g.id
+"""
+_RERANK = f"""
+WITH ranked AS (
+    SELECT id, ROW_NUMBER() OVER (ORDER BY {ORDER_BY}) AS r FROM grasps WHERE object = ? AND hand = ?
+)
+UPDATE grasps SET rank = ranked.r FROM ranked WHERE grasps.id = ranked.id
 """
 
 
-@dataclass(frozen=True)
-class GraspRow:
-    """One grasp as stored (JSON columns already decoded)."""
+def _insert(table: str, columns: Sequence[str], verb: str = "INSERT") -> str:
+    return f"{verb} INTO {table} ({', '.join(columns)}) VALUES ({', '.join('?' * len(columns))})"
 
-    id: int
+
+def _json(values: object) -> str:
+    return json.dumps(values, separators=(",", ":"))
+
+
+def _vector(a: np.ndarray, digits: int = VECTOR_DIGITS) -> str:
+    return _json([round(float(v), digits) for v in np.ravel(a)])
+
+
+def json_list(texts: Iterable[str]) -> list:
+    """Decode many JSON texts with one parser call (several times faster)."""
+    return json.loads("[" + ",".join(texts) + "]")
+
+
+@dataclass(frozen=True)
+class ObjectRow:
+    """An ``objects`` row: the stored object's file and physical properties.
+
+    ``scale`` turns ``source`` (the mesh file) into metres; ``com`` (3,) [m]
+    and ``inertia`` (3, 3) [kg m^2] about the COM are in the scaled mesh frame.
+    """
+
+    name: str
+    source: str
+    scale: float
+    mass: float
+    friction: float
+    density: float
+    volume: float
+    com: np.ndarray
+    inertia: np.ndarray
+
+
+@dataclass(frozen=True)
+class UnitRow:
+    """One unit of work as the ``units`` table holds it."""
+
     object: str
     hand: str
-    preshape: str
-    candidate: int
-    approach_point: list[float]
-    approach_dir: list[float]
-    roll: float
-    standoff: float
-    pose: list[list[float]]
-    open_joints: dict[str, float]
-    closed_joints: dict[str, float]
-    width: float | None
-    contacts: list[dict]
-    epsilon: float
-    volume: float
-    force_closure: bool
-    reachability: float | None
-    manipulability: float | None
+    settings_hash: str
+    settings: str  # JSON
     seed: int
-    score: float
-    rank: int | None
+    chunk: int
+    error: str | None = None
+    candidates: int = 0
+    rejected: dict[str, int] = field(default_factory=dict)
+    seconds: float = 0.0
+
+
+@dataclass(frozen=True)
+class Validated:
+    """What physical validation found for one stored grasp, and how."""
+
+    grasp_id: int
+    trial: Trial | None
+    robust: RobustEpsilon | None
+    seed: int
+    trial_settings: str  # JSON
+    robust_settings: str  # JSON
 
 
 class Database:
@@ -99,10 +137,10 @@ class Database:
 
     def __init__(self, path: Path, conn: sqlite3.Connection) -> None:
         self.path = path
-        self.conn = conn
+        self._conn = conn
 
     def close(self) -> None:
-        self.conn.close()
+        self._conn.close()
 
     def __enter__(self) -> Database:
         return self
@@ -110,73 +148,196 @@ class Database:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    @contextmanager
-    def transaction(self) -> Iterator[sqlite3.Connection]:
-        """One atomic write; ``BEGIN IMMEDIATE`` takes the write lock up front."""
-        try:
-            self.conn.execute("BEGIN IMMEDIATE")
-        except sqlite3.OperationalError as exc:
-            raise DatabaseError(f"{self.path}: database is locked by another writer ({exc})") from exc
-        try:
-            yield self.conn
-            self.conn.execute("COMMIT")
-        except BaseException as exc:
-            if self.conn.in_transaction:
-                self.conn.execute("ROLLBACK")
-            if isinstance(exc, sqlite3.Error):
-                raise DatabaseError(f"{self.path}: write failed, nothing was changed ({exc}); "
-                                    "is the file read-only or the disk full?") from exc
-            raise
+    def _transaction(self):  # type: ignore[no-untyped-def]
+        return transaction(self._conn, self.path)
 
     # -- meta ---------------------------------------------------------------
     def meta(self, key: str) -> str | None:
-        row = self.conn.execute("SELECT value FROM meta WHERE key = ?", (key,)).fetchone()
-        return None if row is None else row[0]
+        row = self._conn.execute("SELECT value FROM meta WHERE key = ?", (key,)).fetchone()
+        return None if row is None else row["value"]
 
-    def set_meta(self, conn: sqlite3.Connection, key: str, value: str) -> None:
+    def set_meta(self, key: str, value: str) -> None:
+        with self._transaction() as conn:
+            self._set_meta(conn, key, value)
+
+    @staticmethod
+    def _set_meta(conn: sqlite3.Connection, key: str, value: str) -> None:
         conn.execute("INSERT INTO meta (key, value) VALUES (?, ?)"
-                     " ON CONFLICT(key) DO UPDATE SET value = excluded.value",
-                     (key, value))
+                     " ON CONFLICT(key) DO UPDATE SET value = excluded.value", (key, value))
 
-    # -- units --------------------------------------------------------------
-    def units_done(self, hand: str, settings_hash: str, seed: int) -> set[tuple[str, int]]:
-        """(object, chunk) of every finished unit with these settings."""
-        rows = self.conn.execute(
-            "SELECT object, chunk FROM units WHERE hand = ? AND settings_hash = ? AND seed = ? AND status = 'done'",
-            (hand, settings_hash, seed))
-        return {(r[0], r[1]) for r in rows}
+    def rule(self) -> RankingRule:
+        """The stored ranking rule (the default one for a new database)."""
+        return RankingRule.from_json(self.meta("ranking"))
 
     def integrity_check(self) -> list[str]:
+        """``PRAGMA integrity_check`` problems (empty list: healthy)."""
         try:
-            rows = self.conn.execute("PRAGMA integrity_check").fetchall()
+            rows = self._conn.execute("PRAGMA integrity_check").fetchall()
         except sqlite3.DatabaseError as exc:
             return [str(exc)]
         return [r[0] for r in rows if r[0] != "ok"]
 
-    def count(self, where: str = "1", params: Sequence[object] = ()) -> int:
-        return int(self.conn.execute(f"SELECT COUNT(*) FROM grasps WHERE {where}", params).fetchone()[0])
+    # -- writing units ----------------------------------------------------------
+    def units_done(self, hand: str, settings_hash: str, seed: int) -> set[tuple[str, int]]:
+        """(object, chunk) of every finished unit with these settings."""
+        rows = self._conn.execute(
+            "SELECT object, chunk FROM units WHERE hand = ? AND settings_hash = ? AND seed = ? AND status = 'done'",
+            (hand, settings_hash, seed))
+        return {(r["object"], r["chunk"]) for r in rows}
 
-    def best(self, obj: str, hand: str, top: int, offset: int = 0) -> list[GraspRow]:
-        rows = self.conn.execute(
-            "SELECT * FROM grasps WHERE object = ? AND hand = ? AND rank IS NOT NULL ORDER BY rank LIMIT ? OFFSET ?",
-            (obj, hand, top, offset)).fetchall()
-        return [row_to_grasp(r) for r in rows]
+    def write_unit(self, unit: UnitRow, obj: PreparedObject | None, grasps: Sequence[Grasp],
+                   rule: RankingRule) -> int:
+        """Store a finished (or failed) unit, its object and its grasps
+        atomically, then re-rank the object's grasps; returns the unit's id."""
+        key = (unit.object, unit.hand, unit.settings_hash, unit.seed, unit.chunk)
+        status = "failed" if unit.error else "done"
+        scores = rule.scores([g.epsilon for g in grasps], [g.force_closure for g in grasps],
+                             [math.nan if g.reachability is None else g.reachability for g in grasps])
+        with self._transaction() as conn:
+            conn.execute("DELETE FROM units WHERE object = ? AND hand = ? AND settings_hash = ? AND seed = ?"
+                         " AND chunk = ?", key)
+            unit_id = conn.execute(_insert("units", _UNIT_COLUMNS), (
+                *key, unit.settings, status, unit.error, unit.candidates, len(grasps),
+                sum(g.force_closure for g in grasps), _json(unit.rejected), unit.seconds,
+                time.strftime("%Y-%m-%dT%H:%M:%S"))).lastrowid
+            if obj is not None:
+                conn.execute(_insert("objects", _OBJECT_COLUMNS, "INSERT OR REPLACE"), (
+                    unit.object, obj.source_file, obj.file_scale, obj.mesh_hash, obj.mass, obj.friction, obj.density,
+                    obj.volume, _vector(obj.com), _vector(obj.inertia, INERTIA_DIGITS), obj.torque_scale,
+                    _vector(obj.mesh.extents)))
+            conn.executemany(_insert("grasps", _GRASP_COLUMNS), [
+                (unit_id, g.object, g.hand, g.preshape, g.candidate, _vector(g.approach_point),
+                 _vector(g.approach_dir), g.roll, g.standoff, _vector(g.pose), _json(g.open_joints),
+                 _json(g.closed_joints), g.width, g.contacts.json_text(), len(g.contacts), g.contacts.touching,
+                 g.epsilon, g.volume, int(g.force_closure), g.reachability, g.manipulability, g.seed, score)
+                for g, score in zip(grasps, scores.tolist())])
+            conn.execute(_RERANK, (unit.object, unit.hand))
+        return int(unit_id)  # type: ignore[arg-type]
+
+    # -- ranking ---------------------------------------------------------------
+    def apply_rule(self, rule: RankingRule, force: bool = False) -> bool:
+        """Store ``rule``; if it differs from the stored one (or ``force``),
+        re-score and re-rank every grasp in one transaction."""
+        if self.meta("ranking") == rule.to_json() and not force:
+            return False
+        with self._transaction() as conn:
+            self._set_meta(conn, "ranking", rule.to_json())
+            self._rescore(conn, rule)
+        return True
+
+    @staticmethod
+    def _rescore(conn: sqlite3.Connection, rule: RankingRule, pair: tuple[str, str] | None = None) -> None:
+        """Scores from the rule (all grasps, or one object and hand) and ranks,
+        inside the caller's transaction."""
+        where, params = ("", ()) if pair is None else (" WHERE g.object = ? AND g.hand = ?", pair)
+        rows = conn.execute(_MEASURES + where, params).fetchall()
+        if not rows:
+            return
+        col = dict(zip(rows[0].keys(), zip(*rows)))
+        scores = rule.scores(col["epsilon"], col["force_closure"], col["reachability"], col["success"],
+                             col["quantile"])
+        conn.executemany("UPDATE grasps SET score = ? WHERE id = ?", zip(scores.tolist(), col["id"]))
+        for o, h in sorted(set(zip(col["object"], col["hand"]))):
+            conn.execute(_RERANK, (o, h))
+
+    def write_validation(self, obj: str, hand: str, results: Sequence[Validated], rule: RankingRule) -> None:
+        """Store trial and robust-epsilon results of grasps of one (object,
+        hand), then re-score and re-rank it, in one transaction."""
+        with self._transaction() as conn:
+            for v in results:
+                if v.trial is not None:
+                    t = v.trial
+                    conn.execute(_insert("validation", _VALIDATION_COLUMNS, "INSERT OR REPLACE"), (
+                        v.grasp_id, int(t.success), t.fingers_in_contact, t.closing_linear, t.closing_angular,
+                        t.shaking_linear, t.shaking_angular, v.seed, v.trial_settings))
+                if v.robust is not None:
+                    r = v.robust
+                    conn.execute(_insert("robust", _ROBUST_COLUMNS, "INSERT OR REPLACE"),
+                                 (v.grasp_id, r.mean, r.quantile, r.samples, v.seed, v.robust_settings))
+            self._rescore(conn, rule, (obj, hand))
+
+    # -- reading ----------------------------------------------------------------
+    def pairs(self) -> list[tuple[str, str]]:
+        """Every (object, hand) with grasps, sorted."""
+        rows = self._conn.execute("SELECT DISTINCT object, hand FROM grasps ORDER BY object, hand")
+        return [(r["object"], r["hand"]) for r in rows]
 
     def objects_for(self, hand: str) -> list[str]:
-        return [r[0] for r in self.conn.execute("SELECT DISTINCT object FROM grasps WHERE hand = ?", (hand,))]
+        return [r["object"] for r in self._conn.execute("SELECT DISTINCT object FROM grasps WHERE hand = ?", (hand,))]
+
+    def object_row(self, name: str) -> ObjectRow | None:
+        r = self._conn.execute("SELECT * FROM objects WHERE name = ?", (name,)).fetchone()
+        if r is None:
+            return None
+        return ObjectRow(name, r["source"], r["scale"], r["mass"], r["friction"], r["density"], r["volume"],
+                         np.array(json.loads(r["com"]), float), np.array(json.loads(r["inertia"]), float).reshape(3, 3))
+
+    def grasp_ids(self, unit_id: int) -> dict[int, int]:
+        """Candidate number -> grasp id of one unit's grasps."""
+        rows = self._conn.execute("SELECT candidate, id FROM grasps WHERE unit_id = ?", (unit_id,))
+        return {r["candidate"]: r["id"] for r in rows}
+
+    def best(self, obj: str, hand: str, top: int, offset: int = 0) -> list[Grasp]:
+        """The grasps of rank ``offset + 1`` .. ``offset + top``, in rank order."""
+        cur = self._conn.execute(self._select("LEFT JOIN") + " WHERE g.object = ? AND g.hand = ? AND g.rank IS NOT NULL"
+                                 " ORDER BY g.rank LIMIT ? OFFSET ?", (obj, hand, top, offset))
+        return _grasps(cur.fetchall())
+
+    def grasp_batches(self, obj: str, hand: str, *, min_epsilon: float | None = None, top: int | None = None,
+                      size: int = 5000) -> Iterator[list[Grasp]]:
+        """The grasps of (obj, hand) with epsilon >= ``min_epsilon`` and rank <=
+        ``top``, in rank order, ``size`` at a time (memory stays one batch)."""
+        where, params = "", [obj, hand]
+        if min_epsilon is not None:
+            where += " AND g.epsilon >= ?"
+            params.append(min_epsilon)
+        if top is not None:
+            where += " AND g.rank <= ?"
+            params.append(top)
+        cur = self._conn.cursor()
+        cur.execute(self._select("LEFT JOIN") + f" WHERE g.object = ? AND g.hand = ? {where} ORDER BY g.rank, g.id",
+                    params)
+        try:
+            while rows := cur.fetchmany(size):
+                yield _grasps(rows)
+        finally:
+            cur.close()
+
+    def validated(self) -> list[Grasp]:
+        """Every grasp with a shake trial, by hand, object and rank."""
+        return _grasps(self._conn.execute(self._select("JOIN") + " ORDER BY g.hand, g.object, g.rank").fetchall())
+
+    def _select(self, join: str) -> str:
+        """The grasps query; a version-1 file read-only has no v2 tables: empty stand-ins."""
+        tables = table_names(self._conn)
+        return _SELECT_GRASPS.format(join=join, **{t: t if t in tables else empty
+                                                   for t, empty in EMPTY_V2_TABLES.items()})
 
 
-def row_to_grasp(r: sqlite3.Row) -> GraspRow:
-    pose = json.loads(r["pose"])
-    return GraspRow(
-        id=r["id"], object=r["object"], hand=r["hand"], preshape=r["preshape"], candidate=r["candidate"],
-        approach_point=json.loads(r["approach_point"]), approach_dir=json.loads(r["approach_dir"]),
-        roll=r["roll"], standoff=r["standoff"], pose=[pose[i:i + 4] for i in range(0, 16, 4)],
-        open_joints=json.loads(r["open_joints"]), closed_joints=json.loads(r["closed_joints"]), width=r["width"],
-        contacts=json.loads(r["contacts"]), epsilon=r["epsilon"], volume=r["volume"],
-        force_closure=bool(r["force_closure"]), reachability=r["reachability"], manipulability=r["manipulability"],
-        seed=r["seed"], score=r["score"], rank=r["rank"],
-    )
+def _grasps(rows: list[sqlite3.Row]) -> list[Grasp]:
+    """Rows of :data:`_SELECT_GRASPS` as records; JSON columns decoded per batch."""
+    if not rows:
+        return []
+    col = dict(zip(rows[0].keys(), zip(*rows)))
+    n = len(rows)
+    pose = np.array(json_list(col["pose"]), float).reshape(n, 4, 4)
+    point = np.array(json_list(col["approach_point"]), float).reshape(n, 3)
+    direction = np.array(json_list(col["approach_dir"]), float).reshape(n, 3)
+    opened, closed = json_list(col["open_joints"]), json_list(col["closed_joints"])
+    return [Grasp(object=col["object"][i], hand=col["hand"][i], preshape=col["preshape"][i],
+                  candidate=col["candidate"][i], seed=col["seed"][i], approach_point=point[i],
+                  approach_dir=direction[i], roll=col["roll"][i], standoff=col["standoff"][i], pose=pose[i],
+                  open_joints=opened[i], closed_joints=closed[i], width=col["width"][i],
+                  contacts=HandContacts.stored(col["contacts"][i], col["n_contacts"][i], col["links_touching"][i]),
+                  epsilon=col["epsilon"][i], volume=col["volume"][i], force_closure=bool(col["force_closure"][i]),
+                  reachability=col["reachability"][i], manipulability=col["manipulability"][i], id=col["id"][i],
+                  unit_id=col["unit_id"][i], score=col["score"][i], rank=col["rank"][i],
+                  validation=None if col["v_success"][i] is None else Trial(
+                      bool(col["v_success"][i]), col["v_fingers_in_contact"][i], col["v_closing_linear"][i],
+                      col["v_closing_angular"][i], col["v_shaking_linear"][i], col["v_shaking_angular"][i]),
+                  robust=None if col["r_mean"][i] is None else RobustEpsilon(
+                      col["r_mean"][i], col["r_quantile"][i], col["r_samples"][i]))
+            for i in range(n)]
 
 
 def open_db(path: Path, *, create: bool = True, readonly: bool = False) -> Database:
@@ -201,10 +362,9 @@ def open_db(path: Path, *, create: bool = True, readonly: bool = False) -> Datab
             conn.execute("PRAGMA journal_mode = WAL")
             conn.execute("PRAGMA synchronous = NORMAL")
         conn.execute("PRAGMA foreign_keys = ON")
-        version = _schema_version(conn, path)
+        version = schema_version(conn, path)
     except sqlite3.DatabaseError as exc:
         raise DatabaseError(f"{path}: cannot open database: {exc}") from exc
-    db = Database(path, conn)
     if version > SCHEMA_VERSION:
         conn.close()
         raise DatabaseError(f"{path}: schema version {version} is newer than this planner's ({SCHEMA_VERSION}); "
@@ -213,57 +373,7 @@ def open_db(path: Path, *, create: bool = True, readonly: bool = False) -> Datab
         if version == 0:
             conn.close()
             raise DatabaseError(f"{path}: not a grasp database (no schema)")
-        return db
+        return Database(path, conn)
     if version < SCHEMA_VERSION:
-        _migrate(db, version)
-    return db
-
-
-def _schema_version(conn: sqlite3.Connection, path: Path) -> int:
-    has_meta = conn.execute("SELECT name FROM sqlite_master WHERE type = 'table' AND name = 'meta'").fetchone()
-    if not has_meta:
-        tables = conn.execute("SELECT COUNT(*) FROM sqlite_master WHERE type = 'table'").fetchone()[0]
-        if tables:
-            raise DatabaseError(f"{path}: an SQLite file, but not a grasp database; pick another --db path")
-        return 0
-    row = conn.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
-    return int(row[0]) if row else 0
-
-
-#: from version -> SQL bringing it to version + 1. A new database runs
-#: ``SCHEMA`` (version 1) and then every migration.
-MIGRATIONS: dict[int, str] = {
-    1: """
-CREATE TABLE IF NOT EXISTS validation (
-    grasp_id INTEGER PRIMARY KEY REFERENCES grasps(id) ON DELETE CASCADE,
-    success INTEGER NOT NULL, fingers_in_contact INTEGER NOT NULL,
-    closing_linear REAL NOT NULL, closing_angular REAL NOT NULL,
-    shaking_linear REAL NOT NULL, shaking_angular REAL NOT NULL,
-    seed INTEGER NOT NULL, settings TEXT NOT NULL
-);
-CREATE TABLE IF NOT EXISTS robust (
-    grasp_id INTEGER PRIMARY KEY REFERENCES grasps(id) ON DELETE CASCADE,
-    mean REAL NOT NULL, quantile REAL NOT NULL, samples INTEGER NOT NULL,
-    seed INTEGER NOT NULL, settings TEXT NOT NULL
-)
-""",
-}
-
-
-def _migrate(db: Database, version: int) -> None:
-    if version > 0 and db.path.exists():
-        backup = db.path.with_name(f"{db.path.name}.v{version}.{int(time.time())}.bak")
-        db.conn.execute("PRAGMA wal_checkpoint(TRUNCATE)")
-        shutil.copy2(db.path, backup)
-        log.warning("%s: migrating schema v%d -> v%d; backup at %s", db.path, version, SCHEMA_VERSION, backup)
-    try:
-        with db.transaction() as conn:
-            scripts = ([SCHEMA] if version == 0 else []) + [MIGRATIONS[v] for v in range(max(version, 1),
-                                                                                       SCHEMA_VERSION)]
-            for script in scripts:
-                # not executescript(): it would COMMIT the open transaction first
-                for statement in filter(str.strip, script.split(";")):
-                    conn.execute(statement)
-            db.set_meta(conn, "schema_version", str(SCHEMA_VERSION))
-    except sqlite3.OperationalError as exc:
-        raise DatabaseError(f"{db.path}: cannot write the database ({exc}); is it read-only?") from exc
+        migrate(conn, path, version)
+    return Database(path, conn)

@@ -1,51 +1,112 @@
-"""Frames and rotations: the hand's rotation for an approach direction and
-roll, tangent bases of contact normals, pose <-> position and quaternion,
-the angle between two rotations."""
+"""Frames and rotations, all through ``scipy.spatial.transform.Rotation``.
+
+- :func:`tangent_bases` / :func:`contact_frames`: for n unit normals at once,
+  the tangents (l_i, o_i) and the contact frames R_i = (n_i, l_i, o_i) of
+  grasping-foundations sec. 2.2. The tangents are a fixed function of the
+  normal (l = n x e, e the first of x, y not nearly parallel to n), so a
+  contact frame, and with it the friction-cone edges, never depends on how
+  the contact was found.
+- :func:`hand_rotation`: the hand frame's rotation for an approach direction
+  and a roll about it.
+- :func:`pose_from_xyzquat`: a 4x4 pose from position and quaternion
+  (x, y, z, w), the form a user types.
+- :func:`angle_between`: the angle [rad] of the rotation from one frame to
+  another.
+
+Poses are 4x4 homogeneous matrices, lengths in metres, angles in radians.
+(The PyBullet adapter converts poses for the simulator itself, per move, with
+a cheaper routine: see :func:`planner.sim.pose_to_pb`.)
+"""
 
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
+from scipy.spatial.transform import Rotation
+
+#: |n_x| below this: the tangent helper axis is x, else y (well conditioned).
+HELPER_SWITCH = 0.9
+_X, _Y = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
 
 
-def tangent_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two unit vectors (l, o) with (n, l, o) a right-handed orthonormal frame."""
-    helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+def tangent_bases(normals: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """(l, o), each (n, 3): unit tangents with (n_i, l_i, o_i) right-handed
+    and orthonormal, for (n, 3) unit normals."""
+    n = np.asarray(normals, float).reshape(-1, 3)
+    helper = np.where((np.abs(n[:, 0]) < HELPER_SWITCH)[:, None], _X, _Y)
     l_vec = np.cross(n, helper)
-    l_vec /= np.linalg.norm(l_vec)
+    l_vec /= np.sqrt(np.einsum("ij,ij->i", l_vec, l_vec))[:, None]
     return l_vec, np.cross(n, l_vec)
 
 
-def tilt(direction: np.ndarray, angle: float, phi: float) -> np.ndarray:
-    l_vec, o_vec = tangent_basis(direction)
-    return np.cos(angle) * direction + np.sin(angle) * (np.cos(phi) * l_vec + np.sin(phi) * o_vec)
+def contact_frames(normals: ArrayLike) -> np.ndarray:
+    """(n, 3, 3) contact frames R_i with columns (n_i, l_i, o_i)."""
+    n = np.asarray(normals, float).reshape(-1, 3)
+    l_vec, o_vec = tangent_bases(n)
+    return np.stack([n, l_vec, o_vec], axis=2)
 
 
-def hand_rotation(approach_hand: np.ndarray, direction: np.ndarray, roll: float) -> np.ndarray:
-    """(3, 3) rotation of the hand frame: maps ``approach_hand`` onto ``direction``,
-    then rolls by ``roll`` [rad] about ``direction``. Deterministic for any input."""
-    a = approach_hand / np.linalg.norm(approach_hand)
-    d = direction / np.linalg.norm(direction)
-    # A fixed frame per vector (not the minimal rotation) so that roll 0 means
-    # the same thing for every direction: frame(a) -> frame(d).
-    la, oa = tangent_basis(a)
-    ld, od = tangent_basis(d)
-    base = np.column_stack([d, ld, od]) @ np.column_stack([a, la, oa]).T
+def tilted(directions: ArrayLike, angle: float, phi: float) -> np.ndarray:
+    """(n, 3) unit directions tilted by ``angle`` [rad] away from each of the
+    (n, 3) unit ``directions``, towards azimuth ``phi`` [rad] in its tangent plane."""
+    d = np.asarray(directions, float).reshape(-1, 3)
+    l_vec, o_vec = tangent_bases(d)
+    return np.cos(angle) * d + np.sin(angle) * (np.cos(phi) * l_vec + np.sin(phi) * o_vec)
+
+
+def hand_rotation(approach_hand: ArrayLike, direction: ArrayLike, roll: float) -> np.ndarray:
+    """(3, 3) rotation of the hand frame: maps ``approach_hand`` (hand frame)
+    onto ``direction`` (object frame), then rolls by ``roll`` [rad] about
+    ``direction``. Deterministic for any input.
+
+    A fixed frame per vector (not the minimal rotation) so that roll 0 means
+    the same thing for every direction: frame(a) -> frame(d).
+
+    The one rotation not built by ``Rotation``: the roll is applied in closed
+    form (Rodrigues), as when the grasps in existing databases were planned.
+    ``Rotation.from_rotvec`` gives the same matrix to ~1e-15, but closing
+    turns that into ~5e-6 rad of finger travel on some grasps (a contact
+    decided one step earlier), so switching needs an ``ALGORITHM_VERSION``
+    bump; a test checks the two agree."""
+    a = np.asarray(approach_hand, float)
+    d = np.asarray(direction, float)
+    a, d = a / np.linalg.norm(a), d / np.linalg.norm(d)
+    base = contact_frames(d)[0] @ contact_frames(a)[0].T
     c, s = np.cos(roll), np.sin(roll)
     k = np.array([[0, -d[2], d[1]], [d[2], 0, -d[0]], [-d[1], d[0], 0]])
     spin = np.eye(3) + s * k + (1 - c) * (k @ k)
     return spin @ base
 
 
-def pose_from_xyzquat(values: tuple[float, ...]) -> np.ndarray:
-    """4x4 pose from (x, y, z, qx, qy, qz, qw)."""
-    import trimesh.transformations as tf
+def roll_about(rotation: np.ndarray, approach_hand: ArrayLike, direction: ArrayLike) -> float:
+    """The roll [rad], in (-pi, pi], with ``hand_rotation(approach_hand,
+    direction, roll) == rotation``: the inverse of :func:`hand_rotation`."""
+    d = np.asarray(direction, float)
+    d = d / np.linalg.norm(d)
+    spin = Rotation.from_matrix(rotation @ hand_rotation(approach_hand, d, 0.0).T)
+    return float(spin.as_rotvec() @ d)
 
-    x, y, z, qx, qy, qz, qw = values
-    pose = tf.quaternion_matrix([qw, qx, qy, qz])
-    pose[:3, 3] = (x, y, z)
+
+def pose_from_xyzquat(values: ArrayLike) -> np.ndarray:
+    """4x4 pose from (x, y, z, qx, qy, qz, qw)."""
+    v = np.asarray(values, float)
+    pose = np.eye(4)
+    pose[:3, :3] = Rotation.from_quat(v[3:]).as_matrix()
+    pose[:3, 3] = v[:3]
     return pose
 
 
+def rotation_from_rotvec(rotvec: ArrayLike) -> np.ndarray:
+    """(3, 3) rotation by |rotvec| [rad] about the direction of ``rotvec`` (3,)."""
+    return Rotation.from_rotvec(np.asarray(rotvec, float)).as_matrix()
+
+
+def rotation_onto(a: ArrayLike, b: ArrayLike) -> np.ndarray:
+    """(3, 3) smallest rotation taking the direction ``a`` onto ``b``."""
+    rotation, _ = Rotation.align_vectors(np.atleast_2d(b), np.atleast_2d(a))
+    return rotation.as_matrix()
+
+
 def angle_between(a: np.ndarray, b: np.ndarray) -> float:
-    cos = (np.trace(a.T @ b) - 1.0) / 2.0
-    return float(np.arccos(np.clip(cos, -1.0, 1.0)))
+    """Angle [rad] of the rotation taking frame ``a`` to frame ``b`` ((3, 3) each)."""
+    return float((Rotation.from_matrix(a).inv() * Rotation.from_matrix(b)).magnitude())

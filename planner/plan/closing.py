@@ -27,12 +27,10 @@ import numpy as np
 
 from planner.geometry.frames import hand_rotation
 from planner.plan.contacts import HandContacts, spread
+from planner.plan.tolerances import CLOSING_SPEED_MIN, JOINT_LIMIT_SLACK, MAX_PENETRATION
 from planner.sim import Body, Closest, Sim
 from planner.specs.hands import HandSpec
 from planner.specs.preshapes import Preshape
-
-#: Pairs closing in slower than this (per unit travel) count as sliding past.
-CLOSING_SPEED_MIN = 0.05
 
 
 @dataclass(frozen=True)
@@ -43,7 +41,7 @@ class CloseSettings:
     gap: float = 0.0002  # conservative advancement stops this far short
     coarse_step: float = 0.01  # largest approach / prismatic step
     coarse_angle: float = 0.1  # largest revolute step
-    max_penetration: float = 0.001  # deeper overlap rejects the grasp
+    max_penetration: float = MAX_PENETRATION  # deeper overlap rejects the grasp
     start_margin: float = 0.01  # start this far in front of the hand's tips
     max_iterations: int = 400
 
@@ -268,7 +266,7 @@ class Grasper:
                     d.active = False
                     continue
                 room = min(self._headroom(j, q[j], r) for j, r in d.rates.items())
-                if room <= 1e-9:
+                if room <= JOINT_LIMIT_SLACK:
                     d.active = False
                     continue
                 steps[id(d)] = min(ds, room)
@@ -287,7 +285,7 @@ class Grasper:
         ``coarse_angle`` per step."""
         room = min(self._headroom(j, q[j], r) for j, r in dof.rates.items())
         if all(self.hand.joint(j).kind == "prismatic" for j in dof.rates):
-            return max(room, 1e-9)
+            return max(room, JOINT_LIMIT_SLACK)
         return min(self.settings.coarse_angle / abs(r) for r in dof.rates.values())
 
     def _translation(self, dof: _Dof, link: str) -> np.ndarray | None:
@@ -360,7 +358,5 @@ class Grasper:
             keep_pts.append(points[chosen])
             keep_nrm.append(normals[chosen])
             keep_links += [link] * len(chosen)
-        models = tuple(self.hand.contacts[link].model for link in keep_links)
-        torsion = np.array([self.hand.contacts[link].torsion for link in keep_links])
-        contacts = HandContacts(np.vstack(keep_pts), np.vstack(keep_nrm), tuple(keep_links), models, torsion)
+        contacts = HandContacts(np.vstack(keep_pts), np.vstack(keep_nrm), tuple(keep_links))
         return Closed(pose.copy(), dict(open_joints), {k: float(v) for k, v in closed.items()}, contacts, self.queries)

@@ -1,63 +1,100 @@
-"""Contacts read from the simulator, as a batch in the object frame."""
+"""Contacts read from the simulator: a batch in the object frame.
+
+A contact is a point on the object surface, the inward unit normal there and
+the hand link that touches it; the contact *model* (point, soft,
+frictionless) belongs to the link and is looked up in the hand spec when the
+grasp is scored. The stored form is JSON text ``[{point, normal, link}]``
+(points and normals rounded to 1 um / 1e-6). A batch read back from the
+database keeps that text and decodes it only on first use, so a grasp that is
+only exported never pays for decoding its contacts.
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import json
 
 import numpy as np
 
-from planner.geometry.frames import tangent_basis
+from planner.geometry.frames import contact_frames
+from planner.plan.tolerances import MAX_PER_LINK, MERGE_RADIUS
 
-#: Contact points of one link closer than this [m] are one contact.
-MERGE_RADIUS = 0.002
-#: At most this many contacts per link (spread over its contact patch).
-MAX_PER_LINK = 4
+#: Decimals kept of points [m] and normals in the stored form (1 um).
+STORED_DIGITS = 6
 
 
-@dataclass(frozen=True)
 class HandContacts:
-    """n contacts between the hand and the object.
+    """n contacts between the hand and the object (immutable).
 
     Attributes:
         points: (n, 3) contact points c_i on the object surface [m], object frame.
-        normals: (n, 3) unit normals n_i pointing into the object.
-        links: (n,) hand link names.
-        models: (n,) contact model per contact (``point``, ``soft``, ``frictionless``).
-        torsion: (n,) torsion coefficient [m] per contact (soft contacts).
+        normals: (n, 3) unit normals n_i pointing into the object, object frame.
+        links: (n,) names of the hand links that touch.
     """
 
-    points: np.ndarray
-    normals: np.ndarray
-    links: tuple[str, ...]
-    models: tuple[str, ...]
-    torsion: np.ndarray
+    __slots__ = ("_arrays", "_text", "_count", "_touching")
 
-    def __post_init__(self) -> None:
-        n = len(self.points)
-        if self.points.shape != (n, 3) or self.normals.shape != (n, 3):
+    def __init__(self, points: np.ndarray, normals: np.ndarray, links: tuple[str, ...]) -> None:
+        n = len(points)
+        if points.shape != (n, 3) or normals.shape != (n, 3):
             raise ValueError("HandContacts.points and .normals must be (n, 3)")
-        if not len(self.links) == len(self.models) == len(self.torsion) == n:
-            raise ValueError("HandContacts: one link, model and torsion per contact")
+        if len(links) != n:
+            raise ValueError("HandContacts: one link per contact")
+        self._arrays: tuple[np.ndarray, np.ndarray, tuple[str, ...]] | None = (points, normals, tuple(links))
+        self._text: str | None = None
+        self._count = n
+        self._touching = len(set(links))
+
+    @classmethod
+    def stored(cls, text: str, count: int, touching: int) -> HandContacts:
+        """Contacts as the database holds them: the JSON text and its two counts."""
+        out = cls.__new__(cls)
+        out._arrays, out._text, out._count, out._touching = None, text, count, touching
+        return out
+
+    def _decoded(self) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+        if self._arrays is None:
+            items = json.loads(self._text or "[]")
+            self._arrays = (np.array([c["point"] for c in items], float).reshape(-1, 3),
+                            np.array([c["normal"] for c in items], float).reshape(-1, 3),
+                            tuple(c["link"] for c in items))
+        return self._arrays
+
+    @property
+    def points(self) -> np.ndarray:
+        return self._decoded()[0]
+
+    @property
+    def normals(self) -> np.ndarray:
+        return self._decoded()[1]
+
+    @property
+    def links(self) -> tuple[str, ...]:
+        return self._decoded()[2]
 
     def __len__(self) -> int:
-        return len(self.points)
+        return self._count
+
+    @property
+    def touching(self) -> int:
+        """How many distinct hand links touch the object."""
+        return self._touching
 
     @property
     def frames(self) -> np.ndarray:
         """(n, 3, 3) contact frames R_i with columns (n_i, l_i, o_i)."""
-        out = np.empty((len(self), 3, 3))
-        for i, n in enumerate(self.normals):
-            l_vec, o_vec = tangent_basis(n)
-            out[i] = np.column_stack([n, l_vec, o_vec])
-        return out
-
-    @property
-    def touching_links(self) -> tuple[str, ...]:
-        return tuple(sorted(set(self.links)))
+        return contact_frames(self.normals)
 
     def to_json(self) -> list[dict]:
-        return [{"point": [round(float(v), 6) for v in p], "normal": [round(float(v), 6) for v in n], "link": link}
+        """``[{point, normal, link}]``, rounded as stored."""
+        return [{"point": [round(float(v), STORED_DIGITS) for v in p],
+                 "normal": [round(float(v), STORED_DIGITS) for v in n], "link": link}
                 for p, n, link in zip(self.points, self.normals, self.links)]
+
+    def json_text(self) -> str:
+        """The stored form: compact JSON text of :meth:`to_json`."""
+        if self._text is None:
+            self._text = json.dumps(self.to_json(), separators=(",", ":"))
+        return self._text
 
 
 def spread(points: np.ndarray, limit: int = MAX_PER_LINK, radius: float = MERGE_RADIUS) -> np.ndarray:

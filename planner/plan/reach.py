@@ -21,28 +21,35 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from planner.geometry.frames import angle_between
+from planner.geometry.frames import angle_between, rotation_from_rotvec
 from planner.geometry.solid import PreparedObject
+from planner.plan.tolerances import (
+    ANGLE_TOL,
+    IK_CONVERGED,
+    IK_REFINEMENTS,
+    JOINT_LIMIT_SLACK,
+    MAX_PENETRATION,
+    PARKING_DEPTH,
+    POSITION_TOL,
+    PREGRASP_DISTANCE,
+    TABLE_HALF,
+    TABLE_REACH,
+)
 from planner.sim import Body, Sim
 from planner.specs.hands import HandSpec
-
-POSITION_TOL = 1e-3  # [m]
-ANGLE_TOL = np.radians(0.5)  # [rad]
-IK_REFINEMENTS = 6  # IK calls per restart, each from the previous answer
-TABLE_HALF = (1.0, 1.0, 0.05)  # [m] table half extents (x, y, thickness)
 
 
 @dataclass(frozen=True)
 class ReachSettings:
     """Scene and solver settings (metres, radians)."""
 
-    pregrasp_distance: float = 0.10
+    pregrasp_distance: float = PREGRASP_DISTANCE
     restarts: int = 4
     placements: int = 6  # object placements for the stored reachability score
     region_x: tuple[float, float] = (0.35, 0.65)  # placements, in the robot base frame
     region_y: tuple[float, float] = (-0.30, 0.30)
     table_height: float = 0.0  # table top, world z
-    max_penetration: float = 0.001
+    max_penetration: float = MAX_PENETRATION
 
 
 @dataclass(frozen=True)
@@ -100,7 +107,8 @@ class ReachScene:
         self.hand_links = [n for n in self.hand.links if self.sim.has_collision(self.hand_body, n)]
         top = self.settings.table_height
         table_pose = np.eye(4)
-        table_pose[:3, 3] = (self.robot_base[0, 3] + TABLE_HALF[0] * 0.9, self.robot_base[1, 3], top - TABLE_HALF[2])
+        table_pose[:3, 3] = (self.robot_base[0, 3] + TABLE_HALF[0] * TABLE_REACH, self.robot_base[1, 3],
+                             top - TABLE_HALF[2])
         self.table = self.sim.add_box(TABLE_HALF, table_pose)
         self.object_body = self.sim.add_static_mesh(self.obj.mesh.vertices, self.obj.mesh.faces)
         self.object_pose = np.eye(4)
@@ -111,7 +119,7 @@ class ReachScene:
 
     def _park_probe(self) -> None:
         away = np.eye(4)
-        away[:3, 3] = (0.0, 0.0, -100.0)
+        away[:3, 3] = (0.0, 0.0, -PARKING_DEPTH)
         self.sim.set_pose(self.probe, away)
 
     def hand_hits_table(self, hand_pose: np.ndarray, fingers: dict[str, float]) -> bool:
@@ -128,9 +136,8 @@ class ReachScene:
 
     def resting_pose(self, x: float, y: float, yaw: float) -> np.ndarray:
         """Object standing on the table (its own +z up), turned by ``yaw``."""
-        c, s = np.cos(yaw), np.sin(yaw)
         pose = np.eye(4)
-        pose[:3, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
+        pose[:3, :3] = rotation_from_rotvec([0.0, 0.0, yaw])
         base = self.robot_base[:3, 3]
         pose[:3, 3] = (base[0] + x, base[1] + y, self.settings.table_height - self.obj.mesh.bounds[0][2])
         return pose
@@ -187,8 +194,8 @@ class ReachScene:
             config = {j: v for j, v in zip(self.dofs, values) if j in self.arm_joints}
             self.sim.set_joints(self.arm, config)
             ee = self.sim.link_pose(self.arm, self.ee_link)
-            if (np.linalg.norm(ee[:3, 3] - target[:3, 3]) <= POSITION_TOL / 4
-                    and angle_between(ee[:3, :3], target[:3, :3]) <= ANGLE_TOL / 4):
+            if (np.linalg.norm(ee[:3, 3] - target[:3, 3]) <= POSITION_TOL * IK_CONVERGED
+                    and angle_between(ee[:3, :3], target[:3, :3]) <= ANGLE_TOL * IK_CONVERGED):
                 break
         return config
 
@@ -196,7 +203,7 @@ class ReachScene:
                 grasp: bool) -> ArmSolution | None:
         for j, v in config.items():
             lo, hi = self.lower[self.dofs.index(j)], self.upper[self.dofs.index(j)]
-            if not lo - 1e-9 <= v <= hi + 1e-9:
+            if not lo - JOINT_LIMIT_SLACK <= v <= hi + JOINT_LIMIT_SLACK:
                 return None
         self.sim.set_joints(self.arm, config)
         ee = self.sim.link_pose(self.arm, self.ee_link)

@@ -21,10 +21,10 @@ import numpy as np
 import trimesh
 
 from planner.errors import InputError
-from planner.geometry.frames import tilt
+from planner.geometry.frames import tilted
+from planner.plan.tolerances import BOX_MARGIN
 
 SAMPLERS = ("surface", "box")
-BOX_MARGIN = 0.01  # [m] the grown bounding box of the OpenRAVE sampler
 
 
 @dataclass(frozen=True)
@@ -95,8 +95,7 @@ def fan(base: Approaches, count: int, angle: float) -> Approaches:
     points, normals, dirs = [base.points], [base.normals], [base.directions]
     for k in range(count):
         phi = 2 * np.pi * k / count
-        tilted = np.array([tilt(d, angle, phi) for d in base.directions])
         points.append(base.points)
         normals.append(base.normals)
-        dirs.append(tilted)
+        dirs.append(tilted(base.directions, angle, phi))
     return Approaches(np.vstack(points), np.vstack(normals), np.vstack(dirs))

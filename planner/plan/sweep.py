@@ -19,6 +19,7 @@ import numpy as np
 
 from planner.errors import InputError
 from planner.plan.sampling import SAMPLERS, Approaches
+from planner.plan.tolerances import PREGRASP_DISTANCE
 from planner.specs.preshapes import Preshape
 
 #: Bumped whenever a change alters which grasps a sweep produces, so stale
@@ -41,7 +42,7 @@ class SweepSettings:
     cone_edges: int = 8  # friction cone edges m
     chunk: int = 32  # rays per unit of work (surface sampler); 0: one unit per object
     reach_placements: int = 6  # object placements for the reachability score; 0: skip reachability
-    pregrasp_distance: float = 0.10  # [m] pre-grasp back-off along the approach
+    pregrasp_distance: float = PREGRASP_DISTANCE  # [m] pre-grasp back-off along the approach
 
     def __post_init__(self) -> None:
         if self.sampler not in SAMPLERS:

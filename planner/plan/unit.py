@@ -1,5 +1,6 @@
 """One unit of work end to end: object -> rays -> closing -> contacts ->
-quality, returning plain records for the single database writer.
+quality -> reachability, returning :class:`~planner.grasp.Grasp` records for
+the single database writer.
 
 This runs inside worker processes: it reads descriptions and simulates, but
 never touches the database.
@@ -11,15 +12,18 @@ import logging
 import time
 import traceback
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from planner import quality
 from planner.errors import PlannerError
 from planner.geometry.solid import PreparedObject, load_object
+from planner.grasp import Grasp
 from planner.plan import sampling
 from planner.plan.closing import Closed, Grasper
+from planner.plan.contacts import HandContacts
+from planner.plan.reach import ReachScene, ReachSettings
 from planner.plan.sweep import IK_STREAM, PLACEMENT_STREAM, SweepSettings, candidates, unit_rng
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, load_hand
@@ -42,35 +46,21 @@ class UnitSpec:
     timeout: float | None = None  # [s] give up on the unit after this long (checked between candidates)
 
 
-@dataclass(frozen=True)
-class GraspRecord:
-    """One evaluated grasp, ready to be written (see the ``grasps`` table)."""
-
-    candidate: int
-    preshape: str
-    approach_point: np.ndarray  # (3,) [m] object frame
-    approach_dir: np.ndarray  # (3,) unit
-    roll: float  # [rad]
-    standoff: float  # [m]
-    closed: Closed
-    epsilon: float
-    volume: float
-    force_closure: bool
-    width: float | None  # [m] parallel jaws: distance between the fingers
-    reachability: float | None = None  # fraction of sampled placements reachable (None: not computed)
-    manipulability: float | None = None  # best arm manipulability over reachable placements
-
-
 @dataclass
 class UnitResult:
     spec: UnitSpec
     obj: PreparedObject | None = None
-    grasps: list[GraspRecord] = field(default_factory=list)
+    grasps: list[Grasp] = field(default_factory=list)
     candidates: int = 0
     rejected: Counter = field(default_factory=Counter)
     timing: dict[str, float] = field(default_factory=lambda: dict.fromkeys(
         ("prepare", "sampling", "closing", "contacts", "quality", "reachability"), 0.0))
     error: str | None = None
+
+    @property
+    def object_name(self) -> str:
+        """The object's database name."""
+        return self.obj.name if self.obj is not None else (self.spec.label or self.spec.object_name)
 
     @property
     def force_closure(self) -> int:
@@ -120,12 +110,14 @@ def _run(spec: UnitSpec, result: UnitResult) -> None:
             if not isinstance(closed, Closed):
                 result.rejected[closed.reason] += 1
                 continue
-            q = grasp_quality(closed, obj, spec.settings.cone_edges)
+            q = grasp_quality(closed.contacts, hand, obj, spec.settings.cone_edges)
             result.timing["quality"] += time.perf_counter() - tb
-            result.grasps.append(GraspRecord(
-                candidate=cand.index, preshape=cand.preshape.name, approach_point=rays.points[cand.ray],
-                approach_dir=rays.directions[cand.ray], roll=cand.roll, standoff=cand.standoff, closed=closed,
-                epsilon=q.epsilon, volume=q.volume, force_closure=q.force_closure, width=_width(hand, closed)))
+            result.grasps.append(Grasp(
+                object=obj.name, hand=hand.name, preshape=cand.preshape.name, candidate=cand.index, seed=spec.seed,
+                approach_point=rays.points[cand.ray], approach_dir=rays.directions[cand.ray], roll=cand.roll,
+                standoff=cand.standoff, pose=closed.pose, open_joints=closed.open_joints,
+                closed_joints=closed.closed_joints, width=closed_width(hand, closed.closed_joints),
+                contacts=closed.contacts, epsilon=q.epsilon, volume=q.volume, force_closure=q.force_closure))
         # contact reading happens inside closing; report it as its own stage
         result.timing["contacts"] = grasper.contact_seconds
         result.timing["closing"] -= grasper.contact_seconds
@@ -135,13 +127,8 @@ def _run(spec: UnitSpec, result: UnitResult) -> None:
         result.timing["reachability"] += time.perf_counter() - t3
 
 
-def add_reachability(grasps: list[GraspRecord], obj: PreparedObject, hand: HandSpec,
-                     spec: UnitSpec) -> list[GraspRecord]:
+def add_reachability(grasps: list[Grasp], obj: PreparedObject, hand: HandSpec, spec: UnitSpec) -> list[Grasp]:
     """Reachability of each force-closure grasp over the unit's sampled placements."""
-    from dataclasses import replace
-
-    from planner.plan.reach import ReachScene, ReachSettings
-
     settings = ReachSettings(placements=spec.settings.reach_placements,
                              pregrasp_distance=spec.settings.pregrasp_distance)
     out = []
@@ -156,7 +143,7 @@ def add_reachability(grasps: list[GraspRecord], obj: PreparedObject, hand: HandS
             reached, manip = 0, 0.0
             for pose in placements:
                 scene.place_object(pose)
-                r = scene.check(g.closed.pose, g.closed.closed_joints, g.closed.open_joints, rng)
+                r = scene.check(g.pose, g.closed_joints, g.open_joints, rng)
                 if r.reachable:
                     reached += 1
                     manip = max(manip, r.grasp.manipulability)  # type: ignore[union-attr]
@@ -164,14 +151,17 @@ def add_reachability(grasps: list[GraspRecord], obj: PreparedObject, hand: HandS
     return out
 
 
-def grasp_quality(closed: Closed, obj: PreparedObject, cone_edges: int) -> quality.Quality:
-    """Ferrari-Canny epsilon (L1), GWS volume and force closure of a closed hand."""
-    c = closed.contacts
-    return quality.evaluate(c.points, c.frames, mu=obj.friction, center=obj.com, torque_scale=obj.torque_scale,
-                            cone_edges=cone_edges, model=list(c.models), torsion=c.torsion)
+def grasp_quality(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, cone_edges: int) -> quality.Quality:
+    """Ferrari-Canny epsilon (L1), GWS volume and force closure of contacts;
+    each contact's model (point, soft, frictionless) is its link's in the hand."""
+    models = [hand.contacts[link] for link in contacts.links]
+    return quality.evaluate(contacts.points, contacts.frames, mu=obj.friction, center=obj.com,
+                            torque_scale=obj.torque_scale, cone_edges=cone_edges, model=[m.model for m in models],
+                            torsion=np.array([m.torsion for m in models], float))
 
 
-def _width(hand: HandSpec, closed: Closed) -> float | None:
+def closed_width(hand: HandSpec, closed_joints: dict[str, float]) -> float | None:
+    """[m] distance between the fingers of a self-centring parallel jaw, else None."""
     if not hand.centering:
         return None
-    return float(sum(closed.closed_joints[j.name] for j in hand.joints if j.kind == "prismatic"))
+    return float(sum(closed_joints[j.name] for j in hand.joints if j.kind == "prismatic"))

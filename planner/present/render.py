@@ -10,8 +10,9 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from planner.db.store import GraspRow
+from planner.geometry.frames import rotation_onto
 from planner.geometry.solid import PreparedObject
+from planner.grasp import Grasp
 from planner.sim import Sim
 from planner.specs.hands import HandSpec
 
@@ -25,7 +26,7 @@ VIEW_SIZE = (360, 300)
 VIEWS = (np.array([1.0, -1.2, 0.8]), np.array([-1.0, -0.4, 0.5]), np.array([0.3, 1.2, -0.25]))
 
 
-def grasp_views(hand: HandSpec, obj: PreparedObject, grasp: GraspRow, size: tuple[int, int] = VIEW_SIZE
+def grasp_views(hand: HandSpec, obj: PreparedObject, grasp: Grasp, size: tuple[int, int] = VIEW_SIZE
                 ) -> list[np.ndarray]:
     """One RGB image per viewpoint of ``VIEWS``."""
     with Sim() as sim:
@@ -34,8 +35,8 @@ def grasp_views(hand: HandSpec, obj: PreparedObject, grasp: GraspRow, size: tupl
         sim.set_pose(body, np.array(grasp.pose))
         sim.set_joints(body, grasp.closed_joints)
         sim.set_color(body, HAND_RGBA)
-        for contact in grasp.contacts:
-            _add_contact(sim, np.array(contact["point"]), np.array(contact["normal"]), obj.friction)
+        for point, normal in zip(grasp.contacts.points, grasp.contacts.normals):
+            _add_contact(sim, point, normal, obj.friction)
         centre = 0.5 * (obj.mesh.bounds[0] + obj.mesh.bounds[1])
         target = 0.5 * (centre + np.array(grasp.pose)[:3, 3])
         radius = float(np.linalg.norm(obj.mesh.extents)) + 0.12
@@ -53,7 +54,8 @@ def _add_contact(sim: Sim, point: np.ndarray, normal: np.ndarray, mu: float) -> 
     # normal (the hand pushes along the inward one), half-angle atan(mu)
     cone = trimesh.creation.cone(radius=CONE_LENGTH * mu, height=CONE_LENGTH, sections=16)
     cone.apply_translation([0.0, 0.0, -CONE_LENGTH])  # apex at the origin, opening towards -z
-    align = trimesh.geometry.align_vectors([0.0, 0.0, -1.0], -normal)
+    align = np.eye(4)
+    align[:3, :3] = rotation_onto([0.0, 0.0, -1.0], -normal)
     cone.apply_transform(align)
     sim.add_visual_mesh(cone.vertices + point, cone.faces, CONE_RGBA)
 
@@ -80,7 +82,7 @@ def save_sheet(panels: list[tuple[list[np.ndarray], str]], out: Path) -> None:
     plt.close(fig)
 
 
-def title(grasp: GraspRow) -> str:
+def title(grasp: Grasp) -> str:
     reach = "n/a" if grasp.reachability is None else f"{grasp.reachability:.2f}"
     return (f"#{grasp.rank} {grasp.object}/{grasp.hand} {grasp.preshape}: score {grasp.score:.4f}, "
             f"epsilon {grasp.epsilon:.4f}, reach {reach}, {len(grasp.contacts)} contacts")

@@ -13,7 +13,6 @@ import base64
 import html
 import io
 import math
-import sqlite3
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -22,50 +21,56 @@ import numpy as np
 from planner.db.ranking import RankingRule
 from planner.db.store import open_db
 from planner.errors import InputError
-
-QUERY = """
-SELECT g.object, g.hand, g.rank, g.epsilon, g.reachability, g.force_closure, v.success, r.mean, r.quantile
-FROM grasps g JOIN validation v ON v.grasp_id = g.id LEFT JOIN robust r ON r.grasp_id = g.id
-ORDER BY g.hand, g.object, g.rank
-"""
+from planner.grasp import Grasp
 
 
 @dataclass
 class HandReport:
-    hand: str
-    rows: list[tuple] = field(default_factory=list)
-    reach_weight: float = 0.5
+    """The validated grasps of one hand, rank order within each object."""
 
-    def column(self, index: int) -> np.ndarray:
-        return np.array([np.nan if r[index] is None else r[index] for r in self.rows], float)
+    hand: str
+    grasps: list[Grasp] = field(default_factory=list)
+    rule: RankingRule = field(default_factory=RankingRule)
+
+    @property
+    def success(self) -> np.ndarray:
+        return np.array([g.validation.success for g in self.grasps], float)  # type: ignore[union-attr]
+
+    def measure(self, name: str) -> np.ndarray:
+        """(n,) ``epsilon``, ``reachability``, ``rank``, ``robust_mean`` or
+        ``robust_quantile`` of every grasp; NaN where not computed."""
+        if name.startswith("robust_"):
+            key = name[len("robust_"):]
+            return np.array([np.nan if g.robust is None else getattr(g.robust, key) for g in self.grasps], float)
+        return np.array([getattr(g, name) for g in self.grasps], float)
 
     @property
     def objects(self) -> list[str]:
-        return sorted({r[0] for r in self.rows})
+        return sorted({g.object for g in self.grasps})
+
+    def _of(self, name: str) -> list[Grasp]:
+        return sorted((g for g in self.grasps if g.object == name), key=lambda g: g.rank)  # type: ignore[arg-type, return-value]
 
     def top_k(self, k: int) -> tuple[float, int]:
         """Success rate of each object's k best-ranked validated grasps, and how many objects."""
-        rates = []
-        for name in self.objects:
-            mine = sorted((r for r in self.rows if r[0] == name), key=lambda r: r[2])[:k]
-            rates.append(np.mean([r[6] for r in mine]))
+        rates = [np.mean([g.validation.success for g in self._of(name)[:k]]) for name in self.objects]  # type: ignore[union-attr]
         return (float(np.mean(rates)) if rates else math.nan), len(rates)
 
     def top1_objects(self) -> tuple[int, int]:
         """Objects whose best-ranked validated grasp succeeded, out of all objects."""
-        wins = 0
-        for name in self.objects:
-            wins += int(min((r for r in self.rows if r[0] == name), key=lambda r: r[2])[6])
+        wins = sum(int(self._of(name)[0].validation.success) for name in self.objects)  # type: ignore[union-attr]
         return wins, len(self.objects)
 
-    def top1_analytic(self, reach_weight: float) -> tuple[int, int]:
-        """The same, picking each object's grasp by the analytic score alone
-        (epsilon and reachability, before any simulation was known)."""
+    def top1_analytic(self) -> tuple[int, int]:
+        """The same, picking each object's grasp by the analytic score alone:
+        the rule without the measures that need simulation (success, robust
+        epsilon), as it ranked the grasps before any was simulated."""
         wins = 0
         for name in self.objects:
-            mine = [r for r in self.rows if r[0] == name]
-            best = max(mine, key=lambda r: r[3] * ((1 - reach_weight) + reach_weight * (1.0 if r[4] is None else r[4])))
-            wins += int(best[6])
+            mine = self._of(name)
+            scores = self.rule.scores([g.epsilon for g in mine], [g.force_closure for g in mine],
+                                      [np.nan if g.reachability is None else g.reachability for g in mine])
+            wins += int(mine[int(np.argmax(scores))].validation.success)  # type: ignore[union-attr]
         return wins, len(self.objects)
 
 
@@ -94,17 +99,13 @@ def deciles(eps: np.ndarray, success: np.ndarray) -> list[tuple[float, float, fl
 
 def collect(db_path: Path) -> list[HandReport]:
     with open_db(Path(db_path), create=False, readonly=True) as db:
-        try:
-            rows = db.conn.execute(QUERY).fetchall()
-        except sqlite3.OperationalError as exc:
-            raise InputError(f"{db_path}: no validation results ({exc}); run `grasp validate` first") from exc
-    if not rows:
+        grasps = db.validated()
+        rule = db.rule()
+    if not grasps:
         raise InputError(f"{db_path}: no validated grasps; run `grasp validate --db {db_path}` first")
-    with open_db(Path(db_path), create=False, readonly=True) as db:
-        rule = RankingRule.from_json(db.meta("ranking"))
     reports: dict[str, HandReport] = {}
-    for r in rows:
-        reports.setdefault(r[1], HandReport(r[1], reach_weight=rule.reach_weight)).rows.append(tuple(r))
+    for g in grasps:
+        reports.setdefault(g.hand, HandReport(g.hand, rule=rule)).grasps.append(g)
     return list(reports.values())
 
 
@@ -114,7 +115,7 @@ def _plot(report: HandReport) -> bytes:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    eps, ok = report.column(3), report.column(6)
+    eps, ok = report.measure("epsilon"), report.success
     bins = deciles(eps, ok)
     fig, ax = plt.subplots(figsize=(6, 3.2))
     ax.bar(range(len(bins)), [b[2] for b in bins], color="#4a7bb7")
@@ -131,33 +132,32 @@ def _plot(report: HandReport) -> bytes:
 
 
 def _summary_rows(report: HandReport) -> list[tuple[str, str]]:
-    ok = report.column(6)
+    ok = report.success
     wins, n = report.top1_objects()
+    analytic, _ = report.top1_analytic()
     top10, _ = report.top_k(10)
     return [
         ("validated grasps", str(len(ok))),
         ("objects", str(n)),
         ("overall success rate", f"{np.nanmean(ok):.3f}"),
         ("top-1 grasp succeeds, final ranking (objects)", f"{wins}/{n} = {wins / max(n, 1):.1%}"),
-        ("top-1 grasp succeeds, analytic score only (objects)", "{}/{} = {:.1%}".format(
-            *report.top1_analytic(report.reach_weight), report.top1_analytic(report.reach_weight)[0] / max(n, 1))),
+        ("top-1 grasp succeeds, analytic score only (objects)", f"{analytic}/{n} = {analytic / max(n, 1):.1%}"),
         ("top-10 success rate (mean over objects)", f"{top10:.3f}"),
-        ("Spearman(epsilon, success)", f"{spearman(report.column(3), ok):.3f}"),
-        ("Spearman(robust epsilon mean, success)", f"{spearman(report.column(7), ok):.3f}"),
-        ("Spearman(robust epsilon quantile, success)", f"{spearman(report.column(8), ok):.3f}"),
-        ("Spearman(reachability, success)", f"{spearman(report.column(4), ok):.3f}"),
-        ("Spearman(rank, success) (negative is good)", f"{spearman(report.column(2), ok):.3f}"),
+        ("Spearman(epsilon, success)", f"{spearman(report.measure('epsilon'), ok):.3f}"),
+        ("Spearman(robust epsilon mean, success)", f"{spearman(report.measure('robust_mean'), ok):.3f}"),
+        ("Spearman(robust epsilon quantile, success)", f"{spearman(report.measure('robust_quantile'), ok):.3f}"),
+        ("Spearman(reachability, success)", f"{spearman(report.measure('reachability'), ok):.3f}"),
+        ("Spearman(rank, success) (negative is good)", f"{spearman(report.measure('rank'), ok):.3f}"),
     ]
 
 
 def _per_object(report: HandReport) -> list[tuple[str, ...]]:
     out = []
     for name in report.objects:
-        mine = sorted((r for r in report.rows if r[0] == name), key=lambda r: r[2])
-        ok = np.array([r[6] for r in mine], float)
-        eps = np.array([r[3] for r in mine], float)
-        out.append((name, str(len(mine)), f"{ok.mean():.2f}", "yes" if mine[0][6] else "no",
-                    f"{spearman(eps, ok):.2f}"))
+        mine = report._of(name)
+        ok = np.array([g.validation.success for g in mine], float)  # type: ignore[union-attr]
+        eps = np.array([g.epsilon for g in mine], float)
+        out.append((name, str(len(mine)), f"{ok.mean():.2f}", "yes" if ok[0] else "no", f"{spearman(eps, ok):.2f}"))
     return out
 
 

@@ -9,6 +9,17 @@ import numpy as np
 from planner import assets
 from planner.sim import Body, Sim, pb, pb_to_pose, pose_to_pb
 
+#: [rad/s or m/s] finger motor speed limit: fast enough that revolute fingers
+#: close within a trial's closing time (1.0 was too slow for them).
+FINGER_SPEED = 3.0
+#: [kg m^2] smallest principal moment given to PyBullet: a flat part's eigen
+#: solver may return 0 (or -1e-20), which PyBullet rejects.
+MIN_MOMENT = 1e-9
+#: [m] overlaps shallower than this are resolved by split impulses (position
+#: only, no added velocity): a decomposed object starting slightly inside the
+#: hand must not be shot away.
+SPLIT_IMPULSE_DEPTH = 0.001
+
 
 def _part_file(vertices: np.ndarray, faces: np.ndarray) -> str:
     """A convex part as a small OBJ file in the cache (PyBullet's compound
@@ -32,7 +43,7 @@ class Dynamics:
         # split impulses: resolving an overlap must not add velocity (no "explosions"
         # when a decomposed object starts slightly inside the hand)
         pb.setPhysicsEngineParameter(fixedTimeStep=dt, numSolverIterations=solver_iterations, useSplitImpulse=1,
-                                     splitImpulsePenetrationThreshold=-0.001, physicsClientId=self.c)
+                                     splitImpulsePenetrationThreshold=-SPLIT_IMPULSE_DEPTH, physicsClientId=self.c)
         pb.setGravity(0, 0, 0, physicsClientId=self.c)
 
     def add_object(self, parts_vertices: tuple[np.ndarray, ...], parts_faces: tuple[np.ndarray, ...], mass: float,
@@ -51,7 +62,7 @@ class Dynamics:
         _, inertial_q = pose_to_pb(frame)
         uid = pb.createMultiBody(mass, shape, -1, basePosition=[0, 0, 0], baseInertialFramePosition=list(com),
                                  baseInertialFrameOrientation=inertial_q, physicsClientId=self.c)
-        pb.changeDynamics(uid, -1, localInertiaDiagonal=list(np.maximum(moments, 1e-9)), lateralFriction=friction,
+        pb.changeDynamics(uid, -1, localInertiaDiagonal=list(np.maximum(moments, MIN_MOMENT)), lateralFriction=friction,
                           spinningFriction=0.0, rollingFriction=0.0, linearDamping=0.0, angularDamping=0.0,
                           physicsClientId=self.c)
         self.set_object_pose(uid, pose)
@@ -90,7 +101,7 @@ class Dynamics:
         """Position-controlled finger motors, each limited to ``force`` [N or N m]."""
         for name, value in targets.items():
             pb.setJointMotorControl2(body.uid, body.joints[name], pb.POSITION_CONTROL, targetPosition=value,
-                                     force=force, maxVelocity=3.0, physicsClientId=self.c)
+                                     force=force, maxVelocity=FINGER_SPEED, physicsClientId=self.c)
 
     def set_friction(self, uid: int, friction: float) -> None:
         for link in range(-1, pb.getNumJoints(uid, physicsClientId=self.c)):

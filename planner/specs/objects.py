@@ -25,6 +25,7 @@ DEFAULT_MASS = 0.2  # kg, for user meshes given without a mass
 DEFAULT_FRICTION = 0.5
 RANDOM_PREFIX = "random_"
 RANDOM_COUNT = 1000
+RANDOM_MASS = 0.1  # kg: the generated objects are 5-10 cm across
 #: Mesh files an object (or a folder of objects) may be given as.
 MESH_SUFFIXES = (".obj", ".stl", ".ply", ".glb", ".gltf", ".off")
 
@@ -85,6 +86,17 @@ def _spec_from_toml(name: str, f: Fields) -> ObjectSpec:
     raise ConfigError(f"{f.where} field 'kind': unknown kind '{kind}'; use mesh, urdf, box, cylinder or sphere")
 
 
+def is_registered(name: str) -> bool:
+    """A built-in or ``random_NNN`` name: an object with its own mesh and scale."""
+    return name in builtin_specs() or _random_index(name) is not None
+
+
+def _random_index(name: str) -> int | None:
+    """NNN of a ``random_NNN`` name, else None."""
+    digits = name[len(RANDOM_PREFIX):]
+    return int(digits) if name.startswith(RANDOM_PREFIX) and digits.isdigit() else None
+
+
 def random_spec(index: int) -> ObjectSpec:
     """One of the 1,000 procedurally generated objects in ``pybullet_data``."""
     if not 0 <= index < RANDOM_COUNT:
@@ -94,7 +106,7 @@ def random_spec(index: int) -> ObjectSpec:
         name=f"{RANDOM_PREFIX}{tag}",
         kind="urdf",
         source=f"{assets.PYBULLET_DATA_PREFIX}random_urdfs/{tag}/{tag}.urdf",
-        mass=0.1,
+        mass=RANDOM_MASS,
         friction=DEFAULT_FRICTION,
         description="procedurally generated object from pybullet_data/random_urdfs",
     )
@@ -109,8 +121,8 @@ def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = 
         spec = builtin[name]
         if scale is not None and spec.kind in ("mesh", "urdf"):
             spec = replace(spec, scale=spec.scale * scale)
-    elif name.startswith(RANDOM_PREFIX) and name[len(RANDOM_PREFIX):].isdigit():
-        spec = random_spec(int(name[len(RANDOM_PREFIX):]))
+    elif _random_index(name) is not None:
+        spec = random_spec(_random_index(name))  # type: ignore[arg-type]
     elif Path(name).suffix.lower() in MESH_SUFFIXES or Path(name).exists():
         path = Path(name).expanduser().resolve()
         spec = ObjectSpec(name=path.stem, kind="mesh", source=str(path), scale=scale or 1.0)

@@ -16,17 +16,16 @@ import json
 from dataclasses import asdict, dataclass, replace
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from planner.db.store import GraspRow
+from planner.geometry.frames import rotation_from_rotvec
 from planner.geometry.solid import PreparedObject
+from planner.grasp import Grasp, RobustEpsilon
 from planner.plan.closing import Closed, Grasper
 from planner.plan.unit import grasp_quality
 from planner.sim import Sim
 from planner.specs.hands import HandSpec
 from planner.specs.preshapes import load_preshapes
-
-MIN_FRICTION = 0.05
+from planner.validation.tolerances import MIN_FRICTION
 
 
 @dataclass(frozen=True)
@@ -44,22 +43,29 @@ class NoiseSettings:
         return json.dumps(asdict(self), sort_keys=True)
 
 
-@dataclass(frozen=True)
-class Robust:
-    mean: float
-    quantile: float
-    samples: np.ndarray  # (N,) epsilon of each sample
-
-
 def _jitter(rng: np.random.Generator, translation: float, rotation: float) -> np.ndarray:
     t = np.eye(4)
-    t[:3, :3] = Rotation.from_rotvec(rng.normal(0.0, rotation, 3)).as_matrix()
+    t[:3, :3] = rotation_from_rotvec(rng.normal(0.0, rotation, 3))
     t[:3, 3] = rng.normal(0.0, translation, 3)
     return t
 
 
-def robust_epsilon(hand: HandSpec, obj: PreparedObject, grasp: GraspRow, rng: np.random.Generator,
-                   settings: NoiseSettings | None = None, grasper: Grasper | None = None) -> Robust:
+def robust_epsilon(hand: HandSpec, obj: PreparedObject, grasp: Grasp, rng: np.random.Generator,
+                   settings: NoiseSettings | None = None) -> RobustEpsilon:
+    """Mean and low quantile of :func:`epsilon_samples`."""
+    s = settings or NoiseSettings()
+    return summarise(epsilon_samples(hand, obj, grasp, rng, s), s.quantile)
+
+
+def summarise(values: np.ndarray, quantile: float) -> RobustEpsilon:
+    """The mean and the ``quantile`` of (N,) epsilon samples."""
+    return RobustEpsilon(float(values.mean()), float(np.quantile(values, quantile)), len(values))
+
+
+def epsilon_samples(hand: HandSpec, obj: PreparedObject, grasp: Grasp, rng: np.random.Generator,
+                    settings: NoiseSettings | None = None) -> np.ndarray:
+    """(N,) epsilon of N noisy copies of ``grasp``, each re-closed (0 where the
+    hand does not close on the object)."""
     s = settings or NoiseSettings()
     shape = next(p for p in load_preshapes(hand) if p.name == grasp.preshape)
     pose = np.array(grasp.pose, float)
@@ -67,7 +73,7 @@ def robust_epsilon(hand: HandSpec, obj: PreparedObject, grasp: GraspRow, rng: np
     about_com[:3, 3] = obj.com
     values = np.zeros(s.samples)
     with Sim() as sim:
-        g = grasper or Grasper(sim, hand, sim.add_static_mesh(obj.mesh.vertices, obj.mesh.faces))
+        g = Grasper(sim, hand, sim.add_static_mesh(obj.mesh.vertices, obj.mesh.faces))
         for k in range(s.samples):
             hand_noise = _jitter(rng, s.grasp_translation, s.grasp_rotation)
             obj_noise = about_com @ _jitter(rng, s.object_translation, s.object_rotation) @ np.linalg.inv(about_com)
@@ -76,5 +82,5 @@ def robust_epsilon(hand: HandSpec, obj: PreparedObject, grasp: GraspRow, rng: np
             closed = g.close_at(noisy, shape)
             if isinstance(closed, Closed):
                 noisy_obj = replace(obj, spec=replace(obj.spec, friction=mu))
-                values[k] = grasp_quality(closed, noisy_obj, s.cone_edges).epsilon
-    return Robust(float(values.mean()), float(np.quantile(values, s.quantile)), values)
+                values[k] = grasp_quality(closed.contacts, hand, noisy_obj, s.cone_edges).epsilon
+    return values

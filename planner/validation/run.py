@@ -15,27 +15,31 @@ import numpy as np
 
 from planner.db.lock import writer_lock
 from planner.db.ranking import RankingRule
-from planner.db.store import Database, GraspRow, open_db
-from planner.db.writer import rescore
+from planner.db.store import Database, Validated, open_db
 from planner.errors import InputError, PlannerError
 from planner.geometry.solid import PreparedObject, load_object
+from planner.grasp import Grasp, RobustEpsilon, Trial
 from planner.specs.hands import load_hand
-from planner.specs.objects import RANDOM_PREFIX, builtin_specs
-from planner.validation.robust import NoiseSettings, Robust, robust_epsilon
-from planner.validation.shake import TrialResult, TrialSettings, trial
+from planner.specs.objects import is_registered
+from planner.validation.robust import NoiseSettings, robust_epsilon
+from planner.validation.shake import TrialSettings, trial
 
 log = logging.getLogger(__name__)
 
-BATCH = 8  # grasps per worker task
+#: Grasps per worker task: enough to amortise loading the object and its
+#: convex parts in the worker, few enough to spread over the workers.
+BATCH = 8
 
 
 @dataclass(frozen=True)
 class Task:
+    """Grasps of one object and hand for one worker, and how to test them."""
+
     object: str
     source: str
     scale: float
     hand: str
-    grasps: tuple[GraspRow, ...]
+    grasps: tuple[Grasp, ...]
     seed: int
     trial: TrialSettings
     noise: NoiseSettings | None
@@ -44,15 +48,14 @@ class Task:
 @dataclass
 class TaskResult:
     task: Task
-    trials: list[TrialResult] = field(default_factory=list)
-    robust: list[Robust | None] = field(default_factory=list)
+    trials: list[Trial] = field(default_factory=list)
+    robust: list[RobustEpsilon | None] = field(default_factory=list)
     error: str | None = None
 
 
 def stored_object(name: str, source: str, scale: float) -> PreparedObject:
     """A stored object: built-in names resolve directly, mesh files by path."""
-    builtin = name in builtin_specs() or name.startswith(RANDOM_PREFIX)
-    return load_object(name) if builtin else load_object(source, scale=scale, label=name)
+    return load_object(name) if is_registered(name) else load_object(source, scale=scale, label=name)
 
 
 def run_task(task: Task) -> TaskResult:
@@ -76,20 +79,20 @@ def run_task(task: Task) -> TaskResult:
 
 def plan(db: Database, objects: list[str] | None, hands: list[str] | None, top: int, seed: int,
          trial_settings: TrialSettings, noise: NoiseSettings | None) -> list[Task]:
-    pairs = db.conn.execute("SELECT DISTINCT g.object, g.hand, o.source, o.scale FROM grasps g "
-                            "JOIN objects o ON o.name = g.object ORDER BY g.object, g.hand").fetchall()
-    known = {(p[0], p[1]) for p in pairs}
+    stored = {pair: db.object_row(pair[0]) for pair in db.pairs()}
+    pairs = {pair: row for pair, row in stored.items() if row is not None}
+    known = sorted({obj for obj, _ in pairs})
     for name in objects or []:
-        if name not in {p[0] for p in known}:
-            raise InputError(f"no grasps of object '{name}' in {db.path}; objects: "
-                             f"{', '.join(sorted({p[0] for p in known})) or '(none)'}")
+        if name not in known:
+            raise InputError(f"no grasps of object '{name}' in {db.path}; objects: {', '.join(known) or '(none)'}")
     tasks = []
-    for obj, hand, source, scale in pairs:
+    for (obj, hand), row in pairs.items():
         if (objects and obj not in objects) or (hands and hand not in hands):
             continue
-        rows = [r for r in db.best(obj, hand, top) if r.force_closure]
-        for i in range(0, len(rows), BATCH):
-            tasks.append(Task(obj, source, scale, hand, tuple(rows[i:i + BATCH]), seed, trial_settings, noise))
+        grasps = [g for g in db.best(obj, hand, top) if g.force_closure]
+        for i in range(0, len(grasps), BATCH):
+            tasks.append(Task(obj, row.source, row.scale, hand, tuple(grasps[i:i + BATCH]), seed, trial_settings,
+                              noise))
     return tasks
 
 
@@ -105,18 +108,10 @@ def execute(tasks: list[Task], workers: int) -> Iterator[TaskResult]:
 
 def write(db: Database, result: TaskResult, rule: RankingRule) -> None:
     task = result.task
-    with db.transaction() as conn:
-        for g, t, r in zip(task.grasps, result.trials, result.robust):
-            conn.execute(
-                "INSERT OR REPLACE INTO validation (grasp_id, success, fingers_in_contact, closing_linear,"
-                " closing_angular, shaking_linear, shaking_angular, seed, settings) VALUES (?,?,?,?,?,?,?,?,?)",
-                (g.id, int(t.success), t.fingers_in_contact, t.closing_linear, t.closing_angular, t.shaking_linear,
-                 t.shaking_angular, task.seed, task.trial.to_json()))
-            if r is not None and task.noise is not None:
-                conn.execute("INSERT OR REPLACE INTO robust (grasp_id, mean, quantile, samples, seed, settings)"
-                             " VALUES (?,?,?,?,?,?)", (g.id, r.mean, r.quantile, len(r.samples), task.seed,
-                                                       task.noise.to_json()))
-        rescore(conn, rule, task.object, task.hand)
+    noise = task.noise.to_json() if task.noise is not None else ""
+    db.write_validation(task.object, task.hand, [
+        Validated(g.id, t, r, task.seed, task.trial.to_json(), noise)  # type: ignore[arg-type]
+        for g, t, r in zip(task.grasps, result.trials, result.robust)], rule)
 
 
 @dataclass
@@ -138,7 +133,7 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
     noise = NoiseSettings(samples=robust_samples) if robust_samples > 0 else None
     summary = ValidationSummary()
     with writer_lock(Path(db_path)), open_db(Path(db_path), create=False) as db:
-        rule = RankingRule.from_json(db.meta("ranking"))
+        rule = db.rule()
         tasks = plan(db, objects, hands, top, seed, trial_settings, noise)
         if progress:
             progress(0, len(tasks))
@@ -151,8 +146,7 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
                 summary.successes += sum(t.success for t in result.trials)
             if progress:
                 progress(done, len(tasks))
-        with db.transaction() as conn:
-            db.set_meta(conn, "validation_settings", json.dumps(
-                {"trial": json.loads(trial_settings.to_json()), "noise": json.loads(noise.to_json()) if noise
-                 else None, "seed": seed}))
+        db.set_meta("validation_settings", json.dumps(
+            {"trial": json.loads(trial_settings.to_json()), "noise": json.loads(noise.to_json()) if noise else None,
+             "seed": seed}))
     return summary

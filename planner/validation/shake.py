@@ -23,16 +23,14 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from planner.db.store import GraspRow
 from planner.geometry.decompose import convex_parts
-from planner.geometry.frames import angle_between
+from planner.geometry.frames import angle_between, rotation_from_rotvec
 from planner.geometry.solid import PreparedObject
+from planner.grasp import Grasp, Trial
 from planner.sim import Sim
 from planner.sim.dynamics import Dynamics
 from planner.specs.hands import HandSpec
-
-GRAVITY = 9.81  # [m/s^2]
-DIRECTIONS = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+from planner.validation.tolerances import FINAL_HOLD, GRAVITY, RAD_PER_M, TUG_DIRECTIONS
 
 
 @dataclass(frozen=True)
@@ -62,18 +60,8 @@ class TrialSettings:
         return json.dumps(asdict(self), sort_keys=True)
 
 
-@dataclass(frozen=True)
-class TrialResult:
-    success: bool
-    fingers_in_contact: int
-    closing_linear: float  # [m] object motion in the world while the fingers closed
-    closing_angular: float  # [rad]
-    shaking_linear: float  # [m] object motion relative to the hand during tugs and shaking
-    shaking_angular: float  # [rad]
-
-
-def trial(hand: HandSpec, obj: PreparedObject, grasp: GraspRow, settings: TrialSettings | None = None,
-          friction: float | None = None, mass: float | None = None) -> TrialResult:
+def trial(hand: HandSpec, obj: PreparedObject, grasp: Grasp, settings: TrialSettings | None = None,
+          friction: float | None = None, mass: float | None = None) -> Trial:
     """Run one trial. ``friction``/``mass`` override the object's (tests)."""
     s = settings or TrialSettings()
     parts = convex_parts(obj.mesh, obj.mesh_hash)
@@ -100,12 +88,12 @@ def trial(hand: HandSpec, obj: PreparedObject, grasp: GraspRow, settings: TrialS
         hand_pose = sim.link_pose(body, hand.root_link)
         rel0 = np.linalg.inv(hand_pose) @ dyn.object_pose(uid)
         weight = m * GRAVITY
-        for direction in DIRECTIONS:
+        for direction in TUG_DIRECTIONS:
             _run(dyn, s.tug_time, lambda d=direction: dyn.push(uid, weight * d))
         for axis in range(6):
-            _shake(dyn, cid, pose, axis, s, lambda: dyn.push(uid, weight * DIRECTIONS[5]))
+            _shake(dyn, cid, pose, axis, s, lambda: dyn.push(uid, weight * TUG_DIRECTIONS[5]))
         dyn.move_hold(cid, pose, s.hold_force)
-        _run(dyn, 0.1, lambda: dyn.push(uid, weight * DIRECTIONS[5]))
+        _run(dyn, FINAL_HOLD, lambda: dyn.push(uid, weight * TUG_DIRECTIONS[5]))
         hand_pose = sim.link_pose(body, hand.root_link)
         rel1 = np.linalg.inv(hand_pose) @ dyn.object_pose(uid)
         root = body.links[hand.root_link]
@@ -113,7 +101,7 @@ def trial(hand: HandSpec, obj: PreparedObject, grasp: GraspRow, settings: TrialS
     lin = float(np.linalg.norm(rel1[:3, 3] - rel0[:3, 3]))
     ang = angle_between(rel0[:3, :3], rel1[:3, :3])
     ok = fingers >= s.min_fingers and lin < s.max_translation and ang < s.max_rotation
-    return TrialResult(bool(ok), fingers, closing_lin, closing_ang, lin, ang)
+    return Trial(bool(ok), fingers, closing_lin, closing_ang, lin, ang)
 
 
 def _clear(dyn: Dynamics, sim: Sim, body, uid: int, pose: np.ndarray, approach: np.ndarray,  # type: ignore[no-untyped-def]
@@ -132,7 +120,7 @@ def _clear(dyn: Dynamics, sim: Sim, body, uid: int, pose: np.ndarray, approach: 
     return pose
 
 
-def _start(hand: HandSpec, grasp: GraspRow, opening: float) -> dict[str, float]:
+def _start(hand: HandSpec, grasp: Grasp, opening: float) -> dict[str, float]:
     """The fingers just short of the planned grasp: the closed values moved back
     towards the open preshape by ``opening`` (m, or 10x that in rad), so the
     trial tests holding the grasp, not a long swing that knocks the object."""
@@ -140,19 +128,19 @@ def _start(hand: HandSpec, grasp: GraspRow, opening: float) -> dict[str, float]:
     for joint in hand.joints:
         closed = grasp.closed_joints.get(joint.name, joint.lower)
         opened = grasp.open_joints.get(joint.name, closed)
-        step = opening * (10.0 if joint.kind == "revolute" else 1.0)
+        step = opening * (RAD_PER_M if joint.kind == "revolute" else 1.0)
         out[joint.name] = float(closed + np.clip(opened - closed, -step, step))
     return out
 
 
-def _squeezed(hand: HandSpec, grasp: GraspRow, squeeze: float) -> dict[str, float]:
+def _squeezed(hand: HandSpec, grasp: Grasp, squeeze: float) -> dict[str, float]:
     """Closed joint values pushed further along the closing direction, in limits."""
     out = {}
     for joint in hand.joints:
         rate = joint.close
         if joint.mimic is not None:
             rate = hand.joint(joint.mimic).close * joint.multiplier
-        step = squeeze * (10.0 if joint.kind == "revolute" else 1.0) * float(np.sign(rate))
+        step = squeeze * (RAD_PER_M if joint.kind == "revolute" else 1.0) * float(np.sign(rate))
         value = grasp.closed_joints.get(joint.name, joint.lower) + step
         out[joint.name] = float(np.clip(value, joint.lower, joint.upper))
     return out
@@ -166,8 +154,6 @@ def _run(dyn: Dynamics, seconds: float, each_step=None) -> None:  # type: ignore
 
 
 def _shake(dyn: Dynamics, cid: int, pose: np.ndarray, axis: int, s: TrialSettings, each_step) -> None:  # type: ignore[no-untyped-def]
-    from scipy.spatial.transform import Rotation
-
     steps = max(1, int(round(s.shake_time / dyn.dt)))
     for k in range(steps):
         phase = np.sin(2 * np.pi * s.shake_frequency * k * dyn.dt)
@@ -175,7 +161,7 @@ def _shake(dyn: Dynamics, cid: int, pose: np.ndarray, axis: int, s: TrialSetting
         if axis < 3:
             moved[:3, 3] += pose[:3, axis] * s.shake_amplitude * phase
         else:
-            turn = Rotation.from_rotvec(pose[:3, axis - 3] * s.shake_angle * phase).as_matrix()
+            turn = rotation_from_rotvec(pose[:3, axis - 3] * s.shake_angle * phase)
             moved[:3, :3] = turn @ pose[:3, :3]
         dyn.move_hold(cid, moved, s.hold_force)
         each_step()

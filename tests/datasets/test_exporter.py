@@ -16,19 +16,16 @@ from helpers import assert_close
 
 import planner.cli
 from planner import api
-from planner.cli.data import register
-from planner.datasets import source
+from planner.datasets import exporter
 from planner.datasets.table import COLUMNS, COLUMNS_DOC
+from planner.db import store
 from planner.db.ranking import RankingRule
 from planner.db.store import open_db
-from planner.db.writer import apply_rule
 from planner.geometry.solid import load_object
 from planner.plan.sweep import SweepSettings
 
 h5py = pytest.importorskip("h5py")
 pq = pytest.importorskip("pyarrow.parquet")
-
-register(planner.cli.main)
 
 #: The database keeps poses to 7 decimals; rebuilding one from Euler angles
 #: re-orthonormalises the rounded rotation, which moves it by about that much.
@@ -61,7 +58,7 @@ def db(tmp_path_factory: pytest.TempPathFactory) -> Path:
             conn.execute("INSERT INTO validation VALUES (?, ?, 2, 0.001, 0.01, 0.002, 0.02, 0, '{}')", (gid, success))
             conn.execute("INSERT INTO robust VALUES (?, 0.05, 0.02, 25, 0, '{}')", (gid,))
     with open_db(path) as handle:  # a rule under which the fake validation leaves the ranking as it was
-        apply_rule(handle, SAME_ORDER_RULE, force=True)
+        handle.apply_rule(SAME_ORDER_RULE, force=True)
     return path
 
 
@@ -91,7 +88,7 @@ def test_acronym_round_trip_is_lossless(db: Path, tmp_path: Path) -> None:
     assert [f.name for f in files] == ["box__panda.h5", "sphere__panda.h5"]
     fresh = tmp_path / "fresh.db"
     with open_db(fresh) as handle:  # the same ranking rule, so the same scores
-        apply_rule(handle, SAME_ORDER_RULE)
+        handle.apply_rule(SAME_ORDER_RULE)
     code, _, err = run("import", "--format", "acronym", *map(str, files), "--db", str(fresh))
     assert code == 0, err
     for obj in ("box", "sphere"):
@@ -289,9 +286,9 @@ def read_all(path: Path) -> object:
 def test_export_streams_in_batches(db: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     expected = {fmt: {p.name: read_all(p) for p in export(db, fmt, tmp_path / fmt).iterdir()} for fmt in FORMATS}
     sizes: list[int] = []
-    decode = source._decode
-    monkeypatch.setattr(source, "BATCH_SIZE", 2)
-    monkeypatch.setattr(source, "_decode", lambda rows: sizes.append(len(rows)) or decode(rows))
+    decode = store._grasps
+    monkeypatch.setattr(exporter, "BATCH_SIZE", 2)
+    monkeypatch.setattr(store, "_grasps", lambda rows: sizes.append(len(rows)) or decode(rows))
     for fmt in FORMATS:
         got = {p.name: read_all(p) for p in export(db, fmt, tmp_path / f"{fmt}-2").iterdir()}
         assert got.keys() == expected[fmt].keys()

@@ -6,8 +6,8 @@ import pytest
 from planner import api
 from planner.db.lock import writer_lock
 from planner.db.ranking import RankingRule
-from planner.db.store import SCHEMA_VERSION, open_db
-from planner.db.writer import apply_rule
+from planner.db.schema import SCHEMA_VERSION
+from planner.db.store import open_db
 from planner.errors import DatabaseError
 from planner.plan.sweep import SweepSettings
 
@@ -46,8 +46,8 @@ def test_changing_the_rule_rescores_everything(box_db: Path, tmp_path: Path) -> 
     copy = tmp_path / "copy.db"
     shutil.copy(box_db, copy)
     with open_db(copy) as db:
-        assert apply_rule(db, RankingRule(reach_weight=0.0))
-        assert not apply_rule(db, RankingRule(reach_weight=0.0))
+        assert db.apply_rule(RankingRule(reach_weight=0.0))
+        assert not db.apply_rule(RankingRule(reach_weight=0.0))
     got = rows(copy)
     assert all(score == pytest.approx(eps if fc else 0.0) for *_, eps, _r, score, _reach, fc in got)
     by_rank = sorted(got, key=lambda r: r[5])

@@ -10,8 +10,9 @@ from planner import api
 from planner.cli import main
 from planner.geometry.frames import angle_between, pose_from_xyzquat
 from planner.geometry.solid import load_object
-from planner.plan.reach import ANGLE_TOL, POSITION_TOL, ReachScene, ReachSettings
+from planner.plan.reach import ReachScene, ReachSettings
 from planner.plan.sweep import SweepSettings
+from planner.plan.tolerances import ANGLE_TOL, POSITION_TOL
 from planner.plan.unit import UnitSpec, add_reachability, run_unit
 from planner.sim import Sim
 from planner.specs.hands import load_hand

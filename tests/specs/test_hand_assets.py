@@ -127,7 +127,7 @@ def _first_force_closure(grasper, shapes, rays, obj, finger_of, multi):  # type:
                 touching = {finger_of[link] for link in closed.contacts.links if link in finger_of}
                 if multi and len(touching) < 2:
                     continue
-                if grasp_quality(closed, obj, CONE_EDGES).force_closure:
+                if grasp_quality(closed.contacts, grasper.hand, obj, CONE_EDGES).force_closure:
                     return closed
     return None
 

@@ -1,0 +1,81 @@
+"""The ``grasp`` command group: one-line errors with exit codes, and the
+option helpers the commands share."""
+
+from __future__ import annotations
+
+import logging
+import sqlite3
+import sys
+from pathlib import Path
+
+import click
+
+from planner import api
+from planner.errors import DatabaseError, InputError, PlannerError
+
+#: Exit codes besides the errors' own (``PlannerError.exit_code``: 2 bad
+#: input, 3 database, 4 simulator).
+EXIT_OTHER = 1  # anything else: an internal error, or nothing found
+EXIT_INTERRUPTED = 130
+
+
+class Group(click.Group):
+    """Maps every error to a one-line message and an exit code."""
+
+    def invoke(self, ctx: click.Context) -> object:
+        debug = "--debug" in sys.argv[1:] or (ctx.params or {}).get("debug", False)
+        try:
+            return super().invoke(ctx)
+        except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
+            raise
+        except PlannerError as exc:
+            if debug:
+                raise
+            click.echo(f"grasp: error: {exc}", err=True)
+            ctx.exit(exc.exit_code)
+        except sqlite3.Error as exc:
+            if debug:
+                raise
+            click.echo(f"grasp: error: database: {exc}", err=True)
+            ctx.exit(DatabaseError.exit_code)
+        except KeyboardInterrupt:
+            click.echo("grasp: interrupted; finished units are saved, run the same command to resume", err=True)
+            ctx.exit(EXIT_INTERRUPTED)
+        except Exception as exc:
+            if debug:
+                raise
+            click.echo(f"grasp: internal error: {type(exc).__name__}: {exc} (rerun with --debug for details)",
+                       err=True)
+            ctx.exit(EXIT_OTHER)
+        return None
+
+
+@click.group(cls=Group)
+@click.option("--debug", is_flag=True, help="Show tracebacks and debug logging.")
+@click.version_option(package_name="grasp-planner")
+def main(debug: bool) -> None:
+    """Knowledge-based grasp planner: build, query and export grasp databases."""
+    logging.basicConfig(level=logging.DEBUG if debug else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+
+
+#: ``--db`` of every command that reads or writes a database.
+db_option = click.option("--db", "db_path", type=click.Path(path_type=Path), default=api.DEFAULT_DB,
+                         show_default=True)
+
+
+def floats(text: str | None) -> tuple[float, ...] | None:
+    """A comma-separated list of numbers (None stays None)."""
+    if text is None:
+        return None
+    try:
+        return tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise click.BadParameter(f"'{text}' is not a comma-separated list of numbers") from None
+
+
+def report_failures(failed: dict[str, str]) -> None:
+    """One ``grasp: error:`` line per failed object or task; exit 2 (bad input) if any."""
+    for name, error in failed.items():
+        click.echo(f"grasp: error: {name}: {error}", err=True)
+    if failed:
+        sys.exit(InputError.exit_code)

@@ -1,0 +1,106 @@
+"""``grasp generate``: sweep objects for a hand into a database, with a progress bar."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import click
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+from rich.table import Table
+
+from planner import api
+from planner.cli.app import db_option, floats, report_failures
+
+DEFAULTS = api.SweepSettings()
+
+
+@click.command()
+@click.argument("names", metavar="OBJECT...", nargs=-1, required=True)
+@click.option("--hand", required=True, help="Hand name (see `grasp hands`).")
+@db_option
+@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--approaches", type=int, default=DEFAULTS.approaches, show_default=True,
+              help="Approach rays per object (surface sampler).")
+@click.option("--sampler", type=click.Choice(["surface", "box"]), default="surface", show_default=True)
+@click.option("--box-delta", type=float, default=DEFAULTS.box_delta, show_default=True,
+              help="Grid spacing of the box sampler [m].")
+@click.option("--rolls", type=int, default=DEFAULTS.rolls, show_default=True)
+@click.option("--fan", "fan_count", type=int, default=0, show_default=True, help="Tilted directions per ray.")
+@click.option("--standoffs", help="Comma-separated standoffs [m] (default: each preshape's).")
+@click.option("--preshapes", "preshape_names", help="Comma-separated preshape names (default: all).")
+@click.option("--scale", type=float, help="Scale for mesh files (e.g. 0.001 for millimetres).")
+@click.option("--workers", type=int, default=api.default_workers(), show_default="all cores",
+              help="Worker processes.")
+@click.option("--ray", "ray_target", is_flag=False, flag_value="local", default=None, metavar="[ADDRESS]",
+              help="Run on Ray: a cluster address (e.g. ray://head:10001 or auto), or no value for a local "
+                   "Ray instance with --workers CPUs. Needs pip install -e '.[ray]'.")
+@click.option("--unit-timeout", type=float, help="Give up on a unit of work after this many seconds.")
+@click.option("--chunk", type=int, default=DEFAULTS.chunk, show_default=True,
+              help="Approach rays per unit of work (0: one unit per object).")
+@click.option("--reach-placements", type=int, default=DEFAULTS.reach_placements, show_default=True,
+              help="Table placements for the stored reachability score (0: skip).")
+@click.option("--reach-weight", type=float, help="Weight of reachability in the score, 0..1 (default: the "
+              "database's rule, else 0.5).")
+@click.option("--quiet", is_flag=True, help="No progress bar and no summary table.")
+@click.option("--json", "as_json", is_flag=True, help="Print a machine-readable summary.")
+def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approaches: int, sampler: str,
+             box_delta: float, rolls: int, fan_count: int, standoffs: str | None, preshape_names: str | None,
+             scale: float | None, workers: int, ray_target: str | None, unit_timeout: float | None, chunk: int,
+             reach_placements: int, reach_weight: float | None, quiet: bool, as_json: bool) -> None:
+    """Sweep preshapes x approaches x rolls x standoffs and store the grasps.
+
+    OBJECT: a built-in name, random_NNN, a mesh file, a folder, a glob,
+    @manifest.txt (one object per line, optional scale), builtin:all,
+    builtin:random[:COUNT | :FIRST-LAST].
+    """
+    settings = api.SweepSettings(approaches=approaches, sampler=sampler, box_delta=box_delta, rolls=rolls,
+                                 fan_count=fan_count, standoffs=floats(standoffs), chunk=chunk,
+                                 reach_placements=reach_placements,
+                                 preshapes=tuple(preshape_names.split(",")) if preshape_names else None)
+    show = not quiet and not as_json
+    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total} units"),
+                  TextColumn("{task.fields[grasps]} grasps, {task.fields[fc]} force-closure, {task.fields[rate]}"),
+                  TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), disable=not show) as bar:
+        task = bar.add_task("generating", total=None, grasps=0, fc=0, rate="")
+        counts = {"grasps": 0, "fc": 0, "candidates": 0}
+        started = time.perf_counter()
+
+        def advance(result: api.UnitResult | None, done: int, total: int) -> None:
+            if result is None:
+                bar.update(task, total=total)
+                return
+            counts["grasps"] += len(result.grasps)
+            counts["fc"] += result.force_closure
+            counts["candidates"] += result.candidates
+            rate = counts["candidates"] / max(time.perf_counter() - started, 1e-9)
+            bar.update(task, completed=done, grasps=counts["grasps"], fc=counts["fc"], rate=f"{rate:.0f} cand/s")
+
+        rule = api.RankingRule(reach_weight) if reach_weight is not None else None
+        summary = api.generate(names, hand, db_path=db_path, settings=settings, seed=seed, workers=workers,
+                               scale=scale, rule=rule, progress=advance, use_ray=ray_target is not None,
+                               ray_address=None if ray_target in (None, "local") else ray_target,
+                               unit_timeout=unit_timeout)
+    if as_json:
+        click.echo(json.dumps(summary.to_json(), indent=2))
+    elif not quiet:
+        _print_summary(summary, db_path)
+    report_failures(summary.failed)
+
+
+def _print_summary(summary: api.Summary, db_path: Path) -> None:
+    table = Table(title=f"grasp generate -> {db_path}")
+    for col in ("object", "units", "candidates", "grasps", "force-closure", "worker s", "error"):
+        table.add_column(col)
+    for row in summary.per_object:
+        table.add_row(row["object"], str(row["units"]), str(row["candidates"]), str(row["grasps"]),
+                      str(row["force_closure"]), f"{row['seconds']:.1f}", row["error"] or "")
+    console = Console()
+    console.print(table)
+    console.print(f"candidates tried: {summary.candidates}, grasps with contacts: {summary.grasps}, "
+                  f"force-closure: {summary.force_closure}, skipped (already done): {summary.skipped}, "
+                  f"time: {summary.seconds:.1f} s")
+    if summary.rejected:
+        console.print("rejected: " + ", ".join(f"{k} {v}" for k, v in sorted(summary.rejected.items())))

@@ -1,0 +1,59 @@
+"""``grasp hands``, ``grasp objects`` and ``grasp db check``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from planner import api
+from planner.cli.app import db_option
+from planner.errors import PlannerError
+
+
+@click.command(name="hands")
+@click.argument("name", required=False)
+def hands(name: str | None) -> None:
+    """List the built-in hands, or show one in detail."""
+    if name is None:
+        for spec, shapes in api.hands():
+            click.echo(f"{spec.name:12s} {len(spec.joints):2d} finger joints  preshapes: "
+                       f"{', '.join(s.name for s in shapes)}  - {spec.description}")
+        return
+    spec, shapes = api.hand(name)
+    click.echo(f"{spec.name}: {spec.description}\n  urdf: {spec.urdf}\n  root link: {spec.root_link}\n"
+               f"  approach: {spec.approach.tolist()}  tcp: {spec.tcp.tolist()} m\n"
+               f"  contact links: {', '.join(spec.contact_links)}")
+    for j in spec.joints:
+        extra = f" mimics {j.mimic} x{j.multiplier}" if j.mimic else f" close rate {j.close}"
+        click.echo(f"  joint {j.name} ({j.kind}) [{j.lower}, {j.upper}]{extra}")
+    for s in shapes:
+        click.echo(f"  preshape {s.name} tags={','.join(s.tags)} '{s.taxonomy}' standoffs={list(s.standoffs)}")
+
+
+@click.command(name="objects")
+def objects() -> None:
+    """List the built-in objects."""
+    for name, spec in api.objects().items():
+        click.echo(f"{name:10s} {spec.kind:8s} mass {spec.mass:.3f} kg  friction {spec.friction:.2f}  "
+                   f"- {spec.description}")
+    last = f"{api.RANDOM_COUNT - 1:03d}"
+    click.echo(f"{api.RANDOM_PREFIX}000 .. {api.RANDOM_PREFIX}{last}  the procedurally generated objects "
+               "of pybullet_data/random_urdfs")
+
+
+@click.group()
+def db() -> None:
+    """Database maintenance."""
+
+
+@db.command()
+@db_option
+def check(db_path: Path) -> None:
+    """Run SQLite's integrity check on the database."""
+    problems = api.check_db(db_path)
+    if problems:
+        for p in problems:
+            click.echo(p, err=True)
+        raise PlannerError(f"{db_path}: integrity check failed ({len(problems)} problems)")
+    click.echo(f"{db_path}: ok")

@@ -1,0 +1,44 @@
+"""``grasp validate`` and ``grasp report``: physical validation and how well
+the scores predict it."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+
+from planner import api
+from planner.cli.app import db_option, report_failures
+
+
+@click.command()
+@db_option
+@click.option("--object", "objects", multiple=True, help="Only these objects (repeat).")
+@click.option("--hand", "hands", multiple=True, help="Only these hands (repeat).")
+@click.option("--top", type=int, default=10, show_default=True, help="Validate each object's K best grasps.")
+@click.option("--robust", "robust_samples", type=int, default=10, show_default=True,
+              help="Noise samples for robust epsilon (0: skip).")
+@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--workers", type=int, default=api.default_workers(), show_default="all cores")
+@click.option("--json", "as_json", is_flag=True)
+def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], top: int, robust_samples: int,
+             seed: int, workers: int, as_json: bool) -> None:
+    """Shake-test the best grasps in PyBullet, add robust epsilon, re-rank."""
+    summary = api.validate(db_path, objects=list(objects) or None, hands=list(hands) or None, top=top,
+                           robust_samples=robust_samples, seed=seed, workers=workers)
+    if as_json:
+        click.echo(json.dumps(summary.to_json(), indent=2))
+    else:
+        click.echo(f"validated {summary.grasps} grasps: {summary.successes} held "
+                   f"({summary.successes / max(summary.grasps, 1):.0%})")
+    report_failures(summary.failed_tasks)
+
+
+@click.command()
+@db_option
+@click.option("--out", type=click.Path(path_type=Path), default=Path("report.html"), show_default=True,
+              help="report.html (one self-contained file) or a folder (report.md + PNGs).")
+def report(db_path: Path, out: Path) -> None:
+    """How well epsilon, robust epsilon and reachability predict simulated success."""
+    click.echo(str(api.report(db_path, out)))

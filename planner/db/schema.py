@@ -1,0 +1,143 @@
+"""The database schema and its migrations, in one place.
+
+Tables (the README lists every column):
+
+- ``meta``: key/value -- schema version, ranking rule (JSON), validation settings.
+- ``objects``: one row per object name: source, scale, mesh hash, mass
+  properties, friction, torque scale.
+- ``units``: one row per unit of work (object, hand, settings hash, seed, chunk);
+  a unit's grasps are written in the same transaction that marks it done, so
+  an interrupted run leaves either all of a unit or none of it.
+- ``grasps``: one row per evaluated grasp (a hand that closed on the object
+  with contacts), with its pose, joints, contacts, quality, score and rank.
+- ``validation`` (v2): the dynamic PyBullet trial of a grasp.
+- ``robust`` (v2): robust epsilon under pose and friction noise.
+
+No pickle: arrays are JSON text. A new database runs :data:`SCHEMA` (version
+1) and then every migration; a newer schema is refused politely; an older one
+is migrated after a backup copy is written next to the file.
+"""
+
+from __future__ import annotations
+
+import logging
+import shutil
+import sqlite3
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from planner.errors import DatabaseError
+
+log = logging.getLogger(__name__)
+
+SCHEMA_VERSION = 2
+
+SCHEMA = """
+CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS objects (
+    name TEXT PRIMARY KEY, source TEXT NOT NULL, scale REAL NOT NULL, mesh_sha256 TEXT NOT NULL,
+    mass REAL NOT NULL, friction REAL NOT NULL, density REAL NOT NULL, volume REAL NOT NULL,
+    com TEXT NOT NULL, inertia TEXT NOT NULL, torque_scale REAL NOT NULL, extents TEXT NOT NULL
+);
+CREATE TABLE IF NOT EXISTS units (
+    id INTEGER PRIMARY KEY, object TEXT NOT NULL, hand TEXT NOT NULL, settings_hash TEXT NOT NULL,
+    seed INTEGER NOT NULL, chunk INTEGER NOT NULL, settings TEXT NOT NULL, status TEXT NOT NULL, error TEXT,
+    candidates INTEGER NOT NULL DEFAULT 0, grasps INTEGER NOT NULL DEFAULT 0,
+    force_closure INTEGER NOT NULL DEFAULT 0, rejected TEXT, seconds REAL, finished_at TEXT,
+    UNIQUE (object, hand, settings_hash, seed, chunk)
+);
+CREATE TABLE IF NOT EXISTS grasps (
+    id INTEGER PRIMARY KEY, unit_id INTEGER NOT NULL REFERENCES units(id) ON DELETE CASCADE,
+    object TEXT NOT NULL, hand TEXT NOT NULL, preshape TEXT NOT NULL, candidate INTEGER NOT NULL,
+    approach_point TEXT NOT NULL, approach_dir TEXT NOT NULL, roll REAL NOT NULL, standoff REAL NOT NULL,
+    pose TEXT NOT NULL, open_joints TEXT NOT NULL, closed_joints TEXT NOT NULL, width REAL,
+    contacts TEXT NOT NULL, n_contacts INTEGER NOT NULL, links_touching INTEGER NOT NULL,
+    epsilon REAL NOT NULL, volume REAL NOT NULL, force_closure INTEGER NOT NULL,
+    reachability REAL, manipulability REAL,
+    seed INTEGER NOT NULL, score REAL NOT NULL, rank INTEGER,
+    UNIQUE (unit_id, candidate)
+);
+CREATE INDEX IF NOT EXISTS grasps_rank ON grasps (object, hand, rank);
+"""
+
+#: from version -> SQL bringing it to version + 1.
+MIGRATIONS: dict[int, str] = {
+    1: """
+CREATE TABLE IF NOT EXISTS validation (
+    grasp_id INTEGER PRIMARY KEY REFERENCES grasps(id) ON DELETE CASCADE,
+    success INTEGER NOT NULL, fingers_in_contact INTEGER NOT NULL,
+    closing_linear REAL NOT NULL, closing_angular REAL NOT NULL,
+    shaking_linear REAL NOT NULL, shaking_angular REAL NOT NULL,
+    seed INTEGER NOT NULL, settings TEXT NOT NULL
+);
+CREATE TABLE IF NOT EXISTS robust (
+    grasp_id INTEGER PRIMARY KEY REFERENCES grasps(id) ON DELETE CASCADE,
+    mean REAL NOT NULL, quantile REAL NOT NULL, samples INTEGER NOT NULL,
+    seed INTEGER NOT NULL, settings TEXT NOT NULL
+)
+""",
+}
+
+#: Stand-ins for the version-2 tables when a version-1 file is read (opened
+#: read-only, so it is not migrated): they have the columns and no rows.
+EMPTY_V2_TABLES = {
+    "validation": "(SELECT NULL AS grasp_id, NULL AS success, NULL AS fingers_in_contact, NULL AS closing_linear,"
+                  " NULL AS closing_angular, NULL AS shaking_linear, NULL AS shaking_angular WHERE 0)",
+    "robust": "(SELECT NULL AS grasp_id, NULL AS mean, NULL AS quantile, NULL AS samples WHERE 0)",
+}
+
+
+def schema_version(conn: sqlite3.Connection, path: Path) -> int:
+    """The file's schema version; 0 for an empty file; a foreign database is refused."""
+    has_meta = conn.execute("SELECT name FROM sqlite_master WHERE type = 'table' AND name = 'meta'").fetchone()
+    if not has_meta:
+        tables = conn.execute("SELECT COUNT(*) AS n FROM sqlite_master WHERE type = 'table'").fetchone()["n"]
+        if tables:
+            raise DatabaseError(f"{path}: an SQLite file, but not a grasp database; pick another --db path")
+        return 0
+    row = conn.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
+    return int(row["value"]) if row else 0
+
+
+def table_names(conn: sqlite3.Connection) -> set[str]:
+    return {r["name"] for r in conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+
+
+@contextmanager
+def transaction(conn: sqlite3.Connection, path: Path) -> Iterator[sqlite3.Connection]:
+    """One atomic write; ``BEGIN IMMEDIATE`` takes the write lock up front.
+    SQLite errors become one :class:`DatabaseError` saying nothing changed."""
+    try:
+        conn.execute("BEGIN IMMEDIATE")
+    except sqlite3.OperationalError as exc:
+        raise DatabaseError(f"{path}: database is locked by another writer ({exc})") from exc
+    try:
+        yield conn
+        conn.execute("COMMIT")
+    except BaseException as exc:
+        if conn.in_transaction:
+            conn.execute("ROLLBACK")
+        if isinstance(exc, sqlite3.Error):
+            raise DatabaseError(f"{path}: write failed, nothing was changed ({exc}); "
+                                "is the file read-only or the disk full?") from exc
+        raise
+
+
+def migrate(conn: sqlite3.Connection, path: Path, version: int) -> None:
+    """Bring a version-``version`` file (0: empty) to :data:`SCHEMA_VERSION`
+    in one transaction, after a backup copy of an existing database."""
+    if version > 0 and path.exists():
+        backup = path.with_name(f"{path.name}.v{version}.{int(time.time())}.bak")
+        conn.execute("PRAGMA wal_checkpoint(TRUNCATE)")
+        shutil.copy2(path, backup)
+        log.warning("%s: migrating schema v%d -> v%d; backup at %s", path, version, SCHEMA_VERSION, backup)
+    scripts = ([SCHEMA] if version == 0 else []) + [MIGRATIONS[v] for v in range(max(version, 1), SCHEMA_VERSION)]
+    with transaction(conn, path):
+        for script in scripts:
+            # not executescript(): it would COMMIT the open transaction first
+            for statement in filter(str.strip, script.split(";")):
+                conn.execute(statement)
+        conn.execute("INSERT INTO meta (key, value) VALUES ('schema_version', ?)"
+                     " ON CONFLICT(key) DO UPDATE SET value = excluded.value", (str(SCHEMA_VERSION),))

@@ -1,0 +1,109 @@
+"""The one grasp record, from the sweep to the database to every export.
+
+A :class:`Grasp` is made by the planner (:mod:`planner.plan.unit`) with what
+the sweep found and what the quality and reachability stages measured; the
+database (:mod:`planner.db.store`) stores it and returns it with what it adds
+(``id``, ``unit_id``, ``score``, ``rank``) and with the results of physical
+validation (:class:`Trial`, :class:`RobustEpsilon`) where they exist. The
+exporters turn lists of them into columns (:mod:`planner.datasets.columns`),
+``grasp best --json`` prints :meth:`Grasp.to_json`.
+
+Frames: the object frame is the frame of the scaled mesh file; the grasp pose
+is the hand frame (the hand's ``root_link``) in the object frame. Lengths in
+metres, angles in radians, joint values in radians or metres.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.plan.contacts import HandContacts
+
+
+@dataclass(frozen=True)
+class Trial:
+    """The outcome of one dynamic shake trial (:func:`planner.validation.shake.trial`).
+
+    Motions are the object's, as ACRONYM stores them: while the fingers closed
+    (in the world) and during the tugs and shaking (relative to the hand).
+    """
+
+    success: bool
+    fingers_in_contact: int
+    closing_linear: float  # [m]
+    closing_angular: float  # [rad]
+    shaking_linear: float  # [m]
+    shaking_angular: float  # [rad]
+
+
+@dataclass(frozen=True)
+class RobustEpsilon:
+    """Epsilon over noisy copies of a grasp (:mod:`planner.validation.robust`)."""
+
+    mean: float
+    quantile: float  # the low quantile of the samples
+    samples: int  # how many noisy copies
+
+
+@dataclass(frozen=True)
+class Grasp:
+    """One grasp: the hand closed on the object, its contacts and measures.
+
+    Attributes:
+        object, hand, preshape: names.
+        candidate: its number in the object's enumeration (:mod:`planner.plan.sweep`).
+        seed: the seed of the unit of work that found it.
+        approach_point: (3,) [m] where the approach ray meets the object, object frame.
+        approach_dir: (3,) unit approach direction, object frame.
+        roll: [rad] about the approach direction; standoff: [m] back-off before closing.
+        pose: (4, 4) hand frame in the object frame [m].
+        open_joints / closed_joints: finger joint values by name [rad or m].
+        width: [m] distance between the fingers of a parallel jaw, else None.
+        contacts: the contacts, object frame.
+        epsilon, volume: Ferrari-Canny L1 epsilon and GWS volume (0 unless force closure).
+        reachability: fraction of sampled table placements an arm reaches (None: not computed).
+        manipulability: the best arm manipulability over those placements.
+        id, unit_id, score, rank: set by the database (rank 1 = best of its object and hand).
+        validation, robust: physical validation results, where they exist.
+    """
+
+    object: str
+    hand: str
+    preshape: str
+    candidate: int
+    seed: int
+    approach_point: np.ndarray
+    approach_dir: np.ndarray
+    roll: float
+    standoff: float
+    pose: np.ndarray
+    open_joints: dict[str, float]
+    closed_joints: dict[str, float]
+    width: float | None
+    contacts: HandContacts
+    epsilon: float
+    volume: float
+    force_closure: bool
+    reachability: float | None = None
+    manipulability: float | None = None
+    id: int | None = None
+    unit_id: int | None = None
+    score: float | None = None
+    rank: int | None = None
+    validation: Trial | None = None
+    robust: RobustEpsilon | None = None
+
+    def __post_init__(self) -> None:
+        if self.pose.shape != (4, 4) or self.approach_point.shape != (3,) or self.approach_dir.shape != (3,):
+            raise ValueError("Grasp.pose must be (4, 4), approach_point and approach_dir (3,)")
+
+    def to_json(self) -> dict:
+        """The grasp as ``grasp best --json`` prints it."""
+        return {"object": self.object, "hand": self.hand, "preshape": self.preshape, "pose": self.pose.tolist(),
+                "joints": self.closed_joints, "open_joints": self.open_joints, "width": self.width,
+                "epsilon": self.epsilon, "volume": self.volume, "force_closure": self.force_closure,
+                "reachability": self.reachability, "manipulability": self.manipulability,
+                "contacts": self.contacts.to_json(), "rank": self.rank, "score": self.score,
+                "candidate": self.candidate, "seed": self.seed}

@@ -1,0 +1,43 @@
+"""Every tolerance and physical limit of the planning stages, in one place,
+each with its reason. Lengths in metres, angles in radians. (The step sizes
+of closing are settings: :class:`~planner.plan.closing.CloseSettings`.)"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: A hand link deeper than this inside the object rejects a grasp (closing)
+#: or an arm solution at the grasp (reachability): 1 mm is within PyBullet's
+#: margins once corrected, deeper is a real overlap.
+MAX_PENETRATION = 0.001
+#: Contact points of one link closer than this are one contact (a pad touches
+#: a face in a patch; two points 2 mm apart add no independent wrench).
+MERGE_RADIUS = 0.002
+#: At most this many contacts per link, spread over its contact patch: four
+#: span a flat pad's patch.
+MAX_PER_LINK = 4
+#: Closest-point pairs closing in slower than this (per unit travel) count as
+#: sliding past: their distance cannot fall to zero within a step.
+CLOSING_SPEED_MIN = 0.05
+#: A joint this close to its limit (in joint units) has no room left; also the
+#: slack of limit checks, so values on a limit pass after round-off.
+JOINT_LIMIT_SLACK = 1e-9
+#: The OpenRAVE box sampler grows the object's bounding box by this much.
+BOX_MARGIN = 0.01
+
+#: Pre-grasp: the hand backed off this far along its approach, fingers open.
+PREGRASP_DISTANCE = 0.10
+#: An arm solution counts when forward kinematics puts the end effector this
+#: close to the target: 1 mm and 0.5 degree.
+POSITION_TOL = 1e-3
+ANGLE_TOL = float(np.radians(0.5))
+#: IK is re-run from its own answer until within this fraction of the
+#: tolerances (so the verified solution has margin), at most IK_REFINEMENTS times.
+IK_CONVERGED = 0.25
+IK_REFINEMENTS = 6
+#: The table: a box with these half extents (x, y, thickness), its far edge
+#: reaching 0.9 of its length in front of the robot base (the base at its edge).
+TABLE_HALF = (1.0, 1.0, 0.05)
+TABLE_REACH = 0.9
+#: Where the spare hand used for table checks waits, far from everything.
+PARKING_DEPTH = 100.0
