@@ -20,11 +20,13 @@ from functools import cache
 from pathlib import Path
 
 import numpy as np
+import yourdfpy
+from scipy.spatial.transform import Rotation
 
 from planner import assets
 from planner.errors import ConfigError, UnknownNameError
 from planner.specs.toml import Fields, read_toml
-from planner.specs.urdf import UrdfTree, cut_subtree
+from planner.specs.urdf import cut_subtree, descendants, link_names, load_model, movable_joints
 
 CONTACT_MODELS = ("frictionless", "point", "soft")
 DEFAULT_FINGER_FORCE = 20.0  # [N or N m] per finger motor, when [dynamics] does not say
@@ -139,16 +141,16 @@ def load_folder(folder: Path) -> HandSpec:
     source = assets.resolve(f.str("urdf"), folder, f"{path} field 'urdf'")
     root_link = f.str("root_link")
     urdf = cut_subtree(source, root_link, f"{path} field 'root_link'")
-    tree = UrdfTree.parse(urdf)
-    tree.path = source  # name the user's URDF in messages, not the cut copy
-    joints = tuple(_joint(tree, jf) for jf in f.tables("joints"))
+    model = load_model(urdf)
+    links = link_names(model)
+    joints = tuple(_joint(model, source, jf) for jf in f.tables("joints"))
     approach = np.array(f.floats("approach", 3))
     if np.linalg.norm(approach) < 1e-9:
         raise ConfigError(f"{path} field 'approach': must be a non-zero vector")
     contact_links = tuple(f.strs("contact_links"))
     for link in contact_links:
-        if link not in tree.links:
-            raise ConfigError(f"{path} field 'contact_links': unknown link '{link}'; links: {', '.join(tree.links)}")
+        if link not in links:
+            raise ConfigError(f"{path} field 'contact_links': unknown link '{link}'; links: {', '.join(links)}")
     contacts = _contact_models(f, contact_links)
     return HandSpec(
         name=folder.name, folder=folder, description=f.data.get("description", ""), urdf=urdf,
@@ -156,7 +158,7 @@ def load_folder(folder: Path) -> HandSpec:
         joints=joints, contact_links=contact_links, contacts=contacts, centering=f.bool("centering", False),
         distance_offset=f.float("distance_offset", DEFAULT_DISTANCE_OFFSET),
         roll_symmetry=_symmetry(f),
-        links=tuple(tree.links), arm=_arm(f, folder), export_frame=_export_frame(f),
+        links=tuple(links), arm=_arm(f, folder), export_frame=_export_frame(f),
         finger_force=f.table("dynamics", {}).float("finger_force", DEFAULT_FINGER_FORCE, positive=True),
     )
 
@@ -168,30 +170,31 @@ def _symmetry(f: Fields) -> int:
     return value
 
 
-def _joint(tree: UrdfTree, f: Fields) -> JointSpec:
+def _joint(model: yourdfpy.URDF, source: Path, f: Fields) -> JointSpec:
+    """One ``[[joints]]`` entry, its kinematics from the URDF (``source`` names
+    the user's file in messages, not the cut copy)."""
     name = f.str("name")
-    node = tree.joints.get(name)
+    node = model.joint_map.get(name)
     if node is None:
-        raise ConfigError(f"{f.where} field 'name': joint '{name}' is not in {tree.path.name}; "
-                          f"movable joints: {', '.join(tree.movable)}")
-    kind = node.get("type", "")
+        raise ConfigError(f"{f.where} field 'name': joint '{name}' is not in {source.name}; "
+                          f"movable joints: {', '.join(movable_joints(model))}")
+    kind = node.type or ""
     if kind not in ("revolute", "prismatic"):
         raise ConfigError(f"{f.where}: joint '{name}' is {kind}; finger joints must be revolute or prismatic")
-    limit = node.find("limit")
-    lower = float(limit.get("lower", 0)) if limit is not None else 0.0
-    upper = float(limit.get("upper", 0)) if limit is not None else 0.0
-    lower, upper = f.float("lower", lower), f.float("upper", upper)
+    limit = node.limit
+    lower = f.float("lower", limit.lower if limit is not None and limit.lower is not None else 0.0)
+    upper = f.float("upper", limit.upper if limit is not None and limit.upper is not None else 0.0)
     if upper < lower:
         raise ConfigError(f"{f.where}: joint '{name}' has lower limit {lower} above upper {upper}")
-    mimic = node.find("mimic")
-    mimic_of = f.data.get("mimic", mimic.get("joint") if mimic is not None else None)
-    if mimic_of is not None and mimic_of not in tree.joints:
-        raise ConfigError(f"{f.where} field 'mimic': joint '{mimic_of}' is not in {tree.path.name}")
-    multiplier = f.float("multiplier", float(mimic.get("multiplier", 1.0)) if mimic is not None else 1.0)
-    offset = f.float("offset", float(mimic.get("offset", 0.0)) if mimic is not None else 0.0)
-    child = node.find("child").get("link")  # type: ignore[union-attr]
+    mimic = node.mimic
+    mimic_of = f.data.get("mimic", mimic.joint if mimic is not None else None)
+    if mimic_of is not None and mimic_of not in model.joint_map:
+        raise ConfigError(f"{f.where} field 'mimic': joint '{mimic_of}' is not in {source.name}")
+    multiplier = f.float("multiplier", mimic.multiplier if mimic is not None else 1.0)
+    offset = f.float("offset", mimic.offset if mimic is not None else 0.0)
     return JointSpec(name=name, kind=kind, lower=lower, upper=upper, close=f.float("close", 0.0), mimic=mimic_of,
-                     multiplier=multiplier, offset=offset, child=child, moves=tuple(tree.descendants(child)))
+                     multiplier=multiplier, offset=offset, child=node.child,
+                     moves=tuple(descendants(model, node.child)))
 
 
 def _contact_models(f: Fields, links: tuple[str, ...]) -> dict[str, ContactModel]:
@@ -218,13 +221,8 @@ def _contact_model(f: Fields) -> ContactModel:
 
 def _export_frame(f: Fields) -> np.ndarray:
     """``[export] xyz, rpy``: the dataset gripper frame in the hand frame."""
-    from scipy.spatial.transform import Rotation
-
     e = f.table("export", {})
-    frame = np.eye(4)
-    frame[:3, :3] = Rotation.from_euler("xyz", e.floats("rpy", 3, [0, 0, 0])).as_matrix()
-    frame[:3, 3] = e.floats("xyz", 3, [0, 0, 0])
-    return frame
+    return _pose(e.floats("xyz", 3, [0, 0, 0]), e.floats("rpy", 3, [0, 0, 0]))
 
 
 def _arm(f: Fields, folder: Path) -> ArmSpec | None:
@@ -233,8 +231,13 @@ def _arm(f: Fields, folder: Path) -> ArmSpec | None:
     a = f.table("arm")
     mount = np.eye(4)
     if a.has("mount_xyz") or a.has("mount_rpy"):
-        from scipy.spatial.transform import Rotation
-
-        mount[:3, :3] = Rotation.from_euler("xyz", a.floats("mount_rpy", 3, [0, 0, 0])).as_matrix()
-        mount[:3, 3] = a.floats("mount_xyz", 3, [0, 0, 0])
+        mount = _pose(a.floats("mount_xyz", 3, [0, 0, 0]), a.floats("mount_rpy", 3, [0, 0, 0]))
     return ArmSpec(assets.resolve(a.str("urdf"), folder, f"{a.where} field 'urdf'"), a.str("ee_link"), mount)
+
+
+def _pose(xyz: list[float], rpy: list[float]) -> np.ndarray:
+    """4x4 frame from a translation [m] and URDF-style roll, pitch, yaw [rad]."""
+    pose = np.eye(4)
+    pose[:3, :3] = Rotation.from_euler("xyz", rpy).as_matrix()
+    pose[:3, 3] = xyz
+    return pose

@@ -1,86 +1,133 @@
-"""URDF files: the hand subtree cut out for PyBullet, the kinematic tree of a
-hand, and the mesh of a URDF object."""
+"""URDF files, parsed with yourdfpy: a hand's kinematic tree, the hand subtree
+cut out of a whole robot for PyBullet, and the mesh of a URDF object.
+
+The cut keeps, of the source file, the links below ``root_link`` and the
+joints between them (yourdfpy's model decides which), with absolute mesh
+paths. It copies those elements as the author wrote them rather than letting
+yourdfpy write its model back: yourdfpy stores origins as matrices and writes
+them as re-derived Euler angles (near a quarter turn of pitch that moves an
+angle by ~1e-9, and it turns the angles into an equivalent triple), and it
+does not model PyBullet's ``<contact>`` extension (the Panda's finger pads:
+contact stiffness, damping, spinning friction), which the dynamic trials
+need. PyBullet and yourdfpy then load the very same cut file.
+"""
 
 from __future__ import annotations
 
-import xml.etree.ElementTree as ET
+import io
+import re
 from pathlib import Path
+
+import numpy as np
+import yourdfpy
+from lxml import etree
 
 from planner import assets
 from planner.errors import ConfigError, MeshError
 
+#: Joint types that move (the others are fixed or floating).
+MOVABLE = ("revolute", "prismatic", "continuous")
 
-class UrdfTree:
-    """Just enough URDF structure: links, joints, parent/child relations."""
 
-    def __init__(self, path: Path, root: ET.Element) -> None:
-        self.path = path
-        self.links = [el.get("name", "") for el in root.findall("link")]
-        self.joints = {el.get("name", ""): el for el in root.findall("joint")}
-        self.movable = [n for n, el in self.joints.items() if el.get("type") in ("revolute", "prismatic", "continuous")]
-        self.children: dict[str, list[str]] = {}
-        for el in self.joints.values():
-            self.children.setdefault(el.find("parent").get("link"), []).append(el.find("child").get("link"))  # type: ignore[union-attr]
+#: An XML declaration; some shipped URDFs (pybullet_data's duck and teddy)
+#: declare version "0.0", which lxml refuses and PyBullet ignores.
+_DECLARATION = re.compile(rb"^\s*<\?xml[^>]*\?>")
 
-    @classmethod
-    def parse(cls, path: Path) -> UrdfTree:
-        try:
-            return cls(path, ET.parse(path).getroot())
-        except (ET.ParseError, AttributeError) as exc:
-            raise ConfigError(f"{path}: malformed URDF: {exc}") from exc
 
-    def descendants(self, link: str) -> list[str]:
-        out, stack = [], [link]
-        while stack:
-            current = stack.pop()
-            out.append(current)
-            stack.extend(self.children.get(current, []))
-        return out
+def _xml(path: Path) -> bytes:
+    """The URDF's text without its XML declaration, checked to be well formed
+    (yourdfpy alone would recover from broken XML silently)."""
+    try:
+        text = _DECLARATION.sub(b"", path.read_bytes(), count=1)
+        etree.fromstring(text)
+    except (etree.XMLSyntaxError, OSError) as exc:
+        raise ConfigError(f"{path}: malformed URDF: {exc}") from exc
+    return text
+
+
+def load_model(path: Path) -> yourdfpy.URDF:
+    """The URDF's kinematic model (no meshes loaded); a malformed file is a ConfigError."""
+    text = _xml(path)
+    try:
+        return yourdfpy.URDF.load(io.BytesIO(text), build_scene_graph=False, build_collision_scene_graph=False,
+                                  load_meshes=False, load_collision_meshes=False)
+    except (AttributeError, KeyError, ValueError, IndexError, TypeError) as exc:
+        raise ConfigError(f"{path}: malformed URDF: {exc}") from exc
+
+
+def link_names(model: yourdfpy.URDF) -> list[str]:
+    return [link.name for link in model.robot.links]
+
+
+def movable_joints(model: yourdfpy.URDF) -> list[str]:
+    return [j.name for j in model.robot.joints if j.type in MOVABLE]
+
+
+def descendants(model: yourdfpy.URDF, link: str) -> list[str]:
+    """``link`` and every link below it, depth first."""
+    children: dict[str, list[str]] = {}
+    for joint in model.robot.joints:
+        children.setdefault(joint.parent, []).append(joint.child)
+    out, stack = [], [link]
+    while stack:
+        current = stack.pop()
+        out.append(current)
+        stack.extend(children.get(current, []))
+    return out
 
 
 def cut_subtree(source: Path, root_link: str, where: str) -> Path:
-    """Write the subtree of ``source`` below ``root_link`` with absolute mesh paths."""
-    try:
-        tree = ET.parse(source)
-    except ET.ParseError as exc:
-        raise ConfigError(f"{source}: malformed URDF: {exc}") from exc
-    robot = tree.getroot()
-    full = UrdfTree(source, robot)
-    if root_link not in full.links:
+    """Write the subtree of ``source`` below ``root_link``, with absolute mesh
+    paths, into the cache (named by its content); returns the file."""
+    model = load_model(source)
+    if root_link not in model.link_map:
         raise ConfigError(f"{where}: link '{root_link}' is not in {source.name}")
-    keep = set(full.descendants(root_link))
-    for el in list(robot):
-        ends = {el.find("parent").get("link"), el.find("child").get("link")} if el.tag == "joint" else set()  # type: ignore[union-attr]
-        if (el.tag == "link" and el.get("name") not in keep) or (el.tag == "joint" and not ends <= keep):
-            robot.remove(el)
+    keep = set(descendants(model, root_link))
+    joints = {j.name for j in model.robot.joints if j.parent in keep and j.child in keep}
+    meshes = {}
+    for link in model.robot.links:
+        for element in (*link.visuals, *link.collisions) if link.name in keep else ():
+            mesh = element.geometry.mesh if element.geometry is not None else None
+            if mesh is not None:
+                meshes[mesh.filename] = _mesh_file(source, mesh.filename)
+    robot = etree.fromstring(_xml(source), etree.XMLParser(remove_comments=True))
+    for element in list(robot):
+        name = element.get("name")
+        if (element.tag == "link" and name not in keep) or (element.tag == "joint" and name not in joints):
+            robot.remove(element)
     for mesh in robot.iter("mesh"):
         name = mesh.get("filename", "")
-        path = (source.parent / name.replace("package://", "")).resolve()
-        if not path.is_file():
-            raise ConfigError(f"{source}: mesh file not found: {name} (looked at {path})")
-        mesh.set("filename", str(path))
-    data = ET.tostring(robot, encoding="utf-8")
+        mesh.set("filename", str(meshes.get(name) or _mesh_file(source, name)))
+    data = etree.tostring(robot, encoding="utf-8")
     out = assets.cache_dir("hands") / f"{source.stem}-{root_link}-{assets.sha256_bytes(data)[:12]}.urdf"
     if not out.exists():
         assets.atomic_write(out, data)
     return out
 
 
+def _mesh_file(urdf: Path, filename: str) -> Path:
+    """A mesh a URDF names (``package://`` or relative to the file), which must exist."""
+    path = (urdf.parent / filename.replace("package://", "")).resolve()
+    if not path.is_file():
+        raise ConfigError(f"{urdf}: mesh file not found: {filename} (looked at {path})")
+    return path
+
+
 def object_mesh(urdf: Path, geometry: str, where: str) -> tuple[Path, float]:
-    """The first ``<geometry><mesh>`` of the first link, with its URDF scale."""
-    try:
-        root = ET.parse(urdf).getroot()
-    except ET.ParseError as exc:
-        raise ConfigError(f"{urdf}: malformed URDF: {exc}") from exc
-    node = root.find(f"link/{geometry}/geometry/mesh")
-    if node is None or not node.get("filename"):
+    """The first ``<geometry><mesh>`` (``geometry``: ``visual`` or ``collision``)
+    of the URDF's links, with its URDF scale."""
+    model = load_model(urdf)
+    found = next(((element, element.geometry.mesh) for link in model.robot.links
+                  for element in (link.visuals if geometry == "visual" else link.collisions)
+                  if element.geometry is not None and element.geometry.mesh is not None
+                  and element.geometry.mesh.filename), None)
+    if found is None:
         raise ConfigError(f"{urdf}: {where} needs a <{geometry}> mesh in its first link")
-    origin = root.find(f"link/{geometry}/origin")
-    offsets = "" if origin is None else origin.get("xyz", "0 0 0") + " " + origin.get("rpy", "0 0 0")
-    if any(float(v) != 0 for v in offsets.split()):
+    element, mesh = found
+    if element.origin is not None and not np.array_equal(element.origin, np.eye(4)):
         raise MeshError(f"{urdf}: {geometry} origin offsets are not supported; export the mesh in the link frame")
-    scales = [float(v) for v in node.get("scale", "1 1 1").split()]
-    if len(set(scales)) != 1:
-        raise MeshError(f"{urdf}: non-uniform mesh scale {scales} is not supported")
-    path = (urdf.parent / node.get("filename", "").replace("package://", "")).resolve()
-    return path, scales[0]
+    scales = np.atleast_1d(1.0 if mesh.scale is None else mesh.scale).astype(float)
+    if len(set(scales.tolist())) != 1:
+        raise MeshError(f"{urdf}: non-uniform mesh scale {scales.tolist()} is not supported")
+    path = (urdf.parent / mesh.filename.replace("package://", "")).resolve()
+    return path, float(scales[0])
