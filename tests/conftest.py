@@ -1,3 +1,6 @@
+"""Session fixtures: a test cache, and the small databases several test
+packages read (each built once per session)."""
+
 import os
 import sys
 from pathlib import Path
@@ -6,8 +9,41 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
 
+from helpers import FAST, REFERENCE_ARGS, REFERENCE_OBJECTS, content, grasp  # noqa: E402
+
 
 @pytest.fixture(autouse=True, scope="session")
 def _cache(tmp_path_factory: pytest.TempPathFactory) -> None:
     """Keep test caches out of the user's home unless asked otherwise."""
     os.environ.setdefault("GRASP_CACHE", str(tmp_path_factory.mktemp("cache")))
+
+
+@pytest.fixture(scope="session")
+def box_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``grasp generate box --hand panda`` with a small sweep (read-only for tests: copy to change it)."""
+    db = tmp_path_factory.mktemp("box") / "g.db"
+    code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(db), "--quiet", *FAST)
+    assert code == 0, err
+    return db
+
+
+@pytest.fixture(scope="session")
+def reference_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The reference batch, built in one uninterrupted serial run."""
+    db = tmp_path_factory.mktemp("reference") / "ref.db"
+    code, _, err = grasp("generate", *REFERENCE_OBJECTS, "--hand", "panda", "--db", str(db), *REFERENCE_ARGS)
+    assert code == 0, err
+    assert content(db)
+    return db
+
+
+@pytest.fixture(scope="session")
+def validated_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Box and sphere, the three best grasps of each shake-tested with two robust samples."""
+    db = tmp_path_factory.mktemp("validated") / "g.db"
+    code, _, err = grasp("generate", "box", "sphere", "--hand", "panda", "--db", str(db), "--quiet", *FAST)
+    assert code == 0, err
+    code, _, err = grasp("validate", "--db", str(db), "--top", "3", "--robust", "2", "--workers", "1")
+    assert code == 0, err
+    return db
+

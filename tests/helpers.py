@@ -2,7 +2,14 @@
 
 from __future__ import annotations
 
+import sqlite3
+import sys
+from pathlib import Path
+
 import numpy as np
+from click.testing import CliRunner
+
+from planner.grasp import Grasp
 
 #: Geometric tolerance of the simulator-based stages [m]: PyBullet's contact
 #: margins are corrected to about this.
@@ -10,8 +17,61 @@ SIM_TOL = 0.0015
 #: Pure floating-point comparisons.
 NUM_TOL = 1e-9
 
+#: A small sweep for command-line runs: one preshape, few rays, one placement.
+FAST = ["--approaches", "6", "--rolls", "2", "--preshapes", "wide", "--workers", "1", "--reach-placements", "1"]
+#: The batch every resumption test compares against: two objects, units of two rays.
+REFERENCE_OBJECTS = ("box", "sphere")
+REFERENCE_ARGS = ("--seed", "11", "--approaches", "8", "--rolls", "2", "--preshapes", "wide", "--chunk", "4",
+                  "--reach-placements", "1", "--workers", "1", "--quiet")
+
 
 def assert_close(actual: object, expected: object, tol: float = NUM_TOL) -> None:
     a, e = np.asarray(actual, float), np.asarray(expected, float)
     assert a.shape == e.shape, f"shape {a.shape} != {e.shape}"
     assert np.allclose(a, e, atol=tol, rtol=0), f"{a} != {e} (tol {tol})"
+
+
+def grasp(*args: str) -> tuple[int, str, str]:
+    """Run the ``grasp`` command in-process: (exit code, stdout, stderr)."""
+    from planner.cli import main
+
+    result = CliRunner().invoke(main, list(args))
+    return result.exit_code, result.stdout, result.stderr
+
+
+def one_line_error(code: int, err: str, expected_code: int, *needles: str) -> None:
+    """The error contract: that exit code, one line on stderr, no traceback."""
+    assert code == expected_code, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    for needle in needles:
+        assert needle in err, err
+
+
+def reference_command(db: Path) -> list[str]:
+    """The reference batch as a ``python -m planner.cli`` command line (to kill it)."""
+    return [sys.executable, "-m", "planner.cli", "generate", *REFERENCE_OBJECTS, "--hand", "panda", "--db", str(db),
+            *REFERENCE_ARGS]
+
+
+def content(db: Path) -> list[tuple]:
+    """Everything about the grasps that must not depend on workers, backend or interruptions."""
+    with sqlite3.connect(db) as conn:
+        return conn.execute(
+            "SELECT object, hand, preshape, candidate, pose, closed_joints, contacts, epsilon, volume, force_closure,"
+            " reachability, score, rank FROM grasps ORDER BY object, hand, candidate").fetchall()
+
+
+def made_up(candidate: int, epsilon: float, fc: bool = True, reach: float | None = None) -> Grasp:
+    """A grasp of an object "thing" as the planner would hand it over (no simulator needed)."""
+    from planner.grasp import Grasp
+    from planner.plan.contacts import HandContacts
+
+    pose = np.eye(4)
+    pose[:3, 3] = [0.01 * candidate, 0.0, 0.1]
+    contacts = HandContacts(np.array([[0.0, 0.02, 0.0], [0.0, -0.02, 0.0]]),
+                            np.array([[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]]), ("left", "right"))
+    return Grasp(object="thing", hand="panda", preshape="wide", candidate=candidate, seed=5,
+                 approach_point=np.array([0.0, 0.0, 0.04]), approach_dir=np.array([0.0, 0.0, -1.0]), roll=0.5,
+                 standoff=0.01, pose=pose, open_joints={"j": 0.04}, closed_joints={"j": 0.02}, width=0.04,
+                 contacts=contacts, epsilon=epsilon, volume=epsilon / 10, force_closure=fc, reachability=reach)

@@ -4,10 +4,10 @@ records as columns, the one helper every format writes from.
 :func:`grasp_columns` keys the columns by the record's field names; the
 validation and robust results are flattened (``validation_success``, ...,
 ``robust_mean``, ``robust_quantile``, ``robust_samples``). A value that is
-absent holds NaN in a float column and -1 in an integer column (``rank``,
-``validation_success``, ``validation_fingers_in_contact``,
-``robust_samples``); ``width``, ``reachability`` and ``manipulability`` are
-floats. Contacts stay JSON text (``[{point, normal, link}]``), joints dicts.
+absent holds NaN in a float column and -1 in an integer column (``id`` and
+``unit_id`` of a record not stored yet, ``rank``, ``validation_success``,
+``validation_fingers_in_contact``, ``robust_samples``); ``width``,
+``reachability`` and ``manipulability`` are floats. Contacts stay JSON text (``[{point, normal, link}]``), joints dicts.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from planner.grasp import Grasp
 Column = np.ndarray | list
 
 #: Record fields copied as they are: (name, numpy dtype or None for a list).
-_PLAIN = (("unit_id", np.int64), ("preshape", None), ("candidate", np.int64), ("seed", np.int64),
+_PLAIN = (("preshape", None), ("candidate", np.int64), ("seed", np.int64),
           ("roll", float), ("standoff", float), ("open_joints", None), ("closed_joints", None), ("epsilon", float),
           ("volume", float), ("force_closure", np.int64), ("score", float))
 _OPTIONAL_FLOATS = ("width", "reachability", "manipulability")
@@ -44,7 +44,8 @@ def grasp_columns(grasps: Sequence[Grasp]) -> dict[str, Column]:
     """n records as columns: (n,) arrays, (n, 3) / (n, 4, 4) for vectors and
     poses, lists for strings and joint dicts (see the module docstring)."""
     n = len(grasps)
-    out: dict[str, Column] = {"id": np.array([g.id for g in grasps], np.int64)}
+    out: dict[str, Column] = {name: np.array([_int(getattr(g, name)) for g in grasps], np.int64)
+                              for name in ("id", "unit_id", "rank")}
     for name, dtype in _PLAIN:
         values = [getattr(g, name) for g in grasps]
         out[name] = values if dtype is None else np.array(values, dtype)
@@ -56,7 +57,6 @@ def grasp_columns(grasps: Sequence[Grasp]) -> dict[str, Column]:
     out["contacts"] = [g.contacts.json_text() for g in grasps]
     out["n_contacts"] = np.array([len(g.contacts) for g in grasps], np.int64)
     out["links_touching"] = np.array([g.contacts.touching for g in grasps], np.int64)
-    out["rank"] = np.array([-1 if g.rank is None else g.rank for g in grasps], np.int64)
     trials = [g.validation for g in grasps]
     out["validation_success"] = np.array([-1 if t is None else int(t.success) for t in trials], np.int64)
     out["validation_fingers_in_contact"] = np.array([-1 if t is None else t.fingers_in_contact for t in trials],
@@ -68,6 +68,10 @@ def grasp_columns(grasps: Sequence[Grasp]) -> dict[str, Column]:
     out["robust_quantile"] = np.array([math.nan if r is None else r.quantile for r in robust], float)
     out["robust_samples"] = np.array([-1 if r is None else r.samples for r in robust], np.int64)
     return out
+
+
+def _int(value: int | None) -> int:
+    return -1 if value is None else value
 
 
 def joint_matrix(joints: Sequence[dict[str, float]], names: Sequence[str]) -> np.ndarray:

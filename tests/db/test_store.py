@@ -1,21 +1,29 @@
+"""The store: generate writes ranked grasps; units are written whole and
+read back as the same records; validation re-scores with the rule."""
+
+from __future__ import annotations
+
+import json
 import sqlite3
 from pathlib import Path
 
+import numpy as np
 import pytest
+from helpers import assert_close, made_up
 
 from planner import api
-from planner.db.lock import writer_lock
 from planner.db.ranking import RankingRule
-from planner.db.schema import SCHEMA_VERSION
-from planner.db.store import open_db
-from planner.errors import DatabaseError
+from planner.db.store import UnitRow, Validated, open_db
+from planner.grasp import RobustEpsilon, Trial
 from planner.plan.sweep import SweepSettings
 
 SMALL = SweepSettings(approaches=4, rolls=2, preshapes=("wide",))
+#: Stored vectors keep 7 decimals.
+STORED_TOL = 5e-8
 
 
 @pytest.fixture(scope="module")
-def box_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def seeded_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
     path = tmp_path_factory.mktemp("db") / "g.db"
     api.generate(["box"], "panda", db_path=path, settings=SMALL, seed=3)
     return path
@@ -27,8 +35,8 @@ def rows(path: Path) -> list[tuple]:
                             " force_closure FROM grasps ORDER BY id").fetchall()
 
 
-def test_generate_writes_ranked_grasps(box_db: Path) -> None:
-    got = rows(box_db)
+def test_generate_writes_ranked_grasps(seeded_db: Path) -> None:
+    got = rows(seeded_db)
     assert got, "no grasps written"
     ranks = sorted(r[5] for r in got)
     assert ranks == list(range(1, len(got) + 1))
@@ -40,11 +48,11 @@ def test_generate_writes_ranked_grasps(box_db: Path) -> None:
         assert (reach is not None) == bool(fc)  # reachability is computed for force-closure grasps
 
 
-def test_changing_the_rule_rescores_everything(box_db: Path, tmp_path: Path) -> None:
+def test_changing_the_rule_rescores_everything(seeded_db: Path, tmp_path: Path) -> None:
     import shutil
 
     copy = tmp_path / "copy.db"
-    shutil.copy(box_db, copy)
+    shutil.copy(seeded_db, copy)
     with open_db(copy) as db:
         assert db.apply_rule(RankingRule(reach_weight=0.0))
         assert not db.apply_rule(RankingRule(reach_weight=0.0))
@@ -54,55 +62,87 @@ def test_changing_the_rule_rescores_everything(box_db: Path, tmp_path: Path) -> 
     assert [r[6] for r in by_rank] == sorted((r[6] for r in got), reverse=True)
 
 
-def test_rerun_adds_nothing(box_db: Path) -> None:
-    before = rows(box_db)
-    summary = api.generate(["box"], "panda", db_path=box_db, settings=SMALL, seed=3)
+def test_rerun_adds_nothing(seeded_db: Path) -> None:
+    before = rows(seeded_db)
+    summary = api.generate(["box"], "panda", db_path=seeded_db, settings=SMALL, seed=3)
     assert summary.skipped == 1 and summary.units == 0
-    assert rows(box_db) == before
+    assert rows(seeded_db) == before
 
 
-def test_same_seed_same_grasps(box_db: Path, tmp_path: Path) -> None:
+def test_same_seed_same_grasps(seeded_db: Path, tmp_path: Path) -> None:
     other = tmp_path / "again.db"
     api.generate(["box"], "panda", db_path=other, settings=SMALL, seed=3)
-    assert rows(other) == rows(box_db)
+    assert rows(other) == rows(seeded_db)
 
 
-def test_wal_mode_and_integrity(box_db: Path) -> None:
-    with sqlite3.connect(box_db) as conn:
+def test_wal_mode_and_integrity(seeded_db: Path) -> None:
+    with sqlite3.connect(seeded_db) as conn:
         assert conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
-    assert api.check_db(box_db) == []
+    assert api.check_db(seeded_db) == []
 
 
-def test_not_sqlite_is_refused_and_untouched(tmp_path: Path) -> None:
-    path = tmp_path / "notes.db"
-    path.write_text("my precious notes")
-    with pytest.raises(DatabaseError, match="not an SQLite database"):
-        open_db(path)
-    assert path.read_text() == "my precious notes"
+def unit(error: str | None = None, chunk: int = 0) -> UnitRow:
+    return UnitRow("thing", "panda", "h" * 16, json.dumps({"made": "up"}), 5, chunk, error, candidates=9,
+                   rejected={"missed": 3}, seconds=0.5)
 
 
-def test_foreign_sqlite_is_refused(tmp_path: Path) -> None:
-    path = tmp_path / "other.db"
-    with sqlite3.connect(path) as conn:
-        conn.execute("CREATE TABLE t (x)")
-    with pytest.raises(DatabaseError, match="not a grasp database"):
-        open_db(path)
+def test_a_unit_is_written_whole_and_read_back_as_the_same_records(tmp_path: Path) -> None:
+    grasps = [made_up(0, 0.05, reach=0.5), made_up(1, 0.08, reach=None), made_up(2, 0.0, fc=False)]
+    rule = RankingRule()
+    with open_db(tmp_path / "g.db") as db:
+        unit_id = db.write_unit(unit(), None, grasps, rule)
+        assert db.units_done("panda", "h" * 16, 5) == {("thing", 0)}
+        back = db.best("thing", "panda", 10)
+        assert db.grasp_ids(unit_id) == {g.candidate: g.id for g in back}
+    assert [g.candidate for g in back] == [1, 0, 2]  # by score
+    assert [g.rank for g in back] == [1, 2, 3]
+    expected = rule.scores([0.08, 0.05, 0.0], [True, True, False], [np.nan, 0.5, np.nan])
+    assert_close([g.score for g in back], expected)
+    for g in back:
+        original = grasps[g.candidate]
+        assert_close(g.pose, original.pose, STORED_TOL)
+        assert_close(g.approach_point, original.approach_point, STORED_TOL)
+        assert g.contacts.json_text() == original.contacts.json_text()
+        assert (len(g.contacts), g.contacts.touching) == (2, 2)
+        assert (g.closed_joints, g.open_joints, g.width, g.seed, g.preshape) == ({"j": 0.02}, {"j": 0.04}, 0.04, 5,
+                                                                                  "wide")
+        assert (g.epsilon, g.force_closure, g.reachability) == (original.epsilon, original.force_closure,
+                                                                original.reachability)
+        assert g.unit_id == unit_id and g.validation is None and g.robust is None
+    with sqlite3.connect(tmp_path / "g.db") as conn:
+        row = conn.execute("SELECT status, candidates, grasps, force_closure, rejected FROM units").fetchone()
+    assert row == ("done", 9, 3, 2, json.dumps({"missed": 3}, separators=(",", ":")))
 
 
-def test_newer_schema_refuses_politely(tmp_path: Path) -> None:
-    path = tmp_path / "new.db"
-    open_db(path).close()
-    with sqlite3.connect(path) as conn:
-        conn.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'", (str(SCHEMA_VERSION + 1),))
-    with pytest.raises(DatabaseError, match="newer than this planner"):
-        open_db(path)
+def test_writing_a_unit_again_replaces_it_and_a_failure_is_recorded(tmp_path: Path) -> None:
+    with open_db(tmp_path / "g.db") as db:
+        db.write_unit(unit(), None, [made_up(0, 0.05)], RankingRule())
+        db.write_unit(unit(), None, [made_up(0, 0.05), made_up(1, 0.06)], RankingRule())
+        db.write_unit(unit("Boom: simulator", chunk=1), None, [], RankingRule())
+        assert len(db.best("thing", "panda", 10)) == 2
+        assert db.units_done("panda", "h" * 16, 5) == {("thing", 0)}
+    with sqlite3.connect(tmp_path / "g.db") as conn:
+        assert conn.execute("SELECT chunk, status, error FROM units ORDER BY chunk").fetchall() == [
+            (0, "done", None), (1, "failed", "Boom: simulator")]
 
 
-def test_best_on_missing_db_is_a_clear_error(tmp_path: Path) -> None:
-    with pytest.raises(DatabaseError, match="no such database"):
-        api.best("box", "panda", db_path=tmp_path / "none.db")
+def test_validation_results_rescore_with_the_rule(tmp_path: Path) -> None:
+    rule = RankingRule(reach_weight=0.0, success_weight=1.0, robust_weight=0.5)
+    with open_db(tmp_path / "g.db") as db:
+        db.write_unit(unit(), None, [made_up(0, 0.05), made_up(1, 0.08), made_up(2, 0.02)], rule)
+        ids = {g.candidate: g.id for g in db.best("thing", "panda", 10)}
+        held, dropped = Trial(True, 2, 0.001, 0.01, 0.002, 0.02), Trial(False, 1, 0.03, 0.2, 0.1, 0.5)
+        db.write_validation("thing", "panda", [
+            Validated(ids[0], held, RobustEpsilon(0.04, 0.01, 4), 0, "{}", "{}"),
+            Validated(ids[1], dropped, None, 0, "{}", "{}")], rule)
+        back = {g.candidate: g for g in db.best("thing", "panda", 10)}
+    assert back[0].validation == held and back[0].robust == RobustEpsilon(0.04, 0.01, 4)
+    assert back[1].validation == dropped and back[1].robust is None and back[2].validation is None
+    assert_close([back[c].score for c in (0, 1, 2)], [0.5 * 0.05 + 0.5 * 0.01, 0.0, 0.02])
+    assert [back[c].rank for c in (0, 2, 1)] == [1, 2, 3]  # the failed grasp, best by epsilon, scores 0
 
 
-def test_second_writer_refuses(box_db: Path) -> None:
-    with writer_lock(box_db), pytest.raises(DatabaseError, match="another `grasp generate`"):
-        api.generate(["box"], "panda", db_path=box_db, settings=SMALL, seed=4)
+def test_ties_are_broken_by_epsilon_volume_seed_and_candidate_not_by_order(tmp_path: Path) -> None:
+    with open_db(tmp_path / "g.db") as db:
+        db.write_unit(unit(), None, [made_up(3, 0.0, fc=False), made_up(1, 0.0, fc=False)], RankingRule())
+        assert [g.candidate for g in db.best("thing", "panda", 10)] == [1, 3]

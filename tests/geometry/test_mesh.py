@@ -1,9 +1,13 @@
+"""Loading, checking and repairing meshes: refusals say what to fix."""
+
 from pathlib import Path
 
 import numpy as np
 import pytest
 import trimesh
 from helpers import assert_close
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from planner.errors import MeshError
 from planner.geometry import mesh as meshes
@@ -75,3 +79,45 @@ def test_hash_depends_on_geometry_only() -> None:
     b = a.copy()
     b.apply_scale(1.01)
     assert meshes.mesh_hash(a) != meshes.mesh_hash(b)
+
+
+def test_open_mesh_is_repaired_and_nonmanifold_refused(tmp_path: Path) -> None:
+    box = trimesh.creation.box(extents=[0.04, 0.04, 0.04])
+    open_box = trimesh.Trimesh(box.vertices, box.faces[2:], process=False)
+    assert meshes.checked_solid(open_box, "open").is_watertight
+    # three triangles on one edge (a fin through a box): non-manifold, cannot be closed
+    fin_v = np.vstack([box.vertices, [[0.0, 0.0, 0.1]]])
+    edge = box.edges_unique[0]
+    fin = trimesh.Trimesh(fin_v, np.vstack([box.faces, [[edge[0], edge[1], len(fin_v) - 1]]]), process=False)
+    with pytest.raises(MeshError):
+        meshes.checked_solid(fin, "fin")
+
+
+def test_millions_of_faces_refused_before_work(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(meshes, "MAX_FACES", 1000)
+    big = trimesh.creation.icosphere(subdivisions=4, radius=0.03)  # 5,120 faces
+    path = tmp_path / "big.stl"
+    big.export(path)
+    with pytest.raises(MeshError, match="simplify it below 1,000"):
+        meshes.load_mesh_file(path)
+    monkeypatch.setattr(meshes, "MAX_FILE_BYTES", 10)
+    with pytest.raises(MeshError, match="too large"):
+        meshes.load_mesh_file(path)
+
+
+coords = st.one_of(st.floats(min_value=-1.0, max_value=1.0, width=32),
+                   st.sampled_from([float("nan"), float("inf"), -float("inf")]))
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(vertices=st.lists(st.tuples(coords, coords, coords), min_size=0, max_size=12),
+       faces=st.lists(st.tuples(st.integers(0, 11), st.integers(0, 11), st.integers(0, 11)), max_size=20),
+       scale=st.sampled_from([0.001, 0.05, 1.0]))
+def test_fuzz_meshes_load_or_refuse_cleanly(vertices, faces, scale) -> None:  # type: ignore[no-untyped-def]
+    v = np.array(vertices, float).reshape(-1, 3) * scale
+    f = np.array([t for t in faces if max(t) < len(v)], int).reshape(-1, 3)
+    try:
+        solid = meshes.checked_solid(trimesh.Trimesh(v, f, process=False), "fuzz")
+    except MeshError:
+        return
+    assert solid.is_watertight and solid.volume > 0 and np.all(np.isfinite(solid.vertices))

@@ -1,12 +1,12 @@
+"""The prepared object: known mass properties, built-ins load as closed solids."""
+
 import math
 
 import numpy as np
 import pytest
 from helpers import assert_close
 
-from planner.errors import UnknownNameError
 from planner.geometry.solid import load_object
-from planner.specs.objects import resolve_spec
 
 
 def test_sphere_known_answers() -> None:
@@ -43,9 +43,6 @@ def test_mug_keeps_its_handle_and_cavity() -> None:
     assert o.mesh.bounds[1][1] > 0.07
 
 
-def test_unknown_object_lists_builtins() -> None:
-    with pytest.raises(UnknownNameError, match="mug.*sphere|Available objects"):
-        resolve_spec("teapot")
 
 
 def test_scale_multiplies_builtin_mesh_scale() -> None:

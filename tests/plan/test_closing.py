@@ -1,14 +1,28 @@
+"""Closing the hand on the object: known contacts on a box and a sphere,
+rejections, and every hand closing to a force-closure grasp of objects of its size."""
+
 import numpy as np
 import pytest
 from helpers import SIM_TOL, assert_close
 
-from planner.geometry.solid import load_object
+from planner.geometry.solid import PreparedObject, load_object, prepare
+from planner.plan import sampling
 from planner.plan.closing import Closed, Grasper, Rejected
+from planner.plan.unit import grasp_quality
 from planner.sim import Sim
-from planner.specs.hands import load_hand
+from planner.specs.hands import HandSpec, hand_names, load_hand
+from planner.specs.objects import ObjectSpec
 from planner.specs.preshapes import load_preshapes
 
 DOWN = np.array([0.0, 0.0, -1.0])
+HANDS = hand_names()
+SEED = 0
+#: Characteristic radius [m] of the test objects per hand (about a third of
+#: the opening); a hand added later gets the default until it is listed.
+OBJECT_RADIUS = {"panda": 0.025, "pr2": 0.02, "barrett": 0.04, "allegro": 0.03}
+DEFAULT_RADIUS = 0.03
+RAYS = 12
+CONE_EDGES = 8
 
 
 @pytest.fixture(scope="module")
@@ -72,3 +86,50 @@ def test_sphere_contacts_have_radial_normals(panda) -> None:  # type: ignore[no-
     radial = r.contacts.points / np.linalg.norm(r.contacts.points, axis=1, keepdims=True)
     assert np.all(np.einsum("ij,ij->i", r.contacts.normals, -radial) > 0.95)
     assert_close(np.linalg.norm(r.contacts.points, axis=1), np.full(len(r.contacts), 0.03), SIM_TOL)
+
+
+def fingers(hand: HandSpec) -> dict[str, str]:
+    """Finger of each moving link: the outermost finger joint that moves it."""
+    out: dict[str, str] = {}
+    for joint in sorted(hand.joints, key=lambda j: -len(j.moves)):
+        for link in joint.moves:
+            out.setdefault(link, joint.name)
+    return out
+
+
+def sized_objects(radius: float) -> dict[str, PreparedObject]:
+    """A sphere of ``radius`` [m], and a box and a cylinder of about its size."""
+    r = radius
+    specs = [ObjectSpec(name="sphere", kind="sphere", dims=(r,), mass=0.2),
+             ObjectSpec(name="box", kind="box", dims=(1.6 * r, 1.2 * r, 2.4 * r), mass=0.2),
+             ObjectSpec(name="cylinder", kind="cylinder", dims=(0.8 * r, 3.0 * r), mass=0.2)]
+    return {s.name: prepare(s) for s in specs}
+
+
+@pytest.mark.parametrize("name", HANDS)
+def test_hand_closes_to_force_closure(name: str) -> None:
+    hand = load_hand(name)
+    shapes = load_preshapes(hand)
+    finger_of = fingers(hand)
+    multi = len(set(finger_of.values())) > 1
+    for obj in sized_objects(OBJECT_RADIUS.get(name, DEFAULT_RADIUS)).values():
+        rays = sampling.sample(obj.mesh, sampler="surface", count=RAYS, rng=np.random.default_rng(SEED))
+        with Sim() as sim:
+            grasper = Grasper(sim, hand, sim.add_static_mesh(obj.mesh.vertices, obj.mesh.faces))
+            found = _first_force_closure(grasper, shapes, rays, obj, finger_of, multi)
+        assert found is not None, f"{name}: no force-closure grasp of the {obj.name}"
+
+
+def _first_force_closure(grasper, shapes, rays, obj, finger_of, multi):  # type: ignore[no-untyped-def]
+    for shape in shapes:
+        for standoff in shape.standoffs:
+            for i in range(len(rays)):
+                closed = grasper.close(rays.points[i], rays.directions[i], 0.0, standoff, shape, obj.torque_scale)
+                if not isinstance(closed, Closed):
+                    continue
+                touching = {finger_of[link] for link in closed.contacts.links if link in finger_of}
+                if multi and len(touching) < 2:
+                    continue
+                if grasp_quality(closed.contacts, grasper.hand, obj, CONE_EDGES).force_closure:
+                    return closed
+    return None

@@ -1,10 +1,9 @@
+"""Approach rays: the surface and box samplers, the fan."""
+
 import numpy as np
 import trimesh
 from helpers import assert_close
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
-from planner.geometry import frames
 from planner.plan import sampling
 
 
@@ -38,15 +37,3 @@ def test_fan_tilts_by_the_angle() -> None:
     assert len(fanned) == 25
     cos = np.einsum("ij,ij->i", fanned.directions[5:], np.tile(base.directions, (4, 1)))
     assert_close(cos, np.full(20, np.cos(0.3)), 1e-9)
-
-
-unit = st.lists(st.floats(-1, 1), min_size=3, max_size=3).map(np.array).filter(lambda v: np.linalg.norm(v) > 0.1)
-
-
-@settings(max_examples=200, deadline=None)
-@given(a=unit, d=unit, roll=st.floats(-7, 7))
-def test_hand_rotation_maps_approach_onto_direction(a: np.ndarray, d: np.ndarray, roll: float) -> None:
-    r = frames.hand_rotation(a, d, roll)
-    assert_close(r @ r.T, np.eye(3), 1e-9)
-    assert np.linalg.det(r) > 0
-    assert_close(r @ (a / np.linalg.norm(a)), d / np.linalg.norm(d), 1e-9)

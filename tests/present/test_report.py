@@ -1,4 +1,3 @@
-import sqlite3
 from pathlib import Path
 
 import numpy as np
@@ -11,35 +10,11 @@ from planner.plan.sweep import SweepSettings
 from planner.present import report
 
 
-@pytest.fixture(scope="module")
-def validated(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    db = tmp_path_factory.mktemp("rep") / "g.db"
-    api.generate(["box", "sphere"], "panda", db_path=db, settings=SweepSettings(approaches=6, rolls=2,
-                 preshapes=("wide",), reach_placements=1), workers=1)
-    result = CliRunner().invoke(main, ["validate", "--db", str(db), "--top", "3", "--robust", "2", "--workers", "1"])
-    assert result.exit_code == 0, result.stderr
-    return db
-
-
-def test_validate_stores_trials_and_reranks(validated: Path) -> None:
-    with sqlite3.connect(validated) as conn:
-        rows = conn.execute("SELECT g.score, g.epsilon, g.reachability, v.success, r.samples FROM grasps g "
-                            "JOIN validation v ON v.grasp_id = g.id JOIN robust r ON r.grasp_id = g.id").fetchall()
-        ranks = conn.execute("SELECT object, rank, score FROM grasps ORDER BY object, rank").fetchall()
-    assert len(rows) == 6
-    for score, eps, reach, success, samples in rows:
-        assert samples == 2
-        assert score == pytest.approx(eps * (0.5 + 0.5 * reach) * float(success))
-    for obj in ("box", "sphere"):
-        scores = [s for o, _, s in ranks if o == obj]
-        assert scores == sorted(scores, reverse=True)
-
-
-def test_report_html_and_markdown(validated: Path, tmp_path: Path) -> None:
-    html = report.write(validated, tmp_path / "r.html")
+def test_report_html_and_markdown(validated_db: Path, tmp_path: Path) -> None:
+    html = report.write(validated_db, tmp_path / "r.html")
     text = html.read_text()
     assert "hand panda" in text and "data:image/png;base64," in text and "Spearman(epsilon, success)" in text
-    md = report.write(validated, tmp_path / "r")
+    md = report.write(validated_db, tmp_path / "r")
     body = md.read_text()
     assert "top-1 grasp succeeds, final ranking (objects)" in body and "| box |" in body
     assert (tmp_path / "r" / "deciles_panda.png").stat().st_size > 1000

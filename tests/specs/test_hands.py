@@ -1,12 +1,49 @@
+"""Hand descriptions: every hand folder in ``hands/`` loads complete, errors
+name file and field, and the hands authored here have their known answers.
+
+Plus known answers of the hands authored here (Barrett, Allegro-style).
+"""
+
+from __future__ import annotations
+
+import json
 import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import NUM_TOL, assert_close
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
-from planner.errors import ConfigError, UnknownNameError
-from planner.specs.hands import hands_dir, load_folder, load_hand
+from planner.errors import ConfigError, PlannerError, UnknownNameError
+from planner.sim import Sim
+from planner.specs.hands import hand_names, hands_dir, load_folder, load_hand
 from planner.specs.preshapes import load_preshapes
+
+HANDS = hand_names()
+
+
+def test_every_shipped_hand_is_found() -> None:
+    assert {"panda", "barrett", "allegro", "pr2"} <= set(HANDS)
+
+
+@pytest.mark.parametrize("name", HANDS)
+def test_hand_description_is_complete(name: str) -> None:
+    import yourdfpy
+
+    hand = load_hand(name)
+    robot = yourdfpy.URDF.load(str(hand.urdf), load_meshes=False, build_collision_scene_graph=False)
+    # a movable joint missing from hand.toml would never be set (stays at 0)
+    assert {j.name for j in robot.robot.joints if j.type != "fixed"} == {j.name for j in hand.joints}
+    with Sim() as sim:
+        body = sim.load_urdf(hand.urdf)
+        geometry = {link for link in hand.links if sim.has_collision(body, link)}
+    # a link that can touch but is not a contact link rejects every grasp it touches
+    assert geometry == set(hand.contact_links)
+    assert np.isclose(np.linalg.norm(hand.approach), 1.0)
+    assert all(j.lower < j.upper for j in hand.joints)
+    assert any(j.close != 0 for j in hand.driven)
 
 
 def test_panda_hand_is_the_hand_only() -> None:
@@ -19,30 +56,6 @@ def test_panda_hand_is_the_hand_only() -> None:
                                                                    "panda_finger_joint2": 0.03}
     assert np.isclose(np.linalg.norm(h.approach), 1.0)
     assert h.urdf.is_file() and "panda_link1" not in h.urdf.read_text()
-
-
-def test_panda_urdf_matches_yourdfpy_kinematics() -> None:
-    import yourdfpy
-
-    from planner.sim import Sim
-
-    h = load_hand("panda")
-    robot = yourdfpy.URDF.load(str(h.urdf), load_meshes=False, build_collision_scene_graph=False)
-    q = {"panda_finger_joint1": 0.031, "panda_finger_joint2": 0.031}
-    robot.update_cfg(q)
-    with Sim() as sim:
-        body = sim.load_urdf(h.urdf)
-        sim.set_joints(body, q)
-        for link in ("panda_leftfinger", "panda_rightfinger"):
-            assert np.allclose(robot.get_transform(link, "panda_hand"), sim.link_pose(body, link), atol=1e-6)
-
-
-def test_preshapes_fill_in_mimics() -> None:
-    shapes = load_preshapes(load_hand("panda"))
-    assert [s.name for s in shapes] == ["wide", "half"]
-    assert shapes[0].joints["panda_finger_joint2"] == shapes[0].joints["panda_finger_joint1"] == 0.04
-    with pytest.raises(UnknownNameError, match="Available preshapes: half, wide"):
-        load_preshapes(load_hand("panda"), ["fist"])
 
 
 def test_unknown_hand_lists_hands() -> None:
@@ -78,3 +91,120 @@ def test_broken_hand_folder_names_file_and_field(tmp_path: Path, old: str, new: 
     with pytest.raises(ConfigError, match=message) as err:
         load_folder(folder)
     assert "hand.toml" in str(err.value)
+
+
+def hand_copy(tmp_path: Path) -> Path:
+    folder = tmp_path / "panda"
+    shutil.copytree(hands_dir() / "panda", folder)
+    return folder
+
+
+def test_malformed_toml_names_the_file(tmp_path: Path) -> None:
+    folder = hand_copy(tmp_path)
+    (folder / "hand.toml").write_text("approach = [0, 0, 1\n")
+    with pytest.raises(ConfigError, match=r"hand\.toml: malformed TOML"):
+        load_folder(folder)
+
+
+toml_values = st.one_of(st.integers(-5, 5), st.floats(allow_nan=True), st.text(max_size=8), st.booleans(),
+                        st.lists(st.floats(-2, 2), max_size=4))
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+                                                                 HealthCheck.function_scoped_fixture])
+@given(key=st.sampled_from(["approach", "tcp", "root_link", "contact_links", "centering", "roll_symmetry",
+                            "urdf", "distance_offset"]), value=toml_values, garbage=st.text(max_size=30))
+def test_fuzz_hand_toml_loads_or_refuses_cleanly(tmp_path_factory, key, value, garbage) -> None:  # type: ignore[no-untyped-def]
+    import tomllib
+
+    folder = tmp_path_factory.mktemp("fuzz") / "panda"
+    shutil.copytree(hands_dir() / "panda", folder)
+    toml = folder / "hand.toml"
+    data = tomllib.loads(toml.read_text())
+    data[key] = value
+    lines = [f"{k} = {_toml(v)}" for k, v in data.items() if not isinstance(v, (dict, list)) or
+             (isinstance(v, list) and not any(isinstance(x, dict) for x in v))]
+    text = "\n".join(lines) + "\n" + "\n".join(toml.read_text().split("\n[[joints]]", 1)[1:2] and
+                                               ["[[joints]]" + toml.read_text().split("\n[[joints]]", 1)[1]])
+    toml.write_text(text + ("\n# " + garbage.replace("\n", " ") if garbage else ""))
+    try:
+        load_folder(folder)
+    except PlannerError:
+        pass
+
+
+def _toml(value: object) -> str:
+
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float) and not np.isfinite(value):
+        return "nan" if np.isnan(value) else ("inf" if value > 0 else "-inf")
+    return json.dumps(value)
+
+
+# -- known answers of the authored hands -------------------------------------------------------
+
+
+def _fk(name: str, driven: dict[str, float], link: str, point: tuple[float, float, float]) -> np.ndarray:
+    """(3,) position [m] in the hand frame of ``point`` given in ``link``'s frame."""
+    import yourdfpy
+
+    hand = load_hand(name)
+    robot = yourdfpy.URDF.load(str(hand.urdf), load_meshes=False, build_collision_scene_graph=False)
+    robot.update_cfg({k: float(v) for k, v in driven.items()})
+    return (robot.get_transform(link, hand.root_link) @ np.array([*point, 1.0]))[:3]
+
+
+BARRETT_TIP = (0.056, 0.0, 0.0)  # end of the distal link, its own frame
+
+
+def _barrett_tips(spread: float, flex: float) -> np.ndarray:
+    q = {"bh_j11_joint": spread, "bh_j12_joint": flex, "bh_j22_joint": flex, "bh_j32_joint": flex}
+    return np.array([_fk("barrett", q, f"bh_finger_{k}3_link", BARRETT_TIP) for k in (1, 2, 3)])
+
+
+def test_barrett_spread_mirrors_fingers_one_and_two() -> None:
+    for spread in (0.0, 1.0472, 1.5708, 3.14159):
+        f1, f2, f3 = _barrett_tips(spread, 0.5)
+        assert_close(f2, f1 * [-1, 1, 1], NUM_TOL)  # mirror images in the x = 0 plane
+        assert_close(f3[0], 0.0, NUM_TOL)  # finger 3 is fixed in the y-z plane
+    y = _barrett_tips(0.0, 0.0)[:, 1]
+    assert y[0] < 0 and y[1] < 0 and y[2] > 0  # spread 0: fingers 1 and 2 oppose finger 3
+    y = _barrett_tips(3.14159, 0.0)[:, 1]
+    assert np.all(y > 0)  # spread pi: all three side by side
+
+
+def test_barrett_open_span_matches_datasheet() -> None:
+    # fully open (flat) hand: ~0.33 m between fingertips (datasheet ~0.335 m)
+    tips = _barrett_tips(0.0, 0.0)
+    assert 0.30 < np.linalg.norm(tips[0] - tips[2]) < 0.35
+    # closing lifts the fingers from the palm plane towards the approach axis
+    assert np.all(_barrett_tips(0.0, 1.0)[:, 2] > tips[:, 2])
+
+
+def test_barrett_distal_follows_a_third_of_the_proximal() -> None:
+    hand = load_hand("barrett")
+    q = hand.full_configuration({"bh_j11_joint": 0.3, "bh_j12_joint": 1.2, "bh_j22_joint": 0.6, "bh_j32_joint": 2.4})
+    assert q["bh_j21_joint"] == q["bh_j11_joint"]
+    assert_close([q["bh_j13_joint"], q["bh_j23_joint"], q["bh_j33_joint"]], np.array([1.2, 0.6, 2.4]) * 0.3333)
+
+
+def test_allegro_is_sixteen_independent_joints_curling_towards_the_approach() -> None:
+    hand = load_hand("allegro")
+    assert len(hand.driven) == len(hand.joints) == 16
+    straight = {j.name: 0.0 for j in hand.driven} | {"thumb_rot": 0.263}
+    tip = _fk("allegro", straight, "middle_tip", (0, 0, 0))
+    assert_close(tip, [0.0, 0.0, 0.0007 + 0.0164 + 0.054 + 0.0384 + 0.0267], NUM_TOL)  # straight up the z axis
+    curled = straight | {"middle_mcp": 0.8, "middle_pip": 0.8, "middle_dip": 0.8}
+    assert _fk("allegro", curled, "middle_tip", (0, 0, 0)) @ hand.approach > 0.05
+
+
+def test_allegro_opposed_thumb_meets_the_index_in_front_of_the_palm() -> None:
+    # pinch preshape, index curled 1 rad per joint, thumb 0.7 rad: the 12 mm
+    # fingertip spheres overlap about 8 cm in front of the palm face
+    pinch = {s.name: s for s in load_preshapes(load_hand("allegro"))}["pinch"]
+    q = dict(pinch.joints) | {"index_mcp": 1.0, "index_pip": 1.0, "index_dip": 1.0, "thumb_mcp": 0.7, "thumb_ip": 0.7}
+    thumb = _fk("allegro", q, "thumb_tip", (0, 0, 0))
+    index = _fk("allegro", q, "index_tip", (0, 0, 0))
+    assert np.linalg.norm(thumb - index) < 2 * 0.012
+    assert thumb[0] > 0.05 and index[0] > 0.05

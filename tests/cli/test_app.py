@@ -1,0 +1,51 @@
+"""The command group's error contract: one line on stderr, the exit code of
+the error, never a traceback; names not found list the valid ones."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from helpers import grasp, one_line_error
+
+
+@pytest.mark.parametrize("args, code, message", [
+    (["generate", "teapot", "--hand", "panda"], 2, "unknown object 'teapot'"),
+    (["generate", "box", "--hand", "robotiq"], 2, "unknown hand 'robotiq'. Available hands:"),
+    (["generate", "missing.obj", "--hand", "panda"], 2, "missing.obj: file not found"),
+    (["generate", "box", "--hand", "panda", "--preshapes", "fist"], 2, "unknown preshape 'fist'"),
+    (["best", "box", "--hand", "panda", "--db", "nowhere.db"], 3, "no such database"),
+])
+def test_bad_input_is_one_line_and_exit_code(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, args: list[str],
+                                             code: int, message: str) -> None:
+    monkeypatch.chdir(tmp_path)
+    got, out, err = grasp(*args)
+    assert got == code
+    assert message in err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["generate", "teapot", "--hand", "panda"], "Available objects: box, bunny"),
+    (["generate", "box", "--hand", "shadow"], "Available hands: allegro, barrett, panda, pr2"),
+    (["generate", "box", "--hand", "panda", "--preshapes", "fist"], "Available preshapes: half, wide"),
+    (["generate", "box", "--hand", "../objects"], "folder name"),
+    (["best", "box", "--hand", "panda", "--object-pose", "1,2,3"], "7 finite numbers"),
+    (["generate", "box", "--hand", "panda", "--reach-weight", "3"], "--reach-weight must be in [0, 1]"),
+])
+def test_unknown_names_list_the_valid_ones(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, args: list[str],
+                                           needle: str) -> None:
+    monkeypatch.chdir(tmp_path)
+    code, _, err = grasp(*args)
+    assert code in (2, 3), err
+    one_line_error(code, err, code, needle)
+
+
+def test_debug_shows_the_traceback(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    from click.testing import CliRunner
+
+    from planner.cli import main
+
+    result = CliRunner().invoke(main, ["--debug", "generate", "teapot", "--hand", "panda"])
+    assert result.exit_code != 0 and result.exception is not None and "unknown object" in str(result.exception)

@@ -1,0 +1,85 @@
+"""``grasp generate``: summaries, and bad meshes refused with one line while
+an existing database is left untouched."""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+from pathlib import Path
+
+import pytest
+import trimesh
+from helpers import FAST, grasp, one_line_error
+
+
+def snapshot(db: Path) -> list[tuple]:
+    with sqlite3.connect(db) as conn:
+        return conn.execute("SELECT * FROM grasps ORDER BY id").fetchall()
+
+
+def test_generate_json_summary(tmp_path: Path) -> None:
+    code, out, err = grasp("generate", "sphere", "--hand", "panda", "--db", str(tmp_path / "s.db"), "--json", *FAST)
+    assert code == 0, err
+    summary = json.loads(out)
+    assert summary["candidates"] == 6 * 2 * 2 and summary["units"] == 1
+
+
+def write_obj(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("name, content, needle", [
+    ("missing.obj", None, "file not found"),
+    ("empty.obj", "", "empty"),
+    ("nan.obj", "v 0 0 0\nv nan 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n", "NaN"),
+    ("inf.obj", "v 0 0 0\nv inf 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n", "NaN or infinite"),
+    ("flat.obj", "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0.1 0.1 0\nf 1 2 3\nf 2 4 3\n", "volume"),
+])
+def test_broken_mesh_files_one_line_and_db_untouched(box_db: Path, tmp_path: Path, name: str, content: str | None,
+                                                     needle: str) -> None:
+    path = tmp_path / name
+    if content is not None:
+        write_obj(path, content)
+    before = snapshot(box_db)
+    code, _, err = grasp("generate", str(path), "--hand", "panda", "--db", str(box_db), *FAST, "--quiet")
+    one_line_error(code, err, 2, name, needle)
+    assert snapshot(box_db) == before
+
+
+def test_millimetres_passed_as_metres(tmp_path: Path) -> None:
+    path = tmp_path / "mm.stl"
+    trimesh.creation.box(extents=[50.0, 40.0, 80.0]).export(path)
+    code, _, err = grasp("generate", str(path), "--hand", "panda", "--db", str(tmp_path / "x.db"), *FAST, "--quiet")
+    one_line_error(code, err, 2, "millimetres", "--scale 0.001")
+    assert not (tmp_path / "x.db").exists()
+    code, _, err = grasp("generate", str(path), "--scale", "0.001", "--hand", "panda", "--db", str(tmp_path / "x.db"),
+                    *FAST, "--quiet")
+    assert code == 0, err
+
+
+def test_smaller_than_a_millimetre(tmp_path: Path) -> None:
+    path = tmp_path / "tiny.stl"
+    trimesh.creation.box(extents=[5e-4, 5e-4, 5e-4]).export(path)
+    code, _, err = grasp("generate", str(path), "--hand", "panda", "--db", str(tmp_path / "x.db"), *FAST, "--quiet")
+    one_line_error(code, err, 2, "smaller than a millimetre")
+
+
+def test_broken_mesh_leaves_existing_database_untouched(box_db: Path, tmp_path: Path) -> None:
+    before = box_db.read_bytes() if not Path(str(box_db) + "-wal").exists() else None
+    rows = sqlite3.connect(box_db).execute("SELECT COUNT(*) FROM grasps").fetchone()[0]
+    bad = tmp_path / "broken.obj"
+    bad.write_text("v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n")
+    code, _, err = grasp("generate", str(bad), "--hand", "panda", "--db", str(box_db), "--quiet", *FAST)
+    assert code == 2 and "broken" in err
+    assert sqlite3.connect(box_db).execute("SELECT COUNT(*) FROM grasps").fetchone()[0] == rows
+    if before is not None:
+        assert box_db.read_bytes() == before
+
+
+def test_not_a_database_is_refused(tmp_path: Path) -> None:
+    junk = tmp_path / "junk.db"
+    junk.write_text("hello")
+    code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(junk), *FAST, "--quiet")
+    assert code == 3 and "not an SQLite database" in err
+    assert junk.read_text() == "hello"

@@ -1,0 +1,55 @@
+"""``grasp best`` and ``grasp show``: the documented JSON, and fingers that really touch."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+from helpers import grasp
+
+
+def test_best_json_has_the_documented_keys(box_db: Path) -> None:
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--top", "3", "--json")
+    assert code == 0, err
+    grasps = json.loads(out)
+    assert 1 <= len(grasps) <= 3
+    keys = {"object", "hand", "preshape", "pose", "joints", "epsilon", "volume", "force_closure", "contacts", "rank",
+            "score"}
+    assert keys <= set(grasps[0])
+    assert [g["rank"] for g in grasps] == list(range(1, len(grasps) + 1))
+    pose = np.array(grasps[0]["pose"])
+    assert pose.shape == (4, 4) and np.allclose(pose[:3, :3] @ pose[:3, :3].T, np.eye(3), atol=1e-6)
+    assert grasps[0]["epsilon"] > 0 and grasps[0]["force_closure"]
+    assert {"point", "normal", "link"} <= set(grasps[0]["contacts"][0])
+
+
+def test_best_grasp_fingers_really_touch_the_object(box_db: Path) -> None:
+    """Re-place the hand from the JSON alone and measure the true finger gaps."""
+    from planner.geometry.solid import load_object
+    from planner.sim import Sim
+    from planner.specs.hands import load_hand
+
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--json")
+    assert code == 0, err
+    top = json.loads(out)[0]
+    hand, obj = load_hand("panda"), load_object("box")
+    with Sim() as sim:
+        body = sim.load_urdf(hand.urdf)
+        target = sim.add_static_mesh(obj.mesh.vertices, obj.mesh.faces)
+        sim.set_pose(body, np.array(top["pose"]))
+        sim.set_joints(body, top["joints"])
+        for finger in ("panda_leftfinger", "panda_rightfinger"):
+            pairs = sim.closest(body.uid, target, 0.01, body.links[finger])
+            gap = pairs.min_distance + hand.distance_offset
+            assert -0.001 <= gap <= 0.001, (finger, gap)
+    assert top["epsilon"] > 0
+
+
+def test_best_prints_one_line_per_grasp_and_show_writes_a_png(box_db: Path, tmp_path: Path) -> None:
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--top", "2")
+    assert code == 0, err
+    lines = out.strip().splitlines()
+    assert len(lines) == 2 and lines[0].startswith("#1 box/panda preshape=wide score=")
+    code, out, err = grasp("show", "box", "--hand", "panda", "--db", str(box_db), "--out", str(tmp_path / "g.png"))
+    assert code == 0 and (tmp_path / "g.png").stat().st_size > 1000, err

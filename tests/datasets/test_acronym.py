@@ -1,0 +1,104 @@
+"""ACRONYM HDF5: the layout ACRONYM's own loaders read, and its labels."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from helpers import assert_close
+
+from planner.geometry.solid import load_object
+from tests.datasets.support import export, source_rows
+
+h5py = pytest.importorskip("h5py")
+pq = pytest.importorskip("pyarrow.parquet")
+
+#: Fingertip points of a closed Panda lie this close to the surface [m]
+#: (PyBullet's margins are corrected to ~0.3 mm; 2 mm leaves room).
+SURFACE_TOL = 0.002
+PANDA_PAD_Z = 0.1034  # ACRONYM's Panda: finger pads at z = 10.34 cm
+
+
+def fingertips(transforms: np.ndarray, width: np.ndarray, axis: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """ACRONYM's Panda drawn at the transforms: (N, 3) pad centres of both fingers."""
+    offset = np.zeros((len(width), 4))
+    offset[:, axis] = width / 2
+    offset[:, 2], offset[:, 3] = PANDA_PAD_Z, 1.0
+    flip = offset * [-1, -1, 1, 1]
+    return np.einsum("nij,nj->ni", transforms, offset)[:, :3], np.einsum("nij,nj->ni", transforms, flip)[:, :3]
+
+
+def grips(mesh: trimesh.Trimesh, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N,) both pads on the surface, the object between them."""
+    n = len(a)
+    dist = trimesh.proximity.signed_distance(mesh, np.vstack([a, b, (a + b) / 2]))  # > 0 inside
+    on_surface = (np.abs(dist[:n]) < SURFACE_TOL) & (np.abs(dist[n:2 * n]) < SURFACE_TOL)
+    return on_surface & (dist[2 * n:] > 0)
+
+
+def test_acronym_layout_read_by_plain_h5py(db: Path, tmp_path: Path) -> None:
+    path = export(db, "acronym", tmp_path, "--object", "box") / "box__panda.h5"
+    with h5py.File(path, "r") as f:  # what ACRONYM's own loaders read
+        transforms = np.array(f["grasps/transforms"])
+        success = np.array(f["grasps/qualities/flex/object_in_gripper"])
+        mesh_file = f["object/file"][()].decode("utf-8")
+        scale, gripper = f["object/scale"][()], f["gripper/type"][()].decode()
+        width, fc = f["grasps/width"][()], f["grasps/qualities/force_closure"][()]
+        label_source = f["grasps/qualities/flex/object_in_gripper"].attrs["label_source"]
+        assert f["gripper/configuration"].shape == (1,) and f["object/inertia"].shape == (3, 3)
+        assert_close(f["grasps/poses_hand_frame"][()] @ f["grasps/export_frame"][()], transforms)
+    rows = source_rows(db, "box")
+    assert transforms.shape == (len(rows), 4, 4) and transforms.dtype == np.float64
+    assert success.dtype == np.int64 and set(success) <= {0, 1}
+    assert (mesh_file, scale, gripper) == ("primitive:box", 1.0, "panda")
+    # labels: simulated where validated (the best grasp was 'dropped'), else the force-closure flag
+    assert label_source == "mixed" and success[0] == 0 and success[1] == 1
+    assert list(success[2:]) == [r["force_closure"] for r in rows[2:]]
+    mesh = load_object("box").mesh
+    closure = fc == 1
+    a, b = fingertips(transforms[closure], width[closure])
+    assert closure.sum() > 0 and grips(mesh, a, b).all()
+    a, b = fingertips(transforms[closure], width[closure], axis=1)  # fingers along y: not ACRONYM's frame
+    assert not grips(mesh, a, b).all()
+
+
+def test_label_source_simulation_when_every_grasp_was_validated(db: Path, tmp_path: Path) -> None:
+    path = export(db, "acronym", tmp_path, "--object", "box", "--top", "2") / "box__panda.h5"
+    with h5py.File(path, "r") as f:
+        labels = f["grasps/qualities/flex/object_in_gripper"]
+        assert labels.attrs["label_source"] == "simulation" and list(labels[()]) == [0, 1]
+        assert list(f["grasps/qualities/simulated_success"][()]) == [0, 1]
+        assert_close(f["grasps/qualities/flex/object_motion_during_shaking_angular"][()], [0.02, 0.02])
+        assert_close(f["grasps/qualities/robust_epsilon_mean"][()], [0.05, 0.05])
+
+
+def test_object_scale_turns_the_mesh_file_into_the_object() -> None:
+    """What ACRONYM readers do with object/file and object/scale; the duck's
+    URDF scales its mesh file by 0.05 on top of the registry's scale."""
+    duck = load_object("duck")
+    scale = duck.file_scale
+    raw = trimesh.load(duck.source_file, force="mesh", process=False)
+    assert scale == pytest.approx(0.05)
+    assert_close(raw.extents * scale, duck.mesh.extents)
+
+
+def test_the_reader_refuses_what_is_not_a_rigid_transform(tmp_path: Path) -> None:
+    from planner.datasets import acronym
+    from planner.errors import InputError
+    from planner.specs.hands import load_hand
+
+    path = tmp_path / "skewed.h5"
+    transforms = np.tile(np.eye(4), (3, 1, 1))
+    transforms[2, 0, 0] = 2.0
+    with h5py.File(path, "w") as f:
+        f["gripper/type"], f["grasps/transforms"] = "panda", transforms
+    header = acronym.read_header(path)
+    assert (header.gripper, header.extras, header.scale) == ("panda", False, None)
+    with pytest.raises(InputError, match="row 2 is not a rigid transform"):
+        acronym.read_poses(path, load_hand("panda"))
+    with h5py.File(tmp_path / "empty.h5", "w") as f:
+        f["object/file"] = "x.obj"
+    with pytest.raises(InputError, match="no 'grasps/transforms' dataset; not an ACRONYM grasp file"):
+        acronym.read_header(tmp_path / "empty.h5")

@@ -1,0 +1,95 @@
+"""Import: our ACRONYM files come back losslessly, foreign ones are re-scored."""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+from pathlib import Path
+
+import numpy as np
+import pytest
+from helpers import assert_close, grasp
+
+from planner.db.store import open_db
+from planner.geometry.solid import load_object
+from tests.datasets.support import SAME_ORDER_RULE, export, pose, source_rows
+
+h5py = pytest.importorskip("h5py")
+pq = pytest.importorskip("pyarrow.parquet")
+
+#: Re-closing a stored pose reproduces its epsilon to within this fraction.
+RESCORE_REL_TOL = 0.05
+
+
+def test_acronym_round_trip_is_lossless(db: Path, tmp_path: Path) -> None:
+    out = export(db, "acronym", tmp_path / "h5")
+    files = sorted(out.glob("*.h5"))
+    assert [f.name for f in files] == ["box__panda.h5", "sphere__panda.h5"]
+    fresh = tmp_path / "fresh.db"
+    with open_db(fresh) as handle:  # the same ranking rule, so the same scores
+        handle.apply_rule(SAME_ORDER_RULE)
+    code, _, err = grasp("import", "--format", "acronym", *map(str, files), "--db", str(fresh))
+    assert code == 0, err
+    for obj in ("box", "sphere"):
+        before = source_rows(db, obj)
+        after = sqlite3.connect(fresh)
+        after.row_factory = sqlite3.Row
+        imported = after.execute("SELECT * FROM grasps WHERE object = ? ORDER BY candidate", (obj,)).fetchall()
+        assert len(imported) == len(before) > 0
+        for a, b in zip(before, imported):
+            assert_close(pose(b), pose(a))
+            for key in ("epsilon", "volume", "force_closure", "score", "width", "reachability", "manipulability",
+                        "preshape", "roll", "standoff", "n_contacts", "links_touching"):
+                assert a[key] == b[key], key
+            for key in ("closed_joints", "open_joints", "contacts", "approach_point", "approach_dir"):
+                assert json.loads(a[key]) == json.loads(b[key]), key
+    # the shake-test and robust-epsilon results came back too
+    sim = "SELECT g.candidate, v.success, r.mean, r.quantile FROM grasps g JOIN validation v ON v.grasp_id = g.id" \
+          " JOIN robust r ON r.grasp_id = g.id WHERE g.object = 'box' ORDER BY g.candidate"
+    assert sorted(tuple(r)[1:] for r in sqlite3.connect(fresh).execute(sim)) == \
+        sorted(tuple(r)[1:] for r in sqlite3.connect(db).execute(sim))
+    # the same files again: already imported, nothing added
+    count = sqlite3.connect(fresh).execute("SELECT COUNT(*) FROM grasps").fetchone()[0]
+    code, out_text, _ = grasp("import", *map(str, files), "--db", str(fresh))
+    assert code == 0 and "skipped" in out_text
+    assert sqlite3.connect(fresh).execute("SELECT COUNT(*) FROM grasps").fetchone()[0] == count
+
+
+def test_foreign_acronym_file_is_rescored(db: Path, tmp_path: Path) -> None:
+    """A file with only ACRONYM's datasets: the hand is closed at each pose
+    and the grasp evaluated again; force-closure grasps come back as such."""
+    path = export(db, "acronym", tmp_path / "ours", "--object", "box") / "box__panda.h5"
+    foreign = tmp_path / "foreign" / "grasps" / "Box_0.h5"
+    foreign.parent.mkdir(parents=True)
+    (tmp_path / "foreign" / "meshes").mkdir()
+    load_object("box").mesh.export(tmp_path / "foreign" / "meshes" / "crate.obj")
+    with h5py.File(path, "r") as src, h5py.File(foreign, "w") as dst:
+        keep = src["grasps/qualities/force_closure"][()] == 1
+        dst["gripper/type"], dst["gripper/configuration"] = "franka_panda", [0.08]
+        dst["object/file"], dst["object/scale"] = "meshes/crate.obj", 1.0
+        for key in ("mass", "friction", "density", "volume", "com", "inertia"):
+            dst[f"object/{key}"] = src[f"object/{key}"][()]
+        dst["grasps/transforms"] = src["grasps/transforms"][()][keep]
+        dst["grasps/qualities/flex/object_in_gripper"] = np.ones(keep.sum(), np.int64)
+        epsilon = src["grasps/qualities/epsilon"][()][keep]
+    fresh = tmp_path / "fresh.db"
+    code, out, err = grasp("import", str(foreign), "--db", str(fresh))
+    assert code == 0 and "re-scored" in out, err
+    conn = sqlite3.connect(fresh)
+    rows = conn.execute("SELECT candidate, epsilon, force_closure, object FROM grasps ORDER BY candidate").fetchall()
+    assert {r[3] for r in rows} == {"crate"} and len(rows) >= 0.8 * len(epsilon)
+    close = [r[2] == 1 and abs(r[1] - epsilon[r[0]]) <= RESCORE_REL_TOL * epsilon[r[0]] for r in rows]
+    assert np.mean(close) >= 0.8
+    settings = json.loads(conn.execute("SELECT settings FROM units").fetchone()[0])
+    assert settings["import"] == "acronym" and len(settings["sha256"]) == 64 and settings["rescore"]
+
+
+def test_unknown_gripper_needs_hand(db: Path, tmp_path: Path) -> None:
+    path = tmp_path / "robotiq.h5"
+    with h5py.File(path, "w") as f:
+        f["gripper/type"], f["grasps/transforms"] = "robotiq_2f85", np.tile(np.eye(4), (2, 1, 1))
+        f["object/file"], f["object/scale"] = "nowhere.obj", 1.0
+    code, _, err = grasp("import", str(path), "--db", str(tmp_path / "i.db"))
+    assert code == 2 and "gripper type 'robotiq_2f85' is not a known hand; pass --hand" in err
+    code, _, err = grasp("import", str(path), "--db", str(tmp_path / "i.db"), "--hand", "panda")
+    assert code == 2 and "object/file 'nowhere.obj' not found" in err

@@ -1,0 +1,44 @@
+"""Parquet and CSV: one row per grasp, the documented columns, nulls."""
+
+from __future__ import annotations
+
+import csv
+import json
+import re
+import sqlite3
+from pathlib import Path
+
+import pytest
+from helpers import assert_close
+
+from planner.datasets.table import COLUMNS, COLUMNS_DOC
+from tests.datasets.support import export, pose, source_rows
+
+h5py = pytest.importorskip("h5py")
+pq = pytest.importorskip("pyarrow.parquet")
+
+
+def documented_columns() -> list[str]:
+    return [name for line in COLUMNS_DOC.splitlines()[2:] for name in re.findall(r"`([a-z_0-9]+)`",
+                                                                                  line.split("|")[1])]
+
+
+def test_tables_have_one_row_per_grasp_and_the_documented_columns(db: Path, tmp_path: Path) -> None:
+    total = sqlite3.connect(db).execute("SELECT COUNT(*) FROM grasps").fetchone()[0]
+    assert documented_columns() == COLUMNS
+    table = pq.read_table(export(db, "parquet", tmp_path) / "grasps.parquet")
+    assert table.num_rows == total and table.column_names == COLUMNS
+    rows = table.to_pylist()
+    box = source_rows(db, "box")
+    first = next(r for r in rows if r["object"] == "box" and r["rank"] == 1)
+    assert_close([first[f"pose_{i}{j}"] for i in range(4) for j in range(4)], pose(box[0]).ravel())
+    assert first["validation_success"] == 0 and first["robust_samples"] == 25 and first["object_mass"] > 0
+    assert json.loads(first["closed_joints"]) == json.loads(box[0]["closed_joints"])
+    unvalidated = [r for r in rows if r["rank"] > 2 or r["object"] != "box"]
+    assert all(r["validation_success"] is None and r["robust_epsilon_mean"] is None for r in unvalidated)
+    with open(export(db, "csv", tmp_path) / "grasps.csv", newline="") as fh:
+        lines = list(csv.reader(fh))
+    assert lines[0] == COLUMNS and len(lines) == total + 1
+    by_id = {int(r[COLUMNS.index("grasp_id")]): dict(zip(COLUMNS, r)) for r in lines[1:]}
+    assert float(by_id[box[0]["id"]]["epsilon"]) == box[0]["epsilon"]  # full precision
+    assert by_id[box[-1]["id"]]["validation_success"] == ""

@@ -1,0 +1,79 @@
+"""The schema: files that are not ours are refused untouched, newer ones
+politely, older ones migrated after a backup."""
+
+from __future__ import annotations
+
+import shutil
+import sqlite3
+from pathlib import Path
+
+import pytest
+from helpers import FAST, grasp, one_line_error
+
+from planner.db.schema import SCHEMA, SCHEMA_VERSION
+from planner.db.store import open_db
+from planner.errors import DatabaseError
+
+
+def rows(path: Path) -> list[tuple]:
+    with sqlite3.connect(path) as conn:
+        return conn.execute("SELECT * FROM grasps ORDER BY id").fetchall()
+
+
+def test_not_sqlite_is_refused_and_untouched(tmp_path: Path) -> None:
+    path = tmp_path / "notes.db"
+    path.write_text("my precious notes")
+    with pytest.raises(DatabaseError, match="not an SQLite database"):
+        open_db(path)
+    assert path.read_text() == "my precious notes"
+
+
+def test_foreign_sqlite_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "other.db"
+    with sqlite3.connect(path) as conn:
+        conn.execute("CREATE TABLE t (x)")
+    with pytest.raises(DatabaseError, match="not a grasp database"):
+        open_db(path)
+
+
+def test_newer_schema_refuses_politely(tmp_path: Path) -> None:
+    path = tmp_path / "new.db"
+    open_db(path).close()
+    with sqlite3.connect(path) as conn:
+        conn.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'", (str(SCHEMA_VERSION + 1),))
+    with pytest.raises(DatabaseError, match="newer than this planner"):
+        open_db(path)
+
+
+def test_not_sqlite_newer_schema_and_read_only(box_db: Path, tmp_path: Path) -> None:
+    junk = tmp_path / "junk.db"
+    junk.write_bytes(b"\x00not a database at all" * 100)
+    code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(junk), *FAST, "--quiet")
+    one_line_error(code, err, 3, "not an SQLite database")
+    newer = tmp_path / "newer.db"
+    shutil.copy(box_db, newer)
+    with sqlite3.connect(newer) as conn:
+        conn.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'", (str(SCHEMA_VERSION + 5),))
+    code, _, err = grasp("best", "box", "--hand", "panda", "--db", str(newer))
+    one_line_error(code, err, 3, "newer than this planner")
+    with open_db(box_db, create=False, readonly=True) as db:  # a read-only handle stands in for a read-only file
+        with pytest.raises(DatabaseError, match="read-only"):
+            db.set_meta("ranking", "{}")
+    assert rows(box_db)
+
+
+def test_older_schema_is_migrated_after_a_backup(tmp_path: Path) -> None:
+    old = tmp_path / "old.db"
+    with sqlite3.connect(old) as conn:
+        for statement in filter(str.strip, SCHEMA.split(";")):
+            conn.execute(statement)
+        conn.execute("INSERT INTO meta VALUES ('schema_version', '1')")
+        conn.execute("INSERT INTO objects VALUES ('o', 's', 1, 'h', 1, 0.5, 1, 1, '[]', '[]', 0.1, '[]')")
+    with open_db(old) as db:
+        assert db.meta("schema_version") == str(SCHEMA_VERSION)
+    with sqlite3.connect(old) as conn:
+        assert conn.execute("SELECT name FROM objects").fetchall() == [("o",)]
+    backups = list(tmp_path.glob("old.db.v1.*.bak"))
+    assert len(backups) == 1
+    with sqlite3.connect(backups[0]) as conn:
+        assert conn.execute("SELECT value FROM meta").fetchone()[0] == "1"

@@ -1,0 +1,86 @@
+"""The sweep: a unit's seed and candidate numbering depend only on the unit."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from planner.errors import InputError
+from planner.plan.sampling import Approaches
+from planner.plan.sweep import ALGORITHM_VERSION, SweepSettings, candidates, unit_rng
+from planner.specs.hands import load_hand
+from planner.specs.preshapes import load_preshapes
+
+RAYS = 7
+
+
+@pytest.fixture(scope="module")
+def shapes():  # type: ignore[no-untyped-def]
+    return load_preshapes(load_hand("panda"))
+
+
+def rays(n: int = RAYS) -> Approaches:
+    points = np.arange(3.0 * n).reshape(n, 3)
+    normals = np.tile([0.0, 0.0, 1.0], (n, 1))
+    return Approaches(points, normals, -normals)
+
+
+def test_unit_rng_depends_on_seed_object_hand_and_stream_only() -> None:
+    draw = lambda *key: unit_rng(*key).random(4)  # noqa: E731
+    assert np.array_equal(draw(3, "box", "panda"), draw(3, "box", "panda"))
+    base = draw(3, "box", "panda")
+    for other in ((4, "box", "panda"), (3, "mug", "panda"), (3, "box", "barrett"), (3, "box", "panda", 1)):
+        assert not np.array_equal(draw(*other), base), other
+    assert np.array_equal(draw(3, "box", "panda", 2, 17), draw(3, "box", "panda", 2, 17))
+
+
+def test_candidates_are_numbered_in_a_fixed_order_over_the_object(shapes) -> None:  # type: ignore[no-untyped-def]
+    settings = SweepSettings(rolls=3, standoffs=(0.0, 0.01))
+    every = candidates(rays(), shapes, settings)
+    assert len(every) == RAYS * len(shapes) * 3 * 2
+    assert [c.index for c in every] == list(range(len(every)))
+    # ray-major, then preshape, roll, standoff
+    first = every[:2 * 3 * len(shapes)]
+    assert {c.ray for c in first} == {0}
+    assert [(c.preshape.name, c.roll, c.standoff) for c in every[:2]] == [(shapes[0].name, 0.0, 0.0),
+                                                                          (shapes[0].name, 0.0, 0.01)]
+
+
+def test_chunks_partition_the_candidates_with_the_whole_object_numbers(shapes) -> None:  # type: ignore[no-untyped-def]
+    settings = SweepSettings(approaches=RAYS, rolls=2, chunk=3)
+    every = candidates(rays(), shapes, settings)
+    assert settings.chunks() == 3
+    parts = [candidates(rays(), shapes, settings, rays=settings.ray_range(k, RAYS)) for k in range(settings.chunks())]
+    joined = [c for part in parts for c in part]
+    assert [(c.index, c.ray, c.preshape.name, c.roll, c.standoff) for c in joined] == \
+        [(c.index, c.ray, c.preshape.name, c.roll, c.standoff) for c in every]
+    assert [c.ray for c in parts[2]] and min(c.ray for c in parts[2]) == 6
+
+
+def test_preshape_standoffs_unless_the_settings_override_them(shapes) -> None:  # type: ignore[no-untyped-def]
+    own = candidates(rays(1), shapes[:1], SweepSettings(rolls=1))
+    assert [c.standoff for c in own] == list(shapes[0].standoffs)
+    assert [c.standoff for c in candidates(rays(1), shapes[:1], SweepSettings(rolls=1, standoffs=(0.03,)))] == [0.03]
+
+
+def test_rolls_cover_one_period_of_the_hand_symmetry() -> None:
+    settings = SweepSettings(rolls=4)
+    assert np.allclose(settings.roll_angles(1), np.arange(4) * np.pi / 2)
+    assert np.allclose(settings.roll_angles(2), np.arange(4) * np.pi / 4)
+
+
+def test_settings_digest_names_the_algorithm_and_every_setting() -> None:
+    data = json.loads(SweepSettings().to_json())
+    assert data["algorithm"] == ALGORITHM_VERSION
+    assert SweepSettings().digest == SweepSettings().digest
+    assert SweepSettings(rolls=5).digest != SweepSettings().digest
+    assert SweepSettings(reach_placements=0).digest != SweepSettings().digest
+
+
+@pytest.mark.parametrize("bad", [dict(approaches=0), dict(rolls=0), dict(cone_edges=2), dict(fan_count=-1),
+                                 dict(chunk=-1), dict(standoffs=(-0.01,)), dict(sampler="grid")])
+def test_bad_settings_are_refused(bad: dict) -> None:
+    with pytest.raises(InputError):
+        SweepSettings(**bad)

@@ -1,0 +1,68 @@
+"""One unit of work: records for the writer, failures recorded not raised,
+the contact model of each link in the score."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from planner.geometry.solid import load_object
+from planner.grasp import Grasp
+from planner.plan.contacts import HandContacts
+from planner.plan.sweep import SweepSettings
+from planner.plan.unit import UnitSpec, closed_width, grasp_quality, run_unit
+from planner.specs.hands import load_hand
+from planner.specs.preshapes import load_preshapes
+
+SETTINGS = SweepSettings(approaches=4, rolls=2, preshapes=("wide",), reach_placements=0)
+
+
+@pytest.fixture(scope="module")
+def box_unit():  # type: ignore[no-untyped-def]
+    return run_unit(UnitSpec("box", "panda", SETTINGS, seed=1))
+
+
+def test_a_unit_returns_records_of_its_object_hand_and_seed(box_unit) -> None:  # type: ignore[no-untyped-def]
+    r = box_unit
+    assert r.error is None and r.obj is not None and r.object_name == "box"
+    wide = load_preshapes(load_hand("panda"), ["wide"])[0]
+    assert r.candidates == 4 * 2 * len(wide.standoffs)  # rays x rolls x standoffs
+    assert r.grasps and all(isinstance(g, Grasp) for g in r.grasps)
+    assert {(g.object, g.hand, g.seed, g.preshape) for g in r.grasps} == {("box", "panda", 1, "wide")}
+    assert r.candidates == len(r.grasps) + sum(r.rejected.values())
+    assert [g.candidate for g in r.grasps] == sorted(g.candidate for g in r.grasps)
+    assert r.force_closure == sum(g.force_closure for g in r.grasps) > 0
+    assert all(g.reachability is None for g in r.grasps)  # reach_placements=0
+    for g in r.grasps:
+        assert g.width == pytest.approx(sum(g.closed_joints.values()))  # the Panda's two prismatic fingers
+    assert set(r.timing) >= {"prepare", "sampling", "closing", "contacts", "quality"}
+
+
+def test_the_same_unit_gives_the_same_grasps(box_unit) -> None:  # type: ignore[no-untyped-def]
+    again = run_unit(UnitSpec("box", "panda", SETTINGS, seed=1))
+    assert [(g.candidate, g.epsilon, g.pose.tolist()) for g in again.grasps] == \
+        [(g.candidate, g.epsilon, g.pose.tolist()) for g in box_unit.grasps]
+
+
+def test_failures_are_recorded_not_raised() -> None:
+    assert "unknown object 'teapot'" in (run_unit(UnitSpec("teapot", "panda", SETTINGS, 0)).error or "")
+    timed_out = run_unit(UnitSpec("box", "panda", SETTINGS, 0, timeout=0.0))
+    assert "time-out" in (timed_out.error or "") and timed_out.object_name == "box"
+
+
+def test_each_contact_is_scored_with_its_link_model() -> None:
+    """Two opposed contacts: point contacts cannot resist a torque about the
+    line between them, soft ones (the Panda's pads) can."""
+    hand, obj = load_hand("panda"), load_object("box")
+    points = np.array([[0.0, 0.02, 0.0], [0.0, -0.02, 0.0]])
+    normals = np.array([[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]])
+    pads = HandContacts(points, normals, ("panda_leftfinger", "panda_rightfinger"))
+    palm = HandContacts(points, normals, ("panda_hand", "panda_hand"))
+    assert hand.contacts["panda_leftfinger"].model == "soft" and hand.contacts["panda_hand"].model == "point"
+    assert grasp_quality(pads, hand, obj, 8).force_closure
+    assert not grasp_quality(palm, hand, obj, 8).force_closure
+
+
+def test_width_is_for_parallel_jaws_only() -> None:
+    assert closed_width(load_hand("panda"), {"panda_finger_joint1": 0.01, "panda_finger_joint2": 0.01}) == 0.02
+    assert closed_width(load_hand("barrett"), {}) is None

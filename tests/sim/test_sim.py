@@ -1,0 +1,65 @@
+"""The PyBullet adapter: poses in and out, link frames, closest points, pictures."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from helpers import NUM_TOL, SIM_TOL, assert_close
+from scipy.spatial.transform import Rotation
+
+from planner.geometry.solid import load_object
+from planner.sim import Sim, pb_to_pose, pose_to_pb
+from planner.specs.hands import load_hand
+
+#: PyBullet stores poses in float32 in places; round trips agree to this.
+FLOAT32_TOL = 1e-6
+
+
+def a_pose(seed: int = 0) -> np.ndarray:
+    pose = np.eye(4)
+    pose[:3, :3] = Rotation.random(random_state=seed).as_matrix()
+    pose[:3, 3] = [0.1, -0.2, 0.3]
+    return pose
+
+
+def test_pose_conversions_round_trip() -> None:
+    for seed in range(5):
+        pose = a_pose(seed)
+        assert_close(pb_to_pose(*pose_to_pb(pose)), pose, FLOAT32_TOL)
+
+
+def test_a_placed_hand_reports_its_base_link_where_it_was_put() -> None:
+    hand = load_hand("panda")
+    with Sim() as sim:
+        body = sim.load_urdf(hand.urdf)
+        sim.set_pose(body, a_pose())
+        assert_close(sim.link_pose(body, hand.root_link), a_pose(), FLOAT32_TOL)
+        sim.set_joints(body, {"panda_finger_joint1": 0.03, "panda_finger_joint2": 0.03})
+        assert_close(sim.joint_values(body, ["panda_finger_joint1"]), [0.03], NUM_TOL)
+        assert sim.movable_joints(body) == ["panda_finger_joint1", "panda_finger_joint2"]
+        assert sim.has_collision(body, "panda_leftfinger")
+        lo, hi = sim.joint_limits(body, "panda_finger_joint1")
+        assert (lo, hi) == pytest.approx((0.0, 0.04))
+
+
+def test_closest_points_measure_the_gap_to_a_box() -> None:
+    box = load_object("box")  # 5 x 4 x 8 cm
+    with Sim() as sim:
+        target = sim.add_static_mesh(box.mesh.vertices, box.mesh.faces)
+        probe = sim.add_box((0.01, 0.01, 0.01), np.eye(4))
+        shifted = np.eye(4)
+        shifted[:3, 3] = [0.0, 0.0, 0.04 + 0.01 + 0.02]  # 2 cm above the box top
+        sim.set_base_pose(probe, shifted)
+        pairs = sim.closest(probe, target, 0.05)
+        assert len(pairs) > 0
+        assert pairs.min_distance == pytest.approx(0.02, abs=SIM_TOL)
+        assert_close(pairs.normal_b[np.argmin(pairs.distance)], [0.0, 0.0, 1.0], 1e-3)
+        assert len(sim.closest(probe, target, 0.01)) == 0
+
+
+def test_a_picture_has_the_size_asked_for() -> None:
+    box = load_object("box")
+    with Sim() as sim:
+        sim.add_visual_mesh(box.mesh.vertices, box.mesh.faces, (0.8, 0.5, 0.2, 1.0))
+        image = sim.render(np.array([0.3, -0.3, 0.2]), np.zeros(3), np.array([0.0, 0.0, 1.0]), (64, 48))
+    assert image.shape == (48, 64, 3) and image.dtype == np.uint8 and image.std() > 0

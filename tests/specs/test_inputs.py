@@ -1,0 +1,37 @@
+"""Object arguments: names, folders, globs, manifests, builtin:..."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import trimesh
+
+from planner.errors import InputError
+from planner.specs import inputs
+
+
+def test_inputs_expand_folders_globs_manifests_and_builtins(tmp_path: Path) -> None:
+    for sub in ("a", "b"):
+        (tmp_path / sub).mkdir()
+        trimesh.creation.box(extents=[0.03, 0.03, 0.03]).export(tmp_path / sub / "model.obj")
+    (tmp_path / "manifest.txt").write_text("# objects\nbox\na/model.obj 0.5\n\nrandom_004\n")
+    by_folder = inputs.expand([str(tmp_path)])
+    assert sorted(r.name for r in by_folder) == ["a/model", "b/model"]
+    assert len(inputs.expand([str(tmp_path / "*" / "*.obj")])) == 2
+    manifest = inputs.expand([f"@{tmp_path / 'manifest.txt'}"])
+    assert [r.source.endswith("model.obj") for r in manifest] == [False, True, False]
+    assert manifest[1].scale == 0.5
+    assert [r.name for r in inputs.expand(["builtin:random:3"])] == ["random_000", "random_001", "random_002"]
+    assert [r.name for r in inputs.expand(["builtin:random:5-7"])] == ["random_005", "random_006", "random_007"]
+    assert {"mug", "box", "sphere"} <= {r.name for r in inputs.expand(["builtin:all"])}
+    assert len(inputs.expand(["builtin:random"])) == 1000
+    assert len(inputs.expand(["box", "box"])) == 1
+
+
+@pytest.mark.parametrize("arg, message", [("builtin:random:2000", "range must lie within"),
+                                          ("builtin:random:x", "use builtin:random"),
+                                          ("@nowhere.txt", "manifest not found")])
+def test_bad_arguments(arg: str, message: str) -> None:
+    with pytest.raises(InputError, match=message):
+        inputs.expand([arg])

@@ -1,0 +1,53 @@
+"""Reading TOML at the edge: errors name the file, the table and the field."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from planner.errors import ConfigError, PlannerError
+from planner.specs.hands import hands_dir, load_folder
+from planner.specs.toml import Fields, read_toml
+
+
+def test_fields_say_file_table_and_field(tmp_path: Path) -> None:
+    path = tmp_path / "x.toml"
+    path.write_text('name = ""\nsize = -1.0\nflags = [1, "a"]\n[inner]\nk = 2\n')
+    f = Fields(read_toml(path), str(path))
+    with pytest.raises(ConfigError, match=r"x.toml field 'name': missing or not a non-empty string"):
+        f.str("name")
+    with pytest.raises(ConfigError, match=r"field 'size': must be positive and finite, got -1.0"):
+        f.float("size", positive=True)
+    with pytest.raises(ConfigError, match=r"field 'flags': missing or not a list of finite numbers"):
+        f.floats("flags")
+    assert f.table("inner").float("k") == 2.0
+    with pytest.raises(ConfigError, match=r"x.toml\[inner\] field 'missing': missing or not a number"):
+        f.table("inner").float("missing")
+
+
+@pytest.mark.parametrize("text, message", [(None, "file not found"), ("", "file is empty"),
+                                           ("a = [1,", "malformed TOML")])
+def test_missing_empty_and_malformed_files(tmp_path: Path, text: str | None, message: str) -> None:
+    path = tmp_path / "f.toml"
+    if text is not None:
+        path.write_text(text)
+    with pytest.raises(ConfigError, match=message):
+        read_toml(path)
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(text=st.text(max_size=200))
+def test_fuzz_arbitrary_toml_text_is_refused_cleanly(tmp_path_factory, text: str) -> None:  # type: ignore[no-untyped-def]
+    folder = tmp_path_factory.mktemp("fuzztext") / "panda"
+    shutil.copytree(hands_dir() / "panda", folder)
+    (folder / "hand.toml").write_text(text)
+    with pytest.raises(PlannerError):
+        load_folder(folder)
+    presets = folder / "preshapes.toml"
+    presets.write_text(text)
+    with pytest.raises(PlannerError):
+        Fields(read_toml(presets), str(presets)).tables("preshape")

@@ -1,0 +1,95 @@
+"""The Python API: building, resuming after a kill, failures recorded, queries."""
+
+from __future__ import annotations
+
+import os
+import random
+import signal
+import sqlite3
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+from helpers import content, reference_command
+
+from planner import api
+from planner.db.store import open_db
+from planner.errors import DatabaseError, InputError
+from planner.plan.sweep import SweepSettings
+
+SMALL = SweepSettings(approaches=8, rolls=2, preshapes=("wide",), chunk=4, reach_placements=1)
+
+
+def test_failing_object_is_recorded_and_the_batch_goes_on(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.obj"
+    bad.write_text("v 0 0 0\nv 1 0 0\nv 0 nan 0\nf 1 2 3\n")
+    db = tmp_path / "b.db"
+    summary = api.generate([str(bad), "box"], "panda", db_path=db, settings=SMALL, seed=11, workers=2)
+    assert "bad" in summary.failed and "NaN" in summary.failed["bad"]
+    with sqlite3.connect(db) as conn:
+        status = dict(conn.execute("SELECT object, status FROM units WHERE chunk = 0").fetchall())
+        errors = conn.execute("SELECT error FROM units WHERE object = 'bad'").fetchall()
+    assert status == {"bad": "failed", "box": "done"}
+    assert all("NaN" in e[0] for e in errors)
+    # a rerun retries only the failed units
+    again = api.generate([str(bad), "box"], "panda", db_path=db, settings=SMALL, seed=11, workers=1)
+    assert again.skipped == SMALL.chunks() and again.units == SMALL.chunks()
+
+
+@pytest.mark.parametrize("kill_after_units", [1, 3])
+def test_sigkill_mid_run_then_resume_ends_identical(reference_db: Path, tmp_path: Path, kill_after_units: int) -> None:
+    db = tmp_path / "killed.db"
+    proc = subprocess.Popen(reference_command(db), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 120
+    while time.time() < deadline and proc.poll() is None:
+        try:
+            with sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=1) as conn:
+                if conn.execute("SELECT COUNT(*) FROM units").fetchone()[0] >= kill_after_units:
+                    break
+        except sqlite3.Error:
+            pass
+        time.sleep(0.05)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert api.check_db(db) == []
+    subprocess.run(reference_command(db), check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    assert content(db) == content(reference_db)
+
+
+def test_kill_9_at_random_moments_then_resume(reference_db: Path, tmp_path: Path) -> None:
+    rng = random.Random(1234)
+    db = tmp_path / "k.db"
+    for _ in range(3):
+        proc = subprocess.Popen(reference_command(db), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        time.sleep(rng.uniform(1.0, 6.0))
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+        if db.exists():
+            with open_db(db, create=False, readonly=True) as handle:
+                assert handle.integrity_check() == []
+    subprocess.run(reference_command(db), check=True, stdout=subprocess.DEVNULL)
+    assert content(db) == content(reference_db)
+
+
+def test_best_on_missing_db_is_a_clear_error(tmp_path: Path) -> None:
+    with pytest.raises(DatabaseError, match="no such database"):
+        api.best("box", "panda", db_path=tmp_path / "none.db")
+
+
+def test_best_and_plan_check_inputs_before_any_work(box_db: Path) -> None:
+    assert [g.rank for g in api.best("box", "panda", db_path=box_db, top=2)] == [1, 2]
+    with pytest.raises(InputError, match="--top must be at least 1"):
+        api.best("box", "panda", db_path=box_db, top=0)
+    with pytest.raises(InputError, match="no grasps of 'sphere' for hand 'panda'.*objects with grasps: box"):
+        api.best("sphere", "panda", db_path=box_db)
+    with pytest.raises(InputError, match="no objects given"):
+        api.plan_units([], "panda", SweepSettings(), 0)
+    units = api.plan_units(["box", "box", "sphere"], "panda", SMALL, 3)
+    assert [(u.label, u.chunk) for u in units] == [(o, c) for o in ("box", "sphere") for c in range(SMALL.chunks())]
+
+
+def test_descriptions_list_hands_with_their_preshapes_and_objects() -> None:
+    hands = {spec.name: [s.name for s in shapes] for spec, shapes in api.hands()}
+    assert hands["panda"] == ["wide", "half"]
+    assert {"mug", "box"} <= set(api.objects())

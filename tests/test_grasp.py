@@ -1,0 +1,28 @@
+"""The grasp record: shapes checked, the JSON of ``grasp best --json``."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from helpers import made_up
+
+#: The keys the README documents for ``grasp best --json``.
+DOCUMENTED = {"object", "hand", "preshape", "pose", "joints", "open_joints", "width", "epsilon", "volume",
+              "force_closure", "reachability", "manipulability", "contacts", "rank", "score", "candidate", "seed"}
+
+
+def test_best_json_keys_and_values() -> None:
+    g = replace(made_up(3, 0.05, reach=0.5), rank=1, score=0.04)
+    data = json.loads(json.dumps(g.to_json()))
+    assert set(data) == DOCUMENTED
+    assert np.array(data["pose"]).shape == (4, 4) and data["joints"] == g.closed_joints
+    assert data["contacts"][0] == {"point": [0.0, 0.02, 0.0], "normal": [0.0, -1.0, 0.0], "link": "left"}
+    assert (data["rank"], data["score"], data["candidate"], data["force_closure"]) == (1, 0.04, 3, True)
+
+
+def test_shapes_are_checked() -> None:
+    with pytest.raises(ValueError, match="pose must be"):
+        replace(made_up(0, 0.0), pose=np.eye(3))
