@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 import sqlite3
 import sys
 from pathlib import Path
@@ -75,3 +76,12 @@ def made_up(candidate: int, epsilon: float, fc: bool = True, reach: float | None
                  approach_point=np.array([0.0, 0.0, 0.04]), approach_dir=np.array([0.0, 0.0, -1.0]), roll=0.5,
                  standoff=0.01, pose=pose, open_joints={"j": 0.04}, closed_joints={"j": 0.02}, width=0.04,
                  contacts=contacts, epsilon=epsilon, volume=epsilon / 10, force_closure=fc, reachability=reach)
+
+
+def hand_copy(tmp_path: Path) -> Path:
+    """A copy of the Panda's hand folder to break on purpose."""
+    from planner.specs.hands import hands_dir
+
+    folder = tmp_path / "panda"
+    shutil.copytree(hands_dir() / "panda", folder)
+    return folder

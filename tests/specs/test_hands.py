@@ -7,18 +7,17 @@ Plus known answers of the hands authored here (Barrett, Allegro-style).
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import NUM_TOL, assert_close
+from helpers import NUM_TOL, assert_close, hand_copy
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from planner.errors import ConfigError, PlannerError, UnknownNameError
 from planner.sim import Sim
-from planner.specs.hands import hand_names, hands_dir, load_folder, load_hand
+from planner.specs.hands import hand_names, load_folder, load_hand
 from planner.specs.preshapes import load_preshapes
 
 HANDS = hand_names()
@@ -66,8 +65,7 @@ def test_unknown_hand_lists_hands() -> None:
 
 
 def broken_copy(tmp_path: Path, old: str, new: str) -> Path:
-    folder = tmp_path / "panda"
-    shutil.copytree(hands_dir() / "panda", folder)
+    folder = hand_copy(tmp_path)
     toml = folder / "hand.toml"
     text = toml.read_text()
     assert old in text
@@ -93,12 +91,6 @@ def test_broken_hand_folder_names_file_and_field(tmp_path: Path, old: str, new: 
     assert "hand.toml" in str(err.value)
 
 
-def hand_copy(tmp_path: Path) -> Path:
-    folder = tmp_path / "panda"
-    shutil.copytree(hands_dir() / "panda", folder)
-    return folder
-
-
 def test_malformed_toml_names_the_file(tmp_path: Path) -> None:
     folder = hand_copy(tmp_path)
     (folder / "hand.toml").write_text("approach = [0, 0, 1\n")
@@ -117,8 +109,7 @@ toml_values = st.one_of(st.integers(-5, 5), st.floats(allow_nan=True), st.text(m
 def test_fuzz_hand_toml_loads_or_refuses_cleanly(tmp_path_factory, key, value, garbage) -> None:  # type: ignore[no-untyped-def]
     import tomllib
 
-    folder = tmp_path_factory.mktemp("fuzz") / "panda"
-    shutil.copytree(hands_dir() / "panda", folder)
+    folder = hand_copy(tmp_path_factory.mktemp("fuzz"))
     toml = folder / "hand.toml"
     data = tomllib.loads(toml.read_text())
     data[key] = value

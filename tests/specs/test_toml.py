@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import pytest
+from helpers import hand_copy
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from planner.errors import ConfigError, PlannerError
-from planner.specs.hands import hands_dir, load_folder
+from planner.specs.hands import load_folder
 from planner.specs.toml import Fields, read_toml
 
 
@@ -42,8 +42,7 @@ def test_missing_empty_and_malformed_files(tmp_path: Path, text: str | None, mes
 @settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(text=st.text(max_size=200))
 def test_fuzz_arbitrary_toml_text_is_refused_cleanly(tmp_path_factory, text: str) -> None:  # type: ignore[no-untyped-def]
-    folder = tmp_path_factory.mktemp("fuzztext") / "panda"
-    shutil.copytree(hands_dir() / "panda", folder)
+    folder = hand_copy(tmp_path_factory.mktemp("fuzztext"))
     (folder / "hand.toml").write_text(text)
     with pytest.raises(PlannerError):
         load_folder(folder)

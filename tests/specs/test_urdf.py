@@ -3,18 +3,17 @@ kinematics, keeps PyBullet's contact extension, and URDF objects give their mesh
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yourdfpy
-from helpers import assert_close
+from helpers import assert_close, hand_copy
 
 from planner import assets
 from planner.errors import ConfigError, MeshError
 from planner.sim import Sim, pb
-from planner.specs.hands import hand_names, hands_dir, load_folder, load_hand
+from planner.specs.hands import hand_names, load_folder, load_hand
 from planner.specs.urdf import cut_subtree, descendants, load_model, object_mesh
 
 HANDS = hand_names()
@@ -54,12 +53,6 @@ def test_panda_urdf_matches_yourdfpy_kinematics() -> None:
         sim.set_joints(body, q)
         for link in ("panda_leftfinger", "panda_rightfinger"):
             assert np.allclose(robot.get_transform(link, "panda_hand"), sim.link_pose(body, link), atol=1e-6)
-
-
-def hand_copy(tmp_path: Path) -> Path:
-    folder = tmp_path / "panda"
-    shutil.copytree(hands_dir() / "panda", folder)
-    return folder
 
 
 def test_urdf_with_missing_mesh_and_unknown_joint(tmp_path: Path) -> None:
