@@ -14,6 +14,7 @@ import math
 import sqlite3
 import time
 from collections.abc import Iterable, Iterator, Sequence
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -148,7 +149,7 @@ class Database:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def _transaction(self):  # type: ignore[no-untyped-def]
+    def _transaction(self) -> AbstractContextManager[sqlite3.Connection]:
         return transaction(self._conn, self.path)
 
     # -- meta ---------------------------------------------------------------
@@ -175,7 +176,7 @@ class Database:
             rows = self._conn.execute("PRAGMA integrity_check").fetchall()
         except sqlite3.DatabaseError as exc:
             return [str(exc)]
-        return [r[0] for r in rows if r[0] != "ok"]
+        return [r["integrity_check"] for r in rows if r["integrity_check"] != "ok"]
 
     # -- writing units ----------------------------------------------------------
     def units_done(self, hand: str, settings_hash: str, seed: int) -> set[tuple[str, int]]:
