@@ -15,11 +15,54 @@ metres, angles in radians, joint values in radians or metres.
 
 from __future__ import annotations
 
+import json
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from planner.plan.contacts import HandContacts
+
+
+class Joints(Mapping[str, float]):
+    """Finger joint values by name [rad or m] (immutable). The stored form is
+    compact JSON text; read back from the database, a Joints keeps that text
+    and decodes it on first use, so an export that copies it never decodes."""
+
+    __slots__ = ("_values", "_text")
+
+    def __init__(self, values: Mapping[str, float]) -> None:
+        self._values: dict[str, float] | None = dict(values)
+        self._text: str | None = None
+
+    @classmethod
+    def stored(cls, text: str) -> Joints:
+        out = cls.__new__(cls)
+        out._values, out._text = None, text
+        return out
+
+    def _dict(self) -> dict[str, float]:
+        if self._values is None:
+            self._values = json.loads(self._text or "{}")
+        return self._values
+
+    def __getitem__(self, name: str) -> float:
+        return self._dict()[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._dict())
+
+    def __len__(self) -> int:
+        return len(self._dict())
+
+    def __repr__(self) -> str:
+        return f"Joints({self._dict()!r})"
+
+    def json_text(self) -> str:
+        """The stored form: ``{"joint": value, ...}`` as compact JSON."""
+        if self._text is None:
+            self._text = json.dumps(self._dict(), separators=(",", ":"))
+        return self._text
 
 
 @dataclass(frozen=True)
@@ -79,8 +122,8 @@ class Grasp:
     roll: float
     standoff: float
     pose: np.ndarray
-    open_joints: dict[str, float]
-    closed_joints: dict[str, float]
+    open_joints: Joints
+    closed_joints: Joints
     width: float | None
     contacts: HandContacts
     epsilon: float
@@ -98,12 +141,30 @@ class Grasp:
     def __post_init__(self) -> None:
         if self.pose.shape != (4, 4) or self.approach_point.shape != (3,) or self.approach_dir.shape != (3,):
             raise ValueError("Grasp.pose must be (4, 4), approach_point and approach_dir (3,)")
+        for name in ("open_joints", "closed_joints"):  # any mapping of joint values is taken as Joints
+            if not isinstance(getattr(self, name), Joints):
+                object.__setattr__(self, name, Joints(getattr(self, name)))
+
+    @classmethod
+    def restored(cls, values: tuple) -> Grasp:
+        """A record read back from the database, which wrote it: the value of
+        every field, in field order and in its stored type, so ``__init__``
+        and its checks are skipped (an export reads 100,000s of records)."""
+        if len(values) != len(FIELDS):
+            raise TypeError(f"Grasp.restored needs the {len(FIELDS)} fields {FIELDS}, got {len(values)} values")
+        out = object.__new__(cls)
+        out.__dict__.update(zip(FIELDS, values))
+        return out
 
     def to_json(self) -> dict:
         """The grasp as ``grasp best --json`` prints it."""
         return {"object": self.object, "hand": self.hand, "preshape": self.preshape, "pose": self.pose.tolist(),
-                "joints": self.closed_joints, "open_joints": self.open_joints, "width": self.width,
+                "joints": dict(self.closed_joints), "open_joints": dict(self.open_joints), "width": self.width,
                 "epsilon": self.epsilon, "volume": self.volume, "force_closure": self.force_closure,
                 "reachability": self.reachability, "manipulability": self.manipulability,
                 "contacts": self.contacts.to_json(), "rank": self.rank, "score": self.score,
                 "candidate": self.candidate, "seed": self.seed}
+
+
+#: The record's field names, in order.
+FIELDS = tuple(Grasp.__dataclass_fields__)

@@ -52,7 +52,6 @@ the ``csv`` module with a header row, floats written in full precision.
 from __future__ import annotations
 
 import csv
-import json
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -101,8 +100,6 @@ def columns(stream: Stream, batch: list[Grasp]) -> dict[str, np.ndarray | list]:
     constants = {"object": info.name, "hand": stream.hand, "object_mass": info.mass,
                  "object_friction": info.friction, "object_scale": info.scale, "object_file": info.source}
     grasps = grasp_columns(batch)
-    for name in ("open_joints", "closed_joints"):
-        grasps[name] = [json.dumps(j, separators=(",", ":")) for j in grasps[name]]
     out: dict[str, np.ndarray | list] = {}
     for name, _, source in _SPEC:
         if not source:

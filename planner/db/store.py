@@ -24,7 +24,7 @@ import numpy as np
 from planner.db.ranking import ORDER_BY, RankingRule
 from planner.db.schema import EMPTY_V2_TABLES, SCHEMA_VERSION, migrate, schema_version, table_names, transaction
 from planner.errors import DatabaseError
-from planner.grasp import Grasp, RobustEpsilon, Trial
+from planner.grasp import Grasp, Joints, RobustEpsilon, Trial
 from planner.plan.contacts import HandContacts
 
 if TYPE_CHECKING:
@@ -84,6 +84,13 @@ def _vector(a: np.ndarray, digits: int = VECTOR_DIGITS) -> str:
 def json_list(texts: Iterable[str]) -> list:
     """Decode many JSON texts with one parser call (several times faster)."""
     return json.loads("[" + ",".join(texts) + "]")
+
+
+def _vectors(texts: Sequence[str], shape: tuple[int, ...]) -> np.ndarray:
+    """(n, *shape) floats of n stored vectors (flat JSON lists of numbers), parsed
+    in one call; the numbers are the shortest round-trip texts, so exact."""
+    flat = np.fromstring(",".join(t[1:-1] for t in texts), sep=",")
+    return flat.reshape(len(texts), *shape)
 
 
 @dataclass(frozen=True)
@@ -208,8 +215,8 @@ class Database:
                     _vector(obj.mesh.extents)))
             conn.executemany(_insert("grasps", _GRASP_COLUMNS), [
                 (unit_id, g.object, g.hand, g.preshape, g.candidate, _vector(g.approach_point),
-                 _vector(g.approach_dir), g.roll, g.standoff, _vector(g.pose), _json(g.open_joints),
-                 _json(g.closed_joints), g.width, g.contacts.json_text(), len(g.contacts), g.contacts.touching,
+                 _vector(g.approach_dir), g.roll, g.standoff, _vector(g.pose), g.open_joints.json_text(),
+                 g.closed_joints.json_text(), g.width, g.contacts.json_text(), len(g.contacts), g.contacts.touching,
                  g.epsilon, g.volume, int(g.force_closure), g.reachability, g.manipulability, g.seed, score)
                 for g, score in zip(grasps, scores.tolist())])
             conn.execute(_RERANK, (unit.object, unit.hand))
@@ -316,29 +323,25 @@ class Database:
 
 
 def _grasps(rows: list[sqlite3.Row]) -> list[Grasp]:
-    """Rows of :data:`_SELECT_GRASPS` as records; JSON columns decoded per batch."""
+    """Rows of :data:`_SELECT_GRASPS` as records: vectors decoded per batch,
+    joints and contacts kept as stored until used."""
     if not rows:
         return []
     col = dict(zip(rows[0].keys(), zip(*rows)))
-    n = len(rows)
-    pose = np.array(json_list(col["pose"]), float).reshape(n, 4, 4)
-    point = np.array(json_list(col["approach_point"]), float).reshape(n, 3)
-    direction = np.array(json_list(col["approach_dir"]), float).reshape(n, 3)
-    opened, closed = json_list(col["open_joints"]), json_list(col["closed_joints"])
-    return [Grasp(object=col["object"][i], hand=col["hand"][i], preshape=col["preshape"][i],
-                  candidate=col["candidate"][i], seed=col["seed"][i], approach_point=point[i],
-                  approach_dir=direction[i], roll=col["roll"][i], standoff=col["standoff"][i], pose=pose[i],
-                  open_joints=opened[i], closed_joints=closed[i], width=col["width"][i],
-                  contacts=HandContacts.stored(col["contacts"][i], col["n_contacts"][i], col["links_touching"][i]),
-                  epsilon=col["epsilon"][i], volume=col["volume"][i], force_closure=bool(col["force_closure"][i]),
-                  reachability=col["reachability"][i], manipulability=col["manipulability"][i], id=col["id"][i],
-                  unit_id=col["unit_id"][i], score=col["score"][i], rank=col["rank"][i],
-                  validation=None if col["v_success"][i] is None else Trial(
-                      bool(col["v_success"][i]), col["v_fingers_in_contact"][i], col["v_closing_linear"][i],
-                      col["v_closing_angular"][i], col["v_shaking_linear"][i], col["v_shaking_angular"][i]),
-                  robust=None if col["r_mean"][i] is None else RobustEpsilon(
-                      col["r_mean"][i], col["r_quantile"][i], col["r_samples"][i]))
-            for i in range(n)]
+    trials = [None if ok is None else Trial(bool(ok), *rest) for ok, *rest in zip(
+        col["v_success"], col["v_fingers_in_contact"], col["v_closing_linear"], col["v_closing_angular"],
+        col["v_shaking_linear"], col["v_shaking_angular"])]
+    robust = [None if mean is None else RobustEpsilon(mean, quantile, samples)
+              for mean, quantile, samples in zip(col["r_mean"], col["r_quantile"], col["r_samples"])]
+    values = zip(  # in the order of Grasp's fields
+        col["object"], col["hand"], col["preshape"], col["candidate"], col["seed"],
+        _vectors(col["approach_point"], (3,)), _vectors(col["approach_dir"], (3,)), col["roll"], col["standoff"],
+        _vectors(col["pose"], (4, 4)), map(Joints.stored, col["open_joints"]),
+        map(Joints.stored, col["closed_joints"]), col["width"],
+        map(HandContacts.stored, col["contacts"], col["n_contacts"], col["links_touching"]), col["epsilon"],
+        col["volume"], map(bool, col["force_closure"]), col["reachability"], col["manipulability"], col["id"],
+        col["unit_id"], col["score"], col["rank"], trials, robust)
+    return list(map(Grasp.restored, values))
 
 
 def open_db(path: Path, *, create: bool = True, readonly: bool = False) -> Database:

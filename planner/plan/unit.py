@@ -12,6 +12,7 @@ import logging
 import time
 import traceback
 from collections import Counter
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -160,7 +161,7 @@ def grasp_quality(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, c
                             torsion=np.array([m.torsion for m in models], float))
 
 
-def closed_width(hand: HandSpec, closed_joints: dict[str, float]) -> float | None:
+def closed_width(hand: HandSpec, closed_joints: Mapping[str, float]) -> float | None:
     """[m] distance between the fingers of a self-centring parallel jaw, else None."""
     if not hand.centering:
         return None

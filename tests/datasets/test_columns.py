@@ -27,9 +27,9 @@ def test_columns_of_records_with_and_without_stored_results() -> None:
     assert np.isnan(c["robust_mean"][0]) and c["robust_samples"].tolist() == [-1, 10]
     assert c["n_contacts"].tolist() == [2, 2] and c["links_touching"].tolist() == [2, 2]
     assert json.loads(c["contacts"][0]) == plain.contacts.to_json()
-    assert c["closed_joints"] == [{"j": 0.02}, {"j": 0.02}]
+    assert c["closed_joints"] == ['{"j":0.02}', '{"j":0.02}']
 
 
 def test_joint_matrix_orders_by_name_and_marks_absent_joints() -> None:
-    m = joint_matrix([{"a": 1.0, "b": 2.0}, {"b": 3.0}], ["b", "a"])
+    m = joint_matrix(['{"a": 1.0, "b": 2.0}', '{"b": 3.0}'], ["b", "a"])
     assert m.shape == (2, 2) and m[0].tolist() == [2.0, 1.0] and m[1, 0] == 3.0 and np.isnan(m[1, 1])
