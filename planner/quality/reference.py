@@ -5,12 +5,15 @@ epsilon = min over facets of -offset, 0.0 if any offset >= 0 (origin not
 strictly inside).  No certificates, no active set, no tolerances: slow and
 easy to trust.  Not used by the planner.
 
-``joggled_linf`` is the reference for inputs on which qhull's default options
-stop with a precision error (nearly coplanar, symmetric contacts): it joggles
-instead of merging, and checks its epsilon with the support function.
+``joggled_l1`` / ``joggled_linf`` are the references for inputs on which
+qhull's default options stop with a precision error (nearly coincident
+wrenches): they joggle instead of merging, and take epsilon from the support
+function.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
@@ -55,11 +58,23 @@ def linf_support(wrenches: np.ndarray, contact: np.ndarray, dirs: np.ndarray) ->
     return sum(np.maximum(proj[:, contact == i].max(axis=1), 0.0) for i in np.unique(contact))
 
 
+def joggled(points: np.ndarray, support: Callable[[np.ndarray], np.ndarray]) -> tuple[float, float]:
+    """(epsilon, volume) of conv(points) (k, 6) from qhull 'QJ', whose support
+    function for directions (f, 6) is ``support``.  Joggling never stops on
+    precision errors; the price is an error of ~1e-8 relative.  epsilon is
+    the support function minimised over the joggled facet normals: an upper
+    bound within the joggle of the true value (the minimum over all unit
+    directions)."""
+    hull = ConvexHull(points, qhull_options="QJ")
+    return float(support(hull.equations[:, :-1]).min()), float(hull.volume)
+
+
+def joggled_l1(wrenches: np.ndarray) -> tuple[float, float]:
+    """(epsilon, volume) of the L1 GWS conv(W) by ``joggled``."""
+    return joggled(wrenches, lambda dirs: (dirs @ wrenches.T).max(axis=1))
+
+
 def joggled_linf(wrenches: np.ndarray, contact: np.ndarray) -> tuple[float, float]:
-    """(epsilon, volume) of the L-infinity GWS from qhull 'QJ' of every Minkowski
-    sum.  Joggling never stops on precision errors; the price is an error of
-    ~1e-8 relative.  epsilon is the support function minimised over the
-    joggled facet normals: an upper bound that is within the joggle of the
-    true value (the minimum over all unit directions)."""
-    hull = ConvexHull(minkowski_sums(wrenches, contact), qhull_options="QJ")
-    return float(linf_support(wrenches, contact, hull.equations[:, :-1]).min()), float(hull.volume)
+    """(epsilon, volume) of the L-infinity GWS by ``joggled`` on every
+    Minkowski sum."""
+    return joggled(minkowski_sums(wrenches, contact), lambda dirs: linf_support(wrenches, contact, dirs))

@@ -26,7 +26,7 @@ from scipy.spatial import ConvexHull
 
 from planner.quality import FORCE_CLOSURE_TOL, Quality, epsilon, evaluate, primitive_wrenches, volume
 from planner.quality.hull import BLOCK_BYTES
-from planner.quality.reference import joggled_linf
+from planner.quality.reference import joggled_l1, joggled_linf
 
 R = 0.05
 
@@ -217,3 +217,27 @@ def test_linf_volume_of_four_soft_contacts_in_bounded_memory() -> None:
     vol, peak = traced_linf_volume(4)
     assert peak < BLOCK_BYTES + 128 * 2**20, f"traced peak {peak / 2**20:.0f} MiB"
     assert vol > 0
+
+
+def test_l1_on_nearly_coincident_wrenches() -> None:
+    # Issue 13, the same silent failure in the L1 GWS (found by the closure
+    # property test): 7 box contacts and their antipodes, soft, mu 1e-9, torsion
+    # 1e-6 m, so each contact's 10 wrenches sit within 2e-5 of each other;
+    # 'Q0', 'Qx' and 'Qx C-r' stop (dupridge).  epsilon and evaluate returned the
+    # certificate bound 0.0027 and the volume 0.0; truth 0.0035991, 0.0079001.
+    half = np.array([[-0.029835872352524346, -0.02, -0.04577890131589634],
+                     [-0.020893733702503275, 0.02, -0.0003542046575384372],
+                     [-0.004485881092256514, -0.0015967878068973418, -0.05],
+                     [0.03, -0.018887888882345095, 0.00034369060644608986],
+                     [-0.005905312486355687, 0.02, 0.04922536078548681],
+                     [0.017033321742254602, -0.02, -0.02310364098607264],
+                     [-0.015061866453701993, -0.02, 0.04931190820233997]])
+    normals = np.array([[0, 1.0, 0], [0, -1, 0], [0, 0, 1], [-1, 0, 0], [0, -1, 0], [0, 1, 0], [0, 1, 0]])
+    pts, frames = np.vstack([half, -half]), frames_from_normals(np.vstack([normals, -normals]))
+    args = {"mu": 1e-9, "center": np.zeros(3), "torque_scale": R, "model": "soft", "torsion": 1e-6}
+    eps, vol = joggled_l1(primitive_wrenches(pts, frames, **args).wrenches)
+    quality = evaluate(pts, frames, **args)
+    assert_close(epsilon(pts, frames, **args), eps, rel=JOGGLE, what="epsilon")
+    assert_close(quality.epsilon, eps, rel=JOGGLE, what="evaluate epsilon")
+    assert_close(quality.volume, vol, rel=JOGGLE, what="evaluate volume")
+    assert_close(volume(pts, frames, **args), vol, rel=JOGGLE, what="volume")
