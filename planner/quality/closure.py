@@ -5,10 +5,12 @@ epsilon (radius of the largest origin-centred ball in conv(W)) exceeds
 FORCE_CLOSURE_TOL.  Two exact certificates decide this in almost every case:
 
 * not force closure: a unit direction u with h(u) = max_j u.w_j <= TOL.
-  Then the half-space u.x <= h(u) holds conv(W), so epsilon <= h(u).  A rank
-  deficit (smallest singular value <= TOL) gives such a u, and so does the
-  residual r = s - W^T a of NNLS for a direction s outside the positive span
-  (its optimality conditions say W r <= 0).
+  Then the half-space u.x <= h(u) holds conv(W), so epsilon <= h(u).  The
+  least singular direction of W often is one (always when its singular value
+  is <= TOL: rank deficit; also for wrench sets thinner than a few TOL, on
+  which qhull stops with precision errors), and so is the residual
+  r = s - W^T a of NNLS for a direction s outside the positive span (its
+  optimality conditions say W r <= 0).
 * force closure: points y_k = W^T a_k / sum(a_k) are convex combinations of
   the wrenches, hence inside conv(W); if their simplex holds the origin with
   inradius L > TOL, then epsilon >= L > TOL.  The a_k come from NNLS
@@ -76,9 +78,8 @@ def check_closure(wrenches: np.ndarray) -> ClosureCheck:
     """Decide force closure of primitive wrenches (k, 6) without a hull."""
     if len(wrenches) <= DIM:
         return ClosureCheck(False)
-    _, sing, vt = np.linalg.svd(wrenches, full_matrices=False)
-    if sing[-1] <= FORCE_CLOSURE_TOL and (_separates(wrenches, vt[-1])
-                                          or _separates(wrenches, -vt[-1])):
+    vt = np.linalg.svd(wrenches, full_matrices=False)[2]
+    if _separates(wrenches, vt[-1]) or _separates(wrenches, -vt[-1]):
         return ClosureCheck(False)
     gens = np.ascontiguousarray(wrenches.T)
     inner = np.empty_like(SIMPLEX)

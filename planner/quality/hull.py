@@ -12,15 +12,24 @@ normal u has h(u) <= its distance + tol supports K as well, so the nearest
 such "clean" facet is an upper bound.  Add the support points of dirty
 facets nearer than that bound and repeat; when the nearest facet is clean,
 both bounds meet and epsilon is exact (to FACET_TOL).
+
+qhull itself sits behind ``qhull``: every hull is checked (no point beyond a
+facet) before use, rebuilt with other options when the check or qhull
+fails, and a failure on a full-dimensional set raises HullError rather than
+passing for "flat".  Every points-by-facets product runs in blocks of at
+most BLOCK_BYTES, whatever the number of points and facets.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
+
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
+from planner.errors import DegenerateGraspError
 from planner.quality.closure import SIMPLEX
-from planner.quality.tolerances import FACET_TOL, RANK_TOL
+from planner.quality.tolerances import FACET_TOL, HULL_TOL, MERGE_RADIUS, RANK_TOL
 
 #: Seed directions: the coordinate axes both ways, then the simplex both ways.
 SEED_DIRECTIONS = np.vstack([np.eye(6), -np.eye(6), SIMPLEX, -SIMPLEX])
@@ -28,35 +37,123 @@ SEED_DIRECTIONS = np.vstack([np.eye(6), -np.eye(6), SIMPLEX, -SIMPLEX])
 ADD_PER_ROUND = 8
 MAX_ROUNDS = 200
 
+#: Largest temporary array [bytes] of any points-by-facets (or directions-by-
+#: wrenches) product.  A 6-D hull of a Minkowski sum has ~1e4 points and ~1e6
+#: facets: done in one piece the check needs tens of GiB (issue 13: 31 GiB for
+#: 4 soft contacts with 8 cone edges).  64 MiB blocks still hold >= 1,000 rows
+#: for 8,000 columns, long enough for BLAS to run at full speed.
+BLOCK_BYTES = 64 * 2**20
+
+
+class HullError(DegenerateGraspError):
+    """qhull could not build a trustworthy hull of a full-dimensional set."""
+
 
 class _Stalled(Exception):
     """The incremental active set hit round-off; rebuild with merging."""
 
 
-def _outside(points: np.ndarray, equations: np.ndarray) -> np.ndarray:
-    """(k, f) signed distances of points (k, d) beyond facets (f, d + 1)."""
-    return np.hstack([points, np.ones((len(points), 1))]) @ equations.T
+def blocks(rows: int, cols: int) -> Iterator[slice]:
+    """Row slices of a (rows, cols) float64 product, each <= BLOCK_BYTES
+    (at least one row)."""
+    step = max(1, BLOCK_BYTES // (8 * max(cols, 1)))
+    for start in range(0, max(rows, 1), step):
+        yield slice(start, start + step)
 
 
-def qhull(points: np.ndarray) -> ConvexHull | None:
-    """Convex hull of (k, d) points, or None if they are not full-dimensional.
+def max_outside(points: np.ndarray, equations: np.ndarray) -> float:
+    """Largest signed distance of points (k, d) beyond facets (f, d + 1)
+    (normal.x + offset, > 0 outside); -inf when there are none.  Computed in
+    blocks of at most BLOCK_BYTES."""
+    worst = -np.inf
+    for rows in blocks(len(points), points.shape[1] + 1):     # one block up to 1.2M points
+        homog = np.hstack([points[rows], np.ones((len(points[rows]), 1))])
+        for facets in blocks(len(equations), len(homog)):
+            worst = max(worst, float((homog @ equations[facets].T).max(initial=-np.inf)))
+    return worst
+
+
+def max_off_plane(hull: ConvexHull) -> float:
+    """Largest distance of a facet's own vertices from its plane: 0 up to
+    round-off for simplicial facets, up to the merge width for merged ones
+    (qhull's 'Qt' gives a merged facet's pieces the merged plane)."""
+    worst = 0.0
+    dim = hull.points.shape[1]
+    for facets in blocks(len(hull.simplices), dim * dim):
+        corners = hull.points[hull.simplices[facets]]             # (b, d, d)
+        eqs = hull.equations[facets]
+        dist = np.einsum("bkd,bd->bk", corners, eqs[:, :-1]) + eqs[:, -1:]
+        worst = max(worst, float(np.abs(dist).max(initial=0.0)))
+    return worst
+
+
+def _retries(scale: float) -> list[tuple[str, float]]:
+    """(qhull options, accepted error) tried in order when 'Q0' fails.
 
     'Q0' (no pre-merging) is 2-3x faster than scipy's 6-D default 'Qx', but
     without merging round-off may leave a facet that a point pokes through.
-    We check that every point is inside every facet (to FACET_TOL) and
-    otherwise rerun with the default options, which merge such facets.
+    'Qx' merges such facets, but on nearly coincident points (contacts that
+    are nearly coplanar and symmetric, friction cones of mu ~ 1e-9) it may
+    stop with a topology error ("wide merge due to dupridge"); pre-merging
+    facets whose centrums are within MERGE_RADIUS often gets past it, and
+    'QJ' (joggled input: no merging, no precision errors) nearly always.
+    Every hull is checked before use, so the order only changes the speed.
     """
-    tol = FACET_TOL * max(float(np.abs(points).max(initial=0.0)), 1.0)
-    try:
-        hull = ConvexHull(points, qhull_options="Q0")
-        if float(_outside(points, hull.equations).max()) <= tol:
+    return [("Qx", HULL_TOL * scale), (f"Qx C-{MERGE_RADIUS * scale:.3g}", HULL_TOL * scale),
+            ("QJ", HULL_TOL * scale)]
+
+
+def affine_rank(points: np.ndarray) -> int:
+    """Dimension of the affine hull of (k, d) points (singular values of the
+    centred points above RANK_TOL times the largest)."""
+    if len(points) < 2:
+        return 0
+    sing = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
+    return int((sing > sing[0] * RANK_TOL).sum()) if sing[0] > 0 else 0
+
+
+def qhull(points: np.ndarray) -> ConvexHull | None:
+    """Checked convex hull of (k, d) points; None if they are not
+    full-dimensional.
+
+    A hull is returned only if no point lies beyond a facet, nor (for merged or
+    joggled hulls) a facet vertex off its plane, by more than the accepted
+    error of its options (FACET_TOL or HULL_TOL times the largest
+    |coordinate|).  Raises HullError if no option gives such a hull although
+    the points are full-dimensional: never a silent wrong hull.
+    """
+    scale = max(float(np.abs(points).max(initial=0.0)), 1.0)
+    failures: list[str] = []
+    hull = _attempt(points, "Q0", FACET_TOL * scale, failures)
+    if hull is not None:
+        return hull
+    if affine_rank(points) < points.shape[1]:
+        return None                 # checked first: joggling would make a flat set look full
+    for options, tol in _retries(scale):
+        hull = _attempt(points, options, tol, failures)
+        if hull is not None:
             return hull
-    except (QhullError, ValueError):
-        pass
+    raise HullError(f"qhull could not build the {points.shape[1]}-D hull of {len(points)} wrenches "
+                    f"(largest |coordinate| {scale:.3g}): " + "; ".join(failures))
+
+
+def _attempt(points: np.ndarray, options: str, tol: float, failures: list[str]) -> ConvexHull | None:
+    """qhull with ``options`` if its hull passes the check to ``tol``; else
+    None, with the reason appended to ``failures``.  Facets of 'Q0' are exact
+    simplices; merged or joggled ones are also checked for flatness."""
     try:
-        return ConvexHull(points)
-    except (QhullError, ValueError):
+        hull = ConvexHull(points, qhull_options=options)
+    except (QhullError, ValueError) as exc:
+        lines = [line.strip() for line in str(exc).strip().splitlines()] or [repr(exc)]
+        failures.append(f"'{options}': " + next((ln for ln in lines if ln.startswith("QH6")), lines[0]))
         return None
+    error = max_outside(points, hull.equations)
+    if options != "Q0":
+        error = max(error, max_off_plane(hull))
+    if error <= tol:
+        return hull
+    failures.append(f"'{options}': a point lies {error:.2g} off a facet (accepted {tol:.2g})")
+    return None
 
 
 def hull_epsilon(hull: ConvexHull) -> float:
@@ -73,17 +170,25 @@ class L1Support:
         self.wrenches = wrenches
         self._gens = np.ascontiguousarray(wrenches.T)
 
-    def _project(self, dirs: np.ndarray) -> np.ndarray:
-        return np.ascontiguousarray(dirs) @ self._gens     # strided operands are 4x slower
-
     def value(self, dirs: np.ndarray) -> np.ndarray:
         """(f,) h(u) for directions (f, 6)."""
-        proj = self._project(dirs)
-        return np.take_along_axis(proj, proj.argmax(axis=1)[:, None], axis=1)[:, 0]
+        return self._by_block(self._value, dirs)
 
     def point(self, dirs: np.ndarray) -> np.ndarray:
         """(f, 6) a maximiser of u.x over the GWS for each direction."""
-        return self.wrenches[self._project(dirs).argmax(axis=1)]
+        return self._by_block(self._point, dirs)
+
+    def _by_block(self, fn: Callable[[np.ndarray], np.ndarray], dirs: np.ndarray) -> np.ndarray:
+        dirs = np.ascontiguousarray(dirs)         # strided operands are 4x slower
+        parts = [fn(dirs[rows]) for rows in blocks(len(dirs), len(self.wrenches))]
+        return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+    def _value(self, dirs: np.ndarray) -> np.ndarray:
+        proj = dirs @ self._gens
+        return np.take_along_axis(proj, proj.argmax(axis=1)[:, None], axis=1)[:, 0]
+
+    def _point(self, dirs: np.ndarray) -> np.ndarray:
+        return self.wrenches[(dirs @ self._gens).argmax(axis=1)]
 
 
 class LinfSupport(L1Support):
@@ -95,12 +200,12 @@ class LinfSupport(L1Support):
         super().__init__(wrenches)
         self._starts = np.flatnonzero(np.r_[True, contact[1:] != contact[:-1]])
 
-    def value(self, dirs: np.ndarray) -> np.ndarray:
-        best = np.maximum.reduceat(self._project(dirs), self._starts, axis=1)
+    def _value(self, dirs: np.ndarray) -> np.ndarray:
+        best = np.maximum.reduceat(dirs @ self._gens, self._starts, axis=1)
         return np.maximum(best, 0.0).sum(axis=1)
 
-    def point(self, dirs: np.ndarray) -> np.ndarray:
-        proj = self._project(dirs)
+    def _point(self, dirs: np.ndarray) -> np.ndarray:
+        proj = dirs @ self._gens
         total = np.zeros((len(dirs), 6))
         for rows in np.split(np.arange(len(self.wrenches)), self._starts[1:]):
             best = rows[proj[:, rows].argmax(axis=1)]
@@ -128,10 +233,10 @@ def active_set_epsilon(support: L1Support, scale: float) -> float | None:
             hull.close()
     except (QhullError, ValueError, _Stalled):
         pass
-    merged = qhull(seed)
     try:
+        merged = qhull(seed)
         return None if merged is None else _grow(support, merged, tol, incremental=False)
-    except (QhullError, ValueError, _Stalled):
+    except (QhullError, ValueError, _Stalled, HullError):
         return None
 
 
@@ -146,7 +251,7 @@ def _grow(support: L1Support, hull: ConvexHull, tol: float, *, incremental: bool
         bound = dist[clean].min() if clean.any() else np.inf
         dirty = np.flatnonzero(~clean & (dist < bound))
         if len(dirty) == 0:
-            if float(_outside(hull.points, eqs).max()) > tol:
+            if max_outside(hull.points, eqs) > tol:
                 raise _Stalled
             return float(bound)
         dirty = dirty[np.argsort(dist[dirty])[:ADD_PER_ROUND]]
@@ -164,20 +269,30 @@ def _grow(support: L1Support, hull: ConvexHull, tol: float, *, incremental: bool
     raise _Stalled
 
 
-def minkowski_vertices(wrenches: np.ndarray, contact: np.ndarray) -> np.ndarray:
-    """Vertices (v, 6) of sum_i conv({0} U W_i), pruned to hull vertices after
-    every contact (in the linear span reached so far, since 0 is a member)."""
+def minkowski_points(wrenches: np.ndarray, contact: np.ndarray) -> np.ndarray:
+    """Points (k, 6) whose hull is sum_i conv({0} U W_i): every sum of 0 or
+    one wrench per contact, pruned to hull vertices after every contact but
+    the last (whose hull the caller builds anyway)."""
     starts = np.flatnonzero(np.r_[True, contact[1:] != contact[:-1]])
     verts = np.zeros((1, 6))
-    for rows in np.split(wrenches, starts[1:]):
+    for i, rows in enumerate(np.split(wrenches, starts[1:])):
+        if i:
+            verts = _extreme(verts)
         summand = np.vstack([np.zeros((1, 6)), rows])
-        verts = _extreme((verts[:, None, :] + summand[None]).reshape(-1, 6))
+        sums = (verts[:, None, :] + summand[None]).reshape(-1, 6)
+        verts = np.unique(sums, axis=0)       # repeated points make 'Q0' fail more often
     return verts
 
 
+def minkowski_vertices(wrenches: np.ndarray, contact: np.ndarray) -> np.ndarray:
+    """Vertices (v, 6) of sum_i conv({0} U W_i)."""
+    return _extreme(minkowski_points(wrenches, contact))
+
+
 def _extreme(points: np.ndarray) -> np.ndarray:
-    """The points of (k, 6) that are vertices of their hull (0 is a member)."""
-    points = np.unique(points, axis=0)
+    """The points of (k, 6) (distinct) that are vertices of their hull (0 is a
+    member), in the linear span they reach; all of them if qhull fails (costs
+    time, not accuracy)."""
     _, sing, vt = np.linalg.svd(points, full_matrices=False)
     rank = int((sing > sing[0] * RANK_TOL).sum()) if sing[0] > 0 else 0
     if rank <= 1:
@@ -185,5 +300,8 @@ def _extreme(points: np.ndarray) -> np.ndarray:
             return points[:1]
         coord = points @ vt[0]
         return points[[coord.argmin(), coord.argmax()]]
-    hull = qhull(points @ vt[:rank].T)
+    try:
+        hull = qhull(points @ vt[:rank].T)
+    except HullError:
+        return points
     return points if hull is None else points[hull.vertices]

@@ -15,7 +15,12 @@ Cost: the hull-free certificates of closure.py reject non-closure grasps in
 well under a millisecond; closure grasps then pay one hull (evaluate,
 volume) or an active-set hull of a few dozen wrenches (epsilon).  The
 L-infinity volume needs every vertex of the Minkowski sum, which grows
-quickly with the number of contacts; its epsilon does not.
+quickly with the number of contacts (seconds to minutes from 4 contacts
+on); its epsilon does not, and ``evaluate`` takes it from the active set.
+
+Every value is exact to the tolerances of tolerances.py or the call raises
+HullError (a DegenerateGraspError) naming what failed: a hull that qhull
+cannot build is never read as "flat" (0.0) nor replaced by a bound.
 """
 
 from __future__ import annotations
@@ -24,10 +29,19 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
+from scipy.spatial import ConvexHull
 
 from planner.quality.closure import check_closure
 from planner.quality.contacts import ModelArg, as_center, as_contacts, as_norm, as_torque_scale
-from planner.quality.hull import L1Support, LinfSupport, active_set_epsilon, hull_epsilon, minkowski_vertices, qhull
+from planner.quality.hull import (
+    HullError,
+    L1Support,
+    LinfSupport,
+    active_set_epsilon,
+    hull_epsilon,
+    minkowski_points,
+    qhull,
+)
 from planner.quality.tolerances import FORCE_CLOSURE_TOL
 from planner.quality.wrenches import PrimitiveWrenches, as_cone_edges, contact_wrenches, dedupe
 
@@ -84,11 +98,22 @@ def _l1_epsilon(gws: _Gws) -> float:
 
 
 def _linf_epsilon(gws: _Gws) -> float:
+    """Called for force-closure grasps only, whose L-infinity GWS holds the L1
+    one and so is full-dimensional."""
     eps = active_set_epsilon(LinfSupport(*gws.grouped), gws.scale)
     if eps is None:
-        hull = qhull(minkowski_vertices(*gws.grouped))
-        eps = 0.0 if hull is None else hull_epsilon(hull)
+        eps = hull_epsilon(_closure_hull(minkowski_points(*gws.grouped), gws.norm))
     return eps
+
+
+def _closure_hull(points: np.ndarray, norm: str) -> ConvexHull:
+    """The hull of a force-closure GWS, which holds a ball of radius >
+    FORCE_CLOSURE_TOL and so is full-dimensional: qhull's None is an error."""
+    hull = qhull(points)
+    if hull is None:
+        raise HullError(f"the {norm} GWS of a force-closure grasp came out flat: "
+                        f"{len(points)} wrenches of rank < 6 to RANK_TOL")
+    return hull
 
 
 def _closure_lower(gws: _Gws) -> float:
@@ -108,7 +133,8 @@ def epsilon(points: ArrayLike, frames: ArrayLike, *, mu: ArrayLike, center: Arra
     points : (n, 3) c_i [m]; frames : (n, 3, 3) R_i, columns (n_i, l_i, o_i)
     with n_i into the object; mu, torsion [m] : scalar or (n,); center : (3,)
     p [m]; torque_scale : rho [m]; model : name or n names from MODELS;
-    norm : "L1" or "Linf".  Raises DegenerateGraspError on malformed input.
+    norm : "L1" or "Linf".  Raises DegenerateGraspError on malformed input,
+    HullError (one of them) if qhull cannot build a hull it needs.
     """
     gws = _gws(points, frames, mu, center, torque_scale, cone_edges, model, norm, torsion)
     lower = _closure_lower(gws)
@@ -132,9 +158,11 @@ def volume(points: ArrayLike, frames: ArrayLike, *, mu: ArrayLike, center: Array
            torque_scale: float, cone_edges: int = 8, model: ModelArg = "point",
            norm: str = "L1", torsion: ArrayLike = 0.0) -> float:
     """GWS volume (wrench units^6) whether or not the grasp is force closure;
-    0.0 when the GWS is not full-dimensional.  Arguments as ``epsilon``."""
+    0.0 when the GWS is not full-dimensional.  Arguments and errors as
+    ``epsilon``.  Exact to round-off, or within HULL_TOL * scale * surface
+    area when qhull needed merging or joggling (nearly coincident wrenches)."""
     gws = _gws(points, frames, mu, center, torque_scale, cone_edges, model, norm, torsion)
-    hull = qhull(gws.union if gws.norm == "L1" else minkowski_vertices(*gws.grouped))
+    hull = qhull(gws.union if gws.norm == "L1" else minkowski_points(*gws.grouped))
     return 0.0 if hull is None else float(hull.volume)
 
 
@@ -142,12 +170,17 @@ def evaluate(points: ArrayLike, frames: ArrayLike, *, mu: ArrayLike, center: Arr
              torque_scale: float, cone_edges: int = 8, model: ModelArg = "point",
              norm: str = "L1", torsion: ArrayLike = 0.0) -> Quality:
     """epsilon, volume and force closure together: certificates first (no
-    hull for non-closure grasps), then one hull.  Arguments as ``epsilon``."""
+    hull for non-closure grasps), then one hull (L1: epsilon and volume from
+    it; Linf: the volume, with epsilon from the same active set as
+    ``epsilon``).  Arguments as ``epsilon``; raises HullError if a hull
+    cannot be built."""
     gws = _gws(points, frames, mu, center, torque_scale, cone_edges, model, norm, torsion)
     lower = _closure_lower(gws)
     if lower <= 0.0:
         return Quality(0.0, 0.0, False)
-    hull = qhull(gws.union if gws.norm == "L1" else minkowski_vertices(*gws.grouped))
-    if hull is None:            # cannot happen for a GWS holding a ball of radius > TOL
-        return Quality(lower, 0.0, True)
-    return Quality(max(hull_epsilon(hull), lower), float(hull.volume), True)
+    if gws.norm == "L1":
+        hull = _closure_hull(gws.union, gws.norm)
+        return Quality(max(hull_epsilon(hull), lower), float(hull.volume), True)
+    eps = _linf_epsilon(gws)
+    hull = _closure_hull(minkowski_points(*gws.grouped), gws.norm)
+    return Quality(max(eps, lower), float(hull.volume), True)

@@ -20,6 +20,21 @@ FORCE_CLOSURE_TOL = 1e-9
 #: the error of the active-set epsilon.
 FACET_TOL = 1e-13
 
+#: A merged ('Qx') or joggled ('QJ') qhull hull is accepted when no point lies
+#: beyond a facet and no facet vertex lies off its plane by more than this
+#: times the largest wrench coordinate; the hull is then within this distance
+#: of the true one, so the volume is off by at most HULL_TOL * scale * surface
+#: area.  Only inputs on which the unmerged 'Q0' fails get here (nearly
+#: coincident wrenches); 'QJ' joggles by ~1e-10 of the largest coordinate
+#: after its retries on them, hence 1e-9.
+HULL_TOL = 1e-9
+
+#: Centrum radius (times the largest wrench coordinate) of the qhull attempt
+#: 'Qx C-r': pre-merging facets this close to coplanar gets qhull past the
+#: "wide merge due to dupridge" stop on the Minkowski sums of nearly coplanar,
+#: symmetric contacts, ~1e-13 accurate where 'QJ' would give ~1e-10.
+MERGE_RADIUS = 1e-12
+
 #: Primitive wrenches whose coordinates agree to this times the largest wrench
 #: coordinate are merged before any hull (mu = 0 cones, repeated contacts).
 DEDUP_TOL = 1e-12

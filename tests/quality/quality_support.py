@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 EXACT = 1e-12          # identities that only suffer round-off
 REFERENCE = 1e-9       # fast epsilon / volume vs the plain qhull reference
 FINITE_DIFF = 1e-6     # central differences with step 1e-6 on O(1) kinematics
+JOGGLE = 1e-6          # vs qhull 'QJ' (joggled input, ~1e-8 relative error)
 
 SPHERE_RADIUS = 0.05   # [m]
 
@@ -72,6 +73,16 @@ def equator_grasp(k: int = 3, radius: float = SPHERE_RADIUS) -> tuple[np.ndarray
     ang = 2 * np.pi * np.arange(k) / k
     d = np.stack([np.cos(ang), np.sin(ang), np.zeros(k)], axis=1)
     return radius * d, frames_from_normals(-d)
+
+
+def lifted_square_grasp(lift: tuple[float, float, float, float],
+                        radius: float = SPHERE_RADIUS) -> tuple[np.ndarray, np.ndarray]:
+    """4 contacts at 0, 90, 180, 270 degrees on the equator of a sphere, each
+    lifted by ``lift`` [m] in z (nearly coplanar when the lifts are tiny);
+    normals towards the centre, tangents without roll."""
+    ang = np.pi / 2 * np.arange(4)
+    pts = np.stack([radius * np.cos(ang), radius * np.sin(ang), np.asarray(lift, dtype=float)], axis=1)
+    return pts, frames_from_normals(-pts)
 
 
 seeds = st.integers(min_value=0, max_value=2**32 - 1)

@@ -115,3 +115,15 @@ def test_certificates_bound_the_reference_epsilon(seed: int, n: int) -> None:
         assert FORCE_CLOSURE_TOL < check.lower <= ref * (1 + 1e-9)
     elif check.verdict is False:
         assert ref <= FORCE_CLOSURE_TOL
+
+
+def test_a_gws_thinner_than_tol_is_rejected_without_a_hull() -> None:
+    # mu = torsion = 1e-9: the GWS is ~5e-9 thick along two directions (smallest
+    # singular value 4.6e-9 > TOL), on which qhull 'Q0' stops; the least
+    # singular direction still bounds it within TOL (h = 9.8e-10).
+    pts, frames = equator_grasp(6)
+    args = kw(1e-9, model="soft", torsion=1e-9, cone_edges=7)
+    wrenches, _ = primitive_wrenches(pts, frames, **args)
+    assert check_closure(wrenches).verdict is False
+    assert reference_epsilon(wrenches) <= FORCE_CLOSURE_TOL
+    assert epsilon(pts, frames, **args) == 0.0
