@@ -20,22 +20,26 @@ friction are the stored ones.
 
 Export folders hold one mesh per object, ``DIR/meshes/<object>.obj``
 (:data:`MESH_DIR`; '/' in names becomes '__'): the checked mesh as one plain
-OBJ (no normals, textures, groups or materials, so ``trimesh.load`` returns
-a single ``Trimesh``), vertices **in metres** (the files' ``scale`` is 1)
-written to :data:`OBJ_DIGITS` decimals, in the planner's vertex and face
-order. ACRONYM's ``load_mesh(file, mesh_root_dir=DIR)`` (join, load,
-``apply_scale(1)``) gives back the planner's vertices to 1e-17 m.
+OBJ (``v`` and ``f`` lines only: no normals, textures, groups or materials,
+so ``trimesh.load`` returns a single ``Trimesh``), vertices **in metres**
+(the files' ``scale`` is 1) in the planner's vertex and face order, each
+coordinate to 17 significant digits, which gives every float64 back
+exactly. ACRONYM's ``load_mesh(file, mesh_root_dir=DIR)`` (join, load,
+``apply_scale(1)``) therefore returns the planner's vertices bit for bit,
+and the mesh hash with them. (trimesh's own OBJ writer prints a fixed number
+of decimals, which cannot do that for every coordinate.)
 """
 
 from __future__ import annotations
 
+import io
 import logging
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import numpy as np
 import trimesh
-from trimesh.exchange.obj import export_obj
 
 from planner import assets
 from planner.db.store import Database, ObjectRow
@@ -47,9 +51,8 @@ log = logging.getLogger(__name__)
 
 #: Folder of an export that holds the meshes, relative to the export folder.
 MESH_DIR = "meshes"
-#: Decimals of OBJ vertex coordinates [m]: 1e-17 m, below float64's spacing
-#: for every coordinate above 5 cm, so the text gives back the planner's numbers.
-OBJ_DIGITS = 17
+#: OBJ lines: 17 significant digits give any float64 back exactly; 1-based faces.
+OBJ_VERTEX, OBJ_FACE = "v %.17g %.17g %.17g", "f %d %d %d"
 PRIMITIVE_PREFIX = "primitive:"
 PYBULLET_DATA = "pybullet_data"
 
@@ -122,8 +125,10 @@ def mesh_stem(name: str) -> str:
 
 def obj_text(mesh: trimesh.Trimesh) -> str:
     """One plain OBJ of ``mesh``: its vertices [m] and faces, in its order."""
-    return export_obj(mesh, include_normals=False, include_color=False, include_texture=False,
-                      write_texture=False, digits=OBJ_DIGITS)
+    out = io.StringIO()
+    np.savetxt(out, np.asarray(mesh.vertices, np.float64), fmt=OBJ_VERTEX)
+    np.savetxt(out, np.asarray(mesh.faces, np.int64) + 1, fmt=OBJ_FACE)
+    return out.getvalue()
 
 
 def write_meshes(db: Database, names: Sequence[str], out_dir: Path, copies: Sequence[str] = ()

@@ -8,14 +8,11 @@ import re
 import sqlite3
 from pathlib import Path
 
-import pytest
+import pyarrow.parquet as pq
 from helpers import assert_close
 
 from planner.datasets.table import COLUMNS, COLUMNS_DOC
 from tests.datasets.support import export, pose, source_rows
-
-h5py = pytest.importorskip("h5py")
-pq = pytest.importorskip("pyarrow.parquet")
 
 
 def documented_columns() -> list[str]:
