@@ -218,6 +218,7 @@ def _header(f: Any, info: ExportedObject, hand: HandSpec) -> None:
 
 
 def _append(f: Any, key: str, values: Column, start: int) -> None:
+    """Rows ``start:`` of a chunked, resizable dataset (made by the first batch)."""
     import h5py
 
     if isinstance(values, list):
@@ -225,9 +226,9 @@ def _append(f: Any, key: str, values: Column, start: int) -> None:
     else:
         data = np.asarray(values)
         data = data.astype(np.int64 if data.dtype.kind in "iub" else np.float64, copy=False)
-    if key not in f:
-        f.create_dataset(key, shape=(0, *data.shape[1:]), maxshape=(None, *data.shape[1:]), dtype=data.dtype,
-                         chunks=(CHUNK_ROWS, *data.shape[1:]))
+    if start == 0:  # one h5py call: creating empty and then resizing costs as much again
+        f.create_dataset(key, data=data, maxshape=(None, *data.shape[1:]), chunks=(CHUNK_ROWS, *data.shape[1:]))
+        return
     ds = f[key]
     ds.resize(start + len(data), axis=0)
     ds[start:] = data

@@ -144,16 +144,14 @@ def write_meshes(db: Database, names: Sequence[str], out_dir: Path, copies: Sequ
             raise InputError(f"objects '{stems[stem]}' and '{name}' would share the mesh file {stem}.obj; "
                              "export them separately (--object)")
         stems[stem] = name
-    rows = {name: _row(db, name) for name in names}
-    texts: dict[str, str] = {}  # mesh hash -> OBJ text: copies of one mesh are formatted once
     exported = {}
+    last: tuple[tuple[str, float, str], str] | None = None  # copies of one mesh are rebuilt and formatted once
     for stem, name in stems.items():
-        row = rows[name]
-        obj = stored_object(row)
-        text = texts.get(obj.mesh_hash)
-        if text is None:
-            texts.clear()
-            text = texts[obj.mesh_hash] = obj_text(obj.mesh)
+        row = _row(db, name)
+        key = (row.source, row.scale, row.mesh_sha256)
+        if last is None or last[0] != key or not row.mesh_sha256:
+            last = key, obj_text(stored_object(row).mesh)
+        text = last[1]
         relative = f"{MESH_DIR}/{stem}.obj"
         for target in (relative, *(c.format(stem=stem) for c in copies)):
             path = out_dir / target

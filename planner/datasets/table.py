@@ -6,6 +6,8 @@ rows and its object's properties. Rows come per (object, hand) in rank
 order. Empty / null means absent (not computed, not validated). Parquet is
 written with an explicit schema, one row group per database batch; CSV by
 the ``csv`` module with a header row, floats written in full precision.
+``object_file`` names the object's mesh in the export folder,
+``meshes/{object}.obj``, in metres (:mod:`planner.datasets.meshes`).
 
 | column | type | meaning |
 | --- | --- | --- |
