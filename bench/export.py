@@ -16,7 +16,9 @@ under the system temp dir) for reuse:
    robust row (so the joins do real work); then every copy is re-ranked.
 
 Each format is exported in a fresh child process (one core), which reports
-its wall time and peak resident memory; the output files are then deleted.
+its wall time and peak resident memory; the parent adds the child's CPU time
+(user + system, imports included: the figure to compare on a shared machine,
+where wall time moves with the load); the output files are then deleted.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from __future__ import annotations
 import argparse
 import json
 import platform
+import resource
 import shutil
 import sqlite3
 import subprocess
@@ -113,6 +116,12 @@ def peak_rss_mb() -> float:
     return float("nan")
 
 
+def child_cpu_seconds() -> float:
+    """User + system CPU time of this process's finished children."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--grasps", type=int, default=100_000)
@@ -133,19 +142,21 @@ def main() -> None:
     print(f"# export benchmark: {total} grasps, {pairs} objects x panda ({db}, ready in "
           f"{time.perf_counter() - t0:.1f} s); Python {platform.python_version()}, "
           f"{platform.machine()}, one process per format")
-    print(f"{'format':12s} {'grasps':>7s} {'files':>5s} {'seconds':>8s} {'grasps/s':>9s} {'MB out':>7s} "
-          f"{'peak RSS MB':>11s}")
+    print(f"{'format':12s} {'grasps':>7s} {'files':>5s} {'seconds':>8s} {'grasps/s':>9s} {'CPU s':>6s} "
+          f"{'MB out':>7s} {'peak RSS MB':>11s}")
     for fmt in args.format or FORMATS:
         out = args.workdir / f"out-{fmt}"
         shutil.rmtree(out, ignore_errors=True)
+        before = child_cpu_seconds()
         run = subprocess.run([sys.executable, __file__, "--child", str(db), fmt, str(out)], capture_output=True,
                              text=True, check=False)
+        cpu = child_cpu_seconds() - before
         shutil.rmtree(out, ignore_errors=True)
         if run.returncode:
             raise SystemExit(f"{fmt}: {run.stderr.strip()}")
         r = json.loads(run.stdout.strip().splitlines()[-1])
         print(f"{fmt:12s} {r['grasps']:7d} {r['files']:5d} {r['seconds']:8.2f} {r['grasps'] / r['seconds']:9.0f} "
-              f"{r['bytes'] / 1e6:7.1f} {r['peak_mb']:11.0f}")
+              f"{cpu:6.2f} {r['bytes'] / 1e6:7.1f} {r['peak_mb']:11.0f}")
 
 
 if __name__ == "__main__":

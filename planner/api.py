@@ -2,7 +2,8 @@
 wraps these functions (and the names re-exported here).
 
 - building: :func:`generate` (sweep objects for a hand into a database);
-- querying: :func:`best`, :func:`best_at` (grasps an arm reaches now), :func:`show`;
+- querying: :func:`best`, :func:`best_at` (grasps an arm reaches now), :func:`show`,
+  each naming the object as :func:`resolve_object` reads it;
 - validating: :func:`validate`, :func:`report`;
 - datasets: :func:`export`, :func:`import_files`;
 - descriptions: :func:`hands`, :func:`hand`, :func:`objects`;
@@ -24,12 +25,13 @@ import numpy as np
 from planner.datasets import exporter, importer
 from planner.datasets.exporter import ExportSummary, export
 from planner.datasets.importer import ImportResult, import_files
+from planner.datasets.meshes import stored_object
 from planner.db.lock import writer_lock
 from planner.db.ranking import RankingRule
-from planner.db.store import UnitRow, open_db
-from planner.errors import InputError
+from planner.db.store import Database, ObjectRow, UnitRow, open_db
+from planner.errors import InputError, UnknownNameError
 from planner.geometry.frames import pose_from_xyzquat
-from planner.geometry.solid import load_object
+from planner.geometry.solid import PreparedObject, load_object
 from planner.grasp import Grasp
 from planner.plan.pool import execute
 from planner.plan.reach import ReachScene, ReachSettings
@@ -48,7 +50,7 @@ __all__ = [
     "DEFAULT_DB", "EXPORT_FORMATS", "IMPORT_FORMATS", "RANDOM_COUNT", "RANDOM_PREFIX", "ExportSummary", "Grasp",
     "ImportResult", "RankingRule", "ReachableGrasp", "Summary", "SweepSettings", "UnitResult", "ValidationSummary",
     "best", "best_at", "check_db", "default_workers", "export", "generate", "hand", "hands", "import_files",
-    "objects", "plan_units", "report", "show", "validate",
+    "objects", "plan_units", "report", "resolve_object", "show", "validate",
 ]
 
 log = logging.getLogger(__name__)
@@ -62,6 +64,8 @@ CANDIDATE_BATCH = 50
 MAX_CANDIDATES = 300
 #: A typed quaternion whose norm lies outside this range is a mistake, not round-off.
 QUATERNION_NORM = (0.5, 2.0)
+#: Stored object names an "unknown object" error lists at most.
+LISTED_NAMES = 12
 
 
 @dataclass
@@ -169,13 +173,46 @@ def _tally(summary: Summary, result: UnitResult, seconds: float) -> None:
 
 
 # -- querying -----------------------------------------------------------------------
+def resolve_object(db: Database, name: str) -> tuple[str, ObjectRow | None]:
+    """The database's name and ``objects`` row of the object ``name`` means.
+
+    ``name`` is a stored object's name (any object with grasps: built-in,
+    ``random_NNN``, a user mesh by its stem or label, an imported object, a
+    mesh generated with ``--scale``), else a built-in name, ``random_NNN`` or
+    mesh path, named as ``generate`` names it. The row (None when the object
+    is not stored) holds the source, scale, mass and friction its grasps were
+    planned with: :func:`~planner.datasets.meshes.stored_object` rebuilds it.
+    """
+    row = db.object_row(name)
+    if row is not None:
+        return name, row
+    try:
+        key = resolve_spec(name).name
+    except UnknownNameError:
+        stored = sorted({o for o, _ in db.pairs()})
+        listed = ", ".join(stored[:LISTED_NAMES]) + (f", ... ({len(stored)} in all)" if len(stored) > LISTED_NAMES
+                                                     else "")
+        raise InputError(f"unknown object '{name}': not stored in {db.path} (objects: {listed or 'none'}) and not "
+                         f"a built-in name, random_NNN or mesh file (see `grasp objects`)") from None
+    return key, db.object_row(key)
+
+
+def _stored(db: Database, name: str, hand: str) -> tuple[str, PreparedObject]:
+    """Name and rebuilt object of a stored object; an object without grasps is an error."""
+    key, row = resolve_object(db, name)
+    if row is None:
+        raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db.path}; "
+                         f"run `grasp generate {name} --hand {hand}`")
+    return key, stored_object(row)
+
+
 def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1) -> list[Grasp]:
     """The ``top`` best grasps of an object for a hand, in rank order."""
     if top < 1:
         raise InputError(f"--top must be at least 1, got {top}")
     load_hand(hand)
-    key = resolve_spec(name).name
     with open_db(Path(db_path), create=False, readonly=True) as db:
+        key, _ = resolve_object(db, name)
         grasps = db.best(key, hand, top)
         if not grasps:
             known = db.objects_for(hand)
@@ -211,11 +248,10 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
     obj_pose = _pose7(object_pose, "--object-pose")
     base = _pose7(robot_base, "--robot-base") if robot_base is not None else np.eye(4)
     spec = load_hand(hand)
-    key = resolve_spec(name).name
-    obj = load_object(name)
     rng = np.random.default_rng(seed)
     found: list[ReachableGrasp] = []
     with open_db(Path(db_path), create=False, readonly=True) as db, Sim() as sim:
+        key, obj = _stored(db, name, hand)
         scene = ReachScene(sim, spec, obj, ReachSettings(pregrasp_distance=pregrasp_distance), base)
         scene.place_object(obj_pose)
         offset = 0
@@ -261,14 +297,13 @@ def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: i
     if count < 1 or first < 1:
         raise InputError("--rank and --top must be at least 1")
     spec = load_hand(hand)
-    key = resolve_spec(name).name
+    if Path(out).suffix.lower() != ".png":
+        raise InputError(f"{out}: the picture is written as PNG; give a .png path")
     with open_db(Path(db_path), create=False, readonly=True) as db:
+        key, obj = _stored(db, name, hand)
         grasps = db.best(key, hand, count, first - 1)
     if not grasps:
         raise InputError(f"no grasp of rank {first} for '{key}' and hand '{hand}' in {db_path}")
-    if Path(out).suffix.lower() != ".png":
-        raise InputError(f"{out}: the picture is written as PNG; give a .png path")
-    obj = load_object(name)
     render.save_sheet([(render.grasp_views(spec, obj, g), render.title(g)) for g in grasps], Path(out))
     return grasps
 

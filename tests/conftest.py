@@ -47,3 +47,23 @@ def validated_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
     assert code == 0, err
     return db
 
+
+
+@pytest.fixture(scope="session")
+def stored_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Objects whose database name the registry alone does not give back:
+    the duck generated at ``--scale 1.5`` (stored as 'duck'), a user mesh in
+    millimetres (``capsule.obj``, ``--scale 0.001``), and the box for the
+    Panda and for the PR2 (one object, two hands)."""
+    import trimesh
+
+    folder = tmp_path_factory.mktemp("stored")
+    mesh = folder / "meshes_in_mm" / "capsule.obj"
+    mesh.parent.mkdir()
+    trimesh.creation.capsule(height=40.0, radius=20.0).export(mesh)
+    db = folder / "g.db"
+    for args in (["duck", "--hand", "panda", "--scale", "1.5"], [str(mesh), "--hand", "panda", "--scale", "0.001"],
+                 ["box", "--hand", "panda"], ["box", "--hand", "pr2"]):
+        code, _, err = grasp("generate", *args, "--db", str(db), "--quiet", *FAST)
+        assert code == 0, err
+    return db

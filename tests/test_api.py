@@ -10,6 +10,7 @@ import subprocess
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 from helpers import content, reference_command
 
@@ -93,3 +94,19 @@ def test_descriptions_list_hands_with_their_preshapes_and_objects() -> None:
     hands = {spec.name: [s.name for s in shapes] for spec, shapes in api.hands()}
     assert hands["panda"] == ["wide", "half"]
     assert {"mug", "box"} <= set(api.objects())
+
+
+def test_show_and_best_at_use_the_stored_mesh(stored_db: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The duck was generated at --scale 1.5: the registry's duck is not the one its grasps hold."""
+    from planner.geometry.solid import load_object
+    from planner.present import render
+
+    shown: list = []
+    monkeypatch.setattr(render, "grasp_views", lambda hand, obj, g: shown.append(obj) or [np.zeros((4, 4, 3))])
+    api.show("duck", "panda", tmp_path / "d.png", db_path=stored_db)
+    assert np.array_equal(shown[0].mesh.vertices, load_object("duck", scale=1.5).mesh.vertices)
+    with open_db(stored_db, create=False, readonly=True) as db:
+        assert api.resolve_object(db, "duck")[1].scale == pytest.approx(1.5 * load_object("duck").file_scale)
+        assert api.resolve_object(db, "random_007") == ("random_007", None)  # known, not stored
+    with pytest.raises(InputError, match="no grasps of 'random_007' for hand 'panda'"):
+        api.best_at("random_007", "panda", [0.5, 0, 0, 0, 0, 0, 1], db_path=stored_db)

@@ -1,23 +1,52 @@
-"""ACRONYM HDF5: one file ``{object}__{hand}.h5`` per (object, hand), written
-and read back.
+"""ACRONYM HDF5: one file ``DIR/{object}__{hand}.h5`` per (object, hand),
+written and read back.
 
-ACRONYM's published layout, readable by its own tools (``acronym_tools``)::
+ACRONYM's published layout, readable by its own tools (``acronym_tools``:
+``load_grasps(file)``, ``load_mesh(file, mesh_root_dir=DIR)``)::
 
     gripper/type             str     hand name
-    gripper/configuration    float64 (1,)  largest opening [m] (parallel jaw), else 0
-    object/file              str     mesh path (the objects table's source)
-    object/{scale,mass,friction,density,volume}  float64 scalars
-    object/com               float64 (3,)   [m], scaled mesh frame
+    gripper/configuration    float64 (D,)  the open hand, see below ([0.04] for the Panda)
+    object/file              str     "meshes/{object}.obj", relative to DIR (the mesh in metres)
+    object/scale             float64 1.0: what turns object/file into metres
+    object/{mass,friction,density,volume}  float64 scalars
+    object/com               float64 (3,)   [m], object frame
     object/inertia           float64 (3, 3) [kg m^2] about the COM
     grasps/transforms        float64 (N, 4, 4)  pose @ export_frame: gripper
-                             frame (+z approach, fingers along x) in the scaled mesh frame
+                             frame (+z approach, fingers along x) in the object frame
     grasps/qualities/flex/object_in_gripper  int64 (N,)  1 = success; attribute
                              ``label_source``: "simulation" (PyBullet trials),
                              "force_closure" (the flag), or "mixed"
     grasps/qualities/flex/object_motion_during_{closing,shaking}_{linear,angular}
                              float64 (N,) [m] / [rad], NaN when not simulated
 
-This project's extras (a foreign reader ignores them): ``object/name``;
+``load_mesh`` joins ``object/file`` to ``mesh_root_dir``, loads it with
+trimesh and applies ``object/scale``: with ``mesh_root_dir=DIR`` that is the
+planner's checked mesh in the object frame, wherever DIR was copied (see
+:mod:`planner.datasets.meshes`).
+
+``gripper/configuration`` follows ACRONYM's Panda files, which store
+``[0.04]``: the Panda's one driven finger joint (``panda_finger_joint1``; the
+other finger mimics it) fully open, i.e. one finger's travel from the centre
+line, half the 0.08 m opening. For every hand it is the open hand in the same
+terms: the driven (non-mimic) finger joints, in the hand's joint order (named
+by the extra ``gripper/configuration_joints``), at their values in the hand's
+widest preshape (:func:`widest_preshape`, the one ``grasp import`` closes
+foreign poses from), in joint units:
+
+| hand | `gripper/configuration_joints` | `gripper/configuration` | meaning |
+| --- | --- | --- | --- |
+| panda | `panda_finger_joint1` | `[0.04]` | [m] one finger's travel from the centre line, fully open: half the 0.08 m opening (ACRONYM's own value); `panda_finger_joint2` mimics it |
+| pr2 | `left_gripper_joint`, `right_gripper_joint` | `[0.548, 0.548]` | [rad] each finger's hinge fully open (preshape `wide`) |
+| barrett | `bh_j11_joint`, `bh_j12_joint`, `bh_j22_joint`, `bh_j32_joint` | `[0.0, 0.0, 0.0, 0.0]` | [rad] spread 0 (fingers 1 and 2 side by side, facing finger 3) and the three proximal flexions straight (preshape `wrap`); finger 2's spread and the distal joints mimic these |
+| allegro | `index_abd`, `index_mcp`, `index_pip`, `index_dip`, `middle_abd`, `middle_mcp`, `middle_pip`, `middle_dip`, `ring_abd`, `ring_mcp`, `ring_pip`, `ring_dip`, `thumb_rot`, `thumb_abd`, `thumb_mcp`, `thumb_ip` | `[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.396, 0.3, 0.0, 0.0]` | [rad] every finger straight, the thumb rotated 1.396 rad to face them and abducted 0.3 rad (preshape `power_wrap`) |
+
+Files written before issue 12 stored the Panda's full opening ``[0.08]``
+(0 for the other hands); nothing reads the value back, so they import alike.
+
+This project's extras (a foreign reader ignores them): ``object/name``,
+``object/source`` and ``object/source_scale`` (the database's mesh file and
+scale), ``object/mesh_sha256`` (:func:`planner.geometry.mesh.mesh_hash` of
+the mesh); ``gripper/configuration_joints``;
 ``grasps/qualities/{epsilon, volume, force_closure, reachability,
 manipulability, score, rank, simulated_success (-1: not simulated),
 robust_epsilon_mean, robust_epsilon_quantile}`` (NaN when absent);
@@ -49,12 +78,13 @@ from typing import Any
 import numpy as np
 
 from planner.datasets.columns import Column, grasp_columns, joint_matrix
-from planner.db.store import ObjectRow
+from planner.datasets.meshes import ExportedObject
 from planner.errors import InputError
 from planner.geometry.frames import roll_about
 from planner.grasp import Grasp, RobustEpsilon, Trial
 from planner.plan.contacts import HandContacts
 from planner.specs.hands import HandSpec
+from planner.specs.preshapes import Preshape, load_preshapes
 
 SUFFIX = ".h5"
 #: Rows per HDF5 chunk: 1,024 transforms are 128 kB.
@@ -73,15 +103,28 @@ MOTIONS = {f"{FLEX}object_motion_during_{stage}_{kind}": f"validation_{stage}_{k
 #: Datasets whose presence marks a file with this project's extras.
 EXTRAS = ("qualities/epsilon", "qualities/volume", "qualities/force_closure", "joint_names", "joints_closed",
           "joints_open", "contacts")
+#: The per-hand table of ``gripper/configuration`` above, for the README.
+CONFIGURATION_DOC = __doc__[__doc__.index("| hand |"):__doc__.index("\n\nFiles written before")].strip() + "\n"
 
 
 # -- writing ------------------------------------------------------------------------
-def max_opening(hand: HandSpec) -> float:
-    """``gripper/configuration``: a parallel jaw's largest opening [m] (the sum
-    of its prismatic finger upper limits); 0 for other hands."""
-    if not hand.centering:
-        return 0.0
-    return float(sum(j.upper for j in hand.joints if j.kind == "prismatic"))
+def relative_path(stem: str, hand: str) -> str:
+    """Where the file of (object, hand) goes in the export folder."""
+    return f"{stem}__{hand}{SUFFIX}"
+
+
+def widest_preshape(hand: HandSpec) -> Preshape:
+    """The most open preshape: largest travel against the closing synergy."""
+    return max(load_preshapes(hand), key=lambda s: -sum(r * s.joints[j] for j, r in s.close.items()))
+
+
+def gripper_configuration(hand: HandSpec) -> tuple[list[str], np.ndarray]:
+    """``gripper/configuration_joints`` and ``gripper/configuration`` (D,):
+    the driven finger joints and their values [m or rad] in the widest
+    preshape (the module docstring has the table per hand)."""
+    shape = widest_preshape(hand)
+    names = [j.name for j in hand.driven]
+    return names, np.array([shape.joints[n] for n in names], np.float64)
 
 
 def joint_names(hand: HandSpec) -> list[str]:
@@ -134,7 +177,7 @@ def validated_count(grasps: list[Grasp]) -> int:
     return sum(g.validation is not None for g in grasps)
 
 
-def write(path: Path, info: ObjectRow, hand: HandSpec, batches: Iterable[list[Grasp]]) -> int:
+def write(path: Path, info: ExportedObject, hand: HandSpec, batches: Iterable[list[Grasp]]) -> int:
     """Write the file (atomically: a partial export never has the final name); returns N."""
     import h5py
 
@@ -152,22 +195,30 @@ def write(path: Path, info: ObjectRow, hand: HandSpec, batches: Iterable[list[Gr
     return total
 
 
-def _header(f: Any, info: ObjectRow, hand: HandSpec) -> None:
+def _header(f: Any, info: ExportedObject, hand: HandSpec) -> None:
     import h5py
 
+    row = info.row
+    configuration_joints, configuration = gripper_configuration(hand)
     f["gripper/type"] = hand.name
-    f["gripper/configuration"] = np.array([max_opening(hand)], np.float64)
-    f["object/file"] = info.source
-    f["object/name"] = info.name
-    for key in ("scale", "mass", "friction", "density", "volume"):
-        f[f"object/{key}"] = np.float64(getattr(info, key))
-    f["object/com"] = np.asarray(info.com, np.float64)
-    f["object/inertia"] = np.asarray(info.inertia, np.float64)
+    f["gripper/configuration"] = configuration
+    f["gripper/configuration_joints"] = np.array(configuration_joints, dtype=h5py.string_dtype())
+    f["object/file"] = info.file
+    f["object/scale"] = np.float64(info.scale)
+    f["object/name"] = row.name
+    f["object/source"] = row.source
+    f["object/source_scale"] = np.float64(row.scale)
+    f["object/mesh_sha256"] = row.mesh_sha256
+    for key in ("mass", "friction", "density", "volume"):
+        f[f"object/{key}"] = np.float64(getattr(row, key))
+    f["object/com"] = np.asarray(row.com, np.float64)
+    f["object/inertia"] = np.asarray(row.inertia, np.float64)
     f["grasps/joint_names"] = np.array(joint_names(hand), dtype=h5py.string_dtype())
     f["grasps/export_frame"] = np.asarray(hand.export_frame, np.float64)
 
 
 def _append(f: Any, key: str, values: Column, start: int) -> None:
+    """Rows ``start:`` of a chunked, resizable dataset (made by the first batch)."""
     import h5py
 
     if isinstance(values, list):
@@ -175,9 +226,9 @@ def _append(f: Any, key: str, values: Column, start: int) -> None:
     else:
         data = np.asarray(values)
         data = data.astype(np.int64 if data.dtype.kind in "iub" else np.float64, copy=False)
-    if key not in f:
-        f.create_dataset(key, shape=(0, *data.shape[1:]), maxshape=(None, *data.shape[1:]), dtype=data.dtype,
-                         chunks=(CHUNK_ROWS, *data.shape[1:]))
+    if start == 0:  # one h5py call: creating empty and then resizing costs as much again
+        f.create_dataset(key, data=data, maxshape=(None, *data.shape[1:]), chunks=(CHUNK_ROWS, *data.shape[1:]))
+        return
     ds = f[key]
     ds.resize(start + len(data), axis=0)
     ds[start:] = data
@@ -189,8 +240,10 @@ class AcronymHeader:
     """What an ACRONYM file says about its gripper and object.
 
     ``scale``, ``mass`` and ``friction`` are None when absent or not a
-    positive number; ``extras``: the file carries this project's qualities,
-    joints and contacts (it can be read back losslessly).
+    positive number; ``mesh_sha256``: the hash of the mesh the grasps were
+    planned on (this project's files since issue 12); ``extras``: the file
+    carries this project's qualities, joints and contacts (it can be read
+    back losslessly).
     """
 
     path: Path
@@ -201,6 +254,7 @@ class AcronymHeader:
     mass: float | None
     friction: float | None
     extras: bool
+    mesh_sha256: str | None = None
 
 
 def _open(path: Path) -> Any:
@@ -225,7 +279,8 @@ def read_header(path: Path) -> AcronymHeader:
             object_name=_text(f["object/name"][()]) if "object/name" in f else None,
             object_file=_text(f["object/file"][()]) if "object/file" in f else None,
             scale=_positive(f, "object/scale"), mass=_positive(f, "object/mass"),
-            friction=_positive(f, "object/friction"), extras=all(f"grasps/{k}" in f for k in EXTRAS))
+            friction=_positive(f, "object/friction"), extras=all(f"grasps/{k}" in f for k in EXTRAS),
+            mesh_sha256=_text(f["object/mesh_sha256"][()]) or None if "object/mesh_sha256" in f else None)
 
 
 def read_poses(path: Path, hand: HandSpec) -> np.ndarray:

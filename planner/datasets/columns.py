@@ -23,7 +23,8 @@ from operator import attrgetter
 
 import numpy as np
 
-from planner.db.store import ObjectRow, json_list
+from planner.datasets.meshes import ExportedObject
+from planner.db.store import json_list
 from planner.grasp import Grasp
 
 Column = np.ndarray | list
@@ -123,6 +124,6 @@ def joint_matrix(texts: Sequence[str], names: Sequence[str]) -> np.ndarray:
 class Stream:
     """The selected grasps of one (object, hand), as batches read on demand."""
 
-    info: ObjectRow
+    info: ExportedObject
     hand: str
     batches: Iterator[list[Grasp]]

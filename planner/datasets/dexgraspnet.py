@@ -1,12 +1,28 @@
-"""DexGraspNet ``.npy``: one file ``{object}__{hand}.npy`` per (object, hand).
+"""DexGraspNet ``.npy``: one file per (object, hand), in DexGraspNet's layout.
 
-DexGraspNet's own format: a numpy object array (a list) of dicts, saved
-with pickle, so it loads with ``numpy.load(path, allow_pickle=True)``::
+DexGraspNet keeps one result file per object, named by its *object code*
+(``<result_path>/<code>.npy``), and loads the object's mesh from
+``<data_root_path>/<code>/coacd/decomposed.obj`` (``ObjectModel``). The
+export mirrors its ``data/`` folder, one result folder per hand, the object
+code being the object's name::
 
-    {"scale": float,              # object/scale: the mesh scale the grasp refers to
+    DIR/meshes/{object}.obj                       the mesh, in metres (mesh_file)
+    DIR/dataset/{hand}/{object}.npy               result_path of the hand
+    DIR/meshdata/{object}/coacd/decomposed.obj    the same mesh, where ObjectModel looks
+
+``decomposed.obj`` is the planner's mesh itself (one piece), not a CoACD
+decomposition, and no ``coacd.urdf`` is written (DexGraspNet's Isaac
+validation, which needs it, simulates its Shadow hand only).
+
+Each file is DexGraspNet's own format: a numpy object array (a list) of
+dicts, saved with pickle, so it loads with ``numpy.load(path,
+allow_pickle=True)``::
+
+    {"scale": 1.0,                # turns the mesh file into metres (the file is in metres)
      "qpos": {"WRJTx", "WRJTy", "WRJTz": wrist (hand frame) translation [m], object frame,
               "WRJRx", "WRJRy", "WRJRz": wrist rotation as Euler angles [rad],
               joint_name: closed joint value [rad or m], ...},
+     "object_code": "{object}", "mesh_file": "meshes/{object}.obj" (relative to DIR),
      "epsilon", "score", "force_closure", "rank", "width": this project's extras}
 
 The Euler angles are ``Rotation.from_matrix(R).as_euler("xyz")`` of scipy:
@@ -14,6 +30,8 @@ lower-case "xyz" = *extrinsic* rotations about the fixed x, then y, then z
 axes, i.e. R = Rz(c) @ Ry(b) @ Rx(a) for (a, b, c) = (WRJRx, WRJRy, WRJRz),
 the same as transforms3d's ``euler2mat(a, b, c, "sxyz")`` that DexGraspNet
 uses. The wrist is the hand frame (``root_link``), not the ACRONYM frame.
+The joint names are this project's hands' (no hand here is DexGraspNet's
+Shadow hand, whose ``robot0:FFJ3`` ... names its hand model hard-codes).
 
 DexGraspNet files are per object by definition, so one (object, hand)'s list
 is held in memory; rows are still read from the database in batches.
@@ -21,7 +39,6 @@ is held in memory; rows are still read from the database in batches.
 
 from __future__ import annotations
 
-import math
 import os
 import warnings
 from collections.abc import Iterable
@@ -32,12 +49,19 @@ from scipy.spatial.transform import Rotation
 
 from planner.datasets.acronym import joint_names
 from planner.datasets.columns import grasp_columns, joint_matrix
-from planner.db.store import ObjectRow
+from planner.datasets.meshes import ExportedObject
 from planner.grasp import Grasp
 from planner.specs.hands import HandSpec
 
 SUFFIX = ".npy"
 WRIST = ("WRJTx", "WRJTy", "WRJTz", "WRJRx", "WRJRy", "WRJRz")
+#: Where DexGraspNet's ObjectModel finds an object's mesh (relative to DIR).
+MESH_COPIES = ("meshdata/{stem}/coacd/decomposed.obj",)
+
+
+def relative_path(stem: str, hand: str) -> str:
+    """Where the file of (object, hand) goes: named by the object code."""
+    return f"dataset/{hand}/{stem}{SUFFIX}"
 
 
 def wrist(pose: np.ndarray) -> np.ndarray:
@@ -58,21 +82,25 @@ def pose_from_qpos(qpos: dict[str, float]) -> np.ndarray:
     return pose
 
 
-def write(path: Path, info: ObjectRow, hand: HandSpec, batches: Iterable[list[Grasp]]) -> int:
+def write(path: Path, info: ExportedObject, hand: HandSpec, batches: Iterable[list[Grasp]]) -> int:
     """Write the file (atomically); returns the number of grasps."""
     names = joint_names(hand)
-    scale = float(info.scale)
+    keys = (*WRIST, *names)
+    code = path.name[:-len(SUFFIX)]
     grasps: list[dict] = []
     for batch in batches:
         c = grasp_columns(batch)
-        base = wrist(c["pose"]).tolist()
-        joints = joint_matrix(c["closed_joints"], names).tolist()
-        for i in range(len(batch)):
-            qpos = dict(zip(WRIST, base[i]))
-            qpos.update((k, v) for k, v in zip(names, joints[i]) if not math.isnan(v))  # NaN: not stored
-            grasps.append({"scale": scale, "qpos": qpos, "epsilon": float(c["epsilon"][i]),
-                           "score": float(c["score"][i]), "force_closure": bool(c["force_closure"][i]),
-                           "rank": int(c["rank"][i]), "width": float(c["width"][i])})
+        joints = joint_matrix(c["closed_joints"], names)
+        rows = np.hstack([wrist(c["pose"]), joints]).tolist()
+        if np.isnan(joints).any():  # NaN: a joint not stored; left out of qpos
+            qposes = [{k: v for k, v in zip(keys, row) if v == v} for row in rows]
+        else:
+            qposes = [dict(zip(keys, row)) for row in rows]
+        grasps += [{"scale": info.scale, "qpos": qpos, "object_code": code, "mesh_file": info.file,
+                    "epsilon": epsilon, "score": score, "force_closure": closure, "rank": rank, "width": width}
+                   for qpos, epsilon, score, closure, rank, width in zip(
+                       qposes, c["epsilon"].tolist(), c["score"].tolist(), c["force_closure"].astype(bool).tolist(),
+                       c["rank"].tolist(), c["width"].tolist())]
     data = np.empty(len(grasps), dtype=object)
     data[:] = grasps
     tmp = path.with_name(path.name + ".tmp")

@@ -4,19 +4,22 @@ Formats (one module each):
 
 - ``acronym``: HDF5 per (object, hand), ACRONYM's layout plus this
   project's extras (:mod:`planner.datasets.acronym`);
-- ``graspgen``: the same content as JSON per (object, hand)
-  (:mod:`planner.datasets.graspgen`);
+- ``graspgen``: the same content as JSON per (object, hand), in GraspGen's
+  per-gripper dataset layout (:mod:`planner.datasets.graspgen`);
 - ``dexgraspnet``: ``.npy`` list of ``{scale, qpos}`` dicts per (object,
-  hand) (:mod:`planner.datasets.dexgraspnet`);
+  hand), in DexGraspNet's layout (:mod:`planner.datasets.dexgraspnet`);
 - ``parquet`` / ``csv``: one flat table of every grasp
   (:mod:`planner.datasets.table`, whose ``COLUMNS_DOC`` documents the columns).
 
-Per-(object, hand) files are named ``{object}__{hand}.{h5,json,npy}``, with
-'/' in object names replaced by '__'. Exports stream: grasps are read from
-the database in batches of :data:`BATCH_SIZE` (rank order within a pair) and
-written as they come, so no exporter holds all grasps of a database in
-memory; every file is written under a temporary name and renamed when
-complete.
+Every export folder is self-contained: the mesh of every exported object is
+written first, as ``DIR/meshes/<object>.obj`` in metres
+(:mod:`planner.datasets.meshes`), and every file names its mesh by that
+path relative to ``DIR`` with scale 1, so the folder can be copied to
+another machine. Each per-pair module says where its files go
+(``relative_path``). Exports stream: grasps are read from the database in
+batches of :data:`BATCH_SIZE` (rank order within a pair) and written as they
+come, so no exporter holds all grasps of a database in memory; every file is
+written under a temporary name and renamed when complete.
 """
 
 from __future__ import annotations
@@ -32,10 +35,9 @@ from itertools import chain
 from pathlib import Path
 from types import ModuleType
 
-import numpy as np
-
 from planner.datasets.columns import Stream
-from planner.db.store import Database, ObjectRow, open_db
+from planner.datasets.meshes import ExportedObject, mesh_stem, write_meshes
+from planner.db.store import Database, open_db
 from planner.errors import InputError, UnknownNameError
 from planner.grasp import Grasp
 from planner.specs.hands import HandSpec, load_hand
@@ -45,10 +47,10 @@ log = logging.getLogger(__name__)
 #: Grasps per database read: about 10 MB of decoded records.
 BATCH_SIZE = 5000
 
-#: format -> (module, what it needs installed)
-PER_PAIR = {"acronym": ("acronym", "h5py"), "graspgen": ("graspgen", ""), "dexgraspnet": ("dexgraspnet", "scipy")}
-#: format -> (file name, writer function of planner.datasets.table, what it needs)
-TABLES = {"parquet": ("grasps.parquet", "write_parquet", "pyarrow"), "csv": ("grasps.csv", "write_csv", "")}
+#: Formats with one file per (object, hand): the module of each.
+PER_PAIR = {"acronym": "acronym", "graspgen": "graspgen", "dexgraspnet": "dexgraspnet"}
+#: format -> (file name, writer function of planner.datasets.table)
+TABLES = {"parquet": ("grasps.parquet", "write_parquet"), "csv": ("grasps.csv", "write_csv")}
 FORMATS = (*PER_PAIR, *TABLES)
 
 
@@ -88,13 +90,14 @@ class ExportSummary:
     """What an export wrote."""
 
     format: str
-    files: list[Path] = field(default_factory=list)
+    files: list[Path] = field(default_factory=list)  # grasp files
+    meshes: list[Path] = field(default_factory=list)  # DIR/meshes/<object>.obj
     grasps: int = 0
     seconds: float = 0.0
 
     def to_json(self) -> dict:
-        return {"format": self.format, "files": [str(p) for p in self.files], "grasps": self.grasps,
-                "seconds": round(self.seconds, 3)}
+        return {"format": self.format, "files": [str(p) for p in self.files],
+                "meshes": [str(p) for p in self.meshes], "grasps": self.grasps, "seconds": round(self.seconds, 3)}
 
 
 def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (), hands: Sequence[str] = (),
@@ -113,11 +116,13 @@ def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (
         pairs = sel.pairs(db)
         specs = {h: load_hand(h) for h in sorted({h for _, h in pairs})}  # unknown hands fail up front
         out_dir = _out_dir(Path(out_dir))
+        exported = write_meshes(db, sorted({o for o, _ in pairs}), out_dir, getattr(module, "MESH_COPIES", ()))
+        summary.meshes = [out_dir / o.file for o in exported.values()]
         if fmt in TABLES:
-            name, writer, _ = TABLES[fmt]
+            name, writer = TABLES[fmt]
             path = out_dir / name
             tmp = path.with_name(path.name + ".tmp")
-            streams = (Stream(_object_row(db, o), h, sel.batches(db, o, h)) for o, h in pairs)
+            streams = (Stream(exported[o], h, sel.batches(db, o, h)) for o, h in pairs)
             summary.grasps = getattr(module, writer)(tmp, streams)
             os.replace(tmp, path)
             summary.files.append(path)
@@ -125,50 +130,34 @@ def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (
                 progress(path, summary.grasps)
         else:
             for obj, hand in pairs:
-                path = out_dir / (file_stem(obj, hand) + module.SUFFIX)
-                count = _write_pair(db, module, path, obj, specs[hand], sel)
+                path = out_dir / module.relative_path(mesh_stem(obj), hand)
+                count = _write_pair(db, module, path, exported[obj], specs[hand], sel)
                 if count:
                     summary.files.append(path)
                     summary.grasps += count
                     if progress:
                         progress(path, count)
+            if hasattr(module, "finish"):
+                module.finish(out_dir, sorted(specs))
     summary.seconds = time.perf_counter() - start
     log.info("exported %d grasps as %s to %s in %.1f s", summary.grasps, fmt, out_dir, summary.seconds)
     return summary
 
 
-def _write_pair(db: Database, module: ModuleType, path: Path, obj: str, hand: HandSpec,
+def _write_pair(db: Database, module: ModuleType, path: Path, obj: ExportedObject, hand: HandSpec,
                 sel: Selection) -> int:
     """Write one (object, hand) file; none when the filters leave no grasp."""
-    batches = sel.batches(db, obj, hand.name)
+    batches = sel.batches(db, obj.name, hand.name)
     first = next(batches, None)
     if first is None:
         return 0
-    return int(module.write(path, _object_row(db, obj), hand, chain([first], batches)))
-
-
-def _object_row(db: Database, name: str) -> ObjectRow:
-    """The object's stored properties; NaN / "" when its row is missing."""
-    row = db.object_row(name)
-    if row is not None:
-        return row
-    nan = math.nan
-    return ObjectRow(name, "", nan, nan, nan, nan, nan, np.full(3, nan), np.full((3, 3), nan))
-
-
-def file_stem(obj: str, hand: str) -> str:
-    """``{object}__{hand}`` with path separators in names replaced by ``__``."""
-    return f"{obj}__{hand}".replace("/", "__").replace("\\", "__")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return int(module.write(path, obj, hand, chain([first], batches)))
 
 
 def _module(fmt: str) -> ModuleType:
-    name, needs = (PER_PAIR[fmt][0], PER_PAIR[fmt][1]) if fmt in PER_PAIR else ("table", TABLES[fmt][2])
-    try:
-        if needs:
-            importlib.import_module(needs)
-        return importlib.import_module(f"planner.datasets.{name}")
-    except ImportError as exc:
-        raise InputError(f"format '{fmt}' needs {needs or exc.name}: pip install -e '.[export]' ({exc})") from None
+    """The format's module, imported on first use (h5py and pyarrow load slowly)."""
+    return importlib.import_module(f"planner.datasets.{PER_PAIR.get(fmt, 'table')}")
 
 
 def _out_dir(path: Path) -> Path:

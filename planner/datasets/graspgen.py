@@ -1,16 +1,41 @@
-"""GraspGen JSON: one file ``{object}__{hand}.json`` per (object, hand).
+"""GraspGen JSON: one file per (object, hand), in GraspGen's dataset layout.
 
-The content of the ACRONYM export (see :mod:`planner.datasets.acronym`) as
-GraspGen lays it out::
+GraspGen trains one model per gripper, on a folder of grasp JSONs keyed by
+their ``object.file``; GraspDataGen, its official data generator, writes one
+such folder per gripper. This export does the same, with the export folder
+DIR as GraspGen's object root::
 
-    {"object": {"file", "name", "scale", "mass", "friction", "density", "volume", "com", "inertia"},
-     "gripper": {"type", "configuration", "joint_names", "export_frame"},
-     "grasps": {"transforms": [N x 4 x 4], "object_in_gripper": [N], "label_source": str,
+    DIR/meshes/{object}.obj                        the mesh, in metres (object.file)
+    DIR/grasp_data/{hand}/{object}.json            grasp_root_dir of the hand
+    DIR/grasp_data/{hand}/map_uuid_to_path.json    object.file -> JSON file name
+    DIR/splits/{hand}/train.txt, valid.txt         object keys (object.file), one per line
+
+So object keys are unique per (object, hand): the hands of one object share
+the mesh file and never share a folder. Each file holds the content of the
+ACRONYM export (see :mod:`planner.datasets.acronym`)::
+
+    {"object": {"file", "scale", "name", "source", "source_scale", "mesh_sha256", "mass", "friction",
+                "density", "volume", "com", "inertia"},
+     "gripper": {"type", "configuration", "configuration_joints", "joint_names", "export_frame"},
+     "grasps": {"transforms": [N x 4 x 4], "object_in_gripper": [N booleans], "label_source": str,
                 "object_motion_during_closing_linear": [N], ..., "epsilon": [N], ...}}
 
-Every per-grasp HDF5 dataset becomes a list named by its last path
-component; ``contacts`` are decoded into lists of ``{point, normal, link}``;
-NaN becomes ``null``.
+``object.file`` is ``meshes/{object}.obj`` (relative to DIR) and
+``object.scale`` 1. ``object_in_gripper`` and ``force_closure`` are JSON
+booleans: GraspGen selects the positives with ``transforms[mask]`` and the
+negatives with ``~mask``, which only a boolean array reads as a mask (0/1
+integers would pick rows 0 and 1 over and over). Every other per-grasp HDF5
+dataset becomes a list named by its last path component; ``contacts`` are
+decoded into lists of ``{point, normal, link}``; NaN becomes ``null``.
+
+GraspGen loads ``map_uuid_to_path.json`` when the grasp folder has one and
+then never looks at the files, so a stale one hides objects silently:
+:func:`finish` rewrites it after every export from the JSON files in the
+folder (ours and any others), and rewrites the splits from the same list:
+an object goes to ``valid.txt`` when the first 8 hex digits of the sha256 of
+its name, as a fraction of 16**8, fall below :data:`VALID_FRACTION` (a split
+that does not change as objects are added), unless that would leave
+``train.txt`` empty.
 
 Streaming: rows arrive in batches but the layout is one list per field, so
 each field's list is spooled to its own temporary file and the files are
@@ -19,27 +44,46 @@ concatenated into the JSON document at the end (memory stays one batch).
 
 from __future__ import annotations
 
+import hashlib
 import json
+import logging
 import math
 import os
 import shutil
 import tempfile
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from contextlib import ExitStack
 from pathlib import Path
 from typing import IO
 
 import numpy as np
 
-from planner.datasets.acronym import joint_names, label_source, max_opening, per_grasp, validated_count
-from planner.db.store import ObjectRow
+from planner import assets
+from planner.datasets.acronym import gripper_configuration, joint_names, label_source, per_grasp, validated_count
+from planner.datasets.meshes import ExportedObject
 from planner.grasp import Grasp
 from planner.specs.hands import HandSpec
 
+log = logging.getLogger(__name__)
+
 SUFFIX = ".json"
+GRASP_DATA, SPLITS, MAPPING = "grasp_data", "splits", "map_uuid_to_path.json"
+#: Per-grasp lists written as JSON booleans.
+BOOLEANS = ("object_in_gripper", "force_closure")
+#: Share of the objects in the valid split (GraspDataGen's default).
+VALID_FRACTION = 0.2
+#: Every file this writer makes starts like this, with the object block.
+HEAD = '{"object": '
+#: Characters read to find the object block (it is about 1 kB).
+HEAD_CHARS = 1 << 16
 
 
-def write(path: Path, info: ObjectRow, hand: HandSpec, batches: Iterable[list[Grasp]]) -> int:
+def relative_path(stem: str, hand: str) -> str:
+    """Where the file of (object, hand) goes in the export folder."""
+    return f"{GRASP_DATA}/{hand}/{stem}{SUFFIX}"
+
+
+def write(path: Path, info: ExportedObject, hand: HandSpec, batches: Iterable[list[Grasp]]) -> int:
     """Write the file (atomically); returns the number of grasps."""
     total = validated = 0
     with tempfile.TemporaryDirectory(dir=path.parent, prefix=".graspgen-") as spool, ExitStack() as stack:
@@ -54,7 +98,7 @@ def write(path: Path, info: ObjectRow, hand: HandSpec, batches: Iterable[list[Gr
             validated += validated_count(batch)
         tmp = path.with_name(path.name + ".tmp")
         with open(tmp, "w", encoding="utf-8") as out:
-            out.write('{"object": ' + json.dumps(_object(info)) + ', "gripper": ' + json.dumps(_gripper(hand)))
+            out.write(HEAD + json.dumps(_object(info)) + ', "gripper": ' + json.dumps(_gripper(hand)))
             out.write(', "grasps": {"label_source": ' + json.dumps(label_source(validated, total)))
             for name, part in lists.items():
                 out.write(f', "{name}": [')
@@ -71,6 +115,8 @@ def _spool(part: IO[str], name: str, values: np.ndarray | list[str], first: bool
         text = ", ".join(values)  # type: ignore[arg-type]  # already JSON
     else:
         array = None if isinstance(values, list) else np.asarray(values)
+        if array is not None and name in BOOLEANS:
+            array = array.astype(bool)
         if array is None:
             items = values
         else:  # the NaN scan is cheap; rewriting nested lists is not
@@ -87,10 +133,12 @@ def _nulls(values: list) -> list:
     return [None if isinstance(v, float) and math.isnan(v) else v for v in values]
 
 
-def _object(info: ObjectRow) -> dict:
-    scalars = {k: getattr(info, k) for k in ("scale", "mass", "friction", "density", "volume")}
-    return {"file": info.source, "name": info.name, **_nulls_dict(scalars), "com": _nulls(info.com.tolist()),
-            "inertia": _nulls(info.inertia.tolist())}
+def _object(info: ExportedObject) -> dict:
+    row = info.row
+    scalars = {k: getattr(row, k) for k in ("mass", "friction", "density", "volume")}
+    return {"file": info.file, "scale": info.scale, "name": row.name, "source": row.source,
+            "source_scale": row.scale, "mesh_sha256": row.mesh_sha256, **_nulls_dict(scalars),
+            "com": _nulls(row.com.tolist()), "inertia": _nulls(row.inertia.tolist())}
 
 
 def _nulls_dict(values: dict[str, float]) -> dict[str, float | None]:
@@ -98,5 +146,76 @@ def _nulls_dict(values: dict[str, float]) -> dict[str, float | None]:
 
 
 def _gripper(hand: HandSpec) -> dict:
-    return {"type": hand.name, "configuration": [max_opening(hand)], "joint_names": joint_names(hand),
-            "export_frame": hand.export_frame.tolist()}
+    names, configuration = gripper_configuration(hand)
+    return {"type": hand.name, "configuration": configuration.tolist(), "configuration_joints": names,
+            "joint_names": joint_names(hand), "export_frame": hand.export_frame.tolist()}
+
+
+# -- the folder index ------------------------------------------------------------------
+def finish(out_dir: Path, hands: Sequence[str]) -> None:
+    """Rewrite each hand's ``map_uuid_to_path.json`` and splits from the JSON
+    files its grasp folder holds now."""
+    for hand in hands:
+        folder = out_dir / GRASP_DATA / hand
+        if not folder.is_dir():
+            continue
+        objects = index(folder)
+        mapping = {key: file for key, (file, _) in objects.items()}
+        assets.atomic_write(folder / MAPPING, (json.dumps(mapping, indent=2, sort_keys=True) + "\n").encode())
+        splits = out_dir / SPLITS / hand
+        splits.mkdir(parents=True, exist_ok=True)
+        for name, keys in split({key: name for key, (_, name) in objects.items()}).items():
+            assets.atomic_write(splits / f"{name}.txt", "".join(f"{k}\n" for k in keys).encode())
+
+
+def index(folder: Path) -> dict[str, tuple[str, str]]:
+    """object.file -> (JSON file name, object name) of every grasp JSON in
+    ``folder``, as GraspGen's scan would key them (files it cannot read, or
+    without ``object.file``, are skipped, as GraspGen skips them)."""
+    out: dict[str, tuple[str, str]] = {}
+    for path in sorted(folder.glob(f"*{SUFFIX}")):
+        if path.name == MAPPING:
+            continue
+        block = _object_block(path)
+        key = block.get("file")
+        if not isinstance(key, str):
+            log.warning("%s: no object.file; GraspGen skips it", path)
+            continue
+        if key in out:
+            log.warning("%s and %s both hold object '%s'; GraspGen reads one of them", out[key][0], path.name, key)
+        out[key] = (path.name, str(block.get("name", key)))
+    return out
+
+
+def _object_block(path: Path) -> dict:
+    """The ``object`` block of a grasp JSON ({} if unreadable). This writer's
+    files start with it, so only their head is parsed."""
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        head = fh.read(HEAD_CHARS)
+    data: object = None
+    if head.startswith(HEAD):
+        try:
+            data = {"object": json.JSONDecoder().raw_decode(head, len(HEAD))[0]}
+        except json.JSONDecodeError:
+            pass
+    if data is None:
+        try:
+            with open(path, encoding="utf-8") as fh:
+                data = json.load(fh)
+        except (json.JSONDecodeError, UnicodeDecodeError):
+            return {}
+    block = data.get("object") if isinstance(data, dict) else None
+    return block if isinstance(block, dict) else {}
+
+
+def split(names: dict[str, str]) -> dict[str, list[str]]:
+    """``{"train": keys, "valid": keys}`` of object keys -> object names (see
+    the module docstring for the rule)."""
+    valid = sorted(k for k, name in names.items() if _fraction(name) < VALID_FRACTION)
+    if len(valid) == len(names):
+        valid = []
+    return {"train": sorted(set(names) - set(valid)), "valid": valid}
+
+
+def _fraction(name: str) -> float:
+    return int(hashlib.sha256(name.encode()).hexdigest()[:8], 16) / 16 ** 8

@@ -9,10 +9,15 @@ row index in the file. Reading the file is :mod:`planner.datasets.acronym`'s.
   other value must be a hand name) or ``--hand``.
 - Object: ``--object`` (a built-in name or a mesh path; a mesh path gets the
   file's ``object/scale``), else ``object/name`` when it is a built-in name
-  (this project's files), else ``object/file`` with ``object/scale``,
-  relative paths looked up next to the .h5 file and then one folder up
-  (ACRONYM keeps ``grasps/`` beside ``meshes/``). The file's ``object/mass``
-  and ``object/friction`` override the object's.
+  whose mesh is the file's (``object/mesh_sha256``, in this project's files
+  since issue 12; older files carry no hash and are taken at their word),
+  else ``object/file`` with ``object/scale`` under the name
+  ``object/name`` (or the file's stem), relative paths looked up next to
+  the .h5 file (this project's export folders: ``meshes/`` beside the .h5
+  files) and then one folder up (ACRONYM keeps ``grasps/`` beside
+  ``meshes/``). So a built-in object exported at another ``--scale``, or
+  under a copied name, comes back as the mesh its grasps were planned on.
+  The file's ``object/mass`` and ``object/friction`` override the object's.
 - Poses: ``grasps/transforms @ inverse(export_frame)``, the file's
   ``grasps/export_frame`` if present, else the hand's.
 - Files with this project's extras (qualities, joints, contacts) are
@@ -40,7 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from planner.datasets import acronym
-from planner.datasets.acronym import AcronymHeader
+from planner.datasets.acronym import AcronymHeader, widest_preshape
 from planner.db.lock import writer_lock
 from planner.db.ranking import RankingRule
 from planner.db.store import Database, UnitRow, Validated, open_db
@@ -53,7 +58,6 @@ from planner.plan.unit import closed_width, grasp_quality
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, hand_names, load_hand
 from planner.specs.objects import ObjectSpec, is_registered, resolve_spec
-from planner.specs.preshapes import Preshape, load_preshapes
 
 FORMATS = ("acronym",)
 HAND_ALIASES = {"panda": "panda", "franka_panda": "panda"}
@@ -116,7 +120,6 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
     checked before anything is written."""
     if fmt not in FORMATS:
         raise UnknownNameError("import format", fmt, FORMATS)
-    _require_h5py()
     plans = [_plan(Path(p), hand, object_name, rescore) for p in paths]
     results = []
     with writer_lock(Path(db_path)), open_db(Path(db_path)) as db:
@@ -163,13 +166,6 @@ def _restore_simulation(db: Database, plan: _Plan, unit_id: int, obj: str, rule:
                                               for i, grasp_id in ids.items()], rule)
 
 
-def _require_h5py() -> None:
-    try:
-        import h5py  # noqa: F401  (the ACRONYM reader needs it)
-    except ImportError:
-        raise InputError("importing ACRONYM files needs h5py: pip install -e '.[export]'") from None
-
-
 def _plan(path: Path, hand: str | None, object_name: str | None, rescore: bool) -> _Plan:
     header = acronym.read_header(path)
     spec = load_hand(hand or _hand_name(path, header.gripper))
@@ -199,7 +195,9 @@ def _object_spec(h: AcronymHeader, object_name: str | None) -> ObjectSpec:
         return resolve_spec(object_name, scale=h.scale, **props)
     label = h.object_name
     if label is not None and is_registered(label):
-        return resolve_spec(label, **props)
+        builtin = resolve_spec(label, **props)
+        if h.mesh_sha256 is None or prepare(builtin).mesh_hash == h.mesh_sha256:
+            return builtin
     path, mesh = h.path, h.object_file
     if mesh is None:
         raise InputError(f"{path}: no object/file; pass --object NAME or a mesh path")
@@ -233,7 +231,3 @@ def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: C
                 volume=q.volume, force_closure=q.force_closure))
     return out
 
-
-def widest_preshape(hand: HandSpec) -> Preshape:
-    """The most open preshape: largest travel against the closing synergy."""
-    return max(load_preshapes(hand), key=lambda s: -sum(r * s.joints[j] for j, r in s.close.items()))

@@ -6,6 +6,8 @@ rows and its object's properties. Rows come per (object, hand) in rank
 order. Empty / null means absent (not computed, not validated). Parquet is
 written with an explicit schema, one row group per database batch; CSV by
 the ``csv`` module with a header row, floats written in full precision.
+``object_file`` names the object's mesh in the export folder,
+``meshes/{object}.obj``, in metres (:mod:`planner.datasets.meshes`).
 
 | column | type | meaning |
 | --- | --- | --- |
@@ -45,8 +47,8 @@ the ``csv`` module with a header row, floats written in full precision.
 | `robust_samples` | int64, null | noise samples behind the robust values |
 | `object_mass` | float64 | [kg] |
 | `object_friction` | float64 | friction coefficient used for the quality |
-| `object_scale` | float64 | scale that turns `object_file` into metres (a URDF object's mesh scale included) |
-| `object_file` | string | mesh file (or `primitive:...`) |
+| `object_scale` | float64 | scale that turns `object_file` into metres: 1 (the mesh file is in metres) |
+| `object_file` | string | the object's mesh, `meshes/{object}.obj`, relative to the export folder |
 """
 
 from __future__ import annotations
@@ -97,8 +99,8 @@ NULLABLE = {"width", "reachability", "manipulability", "rank", *(c for c in COLU
 def columns(stream: Stream, batch: list[Grasp]) -> dict[str, np.ndarray | list]:
     """One batch as flat columns (numpy arrays or lists of str)."""
     n, info = len(batch), stream.info
-    constants = {"object": info.name, "hand": stream.hand, "object_mass": info.mass,
-                 "object_friction": info.friction, "object_scale": info.scale, "object_file": info.source}
+    constants = {"object": info.name, "hand": stream.hand, "object_mass": info.row.mass,
+                 "object_friction": info.row.friction, "object_scale": info.scale, "object_file": info.file}
     grasps = grasp_columns(batch)
     out: dict[str, np.ndarray | list] = {}
     for name, _, source in _SPEC:

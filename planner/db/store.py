@@ -98,7 +98,8 @@ class ObjectRow:
     """An ``objects`` row: the stored object's file and physical properties.
 
     ``scale`` turns ``source`` (the mesh file) into metres; ``com`` (3,) [m]
-    and ``inertia`` (3, 3) [kg m^2] about the COM are in the scaled mesh frame.
+    and ``inertia`` (3, 3) [kg m^2] about the COM are in the scaled mesh frame;
+    ``mesh_sha256``: :func:`~planner.geometry.mesh.mesh_hash` of the checked mesh.
     """
 
     name: str
@@ -110,6 +111,7 @@ class ObjectRow:
     volume: float
     com: np.ndarray
     inertia: np.ndarray
+    mesh_sha256: str = ""
 
 
 @dataclass(frozen=True)
@@ -278,7 +280,8 @@ class Database:
         if r is None:
             return None
         return ObjectRow(name, r["source"], r["scale"], r["mass"], r["friction"], r["density"], r["volume"],
-                         np.array(json.loads(r["com"]), float), np.array(json.loads(r["inertia"]), float).reshape(3, 3))
+                         np.array(json.loads(r["com"]), float), np.array(json.loads(r["inertia"]), float).reshape(3, 3),
+                         r["mesh_sha256"])
 
     def grasp_ids(self, unit_id: int) -> dict[int, int]:
         """Candidate number -> grasp id of one unit's grasps."""

@@ -112,7 +112,9 @@ def _cached_mesh(spec: ObjectSpec) -> tuple[trimesh.Trimesh, str]:
         try:
             with np.load(path, allow_pickle=False) as data:
                 mesh = trimesh.Trimesh(data["vertices"], data["faces"], process=False)
-                return mesh, str(data["source"])
+            # the file this spec names, not the cached one: the same bytes may have been cached from
+            # another path (an earlier export folder, another environment's pybullet_data)
+            return mesh, str(source if spec.kind == "mesh" else urdf_mesh(spec)[0])
         except (OSError, ValueError, KeyError):
             path.unlink(missing_ok=True)  # a damaged cache entry is rebuilt
     mesh, source_file = _build_mesh(spec)

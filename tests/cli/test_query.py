@@ -6,7 +6,8 @@ import json
 from pathlib import Path
 
 import numpy as np
-from helpers import grasp
+import pytest
+from helpers import grasp, one_line_error
 
 
 def test_best_json_has_the_documented_keys(box_db: Path) -> None:
@@ -53,3 +54,31 @@ def test_best_prints_one_line_per_grasp_and_show_writes_a_png(box_db: Path, tmp_
     assert len(lines) == 2 and lines[0].startswith("#1 box/panda preshape=wide score=")
     code, out, err = grasp("show", "box", "--hand", "panda", "--db", str(box_db), "--out", str(tmp_path / "g.png"))
     assert code == 0 and (tmp_path / "g.png").stat().st_size > 1000, err
+
+
+def test_every_query_takes_the_database_name_of_a_stored_object(stored_db: Path, tmp_path: Path) -> None:
+    """A user mesh in millimetres and a built-in generated at --scale 1.5,
+    by the names the database stores them under; and an imported object."""
+    for name in ("capsule", "duck"):
+        code, _, err = grasp("show", name, "--hand", "panda", "--db", str(stored_db), "--out", str(tmp_path / "s.png"))
+        assert code == 0, err
+        code, out, err = grasp("best", name, "--hand", "panda", "--db", str(stored_db), "--json")
+        assert code == 0 and json.loads(out)[0]["object"] == name, err
+        code, out, err = grasp("best", name, "--hand", "panda", "--db", str(stored_db), "--object-pose",
+                               "0.5,0,0.05,0,0,0,1", "--max-candidates", "5", "--json")
+        assert code == 0 and isinstance(json.loads(out), list), err
+    code, _, err = grasp("export", "--db", str(stored_db), "--format", "acronym", "--out", str(tmp_path / "h5"),
+                         "--object", "capsule", "--quiet")
+    assert code == 0, err
+    imported = tmp_path / "imported.db"
+    code, _, err = grasp("import", str(tmp_path / "h5" / "capsule__panda.h5"), "--db", str(imported))
+    assert code == 0, err
+    code, _, err = grasp("show", "capsule", "--hand", "panda", "--db", str(imported), "--out", str(tmp_path / "i.png"))
+    assert code == 0 and (tmp_path / "i.png").stat().st_size > 1000, err
+
+
+@pytest.mark.parametrize("command", [["show", "--out", "x.png"], ["best"], ["best", "--object-pose", "0,0,0,0,0,0,1"]])
+def test_an_object_neither_stored_nor_known_is_a_one_line_error(stored_db: Path, command: list[str]) -> None:
+    code, _, err = grasp(command[0], "teapot", "--hand", "panda", "--db", str(stored_db), *command[1:])
+    one_line_error(code, err, 2, "unknown object 'teapot': not stored in", "(objects: box, capsule, duck)",
+                   "not a built-in name, random_NNN or mesh file")

@@ -2,18 +2,20 @@
 
 from __future__ import annotations
 
+import json
+import re
 from pathlib import Path
 
+import h5py
 import numpy as np
 import pytest
 import trimesh
 from helpers import assert_close
 
+from planner.datasets.acronym import CONFIGURATION_DOC, gripper_configuration
 from planner.geometry.solid import load_object
+from planner.specs.hands import hand_names, load_hand
 from tests.datasets.support import export, source_rows
-
-h5py = pytest.importorskip("h5py")
-pq = pytest.importorskip("pyarrow.parquet")
 
 #: Fingertip points of a closed Panda lie this close to the surface [m]
 #: (PyBullet's margins are corrected to ~0.3 mm; 2 mm leaves room).
@@ -52,7 +54,7 @@ def test_acronym_layout_read_by_plain_h5py(db: Path, tmp_path: Path) -> None:
     rows = source_rows(db, "box")
     assert transforms.shape == (len(rows), 4, 4) and transforms.dtype == np.float64
     assert success.dtype == np.int64 and set(success) <= {0, 1}
-    assert (mesh_file, scale, gripper) == ("primitive:box", 1.0, "panda")
+    assert (mesh_file, scale, gripper) == ("meshes/box.obj", 1.0, "panda")
     # labels: simulated where validated (the best grasp was 'dropped'), else the force-closure flag
     assert label_source == "mixed" and success[0] == 0 and success[1] == 1
     assert list(success[2:]) == [r["force_closure"] for r in rows[2:]]
@@ -102,3 +104,23 @@ def test_the_reader_refuses_what_is_not_a_rigid_transform(tmp_path: Path) -> Non
         f["object/file"] = "x.obj"
     with pytest.raises(InputError, match="no 'grasps/transforms' dataset; not an ACRONYM grasp file"):
         acronym.read_header(tmp_path / "empty.h5")
+
+
+def documented_configurations() -> dict[str, tuple[list[str], list[float]]]:
+    """hand -> (joints, values) of the gripper/configuration table."""
+    rows = {}
+    for line in CONFIGURATION_DOC.splitlines()[2:]:
+        hand, joints, values, _ = (cell.strip() for cell in line.strip("|").split("|"))
+        rows[hand] = (re.findall(r"`([a-z_0-9]+)`", joints), json.loads(values.strip("`")))
+    return rows
+
+
+def test_gripper_configuration_is_acronyms_for_the_panda_and_documented_for_every_hand() -> None:
+    documented = documented_configurations()
+    assert sorted(documented) == hand_names()
+    for hand, (joints, values) in documented.items():
+        names, configuration = gripper_configuration(load_hand(hand))
+        assert (names, configuration.tolist()) == (joints, values), hand
+    assert documented["panda"] == (["panda_finger_joint1"], [0.04])  # ACRONYM's own Panda files
+    readme = (Path(__file__).parents[2] / "README.md").read_text()
+    assert CONFIGURATION_DOC in readme

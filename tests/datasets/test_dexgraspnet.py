@@ -6,27 +6,24 @@ import json
 from pathlib import Path
 
 import numpy as np
-import pytest
 from helpers import assert_close
 
 from tests.datasets.support import ROUNDED_TOL, export, pose, source_rows
-
-h5py = pytest.importorskip("h5py")
-pq = pytest.importorskip("pyarrow.parquet")
 
 
 def test_dexgraspnet_npy_loads_into_documented_dicts(db: Path, tmp_path: Path) -> None:
     from scipy.spatial.transform import Rotation
 
     export(db, "dexgraspnet", tmp_path, "--object", "box")
-    data = np.load(tmp_path / "box__panda.npy", allow_pickle=True)
+    data = np.load(tmp_path / "dataset" / "panda" / "box.npy", allow_pickle=True)
     rows = source_rows(db, "box")
     assert data.dtype == object and len(data) == len(rows)
     wrist = {"WRJTx", "WRJTy", "WRJTz", "WRJRx", "WRJRy", "WRJRz"}
     for grasp, row in zip(data, rows):
         qpos = grasp["qpos"]
         assert set(qpos) == wrist | {"panda_finger_joint1", "panda_finger_joint2"}
-        assert grasp["scale"] == 1.0 and grasp["epsilon"] == row["epsilon"]
+        assert grasp["scale"] == 1.0 and grasp["epsilon"] == row["epsilon"] and grasp["rank"] == row["rank"]
+        assert (grasp["object_code"], grasp["mesh_file"]) == ("box", "meshes/box.obj")
         rebuilt = np.eye(4)
         rebuilt[:3, :3] = Rotation.from_euler("xyz", [qpos["WRJRx"], qpos["WRJRy"], qpos["WRJRz"]]).as_matrix()
         rebuilt[:3, 3] = [qpos["WRJTx"], qpos["WRJTy"], qpos["WRJTz"]]

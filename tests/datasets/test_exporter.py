@@ -5,16 +5,15 @@ from __future__ import annotations
 import sqlite3
 from pathlib import Path
 
+import h5py
 import numpy as np
+import pyarrow.parquet as pq
 import pytest
 from helpers import grasp
 
 from planner.datasets import exporter
 from planner.db import store
 from tests.datasets.support import export
-
-h5py = pytest.importorskip("h5py")
-pq = pytest.importorskip("pyarrow.parquet")
 
 FORMATS = ("acronym", "graspgen", "dexgraspnet", "parquet", "csv")
 
@@ -63,14 +62,19 @@ def read_all(path: Path) -> object:
     return path.read_text()
 
 
+def files(folder: Path) -> dict[str, object]:
+    """Every file of an export folder by its relative path, read."""
+    return {str(p.relative_to(folder)): read_all(p) for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
 def test_export_streams_in_batches(db: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    expected = {fmt: {p.name: read_all(p) for p in export(db, fmt, tmp_path / fmt).iterdir()} for fmt in FORMATS}
+    expected = {fmt: files(export(db, fmt, tmp_path / fmt)) for fmt in FORMATS}
     sizes: list[int] = []
     decode = store._grasps
     monkeypatch.setattr(exporter, "BATCH_SIZE", 2)
     monkeypatch.setattr(store, "_grasps", lambda rows: sizes.append(len(rows)) or decode(rows))
     for fmt in FORMATS:
-        got = {p.name: read_all(p) for p in export(db, fmt, tmp_path / f"{fmt}-2").iterdir()}
+        got = files(export(db, fmt, tmp_path / f"{fmt}-2"))
         assert got.keys() == expected[fmt].keys()
         for name, value in got.items():
             np.testing.assert_equal(value, expected[fmt][name])

@@ -3,19 +3,17 @@
 from __future__ import annotations
 
 import json
+import shutil
 import sqlite3
 from pathlib import Path
 
+import h5py
 import numpy as np
-import pytest
 from helpers import assert_close, grasp
 
 from planner.db.store import open_db
 from planner.geometry.solid import load_object
 from tests.datasets.support import SAME_ORDER_RULE, export, pose, source_rows
-
-h5py = pytest.importorskip("h5py")
-pq = pytest.importorskip("pyarrow.parquet")
 
 #: Re-closing a stored pose reproduces its epsilon to within this fraction.
 RESCORE_REL_TOL = 0.05
@@ -93,3 +91,45 @@ def test_unknown_gripper_needs_hand(db: Path, tmp_path: Path) -> None:
     assert code == 2 and "gripper type 'robotiq_2f85' is not a known hand; pass --hand" in err
     code, _, err = grasp("import", str(path), "--db", str(tmp_path / "i.db"), "--hand", "panda")
     assert code == 2 and "object/file 'nowhere.obj' not found" in err
+
+
+def stored_hash(db: Path, name: str) -> str:
+    with open_db(db, create=False, readonly=True) as handle:
+        found = handle.object_row(name)
+    assert found is not None
+    return found.mesh_sha256
+
+
+def test_new_files_import_the_mesh_their_grasps_were_planned_on(stored_db: Path, tmp_path: Path) -> None:
+    """The duck generated at --scale 1.5 is stored as 'duck', larger than the
+    registry's duck: its import takes the exported mesh, the box the registry's."""
+    out = export(stored_db, "acronym", tmp_path / "h5", "--hand", "panda")
+    fresh = tmp_path / "fresh.db"
+    code, _, err = grasp("import", *map(str, sorted(out.glob("*.h5"))), "--db", str(fresh))
+    assert code == 0, err
+    for name in ("box", "capsule", "duck"):
+        assert stored_hash(fresh, name) == stored_hash(stored_db, name), name
+        imported = source_rows(fresh, name)
+        assert_close([pose(r) for r in imported], [pose(r) for r in source_rows(stored_db, name, "hand = 'panda'")])
+    sources = dict(sqlite3.connect(fresh).execute("SELECT name, source FROM objects"))
+    assert sources["box"] == "primitive:box" and sources["duck"] == str(out / "meshes" / "duck.obj")
+
+
+def test_files_written_before_issue_12_import_alike(stored_db: Path, tmp_path: Path) -> None:
+    """The older layout: object/file the database's source (absolute, or
+    primitive:box), object/scale its scale, no mesh hash, configuration [0.08]."""
+    out = export(stored_db, "acronym", tmp_path / "h5", "--hand", "panda", "--object", "box", "--object", "capsule")
+    for path in sorted(out.glob("*.h5")):
+        with h5py.File(path, "r+") as f:
+            source, scale = f["object/source"][()].decode(), f["object/source_scale"][()]
+            for key in ("object/file", "object/scale", "object/source", "object/source_scale", "object/mesh_sha256",
+                        "gripper/configuration", "gripper/configuration_joints"):
+                del f[key]
+            f["object/file"], f["object/scale"], f["gripper/configuration"] = source, scale, [0.08]
+    shutil.rmtree(out / "meshes")
+    fresh = tmp_path / "fresh.db"
+    code, out_text, err = grasp("import", *map(str, sorted(out.glob("*.h5"))), "--db", str(fresh))
+    assert code == 0 and "re-scored" not in out_text, err
+    for name in ("box", "capsule"):
+        assert stored_hash(fresh, name) == stored_hash(stored_db, name), name
+        assert len(source_rows(fresh, name)) == len(source_rows(stored_db, name, "hand = 'panda'"))

@@ -8,14 +8,11 @@ import re
 import sqlite3
 from pathlib import Path
 
-import pytest
+import pyarrow.parquet as pq
 from helpers import assert_close
 
 from planner.datasets.table import COLUMNS, COLUMNS_DOC
 from tests.datasets.support import export, pose, source_rows
-
-h5py = pytest.importorskip("h5py")
-pq = pytest.importorskip("pyarrow.parquet")
 
 
 def documented_columns() -> list[str]:
@@ -26,6 +23,7 @@ def documented_columns() -> list[str]:
 def test_tables_have_one_row_per_grasp_and_the_documented_columns(db: Path, tmp_path: Path) -> None:
     total = sqlite3.connect(db).execute("SELECT COUNT(*) FROM grasps").fetchone()[0]
     assert documented_columns() == COLUMNS
+    assert COLUMNS_DOC in (Path(__file__).parents[2] / "README.md").read_text()
     table = pq.read_table(export(db, "parquet", tmp_path) / "grasps.parquet")
     assert table.num_rows == total and table.column_names == COLUMNS
     rows = table.to_pylist()

@@ -1,6 +1,7 @@
 """The prepared object: known mass properties, built-ins load as closed solids."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -48,3 +49,16 @@ def test_mug_keeps_its_handle_and_cavity() -> None:
 def test_scale_multiplies_builtin_mesh_scale() -> None:
     plain, half = load_object("duck"), load_object("duck", scale=0.5)
     assert_close(half.mesh.extents, plain.mesh.extents * 0.5, 1e-9)
+
+
+def test_a_cached_mesh_keeps_the_path_it_was_asked_for(tmp_path: Path) -> None:
+    """The cache is keyed by content: the same bytes at two paths are one
+    entry, but each object names its own file (the other may be gone)."""
+    import trimesh
+
+    first, second = tmp_path / "a" / "cube.obj", tmp_path / "b" / "cube.obj"
+    for path in (first, second):
+        path.parent.mkdir()
+        trimesh.creation.box(extents=[0.04, 0.05, 0.06]).export(path)
+    assert load_object(str(first)).source_file == str(first)
+    assert load_object(str(second)).source_file == str(second)
