@@ -29,7 +29,6 @@ from planner.specs.toml import Fields, read_toml
 from planner.specs.urdf import cut_subtree, descendants, link_names, load_model, movable_joints
 
 CONTACT_MODELS = ("frictionless", "point", "soft")
-DEFAULT_FINGER_FORCE = 20.0  # [N or N m] per finger motor, when [dynamics] does not say
 #: PyBullet inflates convex hull meshes, cylinders and triangle meshes by 1 mm
 #: each, so a reported closest distance is the true gap minus 2 mm (measured
 #: on a box). URDF <box> and <sphere> links are off by less (0.4-1 mm, 0 mm):
@@ -61,10 +60,44 @@ class JointSpec:
 
 @dataclass(frozen=True)
 class ContactModel:
-    """Contact model of one link: ``point``, ``soft`` (torsion [m]) or frictionless."""
+    """Contact model of one link: ``point``, ``soft`` or frictionless.
+
+    A soft link (a pad) also resists a moment about the contact normal:
+    Coulomb friction over its contact patch gives at most
+    ``mu * torsion_radius * normal force``, ``torsion_radius`` [m] being the
+    patch's mean distance from its centre (uniform pressure on a disc of
+    radius a: 2a/3). This one number per link is what the dynamic trial gives
+    PyBullet (a link's spinning friction, which Bullet multiplies by the
+    object's mu) and what the analytic soft-finger model uses
+    (:meth:`torsion`), so label and score model the same pad.
+    """
 
     model: str
-    torsion: float = 0.0
+    torsion_radius: float = 0.0  # [m]
+
+    def torsion(self, mu: float) -> float:
+        """[m] the largest moment about the normal per newton of normal force
+        at friction ``mu`` (0 unless soft)."""
+        return mu * self.torsion_radius if self.model == "soft" else 0.0
+
+
+@dataclass(frozen=True)
+class DynamicsSpec:
+    """The finger actuators, as dynamic trials drive them (``[dynamics]``).
+
+    ``effort`` [N or N m]: the limit of each finger motor, on its driven
+    joint's closing coordinate; the joints that mimic it share it through
+    their gearing (sum of multiplier x joint effort = effort), so a Panda's one
+    70 N motor pushes each of its two fingers with 35 N. ``closing_speed``
+    [m/s or rad/s]: how fast a driven joint with synergy rate 1 closes (other
+    rates scale it). ``backdrivable``: False when a load on the fingers cannot
+    open them (worm gears). ``source``: where the numbers come from.
+    """
+
+    effort: float
+    closing_speed: float
+    backdrivable: bool
+    source: str
 
 
 @dataclass(frozen=True)
@@ -94,7 +127,7 @@ class HandSpec:
     links: tuple[str, ...]
     arm: ArmSpec | None
     export_frame: np.ndarray  # (4, 4) dataset gripper frame in the hand frame (ACRONYM convention)
-    finger_force: float  # [N or N m] force limit of each finger motor in dynamic trials
+    dynamics: DynamicsSpec | None  # finger actuators for dynamic trials (None: the hand cannot be validated)
 
     def joint(self, name: str) -> JointSpec:
         for joint in self.joints:
@@ -159,8 +192,20 @@ def load_folder(folder: Path) -> HandSpec:
         distance_offset=f.float("distance_offset", DEFAULT_DISTANCE_OFFSET),
         roll_symmetry=_symmetry(f),
         links=tuple(links), arm=_arm(f, folder), export_frame=_export_frame(f),
-        finger_force=f.table("dynamics", {}).float("finger_force", DEFAULT_FINGER_FORCE, positive=True),
+        dynamics=_dynamics(f),
     )
+
+
+def _dynamics(f: Fields) -> DynamicsSpec | None:
+    """``[dynamics]``: the finger actuators, from published specifications."""
+    if not f.has("dynamics"):
+        return None
+    d = f.table("dynamics")
+    if d.has("finger_force"):
+        raise ConfigError(f"{d.where} field 'finger_force': replaced by 'effort' [N or N m per finger motor], "
+                          "'closing_speed' [m/s or rad/s], 'backdrivable' and 'source'")
+    return DynamicsSpec(effort=d.float("effort", positive=True), closing_speed=d.float("closing_speed", positive=True),
+                        backdrivable=d.bool("backdrivable", True), source=d.str("source"))
 
 
 def _symmetry(f: Fields) -> int:
@@ -213,10 +258,15 @@ def _contact_model(f: Fields) -> ContactModel:
     model = f.str("model", "point")
     if model not in CONTACT_MODELS:
         raise ConfigError(f"{f.where} field 'model': unknown contact model '{model}'; use {', '.join(CONTACT_MODELS)}")
-    torsion = f.float("torsion", 0.0)
-    if model == "soft" and torsion <= 0:
-        raise ConfigError(f"{f.where} field 'torsion': a soft contact needs a positive torsion [m]")
-    return ContactModel(model, torsion)
+    if f.has("torsion"):
+        raise ConfigError(f"{f.where} field 'torsion': replaced by 'torsion_radius' [m], the contact patch's "
+                          "mean distance from its centre (the pad resists mu x torsion_radius x normal force)")
+    radius = f.float("torsion_radius", 0.0)
+    if model == "soft" and radius <= 0:
+        raise ConfigError(f"{f.where} field 'torsion_radius': a soft contact needs a positive torsion_radius [m]")
+    if radius < 0:
+        raise ConfigError(f"{f.where} field 'torsion_radius': must be >= 0 [m], got {radius}")
+    return ContactModel(model, radius)
 
 
 def _export_frame(f: Fields) -> np.ndarray:
