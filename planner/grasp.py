@@ -73,8 +73,9 @@ class Trial:
     while the fingers closed and settled, and the largest during the loads
     (centre of mass [m], rotation [rad]). ``fingers_in_contact``: distinct
     fingers touching after closing. ``reason``: ``held``, ``slipped``,
-    ``no_contact``, ``no_clearance`` or ``start_overlap`` (the last two are
-    flags: not simulated, motions 0); empty when unknown (imported files).
+    ``squeezed_out``, ``no_contact``, ``no_clearance`` or ``start_overlap``
+    (the last two are flags: not simulated, motions 0); empty when unknown
+    (imported files, older databases).
     """
 
     success: bool

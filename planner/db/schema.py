@@ -64,8 +64,8 @@ CREATE INDEX IF NOT EXISTS grasps_rank ON grasps (object, hand, rank);
 """
 
 #: v3, shake trial: why a trial ended as it did (``held``, ``slipped``,
-#: ``no_contact``, ``no_clearance``, ``start_overlap``); '' for rows written
-#: before (their trial predates the reasons).
+#: ``squeezed_out``, ``no_contact``, ``no_clearance``, ``start_overlap``);
+#: '' for rows written before (their trial predates the reasons).
 V3_VALIDATION_REASON = """
 ALTER TABLE validation ADD COLUMN reason TEXT NOT NULL DEFAULT ''
 """

@@ -29,6 +29,8 @@ from planner.specs.toml import Fields, read_toml
 from planner.specs.urdf import cut_subtree, descendants, link_names, load_model, movable_joints
 
 CONTACT_MODELS = ("frictionless", "point", "soft")
+DEFAULT_FINGER_FORCE = 20.0  # [N or N m] per finger motor, when [dynamics] does not say
+DEFAULT_CLOSING_SPEED = 0.5  # [m/s or rad/s] of a driven joint, when [dynamics] does not say
 #: PyBullet inflates convex hull meshes, cylinders and triangle meshes by 1 mm
 #: each, so a reported closest distance is the true gap minus 2 mm (measured
 #: on a box). URDF <box> and <sphere> links are off by less (0.4-1 mm, 0 mm):
@@ -56,6 +58,7 @@ class JointSpec:
     offset: float
     child: str
     moves: tuple[str, ...]
+    breakaway: bool = False  # driven joint whose mimics close on alone once it is stopped (BH8 TorqueSwitch)
 
 
 @dataclass(frozen=True)
@@ -82,16 +85,16 @@ class ContactModel:
 
 
 @dataclass(frozen=True)
-class DynamicsSpec:
-    """The finger actuators, as dynamic trials drive them (``[dynamics]``).
+class Actuators:
+    """The finger motors, from published specifications (``[dynamics]``).
 
-    ``effort`` [N or N m]: the limit of each finger motor, on its driven
-    joint's closing coordinate; the joints that mimic it share it through
-    their gearing (sum of multiplier x joint effort = effort), so a Panda's one
-    70 N motor pushes each of its two fingers with 35 N. ``closing_speed``
-    [m/s or rad/s]: how fast a driven joint with synergy rate 1 closes (other
-    rates scale it). ``backdrivable``: False when a load on the fingers cannot
-    open them (worm gears). ``source``: where the numbers come from.
+    One motor per driven joint; its mimics are geared to it (a Panda motor
+    drives both fingers, a Barrett motor one finger's two links). ``effort``
+    [N or N m] is the motor's continuous force or torque limit on the driven
+    joint (the synergy's generalised force, shared with the mimics through the
+    gearing); ``closing_speed`` [m/s or rad/s] of the driven joint;
+    ``backdrivable`` False for worm-gear fingers an external load cannot open;
+    ``source`` says where the numbers come from.
     """
 
     effort: float
@@ -127,7 +130,8 @@ class HandSpec:
     links: tuple[str, ...]
     arm: ArmSpec | None
     export_frame: np.ndarray  # (4, 4) dataset gripper frame in the hand frame (ACRONYM convention)
-    dynamics: DynamicsSpec | None  # finger actuators for dynamic trials (None: the hand cannot be validated)
+    finger_force: float  # [N or N m] force limit of each finger motor in dynamic trials
+    actuators: Actuators  # the finger motors: weight resistance, dynamic trials
 
     def joint(self, name: str) -> JointSpec:
         for joint in self.joints:
@@ -192,20 +196,16 @@ def load_folder(folder: Path) -> HandSpec:
         distance_offset=f.float("distance_offset", DEFAULT_DISTANCE_OFFSET),
         roll_symmetry=_symmetry(f),
         links=tuple(links), arm=_arm(f, folder), export_frame=_export_frame(f),
-        dynamics=_dynamics(f),
+        finger_force=f.table("dynamics", {}).float("finger_force", DEFAULT_FINGER_FORCE, positive=True),
+        actuators=_actuators(f.table("dynamics", {})),
     )
 
 
-def _dynamics(f: Fields) -> DynamicsSpec | None:
-    """``[dynamics]``: the finger actuators, from published specifications."""
-    if not f.has("dynamics"):
-        return None
-    d = f.table("dynamics")
-    if d.has("finger_force"):
-        raise ConfigError(f"{d.where} field 'finger_force': replaced by 'effort' [N or N m per finger motor], "
-                          "'closing_speed' [m/s or rad/s], 'backdrivable' and 'source'")
-    return DynamicsSpec(effort=d.float("effort", positive=True), closing_speed=d.float("closing_speed", positive=True),
-                        backdrivable=d.bool("backdrivable", True), source=d.str("source"))
+def _actuators(f: Fields) -> Actuators:
+    """``[dynamics]``: the motors; ``effort`` defaults to ``finger_force``."""
+    effort = f.float("effort", f.float("finger_force", DEFAULT_FINGER_FORCE, positive=True), positive=True)
+    return Actuators(effort, f.float("closing_speed", DEFAULT_CLOSING_SPEED, positive=True),
+                     f.bool("backdrivable", True), f.data.get("source", "not given"))
 
 
 def _symmetry(f: Fields) -> int:
@@ -237,9 +237,13 @@ def _joint(model: yourdfpy.URDF, source: Path, f: Fields) -> JointSpec:
         raise ConfigError(f"{f.where} field 'mimic': joint '{mimic_of}' is not in {source.name}")
     multiplier = f.float("multiplier", mimic.multiplier if mimic is not None else 1.0)
     offset = f.float("offset", mimic.offset if mimic is not None else 0.0)
+    breakaway = f.bool("breakaway", False)
+    if breakaway and mimic_of is not None:
+        raise ConfigError(f"{f.where} field 'breakaway': joint '{name}' is a mimic; set it on the driven joint "
+                          f"'{mimic_of}' (its mimics close on alone once it is stopped)")
     return JointSpec(name=name, kind=kind, lower=lower, upper=upper, close=f.float("close", 0.0), mimic=mimic_of,
                      multiplier=multiplier, offset=offset, child=node.child,
-                     moves=tuple(descendants(model, node.child)))
+                     moves=tuple(descendants(model, node.child)), breakaway=breakaway)
 
 
 def _contact_models(f: Fields, links: tuple[str, ...]) -> dict[str, ContactModel]:

@@ -11,8 +11,11 @@ gravity vector loads every trial of a world alike.
    contact) and close at the hand's speed under velocity motors limited to
    the hand's published ``effort`` (``[dynamics]`` of hand.toml): once
    blocked, each motor pushes with exactly its limit. Mimic joints are gear
-   constraints sharing their motor's effort; non-backdrivable fingers (worm
-   gears) cannot be pushed open once closed (the open-side joint limit
+   constraints sharing their motor's effort. A driven joint flagged
+   ``breakaway`` (the Barrett's TorqueSwitch) follows the planner's closing
+   rule: once its proximal link touches, the gear lets go, the proximal
+   joint is braked and the distal closes on alone. Non-backdrivable fingers
+   (worm gears) cannot be pushed open once closed (the open-side joint limit
    follows the finger). No gravity yet (the object rests as on a table).
    ``start_overlap`` if the open hand starts deeper than ``max_start_overlap``
    in the object's collision shape (true depth: collision margins removed).
@@ -22,13 +25,17 @@ gravity vector loads every trial of a world alike.
 4. Verdict: ``held`` if after every direction the centre of mass moved less
    than ``max_translation`` and the object turned less than ``max_rotation``
    relative to the hand since the fingers closed, and it still touches the
-   hand; ``slipped`` if not; ``no_contact`` if no finger touched it after
-   closing. A failed trial leaves the world at once.
+   hand; ``slipped`` if not. No finger on the object once the fingers have
+   closed: ``squeezed_out`` if closing moved it by more than those
+   thresholds, else ``no_contact`` (closed on air). A failed trial leaves
+   the world at once.
 
 Contacts are rigid (the URDF's soft contacts removed), with the object's own
 friction (see :mod:`planner.sim.dynamics`) and, on soft links, the torsional
 friction of :class:`~planner.specs.hands.ContactModel` (the same number the
-analytic soft-finger model uses). Several trials can share a world
+analytic soft-finger model uses), except on a link whose planned contacts
+are one point on a sharp edge or corner of its shape (no contact patch:
+:mod:`planner.validation.pads`). Several trials can share a world
 (``batch``), each in its own collision filter group: same verdicts on
 clear-cut grasps, not bit-identical for objects made of several convex parts
 (Bullet's contact order depends on the other bodies).
@@ -46,16 +53,16 @@ from planner.errors import ConfigError
 from planner.geometry.frames import angle_between
 from planner.geometry.solid import PreparedObject
 from planner.grasp import Grasp, Trial
-from planner.sim import Body, Sim
-from planner.sim.dynamics import FILTER_BITS, Dynamics, Shape
+from planner.sim import Body
+from planner.sim.dynamics import FILTER_BITS, Dynamics, Shape, fresh_world
 from planner.specs.hands import HandSpec
 from planner.validation import fingers as fg
-from planner.validation.actuation import drive_fingers, hold_closed, joint_axes, set_contacts
+from planner.validation.actuation import Breakaway, break_away, drive_fingers, hold_closed, joint_axes, set_contacts
 from planner.validation.parts import trial_shape
 from planner.validation.tolerances import GRAVITY, LOAD_DIRECTIONS
 
 #: Why a trial ended as it did (``Trial.reason``).
-REASONS = ("held", "slipped", "no_contact", "no_clearance", "start_overlap")
+REASONS = ("held", "slipped", "squeezed_out", "no_contact", "no_clearance", "start_overlap")
 
 
 @dataclass(frozen=True)
@@ -97,8 +104,9 @@ def recorded(settings: ShakeSettings, hand: HandSpec) -> str:
     """What decides a hand's trials, as stored with each result (JSON): the
     settings, the finger actuators and the torsion radii of the soft links."""
     torsion = {link: m.torsion_radius for link, m in sorted(hand.contacts.items()) if m.model == "soft"}
-    return json.dumps({**asdict(settings), "hand": hand.name, "dynamics": asdict(hand.dynamics) if hand.dynamics
-                       else None, "torsion_radius": torsion}, sort_keys=True)
+    return json.dumps({**asdict(settings), "hand": hand.name, "actuators": asdict(hand.actuators),
+                       "breakaway": [j.name for j in hand.joints if j.breakaway], "torsion_radius": torsion},
+                      sort_keys=True)
 
 
 def trial(hand: HandSpec, obj: PreparedObject, grasp: Grasp, settings: ShakeSettings | None = None,
@@ -113,9 +121,6 @@ def trials(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp], setting
     (consecutive chunks of ``grasps``: pass them in a fixed order so that the
     results do not depend on how work is split)."""
     s = settings or ShakeSettings()
-    if hand.dynamics is None:
-        raise ConfigError(f"hand '{hand.name}' has no [dynamics] table in {hand.folder / 'hand.toml'}: "
-                          "add effort, closing_speed, backdrivable and source to validate its grasps")
     for j in hand.joints:
         if j.mimic is not None and j.offset != 0.0:
             raise ConfigError(f"hand '{hand.name}': mimic joint '{j.name}' has an offset; trials couple mimics "
@@ -142,6 +147,7 @@ class _Run:
     body: Body
     uid: int
     fingers: tuple[frozenset[int], ...]
+    clutches: list[Breakaway] = field(default_factory=list)  # still engaged
     closed: np.ndarray = field(default_factory=lambda: np.eye(4))
     com: np.ndarray = field(default_factory=lambda: np.zeros(3))
     touching: int = 0
@@ -153,8 +159,7 @@ class _Run:
 def _world(hand: HandSpec, obj: PreparedObject, shape: Shape, physical: _Physical, grasps: Sequence[Grasp],
            s: ShakeSettings) -> list[Trial]:
     results: dict[int, Trial] = {}
-    with Sim() as sim:
-        dyn = Dynamics(sim, s.dt, s.solver_iterations)
+    with fresh_world(s.dt, s.solver_iterations) as dyn:
         runs: dict[int, _Run] = {}
         for k, grasp in enumerate(grasps):
             run_or_flag = _set_up(dyn, hand, obj, shape, physical, grasp, k, s)
@@ -183,6 +188,7 @@ def _set_up(dyn: Dynamics, hand: HandSpec, obj: PreparedObject, shape: Shape, ph
     if fg.clearance(hand, grasp, rates, lever) < s.min_clearance:
         dyn.remove(body.uid)
         return _flag("no_clearance")
+    set_contacts(dyn, hand, body, grasp)
     dyn.sim.set_joints(body, fg.start_joints(hand, grasp, rates, lever, s.start_gap))
     uid = dyn.add_object(shape, physical.mass, obj.com, obj.inertia * (physical.mass / obj.mass), physical.friction,
                          np.linalg.inv(np.asarray(grasp.pose, float)))
@@ -191,16 +197,15 @@ def _set_up(dyn: Dynamics, hand: HandSpec, obj: PreparedObject, shape: Shape, ph
         dyn.remove(body.uid)
         dyn.remove(uid)
         return _flag("start_overlap")
-    set_contacts(dyn, hand, body)
-    drive_fingers(dyn, hand, body, rates, grasp.closed_joints, s.gear_erp)
+    clutches = drive_fingers(dyn, hand, body, rates, grasp.closed_joints, s.gear_erp)
     finger_links = tuple(frozenset(body.links[n] for n in f) for f in fg.fingers(hand, rates))
-    return _Run(grasp, body, uid, finger_links)
+    return _Run(grasp, body, uid, finger_links, clutches)
 
 
 def _simulate(dyn: Dynamics, hand: HandSpec, runs: dict[int, _Run], s: ShakeSettings) -> dict[int, Trial]:
     start = {k: dyn.object_pose(r.uid) for k, r in runs.items()}
-    dyn.step(_steps(s.close_time, s.dt))
-    if not hand.dynamics.backdrivable:  # type: ignore[union-attr]
+    _close(dyn, hand, runs, _steps(s.close_time, s.dt))
+    if not hand.actuators.backdrivable:
         for r in runs.values():
             hold_closed(dyn, hand, r.body, fg.closing_rates(hand, r.grasp.preshape))
     dyn.step(_steps(s.settle_time, s.dt))
@@ -219,17 +224,31 @@ def _simulate(dyn: Dynamics, hand: HandSpec, runs: dict[int, _Run], s: ShakeSett
     for direction in LOAD_DIRECTIONS:
         target = GRAVITY * s.load * direction
         ramp = _steps(s.ramp_time, s.dt)
-        for i in range(ramp + _steps(s.hold_time, s.dt)):
-            f = min(1.0, (i + 1) / ramp)
+        for i in range(ramp):
+            f = (i + 1) / ramp
             dyn.set_gravity((1.0 - f) * previous + f * target)
             dyn.step()
+        dyn.step(_steps(s.hold_time, s.dt))
         previous = target
         for r in list(active):
             if not _still_held(dyn, r, s):
                 active.remove(r)
                 _leave(dyn, r)
     dyn.set_gravity(np.zeros(3))
-    return {k: _verdict(r) for k, r in runs.items()}
+    return {k: _verdict(r, s) for k, r in runs.items()}
+
+
+def _close(dyn: Dynamics, hand: HandSpec, runs: dict[int, _Run], steps: int) -> None:
+    """Close for ``steps``; while a breakaway clutch is engaged, step by
+    step, watching its finger's links."""
+    for i in range(steps):
+        engaged = [r for r in runs.values() if r.clutches]
+        if not engaged:
+            dyn.step(steps - i)
+            return
+        dyn.step()
+        for r in engaged:
+            break_away(dyn, hand, r.body, r.clutches, dyn.touching_links(r.body, r.uid))
 
 
 def _still_held(dyn: Dynamics, r: _Run, s: ShakeSettings) -> bool:
@@ -246,8 +265,12 @@ def _leave(dyn: Dynamics, r: _Run) -> None:
     dyn.remove(r.body.uid)
 
 
-def _verdict(r: _Run) -> Trial:
-    reason = "no_contact" if not r.touching else ("held" if r.held else "slipped")
+def _verdict(r: _Run, s: ShakeSettings) -> Trial:
+    if r.touching:
+        reason = "held" if r.held else "slipped"
+    else:  # no finger on the object once closed: pushed out, or closed on air
+        pushed = r.closing[0] >= s.max_translation or r.closing[1] >= s.max_rotation
+        reason = "squeezed_out" if pushed else "no_contact"
     return Trial(reason == "held", r.touching, *r.closing, *r.shaking, reason)
 
 

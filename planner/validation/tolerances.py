@@ -25,3 +25,11 @@ GEAR_FACTOR = 100.0
 #: Smallest friction coefficient of a noisy copy (robust epsilon): a negative
 #: or zero draw would be a frictionless surface, not noise.
 MIN_FRICTION = 0.05
+#: A soft link's contact within ``PAD_EDGE`` [m] of an edge of its collision
+#: shape where faces meet at more than ``PAD_SHARP`` [rad] is on that edge
+#: or corner, not on its pad face, unless the object's surface there is
+#: parallel to one of those faces within ``PAD_ALIGN`` [rad] (it lies flat on
+#: the pad up to its rim) (planner.validation.pads).
+PAD_EDGE = 0.0015
+PAD_SHARP = np.radians(30.0)
+PAD_ALIGN = np.radians(10.0)

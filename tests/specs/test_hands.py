@@ -83,7 +83,7 @@ def broken_copy(tmp_path: Path, old: str, new: str) -> Path:
      "outside"),
     ('torsion_radius = 0.0044', 'torsion_radius = 0.0', "torsion_radius"),
     ('torsion_radius = 0.0044', 'torsion = 0.005', "replaced by 'torsion_radius'"),
-    ('effort = 70.0', 'finger_force = 70.0', "replaced by 'effort'"),
+    ('effort = 70.0', 'effort = -70.0', "effort.*positive"),
     ('closing_speed = 0.05', 'closing_speed = -0.05', "closing_speed.*positive"),
     ("[[joints]]", "[[joints]", "malformed TOML"),
 ])

@@ -3,7 +3,8 @@
 A 0.2 kg box pinched across its centre by the Panda (one 70 N motor: 35 N
 per pad) slips when 2 mu 35 N < m g, i.e. below mu* = 0.028; the same grasp
 backed off 6 cm touches nothing; a grasp at the gripper's opening is
-flagged. Plus trials batched in one world.
+flagged; pads pressing a sphere above its equator push it out when the
+wedge is steeper than the friction cone. Plus trials batched in one world.
 """
 
 from __future__ import annotations
@@ -13,7 +14,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from planner.geometry.solid import prepare
 from planner.specs.hands import load_hand
+from planner.specs.objects import ObjectSpec
 from planner.validation.shake import ShakeSettings, trial, trials
 from planner.validation.tolerances import GRAVITY
 from tests.validation.support import backed_off, box, box_of, pinch
@@ -70,6 +73,25 @@ def test_the_pads_torsional_friction_holds_an_off_centre_pinch() -> None:
     assert trial(point_pads, obj, grasp).reason == "slipped"
 
 
+@pytest.mark.parametrize("height, mu, reason", [(0.0, 0.6, "held"), (0.022, 0.6, "slipped"),
+                                                (0.022, 0.4, "squeezed_out")])
+def test_a_sphere_held_by_the_pads_rims_swings_and_is_squeezed_out_when_the_wedge_beats_friction(
+        height, mu, reason) -> None:  # type: ignore[no-untyped-def]
+    # the flat pads (17.5 mm tall, centred on the tool centre point) 2.2 cm above the centre of a 3 cm
+    # ball touch it with their lower rims, 13.25 mm above its equator: a wedge of angle asin(13.25 / 30),
+    # tan = 0.49, which squeezing pushes out of the fingers unless mu > tan; held, it hangs from two rim
+    # points and swings about the line between them (a rim has no contact patch, no torsional friction),
+    # while pads pressed on the equator hold it
+    hand = load_hand("panda")
+    ball = prepare(ObjectSpec(name="ball", kind="sphere", dims=(0.03,), mass=0.2))
+    result = trial(hand, ball, pinch(hand, ball, offset=(0.0, 0.0, height)), friction=mu)
+    assert result.reason == reason
+    if reason == "squeezed_out":
+        assert result.fingers_in_contact == 0 and result.closing_linear >= 0.01
+    if reason == "slipped":
+        assert result.fingers_in_contact == 2 and result.shaking_angular >= 0.25
+
+
 def test_a_hand_starting_deep_in_the_object_is_flagged(pinched) -> None:  # type: ignore[no-untyped-def]
     hand, obj, grasp = pinched
     result = trial(hand, obj, backed_off(grasp, hand, -0.03))  # the palm 3 cm further down: inside the box
@@ -88,12 +110,9 @@ def test_trials_are_repeatable_and_batches_give_the_same_results(pinched) -> Non
     assert [t.reason for t in slippery] == ["slipped", "no_contact"]
 
 
-def test_a_hand_without_actuators_cannot_be_validated(pinched) -> None:  # type: ignore[no-untyped-def]
+def test_a_batch_beyond_the_collision_filter_bits_is_refused() -> None:
     from planner.errors import ConfigError
 
-    hand, obj, grasp = pinched
-    with pytest.raises(ConfigError, match=r"no \[dynamics\] table.*effort, closing_speed"):
-        trial(replace(hand, dynamics=None), obj, grasp)
     with pytest.raises(ConfigError, match="batch must be 1..30"):
         ShakeSettings(batch=31)
 
