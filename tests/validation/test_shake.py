@@ -45,6 +45,14 @@ def test_a_box_pinched_across_its_centre_holds_above_the_friction_its_weight_nee
         assert result.shaking_linear >= 0.01 or result.shaking_angular >= 0.25
 
 
+@pytest.mark.parametrize("share, held", [(0.8, True), (1.25, False)])
+def test_the_pinched_box_holds_up_to_the_weight_its_pads_friction_carries(pinched, share, held) -> None:  # type: ignore[no-untyped-def]
+    # at mu 0.5 the two pads carry 2 x 0.5 x 35 N = 35 N: 3.57 kg
+    hand, obj, grasp = pinched
+    result = trial(hand, obj, grasp, mass=share * 2 * 0.5 * PAD_FORCE / GRAVITY)
+    assert result.reason == ("held" if held else "slipped")
+
+
 def test_the_same_grasp_backed_off_6_cm_touches_nothing(pinched) -> None:  # type: ignore[no-untyped-def]
     hand, obj, grasp = pinched
     result = trial(hand, obj, backed_off(grasp, hand, 0.06))
