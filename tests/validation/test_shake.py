@@ -17,7 +17,7 @@ import pytest
 from planner.geometry.solid import prepare
 from planner.specs.hands import load_hand
 from planner.specs.objects import ObjectSpec
-from planner.validation.shake import ShakeSettings, trial, trials
+from planner.validation.shake import ShakeSettings, recorded, trial, trials
 from planner.validation.tolerances import GRAVITY
 from tests.validation.support import backed_off, box, box_of, pinch
 
@@ -131,3 +131,14 @@ def test_settings_round_trip_through_json() -> None:
     s = ShakeSettings(batch=3, load=1.5)
     assert ShakeSettings(**json.loads(s.to_json())) == s
     assert np.isclose(ShakeSettings().dt, 1 / 480)
+
+
+def test_each_result_records_the_hands_actuators_breakaway_joints_and_torsion_radii() -> None:
+    import json
+
+    stored = json.loads(recorded(ShakeSettings(), load_hand("barrett")))
+    assert stored["actuators"] == {"effort": 1.7, "closing_speed": 2.4, "backdrivable": False,
+                                   "source": stored["actuators"]["source"]}
+    assert stored["breakaway"] == ["bh_j12_joint", "bh_j22_joint", "bh_j32_joint"]
+    assert stored["torsion_radius"] == {f"bh_finger_{i}3_link": 0.0025 for i in (1, 2, 3)}
+    assert stored["dt"] == ShakeSettings().dt and stored["hand"] == "barrett"
