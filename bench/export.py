@@ -84,8 +84,9 @@ def build(path: Path, grasps: int, per_object: int) -> int:
                 f" FROM grasps, r WHERE unit_id = ? ORDER BY r.k, id", (repeats, new_unit, name, unit_id))
             total += n * repeats
         copy += 1
-    conn.execute("INSERT INTO validation SELECT id, id % 2, 2, 0.001, 0.01, 0.002, 0.02, 0, '{}' FROM grasps"
-                 " WHERE id % 10 = 0")
+    conn.execute("INSERT INTO validation (grasp_id, success, fingers_in_contact, closing_linear, closing_angular,"
+                 " shaking_linear, shaking_angular, seed, settings)"
+                 " SELECT id, id % 2, 2, 0.001, 0.01, 0.002, 0.02, 0, '{}' FROM grasps WHERE id % 10 = 0")
     conn.execute("INSERT INTO robust SELECT id, epsilon * 0.8, epsilon * 0.5, 25, 0, '{}' FROM grasps"
                  " WHERE id % 10 = 0")
     conn.execute("COMMIT")

@@ -69,8 +69,13 @@ class Joints(Mapping[str, float]):
 class Trial:
     """The outcome of one dynamic shake trial (:func:`planner.validation.shake.trial`).
 
-    Motions are the object's, as ACRONYM stores them: while the fingers closed
-    (in the world) and during the tugs and shaking (relative to the hand).
+    Motions are the object's relative to the hand, as ACRONYM stores them:
+    while the fingers closed and settled, and the largest during the loads
+    (centre of mass [m], rotation [rad]). ``fingers_in_contact``: distinct
+    fingers touching after closing. ``reason``: ``held``, ``slipped``,
+    ``squeezed_out``, ``no_contact``, ``no_clearance`` or ``start_overlap``
+    (the last two are flags: not simulated, motions 0); empty when unknown
+    (imported files, older databases).
     """
 
     success: bool
@@ -79,6 +84,7 @@ class Trial:
     closing_angular: float  # [rad]
     shaking_linear: float  # [m]
     shaking_angular: float  # [rad]
+    reason: str = ""
 
 
 @dataclass(frozen=True)

@@ -16,17 +16,21 @@ from planner.cli.app import db_option, report_failures
 @db_option
 @click.option("--object", "objects", multiple=True, help="Only these objects (repeat).")
 @click.option("--hand", "hands", multiple=True, help="Only these hands (repeat).")
-@click.option("--top", type=int, default=10, show_default=True, help="Validate each object's K best grasps.")
+@click.option("--top", type=int, default=10, show_default=True,
+              help="Validate each object's K best force-closure grasps.")
+@click.option("--sample", type=int, default=None,
+              help="Instead: a uniform sample of N of each object's grasps, drawn with --seed.")
+@click.option("--all", "every", is_flag=True, help="Instead: every stored grasp.")
 @click.option("--robust", "robust_samples", type=int, default=10, show_default=True,
               help="Noise samples for robust epsilon (0: skip).")
-@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of --sample and of the robust noise.")
 @click.option("--workers", type=int, default=api.default_workers(), show_default="all cores")
 @click.option("--json", "as_json", is_flag=True)
-def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], top: int, robust_samples: int,
-             seed: int, workers: int, as_json: bool) -> None:
-    """Shake-test the best grasps in PyBullet, add robust epsilon, re-rank."""
+def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], top: int, sample: int | None,
+             every: bool, robust_samples: int, seed: int, workers: int, as_json: bool) -> None:
+    """Shake-test grasps in PyBullet (the best, a sample or all), add robust epsilon, re-rank."""
     summary = api.validate(db_path, objects=list(objects) or None, hands=list(hands) or None, top=top,
-                           robust_samples=robust_samples, seed=seed, workers=workers)
+                           sample=sample, every=every, robust_samples=robust_samples, seed=seed, workers=workers)
     if as_json:
         click.echo(json.dumps(summary.to_json(), indent=2))
     else:

@@ -10,7 +10,8 @@ Tables (the README lists every column):
   an interrupted run leaves either all of a unit or none of it.
 - ``grasps``: one row per evaluated grasp (a hand that closed on the object
   with contacts), with its pose, joints, contacts, quality, score and rank.
-- ``validation`` (v2): the dynamic PyBullet trial of a grasp.
+- ``validation`` (v2): the dynamic PyBullet trial of a grasp; (v3) why it
+  ended as it did (``reason``).
 - ``robust`` (v2): robust epsilon under pose and friction noise.
 
 No pickle: arrays are JSON text. A new database runs :data:`SCHEMA` (version
@@ -32,7 +33,7 @@ from planner.errors import DatabaseError
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -62,6 +63,13 @@ CREATE TABLE IF NOT EXISTS grasps (
 CREATE INDEX IF NOT EXISTS grasps_rank ON grasps (object, hand, rank);
 """
 
+#: v3, shake trial: why a trial ended as it did (``held``, ``slipped``,
+#: ``squeezed_out``, ``no_contact``, ``no_clearance``, ``start_overlap``);
+#: '' for rows written before (their trial predates the reasons).
+V3_VALIDATION_REASON = """
+ALTER TABLE validation ADD COLUMN reason TEXT NOT NULL DEFAULT ''
+"""
+
 #: from version -> SQL bringing it to version + 1.
 MIGRATIONS: dict[int, str] = {
     1: """
@@ -78,15 +86,18 @@ CREATE TABLE IF NOT EXISTS robust (
     seed INTEGER NOT NULL, settings TEXT NOT NULL
 )
 """,
+    2: V3_VALIDATION_REASON,
 }
 
 #: Stand-ins for the version-2 tables when a version-1 file is read (opened
 #: read-only, so it is not migrated): they have the columns and no rows.
 EMPTY_V2_TABLES = {
     "validation": "(SELECT NULL AS grasp_id, NULL AS success, NULL AS fingers_in_contact, NULL AS closing_linear,"
-                  " NULL AS closing_angular, NULL AS shaking_linear, NULL AS shaking_angular WHERE 0)",
+                  " NULL AS closing_angular, NULL AS shaking_linear, NULL AS shaking_angular, NULL AS reason WHERE 0)",
     "robust": "(SELECT NULL AS grasp_id, NULL AS mean, NULL AS quantile, NULL AS samples WHERE 0)",
 }
+#: A version-2 ``validation`` table read read-only (not migrated): its rows, reason unknown.
+V2_VALIDATION = "(SELECT *, '' AS reason FROM validation)"
 
 
 def schema_version(conn: sqlite3.Connection, path: Path) -> int:
@@ -103,6 +114,10 @@ def schema_version(conn: sqlite3.Connection, path: Path) -> int:
 
 def table_names(conn: sqlite3.Connection) -> set[str]:
     return {r["name"] for r in conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+
+
+def column_names(conn: sqlite3.Connection, table: str) -> set[str]:
+    return {r["name"] for r in conn.execute(f"PRAGMA table_info({table})")}
 
 
 @contextmanager

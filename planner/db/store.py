@@ -22,7 +22,16 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from planner.db.ranking import ORDER_BY, RankingRule
-from planner.db.schema import EMPTY_V2_TABLES, SCHEMA_VERSION, migrate, schema_version, table_names, transaction
+from planner.db.schema import (
+    EMPTY_V2_TABLES,
+    SCHEMA_VERSION,
+    V2_VALIDATION,
+    column_names,
+    migrate,
+    schema_version,
+    table_names,
+    transaction,
+)
 from planner.errors import DatabaseError
 from planner.grasp import Grasp, Joints, RobustEpsilon, Trial
 from planner.plan.contacts import HandContacts
@@ -42,7 +51,7 @@ _GRASP_COLUMNS = ("unit_id", "object", "hand", "preshape", "candidate", "approac
                   "links_touching", "epsilon", "volume", "force_closure", "reachability", "manipulability", "seed",
                   "score")
 _VALIDATION_COLUMNS = ("grasp_id", "success", "fingers_in_contact", "closing_linear", "closing_angular",
-                       "shaking_linear", "shaking_angular", "seed", "settings")
+                       "shaking_linear", "shaking_angular", "reason", "seed", "settings")
 _ROBUST_COLUMNS = ("grasp_id", "mean", "quantile", "samples", "seed", "settings")
 _OBJECT_COLUMNS = ("name", "source", "scale", "mesh_sha256", "mass", "friction", "density", "volume", "com",
                    "inertia", "torque_scale", "extents")
@@ -53,7 +62,7 @@ _UNIT_COLUMNS = ("object", "hand", "settings_hash", "seed", "chunk", "settings",
 _SELECT_GRASPS = """
 SELECT g.*, v.success AS v_success, v.fingers_in_contact AS v_fingers_in_contact,
        v.closing_linear AS v_closing_linear, v.closing_angular AS v_closing_angular,
-       v.shaking_linear AS v_shaking_linear, v.shaking_angular AS v_shaking_angular,
+       v.shaking_linear AS v_shaking_linear, v.shaking_angular AS v_shaking_angular, v.reason AS v_reason,
        r.mean AS r_mean, r.quantile AS r_quantile, r.samples AS r_samples
 FROM grasps g {join} {validation} v ON v.grasp_id = g.id LEFT JOIN {robust} r ON r.grasp_id = g.id
 """
@@ -259,7 +268,7 @@ class Database:
                     t = v.trial
                     conn.execute(_insert("validation", _VALIDATION_COLUMNS, "INSERT OR REPLACE"), (
                         v.grasp_id, int(t.success), t.fingers_in_contact, t.closing_linear, t.closing_angular,
-                        t.shaking_linear, t.shaking_angular, v.seed, v.trial_settings))
+                        t.shaking_linear, t.shaking_angular, t.reason, v.seed, v.trial_settings))
                 if v.robust is not None:
                     r = v.robust
                     conn.execute(_insert("robust", _ROBUST_COLUMNS, "INSERT OR REPLACE"),
@@ -319,10 +328,14 @@ class Database:
         return _grasps(self._conn.execute(self._select("JOIN") + " ORDER BY g.hand, g.object, g.rank").fetchall())
 
     def _select(self, join: str) -> str:
-        """The grasps query; a version-1 file read-only has no v2 tables: empty stand-ins."""
+        """The grasps query; an older file read read-only is not migrated: a
+        version-1 file has no v2 tables (empty stand-ins), a version-2 file's
+        trials have no reason (empty)."""
         tables = table_names(self._conn)
-        return _SELECT_GRASPS.format(join=join, **{t: t if t in tables else empty
-                                                   for t, empty in EMPTY_V2_TABLES.items()})
+        names = {t: t if t in tables else empty for t, empty in EMPTY_V2_TABLES.items()}
+        if "validation" in tables and "reason" not in column_names(self._conn, "validation"):
+            names["validation"] = V2_VALIDATION
+        return _SELECT_GRASPS.format(join=join, **names)
 
 
 def _grasps(rows: list[sqlite3.Row]) -> list[Grasp]:
@@ -333,7 +346,7 @@ def _grasps(rows: list[sqlite3.Row]) -> list[Grasp]:
     col = dict(zip(rows[0].keys(), zip(*rows)))
     trials = [None if ok is None else Trial(bool(ok), *rest) for ok, *rest in zip(
         col["v_success"], col["v_fingers_in_contact"], col["v_closing_linear"], col["v_closing_angular"],
-        col["v_shaking_linear"], col["v_shaking_angular"])]
+        col["v_shaking_linear"], col["v_shaking_angular"], col["v_reason"])]
     robust = [None if mean is None else RobustEpsilon(mean, quantile, samples)
               for mean, quantile, samples in zip(col["r_mean"], col["r_quantile"], col["r_samples"])]
     values = zip(  # in the order of Grasp's fields

@@ -24,7 +24,7 @@ from planner.specs.preshapes import Preshape
 
 #: Bumped whenever a change alters which grasps a sweep produces, so stale
 #: units are recomputed rather than mixed with new ones.
-ALGORITHM_VERSION = 1
+ALGORITHM_VERSION = 2  # 2: soft contacts resist mu x torsion_radius (issue 15)
 
 
 @dataclass(frozen=True)

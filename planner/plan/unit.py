@@ -158,7 +158,7 @@ def grasp_quality(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, c
     models = [hand.contacts[link] for link in contacts.links]
     return quality.evaluate(contacts.points, contacts.frames, mu=obj.friction, center=obj.com,
                             torque_scale=obj.torque_scale, cone_edges=cone_edges, model=[m.model for m in models],
-                            torsion=np.array([m.torsion for m in models], float))
+                            torsion=np.array([m.torsion(obj.friction) for m in models], float))
 
 
 def closed_width(hand: HandSpec, closed_joints: Mapping[str, float]) -> float | None:

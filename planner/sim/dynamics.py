@@ -1,17 +1,29 @@
-"""Dynamic PyBullet scenes: a free object made of convex parts, a hand held
-by a fixed constraint that can be moved, finger motors, external forces.
-Part of the PyBullet adapter (only ``planner.sim`` imports pybullet)."""
+"""Dynamic PyBullet worlds for shake trials: free objects (PyBullet
+primitives or convex parts), fixed hands with rigid contacts, finger motors,
+gear couplings, joint limits and a gravity vector that stands for any load.
+Part of the PyBullet adapter (only ``planner.sim`` imports pybullet).
+
+Contact friction: Bullet combines the two bodies' lateral frictions as their
+product and spinning frictions as ``s_a mu_b + s_b mu_a`` (bullet3
+``btManifoldResult``). Hand links get lateral friction 1 and objects spinning
+friction 0, so a contact's friction is exactly the object's mu and a pad's
+moment about the normal is at most ``mu x spinning x normal force``.
+"""
 
 from __future__ import annotations
+
+import os
+import re
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from planner import assets
 from planner.sim import Body, Sim, pb, pb_to_pose, pose_to_pb
 
-#: [rad/s or m/s] finger motor speed limit: fast enough that revolute fingers
-#: close within a trial's closing time (1.0 was too slow for them).
-FINGER_SPEED = 3.0
 #: [kg m^2] smallest principal moment given to PyBullet: a flat part's eigen
 #: solver may return 0 (or -1e-20), which PyBullet rejects.
 MIN_MOMENT = 1e-9
@@ -19,9 +31,30 @@ MIN_MOMENT = 1e-9
 #: only, no added velocity): a decomposed object starting slightly inside the
 #: hand must not be shot away.
 SPLIT_IMPULSE_DEPTH = 0.001
+#: PyBullet collision filter groups are bit masks of this many usable bits:
+#: the most trials one world can keep apart at the same place.
+FILTER_BITS = 30
+#: URDF ``<contact>`` blocks (PyBullet's soft contact stiffness/damping,
+#: spinning and rolling friction): removed, the trial sets contacts itself.
+_CONTACT_BLOCK = re.compile(r"<contact>.*?</contact>", re.S)
+#: This process's reusable PyBullet client, by process id (a forked child
+#: must not use its parent's).
+_CLIENTS: dict[int, Sim] = {}
 
 
-def _part_file(vertices: np.ndarray, faces: np.ndarray) -> str:
+@dataclass(frozen=True)
+class Shape:
+    """How a free object collides: a PyBullet primitive (``box`` with
+    ``dims`` = extents [m], ``sphere`` (radius), ``cylinder`` (radius, height
+    along z), centred on the object frame) or ``parts``: convex OBJ files in
+    the object frame (:func:`part_file`)."""
+
+    kind: str
+    dims: tuple[float, ...] = ()
+    files: tuple[str, ...] = ()
+
+
+def part_file(vertices: np.ndarray, faces: np.ndarray) -> str:
     """A convex part as a small OBJ file in the cache (PyBullet's compound
     shapes take files, not vertex lists); named by its content."""
     v, f = np.asarray(vertices, float), np.asarray(faces, int)
@@ -33,40 +66,107 @@ def _part_file(vertices: np.ndarray, faces: np.ndarray) -> str:
     return str(path)
 
 
-class Dynamics:
-    """Dynamic operations on one :class:`Sim` (time step ``dt`` [s])."""
+def rigid_urdf(urdf: Path) -> Path:
+    """The URDF without its ``<contact>`` blocks (the Panda's fingers carry a
+    soft contact, stiffness 3e4 N/m, that lets them sink ~1 cm into the
+    object, and spinning friction 0.1 m); a cached copy, or the file itself."""
+    text = urdf.read_text()
+    cleaned = _CONTACT_BLOCK.sub("", text)
+    if cleaned == text:
+        return urdf
+    path = assets.cache_dir("hands") / f"rigid-{assets.sha256_bytes(cleaned.encode())[:16]}.urdf"
+    if not path.is_file():
+        assets.atomic_write(path, cleaned.encode())
+    return path
 
-    def __init__(self, sim: Sim, dt: float = 1.0 / 240.0, solver_iterations: int = 150) -> None:
+
+@contextmanager
+def fresh_world(dt: float, solver_iterations: int) -> Iterator[Dynamics]:
+    """An empty dynamic world on this process's reusable PyBullet client:
+    connecting costs ~30 ms of CPU (more than a whole Panda trial), while
+    ``resetSimulation`` rebuilds the world from scratch in ~1 ms, so a trial
+    gives the same numbers whatever ran before it."""
+    sim = _CLIENTS.get(os.getpid())
+    if sim is None:
+        sim = _CLIENTS[os.getpid()] = Sim()
+    pb.resetSimulation(physicsClientId=sim.client)
+    try:
+        yield Dynamics(sim, dt, solver_iterations)
+    finally:
+        pb.resetSimulation(physicsClientId=sim.client)
+
+
+class Dynamics:
+    """Dynamic operations on one :class:`Sim` (time step ``dt`` [s], no gravity
+    until :meth:`set_gravity`)."""
+
+    def __init__(self, sim: Sim, dt: float = 1.0 / 480.0, solver_iterations: int = 50) -> None:
         self.sim = sim
         self.c = sim.client
         self.dt = dt
-        # split impulses: resolving an overlap must not add velocity (no "explosions"
-        # when a decomposed object starts slightly inside the hand)
+        # split impulses: resolving an overlap must not add velocity; deterministic
+        # pair order and islands solved one by one: a trial's result does not depend on
+        # what else is in the world's broadphase
         pb.setPhysicsEngineParameter(fixedTimeStep=dt, numSolverIterations=solver_iterations, useSplitImpulse=1,
-                                     splitImpulsePenetrationThreshold=-SPLIT_IMPULSE_DEPTH, physicsClientId=self.c)
+                                     splitImpulsePenetrationThreshold=-SPLIT_IMPULSE_DEPTH,
+                                     deterministicOverlappingPairs=1, minimumSolverIslandSize=1,
+                                     physicsClientId=self.c)
         pb.setGravity(0, 0, 0, physicsClientId=self.c)
 
-    def add_object(self, parts_vertices: tuple[np.ndarray, ...], parts_faces: tuple[np.ndarray, ...], mass: float,
-                   com: np.ndarray, inertia: np.ndarray, friction: float, pose: np.ndarray) -> int:
-        """A free rigid body made of convex parts (object-frame vertices [m])
-        with the given mass [kg], centre of mass and inertia about it (object
-        frame, kg m^2), placed with its object frame at ``pose``."""
-        files = [_part_file(v, f) for v, f in zip(parts_vertices, parts_faces)]
-        shape = pb.createCollisionShapeArray([pb.GEOM_MESH] * len(files), fileNames=files,
-                                             physicsClientId=self.c)
-        moments, axes = np.linalg.eigh(np.asarray(inertia, float))
-        if np.linalg.det(axes) < 0:
-            axes[:, 0] *= -1
-        frame = np.eye(4)
-        frame[:3, :3], frame[:3, 3] = axes, com
-        _, inertial_q = pose_to_pb(frame)
-        uid = pb.createMultiBody(mass, shape, -1, basePosition=[0, 0, 0], baseInertialFramePosition=list(com),
-                                 baseInertialFrameOrientation=inertial_q, physicsClientId=self.c)
-        pb.changeDynamics(uid, -1, localInertiaDiagonal=list(np.maximum(moments, MIN_MOMENT)), lateralFriction=friction,
+    # -- bodies ------------------------------------------------------------------
+    def add_object(self, shape: Shape, mass: float, com: np.ndarray, inertia: np.ndarray, friction: float,
+                   pose: np.ndarray) -> int:
+        """A free rigid body of ``mass`` [kg] with its centre of mass ``com``
+        (3,) [m] and ``inertia`` (3, 3) [kg m^2] about it (object frame),
+        lateral friction ``friction``, its object frame placed at ``pose``."""
+        uid = pb.createMultiBody(mass, self._collision_shape(shape), -1, basePosition=[0, 0, 0],
+                                 baseInertialFramePosition=list(com),
+                                 baseInertialFrameOrientation=_principal_frame(inertia), physicsClientId=self.c)
+        moments = np.maximum(np.linalg.eigvalsh(np.asarray(inertia, float)), MIN_MOMENT)
+        pb.changeDynamics(uid, -1, localInertiaDiagonal=list(moments), lateralFriction=friction,
                           spinningFriction=0.0, rollingFriction=0.0, linearDamping=0.0, angularDamping=0.0,
                           physicsClientId=self.c)
         self.set_object_pose(uid, pose)
         return uid
+
+    def _collision_shape(self, shape: Shape) -> int:
+        c = self.c
+        if shape.kind == "box":
+            return pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[d / 2 for d in shape.dims], physicsClientId=c)
+        if shape.kind == "sphere":
+            return pb.createCollisionShape(pb.GEOM_SPHERE, radius=shape.dims[0], physicsClientId=c)
+        if shape.kind == "cylinder":
+            return pb.createCollisionShape(pb.GEOM_CYLINDER, radius=shape.dims[0], height=shape.dims[1],
+                                           physicsClientId=c)
+        # no `flags` here: PyBullet 3.2.7's createCollisionShapeArray corrupts memory when
+        # given a flags list (a segfault with 24 parts; with one part, later closest-point
+        # queries silently return nothing)
+        return pb.createCollisionShapeArray([pb.GEOM_MESH] * len(shape.files), fileNames=list(shape.files),
+                                            physicsClientId=c)
+
+    def add_hand(self, urdf: Path) -> Body:
+        """The hand, rigid contacts (:func:`rigid_urdf`), its base fixed at the
+        world origin: the world frame is the hand frame."""
+        body = self.sim.load_urdf(rigid_urdf(urdf), fixed=True)
+        self.sim.set_pose(body, np.eye(4))
+        return body
+
+    def set_contact(self, uid: int, link: int, spinning: float) -> None:
+        """A hand link: lateral friction 1 (the contact's is then the object's),
+        ``spinning`` [m] torsional friction, friction anchors (static friction
+        does not creep), no damping."""
+        pb.changeDynamics(uid, link, lateralFriction=1.0, spinningFriction=spinning, rollingFriction=0.0,
+                          frictionAnchor=1, linearDamping=0.0, angularDamping=0.0, physicsClientId=self.c)
+
+    def keep_apart(self, uids: list[int], bit: int) -> None:
+        """Bodies that collide only with bodies of the same filter ``bit`` (< FILTER_BITS)."""
+        mask = 1 << bit
+        for uid in uids:
+            for link in range(-1, pb.getNumJoints(uid, physicsClientId=self.c)):
+                pb.setCollisionFilterGroupMask(uid, link, mask, mask, physicsClientId=self.c)
+
+    def remove(self, uid: int) -> None:
+        pb.removeBody(uid, physicsClientId=self.c)
 
     def set_object_pose(self, uid: int, pose: np.ndarray) -> None:
         """Place the object *frame* at ``pose`` (PyBullet places the inertial frame)."""
@@ -75,52 +175,72 @@ class Dynamics:
         pb.resetBasePositionAndOrientation(uid, position, orientation, physicsClientId=self.c)
         pb.resetBaseVelocity(uid, [0, 0, 0], [0, 0, 0], physicsClientId=self.c)
 
-    def object_pose(self, uid: int) -> np.ndarray:
-        info = pb.getDynamicsInfo(uid, -1, physicsClientId=self.c)
-        position, orientation = pb.getBasePositionAndOrientation(uid, physicsClientId=self.c)
-        return pb_to_pose(position, orientation) @ np.linalg.inv(pb_to_pose(info[3], info[4]))
+    # -- fingers -------------------------------------------------------------------
+    def velocity_motor(self, body: Body, joint: str, velocity: float, force: float) -> None:
+        """Drive ``joint`` at ``velocity`` [m/s or rad/s] with at most ``force``
+        [N or N m]: once blocked, it pushes with exactly ``force``."""
+        pb.setJointMotorControl2(body.uid, body.joints[joint], pb.VELOCITY_CONTROL, targetVelocity=velocity,
+                                 force=force, physicsClientId=self.c)
 
-    def hold(self, body: Body, pose: np.ndarray, force: float) -> int:
-        """Hold the hand's base at ``pose`` with a fixed constraint of at most ``force`` [N]."""
-        self.sim.set_pose(body, pose)
-        position, orientation = pose_to_pb(pose)
-        cid = pb.createConstraint(body.uid, -1, -1, -1, pb.JOINT_FIXED, [0, 0, 0],
-                                  parentFramePosition=pose_to_pb(np.linalg.inv(body.inertial))[0],
-                                  childFramePosition=position,
-                                  parentFrameOrientation=pose_to_pb(np.linalg.inv(body.inertial))[1],
-                                  childFrameOrientation=orientation, physicsClientId=self.c)
-        pb.changeConstraint(cid, maxForce=force, physicsClientId=self.c)
+    def position_motor(self, body: Body, joint: str, target: float, force: float) -> None:
+        pb.setJointMotorControl2(body.uid, body.joints[joint], pb.POSITION_CONTROL, targetPosition=target,
+                                 force=force, physicsClientId=self.c)
+
+    def gear(self, body: Body, master: str, mimic: str, multiplier: float, max_force: float, erp: float) -> int:
+        """Keep ``q[mimic] = multiplier * q[master]`` (a URDF <mimic>, which
+        PyBullet's loader ignores). PyBullet's gear constraint keeps
+        ``q_parent + ratio * q_child = 0`` (measured), hence ratio -1/multiplier."""
+        cid = pb.createConstraint(body.uid, body.joints[master], body.uid, body.joints[mimic], pb.JOINT_GEAR,
+                                  [1, 0, 0], [0, 0, 0], [0, 0, 0], physicsClientId=self.c)
+        pb.changeConstraint(cid, gearRatio=-1.0 / multiplier, maxForce=max_force, erp=erp, physicsClientId=self.c)
         return cid
 
-    def move_hold(self, cid: int, pose: np.ndarray, force: float) -> None:
-        position, orientation = pose_to_pb(pose)
-        pb.changeConstraint(cid, jointChildPivot=position, jointChildFrameOrientation=orientation, maxForce=force,
-                            physicsClientId=self.c)
+    def release(self, cid: int) -> None:
+        """Remove a constraint (a gear that has broken away)."""
+        pb.removeConstraint(cid, physicsClientId=self.c)
 
-    def drive(self, body: Body, targets: dict[str, float], force: float) -> None:
-        """Position-controlled finger motors, each limited to ``force`` [N or N m]."""
-        for name, value in targets.items():
-            pb.setJointMotorControl2(body.uid, body.joints[name], pb.POSITION_CONTROL, targetPosition=value,
-                                     force=force, maxVelocity=FINGER_SPEED, physicsClientId=self.c)
+    def set_limits(self, body: Body, joint: str, lower: float, upper: float) -> None:
+        pb.changeDynamics(body.uid, body.joints[joint], jointLowerLimit=lower, jointUpperLimit=upper,
+                          physicsClientId=self.c)
 
-    def set_friction(self, uid: int, friction: float) -> None:
-        for link in range(-1, pb.getNumJoints(uid, physicsClientId=self.c)):
-            pb.changeDynamics(uid, link, lateralFriction=friction, physicsClientId=self.c)
+    def joint_position(self, body: Body, joint: str) -> float:
+        return float(pb.getJointState(body.uid, body.joints[joint], physicsClientId=self.c)[0])
 
-    def push(self, uid: int, force: np.ndarray) -> None:
-        """A force [N] through the object's centre of mass, world frame, for one step."""
-        position, _ = pb.getBasePositionAndOrientation(uid, physicsClientId=self.c)
-        pb.applyExternalForce(uid, -1, list(force), list(position), pb.WORLD_FRAME, physicsClientId=self.c)
+    # -- running and reading ----------------------------------------------------------
+    def set_gravity(self, g: np.ndarray) -> None:
+        """(3,) [m/s^2] in the world (= hand) frame."""
+        pb.setGravity(*map(float, g), physicsClientId=self.c)
 
     def step(self, n: int = 1) -> None:
         for _ in range(n):
             pb.stepSimulation(physicsClientId=self.c)
 
+    def object_pose(self, uid: int) -> np.ndarray:
+        """(4, 4) the object frame in the world."""
+        info = pb.getDynamicsInfo(uid, -1, physicsClientId=self.c)
+        position, orientation = pb.getBasePositionAndOrientation(uid, physicsClientId=self.c)
+        return pb_to_pose(position, orientation) @ np.linalg.inv(pb_to_pose(info[3], info[4]))
+
+    def centre_of_mass(self, uid: int) -> np.ndarray:
+        """(3,) [m] the object's centre of mass in the world."""
+        return np.asarray(pb.getBasePositionAndOrientation(uid, physicsClientId=self.c)[0], float)
+
     def overlap(self, body: Body, uid: int) -> float:
-        """Deepest overlap [m] between a hand and the object now (0 if none)."""
+        """Deepest overlap [m] PyBullet reports between a hand and an object now
+        (0 if none); collision margins included (the caller corrects)."""
         rows = pb.getClosestPoints(body.uid, uid, 0.0, physicsClientId=self.c)
         return max([0.0] + [-row[8] for row in rows])
 
-    def touching_links(self, hand: Body, uid: int) -> set[int]:
+    def touching_links(self, body: Body, uid: int) -> set[int]:
         """Hand link indices in contact with the object now."""
-        return {row[3] for row in pb.getContactPoints(hand.uid, uid, physicsClientId=self.c)}
+        return {row[3] for row in pb.getContactPoints(body.uid, uid, physicsClientId=self.c)}
+
+
+def _principal_frame(inertia: np.ndarray) -> list[float]:
+    """Quaternion of the principal axes (a right-handed frame), for PyBullet's inertial frame."""
+    _, axes = np.linalg.eigh(np.asarray(inertia, float))
+    if np.linalg.det(axes) < 0:
+        axes[:, 0] *= -1
+    frame = np.eye(4)
+    frame[:3, :3] = axes
+    return pose_to_pb(frame)[1]

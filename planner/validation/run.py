@@ -1,5 +1,6 @@
-"""``grasp validate``: shake-test and robust-epsilon the top grasps of a
-database, in worker processes, with one writer."""
+"""``grasp validate``: shake-test and robust-epsilon stored grasps (each
+object's best, a seeded uniform sample, or all), in worker processes, with
+one writer."""
 
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ from planner.grasp import Grasp, RobustEpsilon, Trial
 from planner.specs.hands import load_hand
 from planner.specs.objects import is_registered
 from planner.validation.robust import NoiseSettings, robust_epsilon
-from planner.validation.shake import TrialSettings, trial
+from planner.validation.shake import ShakeSettings, recorded, trials
 
 log = logging.getLogger(__name__)
 
@@ -41,7 +42,7 @@ class Task:
     hand: str
     grasps: tuple[Grasp, ...]
     seed: int
-    trial: TrialSettings
+    trial: ShakeSettings
     noise: NoiseSettings | None
 
 
@@ -63,8 +64,8 @@ def run_task(task: Task) -> TaskResult:
     try:
         hand = load_hand(task.hand)
         obj = stored_object(task.object, task.source, task.scale)
+        out.trials = trials(hand, obj, task.grasps, task.trial)
         for g in task.grasps:
-            out.trials.append(trial(hand, obj, g, task.trial))
             if task.noise is not None:
                 rng = np.random.default_rng([task.seed, zlib.crc32(task.object.encode()), g.candidate, g.seed])
                 out.robust.append(robust_epsilon(hand, obj, g, rng, task.noise))
@@ -77,8 +78,27 @@ def run_task(task: Task) -> TaskResult:
     return out
 
 
-def plan(db: Database, objects: list[str] | None, hands: list[str] | None, top: int, seed: int,
-         trial_settings: TrialSettings, noise: NoiseSettings | None) -> list[Task]:
+@dataclass(frozen=True)
+class Selection:
+    """Which grasps of each object and hand: the ``top`` best force-closure
+    ones (default), a seeded uniform ``sample`` of that many, or ``every`` one."""
+
+    top: int = 10
+    sample: int | None = None
+    every: bool = False
+
+    def pick(self, db: Database, obj: str, hand: str, seed: int) -> list[Grasp]:
+        if not self.every and self.sample is None:
+            return [g for g in db.best(obj, hand, self.top) if g.force_closure]
+        grasps = sorted((g for batch in db.grasp_batches(obj, hand) for g in batch), key=lambda g: g.id or 0)
+        if self.every or self.sample is None or self.sample >= len(grasps):
+            return grasps
+        rng = np.random.default_rng([seed, zlib.crc32(obj.encode()), zlib.crc32(hand.encode())])
+        return [grasps[i] for i in sorted(rng.choice(len(grasps), size=self.sample, replace=False))]
+
+
+def plan(db: Database, objects: list[str] | None, hands: list[str] | None, selection: Selection, seed: int,
+         trial_settings: ShakeSettings, noise: NoiseSettings | None) -> list[Task]:
     stored = {pair: db.object_row(pair[0]) for pair in db.pairs()}
     pairs = {pair: row for pair, row in stored.items() if row is not None}
     known = sorted({obj for obj, _ in pairs})
@@ -89,7 +109,7 @@ def plan(db: Database, objects: list[str] | None, hands: list[str] | None, top: 
     for (obj, hand), row in pairs.items():
         if (objects and obj not in objects) or (hands and hand not in hands):
             continue
-        grasps = [g for g in db.best(obj, hand, top) if g.force_closure]
+        grasps = selection.pick(db, obj, hand, seed)
         for i in range(0, len(grasps), BATCH):
             tasks.append(Task(obj, row.source, row.scale, hand, tuple(grasps[i:i + BATCH]), seed, trial_settings,
                               noise))
@@ -109,8 +129,9 @@ def execute(tasks: list[Task], workers: int) -> Iterator[TaskResult]:
 def write(db: Database, result: TaskResult, rule: RankingRule) -> None:
     task = result.task
     noise = task.noise.to_json() if task.noise is not None else ""
+    settings = recorded(task.trial, load_hand(task.hand))
     db.write_validation(task.object, task.hand, [
-        Validated(g.id, t, r, task.seed, task.trial.to_json(), noise)  # type: ignore[arg-type]
+        Validated(g.id, t, r, task.seed, settings, noise)  # type: ignore[arg-type]
         for g, t, r in zip(task.grasps, result.trials, result.robust)], rule)
 
 
@@ -125,16 +146,24 @@ class ValidationSummary:
 
 
 def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str] | None = None, top: int = 10,
-             robust_samples: int = 10, seed: int = 0, workers: int = 1, settings: TrialSettings | None = None,
+             sample: int | None = None, every: bool = False, robust_samples: int = 10, seed: int = 0,
+             workers: int = 1, settings: ShakeSettings | None = None,
              progress: Callable[[int, int], None] | None = None) -> ValidationSummary:
+    """Shake-test (and robust-epsilon) each object's ``top`` best force-closure
+    grasps, or a uniform ``sample`` of its grasps drawn with ``seed``, or
+    ``every`` grasp; store the results and re-rank."""
     if top < 1:
         raise InputError(f"--top must be at least 1, got {top}")
-    trial_settings = settings or TrialSettings()
+    if sample is not None and sample < 1:
+        raise InputError(f"--sample must be at least 1, got {sample}")
+    if sample is not None and every:
+        raise InputError("--sample and --all exclude each other: pick one")
+    trial_settings = settings or ShakeSettings()
     noise = NoiseSettings(samples=robust_samples) if robust_samples > 0 else None
     summary = ValidationSummary()
     with writer_lock(Path(db_path)), open_db(Path(db_path), create=False) as db:
         rule = db.rule()
-        tasks = plan(db, objects, hands, top, seed, trial_settings, noise)
+        tasks = plan(db, objects, hands, Selection(top, sample, every), seed, trial_settings, noise)
         if progress:
             progress(0, len(tasks))
         for done, result in enumerate(execute(tasks, workers), start=1):

@@ -25,7 +25,9 @@ def db(tmp_path_factory: pytest.TempPathFactory) -> Path:
     with sqlite3.connect(path) as conn:
         ids = [r[0] for r in conn.execute("SELECT id FROM grasps WHERE object = 'box' ORDER BY rank LIMIT 2")]
         for gid, success in zip(ids, (0, 1)):
-            conn.execute("INSERT INTO validation VALUES (?, ?, 2, 0.001, 0.01, 0.002, 0.02, 0, '{}')", (gid, success))
+            conn.execute("INSERT INTO validation (grasp_id, success, fingers_in_contact, closing_linear,"
+                         " closing_angular, shaking_linear, shaking_angular, seed, settings)"
+                         " VALUES (?, ?, 2, 0.001, 0.01, 0.002, 0.02, 0, '{}')", (gid, success))
             conn.execute("INSERT INTO robust VALUES (?, 0.05, 0.02, 25, 0, '{}')", (gid,))
     with open_db(path) as handle:  # a rule under which the fake validation leaves the ranking as it was
         handle.apply_rule(SAME_ORDER_RULE, force=True)

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from helpers import FAST, grasp, one_line_error
 
-from planner.db.schema import SCHEMA, SCHEMA_VERSION
+from planner.db.schema import MIGRATIONS, SCHEMA, SCHEMA_VERSION
 from planner.db.store import open_db
 from planner.errors import DatabaseError
 
@@ -77,3 +77,31 @@ def test_older_schema_is_migrated_after_a_backup(tmp_path: Path) -> None:
     assert len(backups) == 1
     with sqlite3.connect(backups[0]) as conn:
         assert conn.execute("SELECT value FROM meta").fetchone()[0] == "1"
+
+
+def version_2_file(path: Path) -> None:
+    """A database as version 2 wrote it: one grasp with a shake trial (no reason)."""
+    with sqlite3.connect(path) as conn:
+        for statement in filter(str.strip, (SCHEMA + ";" + MIGRATIONS[1]).split(";")):
+            conn.execute(statement)
+        conn.execute("INSERT INTO meta VALUES ('schema_version', '2')")
+        conn.execute("INSERT INTO units (id, object, hand, settings_hash, seed, chunk, settings, status)"
+                     " VALUES (1, 'o', 'panda', 'h', 0, 0, '{}', 'done')")
+        conn.execute("INSERT INTO grasps VALUES (1, 1, 'o', 'panda', 'wide', 0, '[0,0,0]', '[0,0,1]', 0, 0,"
+                     " '[1,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1]', '{}', '{}', NULL, '[]', 0, 0, 0.1, 0.01, 1, NULL, NULL,"
+                     " 0, 0.1, 1)")
+        conn.execute("INSERT INTO validation VALUES (1, 1, 2, 0.001, 0.01, 0.002, 0.02, 0, '{}')")
+
+
+def test_version_2_trials_read_back_with_an_unknown_reason(tmp_path: Path) -> None:
+    old = tmp_path / "v2.db"
+    version_2_file(old)
+    with open_db(old, create=False, readonly=True) as db:  # read-only: not migrated
+        (g,) = db.validated()
+        assert db.meta("schema_version") == "2"
+    assert g.validation.success and g.validation.reason == ""  # type: ignore[union-attr]
+    with open_db(old) as db:  # migrated to v3: the column exists, old rows keep ''
+        assert db.meta("schema_version") == str(SCHEMA_VERSION) == "3"
+        assert db.validated()[0].validation == g.validation
+    assert len(list(tmp_path.glob("v2.db.v2.*.bak"))) == 1
+

@@ -131,7 +131,8 @@ def test_validation_results_rescore_with_the_rule(tmp_path: Path) -> None:
     with open_db(tmp_path / "g.db") as db:
         db.write_unit(unit(), None, [made_up(0, 0.05), made_up(1, 0.08), made_up(2, 0.02)], rule)
         ids = {g.candidate: g.id for g in db.best("thing", "panda", 10)}
-        held, dropped = Trial(True, 2, 0.001, 0.01, 0.002, 0.02), Trial(False, 1, 0.03, 0.2, 0.1, 0.5)
+        held = Trial(True, 2, 0.001, 0.01, 0.002, 0.02, "held")
+        dropped = Trial(False, 1, 0.03, 0.2, 0.1, 0.5, "slipped")
         db.write_validation("thing", "panda", [
             Validated(ids[0], held, RobustEpsilon(0.04, 0.01, 4), 0, "{}", "{}"),
             Validated(ids[1], dropped, None, 0, "{}", "{}")], rule)

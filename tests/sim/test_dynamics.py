@@ -1,4 +1,5 @@
-"""Dynamic scenes: a free object's mass properties, poses, forces and a held hand."""
+"""Dynamic scenes: a free object's mass properties and pose, gravity as the
+load, rigid hand contacts, gear couplings, collision filter groups."""
 
 from __future__ import annotations
 
@@ -8,18 +9,19 @@ from helpers import SIM_TOL, assert_close
 
 from planner.geometry.decompose import convex_parts
 from planner.geometry.solid import load_object
-from planner.sim import Sim
-from planner.sim.dynamics import Dynamics
+from planner.sim import Sim, pb
+from planner.sim.dynamics import Dynamics, Shape, part_file
 from planner.specs.hands import load_hand
 
-#: One second of simulated time in steps of 1/240 s.
+#: Half a second of simulated time in steps of 1/480 s.
 STEPS = 240
 
 
 @pytest.fixture(scope="module")
 def box():  # type: ignore[no-untyped-def]
     obj = load_object("box")
-    return obj, convex_parts(obj.mesh, obj.mesh_hash)
+    parts = convex_parts(obj.mesh, obj.mesh_hash)
+    return obj, Shape("parts", files=tuple(part_file(v, f) for v, f in zip(parts.vertices, parts.faces)))
 
 
 def placed(x: float, y: float, z: float) -> np.ndarray:
@@ -28,45 +30,76 @@ def placed(x: float, y: float, z: float) -> np.ndarray:
     return pose
 
 
-def test_the_object_frame_is_where_it_was_put(box) -> None:  # type: ignore[no-untyped-def]
+@pytest.mark.parametrize("primitive", [False, True])
+def test_the_object_frame_is_where_it_was_put(box, primitive: bool) -> None:  # type: ignore[no-untyped-def]
     obj, parts = box
+    shape = Shape("box", obj.spec.dims) if primitive else parts
     with Sim() as sim:
         dyn = Dynamics(sim)
-        uid = dyn.add_object(parts.vertices, parts.faces, obj.mass, obj.com, obj.inertia, obj.friction,
-                             placed(0.1, 0.2, 0.3))
+        uid = dyn.add_object(shape, obj.mass, obj.com, obj.inertia, obj.friction, placed(0.1, 0.2, 0.3))
         assert_close(dyn.object_pose(uid), placed(0.1, 0.2, 0.3), 1e-6)
+        assert_close(dyn.centre_of_mass(uid), obj.com + [0.1, 0.2, 0.3], 1e-6)
         dyn.set_object_pose(uid, placed(-0.1, 0.0, 0.5))
         assert_close(dyn.object_pose(uid), placed(-0.1, 0.0, 0.5), 1e-6)
 
 
-def test_a_push_accelerates_the_free_object_by_force_over_mass(box) -> None:  # type: ignore[no-untyped-def]
+def test_gravity_accelerates_a_free_object_by_g(box) -> None:  # type: ignore[no-untyped-def]
     obj, parts = box
-    force = 0.5  # [N]
+    g = np.array([0.0, 2.0, 0.0])  # [m/s^2]: a trial's load is a gravity vector in the hand frame
     with Sim() as sim:
-        dyn = Dynamics(sim)  # no gravity until a trial asks for it
-        uid = dyn.add_object(parts.vertices, parts.faces, obj.mass, obj.com, obj.inertia, obj.friction, np.eye(4))
-        for _ in range(STEPS):
-            dyn.push(uid, np.array([force, 0.0, 0.0]))
-            dyn.step()
+        dyn = Dynamics(sim)  # no gravity until asked for
+        uid = dyn.add_object(parts, obj.mass, obj.com, obj.inertia, obj.friction, np.eye(4))
+        dyn.step(STEPS)
+        assert_close(dyn.object_pose(uid), np.eye(4), 1e-12)
+        dyn.set_gravity(g)
+        dyn.step(STEPS)
         moved = dyn.object_pose(uid)[:3, 3]
-    expected = 0.5 * force / obj.mass * (STEPS * dyn.dt) ** 2  # x = a t^2 / 2
-    assert moved[0] == pytest.approx(expected, rel=0.02)
-    assert_close(moved[1:], [0.0, 0.0], SIM_TOL)
+    assert moved[1] == pytest.approx(0.5 * g[1] * (STEPS * dyn.dt) ** 2, rel=0.01)  # x = a t^2 / 2
+    assert_close(moved[[0, 2]], [0.0, 0.0], 1e-9)
 
 
-def test_a_held_hand_stays_put_and_follows_its_hold(box) -> None:  # type: ignore[no-untyped-def]
+def test_the_hand_is_fixed_at_the_origin_with_rigid_contacts() -> None:
     hand = load_hand("panda")
     with Sim() as sim:
         dyn = Dynamics(sim)
-        body = sim.load_urdf(hand.urdf, fixed=False)
-        cid = dyn.hold(body, placed(0.0, 0.0, 0.5), 2000.0)
-        dyn.drive(body, {"panda_finger_joint1": 0.02, "panda_finger_joint2": 0.02}, 20.0)
+        body = dyn.add_hand(hand.urdf)
+        assert_close(sim.link_pose(body, hand.root_link), np.eye(4), 1e-9)
+        finger = pb.getDynamicsInfo(body.uid, body.links["panda_leftfinger"], physicsClientId=sim.client)
+        # the URDF's pads: stiffness 3e4 N/m (the fingers sank ~1 cm into objects), spinning 0.1 m
+        assert finger[9] != 30000.0 and finger[7] == 0.0
+        dyn.set_contact(body.uid, body.links["panda_leftfinger"], 0.004)
+        finger = pb.getDynamicsInfo(body.uid, body.links["panda_leftfinger"], physicsClientId=sim.client)
+        assert (finger[1], finger[7]) == (1.0, 0.004)  # lateral 1: the contact takes the object's mu
+
+
+def test_a_gear_keeps_the_mimic_at_its_multiplier() -> None:
+    # PyBullet's gear keeps q_parent + ratio q_child = 0; ratio -m would jam the Barrett's distal at a third
+    hand = load_hand("barrett")
+    with Sim() as sim:
+        dyn = Dynamics(sim)
+        body = dyn.add_hand(hand.urdf)
+        dyn.gear(body, "bh_j32_joint", "bh_j33_joint", 1 / 3, 100.0, 0.8)
+        dyn.velocity_motor(body, "bh_j33_joint", 0.0, 0.0)
+        dyn.velocity_motor(body, "bh_j32_joint", 2.0, 5.0)
         dyn.step(STEPS // 2)
-        assert_close(sim.link_pose(body, hand.root_link)[:3, 3], [0.0, 0.0, 0.5], SIM_TOL)
-        assert_close(sim.joint_values(body, ["panda_finger_joint1"]), [0.02], SIM_TOL)
-        dyn.move_hold(cid, placed(0.0, 0.05, 0.5), 2000.0)
-        dyn.step(STEPS // 2)
-        assert_close(sim.link_pose(body, hand.root_link)[:3, 3], [0.0, 0.05, 0.5], SIM_TOL)
+        q = dyn.joint_position(body, "bh_j32_joint"), dyn.joint_position(body, "bh_j33_joint")
+    assert q[0] > 0.4
+    assert q[1] == pytest.approx(q[0] / 3, abs=0.01)
+
+
+def test_filter_groups_keep_trials_apart(box) -> None:  # type: ignore[no-untyped-def]
+    obj, parts = box
+    for same_group in (True, False):
+        with Sim() as sim:
+            dyn = Dynamics(sim)
+            a = dyn.add_object(parts, obj.mass, obj.com, obj.inertia, obj.friction, np.eye(4))
+            b = dyn.add_object(parts, obj.mass, obj.com, obj.inertia, obj.friction, placed(0.01, 0.0, 0.0))
+            dyn.keep_apart([a], 0)
+            dyn.keep_apart([b], 0 if same_group else 1)
+            dyn.step(STEPS // 4)
+            apart = np.linalg.norm(dyn.centre_of_mass(b) - dyn.centre_of_mass(a))
+        # overlapping boxes of one group are pushed apart; of two groups they pass through each other
+        assert (apart > 0.02) if same_group else apart == pytest.approx(0.01, abs=1e-9)
 
 
 def test_overlap_and_touching_links(box) -> None:  # type: ignore[no-untyped-def]
@@ -74,11 +107,10 @@ def test_overlap_and_touching_links(box) -> None:  # type: ignore[no-untyped-def
     hand = load_hand("panda")
     with Sim() as sim:
         dyn = Dynamics(sim)
-        uid = dyn.add_object(parts.vertices, parts.faces, obj.mass, obj.com, obj.inertia, obj.friction, np.eye(4))
-        body = sim.load_urdf(hand.urdf, fixed=True)
-        sim.set_pose(body, placed(0.0, 0.0, 1.0))
+        body = dyn.add_hand(hand.urdf)
+        uid = dyn.add_object(parts, obj.mass, obj.com, obj.inertia, obj.friction, placed(0.0, 0.0, -1.0))
         assert dyn.overlap(body, uid) == 0.0 and dyn.touching_links(body, uid) == set()
         inside = np.diag([1.0, -1.0, -1.0, 1.0])
-        inside[2, 3] = 0.04 + 0.05  # the palm 1 cm into the box top
-        sim.set_pose(body, inside)
-        assert dyn.overlap(body, uid) > 0.005
+        inside[2, 3] = 0.04 + 0.05  # the box top 1 cm above the palm: the box in the hand frame
+        dyn.set_object_pose(uid, np.linalg.inv(inside))
+        assert dyn.overlap(body, uid) > 0.01 - SIM_TOL

@@ -81,7 +81,10 @@ def broken_copy(tmp_path: Path, old: str, new: str) -> Path:
     ('urdf = "pybullet_data:franka_panda/panda.urdf"\nroot', 'urdf = "missing.urdf"\nroot', "not found"),
     ('urdf = "pybullet_data:franka_panda/panda.urdf"\nroot', 'urdf = "pybullet_data:../../x.urdf"\nroot',
      "outside"),
-    ('torsion = 0.005', 'torsion = 0.0', "torsion"),
+    ('torsion_radius = 0.0044', 'torsion_radius = 0.0', "torsion_radius"),
+    ('torsion_radius = 0.0044', 'torsion = 0.005', "replaced by 'torsion_radius'"),
+    ('effort = 70.0', 'effort = -70.0', "effort.*positive"),
+    ('closing_speed = 0.05', 'closing_speed = -0.05', "closing_speed.*positive"),
     ("[[joints]]", "[[joints]", "malformed TOML"),
 ])
 def test_broken_hand_folder_names_file_and_field(tmp_path: Path, old: str, new: str, message: str) -> None:

@@ -1,0 +1,93 @@
+"""The hand as a shake trial drives it: which joints close and how fast,
+which links make up each finger, and how much open travel a grasp leaves.
+
+Pure functions of the hand spec, the grasp and (for revolute joints) the
+joint axes at the grasp's closed configuration; frames are the hand frame,
+lengths in metres, angles in radians.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from planner.grasp import Grasp
+from planner.specs.hands import HandSpec
+from planner.specs.preshapes import load_preshapes
+from planner.validation.tolerances import DEFAULT_LEVER
+
+
+def closing_rates(hand: HandSpec, preshape: str) -> dict[str, float]:
+    """Closing rate of every finger joint [rad or m per unit of closing] for
+    the grasp's preshape (its synergy override, else the hand's); a mimic
+    closes at its master's rate times its multiplier; 0: the joint holds."""
+    shapes = {p.name: p for p in load_preshapes(hand)}
+    close = shapes[preshape].close if preshape in shapes else {}
+    rates = {j.name: float(close.get(j.name, j.close)) for j in hand.driven}
+    for j in hand.joints:
+        if j.mimic is not None:
+            rates[j.name] = rates[j.mimic] * j.multiplier
+    return rates
+
+
+def fingers(hand: HandSpec, rates: Mapping[str, float]) -> tuple[frozenset[str], ...]:
+    """The fingers: the links each closing joint moves, a chain nested in
+    another merged into the outer one (a Barrett finger's proximal and distal
+    links are one finger; the Panda's two mimic-coupled fingers are two)."""
+    chains = {frozenset(j.moves) for j in hand.joints if rates.get(j.name, 0.0) != 0.0 and j.moves}
+    return tuple(sorted((c for c in chains if not any(c < other for other in chains)), key=sorted))
+
+
+def levers(hand: HandSpec, grasp: Grasp, axes: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> dict[str, float]:
+    """[m] for each revolute joint that moves a link with a planned contact:
+    the largest distance from its axis (``axes[name]`` = (point, unit
+    direction), hand frame, closed configuration) to those contacts."""
+    to_hand = np.linalg.inv(np.asarray(grasp.pose, float))
+    points = grasp.contacts.points @ to_hand[:3, :3].T + to_hand[:3, 3]
+    links = np.array(grasp.contacts.links, dtype=object)
+    out = {}
+    for j in hand.joints:
+        if j.kind != "revolute" or j.name not in axes or not len(points):
+            continue
+        on = points[np.isin(links, j.moves)]
+        if len(on):
+            origin, axis = axes[j.name]
+            out[j.name] = float(np.max(np.linalg.norm(np.cross(on - origin, axis), axis=1)))
+    return out
+
+
+def clearance(hand: HandSpec, grasp: Grasp, rates: Mapping[str, float], lever: Mapping[str, float]) -> float:
+    """[m] the smallest open travel left at the contact of a touching finger:
+    how far its planned (closed) configuration is from the joint's open limit,
+    angles times their ``lever``. Near 0, the open hand could not have been
+    put around the object (no squeeze travel). ``inf`` if nothing touches."""
+    touched = set(grasp.contacts.links)
+    out = np.inf
+    for j in hand.joints:
+        rate = rates.get(j.name, 0.0)
+        if rate == 0.0 or not touched & set(j.moves):
+            continue
+        if j.kind == "revolute" and j.name not in lever:
+            continue
+        q = float(grasp.closed_joints.get(j.name, j.lower))
+        travel = abs(q - (j.upper if rate < 0 else j.lower))
+        out = min(out, travel * (lever[j.name] if j.kind == "revolute" else 1.0))
+    return float(out)
+
+
+def start_joints(hand: HandSpec, grasp: Grasp, rates: Mapping[str, float], lever: Mapping[str, float],
+                 gap: float) -> dict[str, float]:
+    """Every finger joint a ``gap`` [m] (at the contact; revolute: gap / lever)
+    short of the planned grasp towards open, within limits; mimics follow
+    their master (the gear coupling holds from the first step)."""
+    driven = {}
+    for j in hand.driven:
+        closed = float(grasp.closed_joints.get(j.name, j.lower))
+        rate = rates.get(j.name, 0.0)
+        if rate == 0.0:
+            driven[j.name] = closed
+            continue
+        step = gap if j.kind == "prismatic" else gap / lever.get(j.name, DEFAULT_LEVER)
+        driven[j.name] = float(np.clip(closed - np.sign(rate) * step, j.lower, j.upper))
+    return hand.full_configuration(driven)

@@ -1,0 +1,81 @@
+"""How an object collides in a shake trial.
+
+Box, sphere and cylinder objects collide as PyBullet primitives (exact and
+cheap). Every other object collides as its convex parts
+(:mod:`planner.geometry.decompose`), each simplified to at most
+``tolerance`` inside its hull: Bullet's GJK costs time linear in a hull's
+vertices (the mug's parts: 4,943 -> 552 vertices at 0.5 mm). CoACD parts of a
+concave mesh are fatter than the mesh (the mug's by up to 5.7 mm, 2.2 mm at
+the 95th percentile); the trial records how deep the open hand starts inside
+them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+from scipy.spatial import ConvexHull, QhullError
+
+from planner.geometry.decompose import convex_parts
+from planner.geometry.solid import PreparedObject
+from planner.sim.dynamics import Shape, part_file
+
+PRIMITIVES = ("box", "sphere", "cylinder")
+#: The most hull vertices a simplified part keeps.
+MAX_VERTICES = 256
+
+_SHAPES: dict[tuple[str, float], Shape] = {}
+
+
+def trial_shape(obj: PreparedObject, tolerance: float) -> Shape:
+    """The object's collision shape (memoised per process)."""
+    if obj.spec.kind in PRIMITIVES:
+        return Shape(obj.spec.kind, tuple(obj.spec.dims))
+    key = (obj.mesh_hash, tolerance)
+    if key not in _SHAPES:
+        parts = convex_parts(obj.mesh, obj.mesh_hash)
+        _SHAPES[key] = Shape("parts", files=tuple(part_file(*simplified_hull(v, tolerance)) for v in parts.vertices))
+    return _SHAPES[key]
+
+
+def simplified_hull(vertices: np.ndarray, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices (k, 3), faces (f, 3)) of a convex hull with fewer vertices,
+    inside the hull of ``vertices`` (n, 3) [m] and within ``tolerance`` [m] of
+    it: greedy refinement from 4 spread-out vertices, adding the hull vertex
+    farthest outside the current hull until none is farther than
+    ``tolerance`` (or MAX_VERTICES are kept). Deterministic."""
+    try:
+        v = np.asarray(vertices, float)[ConvexHull(vertices).vertices]
+    except QhullError:  # a flat or degenerate part: keep it as it is
+        return _hull(np.asarray(vertices, float))
+    if tolerance <= 0 or len(v) <= 8:
+        return _hull(v)
+    chosen = _spread(v, 4)
+    while len(chosen) < min(MAX_VERTICES, len(v)):
+        try:
+            planes = ConvexHull(v[chosen]).equations
+        except QhullError:  # the first picks are coplanar: add the farthest from them
+            chosen = _spread(v, len(chosen) + 1)
+            continue
+        outside = np.max(v @ planes[:, :3].T + planes[:, 3], axis=1)
+        k = int(np.argmax(outside))
+        if outside[k] <= tolerance:
+            break
+        chosen.append(k)
+    return _hull(v[sorted(chosen)])
+
+
+def _spread(v: np.ndarray, n: int) -> list[int]:
+    """Indices of ``n`` vertices picked farthest-first from the one farthest from the mean."""
+    chosen = [int(np.argmax(np.linalg.norm(v - v.mean(axis=0), axis=1)))]
+    dist = np.linalg.norm(v - v[chosen[0]], axis=1)
+    while len(chosen) < min(n, len(v)):
+        k = int(np.argmax(dist))
+        chosen.append(k)
+        dist = np.minimum(dist, np.linalg.norm(v - v[k], axis=1))
+    return chosen
+
+
+def _hull(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    hull = trimesh.Trimesh(points).convex_hull
+    return np.asarray(hull.vertices), np.asarray(hull.faces)
