@@ -16,7 +16,7 @@ centre point [m] that the approach ray passes through.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cache
+from functools import cache, cached_property
 from pathlib import Path
 
 import numpy as np
@@ -97,10 +97,15 @@ class HandSpec:
     finger_force: float  # [N or N m] force limit of each finger motor in dynamic trials
 
     def joint(self, name: str) -> JointSpec:
-        for joint in self.joints:
-            if joint.name == name:
-                return joint
-        raise UnknownNameError("joint", name, [j.name for j in self.joints])
+        found = self._joint_map.get(name)
+        if found is None:
+            raise UnknownNameError("joint", name, [j.name for j in self.joints])
+        return found
+
+    @cached_property
+    def _joint_map(self) -> dict[str, JointSpec]:
+        """Joints by name (closing looks joints up in its inner loop)."""
+        return {j.name: j for j in self.joints}
 
     @property
     def driven(self) -> tuple[JointSpec, ...]:
