@@ -60,6 +60,11 @@ class CloseSettings:
     exact_reach: float = 0.004  # ... within this range only (few triangles); steps are capped by it
 
 
+#: Joint configurations whose hand shapes (relative to the palm) are kept for
+#: overlap tests: the candidates of one antipodal pair share one.
+RELATIVE_CACHE = 64
+
+
 @dataclass(frozen=True)
 class Bounded(Closest):
     """Closest pairs complete only up to a true gap ``reach`` [m]: any pair
@@ -116,6 +121,7 @@ class Grasper:
         self._front: dict[str, float] = {}
         self._axes: dict[str, np.ndarray] = {}
         self._bounds: dict[tuple, dict[str, float]] = {}
+        self._relative: dict[tuple, list[np.ndarray]] = {}
         self.queries = 0
         self.contact_seconds = 0.0  # time spent reading contacts (benchmarks)
         mesh = self.sim.meshes.get(self.object_body)
@@ -215,6 +221,31 @@ class Grasper:
             return Rejected("start_collision", self.queries)
         return self._finish(pose, preshape, joints)
 
+    def overlaps_at(self, pose: np.ndarray, joints: dict[str, float]) -> bool:
+        """Would the hand at ``pose`` with ``joints`` overlap the object? (The
+        fast path asks the simulator only once per joint configuration.)"""
+        if self.shapes is None:
+            self._place(pose, joints)
+            return self.overlaps()
+        key = tuple(joints.items())
+        relative = self._relative.get(key)
+        if relative is None:
+            if len(self._relative) >= RELATIVE_CACHE:
+                self._relative.clear()
+            self._place(np.eye(4), joints)
+            relative = self._relative[key] = self.shapes.frames()
+        return self.shapes.collides_at(pose, relative, self.object_bvh)
+
+    def close_from(self, pose: np.ndarray, preshape: Preshape, joints: dict[str, float]) -> Closed | Rejected:
+        """Close the fingers from ``joints`` (every finger joint, open) with the
+        hand at ``pose``, no approach and no back-off: the antipodal sampler's
+        candidates, placed where they grasp (the caller has checked that the
+        open hand is free). The grasp records ``joints`` as its open joints."""
+        self.queries = 0
+        pose = np.array(pose, float)
+        self._place(pose, joints)
+        return self._finish(pose, preshape, dict(joints), {j.name: joints[j.name] for j in self.hand.driven})
+
     def _back_off(self, pose: np.ndarray, direction: np.ndarray, limit: float) -> float | None:
         """Move the hand back along ``direction`` in doubling jumps until it is
         free; how far it went, or None past ``limit``. Moves ``pose`` in place."""
@@ -228,13 +259,14 @@ class Grasper:
             self.sim.set_pose(self.body, pose)
         return backed
 
-    def _finish(self, pose: np.ndarray, preshape: Preshape, joints: dict[str, float]) -> Closed | Rejected:
+    def _finish(self, pose: np.ndarray, preshape: Preshape, joints: dict[str, float],
+                open_joints: dict[str, float] | None = None) -> Closed | Rejected:
         closed = self._close_fingers(preshape, joints)
         if self.hand.centering:
             pose, closed = self._centre(pose, closed)
             self._place(pose, closed)
         t = time.perf_counter()
-        out = self._read(pose, preshape.joints, closed)
+        out = self._read(pose, preshape.joints if open_joints is None else open_joints, closed)
         self.contact_seconds += time.perf_counter() - t
         return out
 
@@ -349,10 +381,11 @@ class Grasper:
         if not movers or any(j.kind != "prismatic" for j in movers):
             return None
         root = self.sim.link_pose(self.body, self.hand.root_link)
-        velocity = sum(dof.rates[j.name] * (root[:3, :3] @ self._axis_in_root(j.name)) for j in movers)
+        velocity = sum(dof.rates[j.name] * (root[:3, :3] @ self.axis_in_root(j.name)) for j in movers)
         return velocity if np.linalg.norm(velocity) > 0 else None
 
-    def _axis_in_root(self, joint: str) -> np.ndarray:
+    def axis_in_root(self, joint: str) -> np.ndarray:
+        """(3,) unit axis of a prismatic finger joint in the hand frame (constant)."""
         if joint not in self._axes:
             self._axes[joint] = self.sim.joint_axis_in_base(self.body, joint)
         return self._axes[joint]

@@ -182,6 +182,10 @@ class Sim:
                                   linkJointTypes=[pb.JOINT_FIXED] * n, linkJointAxis=[[0.0, 0.0, 1.0]] * n,
                                   physicsClientId=c)
 
+    def remove_body(self, uid: int) -> None:
+        pb.removeBody(uid, physicsClientId=self.client)
+        self.meshes.pop(uid, None)
+
     def load_urdf(self, path: Path, *, fixed: bool = True, self_collision: bool = False) -> Body:
         flags = pb.URDF_USE_SELF_COLLISION if self_collision else 0
         try:

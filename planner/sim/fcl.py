@@ -120,6 +120,11 @@ class LinkShapes:
 
     def update(self) -> None:
         """Place every shape where PyBullet has its link now."""
+        for (_, _, obj), frame in zip(self.shapes, self.frames()):
+            place(obj, frame)
+
+    def frames(self) -> list[np.ndarray]:
+        """(4, 4) world pose of every shape where PyBullet has its link now."""
         c = self.sim.client
         frames: dict[int, np.ndarray] = {}
         if self._moving:
@@ -127,8 +132,19 @@ class LinkShapes:
             frames = {i: pb_to_pose(s[4], s[5]) for i, s in zip(self._moving, states)}
         if self._base is not None:
             frames[-1] = self.sim.link_pose(self.body, self._base)
-        for index, origin, obj in self.shapes:
-            place(obj, frames[index] @ origin)
+        return [frames[index] @ origin for index, origin, _ in self.shapes]
+
+    def collides_at(self, pose: np.ndarray, relative: list[np.ndarray], other: fcl.CollisionObject) -> bool:
+        """With the body's base at ``pose`` (4, 4) and each shape at
+        ``relative`` (its (4, 4) pose in the base frame, from :meth:`frames`
+        with the base at the origin): does any shape overlap ``other``? No
+        simulator call: candidates sharing a joint configuration share it."""
+        request = self._request
+        for (_, _, obj), rel in zip(self.shapes, relative):
+            place(obj, pose @ rel)
+            if fcl.collide(obj, other, request, fcl.CollisionResult()):
+                return True
+        return False
 
     def collides(self, other: fcl.CollisionObject) -> bool:
         """True when any shape overlaps ``other`` (early exit)."""

@@ -29,6 +29,8 @@ from planner.specs.toml import Fields, read_toml
 from planner.specs.urdf import cut_subtree, descendants, link_names, load_model, movable_joints
 
 CONTACT_MODELS = ("frictionless", "point", "soft")
+#: Approach samplers (planner.plan.sampling): rays onto the surface, or antipodal pairs for parallel jaws.
+SAMPLERS = ("surface", "box", "antipodal")
 DEFAULT_FINGER_FORCE = 20.0  # [N or N m] per finger motor, when [dynamics] does not say
 #: PyBullet inflates convex hull meshes, cylinders and triangle meshes by 1 mm
 #: each, so a reported closest distance is the true gap minus 2 mm (measured
@@ -95,6 +97,7 @@ class HandSpec:
     arm: ArmSpec | None
     export_frame: np.ndarray  # (4, 4) dataset gripper frame in the hand frame (ACRONYM convention)
     finger_force: float  # [N or N m] force limit of each finger motor in dynamic trials
+    sampler: str = "surface"  # the sweep's approach sampler unless the user picks one
 
     def joint(self, name: str) -> JointSpec:
         found = self._joint_map.get(name)
@@ -165,7 +168,24 @@ def load_folder(folder: Path) -> HandSpec:
         roll_symmetry=_symmetry(f),
         links=tuple(links), arm=_arm(f, folder), export_frame=_export_frame(f),
         finger_force=f.table("dynamics", {}).float("finger_force", DEFAULT_FINGER_FORCE, positive=True),
+        sampler=_sampler(f, joints),
     )
+
+
+def _sampler(f: Fields, joints: tuple[JointSpec, ...]) -> str:
+    name = f.str("sampler", "surface")
+    if name not in SAMPLERS:
+        raise ConfigError(f"{f.where} field 'sampler': unknown sampler '{name}'; use {', '.join(SAMPLERS)}")
+    if name == "antipodal" and not parallel_jaw(f.bool("centering", False), joints):
+        raise ConfigError(f"{f.where} field 'sampler': the antipodal sampler needs a self-centring parallel jaw "
+                          "(centering = true, two prismatic fingers, one mimicking the other); use surface or box")
+    return name
+
+
+def parallel_jaw(centering: bool, joints: tuple[JointSpec, ...]) -> bool:
+    """A self-centring parallel jaw: two prismatic finger joints, one the other's mimic."""
+    prismatic = [j for j in joints if j.kind == "prismatic"]
+    return centering and len(prismatic) == 2 and sum(j.mimic is not None for j in prismatic) == 1
 
 
 def _symmetry(f: Fields) -> int:
