@@ -15,11 +15,11 @@ rad or m and hand pose within 1 mm, and the same force-closure verdict.
 
 from __future__ import annotations
 
-import argparse
 import os
 import time
 
 import numpy as np
+from throughput import hand_parser
 
 from planner.geometry.solid import load_object
 from planner.plan import sampling
@@ -60,12 +60,7 @@ def force_closure(hand, obj, r: Closed | Rejected) -> bool | None:  # type: igno
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--object", default="mug")
-    parser.add_argument("--hand", action="append", help="hand name (repeat); default: every hand")
-    parser.add_argument("--approaches", type=int, default=24)
-    parser.add_argument("--seed", type=int, default=0)
-    args = parser.parse_args()
+    args = hand_parser(__doc__).parse_args()
     obj = load_object(args.object)
     radius = obj.torque_scale + float(np.linalg.norm(obj.com))
     print(f"# closing on '{args.object}', {args.approaches} surface rays, load {os.getloadavg()[0]:.2f}")
