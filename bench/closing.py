@@ -69,7 +69,7 @@ def main() -> None:
     print("|---|---:|---:|---:|---:|---|---:|---:|")
     for name in args.hand or hand_names():
         hand = load_hand(name)
-        settings = SweepSettings(approaches=args.approaches, chunk=0, sampler="surface")
+        settings = SweepSettings(approaches=args.approaches, chunk=0, sampler="surface").resolved("surface")
         rays = sampling.sample(obj.mesh, sampler="surface", count=args.approaches,
                                rng=unit_rng(args.seed, obj.name, hand.name))
         todo = candidates(rays, load_preshapes(hand), settings, hand.roll_symmetry)
