@@ -35,7 +35,7 @@ import numpy as np
 import trimesh
 
 from planner.geometry.frames import hand_rotation
-from planner.geometry.patches import surface_patches
+from planner.geometry.hulls import surface_hulls
 from planner.plan.contacts import HandContacts, spread
 from planner.plan.tolerances import CLOSING_SPEED_MIN, JOINT_LIMIT_SLACK, MAX_PENETRATION
 from planner.sim import Body, Closest, Sim
@@ -56,7 +56,7 @@ class CloseSettings:
     start_margin: float = 0.01  # start this far in front of the hand's tips
     max_iterations: int = 400
     # speed knobs of the fast path (touching is always decided on the exact mesh):
-    near: float = 0.003  # below this gap to the surface patches, ask the exact mesh
+    near: float = 0.003  # below this gap to the surface hulls, ask the exact mesh
     exact_reach: float = 0.004  # ... within this range only (few triangles); steps are capped by it
 
 
@@ -130,15 +130,15 @@ class Grasper:
         if mesh is not None and not self.reference:
             self.shapes = overlap.LinkShapes(self.sim, self.body, self.hand.urdf, self.geometry)
             self.object_bvh = overlap.object_bvh(*mesh)
-            self.far_body = self.sim.add_static_hulls(surface_patches(trimesh.Trimesh(*mesh, process=False)))
+            self.far_body = self.sim.add_static_hulls(surface_hulls(trimesh.Trimesh(*mesh, process=False)))
 
     # -- queries -------------------------------------------------------------
     def _closest(self, reach: float, link: str | None = None) -> Closest:
         """Pairs whose *true* gap is below ``reach`` [m]: with the exact mesh,
-        or, while the hand is farther than ``near`` from the surface
-        patches, with the patches (lower bounds of the true gaps, as the
-        hulls contain the surface). Near the patches, a long reach is cut to
-        ``exact_reach`` (:class:`Bounded`)."""
+        or, while the hand is farther than ``near`` from the surface hulls
+        (:mod:`planner.geometry.hulls`), with the hulls (lower bounds of the
+        true gaps, as they contain the surface). Near the hulls, a long reach
+        is cut to ``exact_reach`` (:class:`Bounded`)."""
         self.queries += 1
         index = None if link is None else self.body.links[link]
         offset, s = self.hand.distance_offset, self.settings

@@ -1,5 +1,7 @@
 """A coarse stand-in for the surface of a mesh: small patches of its
-triangles, each to be collided as the convex hull of its vertices.
+triangles, each to be collided as the convex hull of its vertices (not to be
+confused with the contact patches of contact reading, which describe
+where a finger touches).
 
 Why (closing's far field, :mod:`planner.plan.closing`): PyBullet's distance
 query against the exact concave mesh costs ~4-5 us per *triangle* within
@@ -26,12 +28,12 @@ import trimesh
 FACES_PER_PATCH = 16
 
 
-def surface_patches(mesh: trimesh.Trimesh, faces: int = FACES_PER_PATCH) -> tuple[np.ndarray, ...]:
+def surface_hulls(mesh: trimesh.Trimesh, faces: int = FACES_PER_PATCH) -> tuple[np.ndarray, ...]:
     """Vertex arrays ((k_i, 3) [m], object frame) of the patches of
     ``mesh``'s surface, at most ``faces`` triangles each; every triangle is
     in exactly one patch."""
     if faces < 1:
-        raise ValueError("surface_patches: faces must be >= 1")
+        raise ValueError("surface_hulls: faces must be >= 1")
     centroids = np.asarray(mesh.triangles_center, float)
     leaves: list[np.ndarray] = []
     todo = [np.arange(len(centroids))]

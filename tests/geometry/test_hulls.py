@@ -1,4 +1,4 @@
-"""Surface patches: every triangle in one patch; the hulls bound the distance
+"""Surface hulls: every triangle in one patch; the hulls bound the distance
 to the surface from below."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import pytest
 import trimesh
 from scipy.spatial import ConvexHull, Delaunay
 
-from planner.geometry.patches import surface_patches
+from planner.geometry.hulls import surface_hulls
 from planner.geometry.solid import load_object
 
 #: Two triangulations of the same surface give closest points this far apart [m].
@@ -18,7 +18,7 @@ NUMERIC_TOL = 1e-7
 @pytest.mark.parametrize("faces", [1, 4, 16, 64])
 def test_every_vertex_of_every_triangle_is_in_a_patch_hull(faces: int) -> None:
     mesh = load_object("mug").mesh
-    patches = surface_patches(mesh, faces)
+    patches = surface_hulls(mesh, faces)
     assert len(patches) >= len(mesh.faces) / faces
     covered = set()
     for vertices in patches:
@@ -29,7 +29,7 @@ def test_every_vertex_of_every_triangle_is_in_a_patch_hull(faces: int) -> None:
 
 def test_distance_to_the_hulls_never_exceeds_the_distance_to_the_surface() -> None:
     mesh = trimesh.creation.icosphere(subdivisions=2, radius=0.05)
-    patches = surface_patches(mesh, 8)
+    patches = surface_hulls(mesh, 8)
     rng = np.random.default_rng(0)
     probes = rng.uniform(-0.1, 0.1, (300, 3))
     exact = np.abs(trimesh.proximity.signed_distance(mesh, probes))
@@ -48,4 +48,4 @@ def _hull_distances(vertices: np.ndarray, probes: np.ndarray) -> np.ndarray:
 
 def test_bad_patch_size_is_refused() -> None:
     with pytest.raises(ValueError):
-        surface_patches(load_object("box").mesh, 0)
+        surface_hulls(load_object("box").mesh, 0)
