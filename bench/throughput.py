@@ -1,4 +1,4 @@
-"""Candidates evaluated per second per core, with a per-stage breakdown.
+"""Candidates and force-closure grasps per second per core, with a per-stage breakdown.
 
     python bench/throughput.py [--object mug] [--hand panda ...] [--approaches 24]
 
@@ -21,7 +21,7 @@ from planner.plan.sweep import SweepSettings
 from planner.plan.unit import UnitSpec, run_unit
 from planner.specs.hands import hand_names
 
-STAGES = ("prepare", "sampling", "closing", "contacts", "quality", "reachability", "database")
+STAGES = ("prepare", "sampling", "rejection", "closing", "contacts", "quality", "reachability", "database")
 
 
 def bench(obj: str, hand: str, approaches: int, seed: int) -> dict:
@@ -38,26 +38,33 @@ def bench(obj: str, hand: str, approaches: int, seed: int) -> dict:
     timing = dict(result.timing, database=db_seconds)
     work = total + db_seconds
     return {"hand": hand, "candidates": result.candidates, "grasps": len(result.grasps),
-            "fc": result.force_closure, "seconds": work, "rate": result.candidates / work, "timing": timing,
+            "fc": result.force_closure, "seconds": work, "rate": result.candidates / work,
+            "fc_rate": result.force_closure / work, "timing": timing,
             "rejected": dict(result.rejected)}
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__)
+def hand_parser(doc: str | None) -> argparse.ArgumentParser:
+    """The options the per-hand benchmarks share: object, hands, approaches, seed."""
+    parser = argparse.ArgumentParser(description=doc)
     parser.add_argument("--object", default="mug")
     parser.add_argument("--hand", action="append", help="hand name (repeat); default: every hand")
     parser.add_argument("--approaches", type=int, default=24)
     parser.add_argument("--seed", type=int, default=0)
-    args = parser.parse_args()
+    return parser
+
+
+def main() -> None:
+    args = hand_parser(__doc__).parse_args()
     print(f"# throughput on '{args.object}', {args.approaches} approaches, one process "
           f"({platform.processor() or platform.machine()}, Python {platform.python_version()})")
-    print(f"{'hand':10s} {'cand':>6s} {'grasps':>6s} {'FC':>5s} {'cand/s/core':>11s} | "
-          "stage ms/candidate: prepare sampling closing contacts quality reachability database")
+    print(f"{'hand':10s} {'cand':>6s} {'grasps':>6s} {'FC':>5s} {'cand/s/core':>11s} {'FC/s/core':>9s} | "
+          "stage ms/candidate: " + " ".join(STAGES))
     for hand in args.hand or hand_names():
         r = bench(args.object, hand, args.approaches, args.seed)
         per = {k: 1000 * v / max(r["candidates"], 1) for k, v in r["timing"].items()}
-        print(f"{hand:10s} {r['candidates']:6d} {r['grasps']:6d} {r['fc']:5d} {r['rate']:11.1f} | "
-              + " ".join(f"{per[k]:.2f}" for k in STAGES)
+        print(f"{hand:10s} {r['candidates']:6d} {r['grasps']:6d} {r['fc']:5d} {r['rate']:11.1f} "
+              f"{r['fc_rate']:9.2f} | "
+              + " ".join(f"{per.get(k, 0.0):.2f}" for k in STAGES)
               + f"   rejected: {r['rejected']}")
 
 

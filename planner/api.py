@@ -35,7 +35,8 @@ from planner.geometry.solid import PreparedObject, load_object
 from planner.grasp import Grasp
 from planner.plan.pool import execute
 from planner.plan.reach import ReachScene, ReachSettings
-from planner.plan.sweep import SweepSettings
+from planner.plan.sampling import SAMPLERS
+from planner.plan.sweep import SAMPLER_DEFAULTS, SweepSettings
 from planner.plan.tolerances import PREGRASP_DISTANCE
 from planner.plan.unit import UnitResult, UnitSpec
 from planner.present import report as reporting
@@ -48,7 +49,8 @@ from planner.validation.run import ValidationSummary, validate
 
 __all__ = [
     "DEFAULT_DB", "EXPORT_FORMATS", "IMPORT_FORMATS", "RANDOM_COUNT", "RANDOM_PREFIX", "ExportSummary", "Grasp",
-    "ImportResult", "RankingRule", "ReachableGrasp", "Summary", "SweepSettings", "UnitResult", "ValidationSummary",
+    "ImportResult", "RankingRule", "ReachableGrasp", "SAMPLERS", "SAMPLER_DEFAULTS", "Summary", "SweepSettings",
+    "UnitResult", "ValidationSummary",
     "best", "best_at", "check_db", "default_workers", "export", "generate", "hand", "hands", "import_files",
     "objects", "plan_units", "report", "resolve_object", "show", "validate",
 ]
@@ -96,6 +98,7 @@ def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: i
     refs = expand(list(names), scale)
     if not refs:
         raise InputError("no objects given")
+    settings = settings.resolved(load_hand(hand).sampler)
     load_preshapes(load_hand(hand), list(settings.preshapes) if settings.preshapes else None)
     units, seen = [], set()
     for ref in refs:
@@ -120,7 +123,7 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
              progress: Callable[[UnitResult | None, int, int], None] | None = None) -> Summary:
     """Build (or extend) a grasp database; finished units are skipped.
     ``progress(None, 0, total)`` first, then ``progress(result, done, total)``."""
-    settings = settings or SweepSettings()
+    settings = (settings or SweepSettings()).resolved(load_hand(hand).sampler)
     units = plan_units(names, hand, settings, seed, scale)
     summary = Summary()
     start = time.perf_counter()

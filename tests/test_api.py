@@ -19,7 +19,8 @@ from planner.db.store import open_db
 from planner.errors import DatabaseError, InputError
 from planner.plan.sweep import SweepSettings
 
-SMALL = SweepSettings(approaches=8, rolls=2, preshapes=("wide",), chunk=4, reach_placements=1)
+#: The Panda's own sampler (antipodal), resolved so that its number of chunks is known.
+SMALL = SweepSettings(approaches=8, rolls=2, preshapes=("wide",), chunk=4, reach_placements=1).resolved("antipodal")
 
 
 def test_failing_object_is_recorded_and_the_batch_goes_on(tmp_path: Path) -> None:

@@ -22,12 +22,19 @@ DEFAULTS = api.SweepSettings()
 @click.option("--hand", required=True, help="Hand name (see `grasp hands`).")
 @db_option
 @click.option("--seed", type=int, default=0, show_default=True)
-@click.option("--approaches", type=int, default=DEFAULTS.approaches, show_default=True,
-              help="Approach rays per object (surface sampler).")
-@click.option("--sampler", type=click.Choice(["surface", "box"]), default="surface", show_default=True)
+@click.option("--approaches", type=int, help="Approach rays (surface sampler) or surface points (antipodal) per "
+              "object [default: the sampler's: " + ", ".join(f"{k} {v['approaches']}" for k, v in
+                                                            api.SAMPLER_DEFAULTS.items() if k != "box") + "].")
+@click.option("--sampler", type=click.Choice(api.SAMPLERS),
+              help="surface or box: OpenRAVE-style approach rays (multi-finger hands); antipodal: point pairs "
+                   "for parallel jaws [default: the hand's, from its hand.toml].")
 @click.option("--box-delta", type=float, default=DEFAULTS.box_delta, show_default=True,
               help="Grid spacing of the box sampler [m].")
-@click.option("--rolls", type=int, default=DEFAULTS.rolls, show_default=True)
+@click.option("--rolls", type=int, help="Rolls about each ray; antipodal: approach directions about each closing "
+              "axis [default: the sampler's: " + ", ".join(f"{k} {v['rolls']}" for k, v in
+                                                          api.SAMPLER_DEFAULTS.items() if k != "box") + "].")
+@click.option("--depths", help="Antipodal: comma-separated depths [m] of the tool centre point past the chord's "
+              "middle [default: " + ",".join(f"{d:g}" for d in DEFAULTS.depths) + "].")
 @click.option("--fan", "fan_count", type=int, default=0, show_default=True, help="Tilted directions per ray.")
 @click.option("--standoffs", help="Comma-separated standoffs [m] (default: each preshape's).")
 @click.option("--preshapes", "preshape_names", help="Comma-separated preshape names (default: all).")
@@ -38,18 +45,23 @@ DEFAULTS = api.SweepSettings()
               help="Run on Ray: a cluster address (e.g. ray://head:10001 or auto), or no value for a local "
                    "Ray instance with --workers CPUs. Needs pip install -e '.[ray]'.")
 @click.option("--unit-timeout", type=float, help="Give up on a unit of work after this many seconds.")
-@click.option("--chunk", type=int, default=DEFAULTS.chunk, show_default=True,
-              help="Approach rays per unit of work (0: one unit per object).")
+@click.option("--chunk", type=int, help="Approach rays or points per unit of work (0: one unit per object) "
+              "[default: the sampler's: " + ", ".join(f"{k} {v['chunk']}" for k, v in
+                                                     api.SAMPLER_DEFAULTS.items() if k != "box") + "].")
 @click.option("--reach-placements", type=int, default=DEFAULTS.reach_placements, show_default=True,
               help="Table placements for the stored reachability score (0: skip).")
+@click.option("--reach-top", type=int, default=DEFAULTS.reach_top, show_default=True,
+              help="Reachability for this many force-closure grasps per unit of work, highest epsilon first "
+                   "(0: all). `grasp best --object-pose` checks any grasp exactly.")
 @click.option("--reach-weight", type=float, help="Weight of reachability in the score, 0..1 (default: the "
               "database's rule, else 0.5).")
 @click.option("--quiet", is_flag=True, help="No progress bar and no summary table.")
 @click.option("--json", "as_json", is_flag=True, help="Print a machine-readable summary.")
-def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approaches: int, sampler: str,
-             box_delta: float, rolls: int, fan_count: int, standoffs: str | None, preshape_names: str | None,
-             scale: float | None, workers: int, ray_target: str | None, unit_timeout: float | None, chunk: int,
-             reach_placements: int, reach_weight: float | None, quiet: bool, as_json: bool) -> None:
+def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approaches: int | None,
+             sampler: str | None, box_delta: float, rolls: int | None, depths: str | None, fan_count: int,
+             standoffs: str | None, preshape_names: str | None, scale: float | None, workers: int,
+             ray_target: str | None, unit_timeout: float | None, chunk: int | None, reach_placements: int,
+             reach_top: int, reach_weight: float | None, quiet: bool, as_json: bool) -> None:
     """Sweep preshapes x approaches x rolls x standoffs and store the grasps.
 
     OBJECT: a built-in name, random_NNN, a mesh file, a folder, a glob,
@@ -57,8 +69,9 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
     builtin:random[:COUNT | :FIRST-LAST].
     """
     settings = api.SweepSettings(approaches=approaches, sampler=sampler, box_delta=box_delta, rolls=rolls,
-                                 fan_count=fan_count, standoffs=floats(standoffs), chunk=chunk,
-                                 reach_placements=reach_placements,
+                                 depths=floats(depths) or DEFAULTS.depths, fan_count=fan_count,
+                                 standoffs=floats(standoffs), chunk=chunk, reach_placements=reach_placements,
+                                 reach_top=reach_top,
                                  preshapes=tuple(preshape_names.split(",")) if preshape_names else None)
     show = not quiet and not as_json
     with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total} units"),

@@ -16,6 +16,14 @@ For one candidate (approach ray, roll, standoff, preshape):
    with a link that may not touch, or interpenetration.
 
 The object frame is the world frame here (the object sits at the origin).
+
+Speed (issue 16; the reference path, ``Grasper(..., reference=True)``, is
+the plain implementation the tests compare against): "does the open hand
+overlap the object?" is one python-fcl boolean per hand shape against the
+object's exact mesh (early exit) instead of every overlapping triangle pair
+from PyBullet; the speed bound of a link about a revolute joint is computed
+once per (DOF, link) for every configuration instead of from the link's box
+at every step; the simulator adapter converts poses in closed form.
 """
 
 from __future__ import annotations
@@ -24,11 +32,14 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+import trimesh
 
 from planner.geometry.frames import hand_rotation
+from planner.geometry.hulls import surface_hulls
 from planner.plan.contacts import HandContacts, spread
 from planner.plan.tolerances import CLOSING_SPEED_MIN, JOINT_LIMIT_SLACK, MAX_PENETRATION
 from planner.sim import Body, Closest, Sim
+from planner.sim import fcl as overlap
 from planner.specs.hands import HandSpec
 from planner.specs.preshapes import Preshape
 
@@ -44,6 +55,22 @@ class CloseSettings:
     max_penetration: float = MAX_PENETRATION  # deeper overlap rejects the grasp
     start_margin: float = 0.01  # start this far in front of the hand's tips
     max_iterations: int = 400
+    # speed knobs of the fast path (touching is always decided on the exact mesh):
+    near: float = 0.003  # below this gap to the surface hulls, ask the exact mesh
+    exact_reach: float = 0.004  # ... within this range only (few triangles); steps are capped by it
+
+
+#: Joint configurations whose hand shapes (relative to the palm) are kept for
+#: overlap tests: the candidates of one antipodal pair share one.
+RELATIVE_CACHE = 64
+
+
+@dataclass(frozen=True)
+class Bounded(Closest):
+    """Closest pairs complete only up to a true gap ``reach`` [m]: any pair
+    not listed is at least that far."""
+
+    reach: float = np.inf
 
 
 @dataclass(frozen=True)
@@ -85,6 +112,7 @@ class Grasper:
     hand: HandSpec
     object_body: int
     settings: CloseSettings = field(default_factory=CloseSettings)
+    reference: bool = False  # the plain implementation the fast one is tested against
 
     def __post_init__(self) -> None:
         self.body: Body = self.sim.load_urdf(self.hand.urdf)
@@ -92,18 +120,47 @@ class Grasper:
         self.geometry = tuple(n for n in self.hand.links if self.sim.has_collision(self.body, n))
         self._front: dict[str, float] = {}
         self._axes: dict[str, np.ndarray] = {}
+        self._bounds: dict[tuple, dict[str, float]] = {}
+        self._relative: dict[tuple, list[np.ndarray]] = {}
         self.queries = 0
         self.contact_seconds = 0.0  # time spent reading contacts (benchmarks)
+        mesh = self.sim.meshes.get(self.object_body)
+        self.shapes: overlap.LinkShapes | None = None
+        self.far_body: int | None = None
+        if mesh is not None and not self.reference:
+            self.shapes = overlap.LinkShapes(self.sim, self.body, self.hand.urdf, self.geometry)
+            self.object_bvh = overlap.object_bvh(*mesh)
+            self.far_body = self.sim.add_static_hulls(surface_hulls(trimesh.Trimesh(*mesh, process=False)))
 
     # -- queries -------------------------------------------------------------
     def _closest(self, reach: float, link: str | None = None) -> Closest:
-        """Pairs whose *true* gap is below ``reach`` [m]."""
+        """Pairs whose *true* gap is below ``reach`` [m]: with the exact mesh,
+        or, while the hand is farther than ``near`` from the surface hulls
+        (:mod:`planner.geometry.hulls`), with the hulls (lower bounds of the
+        true gaps, as they contain the surface). Near the hulls, a long reach
+        is cut to ``exact_reach`` (:class:`Bounded`)."""
         self.queries += 1
         index = None if link is None else self.body.links[link]
-        return self.sim.closest(self.body.uid, self.object_body, reach - self.hand.distance_offset, index)
+        offset, s = self.hand.distance_offset, self.settings
+        if self.far_body is not None:
+            far = self.sim.closest(self.body.uid, self.far_body, reach - offset, index)
+            if len(far) == 0 or far.min_distance + offset > s.near:
+                return far
+            if reach > s.exact_reach:
+                pairs = self.sim.closest(self.body.uid, self.object_body, s.exact_reach - offset, index)
+                return Bounded(pairs.links, pairs.distance, pairs.on_a, pairs.on_b, pairs.normal_b, s.exact_reach)
+        return self.sim.closest(self.body.uid, self.object_body, reach - offset, index)
 
     def _gap(self, closest: Closest) -> float:
-        return closest.min_distance + self.hand.distance_offset
+        gap = closest.min_distance + self.hand.distance_offset
+        return min(gap, closest.reach) if isinstance(closest, Bounded) else gap
+
+    def overlaps(self) -> bool:
+        """Does the hand, where it is now, overlap the object (touching counts)?"""
+        if self.shapes is None:
+            return self._gap(self._closest(0.0)) <= 0.0
+        self.shapes.update()
+        return self.shapes.collides(self.object_bvh)
 
     def _place(self, pose: np.ndarray, joints: dict[str, float]) -> None:
         self.sim.set_pose(self.body, pose)
@@ -164,11 +221,36 @@ class Grasper:
             return Rejected("start_collision", self.queries)
         return self._finish(pose, preshape, joints)
 
+    def overlaps_at(self, pose: np.ndarray, joints: dict[str, float]) -> bool:
+        """Would the hand at ``pose`` with ``joints`` overlap the object? (The
+        fast path asks the simulator only once per joint configuration.)"""
+        if self.shapes is None:
+            self._place(pose, joints)
+            return self.overlaps()
+        key = tuple(joints.items())
+        relative = self._relative.get(key)
+        if relative is None:
+            if len(self._relative) >= RELATIVE_CACHE:
+                self._relative.clear()
+            self._place(np.eye(4), joints)
+            relative = self._relative[key] = self.shapes.frames()
+        return self.shapes.collides_at(pose, relative, self.object_bvh)
+
+    def close_from(self, pose: np.ndarray, preshape: Preshape, joints: dict[str, float]) -> Closed | Rejected:
+        """Close the fingers from ``joints`` (every finger joint, open) with the
+        hand at ``pose``, no approach and no back-off: the antipodal sampler's
+        candidates, placed where they grasp (the caller has checked that the
+        open hand is free). The grasp records ``joints`` as its open joints."""
+        self.queries = 0
+        pose = np.array(pose, float)
+        self._place(pose, joints)
+        return self._finish(pose, preshape, dict(joints), {j.name: joints[j.name] for j in self.hand.driven})
+
     def _back_off(self, pose: np.ndarray, direction: np.ndarray, limit: float) -> float | None:
         """Move the hand back along ``direction`` in doubling jumps until it is
         free; how far it went, or None past ``limit``. Moves ``pose`` in place."""
         backed, jump = 0.0, self.settings.coarse_step
-        while self._gap(self._closest(0.0)) <= 0.0:
+        while self.overlaps():
             if backed > limit:
                 return None
             pose[:3, 3] -= direction * jump
@@ -177,13 +259,14 @@ class Grasper:
             self.sim.set_pose(self.body, pose)
         return backed
 
-    def _finish(self, pose: np.ndarray, preshape: Preshape, joints: dict[str, float]) -> Closed | Rejected:
+    def _finish(self, pose: np.ndarray, preshape: Preshape, joints: dict[str, float],
+                open_joints: dict[str, float] | None = None) -> Closed | Rejected:
         closed = self._close_fingers(preshape, joints)
         if self.hand.centering:
             pose, closed = self._centre(pose, closed)
             self._place(pose, closed)
         t = time.perf_counter()
-        out = self._read(pose, preshape.joints, closed)
+        out = self._read(pose, preshape.joints if open_joints is None else open_joints, closed)
         self.contact_seconds += time.perf_counter() - t
         return out
 
@@ -197,17 +280,19 @@ class Grasper:
         the query range are at least ``coarse_step`` away.
         """
         s = self.settings
+        longest = s.coarse_step if not isinstance(pairs, Bounded) else min(s.coarse_step,
+                                                                             max(pairs.reach - s.gap, 0.0))
         if len(pairs) == 0:
-            return False, s.coarse_step
+            return False, longest
         gaps = pairs.distance + self.hand.distance_offset
         speed = -(pairs.normal_b @ velocity)
         closing = speed > CLOSING_SPEED_MIN
         if np.any(closing & (gaps <= s.contact_tol)):
             return True, 0.0
         if not np.any(closing):
-            return False, s.coarse_step
+            return False, longest
         step = float(np.min((gaps[closing] - s.gap) / speed[closing]))
-        return False, min(max(step, 0.0), s.coarse_step)
+        return False, min(max(step, 0.0), longest)
 
     def _dofs(self, preshape: Preshape) -> list[_Dof]:
         dofs: list[_Dof] = []
@@ -270,11 +355,13 @@ class Grasper:
                     d.active = False
                     continue
                 steps[id(d)] = min(ds, room)
+            moved = {}
             for d in live:
                 if d.active:
                     for j, r in d.rates.items():
                         q[j] += r * steps[id(d)]
-            self.sim.set_joints(self.body, q)
+                        moved[j] = q[j]
+            self.sim.set_joints(self.body, moved)
         return q
 
     def _cap(self, dof: _Dof, q: dict[str, float]) -> float:
@@ -294,10 +381,11 @@ class Grasper:
         if not movers or any(j.kind != "prismatic" for j in movers):
             return None
         root = self.sim.link_pose(self.body, self.hand.root_link)
-        velocity = sum(dof.rates[j.name] * (root[:3, :3] @ self._axis_in_root(j.name)) for j in movers)
+        velocity = sum(dof.rates[j.name] * (root[:3, :3] @ self.axis_in_root(j.name)) for j in movers)
         return velocity if np.linalg.norm(velocity) > 0 else None
 
-    def _axis_in_root(self, joint: str) -> np.ndarray:
+    def axis_in_root(self, joint: str) -> np.ndarray:
+        """(3,) unit axis of a prismatic finger joint in the hand frame (constant)."""
         if joint not in self._axes:
             self._axes[joint] = self.sim.joint_axis_in_base(self.body, joint)
         return self._axes[joint]
@@ -307,7 +395,43 @@ class Grasper:
         return (spec.upper - value) / rate if rate > 0 else (value - spec.lower) / -rate
 
     def _speeds(self, dof: _Dof) -> dict[str, float]:
-        """Upper bound of each moved link's point speed [m per unit s]."""
+        """Upper bound of each moved link's point speed [m per unit s], valid
+        in every configuration: computed once per DOF (the reference path
+        recomputes a tighter one at every step)."""
+        if self.reference:
+            return self._speeds_now(dof)
+        key = tuple(sorted(dof.rates.items()))
+        if key not in self._bounds:
+            speeds = dict.fromkeys(dof.links, 0.0)
+            for name, rate in dof.rates.items():
+                joint = self.hand.joint(name)
+                for link in joint.moves:
+                    if link in speeds:
+                        speeds[link] += abs(rate) * (1.0 if joint.kind == "prismatic" else self._arm(joint.child,
+                                                                                                     link))
+            self._bounds[key] = speeds
+        return self._bounds[key]
+
+    def _arm(self, top: str, link: str) -> float:
+        """Largest distance [m] from the origin of link ``top`` (a joint's
+        child frame, on its axis) to any point of ``link`` below it, in any
+        configuration: the link's radius about its own frame (from its box,
+        corners included) plus the distances between the frames up the chain,
+        each the fixed offset of a revolute or fixed joint, or that plus the
+        whole travel of a prismatic one (triangle inequality)."""
+        frame = self.sim.link_pose(self.body, link)[:3, 3]
+        lo, hi = self.sim.link_aabb(self.body, link)
+        corners = np.array(np.meshgrid(*zip(lo, hi))).T.reshape(-1, 3)
+        total = float(np.max(np.linalg.norm(corners - frame, axis=1)))
+        while link != top:
+            joint = self.sim.parent_joint(self.body, link)
+            parent = self.sim.link_pose(self.body, joint.parent)[:3, 3]
+            total += float(np.linalg.norm(frame - parent)) + joint.travel
+            link, frame = joint.parent, parent
+        return total
+
+    def _speeds_now(self, dof: _Dof) -> dict[str, float]:
+        """Upper bound of each moved link's point speed [m per unit s] in the current configuration."""
         speeds = dict.fromkeys(dof.links, 0.0)
         for name, rate in dof.rates.items():
             joint = self.hand.joint(name)

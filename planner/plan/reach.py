@@ -112,6 +112,7 @@ class ReachScene:
         self.table = self.sim.add_box(TABLE_HALF, table_pose)
         self.object_body = self.sim.add_static_mesh(self.obj.mesh.vertices, self.obj.mesh.faces)
         self.object_pose = np.eye(4)
+        self.object_hash = self.obj.mesh_hash
         # a free copy of the hand: checks the hand alone against the table
         # before any IK is spent on a grasp whose palm would go through it
         self.probe: Body = self.sim.load_urdf(self.hand.urdf, fixed=True)
@@ -130,6 +131,15 @@ class ReachScene:
         return hit
 
     # -- scene ---------------------------------------------------------------
+    def use_object(self, obj: PreparedObject) -> None:
+        """Swap the object (the arm, hand and table stay loaded)."""
+        if obj.mesh_hash != self.object_hash:
+            self.sim.remove_body(self.object_body)
+            self.object_body = self.sim.add_static_mesh(obj.mesh.vertices, obj.mesh.faces)
+            self.object_hash = obj.mesh_hash
+        self.obj = obj
+        self.place_object(np.eye(4))
+
     def place_object(self, pose: np.ndarray) -> None:
         self.object_pose = pose
         self.sim.set_base_pose(self.object_body, pose)
@@ -240,3 +250,20 @@ class ReachScene:
             if self._gap(self.hand_body, link, self.object_body) <= floor:
                 return True
         return False
+
+
+#: One reachability scene per (hand, settings) in each process: loading the
+#: arm, the hand and the probe costs ~0.3 s of CPU, which every unit of work
+#: paid again before; only the object changes between units.
+_SCENES: dict[tuple[str, ReachSettings], ReachScene] = {}
+
+
+def reach_scene(hand: HandSpec, obj: PreparedObject, settings: ReachSettings) -> ReachScene:
+    """This process's scene for ``hand`` and ``settings``, holding ``obj``
+    (robot base at the origin). It lives as long as the process."""
+    key = (hand.name, settings)
+    scene = _SCENES.get(key)
+    if scene is None or scene.hand is not hand:
+        scene = _SCENES[key] = ReachScene(Sim(), hand, obj, settings)
+    scene.use_object(obj)
+    return scene

@@ -1,6 +1,7 @@
 """Approach sampling: where and from which direction the hand comes in.
 
-Two samplers, both OpenRAVE-style rays onto the surface:
+Two OpenRAVE-style ray samplers (for multi-finger hands): the hand comes in
+along a ray onto the surface, then closes.
 
 - ``surface``: area-weighted random surface points with their outward
   normals (needs the seeded generator);
@@ -9,7 +10,17 @@ Two samplers, both OpenRAVE-style rays onto the surface:
 
 An optional *fan* adds directions tilted by ``fan_angle`` around each normal.
 The hand approaches along ``direction`` (into the object); the approach ray
-passes through ``point``. All vectors in the object frame, lengths in metres.
+passes through ``point``.
+
+One sampler for parallel jaws, as the large parallel-jaw datasets are made
+(:func:`antipodal`): an area-weighted surface point, the point where a ray
+from it along the inward normal leaves the object, the closing axis through
+both; the candidates then put the fingers on that axis and spread approach
+directions around it (:func:`antipodal_poses`). A pair is refused before any
+simulation when the chord is wider than every preshape's opening or thinner
+than a skin, or the exit normal lies outside the friction cone of the axis.
+
+All vectors in the object frame, lengths in metres, angles in radians.
 """
 
 from __future__ import annotations
@@ -21,10 +32,14 @@ import numpy as np
 import trimesh
 
 from planner.errors import InputError
-from planner.geometry.frames import tilted
-from planner.plan.tolerances import BOX_MARGIN
+from planner.geometry.frames import tangent_bases, tilted
+from planner.plan.tolerances import BOX_MARGIN, MIN_CHORD, RAY_START
+from planner.specs.hands import SAMPLERS
 
-SAMPLERS = ("surface", "box")
+__all__ = ["SAMPLERS", "RAY_SAMPLERS", "Approaches", "Pairs", "sample", "antipodal", "antipodal_poses", "fan"]
+
+#: The samplers whose candidates approach along rays (the others place the hand directly).
+RAY_SAMPLERS = ("surface", "box")
 
 
 @dataclass(frozen=True)
@@ -61,6 +76,8 @@ def sample(mesh: trimesh.Trimesh, *, sampler: str, count: int, rng: np.random.Ge
         normals = mesh.face_normals[faces]
     elif sampler == "box":
         points, normals = _box_rays(mesh, delta)
+    elif sampler == "antipodal":
+        raise InputError("the antipodal sampler makes point pairs: use sampling.antipodal")
     else:
         raise InputError(f"unknown sampler '{sampler}'; use {', '.join(SAMPLERS)}")
     base = Approaches(np.asarray(points, float), np.asarray(normals, float), -np.asarray(normals, float))
@@ -99,3 +116,93 @@ def fan(base: Approaches, count: int, angle: float) -> Approaches:
         normals.append(base.normals)
         dirs.append(tilted(base.directions, angle, phi))
     return Approaches(np.vstack(points), np.vstack(normals), np.vstack(dirs))
+
+
+@dataclass(frozen=True)
+class Pairs:
+    """Antipodal point pairs for each of n sampled surface points; a point
+    without a usable pair keeps its row, with the reason, so that point ``i``
+    is the same whatever part of the object a unit of work covers.
+
+    Attributes:
+        points: (n, 3) sampled surface points p1 [m].
+        normals: (n, 3) unit outward normals at p1.
+        opposite: (n, 3) where the ray from p1 along -normal leaves the object, p2 [m] (NaN: none).
+        axes: (n, 3) unit closing axes, p1 -> p2 (NaN: none).
+        widths: (n,) chord lengths |p2 - p1| [m] (NaN: none).
+        phases: (n,) [rad] the first approach direction's angle about the axis, random per point.
+        reasons: (n,) why a pair is refused ("no_pair", "too_wide", "too_thin", "cone"), or "" when usable.
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    opposite: np.ndarray
+    axes: np.ndarray
+    widths: np.ndarray
+    phases: np.ndarray
+    reasons: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        n = len(self.points)
+        for name in ("points", "normals", "opposite", "axes"):
+            if getattr(self, name).shape != (n, 3):
+                raise ValueError(f"Pairs.{name} must be (n, 3)")
+        if self.widths.shape != (n,) or self.phases.shape != (n,) or len(self.reasons) != n:
+            raise ValueError("Pairs.widths, .phases and .reasons must be (n,)")
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    @property
+    def midpoints(self) -> np.ndarray:
+        """(n, 3) chord midpoints [m]."""
+        return 0.5 * (self.points + self.opposite)
+
+
+def antipodal(mesh: trimesh.Trimesh, count: int, rng: np.random.Generator, *, max_width: float, mu: float,
+              min_width: float = MIN_CHORD) -> Pairs:
+    """``count`` area-weighted surface points of ``mesh`` and their antipodal
+    partners (see module docstring). ``max_width`` [m]: the widest chord the
+    hand can take; ``mu``: friction coefficient of the cone test (the exit
+    normal n2 must satisfy n2 . axis >= cos(atan(mu)): the finger pushing
+    along -axis at p2 stays inside its friction cone)."""
+    if count < 1:
+        raise InputError(f"--approaches must be at least 1, got {count}")
+    points, faces = trimesh.sample.sample_surface(mesh, count, seed=rng)
+    phases = rng.uniform(0.0, 2 * np.pi, count)  # drawn for every point: point i is replayable
+    normals = np.asarray(mesh.face_normals[faces], float)
+    points = np.asarray(points, float)
+    hits, rays, tris = mesh.ray.intersects_location(points - normals * RAY_START, -normals, multiple_hits=False)
+    opposite = np.full((count, 3), np.nan)
+    exit_normals = np.full((count, 3), np.nan)
+    opposite[rays], exit_normals[rays] = hits, mesh.face_normals[tris]
+    chord = opposite - points
+    widths = np.linalg.norm(chord, axis=1)
+    axes = chord / np.where(widths > 0, widths, 1.0)[:, None]
+    cone = np.einsum("ij,ij->i", exit_normals, axes) >= np.cos(np.arctan(mu))
+    reasons = np.where(~np.isfinite(widths), "no_pair",
+                       np.where(widths > max_width, "too_wide",
+                                np.where(widths < min_width, "too_thin", np.where(cone, "", "cone"))))
+    return Pairs(points, normals, opposite, axes, widths, phases, tuple(str(r) for r in reasons))
+
+
+def antipodal_poses(approach_hand: np.ndarray, finger_hand: np.ndarray, tcp: np.ndarray, axes: np.ndarray,
+                    centres: np.ndarray, angles: np.ndarray, depths: np.ndarray) -> np.ndarray:
+    """(m, 4, 4) hand poses, one per candidate: the fingers close along
+    ``axes`` (m, 3) with the tool centre point ``tcp`` ((m, 3) or (3,) [m],
+    hand frame) ``depths`` (m,) [m] past ``centres`` (m, 3) along the
+    approach; the approach direction lies at ``angles`` (m,) [rad] about the
+    axis, from the axis's first tangent (:func:`tangent_bases`).
+    ``approach_hand``, ``finger_hand``: (3,) perpendicular unit hand-frame
+    axes of the approach and of the fingers' closing."""
+    u, v = tangent_bases(axes)
+    d = np.cos(angles)[:, None] * u + np.sin(angles)[:, None] * v
+    world = np.stack([d, axes, np.cross(d, axes)], axis=2)
+    a, f = np.asarray(approach_hand, float), np.asarray(finger_hand, float)
+    hand = np.column_stack([a, f, np.cross(a, f)])
+    poses = np.zeros((len(axes), 4, 4))
+    poses[:, :3, :3] = world @ hand.T
+    poses[:, 3, 3] = 1.0
+    poses[:, :3, 3] = centres + d * np.asarray(depths)[:, None] - np.einsum(
+        "mij,mj->mi", poses[:, :3, :3], np.broadcast_to(np.asarray(tcp, float), (len(axes), 3)))
+    return poses

@@ -12,47 +12,77 @@ from __future__ import annotations
 import hashlib
 import json
 import zlib
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from itertools import product
 
 import numpy as np
 
 from planner.errors import InputError
-from planner.plan.sampling import SAMPLERS, Approaches
+from planner.plan.sampling import SAMPLERS, Approaches, Pairs
 from planner.plan.tolerances import PREGRASP_DISTANCE
 from planner.specs.preshapes import Preshape
 
 #: Bumped whenever a change alters which grasps a sweep produces, so stale
 #: units are recomputed rather than mixed with new ones.
-ALGORITHM_VERSION = 2  # 2: soft contacts resist mu x torsion_radius (issue 15)
+#: 2: soft contacts resist mu x torsion_radius (issue 15); antipodal sampler for parallel
+#: jaws, cheap rejection, faster closing (issue 16); contact patches, breakaway (issue 15).
+ALGORITHM_VERSION = 2
+
+#: What the settings left unset mean, per sampler: surface points (or rays)
+#: per object, rolls (antipodal: approach directions about the closing
+#: axis) and points (or rays) per unit of work.
+SAMPLER_DEFAULTS = {
+    "surface": {"approaches": 48, "rolls": 4, "chunk": 32},
+    "box": {"approaches": 48, "rolls": 4, "chunk": 32},
+    "antipodal": {"approaches": 2048, "rolls": 8, "chunk": 256},
+}
 
 
 @dataclass(frozen=True)
 class SweepSettings:
-    """What to try. Angles in radians, lengths in metres."""
+    """What to try. Angles in radians, lengths in metres. ``None``: the
+    hand's sampler (its ``hand.toml``) and that sampler's defaults
+    (:data:`SAMPLER_DEFAULTS`), filled in by :meth:`resolved`."""
 
-    approaches: int = 48  # surface sampler: rays per object
-    sampler: str = "surface"  # "surface" or "box"
+    approaches: int | None = None  # rays (surface) or surface points (antipodal) per object
+    sampler: str | None = None  # "surface", "box" or "antipodal"
     box_delta: float = 0.02  # box sampler: grid spacing [m]
-    fan_count: int = 0  # extra tilted directions per ray
+    fan_count: int = 0  # ray samplers: extra tilted directions per ray
     fan_angle: float = 0.3  # their tilt [rad]
-    rolls: int = 4  # rolls about the approach axis, evenly spaced in [0, 2 pi / hand symmetry)
-    standoffs: tuple[float, ...] | None = None  # None: each preshape's own
+    rolls: int | None = None  # rays: rolls about the approach, evenly spaced in [0, 2 pi / hand symmetry);
+    #                           antipodal: approach directions about the closing axis, evenly spaced in [0, 2 pi)
+    standoffs: tuple[float, ...] | None = None  # ray samplers; None: each preshape's own
+    depths: tuple[float, ...] = (0.0, 0.01)  # antipodal: the tool centre point this far past the chord's middle
     preshapes: tuple[str, ...] | None = None  # None: all of the hand's
     cone_edges: int = 8  # friction cone edges m
-    chunk: int = 32  # rays per unit of work (surface sampler); 0: one unit per object
+    chunk: int | None = None  # rays or points per unit of work (not the box sampler); 0: one unit per object
     reach_placements: int = 6  # object placements for the reachability score; 0: skip reachability
+    reach_top: int = 8  # reachability of this many force-closure grasps per unit, best epsilon first; 0: all
     pregrasp_distance: float = PREGRASP_DISTANCE  # [m] pre-grasp back-off along the approach
 
     def __post_init__(self) -> None:
-        if self.sampler not in SAMPLERS:
+        if self.sampler is not None and self.sampler not in SAMPLERS:
             raise InputError(f"unknown sampler '{self.sampler}'; use {', '.join(SAMPLERS)}")
-        if self.approaches < 1 or self.rolls < 1 or self.cone_edges < 3 or self.fan_count < 0:
-            raise InputError("approaches and rolls must be >= 1, cone edges >= 3, fan count >= 0")
-        if self.chunk < 0 or self.reach_placements < 0 or self.pregrasp_distance < 0:
-            raise InputError("chunk, reach placements and pre-grasp distance must be >= 0")
+        if (self.approaches is not None and self.approaches < 1) or (self.rolls is not None and self.rolls < 1):
+            raise InputError("approaches and rolls must be >= 1")
+        if self.cone_edges < 3 or self.fan_count < 0:
+            raise InputError("cone edges must be >= 3, fan count >= 0")
+        if (self.chunk is not None and self.chunk < 0) or self.reach_placements < 0 or self.reach_top < 0 \
+                or self.pregrasp_distance < 0:
+            raise InputError("chunk, reach placements, reach top and pre-grasp distance must be >= 0")
         if self.standoffs is not None and (not self.standoffs or min(self.standoffs) < 0):
             raise InputError("standoffs must be non-negative distances in metres")
+        if not self.depths or min(self.depths) < 0:
+            raise InputError("depths must be non-negative distances in metres")
+        if self.sampler == "antipodal" and self.fan_count:
+            raise InputError("--fan tilts approach rays: it needs the surface or box sampler")
+
+    def resolved(self, hand_sampler: str) -> SweepSettings:
+        """These settings with the sampler (``hand_sampler`` unless set) and
+        its defaults filled in: what a unit runs and what its digest names."""
+        sampler = self.sampler or hand_sampler
+        unset = {k: v for k, v in SAMPLER_DEFAULTS[sampler].items() if getattr(self, k) is None}
+        return replace(self, sampler=sampler, **unset)
 
     def to_json(self) -> str:
         data = asdict(self)
@@ -63,26 +93,38 @@ class SweepSettings:
     def digest(self) -> str:
         return hashlib.sha256(self.to_json().encode()).hexdigest()[:16]
 
+    def _resolved_field(self, name: str) -> int:
+        value = getattr(self, name)
+        if value is None:
+            raise InputError(f"sweep setting '{name}' is not resolved: call SweepSettings.resolved first")
+        return int(value)
+
     @property
     def rays_known(self) -> int | None:
-        """Rays per object when known before sampling (surface sampler)."""
-        return self.approaches * (1 + self.fan_count) if self.sampler == "surface" else None
+        """Rays (or antipodal points) per object when known before sampling."""
+        if self.sampler is None:
+            raise InputError("the sweep's sampler is not resolved: call SweepSettings.resolved first")
+        if self.sampler == "surface":
+            return self._resolved_field("approaches") * (1 + self.fan_count)
+        return self._resolved_field("approaches") if self.sampler == "antipodal" else None
 
     def chunks(self) -> int:
         """Units of work per object."""
         rays = self.rays_known
-        if rays is None or self.chunk == 0:
+        if rays is None or self._resolved_field("chunk") == 0:
             return 1
-        return -(-rays // self.chunk)
+        return -(-rays // self._resolved_field("chunk"))
 
     def ray_range(self, chunk: int, total: int) -> range:
         if self.chunks() == 1:
             return range(total)
-        return range(chunk * self.chunk, min(total, (chunk + 1) * self.chunk))
+        size = self._resolved_field("chunk")
+        return range(chunk * size, min(total, (chunk + 1) * size))
 
     def roll_angles(self, symmetry: int = 1) -> np.ndarray:
         """Rolls [rad]; a hand symmetric under a half turn needs only [0, pi)."""
-        return 2 * np.pi * np.arange(self.rolls) / (self.rolls * symmetry)
+        rolls = self._resolved_field("rolls")
+        return 2 * np.pi * np.arange(rolls) / (rolls * symmetry)
 
 
 def unit_rng(seed: int, object_name: str, hand_name: str, *stream: int) -> np.random.Generator:
@@ -98,7 +140,12 @@ IK_STREAM = 2
 
 @dataclass(frozen=True)
 class Candidate:
-    """One grasp to try: approach ray ``ray`` of the unit's rays, etc."""
+    """One grasp to try. Ray samplers: approach ray ``ray`` of the object's
+    rays, the hand rolled by ``roll`` [rad] about it, backed off by
+    ``standoff`` [m] after first contact. Antipodal sampler: pair ``ray`` of
+    the object's points, the approach direction at ``roll`` [rad] about its
+    closing axis, the tool centre point ``standoff`` [m] past the chord's
+    middle (a depth)."""
 
     index: int
     ray: int
@@ -118,4 +165,26 @@ def candidates(approaches: Approaches, shapes: tuple[Preshape, ...], settings: S
             if ray in keep:
                 out.append(Candidate(index, ray, shape, float(roll), float(standoff)))
             index += 1
+    return out
+
+
+def antipodal_candidates(pairs: Pairs, shapes: tuple[Preshape, ...], openings: dict[str, float],
+                         settings: SweepSettings, clearance: float, rays: range | None = None) -> list[Candidate]:
+    """For every point pair (usable or not: a refused pair's candidates are
+    counted as rejected), every approach direction and depth, numbered over
+    the whole object; ``rays`` keeps one chunk's points. The preshape of a
+    pair is the least open one whose opening ``openings[name]`` [m] exceeds
+    the chord by ``clearance`` per side (the fingers are then opened to fit
+    the chord), else the most open one."""
+    by_opening = sorted(shapes, key=lambda s: openings[s.name])
+    angles = 2 * np.pi * np.arange(settings._resolved_field("rolls")) / settings._resolved_field("rolls")
+    per_point = len(angles) * len(settings.depths)
+    out = []
+    for i in range(len(pairs)) if rays is None else rays:
+        width = pairs.widths[i]
+        shape = next((s for s in by_opening if openings[s.name] >= width + 2 * clearance), by_opening[-1])
+        for k, angle in enumerate(angles):
+            for j, depth in enumerate(settings.depths):
+                index = i * per_point + k * len(settings.depths) + j
+                out.append(Candidate(index, i, shape, float(pairs.phases[i] + angle), float(depth)))
     return out

@@ -24,6 +24,18 @@ CLOSING_SPEED_MIN = 0.05
 JOINT_LIMIT_SLACK = 1e-9
 #: The OpenRAVE box sampler grows the object's bounding box by this much.
 BOX_MARGIN = 0.01
+#: Antipodal sampler: a chord thinner than this is a sliver or a skin, not
+#: something to pinch (and the ray may have met the next triangle of the same
+#: face); the ray to the opposite side starts this far inside the surface
+#: (embree works in float32: ~1e-8 m of round-off near the object).
+MIN_CHORD = 0.002
+RAY_START = 1e-6
+#: Antipodal sampler: the fingers open to the chord plus this much per side
+#: (the full opening of a wide gripper straddling a thin wall puts the inner
+#: finger through the far side of a cup), within the preshape's opening; a
+#: preshape takes a chord when its opening exceeds the chord by this much per side.
+FINGER_CLEARANCE = 0.01
+MIN_CLEARANCE = 0.002
 
 #: Pre-grasp: the hand backed off this far along its approach, fingers open.
 PREGRASP_DISTANCE = 0.10

@@ -12,23 +12,33 @@ import logging
 import time
 import traceback
 from collections import Counter
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from planner import quality
 from planner.errors import PlannerError
+from planner.geometry.frames import roll_about
 from planner.geometry.solid import PreparedObject, load_object
 from planner.grasp import Grasp
 from planner.plan import sampling
 from planner.plan.closing import Closed, Grasper
 from planner.plan.contacts import HandContacts
-from planner.plan.reach import ReachScene, ReachSettings
-from planner.plan.sweep import IK_STREAM, PLACEMENT_STREAM, SweepSettings, candidates, unit_rng
+from planner.plan.reach import ReachSettings, reach_scene
+from planner.plan.sweep import (
+    IK_STREAM,
+    PLACEMENT_STREAM,
+    Candidate,
+    SweepSettings,
+    antipodal_candidates,
+    candidates,
+    unit_rng,
+)
+from planner.plan.tolerances import FINGER_CLEARANCE, MIN_CLEARANCE
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, load_hand
-from planner.specs.preshapes import load_preshapes
+from planner.specs.preshapes import Preshape, load_preshapes
 
 log = logging.getLogger(__name__)
 
@@ -55,7 +65,7 @@ class UnitResult:
     candidates: int = 0
     rejected: Counter = field(default_factory=Counter)
     timing: dict[str, float] = field(default_factory=lambda: dict.fromkeys(
-        ("prepare", "sampling", "closing", "contacts", "quality", "reachability"), 0.0))
+        ("prepare", "sampling", "rejection", "closing", "contacts", "quality", "reachability"), 0.0))
     error: str | None = None
 
     @property
@@ -85,70 +95,153 @@ def _run(spec: UnitSpec, result: UnitResult) -> None:
     t0 = time.perf_counter()
     obj = load_object(spec.object_name, scale=spec.scale, label=spec.label)
     hand = load_hand(spec.hand)
-    shapes = load_preshapes(hand, list(spec.settings.preshapes) if spec.settings.preshapes else None)
+    settings = spec.settings.resolved(hand.sampler)
+    shapes = load_preshapes(hand, list(settings.preshapes) if settings.preshapes else None)
     result.obj = obj
-    t1 = time.perf_counter()
-    result.timing["prepare"] += t1 - t0
+    result.timing["prepare"] += time.perf_counter() - t0
     rng = unit_rng(spec.seed, obj.name, hand.name)
-    rays = sampling.sample(obj.mesh, sampler=spec.settings.sampler, count=spec.settings.approaches, rng=rng,
-                           delta=spec.settings.box_delta, fan_count=spec.settings.fan_count,
-                           fan_angle=spec.settings.fan_angle)
-    todo = candidates(rays, shapes, spec.settings, hand.roll_symmetry, spec.settings.ray_range(spec.chunk, len(rays)))
-    result.candidates = len(todo)
-    t2 = time.perf_counter()
-    result.timing["sampling"] += t2 - t1
-    radius = obj.torque_scale + float(np.linalg.norm(obj.com))
     with Sim() as sim:
         grasper = Grasper(sim, hand, sim.add_static_mesh(obj.mesh.vertices, obj.mesh.faces))
-        for cand in todo:
-            ta = time.perf_counter()
-            if spec.timeout is not None and ta - t0 > spec.timeout:
-                raise PlannerError(f"time-out: unit not finished after {spec.timeout:g} s")
-            closed = grasper.close(rays.points[cand.ray], rays.directions[cand.ray], cand.roll, cand.standoff,
-                                   cand.preshape, radius)
+        sweep = _antipodal if settings.sampler == "antipodal" else _rays
+        for cand, closed, ray in sweep(spec, settings, obj, hand, shapes, rng, grasper, result, t0):
             tb = time.perf_counter()
-            result.timing["closing"] += tb - ta
-            if not isinstance(closed, Closed):
-                result.rejected[closed.reason] += 1
-                continue
-            q = grasp_quality(closed.contacts, hand, obj, spec.settings.cone_edges)
+            q = grasp_quality(closed.contacts, hand, obj, settings.cone_edges)
             result.timing["quality"] += time.perf_counter() - tb
+            point, direction, roll, standoff = ray
             result.grasps.append(Grasp(
                 object=obj.name, hand=hand.name, preshape=cand.preshape.name, candidate=cand.index, seed=spec.seed,
-                approach_point=rays.points[cand.ray], approach_dir=rays.directions[cand.ray], roll=cand.roll,
-                standoff=cand.standoff, pose=closed.pose, open_joints=closed.open_joints,
-                closed_joints=closed.closed_joints, width=closed_width(hand, closed.closed_joints),
-                contacts=closed.contacts, epsilon=q.epsilon, volume=q.volume, force_closure=q.force_closure))
+                approach_point=point, approach_dir=direction, roll=roll, standoff=standoff, pose=closed.pose,
+                open_joints=closed.open_joints, closed_joints=closed.closed_joints,
+                width=closed_width(hand, closed.closed_joints), contacts=closed.contacts, epsilon=q.epsilon,
+                volume=q.volume, force_closure=q.force_closure))
         # contact reading happens inside closing; report it as its own stage
         result.timing["contacts"] = grasper.contact_seconds
         result.timing["closing"] -= grasper.contact_seconds
-    if spec.settings.reach_placements and hand.arm is not None:
+    if settings.reach_placements and hand.arm is not None:
         t3 = time.perf_counter()
-        result.grasps = add_reachability(result.grasps, obj, hand, spec)
+        result.grasps = add_reachability(result.grasps, obj, hand, spec, settings)
         result.timing["reachability"] += time.perf_counter() - t3
 
 
-def add_reachability(grasps: list[Grasp], obj: PreparedObject, hand: HandSpec, spec: UnitSpec) -> list[Grasp]:
-    """Reachability of each force-closure grasp over the unit's sampled placements."""
-    settings = ReachSettings(placements=spec.settings.reach_placements,
-                             pregrasp_distance=spec.settings.pregrasp_distance)
+#: What a sweep yields per closed candidate: the candidate, the closed hand,
+#: and (approach point [m], approach direction, roll [rad], standoff [m]) for the record.
+Swept = Iterator[tuple[Candidate, Closed, tuple[np.ndarray, np.ndarray, float, float]]]
+
+
+def _check_time(spec: UnitSpec, t0: float) -> float:
+    now = time.perf_counter()
+    if spec.timeout is not None and now - t0 > spec.timeout:
+        raise PlannerError(f"time-out: unit not finished after {spec.timeout:g} s")
+    return now
+
+
+def _rays(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, hand: HandSpec, shapes: tuple[Preshape, ...],
+          rng: np.random.Generator, grasper: Grasper, result: UnitResult, t0: float) -> Swept:
+    """OpenRAVE-style: approach along each ray until contact, back off, close."""
+    t1 = time.perf_counter()
+    rays = sampling.sample(obj.mesh, sampler=settings.sampler or "surface", count=settings.approaches or 0, rng=rng,
+                           delta=settings.box_delta, fan_count=settings.fan_count, fan_angle=settings.fan_angle)
+    todo = candidates(rays, shapes, settings, hand.roll_symmetry, settings.ray_range(spec.chunk, len(rays)))
+    result.candidates = len(todo)
+    result.timing["sampling"] += time.perf_counter() - t1
+    radius = obj.torque_scale + float(np.linalg.norm(obj.com))
+    for cand in todo:
+        ta = _check_time(spec, t0)
+        closed = grasper.close(rays.points[cand.ray], rays.directions[cand.ray], cand.roll, cand.standoff,
+                               cand.preshape, radius)
+        result.timing["closing"] += time.perf_counter() - ta
+        if not isinstance(closed, Closed):
+            result.rejected[closed.reason] += 1
+            continue
+        yield cand, closed, (rays.points[cand.ray], rays.directions[cand.ray], cand.roll, cand.standoff)
+
+
+def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, hand: HandSpec,
+               shapes: tuple[Preshape, ...], rng: np.random.Generator, grasper: Grasper, result: UnitResult,
+               t0: float) -> Swept:
+    """Parallel jaws: the hand put straight on each antipodal pair, refused
+    before simulation when the pair is unusable or the open hand overlaps
+    the object, else closed where it is."""
+    t1 = time.perf_counter()
+    openings = {s.name: opening(hand, s.joints) for s in shapes}
+    pairs = sampling.antipodal(obj.mesh, settings.approaches or 0, rng, mu=obj.friction,
+                               max_width=max(openings.values()) - 2 * MIN_CLEARANCE)
+    todo = antipodal_candidates(pairs, shapes, openings, settings, MIN_CLEARANCE,
+                                settings.ray_range(spec.chunk, len(pairs)))
+    result.candidates = len(todo)
+    master = next(j for j in hand.driven if j.kind == "prismatic")
+    usable = [c for c in todo if not pairs.reasons[c.ray]]
+    for cand in todo:
+        if pairs.reasons[cand.ray]:
+            result.rejected[pairs.reasons[cand.ray]] += 1
+    rows = np.array([c.ray for c in usable], int)
+    poses = sampling.antipodal_poses(hand.approach, grasper.axis_in_root(master.name),
+                                     np.array([c.preshape.tcp for c in usable]).reshape(-1, 3), pairs.axes[rows],
+                                     pairs.midpoints[rows], np.array([c.roll for c in usable]),
+                                     np.array([c.standoff for c in usable]))
+    result.timing["sampling"] += time.perf_counter() - t1
+    for cand, pose in zip(usable, poses):
+        ta = _check_time(spec, t0)
+        fitted = fitted_opening(hand, cand.preshape, master.name, pairs.widths[cand.ray] + 2 * FINGER_CLEARANCE)
+        free = not grasper.overlaps_at(pose, fitted)
+        tb = time.perf_counter()
+        result.timing["rejection"] += tb - ta
+        if not free:
+            result.rejected["overlap"] += 1
+            continue
+        closed = grasper.close_from(pose, cand.preshape, fitted)
+        result.timing["closing"] += time.perf_counter() - tb
+        if not isinstance(closed, Closed):
+            result.rejected[closed.reason] += 1
+            continue
+        direction = pose[:3, :3] @ hand.approach
+        tcp = pose[:3, :3] @ cand.preshape.tcp + pose[:3, 3]
+        yield cand, closed, (tcp, direction, roll_about(pose[:3, :3], hand.approach, direction), 0.0)
+
+
+def opening(hand: HandSpec, joints: Mapping[str, float]) -> float:
+    """[m] distance between the fingers of a parallel jaw at ``joints``."""
+    return float(sum(joints[j.name] for j in hand.joints if j.kind == "prismatic"))
+
+
+def fitted_opening(hand: HandSpec, shape: Preshape, master: str, width: float) -> dict[str, float]:
+    """Every finger joint of ``shape`` with the fingers opened to ``width``
+    [m] (mimics follow), or to the preshape's own opening if that is less."""
+    per_unit = opening(hand, hand.full_configuration({master: 1.0})) - opening(hand, hand.full_configuration(
+        {master: 0.0}))
+    base = opening(hand, hand.full_configuration({master: 0.0}))
+    value = min((width - base) / per_unit, shape.joints[master])
+    driven = {j.name: shape.joints[j.name] for j in hand.driven}
+    driven[master] = max(value, hand.joint(master).lower)
+    return hand.full_configuration(driven)
+
+
+def add_reachability(grasps: list[Grasp], obj: PreparedObject, hand: HandSpec, spec: UnitSpec,
+                     settings: SweepSettings) -> list[Grasp]:
+    """Reachability of the unit's ``reach_top`` force-closure grasps of highest
+    epsilon (all if 0) over the unit's sampled placements; the others keep
+    ``None`` (not computed). The scene is built once per worker process."""
+    ranked = sorted((g for g in grasps if g.force_closure), key=lambda g: (-g.epsilon, g.candidate))
+    chosen = {g.candidate for g in (ranked[:settings.reach_top] if settings.reach_top else ranked)}
+    if not chosen:
+        return grasps
+    scene = reach_scene(hand, obj, ReachSettings(placements=settings.reach_placements,
+                                                 pregrasp_distance=settings.pregrasp_distance))
+    placements = scene.placements(unit_rng(spec.seed, obj.name, hand.name, PLACEMENT_STREAM))
     out = []
-    with Sim() as sim:
-        scene = ReachScene(sim, hand, obj, settings)
-        placements = scene.placements(unit_rng(spec.seed, obj.name, hand.name, PLACEMENT_STREAM))
-        for g in grasps:
-            if not g.force_closure:
-                out.append(g)
-                continue
-            rng = unit_rng(spec.seed, obj.name, hand.name, IK_STREAM, g.candidate)
-            reached, manip = 0, 0.0
-            for pose in placements:
-                scene.place_object(pose)
-                r = scene.check(g.pose, g.closed_joints, g.open_joints, rng)
-                if r.reachable:
-                    reached += 1
-                    manip = max(manip, r.grasp.manipulability)  # type: ignore[union-attr]
-            out.append(replace(g, reachability=reached / len(placements), manipulability=manip))
+    for g in grasps:
+        if g.candidate not in chosen:
+            out.append(g)
+            continue
+        rng = unit_rng(spec.seed, obj.name, hand.name, IK_STREAM, g.candidate)
+        reached, manip = 0, 0.0
+        for pose in placements:
+            scene.place_object(pose)
+            r = scene.check(g.pose, g.closed_joints, g.open_joints, rng)
+            if r.reachable:
+                reached += 1
+                manip = max(manip, r.grasp.manipulability)  # type: ignore[union-attr]
+        out.append(replace(g, reachability=reached / len(placements), manipulability=manip))
     return out
 
 
@@ -163,6 +256,4 @@ def grasp_quality(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, c
 
 def closed_width(hand: HandSpec, closed_joints: Mapping[str, float]) -> float | None:
     """[m] distance between the fingers of a self-centring parallel jaw, else None."""
-    if not hand.centering:
-        return None
-    return float(sum(closed_joints[j.name] for j in hand.joints if j.kind == "prismatic"))
+    return opening(hand, closed_joints) if hand.centering else None

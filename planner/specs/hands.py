@@ -16,7 +16,7 @@ centre point [m] that the approach ray passes through.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cache
+from functools import cache, cached_property
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +29,8 @@ from planner.specs.toml import Fields, read_toml
 from planner.specs.urdf import cut_subtree, descendants, link_names, load_model, movable_joints
 
 CONTACT_MODELS = ("frictionless", "point", "soft")
+#: Approach samplers (planner.plan.sampling): rays onto the surface, or antipodal pairs for parallel jaws.
+SAMPLERS = ("surface", "box", "antipodal")
 DEFAULT_FINGER_FORCE = 20.0  # [N or N m] per finger motor, when [dynamics] does not say
 DEFAULT_CLOSING_SPEED = 0.5  # [m/s or rad/s] of a driven joint, when [dynamics] does not say
 #: PyBullet inflates convex hull meshes, cylinders and triangle meshes by 1 mm
@@ -132,12 +134,18 @@ class HandSpec:
     export_frame: np.ndarray  # (4, 4) dataset gripper frame in the hand frame (ACRONYM convention)
     finger_force: float  # [N or N m] force limit of each finger motor in dynamic trials
     actuators: Actuators  # the finger motors: weight resistance, dynamic trials
+    sampler: str = "surface"  # the sweep's approach sampler unless the user picks one
 
     def joint(self, name: str) -> JointSpec:
-        for joint in self.joints:
-            if joint.name == name:
-                return joint
-        raise UnknownNameError("joint", name, [j.name for j in self.joints])
+        found = self._joint_map.get(name)
+        if found is None:
+            raise UnknownNameError("joint", name, [j.name for j in self.joints])
+        return found
+
+    @cached_property
+    def _joint_map(self) -> dict[str, JointSpec]:
+        """Joints by name (closing looks joints up in its inner loop)."""
+        return {j.name: j for j in self.joints}
 
     @property
     def driven(self) -> tuple[JointSpec, ...]:
@@ -198,6 +206,7 @@ def load_folder(folder: Path) -> HandSpec:
         links=tuple(links), arm=_arm(f, folder), export_frame=_export_frame(f),
         finger_force=f.table("dynamics", {}).float("finger_force", DEFAULT_FINGER_FORCE, positive=True),
         actuators=_actuators(f.table("dynamics", {})),
+        sampler=_sampler(f, joints),
     )
 
 
@@ -206,6 +215,22 @@ def _actuators(f: Fields) -> Actuators:
     effort = f.float("effort", f.float("finger_force", DEFAULT_FINGER_FORCE, positive=True), positive=True)
     return Actuators(effort, f.float("closing_speed", DEFAULT_CLOSING_SPEED, positive=True),
                      f.bool("backdrivable", True), f.data.get("source", "not given"))
+
+
+def _sampler(f: Fields, joints: tuple[JointSpec, ...]) -> str:
+    name = f.str("sampler", "surface")
+    if name not in SAMPLERS:
+        raise ConfigError(f"{f.where} field 'sampler': unknown sampler '{name}'; use {', '.join(SAMPLERS)}")
+    if name == "antipodal" and not parallel_jaw(f.bool("centering", False), joints):
+        raise ConfigError(f"{f.where} field 'sampler': the antipodal sampler needs a self-centring parallel jaw "
+                          "(centering = true, two prismatic fingers, one mimicking the other); use surface or box")
+    return name
+
+
+def parallel_jaw(centering: bool, joints: tuple[JointSpec, ...]) -> bool:
+    """A self-centring parallel jaw: two prismatic finger joints, one the other's mimic."""
+    prismatic = [j for j in joints if j.kind == "prismatic"]
+    return centering and len(prismatic) == 2 and sum(j.mimic is not None for j in prismatic) == 1
 
 
 def _symmetry(f: Fields) -> int:

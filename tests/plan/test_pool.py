@@ -16,7 +16,7 @@ from planner.plan.sweep import SweepSettings
 from planner.plan.unit import UnitResult, UnitSpec
 
 #: The reference batch's settings (tests/helpers.py REFERENCE_ARGS).
-SMALL = SweepSettings(approaches=8, rolls=2, preshapes=("wide",), chunk=4, reach_placements=1)
+SMALL = SweepSettings(approaches=8, rolls=2, preshapes=("wide",), chunk=4, reach_placements=1).resolved("antipodal")
 #: [s] how long a unit waits for the others before giving up (only reached if the pool misbehaves).
 WAIT_LIMIT = 60.0
 

@@ -64,20 +64,31 @@ def test_hand_through_the_table_is_rejected(scene) -> None:  # type: ignore[no-u
 
 
 def test_stored_reachability_agrees_with_a_recheck() -> None:
-    settings = SweepSettings(approaches=16, rolls=2, preshapes=("wide",), reach_placements=3)
+    settings = SweepSettings(approaches=16, rolls=2, preshapes=("wide",), reach_placements=3, reach_top=0)
     spec = UnitSpec("box", "panda", settings, seed=5)
     result = run_unit(spec)
     fc = [g for g in result.grasps if g.force_closure]
     assert fc and all(g.reachability is not None for g in fc)
-    again = add_reachability([g for g in fc[:4]], result.obj, load_hand("panda"), spec)  # type: ignore[arg-type]
+    resolved = settings.resolved("antipodal")
+    again = add_reachability([g for g in fc[:4]], result.obj, load_hand("panda"), spec, resolved)  # type: ignore[arg-type]
     assert [g.reachability for g in again] == [g.reachability for g in fc[:4]]
     assert any(g.reachability > 0 for g in fc)
 
 
+def test_reachability_goes_to_the_best_force_closure_grasps_of_a_unit() -> None:
+    top = 3
+    settings = SweepSettings(approaches=16, rolls=2, preshapes=("wide",), reach_placements=1, reach_top=top)
+    result = run_unit(UnitSpec("box", "panda", settings, seed=5))
+    fc = sorted((g for g in result.grasps if g.force_closure), key=lambda g: -g.epsilon)
+    assert len(fc) > top
+    assert all(g.reachability is not None for g in fc[:top])
+    assert all(g.reachability is None for g in result.grasps if g not in fc[:top])
+
+
 def test_cli_best_at_pose_returns_fk_consistent_joint_solutions(tmp_path: Path) -> None:
     db = tmp_path / "g.db"
-    api.generate(["box"], "panda", db_path=db, settings=SweepSettings(approaches=8, rolls=2, reach_placements=2),
-                 workers=1)
+    settings = SweepSettings(approaches=8, rolls=2, reach_placements=2, sampler="surface")
+    api.generate(["box"], "panda", db_path=db, settings=settings, workers=1)
     result = CliRunner().invoke(main, ["best", "box", "--hand", "panda", "--db", str(db), "--object-pose",
                                        "0.5,0,0.04,0,0,0,1", "--top", "2", "--json"])
     assert result.exit_code == 0, result.stderr

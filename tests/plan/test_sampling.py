@@ -1,10 +1,26 @@
-"""Approach rays: the surface and box samplers, the fan."""
+"""Approach sampling: the surface and box ray samplers, the fan, and the
+antipodal sampler (pairs antipodal within the opening, seeded, poses that put
+the fingers on the closing axis)."""
 
 import numpy as np
+import pytest
 import trimesh
-from helpers import assert_close
+from helpers import NUM_TOL, assert_close
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from planner.plan import sampling
+from planner.plan.sweep import SweepSettings, antipodal_candidates
+from planner.plan.tolerances import MIN_CHORD
+from planner.specs.hands import load_hand
+from planner.specs.preshapes import load_preshapes
+
+#: Points on a faceted sphere lie within this of the true sphere [m]
+#: (icosphere, 3 subdivisions, 3 cm radius: the facet sagitta is ~0.1 mm).
+FACET_TOL = 3e-4
+#: Friction coefficient of the cone test in these tests.
+MU = 0.5
+BOX = (0.05, 0.04, 0.08)
 
 
 def test_surface_rays_on_sphere_point_to_the_centre() -> None:
@@ -37,3 +53,94 @@ def test_fan_tilts_by_the_angle() -> None:
     assert len(fanned) == 25
     cos = np.einsum("ij,ij->i", fanned.directions[5:], np.tile(base.directions, (4, 1)))
     assert_close(cos, np.full(20, np.cos(0.3)), 1e-9)
+
+
+# -- antipodal ------------------------------------------------------------------
+def test_sphere_pairs_run_through_the_centre() -> None:
+    mesh = trimesh.creation.icosphere(subdivisions=3, radius=0.03)
+    pairs = sampling.antipodal(mesh, 40, np.random.default_rng(2), max_width=0.08, mu=MU)
+    assert pairs.reasons == ("",) * 40
+    assert_close(pairs.axes, -pairs.normals, NUM_TOL)  # along the inward normal of the sampled facet
+    assert_close(np.linalg.norm(pairs.opposite, axis=1), np.full(40, 0.03), FACET_TOL)  # on the sphere
+    assert_close(pairs.widths, np.full(40, 0.06), 3 * FACET_TOL)  # nearly a diameter
+
+
+def test_box_pairs_are_antipodal_within_the_opening() -> None:
+    """A box's chords run straight across along the face normal; those wider
+    than the opening are refused, the others are antipodal: both normals on
+    the axis, inside any friction cone."""
+    mesh = trimesh.creation.box(extents=BOX)
+    max_width = 0.045
+    pairs = sampling.antipodal(mesh, 200, np.random.default_rng(3), max_width=max_width, mu=MU)
+    across = np.abs(pairs.normals) @ np.array(BOX)  # the box's size along each point's normal
+    assert_close(pairs.widths, across, NUM_TOL * 1e3)
+    assert_close(pairs.axes, -pairs.normals, NUM_TOL)
+    usable = np.array([r == "" for r in pairs.reasons])
+    assert usable.any() and (~usable).any()
+    assert np.all(pairs.widths[usable] <= max_width)
+    assert {pairs.reasons[i] for i in np.flatnonzero(~usable)} == {"too_wide"}
+    assert np.all(pairs.widths[~usable] > max_width)
+
+
+def test_exit_normal_outside_the_friction_cone_is_refused() -> None:
+    """A prism on a 30-60-90 triangle: every chord across the triangle meets
+    one face at 30 or 60 degrees from its normal, outside the friction cone
+    of mu = 0.5 (26.6 degrees); chords between the two end caps are square."""
+    tri = np.array([[0.0, 0.0], [0.04, 0.0], [0.0, 0.04 * np.tan(np.pi / 3)]])
+    prism = trimesh.convex.convex_hull(np.vstack([np.c_[tri, np.zeros(3)], np.c_[tri, np.full(3, 0.03)]]))
+    pairs = sampling.antipodal(prism, 200, np.random.default_rng(0), max_width=0.1, mu=MU)
+    caps = np.abs(pairs.normals[:, 2]) > 0.99
+    assert caps.any() and (~caps).any()
+    assert {pairs.reasons[i] for i in np.flatnonzero(caps)} == {""}
+    wide_enough = pairs.widths >= MIN_CHORD
+    assert {pairs.reasons[i] for i in np.flatnonzero(~caps & wide_enough)} == {"cone"}
+
+
+def test_antipodal_pairs_are_seeded() -> None:
+    mesh = trimesh.creation.box(extents=BOX)
+    a = sampling.antipodal(mesh, 30, np.random.default_rng(5), max_width=0.07, mu=MU)
+    b = sampling.antipodal(mesh, 30, np.random.default_rng(5), max_width=0.07, mu=MU)
+    c = sampling.antipodal(mesh, 30, np.random.default_rng(6), max_width=0.07, mu=MU)
+    assert_close(a.points, b.points, 0.0) and a.reasons == b.reasons
+    assert_close(a.phases, b.phases, 0.0)
+    assert not np.allclose(a.points, c.points)
+
+
+unit = st.lists(st.floats(-1, 1), min_size=3, max_size=3).map(np.array).filter(lambda v: np.linalg.norm(v) > 0.1)
+
+
+@settings(max_examples=50, deadline=None)
+@given(axis=unit, centre=st.lists(st.floats(-0.1, 0.1), min_size=3, max_size=3), angle=st.floats(-7, 7),
+       depth=st.floats(0, 0.02))
+def test_antipodal_pose_puts_the_fingers_on_the_axis(axis, centre, angle, depth) -> None:  # type: ignore[no-untyped-def]
+    hand = load_hand("panda")
+    finger = np.array([0.0, 1.0, 0.0])  # the Panda's fingers close along its y axis
+    axis = axis / np.linalg.norm(axis)
+    pose = sampling.antipodal_poses(hand.approach, finger, hand.tcp, axis[None], np.array(centre)[None],
+                                    np.array([angle]), np.array([depth]))[0]
+    rot = pose[:3, :3]
+    assert_close(rot.T @ rot, np.eye(3), 1e-12)
+    assert np.linalg.det(rot) == pytest.approx(1.0)
+    assert_close(rot @ finger, axis, 1e-12)
+    approach = rot @ hand.approach
+    assert abs(approach @ axis) < 1e-12
+    assert_close(rot @ hand.tcp + pose[:3, 3], np.array(centre) + depth * approach, 1e-12)
+
+
+def test_antipodal_candidates_are_numbered_per_point_and_fit_the_preshape() -> None:
+    hand = load_hand("panda")
+    shapes = load_preshapes(hand)
+    openings = {"wide": 0.08, "half": 0.04}
+    mesh = trimesh.creation.box(extents=BOX)
+    pairs = sampling.antipodal(mesh, 12, np.random.default_rng(1), max_width=0.076, mu=MU)
+    settings_ = SweepSettings(sampler="antipodal", rolls=3, depths=(0.0, 0.01)).resolved("antipodal")
+    every = antipodal_candidates(pairs, shapes, openings, settings_, 0.002)
+    assert [c.index for c in every] == list(range(12 * 3 * 2))
+    assert [c.ray for c in every[:6]] == [0] * 6
+    for c in every:
+        width = pairs.widths[c.ray]
+        assert c.preshape.name == ("half" if width + 0.004 <= 0.04 else "wide")
+    angles = [c.roll - pairs.phases[0] for c in every[:6:2]]
+    assert_close(angles, [0.0, 2 * np.pi / 3, 4 * np.pi / 3], 1e-12)
+    part = antipodal_candidates(pairs, shapes, openings, settings_, 0.002, rays=range(4, 8))
+    assert [(c.index, c.roll, c.standoff) for c in part] == [(c.index, c.roll, c.standoff) for c in every[24:48]]

@@ -37,7 +37,7 @@ def test_unit_rng_depends_on_seed_object_hand_and_stream_only() -> None:
 
 
 def test_candidates_are_numbered_in_a_fixed_order_over_the_object(shapes) -> None:  # type: ignore[no-untyped-def]
-    settings = SweepSettings(rolls=3, standoffs=(0.0, 0.01))
+    settings = SweepSettings(rolls=3, standoffs=(0.0, 0.01), sampler="surface")
     every = candidates(rays(), shapes, settings)
     assert len(every) == RAYS * len(shapes) * 3 * 2
     assert [c.index for c in every] == list(range(len(every)))
@@ -49,7 +49,7 @@ def test_candidates_are_numbered_in_a_fixed_order_over_the_object(shapes) -> Non
 
 
 def test_chunks_partition_the_candidates_with_the_whole_object_numbers(shapes) -> None:  # type: ignore[no-untyped-def]
-    settings = SweepSettings(approaches=RAYS, rolls=2, chunk=3)
+    settings = SweepSettings(approaches=RAYS, rolls=2, chunk=3, sampler="surface")
     every = candidates(rays(), shapes, settings)
     assert settings.chunks() == 3
     parts = [candidates(rays(), shapes, settings, rays=settings.ray_range(k, RAYS)) for k in range(settings.chunks())]
@@ -66,7 +66,7 @@ def test_preshape_standoffs_unless_the_settings_override_them(shapes) -> None:  
 
 
 def test_rolls_cover_one_period_of_the_hand_symmetry() -> None:
-    settings = SweepSettings(rolls=4)
+    settings = SweepSettings(rolls=4, sampler="surface")
     assert np.allclose(settings.roll_angles(1), np.arange(4) * np.pi / 2)
     assert np.allclose(settings.roll_angles(2), np.arange(4) * np.pi / 4)
 

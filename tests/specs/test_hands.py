@@ -57,6 +57,11 @@ def test_panda_hand_is_the_hand_only() -> None:
     assert h.urdf.is_file() and "panda_link1" not in h.urdf.read_text()
 
 
+def test_parallel_jaws_default_to_the_antipodal_sampler_others_to_rays() -> None:
+    assert load_hand("panda").sampler == "antipodal"
+    assert {load_hand(name).sampler for name in ("barrett", "allegro", "pr2")} == {"surface"}
+
+
 def test_unknown_hand_lists_hands() -> None:
     with pytest.raises(UnknownNameError, match="Available hands: .*panda"):
         load_hand("shadow")
@@ -86,6 +91,8 @@ def broken_copy(tmp_path: Path, old: str, new: str) -> Path:
     ('effort = 70.0', 'effort = -70.0', "effort.*positive"),
     ('closing_speed = 0.05', 'closing_speed = -0.05', "closing_speed.*positive"),
     ("[[joints]]", "[[joints]", "malformed TOML"),
+    ('sampler = "antipodal"', 'sampler = "grid"', "sampler.*unknown sampler 'grid'"),
+    ("centering = true", "centering = false", "sampler.*antipodal sampler needs a self-centring parallel jaw"),
 ])
 def test_broken_hand_folder_names_file_and_field(tmp_path: Path, old: str, new: str, message: str) -> None:
     folder = broken_copy(tmp_path, old, new)
@@ -108,7 +115,7 @@ toml_values = st.one_of(st.integers(-5, 5), st.floats(allow_nan=True), st.text(m
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow,
                                                                  HealthCheck.function_scoped_fixture])
 @given(key=st.sampled_from(["approach", "tcp", "root_link", "contact_links", "centering", "roll_symmetry",
-                            "urdf", "distance_offset"]), value=toml_values, garbage=st.text(max_size=30))
+                            "urdf", "distance_offset", "sampler"]), value=toml_values, garbage=st.text(max_size=30))
 def test_fuzz_hand_toml_loads_or_refuses_cleanly(tmp_path_factory, key, value, garbage) -> None:  # type: ignore[no-untyped-def]
     import tomllib
 
