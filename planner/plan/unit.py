@@ -18,7 +18,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from planner import quality
-from planner.errors import PlannerError
+from planner.errors import DegenerateGraspError, PlannerError
 from planner.geometry.solid import PreparedObject, load_object
 from planner.grasp import Grasp
 from planner.plan import sampling
@@ -31,6 +31,9 @@ from planner.specs.hands import HandSpec, load_hand
 from planner.specs.preshapes import load_preshapes
 
 log = logging.getLogger(__name__)
+
+#: Rejection reason of a grasp whose quality :mod:`planner.quality` cannot compute.
+QUALITY_FAILED = "quality_failed"
 
 
 @dataclass(frozen=True)
@@ -111,8 +114,10 @@ def _run(spec: UnitSpec, result: UnitResult) -> None:
             if not isinstance(closed, Closed):
                 result.rejected[closed.reason] += 1
                 continue
-            q = grasp_quality(closed.contacts, hand, obj, spec.settings.cone_edges)
+            q = scored(closed.contacts, hand, obj, spec.settings.cone_edges, result.rejected)
             result.timing["quality"] += time.perf_counter() - tb
+            if q is None:
+                continue
             result.grasps.append(Grasp(
                 object=obj.name, hand=hand.name, preshape=cand.preshape.name, candidate=cand.index, seed=spec.seed,
                 approach_point=rays.points[cand.ray], approach_dir=rays.directions[cand.ray], roll=cand.roll,
@@ -159,6 +164,20 @@ def grasp_quality(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, c
     return quality.evaluate(contacts.points, contacts.frames, mu=obj.friction, center=obj.com,
                             torque_scale=obj.torque_scale, cone_edges=cone_edges, model=[m.model for m in models],
                             torsion=np.array([m.torsion for m in models], float))
+
+
+def scored(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, cone_edges: int, rejected: Counter
+           ) -> quality.Quality | None:
+    """:func:`grasp_quality`, or None with :data:`QUALITY_FAILED` counted in
+    ``rejected`` when :mod:`planner.quality` cannot analyse these contacts
+    (a ``HullError`` or another ``DegenerateGraspError``): one grasp is
+    rejected, not its whole unit."""
+    try:
+        return grasp_quality(contacts, hand, obj, cone_edges)
+    except DegenerateGraspError as exc:
+        rejected[QUALITY_FAILED] += 1
+        log.debug("%s/%s: grasp rejected, quality not computable: %s", obj.name, hand.name, exc)
+        return None
 
 
 def closed_width(hand: HandSpec, closed_joints: Mapping[str, float]) -> float | None:
