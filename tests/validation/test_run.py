@@ -9,7 +9,9 @@ from pathlib import Path
 import pytest
 
 from planner.errors import InputError
+from planner.validation import run
 from planner.validation.run import validate
+from tests import crash_units
 
 
 def test_validate_stores_trials_and_reranks(validated_db: Path) -> None:
@@ -33,3 +35,19 @@ def test_unknown_object_and_bad_top_are_refused_before_work(validated_db: Path, 
         validate(copy, objects=["teapot"])
     with pytest.raises(InputError, match="--top must be at least 1"):
         validate(copy, top=0)
+
+
+def test_a_task_that_kills_its_workers_is_reported_and_the_others_written(reference_db: Path, tmp_path: Path,
+                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """One PyBullet segfault costs its task (retried once, in a new worker),
+    not the validation."""
+    db = tmp_path / "v.db"
+    shutil.copy(reference_db, db)
+    monkeypatch.setattr(run, "run_task", crash_units.validate_segfaults_on_box)
+    summary = validate(db, top=2, robust_samples=0, workers=2)
+    assert list(summary.failed_tasks) == ["box/panda"]
+    assert "killed by SIGSEGV" in summary.failed_tasks["box/panda"] and "2 times" in summary.failed_tasks["box/panda"]
+    with sqlite3.connect(db) as conn:
+        trials = dict(conn.execute("SELECT g.object, COUNT(*) FROM validation v JOIN grasps g ON g.id = v.grasp_id"
+                                   " GROUP BY g.object").fetchall())
+    assert trials == {"sphere": summary.grasps} and summary.grasps > 0
