@@ -17,6 +17,7 @@ import os
 import time
 from collections import Counter
 from collections.abc import Callable, Sequence
+from contextlib import closing
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -33,12 +34,12 @@ from planner.errors import InputError, UnknownNameError
 from planner.geometry.frames import pose_from_xyzquat
 from planner.geometry.solid import PreparedObject, load_object
 from planner.grasp import Grasp
-from planner.plan.pool import execute
+from planner.plan import pool
 from planner.plan.reach import ReachScene, ReachSettings
 from planner.plan.sampling import SAMPLERS
 from planner.plan.sweep import SAMPLER_DEFAULTS, SweepSettings
 from planner.plan.tolerances import PREGRASP_DISTANCE
-from planner.plan.unit import UnitResult, UnitSpec
+from planner.plan.unit import UnitResult, UnitSpec, run_unit
 from planner.present import report as reporting
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, hand_names, load_hand
@@ -64,6 +65,10 @@ IMPORT_FORMATS = importer.FORMATS
 CANDIDATE_BATCH = 50
 #: ``best_at`` tries at most this many top-ranked grasps by default.
 MAX_CANDIDATES = 300
+#: [s] the pool stops a worker this long after ``--unit-timeout``: the unit
+#: checks its own time between candidates and ends cleanly; the pool's kill is
+#: for a simulator call that never returns.
+UNIT_TIMEOUT_GRACE = 10.0
 #: A typed quaternion whose norm lies outside this range is a mistake, not round-off.
 QUATERNION_NORM = (0.5, 2.0)
 #: Stored object names an "unknown object" error lists at most.
@@ -121,7 +126,11 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
              seed: int = 0, workers: int = 1, scale: float | None = None, rule: RankingRule | None = None,
              use_ray: bool = False, ray_address: str | None = None, unit_timeout: float | None = None,
              progress: Callable[[UnitResult | None, int, int], None] | None = None) -> Summary:
-    """Build (or extend) a grasp database; finished units are skipped.
+    """Build (or extend) a grasp database; finished units are skipped, so a
+    run that was killed resumes when called again. Units run in this process
+    (``workers`` 1), in a crash-safe pool of ``workers`` processes, or on Ray
+    (:func:`planner.plan.pool.execute`); a unit whose worker dies twice, or
+    that fails, is stored as failed with its error and the batch goes on.
     ``progress(None, 0, total)`` first, then ``progress(result, done, total)``."""
     settings = (settings or SweepSettings()).resolved(load_hand(hand).sampler)
     units = plan_units(names, hand, settings, seed, scale)
@@ -137,11 +146,15 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
             progress(None, 0, len(todo))
         if unit_timeout:
             todo = [replace(u, timeout=unit_timeout) for u in todo]
-        for done_count, (result, seconds) in enumerate(execute(todo, workers, ray_address, use_ray), start=1):
-            db.write_unit(unit_row(result, seconds), result.obj, result.grasps, rule)
-            _tally(summary, result, seconds)
-            if progress:
-                progress(result, done_count, len(todo))
+        hard_timeout = unit_timeout + UNIT_TIMEOUT_GRACE if unit_timeout else None
+        ray = (ray_address or "local") if use_ray else None
+        with closing(pool.execute(run_unit, todo, workers, timeout=hard_timeout, ray=ray)) as outcomes:
+            for done_count, (unit, outcome, seconds) in enumerate(outcomes, start=1):
+                result = outcome if isinstance(outcome, UnitResult) else UnitResult(unit, error=str(outcome))
+                db.write_unit(unit_row(result, seconds), result.obj, result.grasps, rule)
+                _tally(summary, result, seconds)
+                if progress:
+                    progress(result, done_count, len(todo))
     summary.seconds = time.perf_counter() - start
     return summary
 
@@ -253,7 +266,7 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
     spec = load_hand(hand)
     rng = np.random.default_rng(seed)
     found: list[ReachableGrasp] = []
-    with open_db(Path(db_path), create=False, readonly=True) as db, Sim() as sim:
+    with open_db(Path(db_path), create=False, readonly=True) as db, db.snapshot(), Sim() as sim:
         key, obj = _stored(db, name, hand)
         scene = ReachScene(sim, spec, obj, ReachSettings(pregrasp_distance=pregrasp_distance), base)
         scene.place_object(obj_pose)

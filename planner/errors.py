@@ -16,6 +16,12 @@ class PlannerError(Exception):
 
     exit_code = 1
 
+    def __str__(self) -> str:
+        """The message on one line: control characters of quoted user input
+        (a line break in a TOML string) are shown escaped."""
+        text = super().__str__()
+        return text if text.isprintable() else "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
 
 class InputError(PlannerError):
     """Bad user input: a missing or broken file, an unknown name, bad values."""

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import shutil
 import sqlite3
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -47,12 +46,6 @@ def one_line_error(code: int, err: str, expected_code: int, *needles: str) -> No
     assert len(lines) == 1 and "Traceback" not in err, err
     for needle in needles:
         assert needle in err, err
-
-
-def reference_command(db: Path) -> list[str]:
-    """The reference batch as a ``python -m planner.cli`` command line (to kill it)."""
-    return [sys.executable, "-m", "planner.cli", "generate", *REFERENCE_OBJECTS, "--hand", "panda", "--db", str(db),
-            *REFERENCE_ARGS]
 
 
 def content(db: Path) -> list[tuple]:

@@ -1,18 +1,13 @@
-"""The Python API: building, resuming after a kill, failures recorded, queries."""
+"""The Python API: building, failures recorded, queries (resuming after a
+kill: tests/test_reliability.py)."""
 
 from __future__ import annotations
 
-import os
-import random
-import signal
 import sqlite3
-import subprocess
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import content, reference_command
 
 from planner import api
 from planner.db.store import open_db
@@ -37,41 +32,6 @@ def test_failing_object_is_recorded_and_the_batch_goes_on(tmp_path: Path) -> Non
     # a rerun retries only the failed units
     again = api.generate([str(bad), "box"], "panda", db_path=db, settings=SMALL, seed=11, workers=1)
     assert again.skipped == SMALL.chunks() and again.units == SMALL.chunks()
-
-
-@pytest.mark.parametrize("kill_after_units", [1, 3])
-def test_sigkill_mid_run_then_resume_ends_identical(reference_db: Path, tmp_path: Path, kill_after_units: int) -> None:
-    db = tmp_path / "killed.db"
-    proc = subprocess.Popen(reference_command(db), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.time() + 120
-    while time.time() < deadline and proc.poll() is None:
-        try:
-            with sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=1) as conn:
-                if conn.execute("SELECT COUNT(*) FROM units").fetchone()[0] >= kill_after_units:
-                    break
-        except sqlite3.Error:
-            pass
-        time.sleep(0.05)
-    os.kill(proc.pid, signal.SIGKILL)
-    proc.wait()
-    assert api.check_db(db) == []
-    subprocess.run(reference_command(db), check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    assert content(db) == content(reference_db)
-
-
-def test_kill_9_at_random_moments_then_resume(reference_db: Path, tmp_path: Path) -> None:
-    rng = random.Random(1234)
-    db = tmp_path / "k.db"
-    for _ in range(3):
-        proc = subprocess.Popen(reference_command(db), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        time.sleep(rng.uniform(1.0, 6.0))
-        os.kill(proc.pid, signal.SIGKILL)
-        proc.wait()
-        if db.exists():
-            with open_db(db, create=False, readonly=True) as handle:
-                assert handle.integrity_check() == []
-    subprocess.run(reference_command(db), check=True, stdout=subprocess.DEVNULL)
-    assert content(db) == content(reference_db)
 
 
 def test_best_on_missing_db_is_a_clear_error(tmp_path: Path) -> None:

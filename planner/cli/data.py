@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from planner import api
-from planner.cli.app import db_option
+from planner.cli.app import db_option, report_failures
 
 
 @click.command(name="export")
@@ -51,9 +51,11 @@ def export(db_path: Path, fmt: str, out_dir: Path, objects: tuple[str, ...], han
 @click.option("--object", "object_name", metavar="NAME",
               help="Built-in object name or mesh path (default: the file's object/name or object/file).")
 @click.option("--rescore", is_flag=True, help="Re-close and re-score every pose even if the file has qualities.")
+@click.option("--workers", type=int, default=api.default_workers(), show_default="all cores",
+              help="Worker processes for re-scoring.")
 @click.option("--json", "as_json", is_flag=True, help="Print a machine-readable summary.")
 def import_files(paths: tuple[Path, ...], fmt: str, db_path: Path, hand: str | None, object_name: str | None,
-               rescore: bool, as_json: bool) -> None:
+                 rescore: bool, workers: int, as_json: bool) -> None:
     """Import grasp files into the database (one unit per file; a file
     imported before is skipped). Files without this project's qualities are
     re-scored by closing the hand at each pose."""
@@ -64,12 +66,15 @@ def import_files(paths: tuple[Path, ...], fmt: str, db_path: Path, hand: str | N
         if r.skipped:
             click.echo(f"{r.path}: already imported as {r.object}/{r.hand}; skipped")
             return
+        if r.error:
+            return  # one error line each at the end
         how = "re-scored" if r.rescored else "imported"
         dropped = f"; dropped: {', '.join(f'{k} {v}' for k, v in sorted(r.rejected.items()))}" if r.rejected else ""
         click.echo(f"{r.path}: {how} {r.grasps} grasps ({r.force_closure} force-closure) as {r.object}/{r.hand}"
                    f"{dropped}")
 
     results = api.import_files(paths, db_path, fmt=fmt, hand=hand, object_name=object_name, rescore=rescore,
-                               progress=progress)
+                               workers=workers, progress=progress)
     if as_json:
         click.echo(json.dumps([r.to_json() for r in results], indent=2))
+    report_failures({str(r.path): r.error for r in results if r.error})

@@ -29,7 +29,12 @@ row index in the file. Reading the file is :mod:`planner.datasets.acronym`'s.
   :func:`planner.plan.unit.grasp_quality`; poses where the hand does not
   close on the object are counted by reason and dropped. The stored pose is
   the closed hand's (after back-off and centring). Reachability is not
-  computed (None).
+  computed (None). Re-scoring runs in the crash-safe worker pool
+  (:mod:`planner.plan.pool`, ``workers`` processes) in units of
+  :data:`RESCORE_CHUNK` poses; a file is written once all its poses are
+  back, its grasps in file order. A file whose re-scoring fails (a worker
+  died twice) is stored as a failed unit with its error, and the next import
+  of it tries again.
 """
 
 from __future__ import annotations
@@ -39,7 +44,8 @@ import json
 import time
 from collections import Counter
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from contextlib import closing
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -53,8 +59,9 @@ from planner.errors import InputError, UnknownNameError
 from planner.geometry.frames import roll_about
 from planner.geometry.solid import PreparedObject, prepare
 from planner.grasp import Grasp
+from planner.plan import pool
 from planner.plan.closing import Closed, Grasper
-from planner.plan.unit import closed_width, grasp_quality
+from planner.plan.unit import closed_width, scored
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, hand_names, load_hand
 from planner.specs.objects import ObjectSpec, is_registered, resolve_spec
@@ -65,6 +72,9 @@ HAND_ALIASES = {"panda": "panda", "franka_panda": "panda"}
 CONE_EDGES = 8
 #: [m] how far a re-scored hand may back off when it starts in collision.
 MAX_BACK_OFF = 0.02
+#: Poses per re-scoring unit of work: a few seconds of closing each, so two
+#: workers share even a single file.
+RESCORE_CHUNK = 50
 #: Bumped when an import of the same file would store different grasps.
 IMPORT_VERSION = 1
 
@@ -99,6 +109,7 @@ class ImportResult:
     rescored: bool
     skipped: bool  # already imported: nothing written
     rejected: dict[str, int]
+    error: str | None = None  # re-scoring failed: stored as a failed unit, retried by the next import
 
     def to_json(self) -> dict:
         return {**self.__dict__, "path": str(self.path)}
@@ -114,44 +125,122 @@ class _Plan:
 
 
 def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", hand: str | None = None,
-                 object_name: str | None = None, rescore: bool = False,
+                 object_name: str | None = None, rescore: bool = False, workers: int = 1,
                  progress: Callable[[ImportResult], None] | None = None) -> list[ImportResult]:
     """Import grasp files into ``db_path`` (created if missing). Every file is
-    checked before anything is written."""
+    checked before anything is written. Re-scoring runs in ``workers``
+    processes; ``progress`` gets each file as it is written, the list
+    returned is in the order of ``paths``."""
     if fmt not in FORMATS:
         raise UnknownNameError("import format", fmt, FORMATS)
     plans = [_plan(Path(p), hand, object_name, rescore) for p in paths]
-    results = []
+    results: dict[int, ImportResult] = {}
+
+    def finish(index: int, result: ImportResult) -> None:
+        results[index] = result
+        if progress:
+            progress(result)
+
     with writer_lock(Path(db_path)), open_db(Path(db_path)) as db:
         rule = db.rule()
         db.apply_rule(rule)
-        for plan in plans:
+        rescoring: dict[int, _Rescoring] = {}
+        for i, plan in enumerate(plans):
             if (plan.spec.name, 0) in db.units_done(plan.hand.name, plan.settings.digest, 0):
-                result = ImportResult(plan.path, plan.spec.name, plan.hand.name, 0, 0, not plan.lossless, True, {})
+                finish(i, ImportResult(plan.path, plan.spec.name, plan.hand.name, 0, 0, not plan.lossless, True, {}))
+            elif plan.lossless:
+                finish(i, _import_lossless(db, plan, rule))
             else:
-                result = _import(db, plan, rule)
-            results.append(result)
-            if progress:
-                progress(result)
-    return results
+                rescoring[i] = _Rescoring(plan, time.perf_counter(), acronym.read_poses(plan.path, plan.hand))
+        units = [unit for i, r in rescoring.items() for unit in r.units(i)]
+        for i, r in rescoring.items():
+            if r.complete:  # a file without poses
+                finish(i, r.write(db, rule))
+        with closing(pool.execute(rescore_poses, units, workers)) as outcomes:
+            for unit, outcome, _ in outcomes:
+                r = rescoring[unit.file]
+                r.add(unit, outcome)
+                if r.complete:
+                    finish(unit.file, r.write(db, rule))
+    return [results[i] for i in range(len(plans))]
 
 
-def _import(db: Database, plan: _Plan, rule: RankingRule) -> ImportResult:
+@dataclass(frozen=True)
+class RescoreUnit:
+    """A slice of one file's poses for a worker: ``poses`` (n, 4, 4) hand
+    poses in the object frame [m], rows ``first .. first + n - 1`` of file
+    number ``file`` of the import."""
+
+    file: int
+    first: int
+    poses: np.ndarray
+    hand: HandSpec
+    spec: ObjectSpec
+
+
+@dataclass
+class Rescored:
+    grasps: list[Grasp]
+    rejected: Counter
+
+
+def rescore_poses(unit: RescoreUnit) -> Rescored:
+    """Close the hand at each pose of ``unit`` and score it (runs in workers)."""
+    rejected: Counter = Counter()
+    grasps = _rescore(unit.poses, unit.hand, prepare(unit.spec), rejected, unit.first)
+    return Rescored(grasps, rejected)
+
+
+@dataclass
+class _Rescoring:
+    """One file being re-scored: its slices come back in any order."""
+
+    plan: _Plan
+    start: float  # perf_counter() when the file was read
+    poses: np.ndarray
+    parts: dict[int, Rescored] = field(default_factory=dict)
+    pending: int = 0
+    error: str | None = None
+
+    def units(self, index: int) -> list[RescoreUnit]:
+        firsts = range(0, len(self.poses), RESCORE_CHUNK)
+        self.pending = len(firsts)
+        return [RescoreUnit(index, i, self.poses[i:i + RESCORE_CHUNK], self.plan.hand, self.plan.spec) for i in firsts]
+
+    @property
+    def complete(self) -> bool:
+        return self.pending == 0
+
+    def add(self, unit: RescoreUnit, outcome: Rescored | pool.Failure) -> None:
+        self.pending -= 1
+        if isinstance(outcome, Rescored):
+            self.parts[unit.first] = outcome
+        else:
+            self.error = self.error or f"poses {unit.first}-{unit.first + len(unit.poses) - 1}: {outcome}"
+
+    def write(self, db: Database, rule: RankingRule) -> ImportResult:
+        plan = self.plan
+        obj = prepare(plan.spec)
+        grasps = [g for first in sorted(self.parts) for g in self.parts[first].grasps] if not self.error else []
+        rejected: Counter = sum((p.rejected for p in self.parts.values()), Counter()) if not self.error else Counter()
+        unit = UnitRow(obj.name, plan.hand.name, plan.settings.digest, plan.settings.to_json(), 0, 0, self.error,
+                       len(self.poses), dict(rejected), time.perf_counter() - self.start)
+        db.write_unit(unit, obj, grasps, rule)
+        return ImportResult(plan.path, obj.name, plan.hand.name, len(grasps), sum(g.force_closure for g in grasps),
+                            True, False, dict(rejected), self.error)
+
+
+def _import_lossless(db: Database, plan: _Plan, rule: RankingRule) -> ImportResult:
     start = time.perf_counter()
     obj = prepare(plan.spec)
     poses = acronym.read_poses(plan.path, plan.hand)
-    rejected: Counter = Counter()
-    if plan.lossless:
-        grasps = acronym.read_grasps(plan.path, plan.hand, obj.name, poses)
-    else:
-        grasps = _rescore(poses, plan.hand, obj, rejected)
+    grasps = acronym.read_grasps(plan.path, plan.hand, obj.name, poses)
     unit = UnitRow(obj.name, plan.hand.name, plan.settings.digest, plan.settings.to_json(), 0, 0,
-                   candidates=len(poses), rejected=dict(rejected), seconds=time.perf_counter() - start)
+                   candidates=len(poses), seconds=time.perf_counter() - start)
     unit_id = db.write_unit(unit, obj, grasps, rule)
-    if plan.lossless:
-        _restore_simulation(db, plan, unit_id, obj.name, rule)
+    _restore_simulation(db, plan, unit_id, obj.name, rule)
     return ImportResult(plan.path, obj.name, plan.hand.name, len(grasps), sum(g.force_closure for g in grasps),
-                        not plan.lossless, False, dict(rejected))
+                        False, False, {})
 
 
 def _restore_simulation(db: Database, plan: _Plan, unit_id: int, obj: str, rule: RankingRule) -> None:
@@ -209,17 +298,22 @@ def _object_spec(h: AcronymHeader, object_name: str | None) -> ObjectSpec:
     return resolve_spec(str(found), scale=h.scale, label=label, **props)
 
 
-def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: Counter) -> list[Grasp]:
+def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: Counter, first: int = 0
+             ) -> list[Grasp]:
+    """Grasps of the poses where the hand closes on the object; candidate =
+    ``first`` + the pose's row in ``poses``."""
     shape = widest_preshape(hand)
     out = []
     with Sim() as sim:
         grasper = Grasper(sim, hand, sim.add_static_mesh(obj.mesh.vertices, obj.mesh.faces))
-        for i, pose in enumerate(poses):
+        for i, pose in enumerate(poses, start=first):
             closed = grasper.close_at(pose, shape, MAX_BACK_OFF)
             if not isinstance(closed, Closed):
                 rejected[closed.reason] += 1
                 continue
-            q = grasp_quality(closed.contacts, hand, obj, CONE_EDGES)
+            q = scored(closed.contacts, hand, obj, CONE_EDGES, rejected)
+            if q is None:
+                continue
             p = closed.pose
             direction = p[:3, :3] @ hand.approach
             out.append(Grasp(

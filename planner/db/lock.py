@@ -1,36 +1,172 @@
-"""The writer lock: one process writes a database at a time.
+"""The writer lock: one process writes a database at a time,
+``with writer_lock(db_path) as previous:``.
 
 SQLite itself serialises transactions; this lock makes a second ``grasp
 generate`` (or ``validate``, ``import``) on the same file refuse at once with
 a clear message instead of interleaving its units with the first one's.
+
+The lock is a BSD lock (``flock``) on ``<db>.lock``, held through one
+descriptor that no other process keeps:
+
+- the kernel drops it when the last descriptor of its open file closes,
+  which happens when the owner dies, however it dies -- provided no other
+  process holds a copy. Issue 13: ``ProcessPoolExecutor`` forked its workers
+  and they inherited the descriptor, so they kept the lock after the driver
+  was killed. Here the descriptor is close-on-exec (spawned workers, Ray,
+  subprocesses never get it) and is closed in the child of every
+  ``os.fork`` (multiprocessing's fork included) by an at-fork hook.
+- ``flock`` belongs to the open file, so another open and close of the lock
+  file by the same process (a backup, a test reading it) does not drop it.
+  POSIX ``lockf`` locks would survive forks without the hook, but any
+  close of any descriptor of the file in the owner silently drops them.
+
+The owner writes one JSON line into the file (pid, process start, host,
+command, since when); a busy lock is refused naming that owner, and a lock
+taken while the file still names an owner (who died without releasing it)
+is taken over with a warning that says whose it was.
 """
 
 from __future__ import annotations
 
+import errno
 import fcntl
+import json
+import logging
+import os
+import socket
+import sys
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from planner.errors import DatabaseError
+from planner.plan import procs
+
+log = logging.getLogger(__name__)
+
+
+
+class LockBusy(DatabaseError):
+    """Another live process is writing to the database."""
+
+
+#: Descriptors of the locks this process holds.
+_held: set[int] = set()
+
+
+def _close_in_child() -> None:
+    """After a fork: the child closes its copies (closing, not unlocking, which
+    would release the parent's lock), so it never keeps the lock alive."""
+    for fd in _held:
+        try:
+            os.close(fd)
+        except OSError:
+            pass
+    _held.clear()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_close_in_child)
+
+
+@dataclass(frozen=True)
+class Owner:
+    """Who holds (or held) a lock, as recorded in the lock file."""
+
+    pid: int
+    start: int | None  # process start, clock ticks since boot (Linux), for pid reuse
+    host: str
+    command: str
+    since: float  # time.time() when the lock was taken
+
+    def describe(self) -> str:
+        when = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(self.since))
+        where = "" if self.host == socket.gethostname() else f" on {self.host}"
+        return f"pid {self.pid}{where}, `{self.command}`, since {when}"
+
+    @staticmethod
+    def me() -> Owner:
+        return Owner(os.getpid(), procs.start_ticks(os.getpid()), socket.gethostname(), _command(), time.time())
+
+    @staticmethod
+    def parse(text: str) -> Owner | None:
+        try:
+            d = json.loads(text)
+            return Owner(int(d["pid"]), d.get("start"), str(d["host"]), str(d["command"]), float(d["since"]))
+        except (ValueError, KeyError, TypeError):
+            return None
+
+    def alive(self) -> bool:
+        """False only if it certainly is not running (another host: unknown)."""
+        return self.host != socket.gethostname() or procs.alive(self.pid, self.start)
+
+
+def _command() -> str:
+    """This process's command, short: ``grasp generate box`` (argv 0..2)."""
+    if not sys.argv or not sys.argv[0]:
+        return "python"
+    program = Path(sys.argv[0]).name
+    if program == "__main__.py":  # python -m package
+        spec = getattr(sys.modules.get("__main__"), "__spec__", None)
+        program = f"python -m {spec.name.removesuffix('.__main__')}" if spec else "python"
+    return " ".join([program, *sys.argv[1:3]])
 
 
 @contextmanager
-def writer_lock(db_path: Path) -> Iterator[None]:
-    """One ``generate`` per database at a time: a second one refuses clearly."""
+def writer_lock(db_path: Path) -> Iterator[Owner | None]:
+    """Hold the database's writer lock; yields the previous owner if its
+    lock was taken over (it died while writing), else None. Raises
+    :class:`LockBusy` if a live process holds it."""
+    db_path = Path(db_path)
     lock_path = db_path.with_name(db_path.name + ".lock")
     try:
-        fh = open(lock_path, "a+")
+        fd = os.open(lock_path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
     except OSError as exc:
-        raise DatabaseError(f"{db_path}: cannot create lock file {lock_path}: {exc}") from exc
+        raise DatabaseError(f"{db_path}: cannot create the lock file {lock_path}: {exc.strerror}") from None
     try:
-        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        fh.close()
-        raise DatabaseError(f"{db_path}: another `grasp generate` is writing to this database; "
-                            "wait for it to finish or use another --db") from None
-    try:
-        yield
+        _lock(fd, db_path)
+        _held.add(fd)
+        previous = _read(fd)
+        if previous is not None:
+            log.warning("%s: taking over the writer lock of %s, which ended without releasing it; "
+                        "its unfinished work is done again", db_path, previous.describe())
+        _write(fd, json.dumps(asdict(Owner.me())))
+        try:
+            yield previous
+        finally:
+            _write(fd, "")  # released cleanly: nothing to take over
+            _held.discard(fd)
+            fcntl.flock(fd, fcntl.LOCK_UN)
     finally:
-        fcntl.flock(fh, fcntl.LOCK_UN)
-        fh.close()
+        os.close(fd)
+
+
+def _lock(fd: int, db_path: Path) -> None:
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as exc:
+        if exc.errno not in (errno.EAGAIN, errno.EACCES):
+            raise DatabaseError(f"{db_path}: cannot lock {db_path.name}.lock: {exc.strerror}") from None
+        owner = _read(fd)
+        if owner is not None and owner.pid == os.getpid():
+            raise LockBusy(f"{db_path}: this process is already writing to this database") from None
+        if owner is None:
+            who = "a process that has not recorded its pid yet"
+        elif owner.alive():
+            who = owner.describe()
+        else:  # a descriptor copied by a C-level fork() in the owner (see the module docstring)
+            who = f"a process left behind by {owner.describe()}, which has ended"
+        raise LockBusy(f"{db_path}: another process ({who}) is writing to this database; "
+                       "wait for it to finish or use another --db") from None
+
+
+def _read(fd: int) -> Owner | None:
+    text = os.pread(fd, 4096, 0).decode(errors="replace").strip()
+    return Owner.parse(text) if text else None
+
+
+def _write(fd: int, text: str) -> None:
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, text.encode(), 0)

@@ -14,7 +14,7 @@ import math
 import sqlite3
 import time
 from collections.abc import Iterable, Iterator, Sequence
-from contextlib import AbstractContextManager
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -102,6 +102,24 @@ def _vectors(texts: Sequence[str], shape: tuple[int, ...]) -> np.ndarray:
     return flat.reshape(len(texts), *shape)
 
 
+def write_failed(path: Path, exc: sqlite3.Error, kept: int | None) -> str:
+    """The one line for a write SQLite refused: why, what is kept, what to do.
+    SQLite rolls the failed transaction back, so every commit before it stays."""
+    name, text = getattr(exc, "sqlite_errorname", ""), str(exc)  # the name: Python >= 3.11
+    if name.startswith("SQLITE_READONLY") or "readonly" in text:
+        cause, fix = "the database is read-only", "make it writable"
+    elif name == "SQLITE_FULL" or name.startswith("SQLITE_IOERR") or "disk" in text:
+        # a full disk is SQLITE_FULL; a file-size limit (EFBIG) is SQLITE_IOERR_WRITE
+        cause, fix = "the disk is full or the file may not grow", "free disk space"
+    elif name.startswith(("SQLITE_BUSY", "SQLITE_LOCKED")) or "locked" in text:
+        cause, fix = "another connection holds the write lock", "stop the other writer"
+    else:
+        cause, fix = "the write failed", "check it with `grasp db check`"
+    units = "" if kept is None else f" ({kept} finished units)"
+    return (f"{path}: cannot write: {cause} ({text}); this write was not stored and everything committed before "
+            f"is kept{units}; {fix} and run the same command again to resume")
+
+
 @dataclass(frozen=True)
 class ObjectRow:
     """An ``objects`` row: the stored object's file and physical properties.
@@ -167,8 +185,24 @@ class Database:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def _transaction(self) -> AbstractContextManager[sqlite3.Connection]:
-        return transaction(self._conn, self.path)
+    @contextmanager
+    def _transaction(self) -> Iterator[sqlite3.Connection]:
+        """One atomic write (:func:`planner.db.schema.transaction`); a write
+        that fails says in one line why, and that what was committed before
+        it is kept."""
+        try:
+            with transaction(self._conn, self.path) as conn:
+                yield conn
+        except DatabaseError as exc:
+            if not isinstance(exc.__cause__, sqlite3.Error):
+                raise
+            raise DatabaseError(write_failed(self.path, exc.__cause__, self._units_kept())) from exc.__cause__
+
+    def _units_kept(self) -> int | None:
+        try:
+            return int(self._conn.execute("SELECT COUNT(*) FROM units WHERE status = 'done'").fetchone()[0])
+        except sqlite3.Error:
+            return None
 
     # -- meta ---------------------------------------------------------------
     def meta(self, key: str) -> str | None:
@@ -276,6 +310,20 @@ class Database:
             self._rescore(conn, rule, (obj, hand))
 
     # -- reading ----------------------------------------------------------------
+    @contextmanager
+    def snapshot(self) -> Iterator[None]:
+        """Reads inside see one committed state however many statements they
+        take (one read transaction; in WAL mode the writer goes on meanwhile),
+        so rank batches read while ``generate`` commits neither skip nor repeat."""
+        if self._conn.in_transaction:
+            yield
+            return
+        self._conn.execute("BEGIN")
+        try:
+            yield
+        finally:
+            self._conn.execute("COMMIT")
+
     def pairs(self) -> list[tuple[str, str]]:
         """Every (object, hand) with grasps, sorted."""
         rows = self._conn.execute("SELECT DISTINCT object, hand FROM grasps ORDER BY object, hand")

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from planner import quality
-from planner.errors import PlannerError
+from planner.errors import DegenerateGraspError, PlannerError
 from planner.geometry.frames import roll_about
 from planner.geometry.solid import PreparedObject, load_object
 from planner.grasp import Grasp
@@ -41,6 +41,9 @@ from planner.specs.hands import HandSpec, load_hand
 from planner.specs.preshapes import Preshape, load_preshapes
 
 log = logging.getLogger(__name__)
+
+#: Rejection reason of a grasp whose quality :mod:`planner.quality` cannot compute.
+QUALITY_FAILED = "quality_failed"
 
 
 @dataclass(frozen=True)
@@ -105,8 +108,10 @@ def _run(spec: UnitSpec, result: UnitResult) -> None:
         sweep = _antipodal if settings.sampler == "antipodal" else _rays
         for cand, closed, ray in sweep(spec, settings, obj, hand, shapes, rng, grasper, result, t0):
             tb = time.perf_counter()
-            q = grasp_quality(closed.contacts, hand, obj, settings.cone_edges)
+            q = scored(closed.contacts, hand, obj, settings.cone_edges, result.rejected)
             result.timing["quality"] += time.perf_counter() - tb
+            if q is None:
+                continue
             point, direction, roll, standoff = ray
             result.grasps.append(Grasp(
                 object=obj.name, hand=hand.name, preshape=cand.preshape.name, candidate=cand.index, seed=spec.seed,
@@ -252,6 +257,20 @@ def grasp_quality(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, c
     return quality.evaluate(contacts.points, contacts.frames, mu=obj.friction, center=obj.com,
                             torque_scale=obj.torque_scale, cone_edges=cone_edges, model=[m.model for m in models],
                             torsion=np.array([m.torsion(obj.friction) for m in models], float))
+
+
+def scored(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, cone_edges: int, rejected: Counter
+           ) -> quality.Quality | None:
+    """:func:`grasp_quality`, or None with :data:`QUALITY_FAILED` counted in
+    ``rejected`` when :mod:`planner.quality` cannot analyse these contacts
+    (a ``HullError`` or another ``DegenerateGraspError``): one grasp is
+    rejected, not its whole unit."""
+    try:
+        return grasp_quality(contacts, hand, obj, cone_edges)
+    except DegenerateGraspError as exc:
+        rejected[QUALITY_FAILED] += 1
+        log.debug("%s/%s: grasp rejected, quality not computable: %s", obj.name, hand.name, exc)
+        return None
 
 
 def closed_width(hand: HandSpec, closed_joints: Mapping[str, float]) -> float | None:

@@ -1,14 +1,16 @@
 """``grasp validate``: shake-test and robust-epsilon stored grasps (each
-object's best, a seeded uniform sample, or all), in worker processes, with
-one writer."""
+object's best, a seeded uniform sample, or all), in the crash-safe worker
+pool (:mod:`planner.plan.pool`), with one writer. A task whose worker dies
+twice (a simulator segfault) or that fails is reported with its error; the
+other tasks are written."""
 
 from __future__ import annotations
 
 import json
 import logging
 import zlib
-from collections.abc import Callable, Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from collections.abc import Callable
+from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -20,6 +22,7 @@ from planner.db.store import Database, Validated, open_db
 from planner.errors import InputError, PlannerError
 from planner.geometry.solid import PreparedObject, load_object
 from planner.grasp import Grasp, RobustEpsilon, Trial
+from planner.plan import pool
 from planner.specs.hands import load_hand
 from planner.specs.objects import is_registered
 from planner.validation.robust import NoiseSettings, robust_epsilon
@@ -116,16 +119,6 @@ def plan(db: Database, objects: list[str] | None, hands: list[str] | None, selec
     return tasks
 
 
-def execute(tasks: list[Task], workers: int) -> Iterator[TaskResult]:
-    if workers <= 1 or len(tasks) <= 1:
-        for task in tasks:
-            yield run_task(task)
-        return
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        for fut in as_completed([pool.submit(run_task, t) for t in tasks]):
-            yield fut.result()
-
-
 def write(db: Database, result: TaskResult, rule: RankingRule) -> None:
     task = result.task
     noise = task.noise.to_json() if task.noise is not None else ""
@@ -166,15 +159,17 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
         tasks = plan(db, objects, hands, Selection(top, sample, every), seed, trial_settings, noise)
         if progress:
             progress(0, len(tasks))
-        for done, result in enumerate(execute(tasks, workers), start=1):
-            if result.error:
-                summary.failed_tasks[f"{result.task.object}/{result.task.hand}"] = result.error
-            else:
-                write(db, result, rule)
-                summary.grasps += len(result.trials)
-                summary.successes += sum(t.success for t in result.trials)
-            if progress:
-                progress(done, len(tasks))
+        with closing(pool.execute(run_task, tasks, workers)) as outcomes:
+            for done, (task, outcome, _) in enumerate(outcomes, start=1):
+                result = outcome if isinstance(outcome, TaskResult) else TaskResult(task, error=str(outcome))
+                if result.error:
+                    summary.failed_tasks[f"{task.object}/{task.hand}"] = result.error
+                else:
+                    write(db, result, rule)
+                    summary.grasps += len(result.trials)
+                    summary.successes += sum(t.success for t in result.trials)
+                if progress:
+                    progress(done, len(tasks))
         db.set_meta("validation_settings", json.dumps(
             {"trial": json.loads(trial_settings.to_json()), "noise": json.loads(noise.to_json()) if noise else None,
              "seed": seed}))

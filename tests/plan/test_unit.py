@@ -6,11 +6,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from planner import quality
 from planner.geometry.solid import load_object
 from planner.grasp import Grasp
+from planner.plan import unit
 from planner.plan.contacts import HandContacts
 from planner.plan.sweep import SweepSettings
-from planner.plan.unit import UnitSpec, closed_width, grasp_quality, run_unit
+from planner.plan.unit import QUALITY_FAILED, UnitSpec, closed_width, grasp_quality, run_unit
+from planner.quality.hull import HullError
 from planner.specs.hands import load_hand
 from planner.specs.preshapes import load_preshapes
 
@@ -66,3 +69,23 @@ def test_each_contact_is_scored_with_its_link_model() -> None:
 def test_width_is_for_parallel_jaws_only() -> None:
     assert closed_width(load_hand("panda"), {"panda_finger_joint1": 0.01, "panda_finger_joint2": 0.01}) == 0.02
     assert closed_width(load_hand("barrett"), {}) is None
+
+
+def test_a_grasp_whose_quality_fails_is_rejected_with_a_counted_reason(box_unit,  # type: ignore[no-untyped-def]
+                                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """A HullError on the third grasp rejects that grasp; the unit and the
+    other grasps are as before."""
+    evaluate, calls = quality.evaluate, []
+
+    def failing_third(*args, **kwargs):  # type: ignore[no-untyped-def]
+        calls.append(1)
+        if len(calls) == 3:
+            raise HullError("qhull precision error on a full-dimensional set")
+        return evaluate(*args, **kwargs)
+
+    monkeypatch.setattr(unit.quality, "evaluate", failing_third)
+    r = run_unit(UnitSpec("box", "panda", SETTINGS, seed=1))
+    assert r.error is None and r.rejected[QUALITY_FAILED] == 1
+    assert r.candidates == len(r.grasps) + sum(r.rejected.values())
+    before = [(g.candidate, g.epsilon) for g in box_unit.grasps]
+    assert [(g.candidate, g.epsilon) for g in r.grasps] == before[:2] + before[3:]

@@ -19,6 +19,7 @@ from planner.errors import ConfigError, PlannerError, UnknownNameError
 from planner.sim import Sim
 from planner.specs.hands import hand_names, load_folder, load_hand
 from planner.specs.preshapes import load_preshapes
+from planner.specs.toml import read_toml
 
 HANDS = hand_names()
 
@@ -112,34 +113,57 @@ toml_values = st.one_of(st.integers(-5, 5), st.floats(allow_nan=True), st.text(m
                         st.lists(st.floats(-2, 2), max_size=4))
 
 
+#: How each fuzzed field of hand.toml shows in the loaded spec.
+LOADED = {"approach": lambda h: list(h.approach), "tcp": lambda h: list(h.tcp), "root_link": lambda h: h.root_link,
+          "contact_links": lambda h: list(h.contact_links), "centering": lambda h: h.centering,
+          "roll_symmetry": lambda h: h.roll_symmetry, "distance_offset": lambda h: h.distance_offset,
+          "sampler": lambda h: h.sampler}
+
+
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow,
                                                                  HealthCheck.function_scoped_fixture])
 @given(key=st.sampled_from(["approach", "tcp", "root_link", "contact_links", "centering", "roll_symmetry",
                             "urdf", "distance_offset", "sampler"]), value=toml_values, garbage=st.text(max_size=30))
-def test_fuzz_hand_toml_loads_or_refuses_cleanly(tmp_path_factory, key, value, garbage) -> None:  # type: ignore[no-untyped-def]
-    import tomllib
-
+def test_fuzz_hand_toml_loads_the_value_or_names_the_field(tmp_path_factory, key, value, garbage) -> None:  # type: ignore[no-untyped-def]
+    """One field of the Panda's hand.toml set to an arbitrary value (and a
+    comment of arbitrary text): the hand loads with exactly that value, or
+    is refused with one line naming the file and the field."""
     folder = hand_copy(tmp_path_factory.mktemp("fuzz"))
     toml = folder / "hand.toml"
-    data = tomllib.loads(toml.read_text())
+    data = read_toml(toml)
     data[key] = value
     lines = [f"{k} = {_toml(v)}" for k, v in data.items() if not isinstance(v, (dict, list)) or
              (isinstance(v, list) and not any(isinstance(x, dict) for x in v))]
     text = "\n".join(lines) + "\n" + "\n".join(toml.read_text().split("\n[[joints]]", 1)[1:2] and
                                                ["[[joints]]" + toml.read_text().split("\n[[joints]]", 1)[1]])
     toml.write_text(text + ("\n# " + garbage.replace("\n", " ") if garbage else ""))
+    # TOML comments may hold any character but the control ones (tab aside)
+    bad_comment = any((ord(c) < 32 and c != "\t") or ord(c) == 127 for c in garbage.replace("\n", " "))
     try:
-        load_folder(folder)
-    except PlannerError:
-        pass
+        hand = load_folder(folder)
+    except PlannerError as exc:
+        message = str(exc)
+        assert len(message.splitlines()) == 1 and "hand.toml" in message, message
+        # the field named, or (contact_links) the [contact.links] entry it no longer lists
+        assert ("malformed TOML" in message) if bad_comment else (key in message), message
+        return
+    assert not bad_comment
+    if key == "approach":
+        assert_close(LOADED[key](hand), np.asarray(value) / np.linalg.norm(value))
+    elif key in LOADED:
+        assert LOADED[key](hand) == value
+    else:  # urdf: the value resolved to a URDF with the hand's links
+        assert hand.root_link in hand.links
 
 
 def _toml(value: object) -> str:
-
+    """A TOML value (what json.dumps writes is TOML for these, but booleans and non-finite floats)."""
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, float) and not np.isfinite(value):
         return "nan" if np.isnan(value) else ("inf" if value > 0 else "-inf")
+    if isinstance(value, str):  # TOML escapes only code points (JSON would write surrogate pairs)
+        return '"' + "".join(c if c not in '"\\' and 32 <= ord(c) != 127 else f"\\U{ord(c):08x}" for c in value) + '"'
     return json.dumps(value)
 
 

@@ -10,7 +10,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from planner.errors import ConfigError, PlannerError
-from planner.specs.hands import load_folder
+from planner.specs import preshapes
+from planner.specs.hands import load_folder, load_hand
 from planner.specs.toml import Fields, read_toml
 
 
@@ -42,11 +43,19 @@ def test_missing_empty_and_malformed_files(tmp_path: Path, text: str | None, mes
 @settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(text=st.text(max_size=200))
 def test_fuzz_arbitrary_toml_text_is_refused_cleanly(tmp_path_factory, text: str) -> None:  # type: ignore[no-untyped-def]
-    folder = hand_copy(tmp_path_factory.mktemp("fuzztext"))
+    """Arbitrary text as a hand's hand.toml, then as its preshapes file (where
+    the planner reads it): refused with one line naming the file."""
+    root = tmp_path_factory.mktemp("fuzztext")
+    folder = hand_copy(root)
     (folder / "hand.toml").write_text(text)
-    with pytest.raises(PlannerError):
+    with pytest.raises(PlannerError) as refused:
         load_folder(folder)
-    presets = folder / "preshapes.toml"
+    assert len(str(refused.value).splitlines()) == 1 and "hand.toml" in str(refused.value)
+    presets = root / "preshapes" / "panda.toml"
+    presets.parent.mkdir()
     presets.write_text(text)
-    with pytest.raises(PlannerError):
-        Fields(read_toml(presets), str(presets)).tables("preshape")
+    hand = load_hand("panda")
+    with pytest.MonkeyPatch.context() as patch, pytest.raises(PlannerError) as refused:
+        patch.setattr(preshapes.assets, "project_dir", lambda name: root / name)
+        preshapes.load_preshapes(hand)
+    assert len(str(refused.value).splitlines()) == 1 and str(presets) in str(refused.value)

@@ -9,8 +9,10 @@ from pathlib import Path
 import pytest
 
 from planner.errors import InputError
+from planner.validation import run
 from planner.validation.run import BATCH, validate
 from planner.validation.shake import REASONS
+from tests import crash_units
 
 
 def test_validate_stores_trials_and_reranks(validated_db: Path) -> None:
@@ -71,3 +73,17 @@ def test_a_seeded_sample_is_uniform_and_replayable(validated_db: Path, tmp_path:
         validate(tmp_path / "a.db", sample=3, every=True)
     with pytest.raises(InputError, match="--sample must be at least 1"):
         validate(tmp_path / "a.db", sample=0)
+def test_a_task_that_kills_its_workers_is_reported_and_the_others_written(reference_db: Path, tmp_path: Path,
+                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """One PyBullet segfault costs its task (retried once, in a new worker),
+    not the validation."""
+    db = tmp_path / "v.db"
+    shutil.copy(reference_db, db)
+    monkeypatch.setattr(run, "run_task", crash_units.validate_segfaults_on_box)
+    summary = validate(db, top=2, robust_samples=0, workers=2)
+    assert list(summary.failed_tasks) == ["box/panda"]
+    assert "killed by SIGSEGV" in summary.failed_tasks["box/panda"] and "2 times" in summary.failed_tasks["box/panda"]
+    with sqlite3.connect(db) as conn:
+        trials = dict(conn.execute("SELECT g.object, COUNT(*) FROM validation v JOIN grasps g ON g.id = v.grasp_id"
+                                   " GROUP BY g.object").fetchall())
+    assert trials == {"sphere": summary.grasps} and summary.grasps > 0
