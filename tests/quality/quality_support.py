@@ -85,4 +85,27 @@ def lifted_square_grasp(lift: tuple[float, float, float, float],
     return pts, frames_from_normals(-pts)
 
 
+# Issue 13 regression cases of the L-infinity hull, shared by the tests and
+# bench/quality.py: each returns (points, frames, keyword arguments).
+
+def coplanar_soft_case() -> tuple[np.ndarray, np.ndarray, dict]:
+    """4 nearly coplanar soft contacts (lifts ~1e-14 m), 6 cone edges: qhull's
+    default options stop on the Minkowski sum ("wide merge due to dupridge")."""
+    pts, frames = lifted_square_grasp((1.6e-14, -2.2e-14, -1.8e-14, -0.8e-14))
+    args = {"mu": 0.58, "center": np.zeros(3), "torque_scale": SPHERE_RADIUS, "cone_edges": 6,
+            "model": "soft", "torsion": 0.0008}
+    return pts, frames, args
+
+
+def soft_sphere_case(n: int) -> tuple[np.ndarray, np.ndarray, dict]:
+    """The first n of 4 random soft contacts on a sphere (seed 0) with 8 cone
+    edges: the dense points-by-facets check of the L-infinity hull was one
+    (1210, 75698) array for n = 3 (0.7 GiB) and (9757, 426189) for n = 4
+    (31 GiB)."""
+    pts, frames = sphere_grasp(np.random.default_rng(0), 4)
+    args = {"mu": 0.5, "center": np.zeros(3), "torque_scale": SPHERE_RADIUS, "cone_edges": 8,
+            "model": "soft", "torsion": 0.002}
+    return pts[:n], frames[:n], args
+
+
 seeds = st.integers(min_value=0, max_value=2**32 - 1)

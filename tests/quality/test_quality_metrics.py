@@ -15,11 +15,13 @@ from quality_support import (
     SPHERE_RADIUS,
     assert_close,
     box_grasp,
+    coplanar_soft_case,
     equator_grasp,
     frames_from_normals,
     lifted_square_grasp,
     random_rotation,
     seeds,
+    soft_sphere_case,
     sphere_grasp,
 )
 from scipy.spatial import ConvexHull
@@ -183,21 +185,16 @@ def test_linf_on_nearly_coplanar_point_contacts() -> None:
 def test_linf_on_nearly_coplanar_soft_contacts() -> None:
     # Issue 13, 4 soft contacts with 6 cone edges: volume was 0.0 and evaluate's
     # epsilon 0.0713; truth: volume 96.335, epsilon 1.1912 (all 6561 sums).
-    pts, frames = lifted_square_grasp((1.6e-14, -2.2e-14, -1.8e-14, -0.8e-14))
-    args = {"mu": 0.58, "center": np.zeros(3), "torque_scale": SPHERE_RADIUS, "cone_edges": 6,
-            "model": "soft", "torsion": 0.0008}
-    linf_against_joggled_truth(pts, frames, args)
+    linf_against_joggled_truth(*coplanar_soft_case())
 
 
 def traced_linf_volume(n: int) -> tuple[float, int]:
     """L-infinity volume of the first n of 4 random soft contacts with 8 cone
     edges, and the peak of numpy memory (bytes) during the call."""
-    pts, frames = sphere_grasp(np.random.default_rng(0), 4)
-    args = {"mu": 0.5, "center": np.zeros(3), "torque_scale": SPHERE_RADIUS, "cone_edges": 8,
-            "model": "soft", "torsion": 0.002}
+    pts, frames, args = soft_sphere_case(n)
     tracemalloc.start()
     try:
-        vol = volume(pts[:n], frames[:n], **args, norm="Linf")
+        vol = volume(pts, frames, **args, norm="Linf")
         return vol, tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
