@@ -63,7 +63,8 @@ def stored_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
     trimesh.creation.capsule(height=40.0, radius=20.0).export(mesh)
     db = folder / "g.db"
     # the duck on rays: 6 antipodal points on the 1.5x duck may all be wider than the Panda opens
-    for args in (["duck", "--hand", "panda", "--scale", "1.5", "--sampler", "surface"], [str(mesh), "--hand", "panda", "--scale", "0.001"],
+    for args in (["duck", "--hand", "panda", "--scale", "1.5", "--sampler", "surface"],
+                 [str(mesh), "--hand", "panda", "--scale", "0.001"],
                  ["box", "--hand", "panda"], ["box", "--hand", "pr2"]):
         code, _, err = grasp("generate", *args, "--db", str(db), "--quiet", *FAST)
         assert code == 0, err

@@ -33,8 +33,10 @@ linux = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /
 #: A batch of 8 units (one object, eight rays, one ray per unit): the first
 #: kill comes with most of the work to do, the last with some still left.
 OBJECTS = ("box",)
-ARGS = ("--hand", "panda", "--seed", "11", "--approaches", "8", "--rolls", "2", "--preshapes", "wide", "--chunk",
-        "1", "--reach-placements", "1", "--quiet")
+#: Rays (not the Panda's antipodal default): 8 one-ray units whose grasps
+#: fill the full-disk test's file size limit part-way through the batch.
+ARGS = ("--hand", "panda", "--sampler", "surface", "--seed", "11", "--approaches", "8", "--rolls", "2", "--preshapes",
+        "wide", "--chunk", "1", "--reach-placements", "1", "--quiet")
 UNITS = 8
 #: Units committed when the driver is killed, one kill after another on the
 #: same database (Ray: two, as each run starts a Ray instance).

@@ -107,9 +107,10 @@ def test_an_integer_mask_is_misread_by_the_graspgen_reader(stored_db: Path, tmp_
     path = root / "grasp_data" / "panda" / "box.json"
     data = json.loads(path.read_text())
     assert {type(v) for v in data["grasps"]["object_in_gripper"]} == {bool}
-    data["grasps"]["object_in_gripper"] = [int(v) for v in data["grasps"]["object_in_gripper"]]
+    expected, _ = transforms(stored_db, "box", "panda")
+    labels = np.arange(len(expected)) % 2  # 0/1 integers, both present whatever the sweep labelled
+    data["grasps"]["object_in_gripper"] = labels.tolist()
     path.write_text(json.dumps(data))
-    expected, labels = transforms(stored_db, "box", "panda")
     positive, negative = peer.graspgen_split_documented(str(path))
     assert len(positive) == len(negative) == len(labels) != labels.sum()
     assert_close(positive[labels == 1], np.repeat(expected[1:2], labels.sum(), axis=0))
