@@ -30,6 +30,7 @@ from planner.specs.urdf import cut_subtree, descendants, link_names, load_model,
 
 CONTACT_MODELS = ("frictionless", "point", "soft")
 DEFAULT_FINGER_FORCE = 20.0  # [N or N m] per finger motor, when [dynamics] does not say
+DEFAULT_CLOSING_SPEED = 0.5  # [m/s or rad/s] of a driven joint, when [dynamics] does not say
 #: PyBullet inflates convex hull meshes, cylinders and triangle meshes by 1 mm
 #: each, so a reported closest distance is the true gap minus 2 mm (measured
 #: on a box). URDF <box> and <sphere> links are off by less (0.4-1 mm, 0 mm):
@@ -57,6 +58,7 @@ class JointSpec:
     offset: float
     child: str
     moves: tuple[str, ...]
+    breakaway: bool = False  # driven joint whose mimics close on alone once it is stopped (BH8 TorqueSwitch)
 
 
 @dataclass(frozen=True)
@@ -65,6 +67,25 @@ class ContactModel:
 
     model: str
     torsion: float = 0.0
+
+
+@dataclass(frozen=True)
+class Actuators:
+    """The finger motors, from published specifications (``[dynamics]``).
+
+    One motor per driven joint; its mimics are geared to it (a Panda motor
+    drives both fingers, a Barrett motor one finger's two links). ``effort``
+    [N or N m] is the motor's continuous force or torque limit on the driven
+    joint (the synergy's generalised force, shared with the mimics through the
+    gearing); ``closing_speed`` [m/s or rad/s] of the driven joint;
+    ``backdrivable`` False for worm-gear fingers an external load cannot open;
+    ``source`` says where the numbers come from.
+    """
+
+    effort: float
+    closing_speed: float
+    backdrivable: bool
+    source: str
 
 
 @dataclass(frozen=True)
@@ -95,6 +116,7 @@ class HandSpec:
     arm: ArmSpec | None
     export_frame: np.ndarray  # (4, 4) dataset gripper frame in the hand frame (ACRONYM convention)
     finger_force: float  # [N or N m] force limit of each finger motor in dynamic trials
+    actuators: Actuators  # the finger motors: weight resistance, dynamic trials
 
     def joint(self, name: str) -> JointSpec:
         for joint in self.joints:
@@ -160,7 +182,15 @@ def load_folder(folder: Path) -> HandSpec:
         roll_symmetry=_symmetry(f),
         links=tuple(links), arm=_arm(f, folder), export_frame=_export_frame(f),
         finger_force=f.table("dynamics", {}).float("finger_force", DEFAULT_FINGER_FORCE, positive=True),
+        actuators=_actuators(f.table("dynamics", {})),
     )
+
+
+def _actuators(f: Fields) -> Actuators:
+    """``[dynamics]``: the motors; ``effort`` defaults to ``finger_force``."""
+    effort = f.float("effort", f.float("finger_force", DEFAULT_FINGER_FORCE, positive=True), positive=True)
+    return Actuators(effort, f.float("closing_speed", DEFAULT_CLOSING_SPEED, positive=True),
+                     f.bool("backdrivable", True), f.data.get("source", "not given"))
 
 
 def _symmetry(f: Fields) -> int:
@@ -192,9 +222,13 @@ def _joint(model: yourdfpy.URDF, source: Path, f: Fields) -> JointSpec:
         raise ConfigError(f"{f.where} field 'mimic': joint '{mimic_of}' is not in {source.name}")
     multiplier = f.float("multiplier", mimic.multiplier if mimic is not None else 1.0)
     offset = f.float("offset", mimic.offset if mimic is not None else 0.0)
+    breakaway = f.bool("breakaway", False)
+    if breakaway and mimic_of is not None:
+        raise ConfigError(f"{f.where} field 'breakaway': joint '{name}' is a mimic; set it on the driven joint "
+                          f"'{mimic_of}' (its mimics close on alone once it is stopped)")
     return JointSpec(name=name, kind=kind, lower=lower, upper=upper, close=f.float("close", 0.0), mimic=mimic_of,
                      multiplier=multiplier, offset=offset, child=node.child,
-                     moves=tuple(descendants(model, node.child)))
+                     moves=tuple(descendants(model, node.child)), breakaway=breakaway)
 
 
 def _contact_models(f: Fields, links: tuple[str, ...]) -> dict[str, ContactModel]:
