@@ -215,7 +215,7 @@ def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: C
     shape = widest_preshape(hand)
     out = []
     with Sim() as sim:
-        grasper = Grasper(sim, hand, sim.add_static_mesh(obj.mesh.vertices, obj.mesh.faces))
+        grasper = Grasper.for_mesh(sim, hand, obj.mesh)
         for i, pose in enumerate(poses):
             closed = grasper.close_at(pose, shape, MAX_BACK_OFF)
             if not isinstance(closed, Closed):

@@ -12,6 +12,10 @@ Tables (the README lists every column):
   with contacts), with its pose, joints, contacts, quality, score and rank.
 - ``validation`` (v2): the dynamic PyBullet trial of a grasp.
 - ``robust`` (v2): robust epsilon under pose and friction noise.
+- ``grasps`` (v3) gains the analytic measures: ``resist_worst``,
+  ``resist_mean`` (weight resistance [g]), ``open_margin``, ``close_margin``
+  [m], ``push`` and ``feasibility`` (comma-separated reasons, '' when
+  feasible); NULL for grasps stored before version 3 (not measured).
 
 No pickle: arrays are JSON text. A new database runs :data:`SCHEMA` (version
 1) and then every migration; a newer schema is refused politely; an older one
@@ -32,7 +36,7 @@ from planner.errors import DatabaseError
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -77,6 +81,14 @@ CREATE TABLE IF NOT EXISTS robust (
     mean REAL NOT NULL, quantile REAL NOT NULL, samples INTEGER NOT NULL,
     seed INTEGER NOT NULL, settings TEXT NOT NULL
 )
+""",
+    2: """
+ALTER TABLE grasps ADD COLUMN resist_worst REAL;
+ALTER TABLE grasps ADD COLUMN resist_mean REAL;
+ALTER TABLE grasps ADD COLUMN open_margin REAL;
+ALTER TABLE grasps ADD COLUMN close_margin REAL;
+ALTER TABLE grasps ADD COLUMN push REAL;
+ALTER TABLE grasps ADD COLUMN feasibility TEXT
 """,
 }
 

@@ -24,7 +24,7 @@ from planner.specs.preshapes import Preshape
 
 #: Bumped whenever a change alters which grasps a sweep produces, so stale
 #: units are recomputed rather than mixed with new ones.
-ALGORITHM_VERSION = 1
+ALGORITHM_VERSION = 2
 
 
 @dataclass(frozen=True)
@@ -43,6 +43,7 @@ class SweepSettings:
     chunk: int = 32  # rays per unit of work (surface sampler); 0: one unit per object
     reach_placements: int = 6  # object placements for the reachability score; 0: skip reachability
     pregrasp_distance: float = PREGRASP_DISTANCE  # [m] pre-grasp back-off along the approach
+    volume: bool = True  # GWS volume of force-closure grasps (a full 6-D hull; False stores 0)
 
     def __post_init__(self) -> None:
         if self.sampler not in SAMPLERS:

@@ -23,7 +23,8 @@ from planner.geometry.solid import PreparedObject, load_object
 from planner.grasp import Grasp
 from planner.plan import sampling
 from planner.plan.closing import Closed, Grasper
-from planner.plan.contacts import HandContacts
+from planner.plan.contacts import HandContacts, contact_models
+from planner.plan.measures import MIN_RESISTANCE, measure
 from planner.plan.reach import ReachScene, ReachSettings
 from planner.plan.sweep import IK_STREAM, PLACEMENT_STREAM, SweepSettings, candidates, unit_rng
 from planner.sim import Sim
@@ -99,7 +100,7 @@ def _run(spec: UnitSpec, result: UnitResult) -> None:
     result.timing["sampling"] += t2 - t1
     radius = obj.torque_scale + float(np.linalg.norm(obj.com))
     with Sim() as sim:
-        grasper = Grasper(sim, hand, sim.add_static_mesh(obj.mesh.vertices, obj.mesh.faces))
+        grasper = Grasper.for_mesh(sim, hand, obj.mesh)
         for cand in todo:
             ta = time.perf_counter()
             if spec.timeout is not None and ta - t0 > spec.timeout:
@@ -111,14 +112,16 @@ def _run(spec: UnitSpec, result: UnitResult) -> None:
             if not isinstance(closed, Closed):
                 result.rejected[closed.reason] += 1
                 continue
-            q = grasp_quality(closed.contacts, hand, obj, spec.settings.cone_edges)
+            q = grasp_quality(closed.contacts, hand, obj, spec.settings.cone_edges, spec.settings.volume)
+            width = closed_width(hand, closed.closed_joints)
+            m = measure(closed.contacts, closed.frames, hand, cand.preshape, closed.closed_joints, obj, width)  # type: ignore[arg-type]
             result.timing["quality"] += time.perf_counter() - tb
             result.grasps.append(Grasp(
                 object=obj.name, hand=hand.name, preshape=cand.preshape.name, candidate=cand.index, seed=spec.seed,
                 approach_point=rays.points[cand.ray], approach_dir=rays.directions[cand.ray], roll=cand.roll,
                 standoff=cand.standoff, pose=closed.pose, open_joints=closed.open_joints,
-                closed_joints=closed.closed_joints, width=closed_width(hand, closed.closed_joints),
-                contacts=closed.contacts, epsilon=q.epsilon, volume=q.volume, force_closure=q.force_closure))
+                closed_joints=closed.closed_joints, width=width, contacts=closed.contacts, epsilon=q.epsilon,
+                volume=q.volume, force_closure=q.force_closure, measures=m))
         # contact reading happens inside closing; report it as its own stage
         result.timing["contacts"] = grasper.contact_seconds
         result.timing["closing"] -= grasper.contact_seconds
@@ -129,7 +132,8 @@ def _run(spec: UnitSpec, result: UnitResult) -> None:
 
 
 def add_reachability(grasps: list[Grasp], obj: PreparedObject, hand: HandSpec, spec: UnitSpec) -> list[Grasp]:
-    """Reachability of each force-closure grasp over the unit's sampled placements."""
+    """Reachability over the unit's sampled placements of each grasp that is
+    force closure or holds its object's weight."""
     settings = ReachSettings(placements=spec.settings.reach_placements,
                              pregrasp_distance=spec.settings.pregrasp_distance)
     out = []
@@ -137,7 +141,7 @@ def add_reachability(grasps: list[Grasp], obj: PreparedObject, hand: HandSpec, s
         scene = ReachScene(sim, hand, obj, settings)
         placements = scene.placements(unit_rng(spec.seed, obj.name, hand.name, PLACEMENT_STREAM))
         for g in grasps:
-            if not g.force_closure:
+            if not (g.force_closure or (g.measures is not None and g.measures.resist_worst >= MIN_RESISTANCE)):
                 out.append(g)
                 continue
             rng = unit_rng(spec.seed, obj.name, hand.name, IK_STREAM, g.candidate)
@@ -152,13 +156,18 @@ def add_reachability(grasps: list[Grasp], obj: PreparedObject, hand: HandSpec, s
     return out
 
 
-def grasp_quality(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, cone_edges: int) -> quality.Quality:
-    """Ferrari-Canny epsilon (L1), GWS volume and force closure of contacts;
-    each contact's model (point, soft, frictionless) is its link's in the hand."""
-    models = [hand.contacts[link] for link in contacts.links]
-    return quality.evaluate(contacts.points, contacts.frames, mu=obj.friction, center=obj.com,
-                            torque_scale=obj.torque_scale, cone_edges=cone_edges, model=[m.model for m in models],
-                            torsion=np.array([m.torsion for m in models], float))
+def grasp_quality(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, cone_edges: int,
+                  volume: bool = True) -> quality.Quality:
+    """Ferrari-Canny epsilon (L1), GWS volume (0 unless ``volume``) and force
+    closure of contacts; each contact's model (point, soft, frictionless) as
+    :func:`contact_models` says."""
+    models, torsion = contact_models(contacts, hand, obj.friction)
+    args = dict(mu=obj.friction, center=obj.com, torque_scale=obj.torque_scale, cone_edges=cone_edges, model=models,
+                torsion=torsion)
+    if volume:
+        return quality.evaluate(contacts.points, contacts.frames, **args)  # type: ignore[arg-type]
+    eps = quality.epsilon(contacts.points, contacts.frames, **args)  # type: ignore[arg-type]
+    return quality.Quality(eps, 0.0, eps > 0.0)
 
 
 def closed_width(hand: HandSpec, closed_joints: Mapping[str, float]) -> float | None:

@@ -179,8 +179,8 @@ def weight_resistance(points: ArrayLike, frames: ArrayLike, *, mu: ArrayLike, ce
 
 
 def summarise(per_direction: np.ndarray) -> Resistance:
-    return Resistance(per_direction, float(per_direction.min(initial=0.0) if len(per_direction) else 0.0),
-                      float(per_direction.mean()) if len(per_direction) else 0.0)
+    """Worst and mean of (k,) resistances (k >= 1)."""
+    return Resistance(per_direction, float(per_direction.min()), float(per_direction.mean()))
 
 
 def _directions(directions: ArrayLike) -> np.ndarray:

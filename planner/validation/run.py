@@ -89,7 +89,7 @@ def plan(db: Database, objects: list[str] | None, hands: list[str] | None, top: 
     for (obj, hand), row in pairs.items():
         if (objects and obj not in objects) or (hands and hand not in hands):
             continue
-        grasps = [g for g in db.best(obj, hand, top) if g.force_closure]
+        grasps = [g for g in db.best(obj, hand, top) if g.score]
         for i in range(0, len(grasps), BATCH):
             tasks.append(Task(obj, row.source, row.scale, hand, tuple(grasps[i:i + BATCH]), seed, trial_settings,
                               noise))

@@ -102,3 +102,9 @@ def test_bad_inputs_are_refused() -> None:
         weight_resistance(**{**pinch(), "mass": 0.0})
     with pytest.raises(DegenerateGraspError):
         HandDrive(np.zeros((1, 3)), np.zeros((1, 3)), ("revolute",), np.ones((1, 1)), np.array([2.0]), np.ones(1))
+
+
+def test_worst_and_mean_summarise_the_directions() -> None:
+    r = weight_resistance(**pinch(), directions=AXES)
+    assert r.worst == r.per_direction.min() > 0
+    assert_close(r.mean, r.per_direction.mean())
