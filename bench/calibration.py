@@ -32,7 +32,6 @@ and trials already done are kept.
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import logging
 import sys
@@ -40,13 +39,15 @@ import time
 import zlib
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import get_type_hints
 
 import numpy as np
 import tomllib
 
 from planner import api
+from planner.db.lock import writer_lock
 from planner.db.ranking import RankingRule, rule_measures
-from planner.db.store import Validated, open_db
+from planner.db.store import open_db
 from planner.geometry.solid import load_object
 from planner.grasp import Grasp
 from planner.plan.closing import Closed, CloseSettings, Grasper
@@ -55,6 +56,7 @@ from planner.plan.unit import grasp_quality
 from planner.present.report import roc_auc, top_k_success
 from planner.sim import Sim
 from planner.specs.hands import load_hand
+from planner.validation import run as validation
 
 HERE = Path(__file__).resolve().parent
 SPLIT = HERE / "calibration_split.toml"
@@ -123,26 +125,33 @@ def legacy_epsilons(db_path: Path, hand_name: str, name: str, grasps: list[Grasp
     return np.array([known[str(g.id)] for g in grasps], float)
 
 
-def load_trial(spec: str):  # type: ignore[no-untyped-def]
-    module, _, function = spec.partition(":")
-    return getattr(importlib.import_module(module), function or "trial")
+def trial_settings():  # type: ignore[no-untyped-def]
+    """The shake test's default settings, whatever the trial's settings type is
+    called (``TrialSettings`` on main, ``ShakeSettings`` after issue15-shake):
+    the type ``planner.validation.run.Task`` declares for its ``trial``."""
+    return get_type_hints(validation.Task)["trial"]()
 
 
-def label(db_path: Path, hand_name: str, name: str, grasps: list[Grasp], trial_spec: str) -> int:
-    """Shake-test the grasps that have no trial yet; returns how many ran."""
+def label(db_path: Path, hand_name: str, name: str, grasps: list[Grasp], workers: int) -> int:
+    """Shake-test the grasps that have no trial yet with ``grasp validate``'s
+    own tasks, workers and writer (no robust epsilon); returns how many ran."""
     todo = [g for g in grasps if g.validation is None]
     if not todo:
         return 0
-    trial = load_trial(trial_spec)
-    hand, obj = load_hand(hand_name), load_object(name)
-    results = [Validated(g.id, trial(hand, obj, g), None, SEED, json.dumps({"trial": trial_spec}), "")
-               for g in todo]  # type: ignore[arg-type]
-    with open_db(db_path) as db:
-        db.write_validation(name, hand_name, results, db.rule())
+    with writer_lock(db_path), open_db(db_path, create=False) as db:
+        row, rule = db.object_row(name), db.rule()
+        assert row is not None, name
+        settings = trial_settings()
+        tasks = [validation.Task(name, row.source, row.scale, hand_name, tuple(todo[i:i + validation.BATCH]),
+                                 SEED, settings, None) for i in range(0, len(todo), validation.BATCH)]
+        for result in validation.execute(tasks, workers):
+            if result.error:
+                raise SystemExit(f"shake test of {hand_name} on {name} failed: {result.error}")
+            validation.write(db, result, rule)
     return len(todo)
 
 
-def pools(db_path: Path, hand: str, names: list[str], per_object: int, trial_spec: str,
+def pools(db_path: Path, hand: str, names: list[str], per_object: int, workers: int,
           rule: RankingRule) -> list[Pool]:
     out = []
     for name in names:
@@ -158,7 +167,7 @@ def pools(db_path: Path, hand: str, names: list[str], per_object: int, trial_spe
         for key in ("analytic", "pre_issue"):
             picks |= set(_order(cols[key], grasps)[:TOP])
         t = time.perf_counter()
-        ran = label(db_path, hand, name, [grasps[i] for i in sorted(picks)], trial_spec)
+        ran = label(db_path, hand, name, [grasps[i] for i in sorted(picks)], workers)
         if ran:
             logging.info("%s %s: %d trials in %.0f s", hand, name, ran, time.perf_counter() - t)
         with open_db(db_path, create=False, readonly=True) as db:
@@ -255,10 +264,14 @@ def main() -> None:
     ap.add_argument("--approaches", type=int, nargs="+", default=[48, 24], help="rays per object, per hand")
     ap.add_argument("--workers", type=int, default=api.default_workers())
     ap.add_argument("--dir", type=Path, default=HERE / "calibration")
-    ap.add_argument("--trial", default="planner.validation.shake:trial", help="module:function of the shake test")
+    ap.add_argument("--final-held-out", action="store_true",
+                    help="required with --set held_out: the one final evaluation, by the lead, after all tuning")
     ap.add_argument("--cv", action="store_true", help="cross-validate the rule's parameters (tuning set only)")
     args = ap.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(message)s")
+    if args.set == "held_out" and not args.final_held_out:
+        raise SystemExit("--set held_out is the one final evaluation (the lead's, after all tuning): "
+                         "add --final-held-out to run it; tune on --set tuning")
     names = split(args.set)
     if args.only:
         bad = [n for n in args.only if n not in names]
@@ -278,7 +291,7 @@ def main() -> None:
         summary = api.generate(names, hand, db_path=db, settings=settings, workers=args.workers, rule=rule)
         logging.info("%s: %d units swept (%d skipped), %.0f s", hand, summary.units, summary.skipped,
                      time.perf_counter() - t)
-        pools_ = pools(db, hand, names, args.per_object, args.trial, rule)
+        pools_ = pools(db, hand, names, args.per_object, args.workers, rule)
         results[hand] = figures(pools_, rule)
         if args.cv:
             results[hand]["cv"] = cross_validate(pools_, rule)
