@@ -96,11 +96,14 @@ AUC_MEASURES = ("analytic", "epsilon", *ANALYTIC_MEASURES, "feasible", "reachabi
 def roc_auc(labels: np.ndarray, scores: np.ndarray) -> float:
     """ROC AUC of ``scores`` (n,) for binary ``labels`` (n,) (NaN: unlabelled,
     left out); a NaN score (not computed) ranks lowest; ties count half.
-    NaN when a class is missing."""
+    NaN when a class is missing or no grasp has the score (never computed:
+    not the 0.5 of a useless score)."""
     from scipy.stats import rankdata
 
     y, x = np.asarray(labels, float), np.asarray(scores, float)
     keep = np.isfinite(y)
+    if not np.isfinite(x[keep]).any():
+        return math.nan
     y, x = y[keep] > 0.5, np.nan_to_num(x[keep], nan=-np.inf)
     pos, neg = int(y.sum()), int((~y).sum())
     if pos == 0 or neg == 0:
