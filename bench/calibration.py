@@ -261,7 +261,8 @@ def main() -> None:
     ap.add_argument("--objects", type=int, help="only the first N objects of the set (smoke runs)")
     ap.add_argument("--only", nargs="+", help="only these objects (they must be in the set)")
     ap.add_argument("--per-object", type=int, default=100)
-    ap.add_argument("--approaches", type=int, nargs="+", default=[48, 24], help="rays per object, per hand")
+    ap.add_argument("--approaches", type=int, nargs="+", default=[24, 12],
+                    help="rays per object, per hand (default: Panda 24, ~230 grasps per object; Barrett 12, ~480)")
     ap.add_argument("--workers", type=int, default=api.default_workers())
     ap.add_argument("--dir", type=Path, default=HERE / "calibration")
     ap.add_argument("--final-held-out", action="store_true",
