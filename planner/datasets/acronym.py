@@ -339,8 +339,7 @@ def _contacts(path: Path, items: list[dict], hand: HandSpec) -> HandContacts:
     if unknown:
         raise InputError(f"{path}: contact on link {unknown} of hand '{hand.name}', "
                          f"which has contact links {', '.join(hand.contact_links)}")
-    return HandContacts(np.array([c["point"] for c in items], float).reshape(-1, 3),
-                        np.array([c["normal"] for c in items], float).reshape(-1, 3), links)
+    return HandContacts.from_items(items)
 
 
 def _positive(f: Any, key: str) -> float | None:

@@ -69,14 +69,15 @@ class HandContacts:
         out._arrays, out._text, out._count, out._touching = None, text, count, touching
         return out
 
+    @classmethod
+    def from_items(cls, items: list[dict]) -> HandContacts:
+        """Contacts from the items of :meth:`to_json` (``radius`` and ``region``
+        optional: a legacy reading has neither)."""
+        return cls(*_arrays(items))
+
     def _decoded(self) -> _Arrays:
         if self._arrays is None:
-            items = json.loads(self._text or "[]")
-            self._arrays = (np.array([c["point"] for c in items], float).reshape(-1, 3),
-                            np.array([c["normal"] for c in items], float).reshape(-1, 3),
-                            tuple(c["link"] for c in items),
-                            np.array([c.get("radius", np.nan) for c in items], float),
-                            np.array([c.get("region", -1) for c in items], int))
+            self._arrays = _arrays(json.loads(self._text or "[]"))
         return self._arrays
 
     @property
@@ -163,3 +164,12 @@ def spread(points: np.ndarray, limit: int = MAX_PER_LINK, radius: float = MERGE_
         chosen.append(k)
         dist = np.minimum(dist, np.linalg.norm(points - points[k], axis=1))
     return np.array(chosen, int)
+
+
+def _arrays(items: list[dict]) -> _Arrays:
+    """(points, normals, links, radius, region) of the items of :meth:`HandContacts.to_json`."""
+    return (np.array([c["point"] for c in items], float).reshape(-1, 3),
+            np.array([c["normal"] for c in items], float).reshape(-1, 3),
+            tuple(c["link"] for c in items),
+            np.array([c.get("radius", np.nan) for c in items], float),
+            np.array([c.get("region", -1) for c in items], int))
