@@ -277,7 +277,7 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
                 break
             offset += len(batch)
             for g in batch:
-                if not g.force_closure:
+                if not g.score:
                     continue
                 reach = scene.check(g.pose, g.closed_joints, g.open_joints, rng)
                 if reach.grasp is not None and reach.pregrasp is not None:

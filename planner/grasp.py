@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.plan.contacts import HandContacts
+from planner.plan.measures import Measures
 
 
 class Joints(Mapping[str, float]):
@@ -116,6 +117,8 @@ class Grasp:
         manipulability: the best arm manipulability over those placements.
         id, unit_id, score, rank: set by the database (rank 1 = best of its object and hand).
         validation, robust: physical validation results, where they exist.
+        measures: weight resistance and feasibility (None: not measured, e.g.
+            a grasp stored before schema version 3).
     """
 
     object: str
@@ -143,6 +146,7 @@ class Grasp:
     rank: int | None = None
     validation: Trial | None = None
     robust: RobustEpsilon | None = None
+    measures: Measures | None = None
 
     def __post_init__(self) -> None:
         if self.pose.shape != (4, 4) or self.approach_point.shape != (3,) or self.approach_dir.shape != (3,):
@@ -169,7 +173,12 @@ class Grasp:
                 "epsilon": self.epsilon, "volume": self.volume, "force_closure": self.force_closure,
                 "reachability": self.reachability, "manipulability": self.manipulability,
                 "contacts": self.contacts.to_json(), "rank": self.rank, "score": self.score,
-                "candidate": self.candidate, "seed": self.seed}
+                "candidate": self.candidate, "seed": self.seed,
+                **(self.measures.to_json() if self.measures is not None else dict.fromkeys(MEASURE_KEYS))}
+
+
+#: The keys ``to_json`` gives the analytic measures (None when not measured).
+MEASURE_KEYS = ("resist_worst", "resist_mean", "open_margin", "close_margin", "push", "feasibility")
 
 
 #: The record's field names, in order.

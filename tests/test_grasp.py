@@ -11,7 +11,8 @@ from helpers import made_up
 
 #: The keys the README documents for ``grasp best --json``.
 DOCUMENTED = {"object", "hand", "preshape", "pose", "joints", "open_joints", "width", "epsilon", "volume",
-              "force_closure", "reachability", "manipulability", "contacts", "rank", "score", "candidate", "seed"}
+              "force_closure", "reachability", "manipulability", "contacts", "rank", "score", "candidate", "seed",
+              "resist_worst", "resist_mean", "open_margin", "close_margin", "push", "feasibility"}
 
 
 def test_best_json_keys_and_values() -> None:
@@ -21,6 +22,7 @@ def test_best_json_keys_and_values() -> None:
     assert np.array(data["pose"]).shape == (4, 4) and data["joints"] == g.closed_joints
     assert data["contacts"][0] == {"point": [0.0, 0.02, 0.0], "normal": [0.0, -1.0, 0.0], "link": "left"}
     assert (data["rank"], data["score"], data["candidate"], data["force_closure"]) == (1, 0.04, 3, True)
+    assert g.measures is None and data["resist_worst"] is None and data["feasibility"] is None  # not measured
 
 
 def test_shapes_are_checked() -> None:

@@ -12,8 +12,9 @@ depend on the code it guards.
 Versions recorded: 1 (main 8c0cfbe); 2 (issue 16, branch issue16-speed: the
 Panda sweeps antipodal pairs, refused pairs and overlapping open hands are
 rejected before simulation, closing's fast path, reachability for the 8
-force-closure grasps of highest epsilon per unit). Version 2 also covers
-issue 15's changes once merged: the digest is then recorded once more.
+force-closure grasps of highest epsilon per unit) together with issue 15
+(contact patches, Barrett breakaway in closing, soft contacts resisting
+mu x torsion_radius, analytic measures), recorded once after both merged.
 """
 
 from __future__ import annotations

@@ -55,7 +55,15 @@ def _print_grasp(g: api.Grasp) -> None:
     reach = "n/a" if g.reachability is None else f"{g.reachability:.2f}"
     click.echo(f"#{g.rank} {g.object}/{g.hand} preshape={g.preshape} score={g.score:.4f} epsilon={g.epsilon:.4f} "
                f"reachability={reach} volume={g.volume:.3g} force_closure={g.force_closure} "
-               f"contacts={len(g.contacts)} position=({pos[0]:.3f}, {pos[1]:.3f}, {pos[2]:.3f}) m")
+               f"contacts={len(g.contacts)} position=({pos[0]:.3f}, {pos[1]:.3f}, {pos[2]:.3f}) m{_measures(g)}")
+
+
+def _measures(g: api.Grasp) -> str:
+    m = g.measures
+    if m is None:
+        return ""
+    return (f" holds={m.resist_worst:.1f}g (mean {m.resist_mean:.1f}g) push={m.push:.2f} "
+            f"feasibility={','.join(m.reasons) or 'ok'}")
 
 
 @click.command()

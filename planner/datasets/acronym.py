@@ -49,7 +49,9 @@ scale), ``object/mesh_sha256`` (:func:`planner.geometry.mesh.mesh_hash` of
 the mesh); ``gripper/configuration_joints``;
 ``grasps/qualities/{epsilon, volume, force_closure, reachability,
 manipulability, score, rank, simulated_success (-1: not simulated),
-robust_epsilon_mean, robust_epsilon_quantile}`` (NaN when absent);
+robust_epsilon_mean, robust_epsilon_quantile, resist_worst, resist_mean,
+open_margin, close_margin, push}`` (NaN when absent) and ``feasibility``
+(reasons, comma-separated);
 ``grasps/joint_names`` (J,), ``joints_closed`` / ``joints_open`` (N, J)
 [rad or m]; ``width`` (N,) [m] (NaN: not a parallel jaw); ``preshape``,
 ``candidate``, ``seed``; ``contacts`` (N,) JSON text ``[{point, normal,
@@ -83,6 +85,7 @@ from planner.errors import InputError
 from planner.geometry.frames import roll_about
 from planner.grasp import Grasp, RobustEpsilon, Trial
 from planner.plan.contacts import HandContacts
+from planner.plan.measures import Measures
 from planner.specs.hands import HandSpec
 from planner.specs.preshapes import Preshape, load_preshapes
 
@@ -152,6 +155,8 @@ def per_grasp(grasps: list[Grasp], hand: HandSpec) -> dict[str, Column]:
         "qualities/simulated_success": c["validation_success"],
         "qualities/robust_epsilon_mean": c["robust_mean"],
         "qualities/robust_epsilon_quantile": c["robust_quantile"],
+        **{f"qualities/{name}": c[name] for name in MEASURES},
+        "qualities/feasibility": c["feasibility"],
         "joints_closed": joint_matrix(c["closed_joints"], names),
         "joints_open": joint_matrix(c["open_joints"], names),
         "width": c["width"],
@@ -315,7 +320,8 @@ def read_grasps(path: Path, hand: HandSpec, obj: str, poses: np.ndarray) -> list
         names = list(g["joint_names"].asstr()[()])
         closed, opened = g["joints_closed"][()], g["joints_open"][()]
         col = {k: (q[k][()] if k in q else np.full(n, np.nan))  # whole columns: h5py indexing per row is slow
-               for k in ("epsilon", "volume", "force_closure", "reachability", "manipulability")}
+               for k in ("epsilon", "volume", "force_closure", "reachability", "manipulability", *MEASURES)}
+        reasons = q["feasibility"].asstr()[()] if "feasibility" in q else [""] * n
         width = g["width"][()] if "width" in g else np.full(n, np.nan)
         preshape = g["preshape"].asstr()[()] if "preshape" in g else ["imported"] * n
         approach_dir = g["approach_dir"][()] if "approach_dir" in g else poses[:, :3, :3] @ hand.approach
@@ -332,8 +338,21 @@ def read_grasps(path: Path, hand: HandSpec, obj: str, poses: np.ndarray) -> list
                   width=_maybe(width[i]), contacts=_contacts(path, json.loads(contacts[i]), hand),
                   epsilon=float(col["epsilon"][i]), volume=float(col["volume"][i]),
                   force_closure=bool(col["force_closure"][i]), reachability=_maybe(col["reachability"][i]),
-                  manipulability=_maybe(col["manipulability"][i]))
+                  manipulability=_maybe(col["manipulability"][i]),
+                  measures=_measures([col[k][i] for k in MEASURES], str(reasons[i])))
             for i in range(n)]
+
+
+#: The analytic measures a file carries (``grasps/qualities/<name>``; NaN: not measured).
+MEASURES = ("resist_worst", "resist_mean", "open_margin", "close_margin", "push")
+
+
+def _measures(values: list[float], reasons: str) -> Measures | None:
+    if np.isnan(values[0]):
+        return None
+    worst, mean, open_margin, close_margin, push = (float(v) for v in values)
+    return Measures(worst, mean, np.inf if np.isnan(open_margin) else open_margin,
+                    np.inf if np.isnan(close_margin) else close_margin, push, tuple(r for r in reasons.split(",") if r))
 
 
 def read_simulation(path: Path) -> list[tuple[Trial | None, RobustEpsilon | None]]:
@@ -375,8 +394,7 @@ def _contacts(path: Path, items: list[dict], hand: HandSpec) -> HandContacts:
     if unknown:
         raise InputError(f"{path}: contact on link {unknown} of hand '{hand.name}', "
                          f"which has contact links {', '.join(hand.contact_links)}")
-    return HandContacts(np.array([c["point"] for c in items], float).reshape(-1, 3),
-                        np.array([c["normal"] for c in items], float).reshape(-1, 3), links)
+    return HandContacts.from_items(items)
 
 
 def _positive(f: Any, key: str) -> float | None:

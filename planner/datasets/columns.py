@@ -5,7 +5,10 @@ records as columns, the one helper every format writes from.
 column is built when a writer first asks for it, so a format that writes a
 few columns pays for those only); the validation and robust results are
 flattened (``validation_success``, ..., ``robust_mean``, ``robust_quantile``,
-``robust_samples``). A value that is absent holds NaN in a float column and
+``robust_samples``), and so are the analytic measures (``resist_worst``,
+``resist_mean``, ``open_margin``, ``close_margin``, ``push``: NaN when not
+measured; ``feasibility``: comma-separated reasons, '' when feasible). A
+value that is absent holds NaN in a float column and
 -1 in an integer column (``id`` and ``unit_id`` of a record not stored yet,
 ``rank``, ``validation_success``, ``validation_fingers_in_contact``,
 ``robust_samples``); ``width``, ``reachability`` and ``manipulability`` are
@@ -47,6 +50,10 @@ def _trial(name: str, absent: float, dtype: type) -> Builder:
     return lambda gs: np.array([absent if g.validation is None else getattr(g.validation, name) for g in gs], dtype)
 
 
+def _measure(name: str) -> Builder:
+    return lambda gs: np.array([math.nan if g.measures is None else getattr(g.measures, name) for g in gs], float)
+
+
 def _robust(name: str, absent: float, dtype: type) -> Builder:
     return lambda gs: np.array([absent if g.robust is None else getattr(g.robust, name) for g in gs], dtype)
 
@@ -74,6 +81,8 @@ BUILDERS: dict[str, Builder] = {
     "robust_mean": _robust("mean", math.nan, float),
     "robust_quantile": _robust("quantile", math.nan, float),
     "robust_samples": _robust("samples", -1, np.int64),
+    **{name: _measure(name) for name in ("resist_worst", "resist_mean", "open_margin", "close_margin", "push")},
+    "feasibility": lambda gs: ["" if g.measures is None else ",".join(g.measures.reasons) for g in gs],
 }
 
 

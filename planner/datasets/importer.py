@@ -25,8 +25,10 @@ row index in the file. Reading the file is :mod:`planner.datasets.acronym`'s.
   Foreign files, or any file with ``rescore``, are re-scored: the hand is put
   at each pose with its widest preshape open, backed off along the approach
   while it collides (doubling 1 cm steps while under ``MAX_BACK_OFF``),
-  closed and centred (:meth:`Grasper.close_at`), and evaluated by
-  :func:`planner.plan.unit.grasp_quality`; poses where the hand does not
+  closed and centred (:meth:`Grasper.close_at`), its contacts read as
+  patches, and evaluated by :func:`planner.plan.unit.grasp_quality` and
+  :func:`planner.plan.measures.measure` (the same analytic measures and rule
+  as a sweep); poses where the hand does not
   close on the object are counted by reason and dropped. The stored pose is
   the closed hand's (after back-off and centring). Reachability is not
   computed (None). Re-scoring runs in the crash-safe worker pool
@@ -61,6 +63,7 @@ from planner.geometry.solid import PreparedObject, prepare
 from planner.grasp import Grasp
 from planner.plan import pool
 from planner.plan.closing import Closed, Grasper
+from planner.plan.measures import measure
 from planner.plan.unit import closed_width, scored
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, hand_names, load_hand
@@ -305,7 +308,7 @@ def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: C
     shape = widest_preshape(hand)
     out = []
     with Sim() as sim:
-        grasper = Grasper(sim, hand, sim.add_static_mesh(obj.mesh.vertices, obj.mesh.faces))
+        grasper = Grasper.for_mesh(sim, hand, obj.mesh)
         for i, pose in enumerate(poses, start=first):
             closed = grasper.close_at(pose, shape, MAX_BACK_OFF)
             if not isinstance(closed, Closed):
@@ -314,6 +317,8 @@ def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: C
             q = scored(closed.contacts, hand, obj, CONE_EDGES, rejected)
             if q is None:
                 continue
+            width = closed_width(hand, closed.closed_joints)
+            m = measure(closed.contacts, closed.frames, hand, shape, closed.closed_joints, obj, width)  # type: ignore[arg-type]
             p = closed.pose
             direction = p[:3, :3] @ hand.approach
             out.append(Grasp(
@@ -321,7 +326,7 @@ def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: C
                 approach_point=p[:3, :3] @ shape.tcp + p[:3, 3], approach_dir=direction,
                 roll=roll_about(p[:3, :3], hand.approach, direction), standoff=0.0, pose=p,
                 open_joints=closed.open_joints, closed_joints=closed.closed_joints,
-                width=closed_width(hand, closed.closed_joints), contacts=closed.contacts, epsilon=q.epsilon,
-                volume=q.volume, force_closure=q.force_closure))
+                width=width, contacts=closed.contacts, epsilon=q.epsilon, volume=q.volume,
+                force_closure=q.force_closure, measures=m))
     return out
 

@@ -32,6 +32,12 @@ the ``csv`` module with a header row, floats written in full precision.
 | `epsilon` | float64 | Ferrari-Canny L1 epsilon (0 unless force-closure) |
 | `volume` | float64 | volume of the grasp wrench space |
 | `force_closure` | int64 | 1 if force-closure, else 0 |
+| `resist_worst` | float64, null | [g] weight resistance, worst of 14 gravity directions (object frame) |
+| `resist_mean` | float64, null | [g] weight resistance, mean over the 14 directions |
+| `open_margin` | float64, null | [m] smallest travel a touching finger has left towards its open limit |
+| `close_margin` | float64, null | [m] smallest travel a touching finger has left towards its closing stop |
+| `push` | float64, null | smallest cosine between a finger region's contact normal and its closing motion |
+| `feasibility` | string | feasibility reasons, comma-separated ('' = feasible) |
 | `reachability` | float64, null | fraction of sampled table placements an arm reaches |
 | `manipulability` | float64, null | best arm manipulability over the reachable placements |
 | `score` | float64 | ranking score (`meta.ranking` says how) |
@@ -79,7 +85,9 @@ _SPEC: list[tuple[str, str, str]] = [
     ("closed_joints", "string", "closed_joints"), ("contacts", "string", "contacts"),
     ("n_contacts", "int64", "n_contacts"), ("links_touching", "int64", "links_touching"),
     ("epsilon", "float64", "epsilon"), ("volume", "float64", "volume"),
-    ("force_closure", "int64", "force_closure"), ("reachability", "float64", "reachability"),
+    ("force_closure", "int64", "force_closure"),
+    *((name, "float64", name) for name in ("resist_worst", "resist_mean", "open_margin", "close_margin", "push")),
+    ("feasibility", "string", "feasibility"), ("reachability", "float64", "reachability"),
     ("manipulability", "float64", "manipulability"), ("score", "float64", "score"), ("rank", "int64", "rank"),
     ("validation_success", "int64", "validation_success"),
     ("validation_fingers_in_contact", "int64", "validation_fingers_in_contact"),
@@ -92,7 +100,8 @@ _SPEC: list[tuple[str, str, str]] = [
 ]
 COLUMNS = [name for name, _, _ in _SPEC]
 #: Columns that may be null: NaN (floats) or -1 (integers) in the grasp columns.
-NULLABLE = {"width", "reachability", "manipulability", "rank", *(c for c in COLUMNS if c.startswith(
+NULLABLE = {"width", "reachability", "manipulability", "rank", "resist_worst", "resist_mean", "open_margin",
+            "close_margin", "push", *(c for c in COLUMNS if c.startswith(
     ("validation_", "robust_")))}
 
 

@@ -13,6 +13,10 @@ Tables (the README lists every column):
 - ``validation`` (v2): the dynamic PyBullet trial of a grasp; (v3) why it
   ended as it did (``reason``).
 - ``robust`` (v2): robust epsilon under pose and friction noise.
+- ``grasps`` (v3) gains the analytic measures: ``resist_worst``,
+  ``resist_mean`` (weight resistance [g]), ``open_margin``, ``close_margin``
+  [m], ``push`` and ``feasibility`` (comma-separated reasons, '' when
+  feasible); NULL for grasps stored before version 3 (not measured).
 
 No pickle: arrays are JSON text. A new database runs :data:`SCHEMA` (version
 1) and then every migration; a newer schema is refused politely; an older one
@@ -63,13 +67,6 @@ CREATE TABLE IF NOT EXISTS grasps (
 CREATE INDEX IF NOT EXISTS grasps_rank ON grasps (object, hand, rank);
 """
 
-#: v3, shake trial: why a trial ended as it did (``held``, ``slipped``,
-#: ``squeezed_out``, ``no_contact``, ``no_clearance``, ``start_overlap``);
-#: '' for rows written before (their trial predates the reasons).
-V3_VALIDATION_REASON = """
-ALTER TABLE validation ADD COLUMN reason TEXT NOT NULL DEFAULT ''
-"""
-
 #: from version -> SQL bringing it to version + 1.
 MIGRATIONS: dict[int, str] = {
     1: """
@@ -86,7 +83,19 @@ CREATE TABLE IF NOT EXISTS robust (
     seed INTEGER NOT NULL, settings TEXT NOT NULL
 )
 """,
-    2: V3_VALIDATION_REASON,
+    # v3: why a shake trial ended as it did (``held``, ``slipped``,
+    # ``squeezed_out``, ``no_contact``, ``no_clearance``, ``start_overlap``;
+    # '' for trials written before, which predate the reasons), and the
+    # grasps' analytic measures (NULL for grasps stored before: not measured).
+    2: """
+ALTER TABLE validation ADD COLUMN reason TEXT NOT NULL DEFAULT '';
+ALTER TABLE grasps ADD COLUMN resist_worst REAL;
+ALTER TABLE grasps ADD COLUMN resist_mean REAL;
+ALTER TABLE grasps ADD COLUMN open_margin REAL;
+ALTER TABLE grasps ADD COLUMN close_margin REAL;
+ALTER TABLE grasps ADD COLUMN push REAL;
+ALTER TABLE grasps ADD COLUMN feasibility TEXT
+""",
 }
 
 #: Stand-ins for the version-2 tables when a version-1 file is read (opened

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planner.db.ranking import ORDER_BY, RankingRule
+from planner.db.ranking import ORDER_BY, RankingRule, rule_measures
 from planner.db.schema import (
     EMPTY_V2_TABLES,
     SCHEMA_VERSION,
@@ -35,6 +35,7 @@ from planner.db.schema import (
 from planner.errors import DatabaseError
 from planner.grasp import Grasp, Joints, RobustEpsilon, Trial
 from planner.plan.contacts import HandContacts
+from planner.plan.measures import Measures
 
 if TYPE_CHECKING:
     from planner.geometry.solid import PreparedObject
@@ -46,10 +47,12 @@ BUSY_TIMEOUT_S = 60.0
 VECTOR_DIGITS = 7
 INERTIA_DIGITS = 10
 
+#: The analytic measures (schema v3), in the order of :func:`_measure_values`.
+MEASURE_COLUMNS = ("resist_worst", "resist_mean", "open_margin", "close_margin", "push", "feasibility")
 _GRASP_COLUMNS = ("unit_id", "object", "hand", "preshape", "candidate", "approach_point", "approach_dir", "roll",
                   "standoff", "pose", "open_joints", "closed_joints", "width", "contacts", "n_contacts",
                   "links_touching", "epsilon", "volume", "force_closure", "reachability", "manipulability", "seed",
-                  "score")
+                  "score", *MEASURE_COLUMNS)
 _VALIDATION_COLUMNS = ("grasp_id", "success", "fingers_in_contact", "closing_linear", "closing_angular",
                        "shaking_linear", "shaking_angular", "reason", "seed", "settings")
 _ROBUST_COLUMNS = ("grasp_id", "mean", "quantile", "samples", "seed", "settings")
@@ -67,7 +70,8 @@ SELECT g.*, v.success AS v_success, v.fingers_in_contact AS v_fingers_in_contact
 FROM grasps g {join} {validation} v ON v.grasp_id = g.id LEFT JOIN {robust} r ON r.grasp_id = g.id
 """
 _MEASURES = """
-SELECT g.id, g.object, g.hand, g.epsilon, g.force_closure, g.reachability, v.success, r.quantile
+SELECT g.id, g.object, g.hand, g.epsilon, g.force_closure, g.reachability, v.success, r.quantile,
+       g.resist_worst, g.push, g.open_margin, g.close_margin
 FROM grasps g LEFT JOIN validation v ON v.grasp_id = g.id LEFT JOIN robust r ON r.grasp_id = g.id
 """
 _RERANK = f"""
@@ -76,6 +80,30 @@ WITH ranked AS (
 )
 UPDATE grasps SET rank = ranked.r FROM ranked WHERE grasps.id = ranked.id
 """
+
+
+def _measure_values(m: Measures | None) -> tuple:
+    if m is None:
+        return (None,) * len(MEASURE_COLUMNS)
+    finite = [None if not math.isfinite(v) else v for v in (m.open_margin, m.close_margin)]
+    return (m.resist_worst, m.resist_mean, *finite, m.push, ",".join(m.reasons))
+
+
+def _measures(values: tuple) -> Measures | None:
+    worst, mean, open_margin, close_margin, push, reasons = values
+    if worst is None:
+        return None
+    return Measures(worst, mean, math.inf if open_margin is None else open_margin,
+                    math.inf if close_margin is None else close_margin, push,
+                    tuple(r for r in reasons.split(",") if r))
+
+
+def rule_columns(col: dict) -> dict:
+    """The measures the ranking rule reads, from columns of grasps rows."""
+    none = [None] * len(col["id"])
+    return {"epsilon": col["epsilon"], "force_closure": col["force_closure"], "reachability": col["reachability"],
+            "success": col.get("success", none), "robust_quantile": col.get("quantile", none),
+            **{k: col.get(k, none) for k in ("resist_worst", "push", "open_margin", "close_margin")}}
 
 
 def _insert(table: str, columns: Sequence[str], verb: str = "INSERT") -> str:
@@ -244,8 +272,7 @@ class Database:
         atomically, then re-rank the object's grasps; returns the unit's id."""
         key = (unit.object, unit.hand, unit.settings_hash, unit.seed, unit.chunk)
         status = "failed" if unit.error else "done"
-        scores = rule.scores([g.epsilon for g in grasps], [g.force_closure for g in grasps],
-                             [math.nan if g.reachability is None else g.reachability for g in grasps])
+        scores = rule.scores(rule_measures(grasps))
         with self._transaction() as conn:
             conn.execute("DELETE FROM units WHERE object = ? AND hand = ? AND settings_hash = ? AND seed = ?"
                          " AND chunk = ?", key)
@@ -262,7 +289,8 @@ class Database:
                 (unit_id, g.object, g.hand, g.preshape, g.candidate, _vector(g.approach_point),
                  _vector(g.approach_dir), g.roll, g.standoff, _vector(g.pose), g.open_joints.json_text(),
                  g.closed_joints.json_text(), g.width, g.contacts.json_text(), len(g.contacts), g.contacts.touching,
-                 g.epsilon, g.volume, int(g.force_closure), g.reachability, g.manipulability, g.seed, score)
+                 g.epsilon, g.volume, int(g.force_closure), g.reachability, g.manipulability, g.seed, score,
+                 *_measure_values(g.measures))
                 for g, score in zip(grasps, scores.tolist())])
             conn.execute(_RERANK, (unit.object, unit.hand))
         return int(unit_id)  # type: ignore[arg-type]
@@ -287,8 +315,7 @@ class Database:
         if not rows:
             return
         col = dict(zip(rows[0].keys(), zip(*rows)))
-        scores = rule.scores(col["epsilon"], col["force_closure"], col["reachability"], col["success"],
-                             col["quantile"])
+        scores = rule.scores(rule_columns(col))
         conn.executemany("UPDATE grasps SET score = ? WHERE id = ?", zip(scores.tolist(), col["id"]))
         for o, h in sorted(set(zip(col["object"], col["hand"]))):
             conn.execute(_RERANK, (o, h))
@@ -404,7 +431,8 @@ def _grasps(rows: list[sqlite3.Row]) -> list[Grasp]:
         map(Joints.stored, col["closed_joints"]), col["width"],
         map(HandContacts.stored, col["contacts"], col["n_contacts"], col["links_touching"]), col["epsilon"],
         col["volume"], map(bool, col["force_closure"]), col["reachability"], col["manipulability"], col["id"],
-        col["unit_id"], col["score"], col["rank"], trials, robust)
+        col["unit_id"], col["score"], col["rank"], trials, robust,
+        map(_measures, zip(*(col.get(k, [None] * len(rows)) for k in MEASURE_COLUMNS))))
     return list(map(Grasp.restored, values))
 
 

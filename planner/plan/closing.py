@@ -9,11 +9,18 @@ For one candidate (approach ray, roll, standoff, preshape):
 3. back off by the standoff;
 4. close the fingers along the preshape's synergy; every finger DOF stops
    when a link it moves touches the object (the others keep closing) or at its
-   joint limit; mimic joints follow their master;
+   joint limit; mimic joints follow their master. A driven joint flagged
+   ``breakaway`` (the Barrett's TorqueSwitch) stops only its own links when
+   one of those touches: its mimics (the distal joint) close on alone until
+   their links touch or reach a limit, so the grasp is the configuration the
+   real hand settles in;
 5. a self-centring parallel jaw is re-centred (hand shifted along the finger
    axis so both fingers are symmetric while staying where they touched);
-6. read the contacts. Rejected: start in collision, no contact, touching
-   with a link that may not touch, or interpenetration.
+6. read the contacts: as contact patches (:mod:`planner.plan.patches`, the
+   default), or as PyBullet's closest points spread over each link
+   (``contacts="points"``, the legacy reading kept for comparisons).
+   Rejected: start in collision, no contact, touching with a link that may
+   not touch, or interpenetration.
 
 The object frame is the world frame here (the object sits at the origin).
 
@@ -37,6 +44,8 @@ import trimesh
 from planner.geometry.frames import hand_rotation
 from planner.geometry.hulls import surface_hulls
 from planner.plan.contacts import HandContacts, spread
+from planner.plan.measures import JointFrames
+from planner.plan.patches import ObjectSurface, PatchSettings, discretise, regions
 from planner.plan.tolerances import CLOSING_SPEED_MIN, JOINT_LIMIT_SLACK, MAX_PENETRATION
 from planner.sim import Body, Closest, Sim
 from planner.sim import fcl as overlap
@@ -58,6 +67,16 @@ class CloseSettings:
     # speed knobs of the fast path (touching is always decided on the exact mesh):
     near: float = 0.003  # below this gap to the surface hulls, ask the exact mesh
     exact_reach: float = 0.004  # ... within this range only (few triangles); steps are capped by it
+    contacts: str = "patch"  # "patch": contact patches; "points": the legacy closest-point reading
+    patches: PatchSettings = field(default_factory=PatchSettings)
+
+    def __post_init__(self) -> None:
+        if self.contacts not in CONTACT_READINGS:
+            raise ValueError(f"CloseSettings.contacts must be one of {', '.join(CONTACT_READINGS)}")
+
+
+#: How contacts are read: patches (default) or the legacy closest points.
+CONTACT_READINGS = ("patch", "points")
 
 
 #: Joint configurations whose hand shapes (relative to the palm) are kept for
@@ -82,6 +101,7 @@ class Closed:
         open_joints / closed_joints: finger joint values by name [rad or m].
         contacts: the contacts, object frame.
         steps: simulator queries spent (for benchmarks).
+        frames: every finger joint's origin and axis at the closed grasp, object frame.
     """
 
     pose: np.ndarray
@@ -89,6 +109,7 @@ class Closed:
     closed_joints: dict[str, float]
     contacts: HandContacts
     steps: int = 0
+    frames: JointFrames | None = None
 
 
 @dataclass(frozen=True)
@@ -102,6 +123,8 @@ class _Dof:
     rates: dict[str, float]  # joint name -> dq/ds
     links: tuple[str, ...]  # links with geometry it moves
     active: bool = True
+    after: dict[str, float] | None = None  # breakaway: the rates once ``trigger`` links are stopped
+    trigger: frozenset[str] = frozenset()  # links whose contact breaks the coupling away
 
 
 @dataclass
@@ -112,7 +135,14 @@ class Grasper:
     hand: HandSpec
     object_body: int
     settings: CloseSettings = field(default_factory=CloseSettings)
+    mesh: trimesh.Trimesh | None = None  # the object's mesh (object frame); default: the body's
     reference: bool = False  # the plain implementation the fast one is tested against
+
+    @classmethod
+    def for_mesh(cls, sim: Sim, hand: HandSpec, mesh: trimesh.Trimesh,
+                 settings: CloseSettings | None = None) -> Grasper:
+        """A grasper on ``mesh`` added to ``sim`` as a static body at the origin."""
+        return cls(sim, hand, sim.add_static_mesh(mesh.vertices, mesh.faces), settings or CloseSettings(), mesh=mesh)
 
     def __post_init__(self) -> None:
         self.body: Body = self.sim.load_urdf(self.hand.urdf)
@@ -124,13 +154,16 @@ class Grasper:
         self._relative: dict[tuple, list[np.ndarray]] = {}
         self.queries = 0
         self.contact_seconds = 0.0  # time spent reading contacts (benchmarks)
-        mesh = self.sim.meshes.get(self.object_body)
+        known = self.sim.meshes.get(self.object_body)
+        if self.mesh is None and known is not None:
+            self.mesh = trimesh.Trimesh(*known, process=False)
         self.shapes: overlap.LinkShapes | None = None
         self.far_body: int | None = None
-        if mesh is not None and not self.reference:
+        if known is not None and not self.reference:
             self.shapes = overlap.LinkShapes(self.sim, self.body, self.hand.urdf, self.geometry)
-            self.object_bvh = overlap.object_bvh(*mesh)
-            self.far_body = self.sim.add_static_hulls(surface_hulls(trimesh.Trimesh(*mesh, process=False)))
+            self.object_bvh = overlap.object_bvh(*known)
+            self.far_body = self.sim.add_static_hulls(surface_hulls(self.mesh))
+        self.surface = None if self.mesh is None else ObjectSurface(self.mesh, self.settings.patches)
 
     # -- queries -------------------------------------------------------------
     def _closest(self, reach: float, link: str | None = None) -> Closest:
@@ -308,9 +341,17 @@ class Grasper:
                     else:
                         groups[0][mimic.name] = rate * mimic.multiplier
             for rates in groups:
-                moved = {link for name in rates for link in self.hand.joint(name).moves}
-                dofs.append(_Dof(rates, tuple(n for n in self.geometry if n in moved)))
+                moved = self._moved(rates)
+                dof = _Dof(rates, moved)
+                after = {j: r for j, r in rates.items() if j != joint.name}
+                if joint.breakaway and after:
+                    dof.after, dof.trigger = after, frozenset(moved) - frozenset(self._moved(after))
+                dofs.append(dof)
         return dofs
+
+    def _moved(self, rates: dict[str, float]) -> tuple[str, ...]:
+        moved = {link for name in rates for link in self.hand.joint(name).moves}
+        return tuple(n for n in self.geometry if n in moved)
 
     def _close_fingers(self, preshape: Preshape, joints: dict[str, float]) -> dict[str, float]:
         s = self.settings
@@ -333,21 +374,28 @@ class Grasper:
                 pairs[link] = self._closest(reach, link)
             steps = {}
             for d in live:
-                touching, ds = False, caps[id(d)]
+                touched, ds = set(), caps[id(d)]
                 for link in d.links:
                     velocity = self._translation(d, link) if sharing[link] == 1 else None
                     if velocity is not None:  # a translating link: directional bound
                         rate = float(np.linalg.norm(velocity))
                         hit, travel = self._translation_step(pairs[link], velocity / rate)
-                        touching |= hit
+                        if hit:
+                            touched.add(link)
                         ds = min(ds, travel / rate)
                         continue
                     gap = self._gap(pairs[link])
-                    touching |= gap <= s.contact_tol
+                    if gap <= s.contact_tol:
+                        touched.add(link)
                     v = speed[id(d)][link]
                     if v > 0 and np.isfinite(gap):
                         ds = min(ds, (gap - s.gap) / (sharing[link] * v))
-                if touching:
+                if touched and d.after is not None and touched <= d.trigger:
+                    # breakaway: the touching links stop, the rest of the finger closes on
+                    d.rates, d.links, d.after = d.after, self._moved(d.after), None
+                    steps[id(d)] = 0.0
+                    continue
+                if touched:
                     d.active = False
                     continue
                 room = min(self._headroom(j, q[j], r) for j, r in d.rates.items())
@@ -473,6 +521,49 @@ class Grasper:
         names = [self.names[i] for i in pairs.links]
         if any(n not in self.hand.contact_links for n in names):
             return Rejected("bad_link", self.queries)
+        contacts = self._points(pairs, names)
+        if s.contacts == "patch" and self.surface is not None:
+            contacts = self._patches(contacts)
+        return Closed(pose.copy(), dict(open_joints), {k: float(v) for k, v in closed.items()}, contacts, self.queries,
+                      self._joint_frames())
+
+    def read(self, pose: np.ndarray, open_joints: dict[str, float], closed: dict[str, float]) -> Closed | Rejected:
+        """The hand placed at ``pose`` with ``closed`` joints (a stored grasp),
+        its contacts read as the settings say (e.g. the legacy points of a
+        grasp planned with patches)."""
+        self.queries = 0
+        self._place(np.array(pose, float), dict(closed))
+        return self._read(np.array(pose, float), dict(open_joints), dict(closed))
+
+    def _joint_frames(self) -> JointFrames:
+        """Origins and unit axes of the finger joints as placed, object frame
+        (a URDF joint frame is its child link's frame)."""
+        names = tuple(j.name for j in self.hand.joints)
+        origins, axes = np.zeros((len(names), 3)), np.zeros((len(names), 3))
+        for i, joint in enumerate(self.hand.joints):
+            frame = self.sim.link_pose(self.body, joint.child)
+            axis = frame[:3, :3] @ self.body.joint_axes[joint.name]
+            origins[i], axes[i] = frame[:3, 3], axis / np.linalg.norm(axis)
+        return JointFrames(names, origins, axes)
+
+    def _patches(self, points: HandContacts) -> HandContacts:
+        """Contact patches of the links PyBullet finds touching; a link whose
+        patch comes out empty (a sliver below the sampling) keeps its points."""
+        touching = tuple(sorted(set(points.links)))
+        poses = {link: self.sim.link_pose(self.body, link) for link in touching}
+        found = regions(self.hand, self.surface, poses, touching)  # type: ignore[arg-type]
+        patch = discretise(found, self.settings.patches)
+        missing = [i for i, link in enumerate(points.links) if link not in set(patch.links)]
+        if not missing:
+            return patch
+        keep = np.array(missing, int)
+        return HandContacts(np.vstack([patch.points, points.points[keep]]),
+                            np.vstack([patch.normals, points.normals[keep]]),
+                            patch.links + tuple(points.links[i] for i in missing),
+                            np.r_[patch.radius, points.radius[keep]], np.r_[patch.region, points.region[keep]])
+
+    def _points(self, pairs: Closest, names: list[str]) -> HandContacts:
+        """The legacy reading: closest points, at most MAX_PER_LINK per link spread over it."""
         normals = -pairs.normal_b
         points = pairs.on_b - pairs.normal_b * (self.hand.distance_offset / 2)
         keep_pts, keep_nrm, keep_links = [], [], []
@@ -482,5 +573,4 @@ class Grasper:
             keep_pts.append(points[chosen])
             keep_nrm.append(normals[chosen])
             keep_links += [link] * len(chosen)
-        contacts = HandContacts(np.vstack(keep_pts), np.vstack(keep_nrm), tuple(keep_links))
-        return Closed(pose.copy(), dict(open_joints), {k: float(v) for k, v in closed.items()}, contacts, self.queries)
+        return HandContacts(np.vstack(keep_pts), np.vstack(keep_nrm), tuple(keep_links))

@@ -1,10 +1,18 @@
 """Contacts read from the simulator: a batch in the object frame.
 
-A contact is a point on the object surface, the inward unit normal there and
-the hand link that touches it; the contact *model* (point, soft,
-frictionless) belongs to the link and is looked up in the hand spec when the
-grasp is scored. The stored form is JSON text ``[{point, normal, link}]``
-(points and normals rounded to 1 um / 1e-6). A batch read back from the
+A contact is a point on the object surface, the inward unit normal there,
+the hand link that touches it and, for contacts read as patches
+(:mod:`planner.plan.patches`), the patch region it belongs to and that
+region's radius [m] when it is one soft-finger contact (0: a point contact
+at a corner of a larger region). The contact *model* follows
+(:func:`contact_models`): frictionless if the link's model (hand spec) is
+frictionless; else soft with torsion 2/3 mu radius (uniform pressure on a
+disc), at most the link's own ``mu * torsion_radius`` (the one number the
+shake trial gives PyBullet as the pad's spinning friction), when the radius
+is positive and the link is soft; else point with friction. Contacts without a radius (the legacy
+point reading) take their link's model and torsion from the hand spec. The
+stored form is JSON text ``[{point, normal, link[, radius, region]}]``
+(points, normals and radii rounded to 1 um / 1e-6). A batch read back from the
 database keeps that text and decodes it only on first use, so a grasp that is
 only exported never pays for decoding its contacts.
 """
@@ -16,10 +24,13 @@ import json
 import numpy as np
 
 from planner.geometry.frames import contact_frames
-from planner.plan.tolerances import MAX_PER_LINK, MERGE_RADIUS
+from planner.plan.tolerances import MAX_PER_LINK, MERGE_RADIUS, SOFT_TORSION
+from planner.specs.hands import HandSpec
 
 #: Decimals kept of points [m] and normals in the stored form (1 um).
 STORED_DIGITS = 6
+
+_Arrays = tuple[np.ndarray, np.ndarray, tuple[str, ...], np.ndarray, np.ndarray]
 
 
 class HandContacts:
@@ -29,17 +40,25 @@ class HandContacts:
         points: (n, 3) contact points c_i on the object surface [m], object frame.
         normals: (n, 3) unit normals n_i pointing into the object, object frame.
         links: (n,) names of the hand links that touch.
+        radius: (n,) [m] radius of a soft contact's region, 0 for a point
+            contact, NaN where the link's own model applies (legacy reading).
+        region: (n,) index of the patch region of each contact, -1 if none.
     """
 
     __slots__ = ("_arrays", "_text", "_count", "_touching")
 
-    def __init__(self, points: np.ndarray, normals: np.ndarray, links: tuple[str, ...]) -> None:
+    def __init__(self, points: np.ndarray, normals: np.ndarray, links: tuple[str, ...],
+                 radius: np.ndarray | None = None, region: np.ndarray | None = None) -> None:
         n = len(points)
         if points.shape != (n, 3) or normals.shape != (n, 3):
             raise ValueError("HandContacts.points and .normals must be (n, 3)")
         if len(links) != n:
             raise ValueError("HandContacts: one link per contact")
-        self._arrays: tuple[np.ndarray, np.ndarray, tuple[str, ...]] | None = (points, normals, tuple(links))
+        radius = np.full(n, np.nan) if radius is None else np.asarray(radius, float)
+        region = np.full(n, -1) if region is None else np.asarray(region, int)
+        if radius.shape != (n,) or region.shape != (n,):
+            raise ValueError("HandContacts.radius and .region must be (n,)")
+        self._arrays: _Arrays | None = (points, normals, tuple(links), radius, region)
         self._text: str | None = None
         self._count = n
         self._touching = len(set(links))
@@ -51,12 +70,15 @@ class HandContacts:
         out._arrays, out._text, out._count, out._touching = None, text, count, touching
         return out
 
-    def _decoded(self) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+    @classmethod
+    def from_items(cls, items: list[dict]) -> HandContacts:
+        """Contacts from the items of :meth:`to_json` (``radius`` and ``region``
+        optional: a legacy reading has neither)."""
+        return cls(*_arrays(items))
+
+    def _decoded(self) -> _Arrays:
         if self._arrays is None:
-            items = json.loads(self._text or "[]")
-            self._arrays = (np.array([c["point"] for c in items], float).reshape(-1, 3),
-                            np.array([c["normal"] for c in items], float).reshape(-1, 3),
-                            tuple(c["link"] for c in items))
+            self._arrays = _arrays(json.loads(self._text or "[]"))
         return self._arrays
 
     @property
@@ -70,6 +92,14 @@ class HandContacts:
     @property
     def links(self) -> tuple[str, ...]:
         return self._decoded()[2]
+
+    @property
+    def radius(self) -> np.ndarray:
+        return self._decoded()[3]
+
+    @property
+    def region(self) -> np.ndarray:
+        return self._decoded()[4]
 
     def __len__(self) -> int:
         return self._count
@@ -85,16 +115,40 @@ class HandContacts:
         return contact_frames(self.normals)
 
     def to_json(self) -> list[dict]:
-        """``[{point, normal, link}]``, rounded as stored."""
-        return [{"point": [round(float(v), STORED_DIGITS) for v in p],
-                 "normal": [round(float(v), STORED_DIGITS) for v in n], "link": link}
-                for p, n, link in zip(self.points, self.normals, self.links)]
+        """``[{point, normal, link[, radius, region]}]``, rounded as stored."""
+        out = []
+        for p, n, link, radius, region in zip(self.points, self.normals, self.links, self.radius, self.region):
+            item = {"point": [round(float(v), STORED_DIGITS) for v in p],
+                    "normal": [round(float(v), STORED_DIGITS) for v in n], "link": link}
+            if not np.isnan(radius):
+                item["radius"] = round(float(radius), STORED_DIGITS)
+            if region >= 0:
+                item["region"] = int(region)
+            out.append(item)
+        return out
 
     def json_text(self) -> str:
         """The stored form: compact JSON text of :meth:`to_json`."""
         if self._text is None:
             self._text = json.dumps(self.to_json(), separators=(",", ":"))
         return self._text
+
+
+def contact_models(contacts: HandContacts, hand: HandSpec, mu: float) -> tuple[list[str], np.ndarray]:
+    """(n model names, (n,) torsion [m]) of the contacts for the quality
+    functions (see the module docstring)."""
+    names, torsion = [], np.zeros(len(contacts))
+    for i, (link, radius) in enumerate(zip(contacts.links, contacts.radius)):
+        own = hand.contacts[link]
+        if np.isnan(radius) or own.model == "frictionless":
+            names.append(own.model)
+            torsion[i] = own.torsion(mu)
+        elif radius > 0 and own.model == "soft":
+            names.append("soft")
+            torsion[i] = min(SOFT_TORSION * mu * radius, own.torsion(mu))
+        else:
+            names.append("point")
+    return names, torsion
 
 
 def spread(points: np.ndarray, limit: int = MAX_PER_LINK, radius: float = MERGE_RADIUS) -> np.ndarray:
@@ -111,3 +165,12 @@ def spread(points: np.ndarray, limit: int = MAX_PER_LINK, radius: float = MERGE_
         chosen.append(k)
         dist = np.minimum(dist, np.linalg.norm(points - points[k], axis=1))
     return np.array(chosen, int)
+
+
+def _arrays(items: list[dict]) -> _Arrays:
+    """(points, normals, links, radius, region) of the items of :meth:`HandContacts.to_json`."""
+    return (np.array([c["point"] for c in items], float).reshape(-1, 3),
+            np.array([c["normal"] for c in items], float).reshape(-1, 3),
+            tuple(c["link"] for c in items),
+            np.array([c.get("radius", np.nan) for c in items], float),
+            np.array([c.get("region", -1) for c in items], int))

@@ -16,6 +16,9 @@ MERGE_RADIUS = 0.002
 #: At most this many contacts per link, spread over its contact patch: four
 #: span a flat pad's patch.
 MAX_PER_LINK = 4
+#: Soft-finger torsion per unit normal force of a flat disc of radius a under
+#: uniform pressure: 2/3 mu a (the integral of mu r p over the disc).
+SOFT_TORSION = 2.0 / 3.0
 #: Closest-point pairs closing in slower than this (per unit travel) count as
 #: sliding past: their distance cannot fall to zero within a step.
 CLOSING_SPEED_MIN = 0.05

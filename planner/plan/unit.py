@@ -24,7 +24,8 @@ from planner.geometry.solid import PreparedObject, load_object
 from planner.grasp import Grasp
 from planner.plan import sampling
 from planner.plan.closing import Closed, Grasper
-from planner.plan.contacts import HandContacts
+from planner.plan.contacts import HandContacts, contact_models
+from planner.plan.measures import MIN_RESISTANCE, measure
 from planner.plan.reach import ReachSettings, reach_scene
 from planner.plan.sweep import (
     IK_STREAM,
@@ -104,21 +105,24 @@ def _run(spec: UnitSpec, result: UnitResult) -> None:
     result.timing["prepare"] += time.perf_counter() - t0
     rng = unit_rng(spec.seed, obj.name, hand.name)
     with Sim() as sim:
-        grasper = Grasper(sim, hand, sim.add_static_mesh(obj.mesh.vertices, obj.mesh.faces))
+        grasper = Grasper.for_mesh(sim, hand, obj.mesh)
         sweep = _antipodal if settings.sampler == "antipodal" else _rays
         for cand, closed, ray in sweep(spec, settings, obj, hand, shapes, rng, grasper, result, t0):
             tb = time.perf_counter()
-            q = scored(closed.contacts, hand, obj, settings.cone_edges, result.rejected)
-            result.timing["quality"] += time.perf_counter() - tb
+            q = scored(closed.contacts, hand, obj, settings.cone_edges, result.rejected, settings.volume)
             if q is None:
+                result.timing["quality"] += time.perf_counter() - tb
                 continue
+            width = closed_width(hand, closed.closed_joints)
+            m = measure(closed.contacts, closed.frames, hand, cand.preshape, closed.closed_joints, obj, width)  # type: ignore[arg-type]
+            result.timing["quality"] += time.perf_counter() - tb
             point, direction, roll, standoff = ray
             result.grasps.append(Grasp(
                 object=obj.name, hand=hand.name, preshape=cand.preshape.name, candidate=cand.index, seed=spec.seed,
                 approach_point=point, approach_dir=direction, roll=roll, standoff=standoff, pose=closed.pose,
-                open_joints=closed.open_joints, closed_joints=closed.closed_joints,
-                width=closed_width(hand, closed.closed_joints), contacts=closed.contacts, epsilon=q.epsilon,
-                volume=q.volume, force_closure=q.force_closure))
+                open_joints=closed.open_joints, closed_joints=closed.closed_joints, width=width,
+                contacts=closed.contacts, epsilon=q.epsilon, volume=q.volume, force_closure=q.force_closure,
+                measures=m))
         # contact reading happens inside closing; report it as its own stage
         result.timing["contacts"] = grasper.contact_seconds
         result.timing["closing"] -= grasper.contact_seconds
@@ -223,10 +227,12 @@ def fitted_opening(hand: HandSpec, shape: Preshape, master: str, width: float) -
 
 def add_reachability(grasps: list[Grasp], obj: PreparedObject, hand: HandSpec, spec: UnitSpec,
                      settings: SweepSettings) -> list[Grasp]:
-    """Reachability of the unit's ``reach_top`` force-closure grasps of highest
-    epsilon (all if 0) over the unit's sampled placements; the others keep
+    """Reachability over the unit's sampled placements of its ``reach_top``
+    grasps (all if 0) that are force closure or hold their object's weight,
+    highest epsilon first, then highest weight resistance; the others keep
     ``None`` (not computed). The scene is built once per worker process."""
-    ranked = sorted((g for g in grasps if g.force_closure), key=lambda g: (-g.epsilon, g.candidate))
+    ranked = sorted((g for g in grasps if g.force_closure or _holds_weight(g)),
+                    key=lambda g: (-g.epsilon, -(g.measures.resist_worst if g.measures else 0.0), g.candidate))
     chosen = {g.candidate for g in (ranked[:settings.reach_top] if settings.reach_top else ranked)}
     if not chosen:
         return grasps
@@ -250,23 +256,32 @@ def add_reachability(grasps: list[Grasp], obj: PreparedObject, hand: HandSpec, s
     return out
 
 
-def grasp_quality(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, cone_edges: int) -> quality.Quality:
-    """Ferrari-Canny epsilon (L1), GWS volume and force closure of contacts;
-    each contact's model (point, soft, frictionless) is its link's in the hand."""
-    models = [hand.contacts[link] for link in contacts.links]
-    return quality.evaluate(contacts.points, contacts.frames, mu=obj.friction, center=obj.com,
-                            torque_scale=obj.torque_scale, cone_edges=cone_edges, model=[m.model for m in models],
-                            torsion=np.array([m.torsion(obj.friction) for m in models], float))
+def _holds_weight(g: Grasp) -> bool:
+    return g.measures is not None and g.measures.resist_worst >= MIN_RESISTANCE
 
 
-def scored(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, cone_edges: int, rejected: Counter
-           ) -> quality.Quality | None:
+def grasp_quality(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, cone_edges: int,
+                  volume: bool = True) -> quality.Quality:
+    """Ferrari-Canny epsilon (L1), GWS volume (0 unless ``volume``) and force
+    closure of contacts; each contact's model (point, soft, frictionless) as
+    :func:`contact_models` says."""
+    models, torsion = contact_models(contacts, hand, obj.friction)
+    args = dict(mu=obj.friction, center=obj.com, torque_scale=obj.torque_scale, cone_edges=cone_edges, model=models,
+                torsion=torsion)
+    if volume:
+        return quality.evaluate(contacts.points, contacts.frames, **args)  # type: ignore[arg-type]
+    eps = quality.epsilon(contacts.points, contacts.frames, **args)  # type: ignore[arg-type]
+    return quality.Quality(eps, 0.0, eps > 0.0)
+
+
+def scored(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, cone_edges: int, rejected: Counter,
+           volume: bool = True) -> quality.Quality | None:
     """:func:`grasp_quality`, or None with :data:`QUALITY_FAILED` counted in
     ``rejected`` when :mod:`planner.quality` cannot analyse these contacts
     (a ``HullError`` or another ``DegenerateGraspError``): one grasp is
     rejected, not its whole unit."""
     try:
-        return grasp_quality(contacts, hand, obj, cone_edges)
+        return grasp_quality(contacts, hand, obj, cone_edges, volume)
     except DegenerateGraspError as exc:
         rejected[QUALITY_FAILED] += 1
         log.debug("%s/%s: grasp rejected, quality not computable: %s", obj.name, hand.name, exc)

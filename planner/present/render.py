@@ -1,6 +1,11 @@
-"""Pictures of grasps: the hand closed on the object, contacts and friction
-cones, from a few viewpoints, rendered headless by PyBullet's TinyRenderer.
-Contact sheets of several grasps are laid out with matplotlib.
+"""Pictures of grasps: the hand closed on the object, its contact patches,
+contacts and friction cones, from a few viewpoints, rendered headless by
+PyBullet's TinyRenderer. Contact sheets of several grasps are laid out with
+matplotlib.
+
+A patch (the contacts of one region, :mod:`planner.plan.patches`) is drawn as
+the blue polygon its contacts span, just outside the object; a soft-finger
+contact as a blue disc of its region's radius.
 """
 
 from __future__ import annotations
@@ -10,9 +15,10 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from planner.geometry.frames import rotation_onto
+from planner.geometry.frames import rotation_onto, tangent_bases
 from planner.geometry.solid import PreparedObject
 from planner.grasp import Grasp
+from planner.plan.contacts import HandContacts
 from planner.sim import Sim
 from planner.specs.hands import HandSpec
 
@@ -20,6 +26,9 @@ OBJECT_RGBA = (0.85, 0.55, 0.25, 1.0)
 HAND_RGBA = (0.55, 0.6, 0.7, 1.0)
 CONTACT_RGBA = (0.9, 0.05, 0.05, 1.0)
 CONE_RGBA = (0.1, 0.75, 0.2, 1.0)
+PATCH_RGBA = (0.15, 0.35, 0.95, 1.0)
+PATCH_LIFT = 0.0005  # [m] patches are drawn this far outside the object surface
+MIN_DISC = 0.0015  # [m] smallest drawn disc radius (visible at these scales)
 CONE_LENGTH = 0.015  # [m] drawn height of a friction cone
 VIEW_SIZE = (360, 300)
 #: Viewing directions (from the target towards the eye), before scaling.
@@ -35,6 +44,8 @@ def grasp_views(hand: HandSpec, obj: PreparedObject, grasp: Grasp, size: tuple[i
         sim.set_pose(body, np.array(grasp.pose))
         sim.set_joints(body, grasp.closed_joints)
         sim.set_color(body, HAND_RGBA)
+        for vertices, faces in patch_meshes(grasp.contacts):
+            sim.add_visual_mesh(vertices, faces, PATCH_RGBA)
         for point, normal in zip(grasp.contacts.points, grasp.contacts.normals):
             _add_contact(sim, point, normal, obj.friction)
         centre = 0.5 * (obj.mesh.bounds[0] + obj.mesh.bounds[1])
@@ -45,6 +56,35 @@ def grasp_views(hand: HandSpec, obj: PreparedObject, grasp: Grasp, size: tuple[i
             eye = target + view / np.linalg.norm(view) * radius * 1.25
             images.append(sim.render(eye, target, np.array([0.0, 0.0, 1.0]), size))
         return images
+
+
+def patch_meshes(contacts: HandContacts) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(vertices (k, 3), faces (f, 3)) per patch region, object frame: the
+    polygon of its contacts ordered around their centroid (a fan, both sides),
+    or a disc of the region's radius for a single soft contact."""
+    out = []
+    for region in np.unique(contacts.region[contacts.region >= 0]):
+        mine = np.flatnonzero(contacts.region == region)
+        pts, normal = contacts.points[mine], contacts.normals[mine].mean(axis=0)
+        normal /= np.linalg.norm(normal)
+        l_vec, o_vec = (v[0] for v in tangent_bases(normal[None]))
+        centre = pts.mean(axis=0)
+        if len(mine) == 1:
+            radius = max(float(contacts.radius[mine[0]]), MIN_DISC)
+            angles = np.linspace(0, 2 * np.pi, 17)[:-1]
+            ring = centre + radius * (np.cos(angles)[:, None] * l_vec + np.sin(angles)[:, None] * o_vec)
+        elif len(mine) == 2:  # a strip along the two contacts
+            side = np.cross(normal, pts[1] - pts[0])
+            side *= MIN_DISC / max(np.linalg.norm(side), 1e-12)
+            ring = np.array([pts[0] - side, pts[1] - side, pts[1] + side, pts[0] + side])
+        else:
+            rel = pts - centre
+            ring = pts[np.argsort(np.arctan2(rel @ o_vec, rel @ l_vec))]
+        vertices = np.vstack([centre, ring]) - PATCH_LIFT * normal
+        k = len(ring)
+        fan = np.array([[0, 1 + i, 1 + (i + 1) % k] for i in range(k)])
+        out.append((vertices, np.vstack([fan, fan[:, ::-1]])))
+    return out
 
 
 def _add_contact(sim: Sim, point: np.ndarray, normal: np.ndarray, mu: float) -> None:
@@ -84,5 +124,8 @@ def save_sheet(panels: list[tuple[list[np.ndarray], str]], out: Path) -> None:
 
 def title(grasp: Grasp) -> str:
     reach = "n/a" if grasp.reachability is None else f"{grasp.reachability:.2f}"
+    m = grasp.measures
+    extra = "" if m is None else (f", holds {m.resist_worst:.1f} g, push {m.push:.2f}"
+                                  + (f", {'/'.join(m.reasons)}" if m.reasons else ""))
     return (f"#{grasp.rank} {grasp.object}/{grasp.hand} {grasp.preshape}: score {grasp.score:.4f}, "
-            f"epsilon {grasp.epsilon:.4f}, reach {reach}, {len(grasp.contacts)} contacts")
+            f"epsilon {grasp.epsilon:.4f}, reach {reach}, {len(grasp.contacts)} contacts{extra}")

@@ -1,10 +1,18 @@
 """``grasp report``: how well each score predicts simulated success.
 
-Per hand (and per object): success rate by epsilon decile, Spearman rank
-correlation of epsilon, robust epsilon and reachability with simulated
-success, and the success rate of the top-1 / top-10 grasps (by rank) among
-validated grasps. Written as one self-contained HTML file (plots embedded as
+Per hand (and per object): success rate by epsilon decile; ROC AUC against
+simulated success of every measure (epsilon, weight resistance, push, the
+margins, feasibility, the analytic score, reachability, robust epsilon,
+over the validated grasps); Spearman rank correlations; the success rate of
+the top-1 / top-10 grasps by final rank among validated grasps, and of the
+top-1 / top-10 of the *analytic order* (the rule without simulation, over
+each object's whole sweep; picks without a trial are counted as unlabelled,
+not as failures). Written as one self-contained HTML file (plots embedded as
 PNG) or, for a path without ``.html``, a folder with ``report.md`` and PNGs.
+
+Validated grasps are whatever ``grasp validate`` or ``bench/calibration.py``
+tested: the calibration's uniform samples make unbiased AUCs; a database
+validated on its top-K only measures the AUC among its best grasps.
 """
 
 from __future__ import annotations
@@ -18,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.db.ranking import RankingRule
+from planner.db.ranking import RankingRule, rule_measures
 from planner.db.store import open_db
 from planner.errors import InputError
 from planner.grasp import Grasp
@@ -31,6 +39,8 @@ class HandReport:
     hand: str
     grasps: list[Grasp] = field(default_factory=list)
     rule: RankingRule = field(default_factory=RankingRule)
+    #: object -> every grasp of its sweep in analytic order, best first (ids)
+    analytic_orders: dict[str, list[int]] = field(default_factory=dict)
 
     @property
     def success(self) -> np.ndarray:
@@ -42,7 +52,13 @@ class HandReport:
         if name.startswith("robust_"):
             key = name[len("robust_"):]
             return np.array([np.nan if g.robust is None else getattr(g.robust, key) for g in self.grasps], float)
-        return np.array([getattr(g, name) for g in self.grasps], float)
+        if name == "analytic":
+            return self.rule.analytic(rule_measures(self.grasps))
+        if name == "feasible":
+            return np.array([np.nan if g.measures is None else g.measures.feasible for g in self.grasps], float)
+        if name in ANALYTIC_MEASURES:
+            return np.array([np.nan if g.measures is None else getattr(g.measures, name) for g in self.grasps], float)
+        return np.array([np.nan if getattr(g, name) is None else getattr(g, name) for g in self.grasps], float)
 
     @property
     def objects(self) -> list[str]:
@@ -61,17 +77,55 @@ class HandReport:
         wins = sum(int(self._of(name)[0].validation.success) for name in self.objects)  # type: ignore[union-attr]
         return wins, len(self.objects)
 
-    def top1_analytic(self) -> tuple[int, int]:
-        """The same, picking each object's grasp by the analytic score alone:
-        the rule without the measures that need simulation (success, robust
-        epsilon), as it ranked the grasps before any was simulated."""
-        wins = 0
-        for name in self.objects:
-            mine = self._of(name)
-            scores = self.rule.scores([g.epsilon for g in mine], [g.force_closure for g in mine],
-                                      [np.nan if g.reachability is None else g.reachability for g in mine])
-            wins += int(mine[int(np.argmax(scores))].validation.success)  # type: ignore[union-attr]
-        return wins, len(self.objects)
+    def analytic_top(self, k: int) -> tuple[float, float, int]:
+        """(top-1, top-k, unlabelled picks) of the analytic order over each
+        object's whole sweep (see :func:`top_k_success`)."""
+        ok = {g.id: float(g.validation.success) for g in self.grasps}  # type: ignore[union-attr]
+        orders = [(np.arange(len(ids)), np.array([ok.get(i, np.nan) for i in ids], float))
+                  for ids in self.analytic_orders.values()]
+        return top_k_success(orders, k)
+
+
+#: The analytic measures of :class:`planner.plan.measures.Measures` the report reads.
+ANALYTIC_MEASURES = ("resist_worst", "resist_mean", "open_margin", "close_margin", "push")
+#: Measures whose ROC AUC the report shows (higher should mean "holds").
+AUC_MEASURES = ("analytic", "epsilon", *ANALYTIC_MEASURES, "feasible", "reachability", "robust_mean",
+                "robust_quantile")
+
+
+def roc_auc(labels: np.ndarray, scores: np.ndarray) -> float:
+    """ROC AUC of ``scores`` (n,) for binary ``labels`` (n,) (NaN: unlabelled,
+    left out); a NaN score (not computed) ranks lowest; ties count half.
+    NaN when a class is missing or no grasp has the score (never computed:
+    not the 0.5 of a useless score)."""
+    from scipy.stats import rankdata
+
+    y, x = np.asarray(labels, float), np.asarray(scores, float)
+    keep = np.isfinite(y)
+    if not np.isfinite(x[keep]).any():
+        return math.nan
+    y, x = y[keep] > 0.5, np.nan_to_num(x[keep], nan=-np.inf)
+    pos, neg = int(y.sum()), int((~y).sum())
+    if pos == 0 or neg == 0:
+        return math.nan
+    ranks = rankdata(x)
+    return float((ranks[y].sum() - pos * (pos + 1) / 2) / (pos * neg))
+
+
+def top_k_success(orders: list[tuple[np.ndarray, np.ndarray]], k: int) -> tuple[float, float, int]:
+    """Per object an order (indices, best first) and success per grasp (NaN:
+    not tested): (share of objects whose first pick held, mean over objects of
+    the share of the k first picks that held, picks without a trial). Picks
+    without a trial are left out, not counted as failures."""
+    top1, topk, missing = [], [], 0
+    for order, ok in orders:
+        picks = ok[np.asarray(order, int)[:k]]
+        missing += int(np.isnan(picks).sum())
+        if len(picks) and np.isfinite(picks[0]):
+            top1.append(picks[0])
+        if np.isfinite(picks).any():
+            topk.append(np.nanmean(picks))
+    return (float(np.mean(top1)) if top1 else math.nan, float(np.mean(topk)) if topk else math.nan, missing)
 
 
 def spearman(x: np.ndarray, y: np.ndarray) -> float:
@@ -101,11 +155,17 @@ def collect(db_path: Path) -> list[HandReport]:
     with open_db(Path(db_path), create=False, readonly=True) as db:
         grasps = db.validated()
         rule = db.rule()
-    if not grasps:
-        raise InputError(f"{db_path}: no validated grasps; run `grasp validate --db {db_path}` first")
-    reports: dict[str, HandReport] = {}
-    for g in grasps:
-        reports.setdefault(g.hand, HandReport(g.hand, rule=rule)).grasps.append(g)
+        if not grasps:
+            raise InputError(f"{db_path}: no validated grasps; run `grasp validate --db {db_path}` first")
+        reports: dict[str, HandReport] = {}
+        for g in grasps:
+            reports.setdefault(g.hand, HandReport(g.hand, rule=rule)).grasps.append(g)
+        for rep in reports.values():
+            for name in rep.objects:
+                sweep = [g for batch in db.grasp_batches(name, rep.hand) for g in batch]
+                score = rule.analytic(rule_measures(sweep))
+                order = np.lexsort((np.array([g.candidate for g in sweep]), -score))
+                rep.analytic_orders[name] = [sweep[i].id for i in order]  # type: ignore[misc]
     return list(reports.values())
 
 
@@ -134,15 +194,17 @@ def _plot(report: HandReport) -> bytes:
 def _summary_rows(report: HandReport) -> list[tuple[str, str]]:
     ok = report.success
     wins, n = report.top1_objects()
-    analytic, _ = report.top1_analytic()
+    top1, top10a, missing = report.analytic_top(10)
     top10, _ = report.top_k(10)
     return [
         ("validated grasps", str(len(ok))),
         ("objects", str(n)),
         ("overall success rate", f"{np.nanmean(ok):.3f}"),
         ("top-1 grasp succeeds, final ranking (objects)", f"{wins}/{n} = {wins / max(n, 1):.1%}"),
-        ("top-1 grasp succeeds, analytic score only (objects)", f"{analytic}/{n} = {analytic / max(n, 1):.1%}"),
+        ("top-1 of the analytic order succeeds (share of objects)", f"{top1:.3f}"),
+        ("top-10 of the analytic order, success rate", f"{top10a:.3f} ({missing} picks without a trial left out)"),
         ("top-10 success rate (mean over objects)", f"{top10:.3f}"),
+        *[(f"ROC AUC({name}, success)", f"{roc_auc(ok, report.measure(name)):.3f}") for name in AUC_MEASURES],
         ("Spearman(epsilon, success)", f"{spearman(report.measure('epsilon'), ok):.3f}"),
         ("Spearman(robust epsilon mean, success)", f"{spearman(report.measure('robust_mean'), ok):.3f}"),
         ("Spearman(robust epsilon quantile, success)", f"{spearman(report.measure('robust_quantile'), ok):.3f}"),

@@ -13,11 +13,13 @@ from planner.quality.forces import contact_forces
 from planner.quality.grasp_matrix import grasp_matrix, partial_grasp_matrix, selection_matrix, skew
 from planner.quality.jacobian import JOINT_TYPES, grasp_jacobian, hand_jacobian
 from planner.quality.metrics import Quality, epsilon, evaluate, force_closure, volume
+from planner.quality.resistance import HandDrive, Resistance, weight_resistance
 from planner.quality.tolerances import FORCE_CLOSURE_TOL
 from planner.quality.wrenches import PrimitiveWrenches, primitive_wrenches
 
 __all__ = [
-    "FORCE_CLOSURE_TOL", "JOINT_TYPES", "MODELS", "NORMS", "Contacts", "PrimitiveWrenches",
+    "FORCE_CLOSURE_TOL", "JOINT_TYPES", "MODELS", "NORMS", "Contacts", "HandDrive", "PrimitiveWrenches",
+    "Resistance", "weight_resistance",
     "Quality", "as_contacts", "contact_forces", "epsilon", "evaluate", "force_closure",
     "grasp_jacobian", "grasp_matrix", "hand_jacobian", "partial_grasp_matrix",
     "primitive_wrenches", "radius_of_gyration", "selection_matrix", "skew",

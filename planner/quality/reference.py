@@ -18,6 +18,8 @@ from collections.abc import Callable
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
+from planner.quality.resistance import ResistanceProgram
+
 
 def reference_epsilon(wrenches: np.ndarray) -> float:
     """L1 epsilon of primitive wrenches (k, 6); 0.0 if degenerate."""
@@ -78,3 +80,21 @@ def joggled_linf(wrenches: np.ndarray, contact: np.ndarray) -> tuple[float, floa
     """(epsilon, volume) of the L-infinity GWS by ``joggled`` on every
     Minkowski sum."""
     return joggled(minkowski_sums(wrenches, contact), lambda dirs: linf_support(wrenches, contact, dirs))
+
+
+def reference_resistance(prog: ResistanceProgram, directions: np.ndarray) -> np.ndarray:
+    """Weight resistance [g] per direction of a ``ResistanceProgram``: one
+    ``scipy.optimize.linprog`` call per direction, no warm start."""
+    from scipy.optimize import linprog
+
+    k = prog.wrench.shape[1]
+    out = np.zeros(len(directions))
+    if k == 0:
+        return out
+    for r, d in enumerate(directions):
+        load = np.r_[prog.weight * d, np.zeros(3)]
+        res = linprog(np.r_[np.zeros(k), -1.0], A_ub=np.hstack([prog.rows, np.zeros((len(prog.rows), 1))]),
+                      b_ub=prog.bounds, A_eq=np.hstack([prog.wrench, load[:, None]]), b_eq=np.zeros(6),
+                      bounds=[(0, None)] * k + [(0, prog.cap)], method="highs")
+        out[r] = min(max(-res.fun, 0.0), prog.cap) if res.status == 0 else 0.0
+    return out

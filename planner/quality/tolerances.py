@@ -68,3 +68,11 @@ RANK_TOL = 1e-12
 
 #: Relative asymmetry / negative eigenvalue accepted in an inertia tensor.
 INERTIA_TOL = 1e-9
+
+#: [m/s^2] standard gravity: weight resistance is in units of the object's weight m g.
+GRAVITY = 9.81
+
+#: Weight resistance above this many g counts as this many: contacts on links
+#: no joint moves (the palm) are pushed by the arm and bound nothing, and a
+#: grasp that holds 50 g holds any load a shake test or a robot arm applies.
+RESISTANCE_CAP = 50.0

@@ -92,7 +92,7 @@ class Selection:
 
     def pick(self, db: Database, obj: str, hand: str, seed: int) -> list[Grasp]:
         if not self.every and self.sample is None:
-            return [g for g in db.best(obj, hand, self.top) if g.force_closure]
+            return [g for g in db.best(obj, hand, self.top) if g.score]  # pressed grasps may rank high without closure
         grasps = sorted((g for batch in db.grasp_batches(obj, hand) for g in batch), key=lambda g: g.id or 0)
         if self.every or self.sample is None or self.sample >= len(grasps):
             return grasps

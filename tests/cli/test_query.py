@@ -16,7 +16,7 @@ def test_best_json_has_the_documented_keys(box_db: Path) -> None:
     grasps = json.loads(out)
     assert 1 <= len(grasps) <= 3
     keys = {"object", "hand", "preshape", "pose", "joints", "epsilon", "volume", "force_closure", "contacts", "rank",
-            "score"}
+            "score", "resist_worst", "resist_mean", "open_margin", "close_margin", "push", "feasibility"}
     assert keys <= set(grasps[0])
     assert [g["rank"] for g in grasps] == list(range(1, len(grasps) + 1))
     pose = np.array(grasps[0]["pose"])
@@ -52,6 +52,7 @@ def test_best_prints_one_line_per_grasp_and_show_writes_a_png(box_db: Path, tmp_
     assert code == 0, err
     lines = out.strip().splitlines()
     assert len(lines) == 2 and lines[0].startswith("#1 box/panda preshape=wide score=")
+    assert " holds=" in lines[0] and " push=" in lines[0] and " feasibility=" in lines[0]  # the analytic measures
     code, out, err = grasp("show", "box", "--hand", "panda", "--db", str(box_db), "--out", str(tmp_path / "g.png"))
     assert code == 0 and (tmp_path / "g.png").stat().st_size > 1000, err
 

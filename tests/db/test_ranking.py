@@ -12,62 +12,88 @@ from helpers import NUM_TOL, assert_close
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planner.db.ranking import FORMULA, RankingRule
+from planner.db.ranking import FORMULA, MEASURES, RankingRule
 from planner.errors import InputError
 
 README = Path(__file__).parents[2] / "README.md"
 
 
-def reference(rule: RankingRule, eps: float, fc: bool, reach: float | None, ok: bool | None,
-              quantile: float | None) -> float:
+def reference(rule: RankingRule, g: tuple) -> float:
     """The rule as FORMULA states it, one grasp at a time."""
-    if not fc:
-        return 0.0
+    eps, fc, reach, ok, quantile, resist, push, open_margin, close_margin = g
+    gate = (open_margin is None or open_margin >= rule.min_open_margin) and (close_margin is None
+                                                                           or close_margin >= 1e-4)
+    press = 1.0 if push is None else min(max(push, 0.0), 1.0)
+    hold = float(fc) if resist is None else min(resist, rule.cap) / rule.cap
     q = eps if quantile is None else quantile
     quality = (1 - rule.robust_weight) * eps + rule.robust_weight * q
+    analytic = (press * (1 + hold) / 2 + rule.eps_weight * quality) if gate else 0.0
     reach_factor = (1 - rule.reach_weight) + rule.reach_weight * (1.0 if reach is None else reach)
     success_factor = (1 - rule.success_weight) + rule.success_weight * (1.0 if ok is None else float(ok))
-    return quality * reach_factor * success_factor
+    return analytic * reach_factor * success_factor
+
+
+def measures(grasps: list) -> dict:
+    """Columns of the rule's measures, None -> NaN."""
+    nan = math.nan
+    cols = list(zip(*grasps))
+    return {name: [nan if v is None else float(v) for v in col] for name, col in zip(MEASURES, cols)}
 
 
 weight = st.floats(0.0, 1.0)
+maybe = st.none() | st.floats(0.0, 40.0)
 grasp = st.tuples(st.floats(0.0, 0.5), st.booleans(), st.none() | st.floats(0.0, 1.0), st.none() | st.booleans(),
-                  st.none() | st.floats(0.0, 0.5))
+                  st.none() | st.floats(0.0, 0.5), maybe, st.none() | st.floats(-1.0, 1.0),
+                  st.none() | st.floats(0.0, 0.02), st.none() | st.floats(0.0, 0.02))
 
 
 @settings(max_examples=200, deadline=None)
-@given(weights=st.tuples(weight, weight, weight), grasps=st.lists(grasp, min_size=1, max_size=12))
-def test_vectorised_rule_equals_the_plain_definition(weights: tuple, grasps: list) -> None:
-    rule = RankingRule(*weights)
-    nan = math.nan
-    eps, fc, reach, ok, quantile = zip(*grasps)
-    got = rule.scores(eps, fc, [nan if r is None else r for r in reach], [nan if s is None else s for s in ok],
-                      [nan if q is None else q for q in quantile])
-    assert_close(got, [reference(rule, *g) for g in grasps], NUM_TOL)
+@given(weights=st.tuples(weight, weight, weight), cap=st.floats(0.5, 20.0), margin=st.floats(0.0, 0.01),
+       grasps=st.lists(grasp, min_size=1, max_size=12))
+def test_vectorised_rule_equals_the_plain_definition(weights: tuple, cap: float, margin: float, grasps: list) -> None:
+    rule = RankingRule(*weights, cap=cap, min_open_margin=margin)
+    assert_close(rule.scores(measures(grasps)), [reference(rule, g) for g in grasps], NUM_TOL)
 
 
-def test_robust_weight_moves_the_score_towards_the_robust_quantile() -> None:
-    eps, quantile = np.array([0.1, 0.1]), np.array([0.02, np.nan])
-    only_robust = RankingRule(reach_weight=0.0, success_weight=0.0, robust_weight=1.0)
-    assert_close(only_robust.scores(eps, [True, True], robust_quantile=quantile), [0.02, 0.1])
-    half = RankingRule(reach_weight=0.0, success_weight=0.0, robust_weight=0.5)
-    assert_close(half.scores(eps, [True, True], robust_quantile=quantile), [0.06, 0.1])
-    assert_close(RankingRule(robust_weight=0.0).scores(eps, [True, True], robust_quantile=quantile), [0.1, 0.1])
+def test_the_analytic_part_presses_then_holds_then_breaks_ties_by_epsilon() -> None:
+    rule = RankingRule(reach_weight=0.0, success_weight=0.0)
+    m = {"epsilon": [0.1, 0.2, 0.0, 0.3, 0.3], "force_closure": [1, 1, 0, 1, 1], "resist_worst": [20, 20, 0, 2, 20],
+         "push": [1.0, 1.0, 1.0, 1.0, 0.2], "open_margin": [0.01] * 5, "close_margin": [0.01] * 5}
+    s = rule.analytic(m)
+    assert s[1] > s[0] > s[3] > s[2] > 0  # holding beats epsilon; a pressed non-holding grasp still ranks
+    assert s[4] < s[2]  # unpressed (back of a finger) ranks below pressed
+    no_room = rule.analytic({**m, "open_margin": [0.001] * 5})
+    assert (no_room == 0).all()
+
+
+def test_robust_weight_moves_the_tie_break_towards_the_robust_quantile() -> None:
+    base = {"epsilon": [0.1, 0.1], "force_closure": [1, 1], "robust_quantile": [0.02, np.nan]}
+    only_robust = RankingRule(reach_weight=0.0, success_weight=0.0, robust_weight=1.0, eps_weight=1.0)
+    assert_close(only_robust.scores(base), [1.0 + 0.02, 1.0 + 0.1])
+    assert_close(RankingRule(eps_weight=1.0, reach_weight=0.0).scores(base), [1.1, 1.1])
 
 
 def test_measures_not_computed_are_neutral() -> None:
     rule = RankingRule(reach_weight=0.7, success_weight=0.6, robust_weight=0.4)
-    eps, fc = [0.08], [True]
-    plain = rule.scores(eps, fc)
-    assert_close(plain, rule.scores(eps, fc, [1.0], [1.0], eps))  # as if reached, held, robust = epsilon
-    assert_close(plain, rule.scores(eps, fc, [np.nan], [np.nan], [np.nan]))
-    assert rule.scores(eps, fc, [0.5])[0] < plain[0] and rule.scores(eps, fc, success=[0.0])[0] < plain[0]
+    m = {"epsilon": [0.08], "force_closure": [1], "resist_worst": [10.0], "push": [0.9],
+         "open_margin": [0.01], "close_margin": [0.01]}
+    plain = rule.scores(m)
+    assert_close(plain, rule.scores({**m, "reachability": [1.0], "success": [1.0], "robust_quantile": [0.08]}))
+    assert_close(plain, rule.scores({**m, "reachability": [np.nan], "success": [np.nan]}))
+    assert rule.scores({**m, "reachability": [0.5]})[0] < plain[0]
+    assert rule.scores({**m, "success": [0.0]})[0] < plain[0]
 
 
-def test_a_veto_weight_zeroes_failed_or_unreachable_grasps_and_non_closure_scores_zero() -> None:
+def test_a_veto_weight_zeroes_failed_or_unreachable_grasps() -> None:
     rule = RankingRule(reach_weight=1.0, success_weight=1.0)
-    assert_close(rule.scores([0.1, 0.1, 0.1], [True, True, True], [0.0, 1.0, 1.0], [1.0, 0.0, 1.0]), [0, 0, 0.1])
-    assert_close(RankingRule().scores([0.3], [False], [1.0], [1.0]), [0.0])
+    m = {"epsilon": [0.1] * 3, "force_closure": [1] * 3, "reachability": [0.0, 1.0, 1.0], "success": [1.0, 0.0, 1.0]}
+    got = rule.scores(m)
+    assert got[0] == got[1] == 0 and got[2] > 0
+
+
+def test_grasps_without_analytic_measures_rank_by_force_closure_then_epsilon() -> None:
+    s = RankingRule().analytic({"epsilon": [0.1, 0.2, 0.0], "force_closure": [1, 1, 0]})
+    assert s[1] > s[0] > s[2]
 
 
 @pytest.mark.parametrize("weights", [(-0.1, 1, 0), (0.5, 1.5, 0), (0.5, 1, 2)])
@@ -77,8 +103,10 @@ def test_weights_outside_zero_one_are_refused(weights: tuple) -> None:
 
 
 def test_the_stored_rule_round_trips_and_says_its_formula() -> None:
-    rule = RankingRule(0.25, 0.5, 0.75)
+    rule = RankingRule(0.25, 0.5, 0.75, cap=7.0, min_open_margin=0.002, eps_weight=0.3)
     assert RankingRule.from_json(rule.to_json()) == rule
+    old = '{"formula": "...", "reach_weight": 0.25, "success_weight": 0.5, "robust_weight": 0.75}'
+    assert RankingRule.from_json(old) == RankingRule(0.25, 0.5, 0.75)
     assert RankingRule.from_json(None) == RankingRule()
     assert FORMULA in rule.to_json()
 

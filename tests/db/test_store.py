@@ -12,9 +12,10 @@ import pytest
 from helpers import assert_close, made_up
 
 from planner import api
-from planner.db.ranking import RankingRule
+from planner.db.ranking import RankingRule, rule_measures
 from planner.db.store import UnitRow, Validated, open_db
 from planner.grasp import RobustEpsilon, Trial
+from planner.plan.measures import MIN_RESISTANCE
 from planner.plan.sweep import SweepSettings
 
 SMALL = SweepSettings(approaches=4, rolls=2, preshapes=("wide",))
@@ -35,17 +36,23 @@ def rows(path: Path) -> list[tuple]:
                             " force_closure FROM grasps ORDER BY id").fetchall()
 
 
-def test_generate_writes_ranked_grasps(seeded_db: Path) -> None:
+def records(path: Path) -> list:
+    with open_db(path, create=False, readonly=True) as db:
+        return [g for batch in db.grasp_batches("box", "panda") for g in batch]
+
+
+def test_generate_writes_ranked_grasps_scored_by_the_rule_from_their_measures(seeded_db: Path) -> None:
     got = rows(seeded_db)
     assert got, "no grasps written"
     ranks = sorted(r[5] for r in got)
     assert ranks == list(range(1, len(got) + 1))
     by_rank = sorted(got, key=lambda r: r[5])
     assert [r[6] for r in by_rank] == sorted((r[6] for r in got), reverse=True)
-    for *_, eps, _rank, score, reach, fc in got:
-        expected = eps * (0.5 + 0.5 * reach) if fc else 0.0
-        assert score == pytest.approx(expected)
-        assert (reach is not None) == bool(fc)  # reachability is computed for force-closure grasps
+    grasps = records(seeded_db)
+    assert all(g.measures is not None for g in grasps)
+    assert_close([g.score for g in grasps], RankingRule().scores(rule_measures(grasps)))
+    for g in grasps:  # reachability is computed for grasps that are force closure or hold their weight
+        assert (g.reachability is not None) == (g.force_closure or g.measures.resist_worst >= MIN_RESISTANCE)
 
 
 def test_changing_the_rule_rescores_everything(seeded_db: Path, tmp_path: Path) -> None:
@@ -57,7 +64,8 @@ def test_changing_the_rule_rescores_everything(seeded_db: Path, tmp_path: Path) 
         assert db.apply_rule(RankingRule(reach_weight=0.0))
         assert not db.apply_rule(RankingRule(reach_weight=0.0))
     got = rows(copy)
-    assert all(score == pytest.approx(eps if fc else 0.0) for *_, eps, _r, score, _reach, fc in got)
+    grasps = records(copy)
+    assert_close([g.score for g in grasps], RankingRule(reach_weight=0.0).analytic(rule_measures(grasps)))
     by_rank = sorted(got, key=lambda r: r[5])
     assert [r[6] for r in by_rank] == sorted((r[6] for r in got), reverse=True)
 
@@ -96,7 +104,8 @@ def test_a_unit_is_written_whole_and_read_back_as_the_same_records(tmp_path: Pat
         assert db.grasp_ids(unit_id) == {g.candidate: g.id for g in back}
     assert [g.candidate for g in back] == [1, 0, 2]  # by score
     assert [g.rank for g in back] == [1, 2, 3]
-    expected = rule.scores([0.08, 0.05, 0.0], [True, True, False], [np.nan, 0.5, np.nan])
+    expected = rule.scores({"epsilon": [0.08, 0.05, 0.0], "force_closure": [1, 1, 0],
+                            "reachability": [np.nan, 0.5, np.nan]})
     assert_close([g.score for g in back], expected)
     for g in back:
         original = grasps[g.candidate]
@@ -139,7 +148,8 @@ def test_validation_results_rescore_with_the_rule(tmp_path: Path) -> None:
         back = {g.candidate: g for g in db.best("thing", "panda", 10)}
     assert back[0].validation == held and back[0].robust == RobustEpsilon(0.04, 0.01, 4)
     assert back[1].validation == dropped and back[1].robust is None and back[2].validation is None
-    assert_close([back[c].score for c in (0, 1, 2)], [0.5 * 0.05 + 0.5 * 0.01, 0.0, 0.02])
+    analytic = [1.0 + 0.1 * (0.5 * 0.05 + 0.5 * 0.01), 0.0, 1.0 + 0.1 * 0.02]  # no measures: hold = closure
+    assert_close([back[c].score for c in (0, 1, 2)], analytic)
     assert [back[c].rank for c in (0, 2, 1)] == [1, 2, 3]  # the failed grasp, best by epsilon, scores 0
 
 

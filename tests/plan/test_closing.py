@@ -35,7 +35,7 @@ def close_on(obj_name: str, point, direction, roll, standoff, shape):  # type: i
     obj = load_object(obj_name)
     h, shapes = shape
     with Sim() as sim:
-        g = Grasper(sim, h, sim.add_static_mesh(obj.mesh.vertices, obj.mesh.faces))
+        g = Grasper.for_mesh(sim, h, obj.mesh)
         return g.close(np.asarray(point, float), np.asarray(direction, float), roll, standoff, shapes["wide"],
                        obj.torque_scale)
 
@@ -115,7 +115,7 @@ def test_hand_closes_to_force_closure(name: str) -> None:
     for obj in sized_objects(OBJECT_RADIUS.get(name, DEFAULT_RADIUS)).values():
         rays = sampling.sample(obj.mesh, sampler="surface", count=RAYS, rng=np.random.default_rng(SEED))
         with Sim() as sim:
-            grasper = Grasper(sim, hand, sim.add_static_mesh(obj.mesh.vertices, obj.mesh.faces))
+            grasper = Grasper.for_mesh(sim, hand, obj.mesh)
             found = _first_force_closure(grasper, shapes, rays, obj, finger_of, multi)
         assert found is not None, f"{name}: no force-closure grasp of the {obj.name}"
 

@@ -43,3 +43,21 @@ def test_contact_sheet_has_one_row_per_grasp(db: Path, tmp_path: Path) -> None:
     api.show("box", "panda", one, db_path=db, top=1)
     api.show("box", "panda", three, db_path=db, top=3)
     assert mpimg.imread(three).shape[0] == pytest.approx(3 * mpimg.imread(one).shape[0], rel=0.05)
+
+
+def test_patch_meshes_span_each_region_just_outside_the_object() -> None:
+    from planner.plan.contacts import HandContacts
+    from planner.present.render import PATCH_LIFT, patch_meshes
+
+    square = np.array([[0, 0, 0], [0.01, 0, 0], [0.01, 0.01, 0], [0, 0.01, 0]], float)
+    points = np.vstack([square, [[0.05, 0.0, 0.0]]])
+    normals = np.tile([0.0, 0.0, 1.0], (5, 1))  # into the object: the object lies at z > 0
+    contacts = HandContacts(points, normals, ("a",) * 4 + ("b",), radius=np.array([0, 0, 0, 0, 0.003]),
+                            region=np.array([0, 0, 0, 0, 1]))
+    (quad, quad_faces), (disc, disc_faces) = patch_meshes(contacts)
+    assert quad.shape == (5, 3) and len(quad_faces) == 8  # centre + 4 corners, a fan of 4 drawn both sides
+    np.testing.assert_allclose(quad[:, 2], -PATCH_LIFT)  # lifted off the surface, towards the hand
+    np.testing.assert_allclose(quad[0, :2], [0.005, 0.005])
+    assert {tuple(np.round(v[:2], 6)) for v in quad[1:]} == {tuple(p[:2]) for p in square}
+    np.testing.assert_allclose(np.linalg.norm(disc[1:, :2] - [0.05, 0.0], axis=1), 0.003)
+    assert patch_meshes(HandContacts(points[:1], normals[:1], ("a",))) == []  # legacy points: no patches

@@ -34,3 +34,21 @@ def test_report_without_validation_is_a_clear_error(tmp_path: Path) -> None:
     api.generate(["box"], "panda", db_path=db, settings=SweepSettings(approaches=2, rolls=1, reach_placements=0))
     result = CliRunner().invoke(main, ["report", "--db", str(db), "--out", str(tmp_path / "x.html")])
     assert result.exit_code == 2 and "run `grasp validate" in result.stderr
+
+
+def test_roc_auc_and_top_k_known_answers() -> None:
+    from planner.present.report import roc_auc, top_k_success
+
+    ok = np.array([1.0, 1.0, 0.0, 0.0, np.nan])
+    assert roc_auc(ok, np.array([4.0, 3.0, 2.0, 1.0, 9.0])) == 1.0  # unlabelled grasps left out
+    assert roc_auc(ok, np.array([1.0, 2.0, 3.0, 4.0, 0.0])) == 0.0
+    assert roc_auc(ok, np.array([1.0, 3.0, 2.0, 4.0, 0.0])) == 0.25
+    assert roc_auc(ok, np.ones(5)) == 0.5  # ties count half
+    assert roc_auc(ok, np.array([1.0, np.nan, 0.5, 0.2, 0.0])) == 0.5  # not computed ranks lowest
+    assert np.isnan(roc_auc(ok, np.full(5, np.nan)))  # never computed: no figure, not 0.5
+    assert np.isnan(roc_auc(np.array([1.0, 1.0]), np.array([1.0, 2.0])))  # one class only
+    orders = [(np.array([0, 1, 2]), np.array([1.0, 0.0, np.nan])), (np.array([2, 1, 0]), np.array([1.0, 1.0, 0.0]))]
+    top1, top2, missing = top_k_success(orders, 2)
+    assert (top1, top2, missing) == (0.5, 0.5, 0)
+    top1, top3, missing = top_k_success(orders, 3)
+    assert missing == 1 and top3 == pytest.approx((0.5 + 2 / 3) / 2)

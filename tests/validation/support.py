@@ -33,7 +33,7 @@ def as_row_of(hand: str, pose: np.ndarray, closed_joints: Mapping[str, float], c
 def close(setup, *, point=(0, 0, 0.04), direction=(0, 0, -1.0), roll=0.0, standoff=0.02, pose=None):  # type: ignore[no-untyped-def]
     hand, shapes, obj = setup
     with Sim() as sim:
-        g = Grasper(sim, hand, sim.add_static_mesh(obj.mesh.vertices, obj.mesh.faces))
+        g = Grasper.for_mesh(sim, hand, obj.mesh)
         if pose is not None:
             return g.close_at(pose, shapes["wide"])
         return g.close(np.array(point), np.array(direction), roll, standoff, shapes["wide"], obj.torque_scale)

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import pytest
 
+from planner.db.ranking import RankingRule, rule_measures
+from planner.db.store import open_db
 from planner.errors import InputError
 from planner.validation import run
 from planner.validation.run import BATCH, validate
@@ -21,9 +23,14 @@ def test_validate_stores_trials_and_reranks(validated_db: Path) -> None:
                             "JOIN validation v ON v.grasp_id = g.id JOIN robust r ON r.grasp_id = g.id").fetchall()
         ranks = conn.execute("SELECT object, rank, score FROM grasps ORDER BY object, rank").fetchall()
     assert len(rows) == 6
-    for score, eps, reach, success, samples in rows:
-        assert samples == 2
-        assert score == pytest.approx(eps * (0.5 + 0.5 * reach) * float(success))
+    with open_db(validated_db, create=False, readonly=True) as db:
+        validated = db.validated()
+    analytic = RankingRule().analytic(rule_measures(validated))  # the default rule: reach 0.5, success 1
+    assert len(validated) == 6 and all(g.measures is not None for g in validated)
+    for g, a in zip(validated, analytic):
+        assert g.robust is not None and g.robust.samples == 2
+        assert g.score == pytest.approx(a * (0.5 + 0.5 * g.reachability) * float(g.validation.success))
+    assert all(score == 0 for score, _, _, ok, _ in rows if not ok)  # a failed trial zeroes the score
     for obj in ("box", "sphere"):
         scores = [s for o, _, s in ranks if o == obj]
         assert scores == sorted(scores, reverse=True)

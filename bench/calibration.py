@@ -1,0 +1,307 @@
+"""Calibration of the analytic score against the shake test (issue 15).
+
+For each hand (Panda, Barrett) and each object of one set of
+bench/calibration_split.toml (``--set tuning`` for tuning; ``--set held_out``
+is run ONCE, by the lead, at the end):
+
+1. sweep the object into ``DIR/<set>_<hand>.db`` (``grasp generate``: patches,
+   measures, no reachability, no GWS volume);
+2. read every grasp's contacts again the pre-issue way (legacy closest points)
+   and compute its epsilon: the pre-issue score is that epsilon, 0 unless
+   force closure (the old rule without reachability: neutral);
+3. shake-test a seeded uniform sample of the grasps with contacts (``--per-object``,
+   all where fewer), plus the top-10 of the analytic order and of the
+   pre-issue order (``validation`` table: ``grasp report DB`` shows it too);
+4. report, on the uniform sample: ROC AUC against simulated success of each
+   measure, of the analytic score and of the pre-issue score, pooled and per
+   object; top-1 (share of objects whose best grasp held) and top-10 (mean
+   share of the 10 best that held) of the analytic order and of the
+   pre-issue order, over each object's whole sweep.
+
+``--cv`` adds 5-fold cross-validation grouped by object of the rule's
+parameters (cap, min_open_margin, eps_weight; objective: pooled AUC + top-1
+on the training folds), the figures of the held fold. Tuning only.
+
+    python bench/calibration.py --set tuning [--hands panda barrett] [--objects 20] [--cv]
+
+Figures go to ``DIR/report_<set>.md`` and are printed side by side. Work is
+resumable: the databases, legacy epsilons (``DIR/<set>_<hand>_legacy.json``)
+and trials already done are kept.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import time
+import zlib
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import get_type_hints
+
+import numpy as np
+import tomllib
+
+from planner import api
+from planner.db.lock import writer_lock
+from planner.db.ranking import RankingRule, rule_measures
+from planner.db.store import open_db
+from planner.geometry.solid import load_object
+from planner.grasp import Grasp
+from planner.plan.closing import Closed, CloseSettings, Grasper
+from planner.plan.sweep import SweepSettings
+from planner.plan.unit import grasp_quality
+from planner.present.report import roc_auc, top_k_success
+from planner.sim import Sim
+from planner.specs.hands import load_hand
+from planner.validation import run as validation
+
+HERE = Path(__file__).resolve().parent
+SPLIT = HERE / "calibration_split.toml"
+TOP = 10
+SEED = 20261123
+#: The measures whose AUC is reported (higher = predicts holding).
+MEASURES = ("analytic", "pre_issue", "epsilon", "epsilon_legacy", "resist_worst", "resist_mean", "push",
+            "open_margin", "close_margin", "feasible")
+GRID = [dict(cap=c, min_open_margin=m, eps_weight=e) for c in (2.0, 5.0, 10.0, 20.0)
+        for m in (0.0, 0.002, 0.003, 0.005) for e in (0.1, 1.0)]
+
+
+def split(name: str) -> list[str]:
+    data = tomllib.loads(SPLIT.read_text())
+    if name not in ("tuning", "held_out"):
+        raise SystemExit(f"--set must be tuning or held_out, got {name}")
+    return list(data[name])
+
+
+@dataclass
+class Pool:
+    """Every grasp of one (hand, object) with its measures and labels."""
+
+    object: str
+    grasps: list[Grasp]
+    legacy: np.ndarray  # (n,) pre-issue epsilon (legacy point contacts)
+    uniform: np.ndarray  # (n,) bool: in the seeded uniform sample
+
+    def columns(self, rule: RankingRule) -> dict[str, np.ndarray]:
+        m = rule_measures(self.grasps)
+        fc_legacy = self.legacy > 0
+        return {"analytic": rule.analytic(m), "pre_issue": np.where(fc_legacy, self.legacy, 0.0),
+                "epsilon": m["epsilon"], "epsilon_legacy": self.legacy,
+                "resist_worst": m["resist_worst"], "push": m["push"], "open_margin": m["open_margin"],
+                "close_margin": m["close_margin"],
+                "resist_mean": np.array([np.nan if g.measures is None else g.measures.resist_mean
+                                         for g in self.grasps]),
+                "feasible": np.array([g.measures is not None and g.measures.feasible for g in self.grasps], float)}
+
+    @property
+    def success(self) -> np.ndarray:
+        return np.array([np.nan if g.validation is None else g.validation.success for g in self.grasps], float)
+
+
+def uniform_sample(n: int, per_object: int, hand: str, name: str) -> np.ndarray:
+    rng = np.random.default_rng([SEED, zlib.crc32(name.encode()), zlib.crc32(hand.encode())])
+    out = np.zeros(n, bool)
+    out[rng.choice(n, size=min(per_object, n), replace=False)] = True
+    return out
+
+
+def legacy_epsilons(db_path: Path, hand_name: str, name: str, grasps: list[Grasp]) -> np.ndarray:
+    """Epsilon of each grasp from its contacts read the pre-issue way (cached)."""
+    cache = db_path.with_name(db_path.stem + "_legacy.json")
+    known = json.loads(cache.read_text()) if cache.exists() else {}
+    todo = [g for g in grasps if str(g.id) not in known]
+    if todo:
+        hand, obj = load_hand(hand_name), load_object(name)
+        with Sim() as sim:
+            grasper = Grasper.for_mesh(sim, hand, obj.mesh, CloseSettings(contacts="points"))
+            for g in todo:
+                read = grasper.read(g.pose, dict(g.open_joints), dict(g.closed_joints))
+                known[str(g.id)] = grasp_quality(read.contacts, hand, obj, 8, False).epsilon \
+                    if isinstance(read, Closed) else 0.0
+        cache.write_text(json.dumps(known))
+    return np.array([known[str(g.id)] for g in grasps], float)
+
+
+def trial_settings():  # type: ignore[no-untyped-def]
+    """The shake test's default settings, whatever the trial's settings type is
+    called (``TrialSettings`` on main, ``ShakeSettings`` after issue15-shake):
+    the type ``planner.validation.run.Task`` declares for its ``trial``."""
+    return get_type_hints(validation.Task)["trial"]()
+
+
+def label(db_path: Path, hand_name: str, name: str, grasps: list[Grasp], workers: int) -> int:
+    """Shake-test the grasps that have no trial yet with ``grasp validate``'s
+    own tasks, workers and writer (no robust epsilon); returns how many ran."""
+    todo = [g for g in grasps if g.validation is None]
+    if not todo:
+        return 0
+    with writer_lock(db_path), open_db(db_path, create=False) as db:
+        row, rule = db.object_row(name), db.rule()
+        assert row is not None, name
+        settings = trial_settings()
+        tasks = [validation.Task(name, row.source, row.scale, hand_name, tuple(todo[i:i + validation.BATCH]),
+                                 SEED, settings, None) for i in range(0, len(todo), validation.BATCH)]
+        for result in validation.execute(tasks, workers):
+            if result.error:
+                raise SystemExit(f"shake test of {hand_name} on {name} failed: {result.error}")
+            validation.write(db, result, rule)
+    return len(todo)
+
+
+def pools(db_path: Path, hand: str, names: list[str], per_object: int, workers: int,
+          rule: RankingRule) -> list[Pool]:
+    out = []
+    for name in names:
+        with open_db(db_path, create=False, readonly=True) as db:
+            grasps = [g for batch in db.grasp_batches(name, hand) for g in batch]
+        if not grasps:
+            continue
+        grasps.sort(key=lambda g: g.candidate)
+        legacy = legacy_epsilons(db_path, hand, name, grasps)
+        pool = Pool(name, grasps, legacy, uniform_sample(len(grasps), per_object, hand, name))
+        picks = set(np.flatnonzero(pool.uniform))
+        cols = pool.columns(rule)
+        for key in ("analytic", "pre_issue"):
+            picks |= set(_order(cols[key], grasps)[:TOP])
+        t = time.perf_counter()
+        ran = label(db_path, hand, name, [grasps[i] for i in sorted(picks)], workers)
+        if ran:
+            logging.info("%s %s: %d trials in %.0f s", hand, name, ran, time.perf_counter() - t)
+        with open_db(db_path, create=False, readonly=True) as db:
+            by_id = {g.id: g for batch in db.grasp_batches(name, hand) for g in batch}
+        out.append(replace(pool, grasps=[by_id[g.id] for g in grasps]))
+    return out
+
+
+def _order(score: np.ndarray, grasps: list[Grasp]) -> np.ndarray:
+    """Indices best first; ties by candidate number (deterministic)."""
+    return np.lexsort((np.array([g.candidate for g in grasps]), -np.nan_to_num(score, nan=-np.inf)))
+
+
+def figures(pools_: list[Pool], rule: RankingRule) -> dict:
+    """AUCs on the uniform sample; top-1 / top-10 of both orders."""
+    cols = [p.columns(rule) for p in pools_]
+    ok = np.concatenate([p.success[p.uniform] for p in pools_])
+    out: dict = {"objects": len(pools_), "uniform_labels": int(np.isfinite(ok).sum()),
+                 "held_rate": float(np.nanmean(ok)) if len(ok) else float("nan"), "auc": {}, "auc_per_object": {}}
+    for key in MEASURES:
+        score = np.concatenate([c[key][p.uniform] for c, p in zip(cols, pools_)])
+        out["auc"][key] = roc_auc(ok, score)
+        per = [roc_auc(p.success[p.uniform], c[key][p.uniform]) for c, p in zip(cols, pools_)]
+        per = [v for v in per if np.isfinite(v)]
+        out["auc_per_object"][key] = float(np.mean(per)) if per else float("nan")
+    for key in ("analytic", "pre_issue"):
+        orders = [(_order(c[key], p.grasps), p.success) for c, p in zip(cols, pools_)]
+        out[f"top1_{key}"], out[f"top10_{key}"], out[f"unlabelled_{key}"] = top_k_success(orders, TOP)
+    return out
+
+
+def cross_validate(pools_: list[Pool], base: RankingRule, folds: int = 5) -> dict:
+    """Parameters chosen on the other folds' objects, figures of the held fold."""
+    names = np.array(sorted(p.object for p in pools_))
+    np.random.default_rng(SEED).shuffle(names)
+    parts = np.array_split(names, folds)
+    held_scores, chosen = {}, []
+    for part in parts:
+        train = [p for p in pools_ if p.object not in set(part)]
+        best = max(GRID, key=lambda g: _objective(figures(train, replace(base, **g))))
+        chosen.append(best)
+        for p in pools_:
+            if p.object in set(part):
+                held_scores[p.object] = replace(base, **best)
+    ok, score, orders = [], [], []
+    for p in pools_:
+        col = p.columns(held_scores[p.object])["analytic"]
+        ok.append(p.success[p.uniform])
+        score.append(col[p.uniform])
+        orders.append((_order(col, p.grasps), p.success))
+    top1, top10, missing = top_k_success(orders, TOP)
+    return {"auc": roc_auc(np.concatenate(ok), np.concatenate(score)), "top1": top1, "top10": top10,
+            "unlabelled_top": missing, "chosen": chosen}
+
+
+def _objective(f: dict) -> float:
+    return np.nan_to_num(f["auc"]["analytic"]) + np.nan_to_num(f["top1_analytic"])
+
+
+def report(results: dict[str, dict], set_name: str, rule: RankingRule) -> str:
+    hands = list(results)
+    lines = [f"# Calibration on the `{set_name}` objects", "",
+             f"Rule: `{rule.to_json()}`", "", "| figure | " + " | ".join(hands) + " |",
+             "| --- | " + " | ".join("---:" for _ in hands) + " |"]
+
+    def row(label: str, values: list[str]) -> None:
+        lines.append(f"| {label} | " + " | ".join(values) + " |")
+
+    row("objects", [str(results[h]["objects"]) for h in hands])
+    row("uniformly sampled grasps labelled", [str(results[h]["uniform_labels"]) for h in hands])
+    row("held (uniform sample)", [f"{results[h]['held_rate']:.3f}" for h in hands])
+    for key in MEASURES:
+        row(f"ROC AUC {key} (pooled / per-object mean)",
+            [f"{results[h]['auc'][key]:.3f} / {results[h]['auc_per_object'][key]:.3f}" for h in hands])
+    for key, label in (("analytic", "analytic order"), ("pre_issue", "pre-issue order (legacy epsilon)")):
+        row(f"top-1 held, {label}", [f"{results[h][f'top1_{key}']:.3f}" for h in hands])
+        row(f"top-10 held, {label}", [f"{results[h][f'top10_{key}']:.3f}" for h in hands])
+    for h in hands:
+        if "cv" in results[h]:
+            cv = results[h]["cv"]
+            lines += ["", f"{h}: 5-fold CV grouped by object (held folds): AUC {cv['auc']:.3f}, top-1 "
+                      f"{cv['top1']:.3f}, top-10 {cv['top10']:.3f}, unlabelled top picks {cv['unlabelled_top']}; "
+                      f"chosen per fold: {cv['chosen']}"]
+    return "\n".join(lines) + "\n"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--set", required=True, help="tuning | held_out (held_out: the lead, once, at the end)")
+    ap.add_argument("--hands", nargs="+", default=["panda", "barrett"])
+    ap.add_argument("--objects", type=int, help="only the first N objects of the set (smoke runs)")
+    ap.add_argument("--only", nargs="+", help="only these objects (they must be in the set)")
+    ap.add_argument("--per-object", type=int, default=100)
+    ap.add_argument("--approaches", type=int, nargs="+", default=[24, 12],
+                    help="rays per object, per hand (default: Panda 24, ~230 grasps per object; Barrett 12, ~480)")
+    ap.add_argument("--workers", type=int, default=api.default_workers())
+    ap.add_argument("--dir", type=Path, default=HERE / "calibration")
+    ap.add_argument("--final-held-out", action="store_true",
+                    help="required with --set held_out: the one final evaluation, by the lead, after all tuning")
+    ap.add_argument("--cv", action="store_true", help="cross-validate the rule's parameters (tuning set only)")
+    args = ap.parse_args()
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    if args.set == "held_out" and not args.final_held_out:
+        raise SystemExit("--set held_out is the one final evaluation (the lead's, after all tuning): "
+                         "add --final-held-out to run it; tune on --set tuning")
+    names = split(args.set)
+    if args.only:
+        bad = [n for n in args.only if n not in names]
+        if bad:
+            raise SystemExit(f"not in the {args.set} set: {bad}")
+        names = args.only
+    names = names[: args.objects] if args.objects else names
+    if args.cv and args.set != "tuning":
+        raise SystemExit("--cv tunes: tuning set only")
+    args.dir.mkdir(parents=True, exist_ok=True)
+    rule = RankingRule(reach_weight=0.0, success_weight=0.0)
+    results = {}
+    for hand, approaches in zip(args.hands, args.approaches * len(args.hands)):
+        db = args.dir / f"{args.set}_{hand}.db"
+        settings = SweepSettings(approaches=approaches, reach_placements=0, volume=False)
+        t = time.perf_counter()
+        summary = api.generate(names, hand, db_path=db, settings=settings, workers=args.workers, rule=rule)
+        logging.info("%s: %d units swept (%d skipped), %.0f s", hand, summary.units, summary.skipped,
+                     time.perf_counter() - t)
+        pools_ = pools(db, hand, names, args.per_object, args.workers, rule)
+        results[hand] = figures(pools_, rule)
+        if args.cv:
+            results[hand]["cv"] = cross_validate(pools_, rule)
+    text = report(results, args.set, rule)
+    out = args.dir / f"report_{args.set}.md"
+    out.write_text(text)
+    (args.dir / f"figures_{args.set}.json").write_text(json.dumps(results, indent=1, default=str))
+    sys.stdout.write(text)
+
+
+if __name__ == "__main__":
+    main()

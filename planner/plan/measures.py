@@ -1,0 +1,234 @@
+"""The analytic measures of a closed grasp: epsilon, weight resistance and
+feasibility with its reasons (issue 15). Inputs: the contacts and the hand's
+joint frames at the closed configuration (object frame, from closing), the
+hand spec, the preshape (its closing synergy) and the object.
+
+Feasibility, each a number and a reason (stored per grasp):
+
+* ``open_margin`` [m]: the smallest travel a touching finger has left towards
+  its OPEN limit, at its contacts (revolute: angle x the distance from the
+  joint axis to its farthest contact). Below :data:`MIN_OPEN_MARGIN`:
+  ``open_limit`` (no clearance: the open hand cannot be placed around the
+  object, no squeeze travel); a parallel jaw whose fingers are both there
+  also gets ``too_wide`` (the object fills the gripper's maximum opening).
+* ``close_margin`` [m]: the same towards the CLOSED limit; below
+  :data:`MIN_CLOSE_MARGIN`: ``at_close_stop`` (the finger cannot squeeze).
+* ``push``: over finger contact regions, the smallest cosine between the
+  contact normal and the direction closing moves the contact (the best
+  contact of each region counts): 1 = pads pressed square on the object.
+  Below :data:`MIN_PUSH`: ``back_or_side_contact`` (the finger touches with
+  its back or side, where the hand cannot push).
+* weight resistance, worst direction below :data:`MIN_RESISTANCE` g:
+  ``cannot_hold_weight`` (the patches are too small, or the fingers too weak,
+  to hold the object's weight at its friction in some direction).
+
+Motors (hand.toml ``[dynamics] effort``): one per driven joint, its mimics
+geared to it; a Barrett finger that broke away (its distal joint closed on
+past the 1:3 coupling) drives its distal joint alone while its proximal joint
+is held by the clutch. Joints that do not close (the Barrett spread) are
+held: by the worm gear (unbounded) on a non-backdrivable hand, else by the
+motor's effort. Each motor's torque is bounded by its effort, push-only in
+the closing sense (the grip a worm gear can build is the motor's).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner import quality
+from planner.geometry.solid import PreparedObject
+from planner.plan.contacts import HandContacts, contact_models
+from planner.quality.resistance import SPHERE14, HandDrive, drive_rows, summarise
+from planner.specs.hands import HandSpec
+from planner.specs.preshapes import Preshape
+
+#: [m] a finger touching closer than this to its open limit has no clearance
+#: (the shake trial flags below 2 mm; cross-validation on the tuning objects
+#: chose 2-3 mm, see bench/RESULTS.md).
+MIN_OPEN_MARGIN = 0.003
+#: [m] a finger this close to its closing stop cannot squeeze.
+MIN_CLOSE_MARGIN = 1e-4
+#: cos 72.5 deg: contact normal and closing motion further apart than this is
+#: the back or side of a finger.
+MIN_PUSH = 0.3
+#: [g] a grasp that cannot hold its object's weight in some direction.
+MIN_RESISTANCE = 1.0
+#: A mimic joint further than this [rad or m] from its coupling broke away.
+BREAKAWAY_TOL = 1e-6
+#: Contact motion slower than this [m per unit closing] does not move.
+STILL = 1e-9
+
+REASONS = ("open_limit", "too_wide", "at_close_stop", "back_or_side_contact", "cannot_hold_weight")
+
+
+@dataclass(frozen=True)
+class Measures:
+    """The analytic measures of one grasp (see the module docstring).
+
+    resist_worst, resist_mean: weight resistance [g] over 14 gravity
+    directions of the object frame (axes and diagonals); open_margin,
+    close_margin [m] (inf when no finger touches); push (cosine, 0 when no
+    finger touches); reasons: the feasibility flags that apply.
+    """
+
+    resist_worst: float
+    resist_mean: float
+    open_margin: float
+    close_margin: float
+    push: float
+    reasons: tuple[str, ...]
+
+    @property
+    def feasible(self) -> bool:
+        return not self.reasons
+
+    def to_json(self) -> dict:
+        return {"resist_worst": self.resist_worst, "resist_mean": self.resist_mean,
+                "open_margin": _finite(self.open_margin), "close_margin": _finite(self.close_margin),
+                "push": self.push, "feasibility": list(self.reasons)}
+
+
+def _finite(value: float) -> float | None:
+    return float(value) if np.isfinite(value) else None
+
+
+@dataclass(frozen=True)
+class JointFrames:
+    """Every finger joint of the hand at the closed grasp, object frame.
+
+    names : q joint names (hand spec order); origins : (q, 3) [m]; axes : (q, 3) unit.
+    """
+
+    names: tuple[str, ...]
+    origins: np.ndarray
+    axes: np.ndarray
+
+
+def broken_away(hand: HandSpec, closed: Mapping[str, float]) -> set[str]:
+    """Driven joints whose mimics closed on past the coupling (breakaway)."""
+    out = set()
+    for j in hand.joints:
+        if j.mimic is not None and hand.joint(j.mimic).breakaway and j.name in closed and j.mimic in closed:
+            if abs(closed[j.name] - (j.multiplier * closed[j.mimic] + j.offset)) > BREAKAWAY_TOL:
+                out.add(j.mimic)
+    return out
+
+
+def closing_groups(hand: HandSpec, shape: Preshape, closed: Mapping[str, float]) -> list[dict[str, float]]:
+    """The finger DOFs that close as they ended: {joint: dq per unit closing}
+    (a self-centring jaw's fingers apart; a broken-away finger's mimics alone)."""
+    broken = broken_away(hand, closed)
+    out = []
+    for joint in hand.driven:
+        rate = shape.close.get(joint.name, 0.0)
+        if rate == 0.0:
+            continue
+        mimics = {m.name: rate * m.multiplier for m in hand.joints if m.mimic == joint.name}
+        if hand.centering:
+            out += [{joint.name: rate}] + [{name: r} for name, r in mimics.items()]
+        elif joint.name in broken:
+            out.append(mimics)
+        else:
+            out.append({joint.name: rate, **mimics})
+    return out
+
+
+def hand_drive(hand: HandSpec, shape: Preshape, closed: Mapping[str, float], frames: JointFrames) -> HandDrive:
+    """The motors at the closed grasp (see the module docstring)."""
+    act = hand.actuators
+    hold = np.inf if not act.backdrivable else act.effort
+    broken = broken_away(hand, closed)
+    motors: list[tuple[dict[str, float], int, float]] = []
+    for joint in hand.driven:
+        rate = shape.close.get(joint.name, 0.0)
+        mimics = {m.name: m.multiplier for m in hand.joints if m.mimic == joint.name}
+        if rate == 0.0:
+            motors.append(({joint.name: 1.0, **mimics}, 0, hold))
+        elif joint.name in broken:
+            motors.append(({name: 1.0 for name in mimics}, int(np.sign(rate)), act.effort))
+            motors.append(({joint.name: 1.0}, 0, np.inf if not act.backdrivable else act.effort))
+        else:
+            motors.append(({joint.name: 1.0, **mimics}, int(np.sign(rate)), act.effort))
+    t, sense, limit = drive_rows(frames.names, motors)
+    types = tuple(hand.joint(n).kind for n in frames.names)
+    return HandDrive(frames.origins, frames.axes, types, t, sense, limit)
+
+
+def contact_velocity(hand: HandSpec, contacts: HandContacts, frames: JointFrames,
+                     rates: Mapping[str, float]) -> np.ndarray:
+    """(n, 3) velocity of each contact point per unit closing of one DOF."""
+    v = np.zeros((len(contacts), 3))
+    for name, rate in rates.items():
+        j = frames.names.index(name)
+        moved = np.array([link in hand.joint(name).moves for link in contacts.links], bool)
+        if hand.joint(name).kind == "revolute":
+            lin = np.cross(frames.axes[j], contacts.points - frames.origins[j])
+        else:
+            lin = np.broadcast_to(frames.axes[j], contacts.points.shape)
+        v += rate * lin * moved[:, None]
+    return v
+
+
+def measure(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: Preshape,
+            closed: Mapping[str, float], obj: PreparedObject, width: float | None = None,
+            directions: np.ndarray = SPHERE14) -> Measures:
+    """Weight resistance and feasibility of a closed grasp (object frame)."""
+    resist = _resistance(contacts, frames, hand, shape, closed, obj, directions)
+    push, open_margin, close_margin, both_open = _fingers(contacts, frames, hand, shape, closed)
+    reasons = []
+    if open_margin < MIN_OPEN_MARGIN:
+        reasons.append("open_limit")
+        if hand.centering and both_open:
+            reasons.append("too_wide")
+    if close_margin < MIN_CLOSE_MARGIN:
+        reasons.append("at_close_stop")
+    if push < MIN_PUSH:
+        reasons.append("back_or_side_contact")
+    if resist.worst < MIN_RESISTANCE:
+        reasons.append("cannot_hold_weight")
+    return Measures(resist.worst, resist.mean, open_margin, close_margin, push, tuple(reasons))
+
+
+def _resistance(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: Preshape,
+                closed: Mapping[str, float], obj: PreparedObject, directions: np.ndarray) -> quality.Resistance:
+    if len(contacts) == 0:
+        return summarise(np.zeros(len(directions)))
+    models, torsion = contact_models(contacts, hand, obj.friction)
+    links = sorted(set(contacts.links))
+    index = np.array([links.index(link) for link in contacts.links])
+    affects = np.array([[link in hand.joint(name).moves for name in frames.names] for link in contacts.links], bool)
+    return quality.weight_resistance(contacts.points, contacts.frames, mu=obj.friction, center=obj.com,
+                                     mass=obj.mass, drive=hand_drive(hand, shape, closed, frames),
+                                     contact_links=index, joint_affects=affects.reshape(len(contacts), -1),
+                                     directions=directions, model=models, torsion=torsion)
+
+
+def _fingers(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: Preshape,
+             closed: Mapping[str, float]) -> tuple[float, float, float, bool]:
+    """(push, open margin [m], close margin [m], every finger DOF within the open margin)."""
+    pushes, open_m, close_m, near_open = [], [np.inf], [np.inf], []
+    for rates in closing_groups(hand, shape, closed):
+        v = contact_velocity(hand, contacts, frames, rates)
+        speed = np.linalg.norm(v, axis=1)
+        on = speed > STILL
+        if not on.any():
+            continue
+        cos = np.einsum("ij,ij->i", contacts.normals[on], v[on]) / speed[on]
+        owner = np.where(contacts.region[on] >= 0, contacts.region[on], -1 - np.flatnonzero(on))
+        pushes += [float(cos[owner == r].max()) for r in np.unique(owner)]
+        mine_open = np.inf
+        for name, rate in rates.items():
+            spec = hand.joint(name)
+            q = closed.get(name, spec.lower)
+            lever = float(speed[on].max() / abs(rate))
+            to_open = (q - spec.lower) if rate > 0 else (spec.upper - q)
+            to_close = (spec.upper - q) if rate > 0 else (q - spec.lower)
+            mine_open = min(mine_open, to_open * lever)
+            close_m.append(to_close * lever)
+        open_m.append(mine_open)
+        near_open.append(mine_open < MIN_OPEN_MARGIN)
+    return (min(pushes, default=0.0), float(min(open_m)), float(min(close_m)),
+            bool(near_open) and all(near_open))

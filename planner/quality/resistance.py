@@ -1,0 +1,239 @@
+"""Weight resistance: the largest multiple of the object's weight a grasp holds,
+per direction of gravity, with the hand's real motors (sec. 2.3.3, grasping
+force optimisation, as a linear program).
+
+For gravity along the unit direction d ({W}), the grasp holds s times the
+object's weight m g when contact forces x exist with
+
+    G x + s m g (d, 0) = 0                 equilibrium at p = the centre of mass (eq 2.5)
+    x in the friction cones                 (eq 2.6), linearised: x = L lambda, lambda >= 0
+    tau = J^T x                             joint torques (hand Jacobian J = B J~, eq 2.29)
+    0 <= sense_a (T tau)_a <= limit_a       a motor pushes only in its closing sense
+    |(T tau)_a| <= limit_a                  a motor that holds its joints still (sense 0)
+
+and the resistance in that direction is the largest such s (in units of g),
+capped at ``cap`` (a contact on a link no joint moves, the palm, is pushed by
+the arm and bounds nothing). L's columns are the primitive contact forces of
+wrenches.py in each contact frame {C}_i: the m cone edges (1, mu cos, mu sin)
+and, for soft fingers, the normal with +-torsion of spin about n_i. T is the
+transmission: motor a's generalised force is sum_j T_aj tau_j (virtual work,
+T_aj = dq_j per unit travel of the motor: a mimic joint q_m = r q_d adds
+r tau_m to its driver's motor). Gravity acts at the centre of mass, so only
+(d, 0) loads the object.
+
+Units: forces [N], torques [N m], s in g (1 = the object's weight).
+The fast path builds one HiGHS model per grasp and changes only the load
+column between directions; ``planner.quality.reference.reference_resistance``
+is the same program through ``scipy.optimize.linprog``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from planner.errors import DegenerateGraspError
+from planner.quality.contacts import FRICTIONLESS, SOFT, Contacts, ModelArg, as_array, as_center, as_contacts
+from planner.quality.grasp_matrix import partial_grasp_matrices, selection_lengths
+from planner.quality.jacobian import hand_jacobian
+from planner.quality.tolerances import GRAVITY, RESISTANCE_CAP
+from planner.quality.wrenches import _cone_table, as_cone_edges
+
+#: The six axes +-x, +-y, +-z and the eight cube diagonals: 14 unit gravity
+#: directions spread over the sphere (rows).
+AXES = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+DIAGONALS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float) / np.sqrt(3.0)
+SPHERE14 = np.vstack([AXES, DIAGONALS])
+
+
+@dataclass(frozen=True)
+class HandDrive:
+    """The hand's joints at the grasp and the motors that drive them, {W}.
+
+    joint_origins : (n_q, 3) zeta_j [m]; joint_axes : (n_q, 3) unit z_j;
+    joint_types : n_q names ("revolute", "prismatic");
+    transmission : (n_a, n_q) T, motor a's generalised force is (T tau)_a;
+    sense : (n_a,) +1 / -1: the motor pushes only in that sense of (T tau)_a
+        (its closing sense); 0: it holds its joints still, either way;
+    limit : (n_a,) [N or N m] largest |(T tau)_a|; inf: unbounded (a worm
+        gear holding a joint).
+    """
+
+    joint_origins: np.ndarray
+    joint_axes: np.ndarray
+    joint_types: tuple[str, ...]
+    transmission: np.ndarray
+    sense: np.ndarray
+    limit: np.ndarray
+
+    def __post_init__(self) -> None:
+        n_q, n_a = len(self.joint_origins), len(self.sense)
+        shapes = {"joint_origins": (n_q, 3), "joint_axes": (n_q, 3), "transmission": (n_a, n_q),
+                  "sense": (n_a,), "limit": (n_a,)}
+        for name, shape in shapes.items():
+            if np.shape(getattr(self, name)) != shape:
+                raise DegenerateGraspError(f"HandDrive.{name} must have shape {shape}, got "
+                                           f"{np.shape(getattr(self, name))}")
+        if len(self.joint_types) != n_q:
+            raise DegenerateGraspError(f"HandDrive.joint_types has {len(self.joint_types)} entries for {n_q} joints")
+        if (np.asarray(self.limit) < 0).any() or not np.isin(self.sense, (-1, 0, 1)).all():
+            raise DegenerateGraspError("HandDrive: limits must be >= 0 and senses -1, 0 or +1")
+
+
+@dataclass(frozen=True)
+class Resistance:
+    """Weight resistance [g] per gravity direction, its worst and its mean."""
+
+    per_direction: np.ndarray  # (k,)
+    worst: float
+    mean: float
+
+
+@dataclass(frozen=True)
+class ResistanceProgram:
+    """The linear program of one grasp, direction-free (see the module docstring).
+
+    wrench : (6, k) wrench of each generator lambda_k on the object [N, N m about p];
+    rows : (r, k), bounds : (r,): motor rows, rows @ lambda <= bounds;
+    weight : m g [N]; cap : largest s [g].
+    """
+
+    wrench: np.ndarray
+    rows: np.ndarray
+    bounds: np.ndarray
+    weight: float
+    cap: float
+
+
+def generators(contacts: Contacts, m: int) -> np.ndarray:
+    """L (l, k): primitive contact forces in the stacked contact frames
+    (l = sum l_i rows of B, as in G = G~ B^T), one column per generator."""
+    cos, sin = _cone_table(m)
+    lengths = selection_lengths(contacts)
+    starts = np.cumsum(lengths) - lengths
+    blocks = []
+    for i, start in enumerate(starts):
+        if contacts.model[i] == FRICTIONLESS:
+            cols = np.zeros((lengths.sum(), 1))
+            cols[start, 0] = 1.0
+        else:
+            extra = 2 if contacts.model[i] == SOFT else 0
+            cols = np.zeros((lengths.sum(), m + extra))
+            cols[start] = 1.0
+            cols[start + 1, :m] = contacts.mu[i] * cos[:m]
+            cols[start + 2, :m] = contacts.mu[i] * sin[:m]
+            if extra:
+                cols[start + 3, m:] = [contacts.torsion[i], -contacts.torsion[i]]
+        blocks.append(cols)
+    return np.hstack(blocks) if blocks else np.zeros((0, 0))
+
+
+def program(points: ArrayLike, frames: ArrayLike, *, mu: ArrayLike, center: ArrayLike, mass: float,
+            drive: HandDrive, contact_links: ArrayLike, joint_affects: ArrayLike, model: ModelArg = "point",
+            torsion: ArrayLike = 0.0, cone_edges: int = 8, cap: float = RESISTANCE_CAP) -> ResistanceProgram:
+    """The direction-free part of the program.
+
+    points : (n, 3) c_i [m]; frames : (n, 3, 3) R_i, columns (n_i, l_i, o_i),
+    n_i into the object; mu, torsion [m] : scalar or (n,); model : name or n
+    names; center : (3,) the centre of mass [m]; mass [kg]; contact_links :
+    (n,) int, joint_affects : (n, n_q) bool as ``hand_jacobian``.
+    """
+    contacts = as_contacts(points, frames, mu=mu, model=model, torsion=torsion)
+    weight = float(as_array(mass, "mass", ())) * GRAVITY
+    if weight <= 0:
+        raise DegenerateGraspError(f"mass must be > 0 kg, got {mass}")
+    m = as_cone_edges(cone_edges)
+    n = len(contacts.points)
+    if n == 0:
+        return ResistanceProgram(np.zeros((6, 0)), np.zeros((0, 0)), np.zeros(0), weight, cap)
+    lengths = selection_lengths(contacts)
+    tilde = partial_grasp_matrices(contacts, as_center(center))
+    grasp = np.concatenate([g[:, :k] for g, k in zip(tilde, lengths)], axis=1)  # G (6, l), eq 2.28
+    lam = generators(contacts, m)  # L (l, k)
+    model_names = [("frictionless", "point", "soft")[c] for c in contacts.model]
+    jac = hand_jacobian(contacts.points, contacts.frames, contact_links, drive.joint_origins, drive.joint_axes,
+                        drive.joint_types, joint_affects, model_names)  # J (l, n_q), eq 2.29
+    motor = np.asarray(drive.transmission, float) @ jac.T @ lam  # (n_a, k): (T J^T L)
+    sense, limit = np.asarray(drive.sense, float), np.asarray(drive.limit, float)
+    push = sense != 0
+    rows = [sense[push, None] * motor[push], -sense[push, None] * motor[push], motor[~push], -motor[~push]]
+    bounds = [limit[push], np.zeros(int(push.sum())), limit[~push], limit[~push]]
+    a_ub, b_ub = np.vstack(rows), np.concatenate(bounds)
+    finite = np.isfinite(b_ub)
+    return ResistanceProgram(grasp @ lam, a_ub[finite], b_ub[finite], weight, cap)
+
+
+def weight_resistance(points: ArrayLike, frames: ArrayLike, *, mu: ArrayLike, center: ArrayLike, mass: float,
+                      drive: HandDrive, contact_links: ArrayLike, joint_affects: ArrayLike,
+                      directions: ArrayLike = SPHERE14, model: ModelArg = "point", torsion: ArrayLike = 0.0,
+                      cone_edges: int = 8, cap: float = RESISTANCE_CAP) -> Resistance:
+    """Weight resistance [g] for gravity along each row of ``directions``
+    (k, 3) unit vectors in {W}; arguments as :func:`program`."""
+    dirs = _directions(directions)
+    prog = program(points, frames, mu=mu, center=center, mass=mass, drive=drive, contact_links=contact_links,
+                   joint_affects=joint_affects, model=model, torsion=torsion, cone_edges=cone_edges, cap=cap)
+    return summarise(solve(prog, dirs))
+
+
+def summarise(per_direction: np.ndarray) -> Resistance:
+    """Worst and mean of (k,) resistances (k >= 1)."""
+    return Resistance(per_direction, float(per_direction.min()), float(per_direction.mean()))
+
+
+def _directions(directions: ArrayLike) -> np.ndarray:
+    dirs = as_array(directions, "directions", (-1, 3))
+    if len(dirs) == 0 or (np.abs(np.linalg.norm(dirs, axis=1) - 1.0) > 1e-6).any():
+        raise DegenerateGraspError("directions must be one or more unit vectors (k, 3)")
+    return dirs
+
+
+def solve(prog: ResistanceProgram, directions: np.ndarray) -> np.ndarray:
+    """(k,) largest s per direction: one HiGHS model, warm-started between
+    directions (only the load column changes)."""
+    import highspy
+
+    k = prog.wrench.shape[1]
+    if k == 0:
+        return np.zeros(len(directions))
+    n_rows = 6 + len(prog.rows)
+    matrix = np.zeros((n_rows, k + 1))
+    matrix[:6, :k] = prog.wrench
+    matrix[6:, :k] = prog.rows
+    matrix[:3, k] = prog.weight * directions[0]
+    inf = highspy.kHighsInf
+    lp = highspy.HighsLp()
+    lp.num_col_, lp.num_row_ = k + 1, n_rows
+    lp.col_cost_ = np.r_[np.zeros(k), -1.0]
+    lp.col_lower_, lp.col_upper_ = np.zeros(k + 1), np.r_[np.full(k, inf), prog.cap]
+    lp.row_lower_ = np.r_[np.zeros(6), np.full(len(prog.rows), -inf)]
+    lp.row_upper_ = np.r_[np.zeros(6), prog.bounds]
+    columns = [np.flatnonzero(matrix[:, j]) for j in range(k + 1)]
+    lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
+    lp.a_matrix_.start_ = np.r_[0, np.cumsum([len(c) for c in columns])].astype(np.int32)
+    lp.a_matrix_.index_ = np.concatenate(columns).astype(np.int32)
+    lp.a_matrix_.value_ = np.concatenate([matrix[c, j] for j, c in enumerate(columns)])
+    solver = highspy.Highs()
+    solver.setOptionValue("output_flag", False)
+    solver.passModel(lp)
+    out = np.zeros(len(directions))
+    for r, d in enumerate(directions):
+        for row in range(3):
+            solver.changeCoeff(row, k, float(prog.weight * d[row]))
+        solver.run()
+        if solver.getModelStatus() == highspy.HighsModelStatus.kOptimal:
+            out[r] = min(max(-solver.getInfo().objective_function_value, 0.0), prog.cap)
+    return out
+
+
+def drive_rows(joint_names: Sequence[str], motors: Sequence[tuple[dict[str, float], int, float]]
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(transmission (n_a, n_q), sense (n_a,), limit (n_a,)) from motors given
+    as ({joint: dq_j per unit motor travel}, sense, limit)."""
+    t = np.zeros((len(motors), len(joint_names)))
+    for a, (rates, _, _) in enumerate(motors):
+        for name, rate in rates.items():
+            t[a, list(joint_names).index(name)] = rate
+    return t, np.array([s for _, s, _ in motors], float), np.array([lim for _, _, lim in motors], float)

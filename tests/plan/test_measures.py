@@ -1,0 +1,68 @@
+"""The analytic measures of closed grasps: the centred box pinch holds
+2 mu F / (m g) along the pads, feasibility reasons name what is wrong, the
+Barrett's fingers break away past the first touch."""
+
+import numpy as np
+import pytest
+
+from planner.geometry.solid import load_object
+from planner.plan.closing import Closed, Grasper
+from planner.plan.measures import MIN_OPEN_MARGIN, broken_away, measure
+from planner.quality.resistance import AXES
+from planner.quality.tolerances import GRAVITY
+from planner.sim import Sim
+from planner.specs.hands import load_hand
+from planner.specs.preshapes import load_preshapes
+
+DOWN = np.array([0.0, 0.0, -1.0])
+
+
+def close(hand_name: str, obj_name: str, shape: str, point, direction, roll: float = 0.0,  # type: ignore[no-untyped-def]
+          standoff: float = 0.02) -> tuple[Closed, object, object, object]:
+    hand, obj = load_hand(hand_name), load_object(obj_name)
+    pre = {s.name: s for s in load_preshapes(hand)}[shape]
+    with Sim() as sim:
+        closed = Grasper.for_mesh(sim, hand, obj.mesh).close(np.asarray(point, float), np.asarray(direction, float),
+                                                              roll, standoff, pre, obj.torque_scale)
+    assert isinstance(closed, Closed)
+    return closed, hand, pre, obj
+
+
+def test_a_centred_box_pinch_holds_two_mu_f_along_its_pads_and_is_feasible() -> None:
+    closed, hand, pre, obj = close("panda", "box", "wide", [0, 0, 0.04], DOWN)
+    m = measure(closed.contacts, closed.frames, hand, pre, closed.closed_joints, obj, directions=AXES)  # type: ignore[arg-type]
+    friction_only = 2 * obj.friction * (hand.actuators.effort / 2) / (obj.mass * GRAVITY)  # 35 N per pad
+    # gravity towards the palm, along the pads: held by friction alone (pulling the other way the pad
+    # corners on the box's top edge, where the pad's own tilted normal applies, add a little)
+    r = measure(closed.contacts, closed.frames, hand, pre, closed.closed_joints, obj,  # type: ignore[arg-type]
+                directions=np.array([[0.0, 0.0, 1.0]]))
+    assert r.resist_worst == pytest.approx(friction_only, rel=0.02)
+    assert m.feasible and m.push == pytest.approx(1.0, abs=1e-3)
+    assert m.open_margin > MIN_OPEN_MARGIN and m.close_margin > MIN_OPEN_MARGIN
+
+
+def test_fingers_at_their_open_limit_have_no_clearance_and_the_object_fills_the_jaw() -> None:
+    closed, hand, pre, obj = close("panda", "box", "wide", [0, 0, 0.04], DOWN)
+    at_limit = {name: 0.0395 for name in closed.closed_joints}  # 0.5 mm from the 4 cm open limit per finger
+    m = measure(closed.contacts, closed.frames, hand, pre, at_limit, obj)  # type: ignore[arg-type]
+    assert m.open_margin == pytest.approx(0.0005, abs=1e-9)
+    assert "open_limit" in m.reasons and "too_wide" in m.reasons and not m.feasible
+    at_stop = {name: 0.0 for name in closed.closed_joints}
+    assert "at_close_stop" in measure(closed.contacts, closed.frames, hand, pre, at_stop, obj).reasons  # type: ignore[arg-type]
+
+
+def test_barrett_fingers_break_away_and_curl_their_distal_links_on() -> None:
+    # the box off-centre over the palm, towards finger 3: its proximal link touches first
+    hand, obj = load_hand("barrett"), load_object("box")
+    wrap = {s.name: s for s in load_preshapes(hand)}["wrap"]
+    pose = np.eye(4)
+    pose[:3, :3], pose[:3, 3] = np.diag([1.0, -1.0, -1.0]), [0.0, 0.04, 0.13]
+    with Sim() as sim:
+        closed = Grasper.for_mesh(sim, hand, obj.mesh).close_at(pose, wrap)
+    assert isinstance(closed, Closed)
+    q = closed.closed_joints
+    assert broken_away(hand, q) == {"bh_j32_joint"}
+    assert q["bh_j33_joint"] > q["bh_j32_joint"] / 3 + 0.1  # the distal link closed on alone
+    assert q["bh_j13_joint"] == pytest.approx(q["bh_j12_joint"] * 0.3333)  # fingers 1 and 2 stayed coupled
+    m = measure(closed.contacts, closed.frames, hand, wrap, q, obj)  # type: ignore[arg-type]
+    assert m.resist_worst >= 0 and np.isfinite(m.resist_mean)

@@ -1,0 +1,81 @@
+"""Contact patches: a flat pad on a box face is an area (>= 3 non-collinear
+contacts, force closure), the legacy point reading stays available, small
+regions become soft fingers, extreme points of a rectangle are its corners."""
+
+import numpy as np
+import pytest
+from helpers import SIM_TOL
+
+from planner.geometry.solid import load_object
+from planner.plan.closing import Closed, CloseSettings, Grasper
+from planner.plan.contacts import HandContacts, contact_models
+from planner.plan.patches import PatchSettings, Region, discretise, extreme_points
+from planner.plan.unit import grasp_quality
+from planner.sim import Sim
+from planner.specs.hands import load_hand
+from planner.specs.preshapes import load_preshapes
+
+DOWN = np.array([0.0, 0.0, -1.0])
+
+
+@pytest.fixture(scope="module")
+def box_pinch() -> tuple[Closed, Closed]:
+    """The Panda from above the 5 x 4 x 8 cm box, fingers on its 4 cm faces:
+    read as patches and the legacy way."""
+    hand, obj = load_hand("panda"), load_object("box")
+    wide = {s.name: s for s in load_preshapes(hand)}["wide"]
+    out = []
+    for reading in ("patch", "points"):
+        with Sim() as sim:
+            g = Grasper.for_mesh(sim, hand, obj.mesh, CloseSettings(contacts=reading))
+            closed = g.close(np.array([0, 0, 0.04]), DOWN, 0.0, 0.02, wide, obj.torque_scale)
+        assert isinstance(closed, Closed)
+        out.append(closed)
+    return out[0], out[1]
+
+
+def rank(points: np.ndarray) -> int:
+    return int(np.linalg.matrix_rank(points - points.mean(axis=0), tol=1e-4))
+
+
+def test_a_flat_pad_on_a_box_face_is_a_patch_of_non_collinear_contacts_in_force_closure(box_pinch) -> None:  # type: ignore[no-untyped-def]
+    patch, _ = box_pinch
+    hand, obj = load_hand("panda"), load_object("box")
+    for finger in ("panda_leftfinger", "panda_rightfinger"):
+        mine = np.array(patch.contacts.links) == finger
+        assert mine.sum() >= 3 and rank(patch.contacts.points[mine]) == 2  # a plane patch, not a line
+        assert np.allclose(np.abs(patch.contacts.points[mine, 1]), 0.02, atol=SIM_TOL)
+        assert (np.abs(patch.contacts.normals[mine, 1]) > np.cos(np.radians(10))).all()  # about the face normal
+        assert (patch.contacts.radius[mine] == 0).all() and len(set(patch.contacts.region[mine])) == 1
+    assert grasp_quality(patch.contacts, hand, obj, 8).force_closure
+
+
+def test_the_legacy_point_reading_is_kept(box_pinch) -> None:  # type: ignore[no-untyped-def]
+    patch, points = box_pinch
+    assert np.isnan(points.contacts.radius).all() and (points.contacts.region == -1).all()
+    assert "radius" not in points.contacts.json_text()
+    assert patch.closed_joints == points.closed_joints  # only the reading differs
+    restored = HandContacts.stored(patch.contacts.json_text(), len(patch.contacts), patch.contacts.touching)
+    assert np.allclose(restored.radius, patch.contacts.radius) and (restored.region == patch.contacts.region).all()
+
+
+def test_extreme_points_of_a_rectangle_are_its_corners() -> None:
+    x, y = np.meshgrid(np.linspace(-0.01, 0.01, 21), np.linspace(-0.005, 0.005, 11))
+    pts = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
+    got = pts[extreme_points(pts, np.array([0.0, 0.0, 1.0]), 4)]
+    assert sorted(map(tuple, np.round(np.abs(got[:, :2]), 6))) == [(0.01, 0.005)] * 4
+    assert len({tuple(p) for p in np.round(got, 6)}) == 4
+
+
+def test_a_small_region_is_one_soft_contact_with_torsion_from_its_size() -> None:
+    hand = load_hand("panda")
+    pts = np.array([[0.0, 0.0, 0.0], [0.001, 0.0, 0.0], [0.0, 0.001, 0.0]])
+    normal = np.array([0.0, 0.0, 1.0])
+    region = Region("panda_leftfinger", pts, np.tile(normal, (3, 1)), area=np.pi * 0.002**2, diameter=0.0015,
+                    normal=normal)
+    contacts = discretise([region], PatchSettings())
+    assert len(contacts) == 1 and contacts.radius[0] == pytest.approx(0.002)
+    models, torsion = contact_models(contacts, hand, 0.5)
+    assert models == ["soft"] and torsion[0] == pytest.approx(2 / 3 * 0.5 * 0.002)
+    palm = discretise([Region("panda_hand", pts, np.tile(normal, (3, 1)), 1e-6, 0.0015, normal)], PatchSettings())
+    assert contact_models(palm, hand, 0.5)[0] == ["point"]  # the palm is not soft
