@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import logging
 import zlib
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -119,6 +119,15 @@ def plan(db: Database, objects: list[str] | None, hands: list[str] | None, selec
     return tasks
 
 
+def execute(tasks: list[Task], workers: int) -> Iterator[TaskResult]:
+    """Run ``tasks`` in the crash-safe pool (in this process if ``workers``
+    <= 1), yielding each result as it finishes; a task whose worker died
+    twice comes back with its error."""
+    with closing(pool.execute(run_task, tasks, workers)) as outcomes:
+        for task, outcome, _ in outcomes:
+            yield outcome if isinstance(outcome, TaskResult) else TaskResult(task, error=str(outcome))
+
+
 def write(db: Database, result: TaskResult, rule: RankingRule) -> None:
     task = result.task
     noise = task.noise.to_json() if task.noise is not None else ""
@@ -159,17 +168,15 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
         tasks = plan(db, objects, hands, Selection(top, sample, every), seed, trial_settings, noise)
         if progress:
             progress(0, len(tasks))
-        with closing(pool.execute(run_task, tasks, workers)) as outcomes:
-            for done, (task, outcome, _) in enumerate(outcomes, start=1):
-                result = outcome if isinstance(outcome, TaskResult) else TaskResult(task, error=str(outcome))
-                if result.error:
-                    summary.failed_tasks[f"{task.object}/{task.hand}"] = result.error
-                else:
-                    write(db, result, rule)
-                    summary.grasps += len(result.trials)
-                    summary.successes += sum(t.success for t in result.trials)
-                if progress:
-                    progress(done, len(tasks))
+        for done, result in enumerate(execute(tasks, workers), start=1):
+            if result.error:
+                summary.failed_tasks[f"{result.task.object}/{result.task.hand}"] = result.error
+            else:
+                write(db, result, rule)
+                summary.grasps += len(result.trials)
+                summary.successes += sum(t.success for t in result.trials)
+            if progress:
+                progress(done, len(tasks))
         db.set_meta("validation_settings", json.dumps(
             {"trial": json.loads(trial_settings.to_json()), "noise": json.loads(noise.to_json()) if noise else None,
              "seed": seed}))
