@@ -19,13 +19,16 @@ FORMATS = ("acronym", "graspgen", "dexgraspnet", "parquet", "csv")
 
 
 @pytest.mark.parametrize("args, where", [
-    (["--min-epsilon", "0.05"], "epsilon >= 0.05"),
+    (["--min-epsilon", "{median}"], "epsilon >= {median}"),
     (["--top", "3"], "rank <= 3"),
     (["--object", "sphere"], "object = 'sphere'"),
     (["--object", "box", "--hand", "panda", "--top", "2", "--min-epsilon", "0.01"],
      "object = 'box' AND rank <= 2 AND epsilon >= 0.01"),
 ])
 def test_filters_restrict_rows(db: Path, tmp_path: Path, args: list[str], where: str) -> None:
+    eps = sorted(r[0] for r in sqlite3.connect(db).execute("SELECT epsilon FROM grasps"))
+    median = repr(eps[len(eps) // 2])  # "{median}": a cut inside the fixture's range of epsilons
+    args, where = [a.format(median=median) for a in args], where.format(median=median)
     table = pq.read_table(export(db, "parquet", tmp_path, *args) / "grasps.parquet")
     ids = sorted(r[0] for r in sqlite3.connect(db).execute(f"SELECT id FROM grasps WHERE {where}"))
     assert 0 < len(ids) < sqlite3.connect(db).execute("SELECT COUNT(*) FROM grasps").fetchone()[0]

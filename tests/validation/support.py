@@ -9,7 +9,7 @@ import numpy as np
 
 from planner.geometry.solid import PreparedObject, prepare
 from planner.grasp import Grasp
-from planner.plan.closing import Closed, Grasper
+from planner.plan.closing import Closed, CloseSettings, Grasper
 from planner.plan.contacts import HandContacts
 from planner.sim import Sim
 from planner.specs.hands import HandSpec
@@ -47,14 +47,17 @@ def top_down(hand: HandSpec, obj: PreparedObject) -> np.ndarray:
     return pose
 
 
-def pinch(hand: HandSpec, obj: PreparedObject, offset: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> Grasp:
+def pinch(hand: HandSpec, obj: PreparedObject, offset: tuple[float, float, float] = (0.0, 0.0, 0.0),
+          contacts: str = "patch") -> Grasp:
     """The planner's own grasp of a box pinched from the top (closing along y)
-    across its centre, or ``offset`` [m] from it."""
+    across its centre, or ``offset`` [m] from it; ``contacts``: how closing
+    reads them (CloseSettings.contacts)."""
     wide = {p.name: p for p in load_preshapes(hand)}["wide"]
     pose = top_down(hand, obj)
     pose[:3, 3] += offset
     with Sim() as sim:
-        closed = Grasper(sim, hand, sim.add_static_mesh(obj.mesh.vertices, obj.mesh.faces)).close_at(pose, wide)
+        closed = Grasper(sim, hand, sim.add_static_mesh(obj.mesh.vertices, obj.mesh.faces),
+                         CloseSettings(contacts=contacts)).close_at(pose, wide)
     assert isinstance(closed, Closed), closed
     return as_row(closed, "wide", obj.name)
 
