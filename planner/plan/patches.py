@@ -157,6 +157,10 @@ def _surfaces(urdf: str, links: tuple[str, ...], root: str, settings: PatchSetti
 
 # -- the object side --------------------------------------------------------------
 
+#: [m] the first, short search radius of a link's samples to the object's
+#: (ObjectSurface.bound): links in contact need no more (speed only).
+NEAR_SEARCH = 0.006
+
 @dataclass
 class ObjectSurface:
     """The object's triangle mesh and what exact closest points need."""
@@ -194,10 +198,11 @@ class ObjectSurface:
         return {(int(min(a, b)), int(max(a, b))): bool(angle > self.settings.sharp_angle)
                 for (a, b), angle in zip(m.face_adjacency_edges, m.face_adjacency_angles)}
 
-    def bound(self, points: np.ndarray) -> np.ndarray:
+    def bound(self, points: np.ndarray, within: float = 0.02) -> np.ndarray:
         """(k,) distance [m] of each point to the nearest surface sample (an
-        upper bound of its distance to the surface, tight to ~the spacing)."""
-        return self._samples[0].query(points, distance_upper_bound=0.02)[0]
+        upper bound of its distance to the surface, tight to ~the spacing);
+        inf beyond ``within``."""
+        return self._samples[0].query(points, distance_upper_bound=within)[0]
 
     def closest(self, points: np.ndarray, k: int = 12) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(closest (n, 3), signed gap (n,) [m], outward face normal (n, 3),
@@ -240,7 +245,13 @@ def link_regions(link: str, surface: LinkSurface, pose: np.ndarray, obj: ObjectS
     idx = np.flatnonzero(np.all((points > lo - s.prefilter) & (points < hi + s.prefilter), axis=1))
     if len(idx) == 0:
         return []
-    bound = obj.bound(points[idx])
+    # a touching link's samples that matter lie within depth + prefilter of the
+    # nearest: a short KD-tree search finds them (and the nearest) exactly when
+    # the nearest is that close; farther links get the long search
+    keep_band = s.depth + s.prefilter
+    bound = obj.bound(points[idx], NEAR_SEARCH)
+    if not np.isfinite(bound).any() or bound.min() + keep_band > NEAR_SEARCH:
+        bound = obj.bound(points[idx])
     if not np.isfinite(bound).any():
         return []
     idx = idx[bound <= bound.min() + s.depth + s.prefilter]
