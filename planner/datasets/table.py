@@ -30,7 +30,7 @@ the ``csv`` module with a header row, floats written in full precision.
 | `n_contacts` | int64 | number of contacts |
 | `links_touching` | int64 | number of hand links touching the object |
 | `epsilon` | float64 | Ferrari-Canny L1 epsilon (0 unless force-closure) |
-| `volume` | float64 | volume of the grasp wrench space |
+| `volume` | float64 | volume of the grasp wrench space (0 unless generated with `--volume`) |
 | `force_closure` | int64 | 1 if force-closure, else 0 |
 | `resist_worst` | float64, null | [g] weight resistance, worst of 14 gravity directions (object frame) |
 | `resist_mean` | float64, null | [g] weight resistance, mean over the 14 directions |

@@ -59,7 +59,7 @@ class SweepSettings:
     reach_placements: int = 6  # object placements for the reachability score; 0: skip reachability
     reach_top: int = 8  # reachability of this many force-closure grasps per unit, best epsilon first; 0: all
     pregrasp_distance: float = PREGRASP_DISTANCE  # [m] pre-grasp back-off along the approach
-    volume: bool = True  # GWS volume of force-closure grasps (a full 6-D hull; False stores 0)
+    volume: bool = False  # GWS volume of force-closure grasps (a full 6-D hull, slow; False stores 0)
 
     def __post_init__(self) -> None:
         if self.sampler is not None and self.sampler not in SAMPLERS:
