@@ -75,15 +75,19 @@ def test_a_grasp_whose_quality_fails_is_rejected_with_a_counted_reason(box_unit,
                                                                        monkeypatch: pytest.MonkeyPatch) -> None:
     """A HullError on the third grasp rejects that grasp; the unit and the
     other grasps are as before."""
-    evaluate, calls = quality.evaluate, []
+    calls: list[int] = []
 
-    def failing_third(*args, **kwargs):  # type: ignore[no-untyped-def]
-        calls.append(1)
-        if len(calls) == 3:
-            raise HullError("qhull precision error on a full-dimensional set")
-        return evaluate(*args, **kwargs)
+    def failing_third(function):  # type: ignore[no-untyped-def]
+        def wrapped(*args, **kwargs):  # type: ignore[no-untyped-def]
+            calls.append(1)
+            if len(calls) == 3:
+                raise HullError("qhull precision error on a full-dimensional set")
+            return function(*args, **kwargs)
+        return wrapped
 
-    monkeypatch.setattr(unit.quality, "evaluate", failing_third)
+    # epsilon alone by default; evaluate (epsilon and volume) with --volume
+    monkeypatch.setattr(unit.quality, "epsilon", failing_third(quality.epsilon))
+    monkeypatch.setattr(unit.quality, "evaluate", failing_third(quality.evaluate))
     r = run_unit(UnitSpec("box", "panda", SETTINGS, seed=1))
     assert r.error is None and r.rejected[QUALITY_FAILED] == 1
     assert r.candidates == len(r.grasps) + sum(r.rejected.values())
