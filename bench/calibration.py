@@ -71,8 +71,8 @@ GRID = [dict(cap=c, min_open_margin=m, eps_weight=e) for c in (2.0, 5.0, 10.0, 2
 
 def split(name: str) -> list[str]:
     data = tomllib.loads(SPLIT.read_text())
-    if name not in ("tuning", "held_out"):
-        raise SystemExit(f"--set must be tuning or held_out, got {name}")
+    if name not in ("tuning", "held_out", "held_out_2"):
+        raise SystemExit(f"--set must be tuning, held_out or held_out_2, got {name}")
     return list(data[name])
 
 
@@ -256,7 +256,7 @@ def report(results: dict[str, dict], set_name: str, rule: RankingRule) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--set", required=True, help="tuning | held_out (held_out: the lead, once, at the end)")
+    ap.add_argument("--set", required=True, help="tuning | held_out | held_out_2 (held-out sets: the lead, once each, at the end)")
     ap.add_argument("--hands", nargs="+", default=["panda", "barrett"])
     ap.add_argument("--objects", type=int, help="only the first N objects of the set (smoke runs)")
     ap.add_argument("--only", nargs="+", help="only these objects (they must be in the set)")
@@ -270,7 +270,7 @@ def main() -> None:
     ap.add_argument("--cv", action="store_true", help="cross-validate the rule's parameters (tuning set only)")
     args = ap.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(message)s")
-    if args.set == "held_out" and not args.final_held_out:
+    if args.set != "tuning" and not args.final_held_out:
         raise SystemExit("--set held_out is the one final evaluation (the lead's, after all tuning): "
                          "add --final-held-out to run it; tune on --set tuning")
     names = split(args.set)

@@ -3,6 +3,11 @@
 The split was fixed before any score was tuned (issue 15): 100 objects, the 7
 built-ins and random_000..random_092, ordered by sha256(salt + ":" + name);
 the first 50 are the held-out set.  ``--check`` exits 1 if the file differs.
+
+A second held-out set, ``held_out_2``, was fixed at 2026-11-23 ~11:00 UTC,
+after the first held-out set had been evaluated once and BEFORE the second
+round of tuning (Barrett): 50 objects of random_093..random_999 ordered by
+sha256(salt_2 + ":" + name). No object of it was ever swept before.
 """
 
 from __future__ import annotations
@@ -18,6 +23,7 @@ FILE = Path(__file__).with_name("calibration_split.toml")
 BUILTINS = ("mug", "duck", "teddy", "bunny", "box", "cylinder", "sphere")
 RANDOM = 93
 HELD_OUT = 50
+RANDOM_2 = range(RANDOM, 1000)
 
 
 def split(salt: str) -> tuple[list[str], list[str]]:
@@ -26,14 +32,21 @@ def split(salt: str) -> tuple[list[str], list[str]]:
     return sorted(order[HELD_OUT:]), sorted(order[:HELD_OUT])
 
 
+def split_2(salt: str) -> list[str]:
+    names = [f"random_{i:03d}" for i in RANDOM_2]
+    return sorted(sorted(names, key=lambda n: hashlib.sha256(f"{salt}:{n}".encode()).hexdigest())[:HELD_OUT])
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--check", action="store_true")
     args = parser.parse_args()
     data = tomllib.loads(FILE.read_text())
     tuning, held = split(data["salt"])
-    same = tuning == data["tuning"] and held == data["held_out"]
-    print(f"tuning {len(tuning)} objects, held out {len(held)}: file {'matches' if same else 'DIFFERS'}")
+    held_2 = split_2(data["salt_2"])
+    same = tuning == data["tuning"] and held == data["held_out"] and held_2 == data["held_out_2"]
+    print(f"tuning {len(tuning)} objects, held out {len(held)}, second held out {len(held_2)}: "
+          f"file {'matches' if same else 'DIFFERS'}")
     return 0 if same or not args.check else 1
 
 
