@@ -18,6 +18,15 @@ is run ONCE, by the lead, at the end):
    share of the 10 best that held) of the analytic order and of the
    pre-issue order, over each object's whole sweep.
 
+``--jitter K`` measures how repeatable the trial's label is: every labelled
+grasp of the uniform sample is tried again K times with its pose moved by
+``--jitter-mm`` (a random direction) and turned by ``--jitter-deg`` (a random
+axis), seeded per grasp (cached in ``DIR/<set>_<hand>_jitter.json``). It
+reports how often a jittered trial agrees with the label, the ROC AUC of the
+jittered trials' mean against the label (a ceiling: what a predictor that
+knew the trial's outcome a millimetre away would reach), and the AUCs against
+the robust label (held in at least half of the 1 + K trials).
+
 ``--cv`` adds 5-fold cross-validation grouped by object of the rule's
 parameters (cap, min_open_margin, eps_weight; objective: pooled AUC + top-1
 on the training folds), the figures of the held fold. Tuning only.
@@ -43,6 +52,7 @@ from typing import get_type_hints
 
 import numpy as np
 import tomllib
+from scipy.spatial.transform import Rotation
 
 from planner import api
 from planner.db.lock import writer_lock
@@ -151,6 +161,70 @@ def label(db_path: Path, hand_name: str, name: str, grasps: list[Grasp], workers
     return len(todo)
 
 
+def jittered(g: Grasp, k: int, mm: float, deg: float) -> list[Grasp]:
+    """k copies of a grasp, its pose moved by ``mm`` [mm] along a random
+    direction and turned by ``deg`` about a random axis (object frame), seeded
+    by the grasp's candidate and seed."""
+    rng = np.random.default_rng([SEED, g.candidate, g.seed, zlib.crc32(g.object.encode()), 1])
+    out = []
+    for _ in range(k):
+        pose = np.array(g.pose, float)
+        move, axis = rng.normal(size=3), rng.normal(size=3)
+        pose[:3, 3] += move / np.linalg.norm(move) * mm / 1000.0
+        pose[:3, :3] = Rotation.from_rotvec(axis / np.linalg.norm(axis) * np.deg2rad(deg)).as_matrix() @ pose[:3, :3]
+        out.append(replace(g, pose=pose, validation=None))
+    return out
+
+
+def jitter_labels(db_path: Path, hand: str, pools_: list[Pool], k: int, mm: float, deg: float,
+                  workers: int) -> dict[int, list[bool]]:
+    """{grasp id: k jittered trial verdicts} of every labelled uniform grasp (cached)."""
+    cache = db_path.with_name(f"{db_path.stem}_jitter.json")
+    key = f"{k} x {mm} mm {deg} deg"
+    data = json.loads(cache.read_text()) if cache.exists() else {}
+    known = {int(i): v for i, v in data.get(key, {}).items()}
+    with open_db(db_path, create=False, readonly=True) as db:
+        rows = {p.object: db.object_row(p.object) for p in pools_}
+    tasks = []
+    for p in pools_:
+        todo = [g for g, u in zip(p.grasps, p.uniform) if u and g.validation is not None and g.id not in known]
+        copies = [c for g in todo for c in jittered(g, k, mm, deg)]
+        row = rows[p.object]
+        assert row is not None, p.object
+        tasks += [validation.Task(p.object, row.source, row.scale, hand, tuple(copies[i:i + validation.BATCH]), SEED,
+                                  trial_settings(), None) for i in range(0, len(copies), validation.BATCH)]
+    for result in validation.execute(tasks, workers):  # as they finish: copies keep their grasp's id
+        if result.error:
+            raise SystemExit(f"jittered shake test of {hand} on {result.task.object} failed: {result.error}")
+        for copy, trial in zip(result.task.grasps, result.trials):
+            known.setdefault(copy.id, []).append(bool(trial.success))
+    data[key] = {str(i): v for i, v in known.items()}
+    cache.write_text(json.dumps(data))
+    return known
+
+
+def repeatability(pools_: list[Pool], rule: RankingRule, jitter: dict[int, list[bool]]) -> dict:
+    """Agreement of jittered trials with the label; AUCs against the robust label."""
+    cols = [p.columns(rule) for p in pools_]
+    label, near, scores = [], [], {key: [] for key in MEASURES}
+    for p, c in zip(pools_, cols):
+        for i in np.flatnonzero(p.uniform):
+            g = p.grasps[i]
+            if g.validation is None or g.id not in jitter:
+                continue
+            label.append(float(g.validation.success))
+            near.append(np.mean(jitter[g.id]))
+            for key in MEASURES:
+                scores[key].append(c[key][i])
+    label_, near_ = np.array(label), np.array(near)
+    k = len(next(iter(jitter.values()))) if jitter else 0
+    robust = ((label_ + near_ * k) / (1 + k) >= 0.5).astype(float)
+    agree = float(np.mean(1.0 - np.abs(near_ - label_))) if len(label_) else float("nan")  # share of jittered trials
+    return {"grasps": len(label_), "jitters": k, "agreement": float(agree),
+            "ceiling_auc": roc_auc(label_, near_), "robust_held": float(robust.mean()) if len(robust) else float("nan"),
+            "robust_auc": {key: roc_auc(robust, np.array(v, float)) for key, v in scores.items()}}
+
+
 def pools(db_path: Path, hand: str, names: list[str], per_object: int, workers: int,
           rule: RankingRule) -> list[Pool]:
     out = []
@@ -246,6 +320,13 @@ def report(results: dict[str, dict], set_name: str, rule: RankingRule) -> str:
         row(f"top-1 held, {label}", [f"{results[h][f'top1_{key}']:.3f}" for h in hands])
         row(f"top-10 held, {label}", [f"{results[h][f'top10_{key}']:.3f}" for h in hands])
     for h in hands:
+        if "repeat" in results[h]:
+            r = results[h]["repeat"]
+            lines += ["", f"{h}: label repeatability, {r['grasps']} labelled uniform grasps x {r['jitters']} jittered "
+                      f"trials ({r['jitter']}): a jittered trial agrees with the label {r['agreement']:.3f}; ROC AUC "
+                      f"of the jittered trials' mean against the label (ceiling) {r['ceiling_auc']:.3f}; robust label "
+                      f"(held in >= half of the 1 + K trials) held {r['robust_held']:.3f}, ROC AUC against it: "
+                      + ", ".join(f"{k} {v:.3f}" for k, v in r["robust_auc"].items())]
         if "cv" in results[h]:
             cv = results[h]["cv"]
             lines += ["", f"{h}: 5-fold CV grouped by object (held folds): AUC {cv['auc']:.3f}, top-1 "
@@ -256,7 +337,8 @@ def report(results: dict[str, dict], set_name: str, rule: RankingRule) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--set", required=True, help="tuning | held_out | held_out_2 (held-out sets: the lead, once each, at the end)")
+    ap.add_argument("--set", required=True,
+                    help="tuning | held_out | held_out_2 (held-out sets: the lead, once each, at the end)")
     ap.add_argument("--hands", nargs="+", default=["panda", "barrett"])
     ap.add_argument("--objects", type=int, help="only the first N objects of the set (smoke runs)")
     ap.add_argument("--only", nargs="+", help="only these objects (they must be in the set)")
@@ -267,6 +349,10 @@ def main() -> None:
     ap.add_argument("--dir", type=Path, default=HERE / "calibration")
     ap.add_argument("--final-held-out", action="store_true",
                     help="required with --set held_out: the one final evaluation, by the lead, after all tuning")
+    ap.add_argument("--jitter", type=int, default=0, metavar="K",
+                    help="label repeatability: K jittered trials per labelled uniform grasp (default 0: off)")
+    ap.add_argument("--jitter-mm", type=float, default=1.0)
+    ap.add_argument("--jitter-deg", type=float, default=1.0)
     ap.add_argument("--cv", action="store_true", help="cross-validate the rule's parameters (tuning set only)")
     args = ap.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(message)s")
@@ -294,6 +380,10 @@ def main() -> None:
                      time.perf_counter() - t)
         pools_ = pools(db, hand, names, args.per_object, args.workers, rule)
         results[hand] = figures(pools_, rule)
+        if args.jitter:
+            jitter = jitter_labels(db, hand, pools_, args.jitter, args.jitter_mm, args.jitter_deg, args.workers)
+            results[hand]["repeat"] = {**repeatability(pools_, rule, jitter),
+                                       "jitter": f"{args.jitter_mm} mm, {args.jitter_deg} deg"}
         if args.cv:
             results[hand]["cv"] = cross_validate(pools_, rule)
     text = report(results, args.set, rule)

@@ -10,6 +10,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+import pytest
 import tomllib
 
 BENCH = Path(__file__).resolve().parents[1] / "bench"
@@ -57,3 +59,28 @@ def test_the_uniform_sample_is_seeded_and_the_right_size() -> None:
     assert (a == b).all() and a.sum() == 100
     assert not (a == h.uniform_sample(300, 100, "panda", "mug")).all()
     assert h.uniform_sample(40, 100, "panda", "box").all()  # all of them where fewer
+
+
+def test_jittered_copies_move_by_the_asked_distance_and_angle_and_are_seeded() -> None:
+    from scipy.spatial.transform import Rotation
+
+    from planner.grasp import Grasp
+    from planner.plan.contacts import HandContacts
+
+    h = harness()
+    pose = np.eye(4)
+    pose[:3, :3] = Rotation.from_euler("xyz", [0.3, -0.2, 1.0]).as_matrix()
+    pose[:3, 3] = [0.01, 0.02, 0.1]
+    empty = HandContacts(np.zeros((0, 3)), np.zeros((0, 3)), ())
+    g = Grasp(object="box", hand="barrett", preshape="wrap", candidate=7, seed=3, approach_point=np.zeros(3),
+              approach_dir=np.array([0.0, 0.0, 1.0]), roll=0.0, standoff=0.0, pose=pose, open_joints={},
+              closed_joints={}, width=None, contacts=empty, epsilon=0.0, volume=0.0, force_closure=False, id=11)
+    copies = h.jittered(g, 5, 1.5, 2.0)
+    assert len(copies) == 5 and all(c.id == 11 and c.validation is None for c in copies)
+    for c in copies:
+        assert np.linalg.norm(c.pose[:3, 3] - pose[:3, 3]) == pytest.approx(1.5e-3, rel=1e-9)
+        turn = Rotation.from_matrix(c.pose[:3, :3] @ pose[:3, :3].T).magnitude()
+        assert np.rad2deg(turn) == pytest.approx(2.0, rel=1e-6)
+    again = h.jittered(g, 5, 1.5, 2.0)
+    assert all(np.array_equal(a.pose, b.pose) for a, b in zip(copies, again))
+    assert len({tuple(c.pose[:3, 3]) for c in copies}) == 5
