@@ -49,6 +49,18 @@ from planner.plan.contacts import HandContacts
 from planner.specs.hands import HandSpec
 from planner.specs.urdf import load_model
 
+#: [m] a link sample farther than this from every object sample is out of
+#: reach (ObjectSurface.bound's default search radius).
+BOUND = 0.02
+#: [m] the first, short search radius of a link's samples to the object's
+#: (ObjectSurface.bound): links in contact need no more (speed only).
+NEAR_SEARCH = 0.006
+#: [m] side of the cells that group a link's samples to bound them together
+#: (speed only: any side gives the same samples).
+CELL = 0.002
+#: [m] round-off allowance of the cells' triangle-inequality bounds.
+SLACK = 1e-9
+
 
 @dataclass(frozen=True)
 class PatchSettings:
@@ -81,6 +93,52 @@ class LinkSurface:
     points: np.ndarray
     normals: np.ndarray
     area: np.ndarray
+
+    @cached_property
+    def cells(self) -> Cells:
+        """The samples grouped by cubes of side ``CELL``."""
+        return Cells.of(self.points, np.floor(self.points / CELL).astype(np.int64))
+
+
+@dataclass(frozen=True)
+class Cells:
+    """A grouping of link samples, link frame.
+
+    cell : (k,) the cell of each sample; centres : (c, 3) [m] the cells'
+    centroids; radius : (c,) [m] the largest distance of a cell's sample to
+    its centroid.
+    """
+
+    cell: np.ndarray
+    centres: np.ndarray
+    radius: np.ndarray
+
+    @classmethod
+    def of(cls, points: np.ndarray, keys: np.ndarray) -> Cells:
+        """``points`` (k, 3) grouped by equal rows of ``keys`` (k, 3)."""
+        _, cell = np.unique(keys, axis=0, return_inverse=True)
+        cell = cell.reshape(-1)
+        count = np.bincount(cell)
+        centres = np.stack([np.bincount(cell, points[:, i]) for i in range(3)], axis=1) / count[:, None]
+        radius = np.zeros(len(count))
+        np.maximum.at(radius, cell, np.linalg.norm(points - centres[cell], axis=1))
+        return cls(cell, centres, radius)
+
+    def reach(self, chosen: np.ndarray, pose: np.ndarray, obj: ObjectSurface,
+              within: float) -> tuple[np.ndarray, np.ndarray]:
+        """(lower (n,), upper (n,)) [m] bounds of the ``chosen`` cells' samples'
+        bounds at ``pose``, by the triangle inequality about each centroid
+        (inf for cells whose centroid has no object sample within ``within``)."""
+        radius = self.radius[chosen]
+        reach = obj.bound(self.centres[chosen] @ pose[:3, :3].T + pose[:3, 3], within)
+        return reach - radius - SLACK, reach + radius + SLACK
+
+    def members(self, chosen: np.ndarray, among: np.ndarray) -> np.ndarray:
+        """(n,) ascending indices of the samples in ``among`` (k,) bool that
+        lie in the ``chosen`` cells."""
+        mask = np.zeros(len(self.centres), bool)
+        mask[chosen] = True
+        return np.flatnonzero(among & mask[self.cell])
 
 
 @dataclass(frozen=True)
@@ -157,10 +215,6 @@ def _surfaces(urdf: str, links: tuple[str, ...], root: str, settings: PatchSetti
 
 # -- the object side --------------------------------------------------------------
 
-#: [m] the first, short search radius of a link's samples to the object's
-#: (ObjectSurface.bound): links in contact need no more (speed only).
-NEAR_SEARCH = 0.006
-
 @dataclass
 class ObjectSurface:
     """The object's triangle mesh and what exact closest points need."""
@@ -198,7 +252,7 @@ class ObjectSurface:
         return {(int(min(a, b)), int(max(a, b))): bool(angle > self.settings.sharp_angle)
                 for (a, b), angle in zip(m.face_adjacency_edges, m.face_adjacency_angles)}
 
-    def bound(self, points: np.ndarray, within: float = 0.02) -> np.ndarray:
+    def bound(self, points: np.ndarray, within: float = BOUND) -> np.ndarray:
         """(k,) distance [m] of each point to the nearest surface sample (an
         upper bound of its distance to the surface, tight to ~the spacing);
         inf beyond ``within``."""
@@ -212,8 +266,12 @@ class ObjectSurface:
         k = min(k, tree.n)
         _, near = tree.query(points, k=k)
         cand = sample_face[np.asarray(near).reshape(len(points), k)]
-        cp = trimesh.triangles.closest_point(self.mesh.triangles[cand.reshape(-1)], np.repeat(points, k, axis=0))
-        cp = cp.reshape(len(points), k, 3)
+        # neighbouring samples mostly share a face: each (point, face) pair once
+        pairs, inverse = np.unique(np.arange(len(points))[:, None] * len(self.mesh.faces) + cand,
+                                   return_inverse=True)
+        row, face = np.divmod(pairs, len(self.mesh.faces))
+        cp = trimesh.triangles.closest_point(self.mesh.triangles[face], points[row])
+        cp = cp[inverse.reshape(-1)].reshape(len(points), k, 3)
         dist = np.linalg.norm(cp - points[:, None], axis=2)
         best = np.argmin(dist, axis=1)
         rows = np.arange(len(points))
@@ -224,15 +282,32 @@ class ObjectSurface:
 
     def _smooth(self, closest: np.ndarray, tri: np.ndarray) -> np.ndarray:
         bary = trimesh.triangles.points_to_barycentric(self.mesh.triangles[tri], closest)
-        faces = self.mesh.faces[tri]
+        on = bary >= 1e-6  # the face's vertices the point is not opposite to
+        count = on.sum(axis=1)
         smooth = np.ones(len(closest), bool)
-        for i in np.flatnonzero((bary < 1e-6).any(axis=1)):
-            on = faces[i][bary[i] >= 1e-6]
-            if len(on) == 1:
-                smooth[i] = not self.sharp_vertex[on[0]]
-            elif len(on) == 2:
-                smooth[i] = not self.sharp_edge.get((int(min(on)), int(max(on))), True)
+        # on a vertex: the one vertex left; on an edge: its two vertices, in order
+        first = self.mesh.faces[tri, np.argmax(on, axis=1)]
+        last = self.mesh.faces[tri, 2 - np.argmax(on[:, ::-1], axis=1)]
+        vertex, edge = count == 1, count == 2
+        smooth[vertex] = ~self.sharp_vertex[first[vertex]]
+        smooth[edge] = ~self._sharp_edges(first[edge], last[edge])
         return smooth
+
+    @cached_property
+    def _edge_table(self) -> tuple[np.ndarray, np.ndarray]:
+        """(sorted keys a * V + b of the mesh's shared edges, a < b; their sharpness)."""
+        keys = np.array([a * len(self.mesh.vertices) + b for a, b in self.sharp_edge], np.int64)
+        order = np.argsort(keys)
+        return keys[order], np.array(list(self.sharp_edge.values()), bool)[order]
+
+    def _sharp_edges(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """(n,) True where the edge (a, b) is sharp or not shared by two faces."""
+        keys, sharp = self._edge_table
+        if not len(keys):
+            return np.ones(len(a), bool)
+        want = np.minimum(a, b).astype(np.int64) * len(self.mesh.vertices) + np.maximum(a, b)
+        at = np.minimum(np.searchsorted(keys, want), len(keys) - 1)
+        return np.where(keys[at] == want, sharp[at], True)
 
 
 # -- regions ----------------------------------------------------------------------
@@ -245,16 +320,9 @@ def link_regions(link: str, surface: LinkSurface, pose: np.ndarray, obj: ObjectS
     idx = np.flatnonzero(np.all((points > lo - s.prefilter) & (points < hi + s.prefilter), axis=1))
     if len(idx) == 0:
         return []
-    # a touching link's samples that matter lie within depth + prefilter of the
-    # nearest: a short KD-tree search finds them (and the nearest) exactly when
-    # the nearest is that close; farther links get the long search
-    keep_band = s.depth + s.prefilter
-    bound = obj.bound(points[idx], NEAR_SEARCH)
-    if not np.isfinite(bound).any() or bound.min() + keep_band > NEAR_SEARCH:
-        bound = obj.bound(points[idx])
-    if not np.isfinite(bound).any():
+    idx = _band(surface, pose, points, idx, obj)
+    if len(idx) == 0:
         return []
-    idx = idx[bound <= bound.min() + s.depth + s.prefilter]
     weight = 1.0
     if len(idx) > s.max_exact:  # a large flat patch: a seeded subsample keeps its shape and area
         weight = len(idx) / s.max_exact
@@ -276,6 +344,51 @@ def link_regions(link: str, surface: LinkSurface, pose: np.ndarray, obj: ObjectS
         out.append(Region(link, closest[sel], normals[sel], weight * float(surface.area[idx[sel]].sum()),
                           _diameter(closest[sel], mean), mean))
     return out
+
+
+def _band(surface: LinkSurface, pose: np.ndarray, points: np.ndarray, idx: np.ndarray,
+          obj: ObjectSurface) -> np.ndarray:
+    """The samples ``idx`` (ascending) whose bound is within depth + prefilter
+    of the smallest bound of them all; none when no bound is below ``BOUND``.
+
+    The same samples as bounding each of them (:func:`_band_reference`), but
+    cells of the link's samples bound whole groups first (triangle
+    inequality: a sample's bound is its cell centre's within the cell's
+    radius), so only the cells near the smallest bound and those straddling
+    the band's edge need their samples' own bounds.
+    """
+    s = obj.settings
+    cells = surface.cells
+    if len(idx) == 0:
+        return idx
+    inside = np.zeros(len(points), bool)
+    inside[idx] = True
+    chosen = np.flatnonzero(np.bincount(cells.cell[idx], minlength=len(cells.centres)))
+    # a short search first: touching links need no more
+    lower, upper = cells.reach(chosen, pose, obj, NEAR_SEARCH + cells.radius.max() + SLACK)
+    if upper.min() + s.depth + s.prefilter >= NEAR_SEARCH - SLACK:  # cells out of the short search may count
+        lower, upper = cells.reach(chosen, pose, obj, BOUND + cells.radius.max() + SLACK)
+    if not np.isfinite(upper).any():
+        return idx[:0]
+    # a sample's bound is exact whatever the search radius it is found within
+    near = cells.members(chosen[lower <= upper.min()], inside)  # the smallest bound lies in these cells
+    bound = obj.bound(points[near], min(upper.min(), BOUND))
+    if not np.isfinite(bound).any():
+        return idx[:0]
+    limit = bound.min() + s.depth + s.prefilter
+    whole = (upper <= limit) & (upper < BOUND)  # every sample of the cell is in the band
+    edge = cells.members(chosen[(lower <= limit) & ~whole], inside)
+    return np.union1d(cells.members(chosen[whole], inside),
+                      edge[obj.bound(points[edge], min(limit + SLACK, BOUND)) <= limit])
+
+
+def _band_reference(points: np.ndarray, idx: np.ndarray, obj: ObjectSurface) -> np.ndarray:
+    """:func:`_band` the plain way: every sample's bound."""
+    s = obj.settings
+    bound = obj.bound(points[idx], BOUND)
+    if not np.isfinite(bound).any():
+        return idx[:0]
+    return idx[bound <= bound.min() + s.depth + s.prefilter]
 
 
 def _cluster(points: np.ndarray, normals: np.ndarray, radius: float, split_angle: float) -> np.ndarray:

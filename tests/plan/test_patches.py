@@ -1,15 +1,29 @@
 """Contact patches: a flat pad on a box face is an area (>= 3 non-collinear
 contacts, force closure), the legacy point reading stays available, small
-regions become soft fingers, extreme points of a rectangle are its corners."""
+regions become soft fingers, extreme points of a rectangle are its corners,
+the cells' short cut finds the samples near the object that bounding every
+sample finds."""
 
 import numpy as np
 import pytest
 from helpers import SIM_TOL
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
 
 from planner.geometry.solid import load_object
 from planner.plan.closing import Closed, CloseSettings, Grasper
 from planner.plan.contacts import HandContacts, contact_models
-from planner.plan.patches import PatchSettings, Region, discretise, extreme_points
+from planner.plan.patches import (
+    ObjectSurface,
+    PatchSettings,
+    Region,
+    _band,
+    _band_reference,
+    discretise,
+    extreme_points,
+    hand_surfaces,
+)
 from planner.plan.unit import grasp_quality
 from planner.sim import Sim
 from planner.specs.hands import load_hand
@@ -79,3 +93,24 @@ def test_a_small_region_is_one_soft_contact_with_torsion_from_its_size() -> None
     assert models == ["soft"] and torsion[0] == pytest.approx(2 / 3 * 0.5 * 0.002)
     palm = discretise([Region("panda_hand", pts, np.tile(normal, (3, 1)), 1e-6, 0.0015, normal)], PatchSettings())
     assert contact_models(palm, hand, 0.5)[0] == ["point"]  # the palm is not soft
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(-1.0, 1.0), st.floats(-1.0, 1.0), st.floats(-1.0, 1.0), st.floats(0.0, 2 * np.pi),
+       st.floats(-0.01, 0.03))
+def test_the_cell_bounded_band_is_the_band_of_every_sample(x: float, y: float, z: float, angle: float,
+                                                          lift: float) -> None:
+    """The samples near the object that the cells find are those that bounding
+    every sample finds, the finger placed anywhere near the box's top face
+    (touching, tilted, far)."""
+    hand, obj = load_hand("panda"), load_object("box")
+    surface = ObjectSurface(obj.mesh)
+    finger = hand_surfaces(hand, surface.settings)["panda_leftfinger"]
+    axis = np.array([x, y, z]) if np.linalg.norm([x, y, z]) > 1e-3 else np.array([0.0, 0.0, 1.0])
+    pose = np.eye(4)
+    pose[:3, :3] = Rotation.from_rotvec(axis / np.linalg.norm(axis) * angle).as_matrix()
+    pose[:3, 3] = [0.0, 0.0, obj.mesh.bounds[1, 2] + lift]
+    points = finger.points @ pose[:3, :3].T + pose[:3, 3]
+    lo, hi = obj.mesh.bounds - np.array([[PatchSettings.prefilter], [-PatchSettings.prefilter]])
+    idx = np.flatnonzero(np.all((points > lo) & (points < hi), axis=1))
+    assert np.array_equal(_band(finger, pose, points, idx, surface), _band_reference(points, idx, surface))
