@@ -14,7 +14,10 @@ Panda sweeps antipodal pairs, refused pairs and overlapping open hands are
 rejected before simulation, closing's fast path, reachability for the 8
 force-closure grasps of highest epsilon per unit) together with issue 15
 (contact patches, Barrett breakaway in closing, soft contacts resisting
-mu x torsion_radius, analytic measures), recorded once after both merged.
+mu x torsion_radius, analytic measures), recorded once after both merged;
+3 (issue 15, second calibration round: open-limit flag at 2 mm, ranking rule
+eps_weight 1 and min_open_margin 2 mm; the same grasps, other flags and
+scores).
 """
 
 from __future__ import annotations

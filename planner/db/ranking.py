@@ -13,8 +13,9 @@ measures of :mod:`planner.plan.measures` and epsilon:
   ``min_open_margin`` of its open limit) or a finger at its closing stop;
 * press: the fingers squeeze the object, ``push`` (1 = pads square on it);
 * hold: weight resistance, worst direction, capped: min(resist_worst, cap) / cap;
-* epsilon (Ferrari-Canny with contact patches, or its robust quantile) breaks
-  ties among grasps that press and hold equally, with weight ``eps_weight``.
+* epsilon (Ferrari-Canny with contact patches, or its robust quantile), with
+  weight ``eps_weight``: it orders grasps that press and hold alike and, at
+  weight 1, can outweigh a small difference of press.
 
 A pressed grasp that does not hold its weight yet still ranks above one that
 is not pressed (half weight): squeezing settles it. Reachability (fraction of
@@ -70,15 +71,17 @@ class RankingRule:
     weight resistance that counts as holding; min_open_margin [m] >= 0, the
     clearance the gate asks for; eps_weight >= 0, epsilon's tie-break weight.
     cap, min_open_margin and eps_weight were chosen by cross-validation
-    grouped by object on the tuning objects (bench/RESULTS.md).
+    grouped by object on the tuning objects (bench/RESULTS.md; second round,
+    2026-11-23: every fold of both hands chose eps_weight 1, the Barrett's
+    min_open_margin 2 mm, the trial's own clearance flag).
     """
 
     reach_weight: float = 0.5
     success_weight: float = 1.0
     robust_weight: float = 0.0
     cap: float = 5.0
-    min_open_margin: float = 0.003
-    eps_weight: float = 0.1
+    min_open_margin: float = 0.002
+    eps_weight: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("reach_weight", "success_weight", "robust_weight"):

@@ -26,7 +26,9 @@ from planner.specs.preshapes import Preshape
 #: units are recomputed rather than mixed with new ones.
 #: 2: soft contacts resist mu x torsion_radius (issue 15); antipodal sampler for parallel
 #: jaws, cheap rejection, faster closing (issue 16); contact patches, breakaway (issue 15).
-ALGORITHM_VERSION = 2
+#: 3: the open-limit feasibility flag at 2 mm (was 3) and the ranking rule's
+#: second calibration round (eps_weight 1, min_open_margin 2 mm; issue 15).
+ALGORITHM_VERSION = 3
 
 #: What the settings left unset mean, per sampler: surface points (or rays)
 #: per object, rolls (antipodal: approach directions about the closing

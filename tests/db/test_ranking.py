@@ -57,7 +57,7 @@ def test_vectorised_rule_equals_the_plain_definition(weights: tuple, cap: float,
 
 def test_the_analytic_part_presses_then_holds_then_breaks_ties_by_epsilon() -> None:
     rule = RankingRule(reach_weight=0.0, success_weight=0.0)
-    m = {"epsilon": [0.1, 0.2, 0.0, 0.3, 0.3], "force_closure": [1, 1, 0, 1, 1], "resist_worst": [20, 20, 0, 2, 20],
+    m = {"epsilon": [0.1, 0.2, 0.0, 0.3, 0.2], "force_closure": [1, 1, 0, 1, 1], "resist_worst": [20, 20, 0, 2, 20],
          "push": [1.0, 1.0, 1.0, 1.0, 0.2], "open_margin": [0.01] * 5, "close_margin": [0.01] * 5}
     s = rule.analytic(m)
     assert s[1] > s[0] > s[3] > s[2] > 0  # holding beats epsilon; a pressed non-holding grasp still ranks

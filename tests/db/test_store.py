@@ -148,7 +148,8 @@ def test_validation_results_rescore_with_the_rule(tmp_path: Path) -> None:
         back = {g.candidate: g for g in db.best("thing", "panda", 10)}
     assert back[0].validation == held and back[0].robust == RobustEpsilon(0.04, 0.01, 4)
     assert back[1].validation == dropped and back[1].robust is None and back[2].validation is None
-    analytic = [1.0 + 0.1 * (0.5 * 0.05 + 0.5 * 0.01), 0.0, 1.0 + 0.1 * 0.02]  # no measures: hold = closure
+    w = rule.eps_weight
+    analytic = [1.0 + w * (0.5 * 0.05 + 0.5 * 0.01), 0.0, 1.0 + w * 0.02]  # no measures: hold = closure
     assert_close([back[c].score for c in (0, 1, 2)], analytic)
     assert [back[c].rank for c in (0, 2, 1)] == [1, 2, 3]  # the failed grasp, best by epsilon, scores 0
 
