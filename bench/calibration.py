@@ -353,6 +353,8 @@ def main() -> None:
                     help="label repeatability: K jittered trials per labelled uniform grasp (default 0: off)")
     ap.add_argument("--jitter-mm", type=float, default=1.0)
     ap.add_argument("--jitter-deg", type=float, default=1.0)
+    ap.add_argument("--reuse", action="store_true",
+                    help="no sweep: score the grasps already in DIR's databases with today's rule (tuning only)")
     ap.add_argument("--cv", action="store_true", help="cross-validate the rule's parameters (tuning set only)")
     args = ap.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(message)s")
@@ -366,6 +368,8 @@ def main() -> None:
             raise SystemExit(f"not in the {args.set} set: {bad}")
         names = args.only
     names = names[: args.objects] if args.objects else names
+    if args.reuse and args.set != "tuning":
+        raise SystemExit("--reuse: tuning set only (a held-out evaluation sweeps with the code under test)")
     if args.cv and args.set != "tuning":
         raise SystemExit("--cv tunes: tuning set only")
     args.dir.mkdir(parents=True, exist_ok=True)
@@ -375,9 +379,10 @@ def main() -> None:
         db = args.dir / f"{args.set}_{hand}.db"
         settings = SweepSettings(approaches=approaches, reach_placements=0, volume=False)
         t = time.perf_counter()
-        summary = api.generate(names, hand, db_path=db, settings=settings, workers=args.workers, rule=rule)
-        logging.info("%s: %d units swept (%d skipped), %.0f s", hand, summary.units, summary.skipped,
-                     time.perf_counter() - t)
+        if not args.reuse:
+            summary = api.generate(names, hand, db_path=db, settings=settings, workers=args.workers, rule=rule)
+            logging.info("%s: %d units swept (%d skipped), %.0f s", hand, summary.units, summary.skipped,
+                         time.perf_counter() - t)
         pools_ = pools(db, hand, names, args.per_object, args.workers, rule)
         results[hand] = figures(pools_, rule)
         if args.jitter:
