@@ -235,6 +235,19 @@ class Dynamics:
         """Hand link indices in contact with the object now."""
         return {row[3] for row in pb.getContactPoints(body.uid, uid, physicsClientId=self.c)}
 
+    def contact_points(self, body: Body, uid: int) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+        """The hand-object contacts now, object frame: points (n, 3) on the
+        object [m], unit normals (n, 3) into the object, and each one's hand link."""
+        names = {index: name for name, index in body.links.items()}
+        rows = [row for row in pb.getContactPoints(body.uid, uid, physicsClientId=self.c) if row[3] in names]
+        if not rows:
+            return np.zeros((0, 3)), np.zeros((0, 3)), ()
+        world_to_object = np.linalg.inv(self.object_pose(uid))
+        rot, shift = world_to_object[:3, :3], world_to_object[:3, 3]
+        points = np.array([row[6] for row in rows], float) @ rot.T + shift
+        normals = -np.array([row[7] for row in rows], float) @ rot.T  # PyBullet's normal on B points out of B
+        return points, normals, tuple(names[row[3]] for row in rows)
+
 
 def _principal_frame(inertia: np.ndarray) -> list[float]:
     """Quaternion of the principal axes (a right-handed frame), for PyBullet's inertial frame."""

@@ -44,7 +44,7 @@ clear-cut grasps, not bit-identical for objects made of several convex parts
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -53,6 +53,7 @@ from planner.errors import ConfigError
 from planner.geometry.frames import angle_between
 from planner.geometry.solid import PreparedObject
 from planner.grasp import Grasp, Trial
+from planner.plan.contacts import HandContacts
 from planner.sim import Body
 from planner.sim.dynamics import FILTER_BITS, Dynamics, Shape, fresh_world
 from planner.specs.hands import HandSpec
@@ -115,11 +116,18 @@ def trial(hand: HandSpec, obj: PreparedObject, grasp: Grasp, settings: ShakeSett
     return trials(hand, obj, [grasp], settings, friction, mass)[0]
 
 
+#: Called with each trial's grasp and the contacts it settled into (object
+#: frame, PyBullet's points) once the fingers have closed and the object has
+#: come to rest, before any load; trials flagged before physics are skipped.
+Settled = Callable[[Grasp, HandContacts], None]
+
+
 def trials(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp], settings: ShakeSettings | None = None,
-           friction: float | None = None, mass: float | None = None) -> list[Trial]:
+           friction: float | None = None, mass: float | None = None, on_settled: Settled | None = None) -> list[Trial]:
     """Shake-test grasps of one object, ``settings.batch`` per PyBullet world
     (consecutive chunks of ``grasps``: pass them in a fixed order so that the
-    results do not depend on how work is split)."""
+    results do not depend on how work is split). ``on_settled``: see
+    :data:`Settled` (measuring the grasp the squeeze settles into)."""
     s = settings or ShakeSettings()
     for j in hand.joints:
         if j.mimic is not None and j.offset != 0.0:
@@ -129,7 +137,7 @@ def trials(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp], setting
     shape = trial_shape(obj, s.part_tolerance)
     out: list[Trial] = []
     for i in range(0, len(grasps), s.batch):
-        out += _world(hand, obj, shape, physical, grasps[i:i + s.batch], s)
+        out += _world(hand, obj, shape, physical, grasps[i:i + s.batch], s, on_settled)
     return out
 
 
@@ -157,7 +165,7 @@ class _Run:
 
 
 def _world(hand: HandSpec, obj: PreparedObject, shape: Shape, physical: _Physical, grasps: Sequence[Grasp],
-           s: ShakeSettings) -> list[Trial]:
+           s: ShakeSettings, on_settled: Settled | None = None) -> list[Trial]:
     results: dict[int, Trial] = {}
     with fresh_world(s.dt, s.solver_iterations) as dyn:
         runs: dict[int, _Run] = {}
@@ -168,7 +176,7 @@ def _world(hand: HandSpec, obj: PreparedObject, shape: Shape, physical: _Physica
             else:
                 runs[k] = run_or_flag
         if runs:
-            results |= _simulate(dyn, hand, runs, s)
+            results |= _simulate(dyn, hand, runs, s, on_settled)
     return [results[k] for k in range(len(grasps))]
 
 
@@ -202,7 +210,8 @@ def _set_up(dyn: Dynamics, hand: HandSpec, obj: PreparedObject, shape: Shape, ph
     return _Run(grasp, body, uid, finger_links, clutches)
 
 
-def _simulate(dyn: Dynamics, hand: HandSpec, runs: dict[int, _Run], s: ShakeSettings) -> dict[int, Trial]:
+def _simulate(dyn: Dynamics, hand: HandSpec, runs: dict[int, _Run], s: ShakeSettings,
+              on_settled: Settled | None = None) -> dict[int, Trial]:
     start = {k: dyn.object_pose(r.uid) for k, r in runs.items()}
     _close(dyn, hand, runs, _steps(s.close_time, s.dt))
     if not hand.actuators.backdrivable:
@@ -214,6 +223,8 @@ def _simulate(dyn: Dynamics, hand: HandSpec, runs: dict[int, _Run], s: ShakeSett
         r.closed, r.com = dyn.object_pose(r.uid), dyn.centre_of_mass(r.uid)
         r.closing = (float(np.linalg.norm(r.closed[:3, 3] - start[k][:3, 3])),
                      angle_between(start[k][:3, :3], r.closed[:3, :3]))
+        if on_settled is not None:
+            on_settled(r.grasp, HandContacts(*dyn.contact_points(r.body, r.uid)))
         links = dyn.touching_links(r.body, r.uid)
         r.touching = sum(1 for f in r.fingers if f & links)
         if r.touching:

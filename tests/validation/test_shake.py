@@ -144,3 +144,26 @@ def test_each_result_records_the_hands_actuators_breakaway_joints_and_torsion_ra
     assert stored["breakaway"] == ["bh_j12_joint", "bh_j22_joint", "bh_j32_joint"]
     assert stored["torsion_radius"] == {f"bh_finger_{i}3_link": 0.0025 for i in (1, 2, 3)}
     assert stored["dt"] == ShakeSettings().dt and stored["hand"] == "barrett"
+
+
+def test_the_settled_contacts_of_a_centred_pinch_are_on_both_faces_pressing_inwards(pinched) -> None:  # type: ignore[no-untyped-def]
+    hand, obj, grasp = pinched
+    seen = []
+    result = trials(hand, obj, [grasp], on_settled=lambda g, c: seen.append((g, c)))[0]
+    assert result.success
+    [(g, contacts)] = seen
+    assert g is grasp and len(contacts) >= 2 and set(contacts.links) <= set(hand.contact_links)
+    # the pads squeeze along one axis of the box: points on two opposite faces, normals into the box
+    axis = int(np.argmax(np.abs(contacts.normals).sum(axis=0)))
+    half = np.max(np.abs(obj.mesh.vertices[:, axis]))
+    np.testing.assert_allclose(np.abs(contacts.points[:, axis]), half, atol=1e-3)
+    inward = -np.sign(contacts.points[:, axis]) * contacts.normals[:, axis]
+    assert (inward > 0.99).all()
+    assert set(np.sign(contacts.points[:, axis])) == {-1.0, 1.0}
+
+
+def test_a_grasp_backed_off_settles_into_no_contacts(pinched) -> None:  # type: ignore[no-untyped-def]
+    hand, obj, grasp = pinched
+    seen = []
+    trials(hand, obj, [backed_off(grasp, hand, 0.06)], on_settled=lambda g, c: seen.append(c))
+    assert [len(c) for c in seen] == [0]
