@@ -81,8 +81,8 @@ GRID = [dict(cap=c, min_open_margin=m, eps_weight=e) for c in (2.0, 5.0, 10.0, 2
 
 def split(name: str) -> list[str]:
     data = tomllib.loads(SPLIT.read_text())
-    if name not in ("tuning", "held_out", "held_out_2"):
-        raise SystemExit(f"--set must be tuning, held_out or held_out_2, got {name}")
+    if name not in ("tuning", "held_out", "held_out_2", "held_out_3"):
+        raise SystemExit(f"--set must be tuning, held_out, held_out_2 or held_out_3, got {name}")
     return list(data[name])
 
 
@@ -338,7 +338,7 @@ def report(results: dict[str, dict], set_name: str, rule: RankingRule) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--set", required=True,
-                    help="tuning | held_out | held_out_2 (held-out sets: the lead, once each, at the end)")
+                    help="tuning | held_out | held_out_2 | held_out_3 (held-out sets: the lead, once each, at the end)")
     ap.add_argument("--hands", nargs="+", default=["panda", "barrett"])
     ap.add_argument("--objects", type=int, help="only the first N objects of the set (smoke runs)")
     ap.add_argument("--only", nargs="+", help="only these objects (they must be in the set)")

@@ -8,6 +8,11 @@ A second held-out set, ``held_out_2``, was fixed at 2026-11-23 ~11:00 UTC,
 after the first held-out set had been evaluated once and BEFORE the second
 round of tuning (Barrett): 50 objects of random_093..random_999 ordered by
 sha256(salt_2 + ":" + name). No object of it was ever swept before.
+
+A third held-out set, ``held_out_3``, was fixed at 2026-11-23 ~14:05 UTC,
+after ``held_out_2`` had been evaluated once and BEFORE the third round of
+tuning (the settled epsilon): 50 objects of random_093..random_999 not in
+``held_out_2``, ordered by sha256(salt_3 + ":" + name).
 """
 
 from __future__ import annotations
@@ -37,6 +42,11 @@ def split_2(salt: str) -> list[str]:
     return sorted(sorted(names, key=lambda n: hashlib.sha256(f"{salt}:{n}".encode()).hexdigest())[:HELD_OUT])
 
 
+def split_3(salt: str, taken: list[str]) -> list[str]:
+    names = [f"random_{i:03d}" for i in RANDOM_2 if f"random_{i:03d}" not in taken]
+    return sorted(sorted(names, key=lambda n: hashlib.sha256(f"{salt}:{n}".encode()).hexdigest())[:HELD_OUT])
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--check", action="store_true")
@@ -44,8 +54,11 @@ def main() -> int:
     data = tomllib.loads(FILE.read_text())
     tuning, held = split(data["salt"])
     held_2 = split_2(data["salt_2"])
-    same = tuning == data["tuning"] and held == data["held_out"] and held_2 == data["held_out_2"]
-    print(f"tuning {len(tuning)} objects, held out {len(held)}, second held out {len(held_2)}: "
+    held_3 = split_3(data["salt_3"], held_2)
+    same = (tuning == data["tuning"] and held == data["held_out"] and held_2 == data["held_out_2"]
+            and held_3 == data["held_out_3"])
+    print(f"tuning {len(tuning)} objects, held out {len(held)}, second held out {len(held_2)}, "
+          f"third held out {len(held_3)}: "
           f"file {'matches' if same else 'DIFFERS'}")
     return 0 if same or not args.check else 1
 
