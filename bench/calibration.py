@@ -47,6 +47,7 @@ import sys
 import time
 import zlib
 from dataclasses import dataclass, replace
+from functools import cached_property
 from pathlib import Path
 from typing import get_type_hints
 
@@ -73,10 +74,12 @@ SPLIT = HERE / "calibration_split.toml"
 TOP = 10
 SEED = 20261123
 #: The measures whose AUC is reported (higher = predicts holding).
-MEASURES = ("analytic", "pre_issue", "epsilon", "epsilon_legacy", "resist_worst", "resist_mean", "push",
-            "open_margin", "close_margin", "feasible")
-GRID = [dict(cap=c, min_open_margin=m, eps_weight=e) for c in (2.0, 5.0, 10.0, 20.0)
-        for m in (0.0, 0.002, 0.003, 0.005) for e in (0.1, 1.0)]
+MEASURES = ("analytic", "pre_issue", "epsilon", "epsilon_legacy", "settled_epsilon", "resist_worst", "resist_mean",
+            "push", "open_margin", "close_margin", "feasible")
+#: The rule's parameters cross-validation chooses from (third round: settled_weight, the weight
+#: of the settled epsilon where it is measured).
+GRID = [dict(cap=c, min_open_margin=m, eps_weight=e, settled_weight=w) for c in (2.0, 5.0, 10.0, 20.0)
+        for m in (0.0, 0.002, 0.003, 0.005) for e in (0.1, 1.0, 3.0) for w in (0.0, 1.0, 3.0, 10.0, 30.0)]
 
 
 def split(name: str) -> list[str]:
@@ -95,11 +98,15 @@ class Pool:
     legacy: np.ndarray  # (n,) pre-issue epsilon (legacy point contacts)
     uniform: np.ndarray  # (n,) bool: in the seeded uniform sample
 
+    @cached_property
+    def measures(self) -> dict[str, np.ndarray]:
+        return rule_measures(self.grasps)
+
     def columns(self, rule: RankingRule) -> dict[str, np.ndarray]:
-        m = rule_measures(self.grasps)
+        m = self.measures
         fc_legacy = self.legacy > 0
         return {"analytic": rule.analytic(m), "pre_issue": np.where(fc_legacy, self.legacy, 0.0),
-                "epsilon": m["epsilon"], "epsilon_legacy": self.legacy,
+                "epsilon": m["epsilon"], "epsilon_legacy": self.legacy, "settled_epsilon": m["settled_epsilon"],
                 "resist_worst": m["resist_worst"], "push": m["push"], "open_margin": m["open_margin"],
                 "close_margin": m["close_margin"],
                 "resist_mean": np.array([np.nan if g.measures is None else g.measures.resist_mean

@@ -103,8 +103,9 @@ def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: i
     refs = expand(list(names), scale)
     if not refs:
         raise InputError("no objects given")
-    settings = settings.resolved(load_hand(hand).sampler)
-    load_preshapes(load_hand(hand), list(settings.preshapes) if settings.preshapes else None)
+    hand_spec = load_hand(hand)
+    settings = settings.resolved(hand_spec.sampler, hand_spec.settle)
+    load_preshapes(hand_spec, list(settings.preshapes) if settings.preshapes else None)
     units, seen = [], set()
     for ref in refs:
         spec = resolve_spec(ref.source, scale=ref.scale, label=ref.label)
@@ -132,7 +133,8 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
     (:func:`planner.plan.pool.execute`); a unit whose worker dies twice, or
     that fails, is stored as failed with its error and the batch goes on.
     ``progress(None, 0, total)`` first, then ``progress(result, done, total)``."""
-    settings = (settings or SweepSettings()).resolved(load_hand(hand).sampler)
+    hand_spec = load_hand(hand)
+    settings = (settings or SweepSettings()).resolved(hand_spec.sampler, hand_spec.settle)
     units = plan_units(names, hand, settings, seed, scale)
     summary = Summary()
     start = time.perf_counter()

@@ -178,7 +178,7 @@ class Grasp:
 
 
 #: The keys ``to_json`` gives the analytic measures (None when not measured).
-MEASURE_KEYS = ("resist_worst", "resist_mean", "open_margin", "close_margin", "push", "feasibility")
+MEASURE_KEYS = ("resist_worst", "resist_mean", "open_margin", "close_margin", "push", "feasibility", "settled_epsilon")
 
 
 #: The record's field names, in order.

@@ -17,7 +17,9 @@ force-closure grasps of highest epsilon per unit) together with issue 15
 mu x torsion_radius, analytic measures), recorded once after both merged;
 3 (issue 15, second calibration round: open-limit flag at 2 mm, ranking rule
 eps_weight 1 and min_open_margin 2 mm; the same grasps, other flags and
-scores).
+scores); 4 (issue 15, third round: the Barrett's settled epsilon, a column
+of the digest from this version on, and the rule's settled_weight 100,
+eps_weight 3; the same grasps, other scores and ranks).
 """
 
 from __future__ import annotations
@@ -42,7 +44,7 @@ RUNS = (("panda", ("box", "cylinder", "duck"), ("wide",)), ("barrett", ("box", "
 SEED = 7
 COLUMNS = ("object", "hand", "preshape", "candidate", "seed", "approach_point", "approach_dir", "roll", "standoff",
            "pose", "open_joints", "closed_joints", "width", "contacts", "n_contacts", "links_touching", "epsilon",
-           "volume", "force_closure", "reachability", "manipulability", "score", "rank")
+           "volume", "force_closure", "reachability", "manipulability", "score", "rank", "settled_epsilon")
 
 
 def rounded(value: object) -> object:

@@ -55,6 +55,8 @@ DEFAULTS = api.SweepSettings()
                    "(0: all). `grasp best --object-pose` checks any grasp exactly.")
 @click.option("--volume", is_flag=True, help="Also compute the grasp wrench space volume of force-closure grasps "
               "(a full 6-D hull: 0.3 s per many-contact grasp); without it the stored volume is 0.")
+@click.option("--settle/--no-settle", default=None, help="Measure the settled epsilon of every grasp (a dynamic "
+              "closing on the free object, ~40 ms per grasp) [default: the hand's `settle` in hand.toml].")
 @click.option("--reach-weight", type=float, help="Weight of reachability in the score, 0..1 (default: the "
               "database's rule, else 0.5).")
 @click.option("--quiet", is_flag=True, help="No progress bar and no summary table.")
@@ -63,7 +65,8 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
              sampler: str | None, box_delta: float, rolls: int | None, depths: str | None, fan_count: int,
              standoffs: str | None, preshape_names: str | None, scale: float | None, workers: int,
              ray_target: str | None, unit_timeout: float | None, chunk: int | None, reach_placements: int,
-             reach_top: int, volume: bool, reach_weight: float | None, quiet: bool, as_json: bool) -> None:
+             reach_top: int, volume: bool, settle: bool | None, reach_weight: float | None, quiet: bool,
+             as_json: bool) -> None:
     """Sweep preshapes x approaches x rolls x standoffs and store the grasps.
 
     OBJECT: a built-in name, random_NNN, a mesh file, a folder, a glob,
@@ -73,7 +76,7 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
     settings = api.SweepSettings(approaches=approaches, sampler=sampler, box_delta=box_delta, rolls=rolls,
                                  depths=floats(depths) or DEFAULTS.depths, fan_count=fan_count,
                                  standoffs=floats(standoffs), chunk=chunk, reach_placements=reach_placements,
-                                 reach_top=reach_top, volume=volume,
+                                 reach_top=reach_top, volume=volume, settle=settle,
                                  preshapes=tuple(preshape_names.split(",")) if preshape_names else None)
     show = not quiet and not as_json
     with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total} units"),

@@ -6,8 +6,8 @@ column is built when a writer first asks for it, so a format that writes a
 few columns pays for those only); the validation and robust results are
 flattened (``validation_success``, ..., ``robust_mean``, ``robust_quantile``,
 ``robust_samples``), and so are the analytic measures (``resist_worst``,
-``resist_mean``, ``open_margin``, ``close_margin``, ``push``: NaN when not
-measured; ``feasibility``: comma-separated reasons, '' when feasible). A
+``resist_mean``, ``open_margin``, ``close_margin``, ``push``,
+``settled_epsilon``: NaN when not measured; ``feasibility``: comma-separated reasons, '' when feasible). A
 value that is absent holds NaN in a float column and
 -1 in an integer column (``id`` and ``unit_id`` of a record not stored yet,
 ``rank``, ``validation_success``, ``validation_fingers_in_contact``,
@@ -81,7 +81,8 @@ BUILDERS: dict[str, Builder] = {
     "robust_mean": _robust("mean", math.nan, float),
     "robust_quantile": _robust("quantile", math.nan, float),
     "robust_samples": _robust("samples", -1, np.int64),
-    **{name: _measure(name) for name in ("resist_worst", "resist_mean", "open_margin", "close_margin", "push")},
+    **{name: _measure(name) for name in ("resist_worst", "resist_mean", "open_margin", "close_margin", "push",
+                                         "settled_epsilon")},
     "feasibility": lambda gs: ["" if g.measures is None else ",".join(g.measures.reasons) for g in gs],
 }
 

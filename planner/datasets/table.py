@@ -38,6 +38,7 @@ the ``csv`` module with a header row, floats written in full precision.
 | `close_margin` | float64, null | [m] smallest travel a touching finger has left towards its closing stop |
 | `push` | float64, null | smallest cosine between a finger region's contact normal and its closing motion |
 | `feasibility` | string | feasibility reasons, comma-separated ('' = feasible) |
+| `settled_epsilon` | float64, null | Ferrari-Canny epsilon of the contacts after a dynamic closing (hands with `settle`) |
 | `reachability` | float64, null | fraction of sampled table placements an arm reaches |
 | `manipulability` | float64, null | best arm manipulability over the reachable placements |
 | `score` | float64 | ranking score (`meta.ranking` says how) |
@@ -87,7 +88,8 @@ _SPEC: list[tuple[str, str, str]] = [
     ("epsilon", "float64", "epsilon"), ("volume", "float64", "volume"),
     ("force_closure", "int64", "force_closure"),
     *((name, "float64", name) for name in ("resist_worst", "resist_mean", "open_margin", "close_margin", "push")),
-    ("feasibility", "string", "feasibility"), ("reachability", "float64", "reachability"),
+    ("feasibility", "string", "feasibility"), ("settled_epsilon", "float64", "settled_epsilon"),
+    ("reachability", "float64", "reachability"),
     ("manipulability", "float64", "manipulability"), ("score", "float64", "score"), ("rank", "int64", "rank"),
     ("validation_success", "int64", "validation_success"),
     ("validation_fingers_in_contact", "int64", "validation_fingers_in_contact"),
@@ -101,7 +103,7 @@ _SPEC: list[tuple[str, str, str]] = [
 COLUMNS = [name for name, _, _ in _SPEC]
 #: Columns that may be null: NaN (floats) or -1 (integers) in the grasp columns.
 NULLABLE = {"width", "reachability", "manipulability", "rank", "resist_worst", "resist_mean", "open_margin",
-            "close_margin", "push", *(c for c in COLUMNS if c.startswith(
+            "close_margin", "push", "settled_epsilon", *(c for c in COLUMNS if c.startswith(
     ("validation_", "robust_")))}
 
 

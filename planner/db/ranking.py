@@ -15,7 +15,11 @@ measures of :mod:`planner.plan.measures` and epsilon:
 * hold: weight resistance, worst direction, capped: min(resist_worst, cap) / cap;
 * epsilon (Ferrari-Canny with contact patches, or its robust quantile), with
   weight ``eps_weight``: it orders grasps that press and hold alike and, at
-  weight 1, can outweigh a small difference of press.
+  weight 1, can outweigh a small difference of press;
+* settled: the epsilon of the contacts the grasp settles into under a
+  dynamic closing (hands with ``settle``, :mod:`planner.plan.settle`; 0
+  when not measured), with weight ``settled_weight``: for a hand whose
+  closing moves the object it decides the order.
 
 A pressed grasp that does not hold its weight yet still ranks above one that
 is not pressed (half weight): squeezing settles it. Reachability (fraction of
@@ -42,10 +46,11 @@ if TYPE_CHECKING:
     from planner.grasp import Grasp
 
 #: The rule of :meth:`RankingRule.scores` in words, as ``meta.ranking`` stores it.
-FORMULA = ("analytic = gate * (press * (1 + hold) / 2 + eps_weight * quality);"
+FORMULA = ("analytic = gate * (press * (1 + hold) / 2 + eps_weight * quality + settled_weight * settled);"
            " gate = [open_margin >= min_open_margin] * [close_margin >= 1e-4 m];"
            " press = clip(push, 0, 1); hold = min(resist_worst, cap) / cap;"
            " quality = (1 - robust_weight) * epsilon + robust_weight * robust_quantile;"
+           " settled = settled_epsilon (0 when not measured);"
            " score = analytic * ((1 - reach_weight) + reach_weight * reachability)"
            " * ((1 - success_weight) + success_weight * simulated_success);"
            " a measure not computed counts as neutral (reachability, success 1; robust quantile = epsilon);"
@@ -60,7 +65,7 @@ CLOSE_STOP = 1e-4
 
 #: The measures the rule reads (each an (n,) array; NaN or None = not computed).
 MEASURES = ("epsilon", "force_closure", "reachability", "success", "robust_quantile", "resist_worst", "push",
-            "open_margin", "close_margin")
+            "open_margin", "close_margin", "settled_epsilon")
 
 
 @dataclass(frozen=True)
@@ -69,11 +74,13 @@ class RankingRule:
 
     reach_weight, success_weight, robust_weight in [0, 1]; cap [g] > 0, the
     weight resistance that counts as holding; min_open_margin [m] >= 0, the
-    clearance the gate asks for; eps_weight >= 0, epsilon's tie-break weight.
-    cap, min_open_margin and eps_weight were chosen by cross-validation
-    grouped by object on the tuning objects (bench/RESULTS.md; second round,
-    2026-11-23: every fold of both hands chose eps_weight 1, the Barrett's
-    min_open_margin 2 mm, the trial's own clearance flag).
+    clearance the gate asks for; eps_weight >= 0, epsilon's weight;
+    settled_weight >= 0, the settled epsilon's weight. cap, min_open_margin,
+    eps_weight and settled_weight were chosen by cross-validation grouped by
+    object on the tuning objects (bench/RESULTS.md; third round, 2026-11-23:
+    one rule for both hands, every fold chose cap 5 g, min_open_margin 2 mm,
+    eps_weight 3, settled_weight 100: where measured, the settled epsilon
+    decides the order and the rest breaks its ties).
     """
 
     reach_weight: float = 0.5
@@ -81,15 +88,17 @@ class RankingRule:
     robust_weight: float = 0.0
     cap: float = 5.0
     min_open_margin: float = 0.002
-    eps_weight: float = 1.0
+    eps_weight: float = 3.0
+    settled_weight: float = 100.0
 
     def __post_init__(self) -> None:
         for name in ("reach_weight", "success_weight", "robust_weight"):
             value = getattr(self, name)
             if not 0.0 <= value <= 1.0:
                 raise InputError(f"--{name.replace('_', '-')} must be in [0, 1], got {value}")
-        if not self.cap > 0 or self.min_open_margin < 0 or self.eps_weight < 0:
-            raise InputError(f"ranking rule: cap must be > 0 g, min_open_margin and eps_weight >= 0; got {self}")
+        if not self.cap > 0 or self.min_open_margin < 0 or self.eps_weight < 0 or self.settled_weight < 0:
+            raise InputError(f"ranking rule: cap must be > 0 g, min_open_margin, eps_weight and settled_weight >= 0; "
+                             f"got {self}")
 
     def analytic(self, measures: Mapping[str, ArrayLike | None]) -> np.ndarray:
         """(n,) analytic scores from the measures (see :data:`MEASURES`)."""
@@ -103,9 +112,11 @@ class RankingRule:
         open_margin = _column(measures, "open_margin", np.full(n, np.inf))
         close_margin = _column(measures, "close_margin", np.full(n, np.inf))
         gate = (open_margin >= self.min_open_margin) & (close_margin >= CLOSE_STOP)
+        settled = _column(measures, "settled_epsilon", np.zeros(n))
         quantile = _column(measures, "robust_quantile", eps)
         quality = (1.0 - self.robust_weight) * eps + self.robust_weight * quantile
-        return np.where(gate, press * (1.0 + hold) / 2.0 + self.eps_weight * quality, 0.0)
+        return np.where(gate, press * (1.0 + hold) / 2.0 + self.eps_weight * quality + self.settled_weight * settled,
+                        0.0)
 
     def scores(self, measures: Mapping[str, ArrayLike | None]) -> np.ndarray:
         """(n,) final scores: the analytic score times reachability and
@@ -147,11 +158,13 @@ def rule_measures(grasps: Sequence[Grasp]) -> dict[str, np.ndarray]:
     nan = np.nan
 
     def measured(name: str) -> np.ndarray:
-        return np.array([nan if g.measures is None else getattr(g.measures, name) for g in grasps], float)
+        return np.array([nan if g.measures is None or getattr(g.measures, name) is None
+                         else getattr(g.measures, name) for g in grasps], float)
 
     return {"epsilon": np.array([g.epsilon for g in grasps], float),
             "force_closure": np.array([g.force_closure for g in grasps], float),
             "reachability": np.array([nan if g.reachability is None else g.reachability for g in grasps], float),
             "success": np.array([nan if g.validation is None else g.validation.success for g in grasps], float),
             "robust_quantile": np.array([nan if g.robust is None else g.robust.quantile for g in grasps], float),
-            **{name: measured(name) for name in ("resist_worst", "push", "open_margin", "close_margin")}}
+            **{name: measured(name) for name in ("resist_worst", "push", "open_margin", "close_margin",
+                                                 "settled_epsilon")}}

@@ -17,6 +17,9 @@ Tables (the README lists every column):
   ``resist_mean`` (weight resistance [g]), ``open_margin``, ``close_margin``
   [m], ``push`` and ``feasibility`` (comma-separated reasons, '' when
   feasible); NULL for grasps stored before version 3 (not measured).
+- ``grasps`` (v4) gains ``settled_epsilon``: the epsilon of the contacts the
+  grasp settles into under a dynamic closing (hands with ``settle``); NULL
+  when not measured.
 
 No pickle: arrays are JSON text. A new database runs :data:`SCHEMA` (version
 1) and then every migration; a newer schema is refused politely; an older one
@@ -37,7 +40,7 @@ from planner.errors import DatabaseError
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -95,6 +98,10 @@ ALTER TABLE grasps ADD COLUMN open_margin REAL;
 ALTER TABLE grasps ADD COLUMN close_margin REAL;
 ALTER TABLE grasps ADD COLUMN push REAL;
 ALTER TABLE grasps ADD COLUMN feasibility TEXT
+""",
+    # v4: the settled epsilon (issue 15, third round; NULL: not measured).
+    3: """
+ALTER TABLE grasps ADD COLUMN settled_epsilon REAL
 """,
 }
 

@@ -47,8 +47,9 @@ BUSY_TIMEOUT_S = 60.0
 VECTOR_DIGITS = 7
 INERTIA_DIGITS = 10
 
-#: The analytic measures (schema v3), in the order of :func:`_measure_values`.
-MEASURE_COLUMNS = ("resist_worst", "resist_mean", "open_margin", "close_margin", "push", "feasibility")
+#: The analytic measures (schema v3; v4 the settled epsilon), in the order of :func:`_measure_values`.
+MEASURE_COLUMNS = ("resist_worst", "resist_mean", "open_margin", "close_margin", "push", "feasibility",
+                   "settled_epsilon")
 _GRASP_COLUMNS = ("unit_id", "object", "hand", "preshape", "candidate", "approach_point", "approach_dir", "roll",
                   "standoff", "pose", "open_joints", "closed_joints", "width", "contacts", "n_contacts",
                   "links_touching", "epsilon", "volume", "force_closure", "reachability", "manipulability", "seed",
@@ -71,7 +72,7 @@ FROM grasps g {join} {validation} v ON v.grasp_id = g.id LEFT JOIN {robust} r ON
 """
 _MEASURES = """
 SELECT g.id, g.object, g.hand, g.epsilon, g.force_closure, g.reachability, v.success, r.quantile,
-       g.resist_worst, g.push, g.open_margin, g.close_margin
+       g.resist_worst, g.push, g.open_margin, g.close_margin, g.settled_epsilon
 FROM grasps g LEFT JOIN validation v ON v.grasp_id = g.id LEFT JOIN robust r ON r.grasp_id = g.id
 """
 _RERANK = f"""
@@ -86,16 +87,16 @@ def _measure_values(m: Measures | None) -> tuple:
     if m is None:
         return (None,) * len(MEASURE_COLUMNS)
     finite = [None if not math.isfinite(v) else v for v in (m.open_margin, m.close_margin)]
-    return (m.resist_worst, m.resist_mean, *finite, m.push, ",".join(m.reasons))
+    return (m.resist_worst, m.resist_mean, *finite, m.push, ",".join(m.reasons), m.settled_epsilon)
 
 
 def _measures(values: tuple) -> Measures | None:
-    worst, mean, open_margin, close_margin, push, reasons = values
+    worst, mean, open_margin, close_margin, push, reasons, settled = values
     if worst is None:
         return None
     return Measures(worst, mean, math.inf if open_margin is None else open_margin,
                     math.inf if close_margin is None else close_margin, push,
-                    tuple(r for r in reasons.split(",") if r))
+                    tuple(r for r in reasons.split(",") if r), settled)
 
 
 def rule_columns(col: dict) -> dict:
@@ -103,7 +104,8 @@ def rule_columns(col: dict) -> dict:
     none = [None] * len(col["id"])
     return {"epsilon": col["epsilon"], "force_closure": col["force_closure"], "reachability": col["reachability"],
             "success": col.get("success", none), "robust_quantile": col.get("quantile", none),
-            **{k: col.get(k, none) for k in ("resist_worst", "push", "open_margin", "close_margin")}}
+            **{k: col.get(k, none) for k in ("resist_worst", "push", "open_margin", "close_margin",
+                                             "settled_epsilon")}}
 
 
 def _insert(table: str, columns: Sequence[str], verb: str = "INSERT") -> str:

@@ -20,12 +20,17 @@ only exported never pays for decoding its contacts.
 from __future__ import annotations
 
 import json
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from planner import quality
 from planner.geometry.frames import contact_frames
 from planner.plan.tolerances import MAX_PER_LINK, MERGE_RADIUS, SOFT_TORSION
 from planner.specs.hands import HandSpec
+
+if TYPE_CHECKING:
+    from planner.geometry.solid import PreparedObject
 
 #: Decimals kept of points [m] and normals in the stored form (1 um).
 STORED_DIGITS = 6
@@ -174,3 +179,17 @@ def _arrays(items: list[dict]) -> _Arrays:
             tuple(c["link"] for c in items),
             np.array([c.get("radius", np.nan) for c in items], float),
             np.array([c.get("region", -1) for c in items], int))
+
+
+def grasp_quality(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, cone_edges: int,
+                  volume: bool = True) -> quality.Quality:
+    """Ferrari-Canny epsilon (L1), GWS volume (0 unless ``volume``) and force
+    closure of contacts; each contact's model (point, soft, frictionless) as
+    :func:`contact_models` says."""
+    models, torsion = contact_models(contacts, hand, obj.friction)
+    args = dict(mu=obj.friction, center=obj.com, torque_scale=obj.torque_scale, cone_edges=cone_edges, model=models,
+                torsion=torsion)
+    if volume:
+        return quality.evaluate(contacts.points, contacts.frames, **args)  # type: ignore[arg-type]
+    eps = quality.epsilon(contacts.points, contacts.frames, **args)  # type: ignore[arg-type]
+    return quality.Quality(eps, 0.0, eps > 0.0)

@@ -71,7 +71,11 @@ class Measures:
     resist_worst, resist_mean: weight resistance [g] over 14 gravity
     directions of the object frame (axes and diagonals); open_margin,
     close_margin [m] (inf when no finger touches); push (cosine, 0 when no
-    finger touches); reasons: the feasibility flags that apply.
+    finger touches); reasons: the feasibility flags that apply;
+    settled_epsilon: Ferrari-Canny epsilon of the contacts the grasp settles
+    into when the fingers close dynamically on the free object
+    (:mod:`planner.plan.settle`; 0 if the object is pushed out or the trial
+    is flagged; None: not measured, the hand's ``settle`` off).
     """
 
     resist_worst: float
@@ -80,6 +84,7 @@ class Measures:
     close_margin: float
     push: float
     reasons: tuple[str, ...]
+    settled_epsilon: float | None = None
 
     @property
     def feasible(self) -> bool:
@@ -88,7 +93,7 @@ class Measures:
     def to_json(self) -> dict:
         return {"resist_worst": self.resist_worst, "resist_mean": self.resist_mean,
                 "open_margin": _finite(self.open_margin), "close_margin": _finite(self.close_margin),
-                "push": self.push, "feasibility": list(self.reasons)}
+                "push": self.push, "feasibility": list(self.reasons), "settled_epsilon": self.settled_epsilon}
 
 
 def _finite(value: float) -> float | None:

@@ -28,7 +28,9 @@ from planner.specs.preshapes import Preshape
 #: jaws, cheap rejection, faster closing (issue 16); contact patches, breakaway (issue 15).
 #: 3: the open-limit feasibility flag at 2 mm (was 3) and the ranking rule's
 #: second calibration round (eps_weight 1, min_open_margin 2 mm; issue 15).
-ALGORITHM_VERSION = 3
+#: 4: the settled epsilon (a dynamic closing per grasp, hands with ``settle``) and
+#: its term in the ranking rule (issue 15, third round).
+ALGORITHM_VERSION = 4
 
 #: What the settings left unset mean, per sampler: surface points (or rays)
 #: per object, rolls (antipodal: approach directions about the closing
@@ -62,6 +64,7 @@ class SweepSettings:
     reach_top: int = 8  # reachability of this many force-closure grasps per unit, best epsilon first; 0: all
     pregrasp_distance: float = PREGRASP_DISTANCE  # [m] pre-grasp back-off along the approach
     volume: bool = False  # GWS volume of force-closure grasps (a full 6-D hull, slow; False stores 0)
+    settle: bool | None = None  # the settled epsilon of every grasp (a dynamic closing); None: the hand's default
 
     def __post_init__(self) -> None:
         if self.sampler is not None and self.sampler not in SAMPLERS:
@@ -80,12 +83,13 @@ class SweepSettings:
         if self.sampler == "antipodal" and self.fan_count:
             raise InputError("--fan tilts approach rays: it needs the surface or box sampler")
 
-    def resolved(self, hand_sampler: str) -> SweepSettings:
-        """These settings with the sampler (``hand_sampler`` unless set) and
-        its defaults filled in: what a unit runs and what its digest names."""
+    def resolved(self, hand_sampler: str, hand_settle: bool = False) -> SweepSettings:
+        """These settings with the sampler (``hand_sampler`` unless set), its
+        defaults and ``settle`` (``hand_settle`` unless set) filled in: what a
+        unit runs and what its digest names."""
         sampler = self.sampler or hand_sampler
         unset = {k: v for k, v in SAMPLER_DEFAULTS[sampler].items() if getattr(self, k) is None}
-        return replace(self, sampler=sampler, **unset)
+        return replace(self, sampler=sampler, settle=hand_settle if self.settle is None else self.settle, **unset)
 
     def to_json(self) -> str:
         data = asdict(self)

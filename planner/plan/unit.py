@@ -1,6 +1,7 @@
 """One unit of work end to end: object -> rays -> closing -> contacts ->
-quality -> reachability, returning :class:`~planner.grasp.Grasp` records for
-the single database writer.
+quality -> settled epsilon (hands with ``settle``) -> reachability,
+returning :class:`~planner.grasp.Grasp` records for the single database
+writer.
 
 This runs inside worker processes: it reads descriptions and simulates, but
 never touches the database.
@@ -24,9 +25,10 @@ from planner.geometry.solid import PreparedObject, load_object
 from planner.grasp import Grasp
 from planner.plan import sampling
 from planner.plan.closing import Closed, Grasper
-from planner.plan.contacts import HandContacts, contact_models
+from planner.plan.contacts import HandContacts, grasp_quality
 from planner.plan.measures import MIN_RESISTANCE, measure
 from planner.plan.reach import ReachSettings, reach_scene
+from planner.plan.settle import with_settled
 from planner.plan.sweep import (
     IK_STREAM,
     PLACEMENT_STREAM,
@@ -69,7 +71,7 @@ class UnitResult:
     candidates: int = 0
     rejected: Counter = field(default_factory=Counter)
     timing: dict[str, float] = field(default_factory=lambda: dict.fromkeys(
-        ("prepare", "sampling", "rejection", "closing", "contacts", "quality", "reachability"), 0.0))
+        ("prepare", "sampling", "rejection", "closing", "contacts", "quality", "settle", "reachability"), 0.0))
     error: str | None = None
 
     @property
@@ -99,7 +101,7 @@ def _run(spec: UnitSpec, result: UnitResult) -> None:
     t0 = time.perf_counter()
     obj = load_object(spec.object_name, scale=spec.scale, label=spec.label)
     hand = load_hand(spec.hand)
-    settings = spec.settings.resolved(hand.sampler)
+    settings = spec.settings.resolved(hand.sampler, hand.settle)
     shapes = load_preshapes(hand, list(settings.preshapes) if settings.preshapes else None)
     result.obj = obj
     result.timing["prepare"] += time.perf_counter() - t0
@@ -126,6 +128,10 @@ def _run(spec: UnitSpec, result: UnitResult) -> None:
         # contact reading happens inside closing; report it as its own stage
         result.timing["contacts"] = grasper.contact_seconds
         result.timing["closing"] -= grasper.contact_seconds
+    if settings.settle:
+        t2 = time.perf_counter()
+        result.grasps = with_settled(hand, obj, result.grasps, settings.cone_edges)
+        result.timing["settle"] += time.perf_counter() - t2
     if settings.reach_placements and hand.arm is not None:
         t3 = time.perf_counter()
         result.grasps = add_reachability(result.grasps, obj, hand, spec, settings)
@@ -258,20 +264,6 @@ def add_reachability(grasps: list[Grasp], obj: PreparedObject, hand: HandSpec, s
 
 def _holds_weight(g: Grasp) -> bool:
     return g.measures is not None and g.measures.resist_worst >= MIN_RESISTANCE
-
-
-def grasp_quality(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, cone_edges: int,
-                  volume: bool = True) -> quality.Quality:
-    """Ferrari-Canny epsilon (L1), GWS volume (0 unless ``volume``) and force
-    closure of contacts; each contact's model (point, soft, frictionless) as
-    :func:`contact_models` says."""
-    models, torsion = contact_models(contacts, hand, obj.friction)
-    args = dict(mu=obj.friction, center=obj.com, torque_scale=obj.torque_scale, cone_edges=cone_edges, model=models,
-                torsion=torsion)
-    if volume:
-        return quality.evaluate(contacts.points, contacts.frames, **args)  # type: ignore[arg-type]
-    eps = quality.epsilon(contacts.points, contacts.frames, **args)  # type: ignore[arg-type]
-    return quality.Quality(eps, 0.0, eps > 0.0)
 
 
 def scored(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, cone_edges: int, rejected: Counter,

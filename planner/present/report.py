@@ -57,7 +57,8 @@ class HandReport:
         if name == "feasible":
             return np.array([np.nan if g.measures is None else g.measures.feasible for g in self.grasps], float)
         if name in ANALYTIC_MEASURES:
-            return np.array([np.nan if g.measures is None else getattr(g.measures, name) for g in self.grasps], float)
+            return np.array([np.nan if g.measures is None or getattr(g.measures, name) is None
+                             else getattr(g.measures, name) for g in self.grasps], float)
         return np.array([np.nan if getattr(g, name) is None else getattr(g, name) for g in self.grasps], float)
 
     @property
@@ -87,7 +88,7 @@ class HandReport:
 
 
 #: The analytic measures of :class:`planner.plan.measures.Measures` the report reads.
-ANALYTIC_MEASURES = ("resist_worst", "resist_mean", "open_margin", "close_margin", "push")
+ANALYTIC_MEASURES = ("resist_worst", "resist_mean", "open_margin", "close_margin", "push", "settled_epsilon")
 #: Measures whose ROC AUC the report shows (higher should mean "holds").
 AUC_MEASURES = ("analytic", "epsilon", *ANALYTIC_MEASURES, "feasible", "reachability", "robust_mean",
                 "robust_quantile")

@@ -135,6 +135,7 @@ class HandSpec:
     finger_force: float  # [N or N m] force limit of each finger motor in dynamic trials
     actuators: Actuators  # the finger motors: weight resistance, dynamic trials
     sampler: str = "surface"  # the sweep's approach sampler unless the user picks one
+    settle: bool = False  # the sweep measures the settled epsilon (a dynamic closing per grasp) unless told not to
 
     def joint(self, name: str) -> JointSpec:
         found = self._joint_map.get(name)
@@ -207,6 +208,7 @@ def load_folder(folder: Path) -> HandSpec:
         finger_force=f.table("dynamics", {}).float("finger_force", DEFAULT_FINGER_FORCE, positive=True),
         actuators=_actuators(f.table("dynamics", {})),
         sampler=_sampler(f, joints),
+        settle=f.bool("settle", False),
     )
 
 

@@ -164,8 +164,30 @@ class _Run:
     held: bool = True
 
 
+def settled_contacts(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp],
+                     settings: ShakeSettings | None = None) -> list[HandContacts]:
+    """The contacts (object frame, PyBullet's points, normals into the
+    object) each grasp settles into when the fingers close dynamically on the
+    free object, without load: the first two phases of a trial (flags, close
+    and settle), not the shake. Empty for a grasp flagged before physics.
+    One grasp per world unless ``settings.batch`` says otherwise (pass 1 for
+    results that do not depend on how grasps are grouped)."""
+    s = settings or ShakeSettings()
+    seen: dict[int, HandContacts] = {}
+
+    def keep(grasp: Grasp, contacts: HandContacts) -> None:
+        seen[id(grasp)] = contacts
+
+    physical = _Physical(obj.friction, obj.mass)
+    shape = trial_shape(obj, s.part_tolerance)
+    for i in range(0, len(grasps), s.batch):
+        _world(hand, obj, shape, physical, grasps[i:i + s.batch], s, keep, load=False)
+    empty = HandContacts(np.zeros((0, 3)), np.zeros((0, 3)), ())
+    return [seen.get(id(g), empty) for g in grasps]
+
+
 def _world(hand: HandSpec, obj: PreparedObject, shape: Shape, physical: _Physical, grasps: Sequence[Grasp],
-           s: ShakeSettings, on_settled: Settled | None = None) -> list[Trial]:
+           s: ShakeSettings, on_settled: Settled | None = None, load: bool = True) -> list[Trial]:
     results: dict[int, Trial] = {}
     with fresh_world(s.dt, s.solver_iterations) as dyn:
         runs: dict[int, _Run] = {}
@@ -176,7 +198,7 @@ def _world(hand: HandSpec, obj: PreparedObject, shape: Shape, physical: _Physica
             else:
                 runs[k] = run_or_flag
         if runs:
-            results |= _simulate(dyn, hand, runs, s, on_settled)
+            results |= _simulate(dyn, hand, runs, s, on_settled, load)
     return [results[k] for k in range(len(grasps))]
 
 
@@ -211,7 +233,9 @@ def _set_up(dyn: Dynamics, hand: HandSpec, obj: PreparedObject, shape: Shape, ph
 
 
 def _simulate(dyn: Dynamics, hand: HandSpec, runs: dict[int, _Run], s: ShakeSettings,
-              on_settled: Settled | None = None) -> dict[int, Trial]:
+              on_settled: Settled | None = None, load: bool = True) -> dict[int, Trial]:
+    """Close, settle and (``load``) shake the runs of one world; without
+    ``load`` the verdicts say only whether a finger still touches."""
     start = {k: dyn.object_pose(r.uid) for k, r in runs.items()}
     _close(dyn, hand, runs, _steps(s.close_time, s.dt))
     if not hand.actuators.backdrivable:
@@ -231,6 +255,8 @@ def _simulate(dyn: Dynamics, hand: HandSpec, runs: dict[int, _Run], s: ShakeSett
             active.append(r)
         else:
             _leave(dyn, r)
+    if not load:
+        return {k: _verdict(r, s) for k, r in runs.items()}
     previous = np.zeros(3)
     for direction in LOAD_DIRECTIONS:
         target = GRAVITY * s.load * direction

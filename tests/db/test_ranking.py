@@ -20,14 +20,15 @@ README = Path(__file__).parents[2] / "README.md"
 
 def reference(rule: RankingRule, g: tuple) -> float:
     """The rule as FORMULA states it, one grasp at a time."""
-    eps, fc, reach, ok, quantile, resist, push, open_margin, close_margin = g
+    eps, fc, reach, ok, quantile, resist, push, open_margin, close_margin, settled = g
     gate = (open_margin is None or open_margin >= rule.min_open_margin) and (close_margin is None
                                                                            or close_margin >= 1e-4)
     press = 1.0 if push is None else min(max(push, 0.0), 1.0)
     hold = float(fc) if resist is None else min(resist, rule.cap) / rule.cap
     q = eps if quantile is None else quantile
     quality = (1 - rule.robust_weight) * eps + rule.robust_weight * q
-    analytic = (press * (1 + hold) / 2 + rule.eps_weight * quality) if gate else 0.0
+    settled_term = rule.settled_weight * (0.0 if settled is None else settled)
+    analytic = (press * (1 + hold) / 2 + rule.eps_weight * quality + settled_term) if gate else 0.0
     reach_factor = (1 - rule.reach_weight) + rule.reach_weight * (1.0 if reach is None else reach)
     success_factor = (1 - rule.success_weight) + rule.success_weight * (1.0 if ok is None else float(ok))
     return analytic * reach_factor * success_factor
@@ -44,19 +45,20 @@ weight = st.floats(0.0, 1.0)
 maybe = st.none() | st.floats(0.0, 40.0)
 grasp = st.tuples(st.floats(0.0, 0.5), st.booleans(), st.none() | st.floats(0.0, 1.0), st.none() | st.booleans(),
                   st.none() | st.floats(0.0, 0.5), maybe, st.none() | st.floats(-1.0, 1.0),
-                  st.none() | st.floats(0.0, 0.02), st.none() | st.floats(0.0, 0.02))
+                  st.none() | st.floats(0.0, 0.02), st.none() | st.floats(0.0, 0.02), st.none() | st.floats(0.0, 0.5))
 
 
 @settings(max_examples=200, deadline=None)
 @given(weights=st.tuples(weight, weight, weight), cap=st.floats(0.5, 20.0), margin=st.floats(0.0, 0.01),
-       grasps=st.lists(grasp, min_size=1, max_size=12))
-def test_vectorised_rule_equals_the_plain_definition(weights: tuple, cap: float, margin: float, grasps: list) -> None:
-    rule = RankingRule(*weights, cap=cap, min_open_margin=margin)
+       settled_weight=st.floats(0.0, 30.0), grasps=st.lists(grasp, min_size=1, max_size=12))
+def test_vectorised_rule_equals_the_plain_definition(weights: tuple, cap: float, margin: float, settled_weight: float,
+                                                     grasps: list) -> None:
+    rule = RankingRule(*weights, cap=cap, min_open_margin=margin, settled_weight=settled_weight)
     assert_close(rule.scores(measures(grasps)), [reference(rule, g) for g in grasps], NUM_TOL)
 
 
 def test_the_analytic_part_presses_then_holds_then_breaks_ties_by_epsilon() -> None:
-    rule = RankingRule(reach_weight=0.0, success_weight=0.0)
+    rule = RankingRule(reach_weight=0.0, success_weight=0.0, eps_weight=1.0)
     m = {"epsilon": [0.1, 0.2, 0.0, 0.3, 0.2], "force_closure": [1, 1, 0, 1, 1], "resist_worst": [20, 20, 0, 2, 20],
          "push": [1.0, 1.0, 1.0, 1.0, 0.2], "open_margin": [0.01] * 5, "close_margin": [0.01] * 5}
     s = rule.analytic(m)
@@ -64,6 +66,17 @@ def test_the_analytic_part_presses_then_holds_then_breaks_ties_by_epsilon() -> N
     assert s[4] < s[2]  # unpressed (back of a finger) ranks below pressed
     no_room = rule.analytic({**m, "open_margin": [0.001] * 5})
     assert (no_room == 0).all()
+
+
+def test_by_default_the_settled_epsilon_decides_and_the_rest_breaks_its_ties() -> None:
+    rule = RankingRule(reach_weight=0.0, success_weight=0.0)
+    m = {"epsilon": [0.3, 0.05, 0.05, 0.1], "force_closure": [1, 1, 1, 1], "resist_worst": [20, 0.5, 20, 20],
+         "push": [1.0, 0.4, 1.0, 1.0], "open_margin": [0.01] * 4, "close_margin": [0.01] * 4,
+         "settled_epsilon": [0.0, 0.02, 0.01, 0.01]}
+    s = rule.analytic(m)
+    assert s[1] > s[3] > s[2] > s[0] > 0  # settled first (pushed out by closing: last), then epsilon and hold
+    unmeasured = rule.analytic({**m, "settled_epsilon": [np.nan] * 4})
+    assert unmeasured[0] > unmeasured[3] > unmeasured[2] > unmeasured[1]  # the planned measures alone
 
 
 def test_robust_weight_moves_the_tie_break_towards_the_robust_quantile() -> None:

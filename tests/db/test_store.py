@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import sqlite3
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +16,7 @@ from planner import api
 from planner.db.ranking import RankingRule, rule_measures
 from planner.db.store import UnitRow, Validated, open_db
 from planner.grasp import RobustEpsilon, Trial
-from planner.plan.measures import MIN_RESISTANCE
+from planner.plan.measures import MIN_RESISTANCE, Measures
 from planner.plan.sweep import SweepSettings
 
 SMALL = SweepSettings(approaches=4, rolls=2, preshapes=("wide",))
@@ -158,3 +159,17 @@ def test_ties_are_broken_by_epsilon_volume_seed_and_candidate_not_by_order(tmp_p
     with open_db(tmp_path / "g.db") as db:
         db.write_unit(unit(), None, [made_up(3, 0.0, fc=False), made_up(1, 0.0, fc=False)], RankingRule())
         assert [g.candidate for g in db.best("thing", "panda", 10)] == [1, 3]
+
+
+def test_the_settled_epsilon_is_stored_and_adds_to_the_score_with_its_weight(tmp_path: Path) -> None:
+    measures = Measures(3.0, 4.0, 0.01, 0.01, 1.0, ())
+    grasps = [replace(made_up(0, 0.30), measures=replace(measures, settled_epsilon=0.0)),  # closing pushed it out
+              replace(made_up(1, 0.05), measures=replace(measures, settled_epsilon=0.20)),
+              replace(made_up(2, 0.10), measures=measures)]  # not measured: adds nothing
+    with open_db(tmp_path / "g.db") as db:
+        db.write_unit(unit(), None, grasps, RankingRule(eps_weight=1.0, settled_weight=2.0))
+        back = {g.candidate: g for g in db.best("thing", "panda", 10)}
+    assert [back[i].measures.settled_epsilon for i in range(3)] == [0.0, 0.20, None]  # type: ignore[union-attr]
+    assert [g.candidate for g in sorted(back.values(), key=lambda g: g.rank)] == [1, 0, 2]  # 1: settled the best
+    press_hold = (1.0 + 3.0 / 5.0) / 2.0  # push 1, resist 3 g of a 5 g cap
+    assert_close([back[i].score for i in range(3)], [press_hold + 0.30, press_hold + 0.05 + 0.40, press_hold + 0.10])

@@ -1,0 +1,60 @@
+"""The settled epsilon: the grasp the fingers settle into (issue 15).
+
+Closing in the sweep is kinematic: the object stays put while each finger
+stops where it touches. A hand whose fingers close one after another (the
+Barrett) pushes the free object before the last finger arrives, often by
+more than a centimetre, so the planned contacts are not the ones that hold
+it. For hands with ``settle = true`` in ``hand.toml`` the sweep therefore
+closes every grasp once more, dynamically: the first two phases of the shake
+test (:func:`planner.validation.shake.settled_contacts`: the fingers start
+just short of the grasp and close under their motors on the free object,
+which then comes to rest; no load, no shake), one grasp per PyBullet world so
+that the result does not depend on how the grasps are grouped. The contacts
+it settles into (PyBullet's points, each link's contact model) are scored by
+the same Ferrari-Canny epsilon as the planned ones.
+
+Measured on the tuning objects (bench/RESULTS.md): for the Barrett the
+settled epsilon predicts the shake test far better than the planned epsilon;
+for the Panda, whose jaws close together, it does worse, so the Panda does
+not settle.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+
+import numpy as np
+
+from planner.errors import PlannerError
+from planner.geometry.solid import PreparedObject
+from planner.grasp import Grasp
+from planner.plan.contacts import grasp_quality
+from planner.specs.hands import HandSpec
+from planner.validation.shake import ShakeSettings, settled_contacts
+
+
+def settled_epsilons(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp], cone_edges: int = 8,
+                     settings: ShakeSettings | None = None) -> np.ndarray:
+    """(n,) epsilon of the contacts each grasp settles into; 0 where the
+    fingers lost the object, the trial is flagged, or the contacts cannot
+    be analysed."""
+    s = replace(settings or ShakeSettings(), batch=1)
+    out = np.zeros(len(grasps))
+    for i, contacts in enumerate(settled_contacts(hand, obj, grasps, s)):
+        if len(contacts) == 0:
+            continue
+        try:
+            out[i] = grasp_quality(contacts, hand, obj, cone_edges, False).epsilon
+        except PlannerError:
+            out[i] = 0.0
+    return out
+
+
+def with_settled(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp], cone_edges: int = 8) -> list[Grasp]:
+    """The grasps with ``measures.settled_epsilon`` filled in (grasps without
+    measures are returned unchanged)."""
+    measured = [g for g in grasps if g.measures is not None]
+    values = dict(zip((id(g) for g in measured), settled_epsilons(hand, obj, measured, cone_edges)))
+    return [g if g.measures is None else replace(g, measures=replace(g.measures, settled_epsilon=float(values[id(g)])))
+            for g in grasps]

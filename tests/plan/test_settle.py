@@ -1,0 +1,60 @@
+"""The settled epsilon (planner.plan.settle): the grasp a dynamic closing
+settles into, scored like the planned one, and its place in the sweep."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from planner.plan.settle import settled_epsilons
+from planner.plan.sweep import SweepSettings
+from planner.plan.unit import UnitSpec, run_unit
+from planner.specs.hands import load_hand
+from tests.validation.support import backed_off, box, pinch
+
+
+@pytest.fixture(scope="module")
+def pinched():  # type: ignore[no-untyped-def]
+    hand = load_hand("panda")
+    obj = box(0.04)
+    return hand, obj, pinch(hand, obj)
+
+
+def test_a_centred_pinch_settles_into_force_closure_and_a_backed_off_one_into_nothing(pinched) -> None:  # type: ignore[no-untyped-def]
+    hand, obj, grasp = pinched
+    centred, away = settled_epsilons(hand, obj, [grasp, backed_off(grasp, hand, 0.06)])
+    assert centred > 0.0  # both pads pressed square on the faces: force closure
+    assert away == 0.0  # the fingers close on air
+
+
+def test_a_grasp_flagged_before_physics_settles_into_nothing(pinched) -> None:  # type: ignore[no-untyped-def]
+    hand, obj, grasp = pinched
+    at_limit = replace(grasp, closed_joints={j: hand.joint(j).upper for j in grasp.closed_joints})  # no clearance
+    assert settled_epsilons(hand, obj, [at_limit])[0] == 0.0
+
+
+SMALL = SweepSettings(approaches=3, rolls=1, preshapes=("wrap",), reach_placements=0, chunk=0)
+
+
+@pytest.fixture(scope="module")
+def barrett_units():  # type: ignore[no-untyped-def]
+    settled = run_unit(UnitSpec("box", "barrett", SMALL, seed=3))
+    planned = run_unit(UnitSpec("box", "barrett", replace(SMALL, settle=False), seed=3))
+    assert settled.error is None and planned.error is None
+    return settled, planned
+
+
+def test_the_barrett_sweep_settles_every_grasp_by_default_and_not_when_told(barrett_units) -> None:  # type: ignore[no-untyped-def]
+    settled, planned = barrett_units
+    assert load_hand("barrett").settle and not load_hand("panda").settle
+    assert len(settled.grasps) == len(planned.grasps) > 0
+    assert all(g.measures is not None and g.measures.settled_epsilon is not None for g in settled.grasps)
+    assert all(g.measures is not None and g.measures.settled_epsilon is None for g in planned.grasps)
+    # the same grasps otherwise, and their settle does not depend on the others swept with them
+    assert [g.pose.tolist() for g in settled.grasps] == [g.pose.tolist() for g in planned.grasps]
+    alone = [settled_epsilons(load_hand("barrett"), settled.obj, [g])[0] for g in planned.grasps[:2]]
+    assert alone == [g.measures.settled_epsilon for g in settled.grasps[:2]]  # type: ignore[union-attr]
+    assert settled.timing["settle"] > 0.0 and planned.timing["settle"] == 0.0
+    assert np.isfinite([g.measures.settled_epsilon for g in settled.grasps]).all()  # type: ignore[union-attr]
