@@ -28,8 +28,10 @@ knew the trial's outcome a millimetre away would reach), and the AUCs against
 the robust label (held in at least half of the 1 + K trials).
 
 ``--cv`` adds 5-fold cross-validation grouped by object of the rule's
-parameters (cap, min_open_margin, eps_weight; objective: pooled AUC + top-1
-on the training folds), the figures of the held fold. Tuning only.
+parameters (cap, min_open_margin, eps_weight, settled_weight; objective:
+pooled AUC + top-1 on the training folds), the figures of the held fold,
+per hand and, with several hands, for one rule shared by all of them (the
+sum of the hands' objectives; how the defaults were chosen). Tuning only.
 
     python bench/calibration.py --set tuning [--hands panda barrett] [--objects 20] [--cv]
 
@@ -80,6 +82,9 @@ MEASURES = ("analytic", "pre_issue", "epsilon", "epsilon_legacy", "settled_epsil
 #: of the settled epsilon where it is measured).
 GRID = [dict(cap=c, min_open_margin=m, eps_weight=e, settled_weight=w) for c in (2.0, 5.0, 10.0, 20.0)
         for m in (0.0, 0.002, 0.003, 0.005) for e in (0.1, 1.0, 3.0) for w in (0.0, 1.0, 3.0, 10.0, 30.0)]
+#: One rule for every hand (``--cv`` with several hands): the grid of the joint cross-validation.
+JOINT_GRID = [dict(cap=c, min_open_margin=m, eps_weight=e, settled_weight=w) for c in (5.0, 20.0)
+              for m in (0.0, 0.002) for e in (0.1, 1.0, 3.0) for w in (0.0, 10.0, 30.0, 100.0)]
 
 
 def split(name: str) -> list[str]:
@@ -304,6 +309,35 @@ def cross_validate(pools_: list[Pool], base: RankingRule, folds: int = 5) -> dic
             "unlabelled_top": missing, "chosen": chosen}
 
 
+def cross_validate_joint(by_hand: dict[str, list[Pool]], base: RankingRule, folds: int = 5) -> dict:
+    """One rule for all hands: per fold of objects, the :data:`JOINT_GRID`
+    point that maximises the sum over hands of the training folds'
+    objective; the held fold's figures per hand."""
+    names = np.array(sorted({p.object for pools_ in by_hand.values() for p in pools_}))
+    np.random.default_rng(SEED).shuffle(names)
+    chosen, held = [], {h: {} for h in by_hand}
+    for part in np.array_split(names, folds):
+        fold = set(part)
+        best = max(JOINT_GRID, key=lambda g: sum(
+            _objective(figures([p for p in pools_ if p.object not in fold], replace(base, **g)))
+            for pools_ in by_hand.values()))
+        chosen.append(best)
+        for h, pools_ in by_hand.items():
+            held[h] |= {p.object: replace(base, **best) for p in pools_ if p.object in fold}
+    out: dict = {"chosen": chosen}
+    for h, pools_ in by_hand.items():
+        ok, score, orders = [], [], []
+        for p in pools_:
+            col = p.columns(held[h][p.object])["analytic"]
+            ok.append(p.success[p.uniform])
+            score.append(col[p.uniform])
+            orders.append((_order(col, p.grasps), p.success))
+        top1, top10, missing = top_k_success(orders, TOP)
+        out[h] = {"auc": roc_auc(np.concatenate(ok), np.concatenate(score)), "top1": top1, "top10": top10,
+                  "unlabelled_top": missing}
+    return out
+
+
 def _objective(f: dict) -> float:
     return np.nan_to_num(f["auc"]["analytic"]) + np.nan_to_num(f["top1_analytic"])
 
@@ -339,6 +373,12 @@ def report(results: dict[str, dict], set_name: str, rule: RankingRule) -> str:
             lines += ["", f"{h}: 5-fold CV grouped by object (held folds): AUC {cv['auc']:.3f}, top-1 "
                       f"{cv['top1']:.3f}, top-10 {cv['top10']:.3f}, unlabelled top picks {cv['unlabelled_top']}; "
                       f"chosen per fold: {cv['chosen']}"]
+    if "joint_cv" in results.get(hands[0], {}):
+        joint = results[hands[0]]["joint_cv"]
+        lines += ["", "One rule for all hands, 5-fold CV grouped by object (held folds): " + "; ".join(
+            f"{h} AUC {joint[h]['auc']:.3f}, top-1 {joint[h]['top1']:.3f}, top-10 {joint[h]['top10']:.3f}, "
+            f"unlabelled top picks {joint[h]['unlabelled_top']}" for h in hands)
+            + f"; chosen per fold: {joint['chosen']}"]
     return "\n".join(lines) + "\n"
 
 
@@ -381,7 +421,8 @@ def main() -> None:
         raise SystemExit("--cv tunes: tuning set only")
     args.dir.mkdir(parents=True, exist_ok=True)
     rule = RankingRule(reach_weight=0.0, success_weight=0.0)
-    results = {}
+    results: dict[str, dict] = {}
+    by_hand: dict[str, list[Pool]] = {}
     for hand, approaches in zip(args.hands, args.approaches * len(args.hands)):
         db = args.dir / f"{args.set}_{hand}.db"
         settings = SweepSettings(approaches=approaches, reach_placements=0, volume=False)
@@ -398,6 +439,9 @@ def main() -> None:
                                        "jitter": f"{args.jitter_mm} mm, {args.jitter_deg} deg"}
         if args.cv:
             results[hand]["cv"] = cross_validate(pools_, rule)
+            by_hand[hand] = pools_
+    if args.cv and len(by_hand) > 1:
+        results[args.hands[0]]["joint_cv"] = cross_validate_joint(by_hand, rule)
     text = report(results, args.set, rule)
     out = args.dir / f"report_{args.set}.md"
     out.write_text(text)

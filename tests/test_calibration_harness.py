@@ -84,3 +84,35 @@ def test_jittered_copies_move_by_the_asked_distance_and_angle_and_are_seeded() -
     again = h.jittered(g, 5, 1.5, 2.0)
     assert all(np.array_equal(a.pose, b.pose) for a, b in zip(copies, again))
     assert len({tuple(c.pose[:3, 3]) for c in copies}) == 5
+
+
+def test_the_joint_cross_validation_finds_one_rule_that_ranks_both_hands() -> None:
+    """Hand "a": held iff its settled epsilon is high (its planned epsilon is
+    noise); hand "b": no settled epsilon, held iff its planned epsilon is high.
+    The shared rule must weigh the settled epsilon and keep epsilon."""
+    from planner.grasp import Grasp, Trial
+    from planner.plan.contacts import HandContacts
+    from planner.plan.measures import Measures
+
+    h = harness()
+    rng = np.random.default_rng(5)
+    empty = HandContacts(np.zeros((0, 3)), np.zeros((0, 3)), ())
+
+    def pool(hand: str, name: str) -> object:
+        grasps = []
+        for i in range(40):
+            eps, settled = rng.uniform(0.0, 0.2), rng.uniform(0.0, 0.2)
+            held = (settled if hand == "a" else eps) > 0.1
+            m = Measures(2.0, 3.0, 0.01, 0.01, 1.0, (), settled if hand == "a" else None)
+            grasps.append(Grasp(object=name, hand=hand, preshape="p", candidate=i, seed=0, approach_point=np.zeros(3),
+                                approach_dir=np.array([0.0, 0.0, 1.0]), roll=0.0, standoff=0.0, pose=np.eye(4),
+                                open_joints={}, closed_joints={}, width=None, contacts=empty, epsilon=eps, volume=0.0,
+                                force_closure=eps > 0, id=i, validation=Trial(held, 2, 0, 0, 0, 0), measures=m))
+        return h.Pool(name, grasps, np.zeros(40), np.ones(40, bool))
+
+    by_hand = {hand: [pool(hand, f"o{k}") for k in range(10)] for hand in ("a", "b")}
+    out = h.cross_validate_joint(by_hand, h.RankingRule(reach_weight=0.0, success_weight=0.0))
+    assert len(out["chosen"]) == 5 and all(c["settled_weight"] >= 10.0 and c["eps_weight"] > 0 for c in out["chosen"])
+    # pooled over folds whose rules differ (settled_weight 10 or 30 here), so below 1 for "a"
+    assert out["a"]["auc"] > 0.85 and out["b"]["auc"] > 0.95
+    assert out["a"]["top1"] == out["b"]["top1"] == 1.0

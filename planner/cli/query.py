@@ -62,8 +62,9 @@ def _measures(g: api.Grasp) -> str:
     m = g.measures
     if m is None:
         return ""
+    settled = "" if m.settled_epsilon is None else f" settled_epsilon={m.settled_epsilon:.4f}"
     return (f" holds={m.resist_worst:.1f}g (mean {m.resist_mean:.1f}g) push={m.push:.2f} "
-            f"feasibility={','.join(m.reasons) or 'ok'}")
+            f"feasibility={','.join(m.reasons) or 'ok'}{settled}")
 
 
 @click.command()

@@ -83,3 +83,17 @@ def test_an_object_neither_stored_nor_known_is_a_one_line_error(stored_db: Path,
     code, _, err = grasp(command[0], "teapot", "--hand", "panda", "--db", str(stored_db), *command[1:])
     one_line_error(code, err, 2, "unknown object 'teapot': not stored in", "(objects: box, capsule, duck)",
                    "not a built-in name, random_NNN or mesh file")
+
+
+def test_the_barrett_settles_by_default_and_best_prints_its_settled_epsilon(tmp_path: Path) -> None:
+    small = ["--approaches", "2", "--rolls", "1", "--preshapes", "wrap", "--reach-placements", "0", "--workers", "1"]
+    for flag, name in (([], "settled.db"), (["--no-settle"], "planned.db")):
+        code, _, err = grasp("generate", "box", "--hand", "barrett", "--db", str(tmp_path / name), *small, *flag)
+        assert code == 0, err
+    code, out, err = grasp("best", "box", "--hand", "barrett", "--db", str(tmp_path / "settled.db"), "--json")
+    assert code == 0, err
+    assert isinstance(json.loads(out)[0]["settled_epsilon"], float)
+    code, out, _ = grasp("best", "box", "--hand", "barrett", "--db", str(tmp_path / "settled.db"))
+    assert " settled_epsilon=" in out.splitlines()[0]
+    code, out, _ = grasp("best", "box", "--hand", "barrett", "--db", str(tmp_path / "planned.db"), "--json")
+    assert json.loads(out)[0]["settled_epsilon"] is None
