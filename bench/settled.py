@@ -27,11 +27,10 @@ from pathlib import Path
 import numpy as np
 
 from planner.db.store import open_db
-from planner.errors import PlannerError
 from planner.geometry.solid import load_object
 from planner.grasp import Grasp
 from planner.plan.contacts import HandContacts
-from planner.plan.unit import grasp_quality
+from planner.plan.settle import epsilon_of
 from planner.present.report import roc_auc
 from planner.specs.hands import load_hand
 from planner.validation.shake import ShakeSettings, trials
@@ -46,15 +45,6 @@ def calibration():  # type: ignore[no-untyped-def]
     sys.modules.setdefault("calibration", module)
     spec.loader.exec_module(module)  # type: ignore[union-attr]
     return module
-
-
-def settled_epsilon(contacts: HandContacts, hand, obj, cone_edges: int = 8) -> float:  # type: ignore[no-untyped-def]
-    if len(contacts) == 0:
-        return 0.0
-    try:
-        return grasp_quality(contacts, hand, obj, cone_edges, False).epsilon
-    except PlannerError:
-        return 0.0
 
 
 def _keeper(seen: dict[int, HandContacts]):  # type: ignore[no-untyped-def]
@@ -83,7 +73,7 @@ def measure(db: Path, hand_name: str, names: list[str], per_object: int) -> np.n
         for g, v in zip(picked, verdicts):
             settled = seen.get(id(g), HandContacts(np.zeros((0, 3)), np.zeros((0, 3)), ()))
             rows.append((float(g.validation.success), float(v.success), float(v.reason == "squeezed_out"),  # type: ignore[union-attr]
-                         g.epsilon, settled_epsilon(settled, hand, obj)))
+                         g.epsilon, epsilon_of(settled, hand, obj)))
         print(f"  {hand_name} {name}: {len(picked)} grasps, {time.perf_counter() - t:.0f} s", flush=True)
     return np.array(rows, float).reshape(-1, 5)
 

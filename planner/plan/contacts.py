@@ -15,6 +15,9 @@ stored form is JSON text ``[{point, normal, link[, radius, region]}]``
 (points, normals and radii rounded to 1 um / 1e-6). A batch read back from the
 database keeps that text and decodes it only on first use, so a grasp that is
 only exported never pays for decoding its contacts.
+
+:func:`grasp_quality` scores a batch: Ferrari-Canny epsilon (and GWS
+volume) with each contact's model.
 """
 
 from __future__ import annotations

@@ -29,9 +29,19 @@ import numpy as np
 from planner.errors import PlannerError
 from planner.geometry.solid import PreparedObject
 from planner.grasp import Grasp
-from planner.plan.contacts import grasp_quality
+from planner.plan.contacts import HandContacts, grasp_quality
 from planner.specs.hands import HandSpec
 from planner.validation.shake import ShakeSettings, settled_contacts
+
+
+def epsilon_of(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, cone_edges: int = 8) -> float:
+    """Epsilon of settled contacts; 0 for none or for contacts that cannot be analysed."""
+    if len(contacts) == 0:
+        return 0.0
+    try:
+        return grasp_quality(contacts, hand, obj, cone_edges, False).epsilon
+    except PlannerError:
+        return 0.0
 
 
 def settled_epsilons(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp], cone_edges: int = 8,
@@ -40,15 +50,7 @@ def settled_epsilons(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp
     fingers lost the object, the trial is flagged, or the contacts cannot
     be analysed."""
     s = replace(settings or ShakeSettings(), batch=1)
-    out = np.zeros(len(grasps))
-    for i, contacts in enumerate(settled_contacts(hand, obj, grasps, s)):
-        if len(contacts) == 0:
-            continue
-        try:
-            out[i] = grasp_quality(contacts, hand, obj, cone_edges, False).epsilon
-        except PlannerError:
-            out[i] = 0.0
-    return out
+    return np.array([epsilon_of(c, hand, obj, cone_edges) for c in settled_contacts(hand, obj, grasps, s)], float)
 
 
 def with_settled(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp], cone_edges: int = 8) -> list[Grasp]:
