@@ -15,9 +15,11 @@ both bounds meet and epsilon is exact (to FACET_TOL).
 
 qhull itself sits behind ``qhull``: every hull is checked (no point beyond a
 facet) before use, rebuilt with other options when the check or qhull
-fails, and a failure on a full-dimensional set raises HullError rather than
-passing for "flat".  Every points-by-facets product runs in blocks of at
-most BLOCK_BYTES, whatever the number of points and facets.
+fails, as a last resort built from one representative per cluster of
+nearly coincident points (and checked against all of them), and a failure
+on a full-dimensional set raises HullError rather than passing for "flat".
+Every points-by-facets product runs in blocks of at most BLOCK_BYTES,
+whatever the number of points and facets.
 """
 
 from __future__ import annotations
@@ -25,17 +27,22 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 
 import numpy as np
-from scipy.spatial import ConvexHull, QhullError
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from planner.errors import DegenerateGraspError
 from planner.quality.closure import SIMPLEX
-from planner.quality.tolerances import FACET_TOL, HULL_TOL, MERGE_RADIUS, RANK_TOL
+from planner.quality.tolerances import CLUSTER_RADIUS, FACET_TOL, HULL_TOL, MERGE_RADIUS, RANK_TOL
 
 #: Seed directions: the coordinate axes both ways, then the simplex both ways.
 SEED_DIRECTIONS = np.vstack([np.eye(6), -np.eye(6), SIMPLEX, -SIMPLEX])
 #: Support points of at most this many dirty facets are added per round.
 ADD_PER_ROUND = 8
 MAX_ROUNDS = 200
+#: The clustering fallback of ``qhull`` tries radii of CLUSTER_RADIUS times
+#: 10^-CLUSTER_DECADES, ..., 10^-1, 1: from 1e-11, ten times DEDUP_TOL.
+CLUSTER_DECADES = 3
 
 #: Largest temporary array [bytes] of any points-by-facets (or directions-by-
 #: wrenches) product.  A 6-D hull of a Minkowski sum has ~1e4 points and ~1e6
@@ -119,22 +126,92 @@ def qhull(points: np.ndarray) -> ConvexHull | None:
     A hull is returned only if no point lies beyond a facet, nor (for merged or
     joggled hulls) a facet vertex off its plane, by more than the accepted
     error of its options (FACET_TOL or HULL_TOL times the largest
-    |coordinate|).  Raises HullError if no option gives such a hull although
-    the points are full-dimensional: never a silent wrong hull.
+    |coordinate|).  When every option fails on the points themselves, the
+    hull may be that of one representative per cluster of points within
+    CLUSTER_RADIUS times the largest |coordinate| (``hull.points`` is then
+    those representatives, a subset of ``points``): it lies inside the true
+    hull to the accepted error of its options, and no point lies beyond it
+    by more than CLUSTER_RADIUS plus that error, times the largest
+    |coordinate| (see CLUSTER_RADIUS for the error of epsilon and volume).  Raises
+    HullError if no option gives such a hull although the points are
+    full-dimensional: never a silent wrong hull.
     """
+    return _checked_hull(points)[0]
+
+
+def _checked_hull(points: np.ndarray) -> tuple[ConvexHull | None, np.ndarray | None]:
+    """``qhull`` and, if its hull is of cluster representatives, (k,) the row
+    of ``hull.points`` that stands for each point (None otherwise: the hull
+    is of ``points`` themselves)."""
     scale = max(float(np.abs(points).max(initial=0.0)), 1.0)
     failures: list[str] = []
     hull = _attempt(points, "Q0", FACET_TOL * scale, failures)
     if hull is not None:
-        return hull
+        return hull, None
     if affine_rank(points) < points.shape[1]:
-        return None                 # checked first: joggling would make a flat set look full
+        return None, None           # checked first: joggling would make a flat set look full
     for options, tol in _retries(scale):
         hull = _attempt(points, options, tol, failures)
         if hull is not None:
-            return hull
+            return hull, None
+    hull, owner = _clustered_hull(points, scale, failures)
+    if hull is not None:
+        return hull, owner
     raise HullError(f"qhull could not build the {points.shape[1]}-D hull of {len(points)} wrenches "
                     f"(largest |coordinate| {scale:.3g}): " + "; ".join(failures))
+
+
+def clusters(points: np.ndarray, radius: float) -> np.ndarray:
+    """(k,) for each of the (k, d) points the index of the first point of its
+    cluster: the connected components of the graph joining points less than
+    ``radius`` apart (Euclidean)."""
+    pairs = cKDTree(points).query_pairs(radius, output_type="ndarray")
+    if len(pairs) == 0:
+        return np.arange(len(points))
+    graph = coo_matrix((np.ones(len(pairs), dtype=bool), (pairs[:, 0], pairs[:, 1])),
+                       shape=(len(points), len(points)))
+    _, label = connected_components(graph, directed=False)
+    _, first = np.unique(label, return_index=True)
+    return first[label]
+
+
+def _clustered_hull(points: np.ndarray, scale: float,
+                    failures: list[str]) -> tuple[ConvexHull | None, np.ndarray | None]:
+    """The last resort of ``qhull`` on full-dimensional points (k, d): the
+    options of ``qhull`` on one representative (its first point) per
+    cluster of points within r * scale, for r = CLUSTER_RADIUS times 10^-3,
+    10^-2, 10^-1, 1 (the finest clustering qhull can use gives the smallest
+    error).  A hull is checked on the representatives as usual, and is
+    accepted only if no point lies beyond a facet by more than the accepted
+    error of its options plus r * scale: that check, not the clustering
+    (a chain of close points can be a long cluster), bounds the error.
+    (hull, owner) as ``_checked_hull``; (None, None), with the reasons
+    appended to ``failures``, if no hull passes."""
+    merged = len(points)
+    for radius in CLUSTER_RADIUS * scale * 10.0 ** -np.arange(CLUSTER_DECADES, -1, -1):
+        first = clusters(points, radius)
+        reps = np.unique(first)
+        if len(reps) == merged:
+            continue                # no pair closer than radius, or the same clusters again
+        merged = len(reps)
+        what = f"{merged} representatives within {radius:.2g}"
+        sub = points[reps]
+        if affine_rank(sub) < points.shape[1]:
+            failures.append(f"{what}: flat")
+            break                   # coarser clusters keep a subset of these representatives
+        for options, tol in [("Q0", FACET_TOL * scale), *_retries(scale)]:
+            tried: list[str] = []
+            hull = _attempt(sub, options, tol, tried)
+            if hull is not None:
+                error = max_outside(points, hull.equations)
+                if error <= tol + radius:
+                    return hull, np.searchsorted(reps, first)
+                tried.append(f"'{options}': a point lies {error:.2g} beyond a facet "
+                             f"(accepted {tol + radius:.2g})")
+            failures.extend(f"{what}: {reason}" for reason in tried)
+    if merged == len(points):
+        failures.append(f"no two points within {CLUSTER_RADIUS * scale:.2g} to cluster")
+    return None, None
 
 
 def _attempt(points: np.ndarray, options: str, tol: float, failures: list[str]) -> ConvexHull | None:
@@ -292,7 +369,9 @@ def minkowski_vertices(wrenches: np.ndarray, contact: np.ndarray) -> np.ndarray:
 def _extreme(points: np.ndarray) -> np.ndarray:
     """The points of (k, 6) (distinct) that are vertices of their hull (0 is a
     member), in the linear span they reach; all of them if qhull fails (costs
-    time, not accuracy)."""
+    time, not accuracy).  For a hull of cluster representatives, every point
+    of a cluster whose representative is a vertex (the others lie within the
+    accepted error of the hull, see ``qhull``)."""
     _, sing, vt = np.linalg.svd(points, full_matrices=False)
     rank = int((sing > sing[0] * RANK_TOL).sum()) if sing[0] > 0 else 0
     if rank <= 1:
@@ -301,7 +380,9 @@ def _extreme(points: np.ndarray) -> np.ndarray:
         coord = points @ vt[0]
         return points[[coord.argmin(), coord.argmax()]]
     try:
-        hull = qhull(points @ vt[:rank].T)
+        hull, owner = _checked_hull(points @ vt[:rank].T)
     except HullError:
         return points
-    return points if hull is None else points[hull.vertices]
+    if hull is None:
+        return points
+    return points[hull.vertices] if owner is None else points[np.isin(owner, hull.vertices)]

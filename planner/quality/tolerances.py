@@ -35,6 +35,29 @@ HULL_TOL = 1e-9
 #: symmetric contacts, ~1e-13 accurate where 'QJ' would give ~1e-10.
 MERGE_RADIUS = 1e-12
 
+#: Last resort of qhull when every option fails (topology errors, or 'QJ'
+#: joggled by more than HULL_TOL) on wrenches nearly coincident but farther
+#: apart than DEDUP_TOL: the edges of a mu = 1e-12 cone lie ~1e-12 from each
+#: other, soft torsion columns ~torsion / rho (2e-10 for 1e-11 m) from the
+#: normal.  Wrenches closer than r times the largest wrench coordinate are
+#: clustered, for r = this times 1e-3, 1e-2, 1e-1, 1 in turn, and the hull is
+#: built on one wrench per cluster.  It is accepted only if no wrench lies
+#: beyond it by more than r plus the accepted error of its options (FACET_TOL
+#: or HULL_TOL), times the scale: its vertices are wrenches, so it lies inside
+#: the true hull (to HULL_TOL), and epsilon is then within (CLUSTER_RADIUS +
+#: HULL_TOL) * scale of the true value, the volume within that times the
+#: surface area (to first order).  The error is measured, not assumed: ~1e-12
+#: when only mu = 1e-12 cones merge, ~mu when whole mu = 1e-9 cones do.
+#: 1e-8: a mu = 1e-9 cone (edges <= 2e-9 apart) is one cluster whatever the
+#: number of edges (a radius near 1e-9 splits it, and may fail), and 1e-8 is far
+#: below the wrench differences of a real grasp (mu >= 1e-3, torsion >= 1e-4
+#: m, contacts a micrometre apart: all >= 1e-5).  A hull decides force closure
+#: only when the certificates are inconclusive (epsilon within a small factor
+#: of FORCE_CLOSURE_TOL) and then, for more than 24 wrenches, only if the
+#: active set fails too; a clustered hull overstates epsilon by at most
+#: HULL_TOL * scale, as a merged one does.
+CLUSTER_RADIUS = 1e-8
+
 #: Primitive wrenches whose coordinates agree to this times the largest wrench
 #: coordinate are merged before any hull (mu = 0 cones, repeated contacts).
 DEDUP_TOL = 1e-12

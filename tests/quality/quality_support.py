@@ -108,4 +108,26 @@ def soft_sphere_case(n: int) -> tuple[np.ndarray, np.ndarray, dict]:
     return pts[:n], frames[:n], args
 
 
+def antipodal_box_case() -> tuple[np.ndarray, np.ndarray, dict]:
+    """7 soft contacts on a box of half extents 0.03 x 0.02 x 0.05 m and their
+    mirror images (normals inward), mu 1e-12, torsion 1e-11 m, 7 cone edges,
+    found by hypothesis: the cone edges lie ~1e-12 and the torsion wrenches
+    ~2e-10 from their normal, farther apart than DEDUP_TOL, and every qhull
+    option stopped on (or, 'QJ', failed the check of) the 114 L1 wrenches."""
+    pts = np.array([
+        [0.01096785, 0.00015442, -0.05], [0.0125339, -0.01596346, -0.05],
+        [-0.00224823, 0.02, -0.0065256], [-0.03, 0.00347603, 0.00575331],
+        [-0.03, 0.00784863, -0.04235649], [-0.00736268, 0.02, -0.02208967],
+        [0.00444993, -0.02, -0.0259019]])
+    face = np.array([[0, 0, -1], [0, 1, 0], [1, 0, 0]])         # normal +z
+    side = np.array([[0, 0, -1], [-1, 0, 0], [0, 1, 0]])        # normal -y
+    end = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]])          # normal +x
+    back = np.array([[0, 0, -1], [1, 0, 0], [0, -1, 0]])        # normal +y
+    frames = np.array([face, face, side, end, end, side, back], dtype=float)
+    mirrored = frames * [-1.0, -1.0, 1.0]                       # columns (n, l, o) -> (-n, -l, o)
+    args = {"mu": 1e-12, "center": np.zeros(3), "torque_scale": SPHERE_RADIUS, "cone_edges": 7,
+            "model": "soft", "torsion": 1e-11}
+    return np.vstack([pts, -pts]), np.concatenate([frames, mirrored]), args
+
+
 seeds = st.integers(min_value=0, max_value=2**32 - 1)

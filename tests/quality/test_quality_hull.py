@@ -1,5 +1,6 @@
 """Hull helpers on polytopes with known inradius (cube, cross-polytope, simplex),
-the checked qhull fallback and the memory-bounded checks (issue 13)."""
+the checked qhull fallback and the memory-bounded checks (issue 13), the
+clustering fallback on nearly coincident wrenches."""
 
 from __future__ import annotations
 
@@ -8,10 +9,10 @@ import tracemalloc
 
 import numpy as np
 import pytest
-from quality_support import EXACT, JOGGLE, SPHERE_RADIUS, assert_close, lifted_square_grasp
+from quality_support import EXACT, JOGGLE, SPHERE_RADIUS, antipodal_box_case, assert_close, lifted_square_grasp
 from scipy.spatial import ConvexHull, QhullError
 
-from planner.quality import PrimitiveWrenches, primitive_wrenches
+from planner.quality import PrimitiveWrenches, epsilon, evaluate, force_closure, primitive_wrenches, volume
 from planner.quality import hull as hull_module
 from planner.quality.closure import SIMPLEX, inscribed_radius
 from planner.quality.hull import (
@@ -21,6 +22,7 @@ from planner.quality.hull import (
     LinfSupport,
     active_set_epsilon,
     blocks,
+    clusters,
     hull_epsilon,
     max_off_plane,
     max_outside,
@@ -28,8 +30,9 @@ from planner.quality.hull import (
     minkowski_vertices,
     qhull,
 )
-from planner.quality.reference import joggled_linf
-from planner.quality.tolerances import HULL_TOL
+from planner.quality.reference import joggled_l1, joggled_linf, reference_epsilon, reference_volume
+from planner.quality.tolerances import CLUSTER_RADIUS, FACET_TOL, HULL_TOL
+from planner.quality.wrenches import dedupe
 
 CUBE = np.array(list(itertools.product([-1.0, 1.0], repeat=6)))       # inradius 1
 CROSS = np.vstack([np.eye(6), -np.eye(6)])                             # inradius 1/sqrt(6)
@@ -159,3 +162,103 @@ def test_support_functions_are_the_same_in_blocks(rng: np.random.Generator,
     for (value, point), support in zip(whole, (L1Support(wrenches), LinfSupport(wrenches, owner))):
         assert_close(support.value(dirs), value)
         assert_close(support.point(dirs), point)
+
+
+# Nearly coincident wrenches (hypothesis, test_force_closure_agrees_with_epsilon):
+# 7 soft contacts on a box and their mirror images with mu 1e-12 and torsion
+# 1e-11 m.  Cone edges 1e-12 and torsion wrenches 2e-10 from their normal
+# escape dedupe, and every qhull option stopped: evaluate raised HullError.
+def box_union() -> tuple[np.ndarray, np.ndarray]:
+    """(L1 generators after dedupe, all primitive wrenches) of the box case."""
+    pts, frames, args = antipodal_box_case()
+    raw = primitive_wrenches(pts, frames, **args)
+    return dedupe(raw, per_contact=False).wrenches, raw.wrenches
+
+
+def test_the_box_still_stops_every_plain_option() -> None:
+    # Keeps the regression input meaningful: if qhull builds this hull
+    # directly, the clustering fallback below is no longer exercised.
+    union, _ = box_union()
+    scale = max(float(np.abs(union).max()), 1.0)
+    failures: list[str] = []
+    for options, tol in [("Q0", FACET_TOL * scale), *hull_module._retries(scale)]:
+        assert hull_module._attempt(union, options, tol, failures) is None
+    assert len(failures) == 4 and "dupridge" in failures[1]
+
+
+def test_qhull_builds_a_checked_hull_of_cluster_representatives() -> None:
+    union, raw = box_union()
+    scale = max(float(np.abs(union).max()), 1.0)
+    bound = (CLUSTER_RADIUS + HULL_TOL) * scale          # documented error of a clustered hull
+    hull = qhull(union)
+    assert hull is not None and len(hull.points) < len(union)
+    rows = {row.tobytes() for row in union}
+    assert all(row.tobytes() in rows for row in hull.points), "representatives are input points"
+    assert max_outside(hull.points, hull.equations) <= HULL_TOL * scale
+    assert max_outside(union, hull.equations) <= bound
+    assert abs(hull_epsilon(hull) - reference_epsilon(raw)) <= bound
+    assert abs(hull.volume - reference_volume(raw)) <= bound * hull.area
+    eps, vol = joggled_l1(raw)
+    assert_close(hull.volume, vol, rel=JOGGLE, what="volume vs joggled reference")
+    assert_close(hull_epsilon(hull), eps, rel=JOGGLE, what="epsilon vs joggled reference")
+
+
+def test_evaluate_on_nearly_coincident_wrenches_agrees_with_epsilon_and_the_reference() -> None:
+    pts, frames, args = antipodal_box_case()
+    union, raw = box_union()
+    bound = (CLUSTER_RADIUS + HULL_TOL) * max(float(np.abs(union).max()), 1.0)
+    quality = evaluate(pts, frames, **args)
+    eps = epsilon(pts, frames, **args)
+    assert quality.force_closure and force_closure(pts, frames, **args) and eps > 0
+    assert quality.epsilon > 0
+    assert abs(quality.epsilon - eps) <= bound
+    assert abs(quality.epsilon - reference_epsilon(raw)) <= bound
+    assert abs(eps - reference_epsilon(raw)) <= bound
+    assert quality.volume == volume(pts, frames, **args)
+    assert_close(quality.volume, reference_volume(raw), rel=JOGGLE, what="volume vs reference")
+
+
+def test_qhull_without_clustering_raises_on_nearly_coincident_wrenches(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    union, _ = box_union()
+    monkeypatch.setattr(hull_module, "CLUSTER_RADIUS", 0.0)
+    with pytest.raises(HullError, match="hull of 114 wrenches.*dupridge.*no two points within 0 to cluster"):
+        qhull(union)
+
+
+def test_clusters_are_connected_components_named_by_their_first_point() -> None:
+    r = 1e-3
+    points = np.array([[0.0, 0.0], [0.9 * r, 0.0], [5 * r, 0.0], [1.8 * r, 0.0], [0.0, 0.5 * r],
+                       [5 * r, 0.9 * r]])
+    assert clusters(points, r).tolist() == [0, 0, 2, 0, 0, 2]     # a chain is one cluster
+    assert clusters(points, 0.1 * r).tolist() == list(range(6))
+
+
+def test_a_clustered_hull_that_a_point_lies_far_beyond_is_rejected() -> None:
+    # A chain of points 0.9e-11 apart running 1.2e-8 out of a cube corner is
+    # one cluster at every radius: its hull is the cube, which the tip of the
+    # chain lies beyond by more than CLUSTER_RADIUS, so no hull is accepted.
+    outward = np.ones(6) / np.sqrt(6)
+    chain = CUBE[-1] + np.arange(1, 1300)[:, None] * 0.9 * CLUSTER_RADIUS * 1e-3 * outward
+    failures: list[str] = []
+    hull, owner = hull_module._clustered_hull(np.vstack([CUBE, chain]), 1.0, failures)
+    assert hull is None and owner is None
+    assert len(failures) == 4 and all("64 representatives" in f and "beyond a facet" in f for f in failures)
+
+
+def test_vertices_of_a_clustered_hull_keep_every_point_of_their_cluster(
+        rng: np.random.Generator, monkeypatch: pytest.MonkeyPatch) -> None:
+    # 40 points on the unit sphere, each twice 1e-12 apart, and 10 interior
+    # points: with no retry after 'Q0' (which stops on the pairs) only the
+    # clustering fallback builds the hull, whose vertices index the
+    # representatives; both copies of every sphere point are vertices.
+    sphere = rng.normal(size=(40, 6))
+    sphere /= np.linalg.norm(sphere, axis=1, keepdims=True)
+    pairs = np.vstack([sphere, sphere + 1e-12 * rng.normal(size=sphere.shape)])
+    calls = []
+    clustered = hull_module._clustered_hull
+    monkeypatch.setattr(hull_module, "_retries", lambda scale: [])
+    monkeypatch.setattr(hull_module, "_clustered_hull", lambda *a: calls.append(1) or clustered(*a))
+    verts = minkowski_vertices(np.vstack([pairs, 0.3 * sphere[:10]]), np.zeros(90, dtype=int))
+    assert calls, "the clustering fallback was not exercised"
+    assert len(verts) == 80 and {row.tobytes() for row in verts} == {row.tobytes() for row in pairs}
