@@ -34,11 +34,13 @@ import os
 import platform
 import subprocess
 import sys
-import tarfile
 import tempfile
 import time
 import types
 from pathlib import Path
+
+from _trees import unpack as _unpack
+from _trees import uptime as _load
 
 ROOT = Path(__file__).resolve().parents[1]
 #: main before issue 16 (ALGORITHM_VERSION 1).
@@ -101,16 +103,6 @@ def child(args: argparse.Namespace) -> None:
 
 
 # -- parent ---------------------------------------------------------------------------------------
-def _unpack(commit: str, into: Path) -> Path:
-    archive = into / "before.tar"
-    with archive.open("wb") as f:
-        subprocess.run(["git", "-C", str(ROOT), "archive", commit], stdout=f, check=True)
-    tree = into / "before"
-    with tarfile.open(archive) as tar:
-        tar.extractall(tree, filter="data")
-    return tree
-
-
 def _side(tree: Path, cache: Path, args: argparse.Namespace) -> dict:
     env = dict(os.environ, PYTHONPATH=str(tree), GRASP_CACHE=str(cache))
     cmd = [sys.executable, str(Path(__file__).resolve()), "--child", "--object", args.object, "--seed",
@@ -165,10 +157,6 @@ def _print_closing(before: dict, after: dict) -> None:
         kb, ka = (1000 * d["timing"].get("contacts", 0) / max(d["candidates"], 1) for d in (b, a))
         print(f"{hand:8s} {b['candidates']:5d} | {cb:9.2f} {ca:7.2f} {_ratio(ca, cb):>5s} | {kb:10.2f} {ka:6.2f} | "
               f"{b['candidates'] / b['cpu']:8.1f} {a['candidates'] / a['cpu']:6.1f} | {b['fc']:4d} {a['fc']:5d}")
-
-
-def _load() -> str:
-    return os.popen("uptime").read().strip()
 
 
 ARGS = argparse.Namespace()
