@@ -19,7 +19,12 @@ mu x torsion_radius, analytic measures), recorded once after both merged;
 eps_weight 1 and min_open_margin 2 mm; the same grasps, other flags and
 scores); 4 (issue 15, third round: the Barrett's settled epsilon, a column
 of the digest from this version on, and the rule's settled_weight 100,
-eps_weight 3; the same grasps, other scores and ranks).
+eps_weight 3; the same grasps, other scores and ranks); 5 (issue 16: the
+settle's world gets rounded inputs, so its chaotic dynamics no longer turn
+the last bits of numpy's results -- which differ between BLAS kernels, AVX2
+or AVX-512 -- into other settled epsilons: version 4's digest held on the
+machine that recorded it, not on an AVX-512 one; the same grasps, other
+settled epsilons, scores and ranks of the Barrett's).
 """
 
 from __future__ import annotations

@@ -30,7 +30,10 @@ from planner.specs.preshapes import Preshape
 #: second calibration round (eps_weight 1, min_open_margin 2 mm; issue 15).
 #: 4: the settled epsilon (a dynamic closing per grasp, hands with ``settle``) and
 #: its term in the ranking rule (issue 15, third round).
-ALGORITHM_VERSION = 4
+#: 5: a dynamic world's inputs rounded to 1e-10 and the principal frame of equal
+#: moments chosen from the object axes (planner.sim.dynamics): settled epsilons
+#: and trials no longer depend on which BLAS kernel numpy runs (issue 16).
+ALGORITHM_VERSION = 5
 
 #: What the settings left unset mean, per sampler: surface points (or rays)
 #: per object, rolls (antipodal: approach directions about the closing

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from planner import assets
-from planner.sim import Body, Sim, pb, pb_to_pose, pose_to_pb
+from planner.sim import Body, Sim, pb, pb_to_pose, pose_to_pb, quaternion_xyzw
 
 #: [kg m^2] smallest principal moment given to PyBullet: a flat part's eigen
 #: solver may return 0 (or -1e-20), which PyBullet rejects.
@@ -34,6 +34,20 @@ SPLIT_IMPULSE_DEPTH = 0.001
 #: PyBullet collision filter groups are bit masks of this many usable bits:
 #: the most trials one world can keep apart at the same place.
 FILTER_BITS = 30
+#: Decimals kept of every length [m], angle [rad] and quaternion component a
+#: dynamic world is given. A trial is chaotic (contacts make and break), so
+#: the last bits by which numpy's results differ between BLAS kernels (AVX2
+#: and AVX-512 builds of the same expression) grow into other verdicts and
+#: settled epsilons; inputs rounded to 1e-10 are the same on every machine
+#: (unless a value falls within an ulp of a rounding boundary, ~1e-6 odds).
+INPUT_DECIMALS = 10
+#: Significant digits kept of the principal moments of inertia.
+MOMENT_DIGITS = 10
+#: Principal moments within this fraction of the largest are equal (a
+#: cylinder's two, a sphere's three): their axes are chosen from the object
+#: axes, not left to the eigen solver, which may return any basis of a
+#: degenerate eigenspace.
+EQUAL_MOMENTS = 1e-9
 #: URDF ``<contact>`` blocks (PyBullet's soft contact stiffness/damping,
 #: spinning and rolling friction): removed, the trial sets contacts itself.
 _CONTACT_BLOCK = re.compile(r"<contact>.*?</contact>", re.S)
@@ -119,11 +133,11 @@ class Dynamics:
         """A free rigid body of ``mass`` [kg] with its centre of mass ``com``
         (3,) [m] and ``inertia`` (3, 3) [kg m^2] about it (object frame),
         lateral friction ``friction``, its object frame placed at ``pose``."""
+        moments, frame = principal_inertia(inertia)
         uid = pb.createMultiBody(mass, self._collision_shape(shape), -1, basePosition=[0, 0, 0],
-                                 baseInertialFramePosition=list(com),
-                                 baseInertialFrameOrientation=_principal_frame(inertia), physicsClientId=self.c)
-        moments = np.maximum(np.linalg.eigvalsh(np.asarray(inertia, float)), MIN_MOMENT)
-        pb.changeDynamics(uid, -1, localInertiaDiagonal=list(moments), lateralFriction=friction,
+                                 baseInertialFramePosition=rounded(com),
+                                 baseInertialFrameOrientation=frame, physicsClientId=self.c)
+        pb.changeDynamics(uid, -1, localInertiaDiagonal=moments, lateralFriction=friction,
                           spinningFriction=0.0, rollingFriction=0.0, linearDamping=0.0, angularDamping=0.0,
                           physicsClientId=self.c)
         self.set_object_pose(uid, pose)
@@ -146,8 +160,9 @@ class Dynamics:
 
     def add_hand(self, urdf: Path) -> Body:
         """The hand, rigid contacts (:func:`rigid_urdf`), its base fixed at the
-        world origin: the world frame is the hand frame."""
-        body = self.sim.load_urdf(rigid_urdf(urdf), fixed=True)
+        world origin: the world frame is the hand frame. No visual shapes: a
+        trial is never drawn."""
+        body = self.sim.load_urdf(rigid_urdf(urdf), fixed=True, visual=False)
         self.sim.set_pose(body, np.eye(4))
         return body
 
@@ -172,8 +187,12 @@ class Dynamics:
         """Place the object *frame* at ``pose`` (PyBullet places the inertial frame)."""
         info = pb.getDynamicsInfo(uid, -1, physicsClientId=self.c)
         position, orientation = pose_to_pb(pose @ pb_to_pose(info[3], info[4]))
-        pb.resetBasePositionAndOrientation(uid, position, orientation, physicsClientId=self.c)
+        pb.resetBasePositionAndOrientation(uid, rounded(position), rounded(orientation), physicsClientId=self.c)
         pb.resetBaseVelocity(uid, [0, 0, 0], [0, 0, 0], physicsClientId=self.c)
+
+    def set_joints(self, body: Body, values: dict[str, float]) -> None:
+        """Joint values [rad or m], rounded to :data:`INPUT_DECIMALS`."""
+        self.sim.set_joints(body, {name: round(float(v), INPUT_DECIMALS) for name, v in values.items()})
 
     # -- fingers -------------------------------------------------------------------
     def velocity_motor(self, body: Body, joint: str, velocity: float, force: float) -> None:
@@ -249,11 +268,37 @@ class Dynamics:
         return points, normals, tuple(names[row[3]] for row in rows)
 
 
-def _principal_frame(inertia: np.ndarray) -> list[float]:
-    """Quaternion of the principal axes (a right-handed frame), for PyBullet's inertial frame."""
-    _, axes = np.linalg.eigh(np.asarray(inertia, float))
+def rounded(values: np.ndarray | list[float] | tuple[float, ...]) -> list[float]:
+    """Floats rounded to :data:`INPUT_DECIMALS` (see there: why)."""
+    return [round(float(v), INPUT_DECIMALS) + 0.0 for v in values]
+
+
+def principal_inertia(inertia: np.ndarray) -> tuple[list[float], list[float]]:
+    """(3 principal moments [kg m^2], ascending, at least MIN_MOMENT; the
+    quaternion x-y-z-w of their right-handed frame in the object frame) of a
+    symmetric (3, 3) inertia tensor, the same on every machine: each axis's
+    sign fixed (largest component positive), the axes of equal moments taken
+    from the object axes (:data:`EQUAL_MOMENTS`), everything rounded."""
+    values, axes = np.linalg.eigh(np.asarray(inertia, float))
+    scale = max(float(np.abs(values).max()), MIN_MOMENT)
+    equal = [abs(float(values[i + 1] - values[i])) <= EQUAL_MOMENTS * scale for i in range(2)]
+    if all(equal):
+        axes = np.eye(3)
+    elif any(equal):
+        single = 2 if equal[0] else 0  # the axis of the moment that differs
+        axis = _signed(axes[:, single])
+        plane = np.eye(3) - np.outer(axis, axis)
+        first = _signed(plane[:, int(np.argmax(np.linalg.norm(plane, axis=0)))])
+        pair = [first / np.linalg.norm(first), np.cross(axis, first / np.linalg.norm(first))]
+        axes = np.column_stack([axis, *pair] if single == 0 else [*pair, axis])
+    else:
+        axes = np.column_stack([_signed(axes[:, i]) for i in range(3)])
     if np.linalg.det(axes) < 0:
-        axes[:, 0] *= -1
-    frame = np.eye(4)
-    frame[:3, :3] = axes
-    return pose_to_pb(frame)[1]
+        axes[:, 2] *= -1
+    moments = [float(f"{max(float(v), MIN_MOMENT):.{MOMENT_DIGITS}g}") for v in values]
+    return moments, rounded(quaternion_xyzw(axes))
+
+
+def _signed(v: np.ndarray) -> np.ndarray:
+    """``v`` with its largest-magnitude component made positive."""
+    return v if v[int(np.argmax(np.abs(v)))] >= 0 else -v

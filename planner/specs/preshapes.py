@@ -8,6 +8,7 @@ closing synergy overriding the hand's, and the standoffs that suit it.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -32,9 +33,31 @@ class Preshape:
     tcp: np.ndarray  # (3,) [m] hand frame: where the approach ray passes (default: the hand's)
 
 
+#: Parsed taxonomies by (file, its mtime and size, the hand object): a shake
+#: trial asks for its grasp's preshape twice, and parsing the TOML each time
+#: cost more than a Barrett trial's set-up (1.5 ms per call).
+_PARSED: dict[tuple, tuple[HandSpec, tuple[Preshape, ...]]] = {}
+
+
 def load_preshapes(hand: HandSpec, names: list[str] | None = None) -> tuple[Preshape, ...]:
     """The hand's preshapes, all or the ``names`` asked for (in that order)."""
     path = assets.project_dir("preshapes") / f"{hand.name}.toml"
+    stat = path.stat() if path.is_file() else None
+    key = (str(path), stat and (stat.st_mtime_ns, stat.st_size), id(hand))
+    cached = _PARSED.get(key)
+    if cached is None or cached[0] is not hand:
+        cached = _PARSED[key] = (hand, _parse(hand, path))
+    shapes = cached[1]
+    if not names:
+        return shapes
+    by_name = {s.name: s for s in shapes}
+    for name in names:
+        if name not in by_name:
+            raise UnknownNameError("preshape", name, by_name)
+    return tuple(by_name[n] for n in names)
+
+
+def _parse(hand: HandSpec, path: Path) -> tuple[Preshape, ...]:
     f = Fields(read_toml(path), str(path))
     if f.data.get("hand", hand.name) != hand.name:
         raise ConfigError(f"{path} field 'hand': says '{f.data['hand']}', expected '{hand.name}'")
@@ -42,12 +65,7 @@ def load_preshapes(hand: HandSpec, names: list[str] | None = None) -> tuple[Pres
     by_name = {s.name: s for s in shapes}
     if len(by_name) != len(shapes):
         raise ConfigError(f"{path}: two preshapes share a name")
-    if not names:
-        return tuple(shapes)
-    for name in names:
-        if name not in by_name:
-            raise UnknownNameError("preshape", name, by_name)
-    return tuple(by_name[n] for n in names)
+    return tuple(shapes)
 
 
 def _preshape(hand: HandSpec, f: Fields) -> Preshape:

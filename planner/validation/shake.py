@@ -212,14 +212,14 @@ def _set_up(dyn: Dynamics, hand: HandSpec, obj: PreparedObject, shape: Shape, ph
     object; or the flag that stops the trial before any physics."""
     body = dyn.add_hand(hand.urdf)
     rates = fg.closing_rates(hand, grasp.preshape)
-    dyn.sim.set_joints(body, hand.full_configuration({j.name: grasp.closed_joints.get(j.name, j.lower)
+    dyn.set_joints(body, hand.full_configuration({j.name: grasp.closed_joints.get(j.name, j.lower)
                                                       for j in hand.driven}))
     lever = fg.levers(hand, grasp, joint_axes(dyn.sim, hand, body))
     if fg.clearance(hand, grasp, rates, lever) < s.min_clearance:
         dyn.remove(body.uid)
         return _flag("no_clearance")
     set_contacts(dyn, hand, body, grasp)
-    dyn.sim.set_joints(body, fg.start_joints(hand, grasp, rates, lever, s.start_gap))
+    dyn.set_joints(body, fg.start_joints(hand, grasp, rates, lever, s.start_gap))
     uid = dyn.add_object(shape, physical.mass, obj.com, obj.inertia * (physical.mass / obj.mass), physical.friction,
                          np.linalg.inv(np.asarray(grasp.pose, float)))
     dyn.keep_apart([body.uid, uid], bit)

@@ -114,3 +114,42 @@ def test_overlap_and_touching_links(box) -> None:  # type: ignore[no-untyped-def
         inside[2, 3] = 0.04 + 0.05  # the box top 1 cm above the palm: the box in the hand frame
         dyn.set_object_pose(uid, np.linalg.inv(inside))
         assert dyn.overlap(body, uid) > 0.01 - SIM_TOL
+
+
+def _diagonalises(inertia: np.ndarray, moments: list[float], quaternion: list[float]) -> None:
+    from planner.sim import rotation_from_xyzw
+
+    axes = rotation_from_xyzw(quaternion)
+    assert_close(np.linalg.det(axes), 1.0, 1e-9)
+    assert_close(axes.T @ inertia @ axes, np.diag(moments), 1e-9 * max(moments))
+
+
+@pytest.mark.parametrize("moments", [(1.0, 2.0, 3.0), (2.0, 2.0, 5.0), (1.0, 4.0, 4.0), (3.0, 3.0, 3.0)])
+def test_principal_inertia_is_a_right_handed_frame_that_diagonalises_the_tensor(moments) -> None:  # type: ignore[no-untyped-def]
+    from scipy.spatial.transform import Rotation
+
+    from planner.sim.dynamics import principal_inertia
+
+    turn = Rotation.from_rotvec([0.3, -0.2, 0.5]).as_matrix()
+    inertia = 1e-4 * turn @ np.diag(moments) @ turn.T
+    got, quaternion = principal_inertia(inertia)
+    assert_close(np.array(got), 1e-4 * np.sort(moments), 1e-12)
+    _diagonalises(inertia, got, quaternion)
+
+
+def test_principal_inertia_does_not_depend_on_the_last_bits_of_its_input() -> None:
+    """Equal moments (a cylinder's two, a sphere's three) have a whole plane
+    or space of principal axes; the eigen solver may return any basis of it,
+    and another BLAS kernel another one. The frame is chosen from the object
+    axes instead, and every number is rounded, so inputs that differ by
+    round-off give the very same frame."""
+    from planner.sim.dynamics import principal_inertia
+
+    rng = np.random.default_rng(5)
+    for diag in ([2e-4, 2e-4, 5e-4], [3e-4, 3e-4, 3e-4], [1e-4, 2e-4, 3e-4]):
+        inertia = np.diag(diag)
+        first = principal_inertia(inertia)
+        for _ in range(20):
+            noise = rng.normal(size=(3, 3)) * 1e-19
+            assert principal_inertia(inertia + noise + noise.T) == first
+        _diagonalises(inertia, *first)
