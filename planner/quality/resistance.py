@@ -29,6 +29,9 @@ is the same program through ``scipy.optimize.linprog``.
 
 from __future__ import annotations
 
+import os
+import sys
+
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -190,6 +193,34 @@ def _directions(directions: ArrayLike) -> np.ndarray:
     return dirs
 
 
+#: This process's HiGHS instance, by process id (a forked child makes its own).
+_SOLVERS: dict[int, object] = {}
+
+
+def _solver():  # type: ignore[no-untyped-def]
+    """This process's HiGHS solver, its model cleared, output off. The first
+    ``Highs()`` of a process prints HiGHS's banner on standard output (before
+    any option can turn output off), which broke ``grasp generate --json``:
+    it is made once, with file descriptor 1 pointed at /dev/null meanwhile."""
+    import highspy
+
+    solver = _SOLVERS.get(os.getpid())
+    if solver is None:
+        sys.stdout.flush()
+        saved, devnull = os.dup(1), os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(devnull, 1)
+            solver = highspy.Highs()
+        finally:
+            os.dup2(saved, 1)
+            os.close(saved)
+            os.close(devnull)
+        solver.setOptionValue("output_flag", False)
+        _SOLVERS[os.getpid()] = solver
+    solver.clearModel()
+    return solver
+
+
 def solve(prog: ResistanceProgram, directions: np.ndarray) -> np.ndarray:
     """(k,) largest s per direction: one HiGHS model, warm-started between
     directions (only the load column changes)."""
@@ -215,8 +246,7 @@ def solve(prog: ResistanceProgram, directions: np.ndarray) -> np.ndarray:
     lp.a_matrix_.start_ = np.r_[0, np.cumsum([len(c) for c in columns])].astype(np.int32)
     lp.a_matrix_.index_ = np.concatenate(columns).astype(np.int32)
     lp.a_matrix_.value_ = np.concatenate([matrix[c, j] for j, c in enumerate(columns)])
-    solver = highspy.Highs()
-    solver.setOptionValue("output_flag", False)
+    solver = _solver()
     solver.passModel(lp)
     out = np.zeros(len(directions))
     for r, d in enumerate(directions):

@@ -6,6 +6,8 @@ from __future__ import annotations
 import json
 import shutil
 import sqlite3
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -23,6 +25,18 @@ def test_generate_json_summary(tmp_path: Path) -> None:
     assert code == 0, err
     summary = json.loads(out)
     assert summary["candidates"] == 6 * 2 * 2 and summary["units"] == 1
+
+
+def test_generate_json_on_stdout_is_json_alone_with_worker_processes(tmp_path: Path) -> None:
+    """The real command, two worker processes: nothing but the JSON summary on
+    standard output (HiGHS prints a banner on fd 1 the first time a process
+    makes a solver, which once came before the summary)."""
+    args = [a if a != "1" or prev != "--workers" else "2" for prev, a in zip([""] + FAST, FAST)]
+    done = subprocess.run([sys.executable, "-m", "planner.cli", "generate", "sphere", "--hand", "panda", "--db",
+                           str(tmp_path / "s.db"), "--quiet", "--json", *args], capture_output=True, text=True,
+                          timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)["force_closure"] >= 0
 
 
 def write_obj(path: Path, text: str) -> Path:
