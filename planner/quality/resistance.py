@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import os
 import sys
-
 from collections.abc import Sequence
 from dataclasses import dataclass
 
