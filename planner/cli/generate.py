@@ -57,6 +57,10 @@ DEFAULTS = api.SweepSettings()
               "(a full 6-D hull: 0.3 s per many-contact grasp); without it the stored volume is 0.")
 @click.option("--settle/--no-settle", default=None, help="Measure the settled epsilon of every grasp (a dynamic "
               "closing on the free object, ~40 ms per grasp) [default: the hand's `settle` in hand.toml].")
+@click.option("--fc-budget", type=int, default=DEFAULTS.fc_budget, show_default=True,
+              help="About this many force-closure grasps per object: each of its units of work stops trying new "
+                   "rays or points once it has its share (the budget / the object's units, rounded up); 0: no "
+                   "limit.")
 @click.option("--reach-weight", type=float, help="Weight of reachability in the score, 0..1 (default: the "
               "database's rule, else 0.5).")
 @click.option("--quiet", is_flag=True, help="No progress bar and no summary table.")
@@ -65,8 +69,8 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
              sampler: str | None, box_delta: float, rolls: int | None, depths: str | None, fan_count: int,
              standoffs: str | None, preshape_names: str | None, scale: float | None, workers: int,
              ray_target: str | None, unit_timeout: float | None, chunk: int | None, reach_placements: int,
-             reach_top: int, volume: bool, settle: bool | None, reach_weight: float | None, quiet: bool,
-             as_json: bool) -> None:
+             reach_top: int, volume: bool, settle: bool | None, fc_budget: int, reach_weight: float | None,
+             quiet: bool, as_json: bool) -> None:
     """Sweep preshapes x approaches x rolls x standoffs and store the grasps.
 
     OBJECT: a built-in name, random_NNN, a mesh file, a folder, a glob,
@@ -76,7 +80,7 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
     settings = api.SweepSettings(approaches=approaches, sampler=sampler, box_delta=box_delta, rolls=rolls,
                                  depths=floats(depths) or DEFAULTS.depths, fan_count=fan_count,
                                  standoffs=floats(standoffs), chunk=chunk, reach_placements=reach_placements,
-                                 reach_top=reach_top, volume=volume, settle=settle,
+                                 reach_top=reach_top, volume=volume, settle=settle, fc_budget=fc_budget,
                                  preshapes=tuple(preshape_names.split(",")) if preshape_names else None)
     show = not quiet and not as_json
     with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total} units"),

@@ -68,6 +68,7 @@ class SweepSettings:
     pregrasp_distance: float = PREGRASP_DISTANCE  # [m] pre-grasp back-off along the approach
     volume: bool = False  # GWS volume of force-closure grasps (a full 6-D hull, slow; False stores 0)
     settle: bool | None = None  # the settled epsilon of every grasp (a dynamic closing); None: the hand's default
+    fc_budget: int = 1000  # about this many force-closure grasps per object (see budget_share); 0: no limit
 
     def __post_init__(self) -> None:
         if self.sampler is not None and self.sampler not in SAMPLERS:
@@ -77,8 +78,9 @@ class SweepSettings:
         if self.cone_edges < 3 or self.fan_count < 0:
             raise InputError("cone edges must be >= 3, fan count >= 0")
         if (self.chunk is not None and self.chunk < 0) or self.reach_placements < 0 or self.reach_top < 0 \
-                or self.pregrasp_distance < 0:
-            raise InputError("chunk, reach placements, reach top and pre-grasp distance must be >= 0")
+                or self.pregrasp_distance < 0 or self.fc_budget < 0:
+            raise InputError("chunk, reach placements, reach top, pre-grasp distance and the force-closure budget "
+                             "must be >= 0")
         if self.standoffs is not None and (not self.standoffs or min(self.standoffs) < 0):
             raise InputError("standoffs must be non-negative distances in metres")
         if not self.depths or min(self.depths) < 0:
@@ -130,6 +132,19 @@ class SweepSettings:
             return range(total)
         size = self._resolved_field("chunk")
         return range(chunk * size, min(total, (chunk + 1) * size))
+
+    def budget_share(self) -> int | None:
+        """Force-closure grasps after which one unit of work stops trying new
+        rays or points: ``fc_budget`` split evenly over the object's units
+        (rounded up), None without a budget. A unit finishes the ray or point
+        in progress, then leaves the rest untried: its rays and points are
+        independent random draws (or a grid, for the box sampler's one
+        unit), so stopping early is sampling fewer of them, no region of the
+        object favoured; the unit's grasps depend on the unit alone, whatever
+        the worker count or backend."""
+        if not self.fc_budget:
+            return None
+        return -(-self.fc_budget // self.chunks())
 
     def roll_angles(self, symmetry: int = 1) -> np.ndarray:
         """Rolls [rad]; a hand symmetric under a half turn needs only [0, pi)."""

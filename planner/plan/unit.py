@@ -47,6 +47,21 @@ log = logging.getLogger(__name__)
 
 #: Rejection reason of a grasp whose quality :mod:`planner.quality` cannot compute.
 QUALITY_FAILED = "quality_failed"
+#: Counted among a unit's ``rejected``: candidates left untried once the unit
+#: had its share of the force-closure budget (SweepSettings.budget_share).
+BUDGET = "budget"
+
+
+@dataclass
+class Budget:
+    """A unit's force-closure grasps so far against its share (None: no limit)."""
+
+    share: int | None
+    force_closure: int = 0
+
+    @property
+    def spent(self) -> bool:
+        return self.share is not None and self.force_closure >= self.share
 
 
 @dataclass(frozen=True)
@@ -106,10 +121,11 @@ def _run(spec: UnitSpec, result: UnitResult) -> None:
     result.obj = obj
     result.timing["prepare"] += time.perf_counter() - t0
     rng = unit_rng(spec.seed, obj.name, hand.name)
+    budget = Budget(settings.budget_share())
     with Sim() as sim:
         grasper = Grasper.for_mesh(sim, hand, obj.mesh)
         sweep = _antipodal if settings.sampler == "antipodal" else _rays
-        for cand, closed, ray in sweep(spec, settings, obj, hand, shapes, rng, grasper, result, t0):
+        for cand, closed, ray in sweep(spec, settings, obj, hand, shapes, rng, grasper, result, t0, budget):
             tb = time.perf_counter()
             q = scored(closed.contacts, hand, obj, settings.cone_edges, result.rejected, settings.volume)
             if q is None:
@@ -125,6 +141,7 @@ def _run(spec: UnitSpec, result: UnitResult) -> None:
                 open_joints=closed.open_joints, closed_joints=closed.closed_joints, width=width,
                 contacts=closed.contacts, epsilon=q.epsilon, volume=q.volume, force_closure=q.force_closure,
                 measures=m))
+            budget.force_closure += int(q.force_closure)
         # contact reading happens inside closing; report it as its own stage
         result.timing["contacts"] = grasper.contact_seconds
         result.timing["closing"] -= grasper.contact_seconds
@@ -150,17 +167,30 @@ def _check_time(spec: UnitSpec, t0: float) -> float:
     return now
 
 
+def _tried(todo: list[Candidate], budget: Budget, result: UnitResult) -> Iterator[Candidate]:
+    """The candidates in order, counted in ``result.candidates``, until the
+    budget is spent when a new ray or point would begin; the rest are
+    counted as :data:`BUDGET` in ``result.rejected``."""
+    previous = None
+    for i, cand in enumerate(todo):
+        if cand.ray != previous and budget.spent:
+            result.rejected[BUDGET] += len(todo) - i
+            return
+        previous = cand.ray
+        result.candidates += 1
+        yield cand
+
+
 def _rays(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, hand: HandSpec, shapes: tuple[Preshape, ...],
-          rng: np.random.Generator, grasper: Grasper, result: UnitResult, t0: float) -> Swept:
+          rng: np.random.Generator, grasper: Grasper, result: UnitResult, t0: float, budget: Budget) -> Swept:
     """OpenRAVE-style: approach along each ray until contact, back off, close."""
     t1 = time.perf_counter()
     rays = sampling.sample(obj.mesh, sampler=settings.sampler or "surface", count=settings.approaches or 0, rng=rng,
                            delta=settings.box_delta, fan_count=settings.fan_count, fan_angle=settings.fan_angle)
     todo = candidates(rays, shapes, settings, hand.roll_symmetry, settings.ray_range(spec.chunk, len(rays)))
-    result.candidates = len(todo)
     result.timing["sampling"] += time.perf_counter() - t1
     radius = obj.torque_scale + float(np.linalg.norm(obj.com))
-    for cand in todo:
+    for cand in _tried(todo, budget, result):
         ta = _check_time(spec, t0)
         closed = grasper.close(rays.points[cand.ray], rays.directions[cand.ray], cand.roll, cand.standoff,
                                cand.preshape, radius)
@@ -173,7 +203,7 @@ def _rays(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, hand: Ha
 
 def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, hand: HandSpec,
                shapes: tuple[Preshape, ...], rng: np.random.Generator, grasper: Grasper, result: UnitResult,
-               t0: float) -> Swept:
+               t0: float, budget: Budget) -> Swept:
     """Parallel jaws: the hand put straight on each antipodal pair, refused
     before simulation when the pair is unusable or the open hand overlaps
     the object, else closed where it is."""
@@ -183,19 +213,20 @@ def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, han
                                max_width=max(openings.values()) - 2 * MIN_CLEARANCE)
     todo = antipodal_candidates(pairs, shapes, openings, settings, MIN_CLEARANCE,
                                 settings.ray_range(spec.chunk, len(pairs)))
-    result.candidates = len(todo)
     master = next(j for j in hand.driven if j.kind == "prismatic")
     usable = [c for c in todo if not pairs.reasons[c.ray]]
-    for cand in todo:
-        if pairs.reasons[cand.ray]:
-            result.rejected[pairs.reasons[cand.ray]] += 1
     rows = np.array([c.ray for c in usable], int)
     poses = sampling.antipodal_poses(hand.approach, grasper.axis_in_root(master.name),
                                      np.array([c.preshape.tcp for c in usable]).reshape(-1, 3), pairs.axes[rows],
                                      pairs.midpoints[rows], np.array([c.roll for c in usable]),
                                      np.array([c.standoff for c in usable]))
+    pose_of = {c.index: pose for c, pose in zip(usable, poses)}
     result.timing["sampling"] += time.perf_counter() - t1
-    for cand, pose in zip(usable, poses):
+    for cand in _tried(todo, budget, result):
+        if pairs.reasons[cand.ray]:
+            result.rejected[pairs.reasons[cand.ray]] += 1
+            continue
+        pose = pose_of[cand.index]
         ta = _check_time(spec, t0)
         fitted = fitted_opening(hand, cand.preshape, master.name, pairs.widths[cand.ray] + 2 * FINGER_CLEARANCE)
         free = not grasper.overlaps_at(pose, fitted)

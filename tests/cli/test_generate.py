@@ -27,6 +27,18 @@ def test_generate_json_summary(tmp_path: Path) -> None:
     assert summary["candidates"] == 6 * 2 * 2 and summary["units"] == 1
 
 
+def test_fc_budget_stops_an_object_early(tmp_path: Path) -> None:
+    runs = {}
+    for budget in ("0", "1"):
+        code, out, err = grasp("generate", "box", "--hand", "panda", "--db", str(tmp_path / f"b{budget}.db"),
+                               "--json", "--fc-budget", budget, *FAST)
+        assert code == 0, err
+        runs[budget] = json.loads(out)
+    assert runs["0"]["force_closure"] > runs["1"]["force_closure"] >= 1
+    assert runs["1"]["rejected"]["budget"] == runs["0"]["candidates"] - runs["1"]["candidates"] > 0
+    assert "budget" not in runs["0"]["rejected"]
+
+
 def test_generate_json_on_stdout_is_json_alone_with_worker_processes(tmp_path: Path) -> None:
     """The real command, two worker processes: nothing but the JSON summary on
     standard output (HiGHS prints a banner on fd 1 the first time a process

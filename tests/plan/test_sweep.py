@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -77,10 +78,20 @@ def test_settings_digest_names_the_algorithm_and_every_setting() -> None:
     assert SweepSettings().digest == SweepSettings().digest
     assert SweepSettings(rolls=5).digest != SweepSettings().digest
     assert SweepSettings(reach_placements=0).digest != SweepSettings().digest
+    assert SweepSettings(fc_budget=0).digest != SweepSettings().digest
+
+
+def test_the_force_closure_budget_is_shared_evenly_by_an_objects_units() -> None:
+    antipodal = SweepSettings().resolved("antipodal")  # 2048 points in units of 256: 8 units
+    assert antipodal.chunks() == 8 and antipodal.budget_share() == 125  # 1000 / 8
+    assert replace(antipodal, fc_budget=1001).budget_share() == 126  # rounded up: the units reach the budget
+    assert replace(antipodal, fc_budget=0).budget_share() is None
+    assert SweepSettings(sampler="box", fc_budget=300).resolved("box").budget_share() == 300  # one unit
 
 
 @pytest.mark.parametrize("bad", [dict(approaches=0), dict(rolls=0), dict(cone_edges=2), dict(fan_count=-1),
-                                 dict(chunk=-1), dict(standoffs=(-0.01,)), dict(sampler="grid")])
+                                 dict(chunk=-1), dict(standoffs=(-0.01,)), dict(sampler="grid"),
+                                 dict(fc_budget=-1)])
 def test_bad_settings_are_refused(bad: dict) -> None:
     with pytest.raises(InputError):
         SweepSettings(**bad)

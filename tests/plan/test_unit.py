@@ -3,6 +3,8 @@ the contact model of each link in the score."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -45,6 +47,30 @@ def test_the_same_unit_gives_the_same_grasps(box_unit) -> None:  # type: ignore[
     again = run_unit(UnitSpec("box", "panda", SETTINGS, seed=1))
     assert [(g.candidate, g.epsilon, g.pose.tolist()) for g in again.grasps] == \
         [(g.candidate, g.epsilon, g.pose.tolist()) for g in box_unit.grasps]
+
+
+@pytest.mark.parametrize("sampler", ["antipodal", "surface"])
+def test_a_unit_stops_at_its_share_of_the_budget_after_a_whole_point(sampler: str) -> None:
+    """The budgeted unit tries a prefix of the same candidates, whole rays or
+    points, and stops at the first one that begins after its share is met."""
+    base = SweepSettings(approaches=24, rolls=2, sampler=sampler, preshapes=("wide",), reach_placements=0, chunk=0,
+                         fc_budget=0)
+    full = run_unit(UnitSpec("box", "panda", base, seed=2))
+    assert full.force_closure >= 8, "the box should give enough force-closure grasps to cut"
+    share = full.force_closure // 2
+    cut = run_unit(UnitSpec("box", "panda", replace(base, fc_budget=share), seed=2))
+    assert cut.error is None and share <= cut.force_closure < full.force_closure
+    assert cut.rejected[unit.BUDGET] == full.candidates - cut.candidates > 0
+
+    def key(g: Grasp) -> tuple:
+        return g.candidate, g.pose.tolist(), g.epsilon, g.closed_joints
+
+    # the same grasps as the full unit's first cut.candidates candidates (one unit: numbers start at 0)
+    assert [key(g) for g in cut.grasps] == [key(g) for g in full.grasps if g.candidate < cut.candidates]
+    per_ray = full.candidates // 24
+    assert cut.candidates % per_ray == 0  # whole rays or points
+    before_last = sum(g.force_closure for g in full.grasps if g.candidate < cut.candidates - per_ray)
+    assert before_last < share  # it did not stop a ray or point too late
 
 
 def test_failures_are_recorded_not_raised() -> None:
