@@ -21,16 +21,19 @@ from planner.cli.app import db_option, report_failures
 @click.option("--sample", type=int, default=None,
               help="Instead: a uniform sample of N of each object's grasps, drawn with --seed.")
 @click.option("--all", "every", is_flag=True, help="Instead: every stored grasp.")
+@click.option("--force-closure", "closure_only", is_flag=True,
+              help="With --all or --sample: of the force-closure grasps only.")
 @click.option("--robust", "robust_samples", type=int, default=10, show_default=True,
               help="Noise samples for robust epsilon (0: skip).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of --sample and of the robust noise.")
 @click.option("--workers", type=int, default=api.default_workers(), show_default="all cores")
 @click.option("--json", "as_json", is_flag=True)
 def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], top: int, sample: int | None,
-             every: bool, robust_samples: int, seed: int, workers: int, as_json: bool) -> None:
+             every: bool, closure_only: bool, robust_samples: int, seed: int, workers: int, as_json: bool) -> None:
     """Shake-test grasps in PyBullet (the best, a sample or all), add robust epsilon, re-rank."""
     summary = api.validate(db_path, objects=list(objects) or None, hands=list(hands) or None, top=top,
-                           sample=sample, every=every, robust_samples=robust_samples, seed=seed, workers=workers)
+                           sample=sample, every=every, robust_samples=robust_samples, seed=seed, workers=workers,
+                           closure_only=closure_only)
     if as_json:
         click.echo(json.dumps(summary.to_json(), indent=2))
     else:

@@ -84,16 +84,19 @@ def run_task(task: Task) -> TaskResult:
 @dataclass(frozen=True)
 class Selection:
     """Which grasps of each object and hand: the ``top`` best force-closure
-    ones (default), a seeded uniform ``sample`` of that many, or ``every`` one."""
+    ones (default), a seeded uniform ``sample`` of that many, or ``every`` one;
+    ``closure_only``: of the force-closure grasps only (sample and every)."""
 
     top: int = 10
     sample: int | None = None
     every: bool = False
+    closure_only: bool = False
 
     def pick(self, db: Database, obj: str, hand: str, seed: int) -> list[Grasp]:
         if not self.every and self.sample is None:
             return [g for g in db.best(obj, hand, self.top) if g.score]  # pressed grasps may rank high without closure
-        grasps = sorted((g for batch in db.grasp_batches(obj, hand) for g in batch), key=lambda g: g.id or 0)
+        grasps = sorted((g for batch in db.grasp_batches(obj, hand) for g in batch
+                         if g.force_closure or not self.closure_only), key=lambda g: g.id or 0)
         if self.every or self.sample is None or self.sample >= len(grasps):
             return grasps
         rng = np.random.default_rng([seed, zlib.crc32(obj.encode()), zlib.crc32(hand.encode())])
@@ -149,11 +152,12 @@ class ValidationSummary:
 
 def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str] | None = None, top: int = 10,
              sample: int | None = None, every: bool = False, robust_samples: int = 10, seed: int = 0,
-             workers: int = 1, settings: ShakeSettings | None = None,
+             workers: int = 1, settings: ShakeSettings | None = None, closure_only: bool = False,
              progress: Callable[[int, int], None] | None = None) -> ValidationSummary:
     """Shake-test (and robust-epsilon) each object's ``top`` best force-closure
     grasps, or a uniform ``sample`` of its grasps drawn with ``seed``, or
-    ``every`` grasp; store the results and re-rank."""
+    ``every`` grasp (``closure_only``: sample and every among the
+    force-closure grasps only); store the results and re-rank."""
     if top < 1:
         raise InputError(f"--top must be at least 1, got {top}")
     if sample is not None and sample < 1:
@@ -165,7 +169,7 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
     summary = ValidationSummary()
     with writer_lock(Path(db_path)), open_db(Path(db_path), create=False) as db:
         rule = db.rule()
-        tasks = plan(db, objects, hands, Selection(top, sample, every), seed, trial_settings, noise)
+        tasks = plan(db, objects, hands, Selection(top, sample, every, closure_only), seed, trial_settings, noise)
         if progress:
             progress(0, len(tasks))
         for done, result in enumerate(execute(tasks, workers), start=1):
