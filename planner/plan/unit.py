@@ -42,6 +42,7 @@ from planner.plan.tolerances import FINGER_CLEARANCE, MIN_CLEARANCE
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, load_hand
 from planner.specs.preshapes import Preshape, load_preshapes
+from planner.threads import one_blas_thread
 
 log = logging.getLogger(__name__)
 
@@ -103,7 +104,8 @@ def run_unit(spec: UnitSpec) -> UnitResult:
     """Run a unit; a failure is recorded in the result, never raised."""
     result = UnitResult(spec)
     try:
-        _run(spec, result)
+        with one_blas_thread():
+            _run(spec, result)
     except PlannerError as exc:
         result.error = str(exc)
     except Exception as exc:  # a simulator or library crash: keep the batch going

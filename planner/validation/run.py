@@ -25,6 +25,7 @@ from planner.grasp import Grasp, RobustEpsilon, Trial
 from planner.plan import pool
 from planner.specs.hands import load_hand
 from planner.specs.objects import is_registered
+from planner.threads import one_blas_thread
 from planner.validation.robust import NoiseSettings, robust_epsilon
 from planner.validation.shake import ShakeSettings, recorded, trials
 
@@ -65,20 +66,25 @@ def stored_object(name: str, source: str, scale: float) -> PreparedObject:
 def run_task(task: Task) -> TaskResult:
     out = TaskResult(task)
     try:
-        hand = load_hand(task.hand)
-        obj = stored_object(task.object, task.source, task.scale)
-        out.trials = trials(hand, obj, task.grasps, task.trial)
-        for g in task.grasps:
-            if task.noise is not None:
-                rng = np.random.default_rng([task.seed, zlib.crc32(task.object.encode()), g.candidate, g.seed])
-                out.robust.append(robust_epsilon(hand, obj, g, rng, task.noise))
-            else:
-                out.robust.append(None)
+        with one_blas_thread():
+            _run_task(task, out)
     except PlannerError as exc:
         out.error = str(exc)
     except Exception as exc:  # keep the other tasks going
         out.error = f"{type(exc).__name__}: {exc}"
     return out
+
+
+def _run_task(task: Task, out: TaskResult) -> None:
+    hand = load_hand(task.hand)
+    obj = stored_object(task.object, task.source, task.scale)
+    out.trials = trials(hand, obj, task.grasps, task.trial)
+    for g in task.grasps:
+        if task.noise is not None:
+            rng = np.random.default_rng([task.seed, zlib.crc32(task.object.encode()), g.candidate, g.seed])
+            out.robust.append(robust_epsilon(hand, obj, g, rng, task.noise))
+        else:
+            out.robust.append(None)
 
 
 @dataclass(frozen=True)
