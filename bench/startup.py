@@ -1,0 +1,108 @@
+"""Start-up time of the ``grasp`` command (issue 25 item 8).
+
+Prints, for ``grasp --help`` and ``grasp best`` on a small database, the
+median wall time of ``--runs`` fresh interpreters (each a subprocess, as a
+user's shell starts it), and the heaviest imports of ``import planner.cli``
+by ``python -X importtime`` (cumulative microseconds, top ``--top``).
+
+``--root DIR`` runs another checkout's code (e.g. the branch's first commit,
+unpacked with ``git archive COMMIT | tar -x -C DIR``); ``--compare DIR``
+runs both and prints them side by side. The database is built once per root
+with the root's own code (a box, 20 surface points, one worker) unless
+``--db`` names one.
+
+    python bench/startup.py --runs 7 --compare /tmp/startup-base
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent.parent
+#: Every run is a fresh interpreter with the project's code first on the path.
+CLI = ("-m", "planner.cli")
+
+
+def env_for(root: Path) -> dict[str, str]:
+    return {**os.environ, "PYTHONPATH": str(root)}
+
+
+def wall(root: Path, args: list[str], runs: int) -> float:
+    """Median wall time [s] of ``python -m planner.cli ARGS`` over ``runs`` fresh processes."""
+    times = []
+    for _ in range(runs):
+        start = time.perf_counter()
+        done = subprocess.run([sys.executable, *CLI, *args], env=env_for(root), capture_output=True, text=True)
+        times.append(time.perf_counter() - start)
+        if done.returncode != 0:
+            raise SystemExit(f"{root}: grasp {' '.join(args)} failed ({done.returncode}): {done.stderr.strip()}")
+    return statistics.median(times)
+
+
+def small_db(root: Path, folder: Path) -> Path:
+    path = folder / f"startup-{abs(hash(str(root)))}.db"
+    if not path.is_file():
+        subprocess.run([sys.executable, *CLI, "generate", "box", "--hand", "panda", "--db", str(path),
+                        "--approaches", "20", "--workers", "1", "--quiet", "--reach-placements", "0"],
+                       env=env_for(root), check=True, capture_output=True)
+    return path
+
+
+def import_times(root: Path) -> dict[str, int]:
+    """Cumulative import time [us] of each module ``import planner.cli`` imports."""
+    done = subprocess.run([sys.executable, "-X", "importtime", "-c", "import planner.cli"], env=env_for(root),
+                          capture_output=True, text=True, check=True)
+    out = {}
+    for line in done.stderr.splitlines():
+        m = re.match(r"import time:\s+(\d+) \|\s+(\d+) \|(\s*)(\S+)", line)
+        if m:
+            out[m.group(4)] = int(m.group(2))
+    return out
+
+
+def measure(root: Path, runs: int, db: Path | None, folder: Path) -> dict:
+    path = db or small_db(root, folder)
+    return {"help": wall(root, ["--help"], runs),
+            "best": wall(root, ["best", "box", "--hand", "panda", "--db", str(path)], runs),
+            "imports": import_times(root)}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--runs", type=int, default=7)
+    parser.add_argument("--top", type=int, default=15)
+    parser.add_argument("--root", type=Path, default=HERE)
+    parser.add_argument("--compare", type=Path, help="another checkout, shown as 'before'")
+    parser.add_argument("--db", type=Path)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        now = measure(args.root.resolve(), args.runs, args.db, Path(tmp))
+        before = measure(args.compare.resolve(), args.runs, args.db, Path(tmp)) if args.compare else None
+    print(f"median of {args.runs} fresh processes, {os.cpu_count()} cores, load {os.getloadavg()[0]:.2f}")
+    print(f"{'':18s} {'before':>8s} {'now':>8s}")
+    for key, label in (("help", "grasp --help [s]"), ("best", "grasp best [s]")):
+        old = f"{before[key]:8.3f}" if before else f"{'-':>8s}"
+        print(f"{label:18s} {old} {now[key]:8.3f}")
+    print(f"\nimport planner.cli, cumulative [ms] (top {args.top} of now, and before):")
+    heavy = ("trimesh", "pybullet", "h5py", "pyarrow", "matplotlib", "scipy", "yourdfpy", "rich", "numpy",
+             "planner.api", "planner.datasets.exporter", "planner.cli")
+    names = sorted(now["imports"], key=now["imports"].get, reverse=True)[:args.top]
+    for name in dict.fromkeys([*names, *heavy]):
+        old = before["imports"].get(name) if before else None
+        new = now["imports"].get(name)
+        if old is None and new is None:
+            continue
+        fmt = lambda v: f"{v / 1000:8.1f}" if v is not None else f"{'-':>8s}"  # noqa: E731
+        print(f"  {name:40s} {fmt(old)} {fmt(new)}")
+
+
+if __name__ == "__main__":
+    main()
