@@ -13,6 +13,7 @@ wraps these functions (and the names re-exported here).
 from __future__ import annotations
 
 import logging
+import math
 import os
 import time
 from collections import Counter
@@ -44,7 +45,7 @@ from planner.present import report as reporting
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, hand_names, load_hand
 from planner.specs.inputs import expand
-from planner.specs.objects import RANDOM_COUNT, RANDOM_PREFIX, ObjectSpec, builtin_specs, resolve_spec
+from planner.specs.objects import RANDOM_COUNT, RANDOM_PREFIX, ObjectSpec, Physical, builtin_specs, resolve_spec
 from planner.specs.preshapes import Preshape, load_preshapes
 from planner.validation.run import ValidationSummary, validate
 
@@ -73,6 +74,9 @@ UNIT_TIMEOUT_GRACE = 10.0
 QUATERNION_NORM = (0.5, 2.0)
 #: Stored object names an "unknown object" error lists at most.
 LISTED_NAMES = 12
+#: Relative difference below which a stored mass, density or friction is the
+#: one given: a density comes back from the store as mass / volume, a few ulp off.
+PROPERTY_RTOL = 1e-9
 
 
 @dataclass
@@ -97,48 +101,82 @@ class Summary:
 
 # -- building -----------------------------------------------------------------------
 def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: int,
-               scale: float | None = None) -> list[UnitSpec]:
+               scale: float | None = None, physical: Physical = Physical()) -> list[UnitSpec]:
     """Expand the object arguments and check every input up front (names,
-    hand, preshapes) before any work."""
-    refs = expand(list(names), scale)
+    hand, preshapes, physical properties) before any work."""
+    refs = expand(list(names), scale, physical)
     if not refs:
         raise InputError("no objects given")
     hand_spec = load_hand(hand)
     settings = settings.resolved(hand_spec.sampler, hand_spec.settle)
     load_preshapes(hand_spec, list(settings.preshapes) if settings.preshapes else None)
-    units, seen = [], set()
+    units, seen = [], {}
     for ref in refs:
-        spec = resolve_spec(ref.source, scale=ref.scale, label=ref.label)
+        spec = resolve_spec(ref.source, scale=ref.scale, label=ref.label, **ref.physical.given())
         if spec.kind == "mesh" and not spec.source.startswith("pybullet_data:") and not Path(spec.source).exists():
             raise InputError(f"{spec.source}: file not found")
         if spec.name in seen:
+            if seen[spec.name] != spec:
+                raise InputError(f"object '{spec.name}' is given twice with different scale, mass, density or "
+                                 "friction; give it once")
             continue
-        seen.add(spec.name)
-        units += [UnitSpec(ref.source, hand, settings, seed, ref.scale, chunk, label=spec.name)
-                  for chunk in range(settings.chunks())]
+        seen[spec.name] = spec
+        units += [UnitSpec(ref.source, hand, settings, seed, ref.scale, chunk, label=spec.name,
+                           physical=ref.physical) for chunk in range(settings.chunks())]
     if len(refs) == 1:
         # One object: a broken mesh is the user's input error, reported before
         # the database is opened. In a batch it is recorded and the rest go on.
-        load_object(refs[0].source, scale=refs[0].scale)
+        load_object(refs[0].source, scale=refs[0].scale, **refs[0].physical.given())
     return units
+
+
+def _check_stored_physics(db: Database, units: Sequence[UnitSpec]) -> None:
+    """Refuse to add grasps of an object at another mass, density or friction
+    than its stored grasps were measured at: one name, one set of properties."""
+    checked: set[str] = set()
+    for unit in units:
+        name = unit.label or unit.object_name
+        row = db.object_row(name) if name not in checked else None
+        checked.add(name)
+        if row is None:
+            continue
+        spec = resolve_spec(unit.object_name, scale=unit.scale, label=unit.label, **unit.physical.given())
+        stored = {"density": row.density} if spec.density is not None else {"mass": row.mass}
+        given = {"density": spec.density} if spec.density is not None else {"mass": spec.mass}
+        stored["friction"], given["friction"] = row.friction, spec.friction
+        if any(not math.isclose(given[k], stored[k], rel_tol=PROPERTY_RTOL) for k in given):
+            def text(values: dict[str, float]) -> str:
+                return ", ".join(f"{k} {v:g}" for k, v in values.items())
+
+            raise InputError(f"object '{name}' is stored in {db.path} with {text(stored)}, this run gives "
+                             f"{text(given)}; its grasps were measured at the stored values: use another --db, or "
+                             "name the object apart (copy the mesh under another name)")
 
 
 def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, settings: SweepSettings | None = None,
              seed: int = 0, workers: int = 1, scale: float | None = None, rule: RankingRule | None = None,
              use_ray: bool = False, ray_address: str | None = None, unit_timeout: float | None = None,
-             progress: Callable[[UnitResult | None, int, int], None] | None = None) -> Summary:
+             progress: Callable[[UnitResult | None, int, int], None] | None = None,
+             mass: float | None = None, density: float | None = None, friction: float | None = None) -> Summary:
     """Build (or extend) a grasp database; finished units are skipped, so a
     run that was killed resumes when called again. Units run in this process
     (``workers`` 1), in a crash-safe pool of ``workers`` processes, or on Ray
     (:func:`planner.plan.pool.execute`); a unit whose worker dies twice, or
     that fails, is stored as failed with its error and the batch goes on.
+    ``mass`` [kg] or ``density`` [kg/m^3], and ``friction``, apply to every
+    object except where a manifest line gives its own (see
+    :mod:`planner.specs.objects`); an object stored at other values is refused.
     ``progress(None, 0, total)`` first, then ``progress(result, done, total)``."""
+    if workers < 1:
+        raise InputError(f"--workers must be at least 1, got {workers}")
+    physical = Physical.checked({"mass": mass, "density": density, "friction": friction}, prefix="--")
     hand_spec = load_hand(hand)
     settings = (settings or SweepSettings()).resolved(hand_spec.sampler, hand_spec.settle)
-    units = plan_units(names, hand, settings, seed, scale)
+    units = plan_units(names, hand, settings, seed, scale, physical)
     summary = Summary()
     start = time.perf_counter()
     with writer_lock(Path(db_path)), open_db(Path(db_path)) as db:
+        _check_stored_physics(db, units)
         rule = rule or db.rule()
         db.apply_rule(rule)
         done = db.units_done(hand, settings.digest, seed)

@@ -26,6 +26,10 @@ class Group(click.Group):
         debug = "--debug" in sys.argv[1:] or (ctx.params or {}).get("debug", False)
         try:
             return super().invoke(ctx)
+        except click.UsageError as exc:  # a subcommand's bad option value: one line too, with where to look
+            where = exc.ctx.command_path if exc.ctx is not None else ctx.command_path
+            click.echo(f"grasp: error: {exc.format_message()} (see `{where} --help`)", err=True)
+            ctx.exit(exc.exit_code)
         except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
             raise
         except PlannerError as exc:

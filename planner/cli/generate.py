@@ -39,6 +39,12 @@ DEFAULTS = api.SweepSettings()
 @click.option("--standoffs", help="Comma-separated standoffs [m] (default: each preshape's).")
 @click.option("--preshapes", "preshape_names", help="Comma-separated preshape names (default: all).")
 @click.option("--scale", type=float, help="Scale for mesh files (e.g. 0.001 for millimetres).")
+@click.option("--mass", type=float, help="Mass of every object given [kg] (a manifest line's own wins) "
+              "[default: a mesh's sidecar TOML, the registry's, else 0.2].")
+@click.option("--density", type=float, help="Uniform density of every object given [kg/m^3]: the mass is density "
+              "x the mesh's volume; excludes --mass.")
+@click.option("--friction", type=float, help="Coulomb friction coefficient of every object given, 0 < mu <= 3 "
+              "[default: a mesh's sidecar TOML, the registry's, else 0.5].")
 @click.option("--workers", type=int, default=api.default_workers(), show_default="all cores",
               help="Worker processes.")
 @click.option("--ray", "ray_target", is_flag=False, flag_value="local", default=None, metavar="[ADDRESS]",
@@ -67,15 +73,17 @@ DEFAULTS = api.SweepSettings()
 @click.option("--json", "as_json", is_flag=True, help="Print a machine-readable summary.")
 def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approaches: int | None,
              sampler: str | None, box_delta: float, rolls: int | None, depths: str | None, fan_count: int,
-             standoffs: str | None, preshape_names: str | None, scale: float | None, workers: int,
+             standoffs: str | None, preshape_names: str | None, scale: float | None, mass: float | None,
+             density: float | None, friction: float | None, workers: int,
              ray_target: str | None, unit_timeout: float | None, chunk: int | None, reach_placements: int,
              reach_top: int, volume: bool, settle: bool | None, fc_budget: int, reach_weight: float | None,
              quiet: bool, as_json: bool) -> None:
     """Sweep preshapes x approaches x rolls x standoffs and store the grasps.
 
     OBJECT: a built-in name, random_NNN, a mesh file, a folder, a glob,
-    @manifest.txt (one object per line, optional scale), builtin:all,
-    builtin:random[:COUNT | :FIRST-LAST].
+    @manifest.txt (one object per line: OBJECT [SCALE] [mass=KG | density=KG_M3]
+    [friction=MU]), builtin:all, builtin:random[:COUNT | :FIRST-LAST]. A mesh
+    file's sidecar (banana.obj + banana.toml) may give mass or density and friction.
     """
     settings = api.SweepSettings(approaches=approaches, sampler=sampler, box_delta=box_delta, rolls=rolls,
                                  depths=floats(depths) or DEFAULTS.depths, fan_count=fan_count,
@@ -83,28 +91,34 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
                                  reach_top=reach_top, volume=volume, settle=settle, fc_budget=fc_budget,
                                  preshapes=tuple(preshape_names.split(",")) if preshape_names else None)
     show = not quiet and not as_json
-    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total} units"),
-                  TextColumn("{task.fields[grasps]} grasps, {task.fields[fc]} force-closure, {task.fields[rate]}"),
-                  TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), disable=not show) as bar:
-        task = bar.add_task("generating", total=None, grasps=0, fc=0, rate="")
-        counts = {"grasps": 0, "fc": 0, "candidates": 0}
-        started = time.perf_counter()
+    # the bar starts when the work does (progress(None, 0, total)): an input error comes alone
+    bar = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total} units"),
+                   TextColumn("{task.fields[grasps]} grasps, {task.fields[fc]} force-closure, {task.fields[rate]}"),
+                   TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), disable=not show)
+    counts = {"grasps": 0, "fc": 0, "candidates": 0}
+    started = time.perf_counter()
+    tasks: list = []
 
-        def advance(result: api.UnitResult | None, done: int, total: int) -> None:
-            if result is None:
-                bar.update(task, total=total)
-                return
-            counts["grasps"] += len(result.grasps)
-            counts["fc"] += result.force_closure
-            counts["candidates"] += result.candidates
-            rate = counts["candidates"] / max(time.perf_counter() - started, 1e-9)
-            bar.update(task, completed=done, grasps=counts["grasps"], fc=counts["fc"], rate=f"{rate:.0f} cand/s")
+    def advance(result: api.UnitResult | None, done: int, total: int) -> None:
+        if result is None:
+            bar.start()
+            tasks.append(bar.add_task("generating", total=total, grasps=0, fc=0, rate=""))
+            return
+        counts["grasps"] += len(result.grasps)
+        counts["fc"] += result.force_closure
+        counts["candidates"] += result.candidates
+        rate = counts["candidates"] / max(time.perf_counter() - started, 1e-9)
+        bar.update(tasks[0], completed=done, grasps=counts["grasps"], fc=counts["fc"], rate=f"{rate:.0f} cand/s")
 
-        rule = api.RankingRule(reach_weight) if reach_weight is not None else None
+    rule = api.RankingRule(reach_weight) if reach_weight is not None else None
+    try:
         summary = api.generate(names, hand, db_path=db_path, settings=settings, seed=seed, workers=workers,
                                scale=scale, rule=rule, progress=advance, use_ray=ray_target is not None,
                                ray_address=None if ray_target in (None, "local") else ray_target,
-                               unit_timeout=unit_timeout)
+                               unit_timeout=unit_timeout, mass=mass, density=density, friction=friction)
+    finally:
+        if tasks:
+            bar.stop()
     if as_json:
         click.echo(json.dumps(summary.to_json(), indent=2))
     elif not quiet:

@@ -54,6 +54,7 @@ the ``csv`` module with a header row, floats written in full precision.
 | `robust_samples` | int64, null | noise samples behind the robust values |
 | `object_mass` | float64 | [kg] |
 | `object_friction` | float64 | friction coefficient used for the quality |
+| `object_density` | float64 | [kg/m^3] uniform density: `object_mass` / the mesh's volume |
 | `object_scale` | float64 | scale that turns `object_file` into metres: 1 (the mesh file is in metres) |
 | `object_file` | string | the object's mesh, `meshes/{object}.obj`, relative to the export folder |
 """
@@ -97,7 +98,8 @@ _SPEC: list[tuple[str, str, str]] = [
       for k in ("linear", "angular")),
     ("robust_epsilon_mean", "float64", "robust_mean"), ("robust_epsilon_quantile", "float64", "robust_quantile"),
     ("robust_samples", "int64", "robust_samples"),
-    ("object_mass", "float64", ""), ("object_friction", "float64", ""), ("object_scale", "float64", ""),
+    ("object_mass", "float64", ""), ("object_friction", "float64", ""), ("object_density", "float64", ""),
+    ("object_scale", "float64", ""),
     ("object_file", "string", ""),
 ]
 COLUMNS = [name for name, _, _ in _SPEC]
@@ -111,7 +113,8 @@ def columns(stream: Stream, batch: list[Grasp]) -> dict[str, np.ndarray | list]:
     """One batch as flat columns (numpy arrays or lists of str)."""
     n, info = len(batch), stream.info
     constants = {"object": info.name, "hand": stream.hand, "object_mass": info.row.mass,
-                 "object_friction": info.row.friction, "object_scale": info.scale, "object_file": info.file}
+                 "object_friction": info.row.friction, "object_density": info.row.density, "object_scale": info.scale,
+                 "object_file": info.file}
     grasps = grasp_columns(batch)
     out: dict[str, np.ndarray | list] = {}
     for name, _, source in _SPEC:

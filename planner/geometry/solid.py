@@ -12,7 +12,7 @@ from __future__ import annotations
 import hashlib
 import io
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import trimesh
@@ -79,9 +79,12 @@ def load_object(name: str, *, label: str | None = None, **overrides: float | Non
 
 
 def prepare(spec: ObjectSpec) -> PreparedObject:
+    """The checked object; a spec with a ``density`` gets the mass density x volume."""
     mesh, source_file = _cached_mesh(spec)
     volume = float(mesh.volume)
-    density = spec.mass / volume
+    if spec.density is not None:
+        spec = replace(spec, mass=spec.density * volume)
+    density = spec.mass / volume if spec.density is None else spec.density
     mesh.density = density
     com = np.asarray(mesh.center_mass, float)
     inertia = np.asarray(mesh.moment_inertia, float)

@@ -41,6 +41,7 @@ from planner.plan.sweep import (
 from planner.plan.tolerances import FINGER_CLEARANCE, MIN_CLEARANCE
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, load_hand
+from planner.specs.objects import Physical
 from planner.specs.preshapes import Preshape, load_preshapes
 from planner.threads import one_blas_thread
 
@@ -77,6 +78,7 @@ class UnitSpec:
     chunk: int = 0  # which slice of the object's rays (see SweepSettings.chunk)
     label: str | None = None  # database name of the object (None: its default name)
     timeout: float | None = None  # [s] give up on the unit after this long (checked between candidates)
+    physical: Physical = Physical()  # the user's mass or density and friction (None: the object's own)
 
 
 @dataclass
@@ -116,7 +118,7 @@ def run_unit(spec: UnitSpec) -> UnitResult:
 
 def _run(spec: UnitSpec, result: UnitResult) -> None:
     t0 = time.perf_counter()
-    obj = load_object(spec.object_name, scale=spec.scale, label=spec.label)
+    obj = load_object(spec.object_name, scale=spec.scale, label=spec.label, **spec.physical.given())
     hand = load_hand(spec.hand)
     settings = spec.settings.resolved(hand.sampler, hand.settle)
     shapes = load_preshapes(hand, list(settings.preshapes) if settings.preshapes else None)

@@ -8,7 +8,10 @@ Accepted, in any mix:
   ``builtin:random:100-149`` (a range, inclusive);
 - a folder (its mesh files, recursively) or a glob (``meshes/**/*.obj``);
 - ``@list.txt``: a manifest, one object per line, optionally followed by a
-  scale; ``#`` starts a comment; relative paths are relative to the manifest.
+  scale and ``key=value`` columns (``scale=``, ``mass=`` [kg] or
+  ``density=`` [kg/m^3], ``friction=``), e.g. ``banana.obj 1 mass=0.066
+  friction=0.8``; ``#`` starts a comment; relative paths are relative to the
+  manifest. A line's values win over the run's (``--scale``, ``--mass`` ...).
 
 Mesh files are named by their file stem; when two files of one run share a
 stem, their parent folders are prefixed until the names differ.
@@ -17,11 +20,23 @@ stem, their parent folders are prefixed until the names differ.
 from __future__ import annotations
 
 import glob
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from planner.errors import InputError
-from planner.specs.objects import MESH_SUFFIXES, RANDOM_COUNT, RANDOM_PREFIX, builtin_specs, resolve_spec
+from planner.specs.objects import (
+    MESH_SUFFIXES,
+    PHYSICAL_KEYS,
+    RANDOM_COUNT,
+    RANDOM_PREFIX,
+    Physical,
+    builtin_specs,
+    resolve_spec,
+)
+
+#: What a manifest line holds.
+MANIFEST_LINE = "OBJECT [SCALE] [scale=S] [mass=KG | density=KG_M3] [friction=MU]"
 
 
 @dataclass(frozen=True)
@@ -31,26 +46,34 @@ class ObjectRef:
     source: str  # built-in name or mesh path
     scale: float | None = None
     label: str | None = None  # database name (None: the default one)
+    physical: Physical = Physical()  # the user's mass or density and friction (None: the object's own)
 
     @property
     def name(self) -> str:
         return self.label or resolve_spec(self.source, scale=self.scale).name
 
 
-def expand(args: list[str] | tuple[str, ...], scale: float | None = None) -> list[ObjectRef]:
+def expand(args: list[str] | tuple[str, ...], scale: float | None = None,
+           physical: Physical = Physical()) -> list[ObjectRef]:
+    """The objects the arguments name; ``scale`` and ``physical`` apply to
+    each, except where a manifest line gives its own."""
     refs: list[ObjectRef] = []
     for arg in args:
-        refs += _expand_one(arg, scale)
+        refs += _expand_one(arg, scale, physical)
     return _unique_labels(refs)
 
 
-def _expand_one(arg: str, scale: float | None) -> list[ObjectRef]:
+def _expand_one(arg: str, scale: float | None, physical: Physical) -> list[ObjectRef]:
+    if arg.startswith("@"):
+        return _manifest(Path(arg[1:]), scale, physical)
+    return [replace(ref, physical=physical) for ref in _expand_plain(arg, scale)]
+
+
+def _expand_plain(arg: str, scale: float | None) -> list[ObjectRef]:
     if arg == "builtin:all":
         return [ObjectRef(name) for name in builtin_specs()]
     if arg.startswith("builtin:random"):
         return [ObjectRef(f"{RANDOM_PREFIX}{i:03d}") for i in _random_range(arg)]
-    if arg.startswith("@"):
-        return _manifest(Path(arg[1:]), scale)
     path = Path(arg).expanduser()
     if path.is_dir():
         files = sorted(p for p in path.rglob("*") if p.suffix.lower() in MESH_SUFFIXES and p.is_file())
@@ -84,38 +107,49 @@ def _random_range(arg: str) -> range:
     return result
 
 
-def _manifest(path: Path, scale: float | None) -> list[ObjectRef]:
+def _manifest(path: Path, scale: float | None, physical: Physical) -> list[ObjectRef]:
     if not path.is_file():
         raise InputError(f"{path}: manifest not found")
     refs = []
     for number, raw in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
         line = raw.split("#", 1)[0].strip()
-        if not line:
-            continue
-        parts = line.split()
-        if len(parts) > 2:
-            raise InputError(f"{path}:{number}: expected 'OBJECT [SCALE]', got '{raw.strip()}'")
-        item_scale = scale
-        if len(parts) == 2:
-            try:
-                item_scale = float(parts[1])
-            except ValueError:
-                raise InputError(f"{path}:{number}: scale '{parts[1]}' is not a number") from None
-        source = parts[0]
-        candidate = (path.parent / source)
-        if Path(source).suffix.lower() in MESH_SUFFIXES and not Path(source).is_absolute():
-            source = str(candidate.resolve())
-        refs.append(ObjectRef(source, item_scale))
+        if line:
+            refs.append(_manifest_line(line, f"{path}:{number}", path.parent, scale, physical))
     if not refs:
         raise InputError(f"{path}: manifest lists no objects")
     return refs
 
 
+def _manifest_line(line: str, where: str, folder: Path, scale: float | None, physical: Physical) -> ObjectRef:
+    """One manifest line (see :data:`MANIFEST_LINE`); ``where``: file:line for errors."""
+    source, *rest = line.split()
+    columns: dict[str, str] = {}
+    for i, token in enumerate(rest):
+        key, sep, value = token.partition("=")
+        if not sep and i == 0:
+            key, value = "scale", token
+        elif not sep or key not in ("scale", *PHYSICAL_KEYS) or key in columns:
+            raise InputError(f"{where}: expected '{MANIFEST_LINE}', got '{line}'")
+        columns[key] = value
+    item_scale = scale
+    if "scale" in columns:
+        text = columns.pop("scale")
+        try:
+            item_scale = float(text)
+        except ValueError:
+            raise InputError(f"{where}: scale '{text}' is not a number") from None
+        if not (math.isfinite(item_scale) and item_scale > 0):
+            raise InputError(f"{where}: scale must be a positive number, got {item_scale:g}")
+    if Path(source).suffix.lower() in MESH_SUFFIXES and not Path(source).is_absolute():
+        source = str((folder / source).resolve())
+    return ObjectRef(source, item_scale, physical=Physical.checked(columns, where).over(physical))
+
+
 def _unique_labels(refs: list[ObjectRef]) -> list[ObjectRef]:
     """Drop repeats; give mesh files sharing a stem distinct names."""
-    seen: dict[tuple[str, float | None], ObjectRef] = {}
+    seen: dict[tuple[str, float | None, Physical], ObjectRef] = {}
     for ref in refs:
-        seen.setdefault((ref.source, ref.scale), ref)
+        seen.setdefault((ref.source, ref.scale, ref.physical), ref)
     refs = list(seen.values())
     files = [r for r in refs if Path(r.source).suffix.lower() in MESH_SUFFIXES]
     depth = 0
@@ -126,7 +160,7 @@ def _unique_labels(refs: list[ObjectRef]) -> list[ObjectRef]:
         depth += 1
     if depth == 0:
         return refs
-    return [ObjectRef(r.source, r.scale, labels[r.source]) if r.source in labels else r for r in refs]
+    return [replace(r, label=labels[r.source]) if r.source in labels else r for r in refs]
 
 
 def _label(path: Path, depth: int) -> str:

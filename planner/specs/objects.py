@@ -6,11 +6,20 @@ physical parameters; :mod:`planner.geometry.solid` turns it into a checked
 solid. The object frame is the frame of the (scaled) mesh file, as in
 ACRONYM: every grasp pose in the database is expressed in it. Lengths in
 metres, masses in kilograms.
+
+An object's mass (or density) and friction come, the first that gives them:
+a manifest line's columns, ``grasp generate --mass/--density/--friction``
+(every object of the run), a TOML sidecar beside a mesh file
+(``banana.obj`` + ``banana.toml`` with ``mass``, ``density``, ``friction``),
+the registry entry, else :data:`DEFAULT_MASS` and :data:`DEFAULT_FRICTION`.
+Mass and density are one property given two ways: a source gives one or
+the other, never both, and the first source that gives either decides.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from functools import lru_cache
 from pathlib import Path
@@ -28,6 +37,88 @@ RANDOM_COUNT = 1000
 RANDOM_MASS = 0.1  # kg: the generated objects are 5-10 cm across
 #: Mesh files an object (or a folder of objects) may be given as.
 MESH_SUFFIXES = (".obj", ".stl", ".ply", ".glb", ".gltf", ".off")
+#: Largest Coulomb friction coefficient accepted: rubber on rough surfaces
+#: reaches about 1-2, so a larger value is a typo (a percentage, a unit mix-up).
+MAX_FRICTION = 3.0
+#: The keys of a physical-properties sidecar (``banana.toml`` beside ``banana.obj``).
+SIDECAR_SUFFIX = ".toml"
+PHYSICAL_KEYS = ("mass", "density", "friction")
+_UNITS = {"mass": "kg", "density": "kg/m^3", "friction": "Coulomb coefficient"}
+
+
+@dataclass(frozen=True)
+class Physical:
+    """Physical properties a user gives for an object; None: not given.
+
+    ``mass`` [kg] or ``density`` [kg/m^3] (uniform over the closed mesh; the
+    mass is then density x volume), never both; ``friction``: Coulomb
+    coefficient, 0 < mu <= :data:`MAX_FRICTION`. Build with :meth:`checked`
+    from user input for an error naming the source and field.
+    """
+
+    mass: float | None = None
+    density: float | None = None
+    friction: float | None = None
+
+    def __post_init__(self) -> None:
+        check_physical(self.mass, self.density, self.friction, "", "")
+
+    @classmethod
+    def checked(cls, values: Mapping[str, object], where: str = "", prefix: str = "") -> Physical:
+        """From raw values (numbers, or text of numbers); the error names
+        ``where`` (a file and line) and the field as ``prefix + key``."""
+        unknown = sorted(set(values) - set(PHYSICAL_KEYS))
+        if unknown:
+            raise InputError(f"{_at(where)}unknown field '{prefix}{unknown[0]}'; use "
+                             f"{', '.join(prefix + k for k in PHYSICAL_KEYS)}")
+        numbers = {k: _number(values[k], k, where, prefix) for k in PHYSICAL_KEYS if values.get(k) is not None}
+        check_physical(numbers.get("mass"), numbers.get("density"), numbers.get("friction"), where, prefix)
+        return cls(**numbers)
+
+    def over(self, base: Physical) -> Physical:
+        """These properties, with ``base``'s where these give none (mass or
+        density together: whichever gives either decides)."""
+        heavy = self.mass is not None or self.density is not None
+        return Physical(self.mass if heavy else base.mass, self.density if heavy else base.density,
+                        self.friction if self.friction is not None else base.friction)
+
+    def given(self) -> dict[str, float]:
+        return {k: v for k in PHYSICAL_KEYS if (v := getattr(self, k)) is not None}
+
+
+def _at(where: str) -> str:
+    return f"{where}: " if where else ""
+
+
+def _number(value: object, key: str, where: str, prefix: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+        raise InputError(f"{_at(where)}{prefix}{key} must be a number [{_UNITS[key]}], got {value!r}")
+    try:
+        return float(value)
+    except ValueError:
+        raise InputError(f"{_at(where)}{prefix}{key} must be a number [{_UNITS[key]}], got '{value}'") from None
+
+
+def check_physical(mass: float | None, density: float | None, friction: float | None, where: str = "",
+                   prefix: str = "") -> None:
+    """Raise an InputError naming the field of the first bad value."""
+    if mass is not None and density is not None:
+        raise InputError(f"{_at(where)}{prefix}mass and {prefix}density exclude each other (the mass is density x "
+                         "volume); give one")
+    for key, value in (("mass", mass), ("density", density), ("friction", friction)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise InputError(f"{_at(where)}{prefix}{key} must be a positive number [{_UNITS[key]}], got {value}")
+    if friction is not None and friction > MAX_FRICTION:
+        raise InputError(f"{_at(where)}{prefix}friction must lie in (0, {MAX_FRICTION:g}] (a Coulomb coefficient), "
+                         f"got {friction}")
+
+
+def sidecar(mesh: Path) -> Physical:
+    """The properties in ``mesh``'s sidecar (same stem, ``.toml``), if any."""
+    path = mesh.with_suffix(SIDECAR_SUFFIX)
+    if not path.is_file():
+        return Physical()
+    return Physical.checked(read_toml(path), str(path))
 
 
 @dataclass(frozen=True)
@@ -45,9 +136,10 @@ class ObjectSpec:
     scale: float = 1.0
     geometry: str = "collision"  # which URDF mesh: "collision" or "visual"
     dims: tuple[float, ...] = ()
-    mass: float = DEFAULT_MASS
+    mass: float = DEFAULT_MASS  # [kg]; replaced by density x volume when ``density`` is given
     friction: float = DEFAULT_FRICTION
     description: str = ""
+    density: float | None = None  # [kg/m^3] when the user gave a density, else None (from the mass)
 
 
 def registry_path() -> Path:
@@ -113,9 +205,16 @@ def random_spec(index: int) -> ObjectSpec:
 
 
 def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = None,
-                 friction: float | None = None, label: str | None = None) -> ObjectSpec:
+                 friction: float | None = None, label: str | None = None, density: float | None = None
+                 ) -> ObjectSpec:
     """A built-in name, ``random_NNN``, or a path to a mesh file; ``label``
-    renames it (two mesh files of one run with the same stem)."""
+    renames it (two mesh files of one run with the same stem). ``mass`` (or
+    ``density``) and ``friction`` override the object's own, a mesh file's
+    from its sidecar (see the module docstring)."""
+    given = Physical.checked({"mass": mass, "density": density, "friction": friction}, f"object '{name}'")
+    if scale is not None and not (math.isfinite(scale) and scale > 0):
+        raise InputError(f"object '{name}': scale must be a positive number, got {scale:g} (0.001 for a mesh in "
+                         "millimetres)")
     builtin = builtin_specs()
     if name in builtin:
         spec = builtin[name]
@@ -125,16 +224,21 @@ def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = 
         spec = random_spec(_random_index(name))  # type: ignore[arg-type]
     elif Path(name).suffix.lower() in MESH_SUFFIXES or Path(name).exists():
         path = Path(name).expanduser().resolve()
-        spec = ObjectSpec(name=path.stem, kind="mesh", source=str(path), scale=scale or 1.0)
+        spec = ObjectSpec(name=path.stem, kind="mesh", source=str(path), scale=1.0 if scale is None else scale)
+        given = given.over(sidecar(path))
     else:
         raise UnknownNameError("object", name,
                                [*builtin, f"{RANDOM_PREFIX}000..{RANDOM_PREFIX}999", "or a mesh file path"])
     if label:
         spec = replace(spec, name=label)
-    overrides = {k: v for k, v in (("mass", mass), ("friction", friction)) if v is not None}
-    for key, value in overrides.items():
-        if not math.isfinite(value) or value <= 0:
-            raise InputError(f"object '{name}': {key} must be a positive number, got {value}")
+    return with_physical(spec, given)
+
+
+def with_physical(spec: ObjectSpec, physical: Physical) -> ObjectSpec:
+    """``spec`` with the properties ``physical`` gives (a mass clears a density)."""
+    overrides: dict[str, float | None] = dict(physical.given())
+    if physical.mass is not None:
+        overrides["density"] = None
     return replace(spec, **overrides) if overrides else spec
 
 
