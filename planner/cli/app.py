@@ -6,6 +6,7 @@ from __future__ import annotations
 import logging
 import sqlite3
 import sys
+import traceback
 from pathlib import Path
 
 import click
@@ -33,25 +34,28 @@ class Group(click.Group):
         except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
             raise
         except PlannerError as exc:
-            if debug:
-                raise
+            _traceback(debug)
             click.echo(f"grasp: error: {exc}", err=True)
             ctx.exit(exc.exit_code)
         except sqlite3.Error as exc:
-            if debug:
-                raise
+            _traceback(debug)
             click.echo(f"grasp: error: database: {exc}", err=True)
             ctx.exit(DatabaseError.exit_code)
         except KeyboardInterrupt:
             click.echo("grasp: interrupted; finished units are saved, run the same command to resume", err=True)
             ctx.exit(EXIT_INTERRUPTED)
         except Exception as exc:
-            if debug:
-                raise
+            _traceback(debug)
             click.echo(f"grasp: internal error: {type(exc).__name__}: {exc} (rerun with --debug for details)",
                        err=True)
             ctx.exit(EXIT_OTHER)
         return None
+
+
+def _traceback(debug: bool) -> None:
+    """``--debug``: the traceback on stderr before the one line; the exit code stays the error's."""
+    if debug:
+        traceback.print_exc()
 
 
 @click.group(cls=Group)

@@ -71,11 +71,13 @@ def checked_solid(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh:
     check_extent(mesh, where)
     if not mesh.is_watertight:
         mesh = _repair(mesh, where)
-    trimesh.repair.fix_normals(mesh, multibody=True)
-    if mesh.volume < 0:
+    with np.errstate(divide="ignore", invalid="ignore"):  # a flat mesh's centre of mass is 0/0: refused below
+        trimesh.repair.fix_normals(mesh, multibody=True)
+        volume = float(mesh.volume)
+    if volume < 0:
         mesh.invert()
-    if mesh.volume < MIN_VOLUME:
-        raise MeshError(f"{where}: mesh encloses no volume ({mesh.volume:.3g} m^3): it is flat or open")
+    if abs(volume) < MIN_VOLUME:
+        raise MeshError(f"{where}: mesh encloses no volume ({abs(volume):.3g} m^3): it is flat or open")
     return mesh
 
 

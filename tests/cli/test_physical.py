@@ -1,0 +1,132 @@
+"""``grasp generate --mass/--density/--friction``, manifest columns and
+sidecars end to end: the values stored, used by the measures, exported, and
+an object stored at other values refused."""
+
+from __future__ import annotations
+
+import csv
+import json
+import sqlite3
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+import trimesh
+from helpers import FAST, NUM_TOL, grasp, one_line_error
+
+BRICK = (0.05, 0.04, 0.06)  # [m]
+VOLUME = BRICK[0] * BRICK[1] * BRICK[2]
+
+
+def stored(db: Path) -> dict[str, tuple[float, float, float]]:
+    with sqlite3.connect(db) as conn:
+        return {n: (m, f, d) for n, m, f, d in conn.execute("SELECT name, mass, friction, density FROM objects")}
+
+
+def measures(db: Path) -> dict[int, tuple[float, float]]:
+    with sqlite3.connect(db) as conn:
+        return {c: (w, e) for c, w, e in conn.execute(
+            "SELECT candidate, resist_worst, epsilon FROM grasps WHERE resist_worst IS NOT NULL")}
+
+
+@pytest.fixture
+def brick(tmp_path: Path) -> Path:
+    path = tmp_path / "meshes" / "brick.obj"
+    path.parent.mkdir()
+    trimesh.creation.box(extents=BRICK).export(path)
+    return path
+
+
+def generate(db: Path, *args: str) -> tuple[int, str, str]:
+    return grasp("generate", *args, "--hand", "panda", "--db", str(db), "--quiet", *FAST)
+
+
+def test_flags_are_stored_and_used_by_the_measures(tmp_path: Path) -> None:
+    light, heavy = tmp_path / "light.db", tmp_path / "heavy.db"
+    assert generate(light, "box", "--mass", "0.1", "--friction", "0.5")[0] == 0
+    assert generate(heavy, "box", "--mass", "0.4", "--friction", "0.5")[0] == 0
+    assert stored(light)["box"][:2] == (0.1, 0.5) and stored(heavy)["box"][:2] == (0.4, 0.5)
+    a, b = measures(light), measures(heavy)
+    assert a.keys() == b.keys() and a
+    for candidate in a:  # epsilon is the shape's; the weight the grasp resists grows with the mass
+        assert a[candidate][1] == pytest.approx(b[candidate][1], abs=NUM_TOL)
+        assert a[candidate][0] > b[candidate][0]
+
+
+def test_density_flag_stores_the_mass_it_gives(tmp_path: Path, brick: Path) -> None:
+    db = tmp_path / "g.db"
+    code, _, err = generate(db, str(brick), "--density", "500")
+    assert code == 0, err
+    mass, friction, density = stored(db)["brick"]
+    assert density == 500.0 and mass == pytest.approx(500.0 * VOLUME, rel=NUM_TOL) and friction == 0.5
+
+
+def test_sidecar_and_manifest_values_are_stored(tmp_path: Path, brick: Path) -> None:
+    brick.with_suffix(".toml").write_text("mass = 0.066\nfriction = 0.8\n")
+    other = brick.with_name("slab.obj")
+    trimesh.creation.box(extents=(0.06, 0.05, 0.03)).export(other)
+    (tmp_path / "list.txt").write_text("meshes/brick.obj\nmeshes/slab.obj density=300 friction=0.6\n")
+    db = tmp_path / "g.db"
+    code, _, err = generate(db, f"@{tmp_path / 'list.txt'}", "--friction", "0.4")
+    assert code == 0, err
+    rows = stored(db)
+    assert rows["brick"][:2] == (0.066, 0.4)  # the sidecar's mass; the run's friction beats the sidecar's
+    assert rows["slab"][1:] == (0.6, 300.0)
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--mass", "-1"], "--mass must be a positive number [kg], got -1"),
+    (["--mass", "0"], "--mass must be a positive number"),
+    (["--density", "nan"], "--density must be a positive number"),
+    (["--friction", "0"], "--friction must be a positive number"),
+    (["--friction", "4"], "--friction must lie in (0, 3]"),
+    (["--mass", "abc"], "Invalid value for '--mass'"),
+    (["--mass", "0.2", "--density", "300"], "--mass and --density exclude each other"),
+])
+def test_bad_flags_are_one_line_before_any_database(tmp_path: Path, args: list[str], needle: str) -> None:
+    db = tmp_path / "g.db"
+    code, out, err = generate(db, "box", *args)
+    one_line_error(code, err, 2, needle)
+    assert not db.exists() and out == ""
+
+
+def test_bad_sidecar_is_one_line(tmp_path: Path, brick: Path) -> None:
+    brick.with_suffix(".toml").write_text('friction = "high"\n')
+    code, _, err = generate(tmp_path / "g.db", str(brick))
+    one_line_error(code, err, 2, "brick.toml: friction must be a number")
+
+
+def test_another_mass_does_not_mix_with_stored_grasps(tmp_path: Path, brick: Path) -> None:
+    db = tmp_path / "g.db"
+    assert generate(db, str(brick), "--mass", "0.1")[0] == 0
+    with sqlite3.connect(db) as conn:
+        before = conn.execute("SELECT COUNT(*) FROM grasps").fetchone()
+    code, _, err = generate(db, str(brick), "--mass", "0.3")
+    one_line_error(code, err, 2, "object 'brick' is stored", "with mass 0.1", "this run gives mass 0.3")
+    code, _, err = grasp("generate", str(brick), "--hand", "barrett", "--db", str(db), "--quiet", *FAST[:4],
+                         "--friction", "0.9")  # another hand shares the object's row: refused as well
+    one_line_error(code, err, 2, "friction 0.5", "friction 0.9")
+    with sqlite3.connect(db) as conn:
+        assert conn.execute("SELECT COUNT(*) FROM grasps").fetchone() == before
+    assert stored(db)["brick"][0] == 0.1
+    assert generate(db, str(brick), "--mass", "0.1")[0] == 0  # the same values resume
+
+
+def test_exports_carry_mass_friction_and_density(tmp_path: Path, brick: Path) -> None:
+    db = tmp_path / "g.db"
+    assert generate(db, str(brick), "--density", "400", "--friction", "0.7")[0] == 0
+    mass = 400.0 * VOLUME
+    for fmt in ("acronym", "graspgen", "csv"):
+        code, _, err = grasp("export", "--db", str(db), "--format", fmt, "--out", str(tmp_path / fmt))
+        assert code == 0, err
+    with h5py.File(tmp_path / "acronym" / "brick__panda.h5") as f:
+        got = [float(f[f"object/{k}"][()]) for k in ("mass", "friction", "density")]
+    assert np.allclose(got, [mass, 0.7, 400.0], rtol=NUM_TOL)
+    data = json.loads((tmp_path / "graspgen" / "grasp_data" / "panda" / "brick.json").read_text())
+    assert np.allclose([data["object"][k] for k in ("mass", "friction", "density")], [mass, 0.7, 400.0], rtol=NUM_TOL)
+    table = next((tmp_path / "csv").rglob("*.csv"))
+    with table.open() as fh:
+        row = next(csv.DictReader(fh))
+    assert np.allclose([float(row[k]) for k in ("object_mass", "object_friction", "object_density")],
+                       [mass, 0.7, 400.0], rtol=NUM_TOL)

@@ -1,0 +1,131 @@
+"""An object's physical properties as input: checked values, the sidecar,
+manifest columns, which source wins, and the density turned into a mass."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+import trimesh
+from helpers import NUM_TOL
+
+from planner.errors import InputError
+from planner.geometry.solid import load_object
+from planner.specs import inputs
+from planner.specs.objects import MAX_FRICTION, Physical, resolve_spec
+
+BRICK = (0.05, 0.04, 0.06)  # [m]: volume 1.2e-4 m^3
+
+
+@pytest.fixture
+def brick(tmp_path: Path) -> Path:
+    path = tmp_path / "brick.obj"
+    trimesh.creation.box(extents=BRICK).export(path)
+    return path
+
+
+@pytest.mark.parametrize("values, needle", [
+    ({"mass": -1}, "mass must be a positive number [kg], got -1"),
+    ({"mass": 0}, "mass must be a positive number"),
+    ({"density": float("nan")}, "density must be a positive number [kg/m^3], got nan"),
+    ({"friction": 0}, "friction must be a positive number"),
+    ({"friction": MAX_FRICTION * 2}, "friction must lie in (0, 3]"),
+    ({"friction": "high"}, "friction must be a number [Coulomb coefficient], got 'high'"),
+    ({"mass": True}, "mass must be a number"),
+    ({"mass": 1, "density": 500}, "mass and density exclude each other"),
+    ({"weight": 1}, "unknown field 'weight'"),
+])
+def test_bad_values_name_the_field_and_where(values: dict, needle: str) -> None:
+    with pytest.raises(InputError) as info:
+        Physical.checked(values, "list.txt:3")
+    assert str(info.value).startswith("list.txt:3: ") and needle in str(info.value)
+
+
+def test_cli_prefix_names_the_flag() -> None:
+    with pytest.raises(InputError, match="^--mass and --density exclude each other"):
+        Physical.checked({"mass": 1.0, "density": 2.0}, prefix="--")
+
+
+def test_over_takes_mass_or_density_together() -> None:
+    line, run = Physical(density=500.0), Physical(mass=0.3, friction=0.9)
+    assert line.over(run) == Physical(density=500.0, friction=0.9)
+    assert Physical(friction=0.2).over(run) == Physical(mass=0.3, friction=0.2)
+    assert Physical().over(run) == run
+
+
+def test_sidecar_is_read_and_explicit_values_win(brick: Path) -> None:
+    brick.with_suffix(".toml").write_text("density = 500.0\nfriction = 0.8\n")
+    spec = resolve_spec(str(brick))
+    assert (spec.density, spec.friction) == (500.0, 0.8)
+    spec = resolve_spec(str(brick), mass=0.07)
+    assert (spec.mass, spec.density, spec.friction) == (0.07, None, 0.8)
+    assert resolve_spec(str(brick), friction=0.3).friction == 0.3
+
+
+def test_bad_sidecar_is_an_error_naming_the_file(brick: Path) -> None:
+    brick.with_suffix(".toml").write_text("mass = -0.1\n")
+    with pytest.raises(InputError, match=r"brick\.toml: mass must be a positive number"):
+        resolve_spec(str(brick))
+    brick.with_suffix(".toml").write_text("mass = 0.1\ndensity = 3.0\n")
+    with pytest.raises(InputError, match=r"brick\.toml: mass and density exclude each other"):
+        resolve_spec(str(brick))
+
+
+def test_density_gives_mass_density_times_volume(brick: Path) -> None:
+    obj = load_object(str(brick), density=500.0)
+    volume = math.prod(BRICK)
+    assert obj.volume == pytest.approx(volume, rel=NUM_TOL)
+    assert obj.mass == pytest.approx(500.0 * volume, rel=NUM_TOL) and obj.density == 500.0
+    heavy = load_object(str(brick), mass=0.5)
+    assert heavy.mass == 0.5 and heavy.density == pytest.approx(0.5 / volume, rel=NUM_TOL)
+    assert heavy.gyration_radius == pytest.approx(obj.gyration_radius, rel=NUM_TOL)  # a shape's, not a mass's
+
+
+def test_builtins_take_the_overrides_too() -> None:
+    assert resolve_spec("box", friction=0.9).friction == 0.9
+    assert load_object("box", density=1000.0).mass == pytest.approx(1000.0 * load_object("box").volume)
+
+
+def test_scale_zero_is_refused_like_a_negative_one(brick: Path) -> None:
+    for scale in (0.0, -1.0):
+        with pytest.raises(InputError, match="scale must be a positive number"):
+            resolve_spec(str(brick), scale=scale)
+        with pytest.raises(InputError, match="scale must be a positive number"):
+            resolve_spec("box", scale=scale)
+
+
+def test_manifest_columns(tmp_path: Path, brick: Path) -> None:
+    (tmp_path / "objects.txt").write_text(
+        "brick.obj 0.5 mass=0.066 friction=0.8  # scale, then columns\n"
+        "box density=700\n"
+        "sphere scale=2\n")
+    refs = inputs.expand([f"@{tmp_path / 'objects.txt'}"], physical=Physical(mass=0.3, friction=0.4))
+    assert [(r.scale, r.physical) for r in refs] == [
+        (0.5, Physical(mass=0.066, friction=0.8)),
+        (None, Physical(density=700.0, friction=0.4)),  # the line's density wins over the run's mass
+        (2.0, Physical(mass=0.3, friction=0.4)),
+    ]
+
+
+@pytest.mark.parametrize("line, needle", [
+    ("brick.obj mass=abc", "objects.txt:1: mass must be a number [kg], got 'abc'"),
+    ("brick.obj mass=-2", "objects.txt:1: mass must be a positive number"),
+    ("brick.obj mass=1 density=2", "objects.txt:1: mass and density exclude each other"),
+    ("brick.obj friction=9", "objects.txt:1: friction must lie in"),
+    ("brick.obj 0", "objects.txt:1: scale must be a positive number, got 0"),
+    ("brick.obj 1 2", "expected 'OBJECT [SCALE]"),
+    ("brick.obj weight=2", "expected 'OBJECT [SCALE]"),
+    ("brick.obj mass=1 mass=2", "expected 'OBJECT [SCALE]"),
+])
+def test_bad_manifest_columns(tmp_path: Path, brick: Path, line: str, needle: str) -> None:
+    (tmp_path / "objects.txt").write_text(line + "\n")
+    with pytest.raises(InputError) as info:
+        inputs.expand([f"@{tmp_path / 'objects.txt'}"])
+    assert needle in str(info.value)
+
+
+def test_run_values_apply_to_every_plain_argument(tmp_path: Path, brick: Path) -> None:
+    run = Physical(friction=0.7)
+    refs = inputs.expand(["box", str(tmp_path)], physical=run)
+    assert [r.physical for r in refs] == [run, run]
