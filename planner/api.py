@@ -15,6 +15,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+import shlex
 import time
 from collections import Counter
 from collections.abc import Callable, Sequence
@@ -45,7 +46,15 @@ from planner.present import report as reporting
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, hand_names, load_hand
 from planner.specs.inputs import expand
-from planner.specs.objects import RANDOM_COUNT, RANDOM_PREFIX, ObjectSpec, Physical, builtin_specs, resolve_spec
+from planner.specs.objects import (
+    RANDOM_COUNT,
+    RANDOM_PREFIX,
+    ObjectSpec,
+    Physical,
+    builtin_specs,
+    is_registered,
+    resolve_spec,
+)
 from planner.specs.preshapes import Preshape, load_preshapes
 from planner.validation.run import ValidationSummary, validate
 
@@ -258,8 +267,27 @@ def _stored(db: Database, name: str, hand: str) -> tuple[str, PreparedObject]:
     key, row = resolve_object(db, name)
     if row is None:
         raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db.path}; "
-                         f"run `grasp generate {name} --hand {hand}`")
+                         f"run `{generate_command(name, row, hand, db.path)}`")
     return key, stored_object(row)
+
+
+def generate_command(name: str, row: ObjectRow | None, hand: str, db_path: Path) -> str:
+    """The ``grasp generate`` command that plans the object ``name`` means
+    for ``hand``: a stored mesh by its file (its name alone is no object),
+    with the stored scale, mass and friction where the file does not give them."""
+    db = "" if Path(db_path) == DEFAULT_DB else f" --db {shlex.quote(str(db_path))}"
+    if row is None or is_registered(row.name) or not Path(row.source).is_file():
+        return f"grasp generate {shlex.quote(name)} --hand {hand}{db}"
+    scale = None if row.scale == 1.0 else row.scale
+    own = resolve_spec(row.source, scale=scale)
+    extra = "" if scale is None else f" --scale {scale!r}"
+    if not math.isclose(own.mass, row.mass, rel_tol=PROPERTY_RTOL) and own.density is None:
+        extra += f" --mass {row.mass!r}"
+    if own.density is not None and not math.isclose(own.density, row.density, rel_tol=PROPERTY_RTOL):
+        extra += f" --density {row.density!r}"
+    if not math.isclose(own.friction, row.friction, rel_tol=PROPERTY_RTOL):
+        extra += f" --friction {row.friction!r}"
+    return f"grasp generate {shlex.quote(row.source)} --hand {hand}{extra}{db}"
 
 
 def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1) -> list[Grasp]:
@@ -268,12 +296,12 @@ def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1) -> l
         raise InputError(f"--top must be at least 1, got {top}")
     load_hand(hand)
     with open_db(Path(db_path), create=False, readonly=True) as db:
-        key, _ = resolve_object(db, name)
+        key, row = resolve_object(db, name)
         grasps = db.best(key, hand, top)
         if not grasps:
             known = db.objects_for(hand)
             raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}; objects with grasps: "
-                             f"{', '.join(known) or '(none)'}; run `grasp generate {name} --hand {hand}`")
+                             f"{', '.join(known) or '(none)'}; run `{generate_command(name, row, hand, db_path)}`")
     return grasps
 
 
@@ -327,7 +355,7 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
                         break
         if offset == 0:
             raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}; "
-                             f"run `grasp generate {name} --hand {hand}`")
+                             f"run `{generate_command(name, db.object_row(key), hand, db_path)}`")
     return found
 
 

@@ -42,7 +42,9 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
         click.echo(json.dumps([r.to_json() for r in found], indent=2))
         return
     if not found:
-        click.echo(f"no grasp among the top {max_candidates} is reachable at that pose", err=True)
+        click.echo(f"grasp: error: none of the {max_candidates} best grasps of '{object_name}' for hand '{hand}' is "
+                   f"reachable with the object at {object_pose}; try more of them (--max-candidates "
+                   f"{max_candidates * 10}), an object pose nearer the arm, or check --robot-base", err=True)
         sys.exit(EXIT_OTHER)
     for r in found:
         _print_grasp(r.grasp)

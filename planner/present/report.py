@@ -192,26 +192,47 @@ def _plot(report: HandReport) -> bytes:
     return buffer.getvalue()
 
 
+#: An AUC over fewer grasps than this of either class (held, slipped) is
+#: marked: its standard error (Hanley and McNeil 1982) is then about 0.05 or
+#: more, so differences of a few hundredths between measures mean nothing.
+AUC_MIN_CLASS = 50
+
+
 def _summary_rows(report: HandReport) -> list[tuple[str, str]]:
+    """The summary table; a figure that cannot be computed (NaN: a measure
+    never stored, one class only) is left out, not printed as ``nan``."""
     ok = report.success
     wins, n = report.top1_objects()
     top1, top10a, missing = report.analytic_top(10)
     top10, _ = report.top_k(10)
-    return [
-        ("validated grasps", str(len(ok))),
+    held, slipped = int(np.nansum(ok)), int(np.isfinite(ok).sum() - np.nansum(ok))
+    small = min(held, slipped) < AUC_MIN_CLASS
+    mark = f" (small sample: fewer than {AUC_MIN_CLASS} of a class)" if small else ""
+    rows: list[tuple[str, float | str]] = [
+        ("validated grasps", f"{len(ok)} ({held} held, {slipped} slipped)"),
         ("objects", str(n)),
-        ("overall success rate", f"{np.nanmean(ok):.3f}"),
+        ("overall success rate", float(np.nanmean(ok))),
         ("top-1 grasp succeeds, final ranking (objects)", f"{wins}/{n} = {wins / max(n, 1):.1%}"),
-        ("top-1 of the analytic order succeeds (share of objects)", f"{top1:.3f}"),
-        ("top-10 of the analytic order, success rate", f"{top10a:.3f} ({missing} picks without a trial left out)"),
-        ("top-10 success rate (mean over objects)", f"{top10:.3f}"),
-        *[(f"ROC AUC({name}, success)", f"{roc_auc(ok, report.measure(name)):.3f}") for name in AUC_MEASURES],
-        ("Spearman(epsilon, success)", f"{spearman(report.measure('epsilon'), ok):.3f}"),
-        ("Spearman(robust epsilon mean, success)", f"{spearman(report.measure('robust_mean'), ok):.3f}"),
-        ("Spearman(robust epsilon quantile, success)", f"{spearman(report.measure('robust_quantile'), ok):.3f}"),
-        ("Spearman(reachability, success)", f"{spearman(report.measure('reachability'), ok):.3f}"),
-        ("Spearman(rank, success) (negative is good)", f"{spearman(report.measure('rank'), ok):.3f}"),
+        ("top-1 of the analytic order succeeds (share of objects)", top1),
+        ("top-10 of the analytic order, success rate",
+         f"{top10a:.3f} ({missing} picks without a trial left out)" if math.isfinite(top10a) else math.nan),
+        ("top-10 success rate (mean over objects)", top10),
+        *[(f"ROC AUC({name}, success)", _marked(roc_auc(ok, report.measure(name)), mark)) for name in AUC_MEASURES],
+        ("Spearman(epsilon, success)", spearman(report.measure("epsilon"), ok)),
+        ("Spearman(robust epsilon mean, success)", spearman(report.measure("robust_mean"), ok)),
+        ("Spearman(robust epsilon quantile, success)", spearman(report.measure("robust_quantile"), ok)),
+        ("Spearman(reachability, success)", spearman(report.measure("reachability"), ok)),
+        ("Spearman(rank, success) (negative is good)", spearman(report.measure("rank"), ok)),
     ]
+    if small:
+        rows.insert(1, ("note", f"{held} held and {slipped} slipped: AUCs from fewer than {AUC_MIN_CLASS} grasps "
+                                "of a class are uncertain by 0.05 or more; validate more (--sample N)"))
+    return [(k, v if isinstance(v, str) else f"{v:.3f}") for k, v in rows
+            if not (isinstance(v, float) and math.isnan(v))]
+
+
+def _marked(auc: float, mark: str) -> float | str:
+    return auc if math.isnan(auc) else f"{auc:.3f}{mark}"
 
 
 def _per_object(report: HandReport) -> list[tuple[str, ...]]:
@@ -220,7 +241,9 @@ def _per_object(report: HandReport) -> list[tuple[str, ...]]:
         mine = report._of(name)
         ok = np.array([g.validation.success for g in mine], float)  # type: ignore[union-attr]
         eps = np.array([g.epsilon for g in mine], float)
-        out.append((name, str(len(mine)), f"{ok.mean():.2f}", "yes" if ok[0] else "no", f"{spearman(eps, ok):.2f}"))
+        rho = spearman(eps, ok)
+        out.append((name, str(len(mine)), f"{ok.mean():.2f}", "yes" if ok[0] else "no",
+                    "n/a" if math.isnan(rho) else f"{rho:.2f}"))
     return out
 
 

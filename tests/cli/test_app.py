@@ -43,11 +43,26 @@ def test_unknown_names_list_the_valid_ones(tmp_path: Path, monkeypatch: pytest.M
     assert not (tmp_path / "grasps.db").exists()
 
 
-def test_debug_shows_the_traceback(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_debug_shows_the_traceback_and_keeps_the_exit_code(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
-    from click.testing import CliRunner
+    plain, _, _ = grasp("generate", "teapot", "--hand", "panda")
+    code, _, err = grasp("--debug", "generate", "teapot", "--hand", "panda")
+    assert code == plain == InputError.exit_code
+    assert "Traceback" in err and err.strip().splitlines()[-1].startswith("grasp: error: unknown object 'teapot'")
+    code, _, err = grasp("--debug", "best", "box", "--hand", "panda", "--db", "nowhere.db")
+    assert code == 3 and "Traceback" in err
 
-    from planner.cli import main
 
-    result = CliRunner().invoke(main, ["--debug", "generate", "teapot", "--hand", "panda"])
-    assert result.exit_code != 0 and result.exception is not None and "unknown object" in str(result.exception)
+@pytest.mark.parametrize("args, needle", [
+    (["generate", "box", "--hand", "panda", "--scale", "0"], "scale must be a positive number, got 0"),
+    (["generate", "box", "--hand", "panda", "--scale", "-1"], "scale must be a positive number, got -1"),
+    (["generate", "box", "--hand", "panda", "--workers", "0"], "--workers must be at least 1, got 0"),
+    (["generate", "box", "--hand", "panda", "--seed", "x"], "Invalid value for '--seed'"),
+])
+def test_early_errors_come_alone(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, args: list[str],
+                                 needle: str) -> None:
+    """Refused before any work: one line on stderr, nothing on stdout (no progress bar), no database."""
+    monkeypatch.chdir(tmp_path)
+    code, out, err = grasp(*args)
+    one_line_error(code, err, InputError.exit_code, needle)
+    assert out == "" and not (tmp_path / "grasps.db").exists()

@@ -8,6 +8,7 @@ import shutil
 import sqlite3
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import pytest
@@ -72,6 +73,15 @@ def test_broken_mesh_files_one_line_and_db_untouched(box_db: Path, tmp_path: Pat
     code, _, err = grasp("generate", str(path), "--hand", "panda", "--db", str(box_db), *FAST, "--quiet")
     one_line_error(code, err, 2, name, needle)
     assert snapshot(box_db) == before
+
+
+def test_flat_mesh_refused_without_a_numpy_warning(tmp_path: Path) -> None:
+    path = write_obj(tmp_path / "flat.obj", "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0.1 0.1 0\nf 1 2 3\nf 2 4 3\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a RuntimeWarning would become an internal error (exit 1)
+        code, out, err = grasp("generate", str(path), "--hand", "panda", "--db", str(tmp_path / "g.db"), *FAST)
+    one_line_error(code, err, 2, "flat.obj", "encloses no volume")
+    assert out == ""
 
 
 def test_millimetres_passed_as_metres(tmp_path: Path) -> None:

@@ -1,8 +1,10 @@
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from helpers import made_up
 
 from planner import api
 from planner.cli import main
@@ -52,3 +54,28 @@ def test_roc_auc_and_top_k_known_answers() -> None:
     assert (top1, top2, missing) == (0.5, 0.5, 0)
     top1, top3, missing = top_k_success(orders, 3)
     assert missing == 1 and top3 == pytest.approx((0.5 + 2 / 3) / 2)
+
+
+def test_no_nan_rows_and_small_samples_are_marked(validated_db: Path) -> None:
+    """Six validated grasps: every figure that exists is a number, every AUC
+    says it rests on a small sample, and a note says how small."""
+    for rep in report.collect(validated_db):
+        rows = dict(report._summary_rows(rep))
+        assert not any("nan" in v for v in rows.values()), rows
+        assert "held" in rows["validated grasps"] and "validate more" in rows["note"]
+        aucs = {k: v for k, v in rows.items() if k.startswith("ROC AUC")}
+        assert all("small sample" in v for v in aucs.values())
+        assert all(cells[-1] != "nan" for cells in report._per_object(rep))
+
+
+def test_auc_of_a_large_sample_is_not_marked() -> None:
+    """The mark depends on the class counts alone: 60 held and 60 slipped pass."""
+    from planner.grasp import Trial
+
+    rep = report.HandReport("toy")
+    for i in range(120):
+        g = made_up(i, epsilon=0.01 * (i % 7), fc=True)
+        rep.grasps.append(replace(g, id=i, rank=i + 1, validation=Trial(bool(i % 2), 2, 0.0, 0.0, 0.0, 0.0)))
+    rows = dict(report._summary_rows(rep))
+    assert "note" not in rows and "small sample" not in rows["ROC AUC(epsilon, success)"]
+    assert rows["validated grasps"] == "120 (60 held, 60 slipped)"
