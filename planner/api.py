@@ -8,10 +8,16 @@ wraps these functions (and the names re-exported here).
 - datasets: :func:`export`, :func:`import_files`;
 - descriptions: :func:`hands`, :func:`hand`, :func:`objects`;
 - maintenance: :func:`check_db`.
+
+Heavy libraries (trimesh, PyBullet, scipy, h5py, pyarrow, the exporters) are
+imported by the functions that use them, and the names re-exported from
+their modules are loaded on first use (:data:`_LAZY`): importing the API, and
+so starting the ``grasp`` command, costs numpy and the specs alone.
 """
 
 from __future__ import annotations
 
+import importlib
 import logging
 import math
 import os
@@ -22,29 +28,18 @@ from collections.abc import Callable, Sequence
 from contextlib import closing
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from planner.datasets import exporter, importer
-from planner.datasets.exporter import ExportSummary, export
-from planner.datasets.importer import ImportResult, import_files
-from planner.datasets.meshes import stored_object
 from planner.db.lock import writer_lock
 from planner.db.ranking import RankingRule
 from planner.db.store import Database, ObjectRow, UnitRow, open_db
 from planner.errors import InputError, UnknownNameError
-from planner.geometry.frames import pose_from_xyzquat
-from planner.geometry.solid import PreparedObject, load_object
 from planner.grasp import Grasp
-from planner.plan import pool
-from planner.plan.reach import ReachScene, ReachSettings
-from planner.plan.sampling import SAMPLERS
 from planner.plan.sweep import SAMPLER_DEFAULTS, SweepSettings
 from planner.plan.tolerances import PREGRASP_DISTANCE
-from planner.plan.unit import UnitResult, UnitSpec, run_unit
-from planner.present import report as reporting
-from planner.sim import Sim
-from planner.specs.hands import HandSpec, hand_names, load_hand
+from planner.specs.hands import SAMPLERS, HandSpec, check_hand_name, hand_names, load_hand
 from planner.specs.inputs import expand
 from planner.specs.objects import (
     RANDOM_COUNT,
@@ -56,7 +51,13 @@ from planner.specs.objects import (
     resolve_spec,
 )
 from planner.specs.preshapes import Preshape, load_preshapes
-from planner.validation.run import ValidationSummary, validate
+
+if TYPE_CHECKING:
+    from planner.datasets.exporter import ExportSummary, export
+    from planner.datasets.importer import ImportResult, import_files
+    from planner.geometry.solid import PreparedObject
+    from planner.plan.unit import UnitResult, UnitSpec, run_unit
+    from planner.validation.run import ValidationSummary, validate
 
 __all__ = [
     "DEFAULT_DB", "EXPORT_FORMATS", "IMPORT_FORMATS", "RANDOM_COUNT", "RANDOM_PREFIX", "ExportSummary", "Grasp",
@@ -69,8 +70,20 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 DEFAULT_DB = Path("grasps.db")
-EXPORT_FORMATS = exporter.FORMATS
-IMPORT_FORMATS = importer.FORMATS
+#: Names of this module loaded from their modules on first use: name -> (module, attribute).
+_LAZY = {
+    "EXPORT_FORMATS": ("planner.datasets.exporter", "FORMATS"),
+    "ExportSummary": ("planner.datasets.exporter", "ExportSummary"),
+    "export": ("planner.datasets.exporter", "export"),
+    "IMPORT_FORMATS": ("planner.datasets.importer", "FORMATS"),
+    "ImportResult": ("planner.datasets.importer", "ImportResult"),
+    "import_files": ("planner.datasets.importer", "import_files"),
+    "UnitResult": ("planner.plan.unit", "UnitResult"),
+    "UnitSpec": ("planner.plan.unit", "UnitSpec"),
+    "run_unit": ("planner.plan.unit", "run_unit"),
+    "ValidationSummary": ("planner.validation.run", "ValidationSummary"),
+    "validate": ("planner.validation.run", "validate"),
+}
 #: ``best_at`` reads stored grasps in rank order this many at a time.
 CANDIDATE_BATCH = 50
 #: ``best_at`` tries at most this many top-ranked grasps by default.
@@ -108,11 +121,28 @@ class Summary:
                 "seconds": round(self.seconds, 3), "objects": self.per_object}
 
 
+def __getattr__(name: str) -> Any:
+    """A name of :data:`_LAZY`, imported now and kept (so a test may patch it)."""
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    module, attribute = _LAZY[name]
+    value = getattr(importlib.import_module(module), attribute)
+    globals()[name] = value
+    return value
+
+
+def _lazy(name: str) -> Any:
+    return globals()[name] if name in globals() else __getattr__(name)
+
+
 # -- building -----------------------------------------------------------------------
 def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: int,
                scale: float | None = None, physical: Physical = Physical()) -> list[UnitSpec]:
     """Expand the object arguments and check every input up front (names,
     hand, preshapes, physical properties) before any work."""
+    from planner.geometry.solid import load_object
+
+    unit_spec = _lazy("UnitSpec")
     refs = expand(list(names), scale, physical)
     if not refs:
         raise InputError("no objects given")
@@ -130,7 +160,7 @@ def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: i
                                  "friction; give it once")
             continue
         seen[spec.name] = spec
-        units += [UnitSpec(ref.source, hand, settings, seed, ref.scale, chunk, label=spec.name,
+        units += [unit_spec(ref.source, hand, settings, seed, ref.scale, chunk, label=spec.name,
                            physical=ref.physical) for chunk in range(settings.chunks())]
     if len(refs) == 1:
         # One object: a broken mesh is the user's input error, reported before
@@ -176,6 +206,8 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
     object except where a manifest line gives its own (see
     :mod:`planner.specs.objects`); an object stored at other values is refused.
     ``progress(None, 0, total)`` first, then ``progress(result, done, total)``."""
+    from planner.plan import pool
+
     if workers < 1:
         raise InputError(f"--workers must be at least 1, got {workers}")
     physical = Physical.checked({"mass": mass, "density": density, "friction": friction}, prefix="--")
@@ -197,9 +229,10 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
             todo = [replace(u, timeout=unit_timeout) for u in todo]
         hard_timeout = unit_timeout + UNIT_TIMEOUT_GRACE if unit_timeout else None
         ray = (ray_address or "local") if use_ray else None
-        with closing(pool.execute(run_unit, todo, workers, timeout=hard_timeout, ray=ray)) as outcomes:
+        unit_result = _lazy("UnitResult")
+        with closing(pool.execute(_lazy("run_unit"), todo, workers, timeout=hard_timeout, ray=ray)) as outcomes:
             for done_count, (unit, outcome, seconds) in enumerate(outcomes, start=1):
-                result = outcome if isinstance(outcome, UnitResult) else UnitResult(unit, error=str(outcome))
+                result = outcome if isinstance(outcome, unit_result) else unit_result(unit, error=str(outcome))
                 db.write_unit(unit_row(result, seconds), result.obj, result.grasps, rule)
                 _tally(summary, result, seconds)
                 if progress:
@@ -264,6 +297,8 @@ def resolve_object(db: Database, name: str) -> tuple[str, ObjectRow | None]:
 
 def _stored(db: Database, name: str, hand: str) -> tuple[str, PreparedObject]:
     """Name and rebuilt object of a stored object; an object without grasps is an error."""
+    from planner.datasets.meshes import stored_object
+
     key, row = resolve_object(db, name)
     if row is None:
         raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db.path}; "
@@ -294,7 +329,7 @@ def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1) -> l
     """The ``top`` best grasps of an object for a hand, in rank order."""
     if top < 1:
         raise InputError(f"--top must be at least 1, got {top}")
-    load_hand(hand)
+    check_hand_name(hand)
     with open_db(Path(db_path), create=False, readonly=True) as db:
         key, row = resolve_object(db, name)
         grasps = db.best(key, hand, top)
@@ -327,6 +362,9 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
     ``object_pose`` (x, y, z, qx, qy, qz, qw, world frame) and the robot base at
     ``robot_base`` (same form; default the origin). Candidates are tried in
     rank order, at most ``max_candidates`` of them."""
+    from planner.plan.reach import ReachScene, ReachSettings
+    from planner.sim import Sim
+
     if top < 1:
         raise InputError(f"--top must be at least 1, got {top}")
     obj_pose = _pose7(object_pose, "--object-pose")
@@ -360,6 +398,8 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
 
 
 def _pose7(values: Sequence[float], option: str) -> np.ndarray:
+    from planner.geometry.frames import pose_from_xyzquat
+
     vals = [float(v) for v in values]
     if len(vals) != 7 or not all(np.isfinite(vals)):
         raise InputError(f"{option} needs 7 finite numbers x,y,z,qx,qy,qz,qw; got {values}")
@@ -395,6 +435,8 @@ def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: i
 def report(db_path: Path, out: Path) -> Path:
     """The calibration report of ``db_path``: ``out.html``, or a folder with
     ``report.md`` and PNGs; returns the file written."""
+    from planner.present import report as reporting
+
     return reporting.write(Path(db_path), Path(out))
 
 

@@ -7,7 +7,9 @@ import logging
 import sqlite3
 import sys
 import traceback
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -69,6 +71,19 @@ def main(debug: bool) -> None:
 #: ``--db`` of every command that reads or writes a database.
 db_option = click.option("--db", "db_path", type=click.Path(path_type=Path), default=api.DEFAULT_DB,
                          show_default=True)
+
+
+class LazyHelp(click.Option):
+    """An option whose help text is written when shown: the names a heavy
+    module declares (the export formats) cost nothing until ``--help``."""
+
+    def __init__(self, *args: Any, help_text: Callable[[], str], **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._help_text = help_text
+
+    def get_help_record(self, ctx: click.Context) -> tuple[str, str] | None:
+        self.help = self._help_text()
+        return super().get_help_record(ctx)
 
 
 def floats(text: str | None) -> tuple[float, ...] | None:

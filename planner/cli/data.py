@@ -8,12 +8,13 @@ from pathlib import Path
 import click
 
 from planner import api
-from planner.cli.app import db_option, report_failures
+from planner.cli.app import LazyHelp, db_option, report_failures
 
 
 @click.command(name="export")
 @db_option
-@click.option("--format", "fmt", required=True, metavar="FORMAT", help=f"One of: {', '.join(api.EXPORT_FORMATS)}.")
+@click.option("--format", "fmt", required=True, metavar="FORMAT", cls=LazyHelp,
+              help_text=lambda: f"One of: {', '.join(api.EXPORT_FORMATS)}.")
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), required=True,
               help="Output folder (created if missing).")
 @click.option("--object", "objects", metavar="NAME", multiple=True, help="Only this object (repeat).")
@@ -44,8 +45,8 @@ def export(db_path: Path, fmt: str, out_dir: Path, objects: tuple[str, ...], han
 
 @click.command(name="import")
 @click.argument("paths", metavar="PATH...", nargs=-1, required=True, type=click.Path(path_type=Path))
-@click.option("--format", "fmt", default="acronym", show_default=True, metavar="FORMAT",
-              help=f"Input format: {', '.join(api.IMPORT_FORMATS)} (HDF5, this project's or foreign).")
+@click.option("--format", "fmt", default="acronym", show_default=True, metavar="FORMAT", cls=LazyHelp,
+              help_text=lambda: f"Input format: {', '.join(api.IMPORT_FORMATS)} (HDF5, this project's or foreign).")
 @db_option
 @click.option("--hand", help="Hand name, when the file's gripper/type is not one (see `grasp hands`).")
 @click.option("--object", "object_name", metavar="NAME",

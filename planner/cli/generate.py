@@ -7,9 +7,6 @@ import time
 from pathlib import Path
 
 import click
-from rich.console import Console
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
-from rich.table import Table
 
 from planner import api
 from planner.cli.app import db_option, floats, report_failures
@@ -90,6 +87,8 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
                                  standoffs=floats(standoffs), chunk=chunk, reach_placements=reach_placements,
                                  reach_top=reach_top, volume=volume, settle=settle, fc_budget=fc_budget,
                                  preshapes=tuple(preshape_names.split(",")) if preshape_names else None)
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
     show = not quiet and not as_json
     # the bar starts when the work does (progress(None, 0, total)): an input error comes alone
     bar = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total} units"),
@@ -127,6 +126,9 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
 
 
 def _print_summary(summary: api.Summary, db_path: Path) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
     table = Table(title=f"grasp generate -> {db_path}")
     for col in ("object", "units", "candidates", "grasps", "force-closure", "worker s", "error"):
         table.add_column(col)

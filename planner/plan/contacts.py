@@ -27,12 +27,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planner import quality
-from planner.geometry.frames import contact_frames
 from planner.plan.tolerances import MAX_PER_LINK, MERGE_RADIUS, SOFT_TORSION
 from planner.specs.hands import HandSpec
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # scipy and trimesh: loaded where used, so that reading stored contacts needs neither
+    from planner import quality
     from planner.geometry.solid import PreparedObject
 
 #: Decimals kept of points [m] and normals in the stored form (1 um).
@@ -120,6 +119,8 @@ class HandContacts:
     @property
     def frames(self) -> np.ndarray:
         """(n, 3, 3) contact frames R_i with columns (n_i, l_i, o_i)."""
+        from planner.geometry.frames import contact_frames
+
         return contact_frames(self.normals)
 
     def to_json(self) -> list[dict]:
@@ -189,6 +190,8 @@ def grasp_quality(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, c
     """Ferrari-Canny epsilon (L1), GWS volume (0 unless ``volume``) and force
     closure of contacts; each contact's model (point, soft, frictionless) as
     :func:`contact_models` says."""
+    from planner import quality
+
     models, torsion = contact_models(contacts, hand, obj.friction)
     args = dict(mu=obj.friction, center=obj.com, torque_scale=obj.torque_scale, cone_edges=cone_edges, model=models,
                 torsion=torsion)

@@ -35,15 +35,19 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planner import quality
-from planner.geometry.solid import PreparedObject
 from planner.plan.contacts import HandContacts, contact_models
-from planner.quality.resistance import SPHERE14, HandDrive, drive_rows, summarise
 from planner.specs.hands import HandSpec
 from planner.specs.preshapes import Preshape
+
+if TYPE_CHECKING:  # the quality stage imports scipy.optimize, the object trimesh: loaded where used, so that
+    # reading stored Measures (`grasp best`) needs neither
+    from planner import quality
+    from planner.geometry.solid import PreparedObject
+    from planner.quality.resistance import HandDrive
 
 #: [m] a finger touching closer than this to its open limit has no clearance
 #: (the shake trial flags below 2 mm; cross-validation on the tuning objects
@@ -143,6 +147,8 @@ def closing_groups(hand: HandSpec, shape: Preshape, closed: Mapping[str, float])
 
 def hand_drive(hand: HandSpec, shape: Preshape, closed: Mapping[str, float], frames: JointFrames) -> HandDrive:
     """The motors at the closed grasp (see the module docstring)."""
+    from planner.quality.resistance import HandDrive, drive_rows
+
     act = hand.actuators
     hold = np.inf if not act.backdrivable else act.effort
     broken = broken_away(hand, closed)
@@ -179,8 +185,12 @@ def contact_velocity(hand: HandSpec, contacts: HandContacts, frames: JointFrames
 
 def measure(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: Preshape,
             closed: Mapping[str, float], obj: PreparedObject, width: float | None = None,
-            directions: np.ndarray = SPHERE14) -> Measures:
-    """Weight resistance and feasibility of a closed grasp (object frame)."""
+            directions: np.ndarray | None = None) -> Measures:
+    """Weight resistance and feasibility of a closed grasp (object frame);
+    ``directions`` (k, 3) of the weight (None: the 14 of :data:`planner.quality.resistance.SPHERE14`)."""
+    from planner.quality.resistance import SPHERE14
+
+    directions = SPHERE14 if directions is None else directions
     resist = _resistance(contacts, frames, hand, shape, closed, obj, directions)
     push, open_margin, close_margin, both_open = _fingers(contacts, frames, hand, shape, closed)
     reasons = []
@@ -199,6 +209,9 @@ def measure(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: 
 
 def _resistance(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: Preshape,
                 closed: Mapping[str, float], obj: PreparedObject, directions: np.ndarray) -> quality.Resistance:
+    from planner import quality
+    from planner.quality.resistance import summarise
+
     if len(contacts) == 0:
         return summarise(np.zeros(len(directions)))
     models, torsion = contact_models(contacts, hand, obj.friction)

@@ -14,13 +14,17 @@ import json
 import zlib
 from dataclasses import asdict, dataclass, replace
 from itertools import product
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from planner.errors import InputError
-from planner.plan.sampling import SAMPLERS, Approaches, Pairs
 from planner.plan.tolerances import PREGRASP_DISTANCE
+from planner.specs.hands import SAMPLERS
 from planner.specs.preshapes import Preshape
+
+if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settings without it
+    from planner.plan.sampling import Approaches, Pairs
 
 #: Bumped whenever a change alters which grasps a sweep produces, so stale
 #: units are recomputed rather than mixed with new ones.

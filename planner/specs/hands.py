@@ -19,14 +19,17 @@ from dataclasses import dataclass
 from functools import cache, cached_property
 from pathlib import Path
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import yourdfpy
-from scipy.spatial.transform import Rotation
 
 from planner import assets
 from planner.errors import ConfigError, UnknownNameError
 from planner.specs.toml import Fields, read_toml
 from planner.specs.urdf import cut_subtree, descendants, link_names, load_model, movable_joints
+
+if TYPE_CHECKING:
+    import yourdfpy
 
 CONTACT_MODELS = ("frictionless", "point", "soft")
 #: Approach samplers (planner.plan.sampling): rays onto the surface, or antipodal pairs for parallel jaws.
@@ -170,15 +173,20 @@ def hand_names() -> list[str]:
     return sorted(p.name for p in hands_dir().iterdir() if (p / "hand.toml").is_file())
 
 
-@cache
-def load_hand(name: str) -> HandSpec:
-    """Load ``hands/<name>/hand.toml``; unknown names list the valid ones."""
+def check_hand_name(name: str) -> Path:
+    """The folder of hand ``name``; unknown names list the valid ones (no URDF is read)."""
     if "/" in name or "\\" in name or name.startswith("."):
         raise ConfigError(f"hand name '{name}' must be a folder name under {hands_dir()}")
     folder = hands_dir() / name
     if not (folder / "hand.toml").is_file():
         raise UnknownNameError("hand", name, hand_names())
-    return load_folder(folder)
+    return folder
+
+
+@cache
+def load_hand(name: str) -> HandSpec:
+    """Load ``hands/<name>/hand.toml``; unknown names list the valid ones."""
+    return load_folder(check_hand_name(name))
 
 
 def load_folder(folder: Path) -> HandSpec:
@@ -318,6 +326,8 @@ def _arm(f: Fields, folder: Path) -> ArmSpec | None:
 
 def _pose(xyz: list[float], rpy: list[float]) -> np.ndarray:
     """4x4 frame from a translation [m] and URDF-style roll, pitch, yaw [rad]."""
+    from scipy.spatial.transform import Rotation
+
     pose = np.eye(4)
     pose[:3, :3] = Rotation.from_euler("xyz", rpy).as_matrix()
     pose[:3, 3] = xyz

@@ -17,10 +17,13 @@ from __future__ import annotations
 import io
 import re
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import yourdfpy
 from lxml import etree
+
+if TYPE_CHECKING:
+    import yourdfpy  # imports trimesh: loaded by load_model, where it is used
 
 from planner import assets
 from planner.errors import ConfigError, MeshError
@@ -47,6 +50,8 @@ def _xml(path: Path) -> bytes:
 
 def load_model(path: Path) -> yourdfpy.URDF:
     """The URDF's kinematic model (no meshes loaded); a malformed file is a ConfigError."""
+    import yourdfpy
+
     text = _xml(path)
     try:
         return yourdfpy.URDF.load(io.BytesIO(text), build_scene_graph=False, build_collision_scene_graph=False,
