@@ -32,6 +32,7 @@ CLI = ("-m", "planner.cli")
 
 
 def env_for(root: Path) -> dict[str, str]:
+    """``root``'s code first (the processes also run in ``root``: ``-m`` and ``-c`` put the working folder first)."""
     return {**os.environ, "PYTHONPATH": str(root)}
 
 
@@ -40,7 +41,8 @@ def wall(root: Path, args: list[str], runs: int) -> float:
     times = []
     for _ in range(runs):
         start = time.perf_counter()
-        done = subprocess.run([sys.executable, *CLI, *args], env=env_for(root), capture_output=True, text=True)
+        done = subprocess.run([sys.executable, *CLI, *args], env=env_for(root), cwd=root, capture_output=True,
+                              text=True)
         times.append(time.perf_counter() - start)
         if done.returncode != 0:
             raise SystemExit(f"{root}: grasp {' '.join(args)} failed ({done.returncode}): {done.stderr.strip()}")
@@ -52,14 +54,14 @@ def small_db(root: Path, folder: Path) -> Path:
     if not path.is_file():
         subprocess.run([sys.executable, *CLI, "generate", "box", "--hand", "panda", "--db", str(path),
                         "--approaches", "20", "--workers", "1", "--quiet", "--reach-placements", "0"],
-                       env=env_for(root), check=True, capture_output=True)
+                       env=env_for(root), cwd=root, check=True, capture_output=True)
     return path
 
 
 def import_times(root: Path) -> dict[str, int]:
     """Cumulative import time [us] of each module ``import planner.cli`` imports."""
     done = subprocess.run([sys.executable, "-X", "importtime", "-c", "import planner.cli"], env=env_for(root),
-                          capture_output=True, text=True, check=True)
+                          cwd=root, capture_output=True, text=True, check=True)
     out = {}
     for line in done.stderr.splitlines():
         m = re.match(r"import time:\s+(\d+) \|\s+(\d+) \|(\s*)(\S+)", line)
@@ -69,6 +71,10 @@ def import_times(root: Path) -> dict[str, int]:
 
 
 def measure(root: Path, runs: int, db: Path | None, folder: Path) -> dict:
+    where = subprocess.run([sys.executable, "-c", "import planner; print(planner.__file__)"], env=env_for(root),
+                           cwd=root, capture_output=True, text=True, check=True).stdout.strip()
+    if not Path(where).resolve().is_relative_to(root):
+        raise SystemExit(f"{root}: the processes import planner from {where}, not from this checkout")
     path = db or small_db(root, folder)
     return {"help": wall(root, ["--help"], runs),
             "best": wall(root, ["best", "box", "--hand", "panda", "--db", str(path)], runs),
