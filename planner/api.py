@@ -42,6 +42,7 @@ from planner.plan.tolerances import PREGRASP_DISTANCE
 from planner.specs.hands import SAMPLERS, HandSpec, check_hand_name, hand_names, load_hand
 from planner.specs.inputs import expand
 from planner.specs.objects import (
+    NO_PHYSICAL,
     RANDOM_COUNT,
     RANDOM_PREFIX,
     ObjectSpec,
@@ -53,10 +54,12 @@ from planner.specs.objects import (
 from planner.specs.preshapes import Preshape, load_preshapes
 
 if TYPE_CHECKING:
+    from planner.datasets.exporter import FORMATS as EXPORT_FORMATS
     from planner.datasets.exporter import ExportSummary, export
+    from planner.datasets.importer import FORMATS as IMPORT_FORMATS
     from planner.datasets.importer import ImportResult, import_files
     from planner.geometry.solid import PreparedObject
-    from planner.plan.unit import UnitResult, UnitSpec, run_unit
+    from planner.plan.unit import UnitResult, UnitSpec
     from planner.validation.run import ValidationSummary, validate
 
 __all__ = [
@@ -137,7 +140,7 @@ def _lazy(name: str) -> Any:
 
 # -- building -----------------------------------------------------------------------
 def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: int,
-               scale: float | None = None, physical: Physical = Physical()) -> list[UnitSpec]:
+               scale: float | None = None, physical: Physical = NO_PHYSICAL) -> list[UnitSpec]:
     """Expand the object arguments and check every input up front (names,
     hand, preshapes, physical properties) before any work."""
     from planner.geometry.solid import load_object

@@ -41,7 +41,7 @@ from planner.plan.sweep import (
 from planner.plan.tolerances import FINGER_CLEARANCE, MIN_CLEARANCE
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, load_hand
-from planner.specs.objects import Physical
+from planner.specs.objects import NO_PHYSICAL, Physical
 from planner.specs.preshapes import Preshape, load_preshapes
 from planner.threads import one_blas_thread
 
@@ -78,7 +78,7 @@ class UnitSpec:
     chunk: int = 0  # which slice of the object's rays (see SweepSettings.chunk)
     label: str | None = None  # database name of the object (None: its default name)
     timeout: float | None = None  # [s] give up on the unit after this long (checked between candidates)
-    physical: Physical = Physical()  # the user's mass or density and friction (None: the object's own)
+    physical: Physical = NO_PHYSICAL  # the user's mass or density and friction (None: the object's own)
 
 
 @dataclass

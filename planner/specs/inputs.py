@@ -27,6 +27,7 @@ from pathlib import Path
 from planner.errors import InputError
 from planner.specs.objects import (
     MESH_SUFFIXES,
+    NO_PHYSICAL,
     PHYSICAL_KEYS,
     RANDOM_COUNT,
     RANDOM_PREFIX,
@@ -46,7 +47,7 @@ class ObjectRef:
     source: str  # built-in name or mesh path
     scale: float | None = None
     label: str | None = None  # database name (None: the default one)
-    physical: Physical = Physical()  # the user's mass or density and friction (None: the object's own)
+    physical: Physical = NO_PHYSICAL  # the user's mass or density and friction (None: the object's own)
 
     @property
     def name(self) -> str:
@@ -54,7 +55,7 @@ class ObjectRef:
 
 
 def expand(args: list[str] | tuple[str, ...], scale: float | None = None,
-           physical: Physical = Physical()) -> list[ObjectRef]:
+           physical: Physical = NO_PHYSICAL) -> list[ObjectRef]:
     """The objects the arguments name; ``scale`` and ``physical`` apply to
     each, except where a manifest line gives its own."""
     refs: list[ObjectRef] = []

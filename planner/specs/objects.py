@@ -113,6 +113,10 @@ def check_physical(mass: float | None, density: float | None, friction: float | 
                          f"got {friction}")
 
 
+#: No property given: each object keeps its own.
+NO_PHYSICAL = Physical()
+
+
 def sidecar(mesh: Path) -> Physical:
     """The properties in ``mesh``'s sidecar (same stem, ``.toml``), if any."""
     path = mesh.with_suffix(SIDECAR_SUFFIX)
