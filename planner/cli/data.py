@@ -52,7 +52,8 @@ def export(db_path: Path, fmt: str, out_dir: Path, objects: tuple[str, ...], han
 @click.option("--object", "object_name", metavar="NAME",
               help="Built-in object name or mesh path (default: the file's object/name or object/file).")
 @click.option("--rescore", is_flag=True, help="Re-close and re-score every pose even if the file has qualities.")
-@click.option("--workers", type=int, default=api.default_workers(), show_default="all cores",
+@click.option("--workers", type=click.IntRange(min=1), default=api.default_workers(),
+              show_default="all cores",
               help="Worker processes for re-scoring.")
 @click.option("--json", "as_json", is_flag=True, help="Print a machine-readable summary.")
 def import_files(paths: tuple[Path, ...], fmt: str, db_path: Path, hand: str | None, object_name: str | None,

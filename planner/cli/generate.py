@@ -42,7 +42,8 @@ DEFAULTS = api.SweepSettings()
               "x the mesh's volume; excludes --mass.")
 @click.option("--friction", type=float, help="Coulomb friction coefficient of every object given, 0 < mu <= 3 "
               "[default: a mesh's sidecar TOML, the registry's, else 0.5].")
-@click.option("--workers", type=int, default=api.default_workers(), show_default="all cores",
+@click.option("--workers", type=click.IntRange(min=1), default=api.default_workers(),
+              show_default="all cores",
               help="Worker processes.")
 @click.option("--ray", "ray_target", is_flag=False, flag_value="local", default=None, metavar="[ADDRESS]",
               help="Run on Ray: a cluster address (e.g. ray://head:10001 or auto), or no value for a local "

@@ -26,7 +26,8 @@ from planner.cli.app import db_option, report_failures
 @click.option("--robust", "robust_samples", type=int, default=10, show_default=True,
               help="Noise samples for robust epsilon (0: skip).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of --sample and of the robust noise.")
-@click.option("--workers", type=int, default=api.default_workers(), show_default="all cores")
+@click.option("--workers", type=click.IntRange(min=1), default=api.default_workers(),
+              show_default="all cores")
 @click.option("--json", "as_json", is_flag=True)
 def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], top: int, sample: int | None,
              every: bool, closure_only: bool, robust_samples: int, seed: int, workers: int, as_json: bool) -> None:

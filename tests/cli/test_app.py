@@ -56,7 +56,9 @@ def test_debug_shows_the_traceback_and_keeps_the_exit_code(tmp_path: Path, monke
 @pytest.mark.parametrize("args, needle", [
     (["generate", "box", "--hand", "panda", "--scale", "0"], "scale must be a positive number, got 0"),
     (["generate", "box", "--hand", "panda", "--scale", "-1"], "scale must be a positive number, got -1"),
-    (["generate", "box", "--hand", "panda", "--workers", "0"], "--workers must be at least 1, got 0"),
+    (["generate", "box", "--hand", "panda", "--workers", "0"], "'--workers': 0 is not in the range x>=1"),
+    (["validate", "--workers", "0"], "'--workers': 0 is not in the range x>=1"),
+    (["import", "x.h5", "--workers", "0"], "'--workers': 0 is not in the range x>=1"),
     (["generate", "box", "--hand", "panda", "--seed", "x"], "Invalid value for '--seed'"),
 ])
 def test_early_errors_come_alone(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, args: list[str],
@@ -66,3 +68,11 @@ def test_early_errors_come_alone(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
     code, out, err = grasp(*args)
     one_line_error(code, err, InputError.exit_code, needle)
     assert out == "" and not (tmp_path / "grasps.db").exists()
+
+
+def test_the_api_refuses_zero_workers_too(tmp_path: Path) -> None:
+    from planner import api
+
+    with pytest.raises(InputError, match="--workers must be at least 1, got 0"):
+        api.generate(["box"], "panda", db_path=tmp_path / "g.db", workers=0)
+    assert not (tmp_path / "g.db").exists()
