@@ -17,8 +17,10 @@ with the root's own code (a box, 20 surface points, one worker) unless
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import re
+import resource
 import statistics
 import subprocess
 import sys
@@ -36,17 +38,22 @@ def env_for(root: Path) -> dict[str, str]:
     return {**os.environ, "PYTHONPATH": str(root)}
 
 
-def wall(root: Path, args: list[str], runs: int) -> float:
-    """Median wall time [s] of ``python -m planner.cli ARGS`` over ``runs`` fresh processes."""
-    times = []
+def timed(root: Path, args: list[str], runs: int) -> tuple[float, float]:
+    """Median wall time and median CPU time (user + system) [s] of ``python -m
+    planner.cli ARGS`` over ``runs`` fresh processes. On a loaded machine the
+    wall time grows with the load; the CPU time much less."""
+    walls, cpus = [], []
     for _ in range(runs):
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
         start = time.perf_counter()
         done = subprocess.run([sys.executable, *CLI, *args], env=env_for(root), cwd=root, capture_output=True,
                               text=True)
-        times.append(time.perf_counter() - start)
+        walls.append(time.perf_counter() - start)
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpus.append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
         if done.returncode != 0:
             raise SystemExit(f"{root}: grasp {' '.join(args)} failed ({done.returncode}): {done.stderr.strip()}")
-    return statistics.median(times)
+    return statistics.median(walls), statistics.median(cpus)
 
 
 def small_db(root: Path, folder: Path) -> Path:
@@ -76,8 +83,8 @@ def measure(root: Path, runs: int, db: Path | None, folder: Path) -> dict:
     if not Path(where).resolve().is_relative_to(root):
         raise SystemExit(f"{root}: the processes import planner from {where}, not from this checkout")
     path = db or small_db(root, folder)
-    return {"help": wall(root, ["--help"], runs),
-            "best": wall(root, ["best", "box", "--hand", "panda", "--db", str(path)], runs),
+    return {"help": timed(root, ["--help"], runs),
+            "best": timed(root, ["best", "box", "--hand", "panda", "--db", str(path)], runs),
             "imports": import_times(root)}
 
 
@@ -93,10 +100,10 @@ def main() -> None:
         now = measure(args.root.resolve(), args.runs, args.db, Path(tmp))
         before = measure(args.compare.resolve(), args.runs, args.db, Path(tmp)) if args.compare else None
     print(f"median of {args.runs} fresh processes, {os.cpu_count()} cores, load {os.getloadavg()[0]:.2f}")
-    print(f"{'':18s} {'before':>8s} {'now':>8s}")
+    print(f"{'':18s} {'wall before':>12s} {'wall now':>9s} {'CPU before':>11s} {'CPU now':>8s}")
     for key, label in (("help", "grasp --help [s]"), ("best", "grasp best [s]")):
-        old = f"{before[key]:8.3f}" if before else f"{'-':>8s}"
-        print(f"{label:18s} {old} {now[key]:8.3f}")
+        old = before[key] if before else (math.nan, math.nan)
+        print(f"{label:18s} {old[0]:12.3f} {now[key][0]:9.3f} {old[1]:11.3f} {now[key][1]:8.3f}")
     print(f"\nimport planner.cli, cumulative [ms] (top {args.top} of now, and before):")
     heavy = ("trimesh", "pybullet", "h5py", "pyarrow", "matplotlib", "scipy", "yourdfpy", "rich", "numpy",
              "planner.api", "planner.datasets.exporter", "planner.cli")

@@ -121,7 +121,7 @@ def sidecar(mesh: Path) -> Physical:
     """The properties in ``mesh``'s sidecar (same stem, ``.toml``), if any."""
     path = mesh.with_suffix(SIDECAR_SUFFIX)
     if not path.is_file():
-        return Physical()
+        return NO_PHYSICAL
     return Physical.checked(read_toml(path), str(path))
 
 
