@@ -130,3 +130,13 @@ def test_exports_carry_mass_friction_and_density(tmp_path: Path, brick: Path) ->
         row = next(csv.DictReader(fh))
     assert np.allclose([float(row[k]) for k in ("object_mass", "object_friction", "object_density")],
                        [mass, 0.7, 400.0], rtol=NUM_TOL)
+
+
+def test_worker_processes_plan_at_the_given_values(tmp_path: Path) -> None:
+    """The values travel with each unit to the pool's workers (the stored row is the worker's object)."""
+    one, two = tmp_path / "one.db", tmp_path / "two.db"
+    assert generate(one, "box", "--mass", "0.3", "--friction", "0.6")[0] == 0
+    code, _, err = generate(two, "box", "--mass", "0.3", "--friction", "0.6", "--workers", "2", "--chunk", "3")
+    assert code == 0, err
+    assert stored(two)["box"][:2] == (0.3, 0.6)
+    assert measures(two) == measures(one)
