@@ -326,6 +326,55 @@ def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: i
     return grasps
 
 
+def view(name: str, hands: Sequence[str] | None = None, *, db_path: Path = DEFAULT_DB, top: int = 50,
+         host: str = "127.0.0.1", port: int = 8080, object_pose: Sequence[float] | None = None,
+         robot_base: Sequence[float] | None = None):  # -> planner.present.viewer.Viewer (viser: imported here only)
+    """Start the browser viewer on the ``top`` best grasps of each hand (all
+    hands with grasps of the object when ``hands`` is None). With
+    ``object_pose`` only grasps the arm reaches at that pose are offered,
+    placed in the world with the arm. Returns the running viewer (``url``,
+    ``stop()``)."""
+    from planner.present import scene as scenes
+    from planner.present import viewer
+
+    if top < 1:
+        raise InputError(f"--top must be at least 1, got {top}")
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        key, row = resolve_object(db, name)
+        stored = sorted(h for o, h in db.pairs() if o == key)
+        if row is None or not stored:
+            raise InputError(f"no grasps of '{key}' in {db_path}; run `grasp generate {name} --hand panda`")
+        obj = stored_object(row)
+    chosen = list(hands) if hands else stored
+    missing = [h for h in chosen if h not in stored]
+    if missing:
+        raise InputError(f"no grasps of '{key}' for hand(s) {', '.join(missing)} in {db_path} "
+                         f"(hands with grasps: {', '.join(stored)})")
+    specs = {h: load_hand(h) for h in chosen}
+    world = None if object_pose is None else _pose7(object_pose, "--object-pose")
+    base = None if robot_base is None else _pose7(robot_base, "--robot-base")
+    entries: list[viewer.Entry] = []
+    for h in chosen:
+        if object_pose is None:
+            found = [(g, None, ()) for g in best(key, h, db_path=db_path, top=top)]
+        else:
+            found = [(r.grasp, r.arm_grasp, (_arm_line(r),))
+                     for r in best_at(key, h, object_pose, db_path=db_path, top=top, robot_base=robot_base)]
+        for g, arm, extra in found:
+            def build(g=g, arm=arm, spec=specs[h]):  # noqa: B023 - bound per grasp
+                return scenes.grasp_scene(spec, obj.mesh, g, obj.friction, world, arm, base)
+            entries.append(viewer.Entry(g, build, extra))
+    if not entries:
+        raise InputError(f"no stored grasp of '{key}' is reachable at --object-pose {object_pose}; "
+                         "try `grasp best ... --object-pose ... --max-candidates 2000`")
+    return viewer.Viewer(entries, specs, scenes.object_part(obj.mesh, world), host=host, port=port)
+
+
+def _arm_line(r: ReachableGrasp) -> str:
+    joints = ", ".join(f"{k} {v:.3f}" for k, v in r.arm_grasp.items())
+    return f"arm joints at the grasp [rad]: {joints}"
+
+
 def report(db_path: Path, out: Path) -> Path:
     """The calibration report of ``db_path``: ``out.html``, or a folder with
     ``report.md`` and PNGs; returns the file written."""
