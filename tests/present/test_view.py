@@ -129,6 +129,7 @@ def test_page_loads_in_a_real_browser(box_db: Path, tmp_path: Path) -> None:
             for text in ("force closure", "open hand", "hand base, object frame", viewer.entries[0].title()):
                 assert page.get_by_text(text).count() >= 1, text
             assert page.locator("canvas").count() >= 1, "the 3D canvas"
+            page.wait_for_timeout(6000)  # new meshes fade in
             page.screenshot(path=str(shot))
             # picking the second grasp in the page replaces the hand on screen
             first = {n: h for n, h in viewer.nodes.items() if n.startswith("hand/closed/")}
