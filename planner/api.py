@@ -27,6 +27,7 @@ from planner.datasets import exporter, importer
 from planner.datasets.exporter import ExportSummary, export
 from planner.datasets.importer import ImportResult, import_files
 from planner.datasets.meshes import stored_object
+from planner.db.diverse import Spacing, diverse
 from planner.db.lock import writer_lock
 from planner.db.ranking import RankingRule
 from planner.db.store import Database, ObjectRow, UnitRow, open_db
@@ -65,6 +66,7 @@ IMPORT_FORMATS = importer.FORMATS
 CANDIDATE_BATCH = 50
 #: ``best_at`` tries at most this many top-ranked grasps by default.
 MAX_CANDIDATES = 300
+DIVERSE_BATCH = 500  # grasps read at a time while picking diverse ones
 #: [s] the pool stops a worker this long after ``--unit-timeout``: the unit
 #: checks its own time between candidates and ends cleanly; the pool's kill is
 #: for a simulator call that never returns.
@@ -224,14 +226,22 @@ def _stored(db: Database, name: str, hand: str) -> tuple[str, PreparedObject]:
     return key, stored_object(row)
 
 
-def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1) -> list[Grasp]:
-    """The ``top`` best grasps of an object for a hand, in rank order."""
+def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1, spacing: Spacing | None = None
+         ) -> list[Grasp]:
+    """The ``top`` best grasps of an object for a hand, in rank order; with
+    ``spacing``, the best ``top`` that are each that far from every better
+    one kept (:mod:`planner.db.diverse`)."""
     if top < 1:
         raise InputError(f"--top must be at least 1, got {top}")
-    load_hand(hand)
+    spec = load_hand(hand)
     with open_db(Path(db_path), create=False, readonly=True) as db:
         key, _ = resolve_object(db, name)
-        grasps = db.best(key, hand, top)
+        if spacing is None:
+            grasps = db.best(key, hand, top)
+        else:
+            with closing(db.grasp_batches(key, hand, size=DIVERSE_BATCH)) as batches:  # its cursor, before the db
+                ranked = (g for batch in batches for g in batch if g.rank)
+                grasps = diverse(ranked, top, spacing, spec.tcp, spec.approach, spec.roll_symmetry)
         if not grasps:
             known = db.objects_for(hand)
             raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}; objects with grasps: "
@@ -305,9 +315,10 @@ def _pose7(values: Sequence[float], option: str) -> np.ndarray:
     return pose_from_xyzquat(vals)
 
 
-def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: int = 1, top: int | None = None
-         ) -> list[Grasp]:
-    """Render grasp ``rank`` (or the ``top`` K as a contact sheet) to a PNG."""
+def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: int = 1, top: int | None = None,
+         spacing: Spacing | None = None) -> list[Grasp]:
+    """Render grasp ``rank`` (or the ``top`` K as a contact sheet; with
+    ``spacing``, the K best diverse ones) to a PNG."""
     from planner.present import render  # matplotlib: only for pictures
 
     count = top or 1
@@ -319,7 +330,8 @@ def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: i
         raise InputError(f"{out}: the picture is written as PNG; give a .png path")
     with open_db(Path(db_path), create=False, readonly=True) as db:
         key, obj = _stored(db, name, hand)
-        grasps = db.best(key, hand, count, first - 1)
+        grasps = db.best(key, hand, count, first - 1) if spacing is None else \
+            best(key, hand, db_path=db_path, top=first - 1 + count, spacing=spacing)[first - 1:]
     if not grasps:
         raise InputError(f"no grasp of rank {first} for '{key}' and hand '{hand}' in {db_path}")
     render.save_sheet([(render.grasp_views(spec, obj, g), render.title(g)) for g in grasps], Path(out))
@@ -328,7 +340,7 @@ def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: i
 
 def view(name: str, hands: Sequence[str] | None = None, *, db_path: Path = DEFAULT_DB, top: int = 50,
          host: str = "127.0.0.1", port: int = 8080, object_pose: Sequence[float] | None = None,
-         robot_base: Sequence[float] | None = None):  # -> planner.present.viewer.Viewer (viser: imported here only)
+         robot_base: Sequence[float] | None = None, spacing: Spacing | None = None):  # -> viewer.Viewer
     """Start the browser viewer on the ``top`` best grasps of each hand (all
     hands with grasps of the object when ``hands`` is None). With
     ``object_pose`` only grasps the arm reaches at that pose are offered,
@@ -356,7 +368,7 @@ def view(name: str, hands: Sequence[str] | None = None, *, db_path: Path = DEFAU
     entries: list[viewer.Entry] = []
     for h in chosen:
         if object_pose is None:
-            found = [(g, None, ()) for g in best(key, h, db_path=db_path, top=top)]
+            found = [(g, None, ()) for g in best(key, h, db_path=db_path, top=top, spacing=spacing)]
         else:
             found = [(r.grasp, r.arm_grasp, (_arm_line(r),))
                      for r in best_at(key, h, object_pose, db_path=db_path, top=top, robot_base=robot_base)]
@@ -368,6 +380,13 @@ def view(name: str, hands: Sequence[str] | None = None, *, db_path: Path = DEFAU
         raise InputError(f"no stored grasp of '{key}' is reachable at --object-pose {object_pose}; "
                          "try `grasp best ... --object-pose ... --max-candidates 2000`")
     return viewer.Viewer(entries, specs, scenes.object_part(obj.mesh, world), host=host, port=port)
+
+
+def coverage(db_path: Path, top: int = 10):  # -> list[planner.present.coverage.Coverage]
+    """Surface coverage of the ``top`` best (and diverse) grasps' contacts, per object and hand."""
+    from planner.present.coverage import coverages
+
+    return coverages(Path(db_path), top)
 
 
 def _arm_line(r: ReachableGrasp) -> str:

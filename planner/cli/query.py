@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from planner import api
-from planner.cli.app import EXIT_OTHER, db_option, floats
+from planner.cli.app import EXIT_OTHER, db_option, diverse_options, floats, spacing
 
 
 @click.command()
@@ -23,19 +23,23 @@ from planner.cli.app import EXIT_OTHER, db_option, floats
 @click.option("--max-candidates", type=int, default=api.MAX_CANDIDATES, show_default=True,
               help="With --object-pose: how many top-ranked grasps to try at most.")
 @click.option("--json", "as_json", is_flag=True)
+@diverse_options
 def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str | None, robot_base: str | None,
-         max_candidates: int, as_json: bool) -> None:
+         max_candidates: int, as_json: bool, diverse: bool, min_translation: float, min_rotation: float) -> None:
     """The best grasps of OBJECT for a hand, from the database."""
+    apart = spacing(diverse, min_translation, min_rotation)
     if object_pose is None:
         if robot_base is not None:
             raise click.BadParameter("--robot-base needs --object-pose")
-        grasps = api.best(object_name, hand, db_path=db_path, top=top)
+        grasps = api.best(object_name, hand, db_path=db_path, top=top, spacing=apart)
         if as_json:
             click.echo(json.dumps([g.to_json() for g in grasps], indent=2))
             return
         for g in grasps:
             _print_grasp(g)
         return
+    if apart is not None:
+        raise click.BadParameter("--diverse is not yet available with --object-pose")
     found = api.best_at(object_name, hand, floats(object_pose) or (), db_path=db_path, top=top,
                         robot_base=floats(robot_base), max_candidates=max_candidates)
     if as_json:
@@ -74,7 +78,10 @@ def _measures(g: api.Grasp) -> str:
 @click.option("--rank", type=int, default=1, show_default=True, help="Which grasp (1 = best).")
 @click.option("--top", type=int, help="A contact sheet of the K best grasps instead.")
 @click.option("--out", type=click.Path(path_type=Path), default=Path("grasp.png"), show_default=True)
-def show(object_name: str, hand: str, db_path: Path, rank: int, top: int | None, out: Path) -> None:
+@diverse_options
+def show(object_name: str, hand: str, db_path: Path, rank: int, top: int | None, out: Path, diverse: bool,
+         min_translation: float, min_rotation: float) -> None:
     """Render grasps (hand closed on the object, contacts, friction cones) to a PNG."""
-    grasps = api.show(object_name, hand, out, db_path=db_path, rank=rank, top=top)
+    grasps = api.show(object_name, hand, out, db_path=db_path, rank=rank, top=top,
+                      spacing=spacing(diverse, min_translation, min_rotation))
     click.echo(f"{out}: {len(grasps)} grasp(s) from {len(grasps) and 3} viewpoints")

@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from planner import api
-from planner.cli.app import db_option, floats
+from planner.cli.app import db_option, diverse_options, floats, spacing
 
 
 @click.command()
@@ -21,14 +21,17 @@ from planner.cli.app import db_option, floats
 @click.option("--object-pose", help="x,y,z,qx,qy,qz,qw of the object (world frame): list only grasps the arm "
               "reaches there, and draw the arm.")
 @click.option("--robot-base", help="x,y,z,qx,qy,qz,qw of the robot base (default: the origin).")
+@diverse_options
 def view(object_name: str, hands: tuple[str, ...], db_path: Path, top: int, host: str, port: int,
-         object_pose: str | None, robot_base: str | None) -> None:
+         object_pose: str | None, robot_base: str | None, diverse: bool, min_translation: float,
+         min_rotation: float) -> None:
     """Browse OBJECT's grasps in 3D in a web browser: the hand closed and open,
     contacts with friction cones, the approach, the arm; filters and measures."""
     if robot_base is not None and object_pose is None:
         raise click.BadParameter("--robot-base needs --object-pose")
     viewer = api.view(object_name, hands or None, db_path=db_path, top=top, host=host, port=port,
-                      object_pose=floats(object_pose), robot_base=floats(robot_base))
+                      object_pose=floats(object_pose), robot_base=floats(robot_base),
+                      spacing=spacing(diverse, min_translation, min_rotation))
     click.echo(f"grasp viewer: {viewer.url} ({len(viewer.entries)} grasps; Ctrl-C to stop)")
     try:
         while True:
