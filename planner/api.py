@@ -303,6 +303,11 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
     return found
 
 
+def object_pose_matrix(values: Sequence[float]) -> np.ndarray:
+    """(4, 4) the pose ``--object-pose`` x,y,z,qx,qy,qz,qw gives (checked)."""
+    return _pose7(values, "--object-pose")
+
+
 def _pose7(values: Sequence[float], option: str) -> np.ndarray:
     vals = [float(v) for v in values]
     if len(vals) != 7 or not all(np.isfinite(vals)):

@@ -33,7 +33,7 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
             raise click.BadParameter("--robot-base needs --object-pose")
         grasps = api.best(object_name, hand, db_path=db_path, top=top, spacing=apart)
         if as_json:
-            click.echo(json.dumps([g.to_json() for g in grasps], indent=2))
+            click.echo(json.dumps([{**g.to_json(), "frames": _frames_json(g)} for g in grasps], indent=2))
             return
         for g in grasps:
             _print_grasp(g)
@@ -42,33 +42,33 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
         raise click.BadParameter("--diverse is not yet available with --object-pose")
     found = api.best_at(object_name, hand, floats(object_pose) or (), db_path=db_path, top=top,
                         robot_base=floats(robot_base), max_candidates=max_candidates)
+    world = api.object_pose_matrix(floats(object_pose) or ())
     if as_json:
-        click.echo(json.dumps([r.to_json() for r in found], indent=2))
+        click.echo(json.dumps([{**r.to_json(), "frames": _frames_json(r.grasp, world)} for r in found], indent=2))
         return
     if not found:
         click.echo(f"no grasp among the top {max_candidates} is reachable at that pose", err=True)
         sys.exit(EXIT_OTHER)
     for r in found:
-        _print_grasp(r.grasp)
-        click.echo("    arm at grasp: " + ", ".join(f"{k}={v:.3f}" for k, v in r.arm_grasp.items()))
-        click.echo("    arm at pre-grasp: " + ", ".join(f"{k}={v:.3f}" for k, v in r.arm_pregrasp.items()))
+        _print_grasp(r.grasp, world, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp})
 
 
-def _print_grasp(g: api.Grasp) -> None:
-    pos = g.pose[:3, 3]
-    reach = "n/a" if g.reachability is None else f"{g.reachability:.2f}"
-    click.echo(f"#{g.rank} {g.object}/{g.hand} preshape={g.preshape} score={g.score:.4f} epsilon={g.epsilon:.4f} "
-               f"reachability={reach} volume={g.volume:.3g} force_closure={g.force_closure} "
-               f"contacts={len(g.contacts)} position=({pos[0]:.3f}, {pos[1]:.3f}, {pos[2]:.3f}) m{_measures(g)}")
+def _print_grasp(g: api.Grasp, world: object = None, arm: dict | None = None) -> None:
+    from planner.present.describe import describe
+
+    spec, _ = api.hand(g.hand)
+    for line in describe(g, spec, world, arm):  # type: ignore[arg-type]
+        click.echo(line)
 
 
-def _measures(g: api.Grasp) -> str:
-    m = g.measures
-    if m is None:
-        return ""
-    settled = "" if m.settled_epsilon is None else f" settled_epsilon={m.settled_epsilon:.4f}"
-    return (f" holds={m.resist_worst:.1f}g (mean {m.resist_mean:.1f}g) push={m.push:.2f} "
-            f"feasibility={','.join(m.reasons) or 'ok'}{settled}")
+def _frames_json(g: api.Grasp, world: object = None) -> dict:
+    from planner.present.describe import frames
+
+    spec, _ = api.hand(g.hand)
+    out = {"object_frame": frames(g, spec).to_json()}
+    if world is not None:
+        out["world_frame"] = frames(g, spec, world).to_json()  # type: ignore[arg-type]
+    return out
 
 
 @click.command()

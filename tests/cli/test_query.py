@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 from helpers import grasp, one_line_error
 
+from planner import api
+
 
 def test_best_json_has_the_documented_keys(box_db: Path) -> None:
     code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--top", "3", "--json")
@@ -50,9 +52,13 @@ def test_best_grasp_fingers_really_touch_the_object(box_db: Path) -> None:
 def test_best_prints_one_line_per_grasp_and_show_writes_a_png(box_db: Path, tmp_path: Path) -> None:
     code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--top", "2")
     assert code == 0, err
-    lines = out.strip().splitlines()
-    assert len(lines) == 2 and lines[0].startswith("#1 box/panda preshape=wide score=")
-    assert " holds=" in lines[0] and " push=" in lines[0] and " feasibility=" in lines[0]  # the analytic measures
+    heads = [line for line in out.splitlines() if line.startswith("#")]
+    assert len(heads) == 2 and heads[0].startswith("#1 box/panda preshape wide: score ")
+    first = out.split("\n#2")[0]
+    assert "object frame: hand base (panda_hand) at (" in first and "tool centre point at (" in first
+    assert "orientation xyzw (" in first and "approach direction (" in first and "finger width " in first
+    assert " holds " in first and " g in the worst direction" in first and "feasibility " in first  # analytic measures
+    assert "world frame" not in first
     code, out, err = grasp("show", "box", "--hand", "panda", "--db", str(box_db), "--out", str(tmp_path / "g.png"))
     assert code == 0 and (tmp_path / "g.png").stat().st_size > 1000, err
 
@@ -94,6 +100,39 @@ def test_the_barrett_settles_by_default_and_best_prints_its_settled_epsilon(tmp_
     assert code == 0, err
     assert isinstance(json.loads(out)[0]["settled_epsilon"], float)
     code, out, _ = grasp("best", "box", "--hand", "barrett", "--db", str(tmp_path / "settled.db"))
-    assert " settled_epsilon=" in out.splitlines()[0]
+    assert "; settled epsilon " in out.split("\n#2")[0]
     code, out, _ = grasp("best", "box", "--hand", "barrett", "--db", str(tmp_path / "planned.db"), "--json")
     assert json.loads(out)[0]["settled_epsilon"] is None
+
+
+def test_best_gives_the_frames_people_use(box_db: Path) -> None:
+    """Object and world frames, hand base and tool centre point, quaternion
+    xyzw, approach; JSON keeps them all; arm joints in radians."""
+    from scipy.spatial.transform import Rotation
+
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--json")
+    assert code == 0, err
+    top = json.loads(out)[0]
+    pose, frame = np.array(top["pose"]), top["frames"]["object_frame"]
+    hand, _ = api.hand("panda")
+    assert np.allclose(frame["hand_base_m"], pose[:3, 3])
+    assert np.allclose(frame["tcp_m"], pose[:3, :3] @ hand.tcp + pose[:3, 3])
+    assert np.allclose(Rotation.from_quat(frame["quaternion_xyzw"]).as_matrix(), pose[:3, :3])
+    assert np.allclose(frame["approach"], pose[:3, :3] @ hand.approach)
+    at = "0.5,0.1,0.05,0,0,0.7071068,0.7071068"
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--object-pose", at,
+                           "--max-candidates", "20", "--json")
+    assert code == 0, err
+    found = json.loads(out)
+    assert found, "a reachable grasp among the top 20"
+    world = found[0]["frames"]["world_frame"]
+    obj = np.eye(4)
+    obj[:3, :3] = Rotation.from_quat([0, 0, 0.7071068, 0.7071068]).as_matrix()
+    obj[:3, 3] = [0.5, 0.1, 0.05]
+    placed = obj @ np.array(found[0]["pose"])
+    assert np.allclose(world["hand_base_m"], placed[:3, 3], atol=1e-6)
+    assert np.allclose(world["hand_base_m"], np.array(found[0]["hand_pose_world"])[:3, 3], atol=1e-6)
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--object-pose", at,
+                           "--max-candidates", "20")
+    assert code == 0, err
+    assert "world frame: hand base (panda_hand) at (" in out and "arm at the grasp [rad]: panda_joint1 " in out
