@@ -71,7 +71,7 @@ def describe(grasp: Grasp, hand: HandSpec, world: np.ndarray | None = None,
     score = "n/a" if g.score is None else f"{g.score:.4f}"
     reach = "not computed" if g.reachability is None else f"{g.reachability:.2f} of table placements"
     width = "n/a (not a parallel jaw)" if g.width is None else f"{g.width * 1000:.1f} mm"
-    volume = f"{g.volume:.3g}" if g.volume else "not computed"
+    volume = f"{g.volume:.3g}" if g.volume else "0 (computed only with --volume, for force closure)"
     head = f"#{g.rank} {g.object}/{g.hand} preshape {g.preshape}: score {score} (ranking rule, higher is better)"
     lines = [head, *(f"    {line}" for line in frame_lines(frames(g, hand), hand))]
     if world is not None:
