@@ -20,8 +20,12 @@ from collections.abc import Callable, Sequence
 from contextlib import closing
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from planner.geometry.stable import RestingPose
 
 from planner.datasets import exporter, importer
 from planner.datasets.exporter import ExportSummary, export
@@ -66,6 +70,7 @@ IMPORT_FORMATS = importer.FORMATS
 CANDIDATE_BATCH = 50
 #: ``best_at`` tries at most this many top-ranked grasps by default.
 MAX_CANDIDATES = 300
+TABLE_AT = (0.5, 0.0)  # [m] where --on-table puts the object, robot base frame
 DIVERSE_BATCH = 500  # grasps read at a time while picking diverse ones
 #: [s] the pool stops a worker this long after ``--unit-timeout``: the unit
 #: checks its own time between candidates and ends cleanly; the pool's kill is
@@ -266,41 +271,101 @@ class ReachableGrasp:
 
 def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path = DEFAULT_DB, top: int = 1,
             robot_base: Sequence[float] | None = None, max_candidates: int = MAX_CANDIDATES,
-            pregrasp_distance: float = PREGRASP_DISTANCE, seed: int = 0) -> list[ReachableGrasp]:
+            pregrasp_distance: float = PREGRASP_DISTANCE, seed: int = 0,
+            misses: list[tuple[int, str]] | None = None) -> list[ReachableGrasp]:
     """The best stored grasps that an arm reaches *now*, with the object at
     ``object_pose`` (x, y, z, qx, qy, qz, qw, world frame) and the robot base at
     ``robot_base`` (same form; default the origin). Candidates are tried in
-    rank order, at most ``max_candidates`` of them."""
+    rank order, at most ``max_candidates`` of them; ``misses``, if given,
+    receives (rank, why) of each one tried and not reachable."""
     if top < 1:
         raise InputError(f"--top must be at least 1, got {top}")
     obj_pose = _pose7(object_pose, "--object-pose")
     base = _pose7(robot_base, "--robot-base") if robot_base is not None else np.eye(4)
     spec = load_hand(hand)
-    rng = np.random.default_rng(seed)
-    found: list[ReachableGrasp] = []
     with open_db(Path(db_path), create=False, readonly=True) as db, db.snapshot(), Sim() as sim:
         key, obj = _stored(db, name, hand)
         scene = ReachScene(sim, spec, obj, ReachSettings(pregrasp_distance=pregrasp_distance), base)
-        scene.place_object(obj_pose)
-        offset = 0
-        while len(found) < top and offset < max_candidates:
-            batch = db.best(key, hand, min(CANDIDATE_BATCH, max_candidates - offset), offset)
-            if not batch:
-                break
-            offset += len(batch)
-            for g in batch:
-                if not g.score:
-                    continue
-                reach = scene.check(g.pose, g.closed_joints, g.open_joints, rng)
-                if reach.grasp is not None and reach.pregrasp is not None:
-                    found.append(ReachableGrasp(g, reach.grasp.joints, reach.pregrasp.joints,
-                                                reach.grasp.manipulability, (obj_pose @ g.pose).tolist()))
-                    if len(found) == top:
-                        break
-        if offset == 0:
-            raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}; "
-                             f"run `grasp generate {name} --hand {hand}`")
+        return _reachable(db, scene, key, hand, obj_pose, top, max_candidates, np.random.default_rng(seed),
+                          misses if misses is not None else [])
+
+
+def _reachable(db: Database, scene: ReachScene, key: str, hand: str, obj_pose: np.ndarray, top: int,
+               max_candidates: int, rng: np.random.Generator, misses: list[tuple[int, str]]) -> list[ReachableGrasp]:
+    """The first ``top`` of the ``max_candidates`` best grasps the scene's arm
+    reaches with the object at ``obj_pose`` (4, 4); misses noted as (rank, why)."""
+    scene.place_object(obj_pose)
+    found: list[ReachableGrasp] = []
+    offset = 0
+    while len(found) < top and offset < max_candidates:
+        batch = db.best(key, hand, min(CANDIDATE_BATCH, max_candidates - offset), offset)
+        if not batch:
+            break
+        offset += len(batch)
+        for g in batch:
+            if not g.score:
+                misses.append((g.rank or 0, "score 0 (gated out by the ranking rule)"))
+                continue
+            reach = scene.check(g.pose, g.closed_joints, g.open_joints, rng)
+            if reach.grasp is not None and reach.pregrasp is not None:
+                found.append(ReachableGrasp(g, reach.grasp.joints, reach.pregrasp.joints,
+                                            reach.grasp.manipulability, (obj_pose @ g.pose).tolist()))
+                if len(found) == top:
+                    break
+            else:
+                misses.append((g.rank or 0, reach.why))
+    if offset == 0:
+        raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db.path}; "
+                         f"run `grasp generate {key} --hand {hand}`")
     return found
+
+
+@dataclass(frozen=True)
+class TableGrasps:
+    """The grasps an arm reaches with the object in one of its resting poses."""
+
+    resting: RestingPose
+    object_pose: np.ndarray  # (4, 4) the object frame in the world [m]
+    grasps: list[ReachableGrasp]
+    misses: list[tuple[int, str]]
+
+    def object_pose7(self) -> list[float]:
+        """x, y, z, qx, qy, qz, qw, as ``--object-pose`` takes it."""
+        from scipy.spatial.transform import Rotation
+
+        return [*self.object_pose[:3, 3].tolist(), *Rotation.from_matrix(self.object_pose[:3, :3]).as_quat().tolist()]
+
+    def to_json(self) -> dict:
+        return {"resting_probability": self.resting.probability, "object_pose": self.object_pose7(),
+                "grasps": [r.to_json() for r in self.grasps]}
+
+
+def best_on_table(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1, at: Sequence[float] = TABLE_AT,
+                  table_height: float = 0.0, poses: int = 3, robot_base: Sequence[float] | None = None,
+                  max_candidates: int = MAX_CANDIDATES, seed: int = 0) -> list[TableGrasps]:
+    """The best reachable grasps with the object resting on the table at
+    ``at`` = (x, y) [m] (world frame), in each of its ``poses`` most probable
+    resting poses (:mod:`planner.geometry.stable`), most probable first."""
+    from planner.geometry.stable import resting_poses
+
+    if top < 1 or poses < 1:
+        raise InputError(f"--top and --stable-poses must be at least 1, got {top} and {poses}")
+    xy = [float(v) for v in at]
+    if len(xy) != 2 or not all(np.isfinite(xy)) or not np.isfinite(table_height):
+        raise InputError(f"--table-at needs 2 finite numbers x,y [m]; got {at}")
+    base = _pose7(robot_base, "--robot-base") if robot_base is not None else np.eye(4)
+    spec = load_hand(hand)
+    out = []
+    with open_db(Path(db_path), create=False, readonly=True) as db, db.snapshot(), Sim() as sim:
+        key, obj = _stored(db, name, hand)
+        scene = ReachScene(sim, spec, obj, ReachSettings(), base)
+        rng = np.random.default_rng(seed)
+        for resting in resting_poses(obj.mesh, obj.com, poses):
+            pose = resting.placed(xy[0], xy[1], table_height)
+            misses: list[tuple[int, str]] = []
+            found = _reachable(db, scene, key, hand, pose, top, max_candidates, rng, misses)
+            out.append(TableGrasps(resting, pose, found, misses))
+    return out
 
 
 def object_pose_matrix(values: Sequence[float]) -> np.ndarray:

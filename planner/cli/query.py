@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 import click
 
 from planner import api
-from planner.cli.app import EXIT_OTHER, db_option, diverse_options, floats, spacing
+from planner.cli.app import db_option, diverse_options, floats, spacing
+from planner.errors import NotFoundError
 
 
 @click.command()
@@ -22,12 +22,24 @@ from planner.cli.app import EXIT_OTHER, db_option, diverse_options, floats, spac
 @click.option("--robot-base", help="x,y,z,qx,qy,qz,qw of the robot base (default: the origin).")
 @click.option("--max-candidates", type=int, default=api.MAX_CANDIDATES, show_default=True,
               help="With --object-pose: how many top-ranked grasps to try at most.")
+@click.option("--on-table", is_flag=True, help="Put the object on the table in its most probable resting poses "
+              "(no --object-pose needed): the best grasps the arm reaches in each.")
+@click.option("--table-at", default="0.5,0", show_default=True, help="With --on-table: x,y [m] of the object on the "
+              "table top z = 0, world frame.")
+@click.option("--stable-poses", type=int, default=3, show_default=True, help="With --on-table: how many resting "
+              "poses to try, most probable first.")
 @click.option("--json", "as_json", is_flag=True)
 @diverse_options
 def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str | None, robot_base: str | None,
-         max_candidates: int, as_json: bool, diverse: bool, min_translation: float, min_rotation: float) -> None:
+         max_candidates: int, on_table: bool, table_at: str, stable_poses: int, as_json: bool, diverse: bool,
+         min_translation: float, min_rotation: float) -> None:
     """The best grasps of OBJECT for a hand, from the database."""
     apart = spacing(diverse, min_translation, min_rotation)
+    if on_table:
+        if object_pose is not None or apart is not None:
+            raise click.BadParameter("--on-table chooses the object pose itself: leave out --object-pose, --diverse")
+        _on_table(object_name, hand, db_path, top, table_at, stable_poses, robot_base, max_candidates, as_json)
+        return
     if object_pose is None:
         if robot_base is not None:
             raise click.BadParameter("--robot-base needs --object-pose")
@@ -40,15 +52,16 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
         return
     if apart is not None:
         raise click.BadParameter("--diverse is not yet available with --object-pose")
+    misses: list[tuple[int, str]] = []
     found = api.best_at(object_name, hand, floats(object_pose) or (), db_path=db_path, top=top,
-                        robot_base=floats(robot_base), max_candidates=max_candidates)
+                        robot_base=floats(robot_base), max_candidates=max_candidates, misses=misses)
     world = api.object_pose_matrix(floats(object_pose) or ())
     if as_json:
         click.echo(json.dumps([{**r.to_json(), "frames": _frames_json(r.grasp, world)} for r in found], indent=2))
         return
     if not found:
-        click.echo(f"no grasp among the top {max_candidates} is reachable at that pose", err=True)
-        sys.exit(EXIT_OTHER)
+        raise NotFoundError(f"no grasp among the top {max_candidates} is reachable at that pose ({_misses(misses)}); "
+                            f"try --max-candidates {max_candidates * 4}, another --object-pose or --on-table")
     for r in found:
         _print_grasp(r.grasp, world, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp})
 
@@ -85,3 +98,33 @@ def show(object_name: str, hand: str, db_path: Path, rank: int, top: int | None,
     grasps = api.show(object_name, hand, out, db_path=db_path, rank=rank, top=top,
                       spacing=spacing(diverse, min_translation, min_rotation))
     click.echo(f"{out}: {len(grasps)} grasp(s) from {len(grasps) and 3} viewpoints")
+
+
+def _misses(misses: list[tuple[int, str]]) -> str:
+    """Why the best ranks tried were not reachable: the first few, and the count of each reason."""
+    from collections import Counter
+
+    if not misses:
+        return "no grasp tried"
+    first = ", ".join(f"#{rank}: {why}" for rank, why in misses[:3])
+    counts = "; ".join(f"{n} x {why}" for why, n in Counter(w for _, w in misses).most_common())
+    return f"nearest ranks tried {first}; of {len(misses)} tried: {counts}"
+
+
+def _on_table(name: str, hand: str, db_path: Path, top: int, table_at: str, poses: int, robot_base: str | None,
+              max_candidates: int, as_json: bool) -> None:
+    tables = api.best_on_table(name, hand, db_path=db_path, top=top, at=floats(table_at) or (), poses=poses,
+                               robot_base=floats(robot_base), max_candidates=max_candidates)
+    if as_json:
+        click.echo(json.dumps([t.to_json() for t in tables], indent=2))
+    for i, t in enumerate(tables if not as_json else ()):
+        pose = ",".join(f"{v:.4f}" for v in t.object_pose7())
+        click.echo(f"resting pose {i + 1} of {len(tables)} (probability {t.resting.probability:.2f}): "
+                   f"--object-pose {pose}")
+        if not t.grasps:
+            click.echo(f"    no grasp among the top {max_candidates} is reachable ({_misses(t.misses)})")
+        for r in t.grasps:
+            _print_grasp(r.grasp, t.object_pose, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp})
+    if not any(t.grasps for t in tables):
+        raise NotFoundError(f"no grasp among the top {max_candidates} is reachable in the {len(tables)} most probable "
+                            f"resting poses; try --max-candidates {max_candidates * 4} or another --table-at")

@@ -136,3 +136,24 @@ def test_best_gives_the_frames_people_use(box_db: Path) -> None:
                            "--max-candidates", "20")
     assert code == 0, err
     assert "world frame: hand base (panda_hand) at (" in out and "arm at the grasp [rad]: panda_joint1 " in out
+
+
+def test_on_table_uses_resting_poses_and_its_pose_reproduces_the_grasp(box_db: Path) -> None:
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--on-table", "--stable-poses", "2",
+                           "--max-candidates", "30")
+    assert code == 0, err
+    heads = [line for line in out.splitlines() if line.startswith("resting pose ")]
+    assert len(heads) == 2 and heads[0].startswith("resting pose 1 of 2 (probability ")
+    pose = heads[0].split("--object-pose ")[1]
+    rank = next(line for line in out.splitlines() if line.startswith("#")).split()[0]
+    code, again, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--object-pose", pose,
+                             "--max-candidates", "30")
+    assert code == 0, err
+    assert again.splitlines()[0].split()[0] == rank
+
+
+def test_an_unreachable_pose_explains_the_miss(box_db: Path) -> None:
+    code, _, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--object-pose", "3,0,0.05,0,0,0,1",
+                         "--max-candidates", "4")
+    one_line_error(code, err, 1, "no grasp among the top 4 is reachable at that pose", "nearest ranks tried #1: ",
+                   "of 4 tried: ", "--max-candidates 16")
