@@ -58,7 +58,10 @@ if TYPE_CHECKING:
     from planner.datasets.exporter import ExportSummary, export
     from planner.datasets.importer import FORMATS as IMPORT_FORMATS
     from planner.datasets.importer import ImportResult, import_files
+    from planner.db.diverse import Spacing
     from planner.geometry.solid import PreparedObject
+    from planner.geometry.stable import RestingPose
+    from planner.plan.reach import ReachScene
     from planner.plan.unit import UnitResult, UnitSpec
     from planner.validation.run import ValidationSummary, validate
 
@@ -91,6 +94,8 @@ _LAZY = {
 CANDIDATE_BATCH = 50
 #: ``best_at`` tries at most this many top-ranked grasps by default.
 MAX_CANDIDATES = 300
+TABLE_AT = (0.5, 0.0)  # [m] where --on-table puts the object, robot base frame
+DIVERSE_BATCH = 500  # grasps read at a time while picking diverse ones
 #: [s] the pool stops a worker this long after ``--unit-timeout``: the unit
 #: checks its own time between candidates and ends cleanly; the pool's kill is
 #: for a simulator call that never returns.
@@ -328,14 +333,25 @@ def generate_command(name: str, row: ObjectRow | None, hand: str, db_path: Path)
     return f"grasp generate {shlex.quote(row.source)} --hand {hand}{extra}{db}"
 
 
-def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1) -> list[Grasp]:
-    """The ``top`` best grasps of an object for a hand, in rank order."""
+def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1, spacing: Spacing | None = None
+         ) -> list[Grasp]:
+    """The ``top`` best grasps of an object for a hand, in rank order; with
+    ``spacing``, the best ``top`` that are each that far from every better
+    one kept (:mod:`planner.db.diverse`)."""
     if top < 1:
         raise InputError(f"--top must be at least 1, got {top}")
     check_hand_name(hand)
     with open_db(Path(db_path), create=False, readonly=True) as db:
         key, row = resolve_object(db, name)
-        grasps = db.best(key, hand, top)
+        if spacing is None:
+            grasps = db.best(key, hand, top)
+        else:
+            from planner.db.diverse import diverse
+
+            spec = load_hand(hand)
+            with closing(db.grasp_batches(key, hand, size=DIVERSE_BATCH)) as batches:  # its cursor, before the db
+                ranked = (g for batch in batches for g in batch if g.rank)
+                grasps = diverse(ranked, top, spacing, spec.tcp, spec.approach, spec.roll_symmetry)
         if not grasps:
             known = db.objects_for(hand)
             raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}; objects with grasps: "
@@ -360,11 +376,13 @@ class ReachableGrasp:
 
 def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path = DEFAULT_DB, top: int = 1,
             robot_base: Sequence[float] | None = None, max_candidates: int = MAX_CANDIDATES,
-            pregrasp_distance: float = PREGRASP_DISTANCE, seed: int = 0) -> list[ReachableGrasp]:
+            pregrasp_distance: float = PREGRASP_DISTANCE, seed: int = 0,
+            misses: list[tuple[int, str]] | None = None) -> list[ReachableGrasp]:
     """The best stored grasps that an arm reaches *now*, with the object at
     ``object_pose`` (x, y, z, qx, qy, qz, qw, world frame) and the robot base at
     ``robot_base`` (same form; default the origin). Candidates are tried in
-    rank order, at most ``max_candidates`` of them."""
+    rank order, at most ``max_candidates`` of them; ``misses``, if given,
+    receives (rank, why) of each one tried and not reachable."""
     from planner.plan.reach import ReachScene, ReachSettings
     from planner.sim import Sim
 
@@ -373,31 +391,96 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
     obj_pose = _pose7(object_pose, "--object-pose")
     base = _pose7(robot_base, "--robot-base") if robot_base is not None else np.eye(4)
     spec = load_hand(hand)
-    rng = np.random.default_rng(seed)
-    found: list[ReachableGrasp] = []
     with open_db(Path(db_path), create=False, readonly=True) as db, db.snapshot(), Sim() as sim:
         key, obj = _stored(db, name, hand)
         scene = ReachScene(sim, spec, obj, ReachSettings(pregrasp_distance=pregrasp_distance), base)
-        scene.place_object(obj_pose)
-        offset = 0
-        while len(found) < top and offset < max_candidates:
-            batch = db.best(key, hand, min(CANDIDATE_BATCH, max_candidates - offset), offset)
-            if not batch:
-                break
-            offset += len(batch)
-            for g in batch:
-                if not g.score:
-                    continue
-                reach = scene.check(g.pose, g.closed_joints, g.open_joints, rng)
-                if reach.grasp is not None and reach.pregrasp is not None:
-                    found.append(ReachableGrasp(g, reach.grasp.joints, reach.pregrasp.joints,
-                                                reach.grasp.manipulability, (obj_pose @ g.pose).tolist()))
-                    if len(found) == top:
-                        break
-        if offset == 0:
-            raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}; "
-                             f"run `{generate_command(name, db.object_row(key), hand, db_path)}`")
+        return _reachable(db, scene, key, hand, obj_pose, top, max_candidates, np.random.default_rng(seed),
+                          misses if misses is not None else [])
+
+
+def _reachable(db: Database, scene: ReachScene, key: str, hand: str, obj_pose: np.ndarray, top: int,
+               max_candidates: int, rng: np.random.Generator, misses: list[tuple[int, str]]) -> list[ReachableGrasp]:
+    """The first ``top`` of the ``max_candidates`` best grasps the scene's arm
+    reaches with the object at ``obj_pose`` (4, 4); misses noted as (rank, why)."""
+    scene.place_object(obj_pose)
+    found: list[ReachableGrasp] = []
+    offset = 0
+    while len(found) < top and offset < max_candidates:
+        batch = db.best(key, hand, min(CANDIDATE_BATCH, max_candidates - offset), offset)
+        if not batch:
+            break
+        offset += len(batch)
+        for g in batch:
+            if not g.score:
+                misses.append((g.rank or 0, "score 0 (gated out by the ranking rule)"))
+                continue
+            reach = scene.check(g.pose, g.closed_joints, g.open_joints, rng)
+            if reach.grasp is not None and reach.pregrasp is not None:
+                found.append(ReachableGrasp(g, reach.grasp.joints, reach.pregrasp.joints,
+                                            reach.grasp.manipulability, (obj_pose @ g.pose).tolist()))
+                if len(found) == top:
+                    break
+            else:
+                misses.append((g.rank or 0, reach.why))
+    if offset == 0:
+        raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db.path}; "
+                         f"run `{generate_command(key, db.object_row(key), hand, db.path)}`")
     return found
+
+
+@dataclass(frozen=True)
+class TableGrasps:
+    """The grasps an arm reaches with the object in one of its resting poses."""
+
+    resting: RestingPose
+    object_pose: np.ndarray  # (4, 4) the object frame in the world [m]
+    grasps: list[ReachableGrasp]
+    misses: list[tuple[int, str]]
+
+    def object_pose7(self) -> list[float]:
+        """x, y, z, qx, qy, qz, qw, as ``--object-pose`` takes it."""
+        from scipy.spatial.transform import Rotation
+
+        return [*self.object_pose[:3, 3].tolist(), *Rotation.from_matrix(self.object_pose[:3, :3]).as_quat().tolist()]
+
+    def to_json(self) -> dict:
+        return {"resting_probability": self.resting.probability, "object_pose": self.object_pose7(),
+                "grasps": [r.to_json() for r in self.grasps]}
+
+
+def best_on_table(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1, at: Sequence[float] = TABLE_AT,
+                  table_height: float = 0.0, poses: int = 3, robot_base: Sequence[float] | None = None,
+                  max_candidates: int = MAX_CANDIDATES, seed: int = 0) -> list[TableGrasps]:
+    """The best reachable grasps with the object resting on the table at
+    ``at`` = (x, y) [m] (world frame), in each of its ``poses`` most probable
+    resting poses (:mod:`planner.geometry.stable`), most probable first."""
+    from planner.geometry.stable import resting_poses
+    from planner.plan.reach import ReachScene, ReachSettings
+    from planner.sim import Sim
+
+    if top < 1 or poses < 1:
+        raise InputError(f"--top and --stable-poses must be at least 1, got {top} and {poses}")
+    xy = [float(v) for v in at]
+    if len(xy) != 2 or not all(np.isfinite(xy)) or not np.isfinite(table_height):
+        raise InputError(f"--table-at needs 2 finite numbers x,y [m]; got {at}")
+    base = _pose7(robot_base, "--robot-base") if robot_base is not None else np.eye(4)
+    spec = load_hand(hand)
+    out = []
+    with open_db(Path(db_path), create=False, readonly=True) as db, db.snapshot(), Sim() as sim:
+        key, obj = _stored(db, name, hand)
+        scene = ReachScene(sim, spec, obj, ReachSettings(), base)
+        rng = np.random.default_rng(seed)
+        for resting in resting_poses(obj.mesh, obj.com, poses):
+            pose = resting.placed(xy[0], xy[1], table_height)
+            misses: list[tuple[int, str]] = []
+            found = _reachable(db, scene, key, hand, pose, top, max_candidates, rng, misses)
+            out.append(TableGrasps(resting, pose, found, misses))
+    return out
+
+
+def object_pose_matrix(values: Sequence[float]) -> np.ndarray:
+    """(4, 4) the pose ``--object-pose`` x,y,z,qx,qy,qz,qw gives (checked)."""
+    return _pose7(values, "--object-pose")
 
 
 def _pose7(values: Sequence[float], option: str) -> np.ndarray:
@@ -414,9 +497,10 @@ def _pose7(values: Sequence[float], option: str) -> np.ndarray:
     return pose_from_xyzquat(vals)
 
 
-def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: int = 1, top: int | None = None
-         ) -> list[Grasp]:
-    """Render grasp ``rank`` (or the ``top`` K as a contact sheet) to a PNG."""
+def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: int = 1, top: int | None = None,
+         spacing: Spacing | None = None) -> list[Grasp]:
+    """Render grasp ``rank`` (or the ``top`` K as a contact sheet; with
+    ``spacing``, the K best diverse ones) to a PNG."""
     from planner.present import render  # matplotlib: only for pictures
 
     count = top or 1
@@ -428,11 +512,69 @@ def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: i
         raise InputError(f"{out}: the picture is written as PNG; give a .png path")
     with open_db(Path(db_path), create=False, readonly=True) as db:
         key, obj = _stored(db, name, hand)
-        grasps = db.best(key, hand, count, first - 1)
+        grasps = db.best(key, hand, count, first - 1) if spacing is None else \
+            best(key, hand, db_path=db_path, top=first - 1 + count, spacing=spacing)[first - 1:]
     if not grasps:
         raise InputError(f"no grasp of rank {first} for '{key}' and hand '{hand}' in {db_path}")
     render.save_sheet([(render.grasp_views(spec, obj, g), render.title(g)) for g in grasps], Path(out))
     return grasps
+
+
+def view(name: str, hands: Sequence[str] | None = None, *, db_path: Path = DEFAULT_DB, top: int = 50,
+         host: str = "127.0.0.1", port: int = 8080, object_pose: Sequence[float] | None = None,
+         robot_base: Sequence[float] | None = None, spacing: Spacing | None = None):  # -> viewer.Viewer
+    """Start the browser viewer on the ``top`` best grasps of each hand (all
+    hands with grasps of the object when ``hands`` is None). With
+    ``object_pose`` only grasps the arm reaches at that pose are offered,
+    placed in the world with the arm. Returns the running viewer (``url``,
+    ``stop()``)."""
+    from planner.datasets.meshes import stored_object
+    from planner.present import scene as scenes
+    from planner.present import viewer
+
+    if top < 1:
+        raise InputError(f"--top must be at least 1, got {top}")
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        key, row = resolve_object(db, name)
+        stored = sorted(h for o, h in db.pairs() if o == key)
+        if row is None or not stored:
+            raise InputError(f"no grasps of '{key}' in {db_path}; run `grasp generate {name} --hand panda`")
+        obj = stored_object(row)
+    chosen = list(hands) if hands else stored
+    missing = [h for h in chosen if h not in stored]
+    if missing:
+        raise InputError(f"no grasps of '{key}' for hand(s) {', '.join(missing)} in {db_path} "
+                         f"(hands with grasps: {', '.join(stored)})")
+    specs = {h: load_hand(h) for h in chosen}
+    world = None if object_pose is None else _pose7(object_pose, "--object-pose")
+    base = None if robot_base is None else _pose7(robot_base, "--robot-base")
+    entries: list[viewer.Entry] = []
+    for h in chosen:
+        if object_pose is None:
+            found = [(g, None, ()) for g in best(key, h, db_path=db_path, top=top, spacing=spacing)]
+        else:
+            found = [(r.grasp, r.arm_grasp, (_arm_line(r),))
+                     for r in best_at(key, h, object_pose, db_path=db_path, top=top, robot_base=robot_base)]
+        for g, arm, extra in found:
+            def build(g=g, arm=arm, spec=specs[h]):  # noqa: B023 - bound per grasp
+                return scenes.grasp_scene(spec, obj.mesh, g, obj.friction, world, arm, base)
+            entries.append(viewer.Entry(g, build, extra))
+    if not entries:
+        raise InputError(f"no stored grasp of '{key}' is reachable at --object-pose {object_pose}; "
+                         "try `grasp best ... --object-pose ... --max-candidates 2000`")
+    return viewer.Viewer(entries, specs, scenes.object_part(obj.mesh, world), host=host, port=port)
+
+
+def coverage(db_path: Path, top: int = 10):  # -> list[planner.present.coverage.Coverage]
+    """Surface coverage of the ``top`` best (and diverse) grasps' contacts, per object and hand."""
+    from planner.present.coverage import coverages
+
+    return coverages(Path(db_path), top)
+
+
+def _arm_line(r: ReachableGrasp) -> str:
+    joints = ", ".join(f"{k} {v:.3f}" for k, v in r.arm_grasp.items())
+    return f"arm joints at the grasp [rad]: {joints}"
 
 
 def report(db_path: Path, out: Path) -> Path:

@@ -51,6 +51,12 @@ class DegenerateGraspError(InputError):
     """Contacts that cannot be analysed (bad shapes, NaNs, zero normals)."""
 
 
+class NotFoundError(PlannerError):
+    """A query that ran and found nothing (no reachable grasp): exit code 1."""
+
+    exit_code = 1
+
+
 class DatabaseError(PlannerError):
     """The database cannot be opened, read or written safely."""
 

@@ -63,7 +63,8 @@ def test_show_and_best_at_use_the_stored_mesh(stored_db: Path, tmp_path: Path, m
     from planner.present import render
 
     shown: list = []
-    monkeypatch.setattr(render, "grasp_views", lambda hand, obj, g: shown.append(obj) or [np.zeros((4, 4, 3))])
+    blank = render.View(np.zeros((4, 4, 3)), np.zeros((0, 2)))
+    monkeypatch.setattr(render, "grasp_views", lambda hand, obj, g: shown.append(obj) or [blank])
     api.show("duck", "panda", tmp_path / "d.png", db_path=stored_db)
     assert np.array_equal(shown[0].mesh.vertices, load_object("duck", scale=1.5).mesh.vertices)
     with open_db(stored_db, create=False, readonly=True) as db:

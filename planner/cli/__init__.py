@@ -3,7 +3,7 @@
 Errors become one line on stderr and an exit code (2 bad input, 3 database,
 4 simulator, 1 anything else); ``grasp --debug ...`` shows the traceback.
 Commands, one module per group of them: ``generate``; ``best``, ``show``
-(query); ``validate``, ``report``; ``export``, ``import`` (data); ``hands``,
+(query); ``view`` (the browser viewer); ``validate``, ``report``; ``export``, ``import`` (data); ``hands``,
 ``objects``, ``db check`` (info).
 """
 
@@ -13,8 +13,9 @@ from planner.cli.generate import generate
 from planner.cli.info import db, hands, objects
 from planner.cli.query import best, show
 from planner.cli.validate import report, validate
+from planner.cli.view import view
 
-for _command in (generate, best, show, validate, report, export, import_files, hands, objects, db):
+for _command in (generate, best, show, view, validate, report, export, import_files, hands, objects, db):
     main.add_command(_command)
 
 __all__ = ["main"]

@@ -4,6 +4,7 @@ option helpers the commands share."""
 from __future__ import annotations
 
 import logging
+import math
 import sqlite3
 import sys
 import traceback
@@ -84,6 +85,25 @@ class LazyHelp(click.Option):
     def get_help_record(self, ctx: click.Context) -> tuple[str, str] | None:
         self.help = self._help_text()
         return super().get_help_record(ctx)
+def diverse_options(command):  # type: ignore[no-untyped-def]
+    """``--diverse`` with its two distances, for every command that lists top grasps."""
+    command = click.option("--min-rotation", type=float, default=30.0, show_default=True,
+                           help="With --diverse: ... or orientations this many degrees apart.")(command)
+    command = click.option("--min-translation", type=float, default=0.02, show_default=True,
+                           help="With --diverse: tool centre points this many metres apart ...")(command)
+    return click.option("--diverse", is_flag=True, help="Only grasps at least --min-translation metres or "
+                        "--min-rotation degrees from every better one listed.")(command)
+
+
+def spacing(diverse: bool, min_translation: float, min_rotation: float):  # type: ignore[no-untyped-def]
+    """The :class:`~planner.db.diverse.Spacing` the options ask for, or None."""
+    if not diverse:
+        return None
+    from planner.db.diverse import Spacing
+
+    if not (min_translation >= 0 and min_rotation >= 0):
+        raise click.BadParameter("--min-translation and --min-rotation must be >= 0")
+    return Spacing(min_translation, math.radians(min_rotation))
 
 
 def floats(text: str | None) -> tuple[float, ...] | None:

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 import click
 
 from planner import api
-from planner.cli.app import EXIT_OTHER, db_option, floats
+from planner.cli.app import db_option, diverse_options, floats, spacing
+from planner.errors import NotFoundError
+from planner.specs.hands import hand_frame
 
 
 @click.command()
@@ -22,51 +23,67 @@ from planner.cli.app import EXIT_OTHER, db_option, floats
 @click.option("--robot-base", help="x,y,z,qx,qy,qz,qw of the robot base (default: the origin).")
 @click.option("--max-candidates", type=int, default=api.MAX_CANDIDATES, show_default=True,
               help="With --object-pose: how many top-ranked grasps to try at most.")
+@click.option("--on-table", is_flag=True, help="Put the object on the table in its most probable resting poses "
+              "(no --object-pose needed): the best grasps the arm reaches in each.")
+@click.option("--table-at", default="0.5,0", show_default=True, help="With --on-table: x,y [m] of the object on the "
+              "table top z = 0, world frame.")
+@click.option("--stable-poses", type=int, default=3, show_default=True, help="With --on-table: how many resting "
+              "poses to try, most probable first.")
 @click.option("--json", "as_json", is_flag=True)
+@diverse_options
 def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str | None, robot_base: str | None,
-         max_candidates: int, as_json: bool) -> None:
+         max_candidates: int, on_table: bool, table_at: str, stable_poses: int, as_json: bool, diverse: bool,
+         min_translation: float, min_rotation: float) -> None:
     """The best grasps of OBJECT for a hand, from the database."""
+    apart = spacing(diverse, min_translation, min_rotation)
+    if on_table:
+        if object_pose is not None or apart is not None:
+            raise click.BadParameter("--on-table chooses the object pose itself: leave out --object-pose, --diverse")
+        _on_table(object_name, hand, db_path, top, table_at, stable_poses, robot_base, max_candidates, as_json)
+        return
     if object_pose is None:
         if robot_base is not None:
             raise click.BadParameter("--robot-base needs --object-pose")
-        grasps = api.best(object_name, hand, db_path=db_path, top=top)
+        grasps = api.best(object_name, hand, db_path=db_path, top=top, spacing=apart)
         if as_json:
-            click.echo(json.dumps([g.to_json() for g in grasps], indent=2))
+            click.echo(json.dumps([{**g.to_json(), "frames": _frames_json(g)} for g in grasps], indent=2))
             return
         for g in grasps:
             _print_grasp(g)
         return
+    if apart is not None:
+        raise click.BadParameter("--diverse is not yet available with --object-pose")
+    misses: list[tuple[int, str]] = []
     found = api.best_at(object_name, hand, floats(object_pose) or (), db_path=db_path, top=top,
-                        robot_base=floats(robot_base), max_candidates=max_candidates)
+                        robot_base=floats(robot_base), max_candidates=max_candidates, misses=misses)
+    world = api.object_pose_matrix(floats(object_pose) or ())
     if as_json:
-        click.echo(json.dumps([r.to_json() for r in found], indent=2))
+        click.echo(json.dumps([{**r.to_json(), "frames": _frames_json(r.grasp, world)} for r in found], indent=2))
         return
     if not found:
-        click.echo(f"grasp: error: none of the {max_candidates} best grasps of '{object_name}' for hand '{hand}' is "
-                   f"reachable with the object at {object_pose}; try more of them (--max-candidates "
-                   f"{max_candidates * 10}), an object pose nearer the arm, or check --robot-base", err=True)
-        sys.exit(EXIT_OTHER)
+        raise NotFoundError(f"none of the {max_candidates} best grasps of '{object_name}' for hand '{hand}' is "
+                            f"reachable with the object at {object_pose} ({_misses(misses)}); try more of them "
+                            f"(--max-candidates {max_candidates * 10}), an object pose nearer the arm, --on-table, "
+                            f"or check --robot-base")
     for r in found:
-        _print_grasp(r.grasp)
-        click.echo("    arm at grasp: " + ", ".join(f"{k}={v:.3f}" for k, v in r.arm_grasp.items()))
-        click.echo("    arm at pre-grasp: " + ", ".join(f"{k}={v:.3f}" for k, v in r.arm_pregrasp.items()))
+        _print_grasp(r.grasp, world, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp})
 
 
-def _print_grasp(g: api.Grasp) -> None:
-    pos = g.pose[:3, 3]
-    reach = "n/a" if g.reachability is None else f"{g.reachability:.2f}"
-    click.echo(f"#{g.rank} {g.object}/{g.hand} preshape={g.preshape} score={g.score:.4f} epsilon={g.epsilon:.4f} "
-               f"reachability={reach} volume={g.volume:.3g} force_closure={g.force_closure} "
-               f"contacts={len(g.contacts)} position=({pos[0]:.3f}, {pos[1]:.3f}, {pos[2]:.3f}) m{_measures(g)}")
+def _print_grasp(g: api.Grasp, world: object = None, arm: dict | None = None) -> None:
+    from planner.present.describe import describe
+
+    for line in describe(g, hand_frame(g.hand), world, arm):  # type: ignore[arg-type]
+        click.echo(line)
 
 
-def _measures(g: api.Grasp) -> str:
-    m = g.measures
-    if m is None:
-        return ""
-    settled = "" if m.settled_epsilon is None else f" settled_epsilon={m.settled_epsilon:.4f}"
-    return (f" holds={m.resist_worst:.1f}g (mean {m.resist_mean:.1f}g) push={m.push:.2f} "
-            f"feasibility={','.join(m.reasons) or 'ok'}{settled}")
+def _frames_json(g: api.Grasp, world: object = None) -> dict:
+    from planner.present.describe import frames
+
+    spec = hand_frame(g.hand)
+    out = {"object_frame": frames(g, spec).to_json()}
+    if world is not None:
+        out["world_frame"] = frames(g, spec, world).to_json()  # type: ignore[arg-type]
+    return out
 
 
 @click.command()
@@ -76,7 +93,40 @@ def _measures(g: api.Grasp) -> str:
 @click.option("--rank", type=int, default=1, show_default=True, help="Which grasp (1 = best).")
 @click.option("--top", type=int, help="A contact sheet of the K best grasps instead.")
 @click.option("--out", type=click.Path(path_type=Path), default=Path("grasp.png"), show_default=True)
-def show(object_name: str, hand: str, db_path: Path, rank: int, top: int | None, out: Path) -> None:
+@diverse_options
+def show(object_name: str, hand: str, db_path: Path, rank: int, top: int | None, out: Path, diverse: bool,
+         min_translation: float, min_rotation: float) -> None:
     """Render grasps (hand closed on the object, contacts, friction cones) to a PNG."""
-    grasps = api.show(object_name, hand, out, db_path=db_path, rank=rank, top=top)
+    grasps = api.show(object_name, hand, out, db_path=db_path, rank=rank, top=top,
+                      spacing=spacing(diverse, min_translation, min_rotation))
     click.echo(f"{out}: {len(grasps)} grasp(s) from {len(grasps) and 3} viewpoints")
+
+
+def _misses(misses: list[tuple[int, str]]) -> str:
+    """Why the best ranks tried were not reachable: the first few, and the count of each reason."""
+    from collections import Counter
+
+    if not misses:
+        return "no grasp tried"
+    first = ", ".join(f"#{rank}: {why}" for rank, why in misses[:3])
+    counts = "; ".join(f"{n} x {why}" for why, n in Counter(w for _, w in misses).most_common())
+    return f"nearest ranks tried {first}; of {len(misses)} tried: {counts}"
+
+
+def _on_table(name: str, hand: str, db_path: Path, top: int, table_at: str, poses: int, robot_base: str | None,
+              max_candidates: int, as_json: bool) -> None:
+    tables = api.best_on_table(name, hand, db_path=db_path, top=top, at=floats(table_at) or (), poses=poses,
+                               robot_base=floats(robot_base), max_candidates=max_candidates)
+    if as_json:
+        click.echo(json.dumps([t.to_json() for t in tables], indent=2))
+    for i, t in enumerate(tables if not as_json else ()):
+        pose = ",".join(f"{v:.4f}" for v in t.object_pose7())
+        click.echo(f"resting pose {i + 1} of {len(tables)} (probability {t.resting.probability:.2f}): "
+                   f"--object-pose {pose}")
+        if not t.grasps:
+            click.echo(f"    no grasp among the top {max_candidates} is reachable ({_misses(t.misses)})")
+        for r in t.grasps:
+            _print_grasp(r.grasp, t.object_pose, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp})
+    if not any(t.grasps for t in tables):
+        raise NotFoundError(f"no grasp among the top {max_candidates} is reachable in the {len(tables)} most probable "
+                            f"resting poses; try --max-candidates {max_candidates * 4} or another --table-at")

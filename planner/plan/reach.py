@@ -52,6 +52,12 @@ class ReachSettings:
     max_penetration: float = MAX_PENETRATION
 
 
+#: Why a grasp is not reachable, in the order they are checked.
+MISSES = ("the hand at the grasp would hit the table", "the open hand at the pre-grasp would hit the table",
+          "no collision-free arm solution within the joint limits at the grasp",
+          "no collision-free arm solution at the pre-grasp (backed off along the approach)")
+
+
 @dataclass(frozen=True)
 class ArmSolution:
     """Arm joint values [rad] by name, and how good the solution is."""
@@ -66,6 +72,7 @@ class ArmSolution:
 class Reach:
     grasp: ArmSolution | None
     pregrasp: ArmSolution | None
+    why: str = ""  # why not reachable: one of MISSES (empty when reachable)
 
     @property
     def reachable(self) -> bool:
@@ -166,12 +173,15 @@ class ReachScene:
         world = self.object_pose @ grasp_pose
         pre = world.copy()
         pre[:3, 3] -= (world[:3, :3] @ self.hand.approach) * self.settings.pregrasp_distance
-        if self.hand_hits_table(world, closed) or self.hand_hits_table(pre, open_):
-            return Reach(None, None)
+        if self.hand_hits_table(world, closed):
+            return Reach(None, None, MISSES[0])
+        if self.hand_hits_table(pre, open_):
+            return Reach(None, None, MISSES[1])
         grasp = self.solve(world, closed, rng, grasp=True)
         if grasp is None:
-            return Reach(None, None)
-        return Reach(grasp, self.solve(pre, open_, rng, grasp=False, seed=grasp))
+            return Reach(None, None, MISSES[2])
+        pregrasp = self.solve(pre, open_, rng, grasp=False, seed=grasp)
+        return Reach(grasp, pregrasp, "" if pregrasp is not None else MISSES[3])
 
     def solve(self, hand_pose: np.ndarray, fingers: dict[str, float], rng: np.random.Generator, *, grasp: bool,
               seed: ArmSolution | None = None) -> ArmSolution | None:

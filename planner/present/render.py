@@ -1,7 +1,8 @@
 """Pictures of grasps: the hand closed on the object, its contact patches,
 contacts and friction cones, from a few viewpoints, rendered headless by
 PyBullet's TinyRenderer. Contact sheets of several grasps are laid out with
-matplotlib.
+matplotlib, each contact circled in red over the picture (the fingers would
+hide most of them).
 
 A patch (the contacts of one region, :mod:`planner.plan.patches`) is drawn as
 the blue polygon its contacts span, just outside the object; a soft-finger
@@ -10,6 +11,7 @@ contact as a blue disc of its region's radius.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -30,14 +32,26 @@ PATCH_RGBA = (0.15, 0.35, 0.95, 1.0)
 PATCH_LIFT = 0.0005  # [m] patches are drawn this far outside the object surface
 MIN_DISC = 0.0015  # [m] smallest drawn disc radius (visible at these scales)
 CONE_LENGTH = 0.015  # [m] drawn height of a friction cone
-VIEW_SIZE = (360, 300)
+VIEW_SIZE = (640, 520)  # [px] width, height of one view
+FOV = 40.0  # [deg] vertical field of view
+CONTACT_MARK = 7.0  # [pt] radius of a contact's mark drawn over the picture
 #: Viewing directions (from the target towards the eye), before scaling.
 VIEWS = (np.array([1.0, -1.2, 0.8]), np.array([-1.0, -0.4, 0.5]), np.array([0.3, 1.2, -0.25]))
 
 
+@dataclass(frozen=True)
+class View:
+    """One rendered viewpoint: ``image`` (h, w, 3) uint8 RGB and ``contacts``
+    (k, 2) [px] where the grasp's contact points project (x right, y down),
+    drawn over the picture so no finger hides them."""
+
+    image: np.ndarray
+    contacts: np.ndarray
+
+
 def grasp_views(hand: HandSpec, obj: PreparedObject, grasp: Grasp, size: tuple[int, int] = VIEW_SIZE
-                ) -> list[np.ndarray]:
-    """One RGB image per viewpoint of ``VIEWS``."""
+                ) -> list[View]:
+    """One view per viewpoint of ``VIEWS``."""
     with Sim() as sim:
         sim.add_visual_mesh(obj.mesh.vertices, obj.mesh.faces, OBJECT_RGBA)
         body = sim.load_urdf(hand.urdf)
@@ -51,11 +65,31 @@ def grasp_views(hand: HandSpec, obj: PreparedObject, grasp: Grasp, size: tuple[i
         centre = 0.5 * (obj.mesh.bounds[0] + obj.mesh.bounds[1])
         target = 0.5 * (centre + np.array(grasp.pose)[:3, 3])
         radius = float(np.linalg.norm(obj.mesh.extents)) + 0.12
-        images = []
+        up = np.array([0.0, 0.0, 1.0])
+        views = []
         for view in VIEWS:
             eye = target + view / np.linalg.norm(view) * radius * 1.25
-            images.append(sim.render(eye, target, np.array([0.0, 0.0, 1.0]), size))
-        return images
+            views.append(View(sim.render(eye, target, up, size, fov=FOV),
+                              project(grasp.contacts.points, eye, target, up, size, FOV)))
+        return views
+
+
+def project(points: np.ndarray, eye: np.ndarray, target: np.ndarray, up: np.ndarray, size: tuple[int, int],
+            fov: float) -> np.ndarray:
+    """(k, 2) [px] pixel coordinates (x right, y down) of ``points`` (k, 3) [m]
+    seen from ``eye`` looking at ``target`` with a vertical field of view
+    ``fov`` [deg], as the renderer's pinhole camera sees them."""
+    forward = (target - eye) / np.linalg.norm(target - eye)
+    right = np.cross(forward, up)
+    right /= np.linalg.norm(right)
+    true_up = np.cross(right, forward)
+    rel = np.asarray(points, float).reshape(-1, 3) - eye
+    depth = rel @ forward
+    width, height = size
+    focal = 0.5 * height / np.tan(np.radians(fov) / 2)
+    x = width / 2 + focal * (rel @ right) / depth
+    y = height / 2 - focal * (rel @ true_up) / depth
+    return np.column_stack([x, y])
 
 
 def patch_meshes(contacts: HandContacts) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -100,23 +134,29 @@ def _add_contact(sim: Sim, point: np.ndarray, normal: np.ndarray, mu: float) -> 
     sim.add_visual_mesh(cone.vertices + point, cone.faces, CONE_RGBA)
 
 
-def save_sheet(panels: list[tuple[list[np.ndarray], str]], out: Path) -> None:
-    """One row per grasp (its views side by side), titled; saved as PNG."""
+def save_sheet(panels: list[tuple[list[View], str]], out: Path) -> None:
+    """One row per grasp (its views side by side), titled, contacts marked on
+    top of each view; saved as PNG."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     rows, cols = len(panels), max(len(views) for views, _ in panels)
-    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.8 * rows), squeeze=False)
+    fig, axes = plt.subplots(rows, cols, figsize=(6.4 * cols, 5.4 * rows), squeeze=False)
     for r, (views, title) in enumerate(panels):
         for c in range(cols):
             ax = axes[r][c]
             ax.axis("off")
             if c < len(views):
-                ax.imshow(views[c])
-        axes[r][0].set_title(title, loc="left", fontsize=9)
-    fig.tight_layout()
+                ax.imshow(views[c].image)
+                px = views[c].contacts
+                ax.scatter(px[:, 0], px[:, 1], s=CONTACT_MARK ** 2, facecolors="none", edgecolors="red",
+                           linewidths=1.5, zorder=3)
+                ax.set_xlim(0, views[c].image.shape[1])
+                ax.set_ylim(views[c].image.shape[0], 0)
+        axes[r][0].set_title(title, loc="left", fontsize=11, pad=8)
+    fig.tight_layout(pad=1.2)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=100)
     plt.close(fig)

@@ -182,6 +182,30 @@ def check_hand_name(name: str) -> Path:
     return folder
 
 
+@dataclass(frozen=True)
+class HandFrame:
+    """What locating a grasp needs of a hand, read from hand.toml alone (no
+    URDF: ``grasp best`` prints frames without loading the hand's model).
+
+    Attributes:
+        root_link: the hand frame's link; approach: (3,) unit, hand frame;
+        tcp: (3,) [m] the tool centre point, hand frame.
+    """
+
+    root_link: str
+    approach: np.ndarray
+    tcp: np.ndarray
+
+
+@cache
+def hand_frame(name: str) -> HandFrame:
+    """The :class:`HandFrame` of hand ``name`` (the same values :func:`load_hand` gives)."""
+    path = check_hand_name(name) / "hand.toml"
+    f = Fields(read_toml(path), str(path))
+    approach = np.array(f.floats("approach", 3))
+    return HandFrame(f.str("root_link"), approach / np.linalg.norm(approach), np.array(f.floats("tcp", 3)))
+
+
 @cache
 def load_hand(name: str) -> HandSpec:
     """Load ``hands/<name>/hand.toml``; unknown names list the valid ones."""

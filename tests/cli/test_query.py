@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 from helpers import grasp, one_line_error
 
+from planner import api
+
 
 def test_best_json_has_the_documented_keys(box_db: Path) -> None:
     code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--top", "3", "--json")
@@ -50,9 +52,13 @@ def test_best_grasp_fingers_really_touch_the_object(box_db: Path) -> None:
 def test_best_prints_one_line_per_grasp_and_show_writes_a_png(box_db: Path, tmp_path: Path) -> None:
     code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--top", "2")
     assert code == 0, err
-    lines = out.strip().splitlines()
-    assert len(lines) == 2 and lines[0].startswith("#1 box/panda preshape=wide score=")
-    assert " holds=" in lines[0] and " push=" in lines[0] and " feasibility=" in lines[0]  # the analytic measures
+    heads = [line for line in out.splitlines() if line.startswith("#")]
+    assert len(heads) == 2 and heads[0].startswith("#1 box/panda preshape wide: score ")
+    first = out.split("\n#2")[0]
+    assert "object frame: hand base (panda_hand) at (" in first and "tool centre point at (" in first
+    assert "orientation xyzw (" in first and "approach direction (" in first and "finger width " in first
+    assert " holds " in first and " g in the worst direction" in first and "feasibility " in first  # analytic measures
+    assert "world frame" not in first
     code, out, err = grasp("show", "box", "--hand", "panda", "--db", str(box_db), "--out", str(tmp_path / "g.png"))
     assert code == 0 and (tmp_path / "g.png").stat().st_size > 1000, err
 
@@ -94,6 +100,82 @@ def test_the_barrett_settles_by_default_and_best_prints_its_settled_epsilon(tmp_
     assert code == 0, err
     assert isinstance(json.loads(out)[0]["settled_epsilon"], float)
     code, out, _ = grasp("best", "box", "--hand", "barrett", "--db", str(tmp_path / "settled.db"))
-    assert " settled_epsilon=" in out.splitlines()[0]
+    assert "; settled epsilon " in out.split("\n#2")[0]
     code, out, _ = grasp("best", "box", "--hand", "barrett", "--db", str(tmp_path / "planned.db"), "--json")
     assert json.loads(out)[0]["settled_epsilon"] is None
+
+
+def test_best_gives_the_frames_people_use(box_db: Path) -> None:
+    """Object and world frames, hand base and tool centre point, quaternion
+    xyzw, approach; JSON keeps them all; arm joints in radians."""
+    from scipy.spatial.transform import Rotation
+
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--json")
+    assert code == 0, err
+    top = json.loads(out)[0]
+    pose, frame = np.array(top["pose"]), top["frames"]["object_frame"]
+    hand, _ = api.hand("panda")
+    assert np.allclose(frame["hand_base_m"], pose[:3, 3])
+    assert np.allclose(frame["tcp_m"], pose[:3, :3] @ hand.tcp + pose[:3, 3])
+    assert np.allclose(Rotation.from_quat(frame["quaternion_xyzw"]).as_matrix(), pose[:3, :3])
+    assert np.allclose(frame["approach"], pose[:3, :3] @ hand.approach)
+    at = "0.5,0.1,0.05,0,0,0.7071068,0.7071068"
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--object-pose", at,
+                           "--max-candidates", "20", "--json")
+    assert code == 0, err
+    found = json.loads(out)
+    assert found, "a reachable grasp among the top 20"
+    world = found[0]["frames"]["world_frame"]
+    obj = np.eye(4)
+    obj[:3, :3] = Rotation.from_quat([0, 0, 0.7071068, 0.7071068]).as_matrix()
+    obj[:3, 3] = [0.5, 0.1, 0.05]
+    placed = obj @ np.array(found[0]["pose"])
+    assert np.allclose(world["hand_base_m"], placed[:3, 3], atol=1e-6)
+    assert np.allclose(world["hand_base_m"], np.array(found[0]["hand_pose_world"])[:3, 3], atol=1e-6)
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--object-pose", at,
+                           "--max-candidates", "20")
+    assert code == 0, err
+    assert "world frame: hand base (panda_hand) at (" in out and "arm at the grasp [rad]: panda_joint1 " in out
+
+
+def test_on_table_uses_resting_poses_and_its_pose_reproduces_the_grasp(box_db: Path) -> None:
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--on-table", "--stable-poses", "2",
+                           "--max-candidates", "30")
+    assert code == 0, err
+    heads = [line for line in out.splitlines() if line.startswith("resting pose ")]
+    assert len(heads) == 2 and heads[0].startswith("resting pose 1 of 2 (probability ")
+    pose = heads[0].split("--object-pose ")[1]
+    rank = next(line for line in out.splitlines() if line.startswith("#")).split()[0]
+    code, again, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--object-pose", pose,
+                             "--max-candidates", "30")
+    assert code == 0, err
+    assert again.splitlines()[0].split()[0] == rank
+
+
+def test_an_unreachable_pose_explains_the_miss(box_db: Path) -> None:
+    code, _, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--object-pose", "3,0,0.05,0,0,0,1",
+                         "--max-candidates", "4")
+    one_line_error(code, err, 1, "none of the 4 best grasps of 'box' for hand 'panda' is reachable",
+                   "nearest ranks tried #1: ", "of 4 tried: ", "--max-candidates 40")
+
+
+def test_quaternion_matches_scipy() -> None:
+    from scipy.spatial.transform import Rotation
+
+    from planner.present.describe import quaternion_xyzw
+
+    rotations = Rotation.random(200, random_state=4).as_matrix()
+    turns = [Rotation.from_rotvec(v).as_matrix() for v in np.pi * np.eye(3)]  # half turns: w = 0
+    for r in [*rotations, *turns, np.eye(3)]:
+        q = quaternion_xyzw(r)
+        assert np.allclose(Rotation.from_quat(q).as_matrix(), r, atol=1e-12)
+        assert np.isclose(np.linalg.norm(q), 1.0) and q[3] >= 0
+
+
+def test_hand_frame_reads_what_load_hand_reads() -> None:
+    from planner.specs.hands import hand_frame, hand_names, load_hand
+
+    for name in hand_names():
+        light, full = hand_frame(name), load_hand(name)
+        assert light.root_link == full.root_link
+        assert np.allclose(light.tcp, full.tcp) and np.allclose(light.approach, full.approach)

@@ -21,7 +21,8 @@ def test_validate_json_summary_and_failures(validated_db: Path, tmp_path: Path) 
 
 def test_report_prints_the_file_it_wrote(validated_db: Path, tmp_path: Path) -> None:
     code, out, err = grasp("report", "--db", str(validated_db), "--out", str(tmp_path / "r.html"))
-    assert code == 0 and out.strip() == str(tmp_path / "r.html"), err
+    assert code == 0 and out.splitlines()[0] == str(tmp_path / "r.html"), err
+    assert all(line.startswith("coverage ") for line in out.splitlines()[1:])
 
 
 def test_validate_all_force_closure_tests_exactly_the_force_closure_grasps(tmp_path: Path) -> None:

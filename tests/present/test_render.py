@@ -61,3 +61,31 @@ def test_patch_meshes_span_each_region_just_outside_the_object() -> None:
     assert {tuple(np.round(v[:2], 6)) for v in quad[1:]} == {tuple(p[:2]) for p in square}
     np.testing.assert_allclose(np.linalg.norm(disc[1:, :2] - [0.05, 0.0], axis=1), 0.003)
     assert patch_meshes(HandContacts(points[:1], normals[:1], ("a",))) == []  # legacy points: no patches
+
+
+def test_contact_marks_project_as_the_renderer_does() -> None:
+    """``project`` is PyBullet's camera: its view and projection matrices map
+    the same points to the same pixels."""
+    import pybullet as pb
+
+    from planner.present.render import FOV, project
+
+    rng = np.random.default_rng(3)
+    eye, target, up, size = np.array([0.4, -0.5, 0.3]), np.array([0.0, 0.01, 0.05]), np.array([0.0, 0.0, 1.0]), \
+        (640, 520)
+    points = target + rng.uniform(-0.05, 0.05, (20, 3))
+    view = np.array(pb.computeViewMatrix(list(eye), list(target), list(up))).reshape(4, 4).T
+    proj = np.array(pb.computeProjectionMatrixFOV(FOV, size[0] / size[1], 0.01, 5.0)).reshape(4, 4).T
+    clip = (proj @ view @ np.c_[points, np.ones(len(points))].T).T
+    ndc = clip[:, :2] / clip[:, 3:]
+    expected = np.column_stack([(ndc[:, 0] + 1) / 2 * size[0], (1 - ndc[:, 1]) / 2 * size[1]])
+    assert np.allclose(project(points, eye, target, up, size, FOV), expected, atol=1e-6)
+
+
+def test_show_writes_large_views(db: Path, tmp_path: Path) -> None:
+    import matplotlib.image as mpimg
+
+    out = tmp_path / "big.png"
+    api.show("box", "panda", out, db_path=db, rank=1)
+    height, width = mpimg.imread(out).shape[:2]
+    assert width >= 1800 and height >= 500

@@ -1,0 +1,246 @@
+"""``grasp view``: an interactive 3D grasp viewer in the browser (viser).
+
+The only module importing viser. It serves the object, the hand of the
+selected grasp closed (as stored) and open (translucent, same pose), its
+contacts with friction cones, the approach, and the arm when the grasps were
+reached at an object pose; a panel lists the grasps in rank order with a
+slider and a list, filters by hand, preshape, force closure and label, and
+shows the selected grasp's measures. Scenes are built by
+:mod:`planner.present.scene`; this module only puts them on screen.
+
+Scene nodes (what a test or a user finds in viser's scene tree): ``/object``,
+``/hand/closed/...``, ``/hand/open/...``, ``/contacts/point_i``,
+``/contacts/cone_i``, ``/approach`` and ``/arm/...``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import threading
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import viser
+from scipy.spatial.transform import Rotation
+
+from planner.grasp import Grasp
+from planner.present.scene import APPROACH_RGB, CONTACT_RADIUS, CONTACT_RGB, GraspScene, Part
+from planner.specs.hands import HandSpec
+
+ALL = "all"
+LABELS = ("held", "dropped", "not validated")
+OPEN_OPACITY = 0.35
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One grasp the viewer offers.
+
+    Attributes:
+        grasp: the stored grasp (object frame).
+        build: makes its scene (called when the grasp is first shown).
+        extra: lines added to its measures (e.g. the arm joints that reach it).
+    """
+
+    grasp: Grasp
+    build: Callable[[], GraspScene]
+    extra: tuple[str, ...] = ()
+
+    @property
+    def label(self) -> str:
+        """``held`` / ``dropped`` (its shake trial) or ``not validated``."""
+        trial = self.grasp.validation
+        return LABELS[2] if trial is None else LABELS[0] if trial.success else LABELS[1]
+
+    def title(self) -> str:
+        g = self.grasp
+        return f"#{g.rank} {g.hand} {g.preshape} score {g.score:.3f}" if g.score is not None else \
+            f"#{g.rank} {g.hand} {g.preshape}"
+
+
+@dataclass(frozen=True)
+class Filters:
+    """Which entries are listed (``ALL`` lets everything through)."""
+
+    hand: str = ALL
+    preshape: str = ALL
+    force_closure: str = ALL  # all | yes | no
+    label: str = ALL  # all | held | dropped | not validated
+
+    def keep(self, entry: Entry) -> bool:
+        g = entry.grasp
+        return ((self.hand in (ALL, g.hand)) and (self.preshape in (ALL, g.preshape))
+                and (self.force_closure == ALL or (self.force_closure == "yes") == bool(g.force_closure))
+                and (self.label in (ALL, entry.label)))
+
+
+def filtered(entries: Sequence[Entry], filters: Filters) -> list[Entry]:
+    """The entries the filters let through, in their order (rank order per hand)."""
+    return [e for e in entries if filters.keep(e)]
+
+
+def measures_text(entry: Entry) -> str:
+    """The selected grasp's measures as a markdown table, units on each."""
+    g = entry.grasp
+    m = g.measures
+    rows = [("rank", f"{g.rank}"), ("score (ranking rule, higher is better)", _num(g.score, ".4f")),
+            ("epsilon (Ferrari-Canny L1)", f"{g.epsilon:.4f}"), ("force closure", "yes" if g.force_closure else "no"),
+            ("finger width", "n/a" if g.width is None else f"{g.width * 1000:.1f} mm"),
+            ("contacts", f"{len(g.contacts)}"), ("reachability", _num(g.reachability, ".2f")),
+            ("label", entry.label)]
+    if m is not None:
+        rows += [("holds (worst direction)", f"{m.resist_worst:.1f} g"),
+                 ("open margin", f"{m.open_margin * 1000:.1f} mm"), ("push", f"{m.push:.2f}")]
+    tcp = np.asarray(g.pose, float)
+    quat = Rotation.from_matrix(tcp[:3, :3]).as_quat()
+    rows += [("hand base, object frame", "(" + ", ".join(f"{v:.3f}" for v in tcp[:3, 3]) + ") m"),
+             ("orientation (xyzw)", "(" + ", ".join(f"{v:.3f}" for v in quat) + ")")]
+    body = "\n".join(f"| {k} | {v} |" for k, v in rows)
+    extra = "\n\n" + "\n\n".join(entry.extra) if entry.extra else ""
+    return f"**{entry.title()}**\n\n| measure | value |\n| --- | --- |\n{body}{extra}"
+
+
+def _num(value: float | None, fmt: str) -> str:
+    return "n/a" if value is None else format(value, fmt)
+
+
+@dataclass
+class Viewer:
+    """A running viewer: ``url`` to open; :meth:`stop` to end it.
+
+    ``nodes`` holds the names of the scene nodes on screen now (tests read it)."""
+
+    entries: list[Entry]
+    hands: dict[str, HandSpec]
+    object_part: Part
+    host: str = "127.0.0.1"
+    port: int = 8080
+    nodes: dict[str, object] = field(default_factory=dict)
+    selected: Entry | None = None
+
+    def __post_init__(self) -> None:
+        if not self.entries:
+            raise ValueError("Viewer needs at least one grasp")
+        with contextlib.redirect_stdout(io.StringIO()):  # viser prints a banner; the CLI prints the address
+            self.server = viser.ViserServer(host=self.host, port=self.port, verbose=False)
+        self._lock = threading.Lock()
+        self._scenes: dict[int, GraspScene] = {}
+        self.server.scene.set_up_direction("+z")
+        self._place_camera()
+        self._add(self.object_part)
+        self._build_gui()
+        self.refresh()
+
+    @property
+    def url(self) -> str:
+        return f"http://{self.host}:{self.server.get_port()}"
+
+    def stop(self) -> None:
+        self.server.stop()
+
+    # -- the panel ---------------------------------------------------------
+    def _build_gui(self) -> None:
+        gui = self.server.gui
+        hands = sorted({e.grasp.hand for e in self.entries})
+        preshapes = sorted({e.grasp.preshape for e in self.entries})
+        self.hand = gui.add_dropdown("hand", [ALL, *hands], initial_value=hands[0] if len(hands) == 1 else ALL)
+        self.preshape = gui.add_dropdown("preshape", [ALL, *preshapes], initial_value=ALL)
+        self.force_closure = gui.add_dropdown("force closure", [ALL, "yes", "no"], initial_value=ALL)
+        self.label = gui.add_dropdown("label", [ALL, *LABELS], initial_value=ALL)
+        self.show_open = gui.add_checkbox("open hand", initial_value=True)
+        self.show_cones = gui.add_checkbox("contacts and cones", initial_value=True)
+        self.rank = gui.add_slider("grasp (in list order)", min=1, max=max(2, len(self.entries)), step=1,
+                                   initial_value=1)
+        self.listing = gui.add_dropdown("list", [self.entries[0].title()], initial_value=self.entries[0].title())
+        self.info = gui.add_markdown("")
+        for handle in (self.hand, self.preshape, self.force_closure, self.label):
+            handle.on_update(lambda _: self.refresh())
+        self.rank.on_update(lambda _: self._select(int(self.rank.value) - 1))
+        self.listing.on_update(lambda _: self._select_title(str(self.listing.value)))
+        self.show_open.on_update(lambda _: self._visibility())
+        self.show_cones.on_update(lambda _: self._visibility())
+
+    def filters(self) -> Filters:
+        return Filters(str(self.hand.value), str(self.preshape.value), str(self.force_closure.value),
+                       str(self.label.value))
+
+    def refresh(self) -> None:
+        """Apply the filters: the list and the slider cover what they let through; the first is shown."""
+        self.shown = filtered(self.entries, self.filters())
+        titles = [e.title() for e in self.shown] or ["(no grasp matches the filters)"]
+        self.listing.options = titles
+        self.listing.value = titles[0]
+        self.rank.max = max(2, len(self.shown))
+        self.rank.value = 1
+        self._select(0)
+
+    def _select_title(self, title: str) -> None:
+        for i, entry in enumerate(self.shown):
+            if entry.title() == title:
+                self._select(i)
+                return
+
+    def _select(self, index: int) -> None:
+        if not self.shown:
+            self._clear()
+            self.info.content = "No grasp matches the filters."
+            self.selected = None
+            return
+        entry = self.shown[min(index, len(self.shown) - 1)]
+        self.show(entry)
+
+    # -- the scene ---------------------------------------------------------
+    def show(self, entry: Entry) -> None:
+        """Put ``entry``'s grasp on screen, replacing the one shown."""
+        with self._lock:
+            key = id(entry)
+            if key not in self._scenes:
+                self._scenes[key] = entry.build()
+            scene = self._scenes[key]
+            self._clear()
+            for part in scene.closed + scene.arm:
+                self._add(part)
+            for part in scene.open:
+                self._add(part, opacity=OPEN_OPACITY)
+            for i, point in enumerate(scene.contacts):
+                self.nodes[f"contacts/point_{i}"] = self.server.scene.add_icosphere(
+                    f"/contacts/point_{i}", radius=CONTACT_RADIUS, color=CONTACT_RGB, position=tuple(point))
+            for part in scene.cones:
+                self._add(part, opacity=0.6)
+            self.nodes["approach"] = self.server.scene.add_line_segments(
+                "/approach", scene.approach[None], APPROACH_RGB, thickness=0.002)
+            self.selected = entry
+            self.info.content = measures_text(entry)
+            self._visibility()
+
+    def _add(self, part: Part, opacity: float | None = None) -> None:
+        wxyz = Rotation.from_matrix(part.pose[:3, :3]).as_quat(scalar_first=True)
+        self.nodes[part.name] = self.server.scene.add_mesh_simple(
+            f"/{part.name}", part.vertices, part.faces, color=part.rgb, opacity=opacity, wxyz=wxyz,
+            position=tuple(part.pose[:3, 3]), side="double" if opacity else "front")
+
+    def _clear(self) -> None:
+        for name in [n for n in self.nodes if n != "object"]:
+            self.server.scene.remove_by_name(f"/{name}")
+            del self.nodes[name]
+
+    def _visibility(self) -> None:
+        for name, handle in self.nodes.items():
+            if name.startswith("hand/open"):
+                handle.visible = bool(self.show_open.value)  # type: ignore[attr-defined]
+            elif name.startswith("contacts/"):
+                handle.visible = bool(self.show_cones.value)  # type: ignore[attr-defined]
+
+    def _place_camera(self) -> None:
+        vertices = self.object_part.world_vertices()
+        lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+        centre, size = 0.5 * (lo + hi), float(np.linalg.norm(hi - lo))
+        camera = self.server.initial_camera
+        camera.look_at = tuple(centre)
+        camera.position = tuple(centre + np.array([1.0, -1.2, 0.8]) / np.linalg.norm([1.0, -1.2, 0.8])
+                                * (1.6 * size + 0.15))
+        camera.up = (0.0, 0.0, 1.0)
+        camera.near = 0.005
+

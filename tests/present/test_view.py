@@ -1,0 +1,147 @@
+"""``grasp view``: the scene it draws, its filters, and the page in a real
+headless browser (Debian's Chromium driven by Playwright; `.ci/run` installs it)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import socket
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from planner import api
+from planner.present import scene as scenes
+from planner.present.viewer import Filters, filtered
+from tests.helpers import assert_close
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+#: Flags for Chromium on a machine without a screen or a GPU and with a closed network.
+CHROMIUM_FLAGS = ("--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader", "--disable-quic", "--no-first-run",
+                  "--disable-background-networking", "--disable-component-update", "--disable-sync")
+
+
+def _stored(box_db: Path):
+    grasps = api.best("box", "panda", db_path=box_db, top=5)
+    spec, _ = api.hand("panda")
+    from planner.datasets.meshes import stored_object
+    from planner.db.store import open_db
+
+    with open_db(box_db, create=False, readonly=True) as db:
+        obj = stored_object(db.object_row("box"))
+    return grasps, spec, obj
+
+
+def test_scene_places_the_hand_at_the_grasp_and_opens_it(box_db: Path) -> None:
+    grasps, spec, obj = _stored(box_db)
+    g = grasps[0]
+    s = scenes.grasp_scene(spec, obj.mesh, g, obj.friction)
+    assert_close(s.object.world_vertices(), obj.mesh.vertices)
+    closed = {p.name.split("/")[-1]: p.world_vertices() for p in s.closed}
+    opened = {p.name.split("/")[-1]: p.world_vertices() for p in s.open}
+    assert any("panda_hand" in k for k in closed) and not any("panda_hand" in k for k in opened), \
+        "the palm is drawn once: it is at the grasp pose in both"
+    assert opened and all("finger" in k for k in opened)
+    assert all(not np.allclose(closed[k], opened[k], atol=1e-4) for k in opened), "open fingers are elsewhere"
+    # every contact is on the object's surface and near a closed finger
+    assert len(s.contacts) == len(g.contacts) == len(s.cones)
+    fingers = np.vstack([v for k, v in closed.items() if "finger" in k])
+    gaps = np.min(np.linalg.norm(s.contacts[:, None] - fingers[None], axis=2), axis=1)
+    assert gaps.max() < 0.02
+
+
+def test_object_pose_moves_everything_together(box_db: Path) -> None:
+    grasps, spec, obj = _stored(box_db)
+    g = grasps[0]
+    pose = np.eye(4)
+    pose[:3, :3] = [[0, -1, 0], [1, 0, 0], [0, 0, 1]]
+    pose[:3, 3] = [0.5, 0.1, 0.02]
+    here, there = scenes.grasp_scene(spec, obj.mesh, g, obj.friction), scenes.grasp_scene(
+        spec, obj.mesh, g, obj.friction, pose)
+    move = lambda x: x @ pose[:3, :3].T + pose[:3, 3]  # noqa: E731
+    assert_close(there.object.world_vertices(), move(here.object.world_vertices()))
+    assert_close(there.contacts, move(here.contacts))
+    assert_close(there.approach, move(here.approach))
+    for a, b in zip(here.closed, there.closed):
+        assert_close(b.world_vertices(), move(a.world_vertices()))
+
+
+def test_friction_cones_open_outwards(box_db: Path) -> None:
+    grasps, spec, obj = _stored(box_db)
+    s = scenes.grasp_scene(spec, obj.mesh, grasps[0], obj.friction)
+    for cone, point, normal in zip(s.cones, s.contacts, s.normals):
+        base = cone.world_vertices().mean(axis=0) - point
+        assert base @ normal < 0, "the cone's body lies outside the object (against the inward normal)"
+
+
+def test_arm_is_drawn_without_its_own_hand() -> None:
+    spec, _ = api.hand("panda")
+    assert spec.arm is not None
+    parts = scenes.robot_parts(spec.arm.urdf, {}, np.eye(4), "arm", scenes.ARM_RGB, skip_below=spec.arm.ee_link)
+    names = [p.name for p in parts]
+    assert any("link1" in n for n in names)
+    assert not any("finger" in n or "panda_hand" in n for n in names)
+
+
+def test_filters_select_by_field(box_db: Path) -> None:
+    from planner.present.viewer import Entry
+
+    grasps, _, _ = _stored(box_db)
+    entries = [Entry(g, lambda: None) for g in grasps]  # type: ignore[arg-type,return-value]
+    assert filtered(entries, Filters()) == entries
+    shape = grasps[0].preshape
+    assert all(e.grasp.preshape == shape for e in filtered(entries, Filters(preshape=shape)))
+    assert filtered(entries, Filters(hand="barrett")) == []
+    assert len(filtered(entries, Filters(label="not validated"))) == len(entries)
+    assert filtered(entries, Filters(label="held")) == []
+    fc = filtered(entries, Filters(force_closure="yes")) + filtered(entries, Filters(force_closure="no"))
+    assert sorted(id(e) for e in fc) == sorted(id(e) for e in entries)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@pytest.mark.skipif(CHROMIUM is None and not os.environ.get("CI"),
+                    reason="Chromium not installed (.ci/run installs it)")
+def test_page_loads_in_a_real_browser(box_db: Path, tmp_path: Path) -> None:
+    assert CHROMIUM is not None, "CI must have Chromium (apt-get install chromium)"
+    from playwright.sync_api import sync_playwright
+
+    viewer = api.view("box", ["panda"], db_path=box_db, top=5, port=_free_port())
+    connects: list[int] = []
+    viewer.server.on_client_connect(lambda client: connects.append(client.client_id))
+    shot = tmp_path / "view.png"
+    try:
+        names = set(viewer.nodes)
+        assert "object" in names and "approach" in names
+        assert any(n.startswith("hand/closed/") for n in names) and any(n.startswith("hand/open/") for n in names)
+        assert any(n.startswith("contacts/cone_") for n in names)
+        with sync_playwright() as p:
+            browser = p.chromium.launch(executable_path=CHROMIUM, args=list(CHROMIUM_FLAGS))
+            page = browser.new_page(viewport={"width": 1400, "height": 900})
+            page.goto(viewer.url)
+            # the panel the page built from the server's messages: filters and the selected grasp's measures
+            page.get_by_text("epsilon (Ferrari-Canny L1)").wait_for(timeout=60_000)
+            for text in ("force closure", "open hand", "hand base, object frame", viewer.entries[0].title()):
+                assert page.get_by_text(text).count() >= 1, text
+            assert page.locator("canvas").count() >= 1, "the 3D canvas"
+            page.wait_for_timeout(6000)  # new meshes fade in
+            page.screenshot(path=str(shot))
+            # picking the second grasp in the page replaces the hand on screen
+            first = {n: h for n, h in viewer.nodes.items() if n.startswith("hand/closed/")}
+            viewer.rank.value = 2
+            page.get_by_text(viewer.entries[1].title()).first.wait_for(timeout=30_000)
+            browser.close()
+        assert connects, "the page opened the viewer's websocket"
+        assert viewer.selected is viewer.entries[1]
+        assert all(viewer.nodes.get(n) is not h for n, h in first.items())
+        assert shot.stat().st_size > 10_000
+    finally:
+        viewer.stop()
+    keep = os.environ.get("GRASP_VIEW_SCREENSHOT")
+    if keep:  # for looking at it: GRASP_VIEW_SCREENSHOT=/tmp/view.png pytest -k real_browser
+        shutil.copy(shot, keep)
