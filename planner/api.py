@@ -33,7 +33,6 @@ from planner.db.store import Database, ObjectRow, UnitRow, open_db
 from planner.errors import InputError, UnknownNameError
 from planner.geometry.frames import pose_from_xyzquat
 from planner.geometry.solid import PreparedObject, load_object
-from planner.grasp import Grasp
 from planner.plan import pool
 from planner.plan.reach import ReachScene, ReachSettings
 from planner.plan.sampling import SAMPLERS
@@ -41,6 +40,7 @@ from planner.plan.sweep import SAMPLER_DEFAULTS, SweepSettings
 from planner.plan.tolerances import PREGRASP_DISTANCE
 from planner.plan.unit import UnitResult, UnitSpec, run_unit
 from planner.present import report as reporting
+from planner.record.grasp import Grasp
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, hand_names, load_hand
 from planner.specs.inputs import expand

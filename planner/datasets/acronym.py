@@ -83,9 +83,9 @@ from planner.datasets.columns import Column, grasp_columns, joint_matrix
 from planner.datasets.meshes import ExportedObject
 from planner.errors import InputError
 from planner.geometry.frames import roll_about
-from planner.grasp import Grasp, RobustEpsilon, Trial
-from planner.plan.contacts import HandContacts
-from planner.plan.measures import Measures
+from planner.record.contacts import HandContacts
+from planner.record.grasp import Grasp, RobustEpsilon, Trial
+from planner.record.measures import Measures
 from planner.specs.hands import HandSpec
 from planner.specs.preshapes import Preshape, load_preshapes
 

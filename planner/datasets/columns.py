@@ -1,4 +1,4 @@
-"""The shared column definitions: a batch of :class:`~planner.grasp.Grasp`
+"""The shared column definitions: a batch of :class:`~planner.record.grasp.Grasp`
 records as columns, the one helper every format writes from.
 
 :func:`grasp_columns` keys the columns by the record's field names (each
@@ -28,7 +28,7 @@ import numpy as np
 
 from planner.datasets.meshes import ExportedObject
 from planner.db.store import json_list
-from planner.grasp import Grasp
+from planner.record.grasp import Grasp
 
 Column = np.ndarray | list
 Builder = Callable[[Sequence[Grasp]], Column]

@@ -50,7 +50,7 @@ from scipy.spatial.transform import Rotation
 from planner.datasets.acronym import joint_names
 from planner.datasets.columns import grasp_columns, joint_matrix
 from planner.datasets.meshes import ExportedObject
-from planner.grasp import Grasp
+from planner.record.grasp import Grasp
 from planner.specs.hands import HandSpec
 
 SUFFIX = ".npy"

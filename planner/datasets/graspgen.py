@@ -61,7 +61,7 @@ import numpy as np
 from planner import assets
 from planner.datasets.acronym import gripper_configuration, joint_names, label_source, per_grasp, validated_count
 from planner.datasets.meshes import ExportedObject
-from planner.grasp import Grasp
+from planner.record.grasp import Grasp
 from planner.specs.hands import HandSpec
 
 log = logging.getLogger(__name__)

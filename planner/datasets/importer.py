@@ -60,11 +60,11 @@ from planner.db.store import Database, UnitRow, Validated, open_db
 from planner.errors import InputError, UnknownNameError
 from planner.geometry.frames import roll_about
 from planner.geometry.solid import PreparedObject, prepare
-from planner.grasp import Grasp
 from planner.plan import pool
 from planner.plan.closing import Closed, Grasper
 from planner.plan.measures import measure
 from planner.plan.unit import closed_width, scored
+from planner.record.grasp import Grasp
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, hand_names, load_hand
 from planner.specs.objects import ObjectSpec, is_registered, resolve_spec

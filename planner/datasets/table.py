@@ -67,7 +67,7 @@ from pathlib import Path
 import numpy as np
 
 from planner.datasets.columns import Stream, grasp_columns
-from planner.grasp import Grasp
+from planner.record.grasp import Grasp
 
 #: The column table above, for the README.
 COLUMNS_DOC = __doc__[__doc__.index("| column |"):].strip() + "\n"

@@ -43,7 +43,7 @@ from numpy.typing import ArrayLike
 from planner.errors import InputError
 
 if TYPE_CHECKING:
-    from planner.grasp import Grasp
+    from planner.record.grasp import Grasp
 
 #: The rule of :meth:`RankingRule.scores` in words, as ``meta.ranking`` stores it.
 FORMULA = ("analytic = gate * (press * (1 + hold) / 2 + eps_weight * quality + settled_weight * settled);"

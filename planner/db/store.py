@@ -1,7 +1,7 @@
 """The grasp database: SQLite (WAL), one writer, and every SQL statement of
 the project (the schema's own statements live in :mod:`planner.db.schema`).
 
-Grasps go in and come out as :class:`planner.grasp.Grasp` records; rows are
+Grasps go in and come out as :class:`planner.record.grasp.Grasp` records; rows are
 read by column name. Scores are never computed in SQL: the store reads the
 measures, asks the :class:`~planner.db.ranking.RankingRule` for the scores,
 writes them and re-ranks each (object, hand) in the rule's tie-break order.
@@ -33,9 +33,9 @@ from planner.db.schema import (
     transaction,
 )
 from planner.errors import DatabaseError
-from planner.grasp import Grasp, Joints, RobustEpsilon, Trial
-from planner.plan.contacts import HandContacts
-from planner.plan.measures import Measures
+from planner.record.contacts import HandContacts
+from planner.record.grasp import Grasp, Joints, RobustEpsilon, Trial
+from planner.record.measures import Measures
 
 if TYPE_CHECKING:
     from planner.geometry.solid import PreparedObject

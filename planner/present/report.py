@@ -29,7 +29,7 @@ import numpy as np
 from planner.db.ranking import RankingRule, rule_measures
 from planner.db.store import open_db
 from planner.errors import InputError
-from planner.grasp import Grasp
+from planner.record.grasp import Grasp
 
 
 @dataclass

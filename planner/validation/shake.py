@@ -52,8 +52,8 @@ import numpy as np
 from planner.errors import ConfigError
 from planner.geometry.frames import angle_between
 from planner.geometry.solid import PreparedObject
-from planner.grasp import Grasp, Trial
-from planner.plan.contacts import HandContacts
+from planner.record.contacts import HandContacts
+from planner.record.grasp import Grasp, Trial
 from planner.sim import Body
 from planner.sim.dynamics import FILTER_BITS, Dynamics, Shape, fresh_world
 from planner.specs.hands import HandSpec

@@ -8,7 +8,8 @@ from helpers import NUM_TOL, assert_close
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planner.plan.contacts import STORED_DIGITS, HandContacts, spread
+from planner.plan.contacts import spread
+from planner.record.contacts import STORED_DIGITS, HandContacts
 from planner.plan.tolerances import MAX_PER_LINK, MERGE_RADIUS
 
 #: The stored form keeps 6 decimals of points [m] and normals.

@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.plan.contacts import HandContacts
-from planner.plan.measures import Measures
+from planner.record.contacts import HandContacts
+from planner.record.measures import Measures
 
 
 class Joints(Mapping[str, float]):
