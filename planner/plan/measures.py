@@ -43,15 +43,10 @@ from planner.plan.contacts import contact_models
 from planner.quality.resistance import SPHERE14, HandDrive, drive_rows, summarise
 from planner.record.contacts import HandContacts
 from planner.record.measures import JointFrames, Measures
+from planner.record.tolerances import MIN_CLOSE_MARGIN, MIN_OPEN_MARGIN
 from planner.specs.hands import HandSpec
 from planner.specs.preshapes import Preshape
 
-#: [m] a finger touching closer than this to its open limit has no clearance
-#: (the shake trial flags below 2 mm; cross-validation on the tuning objects
-#: chose 2 mm for the Barrett, 0-3 mm for the Panda, see bench/RESULTS.md).
-MIN_OPEN_MARGIN = 0.002
-#: [m] a finger this close to its closing stop cannot squeeze.
-MIN_CLOSE_MARGIN = 1e-4
 #: cos 72.5 deg: contact normal and closing motion further apart than this is
 #: the back or side of a finger.
 MIN_PUSH = 0.3

@@ -20,7 +20,7 @@ import numpy as np
 
 from planner import quality
 from planner.errors import DegenerateGraspError, PlannerError
-from planner.geometry.frames import roll_about
+from planner.geometry.frames import approach_of
 from planner.geometry.solid import PreparedObject, load_object
 from planner.plan import sampling
 from planner.plan.closing import Closed, Grasper
@@ -242,9 +242,7 @@ def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, han
         if not isinstance(closed, Closed):
             result.rejected[closed.reason] += 1
             continue
-        direction = pose[:3, :3] @ hand.approach
-        tcp = pose[:3, :3] @ cand.preshape.tcp + pose[:3, 3]
-        yield cand, closed, (tcp, direction, roll_about(pose[:3, :3], hand.approach, direction), 0.0)
+        yield cand, closed, (*approach_of(pose, hand.approach, cand.preshape.tcp), 0.0)
 
 
 def opening(hand: HandSpec, joints: Mapping[str, float]) -> float:

@@ -99,6 +99,11 @@ class HandContacts:
         return self._count
 
     @property
+    def count(self) -> int:
+        """How many contacts (``len``; the stored ``n_contacts``)."""
+        return self._count
+
+    @property
     def touching(self) -> int:
         """How many distinct hand links touch the object."""
         return self._touching

@@ -9,6 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.record.field import stored
+
 #: The feasibility reasons a grasp can carry (:attr:`Measures.reasons`).
 REASONS = ("open_limit", "too_wide", "at_close_stop", "back_or_side_contact", "cannot_hold_weight")
 
@@ -27,26 +29,30 @@ class Measures:
     is flagged; None: not measured, the hand's ``settle`` off).
     """
 
-    resist_worst: float
-    resist_mean: float
-    open_margin: float
-    close_margin: float
-    push: float
-    reasons: tuple[str, ...]
-    settled_epsilon: float | None = None
+    resist_worst: float = stored("real", "g", 3, "weight resistance, worst of 14 gravity directions (object frame)",
+                                 required=False, ranked="resist_worst")
+    resist_mean: float = stored("real", "g", 3, "weight resistance, mean over the 14 directions", required=False)
+    open_margin: float = stored("margin", "m", 3, "smallest travel a touching finger has left towards its open limit",
+                                required=False, ranked="open_margin")
+    close_margin: float = stored("margin", "m", 3, "smallest travel a touching finger has left towards its closing "
+                                 "stop", required=False, ranked="close_margin")
+    push: float = stored("real", "", 3, "smallest cosine between a finger region's contact normal and its closing "
+                         "motion", required=False, ranked="push")
+    reasons: tuple[str, ...] = stored("reasons", "", 3, "feasibility reasons, comma-separated ('' = feasible)",
+                                      required=False, column="feasibility")
+    settled_epsilon: float | None = stored("real", "", 4, "Ferrari-Canny epsilon of the contacts after a dynamic "
+                                           "closing (hands with `settle`)", required=False, ranked="settled_epsilon",
+                                           default=None)
 
     @property
     def feasible(self) -> bool:
         return not self.reasons
 
     def to_json(self) -> dict:
-        return {"resist_worst": self.resist_worst, "resist_mean": self.resist_mean,
-                "open_margin": _finite(self.open_margin), "close_margin": _finite(self.close_margin),
-                "push": self.push, "feasibility": list(self.reasons), "settled_epsilon": self.settled_epsilon}
+        """The measures as ``grasp best --json`` prints them (:func:`planner.record.fields.json_value`)."""
+        from planner.record.fields import group, json_value
 
-
-def _finite(value: float) -> float | None:
-    return float(value) if np.isfinite(value) else None
+        return {f.name: json_value(f, getattr(self, f.attr.partition(".")[2])) for f in group("measures")}
 
 
 @dataclass(frozen=True)
