@@ -69,25 +69,27 @@ class Field:
 
     @property
     def nullable(self) -> bool:
-        """The database may hold NULL (not computed, not measured)."""
-        return "NOT NULL" not in self.sql
+        """The database may hold NULL (not computed, not measured); a primary key may not."""
+        return "NOT NULL" not in self.sql and "PRIMARY KEY" not in self.sql
 
 
-def stored(kind: str, unit: str, version: int, doc: str, *, required: bool = True, ranked: str = "",
-           column: str = "", shape: tuple[int, ...] = (), default: Any = dataclasses.MISSING) -> Any:
+def stored(kind: str, unit: str, version: int, doc: str, *, required: bool = True, key: bool = False,
+           ranked: str = "", column: str = "", shape: tuple[int, ...] = (), default: Any = dataclasses.MISSING) -> Any:
     """A record attribute that is stored: a dataclass field whose metadata
     declares it (the record's table, name and attribute are added by
-    :mod:`planner.record.fields`). ``required``: ``NOT NULL`` in SQL."""
+    :mod:`planner.record.fields`). ``required``: ``NOT NULL`` in SQL;
+    ``key``: the table's primary key."""
     if kind not in KINDS:
         raise ValueError(f"stored field kind must be one of {', '.join(KINDS)}, got {kind!r}")
-    meta = {"kind": kind, "unit": unit, "version": version, "doc": doc, "required": required, "ranked": ranked,
-            "column": column, "shape": shape}
+    meta = {"kind": kind, "unit": unit, "version": version, "doc": doc, "required": required, "key": key,
+            "ranked": ranked, "column": column, "shape": shape}
     return dataclasses.field(default=default, metadata={"stored": meta})
 
 
 def declared(table: str, column: str, attr: str, kind: str, unit: str, version: int, doc: str, *,
-             name: str = "", required: bool = True, ranked: str = "", shape: tuple[int, ...] = ()) -> Field:
+             name: str = "", required: bool = True, key: bool = False, ranked: str = "",
+             shape: tuple[int, ...] = ()) -> Field:
     """A :class:`Field`, its dtype, SQL type and neutral value from its kind."""
     dtype, sql, neutral = KINDS[kind]
-    return Field(name or column, table, column, attr, kind, dtype, sql + (" NOT NULL" if required else ""), unit,
-                 neutral, version, ranked, doc, shape)
+    sql += " PRIMARY KEY" if key else " NOT NULL" if required else ""
+    return Field(name or column, table, column, attr, kind, dtype, sql, unit, neutral, version, ranked, doc, shape)

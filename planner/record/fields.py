@@ -45,7 +45,7 @@ def _from_record(cls: type, table: str, prefix: str, group: str) -> list[Field]:
         column = meta["column"] or f.name
         out.append(declared(table, column, f"{group}.{f.name}" if group else f.name, meta["kind"], meta["unit"],
                             meta["version"], meta["doc"], name=prefix + column, required=meta["required"],
-                            ranked=meta["ranked"], shape=meta["shape"]))
+                            key=meta["key"], ranked=meta["ranked"], shape=meta["shape"]))
     return out
 
 
@@ -65,7 +65,8 @@ def _grasps() -> list[Field]:
 def _validation(table: str, group: str) -> list[Field]:
     """A validation table: the grasp it belongs to, the record's fields, and how they were made."""
     cls, _, prefix = GROUPS[group]
-    return [declared(table, "grasp_id", "id", "int", "", 2, "the grasp (`grasps.id`)", name=f"{prefix}grasp_id"),
+    return [declared(table, "grasp_id", "id", "int", "", 2, "the grasp (`grasps.id`; the primary key)",
+                     name=f"{prefix}grasp_id", key=True),
             *_from_record(cls, table, prefix, group),
             declared(table, "seed", "", "int", "", 2, "seed of the noise", name=f"{prefix}seed"),
             declared(table, "settings", "", "text", "", 2, "JSON settings that made it", name=f"{prefix}settings")]
@@ -73,7 +74,8 @@ def _validation(table: str, group: str) -> list[Field]:
 
 def _objects() -> list[Field]:
     def obj(column: str, kind: str, unit: str, doc: str, shape: tuple[int, ...] = ()) -> Field:
-        return declared("objects", column, "", kind, unit, 1, doc, name=f"object_{column}", shape=shape)
+        return declared("objects", column, "", kind, unit, 1, doc, name=f"object_{column}", key=column == "name",
+                        shape=shape)
 
     return [obj("name", "text", "", "object name"), obj("source", "text", "", "the mesh file or `primitive:<kind>`"),
             obj("scale", "real", "", "what turns `source` into metres"),

@@ -147,7 +147,7 @@ class Grasp:
                                         required=False, ranked="reachability", default=None)
     manipulability: float | None = stored("real", "", 1, "best arm manipulability over the reachable placements",
                                           required=False, default=None)
-    id: int | None = stored("int", "", 1, "`grasps.id` in the database", required=False, default=None)
+    id: int | None = stored("int", "", 1, "`grasps.id` in the database", key=True, default=None)
     unit_id: int | None = stored("int", "", 1, "the unit of work that produced the grasp", default=None)
     score: float | None = stored("real", "", 1, "ranking score (`meta.ranking` says how)", default=None)
     rank: int | None = stored("int", "", 1, "1 = best grasp of its (object, hand)", required=False, default=None)
