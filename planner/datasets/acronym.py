@@ -122,6 +122,12 @@ QUALITIES = {
     **{f.name.replace("robust_", "robust_epsilon_") if f.name in ROBUST_EPSILON else f.name: f.name
        for f in fields.group("robust")},
 }
+#: Per-grasp datasets below ``grasps/`` -> the column of :func:`grasp_columns` each holds
+#: (besides ``transforms``, ``object_in_gripper`` and the joint matrices).
+DATASETS = {**MOTIONS, **{f"qualities/{name}": column for name, column in QUALITIES.items()},
+            **{name: name for name in ("width", "preshape", "candidate", "seed", "contacts", "approach_point",
+                                       "approach_dir", "roll", "standoff")},
+            "poses_hand_frame": "pose"}
 #: Datasets whose presence marks a file with this project's extras.
 EXTRAS = ("qualities/epsilon", "qualities/volume", "qualities/force_closure", "joint_names", "joints_closed",
           "joints_open", "contacts")
@@ -163,20 +169,9 @@ def per_grasp(grasps: list[Grasp], hand: HandSpec) -> dict[str, Column]:
     return {
         "transforms": c["pose"] @ hand.export_frame,
         f"{FLEX}object_in_gripper": labels,
-        **{key: c[column] for key, column in MOTIONS.items()},
-        **{f"qualities/{name}": c[column] for name, column in QUALITIES.items()},
+        **{key: c[column] for key, column in DATASETS.items()},
         "joints_closed": joint_matrix(c["closed_joints"], names),
         "joints_open": joint_matrix(c["open_joints"], names),
-        "width": c["width"],
-        "preshape": c["preshape"],
-        "candidate": c["candidate"],
-        "seed": c["seed"],
-        "contacts": c["contacts"],
-        "poses_hand_frame": c["pose"],
-        "approach_point": c["approach_point"],
-        "approach_dir": c["approach_dir"],
-        "roll": c["roll"],
-        "standoff": c["standoff"],
     }
 
 
@@ -379,24 +374,18 @@ MISSING = {"validation_fingers_in_contact": -1, "validation_reason": "", "robust
 
 def _location(name: str) -> str:
     """Where under ``grasps/`` a column of :func:`grasp_columns` is written."""
-    key = next((k for k, column in {**QUALITIES, **MOTIONS}.items() if column == name), None)
-    if key is None:
-        raise KeyError(f"the ACRONYM file does not carry '{name}'")
-    return key if key.startswith(FLEX) else f"qualities/{key}"
+    return next(key for key, column in DATASETS.items() if column == name)
+
+
+#: Declared fields of the record a file holds otherwise: per file, as matrices, or
+#: implied by the contacts.
+IMPLIED = {"object": "object/name", "hand": "gripper/type", "open_joints": "joints_open (N, J)",
+           "closed_joints": "joints_closed (N, J)", "n_contacts": "contacts", "links_touching": "contacts"}
 
 
 def carried() -> set[str]:
-    """The flat names of the declared fields an ACRONYM file carries (and
-    gives back on import); :data:`LEFT_OUT` the others."""
-    return {f.name for f in fields.record_fields()} - set(LEFT_OUT)
-
-
-#: Declared fields the file does not carry, and why.
-LEFT_OUT = {"id": "a database's own numbering", "unit_id": "a database's own numbering",
-            "object": "one object per file (object/name)", "hand": "one hand per file (gripper/type)",
-            "open_joints": "carried as the (N, J) joints_open", "closed_joints": "carried as the (N, J) joints_closed",
-            "pose": "carried as poses_hand_frame", "n_contacts": "the length of contacts",
-            "links_touching": "the links of contacts"}
+    """The flat names of the declared record fields a file carries."""
+    return {f.name for f in fields.record_fields()} & ({*DATASETS.values()} | set(IMPLIED))
 
 
 def _trial_columns(g: Any, group: str, n: int) -> dict[str, list]:
