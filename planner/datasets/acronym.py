@@ -48,10 +48,13 @@ This project's extras (a foreign reader ignores them): ``object/name``,
 scale), ``object/mesh_sha256`` (:func:`planner.geometry.mesh.mesh_hash` of
 the mesh); ``gripper/configuration_joints``;
 ``grasps/qualities/{epsilon, volume, force_closure, reachability,
-manipulability, score, rank, simulated_success (-1: not simulated),
-robust_epsilon_mean, robust_epsilon_quantile, resist_worst, resist_mean,
-open_margin, close_margin, push}`` (NaN when absent) and ``feasibility``
-(reasons, comma-separated);
+manipulability, score, rank}``, every analytic measure under its declared
+name (``resist_worst``, ..., ``settled_epsilon``; ``feasibility``: reasons,
+comma-separated), ``simulated_success`` (-1: not simulated), the trial's
+other fields (``validation_fingers_in_contact``, ``validation_reason``) and
+``robust_epsilon_mean``, ``robust_epsilon_quantile``, ``robust_samples``
+(:data:`QUALITIES`, derived from :mod:`planner.record.fields`; NaN or -1
+when absent);
 ``grasps/joint_names`` (J,), ``joints_closed`` / ``joints_open`` (N, J)
 [rad or m]; ``width`` (N,) [m] (NaN: not a parallel jaw); ``preshape``,
 ``candidate``, ``seed``; ``contacts`` (N,) JSON text ``[{point, normal,
