@@ -50,7 +50,7 @@ def test_each_column_appears_in_the_version_the_declaration_names(version: int) 
 
 
 def test_the_readme_shows_the_declaration() -> None:
-    assert markdown_table() in README.read_text()
+    assert markdown_table() in README.read_text(), "run `python bench/readme_tables.py` to rewrite the README's tables"
 
 
 def test_flat_names_are_unique_and_every_stored_attribute_is_declared() -> None:
