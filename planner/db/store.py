@@ -116,6 +116,8 @@ def _decoded(f: Field, column: Sequence) -> Iterable:
     """One column of rows as the record's values (a group's values: None stays None)."""
     kind = f.kind
     if kind == "bool":
+        if "." not in f.attr and not f.nullable:  # always there: no NULL to keep
+            return map(bool, column)
         return (None if v is None else bool(v) for v in column)
     if kind == "margin":
         return (math.inf if v is None else v for v in column)
@@ -129,12 +131,11 @@ def _decoded(f: Field, column: Sequence) -> Iterable:
 
 
 def _parts(cls: type, group: tuple[Field, ...], col: dict, prefix: str, present: str, n: int) -> list:
-    """The record parts (Trial, ...) of n rows; None where column ``present`` is NULL."""
-    names = [f.attr.partition(".")[2] for f in group]
+    """The record parts (Trial, ...) of n rows; None where column ``present`` is NULL.
+    A group is every stored field of its type, in field order (:mod:`planner.record.fields`)."""
     none = [None] * n
     columns = [_decoded(f, col.get(prefix + f.column, none)) for f in group]
-    return [None if row[0] is None else cls(**dict(zip(names, row[1:])))
-            for row in zip(col.get(present, none), *columns)]
+    return [None if row[0] is None else cls(*row[1:]) for row in zip(col.get(present, none), *columns)]
 
 
 def _insert(table: str, columns: Sequence[str], verb: str = "INSERT") -> str:
