@@ -38,7 +38,6 @@ from planner.record.contacts import HandContacts
 from planner.record.field import Field
 from planner.record.grasp import FIELDS as GRASP_FIELDS
 from planner.record.grasp import Grasp, Joints, RobustEpsilon, Trial
-from planner.record.measures import Measures
 
 if TYPE_CHECKING:
     from planner.geometry.solid import PreparedObject
@@ -52,7 +51,7 @@ INERTIA_DIGITS = 10
 
 #: The declared columns (:mod:`planner.record.fields`) of the record's tables.
 _GRASPS = fields.table("grasps")
-_TRIAL, _ROBUST, _MEASURE_FIELDS = fields.group("validation"), fields.group("robust"), fields.group("measures")
+_TRIAL, _ROBUST = fields.group("validation"), fields.group("robust")
 #: Columns an insert writes: all but those SQLite (``id``) or the ranking (``rank``) fill.
 _GRASP_COLUMNS = tuple(f.column for f in _GRASPS if f.column not in ("id", "rank"))
 _VALIDATION_COLUMNS = tuple(f.column for f in fields.table("validation"))
@@ -130,12 +129,15 @@ def _decoded(f: Field, column: Sequence) -> Iterable:
     return column
 
 
-def _parts(cls: type, group: tuple[Field, ...], col: dict, prefix: str, present: str, n: int) -> list:
-    """The record parts (Trial, ...) of n rows; None where column ``present`` is NULL.
-    A group is every stored field of its type, in field order (:mod:`planner.record.fields`)."""
+def _parts(cls: type, group: tuple[Field, ...], col: dict, prefix: str, n: int) -> list:
+    """The record parts (Trial, ...) of n rows (their columns named ``prefix`` +
+    column); None where the group's first column is NULL (not validated, not
+    measured, or a file older than the group). A group is every stored field
+    of its type, in field order (:mod:`planner.record.fields`)."""
     none = [None] * n
     columns = [_decoded(f, col.get(prefix + f.column, none)) for f in group]
-    return [None if row[0] is None else cls(*row[1:]) for row in zip(col.get(present, none), *columns)]
+    present = col.get(prefix + group[0].column, none)
+    return [None if first is None else cls(*row) for first, *row in zip(present, *columns)]
 
 
 def _insert(table: str, columns: Sequence[str], verb: str = "INSERT") -> str:
@@ -386,9 +388,8 @@ class Database:
         r = self._conn.execute("SELECT * FROM objects WHERE name = ?", (name,)).fetchone()
         if r is None:
             return None
-        return ObjectRow(name, r["source"], r["scale"], r["mass"], r["friction"], r["density"], r["volume"],
-                         np.array(json.loads(r["com"]), float), np.array(json.loads(r["inertia"]), float).reshape(3, 3),
-                         r["mesh_sha256"])
+        kept = set(ObjectRow.__dataclass_fields__)
+        return ObjectRow(**{f.column: next(iter(_decoded(f, [r[f.column]]))) for f in _OBJECTS if f.column in kept})
 
     def grasp_ids(self, unit_id: int) -> dict[int, int]:
         """Candidate number -> grasp id of one unit's grasps."""
@@ -443,9 +444,8 @@ def _grasps(rows: list[sqlite3.Row]) -> list[Grasp]:
         return []
     col = dict(zip(rows[0].keys(), zip(*rows)))
     n = len(rows)
-    parts = {"validation": _parts(Trial, _TRIAL, col, "v_", "v_success", n),
-             "robust": _parts(RobustEpsilon, _ROBUST, col, "r_", "r_mean", n),
-             "measures": _parts(Measures, _MEASURE_FIELDS, col, "", "resist_worst", n)}
+    parts = {name: _parts(cls, fields.group(name), col, "" if table == "grasps" else f"{_ALIAS[table]}_", n)
+             for name, (cls, table, _) in fields.GROUPS.items()}
     own = {f.attr: f for f in _GRASPS if "." not in f.attr}
     values = zip(*(parts[name] if name in parts else _own(own[name], col) for name in GRASP_FIELDS))
     return list(map(Grasp.restored, values))
