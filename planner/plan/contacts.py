@@ -29,6 +29,8 @@ from planner.specs.hands import HandSpec
 if TYPE_CHECKING:
     from planner.geometry.solid import PreparedObject
 
+#: HandContacts stays importable from here for planning modules that read
+#: contacts beside these functions (closing); the type is the record's.
 __all__ = ["HandContacts", "contact_models", "grasp_quality", "spread"]
 
 

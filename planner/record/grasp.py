@@ -6,7 +6,9 @@ database (:mod:`planner.db.store`) stores it and returns it with what it adds
 (``id``, ``unit_id``, ``score``, ``rank``) and with the results of physical
 validation (:class:`Trial`, :class:`RobustEpsilon`) where they exist. The
 exporters turn lists of them into columns (:mod:`planner.datasets.columns`),
-``grasp best --json`` prints :meth:`Grasp.to_json`.
+``grasp best --json`` prints :meth:`Grasp.to_json`. Each stored attribute
+is declared where it is defined (:func:`~planner.record.field.stored`: kind,
+unit, schema version, doc); :mod:`planner.record.fields` collects them.
 
 Frames: the object frame is the frame of the scaled mesh file; the grasp pose
 is the hand frame (the hand's ``root_link``) in the object frame. Lengths in
