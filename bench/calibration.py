@@ -62,11 +62,11 @@ from planner.db.lock import writer_lock
 from planner.db.ranking import RankingRule, rule_measures
 from planner.db.store import open_db
 from planner.geometry.solid import load_object
-from planner.grasp import Grasp
 from planner.plan.closing import Closed, CloseSettings, Grasper
 from planner.plan.sweep import SweepSettings
 from planner.plan.unit import grasp_quality
 from planner.present.report import roc_auc, top_k_success
+from planner.record.grasp import Grasp
 from planner.sim import Sim
 from planner.specs.hands import load_hand
 from planner.validation import run as validation

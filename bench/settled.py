@@ -28,10 +28,10 @@ import numpy as np
 
 from planner.db.store import open_db
 from planner.geometry.solid import load_object
-from planner.grasp import Grasp
-from planner.plan.contacts import HandContacts
 from planner.plan.settle import epsilon_of
 from planner.present.report import roc_auc
+from planner.record.contacts import HandContacts
+from planner.record.grasp import Grasp
 from planner.specs.hands import load_hand
 from planner.validation.shake import ShakeSettings, trials
 

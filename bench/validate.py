@@ -104,8 +104,8 @@ def old_trials(tree: Path, hand: str, grasps_by_object: dict[str, list]) -> tupl
 def old_worker(path: Path) -> None:
     """Run in the old tree: rebuild the grasps from ``grasp best --json`` records and time its trial."""
     from planner.geometry.solid import load_object
-    from planner.grasp import Grasp
-    from planner.plan.contacts import HandContacts
+    from planner.record.contacts import HandContacts
+    from planner.record.grasp import Grasp
     from planner.specs.hands import load_hand
     from planner.validation.shake import trial
 

@@ -36,9 +36,9 @@ from planner.db.lock import writer_lock
 from planner.db.ranking import RankingRule
 from planner.db.store import Database, ObjectRow, UnitRow, open_db
 from planner.errors import InputError, UnknownNameError
-from planner.grasp import Grasp
 from planner.plan.sweep import SAMPLER_DEFAULTS, SweepSettings
 from planner.plan.tolerances import PREGRASP_DISTANCE
+from planner.record.grasp import Grasp
 from planner.specs.hands import SAMPLERS, HandSpec, check_hand_name, hand_names, load_hand
 from planner.specs.inputs import expand
 from planner.specs.objects import (

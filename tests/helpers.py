@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 from click.testing import CliRunner
 
-from planner.grasp import Grasp
+from planner.record.grasp import Grasp
 
 #: Geometric tolerance of the simulator-based stages [m]: PyBullet's contact
 #: margins are corrected to about this.
@@ -58,8 +58,8 @@ def content(db: Path) -> list[tuple]:
 
 def made_up(candidate: int, epsilon: float, fc: bool = True, reach: float | None = None) -> Grasp:
     """A grasp of an object "thing" as the planner would hand it over (no simulator needed)."""
-    from planner.grasp import Grasp
-    from planner.plan.contacts import HandContacts
+    from planner.record.contacts import HandContacts
+    from planner.record.grasp import Grasp
 
     pose = np.eye(4)
     pose[:3, 3] = [0.01 * candidate, 0.0, 0.1]

@@ -64,8 +64,8 @@ def test_the_uniform_sample_is_seeded_and_the_right_size() -> None:
 def test_jittered_copies_move_by_the_asked_distance_and_angle_and_are_seeded() -> None:
     from scipy.spatial.transform import Rotation
 
-    from planner.grasp import Grasp
-    from planner.plan.contacts import HandContacts
+    from planner.record.contacts import HandContacts
+    from planner.record.grasp import Grasp
 
     h = harness()
     pose = np.eye(4)
@@ -90,9 +90,9 @@ def test_the_joint_cross_validation_finds_one_rule_that_ranks_both_hands() -> No
     """Hand "a": held iff its settled epsilon is high (its planned epsilon is
     noise); hand "b": no settled epsilon, held iff its planned epsilon is high.
     The shared rule must weigh the settled epsilon and keep epsilon."""
-    from planner.grasp import Grasp, Trial
-    from planner.plan.contacts import HandContacts
-    from planner.plan.measures import Measures
+    from planner.record.contacts import HandContacts
+    from planner.record.grasp import Grasp, Trial
+    from planner.record.measures import Measures
 
     h = harness()
     rng = np.random.default_rng(5)

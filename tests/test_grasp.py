@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 from helpers import made_up
 
-#: The keys the README documents for ``grasp best --json``.
-DOCUMENTED = {"object", "hand", "preshape", "pose", "joints", "open_joints", "width", "epsilon", "volume",
-              "force_closure", "reachability", "manipulability", "contacts", "rank", "score", "candidate", "seed",
-              "resist_worst", "resist_mean", "open_margin", "close_margin", "push", "feasibility", "settled_epsilon"}
+from planner.record.fields import record_fields
+
+#: The keys the README documents for ``grasp best --json``: every declared
+#: field of the record, and ``joints`` (the closed joints, their older name).
+DOCUMENTED = {f.name for f in record_fields()} | {"joints"}
 
 
 def test_best_json_keys_and_values() -> None:
@@ -23,6 +24,8 @@ def test_best_json_keys_and_values() -> None:
     assert data["contacts"][0] == {"point": [0.0, 0.02, 0.0], "normal": [0.0, -1.0, 0.0], "link": "left"}
     assert (data["rank"], data["score"], data["candidate"], data["force_closure"]) == (1, 0.04, 3, True)
     assert g.measures is None and data["resist_worst"] is None and data["feasibility"] is None  # not measured
+    assert data["validation_success"] is None and data["robust_mean"] is None  # not validated
+    assert {"resist_worst", "settled_epsilon", "validation_reason", "robust_quantile", "approach_dir"} <= set(data)
 
 
 def test_shapes_are_checked() -> None:

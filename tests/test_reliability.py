@@ -26,7 +26,7 @@ from planner import api
 from planner.db import store
 from planner.db.ranking import RankingRule
 from planner.geometry.solid import load_object
-from planner.grasp import Grasp
+from planner.record.grasp import Grasp
 
 linux = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 

@@ -48,10 +48,13 @@ This project's extras (a foreign reader ignores them): ``object/name``,
 scale), ``object/mesh_sha256`` (:func:`planner.geometry.mesh.mesh_hash` of
 the mesh); ``gripper/configuration_joints``;
 ``grasps/qualities/{epsilon, volume, force_closure, reachability,
-manipulability, score, rank, simulated_success (-1: not simulated),
-robust_epsilon_mean, robust_epsilon_quantile, resist_worst, resist_mean,
-open_margin, close_margin, push}`` (NaN when absent) and ``feasibility``
-(reasons, comma-separated);
+manipulability, score, rank}``, every analytic measure under its declared
+name (``resist_worst``, ..., ``settled_epsilon``; ``feasibility``: reasons,
+comma-separated), ``simulated_success`` (-1: not simulated), the trial's
+other fields (``validation_fingers_in_contact``, ``validation_reason``) and
+``robust_epsilon_mean``, ``robust_epsilon_quantile``, ``robust_samples``
+(:data:`QUALITIES`, derived from :mod:`planner.record.fields`; NaN or -1
+when absent);
 ``grasps/joint_names`` (J,), ``joints_closed`` / ``joints_open`` (N, J)
 [rad or m]; ``width`` (N,) [m] (NaN: not a parallel jaw); ``preshape``,
 ``candidate``, ``seed``; ``contacts`` (N,) JSON text ``[{point, normal,
@@ -82,10 +85,12 @@ import numpy as np
 from planner.datasets.columns import Column, grasp_columns, joint_matrix
 from planner.datasets.meshes import ExportedObject
 from planner.errors import InputError
-from planner.geometry.frames import roll_about
-from planner.grasp import Grasp, RobustEpsilon, Trial
-from planner.plan.contacts import HandContacts
-from planner.plan.measures import Measures
+from planner.geometry.frames import approach_of
+from planner.record import fields
+from planner.record.contacts import HandContacts
+from planner.record.field import Field
+from planner.record.grasp import Grasp, RobustEpsilon, Trial
+from planner.record.measures import Measures
 from planner.specs.hands import HandSpec
 from planner.specs.preshapes import Preshape, load_preshapes
 
@@ -103,6 +108,29 @@ FLEX = "qualities/flex/"
 #: ACRONYM's motion datasets and the columns they come from.
 MOTIONS = {f"{FLEX}object_motion_during_{stage}_{kind}": f"validation_{stage}_{kind}"
            for stage in ("closing", "shaking") for kind in ("linear", "angular")}
+#: The robust epsilon's two values, under ACRONYM-style names (``robust_epsilon_mean``).
+ROBUST_EPSILON = ("robust_mean", "robust_quantile")
+#: ``grasps/qualities/<name>`` -> the column of :func:`grasp_columns` it holds:
+#: the record's scores, every analytic measure (``feasibility``: reasons,
+#: comma-separated) and, of the trial and the robust epsilon, what ACRONYM's
+#: own datasets (``object_in_gripper``, :data:`MOTIONS`) do not hold, all
+#: derived from the declaration (:mod:`planner.record.fields`).
+QUALITIES = {
+    **{name: name for name in ("epsilon", "volume", "force_closure", "reachability", "manipulability", "score",
+                               "rank")},
+    **{f.name: f.name for f in fields.group("measures")},
+    "simulated_success": "validation_success",
+    **{f.name: f.name for f in fields.group("validation") if f.name != "validation_success"
+       and f.name not in MOTIONS.values()},
+    **{f.name.replace("robust_", "robust_epsilon_") if f.name in ROBUST_EPSILON else f.name: f.name
+       for f in fields.group("robust")},
+}
+#: Per-grasp datasets below ``grasps/`` -> the column of :func:`grasp_columns` each holds
+#: (besides ``transforms``, ``object_in_gripper`` and the joint matrices).
+DATASETS = {**MOTIONS, **{f"qualities/{name}": column for name, column in QUALITIES.items()},
+            **{name: name for name in ("width", "preshape", "candidate", "seed", "contacts", "approach_point",
+                                       "approach_dir", "roll", "standoff")},
+            "poses_hand_frame": "pose"}
 #: Datasets whose presence marks a file with this project's extras.
 EXTRAS = ("qualities/epsilon", "qualities/volume", "qualities/force_closure", "joint_names", "joints_closed",
           "joints_open", "contacts")
@@ -144,31 +172,9 @@ def per_grasp(grasps: list[Grasp], hand: HandSpec) -> dict[str, Column]:
     return {
         "transforms": c["pose"] @ hand.export_frame,
         f"{FLEX}object_in_gripper": labels,
-        **{key: c[column] for key, column in MOTIONS.items()},
-        "qualities/epsilon": c["epsilon"],
-        "qualities/volume": c["volume"],
-        "qualities/force_closure": c["force_closure"],
-        "qualities/reachability": c["reachability"],
-        "qualities/manipulability": c["manipulability"],
-        "qualities/score": c["score"],
-        "qualities/rank": c["rank"],
-        "qualities/simulated_success": c["validation_success"],
-        "qualities/robust_epsilon_mean": c["robust_mean"],
-        "qualities/robust_epsilon_quantile": c["robust_quantile"],
-        **{f"qualities/{name}": c[name] for name in MEASURES},
-        "qualities/feasibility": c["feasibility"],
+        **{key: c[column] for key, column in DATASETS.items()},
         "joints_closed": joint_matrix(c["closed_joints"], names),
         "joints_open": joint_matrix(c["open_joints"], names),
-        "width": c["width"],
-        "preshape": c["preshape"],
-        "candidate": c["candidate"],
-        "seed": c["seed"],
-        "contacts": c["contacts"],
-        "poses_hand_frame": c["pose"],
-        "approach_point": c["approach_point"],
-        "approach_dir": c["approach_dir"],
-        "roll": c["roll"],
-        "standoff": c["standoff"],
     }
 
 
@@ -320,15 +326,15 @@ def read_grasps(path: Path, hand: HandSpec, obj: str, poses: np.ndarray) -> list
         names = list(g["joint_names"].asstr()[()])
         closed, opened = g["joints_closed"][()], g["joints_open"][()]
         col = {k: (q[k][()] if k in q else np.full(n, np.nan))  # whole columns: h5py indexing per row is slow
-               for k in ("epsilon", "volume", "force_closure", "reachability", "manipulability", *MEASURES)}
-        reasons = q["feasibility"].asstr()[()] if "feasibility" in q else [""] * n
+               for k in ("epsilon", "volume", "force_closure", "reachability", "manipulability")}
+        measures = _measures(q, n)
         width = g["width"][()] if "width" in g else np.full(n, np.nan)
         preshape = g["preshape"].asstr()[()] if "preshape" in g else ["imported"] * n
-        approach_dir = g["approach_dir"][()] if "approach_dir" in g else poses[:, :3, :3] @ hand.approach
-        approach_point = (g["approach_point"][()] if "approach_point" in g
-                          else poses[:, :3, :3] @ hand.tcp + poses[:, :3, 3])
-        roll = g["roll"][()] if "roll" in g else [roll_about(p[:3, :3], hand.approach, d)
-                                                  for p, d in zip(poses, approach_dir)]
+        tcps = {shape.name: shape.tcp for shape in load_preshapes(hand)}  # files before the approach rays
+        rays = [approach_of(p, hand.approach, tcps.get(str(name), hand.tcp)) for p, name in zip(poses, preshape)]
+        approach_dir = g["approach_dir"][()] if "approach_dir" in g else [r[1] for r in rays]
+        approach_point = g["approach_point"][()] if "approach_point" in g else [r[0] for r in rays]
+        roll = g["roll"][()] if "roll" in g else [r[2] for r in rays]
         standoff = g["standoff"][()] if "standoff" in g else np.zeros(n)
         contacts = g["contacts"].asstr()[()]
     return [Grasp(object=obj, hand=hand.name, preshape=str(preshape[i]), candidate=i, seed=0,
@@ -339,44 +345,85 @@ def read_grasps(path: Path, hand: HandSpec, obj: str, poses: np.ndarray) -> list
                   epsilon=float(col["epsilon"][i]), volume=float(col["volume"][i]),
                   force_closure=bool(col["force_closure"][i]), reachability=_maybe(col["reachability"][i]),
                   manipulability=_maybe(col["manipulability"][i]),
-                  measures=_measures([col[k][i] for k in MEASURES], str(reasons[i])))
+                  measures=measures[i])
             for i in range(n)]
 
 
-#: The analytic measures a file carries (``grasps/qualities/<name>``; NaN: not measured).
-MEASURES = ("resist_worst", "resist_mean", "open_margin", "close_margin", "push")
+def _measures(q: Any, n: int) -> list[Measures | None]:
+    """Each row's analytic measures from ``grasps/qualities`` (NaN, or a
+    measure the file lacks: not measured; None where resist_worst is not)."""
+    group = fields.group("measures")
+    columns = {f.attr.partition(".")[2]: _file_values(f, q[f.name][()] if f.name in q else None, n) for f in group}
+    first = columns[group[0].attr.partition(".")[2]]
+    return [None if first[i] is None else Measures(**{k: v[i] for k, v in columns.items()}) for i in range(n)]
 
 
-def _measures(values: list[float], reasons: str) -> Measures | None:
-    if np.isnan(values[0]):
-        return None
-    worst, mean, open_margin, close_margin, push = (float(v) for v in values)
-    return Measures(worst, mean, np.inf if np.isnan(open_margin) else open_margin,
-                    np.inf if np.isnan(close_margin) else close_margin, push, tuple(r for r in reasons.split(",") if r))
+def _file_values(f: Field, data: np.ndarray | None, n: int) -> list:
+    """A stored field read from a file column (None: the file lacks it) as the record's values."""
+    if f.dtype == "string":
+        texts = [""] * n if data is None else [_text(v) for v in data]
+        return [tuple(r for r in t.split(",") if r) for t in texts] if f.kind == "reasons" else texts
+    values = np.full(n, np.nan) if data is None else np.asarray(data, float)
+    if f.kind == "margin":
+        return [math.inf if math.isnan(v) else v for v in values.tolist()]
+    if f.dtype == "int64":
+        return [int(v) for v in values.tolist()]
+    return [None if math.isnan(v) else v for v in values.tolist()]
+
+
+#: What a file that lacks a trial or robust field reads as (ACRONYM's own files hold neither).
+MISSING = {"validation_fingers_in_contact": -1, "validation_reason": "", "robust_samples": 0}
+
+
+def _location(name: str) -> str:
+    """Where under ``grasps/`` a column of :func:`grasp_columns` is written."""
+    return next(key for key, column in DATASETS.items() if column == name)
+
+
+#: Declared fields of the record a file holds otherwise: per file, as matrices, or
+#: implied by the contacts.
+IMPLIED = {"object": "object/name", "hand": "gripper/type", "open_joints": "joints_open (N, J)",
+           "closed_joints": "joints_closed (N, J)", "n_contacts": "contacts", "links_touching": "contacts"}
+
+
+def carried() -> set[str]:
+    """The flat names of the declared record fields a file carries."""
+    return {f.name for f in fields.record_fields()} & ({*DATASETS.values()} | set(IMPLIED))
+
+
+def _trial_columns(g: Any, group: str, n: int) -> dict[str, list]:
+    """The record's values of a trial or robust group, attribute -> n values."""
+    out = {}
+    for f in fields.group(group):
+        key = _location(f.name)
+        values = _file_values(f, g[key][()] if key in g else None, n)
+        if key not in g and f.name in MISSING:
+            values = [MISSING[f.name]] * n
+        out[f.attr.partition(".")[2]] = values
+    return out
 
 
 def read_simulation(path: Path) -> list[tuple[Trial | None, RobustEpsilon | None]]:
     """Per row, the shake-test result and robust epsilon our own files carry
     (None where the row was not simulated; an empty list for other files).
-    What ACRONYM does not store reads as -1 (fingers) or 0 (samples)."""
+    What a file does not store reads as :data:`MISSING` says; a motion
+    that is not stored as -1."""
     with _open(path) as f:
-        q = f["grasps/qualities"]
-        if "simulated_success" not in q:
+        g = f["grasps"]
+        if "qualities/simulated_success" not in g:
             return []
-        success = np.asarray(q["simulated_success"][()], int)
-        flex = q["flex"] if "flex" in q else {}
-        motion = {k: np.asarray(flex[f"object_motion_during_{k}"][()], float) if f"object_motion_during_{k}" in flex
-                  else np.full(len(success), np.nan) for k in ("closing_linear", "closing_angular",
-                                                               "shaking_linear", "shaking_angular")}
-        mean = np.asarray(q["robust_epsilon_mean"][()], float) if "robust_epsilon_mean" in q else None
-        quantile = np.asarray(q["robust_epsilon_quantile"][()], float) if "robust_epsilon_quantile" in q else None
+        n = len(g["qualities/simulated_success"])
+        trial, robust = _trial_columns(g, "validation", n), _trial_columns(g, "robust", n)
+    success = [int(v) for v in np.asarray(trial.pop("success"), float)]
+    motions = [k for k in trial if f"validation_{k}" in MOTIONS.values()]
+    for k in motions:
+        trial[k] = [-1.0 if v is None else v for v in trial[k]]
     out: list[tuple[Trial | None, RobustEpsilon | None]] = []
     for i, ok in enumerate(success):
-        trial = None if ok < 0 else Trial(bool(ok), -1, *(float(np.nan_to_num(motion[k][i], nan=-1.0)) for k in (
-            "closing_linear", "closing_angular", "shaking_linear", "shaking_angular")))
-        robust = (RobustEpsilon(float(mean[i]), float(quantile[i]), 0)
-                  if mean is not None and quantile is not None and np.isfinite(mean[i]) else None)
-        out.append((trial, robust))
+        t = None if ok < 0 else Trial(bool(ok), **{k: v[i] for k, v in trial.items()})
+        r = None if robust["mean"][i] is None or robust["quantile"][i] is None else \
+            RobustEpsilon(**{k: v[i] for k, v in robust.items()})
+        out.append((t, r))
     return out
 
 

@@ -1,20 +1,16 @@
-"""The shared column definitions: a batch of :class:`~planner.grasp.Grasp`
+"""The shared column definitions: a batch of :class:`~planner.record.grasp.Grasp`
 records as columns, the one helper every format writes from.
 
-:func:`grasp_columns` keys the columns by the record's field names (each
-column is built when a writer first asks for it, so a format that writes a
-few columns pays for those only); the validation and robust results are
-flattened (``validation_success``, ..., ``robust_mean``, ``robust_quantile``,
-``robust_samples``), and so are the analytic measures (``resist_worst``,
-``resist_mean``, ``open_margin``, ``close_margin``, ``push``,
-``settled_epsilon``: NaN when not measured; ``feasibility``: comma-separated reasons, '' when feasible). A
-value that is absent holds NaN in a float column and
--1 in an integer column (``id`` and ``unit_id`` of a record not stored yet,
-``rank``, ``validation_success``, ``validation_fingers_in_contact``,
-``robust_samples``); ``width``, ``reachability`` and ``manipulability`` are
-floats. Contacts and joints stay JSON text as stored (``[{point, normal,
-link}]``, ``{joint: value}``); :func:`joint_matrix` decodes joints in one
-parser call per batch.
+:func:`grasp_columns` keys the columns by the flat names of the declared
+fields (:func:`planner.record.fields.record_fields`: the record's own, its
+contact counts, its analytic measures, ``validation_*`` and ``robust_*``);
+each column is built when a writer first asks for it, so a format that
+writes a few columns pays for those only. A value that is absent holds the
+field's neutral value: NaN in a float column, -1 in an integer column (``id``
+and ``unit_id`` of a record not stored yet, ``rank``, ``validation_success``,
+...), '' in a text column (``feasibility``, ``validation_reason``). Contacts
+and joints stay JSON text as stored (``[{point, normal, link}]``, ``{joint:
+value}``); :func:`joint_matrix` decodes joints in one parser call per batch.
 """
 
 from __future__ import annotations
@@ -28,63 +24,41 @@ import numpy as np
 
 from planner.datasets.meshes import ExportedObject
 from planner.db.store import json_list
-from planner.grasp import Grasp
+from planner.record.fields import Field, getter, record_fields
+from planner.record.grasp import Grasp
 
 Column = np.ndarray | list
 Builder = Callable[[Sequence[Grasp]], Column]
 
 
-def _ints(name: str) -> Builder:
-    return lambda gs: np.array([-1 if (v := getattr(g, name)) is None else v for g in gs], np.int64)
+def _array(f: Field) -> Builder:
+    """A field as an (n, ...) array, its neutral value where absent."""
+    get, dtype, neutral = getter(f), DTYPES[f.dtype], f.neutral
+    shape = f.shape
+    if f.kind == "bool":
+        return lambda gs: np.array([neutral if (v := get(g)) is None else int(v) for g in gs], dtype)
+    if shape:
+        return lambda gs: np.array([get(g) for g in gs], dtype).reshape(len(gs), *shape)
+    return lambda gs: np.array([neutral if (v := get(g)) is None else v for g in gs], dtype)
 
 
-def _stack(name: str, shape: tuple[int, ...]) -> Builder:
-    return lambda gs: np.array([getattr(g, name) for g in gs], float).reshape(len(gs), *shape)
+def _strings(f: Field) -> Builder:
+    get, neutral = getter(f), f.neutral
+    if f.kind in ("joints", "contacts"):
+        return lambda gs: [get(g).json_text() for g in gs]  # type: ignore[attr-defined]
+    if f.kind == "reasons":
+        return lambda gs: [neutral if (v := get(g)) is None else ",".join(v) for g in gs]  # type: ignore[arg-type]
+    return lambda gs: [neutral if (v := get(g)) is None else v for g in gs]
 
 
-def _texts(name: str) -> Builder:
-    return lambda gs: [getattr(g, name).json_text() for g in gs]
+DTYPES = {"float64": float, "int64": np.int64}
 
-
-def _trial(name: str, absent: float, dtype: type) -> Builder:
-    return lambda gs: np.array([absent if g.validation is None else getattr(g.validation, name) for g in gs], dtype)
-
-
-def _measure(name: str) -> Builder:
-    return lambda gs: np.array([math.nan if g.measures is None else getattr(g.measures, name) for g in gs], float)
-
-
-def _robust(name: str, absent: float, dtype: type) -> Builder:
-    return lambda gs: np.array([absent if g.robust is None else getattr(g.robust, name) for g in gs], dtype)
-
-
-#: Plain fields read together, in one pass over the records: (name, dtype).
-SCALARS = (("candidate", np.int64), ("seed", np.int64), ("roll", float), ("standoff", float), ("epsilon", float),
-           ("volume", float), ("score", float), ("force_closure", np.int64), ("width", float),
-           ("reachability", float), ("manipulability", float))
-
+#: Plain fields of the record itself, read together in one pass over the records: (name, dtype).
+SCALARS = tuple((f.name, DTYPES[f.dtype]) for f in record_fields() if "." not in f.attr and f.kind in ("real", "bool"))
 
 #: column -> how to build it from n records (besides SCALARS).
-BUILDERS: dict[str, Builder] = {
-    **{name: _ints(name) for name in ("id", "unit_id", "rank")},
-    "preshape": lambda gs: [g.preshape for g in gs],
-    "approach_point": _stack("approach_point", (3,)),
-    "approach_dir": _stack("approach_dir", (3,)),
-    "pose": _stack("pose", (4, 4)),
-    **{name: _texts(name) for name in ("contacts", "open_joints", "closed_joints")},
-    "n_contacts": lambda gs: np.array([len(g.contacts) for g in gs], np.int64),
-    "links_touching": lambda gs: np.array([g.contacts.touching for g in gs], np.int64),
-    "validation_success": _trial("success", -1, np.int64),
-    "validation_fingers_in_contact": _trial("fingers_in_contact", -1, np.int64),
-    **{f"validation_{stage}_{kind}": _trial(f"{stage}_{kind}", math.nan, float)
-       for stage in ("closing", "shaking") for kind in ("linear", "angular")},
-    "robust_mean": _robust("mean", math.nan, float),
-    "robust_quantile": _robust("quantile", math.nan, float),
-    "robust_samples": _robust("samples", -1, np.int64),
-    **{name: _measure(name) for name in ("resist_worst", "resist_mean", "open_margin", "close_margin", "push",
-                                         "settled_epsilon")},
-    "feasibility": lambda gs: ["" if g.measures is None else ",".join(g.measures.reasons) for g in gs],
-}
+BUILDERS: dict[str, Builder] = {f.name: _strings(f) if f.dtype == "string" else _array(f)
+                                for f in record_fields() if f.name not in dict(SCALARS)}
 
 
 class GraspColumns(Mapping[str, Column]):

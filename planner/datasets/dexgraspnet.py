@@ -23,7 +23,8 @@ allow_pickle=True)``::
               "WRJRx", "WRJRy", "WRJRz": wrist rotation as Euler angles [rad],
               joint_name: closed joint value [rad or m], ...},
      "object_code": "{object}", "mesh_file": "meshes/{object}.obj" (relative to DIR),
-     "epsilon", "score", "force_closure", "rank", "width": this project's extras}
+     "epsilon", "score", "force_closure", "rank", "width", ..., "object_mass", ...: this project's
+     extras (:data:`EXTRAS`, :data:`PHYSICS`)}
 
 The Euler angles are ``Rotation.from_matrix(R).as_euler("xyz")`` of scipy:
 lower-case "xyz" = *extrinsic* rotations about the fixed x, then y, then z
@@ -50,13 +51,24 @@ from scipy.spatial.transform import Rotation
 from planner.datasets.acronym import joint_names
 from planner.datasets.columns import grasp_columns, joint_matrix
 from planner.datasets.meshes import ExportedObject
-from planner.grasp import Grasp
+from planner.record.fields import record_fields
+from planner.record.grasp import Grasp
 from planner.specs.hands import HandSpec
 
 SUFFIX = ".npy"
 WRIST = ("WRJTx", "WRJTy", "WRJTz", "WRJRx", "WRJRy", "WRJRz")
 #: Where DexGraspNet's ObjectModel finds an object's mesh (relative to DIR).
 MESH_COPIES = ("meshdata/{stem}/coacd/decomposed.obj",)
+
+
+#: This project's extras in every dict: every plain declared field of the record
+#: (:mod:`planner.record.fields`; absent values as NaN, -1 or ''), and the object's
+#: physical properties. Not carried: vectors and contacts (the wrist and qpos
+#: hold the pose and the closed joints), the database's ids, the open joints.
+EXTRAS = tuple(f.name for f in record_fields() if not f.shape and f.kind not in ("joints", "contacts")
+               and f.name not in ("id", "unit_id", "object", "hand"))
+BOOLEANS = tuple(f.name for f in record_fields() if f.kind == "bool" and "." not in f.attr)
+PHYSICS = ("object_mass", "object_friction", "object_density")
 
 
 def relative_path(stem: str, hand: str) -> str:
@@ -88,6 +100,7 @@ def write(path: Path, info: ExportedObject, hand: HandSpec, batches: Iterable[li
     keys = (*WRIST, *names)
     code = path.name[:-len(SUFFIX)]
     grasps: list[dict] = []
+    physics = {name: getattr(info.row, name[len("object_"):]) for name in PHYSICS}
     for batch in batches:
         c = grasp_columns(batch)
         joints = joint_matrix(c["closed_joints"], names)
@@ -96,11 +109,10 @@ def write(path: Path, info: ExportedObject, hand: HandSpec, batches: Iterable[li
             qposes = [{k: v for k, v in zip(keys, row) if v == v} for row in rows]
         else:
             qposes = [dict(zip(keys, row)) for row in rows]
+        extras = [c[name].astype(bool).tolist() if name in BOOLEANS else
+                  c[name] if isinstance(c[name], list) else c[name].tolist() for name in EXTRAS]
         grasps += [{"scale": info.scale, "qpos": qpos, "object_code": code, "mesh_file": info.file,
-                    "epsilon": epsilon, "score": score, "force_closure": closure, "rank": rank, "width": width}
-                   for qpos, epsilon, score, closure, rank, width in zip(
-                       qposes, c["epsilon"].tolist(), c["score"].tolist(), c["force_closure"].astype(bool).tolist(),
-                       c["rank"].tolist(), c["width"].tolist())]
+                    **physics, **dict(zip(EXTRAS, values))} for qpos, *values in zip(qposes, *extras)]
     data = np.empty(len(grasps), dtype=object)
     data[:] = grasps
     tmp = path.with_name(path.name + ".tmp")

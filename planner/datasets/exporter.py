@@ -39,7 +39,7 @@ from planner.datasets.columns import Stream
 from planner.datasets.meshes import ExportedObject, mesh_stem, write_meshes
 from planner.db.store import Database, open_db
 from planner.errors import InputError, UnknownNameError
-from planner.grasp import Grasp
+from planner.record.grasp import Grasp
 from planner.specs.hands import HandSpec, load_hand
 
 log = logging.getLogger(__name__)

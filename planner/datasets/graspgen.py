@@ -26,7 +26,7 @@ booleans: GraspGen selects the positives with ``transforms[mask]`` and the
 negatives with ``~mask``, which only a boolean array reads as a mask (0/1
 integers would pick rows 0 and 1 over and over). Every other per-grasp HDF5
 dataset becomes a list named by its last path component; ``contacts`` are
-decoded into lists of ``{point, normal, link}``; NaN becomes ``null``.
+decoded into lists of ``{point, normal, link}``; NaN and infinity become ``null``.
 
 GraspGen loads ``map_uuid_to_path.json`` when the grasp folder has one and
 then never looks at the files, so a stale one hides objects silently:
@@ -61,7 +61,7 @@ import numpy as np
 from planner import assets
 from planner.datasets.acronym import gripper_configuration, joint_names, label_source, per_grasp, validated_count
 from planner.datasets.meshes import ExportedObject
-from planner.grasp import Grasp
+from planner.record.grasp import Grasp
 from planner.specs.hands import HandSpec
 
 log = logging.getLogger(__name__)
@@ -120,17 +120,19 @@ def _spool(part: IO[str], name: str, values: np.ndarray | list[str], first: bool
         if array is None:
             items = values
         else:  # the NaN scan is cheap; rewriting nested lists is not
-            items = _nulls(array.tolist()) if array.dtype.kind == "f" and np.isnan(array).any() else array.tolist()
+            items = _nulls(array.tolist()) if array.dtype.kind == "f" and not np.isfinite(array).all() \
+                else array.tolist()
         text = json.dumps(items, allow_nan=False)[1:-1]
     if text:
         part.write(text if first else ", " + text)  # json.dumps' own separator: batching leaves no trace
 
 
 def _nulls(values: list) -> list:
-    """NaN -> None, at any depth (JSON has no NaN)."""
+    """NaN and infinity (a margin where no finger touches) -> None, at any
+    depth (JSON has neither)."""
     if values and isinstance(values[0], list):
         return [_nulls(v) for v in values]
-    return [None if isinstance(v, float) and math.isnan(v) else v for v in values]
+    return [None if isinstance(v, float) and not math.isfinite(v) else v for v in values]
 
 
 def _object(info: ExportedObject) -> dict:

@@ -58,13 +58,13 @@ from planner.db.lock import writer_lock
 from planner.db.ranking import RankingRule
 from planner.db.store import Database, UnitRow, Validated, open_db
 from planner.errors import InputError, UnknownNameError
-from planner.geometry.frames import roll_about
+from planner.geometry.frames import approach_of
 from planner.geometry.solid import PreparedObject, prepare
-from planner.grasp import Grasp
 from planner.plan import pool
 from planner.plan.closing import Closed, Grasper
 from planner.plan.measures import measure
 from planner.plan.unit import closed_width, scored
+from planner.record.grasp import Grasp
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, hand_names, load_hand
 from planner.specs.objects import ObjectSpec, is_registered, resolve_spec
@@ -319,12 +319,10 @@ def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: C
                 continue
             width = closed_width(hand, closed.closed_joints)
             m = measure(closed.contacts, closed.frames, hand, shape, closed.closed_joints, obj, width)  # type: ignore[arg-type]
-            p = closed.pose
-            direction = p[:3, :3] @ hand.approach
+            point, direction, roll = approach_of(closed.pose, hand.approach, shape.tcp)
             out.append(Grasp(
                 object=obj.name, hand=hand.name, preshape=shape.name, candidate=i, seed=0,
-                approach_point=p[:3, :3] @ shape.tcp + p[:3, 3], approach_dir=direction,
-                roll=roll_about(p[:3, :3], hand.approach, direction), standoff=0.0, pose=p,
+                approach_point=point, approach_dir=direction, roll=roll, standoff=0.0, pose=closed.pose,
                 open_joints=closed.open_joints, closed_joints=closed.closed_joints,
                 width=width, contacts=closed.contacts, epsilon=q.epsilon, volume=q.volume,
                 force_closure=q.force_closure, measures=m))

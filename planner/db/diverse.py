@@ -20,7 +20,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
-from planner.grasp import Grasp
+from planner.record.grasp import Grasp
 
 DEFAULT_TRANSLATION = 0.02  # [m] two grasps whose centres are this far apart are different
 DEFAULT_ROTATION = np.radians(30.0)  # [rad] ... or whose orientations differ by this much

@@ -41,13 +41,29 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from planner.errors import InputError
+from planner.record import fields
+from planner.record.tolerances import MIN_CLOSE_MARGIN, MIN_OPEN_MARGIN
 
 if TYPE_CHECKING:
-    from planner.grasp import Grasp
+    from planner.record.grasp import Grasp
+
+#: The rank order: score first, then the tie-breaks (columns of ``grasps``).
+ORDER_BY = "score DESC, epsilon DESC, volume DESC, seed, candidate, unit_id"
+
+#: The measures the rule reads (each an (n,) array; NaN or None = not computed), by
+#: the names the declaration gives them (:func:`planner.record.fields.ranked_fields`).
+MEASURES = tuple(f.ranked for f in fields.ranked_fields())
+
+
+def _short(value: float) -> str:
+    """A number as the formula writes it, in short scientific form: ``1e-4``."""
+    mantissa, exponent = f"{value:.15e}".split("e")
+    return f"{mantissa.rstrip('0').rstrip('.')}e{int(exponent)}"
+
 
 #: The rule of :meth:`RankingRule.scores` in words, as ``meta.ranking`` stores it.
 FORMULA = ("analytic = gate * (press * (1 + hold) / 2 + eps_weight * quality + settled_weight * settled);"
-           " gate = [open_margin >= min_open_margin] * [close_margin >= 1e-4 m];"
+           f" gate = [open_margin >= min_open_margin] * [close_margin >= {_short(MIN_CLOSE_MARGIN)} m];"
            " press = clip(push, 0, 1); hold = min(resist_worst, cap) / cap;"
            " quality = (1 - robust_weight) * epsilon + robust_weight * robust_quantile;"
            " settled = settled_epsilon (0 when not measured);"
@@ -56,16 +72,6 @@ FORMULA = ("analytic = gate * (press * (1 + hold) / 2 + eps_weight * quality + s
            " a measure not computed counts as neutral (reachability, success 1; robust quantile = epsilon);"
            " grasps stored without the analytic measures (before schema v3): gate 1, press 1,"
            " hold = force_closure")
-
-#: The rank order: score first, then the tie-breaks (columns of ``grasps``).
-ORDER_BY = "score DESC, epsilon DESC, volume DESC, seed, candidate, unit_id"
-
-#: [m] a finger this close to its closing stop cannot squeeze (the gate).
-CLOSE_STOP = 1e-4
-
-#: The measures the rule reads (each an (n,) array; NaN or None = not computed).
-MEASURES = ("epsilon", "force_closure", "reachability", "success", "robust_quantile", "resist_worst", "push",
-            "open_margin", "close_margin", "settled_epsilon")
 
 
 @dataclass(frozen=True)
@@ -87,7 +93,7 @@ class RankingRule:
     success_weight: float = 1.0
     robust_weight: float = 0.0
     cap: float = 5.0
-    min_open_margin: float = 0.002
+    min_open_margin: float = MIN_OPEN_MARGIN
     eps_weight: float = 3.0
     settled_weight: float = 100.0
 
@@ -111,7 +117,7 @@ class RankingRule:
         press = np.clip(_column(measures, "push", np.ones(n)), 0.0, 1.0)
         open_margin = _column(measures, "open_margin", np.full(n, np.inf))
         close_margin = _column(measures, "close_margin", np.full(n, np.inf))
-        gate = (open_margin >= self.min_open_margin) & (close_margin >= CLOSE_STOP)
+        gate = (open_margin >= self.min_open_margin) & (close_margin >= MIN_CLOSE_MARGIN)
         settled = _column(measures, "settled_epsilon", np.zeros(n))
         quantile = _column(measures, "robust_quantile", eps)
         quality = (1.0 - self.robust_weight) * eps + self.robust_weight * quantile
@@ -154,17 +160,7 @@ def _column(measures: Mapping[str, ArrayLike | None], name: str, instead: np.nda
 
 
 def rule_measures(grasps: Sequence[Grasp]) -> dict[str, np.ndarray]:
-    """The rule's measures of grasp records (validation and robust rows included)."""
-    nan = np.nan
-
-    def measured(name: str) -> np.ndarray:
-        return np.array([nan if g.measures is None or getattr(g.measures, name) is None
-                         else getattr(g.measures, name) for g in grasps], float)
-
-    return {"epsilon": np.array([g.epsilon for g in grasps], float),
-            "force_closure": np.array([g.force_closure for g in grasps], float),
-            "reachability": np.array([nan if g.reachability is None else g.reachability for g in grasps], float),
-            "success": np.array([nan if g.validation is None else g.validation.success for g in grasps], float),
-            "robust_quantile": np.array([nan if g.robust is None else g.robust.quantile for g in grasps], float),
-            **{name: measured(name) for name in ("resist_worst", "push", "open_margin", "close_margin",
-                                                 "settled_epsilon")}}
+    """The rule's measures of grasp records (validation and robust rows included):
+    each declared ranked field as an (n,) float array, NaN where absent."""
+    return {f.ranked: np.array([np.nan if v is None else v for v in fields.values(f, grasps)], float)
+            for f in fields.ranked_fields()}

@@ -1,7 +1,7 @@
 """The grasp database: SQLite (WAL), one writer, and every SQL statement of
 the project (the schema's own statements live in :mod:`planner.db.schema`).
 
-Grasps go in and come out as :class:`planner.grasp.Grasp` records; rows are
+Grasps go in and come out as :class:`planner.record.grasp.Grasp` records; rows are
 read by column name. Scores are never computed in SQL: the store reads the
 measures, asks the :class:`~planner.db.ranking.RankingRule` for the scores,
 writes them and re-ranks each (object, hand) in the rule's tie-break order.
@@ -33,9 +33,11 @@ from planner.db.schema import (
     transaction,
 )
 from planner.errors import DatabaseError
-from planner.grasp import Grasp, Joints, RobustEpsilon, Trial
-from planner.plan.contacts import HandContacts
-from planner.plan.measures import Measures
+from planner.record import fields
+from planner.record.contacts import HandContacts
+from planner.record.field import Field
+from planner.record.grasp import FIELDS as GRASP_FIELDS
+from planner.record.grasp import Grasp, Joints, RobustEpsilon, Trial
 
 if TYPE_CHECKING:
     from planner.geometry.solid import PreparedObject
@@ -47,32 +49,35 @@ BUSY_TIMEOUT_S = 60.0
 VECTOR_DIGITS = 7
 INERTIA_DIGITS = 10
 
-#: The analytic measures (schema v3; v4 the settled epsilon), in the order of :func:`_measure_values`.
-MEASURE_COLUMNS = ("resist_worst", "resist_mean", "open_margin", "close_margin", "push", "feasibility",
-                   "settled_epsilon")
-_GRASP_COLUMNS = ("unit_id", "object", "hand", "preshape", "candidate", "approach_point", "approach_dir", "roll",
-                  "standoff", "pose", "open_joints", "closed_joints", "width", "contacts", "n_contacts",
-                  "links_touching", "epsilon", "volume", "force_closure", "reachability", "manipulability", "seed",
-                  "score", *MEASURE_COLUMNS)
-_VALIDATION_COLUMNS = ("grasp_id", "success", "fingers_in_contact", "closing_linear", "closing_angular",
-                       "shaking_linear", "shaking_angular", "reason", "seed", "settings")
-_ROBUST_COLUMNS = ("grasp_id", "mean", "quantile", "samples", "seed", "settings")
-_OBJECT_COLUMNS = ("name", "source", "scale", "mesh_sha256", "mass", "friction", "density", "volume", "com",
-                   "inertia", "torque_scale", "extents")
+#: The declared columns (:mod:`planner.record.fields`) of the record's tables.
+_GRASPS = fields.table("grasps")
+_TRIAL, _ROBUST = fields.group("validation"), fields.group("robust")
+#: Columns an insert writes: all but those SQLite (``id``) or the ranking (``rank``) fill.
+_GRASP_COLUMNS = tuple(f.column for f in _GRASPS if f.column not in ("id", "rank"))
+_VALIDATION_COLUMNS = tuple(f.column for f in fields.table("validation"))
+_ROBUST_COLUMNS = tuple(f.column for f in fields.table("robust"))
+_OBJECTS = fields.table("objects")
+_OBJECT_COLUMNS = tuple(f.column for f in _OBJECTS)
 _UNIT_COLUMNS = ("object", "hand", "settings_hash", "seed", "chunk", "settings", "status", "error", "candidates",
                  "grasps", "force_closure", "rejected", "seconds", "finished_at")
 
+#: Table -> its alias in the grasps query.
+_ALIAS = {"grasps": "g", "validation": "v", "robust": "r"}
+
+
+def _aliased(group: tuple[Field, ...]) -> str:
+    return ", ".join(f"{_ALIAS[f.table]}.{f.column} AS {_ALIAS[f.table]}_{f.column}" for f in group)
+
+
 #: A grasp with its validation and robust rows (``v_*``, ``r_*``).
-_SELECT_GRASPS = """
-SELECT g.*, v.success AS v_success, v.fingers_in_contact AS v_fingers_in_contact,
-       v.closing_linear AS v_closing_linear, v.closing_angular AS v_closing_angular,
-       v.shaking_linear AS v_shaking_linear, v.shaking_angular AS v_shaking_angular, v.reason AS v_reason,
-       r.mean AS r_mean, r.quantile AS r_quantile, r.samples AS r_samples
-FROM grasps g {join} {validation} v ON v.grasp_id = g.id LEFT JOIN {robust} r ON r.grasp_id = g.id
+_SELECT_GRASPS = f"""
+SELECT g.*, {_aliased(_TRIAL)}, {_aliased(_ROBUST)}
+FROM grasps g {{join}} {{validation}} v ON v.grasp_id = g.id LEFT JOIN {{robust}} r ON r.grasp_id = g.id
 """
-_MEASURES = """
-SELECT g.id, g.object, g.hand, g.epsilon, g.force_closure, g.reachability, v.success, r.quantile,
-       g.resist_worst, g.push, g.open_margin, g.close_margin, g.settled_epsilon
+#: What the ranking rule reads, by the rule's names.
+_RANKED = ", ".join(f"{_ALIAS[f.table]}.{f.column} AS {f.ranked}" for f in fields.ranked_fields())
+_MEASURES = f"""
+SELECT g.id, g.object, g.hand, {_RANKED}
 FROM grasps g LEFT JOIN validation v ON v.grasp_id = g.id LEFT JOIN robust r ON r.grasp_id = g.id
 """
 _RERANK = f"""
@@ -83,29 +88,56 @@ UPDATE grasps SET rank = ranked.r FROM ranked WHERE grasps.id = ranked.id
 """
 
 
-def _measure_values(m: Measures | None) -> tuple:
-    if m is None:
-        return (None,) * len(MEASURE_COLUMNS)
-    finite = [None if not math.isfinite(v) else v for v in (m.open_margin, m.close_margin)]
-    return (m.resist_worst, m.resist_mean, *finite, m.push, ",".join(m.reasons), m.settled_epsilon)
-
-
-def _measures(values: tuple) -> Measures | None:
-    worst, mean, open_margin, close_margin, push, reasons, settled = values
-    if worst is None:
+def _sql(f: Field, value: object) -> object:
+    """A record's value as its column stores it."""
+    if value is None:
         return None
-    return Measures(worst, mean, math.inf if open_margin is None else open_margin,
-                    math.inf if close_margin is None else close_margin, push,
-                    tuple(r for r in reasons.split(",") if r), settled)
+    kind = f.kind
+    if kind == "bool":
+        return int(value)  # type: ignore[call-overload]
+    if kind == "vector":
+        return _vector(value, INERTIA_DIGITS if f.name == "object_inertia" else VECTOR_DIGITS)  # type: ignore[arg-type]
+    if kind in ("joints", "contacts"):
+        return value.json_text()  # type: ignore[attr-defined]
+    if kind == "margin":
+        return value if math.isfinite(value) else None  # type: ignore[arg-type]
+    if kind == "reasons":
+        return ",".join(value)  # type: ignore[arg-type]
+    return value
 
 
-def rule_columns(col: dict) -> dict:
-    """The measures the ranking rule reads, from columns of grasps rows."""
-    none = [None] * len(col["id"])
-    return {"epsilon": col["epsilon"], "force_closure": col["force_closure"], "reachability": col["reachability"],
-            "success": col.get("success", none), "robust_quantile": col.get("quantile", none),
-            **{k: col.get(k, none) for k in ("resist_worst", "push", "open_margin", "close_margin",
-                                             "settled_epsilon")}}
+def _row(group: tuple[Field, ...], record: object) -> tuple:
+    """A record part's values (a Trial, RobustEpsilon, Measures), as stored, in the group's order."""
+    return tuple(_sql(f, getattr(record, f.attr.partition(".")[2])) for f in group)
+
+
+def _decoded(f: Field, column: Sequence) -> Iterable:
+    """One column of rows as the record's values (a group's values: None stays None)."""
+    kind = f.kind
+    if kind == "bool":
+        if "." not in f.attr and not f.nullable:  # always there: no NULL to keep
+            return map(bool, column)
+        return (None if v is None else bool(v) for v in column)
+    if kind == "margin":
+        return (math.inf if v is None else v for v in column)
+    if kind == "reasons":
+        return (None if v is None else tuple(r for r in v.split(",") if r) for v in column)
+    if kind == "joints":
+        return map(Joints.stored, column)
+    if kind == "vector":
+        return _vectors(column, f.shape)
+    return column
+
+
+def _parts(cls: type, group: tuple[Field, ...], col: dict, prefix: str, n: int) -> list:
+    """The record parts (Trial, ...) of n rows (their columns named ``prefix`` +
+    column); None where the group's first column is NULL (not validated, not
+    measured, or a file older than the group). A group is every stored field
+    of its type, in field order (:mod:`planner.record.fields`)."""
+    none = [None] * n
+    columns = [_decoded(f, col.get(prefix + f.column, none)) for f in group]
+    present = col.get(prefix + group[0].column, none)
+    return [None if first is None else cls(*row) for first, *row in zip(present, *columns)]
 
 
 def _insert(table: str, columns: Sequence[str], verb: str = "INSERT") -> str:
@@ -283,17 +315,9 @@ class Database:
                 sum(g.force_closure for g in grasps), _json(unit.rejected), unit.seconds,
                 time.strftime("%Y-%m-%dT%H:%M:%S"))).lastrowid
             if obj is not None:
-                conn.execute(_insert("objects", _OBJECT_COLUMNS, "INSERT OR REPLACE"), (
-                    unit.object, obj.source_file, obj.file_scale, obj.mesh_hash, obj.mass, obj.friction, obj.density,
-                    obj.volume, _vector(obj.com), _vector(obj.inertia, INERTIA_DIGITS), obj.torque_scale,
-                    _vector(obj.mesh.extents)))
-            conn.executemany(_insert("grasps", _GRASP_COLUMNS), [
-                (unit_id, g.object, g.hand, g.preshape, g.candidate, _vector(g.approach_point),
-                 _vector(g.approach_dir), g.roll, g.standoff, _vector(g.pose), g.open_joints.json_text(),
-                 g.closed_joints.json_text(), g.width, g.contacts.json_text(), len(g.contacts), g.contacts.touching,
-                 g.epsilon, g.volume, int(g.force_closure), g.reachability, g.manipulability, g.seed, score,
-                 *_measure_values(g.measures))
-                for g, score in zip(grasps, scores.tolist())])
+                conn.execute(_insert("objects", _OBJECT_COLUMNS, "INSERT OR REPLACE"), _object_row(unit.object, obj))
+            conn.executemany(_insert("grasps", _GRASP_COLUMNS),
+                             [_grasp_row(g, unit_id, score) for g, score in zip(grasps, scores.tolist())])
             conn.execute(_RERANK, (unit.object, unit.hand))
         return int(unit_id)  # type: ignore[arg-type]
 
@@ -317,7 +341,7 @@ class Database:
         if not rows:
             return
         col = dict(zip(rows[0].keys(), zip(*rows)))
-        scores = rule.scores(rule_columns(col))
+        scores = rule.scores({f.ranked: col[f.ranked] for f in fields.ranked_fields()})
         conn.executemany("UPDATE grasps SET score = ? WHERE id = ?", zip(scores.tolist(), col["id"]))
         for o, h in sorted(set(zip(col["object"], col["hand"]))):
             conn.execute(_RERANK, (o, h))
@@ -329,13 +353,12 @@ class Database:
             for v in results:
                 if v.trial is not None:
                     t = v.trial
-                    conn.execute(_insert("validation", _VALIDATION_COLUMNS, "INSERT OR REPLACE"), (
-                        v.grasp_id, int(t.success), t.fingers_in_contact, t.closing_linear, t.closing_angular,
-                        t.shaking_linear, t.shaking_angular, t.reason, v.seed, v.trial_settings))
+                    conn.execute(_insert("validation", _VALIDATION_COLUMNS, "INSERT OR REPLACE"),
+                                 (v.grasp_id, *_row(_TRIAL, t), v.seed, v.trial_settings))
                 if v.robust is not None:
                     r = v.robust
                     conn.execute(_insert("robust", _ROBUST_COLUMNS, "INSERT OR REPLACE"),
-                                 (v.grasp_id, r.mean, r.quantile, r.samples, v.seed, v.robust_settings))
+                                 (v.grasp_id, *_row(_ROBUST, r), v.seed, v.robust_settings))
             self._rescore(conn, rule, (obj, hand))
 
     # -- reading ----------------------------------------------------------------
@@ -365,9 +388,8 @@ class Database:
         r = self._conn.execute("SELECT * FROM objects WHERE name = ?", (name,)).fetchone()
         if r is None:
             return None
-        return ObjectRow(name, r["source"], r["scale"], r["mass"], r["friction"], r["density"], r["volume"],
-                         np.array(json.loads(r["com"]), float), np.array(json.loads(r["inertia"]), float).reshape(3, 3),
-                         r["mesh_sha256"])
+        kept = set(ObjectRow.__dataclass_fields__)
+        return ObjectRow(**{f.column: next(iter(_decoded(f, [r[f.column]]))) for f in _OBJECTS if f.column in kept})
 
     def grasp_ids(self, unit_id: int) -> dict[int, int]:
         """Candidate number -> grasp id of one unit's grasps."""
@@ -421,21 +443,35 @@ def _grasps(rows: list[sqlite3.Row]) -> list[Grasp]:
     if not rows:
         return []
     col = dict(zip(rows[0].keys(), zip(*rows)))
-    trials = [None if ok is None else Trial(bool(ok), *rest) for ok, *rest in zip(
-        col["v_success"], col["v_fingers_in_contact"], col["v_closing_linear"], col["v_closing_angular"],
-        col["v_shaking_linear"], col["v_shaking_angular"], col["v_reason"])]
-    robust = [None if mean is None else RobustEpsilon(mean, quantile, samples)
-              for mean, quantile, samples in zip(col["r_mean"], col["r_quantile"], col["r_samples"])]
-    values = zip(  # in the order of Grasp's fields
-        col["object"], col["hand"], col["preshape"], col["candidate"], col["seed"],
-        _vectors(col["approach_point"], (3,)), _vectors(col["approach_dir"], (3,)), col["roll"], col["standoff"],
-        _vectors(col["pose"], (4, 4)), map(Joints.stored, col["open_joints"]),
-        map(Joints.stored, col["closed_joints"]), col["width"],
-        map(HandContacts.stored, col["contacts"], col["n_contacts"], col["links_touching"]), col["epsilon"],
-        col["volume"], map(bool, col["force_closure"]), col["reachability"], col["manipulability"], col["id"],
-        col["unit_id"], col["score"], col["rank"], trials, robust,
-        map(_measures, zip(*(col.get(k, [None] * len(rows)) for k in MEASURE_COLUMNS))))
+    n = len(rows)
+    parts = {name: _parts(cls, fields.group(name), col, "" if table == "grasps" else f"{_ALIAS[table]}_", n)
+             for name, (cls, table, _) in fields.GROUPS.items()}
+    own = {f.attr: f for f in _GRASPS if "." not in f.attr}
+    values = zip(*(parts[name] if name in parts else _own(own[name], col) for name in GRASP_FIELDS))
     return list(map(Grasp.restored, values))
+
+
+def _own(f: Field, col: dict) -> Iterable:
+    """A column of the record's own field; contacts keep their text and counts."""
+    if f.kind == "contacts":
+        return map(HandContacts.stored, col["contacts"], col["n_contacts"], col["links_touching"])
+    return _decoded(f, col[f.column])
+
+
+def _object_row(name: str, obj: PreparedObject) -> tuple:
+    """The objects row of a prepared object (:data:`_OBJECT_COLUMNS`)."""
+    given = {"name": name, "source": obj.source_file, "scale": obj.file_scale, "mesh_sha256": obj.mesh_hash,
+             "extents": obj.mesh.extents}
+    return tuple(_sql(f, given[f.column] if f.column in given else getattr(obj, f.column)) for f in _OBJECTS)
+
+
+def _grasp_row(g: Grasp, unit_id: int, score: float) -> tuple:
+    """The insert values of a record (:data:`_GRASP_COLUMNS`)."""
+    given = {"unit_id": unit_id, "score": score}
+    return tuple(given[f.column] if f.column in given else _sql(f, get(g)) for f, get in _INSERTED)
+
+
+_INSERTED = [(f, fields.getter(f)) for f in _GRASPS if f.column in _GRASP_COLUMNS]
 
 
 def open_db(path: Path, *, create: bool = True, readonly: bool = False) -> Database:

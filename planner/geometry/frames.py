@@ -110,3 +110,14 @@ def rotation_onto(a: ArrayLike, b: ArrayLike) -> np.ndarray:
 def angle_between(a: np.ndarray, b: np.ndarray) -> float:
     """Angle [rad] of the rotation taking frame ``a`` to frame ``b`` ((3, 3) each)."""
     return float((Rotation.from_matrix(a).inv() * Rotation.from_matrix(b)).magnitude())
+
+
+def approach_of(pose: np.ndarray, approach_hand: ArrayLike, tcp: ArrayLike) -> tuple[np.ndarray, np.ndarray, float]:
+    """The approach ray of a hand pose: (point (3,) [m], unit direction (3,),
+    roll [rad]) in the object frame, for ``pose`` (4, 4) the hand frame in the
+    object frame, ``approach_hand`` the hand's approach axis and ``tcp`` the
+    point [m] (hand frame) the approach ray passes through: the preshape's
+    (:attr:`planner.specs.preshapes.Preshape.tcp`, by default the hand's)."""
+    rotation = pose[:3, :3]
+    direction = rotation @ approach_hand
+    return rotation @ tcp + pose[:3, 3], direction, roll_about(rotation, approach_hand, direction)

@@ -34,12 +34,14 @@ the closing sense (the grip a worm gear can build is the motor's).
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planner.plan.contacts import HandContacts, contact_models
+from planner.plan.contacts import contact_models
+from planner.record.contacts import HandContacts
+from planner.record.measures import JointFrames, Measures
+from planner.record.tolerances import MIN_CLOSE_MARGIN, MIN_OPEN_MARGIN
 from planner.specs.hands import HandSpec
 from planner.specs.preshapes import Preshape
 
@@ -49,12 +51,6 @@ if TYPE_CHECKING:  # the quality stage imports scipy.optimize, the object trimes
     from planner.geometry.solid import PreparedObject
     from planner.quality.resistance import HandDrive
 
-#: [m] a finger touching closer than this to its open limit has no clearance
-#: (the shake trial flags below 2 mm; cross-validation on the tuning objects
-#: chose 2 mm for the Barrett, 0-3 mm for the Panda, see bench/RESULTS.md).
-MIN_OPEN_MARGIN = 0.002
-#: [m] a finger this close to its closing stop cannot squeeze.
-MIN_CLOSE_MARGIN = 1e-4
 #: cos 72.5 deg: contact normal and closing motion further apart than this is
 #: the back or side of a finger.
 MIN_PUSH = 0.3
@@ -64,56 +60,6 @@ MIN_RESISTANCE = 1.0
 BREAKAWAY_TOL = 1e-6
 #: Contact motion slower than this [m per unit closing] does not move.
 STILL = 1e-9
-
-REASONS = ("open_limit", "too_wide", "at_close_stop", "back_or_side_contact", "cannot_hold_weight")
-
-
-@dataclass(frozen=True)
-class Measures:
-    """The analytic measures of one grasp (see the module docstring).
-
-    resist_worst, resist_mean: weight resistance [g] over 14 gravity
-    directions of the object frame (axes and diagonals); open_margin,
-    close_margin [m] (inf when no finger touches); push (cosine, 0 when no
-    finger touches); reasons: the feasibility flags that apply;
-    settled_epsilon: Ferrari-Canny epsilon of the contacts the grasp settles
-    into when the fingers close dynamically on the free object
-    (:mod:`planner.plan.settle`; 0 if the object is pushed out or the trial
-    is flagged; None: not measured, the hand's ``settle`` off).
-    """
-
-    resist_worst: float
-    resist_mean: float
-    open_margin: float
-    close_margin: float
-    push: float
-    reasons: tuple[str, ...]
-    settled_epsilon: float | None = None
-
-    @property
-    def feasible(self) -> bool:
-        return not self.reasons
-
-    def to_json(self) -> dict:
-        return {"resist_worst": self.resist_worst, "resist_mean": self.resist_mean,
-                "open_margin": _finite(self.open_margin), "close_margin": _finite(self.close_margin),
-                "push": self.push, "feasibility": list(self.reasons), "settled_epsilon": self.settled_epsilon}
-
-
-def _finite(value: float) -> float | None:
-    return float(value) if np.isfinite(value) else None
-
-
-@dataclass(frozen=True)
-class JointFrames:
-    """Every finger joint of the hand at the closed grasp, object frame.
-
-    names : q joint names (hand spec order); origins : (q, 3) [m]; axes : (q, 3) unit.
-    """
-
-    names: tuple[str, ...]
-    origins: np.ndarray
-    axes: np.ndarray
 
 
 def broken_away(hand: HandSpec, closed: Mapping[str, float]) -> set[str]:

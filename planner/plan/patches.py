@@ -45,7 +45,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from planner.geometry.frames import tangent_bases
-from planner.plan.contacts import HandContacts
+from planner.record.contacts import HandContacts
 from planner.specs.hands import HandSpec
 from planner.specs.urdf import load_model
 

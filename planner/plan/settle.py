@@ -28,8 +28,8 @@ import numpy as np
 
 from planner.errors import PlannerError
 from planner.geometry.solid import PreparedObject
-from planner.grasp import Grasp
 from planner.plan.contacts import HandContacts, grasp_quality
+from planner.record.grasp import Grasp
 from planner.specs.hands import HandSpec
 from planner.validation.shake import ShakeSettings, settled_contacts
 

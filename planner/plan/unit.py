@@ -1,6 +1,6 @@
 """One unit of work end to end: object -> rays -> closing -> contacts ->
 quality -> settled epsilon (hands with ``settle``) -> reachability,
-returning :class:`~planner.grasp.Grasp` records for the single database
+returning :class:`~planner.record.grasp.Grasp` records for the single database
 writer.
 
 This runs inside worker processes: it reads descriptions and simulates, but
@@ -20,9 +20,8 @@ import numpy as np
 
 from planner import quality
 from planner.errors import DegenerateGraspError, PlannerError
-from planner.geometry.frames import roll_about
+from planner.geometry.frames import approach_of
 from planner.geometry.solid import PreparedObject, load_object
-from planner.grasp import Grasp
 from planner.plan import sampling
 from planner.plan.closing import Closed, Grasper
 from planner.plan.contacts import HandContacts, grasp_quality
@@ -39,6 +38,7 @@ from planner.plan.sweep import (
     unit_rng,
 )
 from planner.plan.tolerances import FINGER_CLEARANCE, MIN_CLEARANCE
+from planner.record.grasp import Grasp
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, load_hand
 from planner.specs.objects import NO_PHYSICAL, Physical
@@ -244,9 +244,7 @@ def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, han
         if not isinstance(closed, Closed):
             result.rejected[closed.reason] += 1
             continue
-        direction = pose[:3, :3] @ hand.approach
-        tcp = pose[:3, :3] @ cand.preshape.tcp + pose[:3, 3]
-        yield cand, closed, (tcp, direction, roll_about(pose[:3, :3], hand.approach, direction), 0.0)
+        yield cand, closed, (*approach_of(pose, hand.approach, cand.preshape.tcp), 0.0)
 
 
 def opening(hand: HandSpec, joints: Mapping[str, float]) -> float:

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.grasp import Grasp
+from planner.record.grasp import Grasp
 from planner.specs.hands import HandFrame
 
 

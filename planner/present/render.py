@@ -19,8 +19,8 @@ import trimesh
 
 from planner.geometry.frames import rotation_onto, tangent_bases
 from planner.geometry.solid import PreparedObject
-from planner.grasp import Grasp
-from planner.plan.contacts import HandContacts
+from planner.record.contacts import HandContacts
+from planner.record.grasp import Grasp
 from planner.sim import Sim
 from planner.specs.hands import HandSpec
 

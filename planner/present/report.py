@@ -29,7 +29,8 @@ import numpy as np
 from planner.db.ranking import RankingRule, rule_measures
 from planner.db.store import open_db
 from planner.errors import InputError
-from planner.grasp import Grasp
+from planner.record import fields
+from planner.record.grasp import Grasp
 
 
 @dataclass
@@ -47,19 +48,15 @@ class HandReport:
         return np.array([g.validation.success for g in self.grasps], float)  # type: ignore[union-attr]
 
     def measure(self, name: str) -> np.ndarray:
-        """(n,) ``epsilon``, ``reachability``, ``rank``, ``robust_mean`` or
-        ``robust_quantile`` of every grasp; NaN where not computed."""
-        if name.startswith("robust_"):
-            key = name[len("robust_"):]
-            return np.array([np.nan if g.robust is None else getattr(g.robust, key) for g in self.grasps], float)
+        """(n,) a declared field of every grasp by its flat name (``epsilon``,
+        ``push``, ``robust_quantile`` ...; :mod:`planner.record.fields`), or
+        ``analytic`` (the rule without simulation) or ``feasible``; NaN where
+        not computed."""
         if name == "analytic":
             return self.rule.analytic(rule_measures(self.grasps))
         if name == "feasible":
             return np.array([np.nan if g.measures is None else g.measures.feasible for g in self.grasps], float)
-        if name in ANALYTIC_MEASURES:
-            return np.array([np.nan if g.measures is None or getattr(g.measures, name) is None
-                             else getattr(g.measures, name) for g in self.grasps], float)
-        return np.array([np.nan if getattr(g, name) is None else getattr(g, name) for g in self.grasps], float)
+        return np.array([np.nan if v is None else v for v in fields.values(fields.by_name(name), self.grasps)], float)
 
     @property
     def objects(self) -> list[str]:
@@ -87,8 +84,8 @@ class HandReport:
         return top_k_success(orders, k)
 
 
-#: The analytic measures of :class:`planner.plan.measures.Measures` the report reads.
-ANALYTIC_MEASURES = ("resist_worst", "resist_mean", "open_margin", "close_margin", "push", "settled_epsilon")
+#: The analytic measures the report reads: every numeric field of the measures record.
+ANALYTIC_MEASURES = tuple(f.name for f in fields.group("measures") if f.dtype != "string")
 #: Measures whose ROC AUC the report shows (higher should mean "holds").
 AUC_MEASURES = ("analytic", "epsilon", *ANALYTIC_MEASURES, "feasible", "reachability", "robust_mean",
                 "robust_quantile")

@@ -25,7 +25,7 @@ import trimesh
 import yourdfpy
 
 from planner.geometry.frames import rotation_onto
-from planner.grasp import Grasp
+from planner.record.grasp import Grasp
 from planner.specs.hands import HandSpec
 
 OBJECT_RGB = (217, 140, 64)

@@ -25,8 +25,8 @@ import numpy as np
 import viser
 from scipy.spatial.transform import Rotation
 
-from planner.grasp import Grasp
 from planner.present.scene import APPROACH_RGB, CONTACT_RADIUS, CONTACT_RGB, GraspScene, Part
+from planner.record.grasp import Grasp
 from planner.specs.hands import HandSpec
 
 ALL = "all"

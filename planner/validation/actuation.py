@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.grasp import Grasp
+from planner.record.grasp import Grasp
 from planner.sim import Body, Sim
 from planner.sim.dynamics import Dynamics
 from planner.specs.hands import Actuators, HandSpec

@@ -12,7 +12,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from planner.grasp import Grasp
+from planner.record.grasp import Grasp
 from planner.specs.hands import HandSpec
 from planner.specs.preshapes import load_preshapes
 from planner.validation.tolerances import DEFAULT_LEVER

@@ -19,9 +19,9 @@ import numpy as np
 
 from planner.geometry.frames import rotation_from_rotvec
 from planner.geometry.solid import PreparedObject
-from planner.grasp import Grasp, RobustEpsilon
 from planner.plan.closing import Closed, Grasper
 from planner.plan.unit import grasp_quality
+from planner.record.grasp import Grasp, RobustEpsilon
 from planner.sim import Sim
 from planner.specs.hands import HandSpec
 from planner.specs.preshapes import load_preshapes

@@ -21,8 +21,8 @@ from planner.db.ranking import RankingRule
 from planner.db.store import Database, Validated, open_db
 from planner.errors import InputError, PlannerError
 from planner.geometry.solid import PreparedObject, load_object
-from planner.grasp import Grasp, RobustEpsilon, Trial
 from planner.plan import pool
+from planner.record.grasp import Grasp, RobustEpsilon, Trial
 from planner.specs.hands import load_hand
 from planner.specs.objects import is_registered
 from planner.threads import one_blas_thread

@@ -52,8 +52,9 @@ import numpy as np
 from planner.errors import ConfigError
 from planner.geometry.frames import angle_between
 from planner.geometry.solid import PreparedObject
-from planner.grasp import Grasp, Trial
-from planner.plan.contacts import HandContacts
+from planner.record.contacts import HandContacts
+from planner.record.grasp import Grasp, Trial
+from planner.record.tolerances import MIN_OPEN_MARGIN
 from planner.sim import Body
 from planner.sim.dynamics import FILTER_BITS, Dynamics, Shape, fresh_world
 from planner.specs.hands import HandSpec
@@ -87,7 +88,7 @@ class ShakeSettings:
     hold_time: float = 0.1  # per direction: a slip at >= 0.15 g net moves the object > 1 cm
     max_translation: float = 0.01  # of the centre of mass relative to the hand
     max_rotation: float = 0.25
-    min_clearance: float = 0.002  # open travel left at a touching finger's contact
+    min_clearance: float = MIN_OPEN_MARGIN  # open travel left at a touching finger's contact
     max_start_overlap: float = 0.005  # true depth of the open hand in the object's collision shape
     part_tolerance: float = 0.0005  # convex parts simplified to within this of their hulls
     gear_erp: float = 0.8  # mimic gear constraints (0.2 lets the Barrett's distal links lag)

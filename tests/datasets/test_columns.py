@@ -9,7 +9,7 @@ import numpy as np
 from helpers import assert_close, made_up
 
 from planner.datasets.columns import grasp_columns, joint_matrix
-from planner.grasp import RobustEpsilon, Trial
+from planner.record.grasp import RobustEpsilon, Trial
 
 
 def test_columns_of_records_with_and_without_stored_results() -> None:

@@ -38,7 +38,16 @@ def measures(grasps: list) -> dict:
     """Columns of the rule's measures, None -> NaN."""
     nan = math.nan
     cols = list(zip(*grasps))
-    return {name: [nan if v is None else float(v) for v in col] for name, col in zip(MEASURES, cols)}
+    return {name: [nan if v is None else float(v) for v in col] for name, col in zip(ORDER, cols)}
+
+
+#: The measures in the order of :func:`reference`'s tuples.
+ORDER = ("epsilon", "force_closure", "reachability", "success", "robust_quantile", "resist_worst", "push",
+         "open_margin", "close_margin", "settled_epsilon")
+
+
+def test_the_rule_reads_the_declared_ranked_fields() -> None:
+    assert sorted(MEASURES) == sorted(ORDER)
 
 
 weight = st.floats(0.0, 1.0)

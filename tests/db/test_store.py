@@ -15,9 +15,9 @@ from helpers import assert_close, made_up
 from planner import api
 from planner.db.ranking import RankingRule, rule_measures
 from planner.db.store import UnitRow, Validated, open_db
-from planner.grasp import RobustEpsilon, Trial
 from planner.plan.measures import MIN_RESISTANCE, Measures
 from planner.plan.sweep import SweepSettings
+from planner.record.grasp import RobustEpsilon, Trial
 
 SMALL = SweepSettings(approaches=4, rolls=2, preshapes=("wide",))
 #: Stored vectors keep 7 decimals.

@@ -8,8 +8,9 @@ from helpers import NUM_TOL, assert_close
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planner.plan.contacts import STORED_DIGITS, HandContacts, spread
+from planner.plan.contacts import spread
 from planner.plan.tolerances import MAX_PER_LINK, MERGE_RADIUS
+from planner.record.contacts import STORED_DIGITS, HandContacts
 
 #: The stored form keeps 6 decimals of points [m] and normals.
 STORED_TOL = 0.5 * 10.0 ** -STORED_DIGITS

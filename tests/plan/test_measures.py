@@ -7,9 +7,10 @@ import pytest
 
 from planner.geometry.solid import load_object
 from planner.plan.closing import Closed, Grasper
-from planner.plan.measures import MIN_OPEN_MARGIN, broken_away, measure
+from planner.plan.measures import broken_away, measure
 from planner.quality.resistance import AXES
 from planner.quality.tolerances import GRAVITY
+from planner.record.tolerances import MIN_OPEN_MARGIN
 from planner.sim import Sim
 from planner.specs.hands import load_hand
 from planner.specs.preshapes import load_preshapes

@@ -10,12 +10,12 @@ import pytest
 
 from planner import quality
 from planner.geometry.solid import load_object
-from planner.grasp import Grasp
 from planner.plan import unit
-from planner.plan.contacts import HandContacts
 from planner.plan.sweep import SweepSettings
 from planner.plan.unit import QUALITY_FAILED, UnitSpec, closed_width, grasp_quality, run_unit
 from planner.quality.hull import HullError
+from planner.record.contacts import HandContacts
+from planner.record.grasp import Grasp
 from planner.specs.hands import load_hand
 from planner.specs.preshapes import load_preshapes
 

@@ -46,8 +46,8 @@ def test_contact_sheet_has_one_row_per_grasp(db: Path, tmp_path: Path) -> None:
 
 
 def test_patch_meshes_span_each_region_just_outside_the_object() -> None:
-    from planner.plan.contacts import HandContacts
     from planner.present.render import PATCH_LIFT, patch_meshes
+    from planner.record.contacts import HandContacts
 
     square = np.array([[0, 0, 0], [0.01, 0, 0], [0.01, 0.01, 0], [0, 0.01, 0]], float)
     points = np.vstack([square, [[0.05, 0.0, 0.0]]])

@@ -70,7 +70,7 @@ def test_no_nan_rows_and_small_samples_are_marked(validated_db: Path) -> None:
 
 def test_auc_of_a_large_sample_is_not_marked() -> None:
     """The mark depends on the class counts alone: 60 held and 60 slipped pass."""
-    from planner.grasp import Trial
+    from planner.record.grasp import Trial
 
     rep = report.HandReport("toy")
     for i in range(120):

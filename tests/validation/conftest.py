@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 
 from planner.geometry.solid import load_object
-from planner.grasp import Grasp
 from planner.plan.closing import Closed
+from planner.record.grasp import Grasp
 from planner.specs.hands import load_hand
 from planner.specs.preshapes import load_preshapes
 from tests.validation.support import as_row, close

@@ -8,9 +8,9 @@ from dataclasses import replace
 import numpy as np
 
 from planner.geometry.solid import PreparedObject, prepare
-from planner.grasp import Grasp
 from planner.plan.closing import Closed, CloseSettings, Grasper
-from planner.plan.contacts import HandContacts
+from planner.record.contacts import HandContacts
+from planner.record.grasp import Grasp
 from planner.sim import Sim
 from planner.specs.hands import HandSpec
 from planner.specs.objects import ObjectSpec

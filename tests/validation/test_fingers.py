@@ -11,7 +11,7 @@ from helpers import NUM_TOL, assert_close
 from hypothesis import given
 from hypothesis import strategies as st
 
-from planner.plan.contacts import HandContacts
+from planner.record.contacts import HandContacts
 from planner.specs.hands import load_hand
 from planner.validation import fingers as fg
 from tests.validation.support import as_row_of

@@ -6,7 +6,9 @@ database (:mod:`planner.db.store`) stores it and returns it with what it adds
 (``id``, ``unit_id``, ``score``, ``rank``) and with the results of physical
 validation (:class:`Trial`, :class:`RobustEpsilon`) where they exist. The
 exporters turn lists of them into columns (:mod:`planner.datasets.columns`),
-``grasp best --json`` prints :meth:`Grasp.to_json`.
+``grasp best --json`` prints :meth:`Grasp.to_json`. Each stored attribute
+is declared where it is defined (:func:`~planner.record.field.stored`: kind,
+unit, schema version, doc); :mod:`planner.record.fields` collects them.
 
 Frames: the object frame is the frame of the scaled mesh file; the grasp pose
 is the hand frame (the hand's ``root_link``) in the object frame. Lengths in
@@ -21,8 +23,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.plan.contacts import HandContacts
-from planner.plan.measures import Measures
+from planner.record.contacts import HandContacts
+from planner.record.field import stored
+from planner.record.measures import Measures
 
 
 class Joints(Mapping[str, float]):
@@ -79,22 +82,23 @@ class Trial:
     (imported files, older databases).
     """
 
-    success: bool
-    fingers_in_contact: int
-    closing_linear: float  # [m]
-    closing_angular: float  # [rad]
-    shaking_linear: float  # [m]
-    shaking_angular: float  # [rad]
-    reason: str = ""
+    success: bool = stored("bool", "", 2, "1 if the object stayed in the hand in the PyBullet trial",
+                           ranked="success")
+    fingers_in_contact: int = stored("int", "", 2, "fingers touching the object after shaking")
+    closing_linear: float = stored("real", "m", 2, "object motion during closing")
+    closing_angular: float = stored("real", "rad", 2, "object rotation during closing")
+    shaking_linear: float = stored("real", "m", 2, "object motion during shaking")
+    shaking_angular: float = stored("real", "rad", 2, "object rotation during shaking")
+    reason: str = stored("text", "", 3, "why the trial ended as it did ('' = unknown)", default="")
 
 
 @dataclass(frozen=True)
 class RobustEpsilon:
     """Epsilon over noisy copies of a grasp (:mod:`planner.validation.robust`)."""
 
-    mean: float
-    quantile: float  # the low quantile of the samples
-    samples: int  # how many noisy copies
+    mean: float = stored("real", "", 2, "robust epsilon: mean over pose / friction noise samples")
+    quantile: float = stored("real", "", 2, "robust epsilon: low quantile over the samples", ranked="robust_quantile")
+    samples: int = stored("int", "", 2, "noise samples behind the robust values")
 
 
 @dataclass(frozen=True)
@@ -121,29 +125,34 @@ class Grasp:
             a grasp stored before schema version 3).
     """
 
-    object: str
-    hand: str
-    preshape: str
-    candidate: int
-    seed: int
-    approach_point: np.ndarray
-    approach_dir: np.ndarray
-    roll: float
-    standoff: float
-    pose: np.ndarray
-    open_joints: Joints
-    closed_joints: Joints
-    width: float | None
-    contacts: HandContacts
-    epsilon: float
-    volume: float
-    force_closure: bool
-    reachability: float | None = None
-    manipulability: float | None = None
-    id: int | None = None
-    unit_id: int | None = None
-    score: float | None = None
-    rank: int | None = None
+    object: str = stored("text", "", 1, "object name (key of the `objects` table)")
+    hand: str = stored("text", "", 1, "hand name")
+    preshape: str = stored("text", "", 1, "preshape name")
+    candidate: int = stored("int", "", 1, "candidate number in the unit's enumeration (to replay it)")
+    seed: int = stored("int", "", 1, "the unit's seed")
+    approach_point: np.ndarray = stored("vector", "m", 1, "where the approach ray meets the object, object frame",
+                                        shape=(3,))
+    approach_dir: np.ndarray = stored("vector", "", 1, "unit approach direction, object frame", shape=(3,))
+    roll: float = stored("real", "rad", 1, "roll of the hand about the approach direction")
+    standoff: float = stored("real", "m", 1, "back-off after first contact, before closing")
+    pose: np.ndarray = stored("vector", "m", 1, "grasp pose, row-major 4x4: the hand frame (`root_link`) in the "
+                              "object frame", shape=(4, 4))
+    open_joints: Joints = stored("joints", "rad or m", 1, "JSON `{joint: value}` of the preshape")
+    closed_joints: Joints = stored("joints", "rad or m", 1, "JSON `{joint: value}` of the closed hand")
+    width: float | None = stored("real", "m", 1, "distance between the fingers (parallel jaws)", required=False)
+    contacts: HandContacts = stored("contacts", "m", 1, "JSON `[{point, normal, link}]`, object frame, normals "
+                                    "into the object")
+    epsilon: float = stored("real", "", 1, "Ferrari-Canny L1 epsilon (0 unless force-closure)", ranked="epsilon")
+    volume: float = stored("real", "", 1, "volume of the grasp wrench space (0 unless generated with `--volume`)")
+    force_closure: bool = stored("bool", "", 1, "1 if force-closure, else 0", ranked="force_closure")
+    reachability: float | None = stored("real", "", 1, "fraction of sampled table placements an arm reaches",
+                                        required=False, ranked="reachability", default=None)
+    manipulability: float | None = stored("real", "", 1, "best arm manipulability over the reachable placements",
+                                          required=False, default=None)
+    id: int | None = stored("int", "", 1, "`grasps.id` in the database", key=True, default=None)
+    unit_id: int | None = stored("int", "", 1, "the unit of work that produced the grasp", default=None)
+    score: float | None = stored("real", "", 1, "ranking score (`meta.ranking` says how)", default=None)
+    rank: int | None = stored("int", "", 1, "1 = best grasp of its (object, hand)", required=False, default=None)
     validation: Trial | None = None
     robust: RobustEpsilon | None = None
     measures: Measures | None = None
@@ -167,18 +176,14 @@ class Grasp:
         return out
 
     def to_json(self) -> dict:
-        """The grasp as ``grasp best --json`` prints it."""
-        return {"object": self.object, "hand": self.hand, "preshape": self.preshape, "pose": self.pose.tolist(),
-                "joints": dict(self.closed_joints), "open_joints": dict(self.open_joints), "width": self.width,
-                "epsilon": self.epsilon, "volume": self.volume, "force_closure": self.force_closure,
-                "reachability": self.reachability, "manipulability": self.manipulability,
-                "contacts": self.contacts.to_json(), "rank": self.rank, "score": self.score,
-                "candidate": self.candidate, "seed": self.seed,
-                **(self.measures.to_json() if self.measures is not None else dict.fromkeys(MEASURE_KEYS))}
+        """The grasp as ``grasp best --json`` prints it: every field of
+        :func:`planner.record.fields.record_fields` by its flat name (null
+        when absent), and ``joints``, the closed joints again (its name
+        before the declaration)."""
+        from planner.record.fields import getter, json_value, record_fields
 
-
-#: The keys ``to_json`` gives the analytic measures (None when not measured).
-MEASURE_KEYS = ("resist_worst", "resist_mean", "open_margin", "close_margin", "push", "feasibility", "settled_epsilon")
+        out = {f.name: json_value(f, getter(f)(self)) for f in record_fields()}
+        return {**out, "joints": out["closed_joints"]}
 
 
 #: The record's field names, in order.
