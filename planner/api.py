@@ -34,13 +34,13 @@ from planner.errors import InputError, UnknownNameError
 from planner.geometry.frames import pose_from_xyzquat
 from planner.geometry.solid import PreparedObject, load_object
 from planner.grasp import Grasp
-from planner.plan import pool
 from planner.plan.reach import ReachScene, ReachSettings
 from planner.plan.sampling import SAMPLERS
 from planner.plan.sweep import SAMPLER_DEFAULTS, SweepSettings
 from planner.plan.tolerances import PREGRASP_DISTANCE
 from planner.plan.unit import UnitResult, UnitSpec, run_unit
 from planner.present import report as reporting
+from planner.run import pool
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, hand_names, load_hand
 from planner.specs.inputs import expand
@@ -130,7 +130,7 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
     """Build (or extend) a grasp database; finished units are skipped, so a
     run that was killed resumes when called again. Units run in this process
     (``workers`` 1), in a crash-safe pool of ``workers`` processes, or on Ray
-    (:func:`planner.plan.pool.execute`); a unit whose worker dies twice, or
+    (:func:`planner.run.pool.execute`); a unit whose worker dies twice, or
     that fails, is stored as failed with its error and the batch goes on.
     ``progress(None, 0, total)`` first, then ``progress(result, done, total)``."""
     hand_spec = load_hand(hand)

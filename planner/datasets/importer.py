@@ -32,7 +32,7 @@ row index in the file. Reading the file is :mod:`planner.datasets.acronym`'s.
   close on the object are counted by reason and dropped. The stored pose is
   the closed hand's (after back-off and centring). Reachability is not
   computed (None). Re-scoring runs in the crash-safe worker pool
-  (:mod:`planner.plan.pool`, ``workers`` processes) in units of
+  (:mod:`planner.run.pool`, ``workers`` processes) in units of
   :data:`RESCORE_CHUNK` poses; a file is written once all its poses are
   back, its grasps in file order. A file whose re-scoring fails (a worker
   died twice) is stored as a failed unit with its error, and the next import
@@ -61,10 +61,10 @@ from planner.errors import InputError, UnknownNameError
 from planner.geometry.frames import roll_about
 from planner.geometry.solid import PreparedObject, prepare
 from planner.grasp import Grasp
-from planner.plan import pool
 from planner.plan.closing import Closed, Grasper
 from planner.plan.measures import measure
 from planner.plan.unit import closed_width, scored
+from planner.run import pool
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, hand_names, load_hand
 from planner.specs.objects import ObjectSpec, is_registered, resolve_spec

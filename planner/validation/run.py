@@ -1,6 +1,6 @@
 """``grasp validate``: shake-test and robust-epsilon stored grasps (each
 object's best, a seeded uniform sample, or all), in the crash-safe worker
-pool (:mod:`planner.plan.pool`), with one writer. A task whose worker dies
+pool (:mod:`planner.run.pool`), with one writer. A task whose worker dies
 twice (a simulator segfault) or that fails is reported with its error; the
 other tasks are written."""
 
@@ -22,7 +22,7 @@ from planner.db.store import Database, Validated, open_db
 from planner.errors import InputError, PlannerError
 from planner.geometry.solid import PreparedObject, load_object
 from planner.grasp import Grasp, RobustEpsilon, Trial
-from planner.plan import pool
+from planner.run import pool
 from planner.specs.hands import load_hand
 from planner.specs.objects import is_registered
 from planner.threads import one_blas_thread
