@@ -26,8 +26,8 @@ import numpy as np
 from planner.datasets import exporter, importer
 from planner.datasets.exporter import ExportSummary, export
 from planner.datasets.importer import ImportResult, import_files
-from planner.datasets.meshes import stored_object
 from planner.db.lock import writer_lock
+from planner.db.objects import stored_object
 from planner.db.ranking import RankingRule
 from planner.db.store import Database, ObjectRow, UnitRow, open_db
 from planner.errors import InputError, UnknownNameError
@@ -199,7 +199,7 @@ def resolve_object(db: Database, name: str) -> tuple[str, ObjectRow | None]:
     mesh generated with ``--scale``), else a built-in name, ``random_NNN`` or
     mesh path, named as ``generate`` names it. The row (None when the object
     is not stored) holds the source, scale, mass and friction its grasps were
-    planned with: :func:`~planner.datasets.meshes.stored_object` rebuilds it.
+    planned with: :func:`~planner.db.objects.stored_object` rebuilds it.
     """
     row = db.object_row(name)
     if row is not None:
