@@ -149,7 +149,7 @@ def _run(spec: UnitSpec, result: UnitResult) -> None:
         result.timing["closing"] -= grasper.contact_seconds
     if settings.settle:
         t2 = time.perf_counter()
-        result.grasps = with_settled(hand, obj, result.grasps, settings.cone_edges)
+        result.grasps = with_settled(hand, obj, result.grasps, settings.cone_edges, settings.trial)
         result.timing["settle"] += time.perf_counter() - t2
     if settings.reach_placements and hand.arm is not None:
         t3 = time.perf_counter()
