@@ -79,6 +79,7 @@ from typing import Any
 
 import numpy as np
 
+from planner.datasets import registry
 from planner.datasets.columns import Column, grasp_columns, joint_matrix
 from planner.datasets.meshes import ExportedObject
 from planner.errors import InputError
@@ -406,3 +407,7 @@ def _positive(f: Any, key: str) -> float | None:
 
 def _text(value: object) -> str:
     return value.decode() if isinstance(value, bytes) else str(value)
+
+
+registry.register("acronym", registry.PairWriter(relative_path, write),
+                  registry.Reader(read_header, read_poses, read_grasps, read_simulation))

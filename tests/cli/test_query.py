@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import grasp, one_line_error
+from helpers import damaged, grasp, one_line_error
 
 
 def test_best_json_has_the_documented_keys(box_db: Path) -> None:
@@ -97,3 +97,12 @@ def test_the_barrett_settles_by_default_and_best_prints_its_settled_epsilon(tmp_
     assert " settled_epsilon=" in out.splitlines()[0]
     code, out, _ = grasp("best", "box", "--hand", "barrett", "--db", str(tmp_path / "planned.db"), "--json")
     assert json.loads(out)[0]["settled_epsilon"] is None
+
+
+@pytest.mark.parametrize("command", [["best", "box", "--hand", "panda"], ["export", "--format", "csv", "--out", "OUT"],
+                                     ["validate", "--workers", "1"]])
+def test_a_damaged_database_is_a_one_line_error(box_db: Path, tmp_path: Path, command: list[str]) -> None:
+    broken = damaged(box_db, tmp_path / "broken.db")
+    args = [str(tmp_path / "out") if a == "OUT" else a for a in command]
+    code, _, err = grasp(*args, "--db", str(broken))
+    one_line_error(code, err, 3, "grasp: error:", "cannot read the database", "grasp db check")
