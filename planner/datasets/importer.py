@@ -54,7 +54,7 @@ from pathlib import Path
 import numpy as np
 
 from planner.datasets import registry
-from planner.datasets.acronym import AcronymHeader, widest_preshape
+from planner.datasets.acronym import AcronymHeader
 from planner.datasets.registry import Reader
 from planner.db.lock import writer_lock
 from planner.db.ranking import RankingRule
@@ -70,6 +70,7 @@ from planner.run import pool
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, hand_names, load_hand
 from planner.specs.objects import ObjectSpec, is_registered, resolve_spec
+from planner.specs.preshapes import load_preshapes
 
 #: Every format with a reader (:mod:`planner.datasets.registry`).
 FORMATS = registry.import_formats()
@@ -308,7 +309,7 @@ def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: C
              ) -> list[Grasp]:
     """Grasps of the poses where the hand closes on the object; candidate =
     ``first`` + the pose's row in ``poses``."""
-    shape = widest_preshape(hand)
+    shape = hand.widest(load_preshapes(hand))
     out = []
     with Sim() as sim:
         grasper = Grasper.for_mesh(sim, hand, obj.mesh)
