@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from itertools import chain
 from pathlib import Path
 
-from planner.datasets import registry
+from planner.datasets import formats
 from planner.datasets.columns import Stream
 from planner.datasets.meshes import ExportedObject, mesh_stem, write_meshes
 from planner.datasets.registry import PairWriter, TableWriter
@@ -48,7 +48,7 @@ log = logging.getLogger(__name__)
 BATCH_SIZE = 5000
 
 #: Every format with a writer (:mod:`planner.datasets.registry`).
-FORMATS = registry.export_formats()
+FORMATS = formats.EXPORT_FORMATS
 
 
 @dataclass(frozen=True)
@@ -103,7 +103,7 @@ def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (
     """Export the selected grasps of ``db_path`` as ``fmt`` into ``out_dir``
     (created if missing). ``top``: rank <= top per (object, hand);
     ``min_epsilon``: epsilon >= it. ``progress(file, grasps)`` after each file."""
-    writer = registry.writer(fmt)
+    writer = formats.writer(fmt)
     sel = Selection(tuple(objects), tuple(hands), min_epsilon, top)
     summary = ExportSummary(fmt)
     start = time.perf_counter()

@@ -53,7 +53,7 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.datasets import registry
+from planner.datasets import formats
 from planner.datasets.acronym import AcronymHeader
 from planner.datasets.registry import Reader
 from planner.db.lock import writer_lock
@@ -73,7 +73,7 @@ from planner.specs.objects import ObjectSpec, is_registered, resolve_spec
 from planner.specs.preshapes import load_preshapes
 
 #: Every format with a reader (:mod:`planner.datasets.registry`).
-FORMATS = registry.import_formats()
+FORMATS = formats.IMPORT_FORMATS
 HAND_ALIASES = {"panda": "panda", "franka_panda": "panda"}
 #: Friction cone edges of a re-scored grasp (the sweep's default).
 CONE_EDGES = 8
@@ -139,7 +139,7 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
     checked before anything is written. Re-scoring runs in ``workers``
     processes; ``progress`` gets each file as it is written, the list
     returned is in the order of ``paths``."""
-    reader = registry.reader(fmt)
+    reader = formats.reader(fmt)
     plans = [_plan(Path(p), fmt, reader, hand, object_name, rescore) for p in paths]
     results: dict[int, ImportResult] = {}
 

@@ -1,7 +1,8 @@
 """The file formats, registered side by side (as trimesh's ``exchange/``
 keeps each format's loader and exporter together): each format module ends
 with one :func:`register` call naming its writer and, if it has one, its
-reader; the exporter and the importer find formats here and nowhere else.
+reader; the exporter and the importer find formats here and nowhere else
+(through :mod:`planner.datasets.formats`, which imports every format module).
 
 A registration is checked when it is made: a hook that is missing, not
 callable or takes other arguments than its kind's, a name taken twice or a
@@ -126,26 +127,18 @@ def register(name: str, writer: PairWriter | TableWriter | None = None, reader: 
     return found
 
 
-def _load() -> None:
-    """Import every format module: each registers its own formats."""
-    from planner.datasets import acronym, dexgraspnet, graspgen, table  # noqa: F401
-
-
 def export_formats() -> tuple[str, ...]:
     """Names of the formats with a writer, sorted."""
-    _load()
     return tuple(sorted(n for n, f in _FORMATS.items() if f.writer is not None))
 
 
 def import_formats() -> tuple[str, ...]:
     """Names of the formats with a reader, sorted."""
-    _load()
     return tuple(sorted(n for n, f in _FORMATS.items() if f.reader is not None))
 
 
 def writer(name: str) -> PairWriter | TableWriter:
     """The writer of format ``name``; an unknown name lists the valid ones."""
-    _load()
     found = _FORMATS.get(name)
     if found is None or found.writer is None:
         raise UnknownNameError("format", name, export_formats())
@@ -154,7 +147,6 @@ def writer(name: str) -> PairWriter | TableWriter:
 
 def reader(name: str) -> Reader:
     """The reader of format ``name``; an unknown name lists the valid ones."""
-    _load()
     found = _FORMATS.get(name)
     if found is None or found.reader is None:
         raise UnknownNameError("import format", name, import_formats())

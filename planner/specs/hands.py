@@ -19,7 +19,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import cache, cached_property
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Protocol, TypeVar
 
 import numpy as np
 import yourdfpy
@@ -29,9 +29,6 @@ from planner import assets
 from planner.errors import ConfigError, UnknownNameError
 from planner.specs.toml import Fields, read_toml
 from planner.specs.urdf import cut_subtree, descendants, link_names, load_model, movable_joints
-
-if TYPE_CHECKING:
-    from planner.specs.preshapes import Preshape
 
 CONTACT_MODELS = ("frictionless", "point", "soft")
 #: Approach samplers (planner.plan.sampling): rays onto the surface, or antipodal pairs for parallel jaws.
@@ -112,6 +109,19 @@ class Actuators:
     closing_speed: float
     backdrivable: bool
     source: str
+
+
+class _Posture(Protocol):
+    """What :meth:`HandSpec.widest` reads of a preshape (:class:`planner.specs.preshapes.Preshape`)."""
+
+    @property
+    def joints(self) -> dict[str, float]: ...
+
+    @property
+    def close(self) -> dict[str, float]: ...
+
+
+P = TypeVar("P", bound=_Posture)
 
 
 @dataclass(frozen=True)
@@ -251,7 +261,7 @@ class HandSpec:
         """[m] distance between the fingers of a parallel jaw at ``joints``."""
         return float(sum(joints[j.name] for j in self.joints if j.kind == "prismatic"))
 
-    def widest(self, shapes: Sequence[Preshape]) -> Preshape:
+    def widest(self, shapes: Sequence[P]) -> P:
         """The most open of ``shapes`` (this hand's preshapes): the largest
         travel against its closing synergy."""
         return max(shapes, key=lambda s: -sum(r * s.joints[j] for j, r in s.close.items()))

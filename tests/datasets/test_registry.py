@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from planner import api
-from planner.datasets import registry
+from planner.datasets import formats, registry
 from planner.datasets.registry import PairWriter, Reader, RegistrationError, TableWriter
 from planner.errors import UnknownNameError
 
@@ -27,6 +27,8 @@ def _path(stem, hand):  # type: ignore[no-untyped-def]
 
 
 def test_every_format_has_the_writer_and_reader_it_claims() -> None:
+    assert {m.__name__ for m in formats.MODULES} == {f"planner.datasets.{m}" for m in
+                                                    ("acronym", "graspgen", "dexgraspnet", "table")}
     assert set(registry.export_formats()) == set(CLAIMS) == set(api.EXPORT_FORMATS)
     assert registry.import_formats() == tuple(n for n, (_, reads) in CLAIMS.items() if reads) == api.IMPORT_FORMATS
     for name, (kind, reads) in CLAIMS.items():
