@@ -164,7 +164,7 @@ def label(db_path: Path, hand_name: str, name: str, grasps: list[Grasp], workers
         row, rule = db.object_row(name), db.rule()
         assert row is not None, name
         settings = trial_settings()
-        tasks = [validation.Task(name, row.source, row.scale, hand_name, tuple(todo[i:i + validation.BATCH]),
+        tasks = [validation.Task(row, hand_name, tuple(todo[i:i + validation.BATCH]),
                                  SEED, settings, None) for i in range(0, len(todo), validation.BATCH)]
         for result in validation.execute(tasks, workers):
             if result.error:
@@ -203,7 +203,7 @@ def jitter_labels(db_path: Path, hand: str, pools_: list[Pool], k: int, mm: floa
         copies = [c for g in todo for c in jittered(g, k, mm, deg)]
         row = rows[p.object]
         assert row is not None, p.object
-        tasks += [validation.Task(p.object, row.source, row.scale, hand, tuple(copies[i:i + validation.BATCH]), SEED,
+        tasks += [validation.Task(row, hand, tuple(copies[i:i + validation.BATCH]), SEED,
                                   trial_settings(), None) for i in range(0, len(copies), validation.BATCH)]
     for result in validation.execute(tasks, workers):  # as they finish: copies keep their grasp's id
         if result.error:

@@ -36,7 +36,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from planner.plan import pool, procs  # noqa: E402
+from planner.run import pool, procs  # noqa: E402
 
 KILL_BATCH = ["box", "sphere", "--hand", "panda", "--approaches", "8", "--rolls", "2", "--preshapes", "wide",
               "--chunk", "1", "--reach-placements", "1", "--quiet", "--workers", "2"]
@@ -109,7 +109,7 @@ def probe_before() -> None:
 
 def killed_driver(db: Path, ray: bool, method: str, pdeathsig: bool = True) -> tuple[float, int]:
     """(seconds until the tree of a killed ``grasp generate`` is gone, its size)."""
-    code = ("import sys\nfrom planner.plan import pool\npool.START_METHOD = sys.argv[1]\n"
+    code = ("import sys\nfrom planner.run import pool\npool.START_METHOD = sys.argv[1]\n"
             f"pool.USE_PDEATHSIG = {pdeathsig}\nfrom planner.cli import main\nsys.exit(main(sys.argv[2:]))")
     argv = [sys.executable, "-c", code, method, "generate", *KILL_BATCH, "--db", str(db), *(["--ray"] if ray else [])]
     driver = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)

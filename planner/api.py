@@ -208,13 +208,13 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
     """Build (or extend) a grasp database; finished units are skipped, so a
     run that was killed resumes when called again. Units run in this process
     (``workers`` 1), in a crash-safe pool of ``workers`` processes, or on Ray
-    (:func:`planner.plan.pool.execute`); a unit whose worker dies twice, or
+    (:func:`planner.run.pool.execute`); a unit whose worker dies twice, or
     that fails, is stored as failed with its error and the batch goes on.
     ``mass`` [kg] or ``density`` [kg/m^3], and ``friction``, apply to every
     object except where a manifest line gives its own (see
     :mod:`planner.specs.objects`); an object stored at other values is refused.
     ``progress(None, 0, total)`` first, then ``progress(result, done, total)``."""
-    from planner.plan import pool
+    from planner.run import pool
 
     if workers < 1:
         raise InputError(f"--workers must be at least 1, got {workers}")
@@ -287,7 +287,7 @@ def resolve_object(db: Database, name: str) -> tuple[str, ObjectRow | None]:
     mesh generated with ``--scale``), else a built-in name, ``random_NNN`` or
     mesh path, named as ``generate`` names it. The row (None when the object
     is not stored) holds the source, scale, mass and friction its grasps were
-    planned with: :func:`~planner.datasets.meshes.stored_object` rebuilds it.
+    planned with: :func:`~planner.db.objects.stored_object` rebuilds it.
     """
     row = db.object_row(name)
     if row is not None:
@@ -305,7 +305,7 @@ def resolve_object(db: Database, name: str) -> tuple[str, ObjectRow | None]:
 
 def _stored(db: Database, name: str, hand: str) -> tuple[str, PreparedObject]:
     """Name and rebuilt object of a stored object; an object without grasps is an error."""
-    from planner.datasets.meshes import stored_object
+    from planner.db.objects import stored_object
 
     key, row = resolve_object(db, name)
     if row is None:
@@ -528,7 +528,7 @@ def view(name: str, hands: Sequence[str] | None = None, *, db_path: Path = DEFAU
     ``object_pose`` only grasps the arm reaches at that pose are offered,
     placed in the world with the arm. Returns the running viewer (``url``,
     ``stop()``)."""
-    from planner.datasets.meshes import stored_object
+    from planner.db.objects import stored_object
     from planner.present import scene as scenes
     from planner.present import viewer
 

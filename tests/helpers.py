@@ -78,3 +78,19 @@ def hand_copy(tmp_path: Path) -> Path:
     folder = tmp_path / "panda"
     shutil.copytree(hands_dir() / "panda", folder)
     return folder
+
+
+def damaged(db: Path, out: Path) -> Path:
+    """A copy of ``db`` whose grasps table and its indexes are overwritten
+    with garbage (their root pages): it opens, its ``meta`` and ``objects``
+    read, every read of grasps fails."""
+    shutil.copy(db, out)
+    with sqlite3.connect(out) as conn:
+        size = conn.execute("PRAGMA page_size").fetchone()[0]
+        roots = [r for (r,) in conn.execute("SELECT rootpage FROM sqlite_master WHERE tbl_name = 'grasps'")]
+    conn.close()
+    with out.open("r+b") as fh:
+        for root in roots:
+            fh.seek((root - 1) * size)
+            fh.write(b"\xff" * size)
+    return out

@@ -12,7 +12,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from planner.plan import procs
+from planner.run import procs
 
 TESTS = Path(__file__).resolve().parent
 ROOT = TESTS.parent

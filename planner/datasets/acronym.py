@@ -30,7 +30,7 @@ other finger mimics it) fully open, i.e. one finger's travel from the centre
 line, half the 0.08 m opening. For every hand it is the open hand in the same
 terms: the driven (non-mimic) finger joints, in the hand's joint order (named
 by the extra ``gripper/configuration_joints``), at their values in the hand's
-widest preshape (:func:`widest_preshape`, the one ``grasp import`` closes
+widest preshape (:meth:`~planner.specs.hands.HandSpec.widest`, the one ``grasp import`` closes
 foreign poses from), in joint units:
 
 | hand | `gripper/configuration_joints` | `gripper/configuration` | meaning |
@@ -82,6 +82,7 @@ from typing import Any
 
 import numpy as np
 
+from planner.datasets import registry
 from planner.datasets.columns import Column, grasp_columns, joint_matrix
 from planner.datasets.meshes import ExportedObject
 from planner.errors import InputError
@@ -92,7 +93,7 @@ from planner.record.field import Field
 from planner.record.grasp import Grasp, RobustEpsilon, Trial
 from planner.record.measures import Measures
 from planner.specs.hands import HandSpec
-from planner.specs.preshapes import Preshape, load_preshapes
+from planner.specs.preshapes import load_preshapes
 
 SUFFIX = ".h5"
 #: Rows per HDF5 chunk: 1,024 transforms are 128 kB.
@@ -144,16 +145,11 @@ def relative_path(stem: str, hand: str) -> str:
     return f"{stem}__{hand}{SUFFIX}"
 
 
-def widest_preshape(hand: HandSpec) -> Preshape:
-    """The most open preshape: largest travel against the closing synergy."""
-    return max(load_preshapes(hand), key=lambda s: -sum(r * s.joints[j] for j, r in s.close.items()))
-
-
 def gripper_configuration(hand: HandSpec) -> tuple[list[str], np.ndarray]:
     """``gripper/configuration_joints`` and ``gripper/configuration`` (D,):
     the driven finger joints and their values [m or rad] in the widest
     preshape (the module docstring has the table per hand)."""
-    shape = widest_preshape(hand)
+    shape = hand.widest(load_preshapes(hand))
     names = [j.name for j in hand.driven]
     return names, np.array([shape.joints[n] for n in names], np.float64)
 
@@ -453,3 +449,7 @@ def _positive(f: Any, key: str) -> float | None:
 
 def _text(value: object) -> str:
     return value.decode() if isinstance(value, bytes) else str(value)
+
+
+registry.register("acronym", registry.PairWriter(relative_path, write),
+                  registry.Reader(read_header, read_poses, read_grasps, read_simulation))

@@ -48,6 +48,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from planner.datasets import registry
 from planner.datasets.acronym import joint_names
 from planner.datasets.columns import grasp_columns, joint_matrix
 from planner.datasets.meshes import ExportedObject
@@ -120,3 +121,6 @@ def write(path: Path, info: ExportedObject, hand: HandSpec, batches: Iterable[li
         np.save(fh, data, allow_pickle=True)
     os.replace(tmp, path)
     return len(grasps)
+
+
+registry.register("dexgraspnet", registry.PairWriter(relative_path, write, mesh_copies=MESH_COPIES))

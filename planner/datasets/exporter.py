@@ -1,6 +1,6 @@
 """Export: the grasp database as files that learning pipelines read.
 
-Formats (one module each):
+Formats (one module each, registered in :mod:`planner.datasets.registry`):
 
 - ``acronym``: HDF5 per (object, hand), ACRONYM's layout plus this
   project's extras (:mod:`planner.datasets.acronym`);
@@ -24,7 +24,6 @@ written under a temporary name and renamed when complete.
 
 from __future__ import annotations
 
-import importlib
 import logging
 import math
 import os
@@ -33,12 +32,13 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from itertools import chain
 from pathlib import Path
-from types import ModuleType
 
+from planner.datasets import formats
 from planner.datasets.columns import Stream
 from planner.datasets.meshes import ExportedObject, mesh_stem, write_meshes
+from planner.datasets.registry import PairWriter, TableWriter
 from planner.db.store import Database, open_db
-from planner.errors import InputError, UnknownNameError
+from planner.errors import InputError
 from planner.record.grasp import Grasp
 from planner.specs.hands import HandSpec, load_hand
 
@@ -47,11 +47,8 @@ log = logging.getLogger(__name__)
 #: Grasps per database read: about 10 MB of decoded records.
 BATCH_SIZE = 5000
 
-#: Formats with one file per (object, hand): the module of each.
-PER_PAIR = {"acronym": "acronym", "graspgen": "graspgen", "dexgraspnet": "dexgraspnet"}
-#: format -> (file name, writer function of planner.datasets.table)
-TABLES = {"parquet": ("grasps.parquet", "write_parquet"), "csv": ("grasps.csv", "write_csv")}
-FORMATS = (*PER_PAIR, *TABLES)
+#: Every format with a writer (:mod:`planner.datasets.registry`).
+FORMATS = formats.EXPORT_FORMATS
 
 
 @dataclass(frozen=True)
@@ -106,45 +103,43 @@ def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (
     """Export the selected grasps of ``db_path`` as ``fmt`` into ``out_dir``
     (created if missing). ``top``: rank <= top per (object, hand);
     ``min_epsilon``: epsilon >= it. ``progress(file, grasps)`` after each file."""
-    if fmt not in FORMATS:
-        raise UnknownNameError("format", fmt, FORMATS)
+    writer = formats.writer(fmt)
     sel = Selection(tuple(objects), tuple(hands), min_epsilon, top)
-    module = _module(fmt)
     summary = ExportSummary(fmt)
     start = time.perf_counter()
     with open_db(Path(db_path), create=False, readonly=True) as db:
         pairs = sel.pairs(db)
         specs = {h: load_hand(h) for h in sorted({h for _, h in pairs})}  # unknown hands fail up front
         out_dir = _out_dir(Path(out_dir))
-        exported = write_meshes(db, sorted({o for o, _ in pairs}), out_dir, getattr(module, "MESH_COPIES", ()))
+        copies = writer.mesh_copies if isinstance(writer, PairWriter) else ()
+        exported = write_meshes(db, sorted({o for o, _ in pairs}), out_dir, copies)
         summary.meshes = [out_dir / o.file for o in exported.values()]
-        if fmt in TABLES:
-            name, writer = TABLES[fmt]
-            path = out_dir / name
+        if isinstance(writer, TableWriter):
+            path = out_dir / writer.file
             tmp = path.with_name(path.name + ".tmp")
             streams = (Stream(exported[o], h, sel.batches(db, o, h)) for o, h in pairs)
-            summary.grasps = getattr(module, writer)(tmp, streams)
+            summary.grasps = writer.write(tmp, streams)
             os.replace(tmp, path)
             summary.files.append(path)
             if progress:
                 progress(path, summary.grasps)
         else:
             for obj, hand in pairs:
-                path = out_dir / module.relative_path(mesh_stem(obj), hand)
-                count = _write_pair(db, module, path, exported[obj], specs[hand], sel)
+                path = out_dir / writer.relative_path(mesh_stem(obj), hand)
+                count = _write_pair(db, writer, path, exported[obj], specs[hand], sel)
                 if count:
                     summary.files.append(path)
                     summary.grasps += count
                     if progress:
                         progress(path, count)
-            if hasattr(module, "finish"):
-                module.finish(out_dir, sorted(specs))
+            if writer.finish is not None:
+                writer.finish(out_dir, sorted(specs))
     summary.seconds = time.perf_counter() - start
     log.info("exported %d grasps as %s to %s in %.1f s", summary.grasps, fmt, out_dir, summary.seconds)
     return summary
 
 
-def _write_pair(db: Database, module: ModuleType, path: Path, obj: ExportedObject, hand: HandSpec,
+def _write_pair(db: Database, writer: PairWriter, path: Path, obj: ExportedObject, hand: HandSpec,
                 sel: Selection) -> int:
     """Write one (object, hand) file; none when the filters leave no grasp."""
     batches = sel.batches(db, obj.name, hand.name)
@@ -152,12 +147,7 @@ def _write_pair(db: Database, module: ModuleType, path: Path, obj: ExportedObjec
     if first is None:
         return 0
     path.parent.mkdir(parents=True, exist_ok=True)
-    return int(module.write(path, obj, hand, chain([first], batches)))
-
-
-def _module(fmt: str) -> ModuleType:
-    """The format's module, imported on first use (h5py and pyarrow load slowly)."""
-    return importlib.import_module(f"planner.datasets.{PER_PAIR.get(fmt, 'table')}")
+    return int(writer.write(path, obj, hand, chain([first], batches)))
 
 
 def _out_dir(path: Path) -> Path:

@@ -59,6 +59,7 @@ from typing import IO
 import numpy as np
 
 from planner import assets
+from planner.datasets import registry
 from planner.datasets.acronym import gripper_configuration, joint_names, label_source, per_grasp, validated_count
 from planner.datasets.meshes import ExportedObject
 from planner.record.grasp import Grasp
@@ -221,3 +222,6 @@ def split(names: dict[str, str]) -> dict[str, list[str]]:
 
 def _fraction(name: str) -> float:
     return int(hashlib.sha256(name.encode()).hexdigest()[:8], 16) / 16 ** 8
+
+
+registry.register("graspgen", registry.PairWriter(relative_path, write, finish=finish))

@@ -3,7 +3,8 @@
 Each file becomes one unit of work in the database (object, hand, settings
 = the import source and the file's sha256, seed 0, chunk 0); importing the
 same file again finds the unit done and skips it. Grasp ``candidate`` = the
-row index in the file. Reading the file is :mod:`planner.datasets.acronym`'s.
+row index in the file. Reading the file is the format's reader's
+(:mod:`planner.datasets.registry`; ACRONYM's is :mod:`planner.datasets.acronym`).
 
 - Hand: ``gripper/type`` ("panda" and "franka_panda" mean ``panda``; any
   other value must be a hand name) or ``--hand``.
@@ -32,7 +33,7 @@ row index in the file. Reading the file is :mod:`planner.datasets.acronym`'s.
   close on the object are counted by reason and dropped. The stored pose is
   the closed hand's (after back-off and centring). Reachability is not
   computed (None). Re-scoring runs in the crash-safe worker pool
-  (:mod:`planner.plan.pool`, ``workers`` processes) in units of
+  (:mod:`planner.run.pool`, ``workers`` processes) in units of
   :data:`RESCORE_CHUNK` poses; a file is written once all its poses are
   back, its grasps in file order. A file whose re-scoring fails (a worker
   died twice) is stored as a failed unit with its error, and the next import
@@ -52,24 +53,27 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.datasets import acronym
-from planner.datasets.acronym import AcronymHeader, widest_preshape
+from planner.datasets import formats
+from planner.datasets.acronym import AcronymHeader
+from planner.datasets.registry import Reader
 from planner.db.lock import writer_lock
 from planner.db.ranking import RankingRule
 from planner.db.store import Database, UnitRow, Validated, open_db
-from planner.errors import InputError, UnknownNameError
+from planner.errors import InputError
 from planner.geometry.frames import approach_of
 from planner.geometry.solid import PreparedObject, prepare
-from planner.plan import pool
 from planner.plan.closing import Closed, Grasper
 from planner.plan.measures import measure
 from planner.plan.unit import closed_width, scored
 from planner.record.grasp import Grasp
+from planner.run import pool
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, hand_names, load_hand
 from planner.specs.objects import ObjectSpec, is_registered, resolve_spec
+from planner.specs.preshapes import load_preshapes
 
-FORMATS = ("acronym",)
+#: Every format with a reader (:mod:`planner.datasets.registry`).
+FORMATS = formats.IMPORT_FORMATS
 HAND_ALIASES = {"panda": "panda", "franka_panda": "panda"}
 #: Friction cone edges of a re-scored grasp (the sweep's default).
 CONE_EDGES = 8
@@ -125,6 +129,7 @@ class _Plan:
     spec: ObjectSpec
     lossless: bool
     settings: ImportSettings
+    reader: Reader
 
 
 def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", hand: str | None = None,
@@ -134,9 +139,8 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
     checked before anything is written. Re-scoring runs in ``workers``
     processes; ``progress`` gets each file as it is written, the list
     returned is in the order of ``paths``."""
-    if fmt not in FORMATS:
-        raise UnknownNameError("import format", fmt, FORMATS)
-    plans = [_plan(Path(p), hand, object_name, rescore) for p in paths]
+    reader = formats.reader(fmt)
+    plans = [_plan(Path(p), fmt, reader, hand, object_name, rescore) for p in paths]
     results: dict[int, ImportResult] = {}
 
     def finish(index: int, result: ImportResult) -> None:
@@ -154,7 +158,7 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
             elif plan.lossless:
                 finish(i, _import_lossless(db, plan, rule))
             else:
-                rescoring[i] = _Rescoring(plan, time.perf_counter(), acronym.read_poses(plan.path, plan.hand))
+                rescoring[i] = _Rescoring(plan, time.perf_counter(), plan.reader.poses(plan.path, plan.hand))
         units = [unit for i, r in rescoring.items() for unit in r.units(i)]
         for i, r in rescoring.items():
             if r.complete:  # a file without poses
@@ -236,8 +240,8 @@ class _Rescoring:
 def _import_lossless(db: Database, plan: _Plan, rule: RankingRule) -> ImportResult:
     start = time.perf_counter()
     obj = prepare(plan.spec)
-    poses = acronym.read_poses(plan.path, plan.hand)
-    grasps = acronym.read_grasps(plan.path, plan.hand, obj.name, poses)
+    poses = plan.reader.poses(plan.path, plan.hand)
+    grasps = plan.reader.grasps(plan.path, plan.hand, obj.name, poses)
     unit = UnitRow(obj.name, plan.hand.name, plan.settings.digest, plan.settings.to_json(), 0, 0,
                    candidates=len(poses), seconds=time.perf_counter() - start)
     unit_id = db.write_unit(unit, obj, grasps, rule)
@@ -249,7 +253,7 @@ def _import_lossless(db: Database, plan: _Plan, rule: RankingRule) -> ImportResu
 def _restore_simulation(db: Database, plan: _Plan, unit_id: int, obj: str, rule: RankingRule) -> None:
     """Our own files carry shake-test results and robust epsilon per grasp:
     put them back into ``validation`` / ``robust`` and re-score."""
-    results = acronym.read_simulation(plan.path)
+    results = plan.reader.simulation(plan.path)
     if not results:
         return
     source = json.dumps({"imported_from": str(plan.path)})
@@ -258,8 +262,8 @@ def _restore_simulation(db: Database, plan: _Plan, unit_id: int, obj: str, rule:
                                               for i, grasp_id in ids.items()], rule)
 
 
-def _plan(path: Path, hand: str | None, object_name: str | None, rescore: bool) -> _Plan:
-    header = acronym.read_header(path)
+def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: str | None, rescore: bool) -> _Plan:
+    header = reader.header(path)
     spec = load_hand(hand or _hand_name(path, header.gripper))
     obj = _object_spec(header, object_name)
     lossless = not rescore and header.extras
@@ -267,7 +271,7 @@ def _plan(path: Path, hand: str | None, object_name: str | None, rescore: bool) 
     with open(path, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):
             digest.update(block)
-    return _Plan(path, spec, obj, lossless, ImportSettings("acronym", str(path), digest.hexdigest(), not lossless))
+    return _Plan(path, spec, obj, lossless, ImportSettings(fmt, str(path), digest.hexdigest(), not lossless), reader)
 
 
 def _hand_name(path: Path, gripper: str) -> str:
@@ -305,7 +309,7 @@ def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: C
              ) -> list[Grasp]:
     """Grasps of the poses where the hand closes on the object; candidate =
     ``first`` + the pose's row in ``poses``."""
-    shape = widest_preshape(hand)
+    shape = hand.widest(load_preshapes(hand))
     out = []
     with Sim() as sim:
         grasper = Grasper.for_mesh(sim, hand, obj.mesh)

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from planner.datasets import registry
 from planner.datasets.columns import Stream, grasp_columns
 from planner.record.fields import Field, by_name, record_fields
 from planner.record.grasp import Grasp
@@ -139,3 +140,7 @@ def write_csv(path: Path, streams: Iterable[Stream]) -> int:
                 writer.writerows(zip(*cols))
                 total += len(batch)
     return total
+
+
+registry.register("parquet", registry.TableWriter("grasps.parquet", write_parquet))
+registry.register("csv", registry.TableWriter("grasps.csv", write_csv))

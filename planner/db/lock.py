@@ -42,7 +42,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from planner.errors import DatabaseError
-from planner.plan import procs
+from planner.run import procs
 
 log = logging.getLogger(__name__)
 

@@ -9,15 +9,17 @@ writes them and re-ranks each (object, hand) in the rule's tie-break order.
 
 from __future__ import annotations
 
+import functools
+import inspect
 import json
 import math
 import sqlite3
 import time
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
@@ -231,6 +233,35 @@ class Validated:
     robust_settings: str  # JSON
 
 
+def read_failed(path: Path, exc: sqlite3.Error) -> str:
+    """The one line for a read SQLite refused (a damaged file, an I/O error)."""
+    return f"{path}: cannot read the database ({exc}); check it with `grasp db check --db {path}`"
+
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def _reads(method: F) -> F:
+    """A read of the database: SQLite's errors come out as one
+    :class:`DatabaseError` line (a generator's, while it is iterated)."""
+    if inspect.isgeneratorfunction(method):
+        @functools.wraps(method)
+        def rows(self: Database, *args: Any, **kwargs: Any) -> Iterator[Any]:
+            try:
+                yield from method(self, *args, **kwargs)
+            except sqlite3.Error as exc:
+                raise DatabaseError(read_failed(self.path, exc)) from exc
+        return rows  # type: ignore[return-value]
+
+    @functools.wraps(method)
+    def read(self: Database, *args: Any, **kwargs: Any) -> Any:
+        try:
+            return method(self, *args, **kwargs)
+        except sqlite3.Error as exc:
+            raise DatabaseError(read_failed(self.path, exc)) from exc
+    return read  # type: ignore[return-value]
+
+
 class Database:
     """A grasp database file; open with :func:`open_db`."""
 
@@ -267,6 +298,7 @@ class Database:
             return None
 
     # -- meta ---------------------------------------------------------------
+    @_reads
     def meta(self, key: str) -> str | None:
         row = self._conn.execute("SELECT value FROM meta WHERE key = ?", (key,)).fetchone()
         return None if row is None else row["value"]
@@ -293,6 +325,7 @@ class Database:
         return [r["integrity_check"] for r in rows if r["integrity_check"] != "ok"]
 
     # -- writing units ----------------------------------------------------------
+    @_reads
     def units_done(self, hand: str, settings_hash: str, seed: int) -> set[tuple[str, int]]:
         """(object, chunk) of every finished unit with these settings."""
         rows = self._conn.execute(
@@ -376,14 +409,17 @@ class Database:
         finally:
             self._conn.execute("COMMIT")
 
+    @_reads
     def pairs(self) -> list[tuple[str, str]]:
         """Every (object, hand) with grasps, sorted."""
         rows = self._conn.execute("SELECT DISTINCT object, hand FROM grasps ORDER BY object, hand")
         return [(r["object"], r["hand"]) for r in rows]
 
+    @_reads
     def objects_for(self, hand: str) -> list[str]:
         return [r["object"] for r in self._conn.execute("SELECT DISTINCT object FROM grasps WHERE hand = ?", (hand,))]
 
+    @_reads
     def object_row(self, name: str) -> ObjectRow | None:
         r = self._conn.execute("SELECT * FROM objects WHERE name = ?", (name,)).fetchone()
         if r is None:
@@ -391,17 +427,20 @@ class Database:
         kept = set(ObjectRow.__dataclass_fields__)
         return ObjectRow(**{f.column: next(iter(_decoded(f, [r[f.column]]))) for f in _OBJECTS if f.column in kept})
 
+    @_reads
     def grasp_ids(self, unit_id: int) -> dict[int, int]:
         """Candidate number -> grasp id of one unit's grasps."""
         rows = self._conn.execute("SELECT candidate, id FROM grasps WHERE unit_id = ?", (unit_id,))
         return {r["candidate"]: r["id"] for r in rows}
 
+    @_reads
     def best(self, obj: str, hand: str, top: int, offset: int = 0) -> list[Grasp]:
         """The grasps of rank ``offset + 1`` .. ``offset + top``, in rank order."""
         cur = self._conn.execute(self._select("LEFT JOIN") + " WHERE g.object = ? AND g.hand = ? AND g.rank IS NOT NULL"
                                  " ORDER BY g.rank LIMIT ? OFFSET ?", (obj, hand, top, offset))
         return _grasps(cur.fetchall())
 
+    @_reads
     def grasp_batches(self, obj: str, hand: str, *, min_epsilon: float | None = None, top: int | None = None,
                       size: int = 5000) -> Iterator[list[Grasp]]:
         """The grasps of (obj, hand) with epsilon >= ``min_epsilon`` and rank <=
@@ -422,6 +461,7 @@ class Database:
         finally:
             cur.close()
 
+    @_reads
     def validated(self) -> list[Grasp]:
         """Every grasp with a shake trial, by hand, object and rank."""
         return _grasps(self._conn.execute(self._select("JOIN") + " ORDER BY g.hand, g.object, g.rank").fetchall())

@@ -329,24 +329,12 @@ class Grasper:
 
     def _dofs(self, preshape: Preshape) -> list[_Dof]:
         dofs: list[_Dof] = []
-        for joint in self.hand.driven:
-            rate = preshape.close.get(joint.name, 0.0)
-            if rate == 0.0:
-                continue
-            groups = [{joint.name: rate}]
-            for mimic in self.hand.joints:
-                if mimic.mimic == joint.name:
-                    if self.hand.centering:
-                        groups.append({mimic.name: rate * mimic.multiplier})
-                    else:
-                        groups[0][mimic.name] = rate * mimic.multiplier
-            for rates in groups:
-                moved = self._moved(rates)
-                dof = _Dof(rates, moved)
-                after = {j: r for j, r in rates.items() if j != joint.name}
-                if joint.breakaway and after:
-                    dof.after, dof.trigger = after, frozenset(moved) - frozenset(self._moved(after))
-                dofs.append(dof)
+        for finger in self.hand.closing_dofs(preshape.close):
+            moved = self._moved(finger.rates)
+            dof = _Dof(dict(finger.rates), moved)
+            if finger.after is not None:
+                dof.after, dof.trigger = dict(finger.after), frozenset(moved) - frozenset(self._moved(finger.after))
+            dofs.append(dof)
         return dofs
 
     def _moved(self, rates: dict[str, float]) -> tuple[str, ...]:
@@ -500,8 +488,7 @@ class Grasper:
 
     def _centre(self, pose: np.ndarray, q: dict[str, float]) -> tuple[np.ndarray, dict[str, float]]:
         """Shift a self-centring parallel jaw so its two fingers are symmetric."""
-        master = next(j for j in self.hand.joints if j.mimic is None and j.kind == "prismatic")
-        slave = next(j for j in self.hand.joints if j.mimic == master.name)
+        master, slave = self.hand.jaw  # type: ignore[misc]  # centring hands are parallel jaws
         axis = pose[:3, :3] @ self.body.joint_axes[master.name]
         qa, qb = q[master.name], q[slave.name]
         shifted = pose.copy()

@@ -42,7 +42,7 @@ from planner.plan.contacts import contact_models
 from planner.record.contacts import HandContacts
 from planner.record.measures import JointFrames, Measures
 from planner.record.tolerances import MIN_CLOSE_MARGIN, MIN_OPEN_MARGIN
-from planner.specs.hands import HandSpec
+from planner.specs.hands import STILL, HandSpec
 from planner.specs.preshapes import Preshape
 
 if TYPE_CHECKING:  # the quality stage imports scipy.optimize, the object trimesh: loaded where used, so that
@@ -56,39 +56,6 @@ if TYPE_CHECKING:  # the quality stage imports scipy.optimize, the object trimes
 MIN_PUSH = 0.3
 #: [g] a grasp that cannot hold its object's weight in some direction.
 MIN_RESISTANCE = 1.0
-#: A mimic joint further than this [rad or m] from its coupling broke away.
-BREAKAWAY_TOL = 1e-6
-#: Contact motion slower than this [m per unit closing] does not move.
-STILL = 1e-9
-
-
-def broken_away(hand: HandSpec, closed: Mapping[str, float]) -> set[str]:
-    """Driven joints whose mimics closed on past the coupling (breakaway)."""
-    out = set()
-    for j in hand.joints:
-        if j.mimic is not None and hand.joint(j.mimic).breakaway and j.name in closed and j.mimic in closed:
-            if abs(closed[j.name] - (j.multiplier * closed[j.mimic] + j.offset)) > BREAKAWAY_TOL:
-                out.add(j.mimic)
-    return out
-
-
-def closing_groups(hand: HandSpec, shape: Preshape, closed: Mapping[str, float]) -> list[dict[str, float]]:
-    """The finger DOFs that close as they ended: {joint: dq per unit closing}
-    (a self-centring jaw's fingers apart; a broken-away finger's mimics alone)."""
-    broken = broken_away(hand, closed)
-    out = []
-    for joint in hand.driven:
-        rate = shape.close.get(joint.name, 0.0)
-        if rate == 0.0:
-            continue
-        mimics = {m.name: rate * m.multiplier for m in hand.joints if m.mimic == joint.name}
-        if hand.centering:
-            out += [{joint.name: rate}] + [{name: r} for name, r in mimics.items()]
-        elif joint.name in broken:
-            out.append(mimics)
-        else:
-            out.append({joint.name: rate, **mimics})
-    return out
 
 
 def hand_drive(hand: HandSpec, shape: Preshape, closed: Mapping[str, float], frames: JointFrames) -> HandDrive:
@@ -97,36 +64,25 @@ def hand_drive(hand: HandSpec, shape: Preshape, closed: Mapping[str, float], fra
 
     act = hand.actuators
     hold = np.inf if not act.backdrivable else act.effort
-    broken = broken_away(hand, closed)
+    broken = hand.broken_away(closed)
     motors: list[tuple[dict[str, float], int, float]] = []
     for joint in hand.driven:
         rate = shape.close.get(joint.name, 0.0)
-        mimics = {m.name: m.multiplier for m in hand.joints if m.mimic == joint.name}
+        coupled = hand.coupling(joint.name)
         if rate == 0.0:
-            motors.append(({joint.name: 1.0, **mimics}, 0, hold))
+            motors.append((coupled, 0, hold))
         elif joint.name in broken:
-            motors.append(({name: 1.0 for name in mimics}, int(np.sign(rate)), act.effort))
+            motors.append(({name: 1.0 for name in coupled if name != joint.name}, int(np.sign(rate)), act.effort))
             motors.append(({joint.name: 1.0}, 0, np.inf if not act.backdrivable else act.effort))
         else:
-            motors.append(({joint.name: 1.0, **mimics}, int(np.sign(rate)), act.effort))
+            motors.append((coupled, int(np.sign(rate)), act.effort))
     t, sense, limit = drive_rows(frames.names, motors)
     types = tuple(hand.joint(n).kind for n in frames.names)
     return HandDrive(frames.origins, frames.axes, types, t, sense, limit)
 
 
-def contact_velocity(hand: HandSpec, contacts: HandContacts, frames: JointFrames,
-                     rates: Mapping[str, float]) -> np.ndarray:
-    """(n, 3) velocity of each contact point per unit closing of one DOF."""
-    v = np.zeros((len(contacts), 3))
-    for name, rate in rates.items():
-        j = frames.names.index(name)
-        moved = np.array([link in hand.joint(name).moves for link in contacts.links], bool)
-        if hand.joint(name).kind == "revolute":
-            lin = np.cross(frames.axes[j], contacts.points - frames.origins[j])
-        else:
-            lin = np.broadcast_to(frames.axes[j], contacts.points.shape)
-        v += rate * lin * moved[:, None]
-    return v
+def _axes(frames: JointFrames) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    return {name: (frames.origins[i], frames.axes[i]) for i, name in enumerate(frames.names)}
 
 
 def measure(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: Preshape,
@@ -174,8 +130,9 @@ def _fingers(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape:
              closed: Mapping[str, float]) -> tuple[float, float, float, bool]:
     """(push, open margin [m], close margin [m], every finger DOF within the open margin)."""
     pushes, open_m, close_m, near_open = [], [np.inf], [np.inf], []
-    for rates in closing_groups(hand, shape, closed):
-        v = contact_velocity(hand, contacts, frames, rates)
+    axes = _axes(frames)
+    for dof in hand.closing_dofs(shape.close, closed):
+        v = hand.contact_velocity(dof.rates, contacts.points, contacts.links, axes)
         speed = np.linalg.norm(v, axis=1)
         on = speed > STILL
         if not on.any():
@@ -183,15 +140,8 @@ def _fingers(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape:
         cos = np.einsum("ij,ij->i", contacts.normals[on], v[on]) / speed[on]
         owner = np.where(contacts.region[on] >= 0, contacts.region[on], -1 - np.flatnonzero(on))
         pushes += [float(cos[owner == r].max()) for r in np.unique(owner)]
-        mine_open = np.inf
-        for name, rate in rates.items():
-            spec = hand.joint(name)
-            q = closed.get(name, spec.lower)
-            lever = float(speed[on].max() / abs(rate))
-            to_open = (q - spec.lower) if rate > 0 else (spec.upper - q)
-            to_close = (spec.upper - q) if rate > 0 else (q - spec.lower)
-            mine_open = min(mine_open, to_open * lever)
-            close_m.append(to_close * lever)
+        mine_open = hand.travel(dof.rates, closed, speed[on].max(), "open")
+        close_m.append(hand.travel(dof.rates, closed, speed[on].max(), "closed"))
         open_m.append(mine_open)
         near_open.append(mine_open < MIN_OPEN_MARGIN)
     return (min(pushes, default=0.0), float(min(open_m)), float(min(close_m)),

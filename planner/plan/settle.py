@@ -53,10 +53,12 @@ def settled_epsilons(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp
     return np.array([epsilon_of(c, hand, obj, cone_edges) for c in settled_contacts(hand, obj, grasps, s)], float)
 
 
-def with_settled(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp], cone_edges: int = 8) -> list[Grasp]:
+def with_settled(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp], cone_edges: int = 8,
+                 settings: ShakeSettings | None = None) -> list[Grasp]:
     """The grasps with ``measures.settled_epsilon`` filled in (grasps without
-    measures are returned unchanged)."""
+    measures are returned unchanged); ``settings``: the trial (the sweep's
+    :attr:`~planner.plan.sweep.SweepSettings.trial`)."""
     measured = [g for g in grasps if g.measures is not None]
-    values = dict(zip((id(g) for g in measured), settled_epsilons(hand, obj, measured, cone_edges)))
+    values = dict(zip((id(g) for g in measured), settled_epsilons(hand, obj, measured, cone_edges, settings)))
     return [g if g.measures is None else replace(g, measures=replace(g.measures, settled_epsilon=float(values[id(g)])))
             for g in grasps]

@@ -22,6 +22,7 @@ from planner.errors import InputError
 from planner.plan.tolerances import PREGRASP_DISTANCE
 from planner.specs.hands import SAMPLERS
 from planner.specs.preshapes import Preshape
+from planner.validation.shake import ShakeSettings
 
 if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settings without it
     from planner.plan.sampling import Approaches, Pairs
@@ -72,6 +73,7 @@ class SweepSettings:
     pregrasp_distance: float = PREGRASP_DISTANCE  # [m] pre-grasp back-off along the approach
     volume: bool = False  # GWS volume of force-closure grasps (a full 6-D hull, slow; False stores 0)
     settle: bool | None = None  # the settled epsilon of every grasp (a dynamic closing); None: the hand's default
+    trial: ShakeSettings | None = None  # the settle's dynamic closing; None: the default trial (settle only)
     fc_budget: int = 1000  # about this many force-closure grasps per object (see budget_share); 0: no limit
 
     def __post_init__(self) -> None:
@@ -94,14 +96,21 @@ class SweepSettings:
 
     def resolved(self, hand_sampler: str, hand_settle: bool = False) -> SweepSettings:
         """These settings with the sampler (``hand_sampler`` unless set), its
-        defaults and ``settle`` (``hand_settle`` unless set) filled in: what a
-        unit runs and what its digest names."""
+        defaults, ``settle`` (``hand_settle`` unless set) and the settle's
+        trial filled in: what a unit runs and what its digest names. The trial
+        (one grasp per world, as :func:`planner.plan.settle.settled_epsilons`
+        runs it) decides the stored settled epsilons, so it is part of the
+        digest when the sweep settles, and absent when it does not."""
         sampler = self.sampler or hand_sampler
         unset = {k: v for k, v in SAMPLER_DEFAULTS[sampler].items() if getattr(self, k) is None}
-        return replace(self, sampler=sampler, settle=hand_settle if self.settle is None else self.settle, **unset)
+        settle = hand_settle if self.settle is None else self.settle
+        trial = replace(self.trial or ShakeSettings(), batch=1) if settle else None
+        return replace(self, sampler=sampler, settle=settle, trial=trial, **unset)
 
     def to_json(self) -> str:
         data = asdict(self)
+        if data["trial"] is None:  # no settle: the digests of sweeps that do not settle stay as they were
+            del data["trial"]
         data["algorithm"] = ALGORITHM_VERSION
         return json.dumps(data, sort_keys=True)
 

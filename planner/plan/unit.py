@@ -19,7 +19,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from planner import quality
-from planner.errors import DegenerateGraspError, PlannerError
+from planner.errors import DegenerateGraspError, InputError, PlannerError
 from planner.geometry.frames import approach_of
 from planner.geometry.solid import PreparedObject, load_object
 from planner.plan import sampling
@@ -151,7 +151,7 @@ def _run(spec: UnitSpec, result: UnitResult) -> None:
         result.timing["closing"] -= grasper.contact_seconds
     if settings.settle:
         t2 = time.perf_counter()
-        result.grasps = with_settled(hand, obj, result.grasps, settings.cone_edges)
+        result.grasps = with_settled(hand, obj, result.grasps, settings.cone_edges, settings.trial)
         result.timing["settle"] += time.perf_counter() - t2
     if settings.reach_placements and hand.arm is not None:
         t3 = time.perf_counter()
@@ -212,12 +212,15 @@ def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, han
     before simulation when the pair is unusable or the open hand overlaps
     the object, else closed where it is."""
     t1 = time.perf_counter()
-    openings = {s.name: opening(hand, s.joints) for s in shapes}
+    openings = {s.name: hand.opening(s.joints) for s in shapes}
     pairs = sampling.antipodal(obj.mesh, settings.approaches or 0, rng, mu=obj.friction,
                                max_width=max(openings.values()) - 2 * MIN_CLEARANCE)
     todo = antipodal_candidates(pairs, shapes, openings, settings, MIN_CLEARANCE,
                                 settings.ray_range(spec.chunk, len(pairs)))
-    master = next(j for j in hand.driven if j.kind == "prismatic")
+    if hand.jaw is None:
+        raise InputError(f"hand '{hand.name}': the antipodal sampler needs a parallel jaw; "
+                         "use --sampler surface or box")
+    master = hand.jaw[0]
     usable = [c for c in todo if not pairs.reasons[c.ray]]
     rows = np.array([c.ray for c in usable], int)
     poses = sampling.antipodal_poses(hand.approach, grasper.axis_in_root(master.name),
@@ -247,17 +250,12 @@ def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, han
         yield cand, closed, (*approach_of(pose, hand.approach, cand.preshape.tcp), 0.0)
 
 
-def opening(hand: HandSpec, joints: Mapping[str, float]) -> float:
-    """[m] distance between the fingers of a parallel jaw at ``joints``."""
-    return float(sum(joints[j.name] for j in hand.joints if j.kind == "prismatic"))
-
-
 def fitted_opening(hand: HandSpec, shape: Preshape, master: str, width: float) -> dict[str, float]:
     """Every finger joint of ``shape`` with the fingers opened to ``width``
     [m] (mimics follow), or to the preshape's own opening if that is less."""
-    per_unit = opening(hand, hand.full_configuration({master: 1.0})) - opening(hand, hand.full_configuration(
+    per_unit = hand.opening(hand.full_configuration({master: 1.0})) - hand.opening(hand.full_configuration(
         {master: 0.0}))
-    base = opening(hand, hand.full_configuration({master: 0.0}))
+    base = hand.opening(hand.full_configuration({master: 0.0}))
     value = min((width - base) / per_unit, shape.joints[master])
     driven = {j.name: shape.joints[j.name] for j in hand.driven}
     driven[master] = max(value, hand.joint(master).lower)
@@ -315,4 +313,4 @@ def scored(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, cone_edg
 
 def closed_width(hand: HandSpec, closed_joints: Mapping[str, float]) -> float | None:
     """[m] distance between the fingers of a self-centring parallel jaw, else None."""
-    return opening(hand, closed_joints) if hand.centering else None
+    return hand.opening(closed_joints) if hand.centering else None

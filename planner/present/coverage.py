@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.datasets.meshes import stored_object
 from planner.db.diverse import COVERAGE_RADIUS, Spacing, coverage, diverse
+from planner.db.objects import stored_object
 from planner.db.store import open_db
 from planner.specs.hands import load_hand
 

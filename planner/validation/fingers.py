@@ -1,5 +1,7 @@
 """The hand as a shake trial drives it: which joints close and how fast,
-which links make up each finger, and how much open travel a grasp leaves.
+which links make up each finger, and how much open travel a grasp leaves
+(the finger DOFs and the open travel are the hand spec's, as closing and
+the measures have them).
 
 Pure functions of the hand spec, the grasp and (for revolute joints) the
 joint axes at the grasp's closed configuration; frames are the hand frame,
@@ -18,17 +20,18 @@ from planner.specs.preshapes import load_preshapes
 from planner.validation.tolerances import DEFAULT_LEVER
 
 
+def synergy(hand: HandSpec, preshape: str) -> dict[str, float]:
+    """The closing synergy {driven joint: rate} of the grasp's preshape (its
+    override of the hand's); empty for a preshape the hand does not have
+    (every driven joint then closes at its hand.toml rate)."""
+    shapes = {p.name: p for p in load_preshapes(hand)}
+    return dict(shapes[preshape].close) if preshape in shapes else {}
+
+
 def closing_rates(hand: HandSpec, preshape: str) -> dict[str, float]:
     """Closing rate of every finger joint [rad or m per unit of closing] for
-    the grasp's preshape (its synergy override, else the hand's); a mimic
-    closes at its master's rate times its multiplier; 0: the joint holds."""
-    shapes = {p.name: p for p in load_preshapes(hand)}
-    close = shapes[preshape].close if preshape in shapes else {}
-    rates = {j.name: float(close.get(j.name, j.close)) for j in hand.driven}
-    for j in hand.joints:
-        if j.mimic is not None:
-            rates[j.name] = rates[j.mimic] * j.multiplier
-    return rates
+    the grasp's preshape (:meth:`~planner.specs.hands.HandSpec.joint_rates`)."""
+    return hand.joint_rates(synergy(hand, preshape))
 
 
 def fingers(hand: HandSpec, rates: Mapping[str, float]) -> tuple[frozenset[str], ...]:
@@ -57,23 +60,16 @@ def levers(hand: HandSpec, grasp: Grasp, axes: Mapping[str, tuple[np.ndarray, np
     return out
 
 
-def clearance(hand: HandSpec, grasp: Grasp, rates: Mapping[str, float], lever: Mapping[str, float]) -> float:
-    """[m] the smallest open travel left at the contact of a touching finger:
-    how far its planned (closed) configuration is from the joint's open limit,
-    angles times their ``lever``. Near 0, the open hand could not have been
-    put around the object (no squeeze travel). ``inf`` if nothing touches."""
-    touched = set(grasp.contacts.links)
-    out = np.inf
-    for j in hand.joints:
-        rate = rates.get(j.name, 0.0)
-        if rate == 0.0 or not touched & set(j.moves):
-            continue
-        if j.kind == "revolute" and j.name not in lever:
-            continue
-        q = float(grasp.closed_joints.get(j.name, j.lower))
-        travel = abs(q - (j.upper if rate < 0 else j.lower))
-        out = min(out, travel * (lever[j.name] if j.kind == "revolute" else 1.0))
-    return float(out)
+def clearance(hand: HandSpec, grasp: Grasp, axes: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> float:
+    """[m] the smallest open travel left at the contacts of a touching finger:
+    the sweep's open margin (:meth:`~planner.specs.hands.HandSpec.open_travel`)
+    of the planned (closed) configuration, ``axes`` = (point, unit direction)
+    of every finger joint's axis there, hand frame. Near 0, the open hand
+    could not have been put around the object (no squeeze travel). ``inf``
+    if nothing touches."""
+    to_hand = np.linalg.inv(np.asarray(grasp.pose, float))
+    points = grasp.contacts.points @ to_hand[:3, :3].T + to_hand[:3, 3]
+    return hand.open_travel(synergy(hand, grasp.preshape), grasp.closed_joints, points, grasp.contacts.links, axes)
 
 
 def start_joints(hand: HandSpec, grasp: Grasp, rates: Mapping[str, float], lever: Mapping[str, float],

@@ -1,6 +1,6 @@
 """``grasp validate``: shake-test and robust-epsilon stored grasps (each
 object's best, a seeded uniform sample, or all), in the crash-safe worker
-pool (:mod:`planner.plan.pool`), with one writer. A task whose worker dies
+pool (:mod:`planner.run.pool`), with one writer. A task whose worker dies
 twice (a simulator segfault) or that fails is reported with its error; the
 other tasks are written."""
 
@@ -17,14 +17,13 @@ from pathlib import Path
 import numpy as np
 
 from planner.db.lock import writer_lock
+from planner.db.objects import stored_object
 from planner.db.ranking import RankingRule
-from planner.db.store import Database, Validated, open_db
+from planner.db.store import Database, ObjectRow, Validated, open_db
 from planner.errors import InputError, PlannerError
-from planner.geometry.solid import PreparedObject, load_object
-from planner.plan import pool
 from planner.record.grasp import Grasp, RobustEpsilon, Trial
+from planner.run import pool
 from planner.specs.hands import load_hand
-from planner.specs.objects import is_registered
 from planner.threads import one_blas_thread
 from planner.validation.robust import NoiseSettings, robust_epsilon
 from planner.validation.shake import ShakeSettings, recorded, trials
@@ -40,14 +39,16 @@ BATCH = 8
 class Task:
     """Grasps of one object and hand for one worker, and how to test them."""
 
-    object: str
-    source: str
-    scale: float
+    row: ObjectRow  # the stored object: mesh source, scale, mass, friction
     hand: str
     grasps: tuple[Grasp, ...]
     seed: int
     trial: ShakeSettings
     noise: NoiseSettings | None
+
+    @property
+    def object(self) -> str:
+        return self.row.name
 
 
 @dataclass
@@ -56,11 +57,6 @@ class TaskResult:
     trials: list[Trial] = field(default_factory=list)
     robust: list[RobustEpsilon | None] = field(default_factory=list)
     error: str | None = None
-
-
-def stored_object(name: str, source: str, scale: float) -> PreparedObject:
-    """A stored object: built-in names resolve directly, mesh files by path."""
-    return load_object(name) if is_registered(name) else load_object(source, scale=scale, label=name)
 
 
 def run_task(task: Task) -> TaskResult:
@@ -77,7 +73,7 @@ def run_task(task: Task) -> TaskResult:
 
 def _run_task(task: Task, out: TaskResult) -> None:
     hand = load_hand(task.hand)
-    obj = stored_object(task.object, task.source, task.scale)
+    obj = stored_object(task.row)
     out.trials = trials(hand, obj, task.grasps, task.trial)
     for g in task.grasps:
         if task.noise is not None:
@@ -123,8 +119,7 @@ def plan(db: Database, objects: list[str] | None, hands: list[str] | None, selec
             continue
         grasps = selection.pick(db, obj, hand, seed)
         for i in range(0, len(grasps), BATCH):
-            tasks.append(Task(obj, row.source, row.scale, hand, tuple(grasps[i:i + BATCH]), seed, trial_settings,
-                              noise))
+            tasks.append(Task(row, hand, tuple(grasps[i:i + BATCH]), seed, trial_settings, noise))
     return tasks
 
 

@@ -215,8 +215,9 @@ def _set_up(dyn: Dynamics, hand: HandSpec, obj: PreparedObject, shape: Shape, ph
     rates = fg.closing_rates(hand, grasp.preshape)
     dyn.set_joints(body, hand.full_configuration({j.name: grasp.closed_joints.get(j.name, j.lower)
                                                       for j in hand.driven}))
-    lever = fg.levers(hand, grasp, joint_axes(dyn.sim, hand, body))
-    if fg.clearance(hand, grasp, rates, lever) < s.min_clearance:
+    axes = joint_axes(dyn.sim, hand, body)
+    lever = fg.levers(hand, grasp, axes)
+    if fg.clearance(hand, grasp, axes) < s.min_clearance:
         dyn.remove(body.uid)
         return _flag("no_clearance")
     set_contacts(dyn, hand, body, grasp)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import grasp, one_line_error
+from helpers import damaged, grasp, one_line_error
 
 from planner import api
 
@@ -179,3 +179,10 @@ def test_hand_frame_reads_what_load_hand_reads() -> None:
         light, full = hand_frame(name), load_hand(name)
         assert light.root_link == full.root_link
         assert np.allclose(light.tcp, full.tcp) and np.allclose(light.approach, full.approach)
+@pytest.mark.parametrize("command", [["best", "box", "--hand", "panda"], ["export", "--format", "csv", "--out", "OUT"],
+                                     ["validate", "--workers", "1"]])
+def test_a_damaged_database_is_a_one_line_error(box_db: Path, tmp_path: Path, command: list[str]) -> None:
+    broken = damaged(box_db, tmp_path / "broken.db")
+    args = [str(tmp_path / "out") if a == "OUT" else a for a in command]
+    code, _, err = grasp(*args, "--db", str(broken))
+    one_line_error(code, err, 3, "grasp: error:", "cannot read the database", "grasp db check")

@@ -42,3 +42,46 @@ def test_validate_all_force_closure_tests_exactly_the_force_closure_grasps(tmp_p
     with sqlite3.connect(copy) as conn:
         tested = conn.execute("SELECT g.force_closure FROM validation v JOIN grasps g ON g.id = v.grasp_id").fetchall()
     assert len(tested) == closure and all(fc == 1 for (fc,) in tested)
+
+
+def test_validate_shakes_an_imported_object_with_its_stored_mass_and_friction(tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """An ACRONYM file of a user mesh with mass 0.05 kg and friction 1.0 (not
+    the 0.2 kg / 0.5 a mesh gets by default): the trial gets those."""
+    import sqlite3
+
+    import h5py
+    import numpy as np
+    import trimesh
+
+    from planner.specs.hands import load_hand
+    from planner.validation import run
+
+    (tmp_path / "meshes").mkdir()
+    trimesh.creation.box(extents=(0.04, 0.04, 0.04)).export(tmp_path / "meshes" / "crate.obj")
+    panda = load_hand("panda")
+    pose = np.eye(4)
+    pose[:3, 3] = -panda.tcp  # the tool centre point at the crate's centre, approaching along +z
+    path = tmp_path / "crate.h5"
+    with h5py.File(path, "w") as f:
+        f["gripper/type"] = "franka_panda"
+        f["object/file"], f["object/scale"] = "meshes/crate.obj", 1.0
+        f["object/mass"], f["object/friction"] = 0.05, 1.0
+        f["grasps/transforms"] = (pose @ panda.export_frame)[None]
+        f["grasps/qualities/flex/object_in_gripper"] = np.ones(1, np.int64)
+    db = tmp_path / "g.db"
+    code, _, err = grasp("import", str(path), "--db", str(db))
+    assert code == 0, err
+    with sqlite3.connect(db) as conn:
+        assert conn.execute("SELECT mass, friction FROM objects WHERE name = 'crate'").fetchall() == [(0.05, 1.0)]
+        assert conn.execute("SELECT COUNT(*) FROM grasps").fetchone()[0] == 1
+    shaken = []
+
+    def trials(hand, obj, grasps, settings):  # type: ignore[no-untyped-def]
+        shaken.append((obj.name, obj.mass, obj.friction))
+        return real(hand, obj, grasps, settings)
+
+    real = run.trials
+    monkeypatch.setattr(run, "trials", trials)
+    code, out, err = grasp("validate", "--db", str(db), "--all", "--robust", "0", "--workers", "1", "--json")
+    assert code == 0, err
+    assert json.loads(out)["grasps"] == 1 and shaken == [("crate", 0.05, 1.0)]

@@ -12,7 +12,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from planner.db.lock import writer_lock
-from tests.plan import pool_units as units  # the repository is on PYTHONPATH (tests/processes.py)
+from tests.run import pool_units as units  # the repository is on PYTHONPATH (tests/processes.py)
 
 
 def main() -> None:

@@ -18,9 +18,9 @@ from processes import STARTUP, Driver, kill_all, python, running, wait_until
 
 from planner.db.lock import LockBusy, writer_lock
 from planner.errors import DatabaseError
-from planner.plan import procs
-from planner.plan.pool import run
-from tests.plan import pool_units as units
+from planner.run import procs
+from planner.run.pool import run
+from tests.run import pool_units as units
 
 linux = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 
@@ -148,7 +148,7 @@ def test_pool_workers_hold_no_descriptor_of_the_lock(tmp_path: Path) -> None:
 def test_driver_killed_mid_pool_lock_free_at_once(tmp_path: Path) -> None:
     db, progress = tmp_path / "x.db", tmp_path / "progress"
     progress.mkdir()
-    with Driver(str(Path(__file__).parents[1] / "plan" / "pool_driver.py"), str(progress), "--lock", str(db)) as driver:
+    with Driver(str(Path(__file__).parents[1] / "run" / "pool_driver.py"), str(progress), "--lock", str(db)) as driver:
         wait_until(lambda: len(list(progress.iterdir())) == 2, STARTUP, "both workers busy")
         driver.proc.send_signal(signal.SIGKILL)
         driver.proc.wait()

@@ -10,11 +10,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import assert_close, made_up
+from helpers import assert_close, damaged, made_up
 
 from planner import api
 from planner.db.ranking import RankingRule, rule_measures
 from planner.db.store import UnitRow, Validated, open_db
+from planner.errors import DatabaseError
 from planner.plan.measures import MIN_RESISTANCE, Measures
 from planner.plan.sweep import SweepSettings
 from planner.record.grasp import RobustEpsilon, Trial
@@ -173,3 +174,16 @@ def test_the_settled_epsilon_is_stored_and_adds_to_the_score_with_its_weight(tmp
     assert [g.candidate for g in sorted(back.values(), key=lambda g: g.rank)] == [1, 0, 2]  # 1: settled the best
     press_hold = (1.0 + 3.0 / 5.0) / 2.0  # push 1, resist 3 g of a 5 g cap
     assert_close([back[i].score for i in range(3)], [press_hold + 0.30, press_hold + 0.05 + 0.40, press_hold + 0.10])
+
+
+def test_a_read_sqlite_refuses_is_a_database_error_of_one_line(box_db: Path, tmp_path: Path) -> None:
+    broken = damaged(box_db, tmp_path / "broken.db")
+    with open_db(broken, create=False, readonly=True) as db:
+        assert db.object_row("box") is not None  # the objects table is whole
+        for read in (db.pairs, lambda: db.best("box", "panda", 1), lambda: list(db.grasp_batches("box", "panda")),
+                     db.validated):
+            with pytest.raises(DatabaseError, match=r"broken\.db: cannot read the database \(.*malformed.*\); "
+                                                    "check it with `grasp db check") as caught:
+                read()
+            assert isinstance(caught.value.__cause__, sqlite3.DatabaseError)
+            assert len(str(caught.value).splitlines()) == 1

@@ -7,7 +7,7 @@ import pytest
 
 from planner.geometry.solid import load_object
 from planner.plan.closing import Closed, Grasper
-from planner.plan.measures import broken_away, measure
+from planner.plan.measures import measure
 from planner.quality.resistance import AXES
 from planner.quality.tolerances import GRAVITY
 from planner.record.tolerances import MIN_OPEN_MARGIN
@@ -62,7 +62,7 @@ def test_barrett_fingers_break_away_and_curl_their_distal_links_on() -> None:
         closed = Grasper.for_mesh(sim, hand, obj.mesh).close_at(pose, wrap)
     assert isinstance(closed, Closed)
     q = closed.closed_joints
-    assert broken_away(hand, q) == {"bh_j32_joint"}
+    assert hand.broken_away(q) == {"bh_j32_joint"}
     assert q["bh_j33_joint"] > q["bh_j32_joint"] / 3 + 0.1  # the distal link closed on alone
     assert q["bh_j13_joint"] == pytest.approx(q["bh_j12_joint"] * 0.3333)  # fingers 1 and 2 stayed coupled
     m = measure(closed.contacts, closed.frames, hand, wrap, q, obj)  # type: ignore[arg-type]

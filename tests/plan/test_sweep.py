@@ -3,16 +3,20 @@
 from __future__ import annotations
 
 import json
+import sqlite3
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from planner import api
 from planner.errors import InputError
 from planner.plan.sampling import Approaches
 from planner.plan.sweep import ALGORITHM_VERSION, SweepSettings, candidates, unit_rng
 from planner.specs.hands import load_hand
 from planner.specs.preshapes import load_preshapes
+from planner.validation.shake import ShakeSettings
 
 RAYS = 7
 
@@ -79,6 +83,35 @@ def test_settings_digest_names_the_algorithm_and_every_setting() -> None:
     assert SweepSettings(rolls=5).digest != SweepSettings().digest
     assert SweepSettings(reach_placements=0).digest != SweepSettings().digest
     assert SweepSettings(fc_budget=0).digest != SweepSettings().digest
+
+
+def test_the_settles_trial_is_in_the_digest_of_a_sweep_that_settles_only() -> None:
+    """The trial decides the stored settled epsilons: other trial settings,
+    another digest; a sweep that does not settle does not name a trial."""
+    settles = SweepSettings().resolved("surface", hand_settle=True)
+    other = SweepSettings(trial=ShakeSettings(gear_erp=0.5)).resolved("surface", hand_settle=True)
+    assert settles.trial == ShakeSettings(batch=1) and other.trial == ShakeSettings(gear_erp=0.5, batch=1)
+    assert other.digest != settles.digest
+    assert json.loads(settles.to_json())["trial"]["gear_erp"] == ShakeSettings().gear_erp
+    assert settles.resolved("surface", hand_settle=True).digest == settles.digest  # resolving twice changes nothing
+    still = SweepSettings(trial=ShakeSettings(gear_erp=0.5)).resolved("antipodal")
+    assert still.trial is None and "trial" not in json.loads(still.to_json())
+    assert still.digest == SweepSettings().resolved("antipodal").digest
+
+
+def test_a_resumed_run_with_another_trial_redoes_its_units_apart(tmp_path: Path) -> None:
+    """Finished units of other trial settings are not taken as done: they
+    are stored as units of their own, and the same settings again skip."""
+    db = tmp_path / "g.db"
+    small = SweepSettings(approaches=2, rolls=1, preshapes=("pinch",), reach_placements=0)
+    first = api.generate(["box"], "barrett", db_path=db, settings=small)
+    other = api.generate(["box"], "barrett", db_path=db, settings=replace(small, trial=ShakeSettings(gear_erp=0.5)))
+    again = api.generate(["box"], "barrett", db_path=db, settings=small)
+    assert first.units == other.units == 1 and other.skipped == 0
+    assert again.units == 0 and again.skipped == 1
+    with sqlite3.connect(db) as conn:
+        trials = [json.loads(s)["trial"]["gear_erp"] for (s,) in conn.execute("SELECT settings FROM units")]
+    assert sorted(trials) == [0.5, ShakeSettings().gear_erp]
 
 
 def test_the_force_closure_budget_is_shared_evenly_by_an_objects_units() -> None:

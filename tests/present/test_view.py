@@ -25,7 +25,7 @@ CHROMIUM_FLAGS = ("--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader"
 def _stored(box_db: Path):
     grasps = api.best("box", "panda", db_path=box_db, top=5)
     spec, _ = api.hand("panda")
-    from planner.datasets.meshes import stored_object
+    from planner.db.objects import stored_object
     from planner.db.store import open_db
 
     with open_db(box_db, create=False, readonly=True) as db:

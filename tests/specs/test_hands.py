@@ -233,3 +233,55 @@ def test_allegro_opposed_thumb_meets_the_index_in_front_of_the_palm() -> None:
     index = _fk("allegro", q, "index_tip", (0, 0, 0))
     assert np.linalg.norm(thumb - index) < 2 * 0.012
     assert thumb[0] > 0.05 and index[0] > 0.05
+
+
+def test_the_hands_know_their_finger_dofs() -> None:
+    """Closing, the measures and the trial take the finger DOFs from here:
+    a self-centring jaw's two fingers apart, a Barrett finger with its distal
+    joint coupled (breakaway: the distal closes on alone), the spread holding;
+    once broken away, the finger's DOF is its distal joint alone."""
+    panda, barrett = load_hand("panda"), load_hand("barrett")
+    wide = {p.name: p for p in load_preshapes(panda)}["wide"]
+    assert [(d.driven, d.rates, d.after) for d in panda.closing_dofs(wide.close)] == [
+        ("panda_finger_joint1", {"panda_finger_joint1": -1.0}, None),
+        ("panda_finger_joint1", {"panda_finger_joint2": -1.0}, None)]
+    pinch = {p.name: p for p in load_preshapes(barrett)}["pinch"]
+    dofs = barrett.closing_dofs(pinch.close)
+    assert [d.rates for d in dofs] == [{"bh_j12_joint": 1.0, "bh_j13_joint": 0.3333},
+                                       {"bh_j22_joint": 1.0, "bh_j23_joint": 0.3333}]  # finger 3 and the spread hold
+    assert [d.after for d in dofs] == [{"bh_j13_joint": 0.3333}, {"bh_j23_joint": 0.3333}]
+    closed = barrett.full_configuration({"bh_j12_joint": 0.5, "bh_j22_joint": 0.5})
+    closed["bh_j23_joint"] += 0.2  # finger 2 broke away
+    assert barrett.broken_away(closed) == {"bh_j22_joint"}
+    assert [d.rates for d in barrett.closing_dofs(pinch.close, closed)] == [
+        {"bh_j12_joint": 1.0, "bh_j13_joint": 0.3333}, {"bh_j23_joint": 0.3333}]
+    assert barrett.coupling("bh_j32_joint") == {"bh_j32_joint": 1.0, "bh_j33_joint": 0.3333}
+    assert barrett.joint_rates({})["bh_j33_joint"] == 0.3333 and barrett.joint_rates({})["bh_j11_joint"] == 0.0
+
+
+def test_a_parallel_jaw_knows_its_master_joint_opening_and_widest_preshape() -> None:
+    panda, barrett = load_hand("panda"), load_hand("barrett")
+    assert panda.jaw is not None and barrett.jaw is None
+    master, slave = panda.jaw
+    assert (master.name, slave.name) == ("panda_finger_joint1", "panda_finger_joint2")
+    shapes = load_preshapes(panda)
+    assert panda.widest(shapes).name == "wide"
+    assert_close(panda.opening(panda.widest(shapes).joints), 0.08, NUM_TOL)  # the 8 cm stroke
+    assert_close(panda.opening(panda.full_configuration({master.name: 0.01})), 0.02, NUM_TOL)
+    # the Barrett's: every finger straight (wrap, circle, tee and hook tie at 0; the first wins), not the
+    # pinch, whose fingers start half a radian closed
+    assert barrett.widest(load_preshapes(barrett)).name == "wrap"
+
+
+def test_open_travel_is_the_fastest_contacts_way_back_to_the_open_limit() -> None:
+    panda = load_hand("panda")
+    axes = {"panda_finger_joint1": (np.zeros(3), np.array([0.0, 1.0, 0.0])),
+            "panda_finger_joint2": (np.zeros(3), np.array([0.0, -1.0, 0.0]))}
+    closed = {"panda_finger_joint1": 0.03, "panda_finger_joint2": 0.025}
+    points, links = np.array([[0.0, 0.03, 0.0], [0.0, -0.025, 0.0]]), ("panda_leftfinger", "panda_rightfinger")
+    wide = {p.name: p for p in load_preshapes(panda)}["wide"]
+    assert_close(panda.open_travel(wide.close, closed, points, links, axes), 0.04 - 0.03, NUM_TOL)
+    assert panda.open_travel(wide.close, closed, points[:0], (), axes) == np.inf
+    assert_close(panda.travel({"panda_finger_joint1": -1.0}, closed, 1.0, "closed"), 0.03, NUM_TOL)
+    with pytest.raises(ValueError, match="towards"):
+        panda.travel({"panda_finger_joint1": -1.0}, closed, 1.0, "shut")

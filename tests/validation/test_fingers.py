@@ -40,29 +40,67 @@ def test_fingers_are_counted_as_fingers_not_links() -> None:
     assert len(fg.fingers(barrett, fg.closing_rates(barrett, "pinch"))) == 2
 
 
+#: [m] joint frames the simulator gives for the hand placed at a grasp pose and at
+#: the origin agree to about 1e-7 m (measured 7e-8 on a Barrett grasp's open travel).
+FRAME_TOL = 1e-6
+#: The Panda's finger axes (hand frame): the left finger opens along +y, the right along -y.
+PANDA_AXES = {"panda_finger_joint1": (np.zeros(3), np.array([0.0, 1.0, 0.0])),
+              "panda_finger_joint2": (np.zeros(3), np.array([0.0, -1.0, 0.0]))}
+
+
 @given(q=st.floats(0.0, 0.04))
 def test_a_prismatic_finger_has_its_distance_to_the_open_limit_left(q: float) -> None:
     panda = load_hand("panda")
-    assert fg.clearance(panda, panda_grasp(q), fg.closing_rates(panda, "wide"), {}) == pytest.approx(0.04 - q)
+    assert fg.clearance(panda, panda_grasp(q), PANDA_AXES) == pytest.approx(0.04 - q)
 
 
 def test_only_touching_fingers_count() -> None:
     panda = load_hand("panda")
-    rates = fg.closing_rates(panda, "wide")
     untouched = replace(panda_grasp(0.04), contacts=HandContacts(np.zeros((0, 3)), np.zeros((0, 3)), ()))
-    assert fg.clearance(panda, untouched, rates, {}) == np.inf
+    assert fg.clearance(panda, untouched, PANDA_AXES) == np.inf
 
 
-def test_a_revolute_finger_has_its_angle_times_its_lever_left() -> None:
-    # Barrett finger 3 flexed 0.1 rad, touching 8 cm from its proximal axis: 8 mm of travel at the contact
+def test_a_coupled_finger_has_its_contacts_travel_back_along_the_synergy_left() -> None:
+    # Barrett finger 3 flexed 0.1 rad (its distal joint 0.1 / 3, coupled): a fingertip contact 8 cm from
+    # the proximal axis and 3 cm past the distal axis moves 0.08 + 0.03 / 3 m per radian of closing, so
+    # opening the finger to its limit takes it 0.1 x 0.09 m back (not the distal joint's own 0.1 / 3 x 0.03)
     barrett = load_hand("barrett")
-    axis = (np.array([0.0, 0.05, 0.0754]), np.array([1.0, 0.0, 0.0]))
+    x = np.array([1.0, 0.0, 0.0])
+    axes = {"bh_j32_joint": (np.array([0.0, 0.05, 0.0754]), x), "bh_j33_joint": (np.array([0.0, 0.05, 0.1254]), x)}
     contacts = HandContacts(np.array([[0.0, 0.05, 0.0754 + 0.08]]), np.array([[0.0, 0.0, 1.0]]),
                             ("bh_finger_33_link",))
-    grasp = as_row_of("barrett", np.eye(4), {"bh_j32_joint": 0.1, "bh_j33_joint": 0.1 / 3}, contacts)
-    lever = fg.levers(barrett, grasp, {"bh_j32_joint": axis, "bh_j33_joint": axis})
-    assert lever == pytest.approx({"bh_j32_joint": 0.08, "bh_j33_joint": 0.08})
-    assert fg.clearance(barrett, grasp, fg.closing_rates(barrett, "wrap"), lever) == pytest.approx(0.1 / 3 * 0.08)
+    grasp = as_row_of("barrett", np.eye(4), {"bh_j32_joint": 0.1, "bh_j33_joint": 0.1 * 0.3333}, contacts, "wrap")
+    assert fg.levers(barrett, grasp, axes) == pytest.approx({"bh_j32_joint": 0.08, "bh_j33_joint": 0.03})
+    assert fg.clearance(barrett, grasp, axes) == pytest.approx(0.1 * (0.08 + 0.03 * 0.3333))
+    # broken away (the distal joint closed on to 0.1 rad alone): its own travel back, 0.1 x 0.03 m
+    broken = as_row_of("barrett", np.eye(4), {"bh_j32_joint": 0.1, "bh_j33_joint": 0.1}, contacts, "wrap")
+    assert fg.clearance(barrett, broken, axes) == pytest.approx(0.1 * 0.03)
+
+
+def test_the_trials_clearance_is_the_sweeps_open_margin() -> None:
+    """One formula: the shake trial's open travel of a planned Barrett grasp
+    (its joint axes from the simulator, hand frame) is the open margin the
+    sweep stored (its joint frames from closing, object frame)."""
+    from planner.geometry.solid import load_object
+    from planner.plan.closing import Closed, Grasper
+    from planner.plan.measures import measure
+    from planner.sim import Sim
+    from planner.specs.preshapes import load_preshapes
+    from planner.validation.actuation import joint_axes
+
+    barrett, obj = load_hand("barrett"), load_object("cylinder")
+    wrap = {p.name: p for p in load_preshapes(barrett)}["wrap"]
+    with Sim() as sim:
+        closed = Grasper.for_mesh(sim, barrett, obj.mesh).close(np.zeros(3), np.array([0.0, 0.0, -1.0]), 0.3, 0.01,
+                                                                  wrap, obj.torque_scale)
+        assert isinstance(closed, Closed)
+        margin = measure(closed.contacts, closed.frames, barrett, wrap, closed.closed_joints, obj).open_margin  # type: ignore[arg-type]
+        body = sim.load_urdf(barrett.urdf)  # at the origin: the hand frame
+        sim.set_joints(body, closed.closed_joints)
+        axes = joint_axes(sim, barrett, body)
+    grasp = as_row_of("barrett", closed.pose, closed.closed_joints, closed.contacts, "wrap")
+    assert np.isfinite(margin) and margin > 0
+    assert_close(fg.clearance(barrett, grasp, axes), margin, FRAME_TOL)
 
 
 def test_levers_are_measured_in_the_hand_frame() -> None:

@@ -1,4 +1,4 @@
-"""The worker side of :mod:`planner.plan.pool`: one process, one pipe to the driver.
+"""The worker side of :mod:`planner.run.pool`: one process, one pipe to the driver.
 
 Protocol (driver -> worker): ``(index, unit)`` to run, ``None`` to stop.
 (worker -> driver): ``("ready", pid)`` once, then per unit
@@ -20,7 +20,7 @@ from collections.abc import Callable
 from multiprocessing.connection import Connection
 from typing import Any
 
-from planner.plan import procs
+from planner.run import procs
 
 #: Exit status of a worker that noticed its driver is gone.
 ORPHANED = 70

@@ -1,5 +1,5 @@
 """Imported first by the pool's fork server, and only there (see
-:func:`planner.plan.pool._context`): ties the server's life to the driver.
+:func:`planner.run.pool._context`): ties the server's life to the driver.
 
 The fork server is the parent of every worker, so the workers' own
 ``PR_SET_PDEATHSIG`` fires when the *server* dies, not the driver; and the
@@ -11,6 +11,6 @@ starts the server this way only from the driver's main thread, which ends
 only with the driver.
 """
 
-from planner.plan import procs
+from planner.run import procs
 
 procs.die_with_parent()

@@ -14,10 +14,10 @@ depends only on the unit, never on the backend or the worker count.
   exception in ``fn`` is a ``Failure`` of kind ``"error"`` (not retried: it
   would raise again); a unit over ``timeout`` seconds has its worker killed
   and is a ``Failure`` of kind ``"timeout"``.
-- Ray (``ray="local"`` or a cluster address): :mod:`planner.plan.ray_local`,
+- Ray (``ray="local"`` or a cluster address): :mod:`planner.run.ray_local`,
   the same contract.
 
-Workers die with the driver, even by SIGKILL (see :mod:`planner.plan.worker`),
+Workers die with the driver, even by SIGKILL (see :mod:`planner.run.worker`),
 and never hold the database's writer lock: they start by ``forkserver``
 (default) or ``spawn``, never ``fork``, so they get no descriptor of the
 driver's but the two pipes they are given. The fork server is a fresh
@@ -45,18 +45,17 @@ from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
-from typing import Any, Literal, TypeVar
+from typing import Any, TypeVar
 
 from planner.errors import PlannerError
-from planner.plan import worker
+from planner.run import worker
+from planner.run.failure import MAX_CRASHES, Failure
 
 log = logging.getLogger(__name__)
 
 U = TypeVar("U")
 R = TypeVar("R")
 
-#: A unit is tried this many times when it kills its worker.
-MAX_CRASHES = 2
 #: Workers in a row that die before they are ready before the pool gives up.
 START_FAILURES = 3
 #: [s] an idle worker gets to exit after "stop" before it is killed.
@@ -68,7 +67,7 @@ START_METHOD = "forkserver"
 PRELOAD = ("planner.plan.unit",)
 #: Imported first by a fork server started from the main thread: the kernel
 #: kills the server, and so its workers, when the driver dies.
-SERVER_GUARD = "planner.plan.server_guard"
+SERVER_GUARD = "planner.run.server_guard"
 #: Arm PR_SET_PDEATHSIG in workers and the fork server (tests turn it off to
 #: check the lifeline alone).
 USE_PDEATHSIG = True
@@ -78,19 +77,6 @@ class PoolError(PlannerError):
     """The pool itself cannot run: its worker processes cannot start."""
 
 
-@dataclass(frozen=True)
-class Failure:
-    """Why a unit has no result."""
-
-    kind: Literal["error", "crash", "timeout"]
-    message: str
-    attempts: int  # how many times the unit was started
-
-    def __str__(self) -> str:
-        return self.message
-
-
-
 def execute(fn: Callable[[U], R], units: Iterable[U], workers: int, *, timeout: float | None = None,
             ray: str | None = None) -> Iterator[tuple[U, R | Failure, float]]:
     """Run ``fn`` on every unit: in this process (``workers <= 1``), in a
@@ -98,7 +84,7 @@ def execute(fn: Callable[[U], R], units: Iterable[U], workers: int, *, timeout: 
     a private instance with ``workers`` CPUs, else a cluster address)."""
     if ray is None:
         return run(fn, units, workers, timeout=timeout)
-    from planner.plan import ray_local  # Ray is an optional extra
+    from planner.run import ray_local  # Ray is an optional extra
 
     return ray_local.on_ray(fn, units, workers, ray, timeout=timeout)
 

@@ -1,4 +1,4 @@
-"""Stored objects rebuilt from their ``objects`` row, and the mesh files of exports."""
+"""Stored objects rebuilt from their ``objects`` row (planner.db.objects), and the mesh files of exports."""
 
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ import pytest
 import trimesh
 from helpers import assert_close
 
-from planner.datasets.meshes import obj_text, stored_object
+from planner.datasets.meshes import obj_text
+from planner.db.objects import stored_object
 from planner.db.store import ObjectRow, open_db
 from planner.errors import InputError
 from planner.geometry.solid import load_object

@@ -1,5 +1,5 @@
-"""``python -m planner.plan.ray_launcher NUM_CPUS``: own a private local Ray
-instance for one driver (:func:`planner.plan.ray_local.local_ray`), and take
+"""``python -m planner.run.ray_launcher NUM_CPUS``: own a private local Ray
+instance for one driver (:func:`planner.run.ray_local.local_ray`), and take
 it down, every process of it, when that driver ends -- however it ends.
 
 The driver holds the write end of our stdin; EOF means it is finished or
@@ -21,7 +21,7 @@ import signal
 import sys
 import time
 
-from planner.plan import procs
+from planner.run import procs
 
 #: [s] between looks at the subtree while killing it (lets the kills land).
 KILL_POLL = 0.01

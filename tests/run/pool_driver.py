@@ -14,8 +14,8 @@ from contextlib import nullcontext
 from pathlib import Path
 
 from planner.db.lock import writer_lock
-from planner.plan import pool
-from tests.plan import pool_units as units  # the repository is on PYTHONPATH (tests/processes.py)
+from planner.run import pool
+from tests.run import pool_units as units  # the repository is on PYTHONPATH (tests/processes.py)
 
 
 def main() -> None:

@@ -14,9 +14,9 @@ pytest.importorskip("ray")
 
 from processes import ROOT  # noqa: E402
 
-from planner.plan.pool import Failure  # noqa: E402
-from planner.plan.ray_local import local_ray, run_ray  # noqa: E402
-from tests.plan import pool_units as units  # noqa: E402
+from planner.run.pool import Failure  # noqa: E402
+from planner.run.ray_local import local_ray, run_ray  # noqa: E402
+from tests.run import pool_units as units  # noqa: E402
 
 pytestmark = pytest.mark.ray
 

@@ -1,4 +1,4 @@
-"""Ray backend of :func:`planner.plan.pool.execute`: a private local instance
+"""Ray backend of :func:`planner.run.pool.execute`: a private local instance
 that dies with its driver, or a cluster this process attaches to, and a
 runner with the pool's contract.
 
@@ -8,7 +8,7 @@ runner with the pool's contract.
 dashboard and runtime-env agents linger about 60 s (they report the
 raylet's death to the dead GCS with a 60 s time-out). :func:`local_ray`
 instead starts the instance in a launcher process
-(:mod:`planner.plan.ray_launcher`) that takes all of it down when the driver
+(:mod:`planner.run.ray_launcher`) that takes all of it down when the driver
 ends, however it ends, within a fraction of a second. A driver attached to
 a cluster it did not start needs nothing of the kind: the cluster stays up
 and kills the driver's running tasks when the driver dies.
@@ -31,8 +31,8 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from planner.errors import InputError, PlannerError
-from planner.plan import worker
-from planner.plan.pool import MAX_CRASHES, Failure
+from planner.run import worker
+from planner.run.failure import MAX_CRASHES, Failure
 
 U = TypeVar("U")
 R = TypeVar("R")
@@ -87,7 +87,7 @@ def local_ray(num_cpus: int) -> Iterator[dict]:
     env = {**os.environ, **auth,
            "PYTHONPATH": os.pathsep.join(filter(None, [package_root, os.environ.get("PYTHONPATH")]))}
     with tempfile.TemporaryFile() as errors:
-        launcher = subprocess.Popen([sys.executable, "-m", "planner.plan.ray_launcher", str(num_cpus)], env=env,
+        launcher = subprocess.Popen([sys.executable, "-m", "planner.run.ray_launcher", str(num_cpus)], env=env,
                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=errors)
         try:
             line = launcher.stdout.readline()  # type: ignore[union-attr]
@@ -132,7 +132,7 @@ def _reload_ray_config(ray: Any) -> None:
 
 def run_ray(fn: Callable[[U], R], units: Iterable[U], in_flight: int, *, timeout: float | None = None,
             max_crashes: int = MAX_CRASHES) -> Iterator[tuple[U, R | Failure, float]]:
-    """:func:`planner.plan.pool.run` on the connected Ray cluster: at most
+    """:func:`planner.run.pool.run` on the connected Ray cluster: at most
     ``in_flight`` tasks at once (so a task starts about when it is sent,
     which the time-out counts from); a task whose worker dies is retried by
     Ray, ``max_crashes`` attempts in all."""

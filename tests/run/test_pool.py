@@ -17,11 +17,11 @@ from helpers import REFERENCE_OBJECTS, content
 from processes import STARTUP, Driver, python, running, tree, wait_until
 
 from planner import api
-from planner.plan import pool, procs, worker
-from planner.plan.pool import START_METHODS, Failure, PoolError, run
 from planner.plan.sweep import SweepSettings
+from planner.run import pool, procs, worker
+from planner.run.pool import START_METHODS, Failure, PoolError, run
 from tests import crash_units
-from tests.plan import pool_units as units
+from tests.run import pool_units as units
 
 linux = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 #: The reference batch's settings (tests/helpers.py REFERENCE_ARGS).
