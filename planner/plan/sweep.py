@@ -22,7 +22,7 @@ from planner.errors import InputError
 from planner.plan.tolerances import PREGRASP_DISTANCE
 from planner.specs.hands import SAMPLERS
 from planner.specs.preshapes import Preshape
-from planner.validation.shake import ShakeSettings
+from planner.validation.settings import ShakeSettings
 
 if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settings without it
     from planner.plan.sampling import Approaches, Pairs

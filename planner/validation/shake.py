@@ -54,52 +54,17 @@ from planner.geometry.frames import angle_between
 from planner.geometry.solid import PreparedObject
 from planner.record.contacts import HandContacts
 from planner.record.grasp import Grasp, Trial
-from planner.record.tolerances import MIN_OPEN_MARGIN
 from planner.sim import Body
-from planner.sim.dynamics import FILTER_BITS, Dynamics, Shape, fresh_world
+from planner.sim.dynamics import Dynamics, Shape, fresh_world
 from planner.specs.hands import HandSpec
 from planner.validation import fingers as fg
 from planner.validation.actuation import Breakaway, break_away, drive_fingers, hold_closed, joint_axes, set_contacts
 from planner.validation.parts import trial_shape
+from planner.validation.settings import ShakeSettings
 from planner.validation.tolerances import GRAVITY, LOAD_DIRECTIONS
 
 #: Why a trial ended as it did (``Trial.reason``).
 REASONS = ("held", "slipped", "squeezed_out", "no_contact", "no_clearance", "start_overlap")
-
-
-@dataclass(frozen=True)
-class ShakeSettings:
-    """Everything that decides a trial (stored with each result). Times in
-    seconds, lengths in metres, angles in radians.
-
-    ``dt`` and ``solver_iterations``: 1/480 s and 50 agree with a fine
-    reference (1/960 s, 100 iterations, longer phases) on 96% (Panda) and 92%
-    (Barrett) of sampled planner grasps; 1/240 s on 90% / 87%: coarser steps
-    make contacts creep and drop grasps. ``batch``: trials per PyBullet world.
-    """
-
-    dt: float = 1.0 / 480.0
-    solver_iterations: int = 50
-    start_gap: float = 0.005  # fingers start this far (at the contact) short of the planned grasp
-    close_time: float = 0.2  # Panda: 5 mm + 2 mm of collision margins at 0.05 m/s = 0.14 s
-    settle_time: float = 0.1  # the object comes to rest before it is loaded
-    load: float = 1.0  # [g] the load, in units of the object's weight
-    ramp_time: float = 0.03  # from one load direction to the next
-    hold_time: float = 0.1  # per direction: a slip at >= 0.15 g net moves the object > 1 cm
-    max_translation: float = 0.01  # of the centre of mass relative to the hand
-    max_rotation: float = 0.25
-    min_clearance: float = MIN_OPEN_MARGIN  # open travel left at a touching finger's contact
-    max_start_overlap: float = 0.005  # true depth of the open hand in the object's collision shape
-    part_tolerance: float = 0.0005  # convex parts simplified to within this of their hulls
-    gear_erp: float = 0.8  # mimic gear constraints (0.2 lets the Barrett's distal links lag)
-    batch: int = 1  # trials per world (<= 30), stepped together
-
-    def __post_init__(self) -> None:
-        if not 1 <= self.batch <= FILTER_BITS:
-            raise ConfigError(f"batch must be 1..{FILTER_BITS} trials per world, got {self.batch}")
-
-    def to_json(self) -> str:
-        return json.dumps(asdict(self), sort_keys=True)
 
 
 def recorded(settings: ShakeSettings, hand: HandSpec) -> str:

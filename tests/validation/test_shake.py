@@ -167,3 +167,10 @@ def test_a_grasp_backed_off_settles_into_no_contacts(pinched) -> None:  # type: 
     seen = []
     trials(hand, obj, [backed_off(grasp, hand, 0.06)], on_settled=lambda g, c: seen.append(c))
     assert [len(c) for c in seen] == [0]
+
+
+def test_a_world_holds_as_many_trials_as_the_settings_allow() -> None:
+    from planner.sim.dynamics import FILTER_BITS
+    from planner.validation.settings import MAX_BATCH
+
+    assert MAX_BATCH == FILTER_BITS
