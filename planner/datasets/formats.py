@@ -5,10 +5,10 @@ with its :func:`~planner.datasets.registry.register` call, named here."""
 
 from __future__ import annotations
 
-from planner.datasets import acronym, dexgraspnet, graspgen, registry, table
+from planner.datasets import acronym, dexgraspnet, graspgen, moveit, registry, table
 
 #: The format modules, each registered on import.
-MODULES = (acronym, graspgen, dexgraspnet, table)
+MODULES = (acronym, graspgen, dexgraspnet, moveit, table)
 #: Formats with a writer (``grasp export``) and with a reader (``grasp import``), sorted.
 EXPORT_FORMATS = registry.export_formats()
 IMPORT_FORMATS = registry.import_formats()

@@ -15,7 +15,7 @@ from planner.errors import UnknownNameError
 
 #: What each format claims: its writer's kind, and whether ``grasp import`` reads it.
 CLAIMS = {"acronym": (PairWriter, True), "graspgen": (PairWriter, False), "dexgraspnet": (PairWriter, False),
-          "parquet": (TableWriter, False), "csv": (TableWriter, False)}
+          "moveit": (PairWriter, False), "parquet": (TableWriter, False), "csv": (TableWriter, False)}
 
 
 def _write(path, obj, hand, batches):  # type: ignore[no-untyped-def]
@@ -28,7 +28,7 @@ def _path(stem, hand):  # type: ignore[no-untyped-def]
 
 def test_every_format_has_the_writer_and_reader_it_claims() -> None:
     assert {m.__name__ for m in formats.MODULES} == {f"planner.datasets.{m}" for m in
-                                                    ("acronym", "graspgen", "dexgraspnet", "table")}
+                                                    ("acronym", "graspgen", "dexgraspnet", "moveit", "table")}
     assert set(registry.export_formats()) == set(CLAIMS) == set(api.EXPORT_FORMATS)
     assert registry.import_formats() == tuple(n for n, (_, reads) in CLAIMS.items() if reads) == api.IMPORT_FORMATS
     for name, (kind, reads) in CLAIMS.items():
@@ -75,5 +75,5 @@ def test_a_bad_registration_fails_loudly_and_registers_nothing(bad, message: str
 
 
 def test_an_unknown_format_lists_the_registered_ones(tmp_path: Path) -> None:
-    with pytest.raises(UnknownNameError, match="Available formats: acronym, csv, dexgraspnet, graspgen, parquet"):
+    with pytest.raises(UnknownNameError, match="Available formats: acronym, csv, dexgraspnet, graspgen, moveit, parquet"):
         api.export(tmp_path / "g.db", "acronyn", tmp_path / "out")

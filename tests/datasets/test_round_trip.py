@@ -22,7 +22,7 @@ import pytest
 from helpers import grasp
 
 from planner import api
-from planner.datasets import acronym, dexgraspnet, graspgen, table
+from planner.datasets import acronym, dexgraspnet, graspgen, moveit, table
 from planner.datasets.exporter import FORMATS
 from planner.db.store import open_db
 from planner.plan.sweep import SweepSettings
@@ -50,6 +50,10 @@ NOT_CARRIED = {
     "csv": set(),
     "dexgraspnet": {"id", "unit_id", "object", "hand", "approach_point", "approach_dir", "open_joints", "contacts"},
 }
+#: Formats whose records are a fixed message (``moveit_msgs/Grasp``): they carry
+#: what the message has a field for, not the measures or the object's physics.
+MOVEIT_CARRIED = {"object", "hand", "rank", "score", "pose", "open_joints", "closed_joints"}
+MESSAGES = {"moveit"}
 #: The record fields of a format's files, by the file's own name for them.
 ACRONYM_FILE = {**{key: column for key, column in acronym.DATASETS.items()}, "joints_open": "open_joints",
                 "joints_closed": "closed_joints"}
@@ -89,10 +93,11 @@ def test_every_hand_is_swept_with_its_fields() -> None:
 def test_each_format_says_what_it_carries() -> None:
     """The fields a format leaves out are exactly the ones named here."""
     every = {f.name for f in record_fields()}
-    assert set(NOT_CARRIED) == set(FORMATS)
-    for fmt in FORMATS:
+    assert set(NOT_CARRIED) | MESSAGES == set(FORMATS)
+    for fmt in set(FORMATS) - MESSAGES:
         assert every - carried(fmt) == NOT_CARRIED[fmt], fmt
         assert {"settled_epsilon", "validation_success", "validation_reason", "robust_quantile"} <= carried(fmt)
+    assert MOVEIT_CARRIED < every
 
 
 def comparable(f: Field, value: object) -> object:
@@ -212,7 +217,7 @@ def same(f: Field, a: object, b: object) -> bool:
     return bool(a == b)
 
 
-@pytest.mark.parametrize("fmt", FORMATS)
+@pytest.mark.parametrize("fmt", sorted(set(FORMATS) - MESSAGES))
 def test_every_hand_comes_back_through_every_format(fmt: str, swept: Path, tmp_path: Path) -> None:
     out = export(swept, fmt, tmp_path / fmt)
     expected, physics = source(swept)
@@ -230,3 +235,75 @@ def test_every_hand_comes_back_through_every_format(fmt: str, swept: Path, tmp_p
     # the trials and the Barrett's settled epsilon are there to come back
     assert sum(row["validation_success"] is not None for row in expected.values()) == len(hand_names())
     assert all(row["settled_epsilon"] is not None for (hand, _), row in expected.items() if hand == "barrett")
+
+
+def read_moveit(out: Path) -> dict:
+    """{(hand, rank): fields} from the MoveIt YAML: the hand pose is the end
+    effector's times the hand's mount; joints from the two postures."""
+    import yaml
+
+    from planner.present.describe import quaternion_xyzw
+
+    rows = {}
+    for hand in hand_names():
+        spec = load_hand(hand)
+        for msg in yaml.safe_load((out / moveit.relative_path("box", hand)).read_text()):
+            obj, name, rank = msg["id"].split("/")
+            p, o = msg["grasp_pose"]["pose"]["position"], msg["grasp_pose"]["pose"]["orientation"]
+            ee = np.eye(4)
+            ee[:3, 3] = [p["x"], p["y"], p["z"]]
+            ee[:3, :3] = _matrix(np.array([o["x"], o["y"], o["z"], o["w"]]))
+            assert np.allclose(quaternion_xyzw(ee[:3, :3]), [o["x"], o["y"], o["z"], o["w"]], atol=1e-9)
+            pose = ee @ (np.eye(4) if spec.arm is None else spec.arm.mount)
+            joints = [dict(zip(msg[k]["joint_names"], msg[k]["points"][0]["positions"]))
+                      for k in ("pre_grasp_posture", "grasp_posture")]
+            assert msg["grasp_pose"]["header"]["frame_id"] == obj == "box"
+            rows[(hand, int(rank))] = _fields({"object": obj, "hand": name, "rank": int(rank),
+                                               "score": msg["grasp_quality"], "pose": pose,
+                                               "open_joints": joints[0], "closed_joints": joints[1]})
+    return rows
+
+
+def _matrix(q: np.ndarray) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_quat(q).as_matrix()
+
+
+#: moveit_msgs/Grasp, field by field (ROS 2 types as plain YAML): what a node
+#: filling the message from this file finds.
+MOVEIT_MESSAGE = {"id": str, "pre_grasp_posture": dict, "grasp_posture": dict, "grasp_pose": dict,
+                  "grasp_quality": float, "pre_grasp_approach": dict, "post_grasp_retreat": dict,
+                  "post_place_retreat": dict, "max_contact_force": float, "allowed_touch_objects": list}
+
+
+def test_every_hand_comes_back_through_moveit(swept: Path, tmp_path: Path) -> None:
+    out = export(swept, "moveit", tmp_path / "moveit")
+    expected, _ = source(swept)
+    back = read_moveit(out)
+    ranked = {key: row for key, row in expected.items() if key[1] is not None}
+    assert set(back) == set(ranked)
+    for key, row in ranked.items():
+        spec = load_hand(key[0])
+        for name in MOVEIT_CARRIED:
+            f = by_name(name)
+            want = moveit.posture_values(spec, row[name]) if name.endswith("_joints") else row[name]
+            assert same(f, back[key][name], want), ("moveit", key, name, back[key][name], want)
+            if name.endswith("_joints"):  # the stored joints exactly, the mimics at their coupling
+                assert {k: back[key][name][k] for k in row[name]} == row[name]
+    import yaml
+
+    for hand in hand_names():
+        spec = load_hand(hand)
+        messages = yaml.safe_load((out / moveit.relative_path("box", hand)).read_text())
+        assert [int(m["id"].split("/")[2]) for m in messages] == sorted(r for h, r in ranked if h == hand)
+        for m in messages:
+            assert {k: type(m[k]) for k in MOVEIT_MESSAGE} == MOVEIT_MESSAGE and set(m) == set(MOVEIT_MESSAGE)
+            approach = m["pre_grasp_approach"]
+            frame = spec.arm.ee_link if spec.arm is not None else spec.root_link
+            assert approach["direction"]["header"]["frame_id"] == frame
+            v = np.array([approach["direction"]["vector"][a] for a in "xyz"])
+            retreat = np.array([m["post_grasp_retreat"]["direction"]["vector"][a] for a in "xyz"])
+            assert np.isclose(np.linalg.norm(v), 1.0) and np.allclose(retreat, -v)
+            assert approach["desired_distance"] > approach["min_distance"] > 0
+            assert m["grasp_posture"]["points"][0]["time_from_start"] == {"sec": 0, "nanosec": 500_000_000}
