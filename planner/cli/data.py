@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from planner import api
-from planner.cli.app import LazyHelp, db_option, report_failures
+from planner.cli.app import LazyHelp, db_option, diverse_options, report_failures, spacing
 
 
 @click.command(name="export")
@@ -23,8 +23,10 @@ from planner.cli.app import LazyHelp, db_option, report_failures
 @click.option("--top", type=int, help="Only the K best-ranked grasps per (object, hand).")
 @click.option("--quiet", is_flag=True, help="Print nothing on success.")
 @click.option("--json", "as_json", is_flag=True, help="Print a machine-readable summary.")
+@diverse_options
 def export(db_path: Path, fmt: str, out_dir: Path, objects: tuple[str, ...], hands: tuple[str, ...],
-               min_epsilon: float | None, top: int | None, quiet: bool, as_json: bool) -> None:
+           min_epsilon: float | None, top: int | None, quiet: bool, as_json: bool, diverse: bool,
+           min_translation: float, min_rotation: float) -> None:
     """Export grasps as dataset files: acronym (HDF5 per object and hand),
     graspgen (JSON per object and hand), dexgraspnet (.npy per object and
     hand), parquet or csv (one table of all grasps)."""
@@ -34,7 +36,7 @@ def export(db_path: Path, fmt: str, out_dir: Path, objects: tuple[str, ...], han
             click.echo(f"{path}: {count} grasps")
 
     summary = api.export(db_path, fmt, out_dir, objects=objects, hands=hands, min_epsilon=min_epsilon, top=top,
-                         progress=progress)
+                         spacing=spacing(diverse, min_translation, min_rotation), progress=progress)
     if as_json:
         click.echo(json.dumps(summary.to_json(), indent=2))
     elif not quiet:

@@ -29,9 +29,11 @@ import math
 import os
 import time
 from collections.abc import Callable, Iterator, Sequence
+from contextlib import closing
 from dataclasses import dataclass, field
 from itertools import chain
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from planner.datasets import formats
 from planner.datasets.columns import Stream
@@ -41,6 +43,9 @@ from planner.db.store import Database, open_db
 from planner.errors import InputError
 from planner.record.grasp import Grasp
 from planner.specs.hands import HandSpec, load_hand
+
+if TYPE_CHECKING:
+    from planner.db.diverse import Spacing
 
 log = logging.getLogger(__name__)
 
@@ -59,10 +64,13 @@ class Selection:
     hands: tuple[str, ...] = ()
     min_epsilon: float | None = None  # keep epsilon >= this
     top: int | None = None  # keep rank <= this per (object, hand)
+    spacing: Spacing | None = None  # with top: the top best grasps this far apart (planner.db.diverse)
 
     def __post_init__(self) -> None:
         if self.top is not None and self.top < 1:
             raise InputError(f"--top must be at least 1, got {self.top}")
+        if self.spacing is not None and self.top is None:
+            raise InputError("--diverse needs --top K: how many diverse grasps to export per object and hand")
         if self.min_epsilon is not None and not math.isfinite(self.min_epsilon):
             raise InputError(f"--min-epsilon must be a finite number, got {self.min_epsilon}")
 
@@ -79,7 +87,20 @@ class Selection:
                 and (not self.hands or p[1] in self.hands)]
 
     def batches(self, db: Database, obj: str, hand: str) -> Iterator[list[Grasp]]:
-        return db.grasp_batches(obj, hand, min_epsilon=self.min_epsilon, top=self.top, size=BATCH_SIZE)
+        if self.spacing is None:
+            return db.grasp_batches(obj, hand, min_epsilon=self.min_epsilon, top=self.top, size=BATCH_SIZE)
+        return self._diverse(db, obj, hand)
+
+    def _diverse(self, db: Database, obj: str, hand: str) -> Iterator[list[Grasp]]:
+        """One batch: the ``top`` best diverse grasps (at most ``top``, so small)."""
+        from planner.db.diverse import diverse
+
+        spec = load_hand(hand)
+        with closing(db.grasp_batches(obj, hand, min_epsilon=self.min_epsilon, size=BATCH_SIZE)) as batches:
+            kept = diverse((g for b in batches for g in b if g.rank), self.top or 0, self.spacing,  # type: ignore[arg-type]
+                           spec.tcp, spec.approach, spec.roll_symmetry)
+        if kept:
+            yield kept
 
 
 @dataclass
@@ -98,13 +119,13 @@ class ExportSummary:
 
 
 def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (), hands: Sequence[str] = (),
-           min_epsilon: float | None = None, top: int | None = None,
+           min_epsilon: float | None = None, top: int | None = None, spacing: Spacing | None = None,
            progress: Callable[[Path, int], None] | None = None) -> ExportSummary:
     """Export the selected grasps of ``db_path`` as ``fmt`` into ``out_dir``
     (created if missing). ``top``: rank <= top per (object, hand);
     ``min_epsilon``: epsilon >= it. ``progress(file, grasps)`` after each file."""
     writer = formats.writer(fmt)
-    sel = Selection(tuple(objects), tuple(hands), min_epsilon, top)
+    sel = Selection(tuple(objects), tuple(hands), min_epsilon, top, spacing)
     summary = ExportSummary(fmt)
     start = time.perf_counter()
     with open_db(Path(db_path), create=False, readonly=True) as db:

@@ -75,5 +75,6 @@ def test_a_bad_registration_fails_loudly_and_registers_nothing(bad, message: str
 
 
 def test_an_unknown_format_lists_the_registered_ones(tmp_path: Path) -> None:
-    with pytest.raises(UnknownNameError, match="Available formats: acronym, csv, dexgraspnet, graspgen, moveit, parquet"):
+    listed = "Available formats: acronym, csv, dexgraspnet, graspgen, moveit, parquet"
+    with pytest.raises(UnknownNameError, match=listed):
         api.export(tmp_path / "g.db", "acronyn", tmp_path / "out")

@@ -99,3 +99,17 @@ def test_best_diverse_on_a_database(box_db: Path) -> None:
     assert code == 0, err
     assert [line.split()[0] for line in out.splitlines() if line.startswith("#")] == \
         [f"#{g.rank}" for g in apart[:3]]
+
+
+def test_export_top_diverse_writes_the_diverse_grasps(box_db: Path, tmp_path: Path) -> None:
+    import csv
+
+    apart = api.best("box", "panda", db_path=box_db, top=4, spacing=Spacing(0.03, np.radians(45)))
+    code, _, err = grasp("export", "--db", str(box_db), "--format", "csv", "--out", str(tmp_path / "csv"), "--top",
+                         "4", "--diverse", "--min-translation", "0.03", "--min-rotation", "45", "--quiet")
+    assert code == 0, err
+    with open(tmp_path / "csv" / "grasps.csv", newline="") as fh:
+        ranks = [int(r["rank"]) for r in csv.DictReader(fh)]
+    assert ranks == [g.rank for g in apart]
+    code, _, err = grasp("export", "--db", str(box_db), "--format", "csv", "--out", str(tmp_path / "x"), "--diverse")
+    assert code == 2 and "--diverse needs --top K" in err
