@@ -359,6 +359,12 @@ def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1, spac
     return grasps
 
 
+def ranking_rule(db_path: Path = DEFAULT_DB) -> RankingRule:
+    """The ranking rule a database's scores were made with (``meta.ranking``)."""
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        return db.rule()
+
+
 @dataclass(frozen=True)
 class ReachableGrasp:
     """A stored grasp with the arm solutions that reach it at a given pose."""

@@ -30,11 +30,14 @@ from planner.specs.hands import hand_frame
 @click.option("--stable-poses", type=int, default=3, show_default=True, help="With --on-table: how many resting "
               "poses to try, most probable first.")
 @click.option("--json", "as_json", is_flag=True)
+@click.option("--explain", is_flag=True, help="Also print why each grasp scores what it does, term by term of the "
+              "ranking rule.")
 @diverse_options
 def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str | None, robot_base: str | None,
-         max_candidates: int, on_table: bool, table_at: str, stable_poses: int, as_json: bool, diverse: bool,
-         min_translation: float, min_rotation: float) -> None:
+         max_candidates: int, on_table: bool, table_at: str, stable_poses: int, as_json: bool, explain: bool,
+         diverse: bool, min_translation: float, min_rotation: float) -> None:
     """The best grasps of OBJECT for a hand, from the database."""
+    rule = api.ranking_rule(db_path) if explain else None
     apart = spacing(diverse, min_translation, min_rotation)
     if on_table:
         if object_pose is not None or apart is not None:
@@ -46,10 +49,10 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
             raise click.BadParameter("--robot-base needs --object-pose")
         grasps = api.best(object_name, hand, db_path=db_path, top=top, spacing=apart)
         if as_json:
-            click.echo(json.dumps([{**g.to_json(), "frames": _frames_json(g)} for g in grasps], indent=2))
+            click.echo(json.dumps([{**g.to_json(), "frames": _frames_json(g, None, rule)} for g in grasps], indent=2))
             return
         for g in grasps:
-            _print_grasp(g)
+            _print_grasp(g, rule=rule)
         return
     if apart is not None:
         raise click.BadParameter("--diverse is not yet available with --object-pose")
@@ -58,7 +61,7 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
                         robot_base=floats(robot_base), max_candidates=max_candidates, misses=misses)
     world = api.object_pose_matrix(floats(object_pose) or ())
     if as_json:
-        click.echo(json.dumps([{**r.to_json(), "frames": _frames_json(r.grasp, world)} for r in found], indent=2))
+        click.echo(json.dumps([{**r.to_json(), "frames": _frames_json(r.grasp, world, rule)} for r in found], indent=2))
         return
     if not found:
         raise NotFoundError(f"none of the {max_candidates} best grasps of '{object_name}' for hand '{hand}' is "
@@ -66,21 +69,29 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
                             f"(--max-candidates {max_candidates * 10}), an object pose nearer the arm, --on-table, "
                             f"or check --robot-base")
     for r in found:
-        _print_grasp(r.grasp, world, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp})
+        _print_grasp(r.grasp, world, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp}, rule)
 
 
-def _print_grasp(g: api.Grasp, world: object = None, arm: dict | None = None) -> None:
-    from planner.present.describe import describe
+def _print_grasp(g: api.Grasp, world: object = None, arm: dict | None = None, rule: object = None) -> None:
+    from planner.present.describe import describe, explain
 
     for line in describe(g, hand_frame(g.hand), world, arm):  # type: ignore[arg-type]
         click.echo(line)
+    if rule is not None:
+        click.echo("    why this score (the ranking rule, `meta.ranking` of the database):")
+        for line in explain(g, rule):  # type: ignore[arg-type]
+            click.echo(line)
 
 
-def _frames_json(g: api.Grasp, world: object = None) -> dict:
+def _frames_json(g: api.Grasp, world: object = None, rule: object = None) -> dict:
     from planner.present.describe import frames
 
     spec = hand_frame(g.hand)
-    out = {"object_frame": frames(g, spec).to_json()}
+    out: dict = {"object_frame": frames(g, spec).to_json()}
+    if rule is not None:
+        from planner.db.ranking import rule_measures
+
+        out["explain"] = {k: float(v[0]) for k, v in rule.terms(rule_measures([g])).items()}  # type: ignore[attr-defined]
     if world is not None:
         out["world_frame"] = frames(g, spec, world).to_json()  # type: ignore[arg-type]
     return out

@@ -106,33 +106,42 @@ class RankingRule:
             raise InputError(f"ranking rule: cap must be > 0 g, min_open_margin, eps_weight and settled_weight >= 0; "
                              f"got {self}")
 
-    def analytic(self, measures: Mapping[str, ArrayLike | None]) -> np.ndarray:
-        """(n,) analytic scores from the measures (see :data:`MEASURES`)."""
+    def terms(self, measures: Mapping[str, ArrayLike | None]) -> dict[str, np.ndarray]:
+        """Every term of the rule, (n,) each, in the order :data:`FORMULA`
+        builds them: ``gate``, ``press``, ``hold``, ``quality``, ``settled``,
+        ``analytic``, ``reach_factor``, ``success_factor`` and ``score``
+        (``grasp best --explain`` prints them; :meth:`analytic` and
+        :meth:`scores` are read off them)."""
         eps = _column(measures, "epsilon")
         n = len(eps)
         fc = _column(measures, "force_closure", np.zeros(n))
         measured = ~np.isnan(_column(measures, "resist_worst", np.full(n, np.nan)))
         hold = np.where(measured, np.minimum(np.maximum(_column(measures, "resist_worst", np.zeros(n)), 0.0),
-                                             self.cap) / self.cap, fc > 0)
+                                             self.cap) / self.cap, fc > 0).astype(float)
         press = np.clip(_column(measures, "push", np.ones(n)), 0.0, 1.0)
         open_margin = _column(measures, "open_margin", np.full(n, np.inf))
         close_margin = _column(measures, "close_margin", np.full(n, np.inf))
-        gate = (open_margin >= self.min_open_margin) & (close_margin >= MIN_CLOSE_MARGIN)
+        gate = ((open_margin >= self.min_open_margin) & (close_margin >= MIN_CLOSE_MARGIN)).astype(float)
         settled = _column(measures, "settled_epsilon", np.zeros(n))
         quantile = _column(measures, "robust_quantile", eps)
         quality = (1.0 - self.robust_weight) * eps + self.robust_weight * quantile
-        return np.where(gate, press * (1.0 + hold) / 2.0 + self.eps_weight * quality + self.settled_weight * settled,
-                        0.0)
+        analytic = np.where(gate > 0, press * (1.0 + hold) / 2.0 + self.eps_weight * quality
+                            + self.settled_weight * settled, 0.0)
+        ones = np.ones(n)
+        reach = (1.0 - self.reach_weight) + self.reach_weight * _column(measures, "reachability", ones)
+        success = (1.0 - self.success_weight) + self.success_weight * _column(measures, "success", ones)
+        return {"gate": gate, "press": press, "hold": hold, "quality": quality, "settled": settled,
+                "analytic": analytic, "reach_factor": reach, "success_factor": success,
+                "score": analytic * reach * success}
+
+    def analytic(self, measures: Mapping[str, ArrayLike | None]) -> np.ndarray:
+        """(n,) analytic scores from the measures (see :data:`MEASURES`)."""
+        return self.terms(measures)["analytic"]
 
     def scores(self, measures: Mapping[str, ArrayLike | None]) -> np.ndarray:
         """(n,) final scores: the analytic score times reachability and
         simulated success, each weighted (absent = neutral)."""
-        analytic = self.analytic(measures)
-        ones = np.ones_like(analytic)
-        reach = _column(measures, "reachability", ones)
-        ok = _column(measures, "success", ones)
-        return (analytic * ((1.0 - self.reach_weight) + self.reach_weight * reach)
-                * ((1.0 - self.success_weight) + self.success_weight * ok))
+        return self.terms(measures)["score"]
 
     def to_json(self) -> str:
         return json.dumps({"formula": FORMULA, **asdict(self)}, sort_keys=True)

@@ -12,13 +12,18 @@ in the world frame too. Quaternions are (x, y, z, w).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from planner.record.grasp import Grasp
 from planner.specs.hands import HandFrame
+
+if TYPE_CHECKING:
+    from planner.db.ranking import RankingRule
 
 
 @dataclass(frozen=True)
@@ -111,4 +116,33 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
         lines.append(f"    shake trial: {verdict} ({trial.reason or 'no reason stored'})")
     for stage, joints in (arm or {}).items():
         lines.append(f"    arm at {stage} [rad]: " + ", ".join(f"{k} {v:.4f}" for k, v in joints.items()))
+    return lines
+
+
+def explain(grasp: Grasp, rule: RankingRule) -> list[str]:
+    """Why ``grasp`` scores what it does: the ranking rule's terms
+    (:meth:`~planner.db.ranking.RankingRule.terms`), each with the measure it
+    comes from and the rule's own weights and thresholds."""
+    from planner.db.ranking import rule_measures
+
+    m = {k: float(v[0]) for k, v in rule_measures([grasp]).items()}
+    t = {k: float(v[0]) for k, v in rule.terms(rule_measures([grasp])).items()}
+    mm = lambda v: "not measured" if math.isnan(v) else f"{v * 1000:.1f} mm"  # noqa: E731
+    lines = [f"    gate {t['gate']:.0f}: open margin {mm(m.get('open_margin', math.nan))} (needs >= "
+             f"{rule.min_open_margin * 1000:.1f} mm), close margin {mm(m.get('close_margin', math.nan))}"]
+    if t["gate"] == 0:
+        lines.append("    -> analytic 0: a finger has no clearance or sits at its closing stop")
+    else:
+        lines += [f"    press {t['press']:.3f} (push) x (1 + hold {t['hold']:.3f} (min(holds, {rule.cap:g} g) / "
+                  f"{rule.cap:g} g)) / 2 = {t['press'] * (1 + t['hold']) / 2:.4f}",
+                  f"    + eps_weight {rule.eps_weight:g} x quality {t['quality']:.4f} (epsilon) = "
+                  f"{rule.eps_weight * t['quality']:.4f}",
+                  f"    + settled_weight {rule.settled_weight:g} x settled epsilon {t['settled']:.4f} = "
+                  f"{rule.settled_weight * t['settled']:.4f}"]
+    reach = m.get("reachability", math.nan)
+    success = m.get("success", math.nan)
+    lines += [f"    = analytic {t['analytic']:.4f}; x reach factor {t['reach_factor']:.3f} ((1 - {rule.reach_weight:g})"
+              f" + {rule.reach_weight:g} x reachability {'not computed: 1' if math.isnan(reach) else f'{reach:.2f}'})"
+              f" x success factor {t['success_factor']:.3f} (shake trial "
+              f"{'not run: 1' if math.isnan(success) else f'{success:.0f}'}) = score {t['score']:.4f}"]
     return lines

@@ -186,3 +186,19 @@ def test_a_damaged_database_is_a_one_line_error(box_db: Path, tmp_path: Path, co
     args = [str(tmp_path / "out") if a == "OUT" else a for a in command]
     code, _, err = grasp(*args, "--db", str(broken))
     one_line_error(code, err, 3, "grasp: error:", "cannot read the database", "grasp db check")
+
+
+def test_explain_gives_the_rule_term_by_term(box_db: Path) -> None:
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--top", "2", "--explain", "--json")
+    assert code == 0, err
+    for item in json.loads(out):
+        terms = item["frames"]["explain"]
+        assert terms["score"] == pytest.approx(item["score"], rel=1e-9, abs=1e-12)
+        assert terms["score"] == pytest.approx(terms["analytic"] * terms["reach_factor"] * terms["success_factor"])
+        rule = api.ranking_rule(box_db)
+        if_gated = terms["press"] * (1 + terms["hold"]) / 2 + rule.eps_weight * terms["quality"] \
+            + rule.settled_weight * terms["settled"]
+        assert terms["analytic"] == pytest.approx(terms["gate"] * if_gated)
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--explain")
+    assert code == 0, err
+    assert "why this score" in out and "gate 1: open margin " in out and "= analytic " in out and "= score " in out
