@@ -102,17 +102,19 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
     tasks: list = []
 
     def advance(p: api.GenerateProgress) -> None:
-        if not tasks:
-            bar.start()
-            tasks.append(bar.add_task("generating", total=None, candidates="", units="", grasps=0, fc=0, rate=""))
         if p.result is not None:
             counts["grasps"] += len(p.result.grasps)
             counts["fc"] += p.result.force_closure
         rate = p.candidates_done / max(time.perf_counter() - started, 1e-9)
         total = "?" if p.candidates_total is None else str(p.candidates_total)
-        bar.update(tasks[0], total=p.candidates_total, completed=p.candidates_done,
-                   candidates=f"{p.candidates_done}/{total}", units=f"{p.units_done}/{p.units_total}",
-                   grasps=counts["grasps"], fc=counts["fc"], rate=f"{rate:.0f} cand/s")
+        shown = dict(total=p.candidates_total, completed=p.candidates_done, candidates=f"{p.candidates_done}/{total}",
+                     units=f"{p.units_done}/{p.units_total}", grasps=counts["grasps"], fc=counts["fc"],
+                     rate=f"{rate:.0f} cand/s")
+        if tasks:
+            bar.update(tasks[0], **shown)
+        else:
+            tasks.append(bar.add_task("generating", **shown))
+            bar.start()
 
     rule = api.RankingRule(reach_weight) if reach_weight is not None else None
     try:
