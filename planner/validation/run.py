@@ -16,11 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
+from planner import prepare
 from planner.db.lock import writer_lock
 from planner.db.objects import stored_object
 from planner.db.ranking import RankingRule
 from planner.db.store import Database, ObjectRow, Validated, open_db
-from planner import prepare
 from planner.errors import InputError, PlannerError
 from planner.record.grasp import Grasp, RobustEpsilon, Trial
 from planner.run import pool

@@ -8,9 +8,8 @@ from pathlib import Path
 
 import pytest
 import trimesh
-from shapely.geometry import Polygon
-
 from helpers import FAST, grasp
+from shapely.geometry import Polygon
 
 
 def ell(path: Path, arm: float) -> Path:

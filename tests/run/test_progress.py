@@ -76,7 +76,7 @@ def test_candidate_count_is_the_units_own(sampler: str) -> None:
                              reach_placements=0, settle=False).resolved(sampler)
     for chunk in range(settings.chunks()):
         calls: list[tuple[int, int]] = []
-        result = run_unit(UnitSpec("box", hand, settings, 0, chunk=chunk), lambda d, t: calls.append((d, t)))
+        result = run_unit(UnitSpec("box", hand, settings, 0, chunk=chunk), lambda d, t, c=calls: c.append((d, t)))
         assert result.error is None
         assert calls[-1][1] == planned(settings, hand, chunk) == result.candidates + result.rejected[BUDGET]
 
