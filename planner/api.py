@@ -36,7 +36,7 @@ from planner.db.lock import writer_lock
 from planner.db.ranking import RankingRule
 from planner.db.store import Database, ObjectRow, UnitRow, open_db
 from planner.errors import InputError, UnknownNameError
-from planner.plan.sweep import SAMPLER_DEFAULTS, SweepSettings
+from planner.plan.sweep import SAMPLER_DEFAULTS, SweepSettings, candidate_count
 from planner.plan.tolerances import PREGRASP_DISTANCE
 from planner.record.grasp import Grasp
 from planner.specs.hands import SAMPLERS, HandSpec, check_hand_name, hand_names, load_hand
@@ -67,8 +67,8 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DEFAULT_DB", "EXPORT_FORMATS", "IMPORT_FORMATS", "RANDOM_COUNT", "RANDOM_PREFIX", "ExportSummary", "Grasp",
-    "ImportResult", "RankingRule", "ReachableGrasp", "SAMPLERS", "SAMPLER_DEFAULTS", "Summary", "SweepSettings",
-    "UnitResult", "ValidationSummary",
+    "GenerateProgress", "ImportResult", "RankingRule", "ReachableGrasp", "SAMPLERS", "SAMPLER_DEFAULTS", "Summary",
+    "SweepSettings", "UnitResult", "ValidationSummary",
     "best", "best_at", "check_db", "default_workers", "export", "generate", "hand", "hands", "import_files",
     "objects", "plan_units", "report", "resolve_object", "show", "validate",
 ]
@@ -127,6 +127,26 @@ class Summary:
         return {"units": self.units, "skipped": self.skipped, "failed": self.failed, "candidates": self.candidates,
                 "grasps": self.grasps, "force_closure": self.force_closure, "rejected": dict(self.rejected),
                 "seconds": round(self.seconds, 3), "objects": self.per_object}
+
+
+@dataclass(frozen=True)
+class GenerateProgress:
+    """What ``generate`` tells its ``progress`` callback: after the plan
+    (nothing run yet), as running units report candidates (``result`` None),
+    and when a unit is written (``result`` its result).
+
+    ``candidates_total``: the candidates of every unit to do, planned from the
+    settings, a unit's own count once it reports (None while unknown: the box
+    sampler before any unit began); ``candidates_done`` never goes down, and
+    counts a finished unit (budget spent, failed) as its whole total and a
+    retried one once (:class:`planner.run.progress.Tally`). On Ray it moves
+    only as units finish."""
+
+    units_done: int
+    units_total: int
+    candidates_done: int
+    candidates_total: int | None
+    result: UnitResult | None = None
 
 
 def __getattr__(name: str) -> Any:
@@ -203,7 +223,7 @@ def _check_stored_physics(db: Database, units: Sequence[UnitSpec]) -> None:
 def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, settings: SweepSettings | None = None,
              seed: int = 0, workers: int = 1, scale: float | None = None, rule: RankingRule | None = None,
              use_ray: bool = False, ray_address: str | None = None, unit_timeout: float | None = None,
-             progress: Callable[[UnitResult | None, int, int], None] | None = None,
+             progress: Callable[[GenerateProgress], None] | None = None,
              mass: float | None = None, density: float | None = None, friction: float | None = None) -> Summary:
     """Build (or extend) a grasp database; finished units are skipped, so a
     run that was killed resumes when called again. Units run in this process
@@ -213,8 +233,9 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
     ``mass`` [kg] or ``density`` [kg/m^3], and ``friction``, apply to every
     object except where a manifest line gives its own (see
     :mod:`planner.specs.objects`); an object stored at other values is refused.
-    ``progress(None, 0, total)`` first, then ``progress(result, done, total)``."""
+    ``progress(GenerateProgress)`` once the work is planned, then as it goes."""
     from planner.run import pool
+    from planner.run.progress import Tally
 
     if workers < 1:
         raise InputError(f"--workers must be at least 1, got {workers}")
@@ -231,20 +252,34 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
         done = db.units_done(hand, settings.digest, seed)
         todo = [u for u in units if (u.label, u.chunk) not in done]
         summary.skipped = len(units) - len(todo)
-        if progress:
-            progress(None, 0, len(todo))
+        shapes = load_preshapes(hand_spec, list(settings.preshapes) if settings.preshapes else None)
+        tally = Tally([candidate_count(settings, shapes, u.chunk) for u in todo])
+        finished = 0
+
+        def tell(result: UnitResult | None = None) -> None:
+            if progress:
+                progress(GenerateProgress(finished, len(todo), tally.done, tally.total, result))
+
+        def reported(index: int, done: int, total: int) -> None:
+            tally.report(index, done, total)
+            tell()
+
+        tell()
         if unit_timeout:
             todo = [replace(u, timeout=unit_timeout) for u in todo]
         hard_timeout = unit_timeout + UNIT_TIMEOUT_GRACE if unit_timeout else None
         ray = (ray_address or "local") if use_ray else None
         unit_result = _lazy("UnitResult")
-        with closing(pool.execute(_lazy("run_unit"), todo, workers, timeout=hard_timeout, ray=ray)) as outcomes:
-            for done_count, (unit, outcome, seconds) in enumerate(outcomes, start=1):
+        index = {(u.label, u.chunk): i for i, u in enumerate(todo)}
+        with closing(pool.execute(_lazy("run_unit"), todo, workers, timeout=hard_timeout, ray=ray,
+                                  progress=reported if progress else None)) as outcomes:
+            for unit, outcome, seconds in outcomes:
                 result = outcome if isinstance(outcome, unit_result) else unit_result(unit, error=str(outcome))
                 db.write_unit(unit_row(result, seconds), result.obj, result.grasps, rule)
                 _tally(summary, result, seconds)
-                if progress:
-                    progress(result, done_count, len(todo))
+                finished += 1
+                tally.finish(index[unit.label, unit.chunk])
+                tell(result)
     summary.seconds = time.perf_counter() - start
     return summary
 

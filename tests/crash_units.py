@@ -6,9 +6,10 @@ sends them to its workers by name (so they live in an importable module)."""
 from __future__ import annotations
 
 import ctypes
+from pathlib import Path
 
 from planner.datasets.importer import Rescored, RescoreUnit, rescore_poses
-from planner.plan.unit import UnitResult, UnitSpec, run_unit
+from planner.plan.unit import Report, UnitResult, UnitSpec, run_unit
 from planner.validation.run import Task, TaskResult, run_task
 
 
@@ -32,3 +33,16 @@ def rescore_segfaults_on_first_file(unit: RescoreUnit) -> Rescored:
     if unit.file == 0 and unit.first == 0:
         segfault()
     return rescore_poses(unit)
+
+
+def generate_crashes_once_after_its_candidates(unit: UnitSpec, report: Report) -> UnitResult:
+    """Run the unit with its progress reports, then kill the worker the first
+    time (a marker file next to the unit's mesh file, one per chunk, says it
+    did): the retry reports the same candidates again."""
+    result = run_unit(unit, report)
+    mesh = Path(unit.object_name)
+    marker = mesh.with_name(f"{mesh.stem}.{unit.chunk}.crashed")
+    if not marker.exists():
+        marker.touch()
+        segfault()
+    return result

@@ -69,6 +69,25 @@ def main(debug: bool) -> None:
     logging.basicConfig(level=logging.DEBUG if debug else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
 
 
+class _Stderr(logging.Handler):
+    """A record as a bare line on the stderr of the moment."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        click.echo(self.format(record), err=True)
+
+
+def show_preparation(enabled: bool = True) -> None:
+    """Show the library's one-time preparation lines (:mod:`planner.prepare`:
+    a convex decomposition starting and ending) on stderr, or hide them."""
+    from planner import prepare
+
+    logger = logging.getLogger(prepare.LOGGER)
+    logger.propagate = False  # not twice under --debug
+    if not any(isinstance(h, _Stderr) for h in logger.handlers):
+        logger.addHandler(_Stderr())
+    logger.setLevel(logging.INFO if enabled else logging.WARNING)
+
+
 #: ``--db`` of every command that reads or writes a database.
 db_option = click.option("--db", "db_path", type=click.Path(path_type=Path), default=api.DEFAULT_DB,
                          show_default=True)

@@ -91,24 +91,30 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     show = not quiet and not as_json
-    # the bar starts when the work does (progress(None, 0, total)): an input error comes alone
-    bar = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total} units"),
+    # the bar starts when the work does (the first progress call): an input error comes alone. It counts
+    # candidates, finished ones of the running units included, so its ETA shows within seconds.
+    bar = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[candidates]} candidates"),
+                   TextColumn("{task.fields[units]} units"),
                    TextColumn("{task.fields[grasps]} grasps, {task.fields[fc]} force-closure, {task.fields[rate]}"),
                    TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), disable=not show)
-    counts = {"grasps": 0, "fc": 0, "candidates": 0}
+    counts = {"grasps": 0, "fc": 0}
     started = time.perf_counter()
     tasks: list = []
 
-    def advance(result: api.UnitResult | None, done: int, total: int) -> None:
-        if result is None:
+    def advance(p: api.GenerateProgress) -> None:
+        if p.result is not None:
+            counts["grasps"] += len(p.result.grasps)
+            counts["fc"] += p.result.force_closure
+        rate = p.candidates_done / max(time.perf_counter() - started, 1e-9)
+        total = "?" if p.candidates_total is None else str(p.candidates_total)
+        shown = dict(total=p.candidates_total, completed=p.candidates_done, candidates=f"{p.candidates_done}/{total}",
+                     units=f"{p.units_done}/{p.units_total}", grasps=counts["grasps"], fc=counts["fc"],
+                     rate=f"{rate:.0f} cand/s")
+        if tasks:
+            bar.update(tasks[0], **shown)
+        else:
+            tasks.append(bar.add_task("generating", **shown))
             bar.start()
-            tasks.append(bar.add_task("generating", total=total, grasps=0, fc=0, rate=""))
-            return
-        counts["grasps"] += len(result.grasps)
-        counts["fc"] += result.force_closure
-        counts["candidates"] += result.candidates
-        rate = counts["candidates"] / max(time.perf_counter() - started, 1e-9)
-        bar.update(tasks[0], completed=done, grasps=counts["grasps"], fc=counts["fc"], rate=f"{rate:.0f} cand/s")
 
     rule = api.RankingRule(reach_weight) if reach_weight is not None else None
     try:

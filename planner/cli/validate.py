@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from planner import api
-from planner.cli.app import db_option, report_failures
+from planner.cli.app import db_option, report_failures, show_preparation
 
 
 @click.command()
@@ -31,7 +31,11 @@ from planner.cli.app import db_option, report_failures
 @click.option("--json", "as_json", is_flag=True)
 def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], top: int, sample: int | None,
              every: bool, closure_only: bool, robust_samples: int, seed: int, workers: int, as_json: bool) -> None:
-    """Shake-test grasps in PyBullet (the best, a sample or all), add robust epsilon, re-rank."""
+    """Shake-test grasps in PyBullet (the best, a sample or all), add robust epsilon, re-rank.
+
+    The first run on a mesh decomposes it into convex parts (CoACD, 10-60 s,
+    cached afterwards); a line on stderr says when that starts and ends."""
+    show_preparation(not as_json)
     summary = api.validate(db_path, objects=list(objects) or None, hands=list(hands) or None, top=top,
                            sample=sample, every=every, robust_samples=robust_samples, seed=seed, workers=workers,
                            closure_only=closure_only)

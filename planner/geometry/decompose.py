@@ -17,6 +17,7 @@ import io
 import json
 import logging
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import trimesh
@@ -51,21 +52,33 @@ class Parts:
 
 
 def convex_parts(mesh: trimesh.Trimesh, mesh_hash: str, settings: CoacdSettings | None = None) -> Parts:
+    settings = settings or CoacdSettings()
+    parts = ready_parts(mesh, mesh_hash, settings)
+    if parts is None:
+        parts = _run_coacd(mesh, settings)
+        _write(_cache_path(mesh_hash, settings), parts)
+    return parts
+
+
+def ready_parts(mesh: trimesh.Trimesh, mesh_hash: str, settings: CoacdSettings | None = None) -> Parts | None:
+    """The parts without running CoACD (the bodies when each is convex, else
+    the cached decomposition), None when :func:`convex_parts` would run it."""
     bodies = mesh.split(only_watertight=False) if len(mesh.faces) else []
     if bodies and all(_is_convex(b) for b in bodies):
         hulls = [b.convex_hull for b in bodies]
         return Parts(tuple(h.vertices for h in hulls), tuple(h.faces for h in hulls), "bodies")
-    settings = settings or CoacdSettings()
-    key = assets.sha256_bytes(json.dumps([mesh_hash, settings.__dict__], sort_keys=True).encode())[:24]
-    path = assets.cache_dir("coacd") / f"{key}.npz"
+    path = _cache_path(mesh_hash, settings or CoacdSettings())
     if path.is_file():
         try:
             return _read(path)
         except (OSError, ValueError, KeyError):
             path.unlink(missing_ok=True)
-    parts = _run_coacd(mesh, settings)
-    _write(path, parts)
-    return parts
+    return None
+
+
+def _cache_path(mesh_hash: str, settings: CoacdSettings) -> Path:
+    key = assets.sha256_bytes(json.dumps([mesh_hash, settings.__dict__], sort_keys=True).encode())[:24]
+    return assets.cache_dir("coacd") / f"{key}.npz"
 
 
 def _is_convex(body: trimesh.Trimesh) -> bool:

@@ -226,3 +226,17 @@ def antipodal_candidates(pairs: Pairs, shapes: tuple[Preshape, ...], openings: d
                 index = i * per_point + k * len(settings.depths) + j
                 out.append(Candidate(index, i, shape, float(pairs.phases[i] + angle), float(depth)))
     return out
+
+
+def candidate_count(settings: SweepSettings, shapes: tuple[Preshape, ...], chunk: int = 0) -> int | None:
+    """Candidates of unit ``chunk`` as :func:`candidates` or
+    :func:`antipodal_candidates` will list them, known before sampling (for
+    progress); None for the box sampler, whose rays depend on the mesh."""
+    rays = settings.rays_known
+    if rays is None:
+        return None
+    points = len(settings.ray_range(chunk, rays))
+    if settings.sampler == "antipodal":
+        return points * settings._resolved_field("rolls") * len(settings.depths)
+    per_ray = sum(len(settings.standoffs or shape.standoffs) for shape in shapes)
+    return points * settings._resolved_field("rolls") * per_ray

@@ -13,7 +13,7 @@ import logging
 import time
 import traceback
 from collections import Counter
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -102,12 +102,23 @@ class UnitResult:
         return sum(g.force_closure for g in self.grasps)
 
 
-def run_unit(spec: UnitSpec) -> UnitResult:
-    """Run a unit; a failure is recorded in the result, never raised."""
+#: report(done, total): ``done`` of the unit's ``total`` candidates are finished.
+Report = Callable[[int, int], None]
+
+
+def _silent(done: int, total: int) -> None:
+    pass
+
+
+def run_unit(spec: UnitSpec, report: Report | None = None) -> UnitResult:
+    """Run a unit; a failure is recorded in the result, never raised.
+    ``report`` hears of the candidates as they finish: (0, total) when the
+    first begins, (total, total) when the last ends or the budget is spent
+    (settle and reachability come after); it never changes the result."""
     result = UnitResult(spec)
     try:
         with one_blas_thread():
-            _run(spec, result)
+            _run(spec, result, report or _silent)
     except PlannerError as exc:
         result.error = str(exc)
     except Exception as exc:  # a simulator or library crash: keep the batch going
@@ -116,7 +127,7 @@ def run_unit(spec: UnitSpec) -> UnitResult:
     return result
 
 
-def _run(spec: UnitSpec, result: UnitResult) -> None:
+def _run(spec: UnitSpec, result: UnitResult, report: Report) -> None:
     t0 = time.perf_counter()
     obj = load_object(spec.object_name, scale=spec.scale, label=spec.label, **spec.physical.given())
     hand = load_hand(spec.hand)
@@ -129,7 +140,8 @@ def _run(spec: UnitSpec, result: UnitResult) -> None:
     with Sim() as sim:
         grasper = Grasper.for_mesh(sim, hand, obj.mesh)
         sweep = _antipodal if settings.sampler == "antipodal" else _rays
-        for cand, closed, ray in sweep(spec, settings, obj, hand, shapes, rng, grasper, result, t0, budget):
+        for cand, closed, ray in sweep(spec, settings, obj, hand, shapes, rng, grasper, result, t0, budget,
+                                    report):
             tb = time.perf_counter()
             q = scored(closed.contacts, hand, obj, settings.cone_edges, result.rejected, settings.volume)
             if q is None:
@@ -171,22 +183,26 @@ def _check_time(spec: UnitSpec, t0: float) -> float:
     return now
 
 
-def _tried(todo: list[Candidate], budget: Budget, result: UnitResult) -> Iterator[Candidate]:
+def _tried(todo: list[Candidate], budget: Budget, result: UnitResult, report: Report) -> Iterator[Candidate]:
     """The candidates in order, counted in ``result.candidates``, until the
     budget is spent when a new ray or point would begin; the rest are
-    counted as :data:`BUDGET` in ``result.rejected``."""
+    counted as :data:`BUDGET` in ``result.rejected``. ``report`` gets the
+    candidates finished before each one, then all of them."""
     previous = None
     for i, cand in enumerate(todo):
+        report(i, len(todo))
         if cand.ray != previous and budget.spent:
             result.rejected[BUDGET] += len(todo) - i
-            return
+            break
         previous = cand.ray
         result.candidates += 1
         yield cand
+    report(len(todo), len(todo))
 
 
 def _rays(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, hand: HandSpec, shapes: tuple[Preshape, ...],
-          rng: np.random.Generator, grasper: Grasper, result: UnitResult, t0: float, budget: Budget) -> Swept:
+          rng: np.random.Generator, grasper: Grasper, result: UnitResult, t0: float, budget: Budget,
+          report: Report) -> Swept:
     """OpenRAVE-style: approach along each ray until contact, back off, close."""
     t1 = time.perf_counter()
     rays = sampling.sample(obj.mesh, sampler=settings.sampler or "surface", count=settings.approaches or 0, rng=rng,
@@ -194,7 +210,7 @@ def _rays(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, hand: Ha
     todo = candidates(rays, shapes, settings, hand.roll_symmetry, settings.ray_range(spec.chunk, len(rays)))
     result.timing["sampling"] += time.perf_counter() - t1
     radius = obj.torque_scale + float(np.linalg.norm(obj.com))
-    for cand in _tried(todo, budget, result):
+    for cand in _tried(todo, budget, result, report):
         ta = _check_time(spec, t0)
         closed = grasper.close(rays.points[cand.ray], rays.directions[cand.ray], cand.roll, cand.standoff,
                                cand.preshape, radius)
@@ -207,7 +223,7 @@ def _rays(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, hand: Ha
 
 def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, hand: HandSpec,
                shapes: tuple[Preshape, ...], rng: np.random.Generator, grasper: Grasper, result: UnitResult,
-               t0: float, budget: Budget) -> Swept:
+               t0: float, budget: Budget, report: Report) -> Swept:
     """Parallel jaws: the hand put straight on each antipodal pair, refused
     before simulation when the pair is unusable or the open hand overlaps
     the object, else closed where it is."""
@@ -229,7 +245,7 @@ def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, han
                                      np.array([c.standoff for c in usable]))
     pose_of = {c.index: pose for c, pose in zip(usable, poses)}
     result.timing["sampling"] += time.perf_counter() - t1
-    for cand in _tried(todo, budget, result):
+    for cand in _tried(todo, budget, result, report):
         if pairs.reasons[cand.ray]:
             result.rejected[pairs.reasons[cand.ray]] += 1
             continue

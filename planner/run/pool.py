@@ -17,6 +17,14 @@ depends only on the unit, never on the backend or the worker count.
 - Ray (``ray="local"`` or a cluster address): :mod:`planner.run.ray_local`,
   the same contract.
 
+Progress inside units (:mod:`planner.run.progress`): with ``progress``, ``fn``
+is called as ``fn(unit, report)``; the unit's throttled ``report(done,
+total)`` calls reach ``progress(index, done, total)`` in the driver, ``index``
+the unit's position in ``units``: directly in process, as a message on the
+worker's pipe in the local pool (the driver calls ``progress`` while it waits
+for results). A retried unit reports again from zero. On Ray units report
+nothing: ``progress`` is not called.
+
 Workers die with the driver, even by SIGKILL (see :mod:`planner.run.worker`),
 and never hold the database's writer lock: they start by ``forkserver``
 (default) or ``spawn``, never ``fork``, so they get no descriptor of the
@@ -50,6 +58,11 @@ from typing import Any, TypeVar
 from planner.errors import PlannerError
 from planner.run import worker
 from planner.run.failure import MAX_CRASHES, Failure
+from planner.run.progress import Throttled
+
+#: progress(index, done, total) in the driver: unit ``index`` (its position in
+#: the units given) has finished ``done`` of its ``total`` steps.
+OnProgress = Callable[[int, int, int], None]
 
 log = logging.getLogger(__name__)
 
@@ -77,20 +90,21 @@ class PoolError(PlannerError):
     """The pool itself cannot run: its worker processes cannot start."""
 
 
-def execute(fn: Callable[[U], R], units: Iterable[U], workers: int, *, timeout: float | None = None,
-            ray: str | None = None) -> Iterator[tuple[U, R | Failure, float]]:
+def execute(fn: Callable[..., R], units: Iterable[U], workers: int, *, timeout: float | None = None,
+            ray: str | None = None, progress: OnProgress | None = None) -> Iterator[tuple[U, R | Failure, float]]:
     """Run ``fn`` on every unit: in this process (``workers <= 1``), in a
     local pool of ``workers`` processes, or on Ray (``ray``: ``"local"`` for
-    a private instance with ``workers`` CPUs, else a cluster address)."""
+    a private instance with ``workers`` CPUs, else a cluster address).
+    ``progress``: see the module's docstring (not on Ray)."""
     if ray is None:
-        return run(fn, units, workers, timeout=timeout)
+        return run(fn, units, workers, timeout=timeout, progress=progress)
     from planner.run import ray_local  # Ray is an optional extra
 
     return ray_local.on_ray(fn, units, workers, ray, timeout=timeout)
 
 
-def run(fn: Callable[[U], R], units: Iterable[U], workers: int, *, timeout: float | None = None,
-        max_crashes: int = MAX_CRASHES, start_method: str = START_METHOD
+def run(fn: Callable[..., R], units: Iterable[U], workers: int, *, timeout: float | None = None,
+        max_crashes: int = MAX_CRASHES, start_method: str = START_METHOD, progress: OnProgress | None = None
         ) -> Iterator[tuple[U, R | Failure, float]]:
     """The local pool: yield ``(unit, result or Failure, seconds)`` in the
     order units finish; ``seconds`` is the run time of the last attempt.
@@ -104,25 +118,27 @@ def run(fn: Callable[[U], R], units: Iterable[U], workers: int, *, timeout: floa
         raise ValueError(f"timeout must be positive, got {timeout}")
     todo = list(units)
     if workers <= 1:
-        return _in_process(fn, todo)
-    return _pooled(fn, todo, min(workers, len(todo)), timeout, max_crashes, start_method)
+        return _in_process(fn, todo, progress)
+    return _pooled(fn, todo, min(workers, len(todo)), timeout, max_crashes, start_method, progress)
 
 
-def _in_process(fn: Callable[[U], R], units: list[U]) -> Iterator[tuple[U, R | Failure, float]]:
-    for unit in units:
+def _in_process(fn: Callable[..., R], units: list[U], progress: OnProgress | None
+                ) -> Iterator[tuple[U, R | Failure, float]]:
+    for index, unit in enumerate(units):
         start = time.perf_counter()
         try:
-            outcome: R | Failure = fn(unit)
+            outcome: R | Failure = fn(unit) if progress is None else fn(unit, Throttled(
+                lambda done, total, i=index: progress(i, done, total)))
         except Exception as exc:
             outcome = Failure("error", worker.describe(exc), 1)
         yield unit, outcome, time.perf_counter() - start
 
 
-def _pooled(fn: Callable[[U], R], units: list[U], size: int, timeout: float | None, max_crashes: int,
-            start_method: str) -> Iterator[tuple[U, R | Failure, float]]:
+def _pooled(fn: Callable[..., R], units: list[U], size: int, timeout: float | None, max_crashes: int,
+            start_method: str, progress: OnProgress | None) -> Iterator[tuple[U, R | Failure, float]]:
     if not units:
         return
-    pool = _Pool(fn, size, timeout, max_crashes, _context(start_method, fn))
+    pool = _Pool(fn, size, timeout, max_crashes, _context(start_method, fn), progress)
     try:
         yield from pool.results(units)
     finally:
@@ -155,8 +171,10 @@ class _Worker:
 
 
 class _Pool:
-    def __init__(self, fn: Callable, size: int, timeout: float | None, max_crashes: int, ctx: Any) -> None:
+    def __init__(self, fn: Callable, size: int, timeout: float | None, max_crashes: int, ctx: Any,
+                 progress: OnProgress | None = None) -> None:
         self.fn, self.size, self.timeout, self.max_crashes, self.ctx = fn, size, timeout, max_crashes, ctx
+        self.progress = progress
         self.lifeline_r, self.lifeline_w = ctx.Pipe(duplex=False)
         self.workers: list[_Worker] = []
         self.start_failures = 0
@@ -220,6 +238,11 @@ class _Pool:
         if message[0] == "ready":
             w.ready, self.start_failures = True, 0
             return []
+        if message[0] == "progress":
+            _, index, done, total = message
+            if self.progress is not None and w.job is not None and w.job.index == index:
+                self.progress(index, done, total)
+            return []
         kind, _, payload, seconds = message
         job, w.job = w.job, None
         assert job is not None, "a worker answers only the unit it was sent"
@@ -263,7 +286,8 @@ class _Pool:
     def _start(self) -> None:
         here, there = self.ctx.Pipe()
         process = self.ctx.Process(target=worker.main, name="grasp-worker",
-                                   args=(self.fn, there, self.lifeline_r, self._pdeathsig()))
+                                   args=(self.fn, there, self.lifeline_r, self._pdeathsig(),
+                                         self.progress is not None))
         try:
             process.start()
         except (pickle.PicklingError, AttributeError, TypeError) as exc:

@@ -2,7 +2,10 @@
 
 Protocol (driver -> worker): ``(index, unit)`` to run, ``None`` to stop.
 (worker -> driver): ``("ready", pid)`` once, then per unit
-``("ok", index, result, seconds)`` or ``("error", index, message, seconds)``.
+``("ok", index, result, seconds)`` or ``("error", index, message, seconds)``,
+after any number of ``("progress", index, done, total)`` when the pool asked
+for progress (``fn`` is then called as ``fn(unit, report)``, the report
+throttled by :class:`planner.run.progress.Throttled`).
 
 A worker never outlives its driver: a watcher thread exits it when the
 *lifeline* -- a pipe whose only write end the driver holds and never writes --
@@ -21,6 +24,7 @@ from multiprocessing.connection import Connection
 from typing import Any
 
 from planner.run import procs
+from planner.run.progress import Throttled
 
 #: Exit status of a worker that noticed its driver is gone.
 ORPHANED = 70
@@ -43,7 +47,8 @@ def _exit_when_driver_dies(lifeline: Connection) -> None:
     os._exit(ORPHANED)
 
 
-def main(fn: Callable[[Any], Any], conn: Connection, lifeline: Connection, pdeathsig: bool) -> None:
+def main(fn: Callable[..., Any], conn: Connection, lifeline: Connection, pdeathsig: bool,
+         report: bool = False) -> None:
     """Entry point of a worker process (started with spawn or forkserver)."""
     if pdeathsig:
         procs.die_with_parent()
@@ -65,7 +70,13 @@ def main(fn: Callable[[Any], Any], conn: Connection, lifeline: Connection, pdeat
         index, unit = message
         start = time.perf_counter()
         try:
-            reply = ("ok", index, fn(unit), time.perf_counter() - start)
+            if report:
+                def send(done: int, total: int, index: int = index) -> None:
+                    conn.send(("progress", index, done, total))
+
+                reply = ("ok", index, fn(unit, Throttled(send)), time.perf_counter() - start)
+            else:
+                reply = ("ok", index, fn(unit), time.perf_counter() - start)
         except Exception as exc:  # reported as this unit's failure; the worker goes on
             reply = ("error", index, describe(exc), time.perf_counter() - start)
         try:

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from planner import prepare
 from planner.db.lock import writer_lock
 from planner.db.objects import stored_object
 from planner.db.ranking import RankingRule
@@ -23,6 +24,7 @@ from planner.db.store import Database, ObjectRow, Validated, open_db
 from planner.errors import InputError, PlannerError
 from planner.record.grasp import Grasp, RobustEpsilon, Trial
 from planner.run import pool
+from planner.run.progress import Report
 from planner.specs.hands import load_hand
 from planner.threads import one_blas_thread
 from planner.validation.robust import NoiseSettings, robust_epsilon
@@ -132,6 +134,42 @@ def execute(tasks: list[Task], workers: int) -> Iterator[TaskResult]:
             yield outcome if isinstance(outcome, TaskResult) else TaskResult(task, error=str(outcome))
 
 
+def decompose(row: ObjectRow, report: Report) -> bool:
+    """Make sure the stored object's convex parts are ready (cached) for
+    its trials; ``report(0, 1)`` just before CoACD runs. True if it ran."""
+    from planner.geometry.decompose import convex_parts, ready_parts
+    from planner.validation.parts import PRIMITIVES
+
+    with one_blas_thread():
+        obj = stored_object(row)
+        if obj.spec.kind in PRIMITIVES or ready_parts(obj.mesh, obj.mesh_hash) is not None:
+            return False
+        report(0, 1)
+        convex_parts(obj.mesh, obj.mesh_hash)
+    return True
+
+
+def prepare_objects(rows: list[ObjectRow], workers: int) -> None:
+    """Decompose the objects of the trials that have no cached convex parts
+    yet, in the pool (each object once, not once per task), announcing each
+    decomposition as it starts and ends (:mod:`planner.prepare`). A failure is
+    left to the trials, which report it per task."""
+    begun: set[int] = set()
+
+    def started(index: int, done: int, total: int) -> None:
+        if index not in begun:
+            begun.add(index)
+            prepare.started(prepare.DECOMPOSITION, rows[index].name)
+
+    position = {row.name: i for i, row in enumerate(rows)}
+    with closing(pool.execute(decompose, rows, workers, progress=started)) as outcomes:
+        for row, ran, seconds in outcomes:
+            if ran is True:
+                prepare.ended(prepare.DECOMPOSITION, row.name, seconds)
+            elif position[row.name] in begun:
+                log.warning("convex decomposition of %s failed: %s", row.name, ran)
+
+
 def write(db: Database, result: TaskResult, rule: RankingRule) -> None:
     task = result.task
     noise = task.noise.to_json() if task.noise is not None else ""
@@ -171,6 +209,7 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
     with writer_lock(Path(db_path)), open_db(Path(db_path), create=False) as db:
         rule = db.rule()
         tasks = plan(db, objects, hands, Selection(top, sample, every, closure_only), seed, trial_settings, noise)
+        prepare_objects(list({t.row.name: t.row for t in tasks}.values()), workers)
         if progress:
             progress(0, len(tasks))
         for done, result in enumerate(execute(tasks, workers), start=1):

@@ -1,0 +1,47 @@
+"""One-time preparation is announced: the first ``grasp validate`` on a
+concave mesh says on stderr when its convex decomposition starts and ends,
+a second run (cached) says nothing, ``--json`` keeps stderr clean."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import trimesh
+from helpers import FAST, grasp
+from shapely.geometry import Polygon
+
+
+def ell(path: Path, arm: float) -> Path:
+    """An L-shaped prism [m]: concave, so CoACD decomposes it; ``arm`` makes
+    its content, and so its cache entry, its own."""
+    outline = Polygon([(0, 0), (arm, 0), (arm, 0.02), (0.02, 0.02), (0.02, arm), (0, arm)])
+    trimesh.creation.extrude_polygon(outline, 0.03).export(path)
+    return path
+
+
+def decomposition_lines(err: str) -> list[str]:
+    return [line for line in err.splitlines() if "convex decomposition" in line]
+
+
+@pytest.mark.parametrize(("workers", "arm"), [("1", 0.06), ("2", 0.061)])
+def test_validate_announces_a_decomposition_once(tmp_path: Path, workers: str, arm: float) -> None:
+    mesh, db = ell(tmp_path / "ell.obj", arm), tmp_path / "ell.db"
+    code, _, err = grasp("generate", str(mesh), "--hand", "panda", "--db", str(db), "--quiet", *FAST)
+    assert code == 0, err
+    validate = ("validate", "--db", str(db), "--top", "1", "--robust", "0", "--workers", workers)
+    code, _, err = grasp(*validate)
+    assert code == 0, err
+    started, ended = decomposition_lines(err)
+    assert "of ell: started (once: cached afterwards)" in started, err
+    assert "of ell: done in " in ended and ended.endswith(" s"), err
+    code, _, err = grasp(*validate)
+    assert code == 0 and decomposition_lines(err) == [], err
+
+
+def test_json_keeps_stderr_clean(tmp_path: Path) -> None:
+    mesh, db = ell(tmp_path / "ell.obj", 0.059), tmp_path / "ell.db"
+    code, _, err = grasp("generate", str(mesh), "--hand", "panda", "--db", str(db), "--quiet", *FAST)
+    assert code == 0, err
+    code, out, err = grasp("validate", "--db", str(db), "--top", "1", "--robust", "0", "--workers", "1", "--json")
+    assert code == 0 and out.startswith("{") and decomposition_lines(err) == [], err
