@@ -13,12 +13,19 @@ The hand approaches along ``direction`` (into the object); the approach ray
 passes through ``point``.
 
 One sampler for parallel jaws, as the large parallel-jaw datasets are made
-(:func:`antipodal`): an area-weighted surface point, the point where a ray
-from it along the inward normal leaves the object, the closing axis through
-both; the candidates then put the fingers on that axis and spread approach
-directions around it (:func:`antipodal_poses`). A pair is refused before any
+(:func:`antipodal`, Dex-Net's and ACRONYM's antipodal sampler): an
+area-weighted surface point, a ray from it in a random direction inside the
+friction cone about the inward normal (:func:`cone_directions`), the point
+where that ray leaves the object, the closing axis through both; the
+candidates then put the fingers on that axis and spread approach directions
+around it (:func:`antipodal_poses`). A pair is refused before any
 simulation when the chord is wider than every preshape's opening or thinner
-than a skin, or the exit normal lies outside the friction cone of the axis.
+than a skin, or either normal lies outside the friction cone of the axis.
+Drawing the ray inside the cone, not only along the normal, is what finds
+pairs on tapered and curved surfaces (issue 26): on a cone 7 cm across and 8
+cm tall the ray along the normal meets the far side 47 degrees off its
+normal, outside mu = 0.5's 26.6-degree cone, while a level chord meets both
+sides 23.6 degrees off.
 
 All vectors in the object frame, lengths in metres, angles in radians.
 """
@@ -36,7 +43,8 @@ from planner.geometry.frames import tangent_bases, tilted
 from planner.plan.tolerances import BOX_MARGIN, MIN_CHORD, RAY_START
 from planner.specs.hands import SAMPLERS
 
-__all__ = ["SAMPLERS", "RAY_SAMPLERS", "Approaches", "Pairs", "sample", "antipodal", "antipodal_poses", "fan"]
+__all__ = ["SAMPLERS", "RAY_SAMPLERS", "Approaches", "Pairs", "sample", "antipodal", "antipodal_poses",
+           "cone_directions", "fan"]
 
 #: The samplers whose candidates approach along rays (the others place the hand directly).
 RAY_SAMPLERS = ("surface", "box")
@@ -127,7 +135,8 @@ class Pairs:
     Attributes:
         points: (n, 3) sampled surface points p1 [m].
         normals: (n, 3) unit outward normals at p1.
-        opposite: (n, 3) where the ray from p1 along -normal leaves the object, p2 [m] (NaN: none).
+        opposite: (n, 3) where the ray from p1 (a direction in the friction cone about -normal)
+            leaves the object, p2 [m] (NaN: none).
         axes: (n, 3) unit closing axes, p1 -> p2 (NaN: none).
         widths: (n,) chord lengths |p2 - p1| [m] (NaN: none).
         phases: (n,) [rad] the first approach direction's angle about the axis, random per point.
@@ -159,27 +168,48 @@ class Pairs:
         return 0.5 * (self.points + self.opposite)
 
 
+def cone_directions(axes: np.ndarray, spread: float, rng: np.random.Generator) -> np.ndarray:
+    """(n, 3) unit directions inside the cone of half-angle ``atan(spread)``
+    about each of the (n, 3) unit ``axes``: the axis plus a tangent offset of
+    length ``spread * u`` (u uniform in [0, 1)) at a uniform azimuth, as
+    Dex-Net's antipodal sampler draws them (denser near the axis than a
+    uniform spread over the cone's solid angle, so square chords stay
+    common). Draws 2 n numbers from ``rng`` whatever ``spread`` (0: the axes)."""
+    axes = np.asarray(axes, float).reshape(-1, 3)
+    offset = spread * rng.uniform(0.0, 1.0, len(axes))
+    azimuth = rng.uniform(0.0, 2 * np.pi, len(axes))
+    l_vec, o_vec = tangent_bases(axes)
+    d = axes + offset[:, None] * (np.cos(azimuth)[:, None] * l_vec + np.sin(azimuth)[:, None] * o_vec)
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
 def antipodal(mesh: trimesh.Trimesh, count: int, rng: np.random.Generator, *, max_width: float, mu: float,
-              min_width: float = MIN_CHORD) -> Pairs:
+              min_width: float = MIN_CHORD, spread: float | None = None) -> Pairs:
     """``count`` area-weighted surface points of ``mesh`` and their antipodal
     partners (see module docstring). ``max_width`` [m]: the widest chord the
-    hand can take; ``mu``: friction coefficient of the cone test (the exit
-    normal n2 must satisfy n2 . axis >= cos(atan(mu)): the finger pushing
-    along -axis at p2 stays inside its friction cone)."""
+    hand can take; ``mu``: friction coefficient of the cone test (both
+    normals within atan(mu) of the axis: -n1 . axis and n2 . axis >=
+    cos(atan(mu)), so each finger pushing along the axis stays inside its
+    friction cone); ``spread``: tangent of the largest angle between a ray
+    and the inward normal (default ``mu``: the ray anywhere in the friction
+    cone; 0: along the normal only). The random numbers are drawn in a fixed
+    order (points, phases, ray directions), so point i is replayable."""
     if count < 1:
         raise InputError(f"--approaches must be at least 1, got {count}")
     points, faces = trimesh.sample.sample_surface(mesh, count, seed=rng)
     phases = rng.uniform(0.0, 2 * np.pi, count)  # drawn for every point: point i is replayable
     normals = np.asarray(mesh.face_normals[faces], float)
     points = np.asarray(points, float)
-    hits, rays, tris = mesh.ray.intersects_location(points - normals * RAY_START, -normals, multiple_hits=False)
+    directions = cone_directions(-normals, mu if spread is None else spread, rng)
+    hits, rays, tris = mesh.ray.intersects_location(points - normals * RAY_START, directions, multiple_hits=False)
     opposite = np.full((count, 3), np.nan)
     exit_normals = np.full((count, 3), np.nan)
     opposite[rays], exit_normals[rays] = hits, mesh.face_normals[tris]
     chord = opposite - points
     widths = np.linalg.norm(chord, axis=1)
     axes = chord / np.where(widths > 0, widths, 1.0)[:, None]
-    cone = np.einsum("ij,ij->i", exit_normals, axes) >= np.cos(np.arctan(mu))
+    inside = np.cos(np.arctan(mu))
+    cone = (np.einsum("ij,ij->i", exit_normals, axes) >= inside) & (np.einsum("ij,ij->i", -normals, axes) >= inside)
     reasons = np.where(~np.isfinite(widths), "no_pair",
                        np.where(widths > max_width, "too_wide",
                                 np.where(widths < min_width, "too_thin", np.where(cone, "", "cone"))))
