@@ -27,10 +27,11 @@ pose). Per pose:
    translation, so the hull is exact), eroded by ``DEPTH`` (1 mm, closing's
    own overlap allowance), must meet no triangle and hold no vertex of the
    mesh: the finger went no deeper than that into the object on its way.
-   Else a finger that touches passed through something before its contact
-   (``passed_through``), and one that does not closed past the object
-   (``finger_missed`` on a ``Closed`` grasp, ``no_contact_missed`` on a
-   ``no_contact`` rejection).
+   A finger that touches is swept to where it ended, else it passed through
+   something before its contact (``passed_through``); one that does not is
+   swept to its closing limit (fully shut), else it closed past the object
+   or stopped short of it (``finger_missed`` on a ``Closed`` grasp,
+   ``no_contact_missed`` on a ``no_contact`` rejection).
 
 Outcomes: ``contacts`` (both fingers at first contact), ``one_finger`` (one
 at first contact, the other truly on air), ``on_air`` (``no_contact`` or only
@@ -204,6 +205,8 @@ def judge(grasper: Grasper, sweeps: FingerSweeps, hand: HandSpec, given: np.ndar
     start[:3, 3] -= approach * backed
     opened = sweeps.placed(start, widest_preshape(hand).joints)
     closed = sweeps.placed(final, joints)
+    # the Panda's fingers close towards their joints' lower limits (fully shut)
+    shut = sweeps.placed(start, {j.name: j.lower for j in hand.joints})
     touching = set() if not isinstance(result, Closed) else {n for n in result.contacts.links if n in FINGERS}
     width = joints[names[0]] + joints[names[1]]
     note = f"width {1000 * width:.1f} mm, back-off {1000 * backed:.1f} mm"
@@ -211,7 +214,7 @@ def judge(grasper: Grasper, sweeps: FingerSweeps, hand: HandSpec, given: np.ndar
         if link in touching:
             if sweep_meets(opened[link], closed[link], mesh_bvh, vertices):
                 return "passed_through", final, joints, f"{link}; {note}"
-        elif sweep_meets(opened[link], closed[link], mesh_bvh, vertices):
+        elif sweep_meets(opened[link], shut[link], mesh_bvh, vertices):
             missed = "finger_missed" if isinstance(result, Closed) else "no_contact_missed"
             return missed, final, joints, f"{link}; {note}"
     return {2: "contacts", 1: "one_finger", 0: "on_air"}[len(touching)], final, joints, note

@@ -33,8 +33,8 @@ from planner.specs.preshapes import Preshape
 #: 5: a dynamic world's inputs rounded to 1e-10 and the principal frame of equal
 #: moments chosen from the object axes (planner.sim.dynamics): settled epsilons
 #: and trials no longer depend on which BLAS kernel numpy runs (issue 16).
-#: 6: antipodal rays drawn inside the friction cone about the inward normal, both
-#: normals checked against the axis; closing's far-field surface hulls at most
+#: 6: antipodal points whose pair along the normal is refused try rays drawn inside
+#: the friction cone, both normals checked against the axis; closing's far-field surface hulls at most
 #: 127 (PyBullet kept only 127 of a body's hulls: meshes of more than ~2,000
 #: triangles lost the rest of their surface) (issue 26).
 ALGORITHM_VERSION = 6
