@@ -35,7 +35,7 @@ from planner.specs.preshapes import Preshape
 #: and trials no longer depend on which BLAS kernel numpy runs (issue 16).
 #: 6: antipodal points whose pair along the normal is refused try rays drawn inside
 #: the friction cone, both normals checked against the axis; closing's far-field surface hulls at most
-#: 127 (PyBullet kept only 127 of a body's hulls: meshes of more than ~2,000
+#: 127 (PyBullet kept only 127 of a body's hulls: meshes of more than ~1,000
 #: triangles lost the rest of their surface) (issue 26).
 ALGORITHM_VERSION = 6
 
