@@ -12,13 +12,21 @@ distance to a hull is a lower bound of the distance to that part of the
 surface and a link may safely advance by it; only once a link comes close
 does closing ask the exact mesh, with a short range.
 
-The patches come from a median split of the triangle centroids along the
-longest side of their bounding box, down to at most ``faces`` triangles per
-patch (milliseconds for a mesh of thousands of triangles; no cache, no
-decomposition run).
+The patches come from median splits of the triangle centroids along the
+longest side of their bounding box, the largest patch split first, down to
+at most ``faces`` triangles per patch or until there are ``most`` patches
+(milliseconds for a mesh of thousands of triangles; no cache, no
+decomposition run). The cap is PyBullet's: one body holds at most
+:data:`planner.sim.MAX_LINKS` hulls, and a surface cut into more patches
+than that lost the rest without a word (issue 26: a bottle of 2,160
+triangles kept 127 of its 240 patches, so a finger met no hull where the
+neck was and stepped through it; a capsule of 100k triangles kept 2%). A
+finer mesh now gets larger patches of the same area.
 """
 
 from __future__ import annotations
+
+import heapq
 
 import numpy as np
 import trimesh
@@ -26,27 +34,29 @@ import trimesh
 #: Triangles per patch: about 20-40 hull vertices, cheap to collide; the
 #: hull of a small patch of a curved surface bulges out of it very little.
 FACES_PER_PATCH = 16
+#: At most this many patches: all of them fit in one PyBullet body (127 links).
+MAX_PATCHES = 127
 
 
-def surface_hulls(mesh: trimesh.Trimesh, faces: int = FACES_PER_PATCH) -> tuple[np.ndarray, ...]:
-    """Vertex arrays ((k_i, 3) [m], object frame) of the patches of
-    ``mesh``'s surface, at most ``faces`` triangles each; every triangle is
-    in exactly one patch."""
-    if faces < 1:
-        raise ValueError("surface_hulls: faces must be >= 1")
+def surface_hulls(mesh: trimesh.Trimesh, faces: int = FACES_PER_PATCH, most: int = MAX_PATCHES
+                  ) -> tuple[np.ndarray, ...]:
+    """Vertex arrays ((k_i, 3) [m], object frame) of at most ``most``
+    patches of ``mesh``'s surface, at most ``faces`` triangles each unless
+    that would take more patches; every triangle is in exactly one patch."""
+    if faces < 1 or most < 1:
+        raise ValueError("surface_hulls: faces and most must be >= 1")
     centroids = np.asarray(mesh.triangles_center, float)
-    leaves: list[np.ndarray] = []
-    todo = [np.arange(len(centroids))]
-    while todo:
-        index = todo.pop()
-        if len(index) <= faces:
-            leaves.append(index)
-            continue
+    # a heap of (-size, first triangle, triangles): the largest patch is split next
+    heap = [(-len(centroids), 0, np.arange(len(centroids)))]
+    while heap and -heap[0][0] > faces and len(heap) < most:
+        _, _, index = heapq.heappop(heap)
         points = centroids[index]
         axis = int(np.argmax(np.ptp(points, axis=0)))
         order = index[np.argsort(points[:, axis], kind="stable")]
         half = len(order) // 2
-        todo += [order[half:], order[:half]]
+        for part in (order[:half], order[half:]):
+            heapq.heappush(heap, (-len(part), int(part.min()), part))
+    leaves = [index for _, _, index in heap]
     triangles = np.asarray(mesh.faces)
     vertices = np.asarray(mesh.vertices, float)
     return tuple(vertices[np.unique(triangles[leaf])] for leaf in sorted(leaves, key=lambda leaf: int(leaf.min())))

@@ -63,6 +63,10 @@ class Closest:
         return float(self.distance.min()) if len(self.distance) else np.inf
 
 
+#: Links one PyBullet multibody holds: ``createMultiBody`` silently drops the
+#: rest (measured: 127 of 128, 129 or 200 requested hull links are kept).
+MAX_LINKS = 127
+
 _EMPTY = Closest(np.zeros(0, int), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)))
 
 
@@ -167,20 +171,26 @@ class Sim:
 
     def add_static_hulls(self, hulls: tuple[np.ndarray, ...] | list[np.ndarray]) -> int:
         """A fixed body made of convex hulls, one per (k_i, 3) vertex array [m]
-        (a compound: one link per hull, all at the body's frame)."""
+        (a compound: one link per hull, all at the body's frame), at most
+        :data:`MAX_LINKS` of them."""
         c = self.client
+        if len(hulls) > MAX_LINKS:
+            raise SimulationError(f"{len(hulls)} convex hulls in one body; PyBullet keeps at most {MAX_LINKS}")
         shapes = [pb.createCollisionShape(pb.GEOM_MESH, vertices=np.asarray(v, float).tolist(), physicsClientId=c)
                   for v in hulls]
         if not shapes or min(shapes) < 0:
             raise SimulationError("PyBullet refused a convex hull")
         n = len(shapes)
         zero, unit = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]
-        return pb.createMultiBody(0.0, -1, linkMasses=[0.0] * n, linkCollisionShapeIndices=shapes,
+        uid = pb.createMultiBody(0.0, -1, linkMasses=[0.0] * n, linkCollisionShapeIndices=shapes,
                                   linkVisualShapeIndices=[-1] * n, linkPositions=[zero] * n,
                                   linkOrientations=[unit] * n, linkInertialFramePositions=[zero] * n,
                                   linkInertialFrameOrientations=[unit] * n, linkParentIndices=[0] * n,
                                   linkJointTypes=[pb.JOINT_FIXED] * n, linkJointAxis=[[0.0, 0.0, 1.0]] * n,
                                   physicsClientId=c)
+        if pb.getNumJoints(uid, physicsClientId=c) != n:
+            raise SimulationError(f"PyBullet kept {pb.getNumJoints(uid, physicsClientId=c)} of {n} convex hulls")
+        return uid
 
     def remove_body(self, uid: int) -> None:
         pb.removeBody(uid, physicsClientId=self.client)

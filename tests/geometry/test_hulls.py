@@ -8,7 +8,7 @@ import pytest
 import trimesh
 from scipy.spatial import ConvexHull, Delaunay
 
-from planner.geometry.hulls import surface_hulls
+from planner.geometry.hulls import MAX_PATCHES, surface_hulls
 from planner.geometry.solid import load_object
 
 #: Two triangulations of the same surface give closest points this far apart [m].
@@ -18,7 +18,7 @@ NUMERIC_TOL = 1e-7
 @pytest.mark.parametrize("faces", [1, 4, 16, 64])
 def test_every_vertex_of_every_triangle_is_in_a_patch_hull(faces: int) -> None:
     mesh = load_object("mug").mesh
-    patches = surface_hulls(mesh, faces)
+    patches = surface_hulls(mesh, faces, most=len(mesh.faces))
     assert len(patches) >= len(mesh.faces) / faces
     covered = set()
     for vertices in patches:
@@ -46,6 +46,19 @@ def _hull_distances(vertices: np.ndarray, probes: np.ndarray) -> np.ndarray:
     return np.where(inside, 0.0, distance)
 
 
+def test_a_fine_mesh_gets_at_most_most_patches_covering_every_triangle() -> None:
+    # 8,192 triangles: 512 patches of 16, more than one PyBullet body holds (issue 26)
+    mesh = trimesh.creation.capsule(height=0.07, radius=0.022, count=[64, 64])
+    patches = surface_hulls(mesh)
+    assert len(patches) == MAX_PATCHES
+    sizes = [len(p) for p in patches]
+    assert max(sizes) <= 2 * min(sizes) + 8  # the largest is split first: patches of about one size
+    covered = {tuple(v) for p in patches for v in np.round(p, 12)}
+    assert covered == {tuple(v) for v in np.round(mesh.vertices[np.unique(mesh.faces)], 12)}
+
+
 def test_bad_patch_size_is_refused() -> None:
     with pytest.raises(ValueError):
         surface_hulls(load_object("box").mesh, 0)
+    with pytest.raises(ValueError):
+        surface_hulls(load_object("box").mesh, 16, 0)

@@ -3,6 +3,7 @@ rejections, and every hand closing to a force-closure grasp of objects of its si
 
 import numpy as np
 import pytest
+import trimesh
 from helpers import SIM_TOL, assert_close
 
 from planner.geometry.solid import PreparedObject, load_object, prepare
@@ -133,3 +134,81 @@ def _first_force_closure(grasper, shapes, rays, obj, finger_of, multi):  # type:
                 if grasp_quality(closed.contacts, grasper.hand, obj, CONE_EDGES).force_closure:
                     return closed
     return None
+
+
+# -- issue 26: closing at a given pose, thin walls, any tessellation ----------
+
+#: Closing stops each finger within CloseSettings.contact_tol (0.5 mm) of the
+#: surface, and a finer mesh of a curved surface lies up to its chord's
+#: sagitta (0.11 mm for the 32-gon below) outside the coarse one: the closed
+#: widths of two tessellations agree to twice their sum.
+TESSELLATION_TOL = 2 * (0.0005 + 0.00011)
+#: The tube: 10 cm across (the open inner finger, 3.4 cm deep, fits inside),
+#: 2 mm wall, 512 sections (4,096 triangles, more than one PyBullet body of
+#: 127 surface hulls of 16 triangles covers).
+WALL = 0.002
+TUBE_RADIUS, TUBE_HEIGHT, TUBE_SECTIONS = 0.05, 0.06, 512
+#: A flat pad 17.4 mm wide on the tube's inner face (radius r) touches at its
+#: edges, r - sqrt(r^2 - 8.7 mm^2) = 0.79 mm off the face at its centre.
+PAD_SAGITTA = 0.048 - np.sqrt(0.048**2 - 0.0087**2)
+
+
+def _grasp_pose(hand: HandSpec, tcp: np.ndarray, approach: np.ndarray, fingers: np.ndarray) -> np.ndarray:
+    """(4, 4) Panda pose with its tool centre point at ``tcp``, its approach
+    along ``approach`` and its fingers opening along ``fingers`` (unit, orthogonal)."""
+    pose = np.eye(4)
+    pose[:3, :3] = np.column_stack([np.cross(fingers, approach), fingers, approach])
+    pose[:3, 3] = tcp - pose[:3, :3] @ np.array([0.0, 0.0, 0.1034])
+    return pose
+
+
+def _finger_contacts(closed: Closed) -> set[str]:
+    return {link for link in closed.contacts.links if link.endswith("finger")}
+
+
+def test_panda_closes_on_a_thin_rim_without_penetration(panda) -> None:  # type: ignore[no-untyped-def]
+    hand, shapes = panda
+    tube = trimesh.creation.annulus(r_min=TUBE_RADIUS - WALL, r_max=TUBE_RADIUS, height=TUBE_HEIGHT,
+                                    sections=TUBE_SECTIONS)
+    with Sim() as sim:
+        grasper = Grasper.for_mesh(sim, hand, tube)
+        for angle in np.linspace(0.0, 2 * np.pi, 8, endpoint=False):
+            radial = np.array([np.cos(angle), np.sin(angle), 0.0])
+            rim = (TUBE_RADIUS - WALL / 2) * radial + [0.0, 0.0, TUBE_HEIGHT / 2 - 0.005]
+            pose = _grasp_pose(hand, rim, DOWN, radial)
+            assert not grasper.overlaps_at(pose, shapes["wide"].joints)
+            closed = grasper.close_at(pose, shapes["wide"])
+            assert isinstance(closed, Closed), f"angle {angle:.2f}: {closed}"
+            assert _finger_contacts(closed) == {"panda_leftfinger", "panda_rightfinger"}
+            width = closed.closed_joints["panda_finger_joint1"] + closed.closed_joints["panda_finger_joint2"]
+            # first contact on each side of the wall: neither finger inside it, nor short of it
+            tol = grasper.settings
+            assert WALL - tol.max_penetration <= width <= WALL + PAD_SAGITTA + 2 * tol.contact_tol
+
+
+def _capsule_widths(hand: HandSpec, shape, mesh: trimesh.Trimesh) -> list[float]:  # type: ignore[no-untyped-def]
+    """Closed widths [m] at poses across the capsule's side and its cap."""
+    poses = []
+    for angle in np.linspace(0.0, np.pi, 5, endpoint=False):
+        inward = -np.array([np.cos(angle), np.sin(angle), 0.0])
+        across = np.array([-np.sin(angle), np.cos(angle), 0.0])
+        poses.append(_grasp_pose(hand, np.array([0.0, 0.0, 0.02 * np.cos(3 * angle)]), inward, across))
+    for height in (0.045, 0.05):  # over the end cap, fingers closing on the hemisphere
+        poses.append(_grasp_pose(hand, np.array([0.0, 0.0, height]), DOWN, np.array([1.0, 0.0, 0.0])))
+    widths = []
+    with Sim() as sim:
+        grasper = Grasper.for_mesh(sim, hand, mesh)
+        for pose in poses:
+            closed = grasper.close_at(pose, shape)
+            assert isinstance(closed, Closed), f"{len(mesh.faces)} faces: {closed}"
+            assert _finger_contacts(closed) == {"panda_leftfinger", "panda_rightfinger"}
+            widths.append(closed.closed_joints["panda_finger_joint1"] + closed.closed_joints["panda_finger_joint2"])
+    return widths
+
+
+def test_a_coarse_and_a_fine_capsule_close_alike(panda) -> None:  # type: ignore[no-untyped-def]
+    hand, shapes = panda
+    coarse = trimesh.creation.capsule(height=0.07, radius=0.022, count=[32, 32])  # 2,048 triangles
+    fine = trimesh.creation.capsule(height=0.07, radius=0.022, count=[96, 96])  # 18,432 triangles
+    assert_close(_capsule_widths(hand, shapes["wide"], fine), _capsule_widths(hand, shapes["wide"], coarse),
+                 TESSELLATION_TOL)

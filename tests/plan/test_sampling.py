@@ -9,6 +9,7 @@ from helpers import NUM_TOL, assert_close
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from planner.geometry.solid import load_object
 from planner.plan import sampling
 from planner.plan.sweep import SweepSettings, antipodal_candidates
 from planner.plan.tolerances import MIN_CHORD
@@ -56,9 +57,9 @@ def test_fan_tilts_by_the_angle() -> None:
 
 
 # -- antipodal ------------------------------------------------------------------
-def test_sphere_pairs_run_through_the_centre() -> None:
+def test_sphere_pairs_along_the_normal_run_through_the_centre() -> None:
     mesh = trimesh.creation.icosphere(subdivisions=3, radius=0.03)
-    pairs = sampling.antipodal(mesh, 40, np.random.default_rng(2), max_width=0.08, mu=MU)
+    pairs = sampling.antipodal(mesh, 40, np.random.default_rng(2), max_width=0.08, mu=MU, tries=0)
     assert pairs.reasons == ("",) * 40
     assert_close(pairs.axes, -pairs.normals, NUM_TOL)  # along the inward normal of the sampled facet
     assert_close(np.linalg.norm(pairs.opposite, axis=1), np.full(40, 0.03), FACET_TOL)  # on the sphere
@@ -71,7 +72,7 @@ def test_box_pairs_are_antipodal_within_the_opening() -> None:
     the axis, inside any friction cone."""
     mesh = trimesh.creation.box(extents=BOX)
     max_width = 0.045
-    pairs = sampling.antipodal(mesh, 200, np.random.default_rng(3), max_width=max_width, mu=MU)
+    pairs = sampling.antipodal(mesh, 200, np.random.default_rng(3), max_width=max_width, mu=MU, tries=0)
     across = np.abs(pairs.normals) @ np.array(BOX)  # the box's size along each point's normal
     assert_close(pairs.widths, across, NUM_TOL * 1e3)
     assert_close(pairs.axes, -pairs.normals, NUM_TOL)
@@ -88,12 +89,58 @@ def test_exit_normal_outside_the_friction_cone_is_refused() -> None:
     of mu = 0.5 (26.6 degrees); chords between the two end caps are square."""
     tri = np.array([[0.0, 0.0], [0.04, 0.0], [0.0, 0.04 * np.tan(np.pi / 3)]])
     prism = trimesh.convex.convex_hull(np.vstack([np.c_[tri, np.zeros(3)], np.c_[tri, np.full(3, 0.03)]]))
-    pairs = sampling.antipodal(prism, 200, np.random.default_rng(0), max_width=0.1, mu=MU)
+    pairs = sampling.antipodal(prism, 200, np.random.default_rng(0), max_width=0.1, mu=MU, tries=0)
     caps = np.abs(pairs.normals[:, 2]) > 0.99
     assert caps.any() and (~caps).any()
     assert {pairs.reasons[i] for i in np.flatnonzero(caps)} == {""}
     wide_enough = pairs.widths >= MIN_CHORD
     assert {pairs.reasons[i] for i in np.flatnonzero(~caps & wide_enough)} == {"cone"}
+
+
+def test_rays_in_the_cone_only_where_the_normal_gives_no_pair() -> None:
+    """The ray along the normal first: a point whose normal pair is usable
+    keeps it; a refused one may find a pair tilted inside the friction cone
+    (the mug: its handle and its curved wall)."""
+    mesh = load_object("mug").mesh
+    along = sampling.antipodal(mesh, 300, np.random.default_rng(8), max_width=0.076, mu=MU, tries=0)
+    cone = sampling.antipodal(mesh, 300, np.random.default_rng(8), max_width=0.076, mu=MU)
+    first = np.array([r == "" for r in along.reasons])
+    assert_close(cone.points, along.points, 0.0)
+    assert_close(cone.opposite[first], along.opposite[first], 0.0)
+    later = np.array([r == "" for r in cone.reasons]) & ~first
+    assert later.any()
+    tilt = np.arccos(np.clip(np.einsum("ij,ij->i", cone.axes[later], -cone.normals[later]), -1, 1))
+    assert np.all((tilt > 1e-6) & (tilt <= np.arctan(MU) + NUM_TOL))
+
+
+def test_cone_directions_stay_in_the_cone_and_are_seeded() -> None:
+    axes = np.tile([0.0, 0.0, -1.0], (500, 1))
+    d = sampling.cone_directions(axes, MU, np.random.default_rng(4))
+    assert_close(np.linalg.norm(d, axis=1), np.ones(500), NUM_TOL)
+    angle = np.arccos(np.clip(d @ [0.0, 0.0, -1.0], -1, 1))
+    assert angle.max() <= np.arctan(MU) + NUM_TOL
+    assert np.ptp(np.arctan2(d[:, 1], d[:, 0])) > 6.0  # every azimuth
+    assert_close(d, sampling.cone_directions(axes, MU, np.random.default_rng(4)), 0.0)
+    assert_close(sampling.cone_directions(axes, 0.0, np.random.default_rng(4)), axes, 0.0)
+
+
+def a_cone(diameter: float = 0.07, height: float = 0.08) -> trimesh.Trimesh:
+    """A right circular cone, its base at z = 0 (issue 26's tapered object)."""
+    return trimesh.creation.cone(radius=diameter / 2, height=height, sections=64)
+
+
+def test_a_cone_gets_pairs_only_from_rays_in_the_cone() -> None:
+    """7 cm across, 8 cm tall: the side is 23.6 degrees off vertical. Along the
+    normal, a side ray meets the far side 47 degrees off its normal (refused);
+    in the cone, level chords meet both sides 23.6 degrees off (< 26.6)."""
+    cone = a_cone()
+    along = sampling.antipodal(cone, 400, np.random.default_rng(0), max_width=0.076, mu=MU, tries=0)
+    inside = sampling.antipodal(cone, 400, np.random.default_rng(0), max_width=0.076, mu=MU)
+    side = cone.face_normals[cone.nearest.on_surface(along.points)[2]][:, 2] < 0.99  # not the base
+    assert not any(r == "" for r, s in zip(along.reasons, side) if s)
+    usable = np.array([r == "" for r in inside.reasons])
+    assert (usable & side).sum() >= 5
+    assert np.all(np.abs(inside.axes[usable & side, 2]) < np.sin(np.arctan(MU) - np.arctan(0.035 / 0.08)) + 1e-6)
 
 
 def test_antipodal_pairs_are_seeded() -> None:

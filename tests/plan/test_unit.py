@@ -3,10 +3,16 @@ the contact model of each link in the score."""
 
 from __future__ import annotations
 
+import tempfile
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
+import trimesh
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
 
 from planner import quality
 from planner.geometry.solid import load_object
@@ -119,3 +125,44 @@ def test_a_grasp_whose_quality_fails_is_rejected_with_a_counted_reason(box_unit,
     assert r.candidates == len(r.grasps) + sum(r.rejected.values())
     before = [(g.candidate, g.epsilon) for g in box_unit.grasps]
     assert [(g.candidate, g.epsilon) for g in r.grasps] == before[:2] + before[3:]
+
+
+# -- issue 26: antipodal pairs drawn in the friction cone ------------------------
+
+#: A quick antipodal sweep (the default sampler, rolls and depths of the Panda, fewer points); on
+#: solids where most pairs are usable, stopped after the point of its first force-closure grasp.
+QUICK = SweepSettings(approaches=192, chunk=0, reach_placements=0)
+FIRST = SweepSettings(approaches=64, chunk=0, reach_placements=0, fc_budget=1)
+
+
+def test_a_cone_gets_force_closure_grasps(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """7 cm across, 8 cm tall: no pair along the normals is inside the
+    friction cone on its side; pairs drawn in the cone are (issue 26)."""
+    path = tmp_path / "cone.stl"
+    trimesh.creation.cone(radius=0.035, height=0.08, sections=64).export(path)
+    r = run_unit(UnitSpec(str(path), "panda", QUICK, seed=0))
+    assert r.error is None
+    assert r.force_closure > 0
+    assert any(g.force_closure and abs(g.contacts.normals[:, 2]).min() > 0.3 for g in r.grasps)  # on the tapered side
+
+
+@settings(max_examples=8, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), narrow=st.floats(0.01, 0.03), wide=st.floats(0.01, 0.07),
+       height=st.floats(0.03, 0.12), taper=st.floats(0.0, 0.95))
+def test_random_convex_solids_narrower_than_the_opening_get_force_closure(seed, narrow, wide, height,  # type: ignore[no-untyped-def]
+                                                                          taper) -> None:
+    """Any convex solid narrower than the Panda's opening (8 cm) in some
+    direction: the hull of 48 random points on a tapered elliptic tube (half
+    axes ``wide`` and ``narrow``, 2-6 cm across the narrow one, tapering by
+    ``taper`` over ``height``: slabs, wedges, cones), turned at random."""
+    rng = np.random.default_rng(seed)
+    t, angle = rng.uniform(0.0, 1.0, 48), rng.uniform(0.0, 2 * np.pi, 48)
+    shrink = 1.0 - taper * t
+    points = np.c_[wide * shrink * np.cos(angle), narrow * shrink * np.sin(angle), height * t]
+    solid = trimesh.convex.convex_hull(points @ Rotation.random(random_state=seed).as_matrix().T)
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "solid.stl"
+        solid.export(path)
+        r = run_unit(UnitSpec(str(path), "panda", FIRST, seed=0))
+    assert r.error is None
+    assert r.force_closure > 0, f"no force closure: {dict(r.rejected)}"

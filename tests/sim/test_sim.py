@@ -7,8 +7,9 @@ import pytest
 from helpers import NUM_TOL, SIM_TOL, assert_close
 from scipy.spatial.transform import Rotation
 
+from planner.errors import SimulationError
 from planner.geometry.solid import load_object
-from planner.sim import Sim, pb_to_pose, pose_to_pb
+from planner.sim import MAX_LINKS, Sim, pb, pb_to_pose, pose_to_pb
 from planner.specs.hands import load_hand
 
 #: PyBullet stores poses in float32 in places; round trips agree to this.
@@ -63,3 +64,14 @@ def test_a_picture_has_the_size_asked_for() -> None:
         sim.add_visual_mesh(box.mesh.vertices, box.mesh.faces, (0.8, 0.5, 0.2, 1.0))
         image = sim.render(np.array([0.3, -0.3, 0.2]), np.zeros(3), np.array([0.0, 0.0, 1.0]), (64, 48))
     assert image.shape == (48, 64, 3) and image.dtype == np.uint8 and image.std() > 0
+
+
+def test_hull_bodies_keep_every_hull_or_refuse() -> None:
+    # PyBullet keeps 127 links of a multibody and drops the rest silently (issue 26)
+    tetra = np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0], [0.0, 0.01, 0.0], [0.0, 0.0, 0.01]])
+    hulls = [tetra + [0.02 * i, 0.0, 0.0] for i in range(MAX_LINKS + 1)]
+    with Sim() as sim:
+        body = sim.add_static_hulls(hulls[:MAX_LINKS])
+        assert pb.getNumJoints(body, physicsClientId=sim.client) == MAX_LINKS
+        with pytest.raises(SimulationError):
+            sim.add_static_hulls(hulls)
