@@ -5,6 +5,7 @@ wraps these functions (and the names re-exported here).
 - querying: :func:`best`, :func:`best_at` (grasps an arm reaches now), :func:`show`,
   each naming the object as :func:`resolve_object` reads it;
 - validating: :func:`validate`, :func:`report`;
+- calibrating: :func:`calibrate` (p_hold fitted to labelled grasp files);
 - datasets: :func:`export`, :func:`import_files`;
 - descriptions: :func:`hands`, :func:`hand`, :func:`objects`;
 - maintenance: :func:`check_db`.
@@ -12,6 +13,7 @@ wraps these functions (and the names re-exported here).
 
 from __future__ import annotations
 
+import json
 import logging
 import os
 import time
@@ -23,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from planner.calibration import fitting as calibration
 from planner.datasets import exporter, importer
 from planner.datasets.exporter import ExportSummary, export
 from planner.datasets.importer import ImportResult, import_files
@@ -52,7 +55,7 @@ __all__ = [
     "DEFAULT_DB", "EXPORT_FORMATS", "IMPORT_FORMATS", "RANDOM_COUNT", "RANDOM_PREFIX", "ExportSummary", "Grasp",
     "ImportResult", "RankingRule", "ReachableGrasp", "SAMPLERS", "SAMPLER_DEFAULTS", "Summary", "SweepSettings",
     "UnitResult", "ValidationSummary",
-    "best", "best_at", "check_db", "default_workers", "export", "generate", "hand", "hands", "import_files",
+    "best", "best_at", "calibrate", "calibration_errors", "check_db", "default_workers", "export", "generate", "hand", "hands", "import_files",
     "objects", "plan_units", "report", "resolve_object", "show", "validate",
 ]
 
@@ -328,8 +331,52 @@ def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: i
 
 def report(db_path: Path, out: Path) -> Path:
     """The calibration report of ``db_path``: ``out.html``, or a folder with
-    ``report.md`` and PNGs; returns the file written."""
+    ``report.md`` and PNGs (the reliability diagram of each hand's p_hold
+    among them); returns the file written."""
     return reporting.write(Path(db_path), Path(out))
+
+
+def calibration_errors(db_path: Path) -> list[str]:
+    """Per hand with a p_hold model: the expected calibration error of each of
+    its reliability tables (held out on its labels; against stored trials)."""
+    return reporting.ece_lines(reporting.calibration(Path(db_path)))
+
+
+# -- calibrating ---------------------------------------------------------------------
+def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB, poses: int | None = 200, seed: int = 0,
+              folds: int = 5, hand: str | None = None, workers: int = 1, model_out: Path | None = None,
+              plot: Path | None = None, progress: Callable[[Path, int, int], None] | None = None
+              ) -> calibration.Calibration:
+    """Fit p_hold (and so the ranking, by p_hold) to labelled grasp files in
+    ACRONYM layout: a seeded sample of ``poses`` poses per file re-scored as
+    ``import --rescore`` does, cross-validated over ``folds`` folds grouped by
+    object. The model and its source are stored in ``db_path`` (None: not
+    stored), where ``best``, exports and reports use it for its hand;
+    ``model_out`` writes it as TOML (the form of the shipped default),
+    ``plot`` the held-out reliability diagram as PNG."""
+    from planner.calibration.labels import labelled
+
+    if plot is not None and Path(plot).suffix.lower() != ".png":
+        raise InputError(f"{plot}: the reliability diagram is written as PNG; give a .png path")
+    if folds < 2:
+        raise InputError(f"--folds must be at least 2, got {folds}")
+    paths = [Path(p) for p in label_files]
+    data = labelled(paths, poses=poses, seed=seed, hand=hand, workers=workers, progress=progress)
+    source = json.dumps({"command": "grasp calibrate", "labels": [p.name for p in paths], "poses_per_file": poses,
+                         "seed": seed, "folds": folds, "grasps": len(data.labels), "objects": len(set(data.groups)),
+                         "rejected": data.rejected}, sort_keys=True)
+    result = calibration.calibrate(data, folds=folds, source=source)
+    if db_path is not None:
+        with writer_lock(Path(db_path)), open_db(Path(db_path)) as db:
+            db.write_model(result.model, source, db.rule())
+    if model_out is not None:
+        Path(model_out).write_text(result.model.to_toml(), encoding="utf-8")
+    if plot is not None:
+        from planner.calibration.plot import reliability_png
+
+        Path(plot).write_bytes(reliability_png([("held out (grouped CV)", result.reliability)],
+                                               f"p_hold, {result.model.hand}: {len(data.labels)} labelled grasps"))
+    return result
 
 
 # -- descriptions and maintenance ------------------------------------------------------

@@ -119,6 +119,9 @@ class Grasp:
         validation, robust: physical validation results, where they exist.
         measures: weight resistance and feasibility (None: not measured, e.g.
             a grasp stored before schema version 3).
+        p_hold: calibrated probability in [0, 1] that the grasp holds
+            (:mod:`planner.calibration`), set by the database from the stored
+            measures and the hand's model; None where no model applies.
     """
 
     object: str
@@ -147,6 +150,7 @@ class Grasp:
     validation: Trial | None = None
     robust: RobustEpsilon | None = None
     measures: Measures | None = None
+    p_hold: float | None = None
 
     def __post_init__(self) -> None:
         if self.pose.shape != (4, 4) or self.approach_point.shape != (3,) or self.approach_dir.shape != (3,):
@@ -173,7 +177,7 @@ class Grasp:
                 "epsilon": self.epsilon, "volume": self.volume, "force_closure": self.force_closure,
                 "reachability": self.reachability, "manipulability": self.manipulability,
                 "contacts": self.contacts.to_json(), "rank": self.rank, "score": self.score,
-                "candidate": self.candidate, "seed": self.seed,
+                "candidate": self.candidate, "seed": self.seed, "p_hold": self.p_hold,
                 **(self.measures.to_json() if self.measures is not None else dict.fromkeys(MEASURE_KEYS))}
 
 

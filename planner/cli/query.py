@@ -53,7 +53,9 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
 def _print_grasp(g: api.Grasp) -> None:
     pos = g.pose[:3, 3]
     reach = "n/a" if g.reachability is None else f"{g.reachability:.2f}"
-    click.echo(f"#{g.rank} {g.object}/{g.hand} preshape={g.preshape} score={g.score:.4f} epsilon={g.epsilon:.4f} "
+    p_hold = "n/a" if g.p_hold is None else f"{g.p_hold:.3f}"
+    click.echo(f"#{g.rank} {g.object}/{g.hand} preshape={g.preshape} p_hold={p_hold} score={g.score:.4f} "
+               f"epsilon={g.epsilon:.4f} "
                f"reachability={reach} volume={g.volume:.3g} force_closure={g.force_closure} "
                f"contacts={len(g.contacts)} position=({pos[0]:.3f}, {pos[1]:.3f}, {pos[2]:.3f}) m{_measures(g)}")
 

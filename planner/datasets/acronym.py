@@ -48,7 +48,7 @@ This project's extras (a foreign reader ignores them): ``object/name``,
 scale), ``object/mesh_sha256`` (:func:`planner.geometry.mesh.mesh_hash` of
 the mesh); ``gripper/configuration_joints``;
 ``grasps/qualities/{epsilon, volume, force_closure, reachability,
-manipulability, score, rank, simulated_success (-1: not simulated),
+manipulability, score, p_hold (calibrated probability of holding), rank, simulated_success (-1: not simulated),
 robust_epsilon_mean, robust_epsilon_quantile, resist_worst, resist_mean,
 open_margin, close_margin, push}`` (NaN when absent) and ``feasibility``
 (reasons, comma-separated);
@@ -151,6 +151,7 @@ def per_grasp(grasps: list[Grasp], hand: HandSpec) -> dict[str, Column]:
         "qualities/reachability": c["reachability"],
         "qualities/manipulability": c["manipulability"],
         "qualities/score": c["score"],
+        "qualities/p_hold": c["p_hold"],
         "qualities/rank": c["rank"],
         "qualities/simulated_success": c["validation_success"],
         "qualities/robust_epsilon_mean": c["robust_mean"],
@@ -353,6 +354,20 @@ def _measures(values: list[float], reasons: str) -> Measures | None:
     worst, mean, open_margin, close_margin, push = (float(v) for v in values)
     return Measures(worst, mean, np.inf if np.isnan(open_margin) else open_margin,
                     np.inf if np.isnan(close_margin) else close_margin, push, tuple(r for r in reasons.split(",") if r))
+
+
+def read_labels(path: Path) -> np.ndarray:
+    """(N,) 0/1 ``grasps/qualities/flex/object_in_gripper`` of a grasp file (a
+    label set: FleX's, a real robot's outcomes)."""
+    with _open(path) as f:
+        key = f"grasps/{FLEX}object_in_gripper"
+        if key not in f:
+            raise InputError(f"{path}: no {key}: not a labelled grasp file")
+        labels = np.asarray(f[key][:], float)
+        n = len(f["grasps/transforms"]) if "grasps/transforms" in f else len(labels)
+    if len(labels) != n or not np.isin(labels, (0.0, 1.0)).all():
+        raise InputError(f"{path}: {key} must hold one 0/1 label per grasp ({n}), got {len(labels)} values")
+    return labels
 
 
 def read_simulation(path: Path) -> list[tuple[Trial | None, RobustEpsilon | None]]:

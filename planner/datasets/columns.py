@@ -7,7 +7,7 @@ few columns pays for those only); the validation and robust results are
 flattened (``validation_success``, ..., ``robust_mean``, ``robust_quantile``,
 ``robust_samples``), and so are the analytic measures (``resist_worst``,
 ``resist_mean``, ``open_margin``, ``close_margin``, ``push``,
-``settled_epsilon``: NaN when not measured; ``feasibility``: comma-separated reasons, '' when feasible). A
+``settled_epsilon``: NaN when not measured; ``p_hold``: NaN where no model applies; ``feasibility``: comma-separated reasons, '' when feasible). A
 value that is absent holds NaN in a float column and
 -1 in an integer column (``id`` and ``unit_id`` of a record not stored yet,
 ``rank``, ``validation_success``, ``validation_fingers_in_contact``,
@@ -61,7 +61,7 @@ def _robust(name: str, absent: float, dtype: type) -> Builder:
 #: Plain fields read together, in one pass over the records: (name, dtype).
 SCALARS = (("candidate", np.int64), ("seed", np.int64), ("roll", float), ("standoff", float), ("epsilon", float),
            ("volume", float), ("score", float), ("force_closure", np.int64), ("width", float),
-           ("reachability", float), ("manipulability", float))
+           ("reachability", float), ("manipulability", float), ("p_hold", float))
 
 
 #: column -> how to build it from n records (besides SCALARS).

@@ -42,6 +42,7 @@ the ``csv`` module with a header row, floats written in full precision.
 | `reachability` | float64, null | fraction of sampled table placements an arm reaches |
 | `manipulability` | float64, null | best arm manipulability over the reachable placements |
 | `score` | float64 | ranking score (`meta.ranking` says how) |
+| `p_hold` | float64, null | calibrated probability that the grasp holds (the hand's `grasp calibrate` model, or the shipped one) |
 | `rank` | int64, null | 1 = best grasp of its (object, hand) |
 | `validation_success` | int64, null | 1 if the object stayed in the hand in the PyBullet trial |
 | `validation_fingers_in_contact` | int64, null | fingers touching the object after shaking |
@@ -90,7 +91,8 @@ _SPEC: list[tuple[str, str, str]] = [
     *((name, "float64", name) for name in ("resist_worst", "resist_mean", "open_margin", "close_margin", "push")),
     ("feasibility", "string", "feasibility"), ("settled_epsilon", "float64", "settled_epsilon"),
     ("reachability", "float64", "reachability"),
-    ("manipulability", "float64", "manipulability"), ("score", "float64", "score"), ("rank", "int64", "rank"),
+    ("manipulability", "float64", "manipulability"), ("score", "float64", "score"),
+    ("p_hold", "float64", "p_hold"), ("rank", "int64", "rank"),
     ("validation_success", "int64", "validation_success"),
     ("validation_fingers_in_contact", "int64", "validation_fingers_in_contact"),
     *((f"validation_{s}_{k}", "float64", f"validation_{s}_{k}") for s in ("closing", "shaking")
@@ -103,7 +105,7 @@ _SPEC: list[tuple[str, str, str]] = [
 COLUMNS = [name for name, _, _ in _SPEC]
 #: Columns that may be null: NaN (floats) or -1 (integers) in the grasp columns.
 NULLABLE = {"width", "reachability", "manipulability", "rank", "resist_worst", "resist_mean", "open_margin",
-            "close_margin", "push", "settled_epsilon", *(c for c in COLUMNS if c.startswith(
+            "close_margin", "push", "settled_epsilon", "p_hold", *(c for c in COLUMNS if c.startswith(
     ("validation_", "robust_")))}
 
 

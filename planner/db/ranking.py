@@ -21,13 +21,22 @@ measures of :mod:`planner.plan.measures` and epsilon:
   when not measured), with weight ``settled_weight``: for a hand whose
   closing moves the object it decides the order.
 
+Where a calibrated probability of holding applies (a p_hold model for the
+hand: fitted by ``grasp calibrate`` and stored, or the project's shipped one,
+:mod:`planner.calibration`), the analytic score *is* ``p_hold``: the model
+has learnt from external labels how much each of those measures counts.
+
 A pressed grasp that does not hold its weight yet still ranks above one that
 is not pressed (half weight): squeezing settles it. Reachability (fraction of
 table placements an arm reaches) and simulated success (1/0 from the shake
 test) then multiply, each with its weight in [0, 1] (0 ignores the measure, 1
 lets it veto); simulated success only refines the order. Rank 1 is the best
-grasp of an (object, hand); ties are broken by epsilon, then GWS volume,
-then by the unit seed and candidate number (never by insertion order).
+grasp of an (object, hand). Every grasp whose planned contacts are force
+closure ranks above every grasp whose contacts are not, whatever their
+scores (issue 26: a score that rewards what one simulator's closing happens to
+do must not lift a grasp that is not force closure as planned); within each
+of the two, by score; ties are broken by epsilon, then GWS volume, then by
+the unit seed and candidate number (never by insertion order).
 """
 
 from __future__ import annotations
@@ -46,7 +55,7 @@ if TYPE_CHECKING:
     from planner.grasp import Grasp
 
 #: The rule of :meth:`RankingRule.scores` in words, as ``meta.ranking`` stores it.
-FORMULA = ("analytic = gate * (press * (1 + hold) / 2 + eps_weight * quality + settled_weight * settled);"
+FORMULA = ("analytic = p_hold where a calibrated model applies to the hand, else gate * (press * (1 + hold) / 2 + eps_weight * quality + settled_weight * settled);"
            " gate = [open_margin >= min_open_margin] * [close_margin >= 1e-4 m];"
            " press = clip(push, 0, 1); hold = min(resist_worst, cap) / cap;"
            " quality = (1 - robust_weight) * epsilon + robust_weight * robust_quantile;"
@@ -55,17 +64,18 @@ FORMULA = ("analytic = gate * (press * (1 + hold) / 2 + eps_weight * quality + s
            " * ((1 - success_weight) + success_weight * simulated_success);"
            " a measure not computed counts as neutral (reachability, success 1; robust quantile = epsilon);"
            " grasps stored without the analytic measures (before schema v3): gate 1, press 1,"
-           " hold = force_closure")
+           " hold = force_closure;"
+           " rank: force-closure grasps first, then by score")
 
 #: The rank order: score first, then the tie-breaks (columns of ``grasps``).
-ORDER_BY = "score DESC, epsilon DESC, volume DESC, seed, candidate, unit_id"
+ORDER_BY = "force_closure DESC, score DESC, epsilon DESC, volume DESC, seed, candidate, unit_id"
 
 #: [m] a finger this close to its closing stop cannot squeeze (the gate).
 CLOSE_STOP = 1e-4
 
 #: The measures the rule reads (each an (n,) array; NaN or None = not computed).
 MEASURES = ("epsilon", "force_closure", "reachability", "success", "robust_quantile", "resist_worst", "push",
-            "open_margin", "close_margin", "settled_epsilon")
+            "open_margin", "close_margin", "settled_epsilon", "p_hold")
 
 
 @dataclass(frozen=True)
@@ -101,7 +111,8 @@ class RankingRule:
                              f"got {self}")
 
     def analytic(self, measures: Mapping[str, ArrayLike | None]) -> np.ndarray:
-        """(n,) analytic scores from the measures (see :data:`MEASURES`)."""
+        """(n,) analytic scores from the measures (see :data:`MEASURES`): p_hold
+        where given (not NaN), else the rule's formula."""
         eps = _column(measures, "epsilon")
         n = len(eps)
         fc = _column(measures, "force_closure", np.zeros(n))
@@ -115,8 +126,10 @@ class RankingRule:
         settled = _column(measures, "settled_epsilon", np.zeros(n))
         quantile = _column(measures, "robust_quantile", eps)
         quality = (1.0 - self.robust_weight) * eps + self.robust_weight * quantile
-        return np.where(gate, press * (1.0 + hold) / 2.0 + self.eps_weight * quality + self.settled_weight * settled,
+        rule = np.where(gate, press * (1.0 + hold) / 2.0 + self.eps_weight * quality + self.settled_weight * settled,
                         0.0)
+        p_hold = _column(measures, "p_hold", np.full(n, np.nan))
+        return np.where(np.isnan(p_hold), rule, p_hold)
 
     def scores(self, measures: Mapping[str, ArrayLike | None]) -> np.ndarray:
         """(n,) final scores: the analytic score times reachability and
@@ -153,8 +166,17 @@ def _column(measures: Mapping[str, ArrayLike | None], name: str, instead: np.nda
     return array if instead is None else np.where(np.isnan(array), instead, array)
 
 
+def rank_order(scores: np.ndarray, force_closure: np.ndarray) -> np.ndarray:
+    """(n,) indices best first, as :data:`ORDER_BY` ranks (before its
+    tie-breaks, which are left to a stable sort: the given order): force
+    closure first, then by score."""
+    s, fc = np.asarray(scores, float), np.asarray(force_closure, float) > 0
+    return np.lexsort((np.arange(len(s)), -s, ~fc))
+
+
 def rule_measures(grasps: Sequence[Grasp]) -> dict[str, np.ndarray]:
-    """The rule's measures of grasp records (validation and robust rows included)."""
+    """The rule's measures of grasp records (validation and robust rows
+    included; p_hold as the records carry it)."""
     nan = np.nan
 
     def measured(name: str) -> np.ndarray:
@@ -166,5 +188,6 @@ def rule_measures(grasps: Sequence[Grasp]) -> dict[str, np.ndarray]:
             "reachability": np.array([nan if g.reachability is None else g.reachability for g in grasps], float),
             "success": np.array([nan if g.validation is None else g.validation.success for g in grasps], float),
             "robust_quantile": np.array([nan if g.robust is None else g.robust.quantile for g in grasps], float),
+            "p_hold": np.array([nan if g.p_hold is None else g.p_hold for g in grasps], float),
             **{name: measured(name) for name in ("resist_worst", "push", "open_margin", "close_margin",
                                                  "settled_epsilon")}}

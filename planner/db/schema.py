@@ -20,6 +20,12 @@ Tables (the README lists every column):
 - ``grasps`` (v4) gains ``settled_epsilon``: the epsilon of the contacts the
   grasp settles into under a dynamic closing (hands with ``settle``); NULL
   when not measured.
+- ``calibration`` (v5): the fitted p_hold model of a hand (``grasp calibrate``,
+  :mod:`planner.calibration.model`; JSON) and where it came from (the label
+  files, the sample, the held-out figures). A hand without a row uses the
+  project's shipped model (``calibration/<hand>.toml``) if there is one. No
+  grasp column: p_hold is computed from the stored measures where grasps are
+  read or ranked.
 
 No pickle: arrays are JSON text. A new database runs :data:`SCHEMA` (version
 1) and then every migration; a newer schema is refused politely; an older one
@@ -40,7 +46,7 @@ from planner.errors import DatabaseError
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -102,6 +108,12 @@ ALTER TABLE grasps ADD COLUMN feasibility TEXT
     # v4: the settled epsilon (issue 15, third round; NULL: not measured).
     3: """
 ALTER TABLE grasps ADD COLUMN settled_epsilon REAL
+""",
+    # v5: fitted p_hold models, one per hand (issue 26).
+    4: """
+CREATE TABLE IF NOT EXISTS calibration (
+    hand TEXT PRIMARY KEY, model TEXT NOT NULL, source TEXT NOT NULL, created_at TEXT NOT NULL
+)
 """,
 }
 

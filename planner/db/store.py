@@ -21,6 +21,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from planner.calibration import features
+from planner.calibration.model import LogisticModel, default_model
 from planner.db.ranking import ORDER_BY, RankingRule, rule_measures
 from planner.db.schema import (
     EMPTY_V2_TABLES,
@@ -72,7 +74,8 @@ FROM grasps g {join} {validation} v ON v.grasp_id = g.id LEFT JOIN {robust} r ON
 """
 _MEASURES = """
 SELECT g.id, g.object, g.hand, g.epsilon, g.force_closure, g.reachability, v.success, r.quantile,
-       g.resist_worst, g.push, g.open_margin, g.close_margin, g.settled_epsilon
+       g.resist_worst, g.push, g.open_margin, g.close_margin, g.settled_epsilon,
+       g.volume, g.width, g.n_contacts, g.links_touching, g.resist_mean
 FROM grasps g LEFT JOIN validation v ON v.grasp_id = g.id LEFT JOIN robust r ON r.grasp_id = g.id
 """
 _RERANK = f"""
@@ -104,8 +107,26 @@ def rule_columns(col: dict) -> dict:
     none = [None] * len(col["id"])
     return {"epsilon": col["epsilon"], "force_closure": col["force_closure"], "reachability": col["reachability"],
             "success": col.get("success", none), "robust_quantile": col.get("quantile", none),
+            "p_hold": col.get("p_hold", none),
             **{k: col.get(k, none) for k in ("resist_worst", "push", "open_margin", "close_margin",
                                              "settled_epsilon")}}
+
+
+def p_hold_of(col: dict, models: dict[str, LogisticModel | None]) -> list[float | None]:
+    """p_hold of stored grasps rows (columns ``col`` with ``hand`` and the
+    measures of :data:`planner.calibration.features.MEASURES`) by each row's
+    hand's model; None where the hand has none."""
+    n = len(col["hand"])
+    out: list[float | None] = [None] * n
+    for hand in sorted(set(col["hand"])):
+        model = models.get(hand)
+        if model is None:
+            continue
+        rows = [i for i, h in enumerate(col["hand"]) if h == hand]
+        sub = {k: [col[k][i] if k in col else None for i in rows] for k in features.MEASURES}
+        for i, p in zip(rows, model.predict(features.of_columns(sub)).tolist()):
+            out[i] = p
+    return out
 
 
 def _insert(table: str, columns: Sequence[str], verb: str = "INSERT") -> str:
@@ -274,7 +295,11 @@ class Database:
         atomically, then re-rank the object's grasps; returns the unit's id."""
         key = (unit.object, unit.hand, unit.settings_hash, unit.seed, unit.chunk)
         status = "failed" if unit.error else "done"
-        scores = rule.scores(rule_measures(grasps))
+        measures = rule_measures(grasps)
+        model = self.model(unit.hand)
+        if model is not None and grasps:
+            measures["p_hold"] = model.predict(features.of_grasps(grasps))
+        scores = rule.scores(measures)
         with self._transaction() as conn:
             conn.execute("DELETE FROM units WHERE object = ? AND hand = ? AND settings_hash = ? AND seed = ?"
                          " AND chunk = ?", key)
@@ -308,19 +333,51 @@ class Database:
             self._rescore(conn, rule)
         return True
 
-    @staticmethod
-    def _rescore(conn: sqlite3.Connection, rule: RankingRule, pair: tuple[str, str] | None = None) -> None:
-        """Scores from the rule (all grasps, or one object and hand) and ranks,
-        inside the caller's transaction."""
+    def _rescore(self, conn: sqlite3.Connection, rule: RankingRule, pair: tuple[str, str] | None = None,
+                 hand: str | None = None) -> None:
+        """Scores from the rule (all grasps, one object and hand, or one hand)
+        and ranks, inside the caller's transaction."""
         where, params = ("", ()) if pair is None else (" WHERE g.object = ? AND g.hand = ?", pair)
+        if hand is not None:
+            where, params = " WHERE g.hand = ?", (hand,)
         rows = conn.execute(_MEASURES + where, params).fetchall()
         if not rows:
             return
         col = dict(zip(rows[0].keys(), zip(*rows)))
+        col["p_hold"] = p_hold_of(col, self._models(col["hand"]))
         scores = rule.scores(rule_columns(col))
         conn.executemany("UPDATE grasps SET score = ? WHERE id = ?", zip(scores.tolist(), col["id"]))
         for o, h in sorted(set(zip(col["object"], col["hand"]))):
             conn.execute(_RERANK, (o, h))
+
+    # -- calibration -------------------------------------------------------------
+    def model(self, hand: str) -> LogisticModel | None:
+        """The hand's p_hold model: the one stored by ``grasp calibrate``, else
+        the project's shipped one, else None."""
+        if "calibration" in table_names(self._conn):
+            row = self._conn.execute("SELECT model FROM calibration WHERE hand = ?", (hand,)).fetchone()
+            if row is not None:
+                return LogisticModel.from_json(row["model"])
+        return default_model(hand)
+
+    def model_source(self, hand: str) -> str:
+        """Where the hand's model came from: the stored source, ``shipped`` or ``none``."""
+        if "calibration" in table_names(self._conn):
+            row = self._conn.execute("SELECT source FROM calibration WHERE hand = ?", (hand,)).fetchone()
+            if row is not None:
+                return str(row["source"])
+        return "shipped" if default_model(hand) is not None else "none"
+
+    def _models(self, hands: Iterable[str]) -> dict[str, LogisticModel | None]:
+        return {h: self.model(h) for h in sorted(set(hands))}
+
+    def write_model(self, model: LogisticModel, source: str, rule: RankingRule) -> None:
+        """Store ``model`` as its hand's p_hold model (replacing any), then
+        re-score and re-rank that hand's grasps, in one transaction."""
+        with self._transaction() as conn:
+            conn.execute(_insert("calibration", ("hand", "model", "source", "created_at"), "INSERT OR REPLACE"),
+                         (model.hand, model.to_json(), source, time.strftime("%Y-%m-%dT%H:%M:%S")))
+            self._rescore(conn, rule, hand=model.hand)
 
     def write_validation(self, obj: str, hand: str, results: Sequence[Validated], rule: RankingRule) -> None:
         """Store trial and robust-epsilon results of grasps of one (object,
@@ -378,7 +435,7 @@ class Database:
         """The grasps of rank ``offset + 1`` .. ``offset + top``, in rank order."""
         cur = self._conn.execute(self._select("LEFT JOIN") + " WHERE g.object = ? AND g.hand = ? AND g.rank IS NOT NULL"
                                  " ORDER BY g.rank LIMIT ? OFFSET ?", (obj, hand, top, offset))
-        return _grasps(cur.fetchall())
+        return self._records(cur.fetchall())
 
     def grasp_batches(self, obj: str, hand: str, *, min_epsilon: float | None = None, top: int | None = None,
                       size: int = 5000) -> Iterator[list[Grasp]]:
@@ -396,13 +453,21 @@ class Database:
                     params)
         try:
             while rows := cur.fetchmany(size):
-                yield _grasps(rows)
+                yield self._records(rows)
         finally:
             cur.close()
 
     def validated(self) -> list[Grasp]:
         """Every grasp with a shake trial, by hand, object and rank."""
-        return _grasps(self._conn.execute(self._select("JOIN") + " ORDER BY g.hand, g.object, g.rank").fetchall())
+        return self._records(self._conn.execute(self._select("JOIN") + " ORDER BY g.hand, g.object, g.rank")
+                             .fetchall())
+
+    def _records(self, rows: list[sqlite3.Row]) -> list[Grasp]:
+        """Rows as records, with p_hold from each hand's model."""
+        if not rows:
+            return []
+        hands = [r["hand"] for r in rows]
+        return _grasps(rows, self._models(hands))
 
     def _select(self, join: str) -> str:
         """The grasps query; an older file read read-only is not migrated: a
@@ -415,12 +480,13 @@ class Database:
         return _SELECT_GRASPS.format(join=join, **names)
 
 
-def _grasps(rows: list[sqlite3.Row]) -> list[Grasp]:
+def _grasps(rows: list[sqlite3.Row], models: dict[str, LogisticModel | None]) -> list[Grasp]:
     """Rows of :data:`_SELECT_GRASPS` as records: vectors decoded per batch,
-    joints and contacts kept as stored until used."""
+    joints and contacts kept as stored until used; p_hold by ``models`` (hand -> model)."""
     if not rows:
         return []
     col = dict(zip(rows[0].keys(), zip(*rows)))
+    p_hold = p_hold_of(col, models)
     trials = [None if ok is None else Trial(bool(ok), *rest) for ok, *rest in zip(
         col["v_success"], col["v_fingers_in_contact"], col["v_closing_linear"], col["v_closing_angular"],
         col["v_shaking_linear"], col["v_shaking_angular"], col["v_reason"])]
@@ -434,7 +500,7 @@ def _grasps(rows: list[sqlite3.Row]) -> list[Grasp]:
         map(HandContacts.stored, col["contacts"], col["n_contacts"], col["links_touching"]), col["epsilon"],
         col["volume"], map(bool, col["force_closure"]), col["reachability"], col["manipulability"], col["id"],
         col["unit_id"], col["score"], col["rank"], trials, robust,
-        map(_measures, zip(*(col.get(k, [None] * len(rows)) for k in MEASURE_COLUMNS))))
+        map(_measures, zip(*(col.get(k, [None] * len(rows)) for k in MEASURE_COLUMNS))), p_hold)
     return list(map(Grasp.restored, values))
 
 

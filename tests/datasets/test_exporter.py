@@ -75,7 +75,7 @@ def test_export_streams_in_batches(db: Path, tmp_path: Path, monkeypatch: pytest
     sizes: list[int] = []
     decode = store._grasps
     monkeypatch.setattr(exporter, "BATCH_SIZE", 2)
-    monkeypatch.setattr(store, "_grasps", lambda rows: sizes.append(len(rows)) or decode(rows))
+    monkeypatch.setattr(store, "_grasps", lambda rows, models: sizes.append(len(rows)) or decode(rows, models))
     for fmt in FORMATS:
         got = files(export(db, fmt, tmp_path / f"{fmt}-2"))
         assert got.keys() == expected[fmt].keys()

@@ -100,8 +100,8 @@ def test_version_2_trials_read_back_with_an_unknown_reason(tmp_path: Path) -> No
         (g,) = db.validated()
         assert db.meta("schema_version") == "2"
     assert g.validation.success and g.validation.reason == ""  # type: ignore[union-attr]
-    with open_db(old) as db:  # migrated to v4: the column exists, old rows keep ''
-        assert db.meta("schema_version") == str(SCHEMA_VERSION) == "4"
+    with open_db(old) as db:  # migrated to v5: the column exists, old rows keep ''
+        assert db.meta("schema_version") == str(SCHEMA_VERSION) == "5"
         assert db.validated()[0].validation == g.validation
         assert db.validated()[0].measures is None  # v3 and v4 measures: not measured
     assert len(list(tmp_path.glob("v2.db.v2.*.bak"))) == 1
