@@ -46,7 +46,9 @@ from planner.calibration import features
 from planner.calibration.metrics import expected_calibration_error, roc_auc
 from planner.calibration.model import default_model, load_model
 from planner.datasets import acronym, importer
-from planner.db.ranking import RankingRule
+from planner.calibration.fitting import calibrate
+from planner.calibration.labels import LabelledSet
+from planner.db.ranking import RankingRule, rank_order
 from planner.geometry.solid import prepare
 from planner.plan import pool
 from planner.validation.shake import ShakeSettings, trials
@@ -165,16 +167,22 @@ def run_trials(result: FileResult, n: int, seed: int, settings: ShakeSettings, c
     key.write_text(json.dumps(result.trial))
 
 
-def scores(result: FileResult, model, rule: RankingRule) -> dict[str, np.ndarray]:
-    """(m,) per sampled pose: the rule's score, -width, p_hold; rejected poses -inf."""
+def scores(result: FileResult, model, rule: RankingRule, p_hold: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """(m,) per sampled pose: the rule's score, -width, p_hold (``p_hold`` given:
+    (closed,) out-of-fold predictions), force closure; rejected poses -inf (fc 0)."""
     m = len(result.rows)
     out = {name: np.full(m, -np.inf) for name in ("score", "width", "p_hold")}
+    out["fc"] = np.zeros(m)
     closed = np.flatnonzero(result.closed)
     if len(closed):
         table = features.of_grasps(result.grasps)
         out["score"][closed] = rule.scores(_rule_measures(table))
         out["width"][closed] = -np.nan_to_num(table["width"], nan=np.inf)
-        out["p_hold"][closed] = model.predict(table) if model is not None else np.nan
+        out["fc"][closed] = table["force_closure"]
+        if p_hold is not None:
+            out["p_hold"][closed] = p_hold
+        else:
+            out["p_hold"][closed] = model.predict(table) if model is not None else np.nan
     return out
 
 
@@ -183,24 +191,24 @@ def _rule_measures(table: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
                                   "settled_epsilon")}
 
 
-def top_hold(order_score: np.ndarray, labels: np.ndarray, k: int = TOP_K) -> float:
-    order = np.lexsort((np.arange(len(order_score)), -order_score))
-    return float(np.mean(labels[order[:k]]))
+def top_hold(order_score: np.ndarray, fc: np.ndarray, labels: np.ndarray, k: int = TOP_K) -> float:
+    """Share of the k first poses in the database's rank order (force closure first, then score) that hold."""
+    return float(np.mean(labels[rank_order(order_score, fc)[:k]]))
 
 
-def evaluate(results: list[FileResult], model, rule: RankingRule) -> dict:
+def evaluate(results: list[FileResult], model, rule: RankingRule, oof: dict[str, np.ndarray] | None = None) -> dict:
     per_file = []
     for r in results:
-        s = scores(r, model, rule)
+        s = scores(r, model, rule, None if oof is None else oof[r.path.stem])
         closed = r.closed
         row = {"file": r.path.stem, "category": object_key(r.path)[0], "object": object_key(r.path)[1],
                "poses": len(r.rows), "closed": int(closed.sum()), "success_rate": float(r.labels.mean()),
                "auc_score": roc_auc(r.labels, s["score"]), "auc_width": roc_auc(r.labels, s["width"]),
-               "top10_score": top_hold(s["score"], r.labels),
+               "top10_score": top_hold(s["score"], s["fc"], r.labels),
                "rejected": r.rejected}
         if model is not None:
             row["auc_p_hold"] = roc_auc(r.labels, s["p_hold"])
-            row["top10_p_hold"] = top_hold(s["p_hold"], r.labels)
+            row["top10_p_hold"] = top_hold(s["p_hold"], s["fc"], r.labels)
         if r.trial:
             pos = np.array(sorted(r.trial))
             verdict = np.array([r.trial[p] for p in pos], int)
@@ -213,7 +221,8 @@ def evaluate(results: list[FileResult], model, rule: RankingRule) -> dict:
         per_file.append(row)
     pooled: dict = {}
     if model is not None:
-        closed_p = np.concatenate([scores(r, model, rule)["p_hold"][r.closed] for r in results])
+        closed_p = np.concatenate([scores(r, model, rule, None if oof is None else oof[r.path.stem])["p_hold"][r.closed]
+                                   for r in results])
         closed_y = np.concatenate([r.labels[r.closed] for r in results])
         pooled["ece_p_hold"] = expected_calibration_error(closed_y, closed_p) if len(closed_y) else float("nan")
         pooled["closed_poses"] = int(len(closed_y))
@@ -270,6 +279,16 @@ def _mean(rows: list[dict]) -> dict:
     return out
 
 
+def labelled_set(results: list[FileResult]) -> LabelledSet:
+    """The closed poses of every file as one labelled set, grouped by object (``Category_id``)."""
+    tables = [features.of_grasps(r.grasps) for r in results if r.grasps]
+    table = {k: np.concatenate([t[k] for t in tables]) for k in features.MEASURES}
+    labels = np.concatenate([r.labels[r.closed] for r in results])
+    groups = tuple(object_key(r.path)[1] for r in results for _ in range(int(r.closed.sum())))
+    stems = tuple(r.path.stem for r in results for _ in range(int(r.closed.sum())))
+    return LabelledSet(table, labels, groups, stems, "panda")
+
+
 def print_table(report: dict) -> None:
     cols = [m for m in METRICS if any(m in o for o in report["objects"])]
     head = f"{'object':48s}" + "".join(f"{c:>14s}" for c in cols)
@@ -306,8 +325,15 @@ def main() -> int:
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--cache", type=Path, default=CACHE)
     parser.add_argument("--json", action="store_true")
+    parser.add_argument("--cv", type=int, default=5, help="folds of the grouped CV of p_hold (tuning figures)")
+    parser.add_argument("--no-cv", action="store_true", help="p_hold of --model (or the shipped one), no CV")
+    parser.add_argument("--write-model", type=Path, help="write the model fitted on every selected file (TOML)")
     args = parser.parse_args()
     files = dev_files(args.dev, args.held_out, args.objects)
+    if args.held_out and (args.write_model or not args.no_cv):
+        sys.exit("acronym_eval: --held-out measures the shipped (or --model) p_hold: add --no-cv, never fit on it")
+    if args.no_cv:
+        args.cv = 0
     code = source_hash()
     model = load_model(args.model) if args.model else default_model("panda")
     settings = ShakeSettings(**{k: type(getattr(ShakeSettings, k))(v) for k, v in
@@ -319,7 +345,27 @@ def main() -> int:
         run_trials(results[-1], args.trial, args.seed, settings, args.cache, code)
         print(f"[{i}/{len(files)}] {path.stem}: {int(results[-1].closed.sum())} of {len(results[-1].rows)} closed",
               file=sys.stderr)
-    report = evaluate(results, model, RankingRule())
+    oof = None
+    if args.cv:
+        data = labelled_set(results)
+        source = (f"bench/acronym_eval.py --poses {args.poses} --seed {args.seed} --cv {args.cv}: fitted on the "
+                  f"'tuning' objects of bench/acronym_split.toml ({len(files)} files of ../shared/labelled/acronym_dev, "
+                  f"ACRONYM FleX object_in_gripper labels, Panda), {len(data.labels)} closed poses; penalty chosen by "
+                  f"nested grouped CV; figures: held out by {args.cv}-fold CV grouped by object; code {code}")
+        cal = calibrate(data, folds=args.cv, source=source)
+        start_row = 0
+        oof = {}
+        for r in results:  # data's rows are the closed poses of results, in order
+            n = int(r.closed.sum())
+            oof[r.path.stem] = cal.cv.p[start_row:start_row + n]
+            start_row += n
+        if args.write_model:
+            args.write_model.write_text(cal.model.to_toml())
+            print(f"wrote {args.write_model}", file=sys.stderr)
+        model = model or cal.model
+    report = evaluate(results, model, RankingRule(), oof)
+    if oof is not None:
+        report["cv"] = {"folds": args.cv, "note": "p_hold figures are out-of-fold (grouped by object)"}
     report["cpu_seconds"] = time.process_time() - start
     report["settings"] = {"poses": args.poses, "seed": args.seed, "side": "held_out" if args.held_out else "tuning",
                           "files": len(files), "code": code, "trial": args.trial, "trial_set": args.trial_set}

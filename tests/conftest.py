@@ -18,6 +18,27 @@ def _cache(tmp_path_factory: pytest.TempPathFactory) -> None:
     os.environ.setdefault("GRASP_CACHE", str(tmp_path_factory.mktemp("cache")))
 
 
+@pytest.fixture(autouse=True, scope="session")
+def _no_shipped_model() -> object:
+    """Tests score by the rule's formula: the project's shipped p_hold models
+    (calibration/<hand>.toml) are switched off, except where a test puts them
+    back (``shipped_models``). A model stored in a test's database still applies."""
+    import planner.db.store
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(planner.db.store, "default_model", lambda hand: None)
+        yield
+
+
+@pytest.fixture
+def shipped_models(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The shipped p_hold models, as a user's database sees them."""
+    import planner.db.store
+    from planner.calibration.model import default_model
+
+    monkeypatch.setattr(planner.db.store, "default_model", default_model)
+
+
 @pytest.fixture(scope="session")
 def box_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """``grasp generate box --hand panda`` with a small sweep (read-only for tests: copy to change it)."""

@@ -126,3 +126,24 @@ def test_the_stored_rule_round_trips_and_says_its_formula() -> None:
 
 def test_the_readme_shows_the_one_formula() -> None:
     assert " ".join(FORMULA.split()) in " ".join(README.read_text().split())
+
+
+@given(st.lists(st.tuples(st.floats(-10, 10), st.booleans()), min_size=1, max_size=40))
+@settings(max_examples=60, deadline=None)
+def test_every_force_closure_grasp_ranks_above_every_other(grasps: list[tuple[float, bool]]) -> None:
+    from planner.db.ranking import rank_order
+
+    scores = np.array([s for s, _ in grasps])
+    fc = np.array([f for _, f in grasps])
+    order = rank_order(scores, fc)
+    ranked_fc = fc[order]
+    assert not np.any(~ranked_fc[:-1] & ranked_fc[1:])  # never a non-closure grasp before a closure one
+    for part in (ranked_fc, ~ranked_fc):  # within each, by score
+        assert np.all(np.diff(scores[order][part]) <= 0)
+
+
+def test_p_hold_replaces_the_formula_where_given_and_nowhere_else() -> None:
+    rule = RankingRule()
+    m = {"epsilon": [0.1, 0.1], "force_closure": [1, 1], "p_hold": [0.3, np.nan]}
+    got = rule.analytic(m)
+    assert got[0] == 0.3 and got[1] == rule.analytic({"epsilon": [0.1], "force_closure": [1]})[0]
