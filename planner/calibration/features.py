@@ -23,9 +23,9 @@ if TYPE_CHECKING:
     from planner.grasp import Grasp
 
 #: The raw measures read per grasp (units: epsilon, volume dimensionless; resist_* [g]; margins, width [m];
-#: counts; force_closure 0/1; settled_epsilon dimensionless).
+#: counts; force_closure 0/1; settled_epsilon dimensionless; depth [m], see :func:`contact_depth`).
 MEASURES = ("epsilon", "volume", "force_closure", "resist_worst", "resist_mean", "open_margin", "close_margin",
-            "push", "width", "n_contacts", "links_touching", "settled_epsilon")
+            "push", "width", "n_contacts", "links_touching", "settled_epsilon", "depth")
 
 #: [m] margins above this are all "plenty of travel" (an untouched finger's margin is inf).
 MARGIN_CAP = 0.04
@@ -45,12 +45,21 @@ FEATURES: dict[str, tuple[str, str]] = {
     "n_contacts": ("n_contacts", "identity"),
     "links_touching": ("links_touching", "identity"),
     "settled_epsilon": ("settled_epsilon", "identity"),
+    "depth": ("depth", "identity"),
+}
+
+#: Products of two features' inputs (after transform and fill): the curvature a linear model lacks where a
+#: middle value is best (neither the narrowest closed width nor the deepest contact always holds best).
+PRODUCTS: dict[str, tuple[str, str]] = {
+    "depth^2": ("depth", "depth"),
+    "width^2": ("width", "width"),
+    "width*depth": ("width", "depth"),
 }
 
 #: Value of a feature whose measure was not computed (NaN): the "nothing known" end of its scale.
 FILL = {"epsilon": 0.0, "force_closure": 0.0, "log_resist_worst": 0.0, "log_resist_mean": 0.0,
         "open_margin": MARGIN_CAP, "close_margin": MARGIN_CAP, "push": 0.0, "width": 0.0, "n_contacts": 0.0,
-        "links_touching": 0.0, "settled_epsilon": 0.0}
+        "links_touching": 0.0, "settled_epsilon": 0.0, "depth": 0.0}
 
 
 def _transform(kind: str, x: np.ndarray) -> np.ndarray:
@@ -61,19 +70,38 @@ def _transform(kind: str, x: np.ndarray) -> np.ndarray:
     return x
 
 
+def _input(table: Mapping[str, np.ndarray], name: str) -> np.ndarray:
+    if name in PRODUCTS:
+        a, b = PRODUCTS[name]
+        return _input(table, a) * _input(table, b)
+    measure, kind = FEATURES[name]
+    raw = np.asarray(table[measure], float)
+    return np.where(np.isnan(raw), FILL[name], _transform(kind, raw))
+
+
 def design(table: Mapping[str, np.ndarray], names: Sequence[str]) -> np.ndarray:
-    """(n, len(names)) inputs of the features ``names`` (keys of :data:`FEATURES`)."""
-    unknown = [n for n in names if n not in FEATURES]
+    """(n, len(names)) inputs of the features ``names`` (keys of :data:`FEATURES` or :data:`PRODUCTS`)."""
+    unknown = [n for n in names if n not in FEATURES and n not in PRODUCTS]
     if unknown:
-        raise InputError(f"unknown calibration feature(s) {', '.join(unknown)}; available: {', '.join(FEATURES)}")
-    columns = []
-    for name in names:
-        measure, kind = FEATURES[name]
-        raw = np.asarray(table[measure], float)
-        x = _transform(kind, raw)
-        columns.append(np.where(np.isnan(raw), FILL[name], x))
-    n = len(np.asarray(table[FEATURES[names[0]][0]])) if names else 0
-    return np.stack(columns, axis=1) if columns else np.zeros((n, 0))
+        raise InputError(f"unknown calibration feature(s) {', '.join(unknown)}; "
+                         f"available: {', '.join([*FEATURES, *PRODUCTS])}")
+    if not names:
+        return np.zeros((len(np.asarray(table["epsilon"])), 0))
+    return np.stack([_input(table, name) for name in names], axis=1)
+
+
+def contact_depth(pose: np.ndarray, approach: np.ndarray, points: Sequence[np.ndarray]) -> np.ndarray:
+    """(n,) [m] how far along the approach the contacts lie from the hand
+    frame's origin (the palm side): the mean over a grasp's contacts of
+    (point - origin) . approach; small = the object sits deep in the hand.
+    ``pose`` (n, 4, 4), ``approach`` (n, 3) unit, ``points`` n arrays (k_i, 3),
+    all in the object frame; NaN for a grasp without contacts."""
+    out = np.full(len(points), np.nan)
+    for i, p in enumerate(points):
+        p = np.asarray(p, float).reshape(-1, 3)
+        if len(p):
+            out[i] = float(np.mean((p - pose[i, :3, 3]) @ approach[i]))
+    return out
 
 
 def of_grasps(grasps: Sequence[Grasp]) -> dict[str, np.ndarray]:
@@ -90,10 +118,23 @@ def of_grasps(grasps: Sequence[Grasp]) -> dict[str, np.ndarray]:
             "width": np.array([nan if g.width is None else g.width for g in grasps], float),
             "n_contacts": np.array([len(g.contacts) for g in grasps], float),
             "links_touching": np.array([g.contacts.touching for g in grasps], float),
+            "depth": contact_depth(np.array([g.pose for g in grasps], float).reshape(-1, 4, 4),
+                                   np.array([g.approach_dir for g in grasps], float).reshape(-1, 3),
+                                   [g.contacts.points for g in grasps]),
             **{name: measured(name) for name in ("resist_worst", "resist_mean", "open_margin", "close_margin",
                                                  "push", "settled_epsilon")}}
 
 
 def of_columns(col: Mapping[str, Sequence[object]]) -> dict[str, np.ndarray]:
-    """The measure table of stored columns (None -> NaN); every name of :data:`MEASURES` must be there."""
-    return {name: np.array([np.nan if v is None else v for v in col[name]], float) for name in MEASURES}
+    """The measure table of stored columns (None -> NaN): the names of
+    :data:`MEASURES` but ``depth``, which comes from ``pose``, ``approach_dir``
+    (flat JSON lists) and ``contacts`` (JSON ``[{point, ...}]``)."""
+    import json
+
+    out = {name: np.array([np.nan if v is None else v for v in col[name]], float)
+           for name in MEASURES if name != "depth"}
+    poses = np.array([json.loads(t) for t in col["pose"]], float).reshape(-1, 4, 4)
+    approach = np.array([json.loads(t) for t in col["approach_dir"]], float).reshape(-1, 3)
+    points = [np.array([c["point"] for c in json.loads(t)], float) for t in col["contacts"]]
+    out["depth"] = contact_depth(poses, approach, points)
+    return out

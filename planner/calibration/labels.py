@@ -8,7 +8,8 @@ bounded. Poses where the hand does not close on the object are counted by
 reason: they are never stored, so p_hold is not fitted on them.
 
 The group of a grasp (its object, for folds grouped by object) is the mesh
-its file names: the same object at two scales is one group.
+file its file names (the same object at two scales is one group), or the
+built-in object's name.
 """
 
 from __future__ import annotations
@@ -91,7 +92,7 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
         if order:
             tables.append(features.of_grasps([grasps[i] for i in order]))
             labels.append(y[rows[order]])
-            groups += [spec.source] * len(order)
+            groups += [spec.source if spec.kind == "mesh" else spec.name] * len(order)
             files += [path.stem] * len(order)
         if progress:
             progress(path, len(order), len(rows))

@@ -26,13 +26,14 @@ import numpy as np
 from scipy.optimize import minimize
 
 from planner.assets import project_dir
-from planner.calibration.features import FEATURES, design
+from planner.calibration.features import FEATURES, PRODUCTS, design
 from planner.calibration.metrics import Reliability, grouped_folds
 from planner.errors import InputError
 
 #: The features a model uses unless told otherwise.
 DEFAULT_FEATURES = ("epsilon", "force_closure", "log_resist_worst", "log_resist_mean", "open_margin", "close_margin",
-                    "push", "width", "n_contacts", "links_touching", "settled_epsilon")
+                    "push", "width", "n_contacts", "links_touching", "settled_epsilon", "depth", "depth^2", "width^2",
+                    "width*depth")
 #: L2 penalties tried by cross-validation (per grasp of the mean log-loss, on standardised features).
 L2_GRID = (1e-4, 1e-3, 1e-2, 1e-1, 1.0)
 #: A feature whose spread is below this is constant in the data: its scale is 1 (coefficient ~0 by the penalty).
@@ -71,10 +72,10 @@ class LogisticModel:
             if a.shape != (k,):
                 raise InputError(f"calibration model: {name} must have {k} entries (one per feature), got {a.shape}")
             object.__setattr__(self, name, a)
-        unknown = [f for f in self.features if f not in FEATURES]
+        unknown = [f for f in self.features if f not in FEATURES and f not in PRODUCTS]
         if unknown:
             raise InputError(f"calibration model: unknown feature(s) {', '.join(unknown)}; "
-                             f"available: {', '.join(FEATURES)}")
+                             f"available: {', '.join([*FEATURES, *PRODUCTS])}")
         if not np.all(self.scale > 0):
             raise InputError("calibration model: every scale must be > 0")
 

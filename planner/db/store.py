@@ -9,6 +9,7 @@ writes them and re-ranks each (object, hand) in the rule's tie-break order.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import sqlite3
@@ -75,7 +76,7 @@ FROM grasps g {join} {validation} v ON v.grasp_id = g.id LEFT JOIN {robust} r ON
 _MEASURES = """
 SELECT g.id, g.object, g.hand, g.epsilon, g.force_closure, g.reachability, v.success, r.quantile,
        g.resist_worst, g.push, g.open_margin, g.close_margin, g.settled_epsilon,
-       g.volume, g.width, g.n_contacts, g.links_touching, g.resist_mean
+       g.volume, g.width, g.n_contacts, g.links_touching, g.resist_mean, g.pose, g.approach_dir, g.contacts
 FROM grasps g LEFT JOIN validation v ON v.grasp_id = g.id LEFT JOIN robust r ON r.grasp_id = g.id
 """
 _RERANK = f"""
@@ -123,7 +124,8 @@ def p_hold_of(col: dict, models: dict[str, LogisticModel | None]) -> list[float 
         if model is None:
             continue
         rows = [i for i, h in enumerate(col["hand"]) if h == hand]
-        sub = {k: [col[k][i] if k in col else None for i in rows] for k in features.MEASURES}
+        sub = {k: [col[k][i] if k in col else None for i in rows]
+               for k in (*features.MEASURES, "pose", "approach_dir", "contacts") if k != "depth"}
         for i, p in zip(rows, model.predict(features.of_columns(sub)).tolist()):
             out[i] = p
     return out
@@ -324,14 +326,24 @@ class Database:
 
     # -- ranking ---------------------------------------------------------------
     def apply_rule(self, rule: RankingRule, force: bool = False) -> bool:
-        """Store ``rule``; if it differs from the stored one (or ``force``),
-        re-score and re-rank every grasp in one transaction."""
-        if self.meta("ranking") == rule.to_json() and not force:
+        """Store ``rule``; if it differs from the stored one, or a hand's p_hold
+        model is not the one its scores were made with (a new shipped model),
+        or ``force``, re-score and re-rank every grasp in one transaction."""
+        models = self._models_key()
+        if self.meta("ranking") == rule.to_json() and self.meta("p_hold_models") == models and not force:
             return False
         with self._transaction() as conn:
             self._set_meta(conn, "ranking", rule.to_json())
+            self._set_meta(conn, "p_hold_models", models)
             self._rescore(conn, rule)
         return True
+
+    def _models_key(self) -> str:
+        """Which p_hold model scores each stored hand (JSON, hashes of the
+        models): scores made with other models are re-made by the next write."""
+        hands = sorted({h for _, h in self.pairs()})
+        return json.dumps({h: None if (m := self.model(h)) is None else
+                           hashlib.sha256(m.to_json().encode()).hexdigest()[:16] for h in hands}, sort_keys=True)
 
     def _rescore(self, conn: sqlite3.Connection, rule: RankingRule, pair: tuple[str, str] | None = None,
                  hand: str | None = None) -> None:
@@ -378,6 +390,7 @@ class Database:
             conn.execute(_insert("calibration", ("hand", "model", "source", "created_at"), "INSERT OR REPLACE"),
                          (model.hand, model.to_json(), source, time.strftime("%Y-%m-%dT%H:%M:%S")))
             self._rescore(conn, rule, hand=model.hand)
+        self.set_meta("p_hold_models", self._models_key())
 
     def write_validation(self, obj: str, hand: str, results: Sequence[Validated], rule: RankingRule) -> None:
         """Store trial and robust-epsilon results of grasps of one (object,
