@@ -155,7 +155,9 @@ def run_trials(result: FileResult, n: int, seed: int, settings: ShakeSettings, c
     tag = hashlib.sha256(settings.to_json().encode()).hexdigest()[:8]
     key = cache / f"{result.path.stem}.trial.{len(result.rows)}.{seed}.{n}.{tag}.{code}.json"
     if key.exists():
-        result.trial = {int(k): v for k, v in json.loads(key.read_text()).items()}
+        stored = json.loads(key.read_text())
+        result.trial = {int(k): bool(v[0] if isinstance(v, list) else v) for k, v in stored.items()}
+        result.trial_reasons = {int(k): v[1] for k, v in stored.items() if isinstance(v, list)}  # type: ignore[attr-defined]
         return
     by_pos = {g.candidate: g for g in result.grasps}
     picked = [int(closed[i]) for i in chosen]
@@ -164,7 +166,7 @@ def run_trials(result: FileResult, n: int, seed: int, settings: ShakeSettings, c
     outcome = trials(plan.hand, obj, [by_pos[p] for p in picked], settings)
     result.trial = {p: bool(t.success) for p, t in zip(picked, outcome)}
     result.trial_reasons = {p: t.reason for p, t in zip(picked, outcome)}  # type: ignore[attr-defined]
-    key.write_text(json.dumps(result.trial))
+    key.write_text(json.dumps({p: [result.trial[p], result.trial_reasons[p]] for p in picked}))  # type: ignore[attr-defined]
 
 
 def scores(result: FileResult, model, rule: RankingRule, p_hold: np.ndarray | None = None) -> dict[str, np.ndarray]:
