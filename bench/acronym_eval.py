@@ -43,11 +43,11 @@ import numpy as np
 import tomllib
 
 from planner.calibration import features
+from planner.calibration.fitting import calibrate
+from planner.calibration.labels import LabelledSet
 from planner.calibration.metrics import expected_calibration_error, roc_auc
 from planner.calibration.model import default_model, load_model
 from planner.datasets import acronym, importer
-from planner.calibration.fitting import calibrate
-from planner.calibration.labels import LabelledSet
 from planner.db.ranking import RankingRule, rank_order
 from planner.geometry.solid import prepare
 from planner.plan import pool
@@ -351,8 +351,9 @@ def main() -> int:
     if args.cv:
         data = labelled_set(results)
         source = (f"bench/acronym_eval.py --poses {args.poses} --seed {args.seed} --cv {args.cv}: fitted on the "
-                  f"'tuning' objects of bench/acronym_split.toml ({len(files)} files of ../shared/labelled/acronym_dev, "
-                  f"ACRONYM FleX object_in_gripper labels, Panda), {len(data.labels)} closed poses; penalty chosen by "
+                  f"'tuning' objects of bench/acronym_split.toml ({len(files)} files of "
+                  f"../shared/labelled/acronym_dev, ACRONYM FleX object_in_gripper labels, Panda), "
+                  f"{len(data.labels)} closed poses; penalty chosen by "
                   f"nested grouped CV; figures: held out by {args.cv}-fold CV grouped by object; code {code}")
         cal = calibrate(data, folds=args.cv, source=source)
         start_row = 0

@@ -55,8 +55,8 @@ __all__ = [
     "DEFAULT_DB", "EXPORT_FORMATS", "IMPORT_FORMATS", "RANDOM_COUNT", "RANDOM_PREFIX", "ExportSummary", "Grasp",
     "ImportResult", "RankingRule", "ReachableGrasp", "SAMPLERS", "SAMPLER_DEFAULTS", "Summary", "SweepSettings",
     "UnitResult", "ValidationSummary",
-    "best", "best_at", "calibrate", "calibration_errors", "check_db", "default_workers", "export", "generate", "hand", "hands", "import_files",
-    "objects", "plan_units", "report", "resolve_object", "show", "validate",
+    "best", "best_at", "calibrate", "calibration_errors", "check_db", "default_workers", "export", "generate",
+    "hand", "hands", "import_files", "objects", "plan_units", "report", "resolve_object", "show", "validate",
 ]
 
 log = logging.getLogger(__name__)

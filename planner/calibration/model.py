@@ -162,7 +162,7 @@ def load_model(path: Path) -> LogisticModel:
     return LogisticModel.from_dict(data)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def default_model(hand: str) -> LogisticModel | None:
     """The shipped model of ``hand`` (``calibration/<hand>.toml``), None if there is none (read once)."""
     path = project_dir(FOLDER) / f"{hand}.toml"

@@ -7,7 +7,8 @@ few columns pays for those only); the validation and robust results are
 flattened (``validation_success``, ..., ``robust_mean``, ``robust_quantile``,
 ``robust_samples``), and so are the analytic measures (``resist_worst``,
 ``resist_mean``, ``open_margin``, ``close_margin``, ``push``,
-``settled_epsilon``: NaN when not measured; ``p_hold``: NaN where no model applies; ``feasibility``: comma-separated reasons, '' when feasible). A
+``settled_epsilon``: NaN when not measured; ``p_hold``: NaN where no model
+applies; ``feasibility``: comma-separated reasons, '' when feasible). A
 value that is absent holds NaN in a float column and
 -1 in an integer column (``id`` and ``unit_id`` of a record not stored yet,
 ``rank``, ``validation_success``, ``validation_fingers_in_contact``,

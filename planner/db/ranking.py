@@ -55,7 +55,8 @@ if TYPE_CHECKING:
     from planner.grasp import Grasp
 
 #: The rule of :meth:`RankingRule.scores` in words, as ``meta.ranking`` stores it.
-FORMULA = ("analytic = p_hold where a calibrated model applies to the hand, else gate * (press * (1 + hold) / 2 + eps_weight * quality + settled_weight * settled);"
+FORMULA = ("analytic = p_hold where a calibrated model applies to the hand, else"
+           " gate * (press * (1 + hold) / 2 + eps_weight * quality + settled_weight * settled);"
            " gate = [open_margin >= min_open_margin] * [close_margin >= 1e-4 m];"
            " press = clip(push, 0, 1); hold = min(resist_worst, cap) / cap;"
            " quality = (1 - robust_weight) * epsilon + robust_weight * robust_quantile;"
