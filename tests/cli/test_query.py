@@ -51,7 +51,7 @@ def test_best_prints_one_line_per_grasp_and_show_writes_a_png(box_db: Path, tmp_
     code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--top", "2")
     assert code == 0, err
     lines = out.strip().splitlines()
-    assert len(lines) == 2 and lines[0].startswith("#1 box/panda preshape=wide score=")
+    assert len(lines) == 2 and lines[0].startswith("#1 box/panda preshape=wide p_hold=n/a score=")  # no model: n/a
     assert " holds=" in lines[0] and " push=" in lines[0] and " feasibility=" in lines[0]  # the analytic measures
     code, out, err = grasp("show", "box", "--hand", "panda", "--db", str(box_db), "--out", str(tmp_path / "g.png"))
     assert code == 0 and (tmp_path / "g.png").stat().st_size > 1000, err
