@@ -19,24 +19,22 @@ def _cache(tmp_path_factory: pytest.TempPathFactory) -> None:
 
 
 @pytest.fixture(autouse=True, scope="session")
-def _no_shipped_model() -> object:
+def _no_shipped_model() -> None:
     """Tests score by the rule's formula: the project's shipped p_hold models
-    (calibration/<hand>.toml) are switched off, except where a test puts them
-    back (``shipped_models``). A model stored in a test's database still applies."""
-    import planner.db.store
+    (calibration/<hand>.toml) are switched off, in this process and in every
+    process it starts, except where a test puts them back (``shipped_models``).
+    A model stored in a test's database still applies."""
+    from planner.calibration.model import SHIPPED_ENV
 
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(planner.db.store, "default_model", lambda hand: None)
-        yield
+    os.environ[SHIPPED_ENV] = "0"
 
 
 @pytest.fixture
 def shipped_models(monkeypatch: pytest.MonkeyPatch) -> None:
     """The shipped p_hold models, as a user's database sees them."""
-    import planner.db.store
-    from planner.calibration.model import default_model
+    from planner.calibration.model import SHIPPED_ENV
 
-    monkeypatch.setattr(planner.db.store, "default_model", default_model)
+    monkeypatch.setenv(SHIPPED_ENV, "1")
 
 
 @pytest.fixture(scope="session")

@@ -18,6 +18,7 @@ from __future__ import annotations
 import functools
 import json
 import math
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -162,9 +163,21 @@ def load_model(path: Path) -> LogisticModel:
     return LogisticModel.from_dict(data)
 
 
-@functools.cache
+#: Set to "0" to switch the shipped models off (scores by the rule's formula: tests, comparisons).
+SHIPPED_ENV = "GRASP_SHIPPED_MODELS"
+
+
 def default_model(hand: str) -> LogisticModel | None:
-    """The shipped model of ``hand`` (``calibration/<hand>.toml``), None if there is none (read once)."""
+    """The shipped model of ``hand`` (``calibration/<hand>.toml``), None if
+    there is none or ``$GRASP_SHIPPED_MODELS`` is "0"."""
+    if os.environ.get(SHIPPED_ENV, "1") == "0":
+        return None
+    return _shipped(hand)
+
+
+@functools.cache
+def _shipped(hand: str) -> LogisticModel | None:
+    """The shipped model file of ``hand``, read once per process."""
     path = project_dir(FOLDER) / f"{hand}.toml"
     return load_model(path) if path.is_file() else None
 
