@@ -12,7 +12,8 @@ from helpers import made_up
 #: The keys the README documents for ``grasp best --json``.
 DOCUMENTED = {"object", "hand", "preshape", "pose", "joints", "open_joints", "width", "epsilon", "volume",
               "force_closure", "reachability", "manipulability", "contacts", "rank", "score", "candidate", "seed",
-              "p_hold", "resist_worst", "resist_mean", "open_margin", "close_margin", "push", "feasibility", "settled_epsilon"}
+              "p_hold", "resist_worst", "resist_mean", "open_margin", "close_margin", "push", "feasibility",
+              "settled_epsilon"}
 
 
 def test_best_json_keys_and_values() -> None:
