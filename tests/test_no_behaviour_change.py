@@ -24,7 +24,9 @@ settle's world gets rounded inputs, so its chaotic dynamics no longer turn
 the last bits of numpy's results -- which differ between BLAS kernels, AVX2
 or AVX-512 -- into other settled epsilons: version 4's digest held on the
 machine that recorded it, not on an AVX-512 one; the same grasps, other
-settled epsilons, scores and ranks of the Barrett's).
+settled epsilons, scores and ranks of the Barrett's); 6 (issue 26, branch
+truth: force-closure grasps rank above every other; the same grasps and
+scores, other ranks: version 5's digest passes with the old ORDER_BY).
 """
 
 from __future__ import annotations

@@ -38,7 +38,9 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: 5: a dynamic world's inputs rounded to 1e-10 and the principal frame of equal
 #: moments chosen from the object axes (planner.sim.dynamics): settled epsilons
 #: and trials no longer depend on which BLAS kernel numpy runs (issue 16).
-ALGORITHM_VERSION = 5
+#: 6: every force-closure grasp ranks above every other (issue 26); the same
+#: grasps and scores, other ranks.
+ALGORITHM_VERSION = 6
 
 #: What the settings left unset mean, per sampler: surface points (or rays)
 #: per object, rolls (antipodal: approach directions about the closing
