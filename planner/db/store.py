@@ -430,6 +430,7 @@ class Database:
             conn.execute(_RERANK, (o, h))
 
     # -- calibration -------------------------------------------------------------
+    @_reads
     def model(self, hand: str) -> LogisticModel | None:
         """The hand's p_hold model: the one stored by ``grasp calibrate``, else
         the project's shipped one, else None."""
@@ -439,6 +440,7 @@ class Database:
                 return LogisticModel.from_json(row["model"])
         return default_model(hand)
 
+    @_reads
     def model_source(self, hand: str) -> str:
         """Where the hand's model came from: the stored source, ``shipped`` or ``none``."""
         if "calibration" in table_names(self._conn):
