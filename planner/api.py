@@ -5,6 +5,7 @@ wraps these functions (and the names re-exported here).
 - querying: :func:`best`, :func:`best_at` (grasps an arm reaches now), :func:`show`,
   each naming the object as :func:`resolve_object` reads it;
 - validating: :func:`validate`, :func:`report`;
+- calibrating: :func:`calibrate` (p_hold fitted to labelled grasp files);
 - datasets: :func:`export`, :func:`import_files`;
 - descriptions: :func:`hands`, :func:`hand`, :func:`objects`;
 - maintenance: :func:`check_db`.
@@ -18,6 +19,7 @@ so starting the ``grasp`` command, costs numpy and the specs alone.
 from __future__ import annotations
 
 import importlib
+import json
 import logging
 import math
 import os
@@ -54,6 +56,8 @@ from planner.specs.objects import (
 from planner.specs.preshapes import Preshape, load_preshapes
 
 if TYPE_CHECKING:
+    from planner.calibration.fitting import Calibration
+    from planner.calibration.model import LogisticModel
     from planner.datasets.exporter import FORMATS as EXPORT_FORMATS
     from planner.datasets.exporter import ExportSummary, export
     from planner.datasets.importer import FORMATS as IMPORT_FORMATS
@@ -69,8 +73,8 @@ __all__ = [
     "DEFAULT_DB", "EXPORT_FORMATS", "IMPORT_FORMATS", "RANDOM_COUNT", "RANDOM_PREFIX", "ExportSummary", "Grasp",
     "GenerateProgress", "ImportResult", "RankingRule", "ReachableGrasp", "SAMPLERS", "SAMPLER_DEFAULTS", "Summary",
     "SweepSettings", "UnitResult", "ValidationSummary",
-    "best", "best_at", "check_db", "default_workers", "export", "generate", "hand", "hands", "import_files",
-    "objects", "plan_units", "report", "resolve_object", "show", "validate",
+    "best", "best_at", "calibrate", "calibration_errors", "check_db", "default_workers", "export", "generate",
+    "hand", "hands", "import_files", "objects", "plan_units", "report", "resolve_object", "show", "validate",
 ]
 
 log = logging.getLogger(__name__)
@@ -415,6 +419,13 @@ class ReachableGrasp:
                 "arm_manipulability": self.manipulability, "hand_pose_world": self.hand_pose_world}
 
 
+def p_hold_model(hand: str, *, db_path: Path = DEFAULT_DB) -> LogisticModel | None:
+    """The p_hold model a database applies to ``hand``'s grasps (stored by
+    ``grasp calibrate``, else the shipped one; None: none)."""
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        return db.model(hand)
+
+
 def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path = DEFAULT_DB, top: int = 1,
             robot_base: Sequence[float] | None = None, max_candidates: int = MAX_CANDIDATES,
             pregrasp_distance: float = PREGRASP_DISTANCE, seed: int = 0,
@@ -620,10 +631,57 @@ def _arm_line(r: ReachableGrasp) -> str:
 
 def report(db_path: Path, out: Path) -> Path:
     """The calibration report of ``db_path``: ``out.html``, or a folder with
-    ``report.md`` and PNGs; returns the file written."""
+    ``report.md`` and PNGs (the reliability diagram of each hand's p_hold
+    among them); returns the file written."""
     from planner.present import report as reporting
 
     return reporting.write(Path(db_path), Path(out))
+
+
+def calibration_errors(db_path: Path) -> list[str]:
+    """Per hand with a p_hold model: the expected calibration error of each of
+    its reliability tables (held out on its labels; against stored trials)."""
+    from planner.present import report as reporting
+
+    return reporting.ece_lines(reporting.calibration(Path(db_path)))
+
+
+# -- calibrating ---------------------------------------------------------------------
+def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB, poses: int | None = 200, seed: int = 0,
+              folds: int = 5, hand: str | None = None, workers: int = 1, model_out: Path | None = None,
+              plot: Path | None = None, progress: Callable[[Path, int, int], None] | None = None
+              ) -> Calibration:
+    """Fit p_hold (and so the ranking, by p_hold) to labelled grasp files in
+    ACRONYM layout: a seeded sample of ``poses`` poses per file re-scored as
+    ``import --rescore`` does, cross-validated over ``folds`` folds grouped by
+    object. The model and its source are stored in ``db_path`` (None: not
+    stored), where ``best``, exports and reports use it for its hand;
+    ``model_out`` writes it as TOML (the form of the shipped default),
+    ``plot`` the held-out reliability diagram as PNG."""
+    from planner.calibration.fitting import calibrate as fit_calibration
+    from planner.calibration.labels import labelled
+
+    if plot is not None and Path(plot).suffix.lower() != ".png":
+        raise InputError(f"{plot}: the reliability diagram is written as PNG; give a .png path")
+    if folds < 2:
+        raise InputError(f"--folds must be at least 2, got {folds}")
+    paths = [Path(p) for p in label_files]
+    data = labelled(paths, poses=poses, seed=seed, hand=hand, workers=workers, progress=progress)
+    source = json.dumps({"command": "grasp calibrate", "labels": [p.name for p in paths], "poses_per_file": poses,
+                         "seed": seed, "folds": folds, "grasps": len(data.labels), "objects": len(set(data.groups)),
+                         "rejected": data.rejected}, sort_keys=True)
+    result = fit_calibration(data, folds=folds, source=source)
+    if db_path is not None:
+        with writer_lock(Path(db_path)), open_db(Path(db_path)) as db:
+            db.write_model(result.model, source, db.rule())
+    if model_out is not None:
+        Path(model_out).write_text(result.model.to_toml(), encoding="utf-8")
+    if plot is not None:
+        from planner.calibration.plot import reliability_png
+
+        Path(plot).write_bytes(reliability_png([("held out (grouped CV)", result.reliability)],
+                                               f"p_hold, {result.model.hand}: {len(data.labels)} labelled grasps"))
+    return result
 
 
 # -- descriptions and maintenance ------------------------------------------------------

@@ -18,6 +18,25 @@ def _cache(tmp_path_factory: pytest.TempPathFactory) -> None:
     os.environ.setdefault("GRASP_CACHE", str(tmp_path_factory.mktemp("cache")))
 
 
+@pytest.fixture(autouse=True, scope="session")
+def _no_shipped_model() -> None:
+    """Tests score by the rule's formula: the project's shipped p_hold models
+    (calibration/<hand>.toml) are switched off, in this process and in every
+    process it starts, except where a test puts them back (``shipped_models``).
+    A model stored in a test's database still applies."""
+    from planner.calibration.model import SHIPPED_ENV
+
+    os.environ[SHIPPED_ENV] = "0"
+
+
+@pytest.fixture
+def shipped_models(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The shipped p_hold models, as a user's database sees them."""
+    from planner.calibration.model import SHIPPED_ENV
+
+    monkeypatch.setenv(SHIPPED_ENV, "1")
+
+
 @pytest.fixture(scope="session")
 def box_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """``grasp generate box --hand panda`` with a small sweep (read-only for tests: copy to change it)."""

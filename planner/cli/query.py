@@ -38,6 +38,7 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
          diverse: bool, min_translation: float, min_rotation: float) -> None:
     """The best grasps of OBJECT for a hand, from the database."""
     rule = api.ranking_rule(db_path) if explain else None
+    model = api.p_hold_model(hand, db_path=db_path) if explain else None
     apart = spacing(diverse, min_translation, min_rotation)
     if on_table:
         if object_pose is not None or apart is not None:
@@ -49,10 +50,11 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
             raise click.BadParameter("--robot-base needs --object-pose")
         grasps = api.best(object_name, hand, db_path=db_path, top=top, spacing=apart)
         if as_json:
-            click.echo(json.dumps([{**g.to_json(), "frames": _frames_json(g, None, rule)} for g in grasps], indent=2))
+            click.echo(json.dumps([{**g.to_json(), "frames": _frames_json(g, None, rule, model)} for g in grasps],
+                                  indent=2))
             return
         for g in grasps:
-            _print_grasp(g, rule=rule)
+            _print_grasp(g, rule=rule, model=model)
         return
     if apart is not None:
         raise click.BadParameter("--diverse is not yet available with --object-pose")
@@ -61,7 +63,8 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
                         robot_base=floats(robot_base), max_candidates=max_candidates, misses=misses)
     world = api.object_pose_matrix(floats(object_pose) or ())
     if as_json:
-        click.echo(json.dumps([{**r.to_json(), "frames": _frames_json(r.grasp, world, rule)} for r in found], indent=2))
+        click.echo(json.dumps([{**r.to_json(), "frames": _frames_json(r.grasp, world, rule, model)} for r in found],
+                              indent=2))
         return
     if not found:
         raise NotFoundError(f"none of the {max_candidates} best grasps of '{object_name}' for hand '{hand}' is "
@@ -69,29 +72,31 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
                             f"(--max-candidates {max_candidates * 10}), an object pose nearer the arm, --on-table, "
                             f"or check --robot-base")
     for r in found:
-        _print_grasp(r.grasp, world, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp}, rule)
+        _print_grasp(r.grasp, world, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp}, rule,
+                     model)
 
 
-def _print_grasp(g: api.Grasp, world: object = None, arm: dict | None = None, rule: object = None) -> None:
+def _print_grasp(g: api.Grasp, world: object = None, arm: dict | None = None, rule: object = None,
+                 model: object = None) -> None:
     from planner.present.describe import describe, explain
 
     for line in describe(g, hand_frame(g.hand), world, arm):  # type: ignore[arg-type]
         click.echo(line)
     if rule is not None:
         click.echo("    why this score (the ranking rule, `meta.ranking` of the database):")
-        for line in explain(g, rule):  # type: ignore[arg-type]
+        for line in explain(g, rule, model):  # type: ignore[arg-type]
             click.echo(line)
 
 
-def _frames_json(g: api.Grasp, world: object = None, rule: object = None) -> dict:
+def _frames_json(g: api.Grasp, world: object = None, rule: object = None, model: object = None) -> dict:
     from planner.present.describe import frames
 
     spec = hand_frame(g.hand)
     out: dict = {"object_frame": frames(g, spec).to_json()}
     if rule is not None:
-        from planner.db.ranking import rule_measures
+        from planner.present.describe import explain_json
 
-        out["explain"] = {k: float(v[0]) for k, v in rule.terms(rule_measures([g])).items()}  # type: ignore[attr-defined]
+        out["explain"] = explain_json(g, rule, model)  # type: ignore[arg-type]
     if world is not None:
         out["world_frame"] = frames(g, spec, world).to_json()  # type: ignore[arg-type]
     return out

@@ -52,8 +52,11 @@ def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], to
 @click.option("--out", type=click.Path(path_type=Path), default=Path("report.html"), show_default=True,
               help="report.html (one self-contained file) or a folder (report.md + PNGs).")
 def report(db_path: Path, out: Path) -> None:
-    """How well epsilon, robust epsilon and reachability predict simulated success;
-    and how much of each object's surface its top grasps' contacts cover."""
+    """How well epsilon, robust epsilon and reachability predict simulated success; the
+    reliability diagram and expected calibration error of p_hold; and how much of each object's
+    surface its top grasps' contacts cover."""
     click.echo(str(api.report(db_path, out)))
+    for line in api.calibration_errors(db_path):
+        click.echo(line)
     for line in api.coverage(db_path):
         click.echo(line.line())

@@ -48,7 +48,8 @@ This project's extras (a foreign reader ignores them): ``object/name``,
 scale), ``object/mesh_sha256`` (:func:`planner.geometry.mesh.mesh_hash` of
 the mesh); ``gripper/configuration_joints``;
 ``grasps/qualities/{epsilon, volume, force_closure, reachability,
-manipulability, score, rank}``, every analytic measure under its declared
+manipulability, score, p_hold, rank}`` (``p_hold``: the calibrated
+probability of holding, NaN where no model applies), every analytic measure under its declared
 name (``resist_worst``, ..., ``settled_epsilon``; ``feasibility``: reasons,
 comma-separated), ``simulated_success`` (-1: not simulated), the trial's
 other fields (``validation_fingers_in_contact``, ``validation_reason``) and
@@ -118,7 +119,7 @@ ROBUST_EPSILON = ("robust_mean", "robust_quantile")
 #: derived from the declaration (:mod:`planner.record.fields`).
 QUALITIES = {
     **{name: name for name in ("epsilon", "volume", "force_closure", "reachability", "manipulability", "score",
-                               "rank")},
+                               "p_hold", "rank")},
     **{f.name: f.name for f in fields.group("measures")},
     "simulated_success": "validation_success",
     **{f.name: f.name for f in fields.group("validation") if f.name != "validation_success"
@@ -397,6 +398,20 @@ def _trial_columns(g: Any, group: str, n: int) -> dict[str, list]:
             values = [MISSING[f.name]] * n
         out[f.attr.partition(".")[2]] = values
     return out
+
+
+def read_labels(path: Path) -> np.ndarray:
+    """(N,) 0/1 ``grasps/qualities/flex/object_in_gripper`` of a grasp file (a
+    label set: FleX's, a real robot's outcomes)."""
+    with _open(path) as f:
+        key = f"grasps/{FLEX}object_in_gripper"
+        if key not in f:
+            raise InputError(f"{path}: no {key}: not a labelled grasp file")
+        labels = np.asarray(f[key][:], float)
+        n = len(f["grasps/transforms"]) if "grasps/transforms" in f else len(labels)
+    if len(labels) != n or not np.isin(labels, (0.0, 1.0)).all():
+        raise InputError(f"{path}: {key} must hold one 0/1 label per grasp ({n}), got {len(labels)} values")
+    return labels
 
 
 def read_simulation(path: Path) -> list[tuple[Trial | None, RobustEpsilon | None]]:

@@ -332,3 +332,11 @@ def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: C
                 force_closure=q.force_closure, measures=m))
     return out
 
+
+def read_for_rescoring(path: Path, hand: str | None = None, fmt: str = "acronym"
+                       ) -> tuple[HandSpec, ObjectSpec, np.ndarray]:
+    """The hand, the object (with the file's mass and friction) and the
+    (n, 4, 4) hand poses of a grasp file, as ``--rescore`` reads them."""
+    reader = formats.reader(fmt)
+    plan = _plan(Path(path), fmt, reader, hand, None, True)
+    return plan.hand, plan.spec, reader.poses(plan.path, plan.hand)

@@ -21,13 +21,22 @@ measures of :mod:`planner.plan.measures` and epsilon:
   when not measured), with weight ``settled_weight``: for a hand whose
   closing moves the object it decides the order.
 
+Where a calibrated probability of holding applies (a p_hold model for the
+hand: fitted by ``grasp calibrate`` and stored, or the project's shipped one,
+:mod:`planner.calibration`), the analytic score *is* ``p_hold``: the model
+has learnt from external labels how much each of those measures counts.
+
 A pressed grasp that does not hold its weight yet still ranks above one that
 is not pressed (half weight): squeezing settles it. Reachability (fraction of
 table placements an arm reaches) and simulated success (1/0 from the shake
 test) then multiply, each with its weight in [0, 1] (0 ignores the measure, 1
 lets it veto); simulated success only refines the order. Rank 1 is the best
-grasp of an (object, hand); ties are broken by epsilon, then GWS volume,
-then by the unit seed and candidate number (never by insertion order).
+grasp of an (object, hand). Every grasp whose planned contacts are force
+closure ranks above every grasp whose contacts are not, whatever their
+scores (issue 26: a score that rewards what one simulator's closing happens to
+do must not lift a grasp that is not force closure as planned); within each
+of the two, by score; ties are broken by epsilon, then GWS volume, then by
+the unit seed and candidate number (never by insertion order).
 """
 
 from __future__ import annotations
@@ -47,8 +56,8 @@ from planner.record.tolerances import MIN_CLOSE_MARGIN, MIN_OPEN_MARGIN
 if TYPE_CHECKING:
     from planner.record.grasp import Grasp
 
-#: The rank order: score first, then the tie-breaks (columns of ``grasps``).
-ORDER_BY = "score DESC, epsilon DESC, volume DESC, seed, candidate, unit_id"
+#: The rank order: force closure first, then score, then the tie-breaks (columns of ``grasps``).
+ORDER_BY = "force_closure DESC, score DESC, epsilon DESC, volume DESC, seed, candidate, unit_id"
 
 #: The measures the rule reads (each an (n,) array; NaN or None = not computed), by
 #: the names the declaration gives them (:func:`planner.record.fields.ranked_fields`).
@@ -62,7 +71,8 @@ def _short(value: float) -> str:
 
 
 #: The rule of :meth:`RankingRule.scores` in words, as ``meta.ranking`` stores it.
-FORMULA = ("analytic = gate * (press * (1 + hold) / 2 + eps_weight * quality + settled_weight * settled);"
+FORMULA = ("analytic = p_hold where a calibrated model applies to the hand, else"
+           " gate * (press * (1 + hold) / 2 + eps_weight * quality + settled_weight * settled);"
            f" gate = [open_margin >= min_open_margin] * [close_margin >= {_short(MIN_CLOSE_MARGIN)} m];"
            " press = clip(push, 0, 1); hold = min(resist_worst, cap) / cap;"
            " quality = (1 - robust_weight) * epsilon + robust_weight * robust_quantile;"
@@ -71,7 +81,8 @@ FORMULA = ("analytic = gate * (press * (1 + hold) / 2 + eps_weight * quality + s
            " * ((1 - success_weight) + success_weight * simulated_success);"
            " a measure not computed counts as neutral (reachability, success 1; robust quantile = epsilon);"
            " grasps stored without the analytic measures (before schema v3): gate 1, press 1,"
-           " hold = force_closure")
+           " hold = force_closure;"
+           " rank: force-closure grasps first, then by score")
 
 
 @dataclass(frozen=True)
@@ -109,7 +120,9 @@ class RankingRule:
     def terms(self, measures: Mapping[str, ArrayLike | None]) -> dict[str, np.ndarray]:
         """Every term of the rule, (n,) each, in the order :data:`FORMULA`
         builds them: ``gate``, ``press``, ``hold``, ``quality``, ``settled``,
-        ``analytic``, ``reach_factor``, ``success_factor`` and ``score``
+        ``formula`` (the formula's analytic score), ``p_hold`` (NaN where no
+        calibrated model applies), ``analytic`` (p_hold where given, else
+        the formula's), ``reach_factor``, ``success_factor`` and ``score``
         (``grasp best --explain`` prints them; :meth:`analytic` and
         :meth:`scores` are read off them)."""
         eps = _column(measures, "epsilon")
@@ -125,17 +138,20 @@ class RankingRule:
         settled = _column(measures, "settled_epsilon", np.zeros(n))
         quantile = _column(measures, "robust_quantile", eps)
         quality = (1.0 - self.robust_weight) * eps + self.robust_weight * quantile
-        analytic = np.where(gate > 0, press * (1.0 + hold) / 2.0 + self.eps_weight * quality
-                            + self.settled_weight * settled, 0.0)
+        formula = np.where(gate > 0, press * (1.0 + hold) / 2.0 + self.eps_weight * quality
+                           + self.settled_weight * settled, 0.0)
+        p_hold = _column(measures, "p_hold", np.full(n, np.nan))
+        analytic = np.where(np.isnan(p_hold), formula, p_hold)
         ones = np.ones(n)
         reach = (1.0 - self.reach_weight) + self.reach_weight * _column(measures, "reachability", ones)
         success = (1.0 - self.success_weight) + self.success_weight * _column(measures, "success", ones)
         return {"gate": gate, "press": press, "hold": hold, "quality": quality, "settled": settled,
-                "analytic": analytic, "reach_factor": reach, "success_factor": success,
-                "score": analytic * reach * success}
+                "formula": formula, "p_hold": p_hold, "analytic": analytic, "reach_factor": reach,
+                "success_factor": success, "score": analytic * reach * success}
 
     def analytic(self, measures: Mapping[str, ArrayLike | None]) -> np.ndarray:
-        """(n,) analytic scores from the measures (see :data:`MEASURES`)."""
+        """(n,) analytic scores from the measures (see :data:`MEASURES`): p_hold
+        where given (not NaN), else the rule's formula."""
         return self.terms(measures)["analytic"]
 
     def scores(self, measures: Mapping[str, ArrayLike | None]) -> np.ndarray:
@@ -166,6 +182,14 @@ def _column(measures: Mapping[str, ArrayLike | None], name: str, instead: np.nda
     array = np.array([np.nan if v is None else v for v in values], float) if isinstance(values, (list, tuple)) \
         else np.asarray(values, float)
     return array if instead is None else np.where(np.isnan(array), instead, array)
+
+
+def rank_order(scores: np.ndarray, force_closure: np.ndarray) -> np.ndarray:
+    """(n,) indices best first, as :data:`ORDER_BY` ranks (before its
+    tie-breaks, which are left to a stable sort: the given order): force
+    closure first, then by score."""
+    s, fc = np.asarray(scores, float), np.asarray(force_closure, float) > 0
+    return np.lexsort((np.arange(len(s)), -s, ~fc))
 
 
 def rule_measures(grasps: Sequence[Grasp]) -> dict[str, np.ndarray]:

@@ -20,6 +20,14 @@ Tables (the README lists every column):
 - ``grasps`` (v4) gains ``settled_epsilon``: the epsilon of the contacts the
   grasp settles into under a dynamic closing (hands with ``settle``); NULL
   when not measured.
+- ``calibration`` (v5): the fitted p_hold model of a hand (``grasp calibrate``,
+  :mod:`planner.calibration.model`; JSON) and where it came from (the label
+  files, the sample, the held-out figures). A hand without a row uses the
+  project's shipped model (``calibration/<hand>.toml``) if there is one.
+- ``grasps`` (v5) gains ``p_hold``: the calibrated probability of holding,
+  written by the store with the score (the hand's model on the stored
+  measures); NULL where no model applies (and for grasps stored before,
+  until the next write re-scores them: ``meta.p_hold_models``).
 
 No pickle: arrays are JSON text. A new database runs :data:`SCHEMA` (version
 1) and then every migration; a newer schema is refused politely; an older one
@@ -40,7 +48,7 @@ from planner.errors import DatabaseError
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -102,6 +110,13 @@ ALTER TABLE grasps ADD COLUMN feasibility TEXT
     # v4: the settled epsilon (issue 15, third round; NULL: not measured).
     3: """
 ALTER TABLE grasps ADD COLUMN settled_epsilon REAL
+""",
+    # v5: fitted p_hold models, one per hand, and each grasp's p_hold (issue 26; NULL: no model).
+    4: """
+CREATE TABLE IF NOT EXISTS calibration (
+    hand TEXT PRIMARY KEY, model TEXT NOT NULL, source TEXT NOT NULL, created_at TEXT NOT NULL
+);
+ALTER TABLE grasps ADD COLUMN p_hold REAL
 """,
 }
 

@@ -3,13 +3,19 @@ the project (the schema's own statements live in :mod:`planner.db.schema`).
 
 Grasps go in and come out as :class:`planner.record.grasp.Grasp` records; rows are
 read by column name. Scores are never computed in SQL: the store reads the
-measures, asks the :class:`~planner.db.ranking.RankingRule` for the scores,
-writes them and re-ranks each (object, hand) in the rule's tie-break order.
+measures, asks the hand's p_hold model (:meth:`Database.model`:
+``grasp calibrate``'s stored one, else the shipped one) for ``p_hold`` and
+the :class:`~planner.db.ranking.RankingRule` for the scores, writes both
+(``grasps.p_hold``, ``grasps.score``) and re-ranks each (object, hand) in
+the rule's order. Records read back carry the stored p_hold; a new model
+(stored, or shipped with a new version: ``meta.p_hold_models``) re-makes
+both for every grasp of its hand.
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
 import inspect
 import json
 import math
@@ -23,6 +29,8 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
+from planner.calibration import features
+from planner.calibration.model import LogisticModel, default_model
 from planner.db.ranking import ORDER_BY, RankingRule, rule_measures
 from planner.db.schema import (
     EMPTY_V2_TABLES,
@@ -78,8 +86,10 @@ FROM grasps g {{join}} {{validation}} v ON v.grasp_id = g.id LEFT JOIN {{robust}
 """
 #: What the ranking rule reads, by the rule's names.
 _RANKED = ", ".join(f"{_ALIAS[f.table]}.{f.column} AS {f.ranked}" for f in fields.ranked_fields())
+#: The stored columns a p_hold model reads (:data:`planner.calibration.features.COLUMNS`), as ``m_<column>``.
+_MODEL_INPUTS = ", ".join(f"g.{fields.by_name(name).column} AS m_{name}" for name in features.COLUMNS)
 _MEASURES = f"""
-SELECT g.id, g.object, g.hand, {_RANKED}
+SELECT g.id, g.object, g.hand, {_RANKED}{{inputs}}
 FROM grasps g LEFT JOIN validation v ON v.grasp_id = g.id LEFT JOIN robust r ON r.grasp_id = g.id
 """
 _RERANK = f"""
@@ -140,6 +150,23 @@ def _parts(cls: type, group: tuple[Field, ...], col: dict, prefix: str, n: int) 
     columns = [_decoded(f, col.get(prefix + f.column, none)) for f in group]
     present = col.get(prefix + group[0].column, none)
     return [None if first is None else cls(*row) for first, *row in zip(present, *columns)]
+
+
+def p_hold_of(col: dict, models: dict[str, LogisticModel | None]) -> list[float | None]:
+    """p_hold of stored grasps rows (columns ``col``: ``hand`` and the model
+    inputs of :data:`_MODEL_INPUTS`, named ``m_<column>``) by each row's
+    hand's model; None where the hand has none."""
+    n = len(col["hand"])
+    out: list[float | None] = [None] * n
+    for hand in sorted(set(col["hand"])):
+        model = models.get(hand)
+        if model is None:
+            continue
+        rows = [i for i, h in enumerate(col["hand"]) if h == hand]
+        sub = {k: [col["m_" + k][i] for i in rows] for k in features.COLUMNS}
+        for i, p in zip(rows, model.predict(features.of_columns(sub)).tolist()):
+            out[i] = p
+    return out
 
 
 def _insert(table: str, columns: Sequence[str], verb: str = "INSERT") -> str:
@@ -339,7 +366,13 @@ class Database:
         atomically, then re-rank the object's grasps; returns the unit's id."""
         key = (unit.object, unit.hand, unit.settings_hash, unit.seed, unit.chunk)
         status = "failed" if unit.error else "done"
-        scores = rule.scores(rule_measures(grasps))
+        measures = rule_measures(grasps)
+        model = self.model(unit.hand)
+        p_hold = [None] * len(grasps)
+        if model is not None and grasps:  # the hand's model, on the records' measures; the rule reads it
+            measures["p_hold"] = model.predict(features.of_grasps(grasps))
+            p_hold = measures["p_hold"].tolist()
+        scores = rule.scores(measures)
         with self._transaction() as conn:
             conn.execute("DELETE FROM units WHERE object = ? AND hand = ? AND settings_hash = ? AND seed = ?"
                          " AND chunk = ?", key)
@@ -350,34 +383,83 @@ class Database:
             if obj is not None:
                 conn.execute(_insert("objects", _OBJECT_COLUMNS, "INSERT OR REPLACE"), _object_row(unit.object, obj))
             conn.executemany(_insert("grasps", _GRASP_COLUMNS),
-                             [_grasp_row(g, unit_id, score) for g, score in zip(grasps, scores.tolist())])
+                             [_grasp_row(g, unit_id, score, p) for g, score, p in zip(grasps, scores.tolist(), p_hold)])
             conn.execute(_RERANK, (unit.object, unit.hand))
         return int(unit_id)  # type: ignore[arg-type]
 
     # -- ranking ---------------------------------------------------------------
     def apply_rule(self, rule: RankingRule, force: bool = False) -> bool:
-        """Store ``rule``; if it differs from the stored one (or ``force``),
-        re-score and re-rank every grasp in one transaction."""
-        if self.meta("ranking") == rule.to_json() and not force:
+        """Store ``rule``; if it differs from the stored one, or a hand's p_hold
+        model is not the one its scores were made with (a new shipped model),
+        or ``force``, re-score and re-rank every grasp in one transaction."""
+        models = self._models_key()
+        if self.meta("ranking") == rule.to_json() and self.meta("p_hold_models") == models and not force:
             return False
         with self._transaction() as conn:
             self._set_meta(conn, "ranking", rule.to_json())
+            self._set_meta(conn, "p_hold_models", models)
             self._rescore(conn, rule)
         return True
 
-    @staticmethod
-    def _rescore(conn: sqlite3.Connection, rule: RankingRule, pair: tuple[str, str] | None = None) -> None:
-        """Scores from the rule (all grasps, or one object and hand) and ranks,
-        inside the caller's transaction."""
+    def _models_key(self) -> str:
+        """Which p_hold model scores each stored hand (JSON, hashes of the
+        models): scores made with other models are re-made by the next write."""
+        hands = sorted({h for _, h in self.pairs()})
+        return json.dumps({h: None if (m := self.model(h)) is None else
+                           hashlib.sha256(m.to_json().encode()).hexdigest()[:16] for h in hands}, sort_keys=True)
+
+    def _rescore(self, conn: sqlite3.Connection, rule: RankingRule, pair: tuple[str, str] | None = None,
+                 hand: str | None = None) -> None:
+        """Scores from the rule (all grasps, one object and hand, or one hand)
+        and ranks, inside the caller's transaction."""
         where, params = ("", ()) if pair is None else (" WHERE g.object = ? AND g.hand = ?", pair)
-        rows = conn.execute(_MEASURES + where, params).fetchall()
+        if hand is not None:
+            where, params = " WHERE g.hand = ?", (hand,)
+        hands = [r["hand"] for r in conn.execute("SELECT DISTINCT g.hand FROM grasps g" + where, params)]
+        models = self._models(hands)
+        inputs = ", " + _MODEL_INPUTS if any(m is not None for m in models.values()) else ""
+        rows = conn.execute(_MEASURES.format(inputs=inputs) + where, params).fetchall()
         if not rows:
             return
         col = dict(zip(rows[0].keys(), zip(*rows)))
+        col["p_hold"] = p_hold_of(col, models)  # the model's, not the stored one: the model may be new
         scores = rule.scores({f.ranked: col[f.ranked] for f in fields.ranked_fields()})
-        conn.executemany("UPDATE grasps SET score = ? WHERE id = ?", zip(scores.tolist(), col["id"]))
+        conn.executemany("UPDATE grasps SET score = ?, p_hold = ? WHERE id = ?",
+                         zip(scores.tolist(), col["p_hold"], col["id"]))
         for o, h in sorted(set(zip(col["object"], col["hand"]))):
             conn.execute(_RERANK, (o, h))
+
+    # -- calibration -------------------------------------------------------------
+    @_reads
+    def model(self, hand: str) -> LogisticModel | None:
+        """The hand's p_hold model: the one stored by ``grasp calibrate``, else
+        the project's shipped one, else None."""
+        if "calibration" in table_names(self._conn):
+            row = self._conn.execute("SELECT model FROM calibration WHERE hand = ?", (hand,)).fetchone()
+            if row is not None:
+                return LogisticModel.from_json(row["model"])
+        return default_model(hand)
+
+    @_reads
+    def model_source(self, hand: str) -> str:
+        """Where the hand's model came from: the stored source, ``shipped`` or ``none``."""
+        if "calibration" in table_names(self._conn):
+            row = self._conn.execute("SELECT source FROM calibration WHERE hand = ?", (hand,)).fetchone()
+            if row is not None:
+                return str(row["source"])
+        return "shipped" if default_model(hand) is not None else "none"
+
+    def _models(self, hands: Iterable[str]) -> dict[str, LogisticModel | None]:
+        return {h: self.model(h) for h in sorted(set(hands))}
+
+    def write_model(self, model: LogisticModel, source: str, rule: RankingRule) -> None:
+        """Store ``model`` as its hand's p_hold model (replacing any), then
+        re-score and re-rank that hand's grasps, in one transaction."""
+        with self._transaction() as conn:
+            conn.execute(_insert("calibration", ("hand", "model", "source", "created_at"), "INSERT OR REPLACE"),
+                         (model.hand, model.to_json(), source, time.strftime("%Y-%m-%dT%H:%M:%S")))
+            self._rescore(conn, rule, hand=model.hand)
+        self.set_meta("p_hold_models", self._models_key())
 
     def write_validation(self, obj: str, hand: str, results: Sequence[Validated], rule: RankingRule) -> None:
         """Store trial and robust-epsilon results of grasps of one (object,
@@ -487,14 +569,18 @@ def _grasps(rows: list[sqlite3.Row]) -> list[Grasp]:
     parts = {name: _parts(cls, fields.group(name), col, "" if table == "grasps" else f"{_ALIAS[table]}_", n)
              for name, (cls, table, _) in fields.GROUPS.items()}
     own = {f.attr: f for f in _GRASPS if "." not in f.attr}
-    values = zip(*(parts[name] if name in parts else _own(own[name], col) for name in GRASP_FIELDS))
+    values = zip(*(parts[name] if name in parts else _own(own[name], col, n) for name in GRASP_FIELDS))
     return list(map(Grasp.restored, values))
 
 
-def _own(f: Field, col: dict) -> Iterable:
-    """A column of the record's own field; contacts keep their text and counts."""
+def _own(f: Field, col: dict, n: int) -> Iterable:
+    """A column of the record's own field; contacts keep their text and
+    counts; a column that may be NULL and that an older file read read-only
+    lacks (``p_hold`` before v5) is None."""
     if f.kind == "contacts":
         return map(HandContacts.stored, col["contacts"], col["n_contacts"], col["links_touching"])
+    if f.nullable and f.column not in col:
+        return [None] * n
     return _decoded(f, col[f.column])
 
 
@@ -505,9 +591,11 @@ def _object_row(name: str, obj: PreparedObject) -> tuple:
     return tuple(_sql(f, given[f.column] if f.column in given else getattr(obj, f.column)) for f in _OBJECTS)
 
 
-def _grasp_row(g: Grasp, unit_id: int, score: float) -> tuple:
-    """The insert values of a record (:data:`_GRASP_COLUMNS`)."""
-    given = {"unit_id": unit_id, "score": score}
+def _grasp_row(g: Grasp, unit_id: int, score: float, p_hold: float | None) -> tuple:
+    """The insert values of a record (:data:`_GRASP_COLUMNS`): what the store
+    made of it (the unit, the rule's score, the hand's model's p_hold) and
+    the record's own values."""
+    given = {"unit_id": unit_id, "score": score, "p_hold": p_hold}
     return tuple(given[f.column] if f.column in given else _sql(f, get(g)) for f, get in _INSERTED)
 
 

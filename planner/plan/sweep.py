@@ -38,11 +38,13 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: 5: a dynamic world's inputs rounded to 1e-10 and the principal frame of equal
 #: moments chosen from the object axes (planner.sim.dynamics): settled epsilons
 #: and trials no longer depend on which BLAS kernel numpy runs (issue 16).
-#: 6: antipodal points whose pair along the normal is refused try rays drawn inside
+#: 6: every force-closure grasp ranks above every other (issue 26); the same
+#: grasps and scores, other ranks.
+#: 7: antipodal points whose pair along the normal is refused try rays drawn inside
 #: the friction cone, both normals checked against the axis; closing's far-field surface hulls at most
 #: 127 (PyBullet kept only 127 of a body's hulls: meshes of more than ~1,000
 #: triangles lost the rest of their surface) (issue 26).
-ALGORITHM_VERSION = 6
+ALGORITHM_VERSION = 7
 
 #: What the settings left unset mean, per sampler: surface points (or rays)
 #: per object, rolls (antipodal: approach directions about the closing

@@ -23,6 +23,7 @@ from planner.record.grasp import Grasp
 from planner.specs.hands import HandFrame
 
 if TYPE_CHECKING:
+    from planner.calibration.model import LogisticModel
     from planner.db.ranking import RankingRule
 
 
@@ -99,7 +100,10 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
     reach = "not computed" if g.reachability is None else f"{g.reachability:.2f} of table placements"
     width = "n/a (not a parallel jaw)" if g.width is None else f"{g.width * 1000:.1f} mm"
     volume = f"{g.volume:.3g}" if g.volume else "0 (computed only with --volume, for force closure)"
-    head = f"#{g.rank} {g.object}/{g.hand} preshape {g.preshape}: score {score} (ranking rule, higher is better)"
+    p_hold = ("n/a (no calibrated model for the hand)" if g.p_hold is None
+              else f"{g.p_hold:.3f} (calibrated probability of holding)")
+    head = f"#{g.rank} {g.object}/{g.hand} preshape {g.preshape}: p_hold {p_hold}; score {score} (ranking rule, " \
+           "higher is better)"
     lines = [head, *(f"    {line}" for line in frame_lines(frames(g, hand), hand))]
     if world is not None:
         lines += [f"    {line}" for line in frame_lines(frames(g, hand, world), hand)]
@@ -119,19 +123,51 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
     return lines
 
 
-def explain(grasp: Grasp, rule: RankingRule) -> list[str]:
+def p_hold_terms(grasp: Grasp, model: LogisticModel) -> dict[str, dict[str, float]]:
+    """The model's log-odds of ``grasp`` feature by feature: for each feature
+    its standardised input ``z`` and its part ``coef x z``, and the
+    ``intercept``, ``logit`` (their sum) and ``p_hold`` = 1 / (1 + e^-logit)."""
+    from planner.calibration import features
+
+    table = features.of_grasps([grasp])
+    z = model.standardised(table)
+    parts = model.terms(table)
+    logit = float(model.logit(table)[0])
+    return {"features": {name: {"coef": float(c), "z": float(z[name][0]), "part": float(parts[name][0])}
+                         for name, c in zip(model.features, model.coef)},
+            "total": {"intercept": float(model.intercept), "logit": logit, "p_hold": float(model.predict(table)[0])}}
+
+
+def explain_json(grasp: Grasp, rule: RankingRule, model: LogisticModel | None = None) -> dict:
+    """``grasp best --json --explain``'s ``frames.explain``: every term of the
+    rule (:meth:`~planner.db.ranking.RankingRule.terms`) and, where the
+    grasp has a p_hold, the model's terms (:func:`p_hold_terms`)."""
+    from planner.db.ranking import rule_measures
+
+    out: dict = {k: float(v[0]) for k, v in rule.terms(rule_measures([grasp])).items()}
+    if model is not None and grasp.p_hold is not None:
+        out["p_hold_terms"] = p_hold_terms(grasp, model)
+    return out
+
+
+def explain(grasp: Grasp, rule: RankingRule, model: LogisticModel | None = None) -> list[str]:
     """Why ``grasp`` scores what it does: the ranking rule's terms
     (:meth:`~planner.db.ranking.RankingRule.terms`), each with the measure it
-    comes from and the rule's own weights and thresholds."""
+    comes from and the rule's own weights and thresholds; where a calibrated
+    model gave the grasp its p_hold, the analytic score is p_hold, shown
+    term by term of the model's log-odds (coefficient x standardised
+    feature), and the formula's value beside it."""
     from planner.db.ranking import rule_measures
 
     m = {k: float(v[0]) for k, v in rule_measures([grasp]).items()}
     t = {k: float(v[0]) for k, v in rule.terms(rule_measures([grasp])).items()}
+    calibrated = not math.isnan(t["p_hold"])
     mm = lambda v: "not measured" if math.isnan(v) else f"{v * 1000:.1f} mm"  # noqa: E731
     lines = [f"    gate {t['gate']:.0f}: open margin {mm(m.get('open_margin', math.nan))} (needs >= "
              f"{rule.min_open_margin * 1000:.1f} mm), close margin {mm(m.get('close_margin', math.nan))}"]
     if t["gate"] == 0:
-        lines.append("    -> analytic 0: a finger has no clearance or sits at its closing stop")
+        lines.append(f"    -> {'formula' if calibrated else 'analytic'} 0: a finger has no clearance or sits at its "
+                     "closing stop")
     else:
         lines += [f"    press {t['press']:.3f} (push) x (1 + hold {t['hold']:.3f} (min(holds, {rule.cap:g} g) / "
                   f"{rule.cap:g} g)) / 2 = {t['press'] * (1 + t['hold']) / 2:.4f}",
@@ -139,6 +175,19 @@ def explain(grasp: Grasp, rule: RankingRule) -> list[str]:
                   f"{rule.eps_weight * t['quality']:.4f}",
                   f"    + settled_weight {rule.settled_weight:g} x settled epsilon {t['settled']:.4f} = "
                   f"{rule.settled_weight * t['settled']:.4f}"]
+    if calibrated:
+        lines.append(f"    (the formula: {t['formula']:.4f}; not used: the hand has a calibrated p_hold model)")
+        lines.append("    analytic = p_hold = 1 / (1 + exp(-logit)), logit = intercept + sum of coef x standardised "
+                     "feature ((x - mean) / scale):")
+        if model is None:
+            lines.append("    (the model that made it is no longer the hand's: its terms cannot be shown)")
+        else:
+            pt = p_hold_terms(grasp, model)
+            lines += [f"      {name}: {v['coef']:+.4f} x {v['z']:+.3f} = {v['part']:+.4f}"
+                      for name, v in pt["features"].items()]
+            total = pt["total"]
+            lines.append(f"      intercept {total['intercept']:+.4f}; logit {total['logit']:+.4f} -> p_hold "
+                         f"{total['p_hold']:.4f} (stored {t['p_hold']:.4f})")
     reach = m.get("reachability", math.nan)
     success = m.get("success", math.nan)
     lines += [f"    = analytic {t['analytic']:.4f}; x reach factor {t['reach_factor']:.3f} ((1 - {rule.reach_weight:g})"

@@ -10,6 +10,12 @@ each object's whole sweep; picks without a trial are counted as unlabelled,
 not as failures). Written as one self-contained HTML file (plots embedded as
 PNG) or, for a path without ``.html``, a folder with ``report.md`` and PNGs.
 
+Per hand with a p_hold model (stored by ``grasp calibrate``, or shipped):
+the reliability diagram (predicted p_hold vs observed success per decile)
+of the model's held-out predictions on its labels, and of p_hold against
+the stored shake trials where there are any, each with its expected
+calibration error (:func:`calibration`, ``reliability_<hand>.png``).
+
 Validated grasps are whatever ``grasp validate`` or ``bench/calibration.py``
 tested: the calibration's uniform samples make unbiased AUCs; a database
 validated on its top-K only measures the AUC among its best grasps.
@@ -26,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from planner.calibration.metrics import Reliability, reliability, roc_auc
 from planner.db.ranking import RankingRule, rule_measures
 from planner.db.store import open_db
 from planner.errors import InputError
@@ -87,27 +94,8 @@ class HandReport:
 #: The analytic measures the report reads: every numeric field of the measures record.
 ANALYTIC_MEASURES = tuple(f.name for f in fields.group("measures") if f.dtype != "string")
 #: Measures whose ROC AUC the report shows (higher should mean "holds").
-AUC_MEASURES = ("analytic", "epsilon", *ANALYTIC_MEASURES, "feasible", "reachability", "robust_mean",
+AUC_MEASURES = ("analytic", "p_hold", "epsilon", *ANALYTIC_MEASURES, "feasible", "reachability", "robust_mean",
                 "robust_quantile")
-
-
-def roc_auc(labels: np.ndarray, scores: np.ndarray) -> float:
-    """ROC AUC of ``scores`` (n,) for binary ``labels`` (n,) (NaN: unlabelled,
-    left out); a NaN score (not computed) ranks lowest; ties count half.
-    NaN when a class is missing or no grasp has the score (never computed:
-    not the 0.5 of a useless score)."""
-    from scipy.stats import rankdata
-
-    y, x = np.asarray(labels, float), np.asarray(scores, float)
-    keep = np.isfinite(y)
-    if not np.isfinite(x[keep]).any():
-        return math.nan
-    y, x = y[keep] > 0.5, np.nan_to_num(x[keep], nan=-np.inf)
-    pos, neg = int(y.sum()), int((~y).sum())
-    if pos == 0 or neg == 0:
-        return math.nan
-    ranks = rankdata(x)
-    return float((ranks[y].sum() - pos * (pos + 1) / 2) / (pos * neg))
 
 
 def top_k_success(orders: list[tuple[np.ndarray, np.ndarray]], k: int) -> tuple[float, float, int]:
@@ -149,11 +137,57 @@ def deciles(eps: np.ndarray, success: np.ndarray) -> list[tuple[float, float, fl
     return out
 
 
-def collect(db_path: Path) -> list[HandReport]:
+@dataclass(frozen=True)
+class HandCalibration:
+    """A hand's p_hold model as the report shows it: where it came from, its
+    held-out reliability table (None: not recorded) and p_hold against the
+    stored shake trials (None: no trial of a grasp with p_hold)."""
+
+    hand: str
+    source: str
+    held_out: Reliability | None
+    trials: Reliability | None
+
+    def curves(self) -> list[tuple[str, Reliability]]:
+        return [(label, r) for label, r in (("held out, labels", self.held_out), ("shake trials", self.trials))
+                if r is not None]
+
+
+def calibration(db_path: Path) -> list[HandCalibration]:
+    """Every hand of the database that has a p_hold model."""
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        out = []
+        for hand in sorted({h for _, h in db.pairs()}):
+            model = db.model(hand)
+            if model is None:
+                continue
+            tried = [g for g in db.validated() if g.hand == hand and g.p_hold is not None]
+            trials = reliability(np.array([g.validation.success for g in tried], float),  # type: ignore[union-attr]
+                                 np.array([g.p_hold for g in tried], float)) if tried else None
+            out.append(HandCalibration(hand, db.model_source(hand), model.held_out, trials))
+    return out
+
+
+def ece_lines(cals: list[HandCalibration]) -> list[str]:
+    """One line per hand and reliability table: its expected calibration error."""
+    lines = []
+    for c in cals:
+        for label, r in c.curves():
+            lines.append(f"{c.hand}: ECE of p_hold ({label}, {int(r.count.sum())} grasps) = {r.ece:.4f}")
+    return lines
+
+
+def _reliability_png(c: HandCalibration) -> bytes:
+    from planner.calibration.plot import reliability_png
+
+    return reliability_png(c.curves(), f"p_hold of the {c.hand}: predicted vs observed success")
+
+
+def collect(db_path: Path, allow_empty: bool = False) -> list[HandReport]:
     with open_db(Path(db_path), create=False, readonly=True) as db:
         grasps = db.validated()
         rule = db.rule()
-        if not grasps:
+        if not grasps and not allow_empty:
             raise InputError(f"{db_path}: no validated grasps; run `grasp validate --db {db_path}` first")
         reports: dict[str, HandReport] = {}
         for g in grasps:
@@ -162,7 +196,8 @@ def collect(db_path: Path) -> list[HandReport]:
             for name in rep.objects:
                 sweep = [g for batch in db.grasp_batches(name, rep.hand) for g in batch]
                 score = rule.analytic(rule_measures(sweep))
-                order = np.lexsort((np.array([g.candidate for g in sweep]), -score))
+                fc = np.array([g.force_closure for g in sweep], bool)
+                order = np.lexsort((np.array([g.candidate for g in sweep]), -score, ~fc))
                 rep.analytic_orders[name] = [sweep[i].id for i in order]  # type: ignore[misc]
     return list(reports.values())
 
@@ -245,13 +280,14 @@ def _per_object(report: HandReport) -> list[tuple[str, ...]]:
 
 
 def write(db_path: Path, out: Path) -> Path:
-    reports = collect(db_path)
+    cals = [c for c in calibration(db_path) if c.curves()]
+    reports = collect(db_path, allow_empty=bool(cals))
     if out.suffix.lower() == ".html":
-        return _write_html(reports, out, db_path)
-    return _write_markdown(reports, out, db_path)
+        return _write_html(reports, cals, out, db_path)
+    return _write_markdown(reports, cals, out, db_path)
 
 
-def _write_html(reports: list[HandReport], out: Path, db_path: Path) -> Path:
+def _write_html(reports: list[HandReport], cals: list[HandCalibration], out: Path, db_path: Path) -> Path:
     parts = [f"<html><head><meta charset='utf-8'><title>grasp report</title></head><body>"
              f"<h1>Simulated success vs scores</h1><p>database: {html.escape(str(db_path))}</p>"]
     for rep in reports:
@@ -263,13 +299,17 @@ def _write_html(reports: list[HandReport], out: Path, db_path: Path) -> Path:
                      "<th>success rate</th><th>top-1 succeeds</th><th>Spearman(epsilon, success)</th></tr>")
         parts += ["<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in row) + "</tr>" for row in _per_object(rep)]
         parts.append("</table>")
+    for c in cals:
+        parts.append(f"<h2>p_hold of hand {html.escape(c.hand)}</h2><p>model: {html.escape(c.source)}</p><ul>")
+        parts += [f"<li>{html.escape(line)}</li>" for line in ece_lines([c])]
+        parts.append(f"</ul><img src='data:image/png;base64,{base64.b64encode(_reliability_png(c)).decode()}'>")
     parts.append("</body></html>")
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("\n".join(parts), encoding="utf-8")
     return out
 
 
-def _write_markdown(reports: list[HandReport], out: Path, db_path: Path) -> Path:
+def _write_markdown(reports: list[HandReport], cals: list[HandCalibration], out: Path, db_path: Path) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     lines = ["# Simulated success vs scores", "", f"database: `{db_path}`", ""]
     for rep in reports:
@@ -281,6 +321,12 @@ def _write_markdown(reports: list[HandReport], out: Path, db_path: Path) -> Path
                   " top-1 succeeds | Spearman(epsilon, success) |", "| --- | --- | --- | --- | --- |"]
         lines += ["| " + " | ".join(row) + " |" for row in _per_object(rep)]
         lines.append("")
+    for c in cals:
+        png = out / f"reliability_{c.hand}.png"
+        png.write_bytes(_reliability_png(c))
+        lines += [f"## p_hold of hand {c.hand}", "", f"model: `{c.source}`", ""]
+        lines += [f"- {line}" for line in ece_lines([c])]
+        lines += ["", f"![reliability diagram]({png.name})", ""]
     path = out / "report.md"
     path.write_text("\n".join(lines), encoding="utf-8")
     return path

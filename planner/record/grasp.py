@@ -119,10 +119,14 @@ class Grasp:
         epsilon, volume: Ferrari-Canny L1 epsilon and GWS volume (0 unless force closure).
         reachability: fraction of sampled table placements an arm reaches (None: not computed).
         manipulability: the best arm manipulability over those placements.
-        id, unit_id, score, rank: set by the database (rank 1 = best of its object and hand).
+        id, unit_id, score, p_hold, rank: set by the database (rank 1 = best of its object and hand).
         validation, robust: physical validation results, where they exist.
         measures: weight resistance and feasibility (None: not measured, e.g.
             a grasp stored before schema version 3).
+        p_hold: calibrated probability in [0, 1] that the grasp holds
+            (:mod:`planner.calibration`), set by the database where it writes
+            the scores (the hand's model applied to the record's measures);
+            None where no model applies.
     """
 
     object: str = stored("text", "", 1, "object name (key of the `objects` table)")
@@ -152,6 +156,9 @@ class Grasp:
     id: int | None = stored("int", "", 1, "`grasps.id` in the database", key=True, default=None)
     unit_id: int | None = stored("int", "", 1, "the unit of work that produced the grasp", default=None)
     score: float | None = stored("real", "", 1, "ranking score (`meta.ranking` says how)", default=None)
+    p_hold: float | None = stored("real", "", 5, "calibrated probability that the grasp holds (the hand's "
+                                  "`grasp calibrate` model, or the shipped one; null: no model)", required=False,
+                                  ranked="p_hold", default=None)
     rank: int | None = stored("int", "", 1, "1 = best grasp of its (object, hand)", required=False, default=None)
     validation: Trial | None = None
     robust: RobustEpsilon | None = None

@@ -3,7 +3,7 @@ each hand, a shake trial and robust epsilon of each hand's best grasps, an
 object whose mass and friction are not the registry's; then each export,
 read back (ACRONYM by ``grasp import``, the others by the plain readers
 below), gives the same value of every declared field the format carries,
-the settled epsilon and the trial results included, and the object's mass,
+the settled epsilon, the Panda's p_hold and the trial results included, and the object's mass,
 friction and density. What each format carries is derived from the
 declaration (:mod:`planner.record.fields`) and each format's own mapping;
 :data:`NOT_CARRIED` says what each leaves out, so a new field that a format
@@ -22,6 +22,7 @@ import pytest
 from helpers import grasp
 
 from planner import api
+from planner.calibration.model import LogisticModel
 from planner.datasets import acronym, dexgraspnet, graspgen, moveit, table
 from planner.datasets.exporter import FORMATS
 from planner.db.store import open_db
@@ -39,6 +40,9 @@ MASS, FRICTION = 0.37, 0.83
 #: Poses go through transforms @ inverse(export frame) or Euler angles and
 #: are stored to 7 decimals; everything else comes back exactly.
 POSE_TOL = 1e-6
+#: The Panda's p_hold model in both databases (the source and the one ``grasp import`` fills):
+#: on epsilon alone, which comes back exactly, so the importing store's p_hold is the source's.
+MODEL = LogisticModel("panda", ("epsilon",), np.zeros(1), np.full(1, 0.05), np.ones(1), -1.0, 0.0, "round trip")
 #: Renumbered by ``grasp import`` (the file keeps them in ``grasps/candidate``
 #: and ``grasps/seed``): the import is one unit of its own, candidate = row.
 RENUMBERED = {"id", "unit_id", "candidate", "seed"}
@@ -77,6 +81,8 @@ def swept(tmp_path_factory: pytest.TempPathFactory) -> Path:
         summary = api.generate(["box"], hand, db_path=db, workers=1,
                                settings=SweepSettings(preshapes=PRESHAPES[hand], **TINY))
         assert not summary.failed and summary.grasps > 0, hand
+    with open_db(db) as handle:
+        handle.write_model(MODEL, "round trip", handle.rule())
     with sqlite3.connect(db) as conn:
         volume = conn.execute("SELECT volume FROM objects WHERE name = 'box'").fetchone()[0]
         conn.execute("UPDATE objects SET mass = ?, friction = ?, density = ? WHERE name = 'box'",
@@ -96,7 +102,8 @@ def test_each_format_says_what_it_carries() -> None:
     assert set(NOT_CARRIED) | MESSAGES == set(FORMATS)
     for fmt in set(FORMATS) - MESSAGES:
         assert every - carried(fmt) == NOT_CARRIED[fmt], fmt
-        assert {"settled_epsilon", "validation_success", "validation_reason", "robust_quantile"} <= carried(fmt)
+        assert {"settled_epsilon", "p_hold", "validation_success", "validation_reason",
+                "robust_quantile"} <= carried(fmt)
     assert MOVEIT_CARRIED < every
 
 
@@ -136,6 +143,8 @@ def source(db: Path) -> tuple[dict, tuple]:
 
 def read_acronym(out: Path, tmp_path: Path) -> tuple[dict, tuple]:
     fresh = tmp_path / "imported.db"
+    with open_db(fresh) as handle:
+        handle.write_model(MODEL, "round trip", handle.rule())
     code, _, err = grasp("import", "--format", "acronym", *map(str, sorted(out.glob("*.h5"))), "--db", str(fresh))
     assert code == 0, err
     return source(fresh)
@@ -235,6 +244,7 @@ def test_every_hand_comes_back_through_every_format(fmt: str, swept: Path, tmp_p
     # the trials and the Barrett's settled epsilon are there to come back
     assert sum(row["validation_success"] is not None for row in expected.values()) == len(hand_names())
     assert all(row["settled_epsilon"] is not None for (hand, _), row in expected.items() if hand == "barrett")
+    assert all((row["p_hold"] is not None) == (hand == "panda") for (hand, _), row in expected.items())
 
 
 def read_moveit(out: Path) -> dict:

@@ -20,7 +20,7 @@ README = Path(__file__).parents[2] / "README.md"
 
 def reference(rule: RankingRule, g: tuple) -> float:
     """The rule as FORMULA states it, one grasp at a time."""
-    eps, fc, reach, ok, quantile, resist, push, open_margin, close_margin, settled = g
+    eps, fc, reach, ok, quantile, resist, push, open_margin, close_margin, settled, p_hold = g
     gate = (open_margin is None or open_margin >= rule.min_open_margin) and (close_margin is None
                                                                            or close_margin >= 1e-4)
     press = 1.0 if push is None else min(max(push, 0.0), 1.0)
@@ -29,6 +29,8 @@ def reference(rule: RankingRule, g: tuple) -> float:
     quality = (1 - rule.robust_weight) * eps + rule.robust_weight * q
     settled_term = rule.settled_weight * (0.0 if settled is None else settled)
     analytic = (press * (1 + hold) / 2 + rule.eps_weight * quality + settled_term) if gate else 0.0
+    if p_hold is not None:  # a calibrated model applies: the analytic score is p_hold
+        analytic = p_hold
     reach_factor = (1 - rule.reach_weight) + rule.reach_weight * (1.0 if reach is None else reach)
     success_factor = (1 - rule.success_weight) + rule.success_weight * (1.0 if ok is None else float(ok))
     return analytic * reach_factor * success_factor
@@ -43,7 +45,7 @@ def measures(grasps: list) -> dict:
 
 #: The measures in the order of :func:`reference`'s tuples.
 ORDER = ("epsilon", "force_closure", "reachability", "success", "robust_quantile", "resist_worst", "push",
-         "open_margin", "close_margin", "settled_epsilon")
+         "open_margin", "close_margin", "settled_epsilon", "p_hold")
 
 
 def test_the_rule_reads_the_declared_ranked_fields() -> None:
@@ -54,7 +56,8 @@ weight = st.floats(0.0, 1.0)
 maybe = st.none() | st.floats(0.0, 40.0)
 grasp = st.tuples(st.floats(0.0, 0.5), st.booleans(), st.none() | st.floats(0.0, 1.0), st.none() | st.booleans(),
                   st.none() | st.floats(0.0, 0.5), maybe, st.none() | st.floats(-1.0, 1.0),
-                  st.none() | st.floats(0.0, 0.02), st.none() | st.floats(0.0, 0.02), st.none() | st.floats(0.0, 0.5))
+                  st.none() | st.floats(0.0, 0.02), st.none() | st.floats(0.0, 0.02), st.none() | st.floats(0.0, 0.5),
+                  st.none() | st.floats(0.0, 1.0))
 
 
 @settings(max_examples=200, deadline=None)
@@ -135,3 +138,24 @@ def test_the_stored_rule_round_trips_and_says_its_formula() -> None:
 
 def test_the_readme_shows_the_one_formula() -> None:
     assert " ".join(FORMULA.split()) in " ".join(README.read_text().split())
+
+
+@given(st.lists(st.tuples(st.floats(-10, 10), st.booleans()), min_size=1, max_size=40))
+@settings(max_examples=60, deadline=None)
+def test_every_force_closure_grasp_ranks_above_every_other(grasps: list[tuple[float, bool]]) -> None:
+    from planner.db.ranking import rank_order
+
+    scores = np.array([s for s, _ in grasps])
+    fc = np.array([f for _, f in grasps])
+    order = rank_order(scores, fc)
+    ranked_fc = fc[order]
+    assert not np.any(~ranked_fc[:-1] & ranked_fc[1:])  # never a non-closure grasp before a closure one
+    for part in (ranked_fc, ~ranked_fc):  # within each, by score
+        assert np.all(np.diff(scores[order][part]) <= 0)
+
+
+def test_p_hold_replaces_the_formula_where_given_and_nowhere_else() -> None:
+    rule = RankingRule()
+    m = {"epsilon": [0.1, 0.1], "force_closure": [1, 1], "p_hold": [0.3, np.nan]}
+    got = rule.analytic(m)
+    assert got[0] == 0.3 and got[1] == rule.analytic({"epsilon": [0.1], "force_closure": [1]})[0]

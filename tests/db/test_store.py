@@ -187,3 +187,42 @@ def test_a_read_sqlite_refuses_is_a_database_error_of_one_line(box_db: Path, tmp
                 read()
             assert isinstance(caught.value.__cause__, sqlite3.DatabaseError)
             assert len(str(caught.value).splitlines()) == 1
+
+
+def test_a_settled_grasp_that_is_not_force_closure_ranks_below_every_closure_one(tmp_path: Path) -> None:
+    measures = Measures(3.0, 4.0, 0.01, 0.01, 1.0, ())
+    grasps = [replace(made_up(0, 0.0, fc=False), measures=replace(measures, settled_epsilon=0.40)),  # epsilon 0
+              replace(made_up(1, 0.01), measures=replace(measures, settled_epsilon=0.0)),
+              replace(made_up(2, 0.02), measures=replace(measures, settled_epsilon=0.0))]
+    with open_db(tmp_path / "g.db") as db:
+        db.write_unit(unit(), None, grasps, RankingRule())
+        back = db.best("thing", "panda", 10)
+    assert back[-1].candidate == 0 and back[-1].score > back[0].score  # the top score, ranked last
+    assert [g.candidate for g in back] == [2, 1, 0]
+
+
+def test_a_stored_model_gives_p_hold_to_records_and_ranks_by_it(tmp_path: Path) -> None:
+    from planner.calibration.model import LogisticModel
+
+    # p_hold falls with epsilon: the opposite of the formula's order
+    model = LogisticModel("panda", ("epsilon",), np.zeros(1), np.full(1, 0.01), np.array([-1.0]), 0.0, 0.0, "test")
+    grasps = [made_up(0, 0.01), made_up(1, 0.03), made_up(2, 0.02), made_up(3, 0.05, fc=False)]
+    with open_db(tmp_path / "g.db") as db:
+        db.write_unit(unit(), None, grasps, RankingRule())
+        assert [g.candidate for g in db.best("thing", "panda", 10)][:3] == [1, 2, 0]  # the formula: by epsilon
+        db.write_model(model, json.dumps({"labels": ["x.h5"]}), RankingRule())
+        back = db.best("thing", "panda", 10)
+        assert "x.h5" in db.model_source("panda") and db.model("panda").to_json() == model.to_json()  # type: ignore[union-attr]
+    assert [g.candidate for g in back] == [0, 2, 1, 3]  # by p_hold; the non-closure grasp last
+    expected = 1 / (1 + np.exp(np.array([0.01, 0.02, 0.03]) / 0.01))
+    assert_close([g.p_hold for g in back[:3]], expected)
+    assert_close([g.score for g in back[:3]], expected)  # reachability and trials not computed: neutral
+    with sqlite3.connect(tmp_path / "g.db") as conn:  # stored in its column, written with the score
+        stored = dict(conn.execute("SELECT candidate, p_hold FROM grasps").fetchall())
+    assert_close([stored[i] for i in (0, 2, 1)], expected)
+    new = made_up(4, 0.015)
+    with open_db(tmp_path / "g.db") as db:  # a unit written after: scored by the stored model too
+        db.write_unit(replace(unit(), chunk=1), None, [new], RankingRule())
+        assert db.best("thing", "panda", 1)[0].candidate == 0
+        assert [g.candidate for g in db.best("thing", "panda", 10)][:2] == [0, 4]
+        assert_close([g.p_hold for g in db.best("thing", "panda", 2)][1], 1 / (1 + np.exp(1.5)))

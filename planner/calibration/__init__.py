@@ -1,0 +1,11 @@
+"""Calibration: a probability of holding per grasp (``p_hold``) fitted to
+external labels, and how well it predicts them (issue 26).
+
+- :mod:`~planner.calibration.features`: the stored analytic measures as the model's inputs;
+- :mod:`~planner.calibration.model`: the logistic model, its fit and grouped cross-validation;
+- :mod:`~planner.calibration.metrics`: ROC AUC, expected calibration error, reliability table, folds;
+- :mod:`~planner.calibration.labels`: labelled grasp files (ACRONYM layout) -> measures and labels;
+- :mod:`~planner.calibration.plot`: the reliability diagram (matplotlib, PNG).
+
+Pure numpy/scipy except the plot and the labels' re-scoring.
+"""

@@ -1,0 +1,101 @@
+"""``grasp calibrate``: fit p_hold to a labelled set and measure it held out.
+
+:func:`calibrate` cross-validates the model over folds grouped by object
+(nested choice of the penalty; :func:`planner.calibration.model.cross_validate`),
+computes the held-out figures from the out-of-fold predictions, and fits the
+final model on every grasp. Figures (over closed grasps; the ranking order is
+the database's: force closure first, then p_hold):
+
+- ``auc_mean``: mean over objects of the per-object ROC AUC of p_hold (an
+  object's files pooled); ``auc_width``: the same for "smaller closed width is
+  better"; ``auc_pooled``: over all grasps;
+- ``top10``: mean over files of the share of the 10 best-ranked grasps that hold;
+- ``ece``: expected calibration error over deciles; ``log_loss``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import defaultdict
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.calibration.labels import LabelledSet
+from planner.calibration.metrics import Reliability, reliability, roc_auc
+from planner.calibration.model import DEFAULT_FEATURES, CrossValidation, LogisticModel, cross_validate, fit, log_loss
+from planner.db.ranking import rank_order
+from planner.errors import InputError
+
+#: The k of "the k best-ranked grasps hold".
+TOP_K = 10
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """A fitted model and its held-out figures.
+
+    model: fitted on every grasp; cv: the out-of-fold predictions;
+    figures: the held-out figures (module docstring); per_object: one dict per
+    object (group, grasps, success rate, AUC of p_hold and of width);
+    reliability: the held-out reliability table (deciles).
+    """
+
+    model: LogisticModel
+    cv: CrossValidation
+    figures: dict[str, float]
+    per_object: list[dict]
+    reliability: Reliability
+
+
+def calibrate(data: LabelledSet, *, folds: int = 5, features: Sequence[str] = DEFAULT_FEATURES,
+              source: str = "") -> Calibration:
+    """Cross-validate and fit p_hold on ``data`` (see the module docstring)."""
+    objects = len(set(data.groups))
+    if objects < 2:
+        raise InputError(f"calibration needs labelled grasps of at least 2 objects (folds grouped by object), "
+                         f"got {objects}")
+    if len(set(data.labels.tolist())) < 2:
+        raise InputError("calibration needs both outcomes among the labels (some grasps that hold, some that drop)")
+    k = min(folds, objects)
+    cv = cross_validate(data.table, data.labels, data.groups, data.hand, features=features, folds=k)
+    l2 = float(np.exp(np.mean(np.log(cv.l2))))
+    figures = held_out_figures(data, cv.p)
+    figures["folds"] = float(k)
+    model = fit(data.table, data.labels, data.hand, features=features, l2=l2, source=source)
+    table = reliability(data.labels, cv.p)
+    model = LogisticModel(model.hand, model.features, model.mean, model.scale, model.coef, model.intercept,
+                          model.l2, source, {k_: v for k_, v in figures.items() if math.isfinite(v)}, table)
+    return Calibration(model, cv, figures, per_object(data, cv.p), table)
+
+
+def per_object(data: LabelledSet, p: np.ndarray) -> list[dict]:
+    rows = defaultdict(list)
+    for i, g in enumerate(data.groups):
+        rows[g].append(i)
+    out = []
+    for g, idx in sorted(rows.items()):
+        idx_a = np.array(idx)
+        y = data.labels[idx_a]
+        out.append({"object": g, "grasps": len(idx), "success_rate": float(y.mean()),
+                    "auc_p_hold": roc_auc(y, p[idx_a]),
+                    "auc_width": roc_auc(y, -np.nan_to_num(data.table["width"][idx_a], nan=np.inf))})
+    return out
+
+
+def held_out_figures(data: LabelledSet, p: np.ndarray) -> dict[str, float]:
+    objects = per_object(data, p)
+    auc = [o["auc_p_hold"] for o in objects if math.isfinite(o["auc_p_hold"])]
+    width = [o["auc_width"] for o in objects if math.isfinite(o["auc_width"])]
+    tops = []
+    for stem in sorted(set(data.files)):
+        idx = np.flatnonzero(np.array(data.files) == stem)
+        order = rank_order(p[idx], data.table["force_closure"][idx])
+        tops.append(float(np.mean(data.labels[idx][order[:TOP_K]])))
+    return {"grasps": float(len(p)), "objects": float(len(objects)),
+            "auc_mean": float(np.mean(auc)) if auc else math.nan,
+            "auc_width": float(np.mean(width)) if width else math.nan,
+            "auc_pooled": roc_auc(data.labels, p), "top10": float(np.mean(tops)),
+            "ece": reliability(data.labels, p).ece, "log_loss": log_loss(data.labels, p),
+            "success_rate": float(np.mean(data.labels))}

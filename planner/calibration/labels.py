@@ -1,0 +1,105 @@
+"""Labelled grasp files (ACRONYM layout) as measures and labels.
+
+Each file's poses are read and re-scored as ``grasp import --rescore`` does
+(:func:`planner.datasets.importer.rescore_poses`: the hand closed at each
+pose, contacts, epsilon and the analytic measures, with the file's mass and
+friction); a seeded uniform sample of ``poses`` per file keeps the work
+bounded. Poses where the hand does not close on the object are counted by
+reason: they are never stored, so p_hold is not fitted on them.
+
+The group of a grasp (its object, for folds grouped by object) is the mesh
+file its file names (the same object at two scales is one group), or the
+built-in object's name.
+"""
+
+from __future__ import annotations
+
+import zlib
+from collections import Counter
+from collections.abc import Callable, Sequence
+from contextlib import closing
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from planner.calibration import features
+from planner.datasets import acronym, importer
+from planner.errors import InputError
+from planner.run import pool
+
+
+@dataclass(frozen=True)
+class LabelledSet:
+    """Closed, labelled grasps of several files.
+
+    table: the measure table (name -> (n,)); labels (n,) 0/1; groups (n,)
+    object (mesh) of each grasp; files (n,) the file stem of each grasp;
+    hand; sampled: poses sampled per file stem; rejected: why poses did not
+    close, counted per reason over all files.
+    """
+
+    table: dict[str, np.ndarray]
+    labels: np.ndarray
+    groups: tuple[str, ...]
+    files: tuple[str, ...]
+    hand: str
+    sampled: dict[str, int] = field(default_factory=dict)
+    rejected: dict[str, int] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        n = len(self.labels)
+        if len(self.groups) != n or len(self.files) != n or any(len(v) != n for v in self.table.values()):
+            raise ValueError("LabelledSet: table columns, labels, groups and files must have one entry per grasp")
+
+
+def sample_rows(n: int, k: int | None, seed: int, stem: str) -> np.ndarray:
+    """(min(k, n),) sorted rows of a file's n poses, seeded by the file's stem; all rows if ``k`` is None."""
+    if k is None or k >= n:
+        return np.arange(n)
+    rng = np.random.default_rng([seed, zlib.crc32(stem.encode())])
+    return np.sort(rng.choice(n, size=k, replace=False))
+
+
+def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, hand: str | None = None,
+             workers: int = 1, progress: Callable[[Path, int, int], None] | None = None) -> LabelledSet:
+    """Re-score a sample of each file's poses and pair the closed ones with their labels."""
+    if not paths:
+        raise InputError("no label files given")
+    if poses is not None and poses < 1:
+        raise InputError(f"--poses must be at least 1, got {poses}")
+    tables, labels, groups, files = [], [], [], []
+    sampled: dict[str, int] = {}
+    rejected: Counter = Counter()
+    hands = set()
+    for path in map(Path, paths):
+        spec_hand, spec, all_poses = importer.read_for_rescoring(path, hand)
+        hands.add(spec_hand.name)
+        y = acronym.read_labels(path)
+        rows = sample_rows(len(all_poses), poses, seed, path.stem)
+        sampled[path.stem] = len(rows)
+        chunk = importer.RESCORE_CHUNK
+        units = [importer.RescoreUnit(0, i, all_poses[rows[i:i + chunk]], spec_hand, spec)
+                 for i in range(0, len(rows), chunk)]
+        grasps = {}
+        with closing(pool.execute(importer.rescore_poses, units, workers)) as outcomes:
+            for _unit, outcome, _ in outcomes:
+                if isinstance(outcome, pool.Failure):
+                    raise InputError(f"{path}: re-scoring failed ({outcome})")
+                rejected.update(outcome.rejected)
+                grasps.update({g.candidate: g for g in outcome.grasps})  # candidate = position in rows
+        order = sorted(grasps)
+        if order:
+            tables.append(features.of_grasps([grasps[i] for i in order]))
+            labels.append(y[rows[order]])
+            groups += [spec.source if spec.kind == "mesh" else spec.name] * len(order)
+            files += [path.stem] * len(order)
+        if progress:
+            progress(path, len(order), len(rows))
+    if len(hands) > 1:
+        raise InputError(f"label files of several hands ({', '.join(sorted(hands))}): calibrate one hand at a time")
+    if not tables:
+        raise InputError("no labelled pose closed on its object: nothing to calibrate on")
+    table = {k: np.concatenate([t[k] for t in tables]) for k in features.MEASURES}
+    return LabelledSet(table, np.concatenate(labels), tuple(groups), tuple(files), hands.pop(), sampled,
+                       dict(rejected))

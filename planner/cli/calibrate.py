@@ -1,0 +1,49 @@
+"""``grasp calibrate``: fit p_hold to labelled grasp files and store it."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import click
+
+from planner import api
+from planner.cli.app import db_option
+
+
+@click.command()
+@click.argument("labels", nargs=-1, required=True, type=click.Path(path_type=Path))
+@db_option
+@click.option("--poses", type=int, default=200, show_default=True,
+              help="A seeded uniform sample of this many poses per file (0: every pose).")
+@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--folds", type=int, default=5, show_default=True, help="Cross-validation folds, grouped by object.")
+@click.option("--hand", help="The hand, if the files' gripper/type does not say it.")
+@click.option("--workers", type=int, default=1, show_default=True)
+@click.option("--model-out", type=click.Path(path_type=Path), help="Also write the model as TOML.")
+@click.option("--plot", type=click.Path(path_type=Path), help="Write the held-out reliability diagram (PNG).")
+@click.option("--no-store", is_flag=True, help="Fit and report only; leave the database alone.")
+def calibrate(labels: tuple[Path, ...], db_path: Path, poses: int, seed: int, folds: int, hand: str | None,
+              workers: int, model_out: Path | None, plot: Path | None, no_store: bool) -> None:
+    """Fit p_hold, the calibrated probability of holding, to labelled grasp files (ACRONYM layout:
+    grasps/transforms and grasps/qualities/flex/object_in_gripper) and store it for their hand."""
+
+    def progress(path: Path, closed: int, sampled: int) -> None:
+        click.echo(f"{path.name}: {closed} of {sampled} poses closed on the object", err=True)
+
+    result = api.calibrate(list(labels), db_path=None if no_store else db_path, poses=poses or None, seed=seed,
+                           folds=folds, hand=hand, workers=workers, model_out=model_out, plot=plot,
+                           progress=progress)
+    f = result.figures
+    click.echo(f"p_hold for {result.model.hand}: {int(f['grasps'])} closed labelled grasps of {int(f['objects'])} "
+               f"objects, success rate {f['success_rate']:.3f}")
+    click.echo(f"held out ({int(f['folds'])} folds grouped by object): mean per-object AUC {f['auc_mean']:.3f} "
+               f"(width baseline {f['auc_width']:.3f}), pooled AUC {f['auc_pooled']:.3f}, "
+               f"top-10 hold {f['top10']:.3f}, ECE {f['ece']:.4f}, log-loss {f['log_loss']:.4f}")
+    for o in result.per_object:
+        auc = "n/a" if math.isnan(o["auc_p_hold"]) else f"{o['auc_p_hold']:.3f}"
+        width = "n/a" if math.isnan(o["auc_width"]) else f"{o['auc_width']:.3f}"
+        click.echo(f"  {Path(o['object']).stem}: {o['grasps']} grasps, success {o['success_rate']:.2f}, "
+                   f"AUC {auc} (width {width})")
+    if not no_store:
+        click.echo(f"stored in {db_path}: best, exports and reports of {result.model.hand} grasps use it")

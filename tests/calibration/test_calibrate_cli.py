@@ -1,0 +1,101 @@
+"""``grasp calibrate`` end to end on labelled files the test makes, the shipped model, and p_hold in best/exports."""
+
+from __future__ import annotations
+
+import shutil
+import sqlite3
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from helpers import grasp
+
+from planner.calibration.model import default_model
+from planner.db.ranking import rule_measures
+from planner.db.store import open_db
+
+LABEL = "grasps/qualities/flex/object_in_gripper"
+
+
+def labelled_files(validated_db: Path, tmp_path: Path) -> list[Path]:
+    """The box and the sphere exported in ACRONYM layout, labelled 1 where epsilon is above its file's median."""
+    out = tmp_path / "labels"
+    code, _, err = grasp("export", "--db", str(validated_db), "--format", "acronym", "--out", str(out), "--quiet")
+    assert code == 0, err
+    files = sorted(out.rglob("*.h5"))
+    for path in files:
+        with h5py.File(path, "r+") as f:
+            eps = f["grasps/qualities/epsilon"][:]
+            f[LABEL][...] = (eps > np.median(eps)).astype(np.int64)
+    return files
+
+
+def test_calibrate_fits_reports_and_stores_a_model_that_best_and_exports_use(validated_db: Path,
+                                                                             tmp_path: Path) -> None:
+    files = labelled_files(validated_db, tmp_path)
+    assert len(files) == 2
+    db = tmp_path / "g.db"
+    shutil.copy(validated_db, db)
+    png = tmp_path / "rel.png"
+    code, out, err = grasp("calibrate", *map(str, files), "--db", str(db), "--poses", "12", "--folds", "2",
+                           "--plot", str(png), "--model-out", str(tmp_path / "m.toml"))
+    assert code == 0, err
+    assert "held out (2 folds grouped by object)" in out and "ECE" in out and "stored in" in out
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and (tmp_path / "m.toml").read_text().startswith("# p_hold")
+    with open_db(db, create=False, readonly=True) as d:
+        assert d.model("panda") is not None and "labels" in d.model_source("panda")
+        grasps = d.best("box", "panda", 1000)
+        rule = d.rule()
+    assert all(0.0 <= g.p_hold <= 1.0 for g in grasps)  # type: ignore[operator]
+    assert np.allclose([g.score for g in grasps], rule.scores(rule_measures(grasps)))  # scored by p_hold
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(db))
+    assert code == 0, err
+    assert "p_hold n/a" not in out and f"p_hold {grasps[0].p_hold:.3f} (calibrated" in out
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(db), "--explain")
+    assert code == 0, err  # the analytic score is p_hold: its log-odds term by term, coef x standardised feature
+    assert "analytic = p_hold = 1 / (1 + exp(-logit))" in out and "      epsilon: " in out
+    assert f"-> p_hold {grasps[0].p_hold:.4f} (stored {grasps[0].p_hold:.4f})" in out
+    code, _, err = grasp("export", "--db", str(db), "--format", "csv", "--out", str(tmp_path / "csv"), "--quiet")
+    assert code == 0, err
+    header = next((tmp_path / "csv").rglob("*.csv")).read_text().splitlines()[0].split(",")
+    assert "p_hold" in header
+    code, out, err = grasp("report", "--db", str(db), "--out", str(tmp_path / "rep"))
+    assert code == 0, err
+    assert "panda: ECE of p_hold (held out, labels" in out and (tmp_path / "rep" / "reliability_panda.png").exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["calibrate", "nowhere.h5"], "file not found"),
+    (["calibrate", "{file}", "--folds", "1"], "--folds must be at least 2"),
+    (["calibrate", "{file}", "--plot", "x.jpg"], "as PNG"),
+])
+def test_bad_calibrate_input_is_one_line_and_exit_2(args: list[str], message: str, validated_db: Path,
+                                                   tmp_path: Path) -> None:
+    file = labelled_files(validated_db, tmp_path)[0]
+    code, _, err = grasp(*[a.replace("{file}", str(file)) for a in args], "--db", str(tmp_path / "g.db"))
+    assert code == 2 and message in err and "Traceback" not in err
+
+
+def test_one_object_cannot_be_cross_validated_by_object(validated_db: Path, tmp_path: Path) -> None:
+    file = labelled_files(validated_db, tmp_path)[0]
+    code, _, err = grasp("calibrate", str(file), str(file), "--poses", "5", "--no-store")
+    assert code == 2 and "at least 2 objects" in err
+
+
+def test_the_shipped_panda_model_loads_and_rescores_a_database(box_db: Path, tmp_path: Path,
+                                                              shipped_models: None) -> None:
+    model = default_model("panda")
+    assert model is not None and model.hand == "panda" and "tuning" in model.source
+    assert model.held_out is not None and abs(model.held_out.ece - model.figures["ece"]) < 1e-12
+    db = tmp_path / "g.db"
+    shutil.copy(box_db, db)
+    with open_db(db) as d:
+        assert d.apply_rule(d.rule())  # scored without the model: re-scored with it
+        assert not d.apply_rule(d.rule())
+        grasps = d.best("box", "panda", 1000)
+    assert all(g.p_hold is not None for g in grasps)
+    with sqlite3.connect(db) as conn:  # a stored column, written with the scores
+        assert conn.execute("SELECT COUNT(*) FROM grasps WHERE p_hold IS NULL").fetchone()[0] == 0
+    fc = [g.force_closure for g in grasps]
+    assert fc == sorted(fc, reverse=True)  # force closure first

@@ -1,0 +1,100 @@
+"""The p_hold model: fit, monotone behaviour, invariances, round trips, grouped cross-validation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from planner.calibration import features
+from planner.calibration.metrics import expected_calibration_error, roc_auc
+from planner.calibration.model import LogisticModel, cross_validate, fit, load_model
+from planner.errors import InputError
+from tests.helpers import assert_close
+
+#: Predictions of models fitted on the same data differ by L-BFGS's stopping tolerance at most.
+FIT_TOL = 1e-4
+
+
+def synthetic(n: int, seed: int = 0, groups: int = 8) -> tuple[dict[str, np.ndarray], np.ndarray, list[str]]:
+    """Grasps whose true log-odds are 4 (push - 0.5) + 2 epsilon / 0.1 - 1: labels drawn from them."""
+    rng = np.random.default_rng(seed)
+    table = {name: np.zeros(n) for name in features.MEASURES}
+    table["push"] = rng.random(n)
+    table["epsilon"] = rng.random(n) * 0.1
+    table["force_closure"] = (table["epsilon"] > 0.01).astype(float)
+    table["resist_worst"] = rng.exponential(20, n)
+    table["resist_mean"] = table["resist_worst"] * 2
+    table["open_margin"] = rng.random(n) * 0.03
+    table["close_margin"] = np.full(n, np.inf)  # a finger not touching: inf
+    table["width"] = rng.random(n) * 0.08
+    table["n_contacts"] = rng.integers(2, 10, n).astype(float)
+    table["links_touching"] = np.full(n, 2.0)
+    table["settled_epsilon"] = np.full(n, np.nan)  # not measured
+    z = 4 * (table["push"] - 0.5) + 20 * table["epsilon"] - 1
+    y = (rng.random(n) < 1 / (1 + np.exp(-z))).astype(float)
+    return table, y, [f"object{i % groups}" for i in range(n)]
+
+
+def test_fit_recovers_a_logistic_truth_calibrated() -> None:
+    table, y, _ = synthetic(6000)
+    model = fit(table, y, "panda", l2=1e-4)
+    push = model.features.index("push")
+    assert model.coef[push] / model.scale[push] == pytest.approx(4.0, rel=0.2)
+    test_table, test_y, _ = synthetic(6000, seed=1)
+    assert expected_calibration_error(test_y, model.predict(test_table)) < 0.03
+
+
+def test_p_hold_rises_with_a_feature_whose_coefficient_is_positive() -> None:
+    table, y, _ = synthetic(2000)
+    model = fit(table, y, "panda")
+    probe = {k: np.repeat(v[:1], 5) for k, v in table.items()}
+    probe["push"] = np.linspace(0, 1, 5)
+    p = model.predict(probe)
+    assert np.all(np.diff(p) > 0) and np.all((0 <= p) & (p <= 1))
+
+
+def test_fit_is_invariant_to_row_order_and_to_the_units_of_a_feature() -> None:
+    table, y, _ = synthetic(1500)
+    base = fit(table, y, "panda", l2=1e-2).predict(table)
+    order = np.random.default_rng(3).permutation(len(y))
+    shuffled = fit({k: v[order] for k, v in table.items()}, y[order], "panda", l2=1e-2).predict(table)
+    assert_close(shuffled, base, FIT_TOL)
+    # width in mm instead of m: standardisation makes the model the same
+    mm = dict(table, width=table["width"] * 1000)
+    assert_close(fit(mm, y, "panda", l2=1e-2).predict(mm), base, FIT_TOL)
+
+
+def test_a_constant_feature_gets_no_weight_and_missing_measures_take_their_fill() -> None:
+    table, y, _ = synthetic(1000)
+    model = fit(table, y, "panda")
+    links = model.features.index("links_touching")
+    assert model.coef[links] == pytest.approx(0.0, abs=1e-6)
+    x = features.design(table, ["settled_epsilon", "close_margin"])
+    assert np.all(x[:, 0] == features.FILL["settled_epsilon"]) and np.all(x[:, 1] == features.MARGIN_CAP)
+
+
+def test_model_round_trips_through_toml_and_json(tmp_path) -> None:
+    table, y, _ = synthetic(800)
+    model = fit(table, y, "panda", source="synthetic")
+    path = tmp_path / "panda.toml"
+    path.write_text(model.to_toml())
+    for back in (load_model(path), LogisticModel.from_json(model.to_json())):
+        assert back.features == model.features and back.source == "synthetic"
+        assert_close(back.predict(table), model.predict(table), 1e-12)
+
+
+def test_bad_models_are_refused_with_a_message() -> None:
+    with pytest.raises(InputError, match="one per feature"):
+        LogisticModel("panda", ("push",), np.zeros(2), np.ones(1), np.zeros(1), 0.0, 0.0)
+    with pytest.raises(InputError, match="unknown feature"):
+        LogisticModel("panda", ("nonsense",), np.zeros(1), np.ones(1), np.zeros(1), 0.0, 0.0)
+
+
+def test_grouped_cross_validation_predicts_out_of_fold_and_close_to_the_truth() -> None:
+    table, y, groups = synthetic(3000)
+    cv = cross_validate(table, y, groups, "panda", folds=4, grid=(1e-3, 1e-1))
+    assert len(set(cv.fold.tolist())) == 4 and cv.l2.shape == (4,)
+    for f in range(4):  # a group's grasps are all in one fold
+        assert len({groups[i] for i in np.flatnonzero(cv.fold == f)} &
+                   {groups[i] for i in np.flatnonzero(cv.fold != f)}) == 0
+    assert roc_auc(y, cv.p) > 0.75 and expected_calibration_error(y, cv.p) < 0.05
