@@ -28,7 +28,8 @@ settled epsilons, scores and ranks of the Barrett's); 6 (issue 26, branch
 truth: force-closure grasps rank above every other; the same grasps and
 scores, other ranks: version 5's digest passes with the old ORDER_BY); 7
 (issue 26, branch closing, merged after 6: a point whose antipodal pair
-along the normal is refused tries up to four rays drawn inside the friction cone, checking both normals, so the Panda gains grasps
+along the normal is refused tries up to four rays drawn inside the friction
+cone, checking both normals, so the Panda gains grasps
 on curved and tapered faces; closing's far-field hulls are capped at
 PyBullet's 127 per body, which leaves the box, cylinder and duck as they
 were -- they have fewer -- and the Barrett's grasps the same; p_hold stored).
