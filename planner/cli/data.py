@@ -23,9 +23,12 @@ from planner.cli.app import LazyHelp, db_option, diverse_options, report_failure
 @click.option("--top", type=int, help="Only the K best-ranked grasps per (object, hand).")
 @click.option("--quiet", is_flag=True, help="Print nothing on success.")
 @click.option("--json", "as_json", is_flag=True, help="Print a machine-readable summary.")
+@click.option("--label", default="best", show_default=True, type=click.Choice(["best", "trial", "p_hold",
+              "force_closure"]), help="The success label written: per grasp the shake trial, else p_hold >= 0.5, "
+              "else the force-closure flag (best); or one of them (trial and p_hold export only grasps that have one).")
 @diverse_options
 def export(db_path: Path, fmt: str, out_dir: Path, objects: tuple[str, ...], hands: tuple[str, ...],
-           min_epsilon: float | None, top: int | None, quiet: bool, as_json: bool, diverse: bool,
+           min_epsilon: float | None, top: int | None, quiet: bool, as_json: bool, label: str, diverse: bool,
            min_translation: float, min_rotation: float) -> None:
     """Export grasps as dataset files: acronym (HDF5 per object and hand),
     graspgen (JSON per object and hand), dexgraspnet (.npy per object and
@@ -36,7 +39,7 @@ def export(db_path: Path, fmt: str, out_dir: Path, objects: tuple[str, ...], han
             click.echo(f"{path}: {count} grasps")
 
     summary = api.export(db_path, fmt, out_dir, objects=objects, hands=hands, min_epsilon=min_epsilon, top=top,
-                         spacing=spacing(diverse, min_translation, min_rotation), progress=progress)
+                         spacing=spacing(diverse, min_translation, min_rotation), label=label, progress=progress)
     if as_json:
         click.echo(json.dumps(summary.to_json(), indent=2))
     elif not quiet:

@@ -13,9 +13,10 @@ ACRONYM's published layout, readable by its own tools (``acronym_tools``:
     object/inertia           float64 (3, 3) [kg m^2] about the COM
     grasps/transforms        float64 (N, 4, 4)  pose @ export_frame: gripper
                              frame (+z approach, fingers along x) in the object frame
-    grasps/qualities/flex/object_in_gripper  int64 (N,)  1 = success; attribute
-                             ``label_source``: "simulation" (PyBullet trials),
-                             "force_closure" (the flag), or "mixed"
+    grasps/qualities/flex/object_in_gripper  int64 (N,)  1 = success, as ``--label``
+                             chooses (planner.datasets.labels); attribute ``label_source``:
+                             "trial", "p_hold", "force_closure" (a closure flag) or "mixed"
+    grasps/qualities/label_from  str (N,)  where each row's label came from
     grasps/qualities/flex/object_motion_during_{closing,shaking}_{linear,angular}
                              float64 (N,) [m] / [rad], NaN when not simulated
 
@@ -85,6 +86,8 @@ import numpy as np
 
 from planner.datasets import registry
 from planner.datasets.columns import Column, grasp_columns, joint_matrix
+from planner.datasets.labels import BEST, file_source
+from planner.datasets.labels import labels as dataset_labels
 from planner.datasets.meshes import ExportedObject
 from planner.errors import InputError
 from planner.geometry.frames import approach_of
@@ -102,10 +105,6 @@ CHUNK_ROWS = 1024
 #: A transform's rotation rows may deviate from orthonormal by this much (float32 files pass).
 ROTATION_TOL = 1e-5
 
-#: ``object_in_gripper`` label source, per file: every row validated in
-#: simulation, none (the force-closure flag), or some of each (then a row's
-#: ``simulated_success`` >= 0 says it was simulated).
-SIMULATION, FORCE_CLOSURE, MIXED = "simulation", "force_closure", "mixed"
 FLEX = "qualities/flex/"
 #: ACRONYM's motion datasets and the columns they come from.
 MOTIONS = {f"{FLEX}object_motion_during_{stage}_{kind}": f"validation_{stage}_{kind}"
@@ -159,30 +158,22 @@ def joint_names(hand: HandSpec) -> list[str]:
     return [j.name for j in hand.joints]
 
 
-def per_grasp(grasps: list[Grasp], hand: HandSpec) -> dict[str, Column]:
+def per_grasp(grasps: list[Grasp], hand: HandSpec, label: str = BEST) -> dict[str, Column]:
     """Every per-grasp field of one batch, keyed by its path below ``grasps/``;
     (n, ...) arrays or n strings. ``transforms`` = pose @ export_frame: the
-    dataset gripper frame in the scaled mesh frame, metres."""
+    dataset gripper frame in the scaled mesh frame, metres; the success label
+    as ``label`` chooses (:mod:`planner.datasets.labels`) and, per row, its source."""
     c = grasp_columns(grasps)
-    labels = np.where(c["validation_success"] >= 0, c["validation_success"], c["force_closure"]).astype(np.int64)
+    labels, sources = dataset_labels(c, label)
     names = joint_names(hand)
     return {
         "transforms": c["pose"] @ hand.export_frame,
         f"{FLEX}object_in_gripper": labels,
+        "qualities/label_from": sources,
         **{key: c[column] for key, column in DATASETS.items()},
         "joints_closed": joint_matrix(c["closed_joints"], names),
         "joints_open": joint_matrix(c["open_joints"], names),
     }
-
-
-def label_source(validated: int, total: int) -> str:
-    if validated == 0:
-        return FORCE_CLOSURE
-    return SIMULATION if validated == total else MIXED
-
-
-def validated_count(grasps: list[Grasp]) -> int:
-    return sum(g.validation is not None for g in grasps)
 
 
 def write(path: Path, info: ExportedObject, hand: HandSpec, batches: Iterable[list[Grasp]]) -> int:
@@ -190,15 +181,17 @@ def write(path: Path, info: ExportedObject, hand: HandSpec, batches: Iterable[li
     import h5py
 
     tmp = path.with_name(path.name + ".tmp")
-    total = validated = 0
+    total = 0
+    sources: set[str] = set()
     with h5py.File(tmp, "w") as f:
         _header(f, info, hand)
         for batch in batches:
-            for key, values in per_grasp(batch, hand).items():
+            columns = per_grasp(batch, hand, info.label)
+            for key, values in columns.items():
                 _append(f, f"grasps/{key}", values, total)
             total += len(batch)
-            validated += validated_count(batch)
-        f[f"grasps/{FLEX}object_in_gripper"].attrs["label_source"] = label_source(validated, total)
+            sources.update(columns["qualities/label_from"])
+        f[f"grasps/{FLEX}object_in_gripper"].attrs["label_source"] = file_source(sources)
     os.replace(tmp, path)
     return total
 

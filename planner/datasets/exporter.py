@@ -30,13 +30,14 @@ import os
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import closing
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from itertools import chain
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from planner.datasets import formats
 from planner.datasets.columns import Stream
+from planner.datasets.labels import BEST, FORCE_CLOSURE, check, has_label
 from planner.datasets.meshes import ExportedObject, mesh_stem, write_meshes
 from planner.datasets.registry import PairWriter, TableWriter
 from planner.db.store import Database, open_db
@@ -65,6 +66,7 @@ class Selection:
     min_epsilon: float | None = None  # keep epsilon >= this
     top: int | None = None  # keep rank <= this per (object, hand)
     spacing: Spacing | None = None  # with top: the top best grasps this far apart (planner.db.diverse)
+    label: str = BEST  # the success label written (planner.datasets.labels); trial / p_hold: only grasps with one
 
     def __post_init__(self) -> None:
         if self.top is not None and self.top < 1:
@@ -88,8 +90,12 @@ class Selection:
 
     def batches(self, db: Database, obj: str, hand: str) -> Iterator[list[Grasp]]:
         if self.spacing is None:
-            return db.grasp_batches(obj, hand, min_epsilon=self.min_epsilon, top=self.top, size=BATCH_SIZE)
-        return self._diverse(db, obj, hand)
+            found = db.grasp_batches(obj, hand, min_epsilon=self.min_epsilon, top=self.top, size=BATCH_SIZE)
+        else:
+            found = self._diverse(db, obj, hand)
+        if self.label in (BEST, FORCE_CLOSURE):
+            return found
+        return (kept for batch in found if (kept := [g for g in batch if has_label(self.label, g)]))
 
     def _diverse(self, db: Database, obj: str, hand: str) -> Iterator[list[Grasp]]:
         """One batch: the ``top`` best diverse grasps (at most ``top``, so small)."""
@@ -120,12 +126,12 @@ class ExportSummary:
 
 def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (), hands: Sequence[str] = (),
            min_epsilon: float | None = None, top: int | None = None, spacing: Spacing | None = None,
-           progress: Callable[[Path, int], None] | None = None) -> ExportSummary:
+           label: str = BEST, progress: Callable[[Path, int], None] | None = None) -> ExportSummary:
     """Export the selected grasps of ``db_path`` as ``fmt`` into ``out_dir``
     (created if missing). ``top``: rank <= top per (object, hand);
     ``min_epsilon``: epsilon >= it. ``progress(file, grasps)`` after each file."""
     writer = formats.writer(fmt)
-    sel = Selection(tuple(objects), tuple(hands), min_epsilon, top, spacing)
+    sel = Selection(tuple(objects), tuple(hands), min_epsilon, top, spacing, check(label))
     summary = ExportSummary(fmt)
     start = time.perf_counter()
     with open_db(Path(db_path), create=False, readonly=True) as db:
@@ -133,7 +139,8 @@ def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (
         specs = {h: load_hand(h) for h in sorted({h for _, h in pairs})}  # unknown hands fail up front
         out_dir = _out_dir(Path(out_dir))
         copies = writer.mesh_copies if isinstance(writer, PairWriter) else ()
-        exported = write_meshes(db, sorted({o for o, _ in pairs}), out_dir, copies)
+        exported = {name: replace(o, label=sel.label)
+                    for name, o in write_meshes(db, sorted({o for o, _ in pairs}), out_dir, copies).items()}
         summary.meshes = [out_dir / o.file for o in exported.values()]
         if isinstance(writer, TableWriter):
             path = out_dir / writer.file

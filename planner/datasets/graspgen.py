@@ -18,6 +18,7 @@ ACRONYM export (see :mod:`planner.datasets.acronym`)::
                 "density", "volume", "com", "inertia"},
      "gripper": {"type", "configuration", "configuration_joints", "joint_names", "export_frame"},
      "grasps": {"transforms": [N x 4 x 4], "object_in_gripper": [N booleans], "label_source": str,
+                "label_from": [N str: trial, p_hold or force_closure],
                 "object_motion_during_closing_linear": [N], ..., "epsilon": [N], ...}}
 
 ``object.file`` is ``meshes/{object}.obj`` (relative to DIR) and
@@ -60,7 +61,8 @@ import numpy as np
 
 from planner import assets
 from planner.datasets import registry
-from planner.datasets.acronym import gripper_configuration, joint_names, label_source, per_grasp, validated_count
+from planner.datasets.acronym import gripper_configuration, joint_names, per_grasp
+from planner.datasets.labels import file_source
 from planner.datasets.meshes import ExportedObject
 from planner.record.grasp import Grasp
 from planner.specs.hands import HandSpec
@@ -86,21 +88,23 @@ def relative_path(stem: str, hand: str) -> str:
 
 def write(path: Path, info: ExportedObject, hand: HandSpec, batches: Iterable[list[Grasp]]) -> int:
     """Write the file (atomically); returns the number of grasps."""
-    total = validated = 0
+    total = 0
+    sources: set[str] = set()
     with tempfile.TemporaryDirectory(dir=path.parent, prefix=".graspgen-") as spool, ExitStack() as stack:
         lists: dict[str, IO[str]] = {}
         for batch in batches:
-            for key, values in per_grasp(batch, hand).items():
+            columns = per_grasp(batch, hand, info.label)
+            sources.update(columns["qualities/label_from"])
+            for key, values in columns.items():
                 name = key.rsplit("/", 1)[-1]
                 if name not in lists:
                     lists[name] = stack.enter_context(open(Path(spool) / f"{len(lists)}.part", "w+", encoding="utf-8"))
                 _spool(lists[name], name, values, first=total == 0)
             total += len(batch)
-            validated += validated_count(batch)
         tmp = path.with_name(path.name + ".tmp")
         with open(tmp, "w", encoding="utf-8") as out:
             out.write(HEAD + json.dumps(_object(info)) + ', "gripper": ' + json.dumps(_gripper(hand)))
-            out.write(', "grasps": {"label_source": ' + json.dumps(label_source(validated, total)))
+            out.write(', "grasps": {"label_source": ' + json.dumps(file_source(sources)))
             for name, part in lists.items():
                 out.write(f', "{name}": [')
                 part.seek(0)

@@ -44,12 +44,14 @@ class ExportedObject:
     ``row``: the database's row (name, mass, friction, ..., and the original
     ``source`` and ``scale``); ``file``: the mesh, relative to the export
     folder, '/'-separated; ``scale``: what turns ``file`` into metres (1: the
-    file is in metres).
+    file is in metres); ``label``: which success label the export writes
+    (:mod:`planner.datasets.labels`).
     """
 
     row: ObjectRow
     file: str
     scale: float = 1.0
+    label: str = "best"
 
     @property
     def name(self) -> str:

@@ -27,6 +27,7 @@ import numpy as np
 
 from planner.datasets import registry
 from planner.datasets.columns import Stream, grasp_columns
+from planner.datasets.labels import labels as dataset_labels
 from planner.record.fields import Field, by_name, record_fields
 from planner.record.grasp import Grasp
 
@@ -38,7 +39,10 @@ OBJECT_FIELDS = ("object_mass", "object_friction", "object_density")
 #: Columns of the export, not of the database: (name, arrow type, meaning).
 EXPORT_COLUMNS = (("object_scale", "float64", "scale that turns `object_file` into metres: 1 (the mesh file is in "
                    "metres)"),
-                  ("object_file", "string", "the object's mesh, `meshes/{object}.obj`, relative to the export folder"))
+                  ("object_file", "string", "the object's mesh, `meshes/{object}.obj`, relative to the export folder"),
+                  ("label", "int64", "success label as `--label` chooses: 1 holds, 0 drops (see `label_from`)"),
+                  ("label_from", "string", "where the label came from: `trial` (the shake trial), `p_hold` "
+                   "(p_hold >= 0.5) or `force_closure` (a closure flag, not a success label)"))
 
 
 def _suffixes(shape: tuple[int, ...]) -> list[tuple[str, tuple[int, ...]]]:
@@ -90,8 +94,13 @@ def columns(stream: Stream, batch: list[Grasp]) -> dict[str, np.ndarray | list]:
     constants = {"object_mass": info.row.mass, "object_friction": info.row.friction,
                  "object_density": info.row.density, "object_scale": info.scale, "object_file": info.file}
     grasps = grasp_columns(batch)
+    label, label_from = dataset_labels(grasps, info.label)
+    labelled = {"label": label, "label_from": label_from}
     out: dict[str, np.ndarray | list] = {}
     for name, _, source, index, _ in _SPEC:
+        if name in labelled:
+            out[name] = labelled[name]
+            continue
         if not source:
             out[name] = [constants[name]] * n
             continue

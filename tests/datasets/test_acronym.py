@@ -49,15 +49,18 @@ def test_acronym_layout_read_by_plain_h5py(db: Path, tmp_path: Path) -> None:
         scale, gripper = f["object/scale"][()], f["gripper/type"][()].decode()
         width, fc = f["grasps/width"][()], f["grasps/qualities/force_closure"][()]
         label_source = f["grasps/qualities/flex/object_in_gripper"].attrs["label_source"]
+        label_from = [v.decode() if isinstance(v, bytes) else v for v in f["grasps/qualities/label_from"][()]]
         assert f["gripper/configuration"].shape == (1,) and f["object/inertia"].shape == (3, 3)
         assert_close(f["grasps/poses_hand_frame"][()] @ f["grasps/export_frame"][()], transforms)
     rows = source_rows(db, "box")
     assert transforms.shape == (len(rows), 4, 4) and transforms.dtype == np.float64
     assert success.dtype == np.int64 and set(success) <= {0, 1}
     assert (mesh_file, scale, gripper) == ("meshes/box.obj", 1.0, "panda")
-    # labels: simulated where validated (the best grasp was 'dropped'), else the force-closure flag
+    # labels: the trial where validated (the best grasp was 'dropped'), else (no p_hold model in the tests)
+    # the force-closure flag, each row saying which
     assert label_source == "mixed" and success[0] == 0 and success[1] == 1
     assert list(success[2:]) == [r["force_closure"] for r in rows[2:]]
+    assert list(label_from[:2]) == ["trial", "trial"] and set(label_from[2:]) == {"force_closure"}
     mesh = load_object("box").mesh
     closure = fc == 1
     a, b = fingertips(transforms[closure], width[closure])
@@ -70,7 +73,9 @@ def test_label_source_simulation_when_every_grasp_was_validated(db: Path, tmp_pa
     path = export(db, "acronym", tmp_path, "--object", "box", "--top", "2") / "box__panda.h5"
     with h5py.File(path, "r") as f:
         labels = f["grasps/qualities/flex/object_in_gripper"]
-        assert labels.attrs["label_source"] == "simulation" and list(labels[()]) == [0, 1]
+        assert labels.attrs["label_source"] == "trial" and list(labels[()]) == [0, 1]
+        assert [v.decode() if isinstance(v, bytes) else v for v in f["grasps/qualities/label_from"][()]] == \
+            ["trial", "trial"]
         assert list(f["grasps/qualities/simulated_success"][()]) == [0, 1]
         assert_close(f["grasps/qualities/flex/object_motion_during_shaking_angular"][()], [0.02, 0.02])
         assert_close(f["grasps/qualities/robust_epsilon_mean"][()], [0.05, 0.05])
@@ -124,3 +129,36 @@ def test_gripper_configuration_is_acronyms_for_the_panda_and_documented_for_ever
     assert documented["panda"] == (["panda_finger_joint1"], [0.04])  # ACRONYM's own Panda files
     readme = (Path(__file__).parents[2] / "README.md").read_text()
     assert CONFIGURATION_DOC in readme
+
+
+
+def _labelled(db: Path, tmp_path: Path, choice: str) -> tuple[list, set, list, list]:
+    path = export(db, "acronym", tmp_path, "--object", "box", "--label", choice) / "box__panda.h5"
+    with h5py.File(path, "r") as f:
+        labels = f["grasps/qualities/flex/object_in_gripper"]
+        assert labels.attrs["label_source"] == choice
+        label_from = {v.decode() if isinstance(v, bytes) else v for v in f["grasps/qualities/label_from"][()]}
+        return (list(labels[()]), label_from, list(f["grasps/qualities/force_closure"][()]),
+                list(f["grasps/qualities/simulated_success"][()]))
+
+
+def test_export_label_trial_keeps_only_validated_grasps(db: Path, tmp_path: Path) -> None:
+    labels, label_from, _, simulated = _labelled(db, tmp_path, "trial")
+    assert labels == simulated == [0, 1] and label_from == {"trial"}
+
+
+def test_export_label_force_closure_writes_the_flag(db: Path, tmp_path: Path) -> None:
+    labels, label_from, closure, _ = _labelled(db, tmp_path, "force_closure")
+    assert labels == closure and len(closure) > 2 and label_from == {"force_closure"}
+
+
+def test_labels_pick_the_best_source_per_grasp() -> None:
+    from planner.datasets.labels import P_HOLD_SUCCESS, labels
+
+    columns = {"validation_success": np.array([1, 0, -1, -1, -1]),
+               "p_hold": np.array([0.1, 0.9, 0.7, 0.2, np.nan]), "force_closure": np.array([0, 1, 0, 1, 1])}
+    value, source = labels(columns, "best")
+    assert source == ["trial", "trial", "p_hold", "p_hold", "force_closure"]
+    assert list(value) == [1, 0, int(0.7 >= P_HOLD_SUCCESS), int(0.2 >= P_HOLD_SUCCESS), 1]
+    value, source = labels(columns, "force_closure")
+    assert list(value) == [0, 1, 0, 1, 1] and set(source) == {"force_closure"}

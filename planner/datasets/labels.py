@@ -1,0 +1,70 @@
+"""The success label an export writes (ACRONYM's and GraspGen's
+``object_in_gripper``, the tables' ``label``), and where each row's label
+came from.
+
+A label is one of three things, each named per grasp in ``label_source``:
+
+- ``trial``: the grasp's shake trial (``grasp validate``): held or dropped;
+- ``p_hold``: the calibrated probability of holding (:mod:`planner.calibration`)
+  thresholded at :data:`P_HOLD_SUCCESS`;
+- ``force_closure``: whether the planned contacts are force closure. This is
+  a closure flag, not a success label: on the mug, 18 of 18 sampled grasps
+  that are not force closure as planned held in the shake trial.
+
+``--label best`` (the default) takes, per grasp, the best one available in
+that order; ``--label trial`` or ``--label p_hold`` export only the grasps
+that have it; ``--label force_closure`` writes the flag for every grasp.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+
+import numpy as np
+
+from planner.errors import InputError
+from planner.record.grasp import Grasp
+
+TRIAL, P_HOLD, FORCE_CLOSURE, MIXED = "trial", "p_hold", "force_closure", "mixed"
+BEST = "best"
+#: What ``grasp export --label`` takes.
+CHOICES = (BEST, TRIAL, P_HOLD, FORCE_CLOSURE)
+#: p_hold at or above this is a success label (the probability's own midpoint:
+#: a calibrated p_hold of 0.5 is a coin toss).
+P_HOLD_SUCCESS = 0.5
+
+
+def check(choice: str) -> str:
+    if choice not in CHOICES:
+        raise InputError(f"--label must be one of {', '.join(CHOICES)}; got '{choice}'")
+    return choice
+
+
+def has_label(choice: str, grasp: Grasp) -> bool:
+    """Whether ``grasp`` is exported under ``choice`` (trial and p_hold: only grasps that have one)."""
+    if choice == TRIAL:
+        return grasp.validation is not None
+    if choice == P_HOLD:
+        return grasp.p_hold is not None
+    return True
+
+
+def labels(columns: Mapping[str, np.ndarray], choice: str) -> tuple[np.ndarray, list[str]]:
+    """((n,) int64 0/1 labels, n sources) of a batch's columns
+    (``validation_success`` -1 where not validated, ``p_hold`` NaN where absent)."""
+    success = np.asarray(columns["validation_success"])
+    p_hold = np.asarray(columns["p_hold"], float)
+    closure = np.asarray(columns["force_closure"])
+    if choice == BEST:
+        source = np.where(success >= 0, TRIAL, np.where(np.isnan(p_hold), FORCE_CLOSURE, P_HOLD))
+    else:
+        source = np.full(len(closure), choice)
+    value = np.where(source == TRIAL, success, np.where(source == P_HOLD, np.nan_to_num(p_hold) >= P_HOLD_SUCCESS,
+                                                        closure))
+    return value.astype(np.int64), source.tolist()
+
+
+def file_source(sources: Iterable[str]) -> str:
+    """One file's ``label_source`` attribute: the one source of every row, or ``mixed``."""
+    found = set(sources)
+    return found.pop() if len(found) == 1 else MIXED
