@@ -23,9 +23,12 @@ if TYPE_CHECKING:
     from planner.record.grasp import Grasp
 
 #: The raw measures read per grasp (units: epsilon, volume dimensionless; resist_* [g]; margins, width [m];
-#: counts; force_closure 0/1; settled_epsilon dimensionless; depth [m], see :func:`contact_depth`).
+#: counts; force_closure 0/1; settled_epsilon dimensionless; depth [m], see :func:`contact_depth`; the grip
+#: measures of :mod:`planner.plan.grip`: pad_area, jaw_fill [m^2], pad_alignment, opposition (cosines),
+#: palm_gap [m]).
 MEASURES = ("epsilon", "volume", "force_closure", "resist_worst", "resist_mean", "open_margin", "close_margin",
-            "push", "width", "n_contacts", "links_touching", "settled_epsilon", "depth")
+            "push", "width", "n_contacts", "links_touching", "settled_epsilon", "depth", "pad_area", "pad_alignment",
+            "opposition", "jaw_fill", "palm_gap")
 
 #: The stored columns (declared fields, :mod:`planner.record.fields`) a measure table is built from:
 #: every measure but ``depth``, which comes from the pose, the approach direction and the contacts.
@@ -35,6 +38,8 @@ COLUMNS = (*(m for m in MEASURES if m != "depth"), "pose", "approach_dir", "cont
 MARGIN_CAP = 0.04
 #: [g] weight resistance is compared on a log scale: log1p(min(resist, cap)).
 RESIST_CAP = 1e4
+#: [m^2] areas are compared on a log scale in units of this (1 mm^2): log1p(area / AREA_UNIT).
+AREA_UNIT = 1e-6
 
 #: feature name -> (measure, transform); transforms are monotone so a coefficient's sign reads as a direction.
 FEATURES: dict[str, tuple[str, str]] = {
@@ -50,6 +55,11 @@ FEATURES: dict[str, tuple[str, str]] = {
     "links_touching": ("links_touching", "identity"),
     "settled_epsilon": ("settled_epsilon", "identity"),
     "depth": ("depth", "identity"),
+    "log_pad_area": ("pad_area", "log_area"),
+    "pad_alignment": ("pad_alignment", "identity"),
+    "opposition": ("opposition", "identity"),
+    "log_jaw_fill": ("jaw_fill", "log_area"),
+    "palm_gap": ("palm_gap", "identity"),
 }
 
 #: Products of two features' inputs (after transform and fill): the curvature a linear model lacks where a
@@ -63,12 +73,15 @@ PRODUCTS: dict[str, tuple[str, str]] = {
 #: Value of a feature whose measure was not computed (NaN): the "nothing known" end of its scale.
 FILL = {"epsilon": 0.0, "force_closure": 0.0, "log_resist_worst": 0.0, "log_resist_mean": 0.0,
         "open_margin": MARGIN_CAP, "close_margin": MARGIN_CAP, "push": 0.0, "width": 0.0, "n_contacts": 0.0,
-        "links_touching": 0.0, "settled_epsilon": 0.0, "depth": 0.0}
+        "links_touching": 0.0, "settled_epsilon": 0.0, "depth": 0.0, "log_pad_area": 0.0, "pad_alignment": 0.0,
+        "opposition": 0.0, "log_jaw_fill": 0.0, "palm_gap": 0.05}
 
 
 def _transform(kind: str, x: np.ndarray) -> np.ndarray:
     if kind == "log_resist":
         return np.log1p(np.clip(x, 0.0, RESIST_CAP))
+    if kind == "log_area":
+        return np.log1p(np.maximum(x, 0.0) / AREA_UNIT)
     if kind == "margin":
         return np.clip(x, 0.0, MARGIN_CAP)  # inf (no finger touching) -> the cap
     return x

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from collections import defaultdict
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -65,8 +65,8 @@ def calibrate(data: LabelledSet, *, folds: int = 5, features: Sequence[str] = DE
     figures["folds"] = float(k)
     model = fit(data.table, data.labels, data.hand, features=features, l2=l2, source=source)
     table = reliability(data.labels, cv.p)
-    model = LogisticModel(model.hand, model.features, model.mean, model.scale, model.coef, model.intercept,
-                          model.l2, source, {k_: v for k_, v in figures.items() if math.isfinite(v)}, table)
+    model = replace(model, source=source, figures={k_: v for k_, v in figures.items() if math.isfinite(v)},
+                    held_out=table)
     return Calibration(model, cv, figures, per_object(data, cv.p), table)
 
 

@@ -6,6 +6,14 @@ coefficients (not the intercept), fitted by L-BFGS on the mean log-loss::
 
     z = (x - mean) / scale;   p_hold = 1 / (1 + exp(-(intercept + z . coef)))
 
+A feature with knots enters as a restricted cubic spline (Harrell's: cubic
+between its knots, linear beyond the outer ones, so a new object's values
+outside the training range are extrapolated by a line, not a cubic): its
+input x and one column per inner knot (:func:`spline_basis`), each with its
+own coefficient. The model stays additive, one term per feature (a
+generalised additive model), so ``--explain`` still gives each feature's
+part of the log-odds.
+
 :func:`fit` fits one; :func:`cross_validate` gives out-of-fold predictions
 over folds grouped by object, choosing the penalty inside each training
 fold (nested), so the figures it yields are held-out ones. A model is a
@@ -32,8 +40,14 @@ from planner.errors import InputError
 
 #: The features a model uses unless told otherwise.
 DEFAULT_FEATURES = ("epsilon", "force_closure", "log_resist_worst", "log_resist_mean", "open_margin", "close_margin",
-                    "push", "width", "n_contacts", "links_touching", "settled_epsilon", "depth", "depth^2", "width^2",
-                    "width*depth")
+                    "push", "width", "n_contacts", "links_touching", "settled_epsilon", "depth", "log_pad_area",
+                    "pad_alignment", "opposition", "log_jaw_fill", "palm_gap")
+#: The features that enter as splines unless told otherwise (:func:`spline_basis`), with this many knots.
+DEFAULT_SPLINES = ("epsilon", "log_resist_worst", "open_margin", "push", "width", "depth", "log_pad_area",
+                   "pad_alignment", "opposition", "log_jaw_fill", "palm_gap")
+KNOTS = 4
+#: Knots at these quantiles of a feature's training inputs (Harrell's for 4 knots).
+KNOT_QUANTILES = {3: (0.10, 0.50, 0.90), 4: (0.05, 0.35, 0.65, 0.95), 5: (0.05, 0.275, 0.50, 0.725, 0.95)}
 #: L2 penalties tried by cross-validation (per grasp of the mean log-loss, on standardised features).
 L2_GRID = (1e-4, 1e-3, 1e-2, 1e-1, 1.0)
 #: A feature whose spread is below this is constant in the data: its scale is 1 (coefficient ~0 by the penalty).
@@ -46,9 +60,12 @@ FOLDER = "calibration"
 class LogisticModel:
     """A fitted p_hold model for one hand.
 
-    features: k names (keys of :data:`~planner.calibration.features.FEATURES`);
-    mean, scale: (k,) standardisation of the features' inputs; coef: (k,)
-    per standardised feature; intercept; l2: the penalty it was fitted with;
+    features: names (keys of :data:`~planner.calibration.features.FEATURES`);
+    knots: per spline feature, its knots (ascending, >= 3; inputs' units);
+    the model's k *columns* (:attr:`columns`) are each feature's input and,
+    for a spline feature, its spline columns; mean, scale: (k,)
+    standardisation of the columns; coef: (k,) per standardised column;
+    intercept; l2: the penalty it was fitted with;
     source: how it was made (data, split, command), free text kept with it;
     figures: its held-out (cross-validated) figures; held_out: the held-out
     reliability table (None: not known), drawn by ``grasp report``.
@@ -64,13 +81,19 @@ class LogisticModel:
     source: str = ""
     figures: Mapping[str, float] = field(default_factory=dict)
     held_out: Reliability | None = None
+    knots: Mapping[str, tuple[float, ...]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        k = len(self.features)
+        bad = [f for f, t in self.knots.items() if f not in self.features or len(t) < 3 or np.any(np.diff(t) <= 0)]
+        if bad:
+            raise InputError(f"calibration model: knots of {', '.join(bad)} must belong to a feature and be >= 3 "
+                             "increasing values")
+        object.__setattr__(self, "knots", {f: tuple(float(v) for v in t) for f, t in self.knots.items()})
+        k = len(self.columns)
         for name in ("mean", "scale", "coef"):
             a = np.asarray(getattr(self, name), float)
             if a.shape != (k,):
-                raise InputError(f"calibration model: {name} must have {k} entries (one per feature), got {a.shape}")
+                raise InputError(f"calibration model: {name} must have {k} entries (one per column), got {a.shape}")
             object.__setattr__(self, name, a)
         unknown = [f for f in self.features if f not in FEATURES and f not in PRODUCTS]
         if unknown:
@@ -79,23 +102,34 @@ class LogisticModel:
         if not np.all(self.scale > 0):
             raise InputError("calibration model: every scale must be > 0")
 
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """The model's input columns: each feature, and ``feature~j`` for
+        the j-th spline column of a spline feature."""
+        return columns(self.features, self.knots)
+
+    def _z(self, table: Mapping[str, np.ndarray]) -> np.ndarray:
+        return (expand(design(table, self.features), self.features, self.knots) - self.mean) / self.scale
+
     def logit(self, table: Mapping[str, np.ndarray]) -> np.ndarray:
         """(n,) log-odds of holding of the grasps of a measure table."""
-        z = (design(table, self.features) - self.mean) / self.scale
-        return self.intercept + z @ self.coef
+        return self.intercept + self._z(table) @ self.coef
 
     def terms(self, table: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """Each feature's part of the log-odds, (n,) per feature name:
-        coef x standardised input, ``(x - mean) / scale``; with
+        """Each feature's part of the log-odds, (n,) per feature name: the
+        sum over its columns of coef x standardised column; with
         ``intercept`` they add up to :meth:`logit` (``grasp best --explain``
         prints them)."""
-        z = (design(table, self.features) - self.mean) / self.scale
-        return {name: z[:, k] * self.coef[k] for k, name in enumerate(self.features)}
+        part = self._z(table) * self.coef
+        owner = np.array([c.partition("~")[0] for c in self.columns])
+        return {name: part[:, owner == name].sum(axis=1) for name in self.features}
 
     def standardised(self, table: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """Each feature's standardised input ``(x - mean) / scale``, (n,) per feature name."""
-        z = (design(table, self.features) - self.mean) / self.scale
-        return {name: z[:, k] for k, name in enumerate(self.features)}
+        """Each feature's standardised input ``(x - mean) / scale``, (n,) per
+        feature name (its first column: the input itself, for a spline feature)."""
+        z = self._z(table)
+        cols = self.columns
+        return {name: z[:, cols.index(name)] for name in self.features}
 
     def predict(self, table: Mapping[str, np.ndarray]) -> np.ndarray:
         """(n,) p_hold in [0, 1]."""
@@ -105,6 +139,7 @@ class LogisticModel:
         return {"hand": self.hand, "features": list(self.features), "mean": self.mean.tolist(),
                 "scale": self.scale.tolist(), "coef": self.coef.tolist(), "intercept": self.intercept,
                 "l2": self.l2, "source": self.source, "figures": dict(self.figures),
+                "knots": {k: list(v) for k, v in self.knots.items()},
                 **({"held_out": _table(self.held_out)} if self.held_out is not None else {})}
 
     @classmethod
@@ -114,7 +149,8 @@ class LogisticModel:
                        np.asarray(data["scale"], float), np.asarray(data["coef"], float), float(data["intercept"]),
                        float(data["l2"]), str(data.get("source", "")),
                        {k: float(v) for k, v in dict(data.get("figures", {})).items()},
-                       _reliability(data["held_out"]) if "held_out" in data else None)
+                       _reliability(data["held_out"]) if "held_out" in data else None,
+                       {str(k): tuple(float(x) for x in v) for k, v in dict(data.get("knots", {})).items()})
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"calibration model: missing or bad field ({exc})") from None
 
@@ -133,6 +169,9 @@ class LogisticModel:
                   f"intercept = {self.intercept!r}", f"l2 = {self.l2!r}", f"source = {json.dumps(self.source)}", "",
                   "[figures]"]
         lines += [f"{k} = {float(v)!r}" for k, v in sorted(self.figures.items())]
+        if self.knots:
+            lines += ["", "[knots]  # restricted cubic spline knots per feature (the feature's input units)"]
+            lines += [f'"{k}" = {_floats(np.asarray(v, float))}' for k, v in self.knots.items()]
         if self.held_out is not None:
             lines += ["", "[held_out]  # reliability table of the cross-validated predictions (nan: empty bin)"]
             lines += [f"{k} = {_floats(np.asarray(v, float))}" for k, v in _table(self.held_out, nan=True).items()]
@@ -194,11 +233,71 @@ def _shipped(hand: str) -> LogisticModel | None:
     return load_model(path) if path.is_file() else None
 
 
+def columns(features: Sequence[str], knots: Mapping[str, Sequence[float]]) -> tuple[str, ...]:
+    """Column names of :func:`expand`: each feature, then ``feature~1`` .. for its spline columns."""
+    out: list[str] = []
+    for f in features:
+        out.append(f)
+        out += [f"{f}~{j}" for j in range(1, len(knots[f]) - 1)] if f in knots else []
+    return tuple(out)
+
+
+def spline_basis(x: np.ndarray, knots: Sequence[float]) -> np.ndarray:
+    """(n, len(knots) - 2) restricted cubic spline columns of ``x`` (n,)
+    (Harrell, Regression Modeling Strategies, sec. 2.4.5): for inner knot
+    j, ``(x - t_j)+^3 - (x - t_{k-1})+^3 (t_k - t_j) / (t_k - t_{k-1})
+    + (x - t_k)+^3 (t_{k-1} - t_j) / (t_k - t_{k-1})``, divided by
+    ``(t_k - t_1)^2`` to keep it in x's units; with x itself they span the
+    cubic splines on the knots that are linear beyond the outer ones."""
+    t = np.asarray(knots, float)
+    x = np.asarray(x, float)[:, None]
+    k = len(t)
+
+    def cube(v: np.ndarray) -> np.ndarray:
+        return np.maximum(v, 0.0) ** 3
+
+    inner = t[:k - 2][None, :]
+    span = t[k - 1] - t[k - 2]
+    out = (cube(x - inner) - cube(x - t[k - 2]) * (t[k - 1] - inner) / span
+           + cube(x - t[k - 1]) * (t[k - 2] - inner) / span)
+    return out / (t[k - 1] - t[0]) ** 2
+
+
+def expand(x: np.ndarray, features: Sequence[str], knots: Mapping[str, Sequence[float]]) -> np.ndarray:
+    """(n, len(columns)) model columns of the feature inputs ``x`` (n, len(features))."""
+    parts = []
+    for i, f in enumerate(features):
+        parts.append(x[:, i:i + 1])
+        if f in knots:
+            parts.append(spline_basis(x[:, i], knots[f]))
+    return np.hstack(parts) if parts else np.zeros((len(x), 0))
+
+
+def choose_knots(x: np.ndarray, features: Sequence[str], splines: Sequence[str], count: int = KNOTS
+                 ) -> dict[str, tuple[float, ...]]:
+    """Knots of each spline feature at Harrell's quantiles of its inputs
+    ``x`` (n, len(features)); a feature with too few distinct values there
+    stays linear."""
+    out = {}
+    for i, f in enumerate(features):
+        if f not in splines:
+            continue
+        t = np.unique(np.quantile(x[:, i], KNOT_QUANTILES[count]))
+        if len(t) == count and np.all(np.diff(t) > MIN_SCALE):
+            out[f] = tuple(float(v) for v in t)
+    return out
+
+
 def fit(table: Mapping[str, np.ndarray], labels: np.ndarray, hand: str, *,
-        features: Sequence[str] = DEFAULT_FEATURES, l2: float = 1e-2, source: str = "") -> LogisticModel:
-    """The model minimising mean log-loss + ``l2``/2 |coef|^2 on grasps with ``labels`` (n,) 0/1."""
+        features: Sequence[str] = DEFAULT_FEATURES, l2: float = 1e-2, source: str = "",
+        splines: Sequence[str] = DEFAULT_SPLINES) -> LogisticModel:
+    """The model minimising mean log-loss + ``l2``/2 |coef|^2 on grasps with
+    ``labels`` (n,) 0/1; the ``splines`` among ``features`` get knots from
+    these grasps (:func:`choose_knots`)."""
     y = np.asarray(labels, float)
-    x = design(table, features)
+    raw = design(table, features)
+    knots = choose_knots(raw, features, splines)
+    x = expand(raw, features, knots)
     if len(y) != len(x) or len(y) == 0:
         raise InputError(f"calibration: {len(y)} labels for {len(x)} grasps; need at least one of each")
     if l2 < 0:
@@ -212,8 +311,9 @@ def fit(table: Mapping[str, np.ndarray], labels: np.ndarray, hand: str, *,
     w0[0] = math.log(rate / (1 - rate))
     from scipy.optimize import minimize  # fitting only: reading and applying a model needs numpy alone
 
-    res = minimize(_loss, w0, args=(z, y, l2), jac=True, method="L-BFGS-B")
-    return LogisticModel(hand, tuple(features), mean, scale, res.x[1:], float(res.x[0]), float(l2), source)
+    res = minimize(_loss, w0, args=(z, y, l2), jac=True, method="L-BFGS-B", options={"maxiter": 2000})
+    return LogisticModel(hand, tuple(features), mean, scale, res.x[1:], float(res.x[0]), float(l2), source,
+                         knots=knots)
 
 
 def _loss(w: np.ndarray, z: np.ndarray, y: np.ndarray, l2: float) -> tuple[float, np.ndarray]:
@@ -247,7 +347,8 @@ def log_loss(labels: np.ndarray, p: np.ndarray) -> float:
 
 
 def choose_l2(table: Mapping[str, np.ndarray], labels: np.ndarray, groups: Sequence[str], hand: str, *,
-              features: Sequence[str] = DEFAULT_FEATURES, folds: int = 5, grid: Sequence[float] = L2_GRID) -> float:
+              features: Sequence[str] = DEFAULT_FEATURES, folds: int = 5, grid: Sequence[float] = L2_GRID,
+              splines: Sequence[str] = DEFAULT_SPLINES) -> float:
     """The penalty of ``grid`` with the least grouped-CV log-loss (ties: the larger)."""
     k = min(folds, len(set(groups)))
     if k < 2:
@@ -258,8 +359,8 @@ def choose_l2(table: Mapping[str, np.ndarray], labels: np.ndarray, groups: Seque
         p = np.empty(len(labels))
         for test in tests:
             train = np.setdiff1d(np.arange(len(labels)), test)
-            p[test] = fit(_subset(table, train), labels[train], hand, features=features, l2=l2).predict(
-                _subset(table, test))
+            p[test] = fit(_subset(table, train), labels[train], hand, features=features, l2=l2,
+                          splines=splines).predict(_subset(table, test))
         loss = log_loss(labels, p)
         if loss < best_loss - 1e-9:
             best, best_loss = float(l2), loss
@@ -268,7 +369,7 @@ def choose_l2(table: Mapping[str, np.ndarray], labels: np.ndarray, groups: Seque
 
 def cross_validate(table: Mapping[str, np.ndarray], labels: np.ndarray, groups: Sequence[str], hand: str, *,
                    features: Sequence[str] = DEFAULT_FEATURES, folds: int = 5,
-                   grid: Sequence[float] = L2_GRID) -> CrossValidation:
+                   grid: Sequence[float] = L2_GRID, splines: Sequence[str] = DEFAULT_SPLINES) -> CrossValidation:
     """Out-of-fold p_hold over ``folds`` folds grouped by ``groups`` (n,) (object ids)."""
     y = np.asarray(labels, float)
     groups = list(groups)
@@ -277,8 +378,9 @@ def cross_validate(table: Mapping[str, np.ndarray], labels: np.ndarray, groups: 
     for f, test in enumerate(tests):
         train = np.setdiff1d(np.arange(len(y)), test)
         sub = _subset(table, train)
-        l2 = choose_l2(sub, y[train], [groups[i] for i in train], hand, features=features, folds=folds, grid=grid)
+        l2 = choose_l2(sub, y[train], [groups[i] for i in train], hand, features=features, folds=folds, grid=grid,
+                       splines=splines)
         chosen.append(l2)
-        p[test] = fit(sub, y[train], hand, features=features, l2=l2).predict(_subset(table, test))
+        p[test] = fit(sub, y[train], hand, features=features, l2=l2, splines=splines).predict(_subset(table, test))
         fold[test] = f
     return CrossValidation(p, fold, np.array(chosen))

@@ -62,6 +62,7 @@ from planner.db.store import Database, UnitRow, Validated, open_db
 from planner.errors import InputError
 from planner.geometry.frames import approach_of
 from planner.geometry.solid import PreparedObject, prepare
+from planner.plan import grip
 from planner.plan.closing import Closed, Grasper
 from planner.plan.measures import measure
 from planner.plan.unit import closed_width, scored
@@ -313,6 +314,7 @@ def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: C
     out = []
     with Sim() as sim:
         grasper = Grasper.for_mesh(sim, hand, obj.mesh)
+        gripping = grip.GripSurface(obj.mesh)
         for i, pose in enumerate(poses, start=first):
             closed = grasper.close_at(pose, shape, MAX_BACK_OFF)
             if not isinstance(closed, Closed):
@@ -322,7 +324,8 @@ def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: C
             if q is None:
                 continue
             width = closed_width(hand, closed.closed_joints)
-            m = measure(closed.contacts, closed.frames, hand, shape, closed.closed_joints, obj, width)  # type: ignore[arg-type]
+            m = measure(closed.contacts, closed.frames, hand, shape, closed.closed_joints, obj, width,  # type: ignore[arg-type]
+                        grip=grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}))
             point, direction, roll = approach_of(closed.pose, hand.approach, shape.tcp)
             out.append(Grasp(
                 object=obj.name, hand=hand.name, preshape=shape.name, candidate=i, seed=0,

@@ -28,6 +28,9 @@ Tables (the README lists every column):
   written by the store with the score (the hand's model on the stored
   measures); NULL where no model applies (and for grasps stored before,
   until the next write re-scores them: ``meta.p_hold_models``).
+- ``grasps`` (v6) gains the grip measures (:mod:`planner.plan.grip`):
+  ``pad_area``, ``pad_alignment``, ``opposition``, ``jaw_fill``,
+  ``palm_gap``; NULL for grasps stored before (not measured).
 
 No pickle: arrays are JSON text. A new database runs :data:`SCHEMA` (version
 1) and then every migration; a newer schema is refused politely; an older one
@@ -48,7 +51,7 @@ from planner.errors import DatabaseError
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 5
+SCHEMA_VERSION = 6
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -117,6 +120,14 @@ CREATE TABLE IF NOT EXISTS calibration (
     hand TEXT PRIMARY KEY, model TEXT NOT NULL, source TEXT NOT NULL, created_at TEXT NOT NULL
 );
 ALTER TABLE grasps ADD COLUMN p_hold REAL
+""",
+    # v6: the grip measures (issue 26, planner.plan.grip; NULL: not measured, grasps stored before).
+    5: """
+ALTER TABLE grasps ADD COLUMN pad_area REAL;
+ALTER TABLE grasps ADD COLUMN pad_alignment REAL;
+ALTER TABLE grasps ADD COLUMN opposition REAL;
+ALTER TABLE grasps ADD COLUMN jaw_fill REAL;
+ALTER TABLE grasps ADD COLUMN palm_gap REAL
 """,
 }
 

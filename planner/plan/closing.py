@@ -102,6 +102,8 @@ class Closed:
         contacts: the contacts, object frame.
         steps: simulator queries spent (for benchmarks).
         frames: every finger joint's origin and axis at the closed grasp, object frame.
+        link_poses: (4, 4) pose of each contact link at the closed grasp, object frame
+            (the grip measures, :mod:`planner.plan.grip`).
     """
 
     pose: np.ndarray
@@ -110,6 +112,7 @@ class Closed:
     contacts: HandContacts
     steps: int = 0
     frames: JointFrames | None = None
+    link_poses: dict[str, np.ndarray] | None = None
 
 
 @dataclass(frozen=True)
@@ -512,7 +515,7 @@ class Grasper:
         if s.contacts == "patch" and self.surface is not None:
             contacts = self._patches(contacts)
         return Closed(pose.copy(), dict(open_joints), {k: float(v) for k, v in closed.items()}, contacts, self.queries,
-                      self._joint_frames())
+                      self._joint_frames(), self._link_poses())
 
     def read(self, pose: np.ndarray, open_joints: dict[str, float], closed: dict[str, float]) -> Closed | Rejected:
         """The hand placed at ``pose`` with ``closed`` joints (a stored grasp),
@@ -521,6 +524,10 @@ class Grasper:
         self.queries = 0
         self._place(np.array(pose, float), dict(closed))
         return self._read(np.array(pose, float), dict(open_joints), dict(closed))
+
+    def _link_poses(self) -> dict[str, np.ndarray]:
+        """(4, 4) pose of every contact link as placed, object frame."""
+        return {link: self.sim.link_pose(self.body, link) for link in self.hand.contact_links}
 
     def _joint_frames(self) -> JointFrames:
         """Origins and unit axes of the finger joints as placed, object frame

@@ -34,6 +34,7 @@ the closing sense (the grip a worm gear can build is the motor's).
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import asdict
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -49,6 +50,7 @@ if TYPE_CHECKING:  # the quality stage imports scipy.optimize, the object trimes
     # reading stored Measures (`grasp best`) needs neither
     from planner import quality
     from planner.geometry.solid import PreparedObject
+    from planner.plan.grip import Grip
     from planner.quality.resistance import HandDrive
 
 #: cos 72.5 deg: contact normal and closing motion further apart than this is
@@ -87,9 +89,10 @@ def _axes(frames: JointFrames) -> dict[str, tuple[np.ndarray, np.ndarray]]:
 
 def measure(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: Preshape,
             closed: Mapping[str, float], obj: PreparedObject, width: float | None = None,
-            directions: np.ndarray | None = None) -> Measures:
+            directions: np.ndarray | None = None, grip: Grip | None = None) -> Measures:
     """Weight resistance and feasibility of a closed grasp (object frame);
-    ``directions`` (k, 3) of the weight (None: the 14 of :data:`planner.quality.resistance.SPHERE14`)."""
+    ``directions`` (k, 3) of the weight (None: the 14 of :data:`planner.quality.resistance.SPHERE14`);
+    ``grip``: its grip measures (:mod:`planner.plan.grip`), stored with the rest (None: not measured)."""
     from planner.quality.resistance import SPHERE14
 
     directions = SPHERE14 if directions is None else directions
@@ -106,7 +109,8 @@ def measure(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: 
         reasons.append("back_or_side_contact")
     if resist.worst < MIN_RESISTANCE:
         reasons.append("cannot_hold_weight")
-    return Measures(resist.worst, resist.mean, open_margin, close_margin, push, tuple(reasons))
+    grips = {} if grip is None else {k: float(v) for k, v in asdict(grip).items()}
+    return Measures(resist.worst, resist.mean, open_margin, close_margin, push, tuple(reasons), **grips)
 
 
 def _resistance(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: Preshape,

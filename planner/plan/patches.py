@@ -160,7 +160,7 @@ class Region:
 
 # -- the hand side ----------------------------------------------------------------
 
-def _collision_mesh(model: object, link: str) -> trimesh.Trimesh | None:
+def collision_mesh(model: object, link: str) -> trimesh.Trimesh | None:
     """The link's collision geometry in its link frame, as PyBullet collides it."""
     parts = []
     for c in model.link_map[link].collisions:  # type: ignore[attr-defined]
@@ -207,7 +207,7 @@ def _surfaces(urdf: str, links: tuple[str, ...], root: str, settings: PatchSetti
     rng = np.random.default_rng(settings.seed)
     out = {}
     for link in links:
-        mesh = _collision_mesh(model, link)
+        mesh = collision_mesh(model, link)
         if mesh is not None:
             out[link] = sample_surface(mesh, settings.palm_spacing if link == root else settings.spacing, rng)
     return out

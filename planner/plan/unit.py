@@ -22,7 +22,7 @@ from planner import quality
 from planner.errors import DegenerateGraspError, InputError, PlannerError
 from planner.geometry.frames import approach_of
 from planner.geometry.solid import PreparedObject, load_object
-from planner.plan import sampling
+from planner.plan import grip, sampling
 from planner.plan.closing import Closed, Grasper
 from planner.plan.contacts import HandContacts, grasp_quality
 from planner.plan.measures import MIN_RESISTANCE, measure
@@ -139,6 +139,7 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report) -> None:
     budget = Budget(settings.budget_share())
     with Sim() as sim:
         grasper = Grasper.for_mesh(sim, hand, obj.mesh)
+        gripping = grip.GripSurface(obj.mesh)
         sweep = _antipodal if settings.sampler == "antipodal" else _rays
         for cand, closed, ray in sweep(spec, settings, obj, hand, shapes, rng, grasper, result, t0, budget,
                                     report):
@@ -148,7 +149,8 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report) -> None:
                 result.timing["quality"] += time.perf_counter() - tb
                 continue
             width = closed_width(hand, closed.closed_joints)
-            m = measure(closed.contacts, closed.frames, hand, cand.preshape, closed.closed_joints, obj, width)  # type: ignore[arg-type]
+            m = measure(closed.contacts, closed.frames, hand, cand.preshape, closed.closed_joints, obj, width,  # type: ignore[arg-type]
+                        grip=grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}))
             result.timing["quality"] += time.perf_counter() - tb
             point, direction, roll, standoff = ray
             result.grasps.append(Grasp(

@@ -125,16 +125,18 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
 
 def p_hold_terms(grasp: Grasp, model: LogisticModel) -> dict[str, dict[str, float]]:
     """The model's log-odds of ``grasp`` feature by feature: for each feature
-    its standardised input ``z`` and its part ``coef x z``, and the
-    ``intercept``, ``logit`` (their sum) and ``p_hold`` = 1 / (1 + e^-logit)."""
+    its input ``x`` (the measure as the model reads it, e.g. log1p of an area
+    in mm^2), whether it enters as a spline, and its ``part`` of the log-odds;
+    and the ``intercept``, ``logit`` (their sum) and ``p_hold`` =
+    1 / (1 + e^-logit)."""
     from planner.calibration import features
 
     table = features.of_grasps([grasp])
-    z = model.standardised(table)
+    x = features.design(table, model.features)[0]
     parts = model.terms(table)
     logit = float(model.logit(table)[0])
-    return {"features": {name: {"coef": float(c), "z": float(z[name][0]), "part": float(parts[name][0])}
-                         for name, c in zip(model.features, model.coef)},
+    return {"features": {name: {"x": float(x[i]), "spline": float(name in model.knots), "part": float(parts[name][0])}
+                         for i, name in enumerate(model.features)},
             "total": {"intercept": float(model.intercept), "logit": logit, "p_hold": float(model.predict(table)[0])}}
 
 
@@ -177,13 +179,13 @@ def explain(grasp: Grasp, rule: RankingRule, model: LogisticModel | None = None)
                   f"{rule.settled_weight * t['settled']:.4f}"]
     if calibrated:
         lines.append(f"    (the formula: {t['formula']:.4f}; not used: the hand has a calibrated p_hold model)")
-        lines.append("    analytic = p_hold = 1 / (1 + exp(-logit)), logit = intercept + sum of coef x standardised "
-                     "feature ((x - mean) / scale):")
+        lines.append("    analytic = p_hold = 1 / (1 + exp(-logit)), logit = intercept + each feature's part "
+                     "(a line, or a spline where marked ~, of the feature's input x):")
         if model is None:
             lines.append("    (the model that made it is no longer the hand's: its terms cannot be shown)")
         else:
             pt = p_hold_terms(grasp, model)
-            lines += [f"      {name}: {v['coef']:+.4f} x {v['z']:+.3f} = {v['part']:+.4f}"
+            lines += [f"      {name}{'~' if v['spline'] else ''}: x {v['x']:.4g} -> {v['part']:+.4f}"
                       for name, v in pt["features"].items()]
             total = pt["total"]
             lines.append(f"      intercept {total['intercept']:+.4f}; logit {total['logit']:+.4f} -> p_hold "

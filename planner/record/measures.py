@@ -27,6 +27,10 @@ class Measures:
     into when the fingers close dynamically on the free object
     (:mod:`planner.plan.settle`; 0 if the object is pushed out or the trial
     is flagged; None: not measured, the hand's ``settle`` off).
+
+    The grip measures (:mod:`planner.plan.grip`; None: not measured, a grasp
+    stored before schema version 6): pad_area [m^2], pad_alignment (cosine),
+    opposition (cosine), jaw_fill [m^2], palm_gap [m].
     """
 
     resist_worst: float = stored("real", "g", 3, "weight resistance, worst of 14 gravity directions (object frame)",
@@ -43,6 +47,19 @@ class Measures:
     settled_epsilon: float | None = stored("real", "", 4, "Ferrari-Canny epsilon of the contacts after a dynamic "
                                            "closing (hands with `settle`)", required=False, ranked="settled_epsilon",
                                            default=None)
+    pad_area: float | None = stored("real", "m^2", 6, "object surface under the pads (within 1.5 mm of a touching "
+                                    "finger's hull, facing it), smallest over the touching fingers", required=False,
+                                    default=None)
+    pad_alignment: float | None = stored("real", "", 6, "mean cosine between the surface under a pad and the pad "
+                                         "(1 = flat on it), smallest over the touching fingers", required=False,
+                                         default=None)
+    opposition: float | None = stored("real", "", 6, "how straight two touching fingers' pad surfaces face each "
+                                      "other (-n_i . n_j, best pair; 1 = opposite)", required=False, default=None)
+    jaw_fill: float | None = stored("real", "m^2", 6, "object surface inside the convex hull of the touching "
+                                    "fingers (the faces under the pads and all else between them)", required=False,
+                                    default=None)
+    palm_gap: float | None = stored("real", "m", 6, "smallest distance from the object to the palm (root link), "
+                                    "at most 5 cm", required=False, default=None)
 
     @property
     def feasible(self) -> bool:

@@ -198,6 +198,16 @@ class HandSpec:
         return values
 
     # -- the fingers: what closing, the measures, the trial and the exports share --
+
+    @cached_property
+    def fingers(self) -> tuple[tuple[str, ...], ...]:
+        """The hand's fingers as link chains, whatever the preshape: the links
+        each joint moves, a chain nested in another merged into the outer one
+        (a Barrett finger's spread, proximal and distal links are one finger;
+        the Panda's two mimic-coupled fingers are two). Sorted, so that finger
+        order does not depend on the joints' order."""
+        chains = {frozenset(j.moves) for j in self.joints if j.moves}
+        return tuple(sorted(tuple(sorted(c)) for c in chains if not any(c < other for other in chains)))
     def coupling(self, name: str) -> dict[str, float]:
         """The joints driven joint ``name`` moves, dq per unit of it: itself
         (1) and each joint mimicking it (its multiplier)."""

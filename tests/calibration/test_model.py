@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import assume, given
+from hypothesis import strategies as st
 
 from planner.calibration import features
 from planner.calibration.metrics import expected_calibration_error, roc_auc
-from planner.calibration.model import LogisticModel, cross_validate, fit, load_model
+from planner.calibration.model import LogisticModel, cross_validate, fit, load_model, spline_basis
 from planner.errors import InputError
 from tests.helpers import assert_close
 
@@ -37,8 +39,8 @@ def synthetic(n: int, seed: int = 0, groups: int = 8) -> tuple[dict[str, np.ndar
 
 def test_fit_recovers_a_logistic_truth_calibrated() -> None:
     table, y, _ = synthetic(6000)
-    model = fit(table, y, "panda", l2=1e-4)
-    push = model.features.index("push")
+    model = fit(table, y, "panda", l2=1e-4, splines=())  # linear terms: push's coefficient is the truth's slope
+    push = model.columns.index("push")
     assert model.coef[push] / model.scale[push] == pytest.approx(4.0, rel=0.2)
     test_table, test_y, _ = synthetic(6000, seed=1)
     assert expected_calibration_error(test_y, model.predict(test_table)) < 0.03
@@ -67,7 +69,7 @@ def test_fit_is_invariant_to_row_order_and_to_the_units_of_a_feature() -> None:
 def test_a_constant_feature_gets_no_weight_and_missing_measures_take_their_fill() -> None:
     table, y, _ = synthetic(1000)
     model = fit(table, y, "panda")
-    links = model.features.index("links_touching")
+    links = model.columns.index("links_touching")
     assert model.coef[links] == pytest.approx(0.0, abs=1e-6)
     x = features.design(table, ["settled_epsilon", "close_margin"])
     assert np.all(x[:, 0] == features.FILL["settled_epsilon"]) and np.all(x[:, 1] == features.MARGIN_CAP)
@@ -78,16 +80,47 @@ def test_model_round_trips_through_toml_and_json(tmp_path) -> None:
     model = fit(table, y, "panda", source="synthetic")
     path = tmp_path / "panda.toml"
     path.write_text(model.to_toml())
+    assert model.knots  # the default splines travel with the model
     for back in (load_model(path), LogisticModel.from_json(model.to_json())):
-        assert back.features == model.features and back.source == "synthetic"
+        assert back.features == model.features and back.source == "synthetic" and back.knots == model.knots
         assert_close(back.predict(table), model.predict(table), 1e-12)
 
 
 def test_bad_models_are_refused_with_a_message() -> None:
-    with pytest.raises(InputError, match="one per feature"):
+    with pytest.raises(InputError, match="one per column"):
         LogisticModel("panda", ("push",), np.zeros(2), np.ones(1), np.zeros(1), 0.0, 0.0)
     with pytest.raises(InputError, match="unknown feature"):
         LogisticModel("panda", ("nonsense",), np.zeros(1), np.ones(1), np.zeros(1), 0.0, 0.0)
+    with pytest.raises(InputError, match="knots"):
+        LogisticModel("panda", ("width",), np.zeros(2), np.ones(2), np.zeros(2), 0.0, 0.0,
+                      knots={"width": (0.1, 0.0, 0.2)})
+
+
+@given(st.lists(st.floats(-5, 5), min_size=3, max_size=5, unique=True), st.floats(6, 50), st.floats(0.1, 3))
+def test_a_spline_is_linear_beyond_its_outer_knots(knots, far, step) -> None:
+    t = np.sort(np.array(knots))
+    assume(np.all(np.diff(t) > 0.05))
+    for x in (np.array([t[-1] + far, t[-1] + far + step, t[-1] + far + 2 * step]),
+              np.array([t[0] - far - 2 * step, t[0] - far - step, t[0] - far])):
+        b = spline_basis(x, t)
+        assert_close(b[2] - b[1], b[1] - b[0], 1e-6 * max(1.0, float(np.abs(b).max())))  # equal steps: a line
+    b = spline_basis(np.linspace(t[0] - 1, t[0], 5), t)
+    assert_close(b, np.zeros_like(b), 0.0)  # below the first knot every spline column is 0
+
+
+def test_splines_find_a_middle_optimum_a_line_cannot() -> None:
+    rng = np.random.default_rng(5)
+    table, _, _ = synthetic(6000)
+    z = 2.0 - ((table["width"] - 0.04) / 0.015) ** 2  # a middle width holds best
+    y = (rng.random(len(z)) < 1 / (1 + np.exp(-z))).astype(float)
+    test, _, _ = synthetic(4000, seed=9)
+    truth = 2.0 - ((test["width"] - 0.04) / 0.015) ** 2
+    curved = fit(table, y, "panda", features=("width",), splines=("width",), l2=1e-4)
+    line = fit(table, y, "panda", features=("width",), splines=(), l2=1e-4)
+    assert "width" in curved.knots and curved.columns == ("width", "width~1", "width~2")
+    assert np.corrcoef(curved.logit(test), truth)[0, 1] > 0.95 > np.corrcoef(line.logit(test), truth)[0, 1]
+    parts = curved.terms(test)
+    assert_close(curved.intercept + parts["width"], curved.logit(test), 1e-9)
 
 
 def test_grouped_cross_validation_predicts_out_of_fold_and_close_to_the_truth() -> None:

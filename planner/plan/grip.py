@@ -1,0 +1,247 @@
+"""Grip geometry: how the object sits between the fingers of a closed grasp
+(issue 26).
+
+The analytic measures (:mod:`planner.plan.measures`) judge the contacts
+closing found; what decides whether a grasp survives a shake is also the
+surface *around* them: how much of the object a pad could press on, how
+square that surface is to the pad, how much of the object lies between the
+fingers, how deep the object sits in the hand. Measured against ACRONYM's
+FleX labels on the tuning objects (bench/RESULTS.md), these carry most of
+what the contacts alone miss. Each is computed from evenly spaced samples of
+the object's surface (:class:`GripSurface`, ~1 per ``spacing``^2) and each
+link's convex collision hull at the closed configuration (PyBullet collides
+meshes as their hulls):
+
+* ``pad_area`` [m^2]: for each finger that touches (a finger: a chain of
+  links, :attr:`~planner.specs.hands.HandSpec.fingers`), the object surface
+  within ``band`` of its links' hulls and facing them; the smallest over
+  the touching fingers. A pad on a flat face: its whole face; on an edge
+  or a thin rim: a sliver.
+* ``pad_alignment``: over the same surface, the area-weighted mean cosine
+  between the object's inward normal and the facing hull face's outward
+  normal (1: the surface lies flat on the pad); the smallest over fingers.
+* ``opposition``: the largest, over pairs of touching fingers, of
+  ``-n_i . n_j`` of their pad surfaces' mean inward normals (1: the two
+  pads press straight against each other).
+* ``jaw_fill`` [m^2]: the object surface inside the convex hull of the
+  touching fingers' hulls: the faces under the pads and whatever else lies
+  between them (the far walls of a hollow body, a handle, a second part).
+* ``palm_gap`` [m]: the smallest distance from the object surface inside
+  that hull (between the fingers) to the root link's (palm's) hull, at most
+  ``palm_reach``: how deep the object sits in the hand.
+
+Frames: everything in the object frame; hull faces are given per link in
+the link frame and moved by the link poses closing reports.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+import trimesh
+from scipy.spatial import ConvexHull, QhullError
+
+from planner.record.contacts import HandContacts
+from planner.specs.hands import HandSpec
+from planner.specs.urdf import load_model
+
+
+@dataclass(frozen=True)
+class GripSettings:
+    """Lengths in metres."""
+
+    spacing: float = 0.001  # object surface samples, about one per spacing^2
+    max_samples: int = 200_000  # a large object gets sparser samples
+    band: float = 0.0015  # object surface this close to a finger hull counts as under the pad
+    coarse: int = 4  # jaw_fill and palm_gap read every coarse-th sample (2 mm apart at the default spacing)
+    palm_reach: float = 0.05  # palm_gap is capped here (the object is not near the palm)
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class Grip:
+    """The grip measures of one grasp (see the module docstring); NaN where
+    a measure does not apply (``opposition`` with fewer than two fingers
+    touching, ``palm_gap`` for a hand whose root link has no collision
+    geometry)."""
+
+    pad_area: float
+    pad_alignment: float
+    opposition: float
+    jaw_fill: float
+    palm_gap: float
+
+
+@dataclass(frozen=True)
+class Hull:
+    """One link's convex collision hull, link frame.
+
+    vertices : (v, 3) [m]; normals : (f, 3) outward unit face normals;
+    offsets : (f,) [m], so that ``points @ normals.T - offsets`` is the
+    signed distance of points to each face's plane (the largest of them:
+    the signed distance to the hull inside it, a lower bound outside).
+    """
+
+    vertices: np.ndarray
+    normals: np.ndarray
+    offsets: np.ndarray
+
+    @property
+    def centre(self) -> np.ndarray:
+        return self.vertices.mean(axis=0)
+
+    @property
+    def radius(self) -> float:
+        return float(np.linalg.norm(self.vertices - self.centre, axis=1).max())
+
+
+class GripSurface:
+    """Random samples of an object's surface, area-weighted: points (n, 3)
+    [m] and outward normals (n, 3), object frame, each standing for ``area``
+    [m^2]; kept sorted by x so that a box query is a binary search and a
+    mask."""
+
+    def __init__(self, mesh: trimesh.Trimesh, settings: GripSettings | None = None) -> None:
+        self.settings = settings or GripSettings()
+        s = self.settings
+        count = int(min(max(np.ceil(mesh.area / s.spacing**2), 1), s.max_samples))
+        points, faces = trimesh.sample.sample_surface(mesh, count, seed=s.seed)
+        points = np.asarray(points, float)
+        order = np.argsort(points[:, 0], kind="stable")
+        self.points = points[order]
+        self.normals = np.asarray(mesh.face_normals[faces], float)[order]
+        self.area = float(mesh.area) / len(self.points)
+        coarse = points[::s.coarse]  # every coarse-th draw: a uniform subsample, the same whatever the frame
+        self.coarse = coarse[np.argsort(coarse[:, 0], kind="stable")]
+        self.coarse_area = float(mesh.area) / len(self.coarse)
+
+    def box(self, lo: np.ndarray, hi: np.ndarray, coarse: bool = False) -> np.ndarray:
+        """Indices of the samples (of :attr:`coarse` if ``coarse``) inside the
+        axis-aligned box ``lo``..``hi`` (3,) [m]."""
+        points = self.coarse if coarse else self.points
+        a, b = np.searchsorted(points[:, 0], [lo[0], hi[0]], side="left")
+        sub = points[a:b, 1:]
+        return a + np.flatnonzero(np.all((sub >= lo[1:]) & (sub <= hi[1:]), axis=1))
+
+
+def hulls(hand: HandSpec) -> dict[str, Hull]:
+    """Each contact link's convex collision hull (links with collision geometry)."""
+    return _hulls(str(hand.urdf), hand.contact_links)
+
+
+@cache
+def _hulls(urdf: str, links: tuple[str, ...]) -> dict[str, Hull]:
+    from planner.plan.patches import collision_mesh
+
+    model = load_model(Path(urdf))
+    out = {}
+    for link in links:
+        mesh = collision_mesh(model, link)
+        if mesh is None:
+            continue
+        hull = ConvexHull(np.asarray(mesh.vertices, float))
+        eq = hull.equations  # outward normals and offsets: n . x + c <= 0 inside
+        out[link] = Hull(hull.points[hull.vertices], eq[:, :3].copy(), -eq[:, 3].copy())
+    return out
+
+
+def measure(hand: HandSpec, surface: GripSurface, contacts: HandContacts,
+            link_poses: Mapping[str, np.ndarray]) -> Grip:
+    """The grip measures of a closed grasp: ``contacts`` say which links touch,
+    ``link_poses`` (4, 4) place them (object frame; at least every touching
+    contact link and the root link)."""
+    s = surface.settings
+    shapes = hulls(hand)
+    touching = set(contacts.links)
+    fingers = [[link for link in f if link in touching and link in shapes and link in link_poses]
+               for f in hand.fingers]
+    fingers = [f for f in fingers if f]
+    areas, aligns, normals, corners = [], [], [], []
+    for finger in fingers:
+        area, weighted, normal = 0.0, 0.0, np.zeros(3)
+        for link in finger:
+            own = contacts.points[np.array(contacts.links) == link]
+            a, w, n, v = _pad(shapes[link], link_poses[link], surface, s.band, own)
+            area, weighted, normal = area + a, weighted + w, normal + n
+            corners.append(v)
+        areas.append(area)
+        aligns.append(weighted / area if area > 0 else 0.0)
+        normals.append(normal / np.linalg.norm(normal) if np.linalg.norm(normal) > 0 else normal)
+    opposition = max((-float(normals[i] @ normals[j]) for i in range(len(normals)) for j in range(i + 1, len(normals))),
+                     default=np.nan)
+    inside = _inside(np.vstack(corners), surface) if len(fingers) >= 2 else np.zeros(0, int)
+    palm = _palm_gap(hand, shapes, link_poses, surface, inside)
+    return Grip(pad_area=min(areas, default=0.0), pad_alignment=min(aligns, default=0.0), opposition=opposition,
+                jaw_fill=surface.coarse_area * len(inside), palm_gap=palm)
+
+
+def _in_link(hull: Hull, pose: np.ndarray, surface: GripSurface, reach: float
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(indices of the samples in the hull's bounding box grown by
+    ``reach``, their signed distances to the hull [m], the index of the face
+    they are nearest in the signed-distance sense)."""
+    corners = hull.vertices @ pose[:3, :3].T + pose[:3, 3]
+    idx = surface.box(corners.min(axis=0) - reach, corners.max(axis=0) + reach)
+    if not len(idx):
+        return idx, np.zeros(0), np.zeros(0, int)
+    return (idx, *_distance(hull, pose, surface.points[idx]))
+
+
+def _distance(hull: Hull, pose: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """((k,) signed distance [m] of ``points`` (k, 3), object frame, to the
+    hull at ``pose`` (the largest face-plane distance: exact inside, a lower
+    bound outside), (k,) the face it is taken at)."""
+    local = (points - pose[:3, 3]) @ pose[:3, :3]
+    plane = local @ hull.normals.T - hull.offsets
+    face = np.argmax(plane, axis=1)
+    return plane[np.arange(len(points)), face], face
+
+
+def _pad(hull: Hull, pose: np.ndarray, surface: GripSurface, band: float, contacts: np.ndarray
+         ) -> tuple[float, float, np.ndarray, np.ndarray]:
+    """(area [m^2] of the object surface within ``band`` of the link's
+    touching faces (those nearest its ``contacts`` (k, 3), object frame) and
+    facing them, that area times its mean alignment, the area-weighted sum of
+    its inward normals (object frame), the hull's vertices in the object
+    frame). Only touching faces count: the object near a finger's back or
+    side is not under its pad."""
+    corners = hull.vertices @ pose[:3, :3].T + pose[:3, 3]
+    idx, dist, face = _in_link(hull, pose, surface, band)
+    if not len(idx) or not len(contacts):
+        return 0.0, 0.0, np.zeros(3), corners
+    local = (contacts - pose[:3, 3]) @ pose[:3, :3]
+    touching = np.unique(np.argmax(local @ hull.normals.T - hull.offsets, axis=1))
+    face_normal = hull.normals[face] @ pose[:3, :3].T
+    cos = -np.einsum("ij,ij->i", surface.normals[idx], face_normal)
+    under = (dist < band) & (cos > 0) & np.isin(face, touching)
+    area = surface.area * float(under.sum())
+    return area, surface.area * float(cos[under].sum()), -surface.area * surface.normals[idx[under]].sum(axis=0), \
+        corners
+
+
+def _inside(points: np.ndarray, surface: GripSurface) -> np.ndarray:
+    """Indices of the coarse object samples inside the convex hull of ``points`` (k, 3)."""
+    try:
+        hull = ConvexHull(points)
+    except QhullError:  # a flat or degenerate point set: nothing is inside
+        return np.zeros(0, int)
+    idx = surface.box(points.min(axis=0), points.max(axis=0), coarse=True)
+    inside = np.all(surface.coarse[idx] @ hull.equations[:, :3].T + hull.equations[:, 3] <= 0.0, axis=1)
+    return idx[inside]
+
+
+def _palm_gap(hand: HandSpec, shapes: Mapping[str, Hull], link_poses: Mapping[str, np.ndarray],
+              surface: GripSurface, inside: np.ndarray) -> float:
+    """Smallest distance [m] from the object surface ``inside`` (indices of
+    coarse samples) the fingers' hull to the root link's hull, at most ``palm_reach``."""
+    reach = surface.settings.palm_reach
+    if hand.root_link not in shapes or hand.root_link not in link_poses:
+        return float("nan")
+    if not len(inside):
+        return reach
+    dist, _ = _distance(shapes[hand.root_link], link_poses[hand.root_link], surface.coarse[inside])
+    return float(np.clip(dist.min(), 0.0, reach))

@@ -1,0 +1,89 @@
+"""Grip measures (planner.plan.grip): the Panda closed on boxes, plates and an
+edge with known answers, and invariance under a rigid motion of object and
+grasp together."""
+
+import numpy as np
+import pytest
+import trimesh
+from helpers import assert_close
+from scipy.spatial.transform import Rotation
+
+from planner.plan import grip
+from planner.plan.closing import Closed, Grasper
+from planner.sim import Sim
+from planner.specs.hands import load_hand
+from planner.specs.preshapes import load_preshapes
+
+#: [m^2] one coarse sample's worth of area at the default spacing (areas are sample counts x area).
+AREA_TOL = 4e-6 * 6
+#: [m] palm_gap reads 2 mm samples: within one spacing of the exact gap.
+GAP_TOL = 0.0025
+
+
+@pytest.fixture(scope="module")
+def panda():  # type: ignore[no-untyped-def]
+    hand = load_hand("panda")
+    return hand, hand.widest(load_preshapes(hand))
+
+
+def centred_pose(rotation: np.ndarray | None = None) -> np.ndarray:
+    """The Panda's hand frame with its tool centre point at the object's origin."""
+    pose = np.eye(4)
+    pose[:3, :3] = np.eye(3) if rotation is None else rotation
+    pose[:3, 3] = -pose[:3, :3] @ np.array([0.0, 0.0, 0.1034])
+    return pose
+
+
+def closed_grip(panda, mesh: trimesh.Trimesh, pose: np.ndarray) -> tuple[Closed, grip.Grip]:  # type: ignore[no-untyped-def]
+    hand, shape = panda
+    with Sim() as sim:
+        closed = Grasper.for_mesh(sim, hand, mesh).close_at(pose, shape, 0.05)
+    assert isinstance(closed, Closed)
+    return closed, grip.measure(hand, grip.GripSurface(mesh), closed.contacts, closed.link_poses or {})
+
+
+def test_pads_flat_on_a_box_face_each_other_and_the_palm_gap_is_the_box_top(panda) -> None:  # type: ignore[no-untyped-def]
+    box = trimesh.creation.box((0.03, 0.04, 0.06))  # 4 cm across the fingers (hand y), 6 cm along the approach
+    _, g = closed_grip(panda, box, centred_pose())
+    assert g.pad_area > 1e-4  # > 100 mm^2 of face under each pad
+    assert g.pad_alignment > 0.97 and g.opposition > 0.99
+    palm_front = grip.hulls(panda[0])["panda_hand"].vertices[:, 2].max()
+    assert g.palm_gap == pytest.approx(0.1034 - 0.03 - palm_front, abs=GAP_TOL)
+
+
+def test_two_walls_fill_the_jaw_more_than_a_block_under_the_same_pads(panda) -> None:  # type: ignore[no-untyped-def]
+    _, block = closed_grip(panda, trimesh.creation.box((0.03, 0.04, 0.06)), centred_pose())
+    walls = trimesh.util.concatenate([trimesh.creation.box((0.03, 0.002, 0.06)).apply_translation((0, y, 0))
+                                      for y in (-0.019, 0.019)])  # a hollow 4 cm body: its far walls lie inside
+    _, hollow = closed_grip(panda, walls, centred_pose())
+    assert hollow.pad_area == pytest.approx(block.pad_area, abs=AREA_TOL * 3)  # both outer faces cover the pads
+    assert hollow.jaw_fill > 1.25 * block.jaw_fill  # the walls' inner faces add to the pads' outer ones
+
+
+def test_an_edge_between_the_pads_is_a_sliver_at_45_degrees(panda) -> None:  # type: ignore[no-untyped-def]
+    box = trimesh.creation.box((0.03, 0.03, 0.06))
+    _, face = closed_grip(panda, box, centred_pose())
+    _, edge = closed_grip(panda, box, centred_pose(Rotation.from_euler("z", 45, degrees=True).as_matrix()))
+    assert edge.pad_area < 0.3 * face.pad_area
+    assert edge.pad_alignment == pytest.approx(np.cos(np.pi / 4), abs=0.05)
+
+
+def test_grip_is_invariant_under_a_rigid_motion_of_object_and_grasp(panda) -> None:  # type: ignore[no-untyped-def]
+    mesh = trimesh.creation.capsule(height=0.04, radius=0.018, count=[16, 16])
+    pose = centred_pose(Rotation.from_euler("x", 90, degrees=True).as_matrix())
+    closed, base = closed_grip(panda, mesh, pose)
+    rng = np.random.default_rng(7)
+    for _ in range(3):  # seeded motions: the samples are redrawn on the moved mesh, so counts may differ by a few
+        motion = np.eye(4)
+        motion[:3, :3] = Rotation.random(random_state=rng).as_matrix()
+        motion[:3, 3] = rng.uniform(-0.2, 0.2, 3)
+        moved = mesh.copy()
+        moved.apply_transform(motion)
+        links = {k: motion @ v for k, v in (closed.link_poses or {}).items()}
+        contacts = type(closed.contacts)(closed.contacts.points @ motion[:3, :3].T + motion[:3, 3],
+                                         closed.contacts.normals @ motion[:3, :3].T, closed.contacts.links)
+        again = grip.measure(panda[0], grip.GripSurface(moved), contacts, links)
+        assert_close(np.array([again.pad_alignment, again.opposition]),
+                     np.array([base.pad_alignment, base.opposition]), 0.02)
+        assert_close(np.array([again.pad_area, again.jaw_fill]), np.array([base.pad_area, base.jaw_fill]), AREA_TOL)
+        assert again.palm_gap == pytest.approx(base.palm_gap, abs=GAP_TOL)
