@@ -41,10 +41,10 @@ from planner.errors import InputError
 #: The features a model uses unless told otherwise.
 DEFAULT_FEATURES = ("epsilon", "force_closure", "log_resist_worst", "log_resist_mean", "open_margin", "close_margin",
                     "push", "width", "n_contacts", "links_touching", "settled_epsilon", "depth", "log_pad_area",
-                    "pad_alignment", "opposition", "log_jaw_fill", "palm_gap")
+                    "pad_alignment", "opposition", "log_jaw_fill", "palm_gap", "com_lever")
 #: The features that enter as splines unless told otherwise (:func:`spline_basis`), with this many knots.
 DEFAULT_SPLINES = ("epsilon", "log_resist_worst", "open_margin", "push", "width", "depth", "log_pad_area",
-                   "pad_alignment", "opposition", "log_jaw_fill", "palm_gap")
+                   "pad_alignment", "opposition", "log_jaw_fill", "palm_gap", "com_lever")
 KNOTS = 4
 #: Knots at these quantiles of a feature's training inputs (Harrell's for 4 knots).
 KNOT_QUANTILES = {3: (0.10, 0.50, 0.90), 4: (0.05, 0.35, 0.65, 0.95), 5: (0.05, 0.275, 0.50, 0.725, 0.95)}

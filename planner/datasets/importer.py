@@ -325,7 +325,7 @@ def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: C
                 continue
             width = closed_width(hand, closed.closed_joints)
             m = measure(closed.contacts, closed.frames, hand, shape, closed.closed_joints, obj, width,  # type: ignore[arg-type]
-                        grip=grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}))
+                        grip=grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}, obj.com))
             point, direction, roll = approach_of(closed.pose, hand.approach, shape.tcp)
             out.append(Grasp(
                 object=obj.name, hand=hand.name, preshape=shape.name, candidate=i, seed=0,

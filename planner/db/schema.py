@@ -30,7 +30,7 @@ Tables (the README lists every column):
   until the next write re-scores them: ``meta.p_hold_models``).
 - ``grasps`` (v6) gains the grip measures (:mod:`planner.plan.grip`):
   ``pad_area``, ``pad_alignment``, ``opposition``, ``jaw_fill``,
-  ``palm_gap``; NULL for grasps stored before (not measured).
+  ``palm_gap``, ``com_lever``; NULL for grasps stored before (not measured).
 
 No pickle: arrays are JSON text. A new database runs :data:`SCHEMA` (version
 1) and then every migration; a newer schema is refused politely; an older one
@@ -127,7 +127,8 @@ ALTER TABLE grasps ADD COLUMN pad_area REAL;
 ALTER TABLE grasps ADD COLUMN pad_alignment REAL;
 ALTER TABLE grasps ADD COLUMN opposition REAL;
 ALTER TABLE grasps ADD COLUMN jaw_fill REAL;
-ALTER TABLE grasps ADD COLUMN palm_gap REAL
+ALTER TABLE grasps ADD COLUMN palm_gap REAL;
+ALTER TABLE grasps ADD COLUMN com_lever REAL
 """,
 }
 

@@ -26,6 +26,10 @@ meshes as their hulls):
 * ``jaw_fill`` [m^2]: the object surface inside the convex hull of the
   touching fingers' hulls: the faces under the pads and whatever else lies
   between them (the far walls of a hollow body, a handle, a second part).
+* ``com_lever`` [m]: the distance from the object's centre of mass to the
+  line through the pad centres (area-weighted) of the best-opposed pair of
+  touching fingers: the lever its weight and a shake have about the grip's
+  axis, which only the pads' friction over their area resists.
 * ``palm_gap`` [m]: the smallest distance from the object surface inside
   that hull (between the fingers) to the root link's (palm's) hull, at most
   ``palm_reach``: how deep the object sits in the hand.
@@ -74,6 +78,7 @@ class Grip:
     opposition: float
     jaw_fill: float
     palm_gap: float
+    com_lever: float
 
 
 @dataclass(frozen=True)
@@ -150,33 +155,47 @@ def _hulls(urdf: str, links: tuple[str, ...]) -> dict[str, Hull]:
 
 
 def measure(hand: HandSpec, surface: GripSurface, contacts: HandContacts,
-            link_poses: Mapping[str, np.ndarray]) -> Grip:
+            link_poses: Mapping[str, np.ndarray], com: np.ndarray) -> Grip:
     """The grip measures of a closed grasp: ``contacts`` say which links touch,
     ``link_poses`` (4, 4) place them (object frame; at least every touching
-    contact link and the root link)."""
+    contact link and the root link); ``com`` (3,) [m] the object's centre of
+    mass."""
     s = surface.settings
     shapes = hulls(hand)
     touching = set(contacts.links)
     fingers = [[link for link in f if link in touching and link in shapes and link in link_poses]
                for f in hand.fingers]
     fingers = [f for f in fingers if f]
-    areas, aligns, normals, corners = [], [], [], []
+    areas, aligns, normals, centres, corners = [], [], [], [], []
     for finger in fingers:
-        area, weighted, normal = 0.0, 0.0, np.zeros(3)
+        area, weighted, normal, moment = 0.0, 0.0, np.zeros(3), np.zeros(3)
         for link in finger:
             own = contacts.points[np.array(contacts.links) == link]
-            a, w, n, v = _pad(shapes[link], link_poses[link], surface, s.band, own)
-            area, weighted, normal = area + a, weighted + w, normal + n
-            corners.append(v)
+            pad = _pad(shapes[link], link_poses[link], surface, s.band, own)
+            area, weighted, normal, moment = area + pad.area, weighted + pad.aligned, normal + pad.normal, \
+                moment + pad.moment
+            corners.append(pad.corners)
         areas.append(area)
         aligns.append(weighted / area if area > 0 else 0.0)
         normals.append(normal / np.linalg.norm(normal) if np.linalg.norm(normal) > 0 else normal)
-    opposition = max((-float(normals[i] @ normals[j]) for i in range(len(normals)) for j in range(i + 1, len(normals))),
-                     default=np.nan)
+        centres.append(moment / area if area > 0 else contacts.points[np.isin(contacts.links, finger)].mean(axis=0))
+    pairs = [(-float(normals[i] @ normals[j]), i, j) for i in range(len(fingers)) for j in range(i + 1, len(fingers))]
+    opposition, a, b = max(pairs, default=(np.nan, 0, 0))
     inside = _inside(np.vstack(corners), surface) if len(fingers) >= 2 else np.zeros(0, int)
     palm = _palm_gap(hand, shapes, link_poses, surface, inside)
+    lever = _lever(np.asarray(com, float), centres[a], centres[b]) if pairs else np.nan
     return Grip(pad_area=min(areas, default=0.0), pad_alignment=min(aligns, default=0.0), opposition=opposition,
-                jaw_fill=surface.coarse_area * len(inside), palm_gap=palm)
+                jaw_fill=surface.coarse_area * len(inside), palm_gap=palm, com_lever=lever)
+
+
+def _lever(com: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """Distance [m] from ``com`` to the line through ``a`` and ``b`` (3,) (to ``a`` if they coincide)."""
+    axis = b - a
+    length = float(np.linalg.norm(axis))
+    rel = com - a
+    if length < 1e-9:
+        return float(np.linalg.norm(rel))
+    return float(np.linalg.norm(np.cross(rel, axis / length)))
 
 
 def _in_link(hull: Hull, pose: np.ndarray, surface: GripSurface, reach: float
@@ -201,26 +220,38 @@ def _distance(hull: Hull, pose: np.ndarray, points: np.ndarray) -> tuple[np.ndar
     return plane[np.arange(len(points)), face], face
 
 
-def _pad(hull: Hull, pose: np.ndarray, surface: GripSurface, band: float, contacts: np.ndarray
-         ) -> tuple[float, float, np.ndarray, np.ndarray]:
-    """(area [m^2] of the object surface within ``band`` of the link's
+@dataclass(frozen=True)
+class _Pad:
+    """What lies under one link: area [m^2] of the object surface within the
+    band of its touching faces and facing them; aligned: that area times its
+    mean alignment; normal, moment: (3,) area-weighted sums of its inward
+    normals and of its points [m^3], object frame; corners: (v, 3) the
+    link hull's vertices, object frame."""
+
+    area: float
+    aligned: float
+    normal: np.ndarray
+    moment: np.ndarray
+    corners: np.ndarray
+
+
+def _pad(hull: Hull, pose: np.ndarray, surface: GripSurface, band: float, contacts: np.ndarray) -> _Pad:
+    """The object surface under one link: within ``band`` of the link's
     touching faces (those nearest its ``contacts`` (k, 3), object frame) and
-    facing them, that area times its mean alignment, the area-weighted sum of
-    its inward normals (object frame), the hull's vertices in the object
-    frame). Only touching faces count: the object near a finger's back or
-    side is not under its pad."""
+    facing them. Only touching faces count: the object near a finger's back
+    or side is not under its pad."""
     corners = hull.vertices @ pose[:3, :3].T + pose[:3, 3]
     idx, dist, face = _in_link(hull, pose, surface, band)
     if not len(idx) or not len(contacts):
-        return 0.0, 0.0, np.zeros(3), corners
+        return _Pad(0.0, 0.0, np.zeros(3), np.zeros(3), corners)
     local = (contacts - pose[:3, 3]) @ pose[:3, :3]
     touching = np.unique(np.argmax(local @ hull.normals.T - hull.offsets, axis=1))
     face_normal = hull.normals[face] @ pose[:3, :3].T
     cos = -np.einsum("ij,ij->i", surface.normals[idx], face_normal)
     under = (dist < band) & (cos > 0) & np.isin(face, touching)
-    area = surface.area * float(under.sum())
-    return area, surface.area * float(cos[under].sum()), -surface.area * surface.normals[idx[under]].sum(axis=0), \
-        corners
+    return _Pad(surface.area * float(under.sum()), surface.area * float(cos[under].sum()),
+                -surface.area * surface.normals[idx[under]].sum(axis=0),
+                surface.area * surface.points[idx[under]].sum(axis=0), corners)
 
 
 def _inside(points: np.ndarray, surface: GripSurface) -> np.ndarray:

@@ -150,7 +150,7 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report) -> None:
                 continue
             width = closed_width(hand, closed.closed_joints)
             m = measure(closed.contacts, closed.frames, hand, cand.preshape, closed.closed_joints, obj, width,  # type: ignore[arg-type]
-                        grip=grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}))
+                        grip=grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}, obj.com))
             result.timing["quality"] += time.perf_counter() - tb
             point, direction, roll, standoff = ray
             result.grasps.append(Grasp(

@@ -30,7 +30,7 @@ class Measures:
 
     The grip measures (:mod:`planner.plan.grip`; None: not measured, a grasp
     stored before schema version 6): pad_area [m^2], pad_alignment (cosine),
-    opposition (cosine), jaw_fill [m^2], palm_gap [m].
+    opposition (cosine), jaw_fill [m^2], palm_gap [m], com_lever [m].
     """
 
     resist_worst: float = stored("real", "g", 3, "weight resistance, worst of 14 gravity directions (object frame)",
@@ -60,6 +60,8 @@ class Measures:
                                     default=None)
     palm_gap: float | None = stored("real", "m", 6, "smallest distance from the object to the palm (root link), "
                                     "at most 5 cm", required=False, default=None)
+    com_lever: float | None = stored("real", "m", 6, "distance from the centre of mass to the line through the pad "
+                                     "centres of the best-opposed touching fingers", required=False, default=None)
 
     @property
     def feasible(self) -> bool:

@@ -39,14 +39,20 @@ def closed_grip(panda, mesh: trimesh.Trimesh, pose: np.ndarray) -> tuple[Closed,
     with Sim() as sim:
         closed = Grasper.for_mesh(sim, hand, mesh).close_at(pose, shape, 0.05)
     assert isinstance(closed, Closed)
-    return closed, grip.measure(hand, grip.GripSurface(mesh), closed.contacts, closed.link_poses or {})
+    surface = grip.GripSurface(mesh)
+    return closed, grip.measure(hand, surface, closed.contacts, closed.link_poses or {}, mesh.center_mass)
 
 
 def test_pads_flat_on_a_box_face_each_other_and_the_palm_gap_is_the_box_top(panda) -> None:  # type: ignore[no-untyped-def]
     box = trimesh.creation.box((0.03, 0.04, 0.06))  # 4 cm across the fingers (hand y), 6 cm along the approach
-    _, g = closed_grip(panda, box, centred_pose())
+    closed, g = closed_grip(panda, box, centred_pose())
     assert g.pad_area > 1e-4  # > 100 mm^2 of face under each pad
     assert g.pad_alignment > 0.97 and g.opposition > 0.99
+    # the pads touch the box from its top (3 cm above the tcp, toward the palm) to the fingertips: the centre of
+    # mass lies on the closing axis, below the line through the pad centres by half the tip's overhang
+    finger = closed.link_poses["panda_leftfinger"]  # type: ignore[index]
+    tip = float((grip.hulls(panda[0])["panda_leftfinger"].vertices @ finger[:3, :3].T + finger[:3, 3])[:, 2].max())
+    assert g.com_lever == pytest.approx(abs((-0.03 + tip) / 2), abs=GAP_TOL)
     palm_front = grip.hulls(panda[0])["panda_hand"].vertices[:, 2].max()
     assert g.palm_gap == pytest.approx(0.1034 - 0.03 - palm_front, abs=GAP_TOL)
 
@@ -82,8 +88,9 @@ def test_grip_is_invariant_under_a_rigid_motion_of_object_and_grasp(panda) -> No
         links = {k: motion @ v for k, v in (closed.link_poses or {}).items()}
         contacts = type(closed.contacts)(closed.contacts.points @ motion[:3, :3].T + motion[:3, 3],
                                          closed.contacts.normals @ motion[:3, :3].T, closed.contacts.links)
-        again = grip.measure(panda[0], grip.GripSurface(moved), contacts, links)
+        again = grip.measure(panda[0], grip.GripSurface(moved), contacts, links, moved.center_mass)
         assert_close(np.array([again.pad_alignment, again.opposition]),
                      np.array([base.pad_alignment, base.opposition]), 0.02)
         assert_close(np.array([again.pad_area, again.jaw_fill]), np.array([base.pad_area, base.jaw_fill]), AREA_TOL)
         assert again.palm_gap == pytest.approx(base.palm_gap, abs=GAP_TOL)
+        assert again.com_lever == pytest.approx(base.com_lever, abs=1e-4)
