@@ -138,7 +138,7 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report) -> None:
     rng = unit_rng(spec.seed, obj.name, hand.name)
     budget = Budget(settings.budget_share())
     with Sim() as sim:
-        grasper = Grasper.for_mesh(sim, hand, obj.mesh)
+        grasper = Grasper.for_object(sim, hand, obj)
         sweep = _antipodal if settings.sampler == "antipodal" else _rays
         for cand, closed, ray in sweep(spec, settings, obj, hand, shapes, rng, grasper, result, t0, budget,
                                     report):
