@@ -152,7 +152,6 @@ def main() -> None:
         child(args.child, args.hand[0], args.rays, args.trials, args.json_out)
         return
     hands = args.hand or ["panda", "barrett"]
-    previous = json.loads(args.previous.read_text()) if args.previous.is_file() else None
     sys.path.insert(0, str(ROOT / "tests"))
     import scanlike
 
@@ -161,8 +160,6 @@ def main() -> None:
           f"scan {args.scan_faces} faces, {args.trials} trials per object; {platform.machine()}, "
           f"{os.cpu_count()} cores, Python {platform.python_version()}")
     print(f"# {time.strftime('%Y-%m-%d %H:%M')} start: {uptime()}")
-    if previous:
-        print(f"# previous run: {previous.get('tree')} at {previous.get('date')} ({previous.get('commit')})")
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         tree = unpack(args.tree, folder) if args.tree else ROOT
@@ -188,6 +185,9 @@ def main() -> None:
             groups["all"] = group_figures([r for g in objects for r in figures["objects"][hand][g].values()])
             figures["hands"][hand] = groups
     print(f"# end: {uptime()}")
+    previous = json.loads(args.previous.read_text()) if args.previous.is_file() else None  # read now: may be new
+    if previous:
+        print(f"# previous run: {previous.get('tree')} at {previous.get('date')} ({previous.get('commit')})")
     _print(figures, previous)
     if args.save:
         args.previous.write_text(json.dumps(figures, indent=1) + "\n")
