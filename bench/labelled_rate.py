@@ -145,6 +145,7 @@ def main() -> None:
     parser.add_argument("--trials", type=int, default=40)
     parser.add_argument("--previous", type=Path, default=PREVIOUS)
     parser.add_argument("--save", action="store_true", help="write this run to --previous")
+    parser.add_argument("--compare", type=Path, help="show these figures beside this run's (default: --previous)")
     parser.add_argument("--child", help=argparse.SUPPRESS)
     parser.add_argument("--json-out", help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -185,7 +186,8 @@ def main() -> None:
             groups["all"] = group_figures([r for g in objects for r in figures["objects"][hand][g].values()])
             figures["hands"][hand] = groups
     print(f"# end: {uptime()}")
-    previous = json.loads(args.previous.read_text()) if args.previous.is_file() else None  # read now: may be new
+    shown = args.compare or args.previous
+    previous = json.loads(shown.read_text()) if shown.is_file() else None  # read now: it may be newer than the start
     if previous:
         print(f"# previous run: {previous.get('tree')} at {previous.get('date')} ({previous.get('commit')})")
     _print(figures, previous)
