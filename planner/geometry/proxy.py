@@ -27,18 +27,21 @@ from __future__ import annotations
 import io
 import json
 import logging
+import time
 from dataclasses import asdict, dataclass
 
 import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
-from planner import assets
+from planner import assets, prepare
 
 log = logging.getLogger(__name__)
 
 #: Bumped when the same mesh and settings would give another proxy.
 PROXY_VERSION = 1
+#: What making a proxy is called in the preparation lines.
+PROXY = "collision proxy (mesh decimation)"
 
 
 @dataclass(frozen=True)
@@ -81,8 +84,10 @@ class Proxy:
     exact_faces: int
 
 
-def collision_proxy(mesh: trimesh.Trimesh, mesh_hash: str, settings: ProxySettings | None = None) -> Proxy:
-    """The proxy of the closed mesh ``mesh`` (cached by ``mesh_hash``)."""
+def collision_proxy(mesh: trimesh.Trimesh, mesh_hash: str, settings: ProxySettings | None = None,
+                    name: str = "the mesh") -> Proxy:
+    """The proxy of the closed mesh ``mesh`` (cached by ``mesh_hash``); its
+    making is announced (:mod:`planner.prepare`) as the object ``name``'s."""
     s = settings or ProxySettings()
     if len(mesh.faces) <= s.above:
         return Proxy(mesh, True, 0.0, len(mesh.faces))
@@ -96,7 +101,10 @@ def collision_proxy(mesh: trimesh.Trimesh, mesh_hash: str, settings: ProxySettin
                              float(data["deviation"]), len(mesh.faces))
         except (OSError, ValueError, KeyError):
             path.unlink(missing_ok=True)  # a damaged cache entry is rebuilt
+    prepare.started(PROXY, name)
+    t0 = time.perf_counter()
     proxy = build_proxy(mesh, s)
+    prepare.ended(PROXY, name, time.perf_counter() - t0)
     buffer = io.BytesIO()
     np.savez(buffer, vertices=np.asarray(proxy.mesh.vertices), faces=np.asarray(proxy.mesh.faces),
              deviation=np.array(proxy.deviation), exact=np.array(proxy.exact))

@@ -153,7 +153,7 @@ class Grasper:
         """A grasper on the object's collision proxy (:mod:`planner.geometry.proxy`:
         the exact mesh unless it has more than ``ProxySettings.above`` faces),
         with contact points moved onto the exact mesh."""
-        proxy = collision_proxy(obj.mesh, obj.mesh_hash)
+        proxy = collision_proxy(obj.mesh, obj.mesh_hash, name=obj.name)
         if proxy.exact:
             return cls.for_mesh(sim, hand, obj.mesh, settings)
         return cls(sim, hand, sim.add_static_mesh(proxy.mesh.vertices, proxy.mesh.faces), settings or CloseSettings(),

@@ -4,6 +4,8 @@ below the truth."""
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import pytest
 import trimesh
@@ -11,8 +13,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scanlike import capsule
 
+from planner import prepare
 from planner.geometry.mesh import mesh_hash
-from planner.geometry.proxy import ProxySettings, build_proxy, collision_proxy, distances
+from planner.geometry.proxy import PROXY, ProxySettings, build_proxy, collision_proxy, distances
 
 #: [m] what a brute-force closest point and the candidate search may differ by (round-off).
 ROUND_OFF = 1e-12
@@ -85,3 +88,13 @@ def test_the_candidate_distance_is_never_below_the_truth_and_exact_near_the_surf
     found, truth = distances(mesh, points), _brute(mesh, points)
     assert np.all(found >= truth - ROUND_OFF)
     np.testing.assert_allclose(found, truth, atol=1e-9)
+
+
+def test_making_a_proxy_is_announced_once(caplog: pytest.LogCaptureFixture) -> None:
+    mesh = capsule(6_000)
+    with caplog.at_level(logging.INFO, logger=prepare.LOGGER):
+        collision_proxy(mesh, mesh_hash(mesh), name="scan")
+        collision_proxy(mesh, mesh_hash(mesh), name="scan")  # cached: nothing to announce
+    lines = [r.getMessage() for r in caplog.records if r.name == prepare.LOGGER]
+    assert len(lines) == 2 and all(line.startswith(f"{PROXY} of scan: ") for line in lines)
+    assert "started" in lines[0] and "done in" in lines[1]
