@@ -313,8 +313,8 @@ def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: C
     shape = hand.widest(load_preshapes(hand))
     out = []
     with Sim() as sim:
-        grasper = Grasper.for_mesh(sim, hand, obj.mesh)
-        gripping = grip.GripSurface(obj.mesh)
+        grasper = Grasper.for_object(sim, hand, obj)
+        gripping = grip.GripSurface(obj.mesh)  # the exact surface, whatever proxy closing collides with
         for i, pose in enumerate(poses, start=first):
             closed = grasper.close_at(pose, shape, MAX_BACK_OFF)
             if not isinstance(closed, Closed):

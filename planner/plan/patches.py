@@ -60,6 +60,9 @@ NEAR_SEARCH = 0.006
 CELL = 0.002
 #: [m] round-off allowance of the cells' triangle-inequality bounds.
 SLACK = 1e-9
+#: Vertices with at most this many faces have their sharpness computed all
+#: at once (speed only: the others one by one, the same result).
+FEW_FACES = 12
 
 
 @dataclass(frozen=True)
@@ -239,11 +242,17 @@ class ObjectSurface:
         m, cos = self.mesh, np.cos(self.settings.sharp_angle)
         out = np.zeros(len(m.vertices), bool)
         faces = m.vertex_faces
-        for v in range(len(m.vertices)):
-            mine = faces[v][faces[v] >= 0]
-            if len(mine) > 1:
-                n = m.face_normals[mine]
-                out[v] = (n @ n.T).min() < cos
+        normals = m.face_normals
+        count = (faces >= 0).sum(axis=1)
+        few = np.flatnonzero((count > 1) & (count <= FEW_FACES))
+        if len(few):  # most vertices: all pairs of their faces at once (a missing face repeats the first)
+            mine = faces[few, :FEW_FACES]
+            mine = np.where(mine >= 0, mine, mine[:, :1])
+            n = normals[mine]
+            out[few] = np.einsum("vik,vjk->vij", n, n).min(axis=(1, 2)) < cos
+        for v in np.flatnonzero(count > FEW_FACES):
+            n = normals[faces[v][faces[v] >= 0]]
+            out[v] = (n @ n.T).min() < cos
         return out
 
     @cached_property
@@ -262,6 +271,14 @@ class ObjectSurface:
         """(closest (n, 3), signed gap (n,) [m], outward face normal (n, 3),
         smooth (n,) bool) of points within a few mm of the surface: exact
         closest points among the faces of the k nearest samples."""
+        closest, gap, tri = self.nearest(points, k)
+        normal = self.mesh.face_normals[tri]
+        sign = np.where(np.einsum("ij,ij->i", points - closest, normal) < 0, -1.0, 1.0)
+        return closest, sign * gap, normal, self._smooth(closest, tri)
+
+    def nearest(self, points: np.ndarray, k: int = 12) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(closest (n, 3) [m], distance (n,) [m], face (n,)): the nearest
+        point on the faces of the k nearest samples of each point."""
         tree, sample_face = self._samples
         k = min(k, tree.n)
         _, near = tree.query(points, k=k)
@@ -275,10 +292,7 @@ class ObjectSurface:
         dist = np.linalg.norm(cp - points[:, None], axis=2)
         best = np.argmin(dist, axis=1)
         rows = np.arange(len(points))
-        closest, gap, tri = cp[rows, best], dist[rows, best], cand[rows, best]
-        normal = self.mesh.face_normals[tri]
-        sign = np.where(np.einsum("ij,ij->i", points - closest, normal) < 0, -1.0, 1.0)
-        return closest, sign * gap, normal, self._smooth(closest, tri)
+        return cp[rows, best], dist[rows, best], cand[rows, best]
 
     def _smooth(self, closest: np.ndarray, tri: np.ndarray) -> np.ndarray:
         bary = trimesh.triangles.points_to_barycentric(self.mesh.triangles[tri], closest)

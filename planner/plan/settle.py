@@ -54,11 +54,22 @@ def settled_epsilons(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp
 
 
 def with_settled(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp], cone_edges: int = 8,
-                 settings: ShakeSettings | None = None) -> list[Grasp]:
+                 settings: ShakeSettings | None = None, only_force_closure: bool = True) -> list[Grasp]:
     """The grasps with ``measures.settled_epsilon`` filled in (grasps without
     measures are returned unchanged); ``settings``: the trial (the sweep's
-    :attr:`~planner.plan.sweep.SweepSettings.trial`)."""
-    measured = [g for g in grasps if g.measures is not None]
+    :attr:`~planner.plan.sweep.SweepSettings.trial`).
+
+    ``only_force_closure`` (the sweep's choice, issue 24): only grasps whose
+    planned contacts are force closure are settled; the others keep
+    ``settled_epsilon`` None (not measured, neutral in the ranking rule).
+    Every force-closure grasp ranks above every other
+    (:mod:`planner.db.ranking`), so a settled epsilon can only reorder
+    grasps among those that are not force closure: the force-closure grasps,
+    their scores and ranks are the same as when every grasp settles, and so
+    is any top-K of an object with at least K of them; the settle, a third
+    of the Barrett's sweep, is spent on the grasps that can reach the top."""
+    measured = [g for g in grasps if g.measures is not None and (g.force_closure or not only_force_closure)]
     values = dict(zip((id(g) for g in measured), settled_epsilons(hand, obj, measured, cone_edges, settings)))
-    return [g if g.measures is None else replace(g, measures=replace(g.measures, settled_epsilon=float(values[id(g)])))
+    return [g if id(g) not in values else replace(g, measures=replace(g.measures,  # type: ignore[arg-type]
+                                                                       settled_epsilon=float(values[id(g)])))
             for g in grasps]

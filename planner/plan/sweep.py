@@ -44,7 +44,10 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: the friction cone, both normals checked against the axis; closing's far-field surface hulls at most
 #: 127 (PyBullet kept only 127 of a body's hulls: meshes of more than ~1,000
 #: triangles lost the rest of their surface) (issue 26).
-ALGORITHM_VERSION = 7
+#: 8: only force-closure grasps settle (hands with ``settle``: the others rank below them
+#: whatever their settled epsilon; theirs is now None), and meshes of more than 5,000 faces are
+#: closed against a collision proxy within 0.25 mm (planner.geometry.proxy) (issue 24).
+ALGORITHM_VERSION = 8
 
 #: What the settings left unset mean, per sampler: surface points (or rays)
 #: per object, rolls (antipodal: approach directions about the closing

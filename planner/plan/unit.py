@@ -138,8 +138,8 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report) -> None:
     rng = unit_rng(spec.seed, obj.name, hand.name)
     budget = Budget(settings.budget_share())
     with Sim() as sim:
-        grasper = Grasper.for_mesh(sim, hand, obj.mesh)
-        gripping = grip.GripSurface(obj.mesh)
+        grasper = Grasper.for_object(sim, hand, obj)
+        gripping = grip.GripSurface(obj.mesh)  # the exact surface, whatever proxy closing collides with
         sweep = _antipodal if settings.sampler == "antipodal" else _rays
         for cand, closed, ray in sweep(spec, settings, obj, hand, shapes, rng, grasper, result, t0, budget,
                                     report):

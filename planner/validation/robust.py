@@ -73,7 +73,7 @@ def epsilon_samples(hand: HandSpec, obj: PreparedObject, grasp: Grasp, rng: np.r
     about_com[:3, 3] = obj.com
     values = np.zeros(s.samples)
     with Sim() as sim:
-        g = Grasper.for_mesh(sim, hand, obj.mesh)
+        g = Grasper.for_object(sim, hand, obj)
         for k in range(s.samples):
             hand_noise = _jitter(rng, s.grasp_translation, s.grasp_rotation)
             obj_noise = about_com @ _jitter(rng, s.object_translation, s.object_rotation) @ np.linalg.inv(about_com)

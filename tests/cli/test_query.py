@@ -93,13 +93,18 @@ def test_an_object_neither_stored_nor_known_is_a_one_line_error(stored_db: Path,
 
 
 def test_the_barrett_settles_by_default_and_best_prints_its_settled_epsilon(tmp_path: Path) -> None:
-    small = ["--approaches", "2", "--rolls", "1", "--preshapes", "wrap", "--reach-placements", "0", "--workers", "1"]
+    # three rays: force-closure grasps (the ones that settle) and others
+    small = ["--approaches", "3", "--rolls", "1", "--preshapes", "wrap", "--reach-placements", "0", "--workers", "1"]
     for flag, name in (([], "settled.db"), (["--no-settle"], "planned.db")):
         code, _, err = grasp("generate", "box", "--hand", "barrett", "--db", str(tmp_path / name), *small, *flag)
         assert code == 0, err
-    code, out, err = grasp("best", "box", "--hand", "barrett", "--db", str(tmp_path / "settled.db"), "--json")
+    code, out, err = grasp("best", "box", "--hand", "barrett", "--db", str(tmp_path / "settled.db"), "--json",
+                           "--top", "20")
     assert code == 0, err
-    assert isinstance(json.loads(out)[0]["settled_epsilon"], float)
+    ranked = json.loads(out)
+    assert ranked[0]["force_closure"] and isinstance(ranked[0]["settled_epsilon"], float)
+    assert any(not g["force_closure"] for g in ranked)
+    assert all(g["settled_epsilon"] is None for g in ranked if not g["force_closure"])  # only force closure settles
     code, out, _ = grasp("best", "box", "--hand", "barrett", "--db", str(tmp_path / "settled.db"))
     assert "; settled epsilon " in out.split("\n#2")[0]
     code, out, _ = grasp("best", "box", "--hand", "barrett", "--db", str(tmp_path / "planned.db"), "--json")

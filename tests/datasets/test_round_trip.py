@@ -243,7 +243,9 @@ def test_every_hand_comes_back_through_every_format(fmt: str, swept: Path, tmp_p
             assert same(f, back[key][name], row[name]), (fmt, key, name, back[key][name], row[name])
     # the trials and the Barrett's settled epsilon are there to come back
     assert sum(row["validation_success"] is not None for row in expected.values()) == len(hand_names())
-    assert all(row["settled_epsilon"] is not None for (hand, _), row in expected.items() if hand == "barrett")
+    settled = [row["settled_epsilon"] is not None for (hand, _), row in expected.items()
+               if hand == "barrett" and row["force_closure"]]  # only force-closure grasps settle
+    assert settled and all(settled)
     assert all((row["p_hold"] is not None) == (hand == "panda") for (hand, _), row in expected.items())
 
 

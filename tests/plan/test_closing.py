@@ -3,9 +3,11 @@ rejections, and every hand closing to a force-closure grasp of objects of its si
 
 import numpy as np
 import pytest
+import scanlike
 import trimesh
 from helpers import SIM_TOL, assert_close
 
+from planner.geometry.proxy import ProxySettings, collision_proxy, distances
 from planner.geometry.solid import PreparedObject, load_object, prepare
 from planner.plan import sampling
 from planner.plan.closing import Closed, Grasper, Rejected
@@ -143,6 +145,8 @@ def _first_force_closure(grasper, shapes, rays, obj, finger_of, multi):  # type:
 #: sagitta (0.11 mm for the 32-gon below) outside the coarse one: the closed
 #: widths of two tessellations agree to twice their sum.
 TESSELLATION_TOL = 2 * (0.0005 + 0.00011)
+#: [m] a point placed on a surface is this close to it (round-off).
+ON_SURFACE = 1e-9
 #: The tube: 10 cm across (the open inner finger, 3.4 cm deep, fits inside),
 #: 2 mm wall, 512 sections (4,096 triangles, more than one PyBullet body of
 #: 127 surface hulls of 16 triangles covers).
@@ -186,8 +190,13 @@ def test_panda_closes_on_a_thin_rim_without_penetration(panda) -> None:  # type:
             assert WALL - tol.max_penetration <= width <= WALL + PAD_SAGITTA + 2 * tol.contact_tol
 
 
-def _capsule_widths(hand: HandSpec, shape, mesh: trimesh.Trimesh) -> list[float]:  # type: ignore[no-untyped-def]
-    """Closed widths [m] at poses across the capsule's side and its cap."""
+def _capsule_widths(hand: HandSpec, shape, mesh: trimesh.Trimesh | PreparedObject) -> list[float]:  # type: ignore[no-untyped-def]
+    """Closed widths [m] at poses across the capsule's side and its cap (an
+    object: closed as the sweep closes it, through its collision proxy)."""
+    return [w for w, _ in _capsule_closings(hand, shape, mesh)]
+
+
+def _capsule_closings(hand: HandSpec, shape, mesh: trimesh.Trimesh | PreparedObject) -> list[tuple[float, Closed]]:  # type: ignore[no-untyped-def]
     poses = []
     for angle in np.linspace(0.0, np.pi, 5, endpoint=False):
         inward = -np.array([np.cos(angle), np.sin(angle), 0.0])
@@ -195,15 +204,17 @@ def _capsule_widths(hand: HandSpec, shape, mesh: trimesh.Trimesh) -> list[float]
         poses.append(_grasp_pose(hand, np.array([0.0, 0.0, 0.02 * np.cos(3 * angle)]), inward, across))
     for height in (0.045, 0.05):  # over the end cap, fingers closing on the hemisphere
         poses.append(_grasp_pose(hand, np.array([0.0, 0.0, height]), DOWN, np.array([1.0, 0.0, 0.0])))
-    widths = []
+    out = []
     with Sim() as sim:
-        grasper = Grasper.for_mesh(sim, hand, mesh)
+        grasper = Grasper.for_object(sim, hand, mesh) if isinstance(mesh, PreparedObject) else \
+            Grasper.for_mesh(sim, hand, mesh)
         for pose in poses:
             closed = grasper.close_at(pose, shape)
-            assert isinstance(closed, Closed), f"{len(mesh.faces)} faces: {closed}"
+            assert isinstance(closed, Closed), f"{mesh}: {closed}"
             assert _finger_contacts(closed) == {"panda_leftfinger", "panda_rightfinger"}
-            widths.append(closed.closed_joints["panda_finger_joint1"] + closed.closed_joints["panda_finger_joint2"])
-    return widths
+            out.append((closed.closed_joints["panda_finger_joint1"] + closed.closed_joints["panda_finger_joint2"],
+                        closed))
+    return out
 
 
 def test_a_coarse_and_a_fine_capsule_close_alike(panda) -> None:  # type: ignore[no-untyped-def]
@@ -212,3 +223,25 @@ def test_a_coarse_and_a_fine_capsule_close_alike(panda) -> None:  # type: ignore
     fine = trimesh.creation.capsule(height=0.07, radius=0.022, count=[96, 96])  # 18,432 triangles
     assert_close(_capsule_widths(hand, shapes["wide"], fine), _capsule_widths(hand, shapes["wide"], coarse),
                  TESSELLATION_TOL)
+
+
+#: A scan closes against its proxy, within ProxySettings.tolerance of it: the
+#: closed widths of a scan and of a coarse mesh of the same shape agree to
+#: twice the contact tolerance, the coarse mesh's sagitta (~0.11 mm for edges
+#: of 4.4 mm on a 22 mm radius) and the proxy's tolerance.
+PROXY_TESSELLATION_TOL = 2 * (0.0005 + 0.00011 + ProxySettings().tolerance)
+
+
+def test_a_scan_closes_through_its_proxy_like_a_coarse_mesh_with_contacts_on_the_scan(panda, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    hand, shapes = panda
+    path = tmp_path / "scan.obj"
+    path.write_text(scanlike.uv_obj(20_000))  # UV-split vertices, as published
+    scan = load_object(str(path))
+    proxy = collision_proxy(scan.mesh, scan.mesh_hash)
+    assert not proxy.exact and len(proxy.mesh.faces) < len(scan.mesh.faces) / 2
+    closings = _capsule_closings(hand, shapes["wide"], scan)
+    assert_close([w for w, _ in closings], _capsule_widths(hand, shapes["wide"], scanlike.capsule(2_000)),
+                 PROXY_TESSELLATION_TOL)
+    points = np.vstack([c.contacts.points for _, c in closings])
+    assert distances(scan.mesh, points).max() < ON_SURFACE  # read on the proxy, placed on the scan
+    assert distances(proxy.mesh, points).max() <= proxy.deviation + ON_SURFACE

@@ -46,18 +46,39 @@ def barrett_units():  # type: ignore[no-untyped-def]
     return settled, planned
 
 
-def test_the_barrett_sweep_settles_every_grasp_by_default_and_not_when_told(barrett_units) -> None:  # type: ignore[no-untyped-def]
+def test_the_barrett_sweep_settles_its_force_closure_grasps_by_default_and_none_when_told(barrett_units) -> None:  # type: ignore[no-untyped-def]
     settled, planned = barrett_units
     assert load_hand("barrett").settle and not load_hand("panda").settle
     assert len(settled.grasps) == len(planned.grasps) > 0
-    assert all(g.measures is not None and g.measures.settled_epsilon is not None for g in settled.grasps)
+    closure = [g for g in settled.grasps if g.force_closure]
+    others = [g for g in settled.grasps if not g.force_closure]
+    assert closure and others  # the unit has both kinds
+    assert all(g.measures is not None and g.measures.settled_epsilon is not None for g in closure)
+    assert all(g.measures is not None and g.measures.settled_epsilon is None for g in others)
     assert all(g.measures is not None and g.measures.settled_epsilon is None for g in planned.grasps)
     # the same grasps otherwise, and their settle does not depend on the others swept with them
     assert [g.pose.tolist() for g in settled.grasps] == [g.pose.tolist() for g in planned.grasps]
-    alone = [settled_epsilons(load_hand("barrett"), settled.obj, [g])[0] for g in planned.grasps[:2]]
-    assert alone == [g.measures.settled_epsilon for g in settled.grasps[:2]]  # type: ignore[union-attr]
+    alone = [settled_epsilons(load_hand("barrett"), settled.obj, [g])[0] for g in closure[:2]]
+    assert alone == [g.measures.settled_epsilon for g in closure[:2]]  # type: ignore[union-attr]
     assert settled.timing["settle"] > 0.0 and planned.timing["settle"] == 0.0
-    assert np.isfinite([g.measures.settled_epsilon for g in settled.grasps]).all()  # type: ignore[union-attr]
+    assert np.isfinite([g.measures.settled_epsilon for g in closure]).all()  # type: ignore[union-attr]
+
+
+def test_settling_only_force_closure_grasps_keeps_their_ranks(barrett_units) -> None:  # type: ignore[no-untyped-def]
+    """The force-closure grasps rank first whatever the others' settled
+    epsilons, so settling only them gives them the same scores and ranks as
+    settling every grasp."""
+    from planner.db.ranking import RankingRule, rank_order, rule_measures
+    from planner.plan.settle import with_settled
+
+    settled, planned = barrett_units
+    hand = load_hand("barrett")
+    every = with_settled(hand, settled.obj, planned.grasps, only_force_closure=False)
+    some = with_settled(hand, settled.obj, planned.grasps)
+    assert any(g.measures.settled_epsilon for g in every if not g.force_closure)  # type: ignore[union-attr]
+    fc = sum(g.force_closure for g in every)
+    ranks = [rank_order(RankingRule().scores(m), m["force_closure"])[:fc] for m in map(rule_measures, (every, some))]
+    assert list(ranks[0]) == list(ranks[1])
 
 
 def test_the_settle_does_not_depend_on_the_last_bits_of_a_grasp(barrett_units) -> None:  # type: ignore[no-untyped-def]

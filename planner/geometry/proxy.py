@@ -1,0 +1,219 @@
+"""The collision proxy: a simplified surface of a finely meshed object that
+closing collides with, within a stated, measured tolerance of the exact one.
+
+Why (issue 24): a closing's exact-mesh queries cost per *triangle* within
+range of a finger (PyBullet's distance query, the contact patches' closest
+points), so a scan of 100k faces cost ~4x its 2k-face version per candidate
+for the same shape. A mesh with more than ``ProxySettings.above`` faces is
+therefore collided as a quadric decimation of itself (``fast_simplification``,
+Garland-Heckbert error quadrics) of ``ProxySettings.faces`` faces, doubled
+until the two surfaces lie within ``ProxySettings.tolerance`` of each other
+both ways (or, when no proxy of fewer than half the faces fits, the exact mesh
+itself). The exact mesh keeps everything else: mass properties, the sampled
+approach points and their normals, the convex parts of the trial, the
+exports; contact points are moved onto it (:mod:`planner.plan.closing`).
+
+The deviation is measured, not assumed: the largest distance from any of
+``samples`` area-weighted surface samples and every vertex of either mesh
+to the other surface (an upper bound: the distance to the nearest of a few
+candidate triangles, found through a KD-tree of dense samples).
+
+Proxies are cached on disk by the exact mesh's content hash and the
+settings, as ``.npz`` of plain arrays (no pickle).
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import logging
+import time
+from dataclasses import asdict, dataclass
+
+import numpy as np
+import trimesh
+from scipy.spatial import cKDTree
+
+from planner import assets, prepare
+
+log = logging.getLogger(__name__)
+
+#: Bumped when the same mesh and settings would give another proxy.
+PROXY_VERSION = 1
+#: What making a proxy is called in the preparation lines.
+PROXY = "collision proxy (mesh decimation)"
+
+
+@dataclass(frozen=True)
+class ProxySettings:
+    """Lengths in metres.
+
+    above: meshes with more faces get a proxy (every built-in object has
+    fewer: they are collided exactly). faces: the proxy's first face count
+    (the cost of closing is flat up to a few thousand faces: bench/RESULTS.md,
+    issue 24). tolerance: the largest distance allowed between the proxy and
+    the exact surface, both ways (half of closing's contact tolerance of
+    0.5 mm; about the sagitta of a 4 cm capsule meshed with 1,152 faces).
+    """
+
+    above: int = 5000
+    faces: int = 4000
+    tolerance: float = 0.00025
+    samples: int = 20_000
+    aggressiveness: int = 2  # fast_simplification's ``agg``: lower keeps closer to the surface, may miss ``faces``
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.faces < 4 or self.above < self.faces or self.tolerance <= 0 or self.samples < 1:
+            raise ValueError(f"ProxySettings: need 4 <= faces <= above, tolerance > 0, samples >= 1; got {self}")
+
+
+@dataclass(frozen=True)
+class Proxy:
+    """The surface closing collides with.
+
+    mesh: triangle mesh, object frame [m] (the exact mesh itself when
+    ``exact``). deviation: [m] measured largest distance between ``mesh``
+    and the exact surface, both ways (0 when exact). exact_faces: the exact
+    mesh's face count.
+    """
+
+    mesh: trimesh.Trimesh
+    exact: bool
+    deviation: float
+    exact_faces: int
+
+
+def collision_proxy(mesh: trimesh.Trimesh, mesh_hash: str, settings: ProxySettings | None = None,
+                    name: str = "the mesh") -> Proxy:
+    """The proxy of the closed mesh ``mesh`` (cached by ``mesh_hash``); its
+    making is announced (:mod:`planner.prepare`) as the object ``name``'s."""
+    s = settings or ProxySettings()
+    if len(mesh.faces) <= s.above:
+        return Proxy(mesh, True, 0.0, len(mesh.faces))
+    path = assets.cache_dir("proxy") / f"{assets.sha256_bytes(_key(mesh_hash, s).encode())[:24]}.npz"
+    if path.is_file():
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                if bool(data["exact"]):
+                    return Proxy(mesh, True, 0.0, len(mesh.faces))
+                return Proxy(trimesh.Trimesh(data["vertices"], data["faces"], process=False), False,
+                             float(data["deviation"]), len(mesh.faces))
+        except (OSError, ValueError, KeyError):
+            path.unlink(missing_ok=True)  # a damaged cache entry is rebuilt
+    prepare.started(PROXY, name)
+    t0 = time.perf_counter()
+    proxy = build_proxy(mesh, s)
+    prepare.ended(PROXY, name, time.perf_counter() - t0)
+    buffer = io.BytesIO()
+    np.savez(buffer, vertices=np.asarray(proxy.mesh.vertices), faces=np.asarray(proxy.mesh.faces),
+             deviation=np.array(proxy.deviation), exact=np.array(proxy.exact))
+    assets.atomic_write(path, buffer.getvalue())
+    return proxy
+
+
+def _key(mesh_hash: str, s: ProxySettings) -> str:
+    return json.dumps([PROXY_VERSION, mesh_hash, asdict(s)], sort_keys=True)
+
+
+def build_proxy(mesh: trimesh.Trimesh, settings: ProxySettings | None = None) -> Proxy:
+    """Decimate ``mesh`` to ``faces``, 2 x ``faces``, ... faces until the
+    result lies within ``tolerance`` of it; the exact mesh when none of fewer
+    than half its faces does (no cache)."""
+    s = settings or ProxySettings()
+    target = s.faces
+    while 2 * target <= len(mesh.faces):
+        proxy = decimate(mesh, target, s.aggressiveness)
+        deviation = surface_deviation(mesh, proxy, s.samples, s.seed)
+        if deviation <= s.tolerance:
+            log.info("collision proxy: %d -> %d faces, within %.3f mm", len(mesh.faces), len(proxy.faces),
+                     deviation * 1e3)
+            return Proxy(proxy, False, deviation, len(mesh.faces))
+        target *= 2
+    log.info("collision proxy: no proxy of %d faces is within %.3f mm; closing uses the exact mesh",
+             len(mesh.faces), s.tolerance * 1e3)
+    return Proxy(mesh, True, 0.0, len(mesh.faces))
+
+
+def decimate(mesh: trimesh.Trimesh, faces: int, aggressiveness: int = 1) -> trimesh.Trimesh:
+    """A quadric decimation of ``mesh`` to about ``faces`` triangles, without
+    degenerate or unused parts."""
+    import fast_simplification
+
+    vertices, triangles = fast_simplification.simplify(np.asarray(mesh.vertices, np.float64),
+                                                       np.asarray(mesh.faces, np.int64), target_count=faces,
+                                                       agg=aggressiveness)
+    out = trimesh.Trimesh(np.asarray(vertices, float), np.asarray(triangles, np.int64), process=False)
+    out.update_faces(out.nondegenerate_faces())
+    out.remove_unreferenced_vertices()
+    return out
+
+
+def surface_deviation(a: trimesh.Trimesh, b: trimesh.Trimesh, samples: int = 20_000, seed: int = 0) -> float:
+    """[m] the largest distance from ``samples`` area-weighted points and
+    every vertex of each mesh to the other's surface (an upper bound of
+    each distance)."""
+    rng = np.random.default_rng(seed)
+    worst = 0.0
+    for one, other in ((a, b), (b, a)):
+        points = np.vstack([_sample(one, samples, rng), np.asarray(one.vertices, float)])
+        worst = max(worst, float(distances(other, points).max()))
+    return worst
+
+
+def _sample(mesh: trimesh.Trimesh, count: int, rng: np.random.Generator) -> np.ndarray:
+    """(count, 3) [m] area-weighted points on the surface."""
+    faces = rng.choice(len(mesh.faces), size=count, p=mesh.area_faces / mesh.area)
+    uv = rng.random((count, 2))
+    flip = uv.sum(axis=1) > 1
+    uv[flip] = 1 - uv[flip]
+    tri = mesh.triangles[faces]
+    return tri[:, 0] + uv[:, :1] * (tri[:, 1] - tri[:, 0]) + uv[:, 1:] * (tri[:, 2] - tri[:, 0])
+
+
+#: Candidate triangles per query point (those of its nearest pieces).
+CANDIDATES = 16
+#: [m] longest edge of the pieces that find the candidate triangles (a face
+#: is split at the middle of its longest edge until its pieces are this short:
+#: a long sliver of a cylinder's side is found wherever a point is along it).
+PIECE = 0.001
+#: At most about this many pieces (a large object gets longer ones).
+MAX_PIECES = 1_000_000
+
+
+def distances(mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
+    """(n,) [m] distance of each point to the nearest of the candidate
+    triangles of ``mesh`` (those of the pieces whose centroids are nearest):
+    exact for points near the surface, never below the truth."""
+    centres, faces = pieces(mesh, max(PIECE, float(np.sqrt(2.0 * mesh.area / MAX_PIECES))))
+    k = min(CANDIDATES, len(centres))
+    _, near = cKDTree(centres).query(points, k=k)
+    cand = faces[np.asarray(near).reshape(len(points), k)]
+    out = np.full(len(points), np.inf)
+    for column in range(k):
+        tri = mesh.triangles[cand[:, column]]
+        closest = trimesh.triangles.closest_point(tri, points)
+        # trimesh's closest point of a sliver can miss its own corner: the corners bound it too
+        corner = np.linalg.norm(tri - points[:, None], axis=2).min(axis=1)
+        out = np.minimum(out, np.minimum(np.linalg.norm(closest - points, axis=1), corner))
+    return out
+
+
+def pieces(mesh: trimesh.Trimesh, longest: float) -> tuple[np.ndarray, np.ndarray]:
+    """(centroids (m, 3) [m], face of each (m,)) of the mesh's faces split
+    at the middle of their longest edge until no edge is above ``longest``."""
+    tri, face = np.asarray(mesh.triangles, float), np.arange(len(mesh.faces))
+    done_c, done_f = [], []
+    while len(tri):
+        edges = np.linalg.norm(tri - np.roll(tri, -1, axis=1), axis=2)  # edge i: vertex i -> i + 1
+        long = edges.max(axis=1) > longest
+        done_c.append(tri[~long].mean(axis=1))
+        done_f.append(face[~long])
+        tri, face, edges = tri[long], face[long], edges[long]
+        i = np.argmax(edges, axis=1)
+        rows = np.arange(len(tri))
+        a, b, c = tri[rows, i], tri[rows, (i + 1) % 3], tri[rows, (i + 2) % 3]
+        mid = 0.5 * (a + b)
+        tri = np.concatenate([np.stack([a, mid, c], axis=1), np.stack([mid, b, c], axis=1)])
+        face = np.r_[face, face]
+    return np.vstack(done_c), np.concatenate(done_f)
