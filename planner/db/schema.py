@@ -28,6 +28,10 @@ Tables (the README lists every column):
   written by the store with the score (the hand's model on the stored
   measures); NULL where no model applies (and for grasps stored before,
   until the next write re-scores them: ``meta.p_hold_models``).
+- ``grasps`` (v6) gains ``table_plane``: the table top a grasp was planned
+  on (``grasp generate --on-table``), object frame, JSON ``[nx, ny, nz,
+  height]``; NULL for a grasp planned on the object alone (every grasp
+  stored before).
 
 No pickle: arrays are JSON text. A new database runs :data:`SCHEMA` (version
 1) and then every migration; a newer schema is refused politely; an older one
@@ -48,7 +52,7 @@ from planner.errors import DatabaseError
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 5
+SCHEMA_VERSION = 6
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -117,6 +121,10 @@ CREATE TABLE IF NOT EXISTS calibration (
     hand TEXT PRIMARY KEY, model TEXT NOT NULL, source TEXT NOT NULL, created_at TEXT NOT NULL
 );
 ALTER TABLE grasps ADD COLUMN p_hold REAL
+""",
+    # v6: the table a grasp was planned on (issue 25; NULL: the object alone).
+    5: """
+ALTER TABLE grasps ADD COLUMN table_plane TEXT
 """,
 }
 
