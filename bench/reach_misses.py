@@ -28,7 +28,9 @@ the table in the 3 most probable resting poses); then per resting pose:
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -56,11 +58,18 @@ def misses(cases: list[str], candidates: int, poses: int) -> None:
         print(f"  ({time.process_time() - start:.1f} CPU s)")
 
 
-def generate(db: Path, obj: str, hand: str, *extra: str) -> None:
+def generate(db: Path, obj: str, hand: str, *extra: str) -> str:
+    """Run ``grasp generate`` (one worker); a line of what it did and its CPU time."""
     sampler = api.hand(hand)[0].sampler
     cmd = [sys.executable, "-m", "planner.cli", "generate", obj, "--hand", hand, "--db", str(db), "--workers", "1",
-           "--quiet", *SWEEP[sampler], *extra]
-    subprocess.run(cmd, check=True, env=os.environ)
+           "--json", *SWEEP[sampler], *extra]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    out = subprocess.run(cmd, check=True, env=os.environ, capture_output=True, text=True).stdout
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
+    summary = json.loads(out)
+    return (f"{summary['candidates']} candidates, {summary['grasps']} grasps, {summary['force_closure']} force "
+            f"closure, {cpu:.0f} CPU s")
 
 
 def measures(g: api.Grasp) -> str:
@@ -80,10 +89,10 @@ def build(folder: Path, hands: list[str], objects: list[str], candidates: int) -
             name = Path(obj).stem
             before, after = folder / f"{hand}_{name}_before.db", folder / f"{hand}_{name}_after.db"
             if not before.exists():
-                generate(before, obj, hand)
+                print(f"<!-- {hand} {name} object alone: {generate(before, obj, hand)} -->", flush=True)
             if not after.exists():
                 shutil.copy(before, after)
-                generate(after, obj, hand, "--on-table")
+                print(f"<!-- {hand} {name} on the table: {generate(after, obj, hand, '--on-table')} -->", flush=True)
             row = api.best(name, hand, db_path=before)[0]
             shares = [api.best_on_table(name, hand, db_path=db, top=candidates, max_candidates=candidates,
                                         plan=False) for db in (before, after)]

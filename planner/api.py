@@ -475,8 +475,8 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
     from planner.plan.reach import ReachScene, ReachSettings
     from planner.sim import Sim
 
-    if top < 1:
-        raise InputError(f"--top must be at least 1, got {top}")
+    if top < 1 or max_candidates < 0:
+        raise InputError(f"--top must be at least 1 and --max-candidates at least 0, got {top} and {max_candidates}")
     obj_pose = _pose7(object_pose, "--object-pose")
     base = _pose7(robot_base, "--robot-base") if robot_base is not None else np.eye(4)
     spec = load_hand(hand)
@@ -501,7 +501,7 @@ def _reachable(db: Database, scene: ReachScene, key: str, hand: str, obj_pose: n
     support = Support.under(obj_pose, scene.settings.table_height)
     found, tried = _first_reached(scene, _query_order(db, key, hand, support), obj_pose, top, max_candidates, rng,
                                   misses)
-    if tried == 0:
+    if tried == 0 and max_candidates > 0:
         raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db.path}; "
                          f"run `{generate_command(key, db.object_row(key), hand, db.path)}`")
     return found
@@ -642,8 +642,9 @@ def best_on_table(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int 
     from planner.plan.reach import ReachScene, ReachSettings
     from planner.sim import Sim
 
-    if top < 1 or poses < 1:
-        raise InputError(f"--top and --stable-poses must be at least 1, got {top} and {poses}")
+    if top < 1 or poses < 1 or max_candidates < 0:
+        raise InputError(f"--top and --stable-poses must be at least 1 and --max-candidates at least 0, got {top}, "
+                         f"{poses} and {max_candidates}")
     xy = [float(v) for v in at]
     if len(xy) != 2 or not all(np.isfinite(xy)) or not np.isfinite(table_height):
         raise InputError(f"--table-at needs 2 finite numbers x,y [m]; got {at}")
@@ -712,7 +713,8 @@ def view(name: str, hands: Sequence[str] | None = None, *, db_path: Path = DEFAU
     """Start the browser viewer on the ``top`` best grasps of each hand (all
     hands with grasps of the object when ``hands`` is None). With
     ``object_pose`` only grasps the arm reaches at that pose are offered,
-    placed in the world with the arm. Returns the running viewer (``url``,
+    placed in the world with the arm (stored ones; if none is reachable,
+    grasps planned on the spot with the table, as ``best --object-pose``). Returns the running viewer (``url``,
     ``stop()``)."""
     from planner.db.objects import stored_object
     from planner.present import scene as scenes
@@ -739,15 +741,16 @@ def view(name: str, hands: Sequence[str] | None = None, *, db_path: Path = DEFAU
         if object_pose is None:
             found = [(g, None, ()) for g in best(key, h, db_path=db_path, top=top, spacing=spacing)]
         else:
-            found = [(r.grasp, r.arm_grasp, (_arm_line(r),))
-                     for r in best_at(key, h, object_pose, db_path=db_path, top=top, robot_base=robot_base)]
+            reached = best_at(key, h, object_pose, db_path=db_path, top=top, robot_base=robot_base, plan=False) or \
+                best_at(key, h, object_pose, db_path=db_path, top=top, robot_base=robot_base, max_candidates=0)
+            found = [(r.grasp, r.arm_grasp, (_arm_line(r),)) for r in reached]
         for g, arm, extra in found:
             def build(g=g, arm=arm, spec=specs[h]):  # noqa: B023 - bound per grasp
                 return scenes.grasp_scene(spec, obj.mesh, g, obj.friction, world, arm, base)
             entries.append(viewer.Entry(g, build, extra))
     if not entries:
-        raise InputError(f"no stored grasp of '{key}' is reachable at --object-pose {object_pose}; "
-                         "try `grasp best ... --object-pose ... --max-candidates 2000`")
+        raise InputError(f"no grasp of '{key}' is reachable at --object-pose {object_pose}, stored or planned on "
+                         "the spot with the table; `grasp best ... --object-pose ...` says why")
     return viewer.Viewer(entries, specs, scenes.object_part(obj.mesh, world), host=host, port=port)
 
 

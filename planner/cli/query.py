@@ -22,7 +22,8 @@ from planner.specs.hands import hand_frame
               "grasps an arm reaches there now, with joint solutions.")
 @click.option("--robot-base", help="x,y,z,qx,qy,qz,qw of the robot base (default: the origin).")
 @click.option("--max-candidates", type=int, default=api.MAX_CANDIDATES, show_default=True,
-              help="With --object-pose: how many top-ranked grasps to try at most.")
+              help="With --object-pose or --on-table: how many stored grasps to try at most (0: plan on the spot "
+              "at once).")
 @click.option("--on-table", is_flag=True, help="Put the object on the table in its most probable resting poses "
               "(no --object-pose needed): the best grasps the arm reaches in each.")
 @click.option("--table-at", default="0.5,0", show_default=True, help="With --on-table: x,y [m] of the object on the "
