@@ -19,7 +19,9 @@ the table in the 3 most probable resting poses); then per resting pose:
   the stored table grasps; before: the stored grasps, then planning on the
   spot with the table when none is reachable) and where its grasp came from;
 - the grasp that query returns: force closure, epsilon, weight it resists,
-  settled epsilon, score, next to the best stored grasp of the object alone.
+  settled epsilon, score, next to the best stored grasp of the object alone;
+- the CPU time and the grasp of ``best --object-pose POSE --max-candidates 0``
+  on the "before" database: planning on the spot with the table alone.
 
     python bench/reach_misses.py DB:OBJECT:HAND [...] [--candidates 100] [--poses 3]
     python bench/reach_misses.py --build DIR --hands panda,barrett --objects box,mug [--candidates 100]
@@ -31,7 +33,7 @@ import argparse
 import json
 import os
 import resource
-import shutil
+import sqlite3
 import subprocess
 import sys
 import time
@@ -82,8 +84,9 @@ def measures(g: api.Grasp) -> str:
 def build(folder: Path, hands: list[str], objects: list[str], candidates: int) -> None:
     folder.mkdir(parents=True, exist_ok=True)
     print("| hand | object | pose (p) | reachable of top before | after | query before: CPU s, from | "
-          "query after: CPU s, from | grasp found (after) | best stored grasp, object alone |")
-    print("|---|---|---|---:|---:|---|---|---|---|")
+          "query after: CPU s, from | grasp found (after) | planned on the spot: CPU s, grasp | "
+          "best stored grasp, object alone |")
+    print("|---|---|---|---:|---:|---|---|---|---|---|")
     for hand in hands:
         for obj in objects:
             name = Path(obj).stem
@@ -91,7 +94,8 @@ def build(folder: Path, hands: list[str], objects: list[str], candidates: int) -
             if not before.exists():
                 print(f"<!-- {hand} {name} object alone: {generate(before, obj, hand)} -->", flush=True)
             if not after.exists():
-                shutil.copy(before, after)
+                with sqlite3.connect(before) as source, sqlite3.connect(after) as copy:
+                    source.backup(copy)
                 print(f"<!-- {hand} {name} on the table: {generate(after, obj, hand, '--on-table')} -->", flush=True)
             row = api.best(name, hand, db_path=before)[0]
             shares = [api.best_on_table(name, hand, db_path=db, top=candidates, max_candidates=candidates,
@@ -108,9 +112,12 @@ def build(folder: Path, hands: list[str], objects: list[str], candidates: int) -
                          f"stored #{f.grasp.rank}" + (" (table)" if f.grasp.table_plane is not None else "")
                          for f in found]
                 got = "-" if found[1] is None else measures(found[1].grasp)
+                start = time.process_time()
+                now = api.best_at(name, hand, pose, db_path=before, top=1, max_candidates=0)
+                planned = f"{time.process_time() - start:.2f}, " + (measures(now[0].grasp) if now else "none")
                 print(f"| {hand} | {name} | {i + 1} ({a.resting.probability:.2f}) | {len(b.grasps)}/{candidates} | "
                       f"{len(a.grasps)}/{candidates} | {times[0]:.2f}, {where[0]} | {times[1]:.2f}, {where[1]} | "
-                      f"{got} | {measures(row)} |", flush=True)
+                      f"{got} | {planned} | {measures(row)} |", flush=True)
 
 
 def main() -> None:

@@ -19,6 +19,7 @@ so starting the ``grasp`` command, costs numpy and the specs alone.
 from __future__ import annotations
 
 import importlib
+import itertools
 import json
 import logging
 import math
@@ -465,11 +466,12 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
     """The best grasps that an arm reaches *now*, with the object at
     ``object_pose`` (x, y, z, qx, qy, qz, qw, world frame) on the table top
     z = 0 and the robot base at ``robot_base`` (same form; default the
-    origin). Stored grasps are tried first (:func:`_query_order`: those
-    planned on the table in this resting pose, then the rest; each in rank
-    order), at most ``max_candidates`` of them; if fewer than ``top`` are
-    reachable and ``plan``, grasps are planned on the spot with the table
-    under the object (:func:`_plan_now`, from ``seed``). ``misses``, if
+    origin): the ``top`` best-ranked stored grasps it reaches, of at most
+    ``max_candidates`` tried (:func:`_reachable`: those planned on the table
+    in this resting pose first, then better-ranked others); if fewer than
+    ``top`` of them are force closure and ``plan``, grasps are also planned
+    on the spot with the table under the object (:func:`_plan_now`, from
+    ``seed``), and the force-closure ones come first (:func:`_preferred`). ``misses``, if
     given, receives (rank, why) of each one tried and not reachable (rank 0:
     planned on the spot)."""
     from planner.plan.reach import ReachScene, ReachSettings
@@ -486,25 +488,60 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
         scene = ReachScene(sim, spec, obj, ReachSettings(pregrasp_distance=pregrasp_distance), base)
         rng = np.random.default_rng(seed)
         found = _reachable(db, scene, key, hand, obj_pose, top, max_candidates, rng, missed)
-        if len(found) < top and plan:
-            found += _plan_now(db, scene, obj, obj_pose, top - len(found), seed, rng, missed)
+        if plan and _closures(found) < top:
+            found = _preferred(found, _plan_now(db, scene, obj, obj_pose, top, seed, rng, missed), top)
         return found
+
+
+def _closures(found: Sequence[ReachableGrasp]) -> int:
+    return sum(bool(r.grasp.force_closure) for r in found)
+
+
+def _preferred(stored: list[ReachableGrasp], planned: list[ReachableGrasp], top: int) -> list[ReachableGrasp]:
+    """The ``top`` to return of reachable stored grasps (rank order) and grasps
+    planned on the spot (best first): force closure first, stored before
+    planned."""
+    return sorted([*stored, *planned], key=lambda r: not r.grasp.force_closure)[:top]  # stable: keeps each order
 
 
 def _reachable(db: Database, scene: ReachScene, key: str, hand: str, obj_pose: np.ndarray, top: int,
                max_candidates: int, rng: np.random.Generator, misses: list[tuple[int, str]]) -> list[ReachableGrasp]:
-    """The first ``top`` of ``max_candidates`` stored grasps the scene's arm
-    reaches with the object at ``obj_pose`` (4, 4), tried in the order of
-    :func:`_query_order`; misses noted as (rank, why)."""
-    from planner.geometry.support import Support
+    """The ``top`` best-ranked stored grasps the scene's arm reaches with the
+    object at ``obj_pose`` (4, 4), of at most ``max_candidates`` tried, best
+    first; misses noted as (rank, why). Without grasps planned on the table
+    in this resting pose (:func:`planner.geometry.support.nearest`), every
+    grasp in rank order. With them: those first, in rank order (most are
+    reachable: a few tries find ``top``); then the others (planned on the
+    object alone or on another plane), in rank order, only those ranked above
+    the worst found so far -- the ones that could still make the ``top``."""
+    from planner.geometry.support import Support, nearest
 
-    support = Support.under(obj_pose, scene.settings.table_height)
-    found, tried = _first_reached(scene, _query_order(db, key, hand, support), obj_pose, top, max_candidates, rng,
-                                  misses)
+    plane = nearest(db.table_planes(key, hand), Support.under(obj_pose, scene.settings.table_height))
+    if plane is None:
+        found, tried = _first_reached(scene, _ranked(db, key, hand), obj_pose, top, max_candidates, rng, misses)
+    else:
+        found, tried = _first_reached(scene, _ranked(db, key, hand, table_plane=plane), obj_pose, top,
+                                      max_candidates, rng, misses)
+        others = _ranked(db, key, hand, table_plane=plane, other_planes=True)
+        if len(found) == top:
+            bound = found[-1].grasp.rank or 0
+            others = itertools.takewhile(lambda g: (g.rank or 0) < bound, others)
+        more, extra = _first_reached(scene, others, obj_pose, top, max_candidates - tried, rng, misses)
+        found = sorted(found + more, key=lambda r: r.grasp.rank or 0)[:top]
+        tried += extra
     if tried == 0 and max_candidates > 0:
         raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db.path}; "
                          f"run `{generate_command(key, db.object_row(key), hand, db.path)}`")
     return found
+
+
+def _ranked(db: Database, key: str, hand: str, **which: Any) -> Iterator[Grasp]:
+    """Stored grasps of (key, hand) in rank order, read in batches; ``which``:
+    :meth:`Database.best`'s ``table_plane`` and ``other_planes``."""
+    offset = 0
+    while batch := db.best(key, hand, CANDIDATE_BATCH, offset, **which):
+        offset += len(batch)
+        yield from batch
 
 
 def _first_reached(scene: ReachScene, grasps: Iterable[Grasp], obj_pose: np.ndarray, top: int, max_candidates: int,
@@ -570,23 +607,6 @@ def plan_now_settings(hand: HandSpec) -> SweepSettings:
     """The sweep of :data:`PLAN_NOW` for ``hand`` (before the table plane is set)."""
     return SweepSettings(chunk=0, reach_placements=0, fc_budget=PLAN_NOW_BUDGET,
                          **PLAN_NOW[hand.sampler]).resolved(hand.sampler, hand.settle)
-
-
-def _query_order(db: Database, key: str, hand: str, support: Support) -> Iterator[Grasp]:
-    """Stored grasps in the order a query with the table ``support`` under
-    the object tries them: those planned on the stored table plane that is
-    this resting pose (:func:`planner.geometry.support.nearest`), then all
-    the others; each part in rank order."""
-    from planner.geometry.support import nearest
-
-    plane = nearest(db.table_planes(key, hand), support)
-    parts: list[dict[str, Any]] = [{}] if plane is None else [{"table_plane": plane},
-                                                               {"table_plane": plane, "other_planes": True}]
-    for part in parts:
-        offset = 0
-        while batch := db.best(key, hand, CANDIDATE_BATCH, offset, **part):
-            offset += len(batch)
-            yield from batch
 
 
 def table_command(name: str, hand: str, db_path: Path = DEFAULT_DB) -> str:
@@ -659,8 +679,8 @@ def best_on_table(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int 
             pose = resting.placed(xy[0], xy[1], table_height)
             misses: list[tuple[int, str]] = []
             found = _reachable(db, scene, key, hand, pose, top, max_candidates, rng, misses)
-            if len(found) < top and plan:
-                found += _plan_now(db, scene, obj, pose, top - len(found), seed, rng, misses)
+            if plan and _closures(found) < top:
+                found = _preferred(found, _plan_now(db, scene, obj, pose, top, seed, rng, misses), top)
             out.append(TableGrasps(resting, pose, found, misses))
     return out
 

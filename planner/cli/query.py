@@ -164,5 +164,7 @@ def _on_table(name: str, hand: str, db_path: Path, top: int, table_at: str, pose
         for r in t.grasps:
             _print_grasp(r.grasp, t.object_pose, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp})
     if not any(t.grasps for t in tables):
+        planned = any(api.planned_on_table(name, hand, t.object_pose7(), db_path=db_path) for t in tables)
+        table = "" if planned else f", or grasps planned on the table (`{api.table_command(name, hand, db_path)}`)"
         raise NotFoundError(f"no grasp among the top {max_candidates} is reachable in the {len(tables)} most probable "
-                            f"resting poses; try --max-candidates {max_candidates * 4} or another --table-at")
+                            f"resting poses; try --max-candidates {max_candidates * 4}, another --table-at{table}")

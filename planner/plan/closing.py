@@ -26,7 +26,9 @@ The object frame is the world frame here (the object sits at the origin).
 
 A table (optional, ``Grasper(..., table=frame)``: a frame on its top, object
 frame, z up) is an obstacle like the object, GraspIt's way: the approach
-stops when the hand touches it, a finger that touches it stops, and a hand
+stops when the hand touches it (and backs off
+:data:`~planner.plan.tolerances.TABLE_LIFT` along the approach, so that the
+fingers resting on it can close), a finger that touches it stops, and a hand
 that ends overlapping it is rejected (``table``); contacts are read on the
 object only. It is a slab (:data:`~planner.plan.tolerances.TABLE_SLAB`)
 whose top is the plane, so everything under the plane overlaps it.
@@ -53,7 +55,7 @@ from planner.geometry.hulls import surface_hulls
 from planner.plan.contacts import HandContacts, spread
 from planner.plan.measures import JointFrames
 from planner.plan.patches import ObjectSurface, PatchSettings, discretise, regions
-from planner.plan.tolerances import CLOSING_SPEED_MIN, JOINT_LIMIT_SLACK, MAX_PENETRATION, TABLE_SLAB
+from planner.plan.tolerances import CLOSING_SPEED_MIN, JOINT_LIMIT_SLACK, MAX_PENETRATION, TABLE_LIFT, TABLE_SLAB
 from planner.sim import Body, Closest, Sim
 from planner.sim import fcl as overlap
 from planner.specs.hands import HandSpec
@@ -215,11 +217,12 @@ class Grasper:
                   ("links", "distance", "on_a", "on_b", "normal_b")]
         return Bounded(*joined, pairs.reach) if isinstance(pairs, Bounded) else Closest(*joined)
 
-    def on_table(self) -> bool:
-        """Does the hand, where it is now, touch or overlap the table (False without one)?"""
+    def on_table(self, within: float = 0.0) -> bool:
+        """Is the hand, where it is now, within ``within`` [m] of the table or
+        overlapping it (False without one)?"""
         if self.table_body is None:
             return False
-        return len(self.sim.closest(self.body.uid, self.table_body, -self.hand.distance_offset)) > 0
+        return len(self.sim.closest(self.body.uid, self.table_body, within - self.hand.distance_offset)) > 0
 
     def on_table_at(self, pose: np.ndarray, joints: dict[str, float]) -> bool:
         """Would the hand at ``pose`` with ``joints`` touch the table? (Moves the hand there.)"""
@@ -281,6 +284,8 @@ class Grasper:
                 return Rejected("missed", self.queries)
             pose[:3, 3] += direction * step
             self.sim.set_pose(self.body, pose)
+        if self.on_table(s.contact_tol):  # stopped by the table: lifted off it, or no finger could close
+            pose[:3, 3] -= direction * TABLE_LIFT
         pose[:3, 3] -= direction * standoff
         self.sim.set_pose(self.body, pose)
         return self._finish(pose, preshape, joints)

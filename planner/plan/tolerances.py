@@ -69,3 +69,7 @@ TABLE_CLEARANCE = 0.002
 #: puts the arm's wrist through it (the KUKA's links 5 and 6 under a Barrett
 #: at 5 cm, measured), and the planner sees the hand alone.
 TABLE_ELEVATION = float(np.radians(30.0))
+#: An approach stopped by the table backs off this far along itself before the
+#: fingers close: a fingertip resting on the table would count as touching and
+#: never move (at 30 degrees down, the hand rises 2 mm).
+TABLE_LIFT = 0.004

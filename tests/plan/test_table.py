@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import SIM_TOL, grasp, one_line_error
+from helpers import SIM_TOL, grasp, made_up, one_line_error
 
 from planner import api
 from planner.geometry.solid import load_object
@@ -80,7 +80,7 @@ def test_the_barrett_on_a_small_box_on_a_table_reaches_a_grasp_off_the_table(bar
     for pose in json.loads(out):
         assert pose["grasps"], "no reachable grasp in a resting pose"
         g = pose["grasps"][0]
-        assert g["table_plane"] is not None and g["arm"]["grasp"] and not g["planned_now"]
+        assert g["arm"]["grasp"] and not g["planned_now"]
         closed = {k: float(v) for k, v in g["closed_joints"].items()}
         assert gap_to_table("barrett", np.array(g["hand_pose_world"]), closed,
                             Support(np.array([0.0, 0.0, 1.0]), 0.0)) > 0
@@ -154,3 +154,12 @@ def test_the_table_plane_is_part_of_the_settings_digest_only_when_there_is_one()
     assert "table_plane" not in settings.to_json()  # sweeps on the object alone keep their stored digests
     assert settings.on(support).digest != settings.digest != settings.on(support.raised(0.01)).digest
     assert settings.on(support).on(None).digest == settings.digest
+
+
+def test_force_closure_grasps_come_first_stored_before_planned() -> None:
+    def reached(candidate: int, fc: bool, planned: bool = False) -> api.ReachableGrasp:
+        return api.ReachableGrasp(made_up(candidate, 0.1, fc), {}, {}, 0.0, [], planned)
+
+    stored_fc, stored_not, planned_fc = reached(1, True), reached(2, False), reached(3, True, planned=True)
+    assert api._preferred([stored_not], [planned_fc], 1) == [planned_fc]
+    assert api._preferred([stored_fc, stored_not], [planned_fc], 3) == [stored_fc, planned_fc, stored_not]
