@@ -78,10 +78,12 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
         return
     if not found:
         table = "" if api.planned_on_table(object_name, hand, floats(object_pose) or (), db_path=db_path) else (
-            f", grasps planned on the table (`{api.table_command(object_name, hand, db_path)}`)")
+            ", grasps planned on the table in this resting pose (none is stored; "
+            f"`{api.table_command(object_name, hand, db_path)}` plans the most probable ones)")
+        spot = "" if plan else ", planning on the spot (leave out --no-plan)"
         raise NotFoundError(f"none of the {max_candidates} best grasps of '{object_name}' for hand '{hand}' is "
                             f"reachable with the object at {object_pose} ({_misses(misses)}); try more of them "
-                            f"(--max-candidates {max_candidates * 10}), an object pose nearer the arm{table}, "
+                            f"(--max-candidates {max_candidates * 10}), an object pose nearer the arm{table}{spot}, "
                             "--on-table, or check --robot-base")
     for r in found:
         _print_grasp(r.grasp, world, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp}, rule,
