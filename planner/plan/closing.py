@@ -284,7 +284,7 @@ class Grasper:
                 return Rejected("missed", self.queries)
             pose[:3, 3] += direction * step
             self.sim.set_pose(self.body, pose)
-        if self.on_table(s.contact_tol):  # stopped by the table: lifted off it, or no finger could close
+        if self.on_table(s.contact_tol):  # stopped by the table: lift off it, or a finger resting on it cannot close
             pose[:3, 3] -= direction * TABLE_LIFT
         pose[:3, 3] -= direction * standoff
         self.sim.set_pose(self.body, pose)
