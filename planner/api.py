@@ -19,6 +19,7 @@ so starting the ``grasp`` command, costs numpy and the specs alone.
 from __future__ import annotations
 
 import importlib
+import itertools
 import json
 import logging
 import math
@@ -26,7 +27,7 @@ import os
 import shlex
 import time
 from collections import Counter
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import closing
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -65,6 +66,7 @@ if TYPE_CHECKING:
     from planner.db.diverse import Spacing
     from planner.geometry.solid import PreparedObject
     from planner.geometry.stable import RestingPose
+    from planner.geometry.support import Support
     from planner.plan.reach import ReachScene
     from planner.plan.unit import UnitResult, UnitSpec
     from planner.validation.run import ValidationSummary, validate
@@ -169,15 +171,20 @@ def _lazy(name: str) -> Any:
 
 # -- building -----------------------------------------------------------------------
 def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: int,
-               scale: float | None = None, physical: Physical = NO_PHYSICAL) -> list[UnitSpec]:
+               scale: float | None = None, physical: Physical = NO_PHYSICAL, on_table: int = 0) -> list[UnitSpec]:
     """Expand the object arguments and check every input up front (names,
-    hand, preshapes, physical properties) before any work."""
+    hand, preshapes, physical properties) before any work. ``on_table`` > 0:
+    each object's units plan on the table in each of its ``on_table`` most
+    probable resting poses (:func:`table_supports`) instead of on the object
+    alone."""
     from planner.geometry.solid import load_object
 
     unit_spec = _lazy("UnitSpec")
     refs = expand(list(names), scale, physical)
     if not refs:
         raise InputError("no objects given")
+    if on_table < 0:
+        raise InputError(f"--stable-poses must be at least 1, got {on_table}")
     hand_spec = load_hand(hand)
     settings = settings.resolved(hand_spec.sampler, hand_spec.settle)
     load_preshapes(hand_spec, list(settings.preshapes) if settings.preshapes else None)
@@ -192,13 +199,26 @@ def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: i
                                  "friction; give it once")
             continue
         seen[spec.name] = spec
-        units += [unit_spec(ref.source, hand, settings, seed, ref.scale, chunk, label=spec.name,
-                           physical=ref.physical) for chunk in range(settings.chunks())]
+        planned = [settings]
+        if on_table:
+            obj = load_object(ref.source, scale=ref.scale, label=spec.name, **ref.physical.given())
+            planned = [settings.on(support) for support in table_supports(obj, on_table)]
+        units += [unit_spec(ref.source, hand, plan, seed, ref.scale, chunk, label=spec.name, physical=ref.physical)
+                  for plan in planned for chunk in range(plan.chunks())]
     if len(refs) == 1:
         # One object: a broken mesh is the user's input error, reported before
         # the database is opened. In a batch it is recorded and the rest go on.
         load_object(refs[0].source, scale=refs[0].scale, **refs[0].physical.given())
     return units
+
+
+def table_supports(obj: PreparedObject, poses: int) -> list[Support]:
+    """The table tops under the object in its ``poses`` most probable resting
+    poses (:mod:`planner.geometry.stable`), most probable first."""
+    from planner.geometry.stable import resting_poses
+    from planner.geometry.support import Support
+
+    return [Support.resting(r.pose) for r in resting_poses(obj.mesh, obj.com, poses)]
 
 
 def _check_stored_physics(db: Database, units: Sequence[UnitSpec]) -> None:
@@ -228,7 +248,8 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
              seed: int = 0, workers: int = 1, scale: float | None = None, rule: RankingRule | None = None,
              use_ray: bool = False, ray_address: str | None = None, unit_timeout: float | None = None,
              progress: Callable[[GenerateProgress], None] | None = None,
-             mass: float | None = None, density: float | None = None, friction: float | None = None) -> Summary:
+             mass: float | None = None, density: float | None = None, friction: float | None = None,
+             on_table: int = 0) -> Summary:
     """Build (or extend) a grasp database; finished units are skipped, so a
     run that was killed resumes when called again. Units run in this process
     (``workers`` 1), in a crash-safe pool of ``workers`` processes, or on Ray
@@ -237,6 +258,9 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
     ``mass`` [kg] or ``density`` [kg/m^3], and ``friction``, apply to every
     object except where a manifest line gives its own (see
     :mod:`planner.specs.objects`); an object stored at other values is refused.
+    ``on_table`` > 0: plan on the table in each object's ``on_table`` most
+    probable resting poses (the grasps keep the hand off the table and record
+    its plane, ``table_plane``), not on the object alone.
     ``progress(GenerateProgress)`` once the work is planned, then as it goes."""
     from planner.run import pool
     from planner.run.progress import Tally
@@ -246,18 +270,18 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
     physical = Physical.checked({"mass": mass, "density": density, "friction": friction}, prefix="--")
     hand_spec = load_hand(hand)
     settings = (settings or SweepSettings()).resolved(hand_spec.sampler, hand_spec.settle)
-    units = plan_units(names, hand, settings, seed, scale, physical)
+    units = plan_units(names, hand, settings, seed, scale, physical, on_table)
     summary = Summary()
     start = time.perf_counter()
     with writer_lock(Path(db_path)), open_db(Path(db_path)) as db:
         _check_stored_physics(db, units)
         rule = rule or db.rule()
         db.apply_rule(rule)
-        done = db.units_done(hand, settings.digest, seed)
-        todo = [u for u in units if (u.label, u.chunk) not in done]
+        done = {d: db.units_done(hand, d, seed) for d in sorted({u.settings.digest for u in units})}
+        todo = [u for u in units if (u.label, u.chunk) not in done[u.settings.digest]]
         summary.skipped = len(units) - len(todo)
         shapes = load_preshapes(hand_spec, list(settings.preshapes) if settings.preshapes else None)
-        tally = Tally([candidate_count(settings, shapes, u.chunk) for u in todo])
+        tally = Tally([candidate_count(u.settings, shapes, u.chunk) for u in todo])
         finished = 0
 
         def tell(result: UnitResult | None = None) -> None:
@@ -274,7 +298,7 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
         hard_timeout = unit_timeout + UNIT_TIMEOUT_GRACE if unit_timeout else None
         ray = (ray_address or "local") if use_ray else None
         unit_result = _lazy("UnitResult")
-        index = {(u.label, u.chunk): i for i, u in enumerate(todo)}
+        index = {_unit_key(u): i for i, u in enumerate(todo)}
         with closing(pool.execute(_lazy("run_unit"), todo, workers, timeout=hard_timeout, ray=ray,
                                   progress=reported if progress else None)) as outcomes:
             for unit, outcome, seconds in outcomes:
@@ -282,10 +306,15 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
                 db.write_unit(unit_row(result, seconds), result.obj, result.grasps, rule)
                 _tally(summary, result, seconds)
                 finished += 1
-                tally.finish(index[unit.label, unit.chunk])
+                tally.finish(index[_unit_key(unit)])
                 tell(result)
     summary.seconds = time.perf_counter() - start
     return summary
+
+
+def _unit_key(unit: UnitSpec) -> tuple[str | None, str, int]:
+    """What tells a run's units apart: object, settings (the table plane among them), chunk."""
+    return unit.label, unit.settings.digest, unit.chunk
 
 
 def unit_row(result: UnitResult, seconds: float) -> UnitRow:
@@ -406,17 +435,21 @@ def ranking_rule(db_path: Path = DEFAULT_DB) -> RankingRule:
 
 @dataclass(frozen=True)
 class ReachableGrasp:
-    """A stored grasp with the arm solutions that reach it at a given pose."""
+    """A grasp with the arm solutions that reach it at a given pose: a stored
+    one, or (``planned_now``) one the query planned on the spot with the
+    table under the object (not stored: no id, no rank)."""
 
     grasp: Grasp
     arm_grasp: dict[str, float]  # arm joint values [rad] at the grasp
     arm_pregrasp: dict[str, float]  # ... and at the pre-grasp
     manipulability: float
     hand_pose_world: list[list[float]]  # (4, 4) where the hand frame ends up [m]
+    planned_now: bool = False
 
     def to_json(self) -> dict:
         return {**self.grasp.to_json(), "arm": {"grasp": self.arm_grasp, "pregrasp": self.arm_pregrasp},
-                "arm_manipulability": self.manipulability, "hand_pose_world": self.hand_pose_world}
+                "arm_manipulability": self.manipulability, "hand_pose_world": self.hand_pose_world,
+                "planned_now": self.planned_now}
 
 
 def p_hold_model(hand: str, *, db_path: Path = DEFAULT_DB) -> LogisticModel | None:
@@ -429,55 +462,171 @@ def p_hold_model(hand: str, *, db_path: Path = DEFAULT_DB) -> LogisticModel | No
 def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path = DEFAULT_DB, top: int = 1,
             robot_base: Sequence[float] | None = None, max_candidates: int = MAX_CANDIDATES,
             pregrasp_distance: float = PREGRASP_DISTANCE, seed: int = 0,
-            misses: list[tuple[int, str]] | None = None) -> list[ReachableGrasp]:
-    """The best stored grasps that an arm reaches *now*, with the object at
-    ``object_pose`` (x, y, z, qx, qy, qz, qw, world frame) and the robot base at
-    ``robot_base`` (same form; default the origin). Candidates are tried in
-    rank order, at most ``max_candidates`` of them; ``misses``, if given,
-    receives (rank, why) of each one tried and not reachable."""
+            misses: list[tuple[int, str]] | None = None, plan: bool = True) -> list[ReachableGrasp]:
+    """The best grasps that an arm reaches *now*, with the object at
+    ``object_pose`` (x, y, z, qx, qy, qz, qw, world frame) on the table top
+    z = 0 and the robot base at ``robot_base`` (same form; default the
+    origin): the ``top`` best-ranked stored grasps it reaches, of at most
+    ``max_candidates`` tried (:func:`_reachable`: those planned on the table
+    in this resting pose first, then better-ranked others); if fewer than
+    ``top`` of them are force closure and ``plan``, grasps are also planned
+    on the spot with the table under the object (:func:`_plan_now`, from
+    ``seed``), and the force-closure ones come first (:func:`_preferred`). ``misses``, if
+    given, receives (rank, why) of each one tried and not reachable (rank 0:
+    planned on the spot)."""
     from planner.plan.reach import ReachScene, ReachSettings
     from planner.sim import Sim
 
-    if top < 1:
-        raise InputError(f"--top must be at least 1, got {top}")
+    if top < 1 or max_candidates < 0:
+        raise InputError(f"--top must be at least 1 and --max-candidates at least 0, got {top} and {max_candidates}")
     obj_pose = _pose7(object_pose, "--object-pose")
     base = _pose7(robot_base, "--robot-base") if robot_base is not None else np.eye(4)
     spec = load_hand(hand)
+    missed = misses if misses is not None else []
     with open_db(Path(db_path), create=False, readonly=True) as db, db.snapshot(), Sim() as sim:
         key, obj = _stored(db, name, hand)
         scene = ReachScene(sim, spec, obj, ReachSettings(pregrasp_distance=pregrasp_distance), base)
-        return _reachable(db, scene, key, hand, obj_pose, top, max_candidates, np.random.default_rng(seed),
-                          misses if misses is not None else [])
+        rng = np.random.default_rng(seed)
+        found = _reachable(db, scene, key, hand, obj_pose, top, max_candidates, rng, missed)
+        if plan and _closures(found) < top:
+            found = _preferred(found, _plan_now(db, scene, obj, obj_pose, top, seed, rng, missed), top)
+        return found
+
+
+def _closures(found: Sequence[ReachableGrasp]) -> int:
+    return sum(bool(r.grasp.force_closure) for r in found)
+
+
+def _preferred(stored: list[ReachableGrasp], planned: list[ReachableGrasp], top: int) -> list[ReachableGrasp]:
+    """The ``top`` to return of reachable stored grasps (rank order) and grasps
+    planned on the spot (best first): force closure first, stored before
+    planned."""
+    return sorted([*stored, *planned], key=lambda r: not r.grasp.force_closure)[:top]  # stable: keeps each order
 
 
 def _reachable(db: Database, scene: ReachScene, key: str, hand: str, obj_pose: np.ndarray, top: int,
                max_candidates: int, rng: np.random.Generator, misses: list[tuple[int, str]]) -> list[ReachableGrasp]:
-    """The first ``top`` of the ``max_candidates`` best grasps the scene's arm
-    reaches with the object at ``obj_pose`` (4, 4); misses noted as (rank, why)."""
-    scene.place_object(obj_pose)
-    found: list[ReachableGrasp] = []
-    offset = 0
-    while len(found) < top and offset < max_candidates:
-        batch = db.best(key, hand, min(CANDIDATE_BATCH, max_candidates - offset), offset)
-        if not batch:
-            break
-        offset += len(batch)
-        for g in batch:
-            if not g.score:
-                misses.append((g.rank or 0, "score 0 (gated out by the ranking rule)"))
-                continue
-            reach = scene.check(g.pose, g.closed_joints, g.open_joints, rng)
-            if reach.grasp is not None and reach.pregrasp is not None:
-                found.append(ReachableGrasp(g, reach.grasp.joints, reach.pregrasp.joints,
-                                            reach.grasp.manipulability, (obj_pose @ g.pose).tolist()))
-                if len(found) == top:
-                    break
-            else:
-                misses.append((g.rank or 0, reach.why))
-    if offset == 0:
+    """The ``top`` best-ranked stored grasps the scene's arm reaches with the
+    object at ``obj_pose`` (4, 4), of at most ``max_candidates`` tried, best
+    first; misses noted as (rank, why). Without grasps planned on the table
+    in this resting pose (:func:`planner.geometry.support.nearest`), every
+    grasp in rank order. With them: those first, in rank order (most are
+    reachable: a few tries find ``top``); then the others (planned on the
+    object alone or on another plane), in rank order, only those ranked above
+    the worst found so far -- the ones that could still make the ``top``."""
+    from planner.geometry.support import Support, nearest
+
+    plane = nearest(db.table_planes(key, hand), Support.under(obj_pose, scene.settings.table_height))
+    if plane is None:
+        found, tried = _first_reached(scene, _ranked(db, key, hand), obj_pose, top, max_candidates, rng, misses)
+    else:
+        found, tried = _first_reached(scene, _ranked(db, key, hand, table_plane=plane), obj_pose, top,
+                                      max_candidates, rng, misses)
+        others = _ranked(db, key, hand, table_plane=plane, other_planes=True)
+        if len(found) == top:
+            bound = found[-1].grasp.rank or 0
+            others = itertools.takewhile(lambda g: (g.rank or 0) < bound, others)
+        more, extra = _first_reached(scene, others, obj_pose, top, max_candidates - tried, rng, misses)
+        found = sorted(found + more, key=lambda r: r.grasp.rank or 0)[:top]
+        tried += extra
+    if tried == 0 and max_candidates > 0:
         raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db.path}; "
                          f"run `{generate_command(key, db.object_row(key), hand, db.path)}`")
     return found
+
+
+def _ranked(db: Database, key: str, hand: str, **which: Any) -> Iterator[Grasp]:
+    """Stored grasps of (key, hand) in rank order, read in batches; ``which``:
+    :meth:`Database.best`'s ``table_plane`` and ``other_planes``."""
+    offset = 0
+    while batch := db.best(key, hand, CANDIDATE_BATCH, offset, **which):
+        offset += len(batch)
+        yield from batch
+
+
+def _first_reached(scene: ReachScene, grasps: Iterable[Grasp], obj_pose: np.ndarray, top: int, max_candidates: int,
+                   rng: np.random.Generator, misses: list[tuple[int, str]], planned_now: bool = False
+                   ) -> tuple[list[ReachableGrasp], int]:
+    """The first ``top`` of at most ``max_candidates`` of ``grasps``, in their
+    order, that the scene's arm reaches with the object at ``obj_pose`` (4,
+    4), and how many were tried; misses noted as (rank, why), rank 0 for a
+    grasp not stored."""
+    scene.place_object(obj_pose)
+    found: list[ReachableGrasp] = []
+    tried = 0
+    for g in grasps:
+        if len(found) == top or tried == max_candidates:
+            break
+        tried += 1
+        if not g.score:
+            misses.append((g.rank or 0, "score 0 (gated out by the ranking rule)"))
+            continue
+        reach = scene.check(g.pose, g.closed_joints, g.open_joints, rng)
+        if reach.grasp is not None and reach.pregrasp is not None:
+            found.append(ReachableGrasp(g, reach.grasp.joints, reach.pregrasp.joints,
+                                        reach.grasp.manipulability, (obj_pose @ g.pose).tolist(), planned_now))
+        else:
+            misses.append((g.rank or 0, reach.why))
+    return found, tried
+
+
+def _plan_now(db: Database, scene: ReachScene, obj: PreparedObject, obj_pose: np.ndarray, top: int, seed: int,
+              rng: np.random.Generator, misses: list[tuple[int, str]]) -> list[ReachableGrasp]:
+    """Plan grasps on the spot with the table under the object at
+    ``obj_pose`` (:data:`PLAN_NOW`, seeded by ``seed``; not stored), score
+    them as ``db`` would, and return the first ``top`` the arm reaches, best
+    first; misses noted with rank 0."""
+    from planner.geometry.support import Support
+    from planner.plan.unit import plan_object
+
+    hand = scene.hand
+    start = time.process_time()
+    settings = plan_now_settings(hand).on(Support.under(obj_pose, scene.settings.table_height))
+    result = plan_object(obj, hand.name, settings, seed)
+    grasps = db.scored(result.grasps, hand.name)
+    found, tried = _first_reached(scene, grasps, obj_pose, top, len(grasps), rng, misses, planned_now=True)
+    log.info("planned on the spot with the table: %d candidates, %d grasps, %d reachable of %d tried (%.1f CPU s)",
+             result.candidates, len(grasps), len(found), tried, time.process_time() - start)
+    if not grasps:
+        misses.append((0, f"planned on the spot with the table: none of {result.candidates} candidates closed on "
+                          "the object"))
+    return found
+
+
+#: The sweep ``grasp best --object-pose`` / ``--on-table`` runs on the spot
+#: when no stored grasp is reachable: per sampler, approaches and rolls (a
+#: fraction of the default sweep: seconds, not minutes), one unit, no
+#: stored reachability (the query checks reach exactly), and a force-closure
+#: budget that ends it once it has found enough.
+PLAN_NOW = {"surface": {"approaches": 24, "rolls": 2}, "box": {"rolls": 2},
+            "antipodal": {"approaches": 256, "rolls": 8}}
+PLAN_NOW_BUDGET = 40
+
+
+def plan_now_settings(hand: HandSpec) -> SweepSettings:
+    """The sweep of :data:`PLAN_NOW` for ``hand`` (before the table plane is set)."""
+    return SweepSettings(chunk=0, reach_placements=0, fc_budget=PLAN_NOW_BUDGET,
+                         **PLAN_NOW[hand.sampler]).resolved(hand.sampler, hand.settle)
+
+
+def table_command(name: str, hand: str, db_path: Path = DEFAULT_DB) -> str:
+    """The ``grasp generate --on-table`` command that plans the object's
+    grasps on the table in its most probable resting poses."""
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        _, row = resolve_object(db, name)
+    return generate_command(name, row, hand, Path(db_path)) + " --on-table"
+
+
+def planned_on_table(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path = DEFAULT_DB,
+                     table_height: float = 0.0) -> bool:
+    """Are grasps of the object stored that were planned on the table as it
+    lies at ``object_pose`` (the same resting pose, :func:`planner.geometry.support.nearest`)?"""
+    from planner.geometry.support import Support, nearest
+
+    pose = _pose7(object_pose, "--object-pose")
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        key, _ = resolve_object(db, name)
+        return nearest(db.table_planes(key, hand), Support.under(pose, table_height)) is not None
 
 
 @dataclass(frozen=True)
@@ -502,16 +651,20 @@ class TableGrasps:
 
 def best_on_table(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1, at: Sequence[float] = TABLE_AT,
                   table_height: float = 0.0, poses: int = 3, robot_base: Sequence[float] | None = None,
-                  max_candidates: int = MAX_CANDIDATES, seed: int = 0) -> list[TableGrasps]:
+                  max_candidates: int = MAX_CANDIDATES, seed: int = 0, plan: bool = True) -> list[TableGrasps]:
     """The best reachable grasps with the object resting on the table at
     ``at`` = (x, y) [m] (world frame), in each of its ``poses`` most probable
-    resting poses (:mod:`planner.geometry.stable`), most probable first."""
+    resting poses (:mod:`planner.geometry.stable`), most probable first; in
+    each, as :func:`best_at` finds them (stored grasps planned on the table
+    in that pose first, then the rest; with ``plan``, grasps planned on the
+    spot if fewer than ``top`` are reachable)."""
     from planner.geometry.stable import resting_poses
     from planner.plan.reach import ReachScene, ReachSettings
     from planner.sim import Sim
 
-    if top < 1 or poses < 1:
-        raise InputError(f"--top and --stable-poses must be at least 1, got {top} and {poses}")
+    if top < 1 or poses < 1 or max_candidates < 0:
+        raise InputError(f"--top and --stable-poses must be at least 1 and --max-candidates at least 0, got {top}, "
+                         f"{poses} and {max_candidates}")
     xy = [float(v) for v in at]
     if len(xy) != 2 or not all(np.isfinite(xy)) or not np.isfinite(table_height):
         raise InputError(f"--table-at needs 2 finite numbers x,y [m]; got {at}")
@@ -520,12 +673,14 @@ def best_on_table(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int 
     out = []
     with open_db(Path(db_path), create=False, readonly=True) as db, db.snapshot(), Sim() as sim:
         key, obj = _stored(db, name, hand)
-        scene = ReachScene(sim, spec, obj, ReachSettings(), base)
+        scene = ReachScene(sim, spec, obj, ReachSettings(table_height=table_height), base)
         rng = np.random.default_rng(seed)
         for resting in resting_poses(obj.mesh, obj.com, poses):
             pose = resting.placed(xy[0], xy[1], table_height)
             misses: list[tuple[int, str]] = []
             found = _reachable(db, scene, key, hand, pose, top, max_candidates, rng, misses)
+            if plan and _closures(found) < top:
+                found = _preferred(found, _plan_now(db, scene, obj, pose, top, seed, rng, misses), top)
             out.append(TableGrasps(resting, pose, found, misses))
     return out
 
@@ -578,7 +733,8 @@ def view(name: str, hands: Sequence[str] | None = None, *, db_path: Path = DEFAU
     """Start the browser viewer on the ``top`` best grasps of each hand (all
     hands with grasps of the object when ``hands`` is None). With
     ``object_pose`` only grasps the arm reaches at that pose are offered,
-    placed in the world with the arm. Returns the running viewer (``url``,
+    placed in the world with the arm (stored ones; if none is reachable,
+    grasps planned on the spot with the table, as ``best --object-pose``). Returns the running viewer (``url``,
     ``stop()``)."""
     from planner.db.objects import stored_object
     from planner.present import scene as scenes
@@ -605,15 +761,16 @@ def view(name: str, hands: Sequence[str] | None = None, *, db_path: Path = DEFAU
         if object_pose is None:
             found = [(g, None, ()) for g in best(key, h, db_path=db_path, top=top, spacing=spacing)]
         else:
-            found = [(r.grasp, r.arm_grasp, (_arm_line(r),))
-                     for r in best_at(key, h, object_pose, db_path=db_path, top=top, robot_base=robot_base)]
+            reached = best_at(key, h, object_pose, db_path=db_path, top=top, robot_base=robot_base, plan=False) or \
+                best_at(key, h, object_pose, db_path=db_path, top=top, robot_base=robot_base, max_candidates=0)
+            found = [(r.grasp, r.arm_grasp, (_arm_line(r),)) for r in reached]
         for g, arm, extra in found:
             def build(g=g, arm=arm, spec=specs[h]):  # noqa: B023 - bound per grasp
                 return scenes.grasp_scene(spec, obj.mesh, g, obj.friction, world, arm, base)
             entries.append(viewer.Entry(g, build, extra))
     if not entries:
-        raise InputError(f"no stored grasp of '{key}' is reachable at --object-pose {object_pose}; "
-                         "try `grasp best ... --object-pose ... --max-candidates 2000`")
+        raise InputError(f"no grasp of '{key}' is reachable at --object-pose {object_pose}, stored or planned on "
+                         "the spot with the table; `grasp best ... --object-pose ...` says why")
     return viewer.Viewer(entries, specs, scenes.object_part(obj.mesh, world), host=host, port=port)
 
 

@@ -67,6 +67,12 @@ DEFAULTS = api.SweepSettings()
                    "limit.")
 @click.option("--reach-weight", type=float, help="Weight of reachability in the score, 0..1 (default: the "
               "database's rule, else 0.5).")
+@click.option("--on-table", is_flag=True, help="Plan on a table: for each object in each of its most probable "
+              "resting poses (--stable-poses), with the table top as an obstacle, approaches from above its level "
+              "only and the pre-grasp clear of it; the grasps record the table plane, and `grasp best "
+              "--object-pose/--on-table` tries them first.")
+@click.option("--stable-poses", type=click.IntRange(min=1), default=3, show_default=True,
+              help="With --on-table: how many resting poses, most probable first.")
 @click.option("--quiet", is_flag=True, help="No progress bar and no summary table.")
 @click.option("--json", "as_json", is_flag=True, help="Print a machine-readable summary.")
 def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approaches: int | None,
@@ -75,7 +81,7 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
              density: float | None, friction: float | None, workers: int,
              ray_target: str | None, unit_timeout: float | None, chunk: int | None, reach_placements: int,
              reach_top: int, volume: bool, settle: bool | None, fc_budget: int, reach_weight: float | None,
-             quiet: bool, as_json: bool) -> None:
+             on_table: bool, stable_poses: int, quiet: bool, as_json: bool) -> None:
     """Sweep preshapes x approaches x rolls x standoffs and store the grasps.
 
     OBJECT: a built-in name, random_NNN, a mesh file, a folder, a glob,
@@ -121,7 +127,8 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
         summary = api.generate(names, hand, db_path=db_path, settings=settings, seed=seed, workers=workers,
                                scale=scale, rule=rule, progress=advance, use_ray=ray_target is not None,
                                ray_address=None if ray_target in (None, "local") else ray_target,
-                               unit_timeout=unit_timeout, mass=mass, density=density, friction=friction)
+                               unit_timeout=unit_timeout, mass=mass, density=density, friction=friction,
+                               on_table=stable_poses if on_table else 0)
     finally:
         if tasks:
             bar.stop()

@@ -22,28 +22,37 @@ from planner.specs.hands import hand_frame
               "grasps an arm reaches there now, with joint solutions.")
 @click.option("--robot-base", help="x,y,z,qx,qy,qz,qw of the robot base (default: the origin).")
 @click.option("--max-candidates", type=int, default=api.MAX_CANDIDATES, show_default=True,
-              help="With --object-pose: how many top-ranked grasps to try at most.")
+              help="With --object-pose or --on-table: how many stored grasps to try at most (0: plan on the spot "
+              "at once).")
 @click.option("--on-table", is_flag=True, help="Put the object on the table in its most probable resting poses "
               "(no --object-pose needed): the best grasps the arm reaches in each.")
 @click.option("--table-at", default="0.5,0", show_default=True, help="With --on-table: x,y [m] of the object on the "
               "table top z = 0, world frame.")
 @click.option("--stable-poses", type=int, default=3, show_default=True, help="With --on-table: how many resting "
               "poses to try, most probable first.")
+@click.option("--plan/--no-plan", default=True, show_default=True, help="With --object-pose or --on-table: when "
+              "fewer than --top stored grasps are reachable, plan grasps on the spot with the table under the object "
+              "(a small sweep, seconds; not stored; from --seed).")
+@click.option("--seed", type=int, default=0, show_default=True, help="With --object-pose or --on-table: seeds the "
+              "arm's IK restarts and the grasps planned on the spot.")
 @click.option("--json", "as_json", is_flag=True)
 @click.option("--explain", is_flag=True, help="Also print why each grasp scores what it does, term by term of the "
               "ranking rule.")
 @diverse_options
 def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str | None, robot_base: str | None,
-         max_candidates: int, on_table: bool, table_at: str, stable_poses: int, as_json: bool, explain: bool,
-         diverse: bool, min_translation: float, min_rotation: float) -> None:
-    """The best grasps of OBJECT for a hand, from the database."""
+         max_candidates: int, on_table: bool, table_at: str, stable_poses: int, plan: bool, seed: int, as_json: bool,
+         explain: bool, diverse: bool, min_translation: float, min_rotation: float) -> None:
+    """The best grasps of OBJECT for a hand, from the database (with
+    --object-pose or --on-table: those an arm reaches there, planned on the
+    spot with the table if none stored is)."""
     rule = api.ranking_rule(db_path) if explain else None
     model = api.p_hold_model(hand, db_path=db_path) if explain else None
     apart = spacing(diverse, min_translation, min_rotation)
     if on_table:
         if object_pose is not None or apart is not None:
             raise click.BadParameter("--on-table chooses the object pose itself: leave out --object-pose, --diverse")
-        _on_table(object_name, hand, db_path, top, table_at, stable_poses, robot_base, max_candidates, as_json)
+        _on_table(object_name, hand, db_path, top, table_at, stable_poses, robot_base, max_candidates, as_json, plan,
+                  seed)
         return
     if object_pose is None:
         if robot_base is not None:
@@ -60,17 +69,22 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
         raise click.BadParameter("--diverse is not yet available with --object-pose")
     misses: list[tuple[int, str]] = []
     found = api.best_at(object_name, hand, floats(object_pose) or (), db_path=db_path, top=top,
-                        robot_base=floats(robot_base), max_candidates=max_candidates, misses=misses)
+                        robot_base=floats(robot_base), max_candidates=max_candidates, misses=misses, plan=plan,
+                        seed=seed)
     world = api.object_pose_matrix(floats(object_pose) or ())
     if as_json:
         click.echo(json.dumps([{**r.to_json(), "frames": _frames_json(r.grasp, world, rule, model)} for r in found],
                               indent=2))
         return
     if not found:
+        table = "" if api.planned_on_table(object_name, hand, floats(object_pose) or (), db_path=db_path) else (
+            ", grasps planned on the table in this resting pose (none is stored; "
+            f"`{api.table_command(object_name, hand, db_path)}` plans the most probable ones)")
+        spot = "" if plan else ", planning on the spot (leave out --no-plan)"
         raise NotFoundError(f"none of the {max_candidates} best grasps of '{object_name}' for hand '{hand}' is "
                             f"reachable with the object at {object_pose} ({_misses(misses)}); try more of them "
-                            f"(--max-candidates {max_candidates * 10}), an object pose nearer the arm, --on-table, "
-                            f"or check --robot-base")
+                            f"(--max-candidates {max_candidates * 10}), an object pose nearer the arm{table}{spot}, "
+                            "--on-table, or check --robot-base")
     for r in found:
         _print_grasp(r.grasp, world, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp}, rule,
                      model)
@@ -119,20 +133,28 @@ def show(object_name: str, hand: str, db_path: Path, rank: int, top: int | None,
 
 
 def _misses(misses: list[tuple[int, str]]) -> str:
-    """Why the best ranks tried were not reachable: the first few, and the count of each reason."""
+    """Why the best ranks tried were not reachable: the first few, and the
+    count of each reason; then why the grasps planned on the spot (rank 0)
+    were not."""
     from collections import Counter
 
-    if not misses:
-        return "no grasp tried"
-    first = ", ".join(f"#{rank}: {why}" for rank, why in misses[:3])
-    counts = "; ".join(f"{n} x {why}" for why, n in Counter(w for _, w in misses).most_common())
-    return f"nearest ranks tried {first}; of {len(misses)} tried: {counts}"
+    stored = [(rank, why) for rank, why in misses if rank]
+    planned = [why for rank, why in misses if not rank]
+    text = "no stored grasp tried"
+    if stored:
+        first = ", ".join(f"#{rank}: {why}" for rank, why in stored[:3])
+        counts = "; ".join(f"{n} x {why}" for why, n in Counter(w for _, w in stored).most_common())
+        text = f"nearest ranks tried {first}; of {len(stored)} tried: {counts}"
+    if planned:
+        counts = "; ".join(f"{n} x {why}" for why, n in Counter(planned).most_common())
+        text += f"; planned on the spot with the table: {counts}"
+    return text
 
 
 def _on_table(name: str, hand: str, db_path: Path, top: int, table_at: str, poses: int, robot_base: str | None,
-              max_candidates: int, as_json: bool) -> None:
+              max_candidates: int, as_json: bool, plan: bool, seed: int) -> None:
     tables = api.best_on_table(name, hand, db_path=db_path, top=top, at=floats(table_at) or (), poses=poses,
-                               robot_base=floats(robot_base), max_candidates=max_candidates)
+                               robot_base=floats(robot_base), max_candidates=max_candidates, plan=plan, seed=seed)
     if as_json:
         click.echo(json.dumps([t.to_json() for t in tables], indent=2))
     for i, t in enumerate(tables if not as_json else ()):
@@ -144,5 +166,7 @@ def _on_table(name: str, hand: str, db_path: Path, top: int, table_at: str, pose
         for r in t.grasps:
             _print_grasp(r.grasp, t.object_pose, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp})
     if not any(t.grasps for t in tables):
+        planned = any(api.planned_on_table(name, hand, t.object_pose7(), db_path=db_path) for t in tables)
+        table = "" if planned else f", or grasps planned on the table (`{api.table_command(name, hand, db_path)}`)"
         raise NotFoundError(f"no grasp among the top {max_candidates} is reachable in the {len(tables)} most probable "
-                            f"resting poses; try --max-candidates {max_candidates * 4} or another --table-at")
+                            f"resting poses; try --max-candidates {max_candidates * 4}, another --table-at{table}")

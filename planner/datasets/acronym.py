@@ -61,7 +61,9 @@ when absent);
 [rad or m]; ``width`` (N,) [m] (NaN: not a parallel jaw); ``preshape``,
 ``candidate``, ``seed``; ``contacts`` (N,) JSON text ``[{point, normal,
 link}]`` in the object frame; ``approach_point``, ``approach_dir`` (N, 3),
-``roll`` [rad], ``standoff`` [m]; ``poses_hand_frame`` (N, 4, 4) (the hand
+``roll`` [rad], ``standoff`` [m]; ``table_plane`` (N, 4) the table top the grasp
+was planned on, object frame, [nx, ny, nz, height] (NaN: planned on the object
+alone); ``poses_hand_frame`` (N, 4, 4) (the hand
 frame in the object frame) and ``export_frame`` (4, 4) with transforms =
 poses_hand_frame @ export_frame.
 
@@ -130,7 +132,7 @@ QUALITIES = {
 #: (besides ``transforms``, ``object_in_gripper`` and the joint matrices).
 DATASETS = {**MOTIONS, **{f"qualities/{name}": column for name, column in QUALITIES.items()},
             **{name: name for name in ("width", "preshape", "candidate", "seed", "contacts", "approach_point",
-                                       "approach_dir", "roll", "standoff")},
+                                       "approach_dir", "roll", "standoff", "table_plane")},
             "poses_hand_frame": "pose"}
 #: Datasets whose presence marks a file with this project's extras.
 EXTRAS = ("qualities/epsilon", "qualities/volume", "qualities/force_closure", "joint_names", "joints_closed",
@@ -326,6 +328,7 @@ def read_grasps(path: Path, hand: HandSpec, obj: str, poses: np.ndarray) -> list
         approach_point = g["approach_point"][()] if "approach_point" in g else [r[0] for r in rays]
         roll = g["roll"][()] if "roll" in g else [r[2] for r in rays]
         standoff = g["standoff"][()] if "standoff" in g else np.zeros(n)
+        planes = g["table_plane"][()] if "table_plane" in g else np.full((n, 4), np.nan)
         contacts = g["contacts"].asstr()[()]
     return [Grasp(object=obj, hand=hand.name, preshape=str(preshape[i]), candidate=i, seed=0,
                   approach_point=np.asarray(approach_point[i], float), approach_dir=np.asarray(approach_dir[i], float),
@@ -335,6 +338,7 @@ def read_grasps(path: Path, hand: HandSpec, obj: str, poses: np.ndarray) -> list
                   epsilon=float(col["epsilon"][i]), volume=float(col["volume"][i]),
                   force_closure=bool(col["force_closure"][i]), reachability=_maybe(col["reachability"][i]),
                   manipulability=_maybe(col["manipulability"][i]),
+                  table_plane=None if np.isnan(planes[i]).any() else np.asarray(planes[i], float),
                   measures=measures[i])
             for i in range(n)]
 

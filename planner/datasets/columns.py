@@ -38,7 +38,9 @@ def _array(f: Field) -> Builder:
     if f.kind == "bool":
         return lambda gs: np.array([neutral if (v := get(g)) is None else int(v) for g in gs], dtype)
     if shape:
-        return lambda gs: np.array([get(g) for g in gs], dtype).reshape(len(gs), *shape)
+        absent = np.full(shape, neutral, dtype)  # a vector that may be absent (the table plane): NaN
+        return lambda gs: np.array([absent if (v := get(g)) is None else v for g in gs], dtype).reshape(len(gs),
+                                                                                                         *shape)
     return lambda gs: np.array([neutral if (v := get(g)) is None else v for g in gs], dtype)
 
 

@@ -49,6 +49,8 @@ def _suffixes(shape: tuple[int, ...]) -> list[tuple[str, tuple[int, ...]]]:
     """Column suffixes of a vector field and the index of each."""
     if shape == (3,):
         return [(f"_{a}", (i,)) for i, a in enumerate(_AXES)]
+    if len(shape) == 1:
+        return [(f"_{i}", (i,)) for i in range(shape[0])]
     return [(f"_{i}{j}", (i, j)) for i in range(shape[0]) for j in range(shape[1])]
 
 

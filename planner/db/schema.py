@@ -30,7 +30,10 @@ Tables (the README lists every column):
   until the next write re-scores them: ``meta.p_hold_models``).
 - ``grasps`` (v6) gains the grip measures (:mod:`planner.plan.grip`):
   ``pad_area``, ``pad_alignment``, ``opposition``, ``jaw_fill``,
-  ``palm_gap``, ``com_lever``; NULL for grasps stored before (not measured).
+  ``palm_gap``, ``com_lever``; NULL for grasps stored before (not measured);
+  and ``table_plane``: the table top a grasp was planned on (``grasp
+  generate --on-table``), object frame, JSON ``[nx, ny, nz, height]``; NULL
+  for a grasp planned on the object alone (every grasp stored before).
 
 No pickle: arrays are JSON text. A new database runs :data:`SCHEMA` (version
 1) and then every migration; a newer schema is refused politely; an older one
@@ -121,14 +124,16 @@ CREATE TABLE IF NOT EXISTS calibration (
 );
 ALTER TABLE grasps ADD COLUMN p_hold REAL
 """,
-    # v6: the grip measures (issue 26, planner.plan.grip; NULL: not measured, grasps stored before).
+    # v6: the grip measures (issue 26, planner.plan.grip; NULL: not measured, grasps stored before) and the
+    # table a grasp was planned on (issue 25; NULL: the object alone).
     5: """
 ALTER TABLE grasps ADD COLUMN pad_area REAL;
 ALTER TABLE grasps ADD COLUMN pad_alignment REAL;
 ALTER TABLE grasps ADD COLUMN opposition REAL;
 ALTER TABLE grasps ADD COLUMN jaw_fill REAL;
 ALTER TABLE grasps ADD COLUMN palm_gap REAL;
-ALTER TABLE grasps ADD COLUMN com_lever REAL
+ALTER TABLE grasps ADD COLUMN com_lever REAL;
+ALTER TABLE grasps ADD COLUMN table_plane TEXT
 """,
 }
 

@@ -23,7 +23,7 @@ import sqlite3
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -31,7 +31,7 @@ import numpy as np
 
 from planner.calibration import features
 from planner.calibration.model import LogisticModel, default_model
-from planner.db.ranking import ORDER_BY, RankingRule, rule_measures
+from planner.db.ranking import ORDER_BY, RankingRule, rank_order, rule_measures
 from planner.db.schema import (
     EMPTY_V2_TABLES,
     SCHEMA_VERSION,
@@ -67,6 +67,7 @@ _GRASP_COLUMNS = tuple(f.column for f in _GRASPS if f.column not in ("id", "rank
 _VALIDATION_COLUMNS = tuple(f.column for f in fields.table("validation"))
 _ROBUST_COLUMNS = tuple(f.column for f in fields.table("robust"))
 _OBJECTS = fields.table("objects")
+_TABLE_PLANE = fields.by_name("table_plane")
 _OBJECT_COLUMNS = tuple(f.column for f in _OBJECTS)
 _UNIT_COLUMNS = ("object", "hand", "settings_hash", "seed", "chunk", "settings", "status", "error", "candidates",
                  "grasps", "force_closure", "rejected", "seconds", "finished_at")
@@ -137,6 +138,13 @@ def _decoded(f: Field, column: Sequence) -> Iterable:
     if kind == "joints":
         return map(Joints.stored, column)
     if kind == "vector":
+        if f.nullable:  # NULL: not there (a grasp planned without a table)
+            column = list(column)
+            present = [i for i, v in enumerate(column) if v is not None]
+            out: list = [None] * len(column)
+            for i, v in zip(present, _vectors([column[i] for i in present], f.shape) if present else []):
+                out[i] = v
+            return out
         return _vectors(column, f.shape)
     return column
 
@@ -366,13 +374,7 @@ class Database:
         atomically, then re-rank the object's grasps; returns the unit's id."""
         key = (unit.object, unit.hand, unit.settings_hash, unit.seed, unit.chunk)
         status = "failed" if unit.error else "done"
-        measures = rule_measures(grasps)
-        model = self.model(unit.hand)
-        p_hold = [None] * len(grasps)
-        if model is not None and grasps:  # the hand's model, on the records' measures; the rule reads it
-            measures["p_hold"] = model.predict(features.of_grasps(grasps))
-            p_hold = measures["p_hold"].tolist()
-        scores = rule.scores(measures)
+        scores, p_hold = self._scores(grasps, unit.hand, rule)
         with self._transaction() as conn:
             conn.execute("DELETE FROM units WHERE object = ? AND hand = ? AND settings_hash = ? AND seed = ?"
                          " AND chunk = ?", key)
@@ -386,6 +388,28 @@ class Database:
                              [_grasp_row(g, unit_id, score, p) for g, score, p in zip(grasps, scores.tolist(), p_hold)])
             conn.execute(_RERANK, (unit.object, unit.hand))
         return int(unit_id)  # type: ignore[arg-type]
+
+    def _scores(self, grasps: Sequence[Grasp], hand: str, rule: RankingRule) -> tuple[np.ndarray, list]:
+        """(n,) scores and the n p_hold values (None: no model) of grasps of
+        ``hand`` as :meth:`write_unit` stores them."""
+        measures = rule_measures(grasps)
+        model = self.model(hand)
+        p_hold: list = [None] * len(grasps)
+        if model is not None and grasps:  # the hand's model, on the records' measures; the rule reads it
+            measures["p_hold"] = model.predict(features.of_grasps(grasps))
+            p_hold = measures["p_hold"].tolist()
+        return rule.scores(measures), p_hold
+
+    def scored(self, grasps: Sequence[Grasp], hand: str) -> list[Grasp]:
+        """Grasps not stored (planned by a query) with the score and p_hold
+        this database would give them (its rule, the hand's model), best
+        first as it would rank them (:func:`planner.db.ranking.rank_order`;
+        ties in the given order); ``rank`` stays None."""
+        if not grasps:
+            return []
+        scores, p_hold = self._scores(grasps, hand, self.rule())
+        out = [replace(g, score=float(s), p_hold=p) for g, s, p in zip(grasps, scores.tolist(), p_hold)]
+        return [out[i] for i in rank_order(scores, np.array([g.force_closure for g in grasps], float))]
 
     # -- ranking ---------------------------------------------------------------
     def apply_rule(self, rule: RankingRule, force: bool = False) -> bool:
@@ -516,11 +540,30 @@ class Database:
         return {r["candidate"]: r["id"] for r in rows}
 
     @_reads
-    def best(self, obj: str, hand: str, top: int, offset: int = 0) -> list[Grasp]:
-        """The grasps of rank ``offset + 1`` .. ``offset + top``, in rank order."""
+    def best(self, obj: str, hand: str, top: int, offset: int = 0, *, table_plane: np.ndarray | None = None,
+             other_planes: bool = False) -> list[Grasp]:
+        """The grasps of rank ``offset + 1`` .. ``offset + top``, in rank order.
+        With ``table_plane`` (4,) (one of :meth:`table_planes`), the
+        ``offset + 1``-th .. of those planned on that table plane only, or,
+        with ``other_planes``, of all the others (on another plane or none)."""
+        where, params = "", [obj, hand]
+        if table_plane is not None:
+            where = " AND (g.table_plane IS NULL OR g.table_plane != ?)" if other_planes else " AND g.table_plane = ?"
+            params.append(_sql(_TABLE_PLANE, table_plane))
         cur = self._conn.execute(self._select("LEFT JOIN") + " WHERE g.object = ? AND g.hand = ? AND g.rank IS NOT NULL"
-                                 " ORDER BY g.rank LIMIT ? OFFSET ?", (obj, hand, top, offset))
+                                 f"{where} ORDER BY g.rank LIMIT ? OFFSET ?", (*params, top, offset))
         return _grasps(cur.fetchall())
+
+    @_reads
+    def table_planes(self, obj: str, hand: str) -> list[np.ndarray]:
+        """Every table plane (4,) [nx, ny, nz, height] that grasps of (obj,
+        hand) were planned on (``grasp generate --on-table``), sorted; none
+        in a file older than schema version 6 read read-only."""
+        if _TABLE_PLANE.column not in column_names(self._conn, "grasps"):
+            return []
+        rows = self._conn.execute("SELECT DISTINCT table_plane FROM grasps WHERE object = ? AND hand = ? AND "
+                                  "table_plane IS NOT NULL ORDER BY table_plane", (obj, hand)).fetchall()
+        return list(_vectors([r["table_plane"] for r in rows], _TABLE_PLANE.shape)) if rows else []
 
     @_reads
     def grasp_batches(self, obj: str, hand: str, *, min_epsilon: float | None = None, top: int | None = None,

@@ -30,6 +30,15 @@ within a measured 0.25 mm of the exact mesh, so the cost of a closing does
 not grow with the face count; the contact points are then moved onto the
 exact mesh.
 
+A table (optional, ``Grasper(..., table=frame)``: a frame on its top, object
+frame, z up) is an obstacle like the object, GraspIt's way: the approach
+stops when the hand touches it (and backs off
+:data:`~planner.plan.tolerances.TABLE_LIFT` along the approach, so that the
+fingers resting on it can close), a finger that touches it stops, and a hand
+that ends overlapping it is rejected (``table``); contacts are read on the
+object only. It is a slab (:data:`~planner.plan.tolerances.TABLE_SLAB`)
+whose top is the plane, so everything under the plane overlaps it.
+
 Speed (issue 16; the reference path, ``Grasper(..., reference=True)``, is
 the plain implementation the tests compare against): "does the open hand
 overlap the object?" is one python-fcl boolean per hand shape against the
@@ -54,7 +63,7 @@ from planner.geometry.solid import PreparedObject
 from planner.plan.contacts import HandContacts, spread
 from planner.plan.measures import JointFrames
 from planner.plan.patches import ObjectSurface, PatchSettings, discretise, regions
-from planner.plan.tolerances import CLOSING_SPEED_MIN, JOINT_LIMIT_SLACK, MAX_PENETRATION
+from planner.plan.tolerances import CLOSING_SPEED_MIN, JOINT_LIMIT_SLACK, MAX_PENETRATION, TABLE_LIFT, TABLE_SLAB
 from planner.sim import Body, Closest, Sim
 from planner.sim import fcl as overlap
 from planner.specs.hands import HandSpec
@@ -125,7 +134,7 @@ class Closed:
 
 @dataclass(frozen=True)
 class Rejected:
-    reason: str  # start_collision | missed | no_contact | bad_link | penetration
+    reason: str  # start_collision | missed | no_contact | bad_link | penetration | table
     steps: int = 0
 
 
@@ -149,24 +158,28 @@ class Grasper:
     mesh: trimesh.Trimesh | None = None  # the object's mesh (object frame); default: the body's
     reference: bool = False  # the plain implementation the fast one is tested against
     exact: trimesh.Trimesh | None = None  # the exact surface when ``mesh`` is a proxy: contact points go onto it
+    table: np.ndarray | None = None  # (4, 4) a frame on a table top, object frame, z up; None: no table
 
     @classmethod
     def for_mesh(cls, sim: Sim, hand: HandSpec, mesh: trimesh.Trimesh,
-                 settings: CloseSettings | None = None) -> Grasper:
-        """A grasper on ``mesh`` added to ``sim`` as a static body at the origin."""
-        return cls(sim, hand, sim.add_static_mesh(mesh.vertices, mesh.faces), settings or CloseSettings(), mesh=mesh)
+                 settings: CloseSettings | None = None, table: np.ndarray | None = None) -> Grasper:
+        """A grasper on ``mesh`` added to ``sim`` as a static body at the origin
+        (with a table whose top is at ``table``, if given)."""
+        return cls(sim, hand, sim.add_static_mesh(mesh.vertices, mesh.faces), settings or CloseSettings(), mesh=mesh,
+                   table=table)
 
     @classmethod
     def for_object(cls, sim: Sim, hand: HandSpec, obj: PreparedObject,
-                   settings: CloseSettings | None = None) -> Grasper:
+                   settings: CloseSettings | None = None, table: np.ndarray | None = None) -> Grasper:
         """A grasper on the object's collision proxy (:mod:`planner.geometry.proxy`:
         the exact mesh unless it has more than ``ProxySettings.above`` faces),
-        with contact points moved onto the exact mesh."""
+        with contact points moved onto the exact mesh (and a table whose top is
+        at ``table``, if given)."""
         proxy = collision_proxy(obj.mesh, obj.mesh_hash, name=obj.name)
         if proxy.exact:
-            return cls.for_mesh(sim, hand, obj.mesh, settings)
+            return cls.for_mesh(sim, hand, obj.mesh, settings, table)
         return cls(sim, hand, sim.add_static_mesh(proxy.mesh.vertices, proxy.mesh.faces), settings or CloseSettings(),
-                   mesh=proxy.mesh, exact=obj.mesh)
+                   mesh=proxy.mesh, exact=obj.mesh, table=table)
 
     def __post_init__(self) -> None:
         self.body: Body = self.sim.load_urdf(self.hand.urdf)
@@ -189,6 +202,13 @@ class Grasper:
             self.far_body = self.sim.add_static_hulls(surface_hulls(self.mesh))
         self.surface = None if self.mesh is None else ObjectSurface(self.mesh, self.settings.patches)
         self.exact_surface = None if self.exact is None else ObjectSurface(self.exact, self.settings.patches)
+        self.table_body: int | None = None
+        self.table_shape = None
+        if self.table is not None:
+            slab = np.array(self.table, float)  # the slab's centre: half its thickness under the top
+            slab[:3, 3] -= slab[:3, 2] * TABLE_SLAB[2]
+            self.table_body = self.sim.add_box(TABLE_SLAB, slab)
+            self.table_shape = None if self.shapes is None else overlap.box(TABLE_SLAB, slab)
 
     # -- queries -------------------------------------------------------------
     def _closest(self, reach: float, link: str | None = None) -> Closest:
@@ -209,6 +229,32 @@ class Grasper:
                 return Bounded(pairs.links, pairs.distance, pairs.on_a, pairs.on_b, pairs.normal_b, s.exact_reach)
         return self.sim.closest(self.body.uid, self.object_body, reach - offset, index)
 
+    def _obstacles(self, reach: float, link: str | None = None) -> Closest:
+        """:meth:`_closest` with the table's pairs within ``reach`` added (what
+        stops the hand and the fingers)."""
+        pairs = self._closest(reach, link)
+        if self.table_body is None:
+            return pairs
+        index = None if link is None else self.body.links[link]
+        table = self.sim.closest(self.body.uid, self.table_body, reach - self.hand.distance_offset, index)
+        if len(table) == 0:
+            return pairs
+        joined = [np.concatenate([getattr(pairs, k), getattr(table, k)]) for k in
+                  ("links", "distance", "on_a", "on_b", "normal_b")]
+        return Bounded(*joined, pairs.reach) if isinstance(pairs, Bounded) else Closest(*joined)
+
+    def on_table(self, within: float = 0.0) -> bool:
+        """Is the hand, where it is now, within ``within`` [m] of the table or
+        overlapping it (False without one)?"""
+        if self.table_body is None:
+            return False
+        return len(self.sim.closest(self.body.uid, self.table_body, within - self.hand.distance_offset)) > 0
+
+    def on_table_at(self, pose: np.ndarray, joints: dict[str, float]) -> bool:
+        """Would the hand at ``pose`` with ``joints`` touch the table? (Moves the hand there.)"""
+        self._place(np.asarray(pose, float), joints)
+        return self.on_table()
+
     def _gap(self, closest: Closest) -> float:
         gap = closest.min_distance + self.hand.distance_offset
         return min(gap, closest.reach) if isinstance(closest, Bounded) else gap
@@ -216,9 +262,10 @@ class Grasper:
     def overlaps(self) -> bool:
         """Does the hand, where it is now, overlap the object (touching counts)?"""
         if self.shapes is None:
-            return self._gap(self._closest(0.0)) <= 0.0
+            return self._gap(self._obstacles(0.0)) <= 0.0
         self.shapes.update()
-        return self.shapes.collides(self.object_bvh)
+        return self.shapes.collides(self.object_bvh) or (self.table_shape is not None and
+                                                         self.shapes.collides(self.table_shape))
 
     def _place(self, pose: np.ndarray, joints: dict[str, float]) -> None:
         self.sim.set_pose(self.body, pose)
@@ -255,7 +302,7 @@ class Grasper:
         depth = float(np.linalg.norm(preshape.tcp))
         travelled, limit = 0.0, start + backed + 2 * object_radius + depth
         while True:
-            touching, step = self._translation_step(self._closest(s.coarse_step + s.gap), direction)
+            touching, step = self._translation_step(self._obstacles(s.coarse_step + s.gap), direction)
             if touching:
                 break
             travelled += step
@@ -263,6 +310,8 @@ class Grasper:
                 return Rejected("missed", self.queries)
             pose[:3, 3] += direction * step
             self.sim.set_pose(self.body, pose)
+        if self.on_table(s.contact_tol):  # stopped by the table: lift off it, or a finger resting on it cannot close
+            pose[:3, 3] -= direction * TABLE_LIFT
         pose[:3, 3] -= direction * standoff
         self.sim.set_pose(self.body, pose)
         return self._finish(pose, preshape, joints)
@@ -292,7 +341,8 @@ class Grasper:
                 self._relative.clear()
             self._place(np.eye(4), joints)
             relative = self._relative[key] = self.shapes.frames()
-        return self.shapes.collides_at(pose, relative, self.object_bvh)
+        return self.shapes.collides_at(pose, relative, self.object_bvh) or (
+            self.table_shape is not None and self.shapes.collides_at(pose, relative, self.table_shape))
 
     def close_from(self, pose: np.ndarray, preshape: Preshape, joints: dict[str, float]) -> Closed | Rejected:
         """Close the fingers from ``joints`` (every finger joint, open) with the
@@ -323,6 +373,8 @@ class Grasper:
         if self.hand.centering:
             pose, closed = self._centre(pose, closed)
             self._place(pose, closed)
+        if self.on_table():
+            return Rejected("table", self.queries)
         t = time.perf_counter()
         out = self._read(pose, preshape.joints if open_joints is None else open_joints, closed)
         self.contact_seconds += time.perf_counter() - t
@@ -384,7 +436,7 @@ class Grasper:
             for link in sharing:
                 # several DOFs may move one link (a fingertip under three joints): their motions add up
                 reach = sum(speed[id(d)].get(link, 0.0) * caps[id(d)] for d in live) + s.contact_tol + s.gap
-                pairs[link] = self._closest(reach, link)
+                pairs[link] = self._obstacles(reach, link)
             steps = {}
             for d in live:
                 touched, ds = set(), caps[id(d)]

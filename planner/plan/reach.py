@@ -23,6 +23,7 @@ import numpy as np
 
 from planner.geometry.frames import angle_between, rotation_from_rotvec
 from planner.geometry.solid import PreparedObject
+from planner.geometry.support import Support, upright
 from planner.plan.tolerances import (
     ANGLE_TOL,
     IK_CONVERGED,
@@ -151,20 +152,26 @@ class ReachScene:
         self.object_pose = pose
         self.sim.set_base_pose(self.object_body, pose)
 
-    def resting_pose(self, x: float, y: float, yaw: float) -> np.ndarray:
-        """Object standing on the table (its own +z up), turned by ``yaw``."""
+    def resting_pose(self, x: float, y: float, yaw: float, support: Support | None = None) -> np.ndarray:
+        """Object standing on the table (its own +z up; with ``support``, on
+        that table plane), turned by ``yaw``."""
         pose = np.eye(4)
         pose[:3, :3] = rotation_from_rotvec([0.0, 0.0, yaw])
         base = self.robot_base[:3, 3]
-        pose[:3, 3] = (base[0] + x, base[1] + y, self.settings.table_height - self.obj.mesh.bounds[0][2])
+        if support is None:
+            pose[:3, 3] = (base[0] + x, base[1] + y, self.settings.table_height - self.obj.mesh.bounds[0][2])
+            return pose
+        pose[:3, :3] = pose[:3, :3] @ upright(support.normal)
+        pose[:3, 3] = (base[0] + x, base[1] + y, self.settings.table_height - support.height)
         return pose
 
-    def placements(self, rng: np.random.Generator) -> list[np.ndarray]:
+    def placements(self, rng: np.random.Generator, support: Support | None = None) -> list[np.ndarray]:
+        """Seeded object placements on the table (standing, or on ``support``)."""
         s = self.settings
         xs = rng.uniform(*s.region_x, s.placements)
         ys = rng.uniform(*s.region_y, s.placements)
         yaws = rng.uniform(-np.pi, np.pi, s.placements)
-        return [self.resting_pose(x, y, yaw) for x, y, yaw in zip(xs, ys, yaws)]
+        return [self.resting_pose(x, y, yaw, support) for x, y, yaw in zip(xs, ys, yaws)]
 
     # -- checks ----------------------------------------------------------------
     def check(self, grasp_pose: np.ndarray, closed: dict[str, float], open_: dict[str, float],

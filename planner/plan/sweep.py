@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from planner.errors import InputError
+from planner.geometry.support import Support
 from planner.plan.tolerances import PREGRASP_DISTANCE
 from planner.specs.hands import SAMPLERS
 from planner.specs.preshapes import Preshape
@@ -48,6 +49,9 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: whatever their settled epsilon; theirs is now None), and meshes of more than 5,000 faces are
 #: closed against a collision proxy within 0.25 mm (planner.geometry.proxy) (issue 24).
 ALGORITHM_VERSION = 8
+
+#: Decimals kept of a table plane in the settings (1e-7: 0.1 um, 1e-7 rad).
+PLANE_DIGITS = 7
 
 #: What the settings left unset mean, per sampler: surface points (or rays)
 #: per object, rolls (antipodal: approach directions about the closing
@@ -84,6 +88,7 @@ class SweepSettings:
     settle: bool | None = None  # the settled epsilon of every grasp (a dynamic closing); None: the hand's default
     trial: ShakeSettings | None = None  # the settle's dynamic closing; None: the default trial (settle only)
     fc_budget: int = 1000  # about this many force-closure grasps per object (see budget_share); 0: no limit
+    table_plane: tuple[float, float, float, float] | None = None  # plan on a table: Support.vector(); None: no table
 
     def __post_init__(self) -> None:
         if self.sampler is not None and self.sampler not in SAMPLERS:
@@ -102,6 +107,11 @@ class SweepSettings:
             raise InputError("depths must be non-negative distances in metres")
         if self.sampler == "antipodal" and self.fan_count:
             raise InputError("--fan tilts approach rays: it needs the surface or box sampler")
+        if self.table_plane is not None:
+            try:
+                Support.from_vector(self.table_plane)
+            except ValueError as exc:
+                raise InputError(f"table plane: {exc}") from None
 
     def resolved(self, hand_sampler: str, hand_settle: bool = False) -> SweepSettings:
         """These settings with the sampler (``hand_sampler`` unless set), its
@@ -120,8 +130,21 @@ class SweepSettings:
         data = asdict(self)
         if data["trial"] is None:  # no settle: the digests of sweeps that do not settle stay as they were
             del data["trial"]
+        if data["table_plane"] is None:  # no table: the digests of sweeps on the object alone stay as they were
+            del data["table_plane"]
         data["algorithm"] = ALGORITHM_VERSION
         return json.dumps(data, sort_keys=True)
+
+    def support(self) -> Support | None:
+        """The table the sweep plans on (None: the object alone)."""
+        return None if self.table_plane is None else Support.from_vector(self.table_plane)
+
+    def on(self, support: Support | None) -> SweepSettings:
+        """These settings planning on ``support`` (its plane rounded as the
+        database stores vectors, so that the digest is the same wherever the
+        plane is computed)."""
+        plane = None if support is None else tuple(round(float(v), PLANE_DIGITS) for v in support.vector())
+        return replace(self, table_plane=plane)  # type: ignore[arg-type]
 
     @property
     def digest(self) -> str:

@@ -56,3 +56,20 @@ TABLE_HALF = (1.0, 1.0, 0.05)
 TABLE_REACH = 0.9
 #: Where the spare hand used for table checks waits, far from everything.
 PARKING_DEPTH = 100.0
+#: Planning on a table (closing's obstacle): a slab with these half extents
+#: (x, y, thickness) whose top is the table top, thick enough that a hand
+#: anywhere under the top overlaps it.
+TABLE_SLAB = (1.0, 1.0, 0.5)
+#: Grasps planned on a table keep the hand this far above its top: the reach
+#: check counts touching as a hit, and PyBullet's distances between convex
+#: shapes are good to a fraction of a millimetre.
+TABLE_CLEARANCE = 0.002
+#: Approach rays on a table come down onto it at least this steeply (ray
+#: samplers turn shallower ones down): a level approach low over the table
+#: puts the arm's wrist through it (the KUKA's links 5 and 6 under a Barrett
+#: at 5 cm, measured), and the planner sees the hand alone.
+TABLE_ELEVATION = float(np.radians(30.0))
+#: An approach stopped by the table backs off this far along itself before the
+#: fingers close: a fingertip resting on the table would count as touching and
+#: never move (at 30 degrees down, the hand rises 2 mm).
+TABLE_LIFT = 0.004

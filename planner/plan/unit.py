@@ -3,6 +3,16 @@ quality -> settled epsilon (hands with ``settle``) -> reachability,
 returning :class:`~planner.record.grasp.Grasp` records for the single database
 writer.
 
+On a table (``SweepSettings.table_plane``, ``grasp generate --on-table``):
+the table is closing's obstacle, raised by
+:data:`~planner.plan.tolerances.TABLE_CLEARANCE`; approach rays shallower
+than :data:`~planner.plan.tolerances.TABLE_ELEVATION` are turned down to it;
+candidates whose approach comes from under the table top's level are not
+tried (:data:`FROM_BELOW`),
+grasps whose open hand at the pre-grasp would touch the table are rejected
+(:data:`PREGRASP_TABLE`), and the reachability placements put the object in
+that resting pose.
+
 This runs inside worker processes: it reads descriptions and simulates, but
 never touches the database.
 """
@@ -37,7 +47,7 @@ from planner.plan.sweep import (
     candidates,
     unit_rng,
 )
-from planner.plan.tolerances import FINGER_CLEARANCE, MIN_CLEARANCE
+from planner.plan.tolerances import FINGER_CLEARANCE, MIN_CLEARANCE, TABLE_CLEARANCE, TABLE_ELEVATION
 from planner.record.grasp import Grasp
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, load_hand
@@ -52,6 +62,10 @@ QUALITY_FAILED = "quality_failed"
 #: Counted among a unit's ``rejected``: candidates left untried once the unit
 #: had its share of the force-closure budget (SweepSettings.budget_share).
 BUDGET = "budget"
+#: Rejection reasons on a table: the approach comes from under the table top's
+#: level; the open hand backed off to the pre-grasp would touch the table.
+FROM_BELOW = "from_below"
+PREGRASP_TABLE = "pregrasp_table"
 
 
 @dataclass
@@ -127,9 +141,21 @@ def run_unit(spec: UnitSpec, report: Report | None = None) -> UnitResult:
     return result
 
 
-def _run(spec: UnitSpec, result: UnitResult, report: Report) -> None:
+def plan_object(obj: PreparedObject, hand: str, settings: SweepSettings, seed: int) -> UnitResult:
+    """Run one unit on an object already prepared (a stored one, rebuilt), in
+    this process, chunk 0 (``settings.chunk`` 0: every ray or point): what
+    ``grasp best`` plans on the spot. Errors are raised, not recorded."""
+    spec = UnitSpec(obj.name, hand, settings, seed, label=obj.name)
+    result = UnitResult(spec)
+    with one_blas_thread():
+        _run(spec, result, _silent, obj)
+    return result
+
+
+def _run(spec: UnitSpec, result: UnitResult, report: Report, obj: PreparedObject | None = None) -> None:
     t0 = time.perf_counter()
-    obj = load_object(spec.object_name, scale=spec.scale, label=spec.label, **spec.physical.given())
+    if obj is None:
+        obj = load_object(spec.object_name, scale=spec.scale, label=spec.label, **spec.physical.given())
     hand = load_hand(spec.hand)
     settings = spec.settings.resolved(hand.sampler, hand.settle)
     shapes = load_preshapes(hand, list(settings.preshapes) if settings.preshapes else None)
@@ -137,13 +163,20 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report) -> None:
     result.timing["prepare"] += time.perf_counter() - t0
     rng = unit_rng(spec.seed, obj.name, hand.name)
     budget = Budget(settings.budget_share())
+    support = settings.support()
+    table = None if support is None else support.raised(TABLE_CLEARANCE).frame()
     with Sim() as sim:
-        grasper = Grasper.for_object(sim, hand, obj)
+        grasper = Grasper.for_object(sim, hand, obj, table=table)
         gripping = grip.GripSurface(obj.mesh)  # the exact surface, whatever proxy closing collides with
         sweep = _antipodal if settings.sampler == "antipodal" else _rays
         for cand, closed, ray in sweep(spec, settings, obj, hand, shapes, rng, grasper, result, t0, budget,
                                     report):
             tb = time.perf_counter()
+            if support is not None and grasper.on_table_at(pregrasp(closed.pose, hand, settings.pregrasp_distance),
+                                                           dict(closed.open_joints)):
+                result.rejected[PREGRASP_TABLE] += 1
+                result.timing["closing"] += time.perf_counter() - tb
+                continue
             q = scored(closed.contacts, hand, obj, settings.cone_edges, result.rejected, settings.volume)
             if q is None:
                 result.timing["quality"] += time.perf_counter() - tb
@@ -158,7 +191,7 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report) -> None:
                 approach_point=point, approach_dir=direction, roll=roll, standoff=standoff, pose=closed.pose,
                 open_joints=closed.open_joints, closed_joints=closed.closed_joints, width=width,
                 contacts=closed.contacts, epsilon=q.epsilon, volume=q.volume, force_closure=q.force_closure,
-                measures=m))
+                measures=m, table_plane=None if support is None else np.array(settings.table_plane, float)))
             budget.force_closure += int(q.force_closure)
         # contact reading happens inside closing; report it as its own stage
         result.timing["contacts"] = grasper.contact_seconds
@@ -212,7 +245,15 @@ def _rays(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, hand: Ha
     todo = candidates(rays, shapes, settings, hand.roll_symmetry, settings.ray_range(spec.chunk, len(rays)))
     result.timing["sampling"] += time.perf_counter() - t1
     radius = obj.torque_scale + float(np.linalg.norm(obj.com))
+    support = settings.support()
+    below = np.zeros(len(rays), bool)
+    if support is not None:
+        rays = sampling.Approaches(rays.points, rays.normals, support.steepened(rays.directions, TABLE_ELEVATION))
+        below = support.from_below(rays.directions)
     for cand in _tried(todo, budget, result, report):
+        if below[cand.ray]:
+            result.rejected[FROM_BELOW] += 1
+            continue
         ta = _check_time(spec, t0)
         closed = grasper.close(rays.points[cand.ray], rays.directions[cand.ray], cand.roll, cand.standoff,
                                cand.preshape, radius)
@@ -246,12 +287,16 @@ def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, han
                                      pairs.midpoints[rows], np.array([c.roll for c in usable]),
                                      np.array([c.standoff for c in usable]))
     pose_of = {c.index: pose for c, pose in zip(usable, poses)}
+    support = settings.support()
     result.timing["sampling"] += time.perf_counter() - t1
     for cand in _tried(todo, budget, result, report):
         if pairs.reasons[cand.ray]:
             result.rejected[pairs.reasons[cand.ray]] += 1
             continue
         pose = pose_of[cand.index]
+        if support is not None and support.from_below(pose[:3, :3] @ hand.approach)[0]:
+            result.rejected[FROM_BELOW] += 1
+            continue
         ta = _check_time(spec, t0)
         fitted = fitted_opening(hand, cand.preshape, master.name, pairs.widths[cand.ray] + 2 * FINGER_CLEARANCE)
         free = not grasper.overlaps_at(pose, fitted)
@@ -266,6 +311,13 @@ def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, han
             result.rejected[closed.reason] += 1
             continue
         yield cand, closed, (*approach_of(pose, hand.approach, cand.preshape.tcp), 0.0)
+
+
+def pregrasp(pose: np.ndarray, hand: HandSpec, distance: float) -> np.ndarray:
+    """(4, 4) the hand backed off ``distance`` [m] along its approach from ``pose`` (4, 4)."""
+    out = np.array(pose, float)
+    out[:3, 3] -= (out[:3, :3] @ hand.approach) * distance
+    return out
 
 
 def fitted_opening(hand: HandSpec, shape: Preshape, master: str, width: float) -> dict[str, float]:
@@ -293,7 +345,7 @@ def add_reachability(grasps: list[Grasp], obj: PreparedObject, hand: HandSpec, s
         return grasps
     scene = reach_scene(hand, obj, ReachSettings(placements=settings.reach_placements,
                                                  pregrasp_distance=settings.pregrasp_distance))
-    placements = scene.placements(unit_rng(spec.seed, obj.name, hand.name, PLACEMENT_STREAM))
+    placements = scene.placements(unit_rng(spec.seed, obj.name, hand.name, PLACEMENT_STREAM), settings.support())
     out = []
     for g in grasps:
         if g.candidate not in chosen:

@@ -102,11 +102,16 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
     volume = f"{g.volume:.3g}" if g.volume else "0 (computed only with --volume, for force closure)"
     p_hold = ("n/a (no calibrated model for the hand)" if g.p_hold is None
               else f"{g.p_hold:.3f} (calibrated probability of holding)")
-    head = f"#{g.rank} {g.object}/{g.hand} preshape {g.preshape}: p_hold {p_hold}; score {score} (ranking rule, " \
+    rank = f"#{g.rank}" if g.rank is not None else "#- (planned now with the table, not stored)"
+    head = f"{rank} {g.object}/{g.hand} preshape {g.preshape}: p_hold {p_hold}; score {score} (ranking rule, " \
            "higher is better)"
     lines = [head, *(f"    {line}" for line in frame_lines(frames(g, hand), hand))]
     if world is not None:
         lines += [f"    {line}" for line in frame_lines(frames(g, hand, world), hand)]
+    if g.table_plane is not None:
+        n = g.table_plane
+        lines.append(f"    planned on a table: its top is n . x = {n[3]:.4f} m in the object frame, n = "
+                     f"{_xyz(n[:3])} (the hand keeps off it)")
     lines.append(f"    finger width {width}; epsilon {g.epsilon:.4f} (Ferrari-Canny L1, "
                  f"{'force closure' if g.force_closure else 'NOT force closure'}); GWS volume {volume}; "
                  f"{len(g.contacts)} contacts; reachability {reach}")

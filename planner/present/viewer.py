@@ -56,8 +56,9 @@ class Entry:
 
     def title(self) -> str:
         g = self.grasp
-        return f"#{g.rank} {g.hand} {g.preshape} score {g.score:.3f}" if g.score is not None else \
-            f"#{g.rank} {g.hand} {g.preshape}"
+        rank = "-" if g.rank is None else g.rank  # None: planned on the spot with the table, not stored
+        return f"#{rank} {g.hand} {g.preshape} score {g.score:.3f}" if g.score is not None else \
+            f"#{rank} {g.hand} {g.preshape}"
 
 
 @dataclass(frozen=True)
@@ -85,7 +86,8 @@ def measures_text(entry: Entry) -> str:
     """The selected grasp's measures as a markdown table, units on each."""
     g = entry.grasp
     m = g.measures
-    rows = [("rank", f"{g.rank}"), ("score (ranking rule, higher is better)", _num(g.score, ".4f")),
+    rows = [("rank", "planned now with the table, not stored" if g.rank is None else f"{g.rank}"),
+            ("score (ranking rule, higher is better)", _num(g.score, ".4f")),
             ("epsilon (Ferrari-Canny L1)", f"{g.epsilon:.4f}"), ("force closure", "yes" if g.force_closure else "no"),
             ("finger width", "n/a" if g.width is None else f"{g.width * 1000:.1f} mm"),
             ("contacts", f"{len(g.contacts)}"), ("reachability", _num(g.reachability, ".2f")),

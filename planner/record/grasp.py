@@ -119,6 +119,9 @@ class Grasp:
         epsilon, volume: Ferrari-Canny L1 epsilon and GWS volume (0 unless force closure).
         reachability: fraction of sampled table placements an arm reaches (None: not computed).
         manipulability: the best arm manipulability over those placements.
+        table_plane: (4,) the table the grasp was planned on (:class:`planner.geometry.support.Support`):
+            [nx, ny, nz] the unit normal out of the table and the height [m], object frame (the table top
+            is ``n . x = height``); None: planned on the object alone.
         id, unit_id, score, p_hold, rank: set by the database (rank 1 = best of its object and hand).
         validation, robust: physical validation results, where they exist.
         measures: weight resistance and feasibility (None: not measured, e.g.
@@ -153,6 +156,9 @@ class Grasp:
                                         required=False, ranked="reachability", default=None)
     manipulability: float | None = stored("real", "", 1, "best arm manipulability over the reachable placements",
                                           required=False, default=None)
+    table_plane: np.ndarray | None = stored("vector", "m", 6, "[nx, ny, nz, height]: the table top the grasp was "
+                                            "planned on, object frame (`n . x = height`, n out of the table); null: "
+                                            "planned on the object alone", required=False, shape=(4,), default=None)
     id: int | None = stored("int", "", 1, "`grasps.id` in the database", key=True, default=None)
     unit_id: int | None = stored("int", "", 1, "the unit of work that produced the grasp", default=None)
     score: float | None = stored("real", "", 1, "ranking score (`meta.ranking` says how)", default=None)
@@ -167,6 +173,8 @@ class Grasp:
     def __post_init__(self) -> None:
         if self.pose.shape != (4, 4) or self.approach_point.shape != (3,) or self.approach_dir.shape != (3,):
             raise ValueError("Grasp.pose must be (4, 4), approach_point and approach_dir (3,)")
+        if self.table_plane is not None and np.shape(self.table_plane) != (4,):
+            raise ValueError("Grasp.table_plane must be (4,) [nx, ny, nz, height] or None")
         for name in ("open_joints", "closed_joints"):  # any mapping of joint values is taken as Joints
             if not isinstance(getattr(self, name), Joints):
                 object.__setattr__(self, name, Joints(getattr(self, name)))

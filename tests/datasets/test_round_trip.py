@@ -52,7 +52,8 @@ NOT_CARRIED = {
     "graspgen": {"id", "unit_id"},
     "parquet": set(),
     "csv": set(),
-    "dexgraspnet": {"id", "unit_id", "object", "hand", "approach_point", "approach_dir", "open_joints", "contacts"},
+    "dexgraspnet": {"id", "unit_id", "object", "hand", "approach_point", "approach_dir", "open_joints", "contacts",
+                    "table_plane"},
 }
 #: Formats whose records are a fixed message (``moveit_msgs/Grasp``): they carry
 #: what the message has a field for, not the measures or the object's physics.
@@ -81,6 +82,10 @@ def swept(tmp_path_factory: pytest.TempPathFactory) -> Path:
         summary = api.generate(["box"], hand, db_path=db, workers=1,
                                settings=SweepSettings(preshapes=PRESHAPES[hand], **TINY))
         assert not summary.failed and summary.grasps > 0, hand
+    # grasps planned on a table carry its plane
+    summary = api.generate(["box"], "barrett", db_path=db, workers=1, on_table=1,
+                           settings=SweepSettings(preshapes=PRESHAPES["barrett"], **TINY))
+    assert not summary.failed and summary.grasps > 0
     with open_db(db) as handle:
         handle.write_model(MODEL, "round trip", handle.rule())
     with sqlite3.connect(db) as conn:
@@ -125,7 +130,8 @@ def comparable(f: Field, value: object) -> object:
     if f.kind == "contacts":
         return value if isinstance(value, list) else value.to_json()  # type: ignore[attr-defined]
     if f.kind == "vector":
-        return np.asarray(value, float).reshape(f.shape)
+        array = np.array(value, float).reshape(f.shape)  # JSON's nulls: NaN
+        return None if f.nullable and np.isnan(array).all() else array
     if f.kind == "bool":
         return bool(value)
     return value
