@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import shutil
 import sqlite3
 from pathlib import Path
@@ -53,8 +54,9 @@ def test_calibrate_fits_reports_and_stores_a_model_that_best_and_exports_use(val
     assert code == 0, err
     assert "p_hold n/a" not in out and f"p_hold {grasps[0].p_hold:.3f} (calibrated" in out
     code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(db), "--explain")
-    assert code == 0, err  # the analytic score is p_hold: its log-odds term by term, coef x standardised feature
-    assert "analytic = p_hold = 1 / (1 + exp(-logit))" in out and "      epsilon: " in out
+    assert code == 0, err  # the analytic score is p_hold: its log-odds feature by feature (a line or a spline)
+    assert "analytic = p_hold = 1 / (1 + exp(-logit))" in out
+    assert re.search(r"^      epsilon~?: x [-0-9.e]+ -> [-+][0-9.]+$", out, re.M), out
     assert f"-> p_hold {grasps[0].p_hold:.4f} (stored {grasps[0].p_hold:.4f})" in out
     code, _, err = grasp("export", "--db", str(db), "--format", "csv", "--out", str(tmp_path / "csv"), "--quiet")
     assert code == 0, err
