@@ -28,6 +28,9 @@ Tables (the README lists every column):
   written by the store with the score (the hand's model on the stored
   measures); NULL where no model applies (and for grasps stored before,
   until the next write re-scores them: ``meta.p_hold_models``).
+- ``mujoco`` (v6): the MuJoCo trial of a grasp (``grasp validate --engine
+  mujoco``, :mod:`planner.validation.mujoco_trial`: another engine and
+  protocol than ``validation``'s), the same columns as ``validation``.
 
 No pickle: arrays are JSON text. A new database runs :data:`SCHEMA` (version
 1) and then every migration; a newer schema is refused politely; an older one
@@ -48,7 +51,7 @@ from planner.errors import DatabaseError
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 5
+SCHEMA_VERSION = 6
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -118,6 +121,16 @@ CREATE TABLE IF NOT EXISTS calibration (
 );
 ALTER TABLE grasps ADD COLUMN p_hold REAL
 """,
+    # v6: the MuJoCo trial, a second dynamic protocol stored apart from PyBullet's (issue 26 item 6).
+    5: """
+CREATE TABLE IF NOT EXISTS mujoco (
+    grasp_id INTEGER PRIMARY KEY REFERENCES grasps(id) ON DELETE CASCADE,
+    success INTEGER NOT NULL, fingers_in_contact INTEGER NOT NULL,
+    closing_linear REAL NOT NULL, closing_angular REAL NOT NULL,
+    shaking_linear REAL NOT NULL, shaking_angular REAL NOT NULL,
+    reason TEXT NOT NULL DEFAULT '', seed INTEGER NOT NULL, settings TEXT NOT NULL
+)
+""",
 }
 
 #: Stand-ins for the version-2 tables when a version-1 file is read (opened
@@ -126,6 +139,11 @@ EMPTY_V2_TABLES = {
     "validation": "(SELECT NULL AS grasp_id, NULL AS success, NULL AS fingers_in_contact, NULL AS closing_linear,"
                   " NULL AS closing_angular, NULL AS shaking_linear, NULL AS shaking_angular, NULL AS reason WHERE 0)",
     "robust": "(SELECT NULL AS grasp_id, NULL AS mean, NULL AS quantile, NULL AS samples WHERE 0)",
+}
+#: Stand-in for the version-6 ``mujoco`` table when an older file is read read-only.
+EMPTY_V6_TABLES = {
+    "mujoco": "(SELECT NULL AS grasp_id, NULL AS success, NULL AS fingers_in_contact, NULL AS closing_linear,"
+              " NULL AS closing_angular, NULL AS shaking_linear, NULL AS shaking_angular, NULL AS reason WHERE 0)",
 }
 #: A version-2 ``validation`` table read read-only (not migrated): its rows, reason unknown.
 V2_VALIDATION = "(SELECT *, '' AS reason FROM validation)"
