@@ -12,8 +12,9 @@ from planner.errors import ConfigError
 #: The dynamic protocols ``grasp validate --engine`` offers; each stores its verdicts apart.
 ENGINES = ("pybullet", "mujoco")
 #: Where the trial's gravity points: the object frame's -z (the object as it
-#: stands, ACRONYM's world), or along the hand's approach (a pick from above).
-DOWN = ("object", "approach")
+#: stands: the project's objects are z-up) or -y (y-up meshes: ShapeNet's, FleX's
+#: world), along the hand's approach (a pick from above), or nowhere (the shake alone).
+DOWN = ("-z", "-y", "approach", "none")
 
 
 @dataclass(frozen=True)
@@ -58,7 +59,7 @@ class MujocoSettings:
     max_close_time: float = 1.5
     settle_time: float = 0.1
     max_start_overlap: float = 0.005
-    down: str = "object"
+    down: str = "-z"
     ramp_time: float = 0.1
     lift: float = 0.05
     lift_time: float = 0.3

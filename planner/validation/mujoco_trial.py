@@ -263,15 +263,15 @@ class _Run:
     def _load(self, closed: np.ndarray) -> tuple[bool, tuple[float, float]]:
         """Gravity, lift, shake, hold; (held, (largest motion [m], rotation [rad]) relative to the hand)."""
         w, s, dt = self.world, self.s, self.s.timestep
-        down = np.array([0.0, 0.0, -1.0]) if s.down == "object" else self.pose[:3, :3] @ self.hand.approach
-        down /= np.linalg.norm(down)
+        down = _down(s.down, self.pose[:3, :3] @ self.hand.approach)
+        weight = 0.0 if s.down == "none" else GRAVITY
         worst = [0.0, 0.0]
         every = _steps(CHECK_EVERY, dt)
         path = self._path(down)
         ramp = _steps(s.ramp_time, dt)
         for i, target in enumerate(path):
             if i <= ramp:
-                w.set_gravity(GRAVITY * min(1.0, (i + 1) / ramp) * down)
+                w.set_gravity(weight * min(1.0, (i + 1) / ramp) * down)
             w.move_hand(target)
             w.step()
             if (i + 1) % every == 0 or i == len(path) - 1:
@@ -320,6 +320,15 @@ class _Run:
     def _touching(self) -> int:
         links = self.world.touching_links()
         return sum(1 for f in self.fingers if f & links)
+
+
+def _down(name: str, approach: np.ndarray) -> np.ndarray:
+    """(3,) unit vector, world (= object) frame, of :data:`~planner.validation.mujoco_settings.DOWN`'s
+    ``name``; ``approach``: the hand's approach in the world. Without gravity the hand still lifts and
+    shakes along -z."""
+    if name == "approach":
+        return approach / np.linalg.norm(approach)
+    return np.array([0.0, -1.0, 0.0]) if name == "-y" else np.array([0.0, 0.0, -1.0])
 
 
 def _motion(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
