@@ -6,7 +6,8 @@ bench/acronym_split.toml (held-out objects are refused: the lead runs them with
 (its cache: ``--poses`` per file, seed ``--seed``), of which ``--per-file`` closed poses drawn with
 ``--sample-seed`` are trialled in MuJoCo (``planner.validation.mujoco_trial.trials``, the file's mass
 and friction; ``--set key=value`` overrides MujocoSettings) and, with ``--pybullet``, in PyBullet
-(``planner.validation.shake.trials``). Printed: agreement with ``object_in_gripper`` pooled, per
+(``planner.validation.shake.trials``, at the planner's re-centred pose, as ``grasp validate`` runs it).
+Printed: agreement with ``object_in_gripper`` pooled, per
 category and per object, verdicts by reason against the label, and CPU ms per trial.
 
 ``--grid FILE.json``: a list of settings overrides (dicts), each run on the same poses (tuning).
@@ -196,7 +197,7 @@ def main() -> int:
     if args.pybullet:
         settings_pb = ShakeSettings()
         verdicts = {r.path.stem: run(r, picked(r, args.per_file, args.sample_seed), "pybullet", settings_pb,
-                                     args.cache) for r in results}
+                                     args.cache, "planned") for r in results}  # its trial starts near the plan
         report["pybullet"] = summarise(results, verdicts)
         if not args.json:
             show("pybullet (default ShakeSettings)", report["pybullet"])

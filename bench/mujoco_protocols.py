@@ -28,7 +28,8 @@ import numpy as np
 OBJECTS = ("box", "cylinder", "mug", "duck", "sphere", "teddy", "bunny", "random_100", "random_101", "random_102",
            "random_103", "random_104", "random_105", "random_106", "random_107")
 #: A small sweep per hand (the default sweep costs minutes per object on the shared machine).
-SWEEPS = {"panda": dict(approaches=256, reach_placements=0), "barrett": dict(approaches=24, rolls=2, reach_placements=0)}
+SWEEPS = {"panda": dict(approaches=256, reach_placements=0),
+          "barrett": dict(approaches=24, rolls=2, reach_placements=0)}
 
 
 def database(hand: str, objects: tuple[str, ...], folder: Path) -> Path:

@@ -98,7 +98,7 @@ class Engine:
     contact_time: float = 0.005
     contact_damping: float = 1.0
     weld_time: float = 0.005
-    multiccd: bool = True
+    multiccd: bool = False
 
 
 def _f(values: Sequence[float] | np.ndarray) -> str:
