@@ -15,13 +15,16 @@ pose by pose with ``object_in_gripper``:
 - the share of each file's 10 best-scored poses that hold in FleX (ties broken by row order);
 - rejections by reason;
 - ``--trial N``: ``grasp validate``'s shake trial on N of each file's closed poses (the file's mass
-  and friction), its agreement with FleX (closed poses; and counting rejected poses as drops).
+  and friction), its agreement with FleX (closed poses; and counting rejected poses as drops);
+  ``--engine mujoco``: the MuJoCo trial instead (``grasp validate --engine mujoco``), started at the
+  file's own pose (``--trial-pose original``, its default: what FleX simulated) or the planner's
+  re-centred one (``planned``, the PyBullet trial's default).
 
 Figures are averaged per object (its files' mean), then over objects and per category. Results
 of re-scoring and trials are cached under ``--cache`` keyed by the file, the sample and a hash
 of the planner's source, so a second run only computes what changed.
 
-    python bench/acronym_eval.py [--poses 200] [--trial 30] [--json] [--held-out]
+    python bench/acronym_eval.py [--poses 200] [--trial 30] [--engine mujoco] [--json] [--held-out]
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ import time
 import zlib
 from collections import Counter, defaultdict
 from contextlib import closing
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import h5py
@@ -51,6 +54,8 @@ from planner.datasets import importer
 from planner.db.ranking import RankingRule, rank_order
 from planner.geometry.solid import prepare
 from planner.run import pool
+from planner.validation import mujoco_trial
+from planner.validation.mujoco_settings import ENGINES, MujocoSettings
 from planner.validation.shake import ShakeSettings, trials
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -88,6 +93,8 @@ def source_hash() -> str:
     h = hashlib.sha256()
     stages = ("plan", "quality", "geometry", "sim", "specs", "record")
     for p in sorted((ROOT / "planner").rglob("*.py")):
+        if p.name == "mujoco_world.py":  # the MuJoCo trial's engine: re-scoring never runs it
+            continue
         if p.parent.name in stages or p.name == "importer.py":
             h.update(p.read_bytes())
     for folder in ("hands", "preshapes"):
@@ -146,26 +153,43 @@ def rescore_file(path: Path, poses: int, seed: int, workers: int, cache: Path, c
     return result
 
 
-def run_trials(result: FileResult, n: int, seed: int, settings: ShakeSettings, cache: Path, code: str) -> None:
+def run_trials(result: FileResult, n: int, seed: int, settings: ShakeSettings | MujocoSettings, cache: Path, code: str,
+               pose: str = "planned") -> None:
     closed = np.flatnonzero(result.closed)
     if n <= 0 or not len(closed):
         return
     chosen = sample(len(closed), n, seed + 1, result.path.stem)
-    tag = hashlib.sha256(settings.to_json().encode()).hexdigest()[:8]
+    mujoco = isinstance(settings, MujocoSettings)
+    if mujoco or pose != "planned":  # the PyBullet trial at planned poses keeps the keys of its earlier figures
+        tag = hashlib.sha256((settings.to_json() + pose + trial_source()).encode()).hexdigest()[:8]
+        tag = ("mujoco-" if mujoco else "") + tag
+    else:
+        tag = hashlib.sha256(settings.to_json().encode()).hexdigest()[:8]
     key = cache / f"{result.path.stem}.trial.{len(result.rows)}.{seed}.{n}.{tag}.{code}.json"
     if key.exists():
         stored = json.loads(key.read_text())
         result.trial = {int(k): bool(v[0] if isinstance(v, list) else v) for k, v in stored.items()}
         result.trial_reasons = {int(k): v[1] for k, v in stored.items() if isinstance(v, list)}  # type: ignore[attr-defined]
         return
-    by_pos = {g.candidate: g for g in result.grasps}
+    hand, spec, poses = importer.read_for_rescoring(result.path)
+    by_pos = {g.candidate: g if pose == "planned" else replace(g, pose=poses[result.rows[g.candidate]])
+              for g in result.grasps}
     picked = [int(closed[i]) for i in chosen]
-    hand, spec, _ = importer.read_for_rescoring(result.path)
     obj = prepare(spec)
-    outcome = trials(hand, obj, [by_pos[p] for p in picked], settings)
+    run = mujoco_trial.trials if mujoco else trials
+    outcome = run(hand, obj, [by_pos[p] for p in picked], settings)
     result.trial = {p: bool(t.success) for p, t in zip(picked, outcome)}
     result.trial_reasons = {p: t.reason for p, t in zip(picked, outcome)}  # type: ignore[attr-defined]
     key.write_text(json.dumps({p: [result.trial[p], result.trial_reasons[p]] for p in picked}))  # type: ignore[attr-defined]
+
+
+def trial_source() -> str:
+    """Hash of the trial modules' source (the trial's cache key; re-scoring's is :func:`source_hash`)."""
+    h = hashlib.sha256()
+    for p in sorted((ROOT / "planner" / "validation").glob("*.py")) + [ROOT / "planner" / "sim" / "mujoco_world.py"]:
+        if p.name not in ("run.py", "robust.py"):
+            h.update(p.read_bytes())
+    return h.hexdigest()[:12]
 
 
 def scores(result: FileResult, model, rule: RankingRule, p_hold: np.ndarray | None = None) -> dict[str, np.ndarray]:
@@ -313,6 +337,13 @@ def print_table(report: dict) -> None:
     print(f"rejections by reason over {report['poses']} poses: {report['rejected']}")
 
 
+def _typed(default: object, text: str) -> object:
+    """A ``--trial-set`` value in the type of the setting's default."""
+    if isinstance(default, bool):
+        return text.lower() in ("1", "true", "yes")
+    return type(default)(text)
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--dev", type=Path, default=DEV)
@@ -322,7 +353,12 @@ def main() -> int:
     parser.add_argument("--held-out", action="store_true", help="the held-out objects: the lead runs this ONCE")
     parser.add_argument("--model", type=Path, help="p_hold model TOML (default: the shipped one)")
     parser.add_argument("--trial", type=int, default=0, help="shake-trial this many closed poses per file")
-    parser.add_argument("--trial-set", nargs="*", default=[], help="ShakeSettings overrides key=value")
+    parser.add_argument("--trial-set", nargs="*", default=[], help="the engine's settings overrides key=value")
+    parser.add_argument("--engine", choices=ENGINES, default="pybullet", help="the trial of --trial")
+    parser.add_argument("--trial-pose", choices=("planned", "original"),
+                        help="start trials at the planner's re-centred pose or the file's own "
+                             "[default: planned for pybullet, original for mujoco]")
+    parser.add_argument("--code", help="re-scoring cache code (default: this tree's source_hash)")
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--cache", type=Path, default=CACHE)
     parser.add_argument("--json", action="store_true")
@@ -335,15 +371,16 @@ def main() -> int:
         sys.exit("acronym_eval: --held-out measures the shipped (or --model) p_hold: add --no-cv, never fit on it")
     if args.no_cv:
         args.cv = 0
-    code = source_hash()
+    code = args.code or source_hash()
     model = load_model(args.model) if args.model else default_model("panda")
-    settings = ShakeSettings(**{k: type(getattr(ShakeSettings, k))(v) for k, v in
-                                (kv.split("=", 1) for kv in args.trial_set)})
+    kind = MujocoSettings if args.engine == "mujoco" else ShakeSettings
+    settings = kind(**{k: _typed(getattr(kind, k), v) for k, v in (kv.split("=", 1) for kv in args.trial_set)})
+    trial_pose = args.trial_pose or ("original" if args.engine == "mujoco" else "planned")
     start = time.process_time()
     results = []
     for i, path in enumerate(files, 1):
         results.append(rescore_file(path, args.poses, args.seed, args.workers, args.cache, code))
-        run_trials(results[-1], args.trial, args.seed, settings, args.cache, code)
+        run_trials(results[-1], args.trial, args.seed, settings, args.cache, code, trial_pose)
         print(f"[{i}/{len(files)}] {path.stem}: {int(results[-1].closed.sum())} of {len(results[-1].rows)} closed",
               file=sys.stderr)
     oof = None
@@ -370,7 +407,8 @@ def main() -> int:
         report["cv"] = {"folds": args.cv, "note": "p_hold figures are out-of-fold (grouped by object)"}
     report["cpu_seconds"] = time.process_time() - start
     report["settings"] = {"poses": args.poses, "seed": args.seed, "side": "held_out" if args.held_out else "tuning",
-                          "files": len(files), "code": code, "trial": args.trial, "trial_set": args.trial_set}
+                          "files": len(files), "code": code, "trial": args.trial, "trial_set": args.trial_set,
+                          "engine": args.engine, "trial_pose": trial_pose}
     if args.json:
         print(json.dumps(report, indent=1, default=float))
     else:

@@ -10,6 +10,7 @@ import click
 
 from planner import api
 from planner.cli.app import db_option, report_failures, show_preparation
+from planner.validation.mujoco_settings import ENGINES
 
 
 @click.command()
@@ -26,23 +27,28 @@ from planner.cli.app import db_option, report_failures, show_preparation
 @click.option("--robust", "robust_samples", type=int, default=10, show_default=True,
               help="Noise samples for robust epsilon (0: skip).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of --sample and of the robust noise.")
+@click.option("--engine", type=click.Choice(ENGINES), default="pybullet", show_default=True,
+              help="The dynamic trial: PyBullet's shake trial, or MuJoCo's (another engine and protocol); "
+                   "each stores its verdicts apart, and a grasp ranks as held only if it held in every one that "
+                   "tried it.")
 @click.option("--workers", type=click.IntRange(min=1), default=api.default_workers(),
               show_default="all cores")
 @click.option("--json", "as_json", is_flag=True)
 def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], top: int, sample: int | None,
-             every: bool, closure_only: bool, robust_samples: int, seed: int, workers: int, as_json: bool) -> None:
-    """Shake-test grasps in PyBullet (the best, a sample or all), add robust epsilon, re-rank.
+             every: bool, closure_only: bool, robust_samples: int, seed: int, engine: str, workers: int,
+             as_json: bool) -> None:
+    """Shake-test grasps in PyBullet or MuJoCo (the best, a sample or all), add robust epsilon, re-rank.
 
     The first run on a mesh decomposes it into convex parts (CoACD, 10-60 s,
     cached afterwards); a line on stderr says when that starts and ends."""
     show_preparation(not as_json)
     summary = api.validate(db_path, objects=list(objects) or None, hands=list(hands) or None, top=top,
                            sample=sample, every=every, robust_samples=robust_samples, seed=seed, workers=workers,
-                           closure_only=closure_only)
+                           closure_only=closure_only, engine=engine)
     if as_json:
         click.echo(json.dumps(summary.to_json(), indent=2))
     else:
-        click.echo(f"validated {summary.grasps} grasps: {summary.successes} held "
+        click.echo(f"validated {summary.grasps} grasps in {engine}: {summary.successes} held "
                    f"({summary.successes / max(summary.grasps, 1):.0%})")
     report_failures(summary.failed_tasks)
 

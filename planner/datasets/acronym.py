@@ -53,8 +53,9 @@ manipulability, score, p_hold, rank}`` (``p_hold``: the calibrated
 probability of holding, NaN where no model applies), every analytic measure under its declared
 name (``resist_worst``, ..., ``settled_epsilon``; ``feasibility``: reasons,
 comma-separated), ``simulated_success`` (-1: not simulated), the trial's
-other fields (``validation_fingers_in_contact``, ``validation_reason``) and
-``robust_epsilon_mean``, ``robust_epsilon_quantile``, ``robust_samples``
+other fields (``validation_fingers_in_contact``, ``validation_reason``), the
+MuJoCo trial's (``mujoco_success``, -1: not simulated, ``mujoco_reason``,
+its motions, ...) and ``robust_epsilon_mean``, ``robust_epsilon_quantile``, ``robust_samples``
 (:data:`QUALITIES`, derived from :mod:`planner.record.fields`; NaN or -1
 when absent);
 ``grasps/joint_names`` (J,), ``joints_closed`` / ``joints_open`` (N, J)
@@ -125,6 +126,7 @@ QUALITIES = {
     "simulated_success": "validation_success",
     **{f.name: f.name for f in fields.group("validation") if f.name != "validation_success"
        and f.name not in MOTIONS.values()},
+    **{f.name: f.name for f in fields.group("mujoco")},
     **{f.name.replace("robust_", "robust_epsilon_") if f.name in ROBUST_EPSILON else f.name: f.name
        for f in fields.group("robust")},
 }
@@ -366,7 +368,8 @@ def _file_values(f: Field, data: np.ndarray | None, n: int) -> list:
 
 
 #: What a file that lacks a trial or robust field reads as (ACRONYM's own files hold neither).
-MISSING = {"validation_fingers_in_contact": -1, "validation_reason": "", "robust_samples": 0}
+MISSING = {"validation_fingers_in_contact": -1, "validation_reason": "", "robust_samples": 0,
+           "mujoco_success": -1, "mujoco_fingers_in_contact": -1, "mujoco_reason": ""}
 
 
 def _location(name: str) -> str:
@@ -411,28 +414,33 @@ def read_labels(path: Path) -> np.ndarray:
     return labels
 
 
-def read_simulation(path: Path) -> list[tuple[Trial | None, RobustEpsilon | None]]:
-    """Per row, the shake-test result and robust epsilon our own files carry
-    (None where the row was not simulated; an empty list for other files).
-    What a file does not store reads as :data:`MISSING` says; a motion
-    that is not stored as -1."""
+def read_simulation(path: Path) -> list[tuple[Trial | None, RobustEpsilon | None, Trial | None]]:
+    """Per row, the PyBullet shake-test result, the robust epsilon and the
+    MuJoCo trial's result our own files carry (None where the row was not
+    simulated; an empty list for other files). What a file does not store
+    reads as :data:`MISSING` says; a motion that is not stored as -1."""
     with _open(path) as f:
         g = f["grasps"]
         if "qualities/simulated_success" not in g:
             return []
         n = len(g["qualities/simulated_success"])
-        trial, robust = _trial_columns(g, "validation", n), _trial_columns(g, "robust", n)
-    success = [int(v) for v in np.asarray(trial.pop("success"), float)]
-    motions = [k for k in trial if f"validation_{k}" in MOTIONS.values()]
-    for k in motions:
-        trial[k] = [-1.0 if v is None else v for v in trial[k]]
-    out: list[tuple[Trial | None, RobustEpsilon | None]] = []
-    for i, ok in enumerate(success):
-        t = None if ok < 0 else Trial(bool(ok), **{k: v[i] for k, v in trial.items()})
+        trial, mujoco, robust = _trials(g, "validation", n), _trials(g, "mujoco", n), _trial_columns(g, "robust", n)
+    out: list[tuple[Trial | None, RobustEpsilon | None, Trial | None]] = []
+    for i in range(n):
         r = None if robust["mean"][i] is None or robust["quantile"][i] is None else \
             RobustEpsilon(**{k: v[i] for k, v in robust.items()})
-        out.append((t, r))
+        out.append((trial[i], r, mujoco[i]))
     return out
+
+
+def _trials(g: Any, group: str, n: int) -> list[Trial | None]:
+    """The n rows' results of one trial group (None: not simulated, success -1)."""
+    columns = _trial_columns(g, group, n)
+    success = [int(v) for v in np.asarray(columns.pop("success"), float)]
+    for k in ("closing_linear", "closing_angular", "shaking_linear", "shaking_angular"):
+        columns[k] = [-1.0 if v is None else v for v in columns[k]]
+    return [None if ok < 0 else Trial(bool(ok), **{k: v[i] for k, v in columns.items()})
+            for i, ok in enumerate(success)]
 
 
 def _joints(names: list[str], values: np.ndarray) -> dict[str, float]:

@@ -252,15 +252,16 @@ def _import_lossless(db: Database, plan: _Plan, rule: RankingRule) -> ImportResu
 
 
 def _restore_simulation(db: Database, plan: _Plan, unit_id: int, obj: str, rule: RankingRule) -> None:
-    """Our own files carry shake-test results and robust epsilon per grasp:
-    put them back into ``validation`` / ``robust`` and re-score."""
+    """Our own files carry shake-test results (PyBullet's and MuJoCo's) and
+    robust epsilon per grasp: put them back into ``validation`` / ``mujoco``
+    / ``robust`` and re-score."""
     results = plan.reader.simulation(plan.path)
     if not results:
         return
     source = json.dumps({"imported_from": str(plan.path)})
     ids = db.grasp_ids(unit_id)
-    db.write_validation(obj, plan.hand.name, [Validated(grasp_id, *results[i], 0, source, source)
-                                              for i, grasp_id in ids.items()], rule)
+    db.write_validation(obj, plan.hand.name, [Validated(grasp_id, results[i][0], results[i][1], 0, source, source,
+                                                        results[i][2], source) for i, grasp_id in ids.items()], rule)
 
 
 def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: str | None, rescore: bool) -> _Plan:

@@ -4,7 +4,8 @@ came from.
 
 A label is one of three things, each named per grasp in ``label_source``:
 
-- ``trial``: the grasp's shake trial (``grasp validate``): held or dropped;
+- ``trial``: the grasp's dynamic trials (``grasp validate``, PyBullet's and
+  MuJoCo's): held if it held in every one that tried it, else dropped;
 - ``p_hold``: the calibrated probability of holding (:mod:`planner.calibration`)
   thresholded at :data:`P_HOLD_SUCCESS`;
 - ``force_closure``: whether the planned contacts are force closure. This is
@@ -43,7 +44,7 @@ def check(choice: str) -> str:
 def has_label(choice: str, grasp: Grasp) -> bool:
     """Whether ``grasp`` is exported under ``choice`` (trial and p_hold: only grasps that have one)."""
     if choice == TRIAL:
-        return grasp.validation is not None
+        return grasp.validation is not None or grasp.mujoco is not None
     if choice == P_HOLD:
         return grasp.p_hold is not None
     return True
@@ -51,8 +52,11 @@ def has_label(choice: str, grasp: Grasp) -> bool:
 
 def labels(columns: Mapping[str, np.ndarray], choice: str) -> tuple[np.ndarray, list[str]]:
     """((n,) int64 0/1 labels, n sources) of a batch's columns
-    (``validation_success`` -1 where not validated, ``p_hold`` NaN where absent)."""
-    success = np.asarray(columns["validation_success"])
+    (``validation_success`` and ``mujoco_success`` -1 where not validated,
+    ``p_hold`` NaN where absent); a trial label is 1 only if every trial that
+    tried the grasp held it."""
+    tried = [np.asarray(columns[name]) for name in ("validation_success", "mujoco_success")]
+    success = np.where((tried[0] >= 0) & (tried[1] >= 0), np.minimum(*tried), np.maximum(*tried))
     p_hold = np.asarray(columns["p_hold"], float)
     closure = np.asarray(columns["force_closure"])
     if choice == BEST:

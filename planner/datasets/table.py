@@ -70,7 +70,7 @@ COLUMNS = [name for name, *_ in _SPEC]
 #: Columns that may be null: NaN (floats) or -1 (integers) in the grasp columns.
 NULLABLE = {name for name, _, _, _, f in _SPEC
             if f is not None and f.dtype != "string"
-            and (f.nullable or f.attr.partition(".")[0] in ("measures", "validation", "robust"))}
+            and (f.nullable or f.attr.partition(".")[0] in ("measures", "validation", "mujoco", "robust"))}
 
 
 def _doc_rows() -> list[str]:

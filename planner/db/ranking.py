@@ -28,9 +28,13 @@ has learnt from external labels how much each of those measures counts.
 
 A pressed grasp that does not hold its weight yet still ranks above one that
 is not pressed (half weight): squeezing settles it. Reachability (fraction of
-table placements an arm reaches) and simulated success (1/0 from the shake
-test) then multiply, each with its weight in [0, 1] (0 ignores the measure, 1
-lets it veto); simulated success only refines the order. Rank 1 is the best
+table placements an arm reaches) and simulated success then multiply, each
+with its weight in [0, 1] (0 ignores the measure, 1 lets it veto); simulated
+success only refines the order. Simulated success counts every dynamic
+protocol that tried the grasp (PyBullet's shake trial, ``validation``;
+MuJoCo's, ``mujoco``: another engine and protocol): 1 if it held in every
+one of them, 0 if one dropped it, neutral if none tried it (issue 26: a
+grasp ranks high only if it holds under independent protocols). Rank 1 is the best
 grasp of an (object, hand). Every grasp whose planned contacts are force
 closure ranks above every grasp whose contacts are not, whatever their
 scores (issue 26: a score that rewards what one simulator's closing happens to
@@ -79,6 +83,8 @@ FORMULA = ("analytic = p_hold where a calibrated model applies to the hand, else
            " settled = settled_epsilon (0 when not measured);"
            " score = analytic * ((1 - reach_weight) + reach_weight * reachability)"
            " * ((1 - success_weight) + success_weight * simulated_success);"
+           " simulated_success = min(success, mujoco_success): 1 if the grasp held in every dynamic trial that"
+           " tried it (PyBullet, MuJoCo), 0 if one dropped it;"
            " a measure not computed counts as neutral (reachability, success 1; robust quantile = epsilon);"
            " grasps stored without the analytic measures (before schema v3): gate 1, press 1,"
            " hold = force_closure;"
@@ -144,7 +150,9 @@ class RankingRule:
         analytic = np.where(np.isnan(p_hold), formula, p_hold)
         ones = np.ones(n)
         reach = (1.0 - self.reach_weight) + self.reach_weight * _column(measures, "reachability", ones)
-        success = (1.0 - self.success_weight) + self.success_weight * _column(measures, "success", ones)
+        tried = np.fmin(_column(measures, "success", np.full(n, np.nan)),
+                        _column(measures, "mujoco_success", np.full(n, np.nan)))  # NaN: no protocol tried it
+        success = (1.0 - self.success_weight) + self.success_weight * np.where(np.isnan(tried), 1.0, tried)
         return {"gate": gate, "press": press, "hold": hold, "quality": quality, "settled": settled,
                 "formula": formula, "p_hold": p_hold, "analytic": analytic, "reach_factor": reach,
                 "success_factor": success, "score": analytic * reach * success}

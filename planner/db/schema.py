@@ -34,6 +34,9 @@ Tables (the README lists every column):
   and ``table_plane``: the table top a grasp was planned on (``grasp
   generate --on-table``), object frame, JSON ``[nx, ny, nz, height]``; NULL
   for a grasp planned on the object alone (every grasp stored before).
+- ``mujoco`` (v7): the MuJoCo trial of a grasp (``grasp validate --engine
+  mujoco``, :mod:`planner.validation.mujoco_trial`: another engine and
+  protocol than ``validation``'s), the same columns as ``validation``.
 
 No pickle: arrays are JSON text. A new database runs :data:`SCHEMA` (version
 1) and then every migration; a newer schema is refused politely; an older one
@@ -54,7 +57,7 @@ from planner.errors import DatabaseError
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 6
+SCHEMA_VERSION = 7
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -135,6 +138,16 @@ ALTER TABLE grasps ADD COLUMN palm_gap REAL;
 ALTER TABLE grasps ADD COLUMN com_lever REAL;
 ALTER TABLE grasps ADD COLUMN table_plane TEXT
 """,
+    # v7: the MuJoCo trial, a second dynamic protocol stored apart from PyBullet's (issue 26 item 6).
+    6: """
+CREATE TABLE IF NOT EXISTS mujoco (
+    grasp_id INTEGER PRIMARY KEY REFERENCES grasps(id) ON DELETE CASCADE,
+    success INTEGER NOT NULL, fingers_in_contact INTEGER NOT NULL,
+    closing_linear REAL NOT NULL, closing_angular REAL NOT NULL,
+    shaking_linear REAL NOT NULL, shaking_angular REAL NOT NULL,
+    reason TEXT NOT NULL DEFAULT '', seed INTEGER NOT NULL, settings TEXT NOT NULL
+)
+""",
 }
 
 #: Stand-ins for the version-2 tables when a version-1 file is read (opened
@@ -143,6 +156,11 @@ EMPTY_V2_TABLES = {
     "validation": "(SELECT NULL AS grasp_id, NULL AS success, NULL AS fingers_in_contact, NULL AS closing_linear,"
                   " NULL AS closing_angular, NULL AS shaking_linear, NULL AS shaking_angular, NULL AS reason WHERE 0)",
     "robust": "(SELECT NULL AS grasp_id, NULL AS mean, NULL AS quantile, NULL AS samples WHERE 0)",
+}
+#: Stand-in for the version-7 ``mujoco`` table when an older file is read read-only.
+EMPTY_V7_TABLES = {
+    "mujoco": "(SELECT NULL AS grasp_id, NULL AS success, NULL AS fingers_in_contact, NULL AS closing_linear,"
+              " NULL AS closing_angular, NULL AS shaking_linear, NULL AS shaking_angular, NULL AS reason WHERE 0)",
 }
 #: A version-2 ``validation`` table read read-only (not migrated): its rows, reason unknown.
 V2_VALIDATION = "(SELECT *, '' AS reason FROM validation)"

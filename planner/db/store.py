@@ -34,6 +34,7 @@ from planner.calibration.model import LogisticModel, default_model
 from planner.db.ranking import ORDER_BY, RankingRule, rank_order, rule_measures
 from planner.db.schema import (
     EMPTY_V2_TABLES,
+    EMPTY_V7_TABLES,
     SCHEMA_VERSION,
     V2_VALIDATION,
     column_names,
@@ -61,10 +62,11 @@ INERTIA_DIGITS = 10
 
 #: The declared columns (:mod:`planner.record.fields`) of the record's tables.
 _GRASPS = fields.table("grasps")
-_TRIAL, _ROBUST = fields.group("validation"), fields.group("robust")
+_TRIAL, _MUJOCO, _ROBUST = fields.group("validation"), fields.group("mujoco"), fields.group("robust")
 #: Columns an insert writes: all but those SQLite (``id``) or the ranking (``rank``) fill.
 _GRASP_COLUMNS = tuple(f.column for f in _GRASPS if f.column not in ("id", "rank"))
 _VALIDATION_COLUMNS = tuple(f.column for f in fields.table("validation"))
+_MUJOCO_COLUMNS = tuple(f.column for f in fields.table("mujoco"))
 _ROBUST_COLUMNS = tuple(f.column for f in fields.table("robust"))
 _OBJECTS = fields.table("objects")
 _TABLE_PLANE = fields.by_name("table_plane")
@@ -73,17 +75,18 @@ _UNIT_COLUMNS = ("object", "hand", "settings_hash", "seed", "chunk", "settings",
                  "grasps", "force_closure", "rejected", "seconds", "finished_at")
 
 #: Table -> its alias in the grasps query.
-_ALIAS = {"grasps": "g", "validation": "v", "robust": "r"}
+_ALIAS = {"grasps": "g", "validation": "v", "mujoco": "mj", "robust": "r"}
 
 
 def _aliased(group: tuple[Field, ...]) -> str:
     return ", ".join(f"{_ALIAS[f.table]}.{f.column} AS {_ALIAS[f.table]}_{f.column}" for f in group)
 
 
-#: A grasp with its validation and robust rows (``v_*``, ``r_*``).
+#: A grasp with its validation, MuJoCo trial and robust rows (``v_*``, ``mj_*``, ``r_*``).
 _SELECT_GRASPS = f"""
-SELECT g.*, {_aliased(_TRIAL)}, {_aliased(_ROBUST)}
-FROM grasps g {{join}} {{validation}} v ON v.grasp_id = g.id LEFT JOIN {{robust}} r ON r.grasp_id = g.id
+SELECT g.*, {_aliased(_TRIAL)}, {_aliased(_MUJOCO)}, {_aliased(_ROBUST)}
+FROM grasps g {{join}} {{validation}} v ON v.grasp_id = g.id LEFT JOIN {{mujoco}} mj ON mj.grasp_id = g.id
+LEFT JOIN {{robust}} r ON r.grasp_id = g.id
 """
 #: What the ranking rule reads, by the rule's names.
 _RANKED = ", ".join(f"{_ALIAS[f.table]}.{f.column} AS {f.ranked}" for f in fields.ranked_fields())
@@ -91,7 +94,8 @@ _RANKED = ", ".join(f"{_ALIAS[f.table]}.{f.column} AS {f.ranked}" for f in field
 _MODEL_INPUTS = ", ".join(f"g.{fields.by_name(name).column} AS m_{name}" for name in features.COLUMNS)
 _MEASURES = f"""
 SELECT g.id, g.object, g.hand, {_RANKED}{{inputs}}
-FROM grasps g LEFT JOIN validation v ON v.grasp_id = g.id LEFT JOIN robust r ON r.grasp_id = g.id
+FROM grasps g LEFT JOIN validation v ON v.grasp_id = g.id LEFT JOIN mujoco mj ON mj.grasp_id = g.id
+LEFT JOIN robust r ON r.grasp_id = g.id
 """
 _RERANK = f"""
 WITH ranked AS (
@@ -258,7 +262,9 @@ class UnitRow:
 
 @dataclass(frozen=True)
 class Validated:
-    """What physical validation found for one stored grasp, and how."""
+    """What physical validation found for one stored grasp, and how: the
+    PyBullet ``trial``, the ``robust`` epsilon and the MuJoCo trial
+    (``mujoco``), each None where not run (a row already stored stays)."""
 
     grasp_id: int
     trial: Trial | None
@@ -266,6 +272,8 @@ class Validated:
     seed: int
     trial_settings: str  # JSON
     robust_settings: str  # JSON
+    mujoco: Trial | None = None
+    mujoco_settings: str = ""  # JSON
 
 
 def read_failed(path: Path, exc: sqlite3.Error) -> str:
@@ -486,14 +494,17 @@ class Database:
         self.set_meta("p_hold_models", self._models_key())
 
     def write_validation(self, obj: str, hand: str, results: Sequence[Validated], rule: RankingRule) -> None:
-        """Store trial and robust-epsilon results of grasps of one (object,
-        hand), then re-score and re-rank it, in one transaction."""
+        """Store trial (PyBullet, MuJoCo) and robust-epsilon results of grasps
+        of one (object, hand), then re-score and re-rank it, in one transaction."""
         with self._transaction() as conn:
             for v in results:
                 if v.trial is not None:
                     t = v.trial
                     conn.execute(_insert("validation", _VALIDATION_COLUMNS, "INSERT OR REPLACE"),
                                  (v.grasp_id, *_row(_TRIAL, t), v.seed, v.trial_settings))
+                if v.mujoco is not None:
+                    conn.execute(_insert("mujoco", _MUJOCO_COLUMNS, "INSERT OR REPLACE"),
+                                 (v.grasp_id, *_row(_MUJOCO, v.mujoco), v.seed, v.mujoco_settings))
                 if v.robust is not None:
                     r = v.robust
                     conn.execute(_insert("robust", _ROBUST_COLUMNS, "INSERT OR REPLACE"),
@@ -593,10 +604,10 @@ class Database:
 
     def _select(self, join: str) -> str:
         """The grasps query; an older file read read-only is not migrated: a
-        version-1 file has no v2 tables (empty stand-ins), a version-2 file's
-        trials have no reason (empty)."""
+        version-1 file has no v2 tables, a file before version 7 no MuJoCo
+        trials (empty stand-ins), a version-2 file's trials have no reason (empty)."""
         tables = table_names(self._conn)
-        names = {t: t if t in tables else empty for t, empty in EMPTY_V2_TABLES.items()}
+        names = {t: t if t in tables else empty for t, empty in {**EMPTY_V2_TABLES, **EMPTY_V7_TABLES}.items()}
         if "validation" in tables and "reason" not in column_names(self._conn, "validation"):
             names["validation"] = V2_VALIDATION
         return _SELECT_GRASPS.format(join=join, **names)
@@ -609,8 +620,8 @@ def _grasps(rows: list[sqlite3.Row]) -> list[Grasp]:
         return []
     col = dict(zip(rows[0].keys(), zip(*rows)))
     n = len(rows)
-    parts = {name: _parts(cls, fields.group(name), col, "" if table == "grasps" else f"{_ALIAS[table]}_", n)
-             for name, (cls, table, _) in fields.GROUPS.items()}
+    parts = {name: _parts(g.cls, fields.group(name), col, "" if g.table == "grasps" else f"{_ALIAS[g.table]}_", n)
+             for name, g in fields.GROUPS.items()}
     own = {f.attr: f for f in _GRASPS if "." not in f.attr}
     values = zip(*(parts[name] if name in parts else _own(own[name], col, n) for name in GRASP_FIELDS))
     return list(map(Grasp.restored, values))

@@ -119,10 +119,10 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
         settled = "" if m.settled_epsilon is None else f"; settled epsilon {m.settled_epsilon:.4f}"
         lines.append(f"    holds {m.resist_worst:.1f} g in the worst direction (mean {m.resist_mean:.1f} g); push "
                      f"{m.push:.2f} (1 = pads square on); feasibility {','.join(m.reasons) or 'ok'}{settled}")
-    if g.validation is not None:
-        trial = g.validation
-        verdict = "held" if trial.success else "dropped"
-        lines.append(f"    shake trial: {verdict} ({trial.reason or 'no reason stored'})")
+    for name, trial in (("shake trial (PyBullet)", g.validation), ("MuJoCo trial", g.mujoco)):
+        if trial is not None:
+            verdict = "held" if trial.success else "dropped"
+            lines.append(f"    {name}: {verdict} ({trial.reason or 'no reason stored'})")
     for stage, joints in (arm or {}).items():
         lines.append(f"    arm at {stage} [rad]: " + ", ".join(f"{k} {v:.4f}" for k, v in joints.items()))
     return lines

@@ -23,29 +23,61 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 from planner.record.field import Field, declared
 from planner.record.grasp import Grasp, RobustEpsilon, Trial
 from planner.record.measures import Measures
 
-#: Record attribute -> (the type of its value, the table that stores it, the prefix of its flat names).
-GROUPS: dict[str, tuple[type, str, str]] = {
-    "validation": (Trial, "validation", "validation_"),
-    "robust": (RobustEpsilon, "robust", "robust_"),
-    "measures": (Measures, "grasps", ""),
+
+@dataclass(frozen=True)
+class Group:
+    """A part of the record stored in a table of its own (or with the grasps).
+
+    cls: the type of its value; table: the table that stores it; prefix: of
+    its flat names (``validation_success``); version: the schema version the
+    table appeared in (older files lack it); engine: the simulator of a trial
+    group (its docs name it); ranked: prefix of the names the ranking rule
+    reads its ranked fields by (the PyBullet trial's ``success``, the MuJoCo
+    trial's ``mujoco_success``).
+    """
+
+    cls: type
+    table: str
+    prefix: str
+    version: int = 1
+    engine: str = ""
+    ranked: str = ""
+
+
+#: Record attribute -> its group. Each dynamic protocol stores its verdicts apart
+#: (``validation``: PyBullet, ``mujoco``: MuJoCo, :mod:`planner.validation.mujoco_trial`).
+GROUPS: dict[str, Group] = {
+    "validation": Group(Trial, "validation", "validation_", 2, "PyBullet"),
+    "mujoco": Group(Trial, "mujoco", "mujoco_", 7, "MuJoCo", "mujoco_"),
+    "robust": Group(RobustEpsilon, "robust", "robust_", 2),
+    "measures": Group(Measures, "grasps", ""),
 }
+#: The groups that hold a dynamic trial's verdict (a :class:`~planner.record.grasp.Trial`).
+TRIALS = tuple(name for name, g in GROUPS.items() if g.cls is Trial)
 
 
-def _from_record(cls: type, table: str, prefix: str, group: str) -> list[Field]:
+def _from_record(cls: type, table: str, prefix: str, group: str, engine: str = "", ranked: str = "",
+                 version: int = 0) -> list[Field]:
+    """The declared fields of a record type; a trial group's docs name its
+    ``engine``, its ranked names take the prefix ``ranked`` and none is
+    older than its table's ``version``."""
     out = []
     for f in dataclasses.fields(cls):
         meta = f.metadata.get("stored")
         if meta is None:
             continue
         column = meta["column"] or f.name
+        doc = meta["doc"].replace("{engine}", engine) if engine else meta["doc"]
         out.append(declared(table, column, f"{group}.{f.name}" if group else f.name, meta["kind"], meta["unit"],
-                            meta["version"], meta["doc"], name=prefix + column, required=meta["required"],
-                            key=meta["key"], ranked=meta["ranked"], shape=meta["shape"]))
+                            max(meta["version"], version), doc, name=prefix + column, required=meta["required"],
+                            key=meta["key"], ranked=ranked + meta["ranked"] if meta["ranked"] else "",
+                            shape=meta["shape"]))
     return out
 
 
@@ -62,14 +94,15 @@ def _grasps() -> list[Field]:
     return out + _from_record(Measures, "grasps", "", "measures")
 
 
-def _validation(table: str, group: str) -> list[Field]:
+def _validation(group: str) -> list[Field]:
     """A validation table: the grasp it belongs to, the record's fields, and how they were made."""
-    cls, _, prefix = GROUPS[group]
-    return [declared(table, "grasp_id", "id", "int", "", 2, "the grasp (`grasps.id`; the primary key)",
+    g = GROUPS[group]
+    table, prefix, v = g.table, g.prefix, g.version
+    return [declared(table, "grasp_id", "id", "int", "", v, "the grasp (`grasps.id`; the primary key)",
                      name=f"{prefix}grasp_id", key=True),
-            *_from_record(cls, table, prefix, group),
-            declared(table, "seed", "", "int", "", 2, "seed of the noise", name=f"{prefix}seed"),
-            declared(table, "settings", "", "text", "", 2, "JSON settings that made it", name=f"{prefix}settings")]
+            *_from_record(g.cls, table, prefix, group, g.engine, g.ranked, v),
+            declared(table, "seed", "", "int", "", v, "seed of the noise", name=f"{prefix}seed"),
+            declared(table, "settings", "", "text", "", v, "JSON settings that made it", name=f"{prefix}settings")]
 
 
 def _objects() -> list[Field]:
@@ -89,10 +122,10 @@ def _objects() -> list[Field]:
 
 
 #: Every stored field of the record's tables, in record order.
-FIELDS: tuple[Field, ...] = (*_grasps(), *_validation("validation", "validation"), *_validation("robust", "robust"),
+FIELDS: tuple[Field, ...] = (*_grasps(), *_validation("validation"), *_validation("mujoco"), *_validation("robust"),
                              *_objects())
 #: The tables these fields fill (``units`` and ``meta`` are the run's bookkeeping, not the record's).
-TABLES = ("grasps", "validation", "robust", "objects")
+TABLES = ("grasps", "validation", "mujoco", "robust", "objects")
 
 
 def table(name: str) -> tuple[Field, ...]:
@@ -101,7 +134,7 @@ def table(name: str) -> tuple[Field, ...]:
 
 
 def group(name: str) -> tuple[Field, ...]:
-    """The fields of one record group (``measures``, ``validation``, ``robust``) the record holds."""
+    """The fields of one record group (``measures``, ``validation``, ``mujoco``, ``robust``) the record holds."""
     return tuple(f for f in FIELDS if f.attr.startswith(name + "."))
 
 

@@ -71,7 +71,10 @@ class Joints(Mapping[str, float]):
 
 @dataclass(frozen=True)
 class Trial:
-    """The outcome of one dynamic shake trial (:func:`planner.validation.shake.trial`).
+    """The outcome of one dynamic shake trial: PyBullet's
+    (:func:`planner.validation.shake.trial`, the record's ``validation``) or
+    MuJoCo's, an independent protocol
+    (:func:`planner.validation.mujoco_trial.trial`, the record's ``mujoco``).
 
     Motions are the object's relative to the hand, as ACRONYM stores them:
     while the fingers closed and settled, and the largest during the loads
@@ -79,10 +82,11 @@ class Trial:
     fingers touching after closing. ``reason``: ``held``, ``slipped``,
     ``squeezed_out``, ``no_contact``, ``no_clearance`` or ``start_overlap``
     (the last two are flags: not simulated, motions 0); empty when unknown
-    (imported files, older databases).
+    (imported files, older databases). Docs say ``{engine}`` where the
+    declaration of each group (:mod:`planner.record.fields`) names its engine.
     """
 
-    success: bool = stored("bool", "", 2, "1 if the object stayed in the hand in the PyBullet trial",
+    success: bool = stored("bool", "", 2, "1 if the object stayed in the hand in the {engine} trial",
                            ranked="success")
     fingers_in_contact: int = stored("int", "", 2, "fingers touching the object after shaking")
     closing_linear: float = stored("real", "m", 2, "object motion during closing")
@@ -123,7 +127,9 @@ class Grasp:
             [nx, ny, nz] the unit normal out of the table and the height [m], object frame (the table top
             is ``n . x = height``); None: planned on the object alone.
         id, unit_id, score, p_hold, rank: set by the database (rank 1 = best of its object and hand).
-        validation, robust: physical validation results, where they exist.
+        validation, mujoco, robust: physical validation results, where they
+            exist: the PyBullet trial, the MuJoCo trial (another engine and
+            protocol) and the robust epsilon.
         measures: weight resistance and feasibility (None: not measured, e.g.
             a grasp stored before schema version 3).
         p_hold: calibrated probability in [0, 1] that the grasp holds
@@ -167,6 +173,7 @@ class Grasp:
                                   ranked="p_hold", default=None)
     rank: int | None = stored("int", "", 1, "1 = best grasp of its (object, hand)", required=False, default=None)
     validation: Trial | None = None
+    mujoco: Trial | None = None
     robust: RobustEpsilon | None = None
     measures: Measures | None = None
 

@@ -2,7 +2,10 @@
 object's best, a seeded uniform sample, or all), in the crash-safe worker
 pool (:mod:`planner.run.pool`), with one writer. A task whose worker dies
 twice (a simulator segfault) or that fails is reported with its error; the
-other tasks are written."""
+other tasks are written. The trial's ``engine``: PyBullet's shake trial
+(:mod:`planner.validation.shake`, stored in ``validation``) or the MuJoCo
+trial (:mod:`planner.validation.mujoco_trial`, another engine and protocol,
+stored in ``mujoco``); each keeps its own verdicts."""
 
 from __future__ import annotations
 
@@ -27,6 +30,7 @@ from planner.run import pool
 from planner.run.progress import Report
 from planner.specs.hands import load_hand
 from planner.threads import one_blas_thread
+from planner.validation.mujoco_settings import ENGINES, MujocoSettings
 from planner.validation.robust import NoiseSettings, robust_epsilon
 from planner.validation.shake import ShakeSettings, recorded, trials
 
@@ -45,8 +49,12 @@ class Task:
     hand: str
     grasps: tuple[Grasp, ...]
     seed: int
-    trial: ShakeSettings
+    trial: ShakeSettings | MujocoSettings  # the engine's settings: PyBullet's or MuJoCo's
     noise: NoiseSettings | None
+
+    @property
+    def engine(self) -> str:
+        return "mujoco" if isinstance(self.trial, MujocoSettings) else "pybullet"
 
     @property
     def object(self) -> str:
@@ -76,7 +84,12 @@ def run_task(task: Task) -> TaskResult:
 def _run_task(task: Task, out: TaskResult) -> None:
     hand = load_hand(task.hand)
     obj = stored_object(task.row)
-    out.trials = trials(hand, obj, task.grasps, task.trial)
+    if task.engine == "mujoco":
+        from planner.validation import mujoco_trial  # loads MuJoCo: only where asked for
+
+        out.trials = mujoco_trial.trials(hand, obj, task.grasps, task.trial)
+    else:
+        out.trials = trials(hand, obj, task.grasps, task.trial)
     for g in task.grasps:
         if task.noise is not None:
             rng = np.random.default_rng([task.seed, zlib.crc32(task.object.encode()), g.candidate, g.seed])
@@ -108,7 +121,7 @@ class Selection:
 
 
 def plan(db: Database, objects: list[str] | None, hands: list[str] | None, selection: Selection, seed: int,
-         trial_settings: ShakeSettings, noise: NoiseSettings | None) -> list[Task]:
+         trial_settings: ShakeSettings | MujocoSettings, noise: NoiseSettings | None) -> list[Task]:
     stored = {pair: db.object_row(pair[0]) for pair in db.pairs()}
     pairs = {pair: row for pair, row in stored.items() if row is not None}
     known = sorted({obj for obj, _ in pairs})
@@ -173,10 +186,17 @@ def prepare_objects(rows: list[ObjectRow], workers: int) -> None:
 def write(db: Database, result: TaskResult, rule: RankingRule) -> None:
     task = result.task
     noise = task.noise.to_json() if task.noise is not None else ""
-    settings = recorded(task.trial, load_hand(task.hand))
-    db.write_validation(task.object, task.hand, [
-        Validated(g.id, t, r, task.seed, settings, noise)  # type: ignore[arg-type]
-        for g, t, r in zip(task.grasps, result.trials, result.robust)], rule)
+    if task.engine == "mujoco":
+        from planner.validation import mujoco_trial
+
+        settings = mujoco_trial.recorded(task.trial, load_hand(task.hand))  # type: ignore[arg-type]
+        rows = [Validated(g.id, None, r, task.seed, "", noise, t, settings)  # type: ignore[arg-type]
+                for g, t, r in zip(task.grasps, result.trials, result.robust)]
+    else:
+        settings = recorded(task.trial, load_hand(task.hand))  # type: ignore[arg-type]
+        rows = [Validated(g.id, t, r, task.seed, settings, noise)  # type: ignore[arg-type]
+                for g, t, r in zip(task.grasps, result.trials, result.robust)]
+    db.write_validation(task.object, task.hand, rows, rule)
 
 
 @dataclass
@@ -191,19 +211,24 @@ class ValidationSummary:
 
 def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str] | None = None, top: int = 10,
              sample: int | None = None, every: bool = False, robust_samples: int = 10, seed: int = 0,
-             workers: int = 1, settings: ShakeSettings | None = None, closure_only: bool = False,
-             progress: Callable[[int, int], None] | None = None) -> ValidationSummary:
+             workers: int = 1, settings: ShakeSettings | MujocoSettings | None = None, closure_only: bool = False,
+             progress: Callable[[int, int], None] | None = None, engine: str = "pybullet") -> ValidationSummary:
     """Shake-test (and robust-epsilon) each object's ``top`` best force-closure
     grasps, or a uniform ``sample`` of its grasps drawn with ``seed``, or
     ``every`` grasp (``closure_only``: sample and every among the
-    force-closure grasps only); store the results and re-rank."""
+    force-closure grasps only), in ``engine`` (see :data:`ENGINES`; its
+    verdicts are stored apart from the other's); store the results and re-rank."""
+    if engine not in ENGINES:
+        raise InputError(f"unknown engine '{engine}'; use {' or '.join(ENGINES)}")
+    if settings is not None and isinstance(settings, MujocoSettings) != (engine == "mujoco"):
+        raise InputError(f"the trial settings given are not {engine}'s")
     if top < 1:
         raise InputError(f"--top must be at least 1, got {top}")
     if sample is not None and sample < 1:
         raise InputError(f"--sample must be at least 1, got {sample}")
     if sample is not None and every:
         raise InputError("--sample and --all exclude each other: pick one")
-    trial_settings = settings or ShakeSettings()
+    trial_settings = settings or (MujocoSettings() if engine == "mujoco" else ShakeSettings())
     noise = NoiseSettings(samples=robust_samples) if robust_samples > 0 else None
     summary = ValidationSummary()
     with writer_lock(Path(db_path)), open_db(Path(db_path), create=False) as db:
@@ -221,7 +246,7 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
                 summary.successes += sum(t.success for t in result.trials)
             if progress:
                 progress(done, len(tasks))
-        db.set_meta("validation_settings", json.dumps(
+        db.set_meta("mujoco_settings" if engine == "mujoco" else "validation_settings", json.dumps(
             {"trial": json.loads(trial_settings.to_json()), "noise": json.loads(noise.to_json()) if noise else None,
              "seed": seed}))
     return summary

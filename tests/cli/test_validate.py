@@ -19,6 +19,33 @@ def test_validate_json_summary_and_failures(validated_db: Path, tmp_path: Path) 
     assert summary["grasps"] == 1 and summary["successes"] in (0, 1) and summary["failed"] == {}
 
 
+def test_validate_in_mujoco_stores_its_verdicts_apart(validated_db: Path, tmp_path: Path) -> None:
+    import sqlite3
+
+    copy = tmp_path / "v.db"
+    shutil.copy(validated_db, copy)
+    with sqlite3.connect(copy) as conn:
+        before = conn.execute("SELECT * FROM validation ORDER BY grasp_id").fetchall()
+    code, out, err = grasp("validate", "--db", str(copy), "--object", "box", "--top", "2", "--robust", "0",
+                           "--workers", "1", "--engine", "mujoco", "--json")
+    assert code == 0, err
+    assert json.loads(out)["grasps"] == 2
+    with sqlite3.connect(copy) as conn:
+        assert conn.execute("SELECT * FROM validation ORDER BY grasp_id").fetchall() == before
+        rows = conn.execute("SELECT reason, settings FROM mujoco").fetchall()
+    assert len(rows) == 2 and all(json.loads(settings)["engine"] == "mujoco" for _, settings in rows)
+    assert all(reason in ("held", "slipped", "squeezed_out", "no_contact", "start_overlap") for reason, _ in rows)
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(copy), "--top", "1000", "--json")
+    assert code == 0, err
+    tried = [g for g in json.loads(out) if g["mujoco_reason"] is not None]
+    assert len(tried) == 2 and {g["mujoco_reason"] for g in tried} == {reason for reason, _ in rows}
+
+
+def test_an_unknown_engine_is_one_line(validated_db: Path) -> None:
+    code, _, err = grasp("validate", "--db", str(validated_db), "--engine", "havok")
+    assert code == 2 and "havok" in err and "Traceback" not in err
+
+
 def test_report_prints_the_file_it_wrote(validated_db: Path, tmp_path: Path) -> None:
     code, out, err = grasp("report", "--db", str(validated_db), "--out", str(tmp_path / "r.html"))
     assert code == 0 and out.splitlines()[0] == str(tmp_path / "r.html"), err

@@ -1,5 +1,6 @@
 """Every hand through every format and back: a small sweep of the box for
-each hand, a shake trial and robust epsilon of each hand's best grasps, an
+each hand, a shake trial and robust epsilon of each hand's best grasps, a
+MuJoCo trial of each hand's two best (one of them tried by both engines), an
 object whose mass and friction are not the registry's; then each export,
 read back (ACRONYM by ``grasp import``, the others by the plain readers
 below), gives the same value of every declared field the format carries,
@@ -94,6 +95,9 @@ def swept(tmp_path_factory: pytest.TempPathFactory) -> Path:
                      (MASS, FRICTION, MASS / volume))
     code, _, err = grasp("validate", "--db", str(db), "--top", "1", "--robust", "2", "--workers", "1")
     assert code == 0, err
+    code, _, err = grasp("validate", "--db", str(db), "--top", "2", "--robust", "0", "--workers", "1",
+                         "--engine", "mujoco")
+    assert code == 0, err
     return db
 
 
@@ -107,8 +111,8 @@ def test_each_format_says_what_it_carries() -> None:
     assert set(NOT_CARRIED) | MESSAGES == set(FORMATS)
     for fmt in set(FORMATS) - MESSAGES:
         assert every - carried(fmt) == NOT_CARRIED[fmt], fmt
-        assert {"settled_epsilon", "p_hold", "validation_success", "validation_reason",
-                "robust_quantile"} <= carried(fmt)
+        assert {"settled_epsilon", "p_hold", "validation_success", "validation_reason", "mujoco_success",
+                "mujoco_reason", "robust_quantile"} <= carried(fmt)
     assert MOVEIT_CARRIED < every
 
 
@@ -249,6 +253,7 @@ def test_every_hand_comes_back_through_every_format(fmt: str, swept: Path, tmp_p
             assert same(f, back[key][name], row[name]), (fmt, key, name, back[key][name], row[name])
     # the trials and the Barrett's settled epsilon are there to come back
     assert sum(row["validation_success"] is not None for row in expected.values()) == len(hand_names())
+    assert sum(row["mujoco_success"] is not None for row in expected.values()) >= len(hand_names())
     settled = [row["settled_epsilon"] is not None for (hand, _), row in expected.items()
                if hand == "barrett" and row["force_closure"]]  # only force-closure grasps settle
     assert settled and all(settled)

@@ -20,7 +20,7 @@ README = Path(__file__).parents[2] / "README.md"
 
 def reference(rule: RankingRule, g: tuple) -> float:
     """The rule as FORMULA states it, one grasp at a time."""
-    eps, fc, reach, ok, quantile, resist, push, open_margin, close_margin, settled, p_hold = g
+    eps, fc, reach, ok, quantile, resist, push, open_margin, close_margin, settled, p_hold, mujoco_ok = g
     gate = (open_margin is None or open_margin >= rule.min_open_margin) and (close_margin is None
                                                                            or close_margin >= 1e-4)
     press = 1.0 if push is None else min(max(push, 0.0), 1.0)
@@ -32,7 +32,8 @@ def reference(rule: RankingRule, g: tuple) -> float:
     if p_hold is not None:  # a calibrated model applies: the analytic score is p_hold
         analytic = p_hold
     reach_factor = (1 - rule.reach_weight) + rule.reach_weight * (1.0 if reach is None else reach)
-    success_factor = (1 - rule.success_weight) + rule.success_weight * (1.0 if ok is None else float(ok))
+    tried = [float(v) for v in (ok, mujoco_ok) if v is not None]  # held in every protocol that tried it
+    success_factor = (1 - rule.success_weight) + rule.success_weight * (min(tried) if tried else 1.0)
     return analytic * reach_factor * success_factor
 
 
@@ -45,7 +46,7 @@ def measures(grasps: list) -> dict:
 
 #: The measures in the order of :func:`reference`'s tuples.
 ORDER = ("epsilon", "force_closure", "reachability", "success", "robust_quantile", "resist_worst", "push",
-         "open_margin", "close_margin", "settled_epsilon", "p_hold")
+         "open_margin", "close_margin", "settled_epsilon", "p_hold", "mujoco_success")
 
 
 def test_the_rule_reads_the_declared_ranked_fields() -> None:
@@ -57,7 +58,7 @@ maybe = st.none() | st.floats(0.0, 40.0)
 grasp = st.tuples(st.floats(0.0, 0.5), st.booleans(), st.none() | st.floats(0.0, 1.0), st.none() | st.booleans(),
                   st.none() | st.floats(0.0, 0.5), maybe, st.none() | st.floats(-1.0, 1.0),
                   st.none() | st.floats(0.0, 0.02), st.none() | st.floats(0.0, 0.02), st.none() | st.floats(0.0, 0.5),
-                  st.none() | st.floats(0.0, 1.0))
+                  st.none() | st.floats(0.0, 1.0), st.none() | st.booleans())
 
 
 @settings(max_examples=200, deadline=None)
@@ -114,6 +115,16 @@ def test_a_veto_weight_zeroes_failed_or_unreachable_grasps() -> None:
     m = {"epsilon": [0.1] * 3, "force_closure": [1] * 3, "reachability": [0.0, 1.0, 1.0], "success": [1.0, 0.0, 1.0]}
     got = rule.scores(m)
     assert got[0] == got[1] == 0 and got[2] > 0
+
+
+def test_a_grasp_counts_as_held_only_if_every_protocol_that_tried_it_held_it() -> None:
+    # PyBullet and MuJoCo trials: held/held, held/dropped, dropped/held, only MuJoCo held, only MuJoCo dropped, none
+    rule = RankingRule(reach_weight=0.0, success_weight=1.0)
+    nan = np.nan
+    m = {"epsilon": [0.1] * 6, "force_closure": [1] * 6, "success": [1.0, 1.0, 0.0, nan, nan, nan],
+         "mujoco_success": [1.0, 0.0, 1.0, 1.0, 0.0, nan]}
+    got = rule.terms(m)["success_factor"]
+    assert got.tolist() == [1.0, 0.0, 0.0, 1.0, 0.0, 1.0]
 
 
 def test_grasps_without_analytic_measures_rank_by_force_closure_then_epsilon() -> None:

@@ -156,6 +156,32 @@ def test_validation_results_rescore_with_the_rule(tmp_path: Path) -> None:
     assert [back[c].rank for c in (0, 2, 1)] == [1, 2, 3]  # the failed grasp, best by epsilon, scores 0
 
 
+def test_a_mujoco_verdict_is_stored_apart_and_a_drop_in_either_protocol_counts(tmp_path: Path) -> None:
+    # grasp 0: held in both; 1: held in PyBullet, dropped in MuJoCo; 2: MuJoCo only, held
+    rule = RankingRule(reach_weight=0.0, success_weight=1.0)
+    held = Trial(True, 2, 0.001, 0.01, 0.002, 0.02, "held")
+    dropped = Trial(False, 1, 0.03, 0.2, 0.1, 0.5, "slipped")
+    mj_held = Trial(True, 2, 0.004, 0.03, 0.006, 0.05, "held")
+    with open_db(tmp_path / "g.db") as db:
+        db.write_unit(unit(), None, [made_up(0, 0.05), made_up(1, 0.08), made_up(2, 0.02)], rule)
+        ids = {g.candidate: g.id for g in db.best("thing", "panda", 10)}
+        db.write_validation("thing", "panda", [
+            Validated(ids[0], held, None, 0, '{"engine": "pybullet"}', ""),
+            Validated(ids[1], held, None, 0, '{"engine": "pybullet"}', "")], rule)
+        db.write_validation("thing", "panda", [  # a later MuJoCo run keeps PyBullet's rows
+            Validated(ids[0], None, None, 0, "", "", mj_held, '{"engine": "mujoco"}'),
+            Validated(ids[1], None, None, 0, "", "", dropped, '{"engine": "mujoco"}'),
+            Validated(ids[2], None, None, 0, "", "", mj_held, '{"engine": "mujoco"}')], rule)
+        back = {g.candidate: g for g in db.best("thing", "panda", 10)}
+    assert (back[0].validation, back[0].mujoco) == (held, mj_held)
+    assert (back[1].validation, back[1].mujoco) == (held, dropped)
+    assert (back[2].validation, back[2].mujoco) == (None, mj_held)
+    assert back[1].score == 0.0 and back[0].score > 0 and back[2].score > 0
+    with sqlite3.connect(tmp_path / "g.db") as conn:
+        assert conn.execute("SELECT COUNT(*), MIN(settings) FROM mujoco").fetchone() == (3, '{"engine": "mujoco"}')
+        assert conn.execute("SELECT COUNT(*) FROM validation").fetchone() == (2,)
+
+
 def test_ties_are_broken_by_epsilon_volume_seed_and_candidate_not_by_order(tmp_path: Path) -> None:
     with open_db(tmp_path / "g.db") as db:
         db.write_unit(unit(), None, [made_up(3, 0.0, fc=False), made_up(1, 0.0, fc=False)], RankingRule())

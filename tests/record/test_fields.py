@@ -13,7 +13,16 @@ import pytest
 
 from planner.db.schema import MIGRATIONS, SCHEMA, SCHEMA_VERSION
 from planner.record.field import KINDS, stored
-from planner.record.fields import FIELDS, TABLES, by_name, markdown_table, ranked_fields, record_fields, table
+from planner.record.fields import (
+    FIELDS,
+    GROUPS,
+    TABLES,
+    by_name,
+    markdown_table,
+    ranked_fields,
+    record_fields,
+    table,
+)
 from planner.record.grasp import Grasp
 from planner.record.measures import Measures
 
@@ -60,8 +69,18 @@ def test_flat_names_are_unique_and_every_stored_attribute_is_declared() -> None:
         attrs = {f.name for f in dataclasses.fields(cls) if "stored" in f.metadata}
         assert {group + a for a in attrs} <= {f.attr for f in record_fields()}
     # the record's parts that are not stored fields themselves are the groups
-    assert {f.name for f in dataclasses.fields(Grasp) if "stored" not in f.metadata} == {"validation", "robust",
-                                                                                         "measures"}
+    assert {f.name for f in dataclasses.fields(Grasp) if "stored" not in f.metadata} == set(GROUPS) == {
+        "validation", "mujoco", "robust", "measures"}
+
+
+def test_each_trial_protocol_has_its_own_columns_and_ranked_name() -> None:
+    # the MuJoCo trial is stored apart from PyBullet's, every field of the record's Trial in both
+    trial = {f.attr.partition(".")[2] for f in record_fields() if f.attr.startswith("validation.")}
+    assert trial == {f.attr.partition(".")[2] for f in record_fields() if f.attr.startswith("mujoco.")}
+    assert {f.table for f in FIELDS if f.attr.startswith("mujoco.")} == {"mujoco"}
+    assert by_name("mujoco_success").ranked == "mujoco_success" and by_name("validation_success").ranked == "success"
+    assert "MuJoCo" in by_name("mujoco_success").doc and "PyBullet" in by_name("validation_success").doc
+    assert by_name("mujoco_reason").version == 7 and by_name("mujoco_grasp_id").version == 7
 
 
 def test_every_ranked_field_has_a_neutral_value_and_a_numeric_type() -> None:

@@ -1,0 +1,210 @@
+"""The MuJoCo trial (and, side by side, the PyBullet trial) against ACRONYM's FleX labels (issue 26 item 6).
+
+For each grasp file of ``../shared/labelled/acronym_dev`` whose object is on the ``tuning`` side of
+bench/acronym_split.toml (held-out objects are refused: the lead runs them with
+``bench/acronym_eval.py --held-out --engine mujoco``), the poses bench/acronym_eval.py re-scored
+(its cache: ``--poses`` per file, seed ``--seed``), of which ``--per-file`` closed poses drawn with
+``--sample-seed`` are trialled in MuJoCo (``planner.validation.mujoco_trial.trials``, the file's mass
+and friction; ``--set key=value`` overrides MujocoSettings) and, with ``--pybullet``, in PyBullet
+(``planner.validation.shake.trials``, at the planner's re-centred pose, as ``grasp validate`` runs it).
+Printed: agreement with ``object_in_gripper`` pooled, per
+category and per object, verdicts by reason against the label, and CPU ms per trial.
+
+``--grid FILE.json``: a list of settings overrides (dicts), each run on the same poses (tuning).
+
+    python bench/acronym_mujoco.py [--per-file 10] [--sample-seed 1] [--set shake_angle=0.3] [--pybullet]
+
+Re-scoring results are read from acronym_eval's cache under the code hash ``--code`` (default: this
+tree's; re-scoring does not run MuJoCo, so a branch that adds only the MuJoCo trial may reuse the
+cache of the code it started from); a file not in the cache is re-scored (minutes per file).
+Verdicts are cached too, keyed by the settings and the trial modules' source.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import hashlib
+import json
+import sys
+import time
+from collections import Counter, defaultdict
+from dataclasses import fields, replace
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import acronym_eval as ae  # noqa: E402
+
+from planner.datasets import importer  # noqa: E402
+from planner.geometry.solid import prepare  # noqa: E402
+from planner.validation import mujoco_trial, shake  # noqa: E402
+from planner.validation.mujoco_settings import MujocoSettings  # noqa: E402
+from planner.validation.settings import ShakeSettings  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+# acronym_eval's cached re-scoring results were pickled by the script run as __main__
+sys.modules["__main__"].FileResult = ae.FileResult
+
+
+def trial_code() -> str:
+    """Hash of the trial modules' source (a cached verdict is reused only by the same code)."""
+    h = hashlib.sha256()
+    for p in sorted((ROOT / "planner" / "validation").glob("*.py")) + [ROOT / "planner" / "sim" / "mujoco_world.py",
+                                                                       ROOT / "planner" / "sim" / "dynamics.py"]:
+        if p.name not in ("run.py", "robust.py"):  # what runs and stores trials, not the trials
+            h.update(p.read_bytes())
+    return h.hexdigest()[:10]
+
+
+def parse(pairs: list[str], cls: type) -> dict:
+    kinds = {f.name: f.type for f in fields(cls)}
+    out: dict = {}
+    for kv in pairs:
+        key, _, value = kv.partition("=")
+        if key not in kinds:
+            sys.exit(f"acronym_mujoco: unknown setting {key}; settings: {', '.join(kinds)}")
+        kind = kinds[key]
+        out[key] = value if kind == "str" else (value.lower() in ("1", "true", "yes")) if kind == "bool" \
+            else int(value) if kind == "int" else float(value)
+    return out
+
+
+def picked(result: ae.FileResult, n: int, seed: int) -> list[int]:
+    closed = np.flatnonzero(result.closed)
+    return [int(closed[i]) for i in ae.sample(len(closed), n, seed, result.path.stem)] if len(closed) else []
+
+
+def run(result: ae.FileResult, positions: list[int], engine: str, settings, cache: Path,  # type: ignore[no-untyped-def]
+        pose: str = "original") -> dict:
+    """{position: [held, reason, cpu seconds]} for the sampled poses of one file (cached); ``pose``:
+    the file's own pose (``original``, what FleX simulated) or the planner's re-centred one (``planned``)."""
+    tag = hashlib.sha256((engine + pose + settings.to_json() + trial_code()).encode()).hexdigest()[:12]
+    key = cache / f"{result.path.stem}.{engine}.{len(result.rows)}.{'-'.join(map(str, positions))[:60]}." \
+                  f"{hashlib.sha256(str(positions).encode()).hexdigest()[:8]}.{tag}.json"
+    if key.exists():
+        return {int(k): v for k, v in json.loads(key.read_text()).items()}
+    hand, obj, poses = _prepared(result.path)
+    by_pos = {g.candidate: g if pose == "planned" else replace(g, pose=poses[result.rows[g.candidate]])
+              for g in result.grasps}
+    run_trials = mujoco_trial.trials if engine == "mujoco" else shake.trials
+    run_trials(hand, obj, [by_pos[positions[0]]], settings)  # builds and caches the world / parts first
+    out = {}
+    for p in positions:
+        start = time.process_time()
+        t = run_trials(hand, obj, [by_pos[p]], settings)[0]
+        out[p] = [bool(t.success), t.reason, time.process_time() - start]
+    key.write_text(json.dumps(out))
+    return out
+
+
+@functools.lru_cache(maxsize=2)
+def _prepared(path: Path):  # type: ignore[no-untyped-def]
+    """(hand, prepared object with the file's mass and friction, (n, 4, 4) hand poses) of a grasp file."""
+    hand, spec, poses = importer.read_for_rescoring(path)
+    return hand, prepare(spec), poses
+
+
+def summarise(results: list[ae.FileResult], verdicts: dict[str, dict]) -> dict:
+    rows = []
+    for r in results:
+        v = verdicts.get(r.path.stem, {})
+        for p, (held, reason, cpu) in v.items():
+            category, obj = ae.object_key(r.path)
+            rows.append({"category": category, "object": obj, "flex": int(r.labels[p]), "held": int(held),
+                         "reason": reason, "cpu": cpu})
+    if not rows:
+        return {}
+    agree = np.array([r["flex"] == r["held"] for r in rows])
+    per_object: dict = defaultdict(list)
+    per_category: dict = defaultdict(list)
+    for r, a in zip(rows, agree):
+        per_object[r["object"]].append(a)
+        per_category[r["category"]].append(a)
+    objects = {o: float(np.mean(a)) for o, a in per_object.items()}
+    by_cat_objects: dict = defaultdict(list)
+    for o, a in objects.items():
+        by_cat_objects[o.split("_")[0]].append(a)
+    return {
+        "n": len(rows), "agree": float(agree.mean()),
+        "agree_mean_over_objects": float(np.mean(list(objects.values()))),
+        "held_rate": float(np.mean([r["held"] for r in rows])), "flex_rate": float(np.mean([r["flex"] for r in rows])),
+        "drops_flex_holds": int(sum(r["flex"] == 1 and not r["held"] for r in rows)),
+        "holds_flex_drops": int(sum(r["flex"] == 0 and r["held"] for r in rows)),
+        "categories": {c: {"n": len(a), "agree": float(np.mean(a)),
+                           "mean_over_objects": float(np.mean(by_cat_objects[c]))}
+                       for c, a in sorted(per_category.items())},
+        "reasons": dict(Counter(f"{r['reason']}/{'hold' if r['flex'] else 'drop'}" for r in rows)),
+        "cpu_ms_mean": 1000 * float(np.mean([r["cpu"] for r in rows])),
+        "cpu_ms_median": 1000 * float(np.median([r["cpu"] for r in rows])),
+    }
+
+
+def show(name: str, s: dict) -> None:
+    if not s:
+        print(f"{name}: no trials")
+        return
+    cats = ", ".join(f"{c} {v['agree']:.2f} ({v['n']})" for c, v in s["categories"].items())
+    print(f"{name}: agree {s['agree']:.3f} of {s['n']} (mean over objects {s['agree_mean_over_objects']:.3f}); "
+          f"held {s['held_rate']:.2f} vs FleX {s['flex_rate']:.2f}; drops FleX-holds {s['drops_flex_holds']}, "
+          f"holds FleX-drops {s['holds_flex_drops']}; CPU {s['cpu_ms_mean']:.1f} ms/trial (median "
+          f"{s['cpu_ms_median']:.1f})\n    by category: {cats}\n    reasons: {s['reasons']}")
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--dev", type=Path, default=ae.DEV)
+    parser.add_argument("--poses", type=int, default=200, help="acronym_eval's re-scored sample per file")
+    parser.add_argument("--seed", type=int, default=0, help="acronym_eval's re-scoring seed")
+    parser.add_argument("--per-file", type=int, default=10, help="closed poses trialled per file")
+    parser.add_argument("--sample-seed", type=int, default=1)
+    parser.add_argument("--objects", nargs="*", help="only these Category_id objects (tuning side)")
+    parser.add_argument("--files", type=int, default=0, help="only the first N files (0: all)")
+    parser.add_argument("--set", dest="overrides", nargs="*", default=[], help="MujocoSettings key=value")
+    parser.add_argument("--grid", type=Path, help="JSON list of MujocoSettings overrides, each run")
+    parser.add_argument("--pose", choices=("original", "planned"), default="original",
+                        help="start each MuJoCo trial at the file's pose (what FleX simulated) or the planner's")
+    parser.add_argument("--pybullet", action="store_true", help="also the PyBullet trial (default settings)")
+    parser.add_argument("--code", help="re-scoring cache code (default: this tree's acronym_eval.source_hash)")
+    parser.add_argument("--cache", type=Path, default=ae.CACHE)
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args()
+    files = ae.dev_files(args.dev, False, args.objects)
+    if args.files:
+        files = files[:args.files]
+    code = args.code or ae.source_hash()
+    results = [ae.rescore_file(p, args.poses, args.seed, 1, args.cache, code) for p in files]
+    base = parse(args.overrides, MujocoSettings)
+    grid = json.loads(args.grid.read_text()) if args.grid else [{}]
+    report: dict = {"files": len(files), "per_file": args.per_file, "sample_seed": args.sample_seed, "code": code,
+                    "trial_code": trial_code(), "pose": args.pose, "runs": []}
+    configs = [MujocoSettings(**{**base, **extra}) for extra in grid]
+    verdicts: list[dict] = [{} for _ in configs]
+    start = time.process_time()
+    for r in results:  # files outer: each object is loaded once for every configuration
+        for k, settings in enumerate(configs):
+            verdicts[k][r.path.stem] = run(r, picked(r, args.per_file, args.sample_seed), "mujoco", settings,
+                                           args.cache, args.pose)
+    for extra, v in zip(grid, verdicts):
+        s = summarise(results, v)
+        s["settings"] = {**base, **extra}
+        report["runs"].append(s)
+        if not args.json:
+            show(f"mujoco {json.dumps({**base, **extra})}", s)
+    report["cpu_seconds"] = time.process_time() - start
+    if args.pybullet:
+        settings_pb = ShakeSettings()
+        verdicts = {r.path.stem: run(r, picked(r, args.per_file, args.sample_seed), "pybullet", settings_pb,
+                                     args.cache, "planned") for r in results}  # its trial starts near the plan
+        report["pybullet"] = summarise(results, verdicts)
+        if not args.json:
+            show("pybullet (default ShakeSettings)", report["pybullet"])
+    if args.json:
+        print(json.dumps(report, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

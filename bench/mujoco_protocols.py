@@ -1,0 +1,136 @@
+"""Two independent dynamic protocols on the planner's own grasps (issue 26 item 6, issue 24 item 3):
+PyBullet's shake trial and the MuJoCo trial on each object's best grasps, Panda and Barrett.
+
+For each hand, a small sweep of each object (one process; no reachability: the default ranking
+otherwise, p_hold where the hand has a model) into ``--db-dir``, unless the database exists; then the
+``--top`` best-ranked grasps of each object (``grasp validate``'s default selection: score > 0) are
+trialled in both engines, each at its default settings, the object's stored mass and friction.
+Printed per hand: CPU ms per trial of each engine (``time.process_time`` of this process, the first
+trial of each object excluded: it builds the world and loads the convex parts), the agreement of the
+two verdicts, and the share of objects whose top-1 grasp held in MuJoCo, in PyBullet and in both,
+and of the top-10 grasps. None of these objects was used to choose the MuJoCo trial's settings
+(those were chosen on ACRONYM tuning objects: bench/acronym_mujoco.py).
+
+    python bench/mujoco_protocols.py [--hands panda barrett] [--objects box cylinder mug duck ...] [--top 10]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+OBJECTS = ("box", "cylinder", "mug", "duck", "sphere", "teddy", "bunny", "random_100", "random_101", "random_102",
+           "random_103", "random_104", "random_105", "random_106", "random_107")
+#: A small sweep per hand (the default sweep costs minutes per object on the shared machine).
+SWEEPS = {"panda": dict(approaches=256, reach_placements=0),
+          "barrett": dict(approaches=24, rolls=2, reach_placements=0)}
+
+
+def database(hand: str, objects: tuple[str, ...], folder: Path) -> Path:
+    from planner import api
+    from planner.plan.sweep import SweepSettings
+
+    db = folder / f"protocols_{hand}.db"
+    folder.mkdir(parents=True, exist_ok=True)
+    if not db.exists():
+        start = time.process_time()
+        s = api.generate(list(objects), hand, db_path=db, workers=1, settings=SweepSettings(**SWEEPS[hand]))
+        print(f"{hand}: generated {s.grasps} grasps ({s.force_closure} force closure) of {len(objects)} objects in "
+              f"{time.process_time() - start:.0f} CPU s", file=sys.stderr, flush=True)
+    return db
+
+
+def trialled(db: Path, hand_name: str, objects: tuple[str, ...], top: int) -> list[dict]:
+    """One row per trialled grasp: object, rank, both verdicts and CPU seconds."""
+    from planner.db.objects import stored_object
+    from planner.db.store import open_db
+    from planner.specs.hands import load_hand
+    from planner.validation import mujoco_trial, shake
+    from planner.validation.run import Selection
+
+    hand = load_hand(hand_name)
+    rows = []
+    with open_db(db, create=False, readonly=True) as handle:
+        picked = {o: Selection(top=top).pick(handle, o, hand_name, 0) for o in objects}
+        stored = {o: handle.object_row(o) for o in objects}
+    for name, grasps in picked.items():
+        if not grasps or stored[name] is None:
+            print(f"{hand_name}/{name}: no grasp", file=sys.stderr)
+            continue
+        obj = stored_object(stored[name])
+        for engine in (mujoco_trial, shake):  # build the world, load the parts
+            engine.trials(hand, obj, grasps[:1])
+        for g in grasps:
+            out = {"object": name, "rank": g.rank, "force_closure": bool(g.force_closure)}
+            for key, engine in (("mujoco", mujoco_trial), ("pybullet", shake)):
+                start = time.process_time()
+                t = engine.trials(hand, obj, [g])[0]
+                out[key] = {"held": bool(t.success), "reason": t.reason, "cpu": time.process_time() - start}
+            rows.append(out)
+        print(f"{hand_name}/{name}: {len(grasps)} grasps; top-1 MuJoCo {rows[-len(grasps)]['mujoco']['reason']}, "
+              f"PyBullet {rows[-len(grasps)]['pybullet']['reason']}", file=sys.stderr, flush=True)
+    return rows
+
+
+def summary(rows: list[dict]) -> dict:
+    if not rows:
+        return {}
+    mj = np.array([r["mujoco"]["held"] for r in rows])
+    pb = np.array([r["pybullet"]["held"] for r in rows])
+    first = [r for r in rows if r["rank"] == min(q["rank"] for q in rows if q["object"] == r["object"])]
+    top10 = [r for r in rows if sum(q["object"] == r["object"] and q["rank"] < r["rank"] for q in rows) < 10]
+    return {
+        "grasps": len(rows), "objects": len(first),
+        "cpu_ms_mujoco": 1000 * float(np.mean([r["mujoco"]["cpu"] for r in rows])),
+        "cpu_ms_mujoco_median": 1000 * float(np.median([r["mujoco"]["cpu"] for r in rows])),
+        "cpu_ms_pybullet": 1000 * float(np.mean([r["pybullet"]["cpu"] for r in rows])),
+        "cpu_ms_pybullet_median": 1000 * float(np.median([r["pybullet"]["cpu"] for r in rows])),
+        "agreement": float(np.mean(mj == pb)), "held_mujoco": float(mj.mean()), "held_pybullet": float(pb.mean()),
+        "both_held_pb_dropped_mj": int(np.sum(pb & ~mj)), "mj_held_pb_dropped": int(np.sum(mj & ~pb)),
+        "top1_mujoco": float(np.mean([r["mujoco"]["held"] for r in first])),
+        "top1_pybullet": float(np.mean([r["pybullet"]["held"] for r in first])),
+        "top1_both": float(np.mean([r["mujoco"]["held"] and r["pybullet"]["held"] for r in first])),
+        "top10_mujoco": float(np.mean([r["mujoco"]["held"] for r in top10])),
+        "top10_pybullet": float(np.mean([r["pybullet"]["held"] for r in top10])),
+        "top1_not_held_mujoco": [f"{r['object']} ({r['mujoco']['reason']})" for r in first if not r["mujoco"]["held"]],
+        "reasons_mujoco": {k: int(sum(r["mujoco"]["reason"] == k for r in rows))
+                           for k in sorted({r["mujoco"]["reason"] for r in rows})},
+    }
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--hands", nargs="*", default=["panda", "barrett"])
+    parser.add_argument("--objects", nargs="*", default=list(OBJECTS))
+    parser.add_argument("--top", type=int, default=10)
+    parser.add_argument("--db-dir", type=Path, default=Path("out"))
+    parser.add_argument("--json", type=Path, help="also write every row and the summaries here")
+    args = parser.parse_args()
+    print(f"load: {os.getloadavg()[0]:.1f}", file=sys.stderr)
+    report = {}
+    for hand in args.hands:
+        db = database(hand, tuple(args.objects), args.db_dir)
+        rows = trialled(db, hand, tuple(args.objects), args.top)
+        report[hand] = {"summary": summary(rows), "rows": rows}
+        s = report[hand]["summary"]
+        print(f"{hand}: {s['grasps']} grasps of {s['objects']} objects; CPU per trial MuJoCo {s['cpu_ms_mujoco']:.1f} "
+              f"ms (median {s['cpu_ms_mujoco_median']:.1f}), PyBullet {s['cpu_ms_pybullet']:.1f} ms (median "
+              f"{s['cpu_ms_pybullet_median']:.1f}); verdicts agree {s['agreement']:.3f} (held: MuJoCo "
+              f"{s['held_mujoco']:.2f}, PyBullet {s['held_pybullet']:.2f}); top-1 held: MuJoCo {s['top1_mujoco']:.2f}, "
+              f"PyBullet {s['top1_pybullet']:.2f}, both {s['top1_both']:.2f}; top-10 held: MuJoCo "
+              f"{s['top10_mujoco']:.2f}, PyBullet {s['top10_pybullet']:.2f}; top-1 dropped in MuJoCo: "
+              f"{s['top1_not_held_mujoco']}; MuJoCo reasons {s['reasons_mujoco']}", flush=True)
+    print(f"load: {os.getloadavg()[0]:.1f}", file=sys.stderr)
+    if args.json:
+        args.json.write_text(json.dumps(report, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,355 @@
+"""A second, independent dynamic trial: another engine (MuJoCo) and another
+protocol than :mod:`planner.validation.shake` (PyBullet).
+
+What is independent of the PyBullet trial: the engine (soft contacts,
+elliptic friction cones, a Newton solver), the closing control and the load.
+What is shared: the hand (its URDF, finger motors and their published
+effort, mimic gearing, the Barrett's breakaway clutch and worm gears, the
+pads' torsional friction: :class:`~planner.specs.hands.HandSpec`), the
+object (its convex parts, mass, inertia, friction) and the record
+(:class:`~planner.record.grasp.Trial`).
+
+The protocol (settings: :class:`~planner.validation.mujoco_settings.MujocoSettings`),
+in the object's frame at rest (the world; the object is free, the hand's root
+welded to a moving target, hand gravity-compensated as an arm would carry it):
+
+1. The hand at the grasp pose with its fingers at the grasp's *open preshape*
+   (not near the planned contacts); ``start_overlap`` if that open hand is
+   deeper than ``max_start_overlap`` in the object.
+2. Close without gravity: each closing joint's position servo follows a
+   target moving at the hand's closing speed to the closed limit; the servo's
+   force is limited to the motor's effort (a mimic is geared to its master
+   by an equality constraint, so one motor's effort is shared as by a gear
+   train), reached ``servo_lag`` behind the target: once a finger is
+   blocked it squeezes with the motor's effort. A breakaway clutch (the
+   Barrett's TorqueSwitch) lets go as the planner's closing rule says; a
+   worm-gear finger cannot be opened once closed. Closing ends when every
+   finger has stalled; the object then settles.
+3. Load and shake: gravity ramps on (the object frame's -z, or along the
+   approach); the hand lifts against it, rotates back and forth about the
+   two axes across its approach through the tool centre point, and moves up
+   and down along gravity; then holds still.
+4. Verdict: ``held`` if the object still touches a finger and moved less
+   than ``max_translation`` and ``max_rotation`` relative to the hand since
+   the fingers closed; ``slipped`` if not (a trial stops as soon as no
+   finger touches). No finger on the object once closed: ``squeezed_out``
+   if closing moved it by more than those thresholds, else ``no_contact``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from planner.geometry.solid import PreparedObject
+from planner.record.grasp import Grasp, Trial
+from planner.sim.mujoco_world import Engine, Solid, World, build
+from planner.specs.hands import HandSpec
+from planner.validation import fingers as fg
+from planner.validation.mujoco_settings import MujocoSettings
+from planner.validation.tolerances import DEFAULT_LEVER, GRAVITY, HOLD_FACTOR
+
+#: Why a MuJoCo trial ended as it did (``Trial.reason``).
+REASONS = ("held", "slipped", "squeezed_out", "no_contact", "start_overlap")
+#: [s] the finger servos' damping over their stiffness: the servo lags a
+#: moving target by this times its speed (0.5 mm at the Panda's 5 cm/s).
+SERVO_TIME = 0.01
+#: [s] how often a trial reads its contacts while loaded (an early verdict once no finger touches).
+CHECK_EVERY = 0.05
+#: Worlds kept per process (one per hand and object: building one costs a few ms, more with many parts).
+_KEPT = 8
+_WORLDS: dict[tuple, World] = {}
+
+
+def recorded(settings: MujocoSettings, hand: HandSpec) -> str:
+    """What decides a hand's MuJoCo trials, as stored with each result (JSON)."""
+    import mujoco
+
+    torsion = {link: m.torsion_radius for link, m in sorted(hand.contacts.items()) if m.model == "soft"}
+    return json.dumps({"engine": "mujoco", "mujoco": mujoco.__version__, **asdict(settings), "hand": hand.name,
+                       "actuators": asdict(hand.actuators), "breakaway": [j.name for j in hand.joints if j.breakaway],
+                       "torsion_radius": torsion}, sort_keys=True)
+
+
+def trial(hand: HandSpec, obj: PreparedObject, grasp: Grasp, settings: MujocoSettings | None = None,
+          friction: float | None = None, mass: float | None = None) -> Trial:
+    """Shake-test one grasp in MuJoCo. ``friction``/``mass`` override the object's."""
+    return trials(hand, obj, [grasp], settings, friction, mass)[0]
+
+
+def trials(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp], settings: MujocoSettings | None = None,
+           friction: float | None = None, mass: float | None = None) -> list[Trial]:
+    """Shake-test grasps of one object in MuJoCo, one after the other in one
+    world (each from a fresh state: the results do not depend on the order)."""
+    s = settings or MujocoSettings()
+    world = _world(hand, obj, s, obj.mass if mass is None else mass)
+    mu = obj.friction if friction is None else friction
+    return [_Run(world, hand, g, s, mu).run() for g in grasps]
+
+
+def solid(obj: PreparedObject, mass: float, tolerance: float) -> Solid:
+    """The object as the trial collides it: the PyBullet trial's shape
+    (:func:`planner.validation.parts.trial_shape`: primitives, else convex
+    parts simplified to ``tolerance``), at ``mass`` [kg]."""
+    from planner.geometry.decompose import convex_parts
+    from planner.validation.parts import PRIMITIVES, simplified_hull
+
+    inertia = np.asarray(obj.inertia, float) * (mass / obj.mass)
+    com = np.asarray(obj.com, float)
+    if obj.spec.kind in PRIMITIVES:
+        return Solid(obj.spec.kind, tuple(obj.spec.dims), (), mass, com, inertia)
+    parts = convex_parts(obj.mesh, obj.mesh_hash)
+    hulls = tuple(simplified_hull(v, tolerance)[0] for v in parts.vertices)
+    return Solid("hulls", (), hulls, mass, com, inertia)
+
+
+def _world(hand: HandSpec, obj: PreparedObject, s: MujocoSettings, mass: float) -> World:
+    engine = Engine(s.timestep, s.iterations, s.impratio, s.contact_time, 1.0, s.contact_time, s.multiccd)
+    soft = tuple(sorted(link for link, c in hand.contacts.items() if c.model == "soft" and c.torsion_radius > 0))
+    key = (hand.name, str(hand.urdf), soft, obj.mesh_hash, obj.spec.kind, tuple(obj.spec.dims), mass,
+           s.part_tolerance, engine)
+    if key not in _WORLDS:
+        if len(_WORLDS) >= _KEPT:
+            _WORLDS.pop(next(iter(_WORLDS)))
+        _WORLDS[key] = build(hand, solid(obj, mass, s.part_tolerance), engine)
+    return _WORLDS[key]
+
+
+def _steps(seconds: float, dt: float) -> int:
+    return max(1, int(round(seconds / dt)))
+
+
+@dataclass
+class _Clutch:
+    """A breakaway driven joint still engaged: its mimics, the links only
+    it moves (``trigger``) and the links its mimics move (``rest``)."""
+
+    driven: str
+    mimics: tuple[str, ...]
+    trigger: frozenset[str]
+    rest: frozenset[str]
+
+
+@dataclass
+class _Run:
+    """One grasp's trial in a world."""
+
+    world: World
+    hand: HandSpec
+    grasp: Grasp
+    s: MujocoSettings
+    mu: float
+    rates: dict[str, float] = field(init=False)
+    fingers: tuple[frozenset[str], ...] = field(init=False)
+    pose: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.rates = fg.closing_rates(self.hand, self.grasp.preshape)
+        self.fingers = fg.fingers(self.hand, self.rates)
+        self.pose = np.asarray(self.grasp.pose, float)
+
+    # -- phases ----------------------------------------------------------------------
+    def run(self) -> Trial:
+        w, s = self.world, self.s
+        start = self._open_joints()
+        w.reset(self.pose, start)
+        w.set_friction(self.mu, {link: self.mu * c.torsion_radius for link, c in self.hand.contacts.items()
+                                 if c.model == "soft"})
+        if w.depth() > s.max_start_overlap:
+            return Trial(False, 0, 0.0, 0.0, 0.0, 0.0, "start_overlap")
+        before = self._relative()
+        self._close(start)
+        w.step(_steps(s.settle_time, s.timestep))
+        closed = self._relative()
+        closing = _motion(before, closed)
+        touching = self._touching()
+        if not touching:
+            pushed = closing[0] >= s.max_translation or closing[1] >= s.max_rotation
+            return Trial(False, 0, *closing, 0.0, 0.0, "squeezed_out" if pushed else "no_contact")
+        held, shaking = self._load(closed)
+        touching = self._touching()
+        return Trial(held, touching, *closing, *shaking, "held" if held else "slipped")
+
+    def _open_joints(self) -> dict[str, float]:
+        """The grasp's open preshape; a joint it lacks: open limit if it closes, else as planned."""
+        out = {}
+        for j in self.hand.joints:
+            if j.name in self.grasp.open_joints:
+                out[j.name] = float(self.grasp.open_joints[j.name])
+            elif self.rates.get(j.name, 0.0) != 0.0:
+                out[j.name] = j.lower if self.rates[j.name] > 0 else j.upper
+            else:
+                out[j.name] = float(self.grasp.closed_joints.get(j.name, j.lower))
+        return out
+
+    def _close(self, start: Mapping[str, float]) -> None:
+        w, s, hand = self.world, self.s, self.hand
+        effort = hand.actuators.effort
+        fastest = max([abs(self.rates[j.name]) for j in hand.driven] + [1e-12])
+        moving: dict[str, tuple[float, float, float]] = {}  # driven joint -> (start, speed signed, end)
+        clutches = []
+        for j in hand.driven:
+            rate = self.rates[j.name]
+            lag = s.servo_lag if j.kind == "prismatic" else s.servo_lag / DEFAULT_LEVER
+            if rate == 0.0:
+                kp = HOLD_FACTOR * effort / lag
+                w.drive(j.name, start[j.name], kp, kp * SERVO_TIME, HOLD_FACTOR * effort)
+                continue
+            end = j.upper if rate > 0 else j.lower
+            moving[j.name] = (start[j.name], hand.actuators.closing_speed * rate / fastest, end)
+            kp = effort / lag
+            w.drive(j.name, start[j.name], kp, kp * SERVO_TIME, effort)
+            mimics = tuple(m.name for m in hand.joints if m.mimic == j.name and self.rates[m.name] != 0.0)
+            if j.breakaway and mimics:
+                rest = frozenset(link for m in mimics for link in hand.joint(m).moves)
+                clutches.append(_Clutch(j.name, mimics, frozenset(j.moves) - rest, rest))
+        dt = s.timestep
+        lever = {name: 1.0 if hand.joint(name).kind == "prismatic" else DEFAULT_LEVER for name in moving}
+        still = 0.0
+        for i in range(_steps(s.max_close_time, dt)):
+            t = (i + 1) * dt
+            done = True
+            for name, (q0, speed, end) in moving.items():
+                target = q0 + speed * t
+                target = min(target, end) if speed > 0 else max(target, end)
+                w.set_target(name, target)
+                done &= target == end
+            w.step()
+            if clutches:
+                self._break_away(clutches, w.touching_links())
+            stalled = all(abs(w.joint_speed(name)) * lever[name] < s.stall_speed for name in moving)
+            still = still + dt if stalled and (done or i * dt > s.stall_time) else 0.0
+            if still >= s.stall_time:
+                break
+        if not hand.actuators.backdrivable:
+            self._hold_closed()
+
+    def _break_away(self, clutches: list[_Clutch], touching: set[str]) -> None:
+        """The planner's closing rule (``breakaway`` in hand.toml): a finger
+        whose distal links touch first stalls as a whole (its clutch is
+        dropped); once only its proximal link touches, the gears go, the
+        proximal joint is braked where it is and each distal joint closes on
+        alone with its share of the motor's effort."""
+        w, hand, s = self.world, self.hand, self.s
+        effort = hand.actuators.effort
+        for c in list(clutches):
+            if touching & c.rest:
+                clutches.remove(c)
+            elif touching & c.trigger:
+                clutches.remove(c)
+                held = w.joint_position(c.driven)
+                kp = HOLD_FACTOR * effort / (s.servo_lag / DEFAULT_LEVER)
+                w.drive(c.driven, held, kp, kp * SERVO_TIME, HOLD_FACTOR * effort)
+                norm = 1.0 + sum(hand.joint(m).multiplier ** 2 for m in c.mimics)
+                for m in c.mimics:
+                    joint = hand.joint(m)
+                    share = effort * abs(joint.multiplier) / norm
+                    w.couple(m, False)
+                    kp = share / (s.servo_lag / DEFAULT_LEVER)
+                    w.drive(m, joint.upper if self.rates[m] > 0 else joint.lower, kp, kp * SERVO_TIME, share)
+
+    def _hold_closed(self) -> None:
+        """Worm-gear fingers: no load can open a closing joint past where it is now."""
+        for j in self.hand.joints:
+            rate = self.rates[j.name]
+            if rate != 0.0:
+                q = self.world.joint_position(j.name)
+                self.world.set_limits(j.name, *((q, j.upper) if rate > 0 else (j.lower, q)))
+
+    def _load(self, closed: np.ndarray) -> tuple[bool, tuple[float, float]]:
+        """Gravity, lift, shake, hold; (held, (largest motion [m], rotation [rad]) relative to the hand)."""
+        w, s, dt = self.world, self.s, self.s.timestep
+        down = _down(s.down, self.pose[:3, :3] @ self.hand.approach)
+        weight = 0.0 if s.down == "none" else GRAVITY
+        worst = [0.0, 0.0]
+        every = _steps(CHECK_EVERY, dt)
+        path = self._path(down)
+        ramp = _steps(s.ramp_time, dt)
+        for i, target in enumerate(path):
+            if i <= ramp:
+                w.set_gravity(weight * min(1.0, (i + 1) / ramp) * down)
+            w.move_hand(target)
+            w.step()
+            if (i + 1) % every == 0 or i == len(path) - 1:
+                moved = _motion(closed, self._relative())
+                worst = [max(worst[0], moved[0]), max(worst[1], moved[1])]
+                if not self._touching():
+                    return False, (worst[0], worst[1])
+        w.check()
+        final = _motion(closed, self._relative())
+        held = final[0] < s.max_translation and final[1] < s.max_rotation
+        return held, (worst[0], worst[1])
+
+    def _path(self, down: np.ndarray) -> np.ndarray:
+        """(n, 4, 4) the hand's target pose at every step of the load: ramp
+        (still), lift, rotations about the two axes across the approach
+        through the tool centre point, translation along gravity, hold
+        (still)."""
+        s, dt, pose = self.s, self.s.timestep, self.pose
+        still = np.repeat(pose[None], _steps(s.ramp_time, dt), axis=0)
+        n = _steps(s.lift_time, dt)
+        lift = np.repeat(pose[None], n, axis=0)
+        lift[:, :3, 3] -= np.outer(s.lift * 0.5 * (1.0 - np.cos(np.pi * np.arange(1, n + 1) / n)), down)
+        top = lift[-1]
+        centre = top[:3, :3] @ self.hand.tcp + top[:3, 3]
+        n = _steps(s.shake_cycles / s.shake_frequency, dt) if s.shake_cycles else 0
+        wave = np.sin(2 * np.pi * s.shake_frequency * dt * np.arange(1, n + 1))
+        turns = []
+        for axis in _across(self.hand.approach):
+            turn = np.repeat(np.eye(4)[None], n, axis=0)
+            turn[:, :3, :3] = _rotations(top[:3, :3] @ axis, s.shake_angle * wave)
+            turn[:, :3, 3] = centre - turn[:, :3, :3] @ centre
+            turns.append(turn @ top)
+        shift = np.repeat(top[None], n, axis=0)
+        shift[:, :3, 3] += np.outer(s.shake_distance * wave, down)
+        hold = np.repeat(top[None], _steps(s.hold_time, dt), axis=0)
+        return np.concatenate([still, lift, *turns, shift, hold])
+
+    # -- reading ---------------------------------------------------------------------
+    def _relative(self) -> np.ndarray:
+        """(4, 4) the object's centre-of-mass frame in the hand frame now."""
+        w = self.world
+        frame = w.object_pose()
+        frame[:3, 3] = w.centre_of_mass()
+        return np.linalg.inv(w.hand_pose()) @ frame
+
+    def _touching(self) -> int:
+        links = self.world.touching_links()
+        return sum(1 for f in self.fingers if f & links)
+
+
+def _down(name: str, approach: np.ndarray) -> np.ndarray:
+    """(3,) unit vector, world (= object) frame, of :data:`~planner.validation.mujoco_settings.DOWN`'s
+    ``name``; ``approach``: the hand's approach in the world. Without gravity the hand still lifts and
+    shakes along -z."""
+    if name == "approach":
+        return approach / np.linalg.norm(approach)
+    return np.array([0.0, -1.0, 0.0]) if name == "-y" else np.array([0.0, 0.0, -1.0])
+
+
+def _motion(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+    """(distance [m], angle [rad]) between two (4, 4) frames (the angle from
+    the trace: ~1e-4 rad resolution near 0, plenty for a verdict)."""
+    cos = (float(np.einsum("ij,ij->", a[:3, :3], b[:3, :3])) - 1.0) / 2.0
+    return float(np.linalg.norm(b[:3, 3] - a[:3, 3])), math.acos(min(1.0, max(-1.0, cos)))
+
+
+def _across(approach: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit axes (hand frame) across the unit ``approach``: the hand's x
+    (or y, if x is the approach) made perpendicular, and approach x that."""
+    a = np.asarray(approach, float) / np.linalg.norm(approach)
+    seed = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    first = seed - (seed @ a) * a
+    first /= np.linalg.norm(first)
+    return first, np.cross(a, first)
+
+
+def _rotations(axis: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """(n, 3, 3) rotations by ``angles`` (n,) [rad] about the unit ``axis`` (Rodrigues)."""
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return (np.eye(3) + np.sin(angles)[:, None, None] * k
+            + (1 - np.cos(angles))[:, None, None] * (k @ k))

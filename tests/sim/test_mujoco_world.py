@@ -1,0 +1,98 @@
+"""The MuJoCo world: every hand's model compiles and its fingers close under
+their motors, mimic joints follow their masters, the object sits where it
+was put with its mass, and the hand follows its weld target."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from helpers import assert_close
+
+from planner.sim.mujoco_world import Solid, build
+from planner.specs.hands import hand_names, load_hand
+
+#: [rad or m] a joint within this of where its coupling puts it (the gear is a stiff equality constraint).
+GEAR_TOL = 1e-3
+#: [m] the hand's root within this of its weld target at rest.
+WELD_TOL = 1e-3
+
+
+def far_away(distance: float = 1.0) -> np.ndarray:
+    pose = np.eye(4)
+    pose[:3, 3] = (distance, 0.0, 0.0)
+    return pose
+
+
+def cube(mass: float = 0.2) -> Solid:
+    side = 0.04
+    return Solid("box", (side, side, side), (), mass, np.zeros(3), np.eye(3) * mass * side ** 2 / 6)
+
+
+@pytest.mark.parametrize("name", hand_names())
+def test_every_hand_compiles_and_its_fingers_close_under_their_motors(name: str) -> None:
+    hand = load_hand(name)
+    world = build(hand, cube())
+    closing = {j.name: j for j in hand.driven if j.close != 0.0}
+    start = {j.name: (j.lower if j.close > 0 else j.upper) for j in hand.joints if j.mimic is None}
+    world.reset(far_away(), hand.full_configuration(start))
+    for name_, j in closing.items():
+        lag = 0.002 if j.kind == "prismatic" else 0.04
+        kp = hand.actuators.effort / lag
+        world.drive(name_, j.upper if j.close > 0 else j.lower, kp, 0.01 * kp, hand.actuators.effort)
+    world.step(1000)  # 2 s
+    for name_, j in closing.items():
+        closed = j.upper if j.close > 0 else j.lower
+        assert abs(world.joint_position(name_) - closed) < 0.05 * (j.upper - j.lower), name_
+    for j in hand.joints:
+        if j.mimic is not None:
+            expected = j.multiplier * world.joint_position(j.mimic) + j.offset
+            assert abs(world.joint_position(j.name) - expected) < GEAR_TOL, j.name
+    assert world.touching_links() == set()  # the hand is a metre away
+
+
+def test_a_released_gear_lets_the_mimic_move_alone() -> None:
+    hand = load_hand("barrett")
+    world = build(hand, cube())
+    world.reset(far_away(), hand.full_configuration({}))
+    world.couple("bh_j13_joint", False)
+    world.drive("bh_j12_joint", 0.0, 5000.0, 50.0, 100.0)  # the proximal joint braked
+    world.drive("bh_j13_joint", 0.7, 50.0, 0.5, 1.0)
+    world.step(500)
+    assert world.joint_position("bh_j13_joint") > 0.6 and abs(world.joint_position("bh_j12_joint")) < 0.01
+
+
+def test_the_object_sits_where_it_was_put_and_falls_with_gravity() -> None:
+    world = build(load_hand("panda"), cube(0.3))
+    pose = far_away(0.2)
+    world.reset(far_away(), {}, pose)
+    assert_close(world.object_pose(), pose, 1e-9)
+    assert_close(world.model.body_mass[world.object_body], 0.3, 1e-9)
+    world.set_gravity(np.array([0.0, 0.0, -9.81]))
+    world.step(250)  # 0.5 s of free fall: 1.226 m
+    assert_close(world.object_pose()[2, 3], -0.5 * 9.81 * 0.5 ** 2, 0.01)
+
+
+def test_the_hand_follows_its_weld_target() -> None:
+    world = build(load_hand("panda"), cube())
+    world.reset(far_away(), {})
+    target = far_away(1.05)
+    world.move_hand(target)
+    world.step(250)
+    assert_close(world.hand_pose()[:3, 3], target[:3, 3], WELD_TOL)
+
+
+def test_hulls_collide_like_the_primitive_and_contacts_point_into_the_object() -> None:
+    # the Panda's left pad pressed on a cube (as a box and as its hull): contacts on the pad, normal along -y
+    hand = load_hand("panda")
+    side = 0.04
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float) * side / 2
+    for solid in (cube(), Solid("hulls", (), (corners,), 0.2, np.zeros(3), np.eye(3) * 0.2 * side ** 2 / 6)):
+        world = build(hand, solid)
+        pose = np.diag([-1.0, 1.0, -1.0, 1.0])
+        pose[:3, 3] = -pose[:3, :3] @ hand.tcp  # tool centre point at the cube's centre, approaching along -z
+        world.reset(pose, {"panda_finger_joint1": 0.0195, "panda_finger_joint2": 0.0195})
+        points, normals, links = world.contact_points()
+        assert set(links) == {"panda_leftfinger", "panda_rightfinger"}
+        assert np.all(np.abs(np.abs(points[:, 1]) - side / 2) < 0.002)
+        assert np.all(np.abs(normals[:, 1]) > 0.99) and np.all(np.sign(normals[:, 1]) == -np.sign(points[:, 1]))
+        assert 0 < world.depth() < 0.002

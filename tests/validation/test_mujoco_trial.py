@@ -1,0 +1,93 @@
+"""The MuJoCo trial against known physical answers: the Panda's pinch across
+a box's centre holds when friction carries the weight and drops when it
+cannot; the same grasp backed off touches nothing; fingertips catching only
+the rim of a heavy box let it go; the Barrett closes its three fingers on a
+box; the verdicts do not depend on the order of the grasps."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from planner.specs.hands import load_hand
+from planner.validation.mujoco_settings import MujocoSettings
+from planner.validation.mujoco_trial import recorded, trial, trials
+from tests.validation.support import as_row_of, backed_off, box, box_of, pinch
+
+#: The pinched box (0.2 kg) and the Panda's pad force (one 70 N motor: 35 N a pad): below
+#: this friction its weight alone pulls it through the pads (the shake adds more).
+MASS, PAD_FORCE = 0.2, 35.0
+MU_STAR = MASS * 9.81 / (2 * PAD_FORCE)
+
+
+@pytest.fixture(scope="module")
+def pinched():  # type: ignore[no-untyped-def]
+    hand = load_hand("panda")
+    obj = box(0.04)
+    return hand, obj, pinch(hand, obj)
+
+
+def test_a_box_pinched_across_its_centre_holds(pinched) -> None:  # type: ignore[no-untyped-def]
+    hand, obj, grasp = pinched
+    result = trial(hand, obj, grasp)
+    assert result.success and result.reason == "held" and result.fingers_in_contact == 2
+    assert result.shaking_linear < 0.005 and result.closing_linear < 0.002
+
+
+def test_it_drops_when_friction_cannot_carry_its_weight(pinched) -> None:  # type: ignore[no-untyped-def]
+    hand, obj, grasp = pinched
+    result = trial(hand, obj, grasp, friction=0.5 * MU_STAR)
+    assert not result.success and result.reason == "slipped"
+
+
+def test_the_same_grasp_backed_off_touches_nothing(pinched) -> None:  # type: ignore[no-untyped-def]
+    hand, obj, grasp = pinched
+    result = trial(hand, obj, backed_off(grasp, hand, 0.06))
+    assert not result.success and result.reason == "no_contact" and result.fingers_in_contact == 0
+
+
+def test_fingertips_on_the_rim_of_a_heavy_box_let_it_go(pinched) -> None:  # type: ignore[no-untyped-def]
+    # the pads' last 3 mm over the top edge (z = 3 cm) of a 2 kg box: a sliver of contact, no hold
+    hand, _, _ = pinched
+    heavy = box_of((0.05, 0.04, 0.06), 2.0)
+    grasp = pinch(hand, heavy)
+    lowest = float(grasp.contacts.points[:, 2].min())  # the pads' tips, object frame (the hand comes down -z)
+    tip = backed_off(grasp, hand, 0.03 - 0.003 - lowest)
+    assert trial(hand, heavy, grasp).success
+    assert not trial(hand, heavy, tip).success
+
+
+def test_an_open_hand_inside_the_object_is_flagged(pinched) -> None:  # type: ignore[no-untyped-def]
+    hand, obj, grasp = pinched
+    pushed = backed_off(grasp, hand, -0.03)  # the palm 3 cm into the box
+    assert trial(hand, obj, pushed).reason == "start_overlap"
+
+
+def test_verdicts_do_not_depend_on_the_order_of_the_grasps(pinched) -> None:  # type: ignore[no-untyped-def]
+    hand, obj, grasp = pinched
+    off = backed_off(grasp, hand, 0.06)
+    forward, backward = trials(hand, obj, [grasp, off]), trials(hand, obj, [off, grasp])
+    assert forward == backward[::-1]
+
+
+def test_the_barrett_closes_its_three_fingers_on_a_box() -> None:
+    hand = load_hand("barrett")
+    obj = box_of((0.05, 0.05, 0.08), 0.3)
+    pose = np.diag([1.0, -1.0, -1.0, 1.0])  # palm normal along -z, from above
+    pose[:3, 3] = (0.0, 0.0, 0.04 + 0.08 + 0.005)  # palm face 5 mm above the box's top
+    grasp = as_row_of("barrett", pose, {}, _no_contacts(), preshape="wrap",
+                      open_joints={"bh_j11_joint": 0.0, "bh_j21_joint": 0.0, "bh_j12_joint": 0.0, "bh_j13_joint": 0.0,
+                                   "bh_j22_joint": 0.0, "bh_j23_joint": 0.0, "bh_j32_joint": 0.0, "bh_j33_joint": 0.0})
+    result = trial(hand, obj, grasp)
+    assert result.fingers_in_contact == 3 and result.reason == "held"
+
+
+def test_the_stored_settings_name_the_engine_and_the_hand() -> None:
+    text = recorded(MujocoSettings(), load_hand("barrett"))
+    assert '"engine": "mujoco"' in text and '"hand": "barrett"' in text and "bh_j12_joint" in text
+
+
+def _no_contacts():  # type: ignore[no-untyped-def]
+    from planner.record.contacts import HandContacts
+
+    return HandContacts(np.zeros((0, 3)), np.zeros((0, 3)), ())
