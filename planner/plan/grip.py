@@ -198,16 +198,27 @@ def _lever(com: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     return float(np.linalg.norm(np.cross(rel, axis / length)))
 
 
-def _in_link(hull: Hull, pose: np.ndarray, surface: GripSurface, reach: float
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(indices of the samples in the hull's bounding box grown by
-    ``reach``, their signed distances to the hull [m], the index of the face
-    they are nearest in the signed-distance sense)."""
-    corners = hull.vertices @ pose[:3, :3].T + pose[:3, 3]
-    idx = surface.box(corners.min(axis=0) - reach, corners.max(axis=0) + reach)
-    if not len(idx):
-        return idx, np.zeros(0), np.zeros(0, int)
-    return (idx, *_distance(hull, pose, surface.points[idx]))
+def _near(hull: Hull, pose: np.ndarray, points: np.ndarray, idx: np.ndarray, band: float
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Of ``points[idx]`` (object frame), those whose signed distance to the
+    hull at ``pose`` is below ``band`` [m]: (their indices, their signed
+    distances, the face each is taken at), as :func:`_distance` gives them.
+    Faces are read by blocks and a point farther than ``band`` from one
+    face's plane is dropped at once (the signed distance is the largest)."""
+    local = (points[idx] - pose[:3, 3]) @ pose[:3, :3]
+    best = np.full(len(idx), -np.inf)
+    face = np.zeros(len(idx), int)
+    for start in range(0, len(hull.normals), _BLOCK):
+        plane = local @ hull.normals[start:start + _BLOCK].T - hull.offsets[start:start + _BLOCK]
+        at = np.argmax(plane, axis=1)
+        value = plane[np.arange(len(local)), at]
+        better = value > best  # strictly: the first face of a tie, as argmax over all faces picks
+        best, face = np.where(better, value, best), np.where(better, start + at, face)
+        keep = best < band
+        idx, local, best, face = idx[keep], local[keep], best[keep], face[keep]
+        if not len(idx):
+            break
+    return idx, best, face
 
 
 def _distance(hull: Hull, pose: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -218,6 +229,10 @@ def _distance(hull: Hull, pose: np.ndarray, points: np.ndarray) -> tuple[np.ndar
     plane = local @ hull.normals.T - hull.offsets
     face = np.argmax(plane, axis=1)
     return plane[np.arange(len(points)), face], face
+
+
+#: Faces read at once by the early-exit hull tests (a hull of a meshed finger has hundreds).
+_BLOCK = 32
 
 
 @dataclass(frozen=True)
@@ -241,7 +256,8 @@ def _pad(hull: Hull, pose: np.ndarray, surface: GripSurface, band: float, contac
     facing them. Only touching faces count: the object near a finger's back
     or side is not under its pad."""
     corners = hull.vertices @ pose[:3, :3].T + pose[:3, 3]
-    idx, dist, face = _in_link(hull, pose, surface, band)
+    idx = surface.box(corners.min(axis=0) - band, corners.max(axis=0) + band)
+    idx, dist, face = _near(hull, pose, surface.points, idx, band)
     if not len(idx) or not len(contacts):
         return _Pad(0.0, 0.0, np.zeros(3), np.zeros(3), corners)
     local = (contacts - pose[:3, 3]) @ pose[:3, :3]
@@ -261,8 +277,13 @@ def _inside(points: np.ndarray, surface: GripSurface) -> np.ndarray:
     except QhullError:  # a flat or degenerate point set: nothing is inside
         return np.zeros(0, int)
     idx = surface.box(points.min(axis=0), points.max(axis=0), coarse=True)
-    inside = np.all(surface.coarse[idx] @ hull.equations[:, :3].T + hull.equations[:, 3] <= 0.0, axis=1)
-    return idx[inside]
+    eq = hull.equations
+    for start in range(0, len(eq), _BLOCK):  # by blocks of faces: a point outside one is dropped at once
+        block = eq[start:start + _BLOCK]
+        idx = idx[np.all(surface.coarse[idx] @ block[:, :3].T + block[:, 3] <= 0.0, axis=1)]
+        if not len(idx):
+            break
+    return idx
 
 
 def _palm_gap(hand: HandSpec, shapes: Mapping[str, Hull], link_poses: Mapping[str, np.ndarray],

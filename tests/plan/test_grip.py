@@ -6,6 +6,8 @@ import numpy as np
 import pytest
 import trimesh
 from helpers import assert_close
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from planner.plan import grip
@@ -94,3 +96,33 @@ def test_grip_is_invariant_under_a_rigid_motion_of_object_and_grasp(panda) -> No
         assert_close(np.array([again.pad_area, again.jaw_fill]), np.array([base.pad_area, base.jaw_fill]), AREA_TOL)
         assert again.palm_gap == pytest.approx(base.palm_gap, abs=GAP_TOL)
         assert again.com_lever == pytest.approx(base.com_lever, abs=1e-4)
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), band=st.floats(0.0005, 0.01))
+def test_early_exit_hull_tests_equal_the_full_ones(seed: int, band: float) -> None:
+    """The block-wise hull tests (faces read 32 at a time, points dropped on
+    the way) give the points, distances and faces of testing every face."""
+    from scipy.spatial import ConvexHull
+
+    rng = np.random.default_rng(seed)
+    cloud = rng.normal(size=(300, 3)) * [0.02, 0.01, 0.03]  # a hull with ~100+ faces: several blocks
+    hull = ConvexHull(cloud)
+    shape = grip.Hull(hull.points[hull.vertices], hull.equations[:, :3].copy(), -hull.equations[:, 3].copy())
+    pose = np.eye(4)
+    pose[:3, :3] = Rotation.random(random_state=seed).as_matrix()
+    pose[:3, 3] = rng.normal(size=3) * 0.01
+    points = rng.normal(size=(2000, 3)) * 0.04
+    idx = np.arange(len(points))
+    near, dist, face = grip._near(shape, pose, points, idx, band)
+    full, full_face = grip._distance(shape, pose, points)
+    expected = np.flatnonzero(full < band)
+    assert len(shape.normals) > 32 and len(expected) > 0
+    assert np.array_equal(near, expected)
+    assert np.array_equal(face, full_face[expected]) and np.allclose(dist, full[expected], rtol=0, atol=1e-15)
+    surface = grip.GripSurface(trimesh.creation.icosphere(subdivisions=3, radius=0.03))
+    corners = shape.vertices @ pose[:3, :3].T + pose[:3, 3]
+    inside = grip._inside(corners, surface)
+    outer = ConvexHull(corners).equations
+    everything = np.flatnonzero(np.all(surface.coarse @ outer[:, :3].T + outer[:, 3] <= 0.0, axis=1))
+    assert len(everything) > 0 and np.array_equal(np.sort(inside), everything)
