@@ -6,7 +6,8 @@ bench/acronym_split.toml (held-out objects are refused: the lead runs them with
 (its cache: ``--poses`` per file, seed ``--seed``), of which ``--per-file`` closed poses drawn with
 ``--sample-seed`` are trialled in MuJoCo (``planner.validation.mujoco_trial.trials``, the file's mass
 and friction; ``--set key=value`` overrides MujocoSettings) and, with ``--pybullet``, in PyBullet
-(``planner.validation.shake.trials``, at the planner's re-centred pose, as ``grasp validate`` runs it).
+(``planner.validation.shake.trials``, at the planner's re-centred pose, as ``grasp validate`` runs it), and the
+verdict of both (held only if held in both: what the ranking and the exports' ``trial`` label use).
 Printed: agreement with ``object_in_gripper`` pooled, per
 category and per object, verdicts by reason against the label, and CPU ms per trial.
 
@@ -187,6 +188,7 @@ def main() -> int:
         for k, settings in enumerate(configs):
             verdicts[k][r.path.stem] = run(r, picked(r, args.per_file, args.sample_seed), "mujoco", settings,
                                            args.cache, args.pose)
+    report_verdicts = verdicts[0]  # the first configuration's, for --pybullet's "both"
     for extra, v in zip(grid, verdicts):
         s = summarise(results, v)
         s["settings"] = {**base, **extra}
@@ -201,6 +203,12 @@ def main() -> int:
         report["pybullet"] = summarise(results, verdicts)
         if not args.json:
             show("pybullet (default ShakeSettings)", report["pybullet"])
+        # what the ranking and the exports' trial label use: held only if held in every protocol that tried it
+        both = {stem: {p: [bool(v[p][0]) and bool(mj[p][0]), "both", v[p][2] + mj[p][2]] for p in v}
+                for stem, v in verdicts.items() for mj in [report_verdicts[stem]]}
+        report["both"] = summarise(results, both)
+        if not args.json:
+            show("held in both (the ranking's and the labels' trial verdict)", report["both"])
     if args.json:
         print(json.dumps(report, indent=1))
     return 0

@@ -47,6 +47,7 @@ import json
 import logging
 import sys
 import time
+import typing
 import zlib
 from dataclasses import dataclass, replace
 from functools import cached_property
@@ -151,7 +152,8 @@ def trial_settings():  # type: ignore[no-untyped-def]
     """The shake test's default settings, whatever the trial's settings type is
     called (``TrialSettings`` on main, ``ShakeSettings`` after issue15-shake):
     the type ``planner.validation.run.Task`` declares for its ``trial``."""
-    return get_type_hints(validation.Task)["trial"]()
+    hint = get_type_hints(validation.Task)["trial"]  # ShakeSettings | MujocoSettings: the shake test's is first
+    return (typing.get_args(hint) or (hint,))[0]()
 
 
 def label(db_path: Path, hand_name: str, name: str, grasps: list[Grasp], workers: int) -> int:

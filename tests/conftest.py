@@ -58,11 +58,12 @@ def reference_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="session")
 def validated_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """Box and sphere, the three best grasps of each shake-tested with two robust samples."""
+    """Box and sphere, the three best grasps of each shake-tested (PyBullet's trial) with two robust samples."""
     db = tmp_path_factory.mktemp("validated") / "g.db"
     code, _, err = grasp("generate", "box", "sphere", "--hand", "panda", "--db", str(db), "--quiet", *FAST)
     assert code == 0, err
-    code, _, err = grasp("validate", "--db", str(db), "--top", "3", "--robust", "2", "--workers", "1")
+    code, _, err = grasp("validate", "--db", str(db), "--top", "3", "--robust", "2", "--workers", "1",
+                         "--engine", "pybullet")
     assert code == 0, err
     return db
 

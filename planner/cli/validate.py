@@ -10,7 +10,7 @@ import click
 
 from planner import api
 from planner.cli.app import db_option, report_failures, show_preparation
-from planner.validation.mujoco_settings import ENGINES
+from planner.validation.mujoco_settings import DEFAULT_ENGINE, ENGINES
 
 
 @click.command()
@@ -27,10 +27,9 @@ from planner.validation.mujoco_settings import ENGINES
 @click.option("--robust", "robust_samples", type=int, default=10, show_default=True,
               help="Noise samples for robust epsilon (0: skip).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of --sample and of the robust noise.")
-@click.option("--engine", type=click.Choice(ENGINES), default="pybullet", show_default=True,
-              help="The dynamic trial: PyBullet's shake trial, or MuJoCo's (another engine and protocol); "
-                   "each stores its verdicts apart, and a grasp ranks as held only if it held in every one that "
-                   "tried it.")
+@click.option("--engine", type=click.Choice(ENGINES), default=DEFAULT_ENGINE, show_default=True,
+              help="The dynamic trial: MuJoCo's, or PyBullet's shake trial (another engine and protocol); each "
+                   "stores its verdicts apart; a grasp's label and rank take MuJoCo's where it has one.")
 @click.option("--workers", type=click.IntRange(min=1), default=api.default_workers(),
               show_default="all cores")
 @click.option("--json", "as_json", is_flag=True)

@@ -4,8 +4,10 @@ came from.
 
 A label is one of three things, each named per grasp in ``label_source``:
 
-- ``trial``: the grasp's dynamic trials (``grasp validate``, PyBullet's and
-  MuJoCo's): held if it held in every one that tried it, else dropped;
+- ``trial``: the grasp's dynamic trial (``grasp validate``): MuJoCo's
+  verdict where it tried the grasp, else PyBullet's
+  (:data:`~planner.record.fields.TRIAL_PRECEDENCE`: the one that agrees best
+  with external labels first);
 - ``p_hold``: the calibrated probability of holding (:mod:`planner.calibration`)
   thresholded at :data:`P_HOLD_SUCCESS`;
 - ``force_closure``: whether the planned contacts are force closure. This is
@@ -24,6 +26,7 @@ from collections.abc import Iterable, Mapping
 import numpy as np
 
 from planner.errors import InputError
+from planner.record import fields
 from planner.record.grasp import Grasp
 
 TRIAL, P_HOLD, FORCE_CLOSURE, MIXED = "trial", "p_hold", "force_closure", "mixed"
@@ -44,7 +47,7 @@ def check(choice: str) -> str:
 def has_label(choice: str, grasp: Grasp) -> bool:
     """Whether ``grasp`` is exported under ``choice`` (trial and p_hold: only grasps that have one)."""
     if choice == TRIAL:
-        return grasp.validation is not None or grasp.mujoco is not None
+        return grasp.trial is not None
     if choice == P_HOLD:
         return grasp.p_hold is not None
     return True
@@ -53,10 +56,13 @@ def has_label(choice: str, grasp: Grasp) -> bool:
 def labels(columns: Mapping[str, np.ndarray], choice: str) -> tuple[np.ndarray, list[str]]:
     """((n,) int64 0/1 labels, n sources) of a batch's columns
     (``validation_success`` and ``mujoco_success`` -1 where not validated,
-    ``p_hold`` NaN where absent); a trial label is 1 only if every trial that
-    tried the grasp held it."""
-    tried = [np.asarray(columns[name]) for name in ("validation_success", "mujoco_success")]
-    success = np.where((tried[0] >= 0) & (tried[1] >= 0), np.minimum(*tried), np.maximum(*tried))
+    ``p_hold`` NaN where absent); a trial label is the verdict of the first
+    trial in :data:`~planner.record.fields.TRIAL_PRECEDENCE` that tried the
+    grasp (MuJoCo's, then PyBullet's)."""
+    success = np.full(len(np.asarray(columns["force_closure"])), -1)
+    for group in reversed(fields.TRIAL_PRECEDENCE):
+        verdict = np.asarray(columns[f"{fields.GROUPS[group].prefix}success"])
+        success = np.where(verdict >= 0, verdict, success)
     p_hold = np.asarray(columns["p_hold"], float)
     closure = np.asarray(columns["force_closure"])
     if choice == BEST:

@@ -30,11 +30,10 @@ A pressed grasp that does not hold its weight yet still ranks above one that
 is not pressed (half weight): squeezing settles it. Reachability (fraction of
 table placements an arm reaches) and simulated success then multiply, each
 with its weight in [0, 1] (0 ignores the measure, 1 lets it veto); simulated
-success only refines the order. Simulated success counts every dynamic
-protocol that tried the grasp (PyBullet's shake trial, ``validation``;
-MuJoCo's, ``mujoco``: another engine and protocol): 1 if it held in every
-one of them, 0 if one dropped it, neutral if none tried it (issue 26: a
-grasp ranks high only if it holds under independent protocols). Rank 1 is the best
+success only refines the order. Simulated success is the verdict of the
+dynamic trial that agrees best with external labels among those that tried
+the grasp (:data:`planner.record.fields.TRIAL_PRECEDENCE`: MuJoCo's, then
+PyBullet's shake trial), neutral if none tried it. Rank 1 is the best
 grasp of an (object, hand). Every grasp whose planned contacts are force
 closure ranks above every grasp whose contacts are not, whatever their
 scores (issue 26: a score that rewards what one simulator's closing happens to
@@ -83,8 +82,8 @@ FORMULA = ("analytic = p_hold where a calibrated model applies to the hand, else
            " settled = settled_epsilon (0 when not measured);"
            " score = analytic * ((1 - reach_weight) + reach_weight * reachability)"
            " * ((1 - success_weight) + success_weight * simulated_success);"
-           " simulated_success = min(success, mujoco_success): 1 if the grasp held in every dynamic trial that"
-           " tried it (PyBullet, MuJoCo), 0 if one dropped it;"
+           " simulated_success = mujoco_success where the MuJoCo trial tried the grasp, else success"
+           " (PyBullet's trial);"
            " a measure not computed counts as neutral (reachability, success 1; robust quantile = epsilon);"
            " grasps stored without the analytic measures (before schema v3): gate 1, press 1,"
            " hold = force_closure;"
@@ -150,8 +149,9 @@ class RankingRule:
         analytic = np.where(np.isnan(p_hold), formula, p_hold)
         ones = np.ones(n)
         reach = (1.0 - self.reach_weight) + self.reach_weight * _column(measures, "reachability", ones)
-        tried = np.fmin(_column(measures, "success", np.full(n, np.nan)),
-                        _column(measures, "mujoco_success", np.full(n, np.nan)))  # NaN: no protocol tried it
+        tried = np.full(n, np.nan)  # the verdict of the first trial in precedence that tried it; NaN: none did
+        for name in reversed(fields.TRIAL_SUCCESS):
+            tried = _column(measures, name, tried)
         success = (1.0 - self.success_weight) + self.success_weight * np.where(np.isnan(tried), 1.0, tried)
         return {"gate": gate, "press": press, "hold": hold, "quality": quality, "settled": settled,
                 "formula": formula, "p_hold": p_hold, "analytic": analytic, "reach_factor": reach,

@@ -599,8 +599,9 @@ class Database:
 
     @_reads
     def validated(self) -> list[Grasp]:
-        """Every grasp with a shake trial, by hand, object and rank."""
-        return _grasps(self._conn.execute(self._select("JOIN") + " ORDER BY g.hand, g.object, g.rank").fetchall())
+        """Every grasp with a dynamic trial (PyBullet's or MuJoCo's), by hand, object and rank."""
+        return _grasps(self._conn.execute(self._select("LEFT JOIN") + " WHERE v.grasp_id IS NOT NULL OR "
+                                          "mj.grasp_id IS NOT NULL ORDER BY g.hand, g.object, g.rank").fetchall())
 
     def _select(self, join: str) -> str:
         """The grasps query; an older file read read-only is not migrated: a

@@ -130,11 +130,10 @@ def upright(normal: ArrayLike) -> np.ndarray:
     """(3, 3) the smallest rotation taking the unit ``normal`` (object frame)
     to the world's +z: the object turned so that the table is under it."""
     n = np.asarray(normal, float)
-    z = np.array([0.0, 0.0, 1.0])
-    axis = np.cross(n, z)
-    s, c = float(np.linalg.norm(axis)), float(n @ z)
-    if s < UNIT_TOL:
-        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
-    k = axis / s
-    skew = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + s * skew + (1 - c) * skew @ skew
+    if n[2] < -0.5:  # nearer straight down: turn half a turn about x first, then the small rest
+        flip = np.diag([1.0, -1.0, -1.0])
+        return upright(flip @ n) @ flip
+    # Rodrigues with the unnormalised axis v = n x z (|v| = sin, n . z = cos): exact down to v = 0
+    v = np.cross(n, [0.0, 0.0, 1.0])
+    skew = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    return np.eye(3) + skew + skew @ skew / (1.0 + n[2])

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from planner.record import fields
 from planner.record.grasp import Grasp
 from planner.specs.hands import HandFrame
 
@@ -196,9 +197,13 @@ def explain(grasp: Grasp, rule: RankingRule, model: LogisticModel | None = None)
             lines.append(f"      intercept {total['intercept']:+.4f}; logit {total['logit']:+.4f} -> p_hold "
                          f"{total['p_hold']:.4f} (stored {t['p_hold']:.4f})")
     reach = m.get("reachability", math.nan)
-    success = m.get("success", math.nan)
+    # the verdict the rule reads: the first trial in precedence that tried the grasp (MuJoCo's, then PyBullet's)
+    tried = [(name, m.get(name, math.nan)) for name in fields.TRIAL_SUCCESS]
+    trial, success = next(((name, v) for name, v in tried if not math.isnan(v)), ("", math.nan))
+    trial_name = "MuJoCo trial" if trial.startswith("mujoco") else "shake trial"
     lines += [f"    = analytic {t['analytic']:.4f}; x reach factor {t['reach_factor']:.3f} ((1 - {rule.reach_weight:g})"
               f" + {rule.reach_weight:g} x reachability {'not computed: 1' if math.isnan(reach) else f'{reach:.2f}'})"
-              f" x success factor {t['success_factor']:.3f} (shake trial "
-              f"{'not run: 1' if math.isnan(success) else f'{success:.0f}'}) = score {t['score']:.4f}"]
+              f" x success factor {t['success_factor']:.3f} ("
+              f"{'trials not run: 1' if math.isnan(success) else f'{trial_name} {success:.0f}'})"
+              f" = score {t['score']:.4f}"]
     return lines

@@ -52,7 +52,7 @@ class HandReport:
 
     @property
     def success(self) -> np.ndarray:
-        return np.array([g.validation.success for g in self.grasps], float)  # type: ignore[union-attr]
+        return np.array([g.trial.success for g in self.grasps], float)  # type: ignore[union-attr]
 
     def measure(self, name: str) -> np.ndarray:
         """(n,) a declared field of every grasp by its flat name (``epsilon``,
@@ -74,18 +74,18 @@ class HandReport:
 
     def top_k(self, k: int) -> tuple[float, int]:
         """Success rate of each object's k best-ranked validated grasps, and how many objects."""
-        rates = [np.mean([g.validation.success for g in self._of(name)[:k]]) for name in self.objects]  # type: ignore[union-attr]
+        rates = [np.mean([g.trial.success for g in self._of(name)[:k]]) for name in self.objects]  # type: ignore[union-attr]
         return (float(np.mean(rates)) if rates else math.nan), len(rates)
 
     def top1_objects(self) -> tuple[int, int]:
         """Objects whose best-ranked validated grasp succeeded, out of all objects."""
-        wins = sum(int(self._of(name)[0].validation.success) for name in self.objects)  # type: ignore[union-attr]
+        wins = sum(int(self._of(name)[0].trial.success) for name in self.objects)  # type: ignore[union-attr]
         return wins, len(self.objects)
 
     def analytic_top(self, k: int) -> tuple[float, float, int]:
         """(top-1, top-k, unlabelled picks) of the analytic order over each
         object's whole sweep (see :func:`top_k_success`)."""
-        ok = {g.id: float(g.validation.success) for g in self.grasps}  # type: ignore[union-attr]
+        ok = {g.id: float(g.trial.success) for g in self.grasps}  # type: ignore[union-attr]
         orders = [(np.arange(len(ids)), np.array([ok.get(i, np.nan) for i in ids], float))
                   for ids in self.analytic_orders.values()]
         return top_k_success(orders, k)
@@ -162,7 +162,7 @@ def calibration(db_path: Path) -> list[HandCalibration]:
             if model is None:
                 continue
             tried = [g for g in db.validated() if g.hand == hand and g.p_hold is not None]
-            trials = reliability(np.array([g.validation.success for g in tried], float),  # type: ignore[union-attr]
+            trials = reliability(np.array([g.trial.success for g in tried], float),  # type: ignore[union-attr]
                                  np.array([g.p_hold for g in tried], float)) if tried else None
             out.append(HandCalibration(hand, db.model_source(hand), model.held_out, trials))
     return out
@@ -271,7 +271,7 @@ def _per_object(report: HandReport) -> list[tuple[str, ...]]:
     out = []
     for name in report.objects:
         mine = report._of(name)
-        ok = np.array([g.validation.success for g in mine], float)  # type: ignore[union-attr]
+        ok = np.array([g.trial.success for g in mine], float)  # type: ignore[union-attr]
         eps = np.array([g.epsilon for g in mine], float)
         rho = spearman(eps, ok)
         out.append((name, str(len(mine)), f"{ok.mean():.2f}", "yes" if ok[0] else "no",

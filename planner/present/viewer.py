@@ -50,8 +50,8 @@ class Entry:
 
     @property
     def label(self) -> str:
-        """``held`` / ``dropped`` (its shake trial) or ``not validated``."""
-        trial = self.grasp.validation
+        """``held`` / ``dropped`` (its trial: MuJoCo's, else PyBullet's) or ``not validated``."""
+        trial = self.grasp.trial
         return LABELS[2] if trial is None else LABELS[0] if trial.success else LABELS[1]
 
     def title(self) -> str:

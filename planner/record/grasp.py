@@ -177,6 +177,15 @@ class Grasp:
     robust: RobustEpsilon | None = None
     measures: Measures | None = None
 
+    @property
+    def trial(self) -> Trial | None:
+        """The dynamic trial whose verdict labels and ranks the grasp: the
+        first in :data:`planner.record.fields.TRIAL_PRECEDENCE` that tried it
+        (MuJoCo's, then PyBullet's); None if none did."""
+        from planner.record.fields import TRIAL_PRECEDENCE  # fields declares itself from this module
+
+        return next((t for t in (getattr(self, name) for name in TRIAL_PRECEDENCE) if t is not None), None)
+
     def __post_init__(self) -> None:
         if self.pose.shape != (4, 4) or self.approach_point.shape != (3,) or self.approach_dir.shape != (3,):
             raise ValueError("Grasp.pose must be (4, 4), approach_point and approach_dir (3,)")

@@ -11,6 +11,9 @@ from planner.errors import ConfigError
 
 #: The dynamic protocols ``grasp validate --engine`` offers; each stores its verdicts apart.
 ENGINES = ("pybullet", "mujoco")
+#: ``grasp validate``'s engine unless told: the trial that agrees best with external labels
+#: (ACRONYM's FleX: MuJoCo 75.0% of 560 held-out poses, PyBullet 62.1% of 280; bench/RESULTS.md).
+DEFAULT_ENGINE = "mujoco"
 #: Where the trial's gravity points: the object frame's -z (the object as it
 #: stands: the project's objects are z-up) or -y (y-up meshes: ShapeNet's, FleX's
 #: world), along the hand's approach (a pick from above), or nowhere (the shake alone).

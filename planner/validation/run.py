@@ -30,7 +30,7 @@ from planner.run import pool
 from planner.run.progress import Report
 from planner.specs.hands import load_hand
 from planner.threads import one_blas_thread
-from planner.validation.mujoco_settings import ENGINES, MujocoSettings
+from planner.validation.mujoco_settings import DEFAULT_ENGINE, ENGINES, MujocoSettings
 from planner.validation.robust import NoiseSettings, robust_epsilon
 from planner.validation.shake import ShakeSettings, recorded, trials
 
@@ -212,12 +212,16 @@ class ValidationSummary:
 def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str] | None = None, top: int = 10,
              sample: int | None = None, every: bool = False, robust_samples: int = 10, seed: int = 0,
              workers: int = 1, settings: ShakeSettings | MujocoSettings | None = None, closure_only: bool = False,
-             progress: Callable[[int, int], None] | None = None, engine: str = "pybullet") -> ValidationSummary:
+             progress: Callable[[int, int], None] | None = None, engine: str | None = None) -> ValidationSummary:
     """Shake-test (and robust-epsilon) each object's ``top`` best force-closure
     grasps, or a uniform ``sample`` of its grasps drawn with ``seed``, or
     ``every`` grasp (``closure_only``: sample and every among the
-    force-closure grasps only), in ``engine`` (see :data:`ENGINES`; its
+    force-closure grasps only), in ``engine`` (see :data:`ENGINES`; None:
+    the engine of ``settings`` if given, else :data:`DEFAULT_ENGINE`; its
     verdicts are stored apart from the other's); store the results and re-rank."""
+    if engine is None:  # the settings' engine, else the default
+        engine = DEFAULT_ENGINE if settings is None else \
+            "mujoco" if isinstance(settings, MujocoSettings) else "pybullet"
     if engine not in ENGINES:
         raise InputError(f"unknown engine '{engine}'; use {' or '.join(ENGINES)}")
     if settings is not None and isinstance(settings, MujocoSettings) != (engine == "mujoco"):

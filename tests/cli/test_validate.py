@@ -6,6 +6,7 @@ import json
 import shutil
 from pathlib import Path
 
+import pytest
 from helpers import FAST, grasp
 
 
@@ -63,17 +64,20 @@ def test_validate_all_force_closure_tests_exactly_the_force_closure_grasps(tmp_p
         total, closure = conn.execute("SELECT COUNT(*), SUM(force_closure) FROM grasps").fetchone()
     assert 0 < closure < total, "the box database should hold grasps of both kinds"
     code, out, err = grasp("validate", "--db", str(copy), "--all", "--force-closure", "--robust", "0",
-                           "--workers", "1", "--json")
+                           "--workers", "1", "--json")  # the default engine: MuJoCo's trial
     assert code == 0, err
     assert json.loads(out)["grasps"] == closure
     with sqlite3.connect(copy) as conn:
-        tested = conn.execute("SELECT g.force_closure FROM validation v JOIN grasps g ON g.id = v.grasp_id").fetchall()
+        tested = conn.execute("SELECT g.force_closure FROM mujoco v JOIN grasps g ON g.id = v.grasp_id").fetchall()
+        assert conn.execute("SELECT COUNT(*) FROM validation").fetchone() == (0,)
     assert len(tested) == closure and all(fc == 1 for (fc,) in tested)
 
 
-def test_validate_shakes_an_imported_object_with_its_stored_mass_and_friction(tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+@pytest.mark.parametrize("engine", ["mujoco", "pybullet"])
+def test_validate_shakes_an_imported_object_with_its_stored_mass_and_friction(tmp_path: Path, monkeypatch,  # type: ignore[no-untyped-def]
+                                                                              engine: str) -> None:
     """An ACRONYM file of a user mesh with mass 0.05 kg and friction 1.0 (not
-    the 0.2 kg / 0.5 a mesh gets by default): the trial gets those."""
+    the 0.2 kg / 0.5 a mesh gets by default): each engine's trial gets those."""
     import sqlite3
 
     import h5py
@@ -107,8 +111,12 @@ def test_validate_shakes_an_imported_object_with_its_stored_mass_and_friction(tm
         shaken.append((obj.name, obj.mass, obj.friction))
         return real(hand, obj, grasps, settings)
 
-    real = run.trials
-    monkeypatch.setattr(run, "trials", trials)
-    code, out, err = grasp("validate", "--db", str(db), "--all", "--robust", "0", "--workers", "1", "--json")
+    from planner.validation import mujoco_trial
+
+    module = mujoco_trial if engine == "mujoco" else run
+    real = module.trials
+    monkeypatch.setattr(module, "trials", trials)
+    code, out, err = grasp("validate", "--db", str(db), "--all", "--robust", "0", "--workers", "1", "--json",
+                           "--engine", engine)
     assert code == 0, err
     assert json.loads(out)["grasps"] == 1 and shaken == [("crate", 0.05, 1.0)]

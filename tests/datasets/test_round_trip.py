@@ -93,7 +93,8 @@ def swept(tmp_path_factory: pytest.TempPathFactory) -> Path:
         volume = conn.execute("SELECT volume FROM objects WHERE name = 'box'").fetchone()[0]
         conn.execute("UPDATE objects SET mass = ?, friction = ?, density = ? WHERE name = 'box'",
                      (MASS, FRICTION, MASS / volume))
-    code, _, err = grasp("validate", "--db", str(db), "--top", "1", "--robust", "2", "--workers", "1")
+    code, _, err = grasp("validate", "--db", str(db), "--top", "1", "--robust", "2", "--workers", "1",
+                         "--engine", "pybullet")
     assert code == 0, err
     code, _, err = grasp("validate", "--db", str(db), "--top", "2", "--robust", "0", "--workers", "1",
                          "--engine", "mujoco")

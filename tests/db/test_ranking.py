@@ -32,8 +32,8 @@ def reference(rule: RankingRule, g: tuple) -> float:
     if p_hold is not None:  # a calibrated model applies: the analytic score is p_hold
         analytic = p_hold
     reach_factor = (1 - rule.reach_weight) + rule.reach_weight * (1.0 if reach is None else reach)
-    tried = [float(v) for v in (ok, mujoco_ok) if v is not None]  # held in every protocol that tried it
-    success_factor = (1 - rule.success_weight) + rule.success_weight * (min(tried) if tried else 1.0)
+    verdict = mujoco_ok if mujoco_ok is not None else ok  # MuJoCo's where it tried the grasp, else PyBullet's
+    success_factor = (1 - rule.success_weight) + rule.success_weight * (1.0 if verdict is None else float(verdict))
     return analytic * reach_factor * success_factor
 
 
@@ -117,14 +117,15 @@ def test_a_veto_weight_zeroes_failed_or_unreachable_grasps() -> None:
     assert got[0] == got[1] == 0 and got[2] > 0
 
 
-def test_a_grasp_counts_as_held_only_if_every_protocol_that_tried_it_held_it() -> None:
-    # PyBullet and MuJoCo trials: held/held, held/dropped, dropped/held, only MuJoCo held, only MuJoCo dropped, none
+def test_a_grasp_takes_the_mujoco_verdict_where_there_is_one_else_pybullets() -> None:
+    # PyBullet and MuJoCo trials: held/held, held/dropped, dropped/held, only MuJoCo held, only MuJoCo dropped,
+    # only PyBullet dropped, none
     rule = RankingRule(reach_weight=0.0, success_weight=1.0)
     nan = np.nan
-    m = {"epsilon": [0.1] * 6, "force_closure": [1] * 6, "success": [1.0, 1.0, 0.0, nan, nan, nan],
-         "mujoco_success": [1.0, 0.0, 1.0, 1.0, 0.0, nan]}
+    m = {"epsilon": [0.1] * 7, "force_closure": [1] * 7, "success": [1.0, 1.0, 0.0, nan, nan, 0.0, nan],
+         "mujoco_success": [1.0, 0.0, 1.0, 1.0, 0.0, nan, nan]}
     got = rule.terms(m)["success_factor"]
-    assert got.tolist() == [1.0, 0.0, 0.0, 1.0, 0.0, 1.0]
+    assert got.tolist() == [1.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0]
 
 
 def test_grasps_without_analytic_measures_rank_by_force_closure_then_epsilon() -> None:
