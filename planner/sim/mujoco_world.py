@@ -32,6 +32,7 @@ Model (one per hand and object, compiled once and reused for every grasp):
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import cache
@@ -44,6 +45,11 @@ import trimesh
 from planner.errors import SimulationError
 from planner.specs.hands import HandSpec
 from planner.specs.urdf import load_model
+
+log = logging.getLogger(__name__)
+# MuJoCo's warnings (a diverged state it resets, a full contact buffer) go to the log, not to stdout and a
+# MUJOCO_LOG.TXT in the user's working directory; each world still counts them (World.check).
+mujoco.set_mju_user_warning(lambda message: log.warning("MuJoCo: %s", message))
 
 #: Collision bits: hand geoms collide with the object only, never with each other.
 _HAND_BITS, _OBJECT_BITS = 1, 2

@@ -96,3 +96,19 @@ def test_hulls_collide_like_the_primitive_and_contacts_point_into_the_object() -
         assert np.all(np.abs(np.abs(points[:, 1]) - side / 2) < 0.002)
         assert np.all(np.abs(normals[:, 1]) > 0.99) and np.all(np.sign(normals[:, 1]) == -np.sign(points[:, 1]))
         assert 0 < world.depth() < 0.002
+
+
+def test_a_diverged_state_is_logged_not_written_beside_the_user(tmp_path, monkeypatch, caplog) -> None:  # type: ignore[no-untyped-def]
+    """MuJoCo's own warning handler prints and appends to MUJOCO_LOG.TXT in the
+    working directory; the adapter sends its warnings to the log instead."""
+    import mujoco
+
+    monkeypatch.chdir(tmp_path)
+    model = mujoco.MjModel.from_xml_string('<mujoco><worldbody><body><freejoint/><geom size="0.1"/></body>'
+                                           "</worldbody></mujoco>")
+    data = mujoco.MjData(model)
+    data.qvel[:] = np.nan
+    with caplog.at_level("WARNING", logger="planner.sim.mujoco_world"):
+        mujoco.mj_step(model, data)
+    assert any("unstable" in r.getMessage() for r in caplog.records)
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
