@@ -106,7 +106,9 @@ def test_early_exit_hull_tests_equal_the_full_ones(seed: int, band: float) -> No
     from scipy.spatial import ConvexHull
 
     rng = np.random.default_rng(seed)
-    cloud = rng.normal(size=(300, 3)) * [0.02, 0.01, 0.03]  # a hull with ~100+ faces: several blocks
+    cloud = rng.normal(size=(60, 3))
+    cloud = cloud / np.linalg.norm(cloud, axis=1, keepdims=True) * [0.04, 0.02, 0.06]  # every point a vertex:
+    # an ellipsoid's hull of 60 vertices has 116 faces, several blocks of 32
     hull = ConvexHull(cloud)
     shape = grip.Hull(hull.points[hull.vertices], hull.equations[:, :3].copy(), -hull.equations[:, 3].copy())
     pose = np.eye(4)
