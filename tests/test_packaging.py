@@ -12,8 +12,9 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 PYPROJECT = Path(__file__).parents[1] / "pyproject.toml"
-#: What subcommands import on demand: show and report (matplotlib), export and import (h5py, pyarrow).
-SUBCOMMAND_IMPORTS = {"matplotlib", "h5py", "pyarrow"}
+#: What subcommands import on demand: show and report (matplotlib), export and import (h5py, pyarrow),
+#: validate (mujoco: its default trial).
+SUBCOMMAND_IMPORTS = {"matplotlib", "h5py", "pyarrow", "mujoco"}
 
 
 def names(requirements: list[str]) -> set[str]:
