@@ -149,7 +149,7 @@ class HandCalibration:
     trials: Reliability | None
 
     def curves(self) -> list[tuple[str, Reliability]]:
-        return [(label, r) for label, r in (("held out, labels", self.held_out), ("shake trials", self.trials))
+        return [(label, r) for label, r in (("held out, labels", self.held_out), ("trials", self.trials))
                 if r is not None]
 
 
