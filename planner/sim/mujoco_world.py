@@ -45,6 +45,7 @@ import trimesh
 from planner.errors import SimulationError
 from planner.specs.hands import HandSpec
 from planner.specs.urdf import load_model
+from planner.validation.mujoco_settings import Engine
 
 log = logging.getLogger(__name__)
 # MuJoCo's warnings (a diverged state it resets, a full contact buffer) go to the log, not to stdout and a
@@ -83,28 +84,6 @@ class Solid:
             raise ValueError("Solid.com must be (3,), Solid.inertia (3, 3)")
         if self.kind == "hulls" and not all(h.ndim == 2 and h.shape[1] == 3 and len(h) >= 4 for h in self.hulls):
             raise ValueError("Solid.hulls must be (k, 3) vertex arrays of at least 4 vertices")
-
-
-@dataclass(frozen=True)
-class Engine:
-    """MuJoCo's solver and contact settings.
-
-    ``timestep`` [s]; ``iterations`` of the Newton solver; ``impratio``: how
-    much harder friction is than the normal force (elliptic cones; > 1
-    reduces creep of static friction); ``contact_time`` [s] and
-    ``contact_damping``: the contacts' solref (time constant, damping ratio),
-    the time constant at least twice the step; ``weld_time`` [s]: the hand's
-    weld to its target; ``multiccd``: several contact points per pair of
-    convex shapes (flat faces on flat pads) instead of one.
-    """
-
-    timestep: float = 0.002
-    iterations: int = 50
-    impratio: float = 10.0
-    contact_time: float = 0.005
-    contact_damping: float = 1.0
-    weld_time: float = 0.005
-    multiccd: bool = False
 
 
 def _f(values: Sequence[float] | np.ndarray) -> str:

@@ -1,6 +1,8 @@
-"""The settings of the MuJoCo trial (:mod:`planner.validation.mujoco_trial`),
-apart from the trial itself: ``grasp validate`` and its workers carry them,
-and planning must not load MuJoCo to read them."""
+"""The settings of the MuJoCo trial (:mod:`planner.validation.mujoco_trial`)
+and of the engine under it (:class:`Engine`, which the adapter
+:mod:`planner.sim.mujoco_world` builds its worlds with), apart from both:
+``grasp validate`` and its workers carry them, and planning must not load
+MuJoCo (nor PyBullet) to read them."""
 
 from __future__ import annotations
 
@@ -18,6 +20,28 @@ DEFAULT_ENGINE = "mujoco"
 #: stands: the project's objects are z-up) or -y (y-up meshes: ShapeNet's, FleX's
 #: world), along the hand's approach (a pick from above), or nowhere (the shake alone).
 DOWN = ("-z", "-y", "approach", "none")
+
+
+@dataclass(frozen=True)
+class Engine:
+    """MuJoCo's solver and contact settings.
+
+    ``timestep`` [s]; ``iterations`` of the Newton solver; ``impratio``: how
+    much harder friction is than the normal force (elliptic cones; > 1
+    reduces creep of static friction); ``contact_time`` [s] and
+    ``contact_damping``: the contacts' solref (time constant, damping ratio),
+    the time constant at least twice the step; ``weld_time`` [s]: the hand's
+    weld to its target; ``multiccd``: several contact points per pair of
+    convex shapes (flat faces on flat pads) instead of one.
+    """
+
+    timestep: float = 0.002
+    iterations: int = 50
+    impratio: float = 10.0
+    contact_time: float = 0.005
+    contact_damping: float = 1.0
+    weld_time: float = 0.005
+    multiccd: bool = False
 
 
 @dataclass(frozen=True)
@@ -59,11 +83,11 @@ class MujocoSettings:
     the cheaper ones are the defaults.
     """
 
-    timestep: float = 0.002
-    iterations: int = 50
-    impratio: float = 10.0
-    contact_time: float = 0.005
-    multiccd: bool = False
+    timestep: float = Engine.timestep  # the engine's defaults (Engine, above)
+    iterations: int = Engine.iterations
+    impratio: float = Engine.impratio
+    contact_time: float = Engine.contact_time
+    multiccd: bool = Engine.multiccd
     servo_lag: float = 0.002
     stall_speed: float = 0.002
     stall_time: float = 0.05
