@@ -198,9 +198,9 @@ def explain(grasp: Grasp, rule: RankingRule, model: LogisticModel | None = None)
                          f"{total['p_hold']:.4f} (stored {t['p_hold']:.4f})")
     reach = m.get("reachability", math.nan)
     # the verdict the rule reads: the first trial in precedence that tried the grasp (MuJoCo's, then PyBullet's)
-    tried = [(name, m.get(name, math.nan)) for name in fields.TRIAL_SUCCESS]
-    trial, success = next(((name, v) for name, v in tried if not math.isnan(v)), ("", math.nan))
-    trial_name = "MuJoCo trial" if trial.startswith("mujoco") else "shake trial"
+    tried = [(f"{fields.GROUPS[group].engine} trial", m.get(name, math.nan))
+             for group, name in zip(fields.TRIAL_PRECEDENCE, fields.TRIAL_SUCCESS)]
+    trial_name, success = next(((name, v) for name, v in tried if not math.isnan(v)), ("", math.nan))
     lines += [f"    = analytic {t['analytic']:.4f}; x reach factor {t['reach_factor']:.3f} ((1 - {rule.reach_weight:g})"
               f" + {rule.reach_weight:g} x reachability {'not computed: 1' if math.isnan(reach) else f'{reach:.2f}'})"
               f" x success factor {t['success_factor']:.3f} ("
