@@ -54,6 +54,10 @@ class MujocoSettings:
     stiffness: solref time constant, >= 2 timesteps), ``multiccd`` (several
     contact points per pair of convex shapes).
 
+    Hand: the closing motors squeeze with ``effort_scale`` times their
+    published effort (a gripper set to a lower force), and the soft pads'
+    torsional friction is ``torsion_scale`` times the hand's.
+
     Closing: the fingers start at the grasp's open preshape and follow a
     target that moves at the hand's closing speed to the closed limit;
     position servos reach the motor's effort ``servo_lag`` [m at the
@@ -88,6 +92,8 @@ class MujocoSettings:
     impratio: float = Engine.impratio
     contact_time: float = Engine.contact_time
     multiccd: bool = Engine.multiccd
+    effort_scale: float = 1.0
+    torsion_scale: float = 1.0
     servo_lag: float = 0.002
     stall_speed: float = 0.002
     stall_time: float = 0.05
@@ -110,6 +116,9 @@ class MujocoSettings:
     def __post_init__(self) -> None:
         if self.down not in DOWN:
             raise ConfigError(f"down must be one of {', '.join(DOWN)}, got {self.down!r}")
+        if not (self.effort_scale > 0 and self.torsion_scale >= 0):
+            raise ConfigError(f"effort_scale must be > 0 and torsion_scale >= 0, got {self.effort_scale}, "
+                              f"{self.torsion_scale}")
         if self.contact_time < 2 * self.timestep:
             raise ConfigError(f"contact_time {self.contact_time} must be at least twice the timestep {self.timestep}")
 

@@ -157,7 +157,8 @@ class _Run:
         w, s = self.world, self.s
         start = self._open_joints()
         w.reset(self.pose, start)
-        w.set_friction(self.mu, {link: self.mu * c.torsion_radius for link, c in self.hand.contacts.items()
+        w.set_friction(self.mu, {link: self.mu * c.torsion_radius * s.torsion_scale
+                                 for link, c in self.hand.contacts.items()
                                  if c.model == "soft"})
         if w.depth() > s.max_start_overlap:
             return Trial(False, 0, 0.0, 0.0, 0.0, 0.0, "start_overlap")
@@ -188,7 +189,7 @@ class _Run:
 
     def _close(self, start: Mapping[str, float]) -> None:
         w, s, hand = self.world, self.s, self.hand
-        effort = hand.actuators.effort
+        effort = hand.actuators.effort * s.effort_scale
         fastest = max([abs(self.rates[j.name]) for j in hand.driven] + [1e-12])
         moving: dict[str, tuple[float, float, float]] = {}  # driven joint -> (start, speed signed, end)
         clutches = []
@@ -235,7 +236,7 @@ class _Run:
         proximal joint is braked where it is and each distal joint closes on
         alone with its share of the motor's effort."""
         w, hand, s = self.world, self.hand, self.s
-        effort = hand.actuators.effort
+        effort = hand.actuators.effort * s.effort_scale
         for c in list(clutches):
             if touching & c.rest:
                 clutches.remove(c)
