@@ -10,7 +10,9 @@ A feature with knots enters as a restricted cubic spline (Harrell's: cubic
 between its knots, linear beyond the outer ones, so a new object's values
 outside the training range are extrapolated by a line, not a cubic): its
 input x and one column per inner knot (:func:`spline_basis`), each with its
-own coefficient. The model stays additive, one term per feature (a
+own coefficient. Beyond the range of the fitting data (``bounds``) an
+input is held at the nearest end: a line fitted on nothing out there would
+otherwise drive p_hold to 0 or 1 with certainty it never earned. The model stays additive, one term per feature (a
 generalised additive model), so ``--explain`` still gives each feature's
 part of the log-odds.
 
@@ -68,7 +70,10 @@ class LogisticModel:
     intercept; l2: the penalty it was fitted with;
     source: how it was made (data, split, command), free text kept with it;
     figures: its held-out (cross-validated) figures; held_out: the held-out
-    reliability table (None: not known), drawn by ``grasp report``.
+    reliability table (None: not known), drawn by ``grasp report``;
+    bounds: per feature, (low, high) of its inputs in the fitting data
+    (inputs' units): a grasp's input is clipped to them before use (a
+    feature without bounds is used as it is).
     """
 
     hand: str
@@ -82,8 +87,14 @@ class LogisticModel:
     figures: Mapping[str, float] = field(default_factory=dict)
     held_out: Reliability | None = None
     knots: Mapping[str, tuple[float, ...]] = field(default_factory=dict)
+    bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        wrong = [f for f, b in self.bounds.items() if f not in self.features or len(b) != 2 or not b[0] <= b[1]]
+        if wrong:
+            raise InputError(f"calibration model: bounds of {', '.join(wrong)} must belong to a feature and be "
+                             "(low, high) with low <= high")
+        object.__setattr__(self, "bounds", {f: (float(b[0]), float(b[1])) for f, b in self.bounds.items()})
         bad = [f for f, t in self.knots.items() if f not in self.features or len(t) < 3 or np.any(np.diff(t) <= 0)]
         if bad:
             raise InputError(f"calibration model: knots of {', '.join(bad)} must belong to a feature and be >= 3 "
@@ -109,7 +120,8 @@ class LogisticModel:
         return columns(self.features, self.knots)
 
     def _z(self, table: Mapping[str, np.ndarray]) -> np.ndarray:
-        return (expand(design(table, self.features), self.features, self.knots) - self.mean) / self.scale
+        x = clip(design(table, self.features), self.features, self.bounds)
+        return (expand(x, self.features, self.knots) - self.mean) / self.scale
 
     def logit(self, table: Mapping[str, np.ndarray]) -> np.ndarray:
         """(n,) log-odds of holding of the grasps of a measure table."""
@@ -140,6 +152,7 @@ class LogisticModel:
                 "scale": self.scale.tolist(), "coef": self.coef.tolist(), "intercept": self.intercept,
                 "l2": self.l2, "source": self.source, "figures": dict(self.figures),
                 "knots": {k: list(v) for k, v in self.knots.items()},
+                "bounds": {k: list(v) for k, v in self.bounds.items()},
                 **({"held_out": _table(self.held_out)} if self.held_out is not None else {})}
 
     @classmethod
@@ -150,7 +163,8 @@ class LogisticModel:
                        float(data["l2"]), str(data.get("source", "")),
                        {k: float(v) for k, v in dict(data.get("figures", {})).items()},
                        _reliability(data["held_out"]) if "held_out" in data else None,
-                       {str(k): tuple(float(x) for x in v) for k, v in dict(data.get("knots", {})).items()})
+                       {str(k): tuple(float(x) for x in v) for k, v in dict(data.get("knots", {})).items()},
+                       {str(k): tuple(float(x) for x in v) for k, v in dict(data.get("bounds", {})).items()})
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"calibration model: missing or bad field ({exc})") from None
 
@@ -172,6 +186,9 @@ class LogisticModel:
         if self.knots:
             lines += ["", "[knots]  # restricted cubic spline knots per feature (the feature's input units)"]
             lines += [f'"{k}" = {_floats(np.asarray(v, float))}' for k, v in self.knots.items()]
+        if self.bounds:
+            lines += ["", "[bounds]  # (low, high) of each feature's inputs in the fitting data: inputs are clipped to them"]
+            lines += [f'"{k}" = {_floats(np.asarray(v, float))}' for k, v in self.bounds.items()]
         if self.held_out is not None:
             lines += ["", "[held_out]  # reliability table of the cross-validated predictions (nan: empty bin)"]
             lines += [f"{k} = {_floats(np.asarray(v, float))}" for k, v in _table(self.held_out, nan=True).items()]
@@ -263,6 +280,25 @@ def spline_basis(x: np.ndarray, knots: Sequence[float]) -> np.ndarray:
     return out / (t[k - 1] - t[0]) ** 2
 
 
+def clip(x: np.ndarray, features: Sequence[str], bounds: Mapping[str, tuple[float, float]]) -> np.ndarray:
+    """(n, len(features)) the inputs ``x`` each held within its feature's ``bounds`` (NaN stays NaN)."""
+    out = np.array(x, float, copy=True)
+    for i, f in enumerate(features):
+        if f in bounds:
+            out[:, i] = np.clip(out[:, i], *bounds[f])
+    return out
+
+
+def fitting_bounds(x: np.ndarray, features: Sequence[str]) -> dict[str, tuple[float, float]]:
+    """Each feature's (low, high) over the fitting inputs ``x`` (n, len(features)), NaN ignored."""
+    out = {}
+    for i, f in enumerate(features):
+        v = x[:, i][np.isfinite(x[:, i])]
+        if len(v):
+            out[f] = (float(v.min()), float(v.max()))
+    return out
+
+
 def expand(x: np.ndarray, features: Sequence[str], knots: Mapping[str, Sequence[float]]) -> np.ndarray:
     """(n, len(columns)) model columns of the feature inputs ``x`` (n, len(features))."""
     parts = []
@@ -313,7 +349,7 @@ def fit(table: Mapping[str, np.ndarray], labels: np.ndarray, hand: str, *,
 
     res = minimize(_loss, w0, args=(z, y, l2), jac=True, method="L-BFGS-B", options={"maxiter": 2000})
     return LogisticModel(hand, tuple(features), mean, scale, res.x[1:], float(res.x[0]), float(l2), source,
-                         knots=knots)
+                         knots=knots, bounds=fitting_bounds(raw, features))
 
 
 def _loss(w: np.ndarray, z: np.ndarray, y: np.ndarray, l2: float) -> tuple[float, np.ndarray]:

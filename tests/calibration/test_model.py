@@ -83,6 +83,7 @@ def test_model_round_trips_through_toml_and_json(tmp_path) -> None:
     assert model.knots  # the default splines travel with the model
     for back in (load_model(path), LogisticModel.from_json(model.to_json())):
         assert back.features == model.features and back.source == "synthetic" and back.knots == model.knots
+        assert back.bounds == model.bounds and model.bounds["push"][1] <= 1.0
         assert_close(back.predict(table), model.predict(table), 1e-12)
 
 
@@ -91,9 +92,25 @@ def test_bad_models_are_refused_with_a_message() -> None:
         LogisticModel("panda", ("push",), np.zeros(2), np.ones(1), np.zeros(1), 0.0, 0.0)
     with pytest.raises(InputError, match="unknown feature"):
         LogisticModel("panda", ("nonsense",), np.zeros(1), np.ones(1), np.zeros(1), 0.0, 0.0)
+    with pytest.raises(InputError, match="bounds of width"):
+        LogisticModel("panda", ("width",), np.zeros(1), np.ones(1), np.zeros(1), 0.0, 0.0, bounds={"width": (0.2, 0.1)})
     with pytest.raises(InputError, match="knots"):
         LogisticModel("panda", ("width",), np.zeros(2), np.ones(2), np.zeros(2), 0.0, 0.0,
                       knots={"width": (0.1, 0.0, 0.2)})
+
+
+def test_inputs_beyond_the_fitting_data_are_held_at_its_ends() -> None:
+    table, y, _ = synthetic(1500)
+    model = fit(table, y, "panda")
+    low, high = model.bounds["push"]
+    assert low == table["push"].min() and high == table["push"].max()
+    free = LogisticModel(**{**model.__dict__, "bounds": {}})
+    assert_close(model.predict(table), free.predict(table), 1e-12)  # inside the data: the fit itself
+    probe = {k: np.repeat(v[:1], 3) for k, v in table.items()}
+    probe["push"] = np.array([high, 5.0, 50.0])  # far beyond: a line would go on rising
+    p = model.predict(probe)
+    assert p[1] == p[0] and p[2] == p[0]
+    assert free.predict(probe)[2] > p[0]
 
 
 @given(st.lists(st.floats(-5, 5), min_size=3, max_size=5, unique=True), st.floats(6, 50), st.floats(0.1, 3))
