@@ -49,13 +49,15 @@ from planner.validation.mujoco_settings import Engine
 
 log = logging.getLogger(__name__)
 # MuJoCo's warnings (a diverged state it resets, a full contact buffer) go to the log, not to stdout and a
-# MUJOCO_LOG.TXT in the user's working directory; each world still counts them (World.check).
+# MUJOCO_LOG.TXT in the user's working directory; each world still counts them (World.diverged).
 mujoco.set_mju_user_warning(lambda message: log.warning("MuJoCo: %s", message))
 
 #: Collision bits: hand geoms collide with the object only, never with each other.
 _HAND_BITS, _OBJECT_BITS = 1, 2
 #: [kg] and [kg m^2] given to a link the URDF leaves without mass (MuJoCo needs some on moving bodies).
 _MIN_MASS, _MIN_INERTIA = 1e-3, 1e-7
+#: MuJoCo's warnings of a diverged state (each followed by a reset of the state).
+_DIVERGED = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
 #: Name of the object's body and of the hand's mocap target.
 OBJECT, TARGET = "__object", "__hand_target"
 
@@ -349,11 +351,14 @@ class World:
         for _ in range(n):
             mujoco.mj_step(m, d)
 
-    def check(self) -> None:
-        """Raise SimulationError if the state has diverged (MuJoCo resets a
-        diverged state and counts a warning; call between phases)."""
-        if self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number or not np.all(np.isfinite(self.data.qpos)):
-            raise SimulationError("MuJoCo's state diverged; try a smaller timestep")
+    def diverged(self) -> bool:
+        """Whether the state has diverged since the last :meth:`reset`:
+        MuJoCo met a non-finite or huge position, velocity or acceleration
+        (it then resets the state to the model's defaults, hand and object
+        at the origin, and counts a warning), or the state is not finite now."""
+        d = self.data
+        return (any(d.warning[w].number for w in _DIVERGED)
+                or not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))))
 
     @property
     def time(self) -> float:

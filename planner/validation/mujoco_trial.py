@@ -34,6 +34,12 @@ welded to a moving target, hand gravity-compensated as an arm would carry it):
    the fingers closed; ``slipped`` if not (a trial stops as soon as no
    finger touches). No finger on the object once closed: ``squeezed_out``
    if closing moved it by more than those thresholds, else ``no_contact``.
+
+At every check (every :data:`CHECK_EVERY` of closing and loading, and after
+each phase) the trial reads whether MuJoCo's state has diverged (MuJoCo then
+resets it: hand and object at the origin, so any later reading is of another
+world): the trial ends at once as ``diverged``, no verdict (motions 0; ``grasp
+validate`` does not store it, so the grasp stays untried).
 """
 
 from __future__ import annotations
@@ -50,15 +56,16 @@ from planner.record.grasp import Grasp, Trial
 from planner.sim.mujoco_world import Engine, Solid, World, build
 from planner.specs.hands import HandSpec
 from planner.validation import fingers as fg
-from planner.validation.mujoco_settings import MujocoSettings
+from planner.validation.mujoco_settings import DIVERGED, MujocoSettings
 from planner.validation.tolerances import DEFAULT_LEVER, GRAVITY, HOLD_FACTOR
 
 #: Why a MuJoCo trial ended as it did (``Trial.reason``).
-REASONS = ("held", "slipped", "squeezed_out", "no_contact", "start_overlap")
+REASONS = ("held", "slipped", "squeezed_out", "no_contact", "start_overlap", DIVERGED)
 #: [s] the finger servos' damping over their stiffness: the servo lags a
 #: moving target by this times its speed (0.5 mm at the Panda's 5 cm/s).
 SERVO_TIME = 0.01
-#: [s] how often a trial reads its contacts while loaded (an early verdict once no finger touches).
+#: [s] how often a trial reads its contacts while loaded (an early verdict once no finger touches) and
+#: whether its state diverged (while closing and loaded).
 CHECK_EVERY = 0.05
 #: Worlds kept per process (one per hand and object: building one costs a few ms, more with many parts).
 _KEPT = 8
@@ -119,6 +126,10 @@ def _world(hand: HandSpec, obj: PreparedObject, s: MujocoSettings, mass: float) 
     return _WORLDS[key]
 
 
+class _Diverged(Exception):
+    """MuJoCo's state diverged: the trial ends without a verdict."""
+
+
 def _steps(seconds: float, dt: float) -> int:
     return max(1, int(round(seconds / dt)))
 
@@ -162,9 +173,17 @@ class _Run:
                                  if c.model == "soft"})
         if w.depth() > s.max_start_overlap:
             return Trial(False, 0, 0.0, 0.0, 0.0, 0.0, "start_overlap")
+        try:
+            return self._simulate(start)
+        except _Diverged:
+            return Trial(False, 0, 0.0, 0.0, 0.0, 0.0, DIVERGED)
+
+    def _simulate(self, start: Mapping[str, float]) -> Trial:
+        w, s = self.world, self.s
         before = self._relative()
         self._close(start)
         w.step(_steps(s.settle_time, s.timestep))
+        self._check()
         closed = self._relative()
         closing = _motion(before, closed)
         touching = self._touching()
@@ -172,6 +191,7 @@ class _Run:
             pushed = closing[0] >= s.max_translation or closing[1] >= s.max_rotation
             return Trial(False, 0, *closing, 0.0, 0.0, "squeezed_out" if pushed else "no_contact")
         held, shaking = self._load(closed)
+        self._check()
         touching = self._touching()
         return Trial(held, touching, *closing, *shaking, "held" if held else "slipped")
 
@@ -209,6 +229,7 @@ class _Run:
                 rest = frozenset(link for m in mimics for link in hand.joint(m).moves)
                 clutches.append(_Clutch(j.name, mimics, frozenset(j.moves) - rest, rest))
         dt = s.timestep
+        every = _steps(CHECK_EVERY, dt)
         lever = {name: 1.0 if hand.joint(name).kind == "prismatic" else DEFAULT_LEVER for name in moving}
         still = 0.0
         for i in range(_steps(s.max_close_time, dt)):
@@ -220,6 +241,8 @@ class _Run:
                 w.set_target(name, target)
                 done &= target == end
             w.step()
+            if (i + 1) % every == 0:
+                self._check()
             if clutches:
                 self._break_away(clutches, w.touching_links())
             stalled = all(abs(w.joint_speed(name)) * lever[name] < s.stall_speed for name in moving)
@@ -276,11 +299,11 @@ class _Run:
             w.move_hand(target)
             w.step()
             if (i + 1) % every == 0 or i == len(path) - 1:
+                self._check()
                 moved = _motion(closed, self._relative())
                 worst = [max(worst[0], moved[0]), max(worst[1], moved[1])]
                 if not self._touching():
                     return False, (worst[0], worst[1])
-        w.check()
         final = _motion(closed, self._relative())
         held = final[0] < s.max_translation and final[1] < s.max_rotation
         return held, (worst[0], worst[1])
@@ -311,6 +334,9 @@ class _Run:
         return np.concatenate([still, lift, *turns, shift, hold])
 
     # -- reading ---------------------------------------------------------------------
+    def _check(self) -> None:
+        if self.world.diverged():
+            raise _Diverged
     def _relative(self) -> np.ndarray:
         """(4, 4) the object's centre-of-mass frame in the hand frame now."""
         w = self.world
