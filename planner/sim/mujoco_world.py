@@ -237,19 +237,23 @@ class _Builder:
 def build(hand: HandSpec, solid: Solid, engine: Engine | None = None) -> World:
     """A compiled world of ``hand`` and ``solid`` (MuJoCo's compile errors as SimulationError)."""
     builder = _Builder(hand)
-    xml = builder.xml(solid, engine or Engine())
+    engine = engine or Engine()
+    xml = builder.xml(solid, engine)
     try:
         model = mujoco.MjModel.from_xml_string(xml)
     except ValueError as exc:
         raise SimulationError(f"MuJoCo cannot build hand '{hand.name}' with this object: {exc}") from exc
-    return World(hand, model)
+    return World(hand, model, engine)
 
 
 class World:
     """One compiled MuJoCo model of a hand and an object, and its state."""
 
-    def __init__(self, hand: HandSpec, model: mujoco.MjModel) -> None:
+    def __init__(self, hand: HandSpec, model: mujoco.MjModel, engine: Engine | None = None) -> None:
         self.hand = hand
+        engine = engine or Engine()
+        #: the solref of a limit the trial sets (set_limits): as stiff as a contact, not MuJoCo's soft default
+        self._held = (engine.contact_time, engine.contact_damping)
         self.model = model
         self.data = mujoco.MjData(model)
         m = model
@@ -269,7 +273,7 @@ class World:
         self.hand_geoms = {g: self._name(mujoco.mjtObj.mjOBJ_BODY, int(m.geom_bodyid[g]))
                            for g in range(m.ngeom) if m.geom_contype[g] == _HAND_BITS}
         self.object_geoms = frozenset(g for g in range(m.ngeom) if int(m.geom_bodyid[g]) == self.object_body)
-        self._ranges = m.jnt_range.copy()
+        self._ranges, self._solrefs = m.jnt_range.copy(), m.jnt_solref.copy()
         self._force = np.zeros(6)
 
     # -- placing -------------------------------------------------------------------
@@ -280,7 +284,7 @@ class World:
         idle, gears engaged, joint limits as built, no gravity."""
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
-        m.jnt_range[:] = self._ranges
+        m.jnt_range[:], m.jnt_solref[:] = self._ranges, self._solrefs
         m.opt.gravity[:] = 0.0
         for i in range(m.nu):
             self._set_motor(i, 0.0, 0.0, 0.0, 0.0, 0.0)
@@ -333,7 +337,11 @@ class World:
         self.data.eq_active[self.gears[joint]] = int(engaged)
 
     def set_limits(self, joint: str, lower: float, upper: float) -> None:
-        self.model.jnt_range[self.joints[joint]] = (lower, upper)
+        """Move ``joint``'s limits [rad or m] (a ratchet, a brake: ``lower`` = ``upper`` holds it there),
+        as stiff as the contacts (the engine's contact time constant) until the next :meth:`reset`."""
+        i = self.joints[joint]
+        self.model.jnt_range[i] = (lower, upper)
+        self.model.jnt_solref[i] = self._held
 
     def joint_position(self, joint: str) -> float:
         return float(self.data.qpos[self.model.jnt_qposadr[self.joints[joint]]])

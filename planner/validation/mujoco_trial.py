@@ -57,7 +57,7 @@ from planner.sim.mujoco_world import Engine, Solid, World, build
 from planner.specs.hands import HandSpec
 from planner.validation import fingers as fg
 from planner.validation.mujoco_settings import DIVERGED, MujocoSettings
-from planner.validation.tolerances import DEFAULT_LEVER, GRAVITY, HOLD_FACTOR
+from planner.validation.tolerances import DEFAULT_LEVER, GRAVITY
 
 #: Why a MuJoCo trial ended as it did (``Trial.reason``).
 REASONS = ("held", "slipped", "squeezed_out", "no_contact", "start_overlap", DIVERGED)
@@ -132,6 +132,21 @@ class _Diverged(Exception):
 
 def _steps(seconds: float, dt: float) -> int:
     return max(1, int(round(seconds / dt)))
+
+
+@dataclass(frozen=True)
+class _Target:
+    """A closing joint's servo target: from ``start`` at time ``since`` [s into closing], moving at
+    ``speed`` (signed) [rad/s or m/s] to ``end`` [rad or m], where it stays."""
+
+    start: float
+    speed: float
+    end: float
+    since: float
+
+    def at(self, t: float) -> float:
+        target = self.start + self.speed * (t - self.since)
+        return min(target, self.end) if self.speed > 0 else max(target, self.end)
 
 
 @dataclass
@@ -211,17 +226,16 @@ class _Run:
         w, s, hand = self.world, self.s, self.hand
         effort = hand.actuators.effort * s.effort_scale
         fastest = max([abs(self.rates[j.name]) for j in hand.driven] + [1e-12])
-        moving: dict[str, tuple[float, float, float]] = {}  # driven joint -> (start, speed signed, end)
+        moving: dict[str, _Target] = {}  # the joints whose servo follows a moving target
         clutches = []
         for j in hand.driven:
             rate = self.rates[j.name]
             lag = s.servo_lag if j.kind == "prismatic" else s.servo_lag / DEFAULT_LEVER
-            if rate == 0.0:
-                kp = HOLD_FACTOR * effort / lag
-                w.drive(j.name, start[j.name], kp, kp * SERVO_TIME, HOLD_FACTOR * effort)
+            if rate == 0.0:  # set by the preshape, held there (its motor idle)
+                w.set_limits(j.name, start[j.name], start[j.name])
                 continue
-            end = j.upper if rate > 0 else j.lower
-            moving[j.name] = (start[j.name], hand.actuators.closing_speed * rate / fastest, end)
+            moving[j.name] = _Target(start[j.name], hand.actuators.closing_speed * rate / fastest,
+                                     j.upper if rate > 0 else j.lower, 0.0)
             kp = effort / lag
             w.drive(j.name, start[j.name], kp, kp * SERVO_TIME, effort)
             mimics = tuple(m.name for m in hand.joints if m.mimic == j.name and self.rates[m.name] != 0.0)
@@ -230,21 +244,19 @@ class _Run:
                 clutches.append(_Clutch(j.name, mimics, frozenset(j.moves) - rest, rest))
         dt = s.timestep
         every = _steps(CHECK_EVERY, dt)
-        lever = {name: 1.0 if hand.joint(name).kind == "prismatic" else DEFAULT_LEVER for name in moving}
+        lever = {j.name: 1.0 if j.kind == "prismatic" else DEFAULT_LEVER for j in hand.joints}
         still = 0.0
         for i in range(_steps(s.max_close_time, dt)):
             t = (i + 1) * dt
             done = True
-            for name, (q0, speed, end) in moving.items():
-                target = q0 + speed * t
-                target = min(target, end) if speed > 0 else max(target, end)
-                w.set_target(name, target)
-                done &= target == end
+            for name, target in moving.items():
+                w.set_target(name, target.at(t))
+                done &= target.at(t) == target.end
             w.step()
             if (i + 1) % every == 0:
                 self._check()
             if clutches:
-                self._break_away(clutches, w.touching_links())
+                self._break_away(clutches, w.touching_links(), moving, t, fastest)
             stalled = all(abs(w.joint_speed(name)) * lever[name] < s.stall_speed for name in moving)
             still = still + dt if stalled and (done or i * dt > s.stall_time) else 0.0
             if still >= s.stall_time:
@@ -252,12 +264,16 @@ class _Run:
         if not hand.actuators.backdrivable:
             self._hold_closed()
 
-    def _break_away(self, clutches: list[_Clutch], touching: set[str]) -> None:
+    def _break_away(self, clutches: list[_Clutch], touching: set[str], moving: dict[str, _Target], t: float,
+                    fastest: float) -> None:
         """The planner's closing rule (``breakaway`` in hand.toml): a finger
         whose distal links touch first stalls as a whole (its clutch is
         dropped); once only its proximal link touches, the gears go, the
-        proximal joint is braked where it is and each distal joint closes on
-        alone with its share of the motor's effort."""
+        proximal joint is braked where it is (its servo leaves the closing
+        targets, ``moving``) and each distal joint closes on alone, from
+        where it is at its geared speed (as the motor turns on behind the
+        slipping clutch), with its share of the motor's effort; ``t`` [s]:
+        the time into closing."""
         w, hand, s = self.world, self.hand, self.s
         effort = hand.actuators.effort * s.effort_scale
         for c in list(clutches):
@@ -265,16 +281,20 @@ class _Run:
                 clutches.remove(c)
             elif touching & c.trigger:
                 clutches.remove(c)
+                del moving[c.driven]
                 held = w.joint_position(c.driven)
-                kp = HOLD_FACTOR * effort / (s.servo_lag / DEFAULT_LEVER)
-                w.drive(c.driven, held, kp, kp * SERVO_TIME, HOLD_FACTOR * effort)
+                w.drive(c.driven, held, 0.0, 0.0, 0.0)
+                w.set_limits(c.driven, held, held)
                 norm = 1.0 + sum(hand.joint(m).multiplier ** 2 for m in c.mimics)
                 for m in c.mimics:
                     joint = hand.joint(m)
                     share = effort * abs(joint.multiplier) / norm
                     w.couple(m, False)
+                    rate = self.rates[m]
+                    moving[m] = _Target(w.joint_position(m), hand.actuators.closing_speed * rate / fastest,
+                                        joint.upper if rate > 0 else joint.lower, t)
                     kp = share / (s.servo_lag / DEFAULT_LEVER)
-                    w.drive(m, joint.upper if self.rates[m] > 0 else joint.lower, kp, kp * SERVO_TIME, share)
+                    w.drive(m, moving[m].at(t), kp, kp * SERVO_TIME, share)
 
     def _hold_closed(self) -> None:
         """Worm-gear fingers: no load can open a closing joint past where it is now."""

@@ -6,6 +6,8 @@ box; the verdicts do not depend on the order of the grasps."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -87,11 +89,38 @@ def _barrett_over_a_box(mass: float = 0.3):  # type: ignore[no-untyped-def]
     return hand, obj, grasp
 
 
-def test_a_trial_whose_state_diverges_while_closing_has_no_verdict() -> None:
-    # a 20 ms step (ten times the default) with contacts as stiff as it allows: the squeeze diverges and MuJoCo
-    # resets the state mid-trial (hand and object at the origin); read on, it looked like a squeeze-out
+#: [N] ten times the Barrett's published fingertip force (20 N): closing impacts at the hand's speed stay
+#: below it; a braked proximal joint that closed on with its brake's effort (100 x the motor's) reached 1,750 N.
+FINGER_FORCE_BOUND = 200.0
+
+
+def test_a_finger_braked_by_its_clutch_stays_where_it_touched(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    # the box 15 mm off the palm's centre towards fingers 1 and 2: their proximal links touch first, their
+    # clutches slip, the proximal joints stay where they are and the distal links close on alone
+    from planner.sim.mujoco_world import World
+
     hand, obj, grasp = _barrett_over_a_box()
-    coarse = MujocoSettings(timestep=0.02, contact_time=0.04)
+    pose = np.array(grasp.pose)
+    pose[1, 3] += 0.015
+    peak = [0.0]
+    stepped = World.step
+
+    def step(world: World, n: int = 1) -> None:
+        for _ in range(n):
+            stepped(world, 1)
+            peak[0] = max([peak[0], *world.contact_force().values()])
+
+    monkeypatch.setattr(World, "step", step)
+    result = trial(hand, obj, replace(grasp, pose=pose))
+    assert result.reason == "held" and result.fingers_in_contact == 3 and result.closing_linear < 0.03
+    assert peak[0] < FINGER_FORCE_BOUND
+
+
+def test_a_trial_whose_state_diverges_while_closing_has_no_verdict() -> None:
+    # a 50 ms step (25 times the default) with contacts as stiff as it allows: closing diverges and MuJoCo
+    # resets the state mid-trial (hand and object at the origin); read on, it would look like a squeeze-out
+    hand, obj, grasp = _barrett_over_a_box()
+    coarse = MujocoSettings(timestep=0.05, contact_time=0.1)
     assert trial(hand, obj, grasp).reason == "held"
     result = trial(hand, obj, grasp, coarse)
     assert result.reason == "diverged" and not result.success and result.fingers_in_contact == 0
