@@ -21,9 +21,13 @@ welded to a moving target, hand gravity-compensated as an arm would carry it):
    force is limited to the motor's effort (a mimic is geared to its master
    by an equality constraint, so one motor's effort is shared as by a gear
    train), reached ``servo_lag`` behind the target: once a finger is
-   blocked it squeezes with the motor's effort. A breakaway clutch (the
-   Barrett's TorqueSwitch) lets go as the planner's closing rule says; a
-   worm-gear finger cannot be opened once closed. Closing ends when every
+   blocked it squeezes with the motor's effort. A joint the preshape does
+   not close (a spread) is held where it was set. A breakaway clutch (the
+   Barrett's TorqueSwitch) lets go as the planner's closing rule says: the
+   proximal joint is held where it touched, the distal one closes on at its
+   geared speed; a worm-gear finger cannot be opened once closed. Holds are
+   joint limits as stiff as the contacts (a servo as stiff as a brake is
+   unstable at the trial's time step). Closing ends when every
    finger has stalled; the object then settles.
 3. Load and shake: gravity ramps on (the object frame's -z, or along the
    approach); the hand lifts against it, rotates back and forth about the
