@@ -346,6 +346,10 @@ class World:
     def joint_position(self, joint: str) -> float:
         return float(self.data.qpos[self.model.jnt_qposadr[self.joints[joint]]])
 
+    def motor_force(self, joint: str) -> float:
+        """[N or N m] the force ``joint``'s motor applies now (within its force range)."""
+        return float(self.data.actuator_force[self.motors[joint]])
+
     def joint_speed(self, joint: str) -> float:
         return float(self.data.qvel[self.model.jnt_dofadr[self.joints[joint]]])
 

@@ -73,6 +73,13 @@ SERVO_TIME = 0.01
 CHECK_EVERY = 0.05
 #: Worlds kept per process (one per hand and object: building one costs a few ms, more with many parts).
 _KEPT = 8
+#: A breakaway clutch (the BH8's TorqueSwitch) disengages at a force, not at a touch (the BH8 manual,
+#: "TorqueSwitch operation": the force that disengages it is a setting; the inner link then holds its
+#: position): here once the proximal link touches and its motor pushes with this share of its effort
+#: (1: stalled), a grip the worm gear then holds. Slipping at the first touch left the link touching with
+#: no force (the object loose in a cage of fingers: ``no_contact``); at 0.5 the Barrett's figures of
+#: bench/mujoco_protocols.py move by one grasp in 150.
+BREAKAWAY = 1.0
 _WORLDS: dict[tuple, World] = {}
 
 
@@ -83,7 +90,7 @@ def recorded(settings: MujocoSettings, hand: HandSpec) -> str:
     torsion = {link: m.torsion_radius for link, m in sorted(hand.contacts.items()) if m.model == "soft"}
     return json.dumps({"engine": "mujoco", "mujoco": mujoco.__version__, **asdict(settings), "hand": hand.name,
                        "actuators": asdict(hand.actuators), "breakaway": [j.name for j in hand.joints if j.breakaway],
-                       "torsion_radius": torsion}, sort_keys=True)
+                       "breakaway_effort": BREAKAWAY, "torsion_radius": torsion}, sort_keys=True)
 
 
 def trial(hand: HandSpec, obj: PreparedObject, grasp: Grasp, settings: MujocoSettings | None = None,
@@ -272,7 +279,8 @@ class _Run:
                     fastest: float) -> None:
         """The planner's closing rule (``breakaway`` in hand.toml): a finger
         whose distal links touch first stalls as a whole (its clutch is
-        dropped); once only its proximal link touches, the gears go, the
+        dropped); once only its proximal link touches and its motor pushes
+        with :data:`BREAKAWAY` of its effort, the gears go, the
         proximal joint is braked where it is (its servo leaves the closing
         targets, ``moving``) and each distal joint closes on alone, from
         where it is at its geared speed (as the motor turns on behind the
@@ -283,7 +291,7 @@ class _Run:
         for c in list(clutches):
             if touching & c.rest:
                 clutches.remove(c)
-            elif touching & c.trigger:
+            elif touching & c.trigger and abs(w.motor_force(c.driven)) >= BREAKAWAY * effort:
                 clutches.remove(c)
                 del moving[c.driven]
                 held = w.joint_position(c.driven)
