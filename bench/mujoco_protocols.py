@@ -79,6 +79,10 @@ def trialled(db: Path, hand_name: str, objects: tuple[str, ...], top: int) -> li
 
 
 def summary(rows: list[dict]) -> dict:
+    """The figures of one hand's rows; a MuJoCo trial that diverged (no verdict) is counted apart and left
+    out of every other figure (an object's top-1 is then its best grasp with a verdict)."""
+    diverged = sum(r["mujoco"]["reason"] == "diverged" for r in rows)
+    rows = [r for r in rows if r["mujoco"]["reason"] != "diverged"]
     if not rows:
         return {}
     mj = np.array([r["mujoco"]["held"] for r in rows])
@@ -86,7 +90,7 @@ def summary(rows: list[dict]) -> dict:
     first = [r for r in rows if r["rank"] == min(q["rank"] for q in rows if q["object"] == r["object"])]
     top10 = [r for r in rows if sum(q["object"] == r["object"] and q["rank"] < r["rank"] for q in rows) < 10]
     return {
-        "grasps": len(rows), "objects": len(first),
+        "grasps": len(rows), "objects": len(first), "diverged_mujoco": diverged,
         "cpu_ms_mujoco": 1000 * float(np.mean([r["mujoco"]["cpu"] for r in rows])),
         "cpu_ms_mujoco_median": 1000 * float(np.median([r["mujoco"]["cpu"] for r in rows])),
         "cpu_ms_pybullet": 1000 * float(np.mean([r["pybullet"]["cpu"] for r in rows])),
@@ -125,7 +129,8 @@ def main() -> int:
               f"{s['held_mujoco']:.2f}, PyBullet {s['held_pybullet']:.2f}); top-1 held: MuJoCo {s['top1_mujoco']:.2f}, "
               f"PyBullet {s['top1_pybullet']:.2f}, both {s['top1_both']:.2f}; top-10 held: MuJoCo "
               f"{s['top10_mujoco']:.2f}, PyBullet {s['top10_pybullet']:.2f}; top-1 dropped in MuJoCo: "
-              f"{s['top1_not_held_mujoco']}; MuJoCo reasons {s['reasons_mujoco']}", flush=True)
+              f"{s['top1_not_held_mujoco']}; MuJoCo reasons {s['reasons_mujoco']}, diverged (left out) "
+              f"{s['diverged_mujoco']}", flush=True)
     print(f"load: {os.getloadavg()[0]:.1f}", file=sys.stderr)
     if args.json:
         args.json.write_text(json.dumps(report, indent=1))

@@ -48,7 +48,9 @@ def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], to
         click.echo(json.dumps(summary.to_json(), indent=2))
     else:
         click.echo(f"validated {summary.grasps} grasps in {engine}: {summary.successes} held "
-                   f"({summary.successes / max(summary.grasps, 1):.0%})")
+                   f"({summary.successes / max(summary.grasps, 1):.0%})"
+                   + (f"; {summary.diverged} diverged (MuJoCo's state; no verdict, not stored)"
+                      if summary.diverged else ""))
     report_failures(summary.failed_tasks)
 
 

@@ -81,7 +81,8 @@ class Trial:
     (centre of mass [m], rotation [rad]). ``fingers_in_contact``: distinct
     fingers touching after closing. ``reason``: ``held``, ``slipped``,
     ``squeezed_out``, ``no_contact``, ``no_clearance`` or ``start_overlap``
-    (the last two are flags: not simulated, motions 0); empty when unknown
+    (the last two are flags: not simulated, motions 0), or MuJoCo's
+    ``diverged`` (no verdict, motions 0; never stored); empty when unknown
     (imported files, older databases). Docs say ``{engine}`` where the
     declaration of each group (:mod:`planner.record.fields`) names its engine.
     """

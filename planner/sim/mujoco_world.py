@@ -49,13 +49,15 @@ from planner.validation.mujoco_settings import Engine
 
 log = logging.getLogger(__name__)
 # MuJoCo's warnings (a diverged state it resets, a full contact buffer) go to the log, not to stdout and a
-# MUJOCO_LOG.TXT in the user's working directory; each world still counts them (World.check).
+# MUJOCO_LOG.TXT in the user's working directory; each world still counts them (World.diverged).
 mujoco.set_mju_user_warning(lambda message: log.warning("MuJoCo: %s", message))
 
 #: Collision bits: hand geoms collide with the object only, never with each other.
 _HAND_BITS, _OBJECT_BITS = 1, 2
 #: [kg] and [kg m^2] given to a link the URDF leaves without mass (MuJoCo needs some on moving bodies).
 _MIN_MASS, _MIN_INERTIA = 1e-3, 1e-7
+#: MuJoCo's warnings of a diverged state (each followed by a reset of the state).
+_DIVERGED = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
 #: Name of the object's body and of the hand's mocap target.
 OBJECT, TARGET = "__object", "__hand_target"
 
@@ -235,19 +237,23 @@ class _Builder:
 def build(hand: HandSpec, solid: Solid, engine: Engine | None = None) -> World:
     """A compiled world of ``hand`` and ``solid`` (MuJoCo's compile errors as SimulationError)."""
     builder = _Builder(hand)
-    xml = builder.xml(solid, engine or Engine())
+    engine = engine or Engine()
+    xml = builder.xml(solid, engine)
     try:
         model = mujoco.MjModel.from_xml_string(xml)
     except ValueError as exc:
         raise SimulationError(f"MuJoCo cannot build hand '{hand.name}' with this object: {exc}") from exc
-    return World(hand, model)
+    return World(hand, model, engine)
 
 
 class World:
     """One compiled MuJoCo model of a hand and an object, and its state."""
 
-    def __init__(self, hand: HandSpec, model: mujoco.MjModel) -> None:
+    def __init__(self, hand: HandSpec, model: mujoco.MjModel, engine: Engine | None = None) -> None:
         self.hand = hand
+        engine = engine or Engine()
+        #: the solref of a limit the trial sets (set_limits): as stiff as a contact, not MuJoCo's soft default
+        self._held = (engine.contact_time, engine.contact_damping)
         self.model = model
         self.data = mujoco.MjData(model)
         m = model
@@ -267,7 +273,7 @@ class World:
         self.hand_geoms = {g: self._name(mujoco.mjtObj.mjOBJ_BODY, int(m.geom_bodyid[g]))
                            for g in range(m.ngeom) if m.geom_contype[g] == _HAND_BITS}
         self.object_geoms = frozenset(g for g in range(m.ngeom) if int(m.geom_bodyid[g]) == self.object_body)
-        self._ranges = m.jnt_range.copy()
+        self._ranges, self._solrefs = m.jnt_range.copy(), m.jnt_solref.copy()
         self._force = np.zeros(6)
 
     # -- placing -------------------------------------------------------------------
@@ -278,7 +284,7 @@ class World:
         idle, gears engaged, joint limits as built, no gravity."""
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
-        m.jnt_range[:] = self._ranges
+        m.jnt_range[:], m.jnt_solref[:] = self._ranges, self._solrefs
         m.opt.gravity[:] = 0.0
         for i in range(m.nu):
             self._set_motor(i, 0.0, 0.0, 0.0, 0.0, 0.0)
@@ -331,10 +337,18 @@ class World:
         self.data.eq_active[self.gears[joint]] = int(engaged)
 
     def set_limits(self, joint: str, lower: float, upper: float) -> None:
-        self.model.jnt_range[self.joints[joint]] = (lower, upper)
+        """Move ``joint``'s limits [rad or m] (a ratchet, a brake: ``lower`` = ``upper`` holds it there),
+        as stiff as the contacts (the engine's contact time constant) until the next :meth:`reset`."""
+        i = self.joints[joint]
+        self.model.jnt_range[i] = (lower, upper)
+        self.model.jnt_solref[i] = self._held
 
     def joint_position(self, joint: str) -> float:
         return float(self.data.qpos[self.model.jnt_qposadr[self.joints[joint]]])
+
+    def motor_force(self, joint: str) -> float:
+        """[N or N m] the force ``joint``'s motor applies now (within its force range)."""
+        return float(self.data.actuator_force[self.motors[joint]])
 
     def joint_speed(self, joint: str) -> float:
         return float(self.data.qvel[self.model.jnt_dofadr[self.joints[joint]]])
@@ -349,11 +363,14 @@ class World:
         for _ in range(n):
             mujoco.mj_step(m, d)
 
-    def check(self) -> None:
-        """Raise SimulationError if the state has diverged (MuJoCo resets a
-        diverged state and counts a warning; call between phases)."""
-        if self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number or not np.all(np.isfinite(self.data.qpos)):
-            raise SimulationError("MuJoCo's state diverged; try a smaller timestep")
+    def diverged(self) -> bool:
+        """Whether the state has diverged since the last :meth:`reset`:
+        MuJoCo met a non-finite or huge position, velocity or acceleration
+        (it then resets the state to the model's defaults, hand and object
+        at the origin, and counts a warning), or the state is not finite now."""
+        d = self.data
+        return (any(d.warning[w].number for w in _DIVERGED)
+                or not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))))
 
     @property
     def time(self) -> float:

@@ -16,6 +16,9 @@ ENGINES = ("pybullet", "mujoco")
 #: ``grasp validate``'s engine unless told: the trial that agrees best with external labels
 #: (ACRONYM's FleX: MuJoCo 75.0% of 560 held-out poses, PyBullet 62.1% of 280; bench/RESULTS.md).
 DEFAULT_ENGINE = "mujoco"
+#: The reason (``Trial.reason``) of a MuJoCo trial whose state diverged: no verdict (neither held nor
+#: dropped), so ``grasp validate`` does not store it.
+DIVERGED = "diverged"
 #: Where the trial's gravity points: the object frame's -z (the object as it
 #: stands: the project's objects are z-up) or -y (y-up meshes: ShapeNet's, FleX's
 #: world), along the hand's approach (a pick from above), or nowhere (the shake alone).

@@ -21,9 +21,13 @@ welded to a moving target, hand gravity-compensated as an arm would carry it):
    force is limited to the motor's effort (a mimic is geared to its master
    by an equality constraint, so one motor's effort is shared as by a gear
    train), reached ``servo_lag`` behind the target: once a finger is
-   blocked it squeezes with the motor's effort. A breakaway clutch (the
-   Barrett's TorqueSwitch) lets go as the planner's closing rule says; a
-   worm-gear finger cannot be opened once closed. Closing ends when every
+   blocked it squeezes with the motor's effort. A joint the preshape does
+   not close (a spread) is held where it was set. A breakaway clutch (the
+   Barrett's TorqueSwitch) lets go as the planner's closing rule says: the
+   proximal joint is held where it touched, the distal one closes on at its
+   geared speed; a worm-gear finger cannot be opened once closed. Holds are
+   joint limits as stiff as the contacts (a servo as stiff as a brake is
+   unstable at the trial's time step). Closing ends when every
    finger has stalled; the object then settles.
 3. Load and shake: gravity ramps on (the object frame's -z, or along the
    approach); the hand lifts against it, rotates back and forth about the
@@ -34,6 +38,12 @@ welded to a moving target, hand gravity-compensated as an arm would carry it):
    the fingers closed; ``slipped`` if not (a trial stops as soon as no
    finger touches). No finger on the object once closed: ``squeezed_out``
    if closing moved it by more than those thresholds, else ``no_contact``.
+
+At every check (every :data:`CHECK_EVERY` of closing and loading, and after
+each phase) the trial reads whether MuJoCo's state has diverged (MuJoCo then
+resets it: hand and object at the origin, so any later reading is of another
+world): the trial ends at once as ``diverged``, no verdict (motions 0; ``grasp
+validate`` does not store it, so the grasp stays untried).
 """
 
 from __future__ import annotations
@@ -50,18 +60,26 @@ from planner.record.grasp import Grasp, Trial
 from planner.sim.mujoco_world import Engine, Solid, World, build
 from planner.specs.hands import HandSpec
 from planner.validation import fingers as fg
-from planner.validation.mujoco_settings import MujocoSettings
-from planner.validation.tolerances import DEFAULT_LEVER, GRAVITY, HOLD_FACTOR
+from planner.validation.mujoco_settings import DIVERGED, MujocoSettings
+from planner.validation.tolerances import DEFAULT_LEVER, GRAVITY
 
 #: Why a MuJoCo trial ended as it did (``Trial.reason``).
-REASONS = ("held", "slipped", "squeezed_out", "no_contact", "start_overlap")
+REASONS = ("held", "slipped", "squeezed_out", "no_contact", "start_overlap", DIVERGED)
 #: [s] the finger servos' damping over their stiffness: the servo lags a
 #: moving target by this times its speed (0.5 mm at the Panda's 5 cm/s).
 SERVO_TIME = 0.01
-#: [s] how often a trial reads its contacts while loaded (an early verdict once no finger touches).
+#: [s] how often a trial reads its contacts while loaded (an early verdict once no finger touches) and
+#: whether its state diverged (while closing and loaded).
 CHECK_EVERY = 0.05
 #: Worlds kept per process (one per hand and object: building one costs a few ms, more with many parts).
 _KEPT = 8
+#: A breakaway clutch (the BH8's TorqueSwitch) disengages at a force, not at a touch (the BH8 manual,
+#: "TorqueSwitch operation": the force that disengages it is a setting; the inner link then holds its
+#: position): here once the proximal link touches and its motor pushes with this share of its effort
+#: (1: stalled), a grip the worm gear then holds. Slipping at the first touch left the link touching with
+#: no force (the object loose in a cage of fingers: ``no_contact``); at 0.5 the Barrett's figures of
+#: bench/mujoco_protocols.py move by one grasp in 150.
+BREAKAWAY = 1.0
 _WORLDS: dict[tuple, World] = {}
 
 
@@ -72,7 +90,7 @@ def recorded(settings: MujocoSettings, hand: HandSpec) -> str:
     torsion = {link: m.torsion_radius for link, m in sorted(hand.contacts.items()) if m.model == "soft"}
     return json.dumps({"engine": "mujoco", "mujoco": mujoco.__version__, **asdict(settings), "hand": hand.name,
                        "actuators": asdict(hand.actuators), "breakaway": [j.name for j in hand.joints if j.breakaway],
-                       "torsion_radius": torsion}, sort_keys=True)
+                       "breakaway_effort": BREAKAWAY, "torsion_radius": torsion}, sort_keys=True)
 
 
 def trial(hand: HandSpec, obj: PreparedObject, grasp: Grasp, settings: MujocoSettings | None = None,
@@ -119,8 +137,27 @@ def _world(hand: HandSpec, obj: PreparedObject, s: MujocoSettings, mass: float) 
     return _WORLDS[key]
 
 
+class _Diverged(Exception):
+    """MuJoCo's state diverged: the trial ends without a verdict."""
+
+
 def _steps(seconds: float, dt: float) -> int:
     return max(1, int(round(seconds / dt)))
+
+
+@dataclass(frozen=True)
+class _Target:
+    """A closing joint's servo target: from ``start`` at time ``since`` [s into closing], moving at
+    ``speed`` (signed) [rad/s or m/s] to ``end`` [rad or m], where it stays."""
+
+    start: float
+    speed: float
+    end: float
+    since: float
+
+    def at(self, t: float) -> float:
+        target = self.start + self.speed * (t - self.since)
+        return min(target, self.end) if self.speed > 0 else max(target, self.end)
 
 
 @dataclass
@@ -162,9 +199,17 @@ class _Run:
                                  if c.model == "soft"})
         if w.depth() > s.max_start_overlap:
             return Trial(False, 0, 0.0, 0.0, 0.0, 0.0, "start_overlap")
+        try:
+            return self._simulate(start)
+        except _Diverged:
+            return Trial(False, 0, 0.0, 0.0, 0.0, 0.0, DIVERGED)
+
+    def _simulate(self, start: Mapping[str, float]) -> Trial:
+        w, s = self.world, self.s
         before = self._relative()
         self._close(start)
         w.step(_steps(s.settle_time, s.timestep))
+        self._check()
         closed = self._relative()
         closing = _motion(before, closed)
         touching = self._touching()
@@ -172,6 +217,7 @@ class _Run:
             pushed = closing[0] >= s.max_translation or closing[1] >= s.max_rotation
             return Trial(False, 0, *closing, 0.0, 0.0, "squeezed_out" if pushed else "no_contact")
         held, shaking = self._load(closed)
+        self._check()
         touching = self._touching()
         return Trial(held, touching, *closing, *shaking, "held" if held else "slipped")
 
@@ -191,17 +237,16 @@ class _Run:
         w, s, hand = self.world, self.s, self.hand
         effort = hand.actuators.effort * s.effort_scale
         fastest = max([abs(self.rates[j.name]) for j in hand.driven] + [1e-12])
-        moving: dict[str, tuple[float, float, float]] = {}  # driven joint -> (start, speed signed, end)
+        moving: dict[str, _Target] = {}  # the joints whose servo follows a moving target
         clutches = []
         for j in hand.driven:
             rate = self.rates[j.name]
             lag = s.servo_lag if j.kind == "prismatic" else s.servo_lag / DEFAULT_LEVER
-            if rate == 0.0:
-                kp = HOLD_FACTOR * effort / lag
-                w.drive(j.name, start[j.name], kp, kp * SERVO_TIME, HOLD_FACTOR * effort)
+            if rate == 0.0:  # set by the preshape, held there (its motor idle)
+                w.set_limits(j.name, start[j.name], start[j.name])
                 continue
-            end = j.upper if rate > 0 else j.lower
-            moving[j.name] = (start[j.name], hand.actuators.closing_speed * rate / fastest, end)
+            moving[j.name] = _Target(start[j.name], hand.actuators.closing_speed * rate / fastest,
+                                     j.upper if rate > 0 else j.lower, 0.0)
             kp = effort / lag
             w.drive(j.name, start[j.name], kp, kp * SERVO_TIME, effort)
             mimics = tuple(m.name for m in hand.joints if m.mimic == j.name and self.rates[m.name] != 0.0)
@@ -209,19 +254,20 @@ class _Run:
                 rest = frozenset(link for m in mimics for link in hand.joint(m).moves)
                 clutches.append(_Clutch(j.name, mimics, frozenset(j.moves) - rest, rest))
         dt = s.timestep
-        lever = {name: 1.0 if hand.joint(name).kind == "prismatic" else DEFAULT_LEVER for name in moving}
+        every = _steps(CHECK_EVERY, dt)
+        lever = {j.name: 1.0 if j.kind == "prismatic" else DEFAULT_LEVER for j in hand.joints}
         still = 0.0
         for i in range(_steps(s.max_close_time, dt)):
             t = (i + 1) * dt
             done = True
-            for name, (q0, speed, end) in moving.items():
-                target = q0 + speed * t
-                target = min(target, end) if speed > 0 else max(target, end)
-                w.set_target(name, target)
-                done &= target == end
+            for name, target in moving.items():
+                w.set_target(name, target.at(t))
+                done &= target.at(t) == target.end
             w.step()
+            if (i + 1) % every == 0:
+                self._check()
             if clutches:
-                self._break_away(clutches, w.touching_links())
+                self._break_away(clutches, w.touching_links(), moving, t, fastest)
             stalled = all(abs(w.joint_speed(name)) * lever[name] < s.stall_speed for name in moving)
             still = still + dt if stalled and (done or i * dt > s.stall_time) else 0.0
             if still >= s.stall_time:
@@ -229,29 +275,38 @@ class _Run:
         if not hand.actuators.backdrivable:
             self._hold_closed()
 
-    def _break_away(self, clutches: list[_Clutch], touching: set[str]) -> None:
+    def _break_away(self, clutches: list[_Clutch], touching: set[str], moving: dict[str, _Target], t: float,
+                    fastest: float) -> None:
         """The planner's closing rule (``breakaway`` in hand.toml): a finger
         whose distal links touch first stalls as a whole (its clutch is
-        dropped); once only its proximal link touches, the gears go, the
-        proximal joint is braked where it is and each distal joint closes on
-        alone with its share of the motor's effort."""
+        dropped); once only its proximal link touches and its motor pushes
+        with :data:`BREAKAWAY` of its effort, the gears go, the
+        proximal joint is braked where it is (its servo leaves the closing
+        targets, ``moving``) and each distal joint closes on alone, from
+        where it is at its geared speed (as the motor turns on behind the
+        slipping clutch), with its share of the motor's effort; ``t`` [s]:
+        the time into closing."""
         w, hand, s = self.world, self.hand, self.s
         effort = hand.actuators.effort * s.effort_scale
         for c in list(clutches):
             if touching & c.rest:
                 clutches.remove(c)
-            elif touching & c.trigger:
+            elif touching & c.trigger and abs(w.motor_force(c.driven)) >= BREAKAWAY * effort:
                 clutches.remove(c)
+                del moving[c.driven]
                 held = w.joint_position(c.driven)
-                kp = HOLD_FACTOR * effort / (s.servo_lag / DEFAULT_LEVER)
-                w.drive(c.driven, held, kp, kp * SERVO_TIME, HOLD_FACTOR * effort)
+                w.drive(c.driven, held, 0.0, 0.0, 0.0)
+                w.set_limits(c.driven, held, held)
                 norm = 1.0 + sum(hand.joint(m).multiplier ** 2 for m in c.mimics)
                 for m in c.mimics:
                     joint = hand.joint(m)
                     share = effort * abs(joint.multiplier) / norm
                     w.couple(m, False)
+                    rate = self.rates[m]
+                    moving[m] = _Target(w.joint_position(m), hand.actuators.closing_speed * rate / fastest,
+                                        joint.upper if rate > 0 else joint.lower, t)
                     kp = share / (s.servo_lag / DEFAULT_LEVER)
-                    w.drive(m, joint.upper if self.rates[m] > 0 else joint.lower, kp, kp * SERVO_TIME, share)
+                    w.drive(m, moving[m].at(t), kp, kp * SERVO_TIME, share)
 
     def _hold_closed(self) -> None:
         """Worm-gear fingers: no load can open a closing joint past where it is now."""
@@ -276,11 +331,11 @@ class _Run:
             w.move_hand(target)
             w.step()
             if (i + 1) % every == 0 or i == len(path) - 1:
+                self._check()
                 moved = _motion(closed, self._relative())
                 worst = [max(worst[0], moved[0]), max(worst[1], moved[1])]
                 if not self._touching():
                     return False, (worst[0], worst[1])
-        w.check()
         final = _motion(closed, self._relative())
         held = final[0] < s.max_translation and final[1] < s.max_rotation
         return held, (worst[0], worst[1])
@@ -311,6 +366,9 @@ class _Run:
         return np.concatenate([still, lift, *turns, shift, hold])
 
     # -- reading ---------------------------------------------------------------------
+    def _check(self) -> None:
+        if self.world.diverged():
+            raise _Diverged
     def _relative(self) -> np.ndarray:
         """(4, 4) the object's centre-of-mass frame in the hand frame now."""
         w = self.world

@@ -30,7 +30,7 @@ from planner.run import pool
 from planner.run.progress import Report
 from planner.specs.hands import load_hand
 from planner.threads import one_blas_thread
-from planner.validation.mujoco_settings import DEFAULT_ENGINE, ENGINES, MujocoSettings
+from planner.validation.mujoco_settings import DEFAULT_ENGINE, DIVERGED, ENGINES, MujocoSettings
 from planner.validation.robust import NoiseSettings, robust_epsilon
 from planner.validation.shake import ShakeSettings, recorded, trials
 
@@ -190,8 +190,9 @@ def write(db: Database, result: TaskResult, rule: RankingRule) -> None:
         from planner.validation import mujoco_trial
 
         settings = mujoco_trial.recorded(task.trial, load_hand(task.hand))  # type: ignore[arg-type]
-        rows = [Validated(g.id, None, r, task.seed, "", noise, t, settings)  # type: ignore[arg-type]
-                for g, t, r in zip(task.grasps, result.trials, result.robust)]
+        # a diverged trial has no verdict: not stored, the grasp stays untried (label and rank neutral)
+        rows = [Validated(g.id, None, r, task.seed, "", noise, None if t.reason == DIVERGED else t,
+                          settings) for g, t, r in zip(task.grasps, result.trials, result.robust)]
     else:
         settings = recorded(task.trial, load_hand(task.hand))  # type: ignore[arg-type]
         rows = [Validated(g.id, t, r, task.seed, settings, noise)  # type: ignore[arg-type]
@@ -201,12 +202,17 @@ def write(db: Database, result: TaskResult, rule: RankingRule) -> None:
 
 @dataclass
 class ValidationSummary:
+    """``grasps`` given a verdict (stored), ``successes`` among them, ``diverged``: trials whose state
+    diverged (MuJoCo's; no verdict, not stored), ``failed_tasks``: object/hand -> error."""
+
     grasps: int = 0
     successes: int = 0
+    diverged: int = 0
     failed_tasks: dict[str, str] = field(default_factory=dict)
 
     def to_json(self) -> dict:
-        return {"grasps": self.grasps, "successes": self.successes, "failed": self.failed_tasks}
+        return {"grasps": self.grasps, "successes": self.successes, "diverged": self.diverged,
+                "failed": self.failed_tasks}
 
 
 def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str] | None = None, top: int = 10,
@@ -246,7 +252,9 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
                 summary.failed_tasks[f"{result.task.object}/{result.task.hand}"] = result.error
             else:
                 write(db, result, rule)
-                summary.grasps += len(result.trials)
+                diverged = sum(t.reason == DIVERGED for t in result.trials)
+                summary.grasps += len(result.trials) - diverged
+                summary.diverged += diverged
                 summary.successes += sum(t.success for t in result.trials)
             if progress:
                 progress(done, len(tasks))

@@ -112,3 +112,18 @@ def test_a_diverged_state_is_logged_not_written_beside_the_user(tmp_path, monkey
         mujoco.mj_step(model, data)
     assert any("unstable" in r.getMessage() for r in caplog.records)
     assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+
+
+def test_a_diverged_state_is_seen_until_the_next_reset() -> None:
+    world = build(load_hand("panda"), cube())
+    pose = np.eye(4)
+    pose[:3, 3] = (0.0, 0.0, 0.3)  # the hand well above the cube
+    world.reset(pose, {})
+    world.step(5)
+    assert not world.diverged()
+    world.data.qvel[-1] = np.nan  # the object's spin
+    assert world.diverged()  # not finite now
+    world.step()  # MuJoCo resets the state, finite again, and counts a warning
+    assert np.all(np.isfinite(world.data.qvel)) and world.diverged()
+    world.reset(pose, {})
+    assert not world.diverged()

@@ -6,6 +6,8 @@ box; the verdicts do not depend on the order of the grasps."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -71,15 +73,72 @@ def test_verdicts_do_not_depend_on_the_order_of_the_grasps(pinched) -> None:  # 
 
 
 def test_the_barrett_closes_its_three_fingers_on_a_box() -> None:
-    hand = load_hand("barrett")
-    obj = box_of((0.05, 0.05, 0.08), 0.3)
-    pose = np.diag([1.0, -1.0, -1.0, 1.0])  # palm normal along -z, from above
-    pose[:3, 3] = (0.0, 0.0, 0.04 + 0.08 + 0.005)  # palm face 5 mm above the box's top
-    grasp = as_row_of("barrett", pose, {}, _no_contacts(), preshape="wrap",
-                      open_joints={"bh_j11_joint": 0.0, "bh_j21_joint": 0.0, "bh_j12_joint": 0.0, "bh_j13_joint": 0.0,
-                                   "bh_j22_joint": 0.0, "bh_j23_joint": 0.0, "bh_j32_joint": 0.0, "bh_j33_joint": 0.0})
+    hand, obj, grasp = _barrett_over_a_box()
     result = trial(hand, obj, grasp)
     assert result.fingers_in_contact == 3 and result.reason == "held"
+
+
+def _barrett_over_a_box(mass: float = 0.3):  # type: ignore[no-untyped-def]
+    """The Barrett from above a box (palm 5 mm over its top), wrap preshape, fingers flat."""
+    hand = load_hand("barrett")
+    obj = box_of((0.05, 0.05, 0.08), mass)
+    pose = np.diag([1.0, -1.0, -1.0, 1.0])  # palm normal along -z, from above
+    pose[:3, 3] = (0.0, 0.0, 0.04 + 0.08 + 0.005)
+    grasp = as_row_of("barrett", pose, {}, _no_contacts(), preshape="wrap",
+                      open_joints={j.name: 0.0 for j in hand.joints})
+    return hand, obj, grasp
+
+
+#: [N] ten times the Barrett's published fingertip force (20 N): closing impacts at the hand's speed stay
+#: below it; a braked proximal joint that closed on with its brake's effort (100 x the motor's) reached 1,750 N.
+FINGER_FORCE_BOUND = 200.0
+
+
+def test_a_finger_braked_by_its_clutch_stays_where_it_touched(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    # the box 15 mm off the palm's centre towards fingers 1 and 2: their proximal links touch first, their
+    # clutches slip, the proximal joints stay where they are and the distal links close on alone
+    from planner.sim.mujoco_world import World
+
+    hand, obj, grasp = _barrett_over_a_box()
+    pose = np.array(grasp.pose)
+    pose[1, 3] += 0.015
+    peak = [0.0]
+    stepped = World.step
+
+    def step(world: World, n: int = 1) -> None:
+        for _ in range(n):
+            stepped(world, 1)
+            peak[0] = max([peak[0], *world.contact_force().values()])
+
+    monkeypatch.setattr(World, "step", step)
+    result = trial(hand, obj, replace(grasp, pose=pose))
+    assert result.reason == "held" and result.fingers_in_contact == 3 and result.closing_linear < 0.03
+    assert peak[0] < FINGER_FORCE_BOUND
+
+
+def test_a_trial_whose_state_diverges_while_closing_has_no_verdict() -> None:
+    # a 50 ms step (25 times the default) with contacts as stiff as it allows: closing diverges and MuJoCo
+    # resets the state mid-trial (hand and object at the origin); read on, it would look like a squeeze-out
+    hand, obj, grasp = _barrett_over_a_box()
+    coarse = MujocoSettings(timestep=0.05, contact_time=0.1)
+    assert trial(hand, obj, grasp).reason == "held"
+    result = trial(hand, obj, grasp, coarse)
+    assert result.reason == "diverged" and not result.success and result.fingers_in_contact == 0
+    assert trial(hand, obj, grasp).reason == "held"  # the world is reset for the next trial
+
+
+def test_a_state_that_diverges_under_load_ends_the_trial_at_the_next_check(pinched, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    from planner.sim.mujoco_world import World
+
+    hand, obj, grasp = pinched
+    ramp = World.set_gravity
+
+    def poisoned(world: World, g: np.ndarray) -> None:  # the load's first step: a non-finite velocity
+        ramp(world, g)
+        world.data.qvel[:] = np.nan
+
+    monkeypatch.setattr(World, "set_gravity", poisoned)
+    assert trial(hand, obj, grasp).reason == "diverged"
 
 
 def test_the_stored_settings_name_the_engine_and_the_hand() -> None:

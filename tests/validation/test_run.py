@@ -6,6 +6,7 @@ import shutil
 import sqlite3
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from planner.db.ranking import RankingRule, rule_measures
@@ -80,6 +81,28 @@ def test_a_seeded_sample_is_uniform_and_replayable(validated_db: Path, tmp_path:
         validate(tmp_path / "a.db", sample=3, every=True)
     with pytest.raises(InputError, match="--sample must be at least 1"):
         validate(tmp_path / "a.db", sample=0)
+def test_a_diverged_trial_is_counted_and_not_stored(validated_db: Path, tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """A MuJoCo trial whose state diverged has no verdict: the grasp stays untried (label and rank neutral)."""
+    import mujoco
+
+    from planner.sim.mujoco_world import World
+
+    db = tmp_path / "d.db"
+    shutil.copy(validated_db, db)
+    stepped = World.step
+
+    def box_diverges(world: World, n: int = 1) -> None:  # every trial of the box: a non-finite state
+        stepped(world, n)
+        if mujoco.mjtGeom.mjGEOM_BOX in world.model.geom_type[sorted(world.object_geoms)]:
+            world.data.qvel[:] = np.nan
+
+    monkeypatch.setattr(World, "step", box_diverges)
+    summary = validate(db, top=3, robust_samples=0, workers=1, engine="mujoco")
+    assert summary.diverged == 3 and summary.grasps == 3 and not summary.failed_tasks
+    assert [r[0] for r in trial_rows(db)] == ["sphere"] * 3
+
+
 def test_a_task_that_kills_its_workers_is_reported_and_the_others_written(reference_db: Path, tmp_path: Path,
                                                                           monkeypatch: pytest.MonkeyPatch) -> None:
     """One PyBullet segfault costs its task (retried once, in a new worker),
