@@ -54,7 +54,7 @@ from planner.specs.objects import (
     is_registered,
     resolve_spec,
 )
-from planner.specs.preshapes import Preshape, load_preshapes
+from planner.specs.preshapes import Preshape, load_preshapes, sweep_preshapes
 
 if TYPE_CHECKING:
     from planner.calibration.fitting import Calibration
@@ -280,8 +280,9 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
         done = {d: db.units_done(hand, d, seed) for d in sorted({u.settings.digest for u in units})}
         todo = [u for u in units if (u.label, u.chunk) not in done[u.settings.digest]]
         summary.skipped = len(units) - len(todo)
-        shapes = load_preshapes(hand_spec, list(settings.preshapes) if settings.preshapes else None)
-        tally = Tally([candidate_count(u.settings, shapes, u.chunk) for u in todo])
+        names = list(settings.preshapes) if settings.preshapes else None
+        tally = Tally([candidate_count(u.settings, sweep_preshapes(hand_spec, names, u.settings.support() is not None),
+                                       u.chunk) for u in todo])
         finished = 0
 
         def tell(result: UnitResult | None = None) -> None:

@@ -100,7 +100,7 @@ from planner.record.field import Field
 from planner.record.grasp import Grasp, RobustEpsilon, Trial
 from planner.record.measures import Measures
 from planner.specs.hands import HandSpec
-from planner.specs.preshapes import load_preshapes
+from planner.specs.preshapes import load_preshapes, sweep_preshapes
 
 SUFFIX = ".h5"
 #: Rows per HDF5 chunk: 1,024 transforms are 128 kB.
@@ -153,7 +153,7 @@ def gripper_configuration(hand: HandSpec) -> tuple[list[str], np.ndarray]:
     """``gripper/configuration_joints`` and ``gripper/configuration`` (D,):
     the driven finger joints and their values [m or rad] in the widest
     preshape (the module docstring has the table per hand)."""
-    shape = hand.widest(load_preshapes(hand))
+    shape = hand.widest(sweep_preshapes(hand))
     names = [j.name for j in hand.driven]
     return names, np.array([shape.joints[n] for n in names], np.float64)
 

@@ -71,7 +71,7 @@ from planner.run import pool
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, hand_names, load_hand
 from planner.specs.objects import ObjectSpec, is_registered, resolve_spec
-from planner.specs.preshapes import load_preshapes
+from planner.specs.preshapes import sweep_preshapes
 
 #: Every format with a reader (:mod:`planner.datasets.registry`).
 FORMATS = formats.IMPORT_FORMATS
@@ -311,7 +311,7 @@ def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: C
              ) -> list[Grasp]:
     """Grasps of the poses where the hand closes on the object; candidate =
     ``first`` + the pose's row in ``poses``."""
-    shape = hand.widest(load_preshapes(hand))
+    shape = hand.widest(sweep_preshapes(hand))
     out = []
     with Sim() as sim:
         grasper = Grasper.for_object(sim, hand, obj)

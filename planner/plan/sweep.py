@@ -50,6 +50,11 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: closed against a collision proxy within 0.25 mm (planner.geometry.proxy) (issue 24).
 ALGORITHM_VERSION = 8
 
+#: Named in the digest of sweeps on a table only (those of the object alone stay
+#: as they were), bumped when a change alters only which grasps they produce.
+#: 2: the hands' table preshapes (``table = true``) join the sweep on a table (issue 25).
+TABLE_VERSION = 2
+
 #: Decimals kept of a table plane in the settings (1e-7: 0.1 um, 1e-7 rad).
 PLANE_DIGITS = 7
 
@@ -132,6 +137,8 @@ class SweepSettings:
             del data["trial"]
         if data["table_plane"] is None:  # no table: the digests of sweeps on the object alone stay as they were
             del data["table_plane"]
+        else:
+            data["table_version"] = TABLE_VERSION
         data["algorithm"] = ALGORITHM_VERSION
         return json.dumps(data, sort_keys=True)
 

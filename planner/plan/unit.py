@@ -52,7 +52,7 @@ from planner.record.grasp import Grasp
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, load_hand
 from planner.specs.objects import NO_PHYSICAL, Physical
-from planner.specs.preshapes import Preshape, load_preshapes
+from planner.specs.preshapes import Preshape, sweep_preshapes
 from planner.threads import one_blas_thread
 
 log = logging.getLogger(__name__)
@@ -158,7 +158,8 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report, obj: PreparedObject
         obj = load_object(spec.object_name, scale=spec.scale, label=spec.label, **spec.physical.given())
     hand = load_hand(spec.hand)
     settings = spec.settings.resolved(hand.sampler, hand.settle)
-    shapes = load_preshapes(hand, list(settings.preshapes) if settings.preshapes else None)
+    shapes = sweep_preshapes(hand, list(settings.preshapes) if settings.preshapes else None,
+                             settings.table_plane is not None)
     result.obj = obj
     result.timing["prepare"] += time.perf_counter() - t0
     rng = unit_rng(spec.seed, obj.name, hand.name)

@@ -2,7 +2,10 @@
 
 A preshape is a named open hand posture with taxonomy tags (power /
 precision / intermediate and a class from a published taxonomy), an optional
-closing synergy overriding the hand's, and the standoffs that suit it.
+closing synergy overriding the hand's, and the standoffs that suit it. A
+*table* preshape (``table = true``) is for objects resting on a table only:
+the sweep on the table and planning on the spot try it, the sweep of the
+object alone does not (:func:`sweep_preshapes`).
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ class Preshape:
     close: dict[str, float]  # synergy: closing rate per driven joint
     standoffs: tuple[float, ...]  # [m]
     tcp: np.ndarray  # (3,) [m] hand frame: where the approach ray passes (default: the hand's)
+    table: bool = False  # only for an object on a table (sweep_preshapes)
 
 
 #: Parsed taxonomies by (file, its mtime and size, the hand object): a shake
@@ -55,6 +59,14 @@ def load_preshapes(hand: HandSpec, names: list[str] | None = None) -> tuple[Pres
         if name not in by_name:
             raise UnknownNameError("preshape", name, by_name)
     return tuple(by_name[n] for n in names)
+
+
+def sweep_preshapes(hand: HandSpec, names: list[str] | None = None, on_table: bool = False
+                    ) -> tuple[Preshape, ...]:
+    """The preshapes a sweep tries: the ``names`` asked for, else all of the
+    hand's but its table preshapes when the object is not ``on_table``."""
+    shapes = load_preshapes(hand, names)
+    return shapes if names or on_table else tuple(s for s in shapes if not s.table)
 
 
 def _parse(hand: HandSpec, path: Path) -> tuple[Preshape, ...]:
@@ -97,5 +109,7 @@ def _preshape(hand: HandSpec, f: Fields) -> Preshape:
     if any(s < 0 for s in standoffs) or not standoffs:
         raise ConfigError(f"{f.where} field 'standoffs': needs non-negative distances [m]")
     tcp = np.array(f.floats("tcp", 3)) if f.has("tcp") else hand.tcp
+    table = f.bool("table", False)
     return Preshape(name=f.str("name"), tags=tags, taxonomy=f.data.get("taxonomy", ""),
-                    joints=hand.full_configuration(open_driven), close=close, standoffs=standoffs, tcp=tcp)
+                    joints=hand.full_configuration(open_driven), close=close, standoffs=standoffs, tcp=tcp,
+                    table=table)

@@ -18,6 +18,7 @@ from planner.plan.unit import FROM_BELOW, UnitSpec, pregrasp, run_unit
 from planner.record.grasp import Grasp
 from planner.sim import Sim
 from planner.specs.hands import load_hand
+from planner.specs.preshapes import load_preshapes
 
 #: A small Barrett sweep: two preshapes, no settle (its dynamic closing is not what is tested here).
 BARRETT = ["--approaches", "8", "--rolls", "2", "--preshapes", "pinch,wrap", "--no-settle", "--workers", "1",
@@ -71,6 +72,28 @@ def test_a_sweep_on_the_table_keeps_every_hand_off_it() -> None:
         assert gap_to_table("barrett", g.pose, g.closed_joints, support) >= TABLE_CLEARANCE - SIM_TOL
         assert gap_to_table("barrett", pregrasp(g.pose, hand, settings.pregrasp_distance), g.open_joints,
                             support) > 0
+
+
+@pytest.mark.parametrize("hand", ["allegro", "barrett"])
+def test_a_low_box_on_the_table_gets_a_force_closure_table_pinch_that_stays_above_it(hand: str) -> None:
+    """The box lying down (4 cm tall) is lower than the open fingers reach past
+    the palm: the pre-curled table preshape closes on its sides above the table."""
+    support = api.table_supports(load_object("box"), 1)[0]
+    settings = SweepSettings(approaches=24, rolls=2, preshapes=("table_pinch",), settle=False,
+                             reach_placements=0).on(support)
+    result = run_unit(UnitSpec("box", hand, settings, seed=0))
+    assert result.error is None and result.force_closure > 0
+    for g in result.grasps:
+        assert gap_to_table(hand, g.pose, g.closed_joints, support) >= TABLE_CLEARANCE - SIM_TOL
+        heights = g.contacts.points @ support.normal - support.height
+        assert np.all(heights > 0)  # on the object, none under the table
+
+
+def test_the_sweep_of_the_object_alone_does_not_try_table_preshapes() -> None:
+    result = run_unit(UnitSpec("box", "barrett", SweepSettings(approaches=2, rolls=1, settle=False,
+                                                                reach_placements=0), seed=0))
+    table = {s.name for s in load_preshapes(load_hand("barrett")) if s.table}
+    assert result.grasps and not {g.preshape for g in result.grasps} & table
 
 
 def test_the_barrett_on_a_small_box_on_a_table_reaches_a_grasp_off_the_table(barrett_db: Path) -> None:
@@ -152,6 +175,7 @@ def test_the_table_plane_is_part_of_the_settings_digest_only_when_there_is_one()
     settings = SweepSettings(approaches=6).resolved("surface")
     support = Support(np.array([0.0, 0.0, 1.0]), -0.04)
     assert "table_plane" not in settings.to_json()  # sweeps on the object alone keep their stored digests
+    assert "table_version" not in settings.to_json() and "table_version" in settings.on(support).to_json()
     assert settings.on(support).digest != settings.digest != settings.on(support.raised(0.01)).digest
     assert settings.on(support).on(None).digest == settings.digest
 

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 from helpers import NUM_TOL
 
-from planner.errors import UnknownNameError
+from planner.errors import ConfigError, UnknownNameError
+from planner.specs import preshapes
 from planner.specs.hands import hand_names, load_hand
-from planner.specs.preshapes import load_preshapes
+from planner.specs.preshapes import load_preshapes, sweep_preshapes
 
 HANDS = hand_names()
 
@@ -30,3 +33,24 @@ def test_preshapes_fill_in_mimics() -> None:
     assert shapes[0].joints["panda_finger_joint2"] == shapes[0].joints["panda_finger_joint1"] == 0.04
     with pytest.raises(UnknownNameError, match="Available preshapes: half, wide"):
         load_preshapes(load_hand("panda"), ["fist"])
+
+
+@pytest.mark.parametrize("name", ["barrett", "allegro"])
+def test_table_preshapes_are_swept_only_on_a_table(name: str) -> None:
+    hand = load_hand(name)
+    table = {s.name for s in load_preshapes(hand) if s.table}
+    assert table  # the multi-finger hands have pre-curled preshapes for objects on a table
+    alone = {s.name for s in sweep_preshapes(hand)}
+    assert not alone & table and alone | table == {s.name for s in sweep_preshapes(hand, on_table=True)}
+    assert [s.name for s in sweep_preshapes(hand, [min(table)])] == [min(table)]  # named: used anywhere
+    assert hand.widest(sweep_preshapes(hand)).name == hand.widest(load_preshapes(hand)).name  # exports' open hand
+
+
+def test_a_table_flag_that_is_not_a_boolean_is_refused(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    folder = tmp_path / "preshapes"
+    folder.mkdir()
+    (folder / "panda.toml").write_text('hand = "panda"\n[[preshape]]\nname = "w"\ntags = ["power"]\n'
+                                       'joints = { panda_finger_joint1 = 0.04 }\ntable = "yes"\n')
+    monkeypatch.setattr(preshapes.assets, "project_dir", lambda name: tmp_path / name)
+    with pytest.raises(ConfigError, match="'table'"):
+        load_preshapes(load_hand("panda"))
