@@ -369,6 +369,7 @@ class _Run:
     def _check(self) -> None:
         if self.world.diverged():
             raise _Diverged
+
     def _relative(self) -> np.ndarray:
         """(4, 4) the object's centre-of-mass frame in the hand frame now."""
         w = self.world
