@@ -12,6 +12,10 @@ Printed: agreement with ``object_in_gripper`` pooled, per
 category and per object, verdicts by reason against the label, and CPU ms per trial.
 
 ``--grid FILE.json``: a list of settings overrides (dicts), each run on the same poses (tuning).
+``--render DIR``: pictures of up to ``--per-outcome`` disagreements of each kind (MuJoCo holds what FleX drops,
+``holds_flex_drops.png``; MuJoCo drops what FleX holds, ``drops_flex_holds.png``) of the first configuration:
+the hand closed at the file's pose as the planner closes it, titled with FleX's own record of the object's
+motion while closing and shaking (what to look at before calling either engine wrong).
 
     python bench/acronym_mujoco.py [--per-file 10] [--sample-seed 1] [--set shake_angle=0.3] [--pybullet]
 
@@ -154,6 +158,40 @@ def show(name: str, s: dict) -> None:
           f"{s['cpu_ms_median']:.1f})\n    by category: {cats}\n    reasons: {s['reasons']}")
 
 
+def render(results: list[ae.FileResult], verdicts: dict[str, dict], out: Path, per_kind: int, seed: int) -> None:
+    """Up to ``per_kind`` pictures of each kind of disagreement with FleX (drawn at random, ``seed``)."""
+    import h5py
+
+    from planner.present.render import grasp_views, save_sheet
+
+    kinds: dict[str, list] = {"holds_flex_drops": [], "drops_flex_holds": []}
+    for r in results:
+        for p, (held, reason, _cpu) in verdicts.get(r.path.stem, {}).items():
+            flex = int(r.labels[p])
+            if reason != "diverged" and bool(held) != bool(flex):
+                kinds["holds_flex_drops" if held else "drops_flex_holds"].append((r, p, reason))
+    rng = np.random.default_rng(seed)
+    for kind, cases in kinds.items():
+        picked_cases = [cases[i] for i in sorted(rng.permutation(len(cases))[:per_kind])]
+        panels = []
+        for r, p, reason in picked_cases:
+            hand, obj, poses = _prepared(r.path)
+            grasp = next(g for g in r.grasps if g.candidate == p)
+            grasp = replace(grasp, pose=poses[r.rows[p]])
+            with h5py.File(r.path, "r") as f:
+                q = f["grasps/qualities/flex"]
+                motion = [float(q[f"object_motion_during_{phase}_{kind_}"][r.rows[p]])
+                          for phase in ("closing", "shaking") for kind_ in ("linear", "angular")]
+            panels.append((grasp_views(hand, obj, grasp),
+                           f"{r.path.stem[:40]} row {r.rows[p]}: FleX {'holds' if r.labels[p] else 'drops'} "
+                           f"(object moved {100 * motion[0]:.1f} cm / {motion[1]:.2f} rad closing, "
+                           f"{100 * motion[2]:.1f} cm / {motion[3]:.2f} rad shaking); MuJoCo {reason}; "
+                           f"width {1000 * (grasp.width or 0.0):.1f} mm"))
+        if panels:
+            save_sheet(panels, out / f"{kind}.png")
+            print(f"wrote {out / f'{kind}.png'} ({len(panels)} of {len(cases)})", file=sys.stderr)
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--dev", type=Path, default=ae.DEV)
@@ -171,6 +209,8 @@ def main() -> int:
     parser.add_argument("--code", help="re-scoring cache code (default: this tree's acronym_eval.source_hash)")
     parser.add_argument("--cache", type=Path, default=ae.CACHE)
     parser.add_argument("--json", action="store_true")
+    parser.add_argument("--render", type=Path, help="draw disagreements with FleX into this folder")
+    parser.add_argument("--per-outcome", type=int, default=4, help="pictures per kind of disagreement")
     args = parser.parse_args()
     files = ae.dev_files(args.dev, False, args.objects)
     if args.files:
@@ -196,6 +236,8 @@ def main() -> int:
         if not args.json:
             show(f"mujoco {json.dumps({**base, **extra})}", s)
     report["cpu_seconds"] = time.process_time() - start
+    if args.render:
+        render(results, verdicts[0], args.render, args.per_outcome, args.sample_seed)
     if args.pybullet:
         settings_pb = ShakeSettings()
         verdicts = {r.path.stem: run(r, picked(r, args.per_file, args.sample_seed), "pybullet", settings_pb,

@@ -59,7 +59,9 @@ class MujocoSettings:
 
     Hand: the closing motors squeeze with ``effort_scale`` times their
     published effort (a gripper set to a lower force), and the soft pads'
-    torsional friction is ``torsion_scale`` times the hand's.
+    torsional friction is ``torsion_scale`` times the hand's; the contacts'
+    friction is ``friction_scale`` times the object's (a margin for a
+    friction known only roughly).
 
     Closing: the fingers start at the grasp's open preshape and follow a
     target that moves at the hand's closing speed to the closed limit;
@@ -97,6 +99,7 @@ class MujocoSettings:
     multiccd: bool = Engine.multiccd
     effort_scale: float = 1.0
     torsion_scale: float = 1.0
+    friction_scale: float = 1.0
     servo_lag: float = 0.002
     stall_speed: float = 0.002
     stall_time: float = 0.05
@@ -119,9 +122,9 @@ class MujocoSettings:
     def __post_init__(self) -> None:
         if self.down not in DOWN:
             raise ConfigError(f"down must be one of {', '.join(DOWN)}, got {self.down!r}")
-        if not (self.effort_scale > 0 and self.torsion_scale >= 0):
-            raise ConfigError(f"effort_scale must be > 0 and torsion_scale >= 0, got {self.effort_scale}, "
-                              f"{self.torsion_scale}")
+        if not (self.effort_scale > 0 and self.torsion_scale >= 0 and self.friction_scale > 0):
+            raise ConfigError(f"effort_scale and friction_scale must be > 0 and torsion_scale >= 0, got "
+                              f"{self.effort_scale}, {self.friction_scale}, {self.torsion_scale}")
         if self.contact_time < 2 * self.timestep:
             raise ConfigError(f"contact_time {self.contact_time} must be at least twice the timestep {self.timestep}")
 

@@ -105,7 +105,7 @@ def trials(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp], setting
     world (each from a fresh state: the results do not depend on the order)."""
     s = settings or MujocoSettings()
     world = _world(hand, obj, s, obj.mass if mass is None else mass)
-    mu = obj.friction if friction is None else friction
+    mu = (obj.friction if friction is None else friction) * s.friction_scale
     return [_Run(world, hand, g, s, mu).run() for g in grasps]
 
 

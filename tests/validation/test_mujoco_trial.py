@@ -42,6 +42,23 @@ def test_it_drops_when_friction_cannot_carry_its_weight(pinched) -> None:  # typ
     assert not result.success and result.reason == "slipped"
 
 
+def test_a_lower_grip_force_or_friction_margin_drops_what_the_published_ones_hold(pinched) -> None:  # type: ignore[no-untyped-def]
+    hand, obj, grasp = pinched
+    mu = 2.0 * MU_STAR  # twice what the weight needs at 35 N a pad
+    assert trial(hand, obj, grasp, friction=mu).success
+    for scaled in ({"effort_scale": 0.25}, {"friction_scale": 0.25}):  # a quarter: half of what the weight needs
+        result = trial(hand, obj, grasp, replace(MujocoSettings(), **scaled), friction=mu)
+        assert not result.success and result.reason == "slipped", scaled
+
+
+@pytest.mark.parametrize("bad", [{"effort_scale": 0.0}, {"friction_scale": -1.0}, {"torsion_scale": -0.1}])
+def test_scales_out_of_range_are_refused(bad) -> None:  # type: ignore[no-untyped-def]
+    from planner.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="scale"):
+        MujocoSettings(**bad)
+
+
 def test_the_same_grasp_backed_off_touches_nothing(pinched) -> None:  # type: ignore[no-untyped-def]
     hand, obj, grasp = pinched
     result = trial(hand, obj, backed_off(grasp, hand, 0.06))
