@@ -7,8 +7,9 @@ hand, on the built-ins, on random objects and on a scan-like mesh, with the prev
 Per hand and object, one child process (one core) of the tree (this checkout, or ``--tree REV`` unpacked with
 ``git archive``) runs one unit of the hand's default sweep (the hand's sampler, preshapes, rolls and settle; the
 Panda: one default unit of 256 antipodal points, 4,096 candidates; ray hands: ``--rays`` rays; no
-reachability), then shake-tests a seeded sample of up to ``--trials`` of its force-closure grasps with the
-default trial (``planner.validation.shake.trials``). Objects: ``--builtins``, ``random_000`` ..
+reachability), then trials a seeded sample of up to ``--trials`` of its force-closure grasps with
+``--engine``'s trial at its default settings (default: ``grasp validate``'s engine, the tree's ``DEFAULT_ENGINE``;
+``pybullet``: ``planner.validation.shake.trials``, ``mujoco``: ``planner.validation.mujoco_trial.trials``). Objects: ``--builtins``, ``random_000`` ..
 (``--random`` of them), and a scan-like capsule (``tests/scanlike.py``: 4.4 x 11.4 cm, ``--scan-faces`` faces,
 an OBJ with UV-split vertices). The object's check, its collision proxy and its convex parts are made before
 the clock starts (a one-time cost per object, cached on disk).
@@ -44,7 +45,7 @@ GROUPS = ("built-ins", "random", "scan")
 
 
 # -- child ----------------------------------------------------------------------------------------------------------
-def child(obj: str, hand: str, rays: int, trials: int, out: str) -> None:
+def child(obj: str, hand: str, rays: int, trials: int, out: str, engine: str | None) -> None:
     import planner
     from planner.geometry.solid import load_object
     from planner.plan.sweep import SweepSettings
@@ -54,6 +55,20 @@ def child(obj: str, hand: str, rays: int, trials: int, out: str) -> None:
     from planner.validation.shake import ShakeSettings
     from planner.validation.shake import trials as shake
 
+    try:  # a tree before the MuJoCo trial has the PyBullet trial alone
+        from planner.validation.mujoco_settings import DEFAULT_ENGINE
+    except ImportError:
+        DEFAULT_ENGINE = "pybullet"
+    engine = engine or DEFAULT_ENGINE
+    if engine == "mujoco":
+        from planner.validation.mujoco_settings import MujocoSettings
+        from planner.validation.mujoco_trial import trials as mujoco
+
+        def run_trials(spec, obj, grasps):  # type: ignore[no-untyped-def]
+            return mujoco(spec, obj, grasps, MujocoSettings())
+    else:
+        def run_trials(spec, obj, grasps):  # type: ignore[no-untyped-def]
+            return shake(spec, obj, grasps, ShakeSettings())
     spec = load_hand(hand)
     prepared = load_object(obj)
     w0 = time.process_time()
@@ -73,12 +88,12 @@ def child(obj: str, hand: str, rays: int, trials: int, out: str) -> None:
     rng = np.random.default_rng(0)
     picked = [fc[i] for i in sorted(rng.choice(len(fc), size=min(trials, len(fc)), replace=False))] if fc else []
     t1 = time.process_time()
-    verdicts = shake(spec, r.obj, picked, ShakeSettings()) if picked else []
+    verdicts = run_trials(spec, r.obj, picked) if picked else []
     trial = time.process_time() - t1
     Path(out).write_text(json.dumps({
         "planner": str(Path(planner.__file__).resolve().parent.parent), "error": r.error, "warm": warm,
         "candidates": r.candidates, "grasps": len(r.grasps), "fc": len(fc), "sweep": sweep,
-        "tested": len(picked), "held": sum(bool(v.success) for v in verdicts), "trial": trial,
+        "tested": len(picked), "held": sum(bool(v.success) for v in verdicts), "trial": trial, "engine": engine,
         "timing": r.timing}))
 
 
@@ -86,7 +101,7 @@ def _run(tree: Path, obj: str, hand: str, args: argparse.Namespace, out: Path) -
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tree), *filter(None, [os.environ.get("PYTHONPATH")])]),
                GRASP_HOME=str(tree))
     cmd = [sys.executable, str(Path(__file__).resolve()), "--child", obj, "--hand", hand, "--rays", str(args.rays),
-           "--trials", str(args.trials), "--json-out", str(out)]
+           "--trials", str(args.trials), "--json-out", str(out), *(["--engine", args.engine] if args.engine else [])]
     done = subprocess.run(cmd, env=env, cwd=tree, capture_output=True, text=True)
     if done.returncode or not out.exists():
         return {"error": f"child failed (exit {done.returncode}): {done.stderr.strip().splitlines()[-1:]}"}
@@ -143,6 +158,7 @@ def main() -> None:
     parser.add_argument("--scan-faces", type=int, default=100_000)
     parser.add_argument("--rays", type=int, default=8, help="rays per unit for the ray-sampling hands")
     parser.add_argument("--trials", type=int, default=40)
+    parser.add_argument("--engine", choices=("pybullet", "mujoco"), help="the trial (default: the tree's default)")
     parser.add_argument("--previous", type=Path, default=PREVIOUS)
     parser.add_argument("--save", action="store_true", help="write this run to --previous")
     parser.add_argument("--compare", type=Path, help="show these figures beside this run's (default: --previous)")
@@ -150,7 +166,7 @@ def main() -> None:
     parser.add_argument("--json-out", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
-        child(args.child, args.hand[0], args.rays, args.trials, args.json_out)
+        child(args.child, args.hand[0], args.rays, args.trials, args.json_out, args.engine)
         return
     hands = args.hand or ["panda", "barrett"]
     sys.path.insert(0, str(ROOT / "tests"))
