@@ -13,7 +13,7 @@ PNG) or, for a path without ``.html``, a folder with ``report.md`` and PNGs.
 Per hand with a p_hold model (stored by ``grasp calibrate``, or shipped):
 the reliability diagram (predicted p_hold vs observed success per decile)
 of the model's held-out predictions on its labels, and of p_hold against
-the stored shake trials where there are any, each with its expected
+the stored trials (MuJoCo's, else PyBullet's) where there are any, each with its expected
 calibration error (:func:`calibration`, ``reliability_<hand>.png``).
 
 Validated grasps are whatever ``grasp validate`` or ``bench/calibration.py``
@@ -141,7 +141,7 @@ def deciles(eps: np.ndarray, success: np.ndarray) -> list[tuple[float, float, fl
 class HandCalibration:
     """A hand's p_hold model as the report shows it: where it came from, its
     held-out reliability table (None: not recorded) and p_hold against the
-    stored shake trials (None: no trial of a grasp with p_hold)."""
+    stored trials (None: no trial of a grasp with p_hold)."""
 
     hand: str
     source: str
