@@ -9,7 +9,8 @@ Per hand and object, one child process (one core) of the tree (this checkout, or
 Panda: one default unit of 256 antipodal points, 4,096 candidates; ray hands: ``--rays`` rays; no
 reachability), then trials a seeded sample of up to ``--trials`` of its force-closure grasps with
 ``--engine``'s trial at its default settings (default: ``grasp validate``'s engine, the tree's ``DEFAULT_ENGINE``;
-``pybullet``: ``planner.validation.shake.trials``, ``mujoco``: ``planner.validation.mujoco_trial.trials``). Objects: ``--builtins``, ``random_000`` ..
+``pybullet``: ``planner.validation.shake.trials``, ``mujoco``: ``planner.validation.mujoco_trial.trials``).
+Objects: ``--builtins``, ``random_000`` ..
 (``--random`` of them), and a scan-like capsule (``tests/scanlike.py``: 4.4 x 11.4 cm, ``--scan-faces`` faces,
 an OBJ with UV-split vertices). The object's check, its collision proxy and its convex parts are made before
 the clock starts (a one-time cost per object, cached on disk).

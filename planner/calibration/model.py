@@ -187,7 +187,7 @@ class LogisticModel:
             lines += ["", "[knots]  # restricted cubic spline knots per feature (the feature's input units)"]
             lines += [f'"{k}" = {_floats(np.asarray(v, float))}' for k, v in self.knots.items()]
         if self.bounds:
-            lines += ["", "[bounds]  # (low, high) of each feature's inputs in the fitting data: inputs are clipped to them"]
+            lines += ["", "[bounds]  # (low, high) of each feature's inputs in the fitting data; inputs clipped to it"]
             lines += [f'"{k}" = {_floats(np.asarray(v, float))}' for k, v in self.bounds.items()]
         if self.held_out is not None:
             lines += ["", "[held_out]  # reliability table of the cross-validated predictions (nan: empty bin)"]

@@ -113,15 +113,13 @@ def solid(obj: PreparedObject, mass: float, tolerance: float) -> Solid:
     """The object as the trial collides it: the PyBullet trial's shape
     (:func:`planner.validation.parts.trial_shape`: primitives, else convex
     parts simplified to ``tolerance``), at ``mass`` [kg]."""
-    from planner.geometry.decompose import convex_parts
-    from planner.validation.parts import PRIMITIVES, simplified_hull
+    from planner.validation.parts import PRIMITIVES, simplified_parts
 
     inertia = np.asarray(obj.inertia, float) * (mass / obj.mass)
     com = np.asarray(obj.com, float)
     if obj.spec.kind in PRIMITIVES:
         return Solid(obj.spec.kind, tuple(obj.spec.dims), (), mass, com, inertia)
-    parts = convex_parts(obj.mesh, obj.mesh_hash)
-    hulls = tuple(simplified_hull(v, tolerance)[0] for v in parts.vertices)
+    hulls = tuple(v for v, _ in simplified_parts(obj, tolerance))
     return Solid("hulls", (), hulls, mass, com, inertia)
 
 

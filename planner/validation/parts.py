@@ -12,10 +12,14 @@ them.
 
 from __future__ import annotations
 
+import io
+import json
+
 import numpy as np
 import trimesh
 from scipy.spatial import ConvexHull, QhullError
 
+from planner import assets
 from planner.geometry.decompose import convex_parts
 from planner.geometry.solid import PreparedObject
 from planner.sim.dynamics import Shape, part_file
@@ -24,7 +28,11 @@ PRIMITIVES = ("box", "sphere", "cylinder")
 #: The most hull vertices a simplified part keeps.
 MAX_VERTICES = 256
 
+#: Bump when :func:`simplified_hull` changes what it returns (names the disk cache of simplified parts).
+SIMPLIFY_VERSION = 1
+
 _SHAPES: dict[tuple[str, float], Shape] = {}
+_PARTS: dict[tuple[str, float], tuple[tuple[np.ndarray, np.ndarray], ...]] = {}
 
 
 def trial_shape(obj: PreparedObject, tolerance: float) -> Shape:
@@ -33,9 +41,36 @@ def trial_shape(obj: PreparedObject, tolerance: float) -> Shape:
         return Shape(obj.spec.kind, tuple(obj.spec.dims))
     key = (obj.mesh_hash, tolerance)
     if key not in _SHAPES:
-        parts = convex_parts(obj.mesh, obj.mesh_hash)
-        _SHAPES[key] = Shape("parts", files=tuple(part_file(*simplified_hull(v, tolerance)) for v in parts.vertices))
+        _SHAPES[key] = Shape("parts", files=tuple(part_file(v, f) for v, f in simplified_parts(obj, tolerance)))
     return _SHAPES[key]
+
+
+def simplified_parts(obj: PreparedObject, tolerance: float) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+    """The object's convex parts, each as :func:`simplified_hull` (vertices
+    (k, 3) [m], faces (f, 3)): what both trials collide. Memoised per process
+    and cached on disk (simplifying a scan's parts costs seconds; CoACD's
+    parts are cached the same way)."""
+    key = (obj.mesh_hash, float(tolerance))
+    if key in _PARTS:
+        return _PARTS[key]
+    name = assets.sha256_bytes(json.dumps([obj.mesh_hash, float(tolerance), MAX_VERTICES, SIMPLIFY_VERSION]).encode())
+    path = assets.cache_dir("simplified") / f"{name[:24]}.npz"
+    out = None
+    if path.is_file():
+        try:
+            with np.load(path) as data:
+                n = int(data["n"])
+                out = tuple((data[f"v{i}"], data[f"f{i}"]) for i in range(n))
+        except (OSError, ValueError, KeyError):
+            path.unlink(missing_ok=True)
+    if out is None:
+        out = tuple(simplified_hull(v, tolerance) for v in convex_parts(obj.mesh, obj.mesh_hash).vertices)
+        arrays = {f"{k}{i}": a for i, (v, f) in enumerate(out) for k, a in (("v", v), ("f", f))}
+        buffer = io.BytesIO()
+        np.savez(buffer, n=len(out), **arrays)
+        assets.atomic_write(path, buffer.getvalue())
+    _PARTS[key] = out
+    return out
 
 
 def simplified_hull(vertices: np.ndarray, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
