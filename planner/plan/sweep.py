@@ -53,7 +53,8 @@ ALGORITHM_VERSION = 8
 #: Named in the digest of sweeps on a table only (those of the object alone stay
 #: as they were), bumped when a change alters only which grasps they produce.
 #: 2: the hands' table preshapes (``table = true``) join the sweep on a table (issue 25).
-TABLE_VERSION = 2
+#: 3: the Allegro's ``table_spread``, and a preshape's ``roll_symmetry`` spreading its rolls (issue 25).
+TABLE_VERSION = 3
 
 #: Decimals kept of a table plane in the settings (1e-7: 0.1 um, 1e-7 rad).
 PLANE_DIGITS = 7
@@ -234,11 +235,14 @@ class Candidate:
 def candidates(approaches: Approaches, shapes: tuple[Preshape, ...], settings: SweepSettings,
                symmetry: int = 1, rays: range | None = None) -> list[Candidate]:
     """Every (ray, preshape, roll, standoff) in a fixed order, numbered over the
-    whole object; ``rays`` keeps only those of one chunk."""
+    whole object; ``rays`` keeps only those of one chunk. A preshape's rolls
+    spread over the turn after which the hand and that preshape's grasp
+    repeat (2 pi / (``symmetry`` x its ``roll_symmetry``))."""
     out, index = [], 0
     keep = range(len(approaches)) if rays is None else rays
-    for ray, shape, roll in product(range(len(approaches)), shapes, settings.roll_angles(symmetry)):
-        for standoff in settings.standoffs or shape.standoffs:
+    rolls = {shape.name: settings.roll_angles(symmetry * shape.roll_symmetry) for shape in shapes}
+    for ray, shape in product(range(len(approaches)), shapes):
+        for roll, standoff in product(rolls[shape.name], settings.standoffs or shape.standoffs):
             if ray in keep:
                 out.append(Candidate(index, ray, shape, float(roll), float(standoff)))
             index += 1

@@ -402,7 +402,7 @@ def load_folder(folder: Path) -> HandSpec:
         root_link=root_link, approach=approach / np.linalg.norm(approach), tcp=np.array(f.floats("tcp", 3)),
         joints=joints, contact_links=contact_links, contacts=contacts, centering=f.bool("centering", False),
         distance_offset=f.float("distance_offset", DEFAULT_DISTANCE_OFFSET),
-        roll_symmetry=_symmetry(f),
+        roll_symmetry=roll_symmetry(f),
         links=tuple(links), arm=_arm(f, folder), export_frame=_export_frame(f),
         finger_force=f.table("dynamics", {}).float("finger_force", DEFAULT_FINGER_FORCE, positive=True),
         actuators=_actuators(f.table("dynamics", {})),
@@ -434,7 +434,8 @@ def parallel_jaw(centering: bool, joints: tuple[JointSpec, ...]) -> bool:
     return centering and len(prismatic) == 2 and sum(j.mimic is not None for j in prismatic) == 1
 
 
-def _symmetry(f: Fields) -> int:
+def roll_symmetry(f: Fields) -> int:
+    """The field ``roll_symmetry`` of a hand or a preshape (default 1)."""
     value = f.data.get("roll_symmetry", 1)
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:
         raise ConfigError(f"{f.where} field 'roll_symmetry': must be a whole number >= 1")

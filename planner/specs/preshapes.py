@@ -17,7 +17,7 @@ import numpy as np
 
 from planner import assets
 from planner.errors import ConfigError, UnknownNameError
-from planner.specs.hands import HandSpec
+from planner.specs.hands import HandSpec, roll_symmetry
 from planner.specs.toml import Fields, read_toml
 
 TAGS = ("power", "precision", "intermediate")
@@ -35,6 +35,8 @@ class Preshape:
     standoffs: tuple[float, ...]  # [m]
     tcp: np.ndarray  # (3,) [m] hand frame: where the approach ray passes (default: the hand's)
     table: bool = False  # only for an object on a table (sweep_preshapes)
+    roll_symmetry: int = 1  # its grasp repeats after 2 pi / (the hand's x this) about the approach: rolls spread
+    #                         over that turn (a pinch along one axis: 2, so that 2 rolls pinch along 2 axes)
 
 
 #: Parsed taxonomies by (file, its mtime and size, the hand object): a shake
@@ -112,4 +114,4 @@ def _preshape(hand: HandSpec, f: Fields) -> Preshape:
     table = f.bool("table", False)
     return Preshape(name=f.str("name"), tags=tags, taxonomy=f.data.get("taxonomy", ""),
                     joints=hand.full_configuration(open_driven), close=close, standoffs=standoffs, tcp=tcp,
-                    table=table)
+                    table=table, roll_symmetry=roll_symmetry(f))

@@ -76,6 +76,20 @@ def test_rolls_cover_one_period_of_the_hand_symmetry() -> None:
     assert np.allclose(settings.roll_angles(2), np.arange(4) * np.pi / 4)
 
 
+def test_a_preshapes_roll_symmetry_spreads_its_rolls_over_its_period(shapes) -> None:  # type: ignore[no-untyped-def]
+    """A pinch along one axis repeats after a half turn: its rolls spread over
+    [0, pi), the other preshapes' over the hand's period; as many candidates."""
+    pinch = replace(shapes[0], name="axis", roll_symmetry=2)
+    settings = SweepSettings(rolls=2, sampler="surface")
+    every = candidates(rays(2), (shapes[1], pinch), settings, symmetry=1)
+    assert len(every) == len(candidates(rays(2), shapes[:2], settings, symmetry=1))
+    assert [c.index for c in every] == list(range(len(every)))
+    rolls = {name: sorted({c.roll for c in every if c.preshape.name == name}) for name in (shapes[1].name, "axis")}
+    assert np.allclose(rolls[shapes[1].name], [0.0, np.pi]) and np.allclose(rolls["axis"], [0.0, np.pi / 2])
+    halved = candidates(rays(1), (pinch,), settings, symmetry=2)  # and the hand's own symmetry on top
+    assert np.allclose(sorted({c.roll for c in halved}), [0.0, np.pi / 4])
+
+
 def test_settings_digest_names_the_algorithm_and_every_setting() -> None:
     data = json.loads(SweepSettings().to_json())
     assert data["algorithm"] == ALGORITHM_VERSION

@@ -89,6 +89,23 @@ def test_a_low_box_on_the_table_gets_a_force_closure_table_pinch_that_stays_abov
         assert np.all(heights > 0)  # on the object, none under the table
 
 
+def test_a_flat_object_wider_than_the_thumbs_pinch_gets_a_force_closure_spread_pinch() -> None:
+    """random_000 lying flat (12 x 9 cm, 3 cm tall) is wider than the Allegro's
+    thumb-against-fingers table_pinch opens (9.6 cm clear): no force-closure
+    grasp of it on the table before table_spread. The index and ring, spread
+    13.7 cm apart, close on its sides above the table."""
+    support = api.table_supports(load_object("random_000"), 1)[0]
+    settings = SweepSettings(approaches=16, rolls=2, preshapes=("table_spread",), settle=False,
+                             reach_placements=0).on(support)
+    result = run_unit(UnitSpec("random_000", "allegro", settings, seed=0))
+    assert result.error is None and result.force_closure > 0
+    for g in result.grasps:
+        assert gap_to_table("allegro", g.pose, g.closed_joints, support) >= TABLE_CLEARANCE - SIM_TOL
+        assert np.all(g.contacts.points @ support.normal - support.height > 0)
+    fc = [g for g in result.grasps if g.force_closure]
+    assert {link.split("_")[0] for g in fc for link in g.contacts.links} <= {"index", "ring"}
+
+
 def test_the_sweep_of_the_object_alone_does_not_try_table_preshapes() -> None:
     result = run_unit(UnitSpec("box", "barrett", SweepSettings(approaches=2, rolls=1, settle=False,
                                                                 reach_placements=0), seed=0))

@@ -15,14 +15,15 @@ from planner.plan.unit import BUDGET, UnitSpec, run_unit
 from planner.run import pool
 from planner.run.progress import Tally, Throttled
 from planner.specs.hands import load_hand
-from planner.specs.preshapes import load_preshapes
+from planner.specs.preshapes import sweep_preshapes
 from tests import crash_units
 
 SMALL = SweepSettings(approaches=8, rolls=2, preshapes=("wide",), chunk=4, reach_placements=1).resolved("antipodal")
 
 
 def planned(settings: SweepSettings, hand: str, chunk: int = 0) -> int | None:
-    shapes = load_preshapes(load_hand(hand), list(settings.preshapes) if settings.preshapes else None)
+    shapes = sweep_preshapes(load_hand(hand), list(settings.preshapes) if settings.preshapes else None,
+                             settings.table_plane is not None)  # the unit's own: no table preshapes off a table
     return candidate_count(settings, shapes, chunk)
 
 

@@ -43,7 +43,8 @@ def test_table_preshapes_are_swept_only_on_a_table(name: str) -> None:
     alone = {s.name for s in sweep_preshapes(hand)}
     assert not alone & table and alone | table == {s.name for s in sweep_preshapes(hand, on_table=True)}
     assert [s.name for s in sweep_preshapes(hand, [min(table)])] == [min(table)]  # named: used anywhere
-    assert hand.widest(sweep_preshapes(hand)).name == hand.widest(load_preshapes(hand)).name  # exports' open hand
+    # the exports' open hand is the widest of the preshapes of the object alone, whatever a table preshape opens
+    assert hand.widest(sweep_preshapes(hand)).name == {"barrett": "wrap", "allegro": "power_wrap"}[name]
 
 
 def test_a_table_flag_that_is_not_a_boolean_is_refused(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -54,3 +55,27 @@ def test_a_table_flag_that_is_not_a_boolean_is_refused(tmp_path: Path, monkeypat
     monkeypatch.setattr(preshapes.assets, "project_dir", lambda name: tmp_path / name)
     with pytest.raises(ConfigError, match="'table'"):
         load_preshapes(load_hand("panda"))
+
+
+@pytest.mark.parametrize("value", ["0", "1.5", '"2"', "true"])
+def test_a_roll_symmetry_that_is_not_a_whole_number_from_1_is_refused(
+        value: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    folder = tmp_path / "preshapes"
+    folder.mkdir()
+    (folder / "panda.toml").write_text('hand = "panda"\n[[preshape]]\nname = "w"\ntags = ["power"]\n'
+                                       f'joints = {{ panda_finger_joint1 = 0.04 }}\nroll_symmetry = {value}\n')
+    monkeypatch.setattr(preshapes.assets, "project_dir", lambda name: tmp_path / name)
+    with pytest.raises(ConfigError, match="'roll_symmetry'"):
+        load_preshapes(load_hand("panda"))
+
+
+def test_the_allegros_table_preshapes_pinch_across_each_other() -> None:
+    """table_pinch closes thumb against fingers (along the palm's z); table_spread
+    index against ring through their abduction joints only (along y), its
+    pinch repeating after a half turn."""
+    shapes = {s.name: s for s in load_preshapes(load_hand("allegro")) if s.table}
+    spread = shapes["table_spread"]
+    assert spread.roll_symmetry == 2 and shapes["table_pinch"].roll_symmetry == 2
+    assert {j for j, r in spread.close.items() if r} == {"index_abd", "ring_abd"}
+    assert spread.close["index_abd"] < 0 < spread.close["ring_abd"]  # each towards the other
+    assert spread.joints["index_abd"] > 0 > spread.joints["ring_abd"]  # opened outwards
