@@ -4,6 +4,10 @@ PyBullet's TinyRenderer. Contact sheets of several grasps are laid out with
 matplotlib, each contact circled in red over the picture (the fingers would
 hide most of them).
 
+A grasp planned on a table (``Grasp.table_plane``) is drawn with the table
+top (a slab under the object), the views turned so that the table is level
+and all of them from above it.
+
 A patch (the contacts of one region, :mod:`planner.plan.patches`) is drawn as
 the blue polygon its contacts span, just outside the object; a soft-finger
 contact as a blue disc of its region's radius.
@@ -29,6 +33,8 @@ HAND_RGBA = (0.55, 0.6, 0.7, 1.0)
 CONTACT_RGBA = (0.9, 0.05, 0.05, 1.0)
 CONE_RGBA = (0.1, 0.75, 0.2, 1.0)
 PATCH_RGBA = (0.15, 0.35, 0.95, 1.0)
+TABLE_RGBA = (0.75, 0.68, 0.55, 1.0)
+TABLE_THICKNESS = 0.004  # [m] of the drawn table top (under its plane)
 PATCH_LIFT = 0.0005  # [m] patches are drawn this far outside the object surface
 MIN_DISC = 0.0015  # [m] smallest drawn disc radius (visible at these scales)
 CONE_LENGTH = 0.015  # [m] drawn height of a friction cone
@@ -66,12 +72,31 @@ def grasp_views(hand: HandSpec, obj: PreparedObject, grasp: Grasp, size: tuple[i
         target = 0.5 * (centre + np.array(grasp.pose)[:3, 3])
         radius = float(np.linalg.norm(obj.mesh.extents)) + 0.12
         up = np.array([0.0, 0.0, 1.0])
+        turn = np.eye(3)
+        if grasp.table_plane is not None:  # the views turned with the table's up, all from above it
+            up = np.asarray(grasp.table_plane[:3], float)
+            turn = rotation_onto([0.0, 0.0, 1.0], up)
+            sim.add_visual_mesh(*table_slab(up, float(grasp.table_plane[3]), centre, radius), TABLE_RGBA)
         views = []
         for view in VIEWS:
+            if grasp.table_plane is not None:
+                view = turn @ np.array([view[0], view[1], abs(view[2])])
             eye = target + view / np.linalg.norm(view) * radius * 1.25
             views.append(View(sim.render(eye, target, up, size, fov=FOV),
                               project(grasp.contacts.points, eye, target, up, size, FOV)))
         return views
+
+
+def table_slab(normal: np.ndarray, height: float, centre: np.ndarray, half: float
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices (8, 3), faces (12, 3)) of a square slab, object frame [m]:
+    its top on the table plane ``normal . x = height``, ``2 half`` across,
+    centred under ``centre`` (3,), :data:`TABLE_THICKNESS` deep."""
+    box = trimesh.creation.box((2 * half, 2 * half, TABLE_THICKNESS))
+    rotation = rotation_onto([0.0, 0.0, 1.0], normal)
+    on_plane = centre - (centre @ normal - height) * normal
+    vertices = box.vertices @ rotation.T + on_plane - 0.5 * TABLE_THICKNESS * normal
+    return vertices, np.asarray(box.faces)
 
 
 def project(points: np.ndarray, eye: np.ndarray, target: np.ndarray, up: np.ndarray, size: tuple[int, int],

@@ -89,3 +89,23 @@ def test_show_writes_large_views(db: Path, tmp_path: Path) -> None:
     api.show("box", "panda", out, db_path=db, rank=1)
     height, width = mpimg.imread(out).shape[:2]
     assert width >= 1800 and height >= 500
+
+
+def test_a_grasp_planned_on_a_table_is_drawn_with_the_table_seen_from_above(db: Path) -> None:
+    from dataclasses import replace
+
+    from planner.db.store import open_db
+    from planner.geometry.solid import load_object
+    from planner.present.render import TABLE_RGBA, grasp_views
+    from planner.specs.hands import load_hand
+
+    hand, obj = load_hand("panda"), load_object("box")
+    with open_db(db, create=False, readonly=True) as store:
+        grasp = store.best("box", "panda", 1)[0]
+    bottom = float(obj.mesh.bounds[0][2])
+    alone = grasp_views(hand, obj, grasp, size=(160, 130))
+    on_table = grasp_views(hand, obj, replace(grasp, table_plane=np.array([0.0, 0.0, 1.0, bottom])), size=(160, 130))
+    assert all(colour_share(v.image, TABLE_RGBA) < 0.01 for v in alone)
+    # every view shows the table and, seen from its side, the object above it
+    assert all(colour_share(v.image, TABLE_RGBA) > 0.05 for v in on_table)
+    assert all(colour_share(v.image, OBJECT_RGBA) > 0.005 for v in on_table)
