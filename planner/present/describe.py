@@ -102,7 +102,7 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
     width = "n/a (not a parallel jaw)" if g.width is None else f"{g.width * 1000:.1f} mm"
     volume = f"{g.volume:.3g}" if g.volume else "0 (computed only with --volume, for force closure)"
     p_hold = ("n/a (no calibrated model for the hand)" if g.p_hold is None
-              else f"{g.p_hold:.3f} (calibrated probability of holding)")
+              else f"{probability(g.p_hold)} (calibrated probability of holding)")
     rank = f"#{g.rank}" if g.rank is not None else "#- (planned now with the table, not stored)"
     head = f"{rank} {g.object}/{g.hand} preshape {g.preshape}: p_hold {p_hold}; score {score} (ranking rule, " \
            "higher is better)"
@@ -207,3 +207,15 @@ def explain(grasp: Grasp, rule: RankingRule, model: LogisticModel | None = None)
               f"{'trials not run: 1' if math.isnan(success) else f'{trial_name} {success:.0f}'})"
               f" = score {t['score']:.4f}"]
     return lines
+
+
+def probability(p: float) -> str:
+    """``p`` with three decimals, never rounded to certainty: ``>0.999`` and
+    ``<0.001`` where the model is that sure (it is calibrated to about that:
+    bench/RESULTS.md), ``0.000`` and ``1.000`` only for exactly 0 and 1."""
+    if 0.999 < p < 1.0:
+        return ">0.999"
+    if 0.0 < p < 0.001:
+        return "<0.001"
+    return f"{p:.3f}"
+

@@ -208,3 +208,11 @@ def test_explain_gives_the_rule_term_by_term(box_db: Path) -> None:
     code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--explain")
     assert code == 0, err
     assert "why this score" in out and "gate 1: open margin " in out and "= analytic " in out and "= score " in out
+
+
+@pytest.mark.parametrize("p, shown", [(0.99999, ">0.999"), (0.9994, ">0.999"), (0.999, "0.999"), (1.0, "1.000"),
+                                      (0.5, "0.500"), (0.0004, "<0.001"), (0.0, "0.000"), (0.0015, "0.002")])
+def test_p_hold_is_never_printed_as_a_certainty_it_is_not(p, shown) -> None:  # type: ignore[no-untyped-def]
+    from planner.present.describe import probability
+
+    assert probability(p) == shown
