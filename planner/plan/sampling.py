@@ -12,6 +12,15 @@ An optional *fan* adds directions tilted by ``fan_angle`` around each normal.
 The hand approaches along ``direction`` (into the object); the approach ray
 passes through ``point``.
 
+On a table, the ray samplers' rays are joined by :data:`ABOVE_RAYS` rays
+straight down onto the object's top (:func:`from_above`): through the
+centre of mass and along the long axis of the object's footprint, each
+with a roll phase that puts the hand's axes along the footprint's axes.
+A random surface point lands a table pinch's fingertips on the object's
+top more often than beside it: on a flat blob 3 cm thick (random_000
+lying down) the Allegro's sweep of 352 candidates per resting pose found
+0-1 force-closure grasps, 48 centred candidates straight down 5-7.
+
 One sampler for parallel jaws, as the large parallel-jaw datasets are made
 (:func:`antipodal`, after Dex-Net's and ACRONYM's antipodal samplers): an
 area-weighted surface point, a ray from it into the object, the point where
@@ -43,12 +52,21 @@ import numpy as np
 import trimesh
 
 from planner.errors import InputError
-from planner.geometry.frames import tangent_bases, tilted
-from planner.plan.tolerances import BOX_MARGIN, MIN_CHORD, RAY_START
+from planner.geometry.frames import hand_rotation, tangent_bases, tilted
+from planner.plan.tolerances import (
+    ABOVE_PHASES,
+    ABOVE_POINTS,
+    ABOVE_RAYS,
+    ABOVE_SPREAD,
+    ABOVE_TURN,
+    BOX_MARGIN,
+    MIN_CHORD,
+    RAY_START,
+)
 from planner.specs.hands import SAMPLERS
 
-__all__ = ["SAMPLERS", "RAY_SAMPLERS", "Approaches", "Pairs", "sample", "antipodal", "antipodal_poses",
-           "cone_directions", "fan"]
+__all__ = ["SAMPLERS", "RAY_SAMPLERS", "ABOVE_RAYS", "Approaches", "Pairs", "sample", "antipodal",
+           "antipodal_poses", "cone_directions", "fan", "from_above"]
 
 #: Antipodal sampler: rays drawn in the friction cone for a point whose pair along the
 #: normal is refused. On the 7 x 8 cm cone about 5% of side points find a level chord
@@ -67,17 +85,32 @@ class Approaches:
         points: (n, 3) surface points [m], object frame.
         normals: (n, 3) unit outward surface normals at ``points``.
         directions: (n, 3) unit approach directions (into the object).
+        phases: (n,) [rad] added to every roll of a ray (None: 0 for all).
     """
 
     points: np.ndarray
     normals: np.ndarray
     directions: np.ndarray
+    phases: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = len(self.points)
         for name in ("points", "normals", "directions"):
             if getattr(self, name).shape != (n, 3):
                 raise ValueError(f"Approaches.{name} must be (n, 3)")
+        if self.phases is not None and np.shape(self.phases) != (n,):
+            raise ValueError("Approaches.phases must be (n,)")
+
+    def phase(self, ray: int) -> float:
+        """[rad] the roll phase of ray ``ray``."""
+        return 0.0 if self.phases is None else float(self.phases[ray])
+
+    def then(self, other: Approaches) -> Approaches:
+        """These rays followed by ``other``'s."""
+        phases = None if self.phases is None and other.phases is None else \
+            np.r_[[self.phase(i) for i in range(len(self))], [other.phase(i) for i in range(len(other))]]
+        return Approaches(np.vstack([self.points, other.points]), np.vstack([self.normals, other.normals]),
+                          np.vstack([self.directions, other.directions]), phases)
 
     def __len__(self) -> int:
         return len(self.points)
@@ -99,6 +132,46 @@ def sample(mesh: trimesh.Trimesh, *, sampler: str, count: int, rng: np.random.Ge
         raise InputError(f"unknown sampler '{sampler}'; use {', '.join(SAMPLERS)}")
     base = Approaches(np.asarray(points, float), np.asarray(normals, float), -np.asarray(normals, float))
     return fan(base, fan_count, fan_angle) if fan_count > 0 else base
+
+
+def from_above(mesh: trimesh.Trimesh, up: np.ndarray, com: np.ndarray, approach_hand: np.ndarray) -> Approaches:
+    """:data:`ABOVE_RAYS` rays straight down (along ``-up``, ``up`` the unit
+    normal of the table top the object rests on, object frame) onto the
+    object: through the centre of mass ``com`` (3,) [m], and through the
+    centre of the footprint's smallest enclosing rectangle (``mesh``'s
+    vertices projected on the table) moved +- :data:`ABOVE_SPREAD` of its
+    length along its long side. Each ray's point is where it first meets
+    the mesh (the top level above the footprint where it passes beside it),
+    its normal ``up``; its phase is the roll that turns the hand axis most
+    nearly square to ``approach_hand`` (hand frame) onto the long side; the
+    three points are repeated :data:`ABOVE_PHASES` times, each time with
+    that phase turned by another :data:`ABOVE_TURN`."""
+    up = np.asarray(up, float) / np.linalg.norm(up)
+    e1, e2 = (b[0] for b in tangent_bases(up[None]))
+    plane = np.c_[e1, e2]
+    flat = np.asarray(mesh.vertices, float) @ plane
+    to_box, extents = trimesh.bounds.oriented_bounds_2D(flat)
+    back = np.linalg.inv(to_box)
+    centre2, axes2 = back[:2, 2], back[:2, :2]
+    long2 = axes2[:, int(np.argmax(extents))]
+    long = plane @ long2
+    top = float(np.max(np.asarray(mesh.vertices, float) @ up))
+    com_flat = np.asarray(com, float) - (np.asarray(com, float) @ up) * up
+    centre = plane @ centre2
+    aims = np.array([com_flat, centre + ABOVE_SPREAD * max(extents) * long,
+                     centre - ABOVE_SPREAD * max(extents) * long]) + (top + RAY_START) * up
+    down = np.tile(-up, (ABOVE_POINTS, 1))
+    hits, rays, _ = mesh.ray.intersects_location(aims, down, multiple_hits=False)
+    points = aims - RAY_START * up
+    points[rays] = hits
+    approach_hand = np.asarray(approach_hand, float)
+    ref = np.eye(3)[int(np.argmin(np.abs(approach_hand)))]
+    ref = ref - (ref @ approach_hand) * approach_hand / (approach_hand @ approach_hand)
+    seen = hand_rotation(approach_hand, -up, 0.0) @ ref
+    phase = float(np.arctan2(np.cross(seen, long) @ -up, seen @ long))
+    phases = np.repeat(phase + ABOVE_TURN * np.arange(ABOVE_PHASES), ABOVE_POINTS)
+    return Approaches(np.tile(points, (ABOVE_PHASES, 1)), np.tile(up, (ABOVE_RAYS, 1)),
+                      np.tile(-up, (ABOVE_RAYS, 1)), phases)
 
 
 def _box_rays(mesh: trimesh.Trimesh, delta: float) -> tuple[np.ndarray, np.ndarray]:
@@ -132,7 +205,8 @@ def fan(base: Approaches, count: int, angle: float) -> Approaches:
         points.append(base.points)
         normals.append(base.normals)
         dirs.append(tilted(base.directions, angle, phi))
-    return Approaches(np.vstack(points), np.vstack(normals), np.vstack(dirs))
+    phases = None if base.phases is None else np.tile(base.phases, count + 1)
+    return Approaches(np.vstack(points), np.vstack(normals), np.vstack(dirs), phases)
 
 
 @dataclass(frozen=True)

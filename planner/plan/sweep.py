@@ -12,6 +12,7 @@ from __future__ import annotations
 import hashlib
 import json
 import zlib
+from collections.abc import Collection
 from dataclasses import asdict, dataclass, replace
 from itertools import product
 from typing import TYPE_CHECKING
@@ -20,7 +21,7 @@ import numpy as np
 
 from planner.errors import InputError
 from planner.geometry.support import Support
-from planner.plan.tolerances import PREGRASP_DISTANCE
+from planner.plan.tolerances import ABOVE_RAYS, PREGRASP_DISTANCE
 from planner.specs.hands import SAMPLERS
 from planner.specs.preshapes import Preshape
 from planner.validation.settings import ShakeSettings
@@ -54,7 +55,8 @@ ALGORITHM_VERSION = 8
 #: as they were), bumped when a change alters only which grasps they produce.
 #: 2: the hands' table preshapes (``table = true``) join the sweep on a table (issue 25).
 #: 3: the Allegro's ``table_spread``, and a preshape's ``roll_symmetry`` spreading its rolls (issue 25).
-TABLE_VERSION = 3
+#: 4: ray samplers also come straight down onto the object's top (planner.plan.sampling.from_above) (issue 25).
+TABLE_VERSION = 4
 
 #: Decimals kept of a table plane in the settings (1e-7: 0.1 um, 1e-7 rad).
 PLANE_DIGITS = 7
@@ -199,6 +201,12 @@ class SweepSettings:
             return None
         return -(-self.fc_budget // self.chunks())
 
+    def above_rays(self, chunk: int) -> int:
+        """Rays straight down onto an object on a table that unit ``chunk``
+        tries before its sampled rays (ray samplers on a table, the first
+        unit: :func:`planner.plan.sampling.from_above`)."""
+        return ABOVE_RAYS if self.table_plane is not None and self.sampler != "antipodal" and chunk == 0 else 0
+
     def roll_angles(self, symmetry: int = 1) -> np.ndarray:
         """Rolls [rad]; a hand symmetric under a half turn needs only [0, pi)."""
         rolls = self._resolved_field("rolls")
@@ -233,18 +241,20 @@ class Candidate:
 
 
 def candidates(approaches: Approaches, shapes: tuple[Preshape, ...], settings: SweepSettings,
-               symmetry: int = 1, rays: range | None = None) -> list[Candidate]:
+               symmetry: int = 1, rays: Collection[int] | None = None) -> list[Candidate]:
     """Every (ray, preshape, roll, standoff) in a fixed order, numbered over the
     whole object; ``rays`` keeps only those of one chunk. A preshape's rolls
     spread over the turn after which the hand and that preshape's grasp
-    repeat (2 pi / (``symmetry`` x its ``roll_symmetry``))."""
+    repeat (2 pi / (``symmetry`` x its ``roll_symmetry``)), from the ray's
+    phase (:meth:`~planner.plan.sampling.Approaches.phase`)."""
     out, index = [], 0
     keep = range(len(approaches)) if rays is None else rays
     rolls = {shape.name: settings.roll_angles(symmetry * shape.roll_symmetry) for shape in shapes}
     for ray, shape in product(range(len(approaches)), shapes):
+        phase = approaches.phase(ray)
         for roll, standoff in product(rolls[shape.name], settings.standoffs or shape.standoffs):
             if ray in keep:
-                out.append(Candidate(index, ray, shape, float(roll), float(standoff)))
+                out.append(Candidate(index, ray, shape, float(phase + roll), float(standoff)))
             index += 1
     return out
 
@@ -281,5 +291,6 @@ def candidate_count(settings: SweepSettings, shapes: tuple[Preshape, ...], chunk
     points = len(settings.ray_range(chunk, rays))
     if settings.sampler == "antipodal":
         return points * settings._resolved_field("rolls") * len(settings.depths)
+    points += settings.above_rays(chunk)
     per_ray = sum(len(settings.standoffs or shape.standoffs) for shape in shapes)
     return points * settings._resolved_field("rolls") * per_ray

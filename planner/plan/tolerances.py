@@ -73,3 +73,13 @@ TABLE_ELEVATION = float(np.radians(30.0))
 #: fingers close: a fingertip resting on the table would count as touching and
 #: never move (at 30 degrees down, the hand rises 2 mm).
 TABLE_LIFT = 0.004
+
+#: Rays straight down onto an object on a table (:func:`planner.plan.sampling.from_above`): through
+#: the centre of mass, and through the footprint's centre +- ``ABOVE_SPREAD`` of its length along its
+#: long side; each ``ABOVE_PHASES`` times, its rolls turned by successive ``ABOVE_TURN`` [rad] (with the
+#: sweep's quarter turns, a roll every 30 degrees: a table pinch's fingers must straddle the object).
+ABOVE_POINTS = 3
+ABOVE_PHASES = 3
+ABOVE_TURN = float(np.pi / 6)
+ABOVE_RAYS = ABOVE_POINTS * ABOVE_PHASES
+ABOVE_SPREAD = 0.25

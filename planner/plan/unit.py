@@ -243,14 +243,19 @@ def _rays(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, hand: Ha
     t1 = time.perf_counter()
     rays = sampling.sample(obj.mesh, sampler=settings.sampler or "surface", count=settings.approaches or 0, rng=rng,
                            delta=settings.box_delta, fan_count=settings.fan_count, fan_angle=settings.fan_angle)
-    todo = candidates(rays, shapes, settings, hand.roll_symmetry, settings.ray_range(spec.chunk, len(rays)))
+    keep: range | list[int] = settings.ray_range(spec.chunk, len(rays))
+    support = settings.support()
+    if support is not None:  # straight down onto the top first (the first unit), then the sampled rays, steepened
+        above = sampling.from_above(obj.mesh, support.normal, obj.com, hand.approach)
+        steep = sampling.Approaches(rays.points, rays.normals, support.steepened(rays.directions, TABLE_ELEVATION),
+                                    rays.phases)
+        first = settings.above_rays(spec.chunk)
+        keep = [*range(first), *(len(above) + i for i in keep)]
+        rays = above.then(steep)
+    todo = candidates(rays, shapes, settings, hand.roll_symmetry, keep)
     result.timing["sampling"] += time.perf_counter() - t1
     radius = obj.torque_scale + float(np.linalg.norm(obj.com))
-    support = settings.support()
-    below = np.zeros(len(rays), bool)
-    if support is not None:
-        rays = sampling.Approaches(rays.points, rays.normals, support.steepened(rays.directions, TABLE_ELEVATION))
-        below = support.from_below(rays.directions)
+    below = np.zeros(len(rays), bool) if support is None else support.from_below(rays.directions)
     for cand in _tried(todo, budget, result, report):
         if below[cand.ray]:
             result.rejected[FROM_BELOW] += 1

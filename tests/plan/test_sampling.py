@@ -9,10 +9,11 @@ from helpers import NUM_TOL, assert_close
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from planner.geometry.frames import hand_rotation
 from planner.geometry.solid import load_object
 from planner.plan import sampling
-from planner.plan.sweep import SweepSettings, antipodal_candidates
-from planner.plan.tolerances import MIN_CHORD
+from planner.plan.sweep import SweepSettings, antipodal_candidates, candidates
+from planner.plan.tolerances import ABOVE_PHASES, ABOVE_POINTS, ABOVE_RAYS, ABOVE_TURN, MIN_CHORD
 from planner.specs.hands import load_hand
 from planner.specs.preshapes import load_preshapes
 
@@ -54,6 +55,51 @@ def test_fan_tilts_by_the_angle() -> None:
     assert len(fanned) == 25
     cos = np.einsum("ij,ij->i", fanned.directions[5:], np.tile(base.directions, (4, 1)))
     assert_close(cos, np.full(20, np.cos(0.3)), 1e-9)
+
+
+# -- straight down onto an object on a table -------------------------------------
+@settings(max_examples=25, deadline=None)
+@given(st.floats(-1, 1), st.floats(-1, 1), st.floats(-1, 1), st.floats(0, 2 * np.pi),
+       st.sampled_from(["panda", "barrett", "allegro", "pr2"]))
+def test_rays_from_above_come_down_over_the_footprint_rolled_along_its_long_side(
+        x: float, y: float, z: float, spin: float, hand: str) -> None:
+    """A 12 x 6 x 3 cm box lying on its large face, turned any way: the
+    rays come straight down through the centre of mass and through the
+    points a quarter of its length either side of the centre along its long
+    side, and each ray's phase turns the hand's reference axis onto that side
+    (three sets, each a further ABOVE_TURN)."""
+    up = np.array([x, y, z])
+    if np.linalg.norm(up) < 0.1:
+        up = np.array([0.0, 0.0, 1.0])
+    up /= np.linalg.norm(up)
+    turn = trimesh.geometry.align_vectors([0, 0, 1], up) @ trimesh.transformations.rotation_matrix(spin, [0, 0, 1])
+    mesh = trimesh.creation.box(extents=[0.12, 0.06, 0.03], transform=turn)
+    long = turn[:3, 0]
+    approach = load_hand(hand).approach
+    rays = sampling.from_above(mesh, up, mesh.center_mass, approach)
+    assert len(rays) == ABOVE_RAYS == ABOVE_POINTS * ABOVE_PHASES
+    assert_close(rays.directions, np.tile(-up, (ABOVE_RAYS, 1)), NUM_TOL)
+    assert_close(rays.points[:ABOVE_POINTS] @ up, np.full(ABOVE_POINTS, 0.015), 1e-9)  # on the top face
+    flat = rays.points[:ABOVE_POINTS] - np.outer(rays.points[:ABOVE_POINTS] @ up, up)
+    long = long if flat[1] @ long > 0 else -long  # the rectangle's long side has no sign of its own
+    assert_close(flat, np.array([[0, 0, 0], 0.03 * long, -0.03 * long]), 1e-9)
+    ref = np.eye(3)[int(np.argmin(np.abs(approach)))]
+    ref = (ref - (ref @ approach) * approach) / np.linalg.norm(ref - (ref @ approach) * approach)
+    for k in range(ABOVE_PHASES):
+        for i in range(ABOVE_POINTS):
+            along = hand_rotation(approach, -up, rays.phase(k * ABOVE_POINTS + i)) @ ref
+            assert_close(along, np.cos(k * ABOVE_TURN) * long + np.sin(k * ABOVE_TURN) * np.cross(-up, long), 1e-9)
+
+
+def test_a_rays_phase_starts_its_rolls() -> None:
+    mesh = trimesh.creation.box(extents=[0.12, 0.06, 0.03])
+    rays = sampling.from_above(mesh, np.array([0.0, 0.0, 1.0]), mesh.center_mass, np.array([0.0, 0.0, 1.0]))
+    shapes = load_preshapes(load_hand("barrett"))[:1]
+    found = candidates(rays, shapes, SweepSettings(rolls=3).resolved("surface"), symmetry=1)
+    assert len(found) == ABOVE_RAYS * 3 * len(shapes[0].standoffs)
+    for c in found:
+        assert np.isclose(np.mod(c.roll - rays.phase(c.ray), 2 * np.pi / 3), 0, atol=1e-12) \
+            or np.isclose(np.mod(c.roll - rays.phase(c.ray), 2 * np.pi / 3), 2 * np.pi / 3, atol=1e-12)
 
 
 # -- antipodal ------------------------------------------------------------------

@@ -10,6 +10,7 @@ import pytest
 import trimesh
 
 from planner import api
+from planner.geometry.solid import load_object
 from planner.plan.sweep import SweepSettings, candidate_count
 from planner.plan.unit import BUDGET, UnitSpec, run_unit
 from planner.run import pool
@@ -70,11 +71,15 @@ def test_tally_counts_a_retried_unit_once_and_a_finished_one_whole() -> None:
     assert failed.done == 0 and failed.total == 0
 
 
-@pytest.mark.parametrize("sampler", ["antipodal", "surface"])
-def test_candidate_count_is_the_units_own(sampler: str) -> None:
+@pytest.mark.parametrize("sampler,table", [("antipodal", False), ("surface", False), ("surface", True)])
+def test_candidate_count_is_the_units_own(sampler: str, table: bool) -> None:
+    """On a table the first unit also tries the rays from above."""
     hand = "panda" if sampler == "antipodal" else "barrett"
     settings = SweepSettings(approaches=6, rolls=2, chunk=4, fan_count=1 if sampler == "surface" else 0,
                              reach_placements=0, settle=False).resolved(sampler)
+    if table:
+        settings = settings.on(api.table_supports(load_object("box"), 1)[0])
+        assert settings.above_rays(0) > 0 and settings.above_rays(1) == 0
     for chunk in range(settings.chunks()):
         calls: list[tuple[int, int]] = []
         result = run_unit(UnitSpec("box", hand, settings, 0, chunk=chunk), lambda d, t, c=calls: c.append((d, t)))
