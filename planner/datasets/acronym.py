@@ -68,11 +68,12 @@ alone); ``poses_hand_frame`` (N, 4, 4) (the hand
 frame in the object frame) and ``export_frame`` (4, 4) with transforms =
 poses_hand_frame @ export_frame.
 
-The per-grasp content (:func:`per_grasp`) is shared with the GraspGen JSON
-writer. Datasets are chunked and resizable; each batch of rows is appended.
-Reading (:func:`read_header`, :func:`read_poses`, :func:`read_grasps`,
-:func:`read_simulation`) serves ``grasp import``: our own files come back
-losslessly, foreign ones give poses to re-score.
+The per-grasp content (:func:`per_grasp`; where each column goes and how it
+reads back: :mod:`planner.datasets.acronym_columns`) is shared with the
+GraspGen JSON writer. Datasets are chunked and resizable; each batch of rows
+is appended. Reading (:func:`read_header`, :func:`read_poses`,
+:func:`read_grasps`, :func:`read_simulation`) serves ``grasp import``: our
+own files come back losslessly, foreign ones give poses to re-score.
 """
 
 from __future__ import annotations
@@ -88,57 +89,43 @@ from typing import Any
 import numpy as np
 
 from planner.datasets import registry
-from planner.datasets.columns import Column, grasp_columns, joint_matrix
-from planner.datasets.labels import BEST, file_source
-from planner.datasets.labels import labels as dataset_labels
+from planner.datasets.acronym_columns import (
+    DATASETS,
+    EXTRAS,
+    FLEX,
+    IMPLIED,
+    MISSING,
+    MOTIONS,
+    QUALITIES,
+    ROBUST_EPSILON,
+    as_text,
+    carried,
+    joint_names,
+    measures_of,
+    per_grasp,
+    trial_columns,
+    trials_of,
+)
+from planner.datasets.columns import Column
+from planner.datasets.labels import file_source
 from planner.datasets.meshes import ExportedObject
 from planner.errors import InputError
 from planner.geometry.frames import approach_of
-from planner.record import fields
 from planner.record.contacts import HandContacts
-from planner.record.field import Field
 from planner.record.grasp import Grasp, RobustEpsilon, Trial
-from planner.record.measures import Measures
 from planner.specs.hands import HandSpec
 from planner.specs.preshapes import load_preshapes, sweep_preshapes
+
+__all__ = ["CHUNK_ROWS", "CONFIGURATION_DOC", "DATASETS", "EXTRAS", "FLEX", "IMPLIED", "MISSING", "MOTIONS",
+           "QUALITIES", "ROBUST_EPSILON", "ROTATION_TOL", "SUFFIX", "AcronymHeader", "carried", "gripper_configuration",
+           "joint_names", "per_grasp", "read_grasps", "read_header", "read_labels", "read_poses", "read_simulation",
+           "relative_path", "write"]
 
 SUFFIX = ".h5"
 #: Rows per HDF5 chunk: 1,024 transforms are 128 kB.
 CHUNK_ROWS = 1024
 #: A transform's rotation rows may deviate from orthonormal by this much (float32 files pass).
 ROTATION_TOL = 1e-5
-
-FLEX = "qualities/flex/"
-#: ACRONYM's motion datasets and the columns they come from.
-MOTIONS = {f"{FLEX}object_motion_during_{stage}_{kind}": f"validation_{stage}_{kind}"
-           for stage in ("closing", "shaking") for kind in ("linear", "angular")}
-#: The robust epsilon's two values, under ACRONYM-style names (``robust_epsilon_mean``).
-ROBUST_EPSILON = ("robust_mean", "robust_quantile")
-#: ``grasps/qualities/<name>`` -> the column of :func:`grasp_columns` it holds:
-#: the record's scores, every analytic measure (``feasibility``: reasons,
-#: comma-separated) and, of the trial and the robust epsilon, what ACRONYM's
-#: own datasets (``object_in_gripper``, :data:`MOTIONS`) do not hold, all
-#: derived from the declaration (:mod:`planner.record.fields`).
-QUALITIES = {
-    **{name: name for name in ("epsilon", "volume", "force_closure", "reachability", "manipulability", "score",
-                               "p_hold", "rank")},
-    **{f.name: f.name for f in fields.group("measures")},
-    "simulated_success": "validation_success",
-    **{f.name: f.name for f in fields.group("validation") if f.name != "validation_success"
-       and f.name not in MOTIONS.values()},
-    **{f.name: f.name for f in fields.group("mujoco")},
-    **{f.name.replace("robust_", "robust_epsilon_") if f.name in ROBUST_EPSILON else f.name: f.name
-       for f in fields.group("robust")},
-}
-#: Per-grasp datasets below ``grasps/`` -> the column of :func:`grasp_columns` each holds
-#: (besides ``transforms``, ``object_in_gripper`` and the joint matrices).
-DATASETS = {**MOTIONS, **{f"qualities/{name}": column for name, column in QUALITIES.items()},
-            **{name: name for name in ("width", "preshape", "candidate", "seed", "contacts", "approach_point",
-                                       "approach_dir", "roll", "standoff", "table_plane")},
-            "poses_hand_frame": "pose"}
-#: Datasets whose presence marks a file with this project's extras.
-EXTRAS = ("qualities/epsilon", "qualities/volume", "qualities/force_closure", "joint_names", "joints_closed",
-          "joints_open", "contacts")
 #: The per-hand table of ``gripper/configuration`` above, for the README.
 CONFIGURATION_DOC = __doc__[__doc__.index("| hand |"):__doc__.index("\n\nFiles written before")].strip() + "\n"
 
@@ -156,28 +143,6 @@ def gripper_configuration(hand: HandSpec) -> tuple[list[str], np.ndarray]:
     shape = hand.widest(sweep_preshapes(hand))
     names = [j.name for j in hand.driven]
     return names, np.array([shape.joints[n] for n in names], np.float64)
-
-
-def joint_names(hand: HandSpec) -> list[str]:
-    return [j.name for j in hand.joints]
-
-
-def per_grasp(grasps: list[Grasp], hand: HandSpec, label: str = BEST) -> dict[str, Column]:
-    """Every per-grasp field of one batch, keyed by its path below ``grasps/``;
-    (n, ...) arrays or n strings. ``transforms`` = pose @ export_frame: the
-    dataset gripper frame in the scaled mesh frame, metres; the success label
-    as ``label`` chooses (:mod:`planner.datasets.labels`) and, per row, its source."""
-    c = grasp_columns(grasps)
-    labels, sources = dataset_labels(c, label)
-    names = joint_names(hand)
-    return {
-        "transforms": c["pose"] @ hand.export_frame,
-        f"{FLEX}object_in_gripper": labels,
-        "qualities/label_from": sources,
-        **{key: c[column] for key, column in DATASETS.items()},
-        "joints_closed": joint_matrix(c["closed_joints"], names),
-        "joints_open": joint_matrix(c["open_joints"], names),
-    }
 
 
 def write(path: Path, info: ExportedObject, hand: HandSpec, batches: Iterable[list[Grasp]]) -> int:
@@ -280,12 +245,12 @@ def read_header(path: Path) -> AcronymHeader:
             if key not in f:
                 raise InputError(f"{path}: no '{key}' dataset; not an ACRONYM grasp file")
         return AcronymHeader(
-            path=path, gripper=_text(f["gripper/type"][()]),
-            object_name=_text(f["object/name"][()]) if "object/name" in f else None,
-            object_file=_text(f["object/file"][()]) if "object/file" in f else None,
+            path=path, gripper=as_text(f["gripper/type"][()]),
+            object_name=as_text(f["object/name"][()]) if "object/name" in f else None,
+            object_file=as_text(f["object/file"][()]) if "object/file" in f else None,
             scale=_positive(f, "object/scale"), mass=_positive(f, "object/mass"),
             friction=_positive(f, "object/friction"), extras=all(f"grasps/{k}" in f for k in EXTRAS),
-            mesh_sha256=_text(f["object/mesh_sha256"][()]) or None if "object/mesh_sha256" in f else None)
+            mesh_sha256=as_text(f["object/mesh_sha256"][()]) or None if "object/mesh_sha256" in f else None)
 
 
 def read_poses(path: Path, hand: HandSpec) -> np.ndarray:
@@ -321,7 +286,7 @@ def read_grasps(path: Path, hand: HandSpec, obj: str, poses: np.ndarray) -> list
         closed, opened = g["joints_closed"][()], g["joints_open"][()]
         col = {k: (q[k][()] if k in q else np.full(n, np.nan))  # whole columns: h5py indexing per row is slow
                for k in ("epsilon", "volume", "force_closure", "reachability", "manipulability")}
-        measures = _measures(q, n)
+        measures = measures_of(q, n)
         width = g["width"][()] if "width" in g else np.full(n, np.nan)
         preshape = g["preshape"].asstr()[()] if "preshape" in g else ["imported"] * n
         tcps = {shape.name: shape.tcp for shape in load_preshapes(hand)}  # files before the approach rays
@@ -343,61 +308,6 @@ def read_grasps(path: Path, hand: HandSpec, obj: str, poses: np.ndarray) -> list
                   table_plane=None if np.isnan(planes[i]).any() else np.asarray(planes[i], float),
                   measures=measures[i])
             for i in range(n)]
-
-
-def _measures(q: Any, n: int) -> list[Measures | None]:
-    """Each row's analytic measures from ``grasps/qualities`` (NaN, or a
-    measure the file lacks: not measured; None where resist_worst is not)."""
-    group = fields.group("measures")
-    columns = {f.attr.partition(".")[2]: _file_values(f, q[f.name][()] if f.name in q else None, n) for f in group}
-    first = columns[group[0].attr.partition(".")[2]]
-    return [None if first[i] is None else Measures(**{k: v[i] for k, v in columns.items()}) for i in range(n)]
-
-
-def _file_values(f: Field, data: np.ndarray | None, n: int) -> list:
-    """A stored field read from a file column (None: the file lacks it) as the record's values."""
-    if f.dtype == "string":
-        texts = [""] * n if data is None else [_text(v) for v in data]
-        return [tuple(r for r in t.split(",") if r) for t in texts] if f.kind == "reasons" else texts
-    values = np.full(n, np.nan) if data is None else np.asarray(data, float)
-    if f.kind == "margin":
-        return [math.inf if math.isnan(v) else v for v in values.tolist()]
-    if f.dtype == "int64":
-        return [int(v) for v in values.tolist()]
-    return [None if math.isnan(v) else v for v in values.tolist()]
-
-
-#: What a file that lacks a trial or robust field reads as (ACRONYM's own files hold neither).
-MISSING = {"validation_fingers_in_contact": -1, "validation_reason": "", "robust_samples": 0,
-           "mujoco_success": -1, "mujoco_fingers_in_contact": -1, "mujoco_reason": ""}
-
-
-def _location(name: str) -> str:
-    """Where under ``grasps/`` a column of :func:`grasp_columns` is written."""
-    return next(key for key, column in DATASETS.items() if column == name)
-
-
-#: Declared fields of the record a file holds otherwise: per file, as matrices, or
-#: implied by the contacts.
-IMPLIED = {"object": "object/name", "hand": "gripper/type", "open_joints": "joints_open (N, J)",
-           "closed_joints": "joints_closed (N, J)", "n_contacts": "contacts", "links_touching": "contacts"}
-
-
-def carried() -> set[str]:
-    """The flat names of the declared record fields a file carries."""
-    return {f.name for f in fields.record_fields()} & ({*DATASETS.values()} | set(IMPLIED))
-
-
-def _trial_columns(g: Any, group: str, n: int) -> dict[str, list]:
-    """The record's values of a trial or robust group, attribute -> n values."""
-    out = {}
-    for f in fields.group(group):
-        key = _location(f.name)
-        values = _file_values(f, g[key][()] if key in g else None, n)
-        if key not in g and f.name in MISSING:
-            values = [MISSING[f.name]] * n
-        out[f.attr.partition(".")[2]] = values
-    return out
 
 
 def read_labels(path: Path) -> np.ndarray:
@@ -424,23 +334,13 @@ def read_simulation(path: Path) -> list[tuple[Trial | None, RobustEpsilon | None
         if "qualities/simulated_success" not in g:
             return []
         n = len(g["qualities/simulated_success"])
-        trial, mujoco, robust = _trials(g, "validation", n), _trials(g, "mujoco", n), _trial_columns(g, "robust", n)
+        trial, mujoco, robust = trials_of(g, "validation", n), trials_of(g, "mujoco", n), trial_columns(g, "robust", n)
     out: list[tuple[Trial | None, RobustEpsilon | None, Trial | None]] = []
     for i in range(n):
         r = None if robust["mean"][i] is None or robust["quantile"][i] is None else \
             RobustEpsilon(**{k: v[i] for k, v in robust.items()})
         out.append((trial[i], r, mujoco[i]))
     return out
-
-
-def _trials(g: Any, group: str, n: int) -> list[Trial | None]:
-    """The n rows' results of one trial group (None: not simulated, success -1)."""
-    columns = _trial_columns(g, group, n)
-    success = [int(v) for v in np.asarray(columns.pop("success"), float)]
-    for k in ("closing_linear", "closing_angular", "shaking_linear", "shaking_angular"):
-        columns[k] = [-1.0 if v is None else v for v in columns[k]]
-    return [None if ok < 0 else Trial(bool(ok), **{k: v[i] for k, v in columns.items()})
-            for i, ok in enumerate(success)]
 
 
 def _joints(names: list[str], values: np.ndarray) -> dict[str, float]:
@@ -465,10 +365,6 @@ def _positive(f: Any, key: str) -> float | None:
         return None
     value = float(np.asarray(f[key][()]).reshape(-1)[0])
     return value if math.isfinite(value) and value > 0 else None
-
-
-def _text(value: object) -> str:
-    return value.decode() if isinstance(value, bytes) else str(value)
 
 
 registry.register("acronym", registry.PairWriter(relative_path, write),

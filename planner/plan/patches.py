@@ -2,7 +2,8 @@
 into point contacts (grasping-foundations sec. 2.2: larger contact areas are
 discretised into point contacts; a small one is a soft finger).
 
-Per grasp, for each link that touches (object frame):
+Per grasp, for each link that touches (object frame; the surfaces of steps 1
+and 2: :mod:`planner.plan.patch_surfaces`):
 
 1. The link's collision surface is sampled once per hand, in the link frame,
    about one sample per ``spacing``^2 (area-weighted, seeded); meshes are
@@ -34,114 +35,32 @@ unchanged.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from functools import cache, cached_property
-from pathlib import Path
+from dataclasses import dataclass
 
 import numpy as np
-import trimesh
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from planner.geometry.frames import tangent_bases
+from planner.plan.patch_surfaces import (
+    BOUND,
+    SLACK,
+    LinkSurface,
+    ObjectSurface,
+    PatchSettings,
+    collision_mesh,
+    hand_surfaces,
+)
 from planner.record.contacts import HandContacts
 from planner.specs.hands import HandSpec
-from planner.specs.urdf import load_model
 
-#: [m] a link sample farther than this from every object sample is out of
-#: reach (ObjectSurface.bound's default search radius).
-BOUND = 0.02
+__all__ = ["ObjectSurface", "PatchSettings", "Region", "collision_mesh", "discretise", "extreme_points",
+           "hand_surfaces", "link_regions", "regions"]
+
 #: [m] the first, short search radius of a link's samples to the object's
 #: (ObjectSurface.bound): links in contact need no more (speed only).
 NEAR_SEARCH = 0.006
-#: [m] side of the cells that group a link's samples to bound them together
-#: (speed only: any side gives the same samples).
-CELL = 0.002
-#: [m] round-off allowance of the cells' triangle-inequality bounds.
-SLACK = 1e-9
-#: Vertices with at most this many faces have their sharpness computed all
-#: at once (speed only: the others one by one, the same result).
-FEW_FACES = 12
-
-
-@dataclass(frozen=True)
-class PatchSettings:
-    """Lengths in metres, angles in radians."""
-
-    spacing: float = 0.001  # link surface sample spacing (palm: ``palm_spacing``)
-    palm_spacing: float = 0.002  # the hand's root link is large and flat: coarser samples
-    depth: float = 0.001  # patch = samples within (the link's smallest gap + depth) of the object
-    touch: float = 0.00025  # a region whose smallest gap exceeds its link's by more does not touch
-    prefilter: float = 0.003  # slack of the sampled-surface distance bound before exact queries
-    max_exact: int = 600  # at most this many samples per link get exact gaps (seeded subsample)
-    link_radius: float = 0.0025  # samples closer than this are neighbours (> spacing: random samples leave gaps)
-    split_angle: float = float(np.radians(30.0))  # neighbours whose normals differ more are separate regions
-    small: float = 0.004  # a region narrower than this stays one soft-finger contact
-    max_points: int = 4  # extreme points per larger region
-    sharp_angle: float = float(np.radians(25.0))  # object edges with faces farther apart are sharp
-    object_spacing: float = 0.0007  # object surface samples that find the candidate triangles
-    max_object_samples: int = 400_000  # a large object gets sparser samples
-    seed: int = 0
-
-
-@dataclass(frozen=True)
-class LinkSurface:
-    """Samples of one link's collision surface, link frame.
-
-    points : (k, 3) [m]; normals : (k, 3) outward unit normals; area : (k,)
-    [m^2] the surface each sample stands for.
-    """
-
-    points: np.ndarray
-    normals: np.ndarray
-    area: np.ndarray
-
-    @cached_property
-    def cells(self) -> Cells:
-        """The samples grouped by cubes of side ``CELL``."""
-        return Cells.of(self.points, np.floor(self.points / CELL).astype(np.int64))
-
-
-@dataclass(frozen=True)
-class Cells:
-    """A grouping of link samples, link frame.
-
-    cell : (k,) the cell of each sample; centres : (c, 3) [m] the cells'
-    centroids; radius : (c,) [m] the largest distance of a cell's sample to
-    its centroid.
-    """
-
-    cell: np.ndarray
-    centres: np.ndarray
-    radius: np.ndarray
-
-    @classmethod
-    def of(cls, points: np.ndarray, keys: np.ndarray) -> Cells:
-        """``points`` (k, 3) grouped by equal rows of ``keys`` (k, 3)."""
-        _, cell = np.unique(keys, axis=0, return_inverse=True)
-        cell = cell.reshape(-1)
-        count = np.bincount(cell)
-        centres = np.stack([np.bincount(cell, points[:, i]) for i in range(3)], axis=1) / count[:, None]
-        radius = np.zeros(len(count))
-        np.maximum.at(radius, cell, np.linalg.norm(points - centres[cell], axis=1))
-        return cls(cell, centres, radius)
-
-    def reach(self, chosen: np.ndarray, pose: np.ndarray, obj: ObjectSurface,
-              within: float) -> tuple[np.ndarray, np.ndarray]:
-        """(lower (n,), upper (n,)) [m] bounds of the ``chosen`` cells' samples'
-        bounds at ``pose``, by the triangle inequality about each centroid
-        (inf for cells whose centroid has no object sample within ``within``)."""
-        radius = self.radius[chosen]
-        reach = obj.bound(self.centres[chosen] @ pose[:3, :3].T + pose[:3, 3], within)
-        return reach - radius - SLACK, reach + radius + SLACK
-
-    def members(self, chosen: np.ndarray, among: np.ndarray) -> np.ndarray:
-        """(n,) ascending indices of the samples in ``among`` (k,) bool that
-        lie in the ``chosen`` cells."""
-        mask = np.zeros(len(self.centres), bool)
-        mask[chosen] = True
-        return np.flatnonzero(among & mask[self.cell])
 
 
 @dataclass(frozen=True)
@@ -159,169 +78,6 @@ class Region:
     area: float
     diameter: float
     normal: np.ndarray
-
-
-# -- the hand side ----------------------------------------------------------------
-
-def collision_mesh(model: object, link: str) -> trimesh.Trimesh | None:
-    """The link's collision geometry in its link frame, as PyBullet collides it."""
-    parts = []
-    for c in model.link_map[link].collisions:  # type: ignore[attr-defined]
-        g = c.geometry
-        if g.box is not None:
-            mesh = trimesh.creation.box(g.box.size)
-        elif g.cylinder is not None:
-            mesh = trimesh.creation.cylinder(g.cylinder.radius, g.cylinder.length, sections=64)
-        elif g.sphere is not None:
-            mesh = trimesh.creation.icosphere(4, g.sphere.radius)
-        elif g.mesh is not None:
-            mesh = trimesh.load(g.mesh.filename, force="mesh")
-            if g.mesh.scale is not None:
-                mesh.apply_scale(g.mesh.scale)
-            mesh = mesh.convex_hull
-        else:
-            continue
-        if c.origin is not None:
-            mesh.apply_transform(c.origin)
-        parts.append(mesh)
-    return trimesh.util.concatenate(parts) if parts else None
-
-
-def sample_surface(mesh: trimesh.Trimesh, spacing: float, rng: np.random.Generator) -> LinkSurface:
-    """Area-weighted samples, about one per ``spacing``^2, with face normals."""
-    count = max(int(np.ceil(mesh.area / spacing**2)), 1)
-    faces = rng.choice(len(mesh.faces), size=count, p=mesh.area_faces / mesh.area)
-    uv = rng.random((count, 2))
-    flip = uv.sum(axis=1) > 1
-    uv[flip] = 1 - uv[flip]
-    tri = mesh.triangles[faces]
-    points = tri[:, 0] + uv[:, :1] * (tri[:, 1] - tri[:, 0]) + uv[:, 1:] * (tri[:, 2] - tri[:, 0])
-    return LinkSurface(points, mesh.face_normals[faces], np.full(count, mesh.area / count))
-
-
-def hand_surfaces(hand: HandSpec, settings: PatchSettings) -> dict[str, LinkSurface]:
-    """Every contact link's surface samples (once per hand and settings)."""
-    return _surfaces(str(hand.urdf), hand.contact_links, hand.root_link, settings)
-
-
-@cache
-def _surfaces(urdf: str, links: tuple[str, ...], root: str, settings: PatchSettings) -> dict[str, LinkSurface]:
-    model = load_model(Path(urdf))
-    rng = np.random.default_rng(settings.seed)
-    out = {}
-    for link in links:
-        mesh = collision_mesh(model, link)
-        if mesh is not None:
-            out[link] = sample_surface(mesh, settings.palm_spacing if link == root else settings.spacing, rng)
-    return out
-
-
-# -- the object side --------------------------------------------------------------
-
-@dataclass
-class ObjectSurface:
-    """The object's triangle mesh and what exact closest points need."""
-
-    mesh: trimesh.Trimesh
-    settings: PatchSettings = field(default_factory=PatchSettings)
-
-    @cached_property
-    def _samples(self) -> tuple[cKDTree, np.ndarray]:
-        """KD-tree of dense surface samples and the face of each: the candidate
-        faces of exact closest points."""
-        s = self.settings
-        count = int(min(np.ceil(self.mesh.area / s.object_spacing**2), s.max_object_samples))
-        points, faces = trimesh.sample.sample_surface(self.mesh, count, seed=s.seed)
-        points = np.vstack([points, self.mesh.triangles_center])  # every face at least once
-        faces = np.r_[np.asarray(faces), np.arange(len(self.mesh.faces))]
-        return cKDTree(points), faces
-
-    @cached_property
-    def sharp_vertex(self) -> np.ndarray:
-        """(v,) True where the faces at a vertex spread more than ``sharp_angle``."""
-        m, cos = self.mesh, np.cos(self.settings.sharp_angle)
-        out = np.zeros(len(m.vertices), bool)
-        faces = m.vertex_faces
-        normals = m.face_normals
-        count = (faces >= 0).sum(axis=1)
-        few = np.flatnonzero((count > 1) & (count <= FEW_FACES))
-        if len(few):  # most vertices: all pairs of their faces at once (a missing face repeats the first)
-            mine = faces[few, :FEW_FACES]
-            mine = np.where(mine >= 0, mine, mine[:, :1])
-            n = normals[mine]
-            out[few] = np.einsum("vik,vjk->vij", n, n).min(axis=(1, 2)) < cos
-        for v in np.flatnonzero(count > FEW_FACES):
-            n = normals[faces[v][faces[v] >= 0]]
-            out[v] = (n @ n.T).min() < cos
-        return out
-
-    @cached_property
-    def sharp_edge(self) -> dict[tuple[int, int], bool]:
-        m = self.mesh
-        return {(int(min(a, b)), int(max(a, b))): bool(angle > self.settings.sharp_angle)
-                for (a, b), angle in zip(m.face_adjacency_edges, m.face_adjacency_angles)}
-
-    def bound(self, points: np.ndarray, within: float = BOUND) -> np.ndarray:
-        """(k,) distance [m] of each point to the nearest surface sample (an
-        upper bound of its distance to the surface, tight to ~the spacing);
-        inf beyond ``within``."""
-        return self._samples[0].query(points, distance_upper_bound=within)[0]
-
-    def closest(self, points: np.ndarray, k: int = 12) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(closest (n, 3), signed gap (n,) [m], outward face normal (n, 3),
-        smooth (n,) bool) of points within a few mm of the surface: exact
-        closest points among the faces of the k nearest samples."""
-        closest, gap, tri = self.nearest(points, k)
-        normal = self.mesh.face_normals[tri]
-        sign = np.where(np.einsum("ij,ij->i", points - closest, normal) < 0, -1.0, 1.0)
-        return closest, sign * gap, normal, self._smooth(closest, tri)
-
-    def nearest(self, points: np.ndarray, k: int = 12) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(closest (n, 3) [m], distance (n,) [m], face (n,)): the nearest
-        point on the faces of the k nearest samples of each point."""
-        tree, sample_face = self._samples
-        k = min(k, tree.n)
-        _, near = tree.query(points, k=k)
-        cand = sample_face[np.asarray(near).reshape(len(points), k)]
-        # neighbouring samples mostly share a face: each (point, face) pair once
-        pairs, inverse = np.unique(np.arange(len(points))[:, None] * len(self.mesh.faces) + cand,
-                                   return_inverse=True)
-        row, face = np.divmod(pairs, len(self.mesh.faces))
-        cp = trimesh.triangles.closest_point(self.mesh.triangles[face], points[row])
-        cp = cp[inverse.reshape(-1)].reshape(len(points), k, 3)
-        dist = np.linalg.norm(cp - points[:, None], axis=2)
-        best = np.argmin(dist, axis=1)
-        rows = np.arange(len(points))
-        return cp[rows, best], dist[rows, best], cand[rows, best]
-
-    def _smooth(self, closest: np.ndarray, tri: np.ndarray) -> np.ndarray:
-        bary = trimesh.triangles.points_to_barycentric(self.mesh.triangles[tri], closest)
-        on = bary >= 1e-6  # the face's vertices the point is not opposite to
-        count = on.sum(axis=1)
-        smooth = np.ones(len(closest), bool)
-        # on a vertex: the one vertex left; on an edge: its two vertices, in order
-        first = self.mesh.faces[tri, np.argmax(on, axis=1)]
-        last = self.mesh.faces[tri, 2 - np.argmax(on[:, ::-1], axis=1)]
-        vertex, edge = count == 1, count == 2
-        smooth[vertex] = ~self.sharp_vertex[first[vertex]]
-        smooth[edge] = ~self._sharp_edges(first[edge], last[edge])
-        return smooth
-
-    @cached_property
-    def _edge_table(self) -> tuple[np.ndarray, np.ndarray]:
-        """(sorted keys a * V + b of the mesh's shared edges, a < b; their sharpness)."""
-        keys = np.array([a * len(self.mesh.vertices) + b for a, b in self.sharp_edge], np.int64)
-        order = np.argsort(keys)
-        return keys[order], np.array(list(self.sharp_edge.values()), bool)[order]
-
-    def _sharp_edges(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """(n,) True where the edge (a, b) is sharp or not shared by two faces."""
-        keys, sharp = self._edge_table
-        if not len(keys):
-            return np.ones(len(a), bool)
-        want = np.minimum(a, b).astype(np.int64) * len(self.mesh.vertices) + np.maximum(a, b)
-        at = np.minimum(np.searchsorted(keys, want), len(keys) - 1)
-        return np.where(keys[at] == want, sharp[at], True)
 
 
 # -- regions ----------------------------------------------------------------------

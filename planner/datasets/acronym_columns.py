@@ -1,0 +1,146 @@
+"""Where each column of a grasp goes in an ACRONYM file
+(:mod:`planner.datasets.acronym`), and back: the datasets below ``grasps/``
+and the column of :func:`~planner.datasets.columns.grasp_columns` each
+holds, derived from the declaration of the stored fields
+(:mod:`planner.record.fields`); a batch of grasps as those datasets
+(:func:`per_grasp`, shared with the GraspGen writer); and a file's columns
+as the record's values again (:func:`measures_of`, :func:`trials_of`). The
+HDF5 file itself is written and read in :mod:`planner.datasets.acronym`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from planner.datasets.columns import Column, grasp_columns, joint_matrix
+from planner.datasets.labels import BEST
+from planner.datasets.labels import labels as dataset_labels
+from planner.record import fields
+from planner.record.field import Field
+from planner.record.grasp import Grasp, Trial
+from planner.record.measures import Measures
+from planner.specs.hands import HandSpec
+
+FLEX = "qualities/flex/"
+#: ACRONYM's motion datasets and the columns they come from.
+MOTIONS = {f"{FLEX}object_motion_during_{stage}_{kind}": f"validation_{stage}_{kind}"
+           for stage in ("closing", "shaking") for kind in ("linear", "angular")}
+#: The robust epsilon's two values, under ACRONYM-style names (``robust_epsilon_mean``).
+ROBUST_EPSILON = ("robust_mean", "robust_quantile")
+#: ``grasps/qualities/<name>`` -> the column of :func:`grasp_columns` it holds:
+#: the record's scores, every analytic measure (``feasibility``: reasons,
+#: comma-separated) and, of the trial and the robust epsilon, what ACRONYM's
+#: own datasets (``object_in_gripper``, :data:`MOTIONS`) do not hold, all
+#: derived from the declaration (:mod:`planner.record.fields`).
+QUALITIES = {
+    **{name: name for name in ("epsilon", "volume", "force_closure", "reachability", "manipulability", "score",
+                               "p_hold", "rank")},
+    **{f.name: f.name for f in fields.group("measures")},
+    "simulated_success": "validation_success",
+    **{f.name: f.name for f in fields.group("validation") if f.name != "validation_success"
+       and f.name not in MOTIONS.values()},
+    **{f.name: f.name for f in fields.group("mujoco")},
+    **{f.name.replace("robust_", "robust_epsilon_") if f.name in ROBUST_EPSILON else f.name: f.name
+       for f in fields.group("robust")},
+}
+#: Per-grasp datasets below ``grasps/`` -> the column of :func:`grasp_columns` each holds
+#: (besides ``transforms``, ``object_in_gripper`` and the joint matrices).
+DATASETS = {**MOTIONS, **{f"qualities/{name}": column for name, column in QUALITIES.items()},
+            **{name: name for name in ("width", "preshape", "candidate", "seed", "contacts", "approach_point",
+                                       "approach_dir", "roll", "standoff", "table_plane")},
+            "poses_hand_frame": "pose"}
+#: Datasets whose presence marks a file with this project's extras.
+EXTRAS = ("qualities/epsilon", "qualities/volume", "qualities/force_closure", "joint_names", "joints_closed",
+          "joints_open", "contacts")
+#: Declared fields of the record a file holds otherwise: per file, as matrices, or
+#: implied by the contacts.
+IMPLIED = {"object": "object/name", "hand": "gripper/type", "open_joints": "joints_open (N, J)",
+           "closed_joints": "joints_closed (N, J)", "n_contacts": "contacts", "links_touching": "contacts"}
+
+
+def carried() -> set[str]:
+    """The flat names of the declared record fields a file carries."""
+    return {f.name for f in fields.record_fields()} & ({*DATASETS.values()} | set(IMPLIED))
+
+
+def joint_names(hand: HandSpec) -> list[str]:
+    return [j.name for j in hand.joints]
+
+
+def per_grasp(grasps: list[Grasp], hand: HandSpec, label: str = BEST) -> dict[str, Column]:
+    """Every per-grasp field of one batch, keyed by its path below ``grasps/``;
+    (n, ...) arrays or n strings. ``transforms`` = pose @ export_frame: the
+    dataset gripper frame in the scaled mesh frame, metres; the success label
+    as ``label`` chooses (:mod:`planner.datasets.labels`) and, per row, its source."""
+    c = grasp_columns(grasps)
+    labels, sources = dataset_labels(c, label)
+    names = joint_names(hand)
+    return {
+        "transforms": c["pose"] @ hand.export_frame,
+        f"{FLEX}object_in_gripper": labels,
+        "qualities/label_from": sources,
+        **{key: c[column] for key, column in DATASETS.items()},
+        "joints_closed": joint_matrix(c["closed_joints"], names),
+        "joints_open": joint_matrix(c["open_joints"], names),
+    }
+
+
+#: What a file that lacks a trial or robust field reads as (ACRONYM's own files hold neither).
+MISSING = {"validation_fingers_in_contact": -1, "validation_reason": "", "robust_samples": 0,
+           "mujoco_success": -1, "mujoco_fingers_in_contact": -1, "mujoco_reason": ""}
+
+
+def _location(name: str) -> str:
+    """Where under ``grasps/`` a column of :func:`grasp_columns` is written."""
+    return next(key for key, column in DATASETS.items() if column == name)
+
+
+def measures_of(q: Any, n: int) -> list[Measures | None]:
+    """Each row's analytic measures from ``grasps/qualities`` (NaN, or a
+    measure the file lacks: not measured; None where resist_worst is not)."""
+    group = fields.group("measures")
+    columns = {f.attr.partition(".")[2]: _file_values(f, q[f.name][()] if f.name in q else None, n) for f in group}
+    first = columns[group[0].attr.partition(".")[2]]
+    return [None if first[i] is None else Measures(**{k: v[i] for k, v in columns.items()}) for i in range(n)]
+
+
+def _file_values(f: Field, data: np.ndarray | None, n: int) -> list:
+    """A stored field read from a file column (None: the file lacks it) as the record's values."""
+    if f.dtype == "string":
+        texts = [""] * n if data is None else [as_text(v) for v in data]
+        return [tuple(r for r in t.split(",") if r) for t in texts] if f.kind == "reasons" else texts
+    values = np.full(n, np.nan) if data is None else np.asarray(data, float)
+    if f.kind == "margin":
+        return [math.inf if math.isnan(v) else v for v in values.tolist()]
+    if f.dtype == "int64":
+        return [int(v) for v in values.tolist()]
+    return [None if math.isnan(v) else v for v in values.tolist()]
+
+
+def trial_columns(g: Any, group: str, n: int) -> dict[str, list]:
+    """The record's values of a trial or robust group, attribute -> n values."""
+    out = {}
+    for f in fields.group(group):
+        key = _location(f.name)
+        values = _file_values(f, g[key][()] if key in g else None, n)
+        if key not in g and f.name in MISSING:
+            values = [MISSING[f.name]] * n
+        out[f.attr.partition(".")[2]] = values
+    return out
+
+
+def trials_of(g: Any, group: str, n: int) -> list[Trial | None]:
+    """The n rows' results of one trial group (None: not simulated, success -1)."""
+    columns = trial_columns(g, group, n)
+    success = [int(v) for v in np.asarray(columns.pop("success"), float)]
+    for k in ("closing_linear", "closing_angular", "shaking_linear", "shaking_angular"):
+        columns[k] = [-1.0 if v is None else v for v in columns[k]]
+    return [None if ok < 0 else Trial(bool(ok), **{k: v[i] for k, v in columns.items()})
+            for i, ok in enumerate(success)]
+
+
+def as_text(value: object) -> str:
+    return value.decode() if isinstance(value, bytes) else str(value)

@@ -1,0 +1,121 @@
+"""Reading the contacts of a closed hand, step 6 of
+:mod:`planner.plan.closing`: the part of
+:class:`~planner.plan.closing.Grasper` that turns the links touching the
+object into contacts (:class:`ContactReading`): contact patches
+(:mod:`planner.plan.patches`, the default) or the legacy closest points
+spread over each link, moved onto the exact mesh when closing ran against a
+proxy; and the joint frames and link poses the grip measures read.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from planner.plan.closing_types import Closed, CloseSettings, Rejected
+from planner.plan.contacts import HandContacts, spread
+from planner.plan.measures import JointFrames
+from planner.plan.patches import ObjectSurface, discretise, regions
+from planner.sim import Body, Closest, Sim
+from planner.specs.hands import HandSpec
+
+
+class ContactReading:
+    """Reads the contacts of :class:`~planner.plan.closing.Grasper` (which
+    holds the attributes below and answers the queries)."""
+
+    sim: Sim
+    hand: HandSpec
+    body: Body
+    names: dict[int, str]  # link index -> name
+    settings: CloseSettings
+    surface: ObjectSurface | None
+    exact_surface: ObjectSurface | None
+    queries: int
+
+    if TYPE_CHECKING:  # the queries of planner.plan.closing.Grasper
+        def _closest(self, reach: float, link: str | None = None) -> Closest: ...
+
+        def _place(self, pose: np.ndarray, joints: dict[str, float]) -> None: ...
+
+    def _read(self, pose: np.ndarray, open_joints: dict[str, float], closed: dict[str, float]) -> Closed | Rejected:
+        s = self.settings
+        pairs = self._closest(s.contact_tol)
+        if len(pairs) == 0:
+            return Rejected("no_contact", self.queries)
+        true_gap = pairs.distance + self.hand.distance_offset
+        if true_gap.min() < -s.max_penetration:
+            return Rejected("penetration", self.queries)
+        names = [self.names[i] for i in pairs.links]
+        if any(n not in self.hand.contact_links for n in names):
+            return Rejected("bad_link", self.queries)
+        contacts = self._points(pairs, names)
+        if s.contacts == "patch" and self.surface is not None:
+            contacts = self._patches(contacts)
+        if self.exact_surface is not None:
+            contacts = self._onto_exact(contacts)
+        return Closed(pose.copy(), dict(open_joints), {k: float(v) for k, v in closed.items()}, contacts, self.queries,
+                      self._joint_frames(), self._link_poses())
+
+    def read(self, pose: np.ndarray, open_joints: dict[str, float], closed: dict[str, float]) -> Closed | Rejected:
+        """The hand placed at ``pose`` with ``closed`` joints (a stored grasp),
+        its contacts read as the settings say (e.g. the legacy points of a
+        grasp planned with patches)."""
+        self.queries = 0
+        self._place(np.array(pose, float), dict(closed))
+        return self._read(np.array(pose, float), dict(open_joints), dict(closed))
+
+    def _link_poses(self) -> dict[str, np.ndarray]:
+        """(4, 4) pose of every contact link as placed, object frame."""
+        return {link: self.sim.link_pose(self.body, link) for link in self.hand.contact_links}
+
+    def _joint_frames(self) -> JointFrames:
+        """Origins and unit axes of the finger joints as placed, object frame
+        (a URDF joint frame is its child link's frame)."""
+        names = tuple(j.name for j in self.hand.joints)
+        origins, axes = np.zeros((len(names), 3)), np.zeros((len(names), 3))
+        for i, joint in enumerate(self.hand.joints):
+            frame = self.sim.link_pose(self.body, joint.child)
+            axis = frame[:3, :3] @ self.body.joint_axes[joint.name]
+            origins[i], axes[i] = frame[:3, 3], axis / np.linalg.norm(axis)
+        return JointFrames(names, origins, axes)
+
+    def _patches(self, points: HandContacts) -> HandContacts:
+        """Contact patches of the links PyBullet finds touching; a link whose
+        patch comes out empty (a sliver below the sampling) keeps its points."""
+        touching = tuple(sorted(set(points.links)))
+        poses = {link: self.sim.link_pose(self.body, link) for link in touching}
+        found = regions(self.hand, self.surface, poses, touching)  # type: ignore[arg-type]
+        patch = discretise(found, self.settings.patches)
+        missing = [i for i, link in enumerate(points.links) if link not in set(patch.links)]
+        if not missing:
+            return patch
+        keep = np.array(missing, int)
+        return HandContacts(np.vstack([patch.points, points.points[keep]]),
+                            np.vstack([patch.normals, points.normals[keep]]),
+                            patch.links + tuple(points.links[i] for i in missing),
+                            np.r_[patch.radius, points.radius[keep]], np.r_[patch.region, points.region[keep]])
+
+    def _onto_exact(self, contacts: HandContacts) -> HandContacts:
+        """The contacts read on the proxy with their points moved to the
+        nearest point found on the exact surface (at most the proxy's
+        deviation away); normals stay the proxy's (a scan's own facets are
+        noisier than its proxy's)."""
+        if len(contacts) == 0:
+            return contacts
+        points = self.exact_surface.nearest(contacts.points)[0]  # type: ignore[union-attr]
+        return HandContacts(points, contacts.normals, contacts.links, contacts.radius, contacts.region)
+
+    def _points(self, pairs: Closest, names: list[str]) -> HandContacts:
+        """The legacy reading: closest points, at most MAX_PER_LINK per link spread over it."""
+        normals = -pairs.normal_b
+        points = pairs.on_b - pairs.normal_b * (self.hand.distance_offset / 2)
+        keep_pts, keep_nrm, keep_links = [], [], []
+        for link in sorted(set(names)):
+            idx = np.flatnonzero(np.array(names) == link)
+            chosen = idx[spread(points[idx])]
+            keep_pts.append(points[chosen])
+            keep_nrm.append(normals[chosen])
+            keep_links += [link] * len(chosen)
+        return HandContacts(np.vstack(keep_pts), np.vstack(keep_nrm), tuple(keep_links))

@@ -1,0 +1,227 @@
+"""Closing the fingers, steps 4 and 5 of :mod:`planner.plan.closing`: the
+part of :class:`~planner.plan.closing.Grasper` that knows the fingers'
+kinematics (:class:`FingerClosing`).
+
+Every finger DOF of the preshape's synergy closes until a link it moves
+touches the object or the table, or one of its joints reaches a limit; a
+breakaway joint's mimics then close on alone. A step never outruns the
+measured gap: a link that only translates is bounded along its motion, any
+other by an upper bound of its points' speed (once per DOF and link for
+every configuration; the reference path recomputes a tighter one at every
+step). A self-centring parallel jaw is re-centred afterwards.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from planner.plan.tolerances import JOINT_LIMIT_SLACK
+from planner.sim import Body, Closest, Sim
+from planner.specs.hands import HandSpec
+from planner.specs.preshapes import Preshape
+
+if TYPE_CHECKING:
+    from planner.plan.closing_types import CloseSettings
+
+
+@dataclass
+class _Dof:
+    rates: dict[str, float]  # joint name -> dq/ds
+    links: tuple[str, ...]  # links with geometry it moves
+    active: bool = True
+    after: dict[str, float] | None = None  # breakaway: the rates once ``trigger`` links are stopped
+    trigger: frozenset[str] = frozenset()  # links whose contact breaks the coupling away
+
+
+class FingerClosing:
+    """Closes the fingers of :class:`~planner.plan.closing.Grasper` (which
+    holds the attributes below and answers the obstacle queries)."""
+
+    sim: Sim
+    hand: HandSpec
+    body: Body
+    geometry: tuple[str, ...]  # links with collision geometry
+    settings: CloseSettings
+    reference: bool
+    _axes: dict[str, np.ndarray]
+    _bounds: dict[tuple, dict[str, float]]
+
+    if TYPE_CHECKING:  # the queries of planner.plan.closing.Grasper
+        def _obstacles(self, reach: float, link: str | None = None) -> Closest: ...
+
+        def _gap(self, closest: Closest) -> float: ...
+
+        def _translation_step(self, pairs: Closest, velocity: np.ndarray) -> tuple[bool, float]: ...
+
+    def _dofs(self, preshape: Preshape) -> list[_Dof]:
+        dofs: list[_Dof] = []
+        for finger in self.hand.closing_dofs(preshape.close):
+            moved = self._moved(finger.rates)
+            dof = _Dof(dict(finger.rates), moved)
+            if finger.after is not None:
+                dof.after, dof.trigger = dict(finger.after), frozenset(moved) - frozenset(self._moved(finger.after))
+            dofs.append(dof)
+        return dofs
+
+    def _moved(self, rates: dict[str, float]) -> tuple[str, ...]:
+        moved = {link for name in rates for link in self.hand.joint(name).moves}
+        return tuple(n for n in self.geometry if n in moved)
+
+    def _close_fingers(self, preshape: Preshape, joints: dict[str, float]) -> dict[str, float]:
+        s = self.settings
+        q = dict(joints)
+        dofs = self._dofs(preshape)
+        for _ in range(s.max_iterations):
+            live = [d for d in dofs if d.active]
+            if not live:
+                break
+            speed = {id(d): self._speeds(d) for d in live}
+            caps = {id(d): self._cap(d, q) for d in live}
+            sharing = {}
+            for d in live:
+                for link in d.links:
+                    sharing[link] = sharing.get(link, 0) + 1
+            pairs = {}
+            for link in sharing:
+                # several DOFs may move one link (a fingertip under three joints): their motions add up
+                reach = sum(speed[id(d)].get(link, 0.0) * caps[id(d)] for d in live) + s.contact_tol + s.gap
+                pairs[link] = self._obstacles(reach, link)
+            steps = {}
+            for d in live:
+                touched, ds = set(), caps[id(d)]
+                for link in d.links:
+                    velocity = self._translation(d, link) if sharing[link] == 1 else None
+                    if velocity is not None:  # a translating link: directional bound
+                        rate = float(np.linalg.norm(velocity))
+                        hit, travel = self._translation_step(pairs[link], velocity / rate)
+                        if hit:
+                            touched.add(link)
+                        ds = min(ds, travel / rate)
+                        continue
+                    gap = self._gap(pairs[link])
+                    if gap <= s.contact_tol:
+                        touched.add(link)
+                    v = speed[id(d)][link]
+                    if v > 0 and np.isfinite(gap):
+                        ds = min(ds, (gap - s.gap) / (sharing[link] * v))
+                if touched and d.after is not None and touched <= d.trigger:
+                    # breakaway: the touching links stop, the rest of the finger closes on
+                    d.rates, d.links, d.after = d.after, self._moved(d.after), None
+                    steps[id(d)] = 0.0
+                    continue
+                if touched:
+                    d.active = False
+                    continue
+                room = min(self._headroom(j, q[j], r) for j, r in d.rates.items())
+                if room <= JOINT_LIMIT_SLACK:
+                    d.active = False
+                    continue
+                steps[id(d)] = min(ds, room)
+            moved = {}
+            for d in live:
+                if d.active:
+                    for j, r in d.rates.items():
+                        q[j] += r * steps[id(d)]
+                        moved[j] = q[j]
+            self.sim.set_joints(self.body, moved)
+        return q
+
+    def _cap(self, dof: _Dof, q: dict[str, float]) -> float:
+        """Largest closing step considered in one iteration (units of s).
+
+        Prismatic-only DOFs look at their whole remaining travel at once (the
+        directional bound makes that safe); revolute ones turn at most
+        ``coarse_angle`` per step."""
+        room = min(self._headroom(j, q[j], r) for j, r in dof.rates.items())
+        if all(self.hand.joint(j).kind == "prismatic" for j in dof.rates):
+            return max(room, JOINT_LIMIT_SLACK)
+        return min(self.settings.coarse_angle / abs(r) for r in dof.rates.values())
+
+    def _translation(self, dof: _Dof, link: str) -> np.ndarray | None:
+        """World velocity of ``link`` per unit closing if only prismatic joints move it."""
+        movers = [self.hand.joint(j) for j in dof.rates if link in self.hand.joint(j).moves]
+        if not movers or any(j.kind != "prismatic" for j in movers):
+            return None
+        root = self.sim.link_pose(self.body, self.hand.root_link)
+        velocity = sum(dof.rates[j.name] * (root[:3, :3] @ self.axis_in_root(j.name)) for j in movers)
+        return velocity if np.linalg.norm(velocity) > 0 else None
+
+    def axis_in_root(self, joint: str) -> np.ndarray:
+        """(3,) unit axis of a prismatic finger joint in the hand frame (constant)."""
+        if joint not in self._axes:
+            self._axes[joint] = self.sim.joint_axis_in_base(self.body, joint)
+        return self._axes[joint]
+
+    def _headroom(self, joint: str, value: float, rate: float) -> float:
+        spec = self.hand.joint(joint)
+        return (spec.upper - value) / rate if rate > 0 else (value - spec.lower) / -rate
+
+    def _speeds(self, dof: _Dof) -> dict[str, float]:
+        """Upper bound of each moved link's point speed [m per unit s], valid
+        in every configuration: computed once per DOF (the reference path
+        recomputes a tighter one at every step)."""
+        if self.reference:
+            return self._speeds_now(dof)
+        key = tuple(sorted(dof.rates.items()))
+        if key not in self._bounds:
+            speeds = dict.fromkeys(dof.links, 0.0)
+            for name, rate in dof.rates.items():
+                joint = self.hand.joint(name)
+                for link in joint.moves:
+                    if link in speeds:
+                        speeds[link] += abs(rate) * (1.0 if joint.kind == "prismatic" else self._arm(joint.child,
+                                                                                                     link))
+            self._bounds[key] = speeds
+        return self._bounds[key]
+
+    def _arm(self, top: str, link: str) -> float:
+        """Largest distance [m] from the origin of link ``top`` (a joint's
+        child frame, on its axis) to any point of ``link`` below it, in any
+        configuration: the link's radius about its own frame (from its box,
+        corners included) plus the distances between the frames up the chain,
+        each the fixed offset of a revolute or fixed joint, or that plus the
+        whole travel of a prismatic one (triangle inequality)."""
+        frame = self.sim.link_pose(self.body, link)[:3, 3]
+        lo, hi = self.sim.link_aabb(self.body, link)
+        corners = np.array(np.meshgrid(*zip(lo, hi))).T.reshape(-1, 3)
+        total = float(np.max(np.linalg.norm(corners - frame, axis=1)))
+        while link != top:
+            joint = self.sim.parent_joint(self.body, link)
+            parent = self.sim.link_pose(self.body, joint.parent)[:3, 3]
+            total += float(np.linalg.norm(frame - parent)) + joint.travel
+            link, frame = joint.parent, parent
+        return total
+
+    def _speeds_now(self, dof: _Dof) -> dict[str, float]:
+        """Upper bound of each moved link's point speed [m per unit s] in the current configuration."""
+        speeds = dict.fromkeys(dof.links, 0.0)
+        for name, rate in dof.rates.items():
+            joint = self.hand.joint(name)
+            if joint.kind == "prismatic":
+                for link in joint.moves:
+                    if link in speeds:
+                        speeds[link] += abs(rate)
+                continue
+            frame = self.sim.link_pose(self.body, joint.child)
+            origin, axis = frame[:3, 3], frame[:3, :3] @ self.body.joint_axes[name]
+            for link in joint.moves:
+                if link in speeds:
+                    lo, hi = self.sim.link_aabb(self.body, link)
+                    corners = np.array(np.meshgrid(*zip(lo, hi))).T.reshape(-1, 3) - origin
+                    radius = np.max(np.linalg.norm(np.cross(corners, axis), axis=1))
+                    speeds[link] += abs(rate) * radius
+        return speeds
+
+    def _centre(self, pose: np.ndarray, q: dict[str, float]) -> tuple[np.ndarray, dict[str, float]]:
+        """Shift a self-centring parallel jaw so its two fingers are symmetric."""
+        master, slave = self.hand.jaw  # type: ignore[misc]  # centring hands are parallel jaws
+        axis = pose[:3, :3] @ self.body.joint_axes[master.name]
+        qa, qb = q[master.name], q[slave.name]
+        shifted = pose.copy()
+        shifted[:3, 3] += 0.5 * (qa - qb) * axis
+        out = dict(q)
+        out[master.name] = out[slave.name] = 0.5 * (qa + qb)
+        return shifted, out
