@@ -64,7 +64,6 @@ import trimesh
 from scipy.spatial import ConvexHull, HalfspaceIntersection
 
 from planner.datasets import acronym
-from planner.datasets.acronym import widest_preshape
 from planner.datasets.importer import MAX_BACK_OFF
 from planner.geometry.solid import PreparedObject, prepare
 from planner.plan.closing import Closed, Grasper
@@ -72,6 +71,7 @@ from planner.sim import Sim
 from planner.sim import fcl as overlap
 from planner.specs.hands import HandSpec, load_hand
 from planner.specs.objects import resolve_spec
+from planner.specs.preshapes import sweep_preshapes
 from planner.specs.toml import read_toml
 from planner.specs.urdf import load_model
 
@@ -203,7 +203,7 @@ def judge(grasper: Grasper, sweeps: FingerSweeps, hand: HandSpec, given: np.ndar
     backed = float((given[:3, 3] - final[:3, 3]) @ approach)
     start = given.copy()
     start[:3, 3] -= approach * backed
-    opened = sweeps.placed(start, widest_preshape(hand).joints)
+    opened = sweeps.placed(start, hand.widest(sweep_preshapes(hand)).joints)
     closed = sweeps.placed(final, joints)
     # the Panda's fingers close towards their joints' lower limits (fully shut)
     shut = sweeps.placed(start, {j.name: j.lower for j in hand.joints})
@@ -229,7 +229,7 @@ def run_file(path: Path, labels: Path, hand: HandSpec, gripper: trimesh.Trimesh,
     poses = acronym.read_poses(path, hand)
     mesh_bvh = overlap.object_bvh(obj.mesh.vertices, obj.mesh.faces)
     vertices = np.asarray(obj.mesh.vertices, float)
-    shape = widest_preshape(hand)
+    shape = hand.widest(sweep_preshapes(hand))
     counts: Counter = Counter()
     with Sim() as sim:
         grasper = Grasper.for_mesh(sim, hand, obj.mesh)
@@ -262,7 +262,7 @@ def render(examples: list[Example], labels: Path, hand: HandSpec, gripper: trime
             sim.set_pose(body, ex.pose)
             sim.set_joints(body, ex.joints)
             sim.set_color(body, HAND_RGBA)
-            tcp = ex.pose[:3, :3] @ widest_preshape(hand).tcp + ex.pose[:3, 3]
+            tcp = ex.pose[:3, :3] @ hand.widest(sweep_preshapes(hand)).tcp + ex.pose[:3, 3]
             side, fingers, approach = ex.pose[:3, 0], ex.pose[:3, 1], ex.pose[:3, 2]
             up = -approach
             views = []
