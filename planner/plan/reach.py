@@ -176,7 +176,10 @@ class ReachScene:
     # -- checks ----------------------------------------------------------------
     def check(self, grasp_pose: np.ndarray, closed: dict[str, float], open_: dict[str, float],
               rng: np.random.Generator) -> Reach:
-        """Grasp and pre-grasp IK at the current object placement."""
+        """Grasp and pre-grasp IK at the current object placement; a mimic
+        joint ``open_`` lacks follows its master (the antipodal sweep stores
+        the driven joints of the opening it fitted)."""
+        open_ = {**self.hand.full_configuration(open_), **open_}
         world = self.object_pose @ grasp_pose
         pre = world.copy()
         pre[:3, 3] -= (world[:3, :3] @ self.hand.approach) * self.settings.pregrasp_distance

@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 
 from planner.specs.hands import load_hand
+from planner.validation import fingers as fg
 from planner.validation.mujoco_settings import MujocoSettings
-from planner.validation.mujoco_trial import recorded, trial, trials
+from planner.validation.mujoco_trial import recorded, start_joints, trial, trials
 from tests.validation.support import as_row_of, backed_off, box, box_of, pinch
 
 #: The pinched box (0.2 kg) and the Panda's pad force (one 70 N motor: 35 N a pad): below
@@ -80,6 +81,17 @@ def test_an_open_hand_inside_the_object_is_flagged(pinched) -> None:  # type: ig
     hand, obj, grasp = pinched
     pushed = backed_off(grasp, hand, -0.03)  # the palm 3 cm into the box
     assert trial(hand, obj, pushed).reason == "start_overlap"
+
+
+def test_a_mimic_the_stored_opening_lacks_starts_with_its_master(pinched) -> None:  # type: ignore[no-untyped-def]
+    """The antipodal sweep stores the driven joint of the opening it fitted
+    (the Panda's first finger); the second, its mimic, starts there too, not
+    at its open limit, and the fitted hand is as free of the box as planned."""
+    hand, obj, grasp = pinched
+    fitted = replace(grasp, open_joints={"panda_finger_joint1": 0.025})
+    start = start_joints(hand, fitted, fg.closing_rates(hand, fitted.preshape))
+    assert start == {"panda_finger_joint1": 0.025, "panda_finger_joint2": 0.025}
+    assert trial(hand, obj, fitted).reason == "held"
 
 
 def test_verdicts_do_not_depend_on_the_order_of_the_grasps(pinched) -> None:  # type: ignore[no-untyped-def]
