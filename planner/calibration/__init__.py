@@ -2,7 +2,9 @@
 external labels, and how well it predicts them (issue 26).
 
 - :mod:`~planner.calibration.features`: the stored analytic measures as the model's inputs;
-- :mod:`~planner.calibration.model`: the logistic model, its fit and grouped cross-validation;
+- :mod:`~planner.calibration.model`: the logistic model's fit and grouped cross-validation;
+- :mod:`~planner.calibration.logistic`: the fitted model as a value, its TOML/JSON and the shipped default;
+- :mod:`~planner.calibration.basis`: the model's columns (inputs held within bounds, spline columns, knots);
 - :mod:`~planner.calibration.metrics`: ROC AUC, expected calibration error, reliability table, folds;
 - :mod:`~planner.calibration.labels`: labelled grasp files (ACRONYM layout) -> measures and labels;
 - :mod:`~planner.calibration.plot`: the reliability diagram (matplotlib, PNG).

@@ -1,0 +1,267 @@
+"""Building a grasp database: :func:`generate` plans the units of work
+(:func:`plan_units`; on the table in the object's resting poses,
+:func:`table_supports`), runs them (in this process, a process pool or Ray)
+and stores each finished unit (:func:`unit_row`), reporting
+:class:`GenerateProgress` and returning a :class:`Summary`.
+
+``UnitSpec``, ``UnitResult`` and ``run_unit`` (PyBullet's world) are read
+from the facade :mod:`planner.api`, where they load on first use and where a
+test may patch them (:func:`_lazy`).
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import time
+from collections import Counter
+from collections.abc import Callable, Sequence
+from contextlib import closing
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from planner.api.resolving import DEFAULT_DB, PROPERTY_RTOL
+from planner.db.lock import writer_lock
+from planner.db.ranking import RankingRule
+from planner.db.store import Database, UnitRow, open_db
+from planner.errors import InputError
+from planner.plan.sweep import SweepSettings, candidate_count
+from planner.specs.hands import load_hand
+from planner.specs.inputs import expand
+from planner.specs.objects import NO_PHYSICAL, Physical, resolve_spec
+from planner.specs.preshapes import load_preshapes, sweep_preshapes
+
+if TYPE_CHECKING:
+    from planner.geometry.solid import PreparedObject
+    from planner.geometry.support import Support
+    from planner.plan.unit import UnitResult, UnitSpec
+
+
+#: [s] the pool stops a worker this long after ``--unit-timeout``: the unit
+#: checks its own time between candidates and ends cleanly; the pool's kill is
+#: for a simulator call that never returns.
+UNIT_TIMEOUT_GRACE = 10.0
+
+
+@dataclass
+class Summary:
+    """What a ``generate`` run did."""
+
+    units: int = 0
+    skipped: int = 0
+    failed: dict[str, str] = field(default_factory=dict)
+    candidates: int = 0
+    grasps: int = 0
+    force_closure: int = 0
+    rejected: Counter = field(default_factory=Counter)
+    seconds: float = 0.0
+    per_object: list[dict] = field(default_factory=list)
+
+    def to_json(self) -> dict:
+        return {"units": self.units, "skipped": self.skipped, "failed": self.failed, "candidates": self.candidates,
+                "grasps": self.grasps, "force_closure": self.force_closure, "rejected": dict(self.rejected),
+                "seconds": round(self.seconds, 3), "objects": self.per_object}
+
+
+@dataclass(frozen=True)
+class GenerateProgress:
+    """What ``generate`` tells its ``progress`` callback: after the plan
+    (nothing run yet), as running units report candidates (``result`` None),
+    and when a unit is written (``result`` its result).
+
+    ``candidates_total``: the candidates of every unit to do, planned from the
+    settings, a unit's own count once it reports (None while unknown: the box
+    sampler before any unit began); ``candidates_done`` never goes down, and
+    counts a finished unit (budget spent, failed) as its whole total and a
+    retried one once (:class:`planner.run.progress.Tally`). On Ray it moves
+    only as units finish."""
+
+    units_done: int
+    units_total: int
+    candidates_done: int
+    candidates_total: int | None
+    result: UnitResult | None = None
+
+
+def _lazy(name: str) -> Any:
+    """A name of the facade's :data:`planner.api._LAZY`, read from the facade
+    (imported on first use there, and patched there by tests)."""
+    return getattr(importlib.import_module("planner.api"), name)
+
+
+def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: int,
+               scale: float | None = None, physical: Physical = NO_PHYSICAL, on_table: int = 0) -> list[UnitSpec]:
+    """Expand the object arguments and check every input up front (names,
+    hand, preshapes, physical properties) before any work. ``on_table`` > 0:
+    each object's units plan on the table in each of its ``on_table`` most
+    probable resting poses (:func:`table_supports`) instead of on the object
+    alone."""
+    from planner.geometry.solid import load_object
+
+    unit_spec = _lazy("UnitSpec")
+    refs = expand(list(names), scale, physical)
+    if not refs:
+        raise InputError("no objects given")
+    if on_table < 0:
+        raise InputError(f"--stable-poses must be at least 1, got {on_table}")
+    hand_spec = load_hand(hand)
+    settings = settings.resolved(hand_spec.sampler, hand_spec.settle)
+    load_preshapes(hand_spec, list(settings.preshapes) if settings.preshapes else None)
+    units, seen = [], {}
+    for ref in refs:
+        spec = resolve_spec(ref.source, scale=ref.scale, label=ref.label, **ref.physical.given())
+        if spec.kind == "mesh" and not spec.source.startswith("pybullet_data:") and not Path(spec.source).exists():
+            raise InputError(f"{spec.source}: file not found")
+        if spec.name in seen:
+            if seen[spec.name] != spec:
+                raise InputError(f"object '{spec.name}' is given twice with different scale, mass, density or "
+                                 "friction; give it once")
+            continue
+        seen[spec.name] = spec
+        planned = [settings]
+        if on_table:
+            obj = load_object(ref.source, scale=ref.scale, label=spec.name, **ref.physical.given())
+            planned = [settings.on(support) for support in table_supports(obj, on_table)]
+        units += [unit_spec(ref.source, hand, plan, seed, ref.scale, chunk, label=spec.name, physical=ref.physical)
+                  for plan in planned for chunk in range(plan.chunks())]
+    if len(refs) == 1:
+        # One object: a broken mesh is the user's input error, reported before
+        # the database is opened. In a batch it is recorded and the rest go on.
+        load_object(refs[0].source, scale=refs[0].scale, **refs[0].physical.given())
+    return units
+
+
+def table_supports(obj: PreparedObject, poses: int) -> list[Support]:
+    """The table tops under the object in its ``poses`` most probable resting
+    poses (:mod:`planner.geometry.stable`), most probable first."""
+    from planner.geometry.stable import resting_poses
+    from planner.geometry.support import Support
+
+    return [Support.resting(r.pose) for r in resting_poses(obj.mesh, obj.com, poses)]
+
+
+def _check_stored_physics(db: Database, units: Sequence[UnitSpec]) -> None:
+    """Refuse to add grasps of an object at another mass, density or friction
+    than its stored grasps were measured at: one name, one set of properties."""
+    checked: set[str] = set()
+    for unit in units:
+        name = unit.label or unit.object_name
+        row = db.object_row(name) if name not in checked else None
+        checked.add(name)
+        if row is None:
+            continue
+        spec = resolve_spec(unit.object_name, scale=unit.scale, label=unit.label, **unit.physical.given())
+        stored = {"density": row.density} if spec.density is not None else {"mass": row.mass}
+        given = {"density": spec.density} if spec.density is not None else {"mass": spec.mass}
+        stored["friction"], given["friction"] = row.friction, spec.friction
+        if any(not math.isclose(given[k], stored[k], rel_tol=PROPERTY_RTOL) for k in given):
+            def text(values: dict[str, float]) -> str:
+                return ", ".join(f"{k} {v:g}" for k, v in values.items())
+
+            raise InputError(f"object '{name}' is stored in {db.path} with {text(stored)}, this run gives "
+                             f"{text(given)}; its grasps were measured at the stored values: use another --db, or "
+                             "name the object apart (copy the mesh under another name)")
+
+
+def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, settings: SweepSettings | None = None,
+             seed: int = 0, workers: int = 1, scale: float | None = None, rule: RankingRule | None = None,
+             use_ray: bool = False, ray_address: str | None = None, unit_timeout: float | None = None,
+             progress: Callable[[GenerateProgress], None] | None = None,
+             mass: float | None = None, density: float | None = None, friction: float | None = None,
+             on_table: int = 0) -> Summary:
+    """Build (or extend) a grasp database; finished units are skipped, so a
+    run that was killed resumes when called again. Units run in this process
+    (``workers`` 1), in a crash-safe pool of ``workers`` processes, or on Ray
+    (:func:`planner.run.pool.execute`); a unit whose worker dies twice, or
+    that fails, is stored as failed with its error and the batch goes on.
+    ``mass`` [kg] or ``density`` [kg/m^3], and ``friction``, apply to every
+    object except where a manifest line gives its own (see
+    :mod:`planner.specs.objects`); an object stored at other values is refused.
+    ``on_table`` > 0: plan on the table in each object's ``on_table`` most
+    probable resting poses (the grasps keep the hand off the table and record
+    its plane, ``table_plane``), not on the object alone.
+    ``progress(GenerateProgress)`` once the work is planned, then as it goes."""
+    from planner.run import pool
+    from planner.run.progress import Tally
+
+    if workers < 1:
+        raise InputError(f"--workers must be at least 1, got {workers}")
+    physical = Physical.checked({"mass": mass, "density": density, "friction": friction}, prefix="--")
+    hand_spec = load_hand(hand)
+    settings = (settings or SweepSettings()).resolved(hand_spec.sampler, hand_spec.settle)
+    units = plan_units(names, hand, settings, seed, scale, physical, on_table)
+    summary = Summary()
+    start = time.perf_counter()
+    with writer_lock(Path(db_path)), open_db(Path(db_path)) as db:
+        _check_stored_physics(db, units)
+        rule = rule or db.rule()
+        db.apply_rule(rule)
+        done = {d: db.units_done(hand, d, seed) for d in sorted({u.settings.digest for u in units})}
+        todo = [u for u in units if (u.label, u.chunk) not in done[u.settings.digest]]
+        summary.skipped = len(units) - len(todo)
+        names = list(settings.preshapes) if settings.preshapes else None
+        tally = Tally([candidate_count(u.settings, sweep_preshapes(hand_spec, names, u.settings.support() is not None),
+                                       u.chunk) for u in todo])
+        finished = 0
+
+        def tell(result: UnitResult | None = None) -> None:
+            if progress:
+                progress(GenerateProgress(finished, len(todo), tally.done, tally.total, result))
+
+        def reported(index: int, done: int, total: int) -> None:
+            tally.report(index, done, total)
+            tell()
+
+        tell()
+        if unit_timeout:
+            todo = [replace(u, timeout=unit_timeout) for u in todo]
+        hard_timeout = unit_timeout + UNIT_TIMEOUT_GRACE if unit_timeout else None
+        ray = (ray_address or "local") if use_ray else None
+        unit_result = _lazy("UnitResult")
+        index = {_unit_key(u): i for i, u in enumerate(todo)}
+        with closing(pool.execute(_lazy("run_unit"), todo, workers, timeout=hard_timeout, ray=ray,
+                                  progress=reported if progress else None)) as outcomes:
+            for unit, outcome, seconds in outcomes:
+                result = outcome if isinstance(outcome, unit_result) else unit_result(unit, error=str(outcome))
+                db.write_unit(unit_row(result, seconds), result.obj, result.grasps, rule)
+                _tally(summary, result, seconds)
+                finished += 1
+                tally.finish(index[_unit_key(unit)])
+                tell(result)
+    summary.seconds = time.perf_counter() - start
+    return summary
+
+
+def _unit_key(unit: UnitSpec) -> tuple[str | None, str, int]:
+    """What tells a run's units apart: object, settings (the table plane among them), chunk."""
+    return unit.label, unit.settings.digest, unit.chunk
+
+
+def unit_row(result: UnitResult, seconds: float) -> UnitRow:
+    """The ``units`` row of a finished (or failed) unit."""
+    spec = result.spec
+    return UnitRow(result.object_name, spec.hand, spec.settings.digest, spec.settings.to_json(), spec.seed,
+                   spec.chunk, result.error, result.candidates, dict(result.rejected), seconds)
+
+
+def _tally(summary: Summary, result: UnitResult, seconds: float) -> None:
+    summary.units += 1
+    name = result.object_name
+    if result.error:
+        summary.failed[name] = result.error
+    summary.candidates += result.candidates
+    summary.grasps += len(result.grasps)
+    summary.force_closure += result.force_closure
+    summary.rejected.update(result.rejected)
+    row = next((r for r in summary.per_object if r["object"] == name), None)
+    if row is None:
+        row = {"object": name, "units": 0, "candidates": 0, "grasps": 0, "force_closure": 0, "seconds": 0.0,
+               "error": None}
+        summary.per_object.append(row)
+    row["units"] += 1
+    row["candidates"] += result.candidates
+    row["grasps"] += len(result.grasps)
+    row["force_closure"] += result.force_closure
+    row["seconds"] = round(row["seconds"] + seconds, 3)
+    row["error"] = row["error"] or result.error

@@ -1,0 +1,73 @@
+"""Calibrating p_hold: :func:`calibrate` fits it to labelled grasp files
+and stores it; :func:`report` writes the calibration report and
+:func:`calibration_errors` gives its expected calibration errors.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from planner.api.resolving import DEFAULT_DB
+from planner.db.lock import writer_lock
+from planner.db.store import open_db
+from planner.errors import InputError
+
+if TYPE_CHECKING:
+    from planner.calibration.fitting import Calibration
+
+
+def report(db_path: Path, out: Path) -> Path:
+    """The calibration report of ``db_path``: ``out.html``, or a folder with
+    ``report.md`` and PNGs (the reliability diagram of each hand's p_hold
+    among them); returns the file written."""
+    from planner.present import report as reporting
+
+    return reporting.write(Path(db_path), Path(out))
+
+
+def calibration_errors(db_path: Path) -> list[str]:
+    """Per hand with a p_hold model: the expected calibration error of each of
+    its reliability tables (held out on its labels; against stored trials)."""
+    from planner.present import report as reporting
+
+    return reporting.ece_lines(reporting.calibration(Path(db_path)))
+
+
+def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB, poses: int | None = 200, seed: int = 0,
+              folds: int = 5, hand: str | None = None, workers: int = 1, model_out: Path | None = None,
+              plot: Path | None = None, progress: Callable[[Path, int, int], None] | None = None
+              ) -> Calibration:
+    """Fit p_hold (and so the ranking, by p_hold) to labelled grasp files in
+    ACRONYM layout: a seeded sample of ``poses`` poses per file re-scored as
+    ``import --rescore`` does, cross-validated over ``folds`` folds grouped by
+    object. The model and its source are stored in ``db_path`` (None: not
+    stored), where ``best``, exports and reports use it for its hand;
+    ``model_out`` writes it as TOML (the form of the shipped default),
+    ``plot`` the held-out reliability diagram as PNG."""
+    from planner.calibration.fitting import calibrate as fit_calibration
+    from planner.calibration.labels import labelled
+
+    if plot is not None and Path(plot).suffix.lower() != ".png":
+        raise InputError(f"{plot}: the reliability diagram is written as PNG; give a .png path")
+    if folds < 2:
+        raise InputError(f"--folds must be at least 2, got {folds}")
+    paths = [Path(p) for p in label_files]
+    data = labelled(paths, poses=poses, seed=seed, hand=hand, workers=workers, progress=progress)
+    source = json.dumps({"command": "grasp calibrate", "labels": [p.name for p in paths], "poses_per_file": poses,
+                         "seed": seed, "folds": folds, "grasps": len(data.labels), "objects": len(set(data.groups)),
+                         "rejected": data.rejected}, sort_keys=True)
+    result = fit_calibration(data, folds=folds, source=source)
+    if db_path is not None:
+        with writer_lock(Path(db_path)), open_db(Path(db_path)) as db:
+            db.write_model(result.model, source, db.rule())
+    if model_out is not None:
+        Path(model_out).write_text(result.model.to_toml(), encoding="utf-8")
+    if plot is not None:
+        from planner.calibration.plot import reliability_png
+
+        Path(plot).write_bytes(reliability_png([("held out (grouped CV)", result.reliability)],
+                                               f"p_hold, {result.model.hand}: {len(data.labels)} labelled grasps"))
+    return result

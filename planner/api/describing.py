@@ -1,0 +1,39 @@
+"""Descriptions and maintenance: the built-in hands (with their preshapes)
+and objects, a database's integrity check, the default number of workers.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from planner.db.store import open_db
+from planner.specs.hands import HandSpec, hand_names, load_hand
+from planner.specs.objects import ObjectSpec, builtin_specs
+from planner.specs.preshapes import Preshape, load_preshapes
+
+
+def hands() -> list[tuple[HandSpec, tuple[Preshape, ...]]]:
+    """Every built-in hand with its preshapes."""
+    return [hand(name) for name in hand_names()]
+
+
+def hand(name: str) -> tuple[HandSpec, tuple[Preshape, ...]]:
+    """One hand and its preshapes."""
+    spec = load_hand(name)
+    return spec, load_preshapes(spec)
+
+
+def objects() -> dict[str, ObjectSpec]:
+    """The built-in objects by name (``random_NNN`` are not listed)."""
+    return builtin_specs()
+
+
+def check_db(db_path: Path) -> list[str]:
+    """``PRAGMA integrity_check`` problems (empty list: healthy)."""
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        return db.integrity_check()
+
+
+def default_workers() -> int:
+    return max(1, os.cpu_count() or 1)

@@ -1,0 +1,62 @@
+"""Querying stored grasps: the best ones of an object for a hand (diverse
+ones with a spacing), and the ranking rule and p_hold model a database applies.
+"""
+
+from __future__ import annotations
+
+from contextlib import closing
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from planner.api.resolving import DEFAULT_DB, generate_command, resolve_object
+from planner.db.ranking import RankingRule
+from planner.db.store import open_db
+from planner.errors import InputError
+from planner.record.grasp import Grasp
+from planner.specs.hands import check_hand_name, load_hand
+
+if TYPE_CHECKING:
+    from planner.calibration.model import LogisticModel
+    from planner.db.diverse import Spacing
+
+
+DIVERSE_BATCH = 500  # grasps read at a time while picking diverse ones
+
+
+def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1, spacing: Spacing | None = None
+         ) -> list[Grasp]:
+    """The ``top`` best grasps of an object for a hand, in rank order; with
+    ``spacing``, the best ``top`` that are each that far from every better
+    one kept (:mod:`planner.db.diverse`)."""
+    if top < 1:
+        raise InputError(f"--top must be at least 1, got {top}")
+    check_hand_name(hand)
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        key, row = resolve_object(db, name)
+        if spacing is None:
+            grasps = db.best(key, hand, top)
+        else:
+            from planner.db.diverse import diverse
+
+            spec = load_hand(hand)
+            with closing(db.grasp_batches(key, hand, size=DIVERSE_BATCH)) as batches:  # its cursor, before the db
+                ranked = (g for batch in batches for g in batch if g.rank)
+                grasps = diverse(ranked, top, spacing, spec.tcp, spec.approach, spec.roll_symmetry)
+        if not grasps:
+            known = db.objects_for(hand)
+            raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}; objects with grasps: "
+                             f"{', '.join(known) or '(none)'}; run `{generate_command(name, row, hand, db_path)}`")
+    return grasps
+
+
+def ranking_rule(db_path: Path = DEFAULT_DB) -> RankingRule:
+    """The ranking rule a database's scores were made with (``meta.ranking``)."""
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        return db.rule()
+
+
+def p_hold_model(hand: str, *, db_path: Path = DEFAULT_DB) -> LogisticModel | None:
+    """The p_hold model a database applies to ``hand``'s grasps (stored by
+    ``grasp calibrate``, else the shipped one; None: none)."""
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        return db.model(hand)

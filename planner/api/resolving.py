@@ -1,0 +1,104 @@
+"""What a user's words name, checked against a database: the object ``name``
+means (stored, built-in, ``random_NNN`` or a mesh file), a stored object
+rebuilt, a typed pose, and the ``grasp generate`` command that plans an object;
+the default database path every API function opens.
+"""
+
+from __future__ import annotations
+
+import math
+import shlex
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from planner.db.store import Database, ObjectRow
+from planner.errors import InputError, UnknownNameError
+from planner.specs.objects import is_registered, resolve_spec
+
+if TYPE_CHECKING:
+    from planner.geometry.solid import PreparedObject
+
+DEFAULT_DB = Path("grasps.db")
+#: A typed quaternion whose norm lies outside this range is a mistake, not round-off.
+QUATERNION_NORM = (0.5, 2.0)
+#: Stored object names an "unknown object" error lists at most.
+LISTED_NAMES = 12
+#: Relative difference below which a stored mass, density or friction is the
+#: one given: a density comes back from the store as mass / volume, a few ulp off.
+PROPERTY_RTOL = 1e-9
+
+
+def resolve_object(db: Database, name: str) -> tuple[str, ObjectRow | None]:
+    """The database's name and ``objects`` row of the object ``name`` means.
+
+    ``name`` is a stored object's name (any object with grasps: built-in,
+    ``random_NNN``, a user mesh by its stem or label, an imported object, a
+    mesh generated with ``--scale``), else a built-in name, ``random_NNN`` or
+    mesh path, named as ``generate`` names it. The row (None when the object
+    is not stored) holds the source, scale, mass and friction its grasps were
+    planned with: :func:`~planner.db.objects.stored_object` rebuilds it.
+    """
+    row = db.object_row(name)
+    if row is not None:
+        return name, row
+    try:
+        key = resolve_spec(name).name
+    except UnknownNameError:
+        stored = sorted({o for o, _ in db.pairs()})
+        listed = ", ".join(stored[:LISTED_NAMES]) + (f", ... ({len(stored)} in all)" if len(stored) > LISTED_NAMES
+                                                     else "")
+        raise InputError(f"unknown object '{name}': not stored in {db.path} (objects: {listed or 'none'}) and not "
+                         f"a built-in name, random_NNN or mesh file (see `grasp objects`)") from None
+    return key, db.object_row(key)
+
+
+def _stored(db: Database, name: str, hand: str) -> tuple[str, PreparedObject]:
+    """Name and rebuilt object of a stored object; an object without grasps is an error."""
+    from planner.db.objects import stored_object
+
+    key, row = resolve_object(db, name)
+    if row is None:
+        raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db.path}; "
+                         f"run `{generate_command(name, row, hand, db.path)}`")
+    return key, stored_object(row)
+
+
+def generate_command(name: str, row: ObjectRow | None, hand: str, db_path: Path) -> str:
+    """The ``grasp generate`` command that plans the object ``name`` means
+    for ``hand``: a stored mesh by its file (its name alone is no object),
+    with the stored scale, mass and friction where the file does not give them."""
+    db = "" if Path(db_path) == DEFAULT_DB else f" --db {shlex.quote(str(db_path))}"
+    if row is None or is_registered(row.name) or not Path(row.source).is_file():
+        return f"grasp generate {shlex.quote(name)} --hand {hand}{db}"
+    scale = None if row.scale == 1.0 else row.scale
+    own = resolve_spec(row.source, scale=scale)
+    extra = "" if scale is None else f" --scale {scale!r}"
+    if not math.isclose(own.mass, row.mass, rel_tol=PROPERTY_RTOL) and own.density is None:
+        extra += f" --mass {row.mass!r}"
+    if own.density is not None and not math.isclose(own.density, row.density, rel_tol=PROPERTY_RTOL):
+        extra += f" --density {row.density!r}"
+    if not math.isclose(own.friction, row.friction, rel_tol=PROPERTY_RTOL):
+        extra += f" --friction {row.friction!r}"
+    return f"grasp generate {shlex.quote(row.source)} --hand {hand}{extra}{db}"
+
+
+def object_pose_matrix(values: Sequence[float]) -> np.ndarray:
+    """(4, 4) the pose ``--object-pose`` x,y,z,qx,qy,qz,qw gives (checked)."""
+    return _pose7(values, "--object-pose")
+
+
+def _pose7(values: Sequence[float], option: str) -> np.ndarray:
+    from planner.geometry.frames import pose_from_xyzquat
+
+    vals = [float(v) for v in values]
+    if len(vals) != 7 or not all(np.isfinite(vals)):
+        raise InputError(f"{option} needs 7 finite numbers x,y,z,qx,qy,qz,qw; got {values}")
+    q = np.array(vals[3:])
+    lo, hi = QUATERNION_NORM
+    if not lo < np.linalg.norm(q) < hi:
+        raise InputError(f"{option}: quaternion {vals[3:]} is not close to unit length")
+    vals[3:] = list(q / np.linalg.norm(q))
+    return pose_from_xyzquat(vals)

@@ -1,0 +1,264 @@
+"""The store's writes: a unit with its object and grasps, trial results, a
+p_hold model, the ranking rule and meta values, each in one transaction
+that re-scores and re-ranks what it touched (:class:`Writing`, the part of
+:class:`~planner.db.store.Database` that writes). Scores are never computed
+in SQL: the hand's p_hold model and the ranking rule make them here, from
+the measures the SQL below reads.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sqlite3
+import time
+from collections.abc import Iterable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import replace
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from planner.calibration import features
+from planner.calibration.model import LogisticModel
+from planner.db.columns import (
+    _ALIAS,
+    _GRASP_COLUMNS,
+    _GRASPS,
+    _MUJOCO,
+    _MUJOCO_COLUMNS,
+    _OBJECT_COLUMNS,
+    _OBJECTS,
+    _ROBUST,
+    _ROBUST_COLUMNS,
+    _TRIAL,
+    _UNIT_COLUMNS,
+    _VALIDATION_COLUMNS,
+    _insert,
+    _json,
+    _row,
+    _sql,
+)
+from planner.db.failures import write_failed
+from planner.db.ranking import ORDER_BY, RankingRule, rank_order, rule_measures
+from planner.db.rows import UnitRow, Validated
+from planner.db.schema import transaction
+from planner.errors import DatabaseError
+from planner.record import fields
+from planner.record.grasp import Grasp
+
+if TYPE_CHECKING:
+    from planner.geometry.solid import PreparedObject
+
+
+#: What the ranking rule reads, by the rule's names.
+_RANKED = ", ".join(f"{_ALIAS[f.table]}.{f.column} AS {f.ranked}" for f in fields.ranked_fields())
+#: The stored columns a p_hold model reads (:data:`planner.calibration.features.COLUMNS`), as ``m_<column>``.
+_MODEL_INPUTS = ", ".join(f"g.{fields.by_name(name).column} AS m_{name}" for name in features.COLUMNS)
+_MEASURES = f"""
+SELECT g.id, g.object, g.hand, {_RANKED}{{inputs}}
+FROM grasps g LEFT JOIN validation v ON v.grasp_id = g.id LEFT JOIN mujoco mj ON mj.grasp_id = g.id
+LEFT JOIN robust r ON r.grasp_id = g.id
+"""
+_RERANK = f"""
+WITH ranked AS (
+    SELECT id, ROW_NUMBER() OVER (ORDER BY {ORDER_BY}) AS r FROM grasps WHERE object = ? AND hand = ?
+)
+UPDATE grasps SET rank = ranked.r FROM ranked WHERE grasps.id = ranked.id
+"""
+
+
+def p_hold_of(col: dict, models: dict[str, LogisticModel | None]) -> list[float | None]:
+    """p_hold of stored grasps rows (columns ``col``: ``hand`` and the model
+    inputs of :data:`_MODEL_INPUTS`, named ``m_<column>``) by each row's
+    hand's model; None where the hand has none."""
+    n = len(col["hand"])
+    out: list[float | None] = [None] * n
+    for hand in sorted(set(col["hand"])):
+        model = models.get(hand)
+        if model is None:
+            continue
+        rows = [i for i, h in enumerate(col["hand"]) if h == hand]
+        sub = {k: [col["m_" + k][i] for i in rows] for k in features.COLUMNS}
+        for i, p in zip(rows, model.predict(features.of_columns(sub)).tolist()):
+            out[i] = p
+    return out
+
+
+class Writing:
+    """The writes of :class:`~planner.db.store.Database` (which holds the
+    connection and answers the reads declared below), each one transaction,
+    and the scores and ranks they re-make."""
+
+    path: Path
+    _conn: sqlite3.Connection
+
+    if TYPE_CHECKING:  # the reads of planner.db.store.Database
+        def meta(self, key: str) -> str | None: ...
+
+        def rule(self) -> RankingRule: ...
+
+        def pairs(self) -> list[tuple[str, str]]: ...
+
+        def model(self, hand: str) -> LogisticModel | None: ...
+
+        def _models(self, hands: Iterable[str]) -> dict[str, LogisticModel | None]: ...
+
+    @contextmanager
+    def _transaction(self) -> Iterator[sqlite3.Connection]:
+        """One atomic write (:func:`planner.db.schema.transaction`); a write
+        that fails says in one line why, and that what was committed before
+        it is kept."""
+        try:
+            with transaction(self._conn, self.path) as conn:
+                yield conn
+        except DatabaseError as exc:
+            if not isinstance(exc.__cause__, sqlite3.Error):
+                raise
+            raise DatabaseError(write_failed(self.path, exc.__cause__, self._units_kept())) from exc.__cause__
+
+    def _units_kept(self) -> int | None:
+        try:
+            return int(self._conn.execute("SELECT COUNT(*) FROM units WHERE status = 'done'").fetchone()[0])
+        except sqlite3.Error:
+            return None
+
+    def set_meta(self, key: str, value: str) -> None:
+        with self._transaction() as conn:
+            self._set_meta(conn, key, value)
+
+    @staticmethod
+    def _set_meta(conn: sqlite3.Connection, key: str, value: str) -> None:
+        conn.execute("INSERT INTO meta (key, value) VALUES (?, ?)"
+                     " ON CONFLICT(key) DO UPDATE SET value = excluded.value", (key, value))
+
+    def write_unit(self, unit: UnitRow, obj: PreparedObject | None, grasps: Sequence[Grasp],
+                   rule: RankingRule) -> int:
+        """Store a finished (or failed) unit, its object and its grasps
+        atomically, then re-rank the object's grasps; returns the unit's id."""
+        key = (unit.object, unit.hand, unit.settings_hash, unit.seed, unit.chunk)
+        status = "failed" if unit.error else "done"
+        scores, p_hold = self._scores(grasps, unit.hand, rule)
+        with self._transaction() as conn:
+            conn.execute("DELETE FROM units WHERE object = ? AND hand = ? AND settings_hash = ? AND seed = ?"
+                         " AND chunk = ?", key)
+            unit_id = conn.execute(_insert("units", _UNIT_COLUMNS), (
+                *key, unit.settings, status, unit.error, unit.candidates, len(grasps),
+                sum(g.force_closure for g in grasps), _json(unit.rejected), unit.seconds,
+                time.strftime("%Y-%m-%dT%H:%M:%S"))).lastrowid
+            if obj is not None:
+                conn.execute(_insert("objects", _OBJECT_COLUMNS, "INSERT OR REPLACE"), _object_row(unit.object, obj))
+            conn.executemany(_insert("grasps", _GRASP_COLUMNS),
+                             [_grasp_row(g, unit_id, score, p) for g, score, p in zip(grasps, scores.tolist(), p_hold)])
+            conn.execute(_RERANK, (unit.object, unit.hand))
+        return int(unit_id)  # type: ignore[arg-type]
+
+    def _scores(self, grasps: Sequence[Grasp], hand: str, rule: RankingRule) -> tuple[np.ndarray, list]:
+        """(n,) scores and the n p_hold values (None: no model) of grasps of
+        ``hand`` as :meth:`write_unit` stores them."""
+        measures = rule_measures(grasps)
+        model = self.model(hand)
+        p_hold: list = [None] * len(grasps)
+        if model is not None and grasps:  # the hand's model, on the records' measures; the rule reads it
+            measures["p_hold"] = model.predict(features.of_grasps(grasps))
+            p_hold = measures["p_hold"].tolist()
+        return rule.scores(measures), p_hold
+
+    def scored(self, grasps: Sequence[Grasp], hand: str) -> list[Grasp]:
+        """Grasps not stored (planned by a query) with the score and p_hold
+        this database would give them (its rule, the hand's model), best
+        first as it would rank them (:func:`planner.db.ranking.rank_order`;
+        ties in the given order); ``rank`` stays None."""
+        if not grasps:
+            return []
+        scores, p_hold = self._scores(grasps, hand, self.rule())
+        out = [replace(g, score=float(s), p_hold=p) for g, s, p in zip(grasps, scores.tolist(), p_hold)]
+        return [out[i] for i in rank_order(scores, np.array([g.force_closure for g in grasps], float))]
+
+    # -- ranking ---------------------------------------------------------------
+    def apply_rule(self, rule: RankingRule, force: bool = False) -> bool:
+        """Store ``rule``; if it differs from the stored one, or a hand's p_hold
+        model is not the one its scores were made with (a new shipped model),
+        or ``force``, re-score and re-rank every grasp in one transaction."""
+        models = self._models_key()
+        if self.meta("ranking") == rule.to_json() and self.meta("p_hold_models") == models and not force:
+            return False
+        with self._transaction() as conn:
+            self._set_meta(conn, "ranking", rule.to_json())
+            self._set_meta(conn, "p_hold_models", models)
+            self._rescore(conn, rule)
+        return True
+
+    def _models_key(self) -> str:
+        """Which p_hold model scores each stored hand (JSON, hashes of the
+        models): scores made with other models are re-made by the next write."""
+        hands = sorted({h for _, h in self.pairs()})
+        return json.dumps({h: None if (m := self.model(h)) is None else
+                           hashlib.sha256(m.to_json().encode()).hexdigest()[:16] for h in hands}, sort_keys=True)
+
+    def _rescore(self, conn: sqlite3.Connection, rule: RankingRule, pair: tuple[str, str] | None = None,
+                 hand: str | None = None) -> None:
+        """Scores from the rule (all grasps, one object and hand, or one hand)
+        and ranks, inside the caller's transaction."""
+        where, params = ("", ()) if pair is None else (" WHERE g.object = ? AND g.hand = ?", pair)
+        if hand is not None:
+            where, params = " WHERE g.hand = ?", (hand,)
+        hands = [r["hand"] for r in conn.execute("SELECT DISTINCT g.hand FROM grasps g" + where, params)]
+        models = self._models(hands)
+        inputs = ", " + _MODEL_INPUTS if any(m is not None for m in models.values()) else ""
+        rows = conn.execute(_MEASURES.format(inputs=inputs) + where, params).fetchall()
+        if not rows:
+            return
+        col = dict(zip(rows[0].keys(), zip(*rows)))
+        col["p_hold"] = p_hold_of(col, models)  # the model's, not the stored one: the model may be new
+        scores = rule.scores({f.ranked: col[f.ranked] for f in fields.ranked_fields()})
+        conn.executemany("UPDATE grasps SET score = ?, p_hold = ? WHERE id = ?",
+                         zip(scores.tolist(), col["p_hold"], col["id"]))
+        for o, h in sorted(set(zip(col["object"], col["hand"]))):
+            conn.execute(_RERANK, (o, h))
+
+    def write_model(self, model: LogisticModel, source: str, rule: RankingRule) -> None:
+        """Store ``model`` as its hand's p_hold model (replacing any), then
+        re-score and re-rank that hand's grasps, in one transaction."""
+        with self._transaction() as conn:
+            conn.execute(_insert("calibration", ("hand", "model", "source", "created_at"), "INSERT OR REPLACE"),
+                         (model.hand, model.to_json(), source, time.strftime("%Y-%m-%dT%H:%M:%S")))
+            self._rescore(conn, rule, hand=model.hand)
+        self.set_meta("p_hold_models", self._models_key())
+
+    def write_validation(self, obj: str, hand: str, results: Sequence[Validated], rule: RankingRule) -> None:
+        """Store trial (PyBullet, MuJoCo) and robust-epsilon results of grasps
+        of one (object, hand), then re-score and re-rank it, in one transaction."""
+        with self._transaction() as conn:
+            for v in results:
+                if v.trial is not None:
+                    t = v.trial
+                    conn.execute(_insert("validation", _VALIDATION_COLUMNS, "INSERT OR REPLACE"),
+                                 (v.grasp_id, *_row(_TRIAL, t), v.seed, v.trial_settings))
+                if v.mujoco is not None:
+                    conn.execute(_insert("mujoco", _MUJOCO_COLUMNS, "INSERT OR REPLACE"),
+                                 (v.grasp_id, *_row(_MUJOCO, v.mujoco), v.seed, v.mujoco_settings))
+                if v.robust is not None:
+                    r = v.robust
+                    conn.execute(_insert("robust", _ROBUST_COLUMNS, "INSERT OR REPLACE"),
+                                 (v.grasp_id, *_row(_ROBUST, r), v.seed, v.robust_settings))
+            self._rescore(conn, rule, (obj, hand))
+
+
+def _object_row(name: str, obj: PreparedObject) -> tuple:
+    """The objects row of a prepared object (:data:`_OBJECT_COLUMNS`)."""
+    given = {"name": name, "source": obj.source_file, "scale": obj.file_scale, "mesh_sha256": obj.mesh_hash,
+             "extents": obj.mesh.extents}
+    return tuple(_sql(f, given[f.column] if f.column in given else getattr(obj, f.column)) for f in _OBJECTS)
+
+
+def _grasp_row(g: Grasp, unit_id: int, score: float, p_hold: float | None) -> tuple:
+    """The insert values of a record (:data:`_GRASP_COLUMNS`): what the store
+    made of it (the unit, the rule's score, the hand's model's p_hold) and
+    the record's own values."""
+    given = {"unit_id": unit_id, "score": score, "p_hold": p_hold}
+    return tuple(given[f.column] if f.column in given else _sql(f, get(g)) for f, get in _INSERTED)
+
+
+_INSERTED = [(f, fields.getter(f)) for f in _GRASPS if f.column in _GRASP_COLUMNS]
