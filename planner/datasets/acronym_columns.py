@@ -83,8 +83,8 @@ def per_grasp(grasps: list[Grasp], hand: HandSpec, label: str = BEST) -> dict[st
         f"{FLEX}object_in_gripper": labels,
         "qualities/label_from": sources,
         **{key: c[column] for key, column in DATASETS.items()},
-        "joints_closed": joint_matrix(c["closed_joints"], names),
-        "joints_open": joint_matrix(c["open_joints"], names),
+        "joints_closed": joint_matrix(c["closed_joints"], names, hand),
+        "joints_open": joint_matrix(c["open_joints"], names, hand),
     }
 
 

@@ -26,6 +26,7 @@ from planner.datasets.meshes import ExportedObject
 from planner.db.store import json_list
 from planner.record.fields import Field, getter, record_fields
 from planner.record.grasp import Grasp
+from planner.specs.hands import HandSpec
 
 Column = np.ndarray | list
 Builder = Callable[[Sequence[Grasp]], Column]
@@ -99,10 +100,13 @@ def grasp_columns(grasps: Sequence[Grasp]) -> GraspColumns:
     return GraspColumns(grasps)
 
 
-def joint_matrix(texts: Sequence[str], names: Sequence[str]) -> np.ndarray:
+def joint_matrix(texts: Sequence[str], names: Sequence[str], hand: HandSpec | None = None) -> np.ndarray:
     """(n, J) joint values [rad or m] of n JSON texts ``{joint: value}``, in
-    the order of ``names``; NaN where absent."""
+    the order of ``names``; with ``hand``, the mimics a text leaves out at
+    their coupling (:meth:`~planner.specs.hands.HandSpec.posture`); NaN where absent."""
     rows = json_list(texts)
+    if hand is not None:
+        rows = [hand.posture(row) for row in rows]
     return np.array([[row.get(k, math.nan) for k in names] for row in rows], float).reshape(len(rows), len(names))
 
 

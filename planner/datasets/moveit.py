@@ -68,12 +68,6 @@ def _vector(v: np.ndarray) -> dict:
     return {"x": float(v[0]), "y": float(v[1]), "z": float(v[2])}
 
 
-def posture_values(hand: HandSpec, joints: dict[str, float]) -> dict[str, float]:
-    """Every finger joint's value [rad or m]: the stored ones, and the mimic
-    joints a record leaves out at their coupling (a broken-away joint is stored)."""
-    return {**hand.full_configuration(joints), **joints}
-
-
 def _posture(names: list[str], joints: dict[str, float]) -> dict:
     seconds = int(POSTURE_TIME)
     return {"header": {"frame_id": ""}, "joint_names": names,
@@ -96,8 +90,8 @@ def message(g: Grasp, hand: HandSpec) -> dict:
     names = joint_names(hand)
     q = quaternion_xyzw(ee[:3, :3])
     return {"id": f"{g.object}/{g.hand}/{g.rank}",
-            "pre_grasp_posture": _posture(names, posture_values(hand, dict(g.open_joints))),
-            "grasp_posture": _posture(names, posture_values(hand, dict(g.closed_joints))),
+            "pre_grasp_posture": _posture(names, hand.posture(g.open_joints)),
+            "grasp_posture": _posture(names, hand.posture(g.closed_joints)),
             "grasp_pose": {"header": {"frame_id": g.object},
                            "pose": {"position": _vector(ee[:3, 3]),
                                     "orientation": {"x": float(q[0]), "y": float(q[1]), "z": float(q[2]),

@@ -180,6 +180,13 @@ class HandSpec:
                 values[j.name] = j.multiplier * values[j.mimic] + j.offset
         return values
 
+    def posture(self, joints: Mapping[str, float]) -> dict[str, float]:
+        """Every finger joint's value [rad or m] of a stored configuration:
+        the stored ones, and the mimics it leaves out at their coupling (the
+        antipodal sweep stores only the driven joints of the opening it fits;
+        a broken-away mimic is stored)."""
+        return {**self.full_configuration(dict(joints)), **{k: float(v) for k, v in joints.items()}}
+
     # -- the fingers: what closing, the measures, the trial and the exports share --
 
     @cached_property

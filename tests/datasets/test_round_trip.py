@@ -251,7 +251,11 @@ def test_every_hand_comes_back_through_every_format(fmt: str, swept: Path, tmp_p
     for key, row in expected.items():
         for name in names:
             f = by_name(name)
-            assert same(f, back[key][name], row[name]), (fmt, key, name, back[key][name], row[name])
+            want = row[name]
+            if fmt in ("acronym", "graspgen") and name.endswith("_joints"):  # (N, J) matrices: the mimics too
+                want = load_hand(key[0]).posture(want)
+                assert {k: back[key][name][k] for k in row[name]} == row[name]
+            assert same(f, back[key][name], want), (fmt, key, name, back[key][name], want)
     # the trials and the Barrett's settled epsilon are there to come back
     assert sum(row["validation_success"] is not None for row in expected.values()) == len(hand_names())
     assert sum(row["mujoco_success"] is not None for row in expected.values()) >= len(hand_names())
@@ -311,7 +315,7 @@ def test_every_hand_comes_back_through_moveit(swept: Path, tmp_path: Path) -> No
         spec = load_hand(key[0])
         for name in MOVEIT_CARRIED:
             f = by_name(name)
-            want = moveit.posture_values(spec, row[name]) if name.endswith("_joints") else row[name]
+            want = spec.posture(row[name]) if name.endswith("_joints") else row[name]
             assert same(f, back[key][name], want), ("moveit", key, name, back[key][name], want)
             if name.endswith("_joints"):  # the stored joints exactly, the mimics at their coupling
                 assert {k: back[key][name][k] for k in row[name]} == row[name]
