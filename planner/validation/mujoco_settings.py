@@ -123,6 +123,8 @@ class MujocoSettings:
     hold_time: float = 0.1
     max_translation: float = 0.02
     max_rotation: float = 0.5
+    free_travel_gap: float = 0.0
+    drop_factor: float = 0.0
     part_tolerance: float = 0.0005  # convex parts simplified to within this of their hulls (as PyBullet's)
 
     def __post_init__(self) -> None:

@@ -71,6 +71,15 @@ SERVO_TIME = 0.01
 #: [s] how often a trial reads its contacts while loaded (an early verdict once no finger touches) and
 #: whether its state diverged (while closing and loaded).
 CHECK_EVERY = 0.05
+#: [m] how far the free-travel skip looks for the object (a finger farther away advances by this).
+PROBE_REACH = 0.05
+#: The share of the time to the gap each advance of the skip takes (under 1: the speed bound is first order).
+ADVANCE = 0.8
+#: [s] the least free travel worth skipping (less: closing starts at rest, as without the skip; more
+#: than the servo's lag, so the fingers are at their steady closing speed where closing starts).
+MIN_SKIP = 3 * SERVO_TIME
+#: The most clearance probes one skip takes (then it starts where it got to).
+MAX_PROBES = 40
 #: Worlds kept per process (one per hand and object: building one costs a few ms, more with many parts).
 _KEPT = 8
 #: A breakaway clutch (the BH8's TorqueSwitch) disengages at a force, not at a touch (the BH8 manual,
@@ -255,12 +264,14 @@ class _Run:
         every = _steps(CHECK_EVERY, dt)
         lever = {j.name: 1.0 if j.kind == "prismatic" else DEFAULT_LEVER for j in hand.joints}
         still = 0.0
-        for i in range(_steps(s.max_close_time, dt)):
+        first = self._skip_free_travel(moving) if s.free_travel_gap > 0 else 0
+        for i in range(first, _steps(s.max_close_time, dt)):
             t = (i + 1) * dt
             done = True
             for name, target in moving.items():
-                w.set_target(name, target.at(t))
-                done &= target.at(t) == target.end
+                at = target.at(t)
+                w.set_target(name, at)
+                done &= at == target.end
             w.step()
             if (i + 1) % every == 0:
                 self._check()
@@ -272,6 +283,49 @@ class _Run:
                 break
         if not hand.actuators.backdrivable:
             self._hold_closed()
+
+    def _free_path(self, moving: Mapping[str, _Target], t: float) -> tuple[dict[str, float], dict[str, float]]:
+        """(positions, speeds) of every closing joint at ``t`` [s] into closing when nothing has touched:
+        each servo :data:`SERVO_TIME` behind its target (its steady lag), a mimic geared to its master."""
+        q, v = {}, {}
+        for name, target in moving.items():
+            q[name] = target.at(max(0.0, t - SERVO_TIME))
+            v[name] = 0.0 if q[name] == target.end else target.speed
+        for j in self.hand.joints:
+            if j.mimic in moving and j.name not in moving:
+                q[j.name] = j.multiplier * q[j.mimic] + j.offset
+                v[j.name] = j.multiplier * v[j.mimic]
+        return q, v
+
+    def _skip_free_travel(self, moving: Mapping[str, _Target]) -> int:
+        """The closing step to start from: the fingers' travel in free space skipped up to where a
+        moving finger comes within ``free_travel_gap`` of the object (conservative advancement with
+        :meth:`~planner.sim.mujoco_world.World.clearance`'s speed bound: over the skipped travel no
+        moving point came nearer than the gap), the fingers placed there at their closing speeds.
+        Nothing is skipped (0) when the hand touches the object at the start (the object is not at rest:
+        its push goes on while the fingers travel) or a finger is already within the gap."""
+        w, s, dt = self.world, self.s, self.s.timestep
+        if w.touching_links() or not moving:
+            return 0
+        end = max(abs(t.end - t.start) / abs(t.speed) for t in moving.values()) + SERVO_TIME
+        t, placed = 0.0, 0.0
+        for _ in range(MAX_PROBES):
+            q, v = self._free_path(moving, t)
+            w.set_fingers(q, {}, probe=True)
+            gap, speed = w.clearance(v, PROBE_REACH)
+            if gap < s.free_travel_gap:
+                break
+            placed = t
+            if gap < 1.5 * s.free_travel_gap or t >= end or speed == 0.0:
+                break
+            t = min(end, t + ADVANCE * (gap - s.free_travel_gap) / speed)
+        first = int(placed / dt)  # whole steps: the targets stay on the closing clock
+        if first * dt < MIN_SKIP:  # not worth it: from rest, as without the skip
+            w.set_fingers(self._free_path(moving, 0.0)[0], {})
+            return 0
+        q, v = self._free_path(moving, first * dt)
+        w.set_fingers(q, v)
+        return first
 
     def _break_away(self, clutches: list[_Clutch], touching: set[str], moving: dict[str, _Target], t: float,
                     fastest: float) -> None:
@@ -321,18 +375,19 @@ class _Run:
         weight = 0.0 if s.down == "none" else GRAVITY
         worst = [0.0, 0.0]
         every = _steps(CHECK_EVERY, dt)
-        path = self._path(down)
+        path = w.targets(self._path(down))
         ramp = _steps(s.ramp_time, dt)
+        gone = (s.drop_factor * s.max_translation, s.drop_factor * s.max_rotation) if s.drop_factor else None
         for i, target in enumerate(path):
             if i <= ramp:
                 w.set_gravity(weight * min(1.0, (i + 1) / ramp) * down)
-            w.move_hand(target)
+            w.follow(target)
             w.step()
             if (i + 1) % every == 0 or i == len(path) - 1:
                 self._check()
                 moved = _motion(closed, self._relative())
                 worst = [max(worst[0], moved[0]), max(worst[1], moved[1])]
-                if not self._touching():
+                if not self._touching() or (gone and (moved[0] >= gone[0] or moved[1] >= gone[1])):
                     return False, (worst[0], worst[1])
         final = _motion(closed, self._relative())
         held = final[0] < s.max_translation and final[1] < s.max_rotation

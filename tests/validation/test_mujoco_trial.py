@@ -158,6 +158,73 @@ def test_a_state_that_diverges_under_load_ends_the_trial_at_the_next_check(pinch
     assert trial(hand, obj, grasp).reason == "diverged"
 
 
+class _Steps:
+    """Counts the world's steps (MuJoCo steps) while patched in."""
+
+    def __init__(self, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+        from planner.sim.mujoco_world import World
+
+        self.count = 0
+        stepped = World.step
+
+        def step(world: World, n: int = 1) -> None:
+            self.count += n
+            stepped(world, n)
+
+        monkeypatch.setattr(World, "step", step)
+
+
+def test_skipping_the_free_travel_starts_closing_at_the_gap_and_holds_as_before(pinched, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    from planner.validation import mujoco_trial
+
+    hand, obj, grasp = pinched
+    near = replace(MujocoSettings(), free_travel_gap=0.003)
+    far = replace(near, free_travel_gap=0.0)
+    steps = _Steps(monkeypatch)
+    full = trial(hand, obj, grasp, far)
+    from_rest = steps.count
+    starts = []
+    skip = mujoco_trial._Run._skip_free_travel
+
+    def measured(run, moving):  # type: ignore[no-untyped-def]
+        first = skip(run, moving)
+        starts.append((first, run.world.clearance(run._free_path(moving, first * near.timestep)[1], 0.05)[0]))
+        return first
+
+    monkeypatch.setattr(mujoco_trial._Run, "_skip_free_travel", measured)
+    steps.count = 0
+    skipped = trial(hand, obj, grasp, near)
+    (first, gap), = starts
+    assert full.reason == skipped.reason == "held"
+    assert first > 0 and steps.count < from_rest
+    assert near.free_travel_gap <= gap < mujoco_trial.PROBE_REACH
+
+
+def test_a_finger_already_within_the_gap_skips_nothing(pinched, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    hand, obj, grasp = pinched
+    steps = _Steps(monkeypatch)
+    trial(hand, obj, grasp)
+    plain = steps.count
+    steps.count = 0
+    trial(hand, obj, grasp, replace(MujocoSettings(), free_travel_gap=0.05))  # every pad nearer than 5 cm
+    assert steps.count == plain
+
+
+def test_an_object_swinging_far_past_the_thresholds_ends_the_trial_early_as_slipped(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    # a 1 kg bar pinched 4.5 cm off its centre: it swings about the pads (over 1 rad) and stays between them
+    hand = load_hand("panda")
+    bar = box_of((0.12, 0.04, 0.04), 1.0)
+    grasp = pinch(hand, bar, (0.045, 0.0, 0.0))
+    steps = _Steps(monkeypatch)
+    slow = trial(hand, bar, grasp, replace(MujocoSettings(), drop_factor=0.0))
+    to_the_end = steps.count
+    steps.count = 0
+    early = trial(hand, bar, grasp, replace(MujocoSettings(), drop_factor=1.5))
+    assert slow.reason == early.reason == "slipped" and slow.fingers_in_contact == 2
+    assert steps.count < to_the_end
+    assert early.shaking_angular >= 1.5 * MujocoSettings().max_rotation
+
+
 def test_the_stored_settings_name_the_engine_and_the_hand() -> None:
     text = recorded(MujocoSettings(), load_hand("barrett"))
     assert '"engine": "mujoco"' in text and '"hand": "barrett"' in text and "bh_j12_joint" in text
