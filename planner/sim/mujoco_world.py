@@ -274,7 +274,7 @@ class World:
 
     def hand_pose(self) -> np.ndarray:
         """(4, 4) the hand's root frame in the world (where the weld holds it, not its target)."""
-        body = int(self.model.jnt_bodyid[mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, HAND_BASE)])
+        body = self._hand_body
         pose = np.eye(4)
         pose[:3, :3] = self.data.xmat[body].reshape(3, 3)
         pose[:3, 3] = self.data.xpos[body]

@@ -428,7 +428,11 @@ class _Run:
         w = self.world
         frame = w.object_pose()
         frame[:3, 3] = w.centre_of_mass()
-        return np.linalg.inv(w.hand_pose()) @ frame
+        hand = w.hand_pose()
+        inverse = np.eye(4)
+        inverse[:3, :3] = hand[:3, :3].T
+        inverse[:3, 3] = -hand[:3, :3].T @ hand[:3, 3]
+        return inverse @ frame
 
     def _touching(self) -> int:
         links = self.world.touching_links()
