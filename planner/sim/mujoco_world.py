@@ -142,6 +142,16 @@ class World:
         self.data.mocap_pos[self._target] = target[:3]
         self.data.mocap_quat[self._target] = target[3:]
 
+    def follow_path(self, targets: np.ndarray) -> None:
+        """One step per row of ``targets`` (:meth:`targets`), the hand's weld target set to the row first
+        (:meth:`follow` then :meth:`step`, without a Python call per step)."""
+        m, d = self.model, self.data
+        position, turn, step = d.mocap_pos[self._target], d.mocap_quat[self._target], mujoco.mj_step
+        for xyz, q in zip(targets[:, :3], targets[:, 3:]):
+            position[:] = xyz
+            turn[:] = q
+            step(m, d)
+
     def set_fingers(self, positions: Mapping[str, float], speeds: Mapping[str, float], probe: bool = False) -> None:
         """Finger joints at ``positions`` [rad or m] moving at ``speeds`` [rad/s or m/s] (joints not named
         keep theirs), hand and object as they are; everything recomputed, or (``probe``) only the bodies'

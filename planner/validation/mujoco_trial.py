@@ -378,17 +378,19 @@ class _Run:
         path = w.targets(self._path(down))
         ramp = _steps(s.ramp_time, dt)
         gone = (s.drop_factor * s.max_translation, s.drop_factor * s.max_rotation) if s.drop_factor else None
-        for i, target in enumerate(path):
-            if i <= ramp:
+        for begin in range(0, len(path), every):  # a check after each `every` steps and after the last
+            end = min(begin + every, len(path))
+            for i in range(begin, min(end, ramp + 1)):
                 w.set_gravity(weight * min(1.0, (i + 1) / ramp) * down)
-            w.follow(target)
-            w.step()
-            if (i + 1) % every == 0 or i == len(path) - 1:
-                self._check()
-                moved = _motion(closed, self._relative())
-                worst = [max(worst[0], moved[0]), max(worst[1], moved[1])]
-                if not self._touching() or (gone and (moved[0] >= gone[0] or moved[1] >= gone[1])):
-                    return False, (worst[0], worst[1])
+                w.follow(path[i])
+                w.step()
+            if end > ramp + 1:
+                w.follow_path(path[max(begin, ramp + 1):end])
+            self._check()
+            moved = _motion(closed, self._relative())
+            worst = [max(worst[0], moved[0]), max(worst[1], moved[1])]
+            if not self._touching() or (gone and (moved[0] >= gone[0] or moved[1] >= gone[1])):
+                return False, (worst[0], worst[1])
         final = _motion(closed, self._relative())
         held = final[0] < s.max_translation and final[1] < s.max_rotation
         return held, (worst[0], worst[1])

@@ -189,3 +189,19 @@ def test_the_speed_bound_of_a_revolute_finger_holds_its_fastest_point() -> None:
     world.set_fingers({name: world.joint_position(name) + v * dt for name, v in speeds.items()}, {})
     fastest = float(np.max(np.linalg.norm(points() - before, axis=1))) / dt
     assert 0.3 * bound < fastest <= bound
+
+
+def test_following_a_path_in_one_call_steps_as_following_it_step_by_step() -> None:
+    world = build(load_hand("panda"), cube())
+    poses = np.repeat(far_away()[None], 40, axis=0)
+    poses[:, 2, 3] += np.linspace(0.0, 0.02, 40)  # 2 cm up in 40 steps
+    path = world.targets(poses)
+    world.reset(far_away(), {})
+    for row in path:
+        world.follow(row)
+        world.step()
+    one_by_one = world.data.qpos.copy()
+    world.reset(far_away(), {})
+    world.follow_path(path)
+    assert np.array_equal(world.data.qpos, one_by_one)
+    assert world.time == 40 * world.model.opt.timestep and world.hand_pose()[2, 3] > 0.015
