@@ -308,7 +308,18 @@ class World:
 
     def touching_links(self) -> set[str]:
         """Hand links in contact with the object now (penetrating or touching)."""
-        return {link for c, link, _ in self._hand_object() if c.dist <= 0.0}
+        d = self.data
+        if d.ncon == 0:  # read every step while a clutch is engaged: no Python loop over the contacts
+            return set()
+        contacts, hand, obj = d.contact, self.hand_geoms, self.object_geoms
+        out = set()
+        for g1, g2, dist in zip(contacts.geom1.tolist(), contacts.geom2.tolist(), contacts.dist.tolist()):
+            if dist <= 0.0:
+                if g1 in hand and g2 in obj:
+                    out.add(hand[g1])
+                elif g2 in hand and g1 in obj:
+                    out.add(hand[g2])
+        return out
 
     def depth(self) -> float:
         """[m] the deepest overlap of the hand and the object now (0 if none)."""
