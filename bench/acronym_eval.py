@@ -93,7 +93,7 @@ def source_hash() -> str:
     h = hashlib.sha256()
     stages = ("plan", "quality", "geometry", "sim", "specs", "record")
     for p in sorted((ROOT / "planner").rglob("*.py")):
-        if p.name == "mujoco_world.py":  # the MuJoCo trial's engine: re-scoring never runs it
+        if p.name in ("mujoco_world.py", "mujoco_mjcf.py"):  # the MuJoCo trial's engine: re-scoring never runs it
             continue
         if p.parent.name in stages or p.name == "importer.py":
             h.update(p.read_bytes())

@@ -57,8 +57,9 @@ sys.modules["__main__"].FileResult = ae.FileResult
 def trial_code() -> str:
     """Hash of the trial modules' source (a cached verdict is reused only by the same code)."""
     h = hashlib.sha256()
-    for p in sorted((ROOT / "planner" / "validation").glob("*.py")) + [ROOT / "planner" / "sim" / "mujoco_world.py",
-                                                                       ROOT / "planner" / "sim" / "dynamics.py"]:
+    sim = ROOT / "planner" / "sim"
+    for p in sorted((ROOT / "planner" / "validation").glob("*.py")) + [sim / "mujoco_world.py", sim / "mujoco_mjcf.py",
+                                                                       sim / "dynamics.py"]:
         if p.name not in ("run.py", "robust.py"):  # what runs and stores trials, not the trials
             h.update(p.read_bytes())
     return h.hexdigest()[:10]

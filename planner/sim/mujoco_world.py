@@ -1,10 +1,12 @@
-"""The MuJoCo adapter: the only module that imports mujoco.
+"""The MuJoCo adapter: with :mod:`planner.sim.mujoco_mjcf` (the model's
+text), the only module that imports mujoco.
 
-It builds one world from a hand (its URDF, as the hand spec has cut it) and a
-free object, both written as MJCF in code, and offers what a dynamic trial
-needs: placing bodies, driving finger joints, coupling and uncoupling mimic
-joints, moving the hand, stepping, reading contacts. The protocol that uses
-it is elsewhere (:mod:`planner.validation.mujoco_trial`).
+It compiles one world from a hand and a free object and offers what a
+dynamic trial needs: placing bodies, driving finger joints, coupling and
+uncoupling mimic joints, moving the hand, stepping, reading contacts, and
+the clearance of the moving fingers from the object (how far they may close
+in free space before they could touch it). The protocol that uses it is
+elsewhere (:mod:`planner.validation.mujoco_trial`).
 
 The world frame is the object's frame at rest (the object starts at the
 identity); the hand's root link is a free body welded to a mocap body, so a
@@ -12,84 +14,35 @@ trial moves the hand by moving the mocap target and the contacts see the
 hand's real velocity. Poses are 4x4 homogeneous matrices [m]; MuJoCo's
 quaternions (w, x, y, z) never leave this module.
 
-Model (one per hand and object, compiled once and reused for every grasp):
-
-- every URDF link below the root is a body at its joint's origin, with the
-  URDF's inertial; revolute and prismatic joints with their limits; each
-  collision element a geom (boxes, cylinders and spheres as MuJoCo
-  primitives, meshes as their convex hulls, as MuJoCo collides them);
-- a mimic joint is an equality constraint ``q = multiplier q_master + offset``;
-- every finger joint has a position actuator whose gain and force range the
-  trial sets (:meth:`World.drive`): 0 is an idle motor;
-- hand bodies are gravity-compensated (the arm carries the hand) and never
-  collide with each other; the hand's geoms have priority in a contact with
-  the object, so the trial sets the contact's friction on the hand alone
-  (:meth:`World.set_friction`): sliding ``mu``, and on soft links torsional
-  ``mu x torsion_radius`` (condim 4, elliptic cones);
-- the object is one free body: a box, sphere or cylinder primitive, or its
-  convex parts, with the given mass, centre of mass and inertia.
+Every finger joint has a position actuator whose gain and force range the
+trial sets (:meth:`World.drive`); the hand's geoms have priority in a
+contact with the object, so the trial sets the contact's friction on the
+hand alone (:meth:`World.set_friction`): sliding ``mu``, and on soft links
+torsional ``mu x torsion_radius``.
 """
 
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
-from functools import cache
-from pathlib import Path
+from collections.abc import Mapping
 
 import mujoco
 import numpy as np
-import trimesh
 
 from planner.errors import SimulationError
+from planner.sim.mujoco_mjcf import HAND_BASE, HAND_BITS, OBJECT, TARGET, Builder, Solid, quats
 from planner.specs.hands import HandSpec
-from planner.specs.urdf import load_model
 from planner.validation.mujoco_settings import Engine
+
+__all__ = ["OBJECT", "TARGET", "Engine", "Solid", "World", "build"]
 
 log = logging.getLogger(__name__)
 # MuJoCo's warnings (a diverged state it resets, a full contact buffer) go to the log, not to stdout and a
 # MUJOCO_LOG.TXT in the user's working directory; each world still counts them (World.diverged).
 mujoco.set_mju_user_warning(lambda message: log.warning("MuJoCo: %s", message))
 
-#: Collision bits: hand geoms collide with the object only, never with each other.
-_HAND_BITS, _OBJECT_BITS = 1, 2
-#: [kg] and [kg m^2] given to a link the URDF leaves without mass (MuJoCo needs some on moving bodies).
-_MIN_MASS, _MIN_INERTIA = 1e-3, 1e-7
 #: MuJoCo's warnings of a diverged state (each followed by a reset of the state).
 _DIVERGED = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
-#: Name of the object's body and of the hand's mocap target.
-OBJECT, TARGET = "__object", "__hand_target"
-
-
-@dataclass(frozen=True)
-class Solid:
-    """The free object as MuJoCo builds it, object frame [m].
-
-    ``kind``: ``box`` (``dims`` = extents), ``sphere`` (radius), ``cylinder``
-    (radius, height along z), each centred on the object frame, or ``hulls``:
-    convex parts, each a (k_i, 3) vertex array. ``mass`` [kg], ``com`` (3,)
-    [m] and ``inertia`` (3, 3) [kg m^2] about the centre of mass, object axes.
-    """
-
-    kind: str
-    dims: tuple[float, ...]
-    hulls: tuple[np.ndarray, ...]
-    mass: float
-    com: np.ndarray
-    inertia: np.ndarray
-
-    def __post_init__(self) -> None:
-        if self.kind not in ("box", "sphere", "cylinder", "hulls"):
-            raise ValueError(f"Solid.kind must be box, sphere, cylinder or hulls, not {self.kind!r}")
-        if self.com.shape != (3,) or self.inertia.shape != (3, 3):
-            raise ValueError("Solid.com must be (3,), Solid.inertia (3, 3)")
-        if self.kind == "hulls" and not all(h.ndim == 2 and h.shape[1] == 3 and len(h) >= 4 for h in self.hulls):
-            raise ValueError("Solid.hulls must be (k, 3) vertex arrays of at least 4 vertices")
-
-
-def _f(values: Sequence[float] | np.ndarray) -> str:
-    return " ".join(f"{float(v):.10g}" for v in np.ravel(values))
 
 
 def _quat(rotation: np.ndarray) -> np.ndarray:
@@ -98,145 +51,9 @@ def _quat(rotation: np.ndarray) -> np.ndarray:
     return q
 
 
-def _pose_attrs(pose: np.ndarray | None) -> str:
-    if pose is None:
-        return ""
-    return f'pos="{_f(pose[:3, 3])}" quat="{_f(_quat(pose[:3, :3]))}"'
-
-
-@cache
-def _hull(path: str, scale: tuple[float, float, float]) -> np.ndarray:
-    """(k, 3) convex hull vertices of a mesh file, scaled."""
-    mesh = trimesh.load(path, force="mesh")
-    return np.asarray(mesh.convex_hull.vertices, float) * np.asarray(scale)
-
-
-def _inertial(mass: float, com: np.ndarray, inertia: np.ndarray, frame: np.ndarray | None = None) -> str:
-    """An <inertial> of ``mass`` at ``com``, ``inertia`` about it in the axes of ``frame`` (3, 3)."""
-    inertia = np.asarray(inertia, float)
-    if frame is not None:
-        inertia = frame @ inertia @ frame.T
-    moments, axes = np.linalg.eigh(0.5 * (inertia + inertia.T))
-    if np.linalg.det(axes) < 0:
-        axes[:, 0] *= -1
-    moments = np.maximum(moments, _MIN_INERTIA)
-    return (f'<inertial pos="{_f(com)}" quat="{_f(_quat(axes))}" mass="{max(mass, _MIN_MASS):.10g}" '
-            f'diaginertia="{_f(moments)}"/>')
-
-
-class _Builder:
-    """MJCF text of a hand (its URDF) and an object."""
-
-    def __init__(self, hand: HandSpec) -> None:
-        self.hand = hand
-        self.model = load_model(hand.urdf)
-        self.meshes: list[str] = []
-        self.soft = {name for name, c in hand.contacts.items() if c.model == "soft" and c.torsion_radius > 0}
-
-    def _mesh(self, vertices: np.ndarray) -> str:
-        name = f"mesh{len(self.meshes)}"
-        self.meshes.append(f'<mesh name="{name}" vertex="{_f(vertices)}"/>')
-        return name
-
-    def _geom(self, element, link: str, index: int) -> str:  # type: ignore[no-untyped-def]
-        g = element.geometry
-        where = _pose_attrs(element.origin)
-        condim = 4 if link in self.soft else 3
-        common = (f'name="{link}#{index}" {where} contype="{_HAND_BITS}" conaffinity="{_OBJECT_BITS}" '
-                  f'condim="{condim}" priority="1" group="1"')
-        if g.box is not None:
-            return f'<geom type="box" size="{_f(np.asarray(g.box.size) / 2)}" {common}/>'
-        if g.cylinder is not None:
-            return f'<geom type="cylinder" size="{g.cylinder.radius:.10g} {g.cylinder.length / 2:.10g}" {common}/>'
-        if g.sphere is not None:
-            return f'<geom type="sphere" size="{g.sphere.radius:.10g}" {common}/>'
-        if g.mesh is not None:
-            scale = (1.0, 1.0, 1.0) if g.mesh.scale is None else tuple(
-                float(s) for s in np.broadcast_to(np.asarray(g.mesh.scale, float), (3,)))
-            path = Path(self.hand.urdf).parent / g.mesh.filename.replace("package://", "")
-            return f'<geom type="mesh" mesh="{self._mesh(_hull(str(path), scale))}" {common}/>'
-        return ""
-
-    def _body(self, link: str, pose: np.ndarray | None, joint) -> str:  # type: ignore[no-untyped-def]
-        node = self.model.link_map[link]
-        parts = [f'<body name="{link}" {_pose_attrs(pose)} gravcomp="1">']
-        if pose is None:
-            parts.append('<freejoint name="__hand_base"/>')
-        inertial = node.inertial
-        if inertial is not None and inertial.mass is not None and inertial.mass > 0:
-            origin = np.eye(4) if inertial.origin is None else inertial.origin
-            tensor = np.eye(3) * _MIN_INERTIA if inertial.inertia is None else inertial.inertia
-            parts.append(_inertial(inertial.mass, origin[:3, 3], tensor, origin[:3, :3]))
-        else:
-            parts.append(_inertial(_MIN_MASS, np.zeros(3), np.eye(3) * _MIN_INERTIA))
-        if joint is not None and joint.type in ("revolute", "prismatic", "continuous"):
-            kind = "slide" if joint.type == "prismatic" else "hinge"
-            limit = joint.limit
-            bounds = ""
-            if joint.type != "continuous" and limit is not None and limit.lower is not None:
-                bounds = f'limited="true" range="{limit.lower:.10g} {limit.upper:.10g}"'
-            axis = np.array([1.0, 0.0, 0.0]) if joint.axis is None else np.asarray(joint.axis, float)
-            parts.append(f'<joint name="{joint.name}" type="{kind}" axis="{_f(axis)}" {bounds} damping="0" '
-                         'armature="0.0001"/>')
-        parts += [self._geom(c, link, i) for i, c in enumerate(node.collisions)]
-        for child_joint in self.model.robot.joints:
-            if child_joint.parent == link:
-                origin = np.eye(4) if child_joint.origin is None else child_joint.origin
-                parts.append(self._body(child_joint.child, origin, child_joint))
-        parts.append("</body>")
-        return "\n".join(p for p in parts if p)
-
-    def xml(self, solid: Solid, engine: Engine) -> str:
-        hand = self._body(self.hand.root_link, None, None)
-        obj = self._object(solid)
-        equality = [f'<weld body1="{TARGET}" body2="{self.hand.root_link}" relpose="0 0 0 1 0 0 0" '
-                    f'solref="{engine.weld_time:.10g} 1"/>']
-        for j in self.hand.joints:
-            if j.mimic is not None:
-                equality.append(f'<joint name="gear:{j.name}" joint1="{j.name}" joint2="{j.mimic}" '
-                                f'polycoef="{j.offset:.10g} {j.multiplier:.10g} 0 0 0" solref="0.004 1"/>')
-        actuators = [f'<position name="motor:{j.name}" joint="{j.name}" kp="0" forcelimited="true" '
-                     'forcerange="-1 1"/>' for j in self.hand.joints]
-        flags = '<flag multiccd="enable"/>' if engine.multiccd else ""
-        return f"""<mujoco model="grasp">
-<compiler angle="radian" autolimits="true"/>
-<option timestep="{engine.timestep:.10g}" iterations="{engine.iterations}" integrator="implicitfast"
- cone="elliptic" impratio="{engine.impratio:.10g}" solver="Newton" gravity="0 0 0">{flags}</option>
-<default><geom solref="{engine.contact_time:.10g} {engine.contact_damping:.10g}" solimp="0.95 0.99 0.001"
- friction="1 0 0"/></default>
-<asset>
-{chr(10).join(self.meshes)}
-</asset>
-<worldbody>
-<body name="{TARGET}" mocap="true"/>
-{hand}
-{obj}
-</worldbody>
-<equality>
-{chr(10).join(equality)}
-</equality>
-<actuator>
-{chr(10).join(actuators)}
-</actuator>
-</mujoco>"""
-
-    def _object(self, solid: Solid) -> str:
-        common = f'contype="{_OBJECT_BITS}" conaffinity="{_HAND_BITS}" condim="3" priority="0" group="2"'
-        if solid.kind == "box":
-            geoms = [f'<geom type="box" size="{_f(np.asarray(solid.dims) / 2)}" {common}/>']
-        elif solid.kind == "sphere":
-            geoms = [f'<geom type="sphere" size="{solid.dims[0]:.10g}" {common}/>']
-        elif solid.kind == "cylinder":
-            geoms = [f'<geom type="cylinder" size="{solid.dims[0]:.10g} {solid.dims[1] / 2:.10g}" {common}/>']
-        else:
-            geoms = [f'<geom type="mesh" mesh="{self._mesh(h)}" {common}/>' for h in solid.hulls]
-        return "\n".join([f'<body name="{OBJECT}"><freejoint name="{OBJECT}"/>',
-                          _inertial(solid.mass, solid.com, solid.inertia), *geoms, "</body>"])
-
-
 def build(hand: HandSpec, solid: Solid, engine: Engine | None = None) -> World:
     """A compiled world of ``hand`` and ``solid`` (MuJoCo's compile errors as SimulationError)."""
-    builder = _Builder(hand)
+    builder = Builder(hand)
     engine = engine or Engine()
     xml = builder.xml(solid, engine)
     try:
@@ -260,8 +77,8 @@ class World:
         self._name = lambda kind, i: mujoco.mj_id2name(m, kind, i)
         self.object_body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, OBJECT)
         self._target = int(m.body_mocapid[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, TARGET)])
-        self._base = m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "__hand_base")]
-        self._base_dof = m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "__hand_base")]
+        self._base = m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, HAND_BASE)]
+        self._base_dof = m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, HAND_BASE)]
         obj_joint = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, OBJECT)
         self._object_q, self._object_v = m.jnt_qposadr[obj_joint], m.jnt_dofadr[obj_joint]
         self.joints = {j.name: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j.name) for j in hand.joints}
@@ -271,10 +88,17 @@ class World:
                       for j in hand.joints if j.mimic is not None}
         #: hand geom index -> its link's name; the object's geoms
         self.hand_geoms = {g: self._name(mujoco.mjtObj.mjOBJ_BODY, int(m.geom_bodyid[g]))
-                           for g in range(m.ngeom) if m.geom_contype[g] == _HAND_BITS}
+                           for g in range(m.ngeom) if m.geom_contype[g] == HAND_BITS}
         self.object_geoms = frozenset(g for g in range(m.ngeom) if int(m.geom_bodyid[g]) == self.object_body)
         self._ranges, self._solrefs = m.jnt_range.copy(), m.jnt_solref.copy()
         self._force = np.zeros(6)
+        self._hand_body = int(m.jnt_bodyid[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, HAND_BASE)])
+        #: hand geom -> the finger joints (ids) between it and the hand's root
+        chains = [(g, j) for g in self.hand_geoms for j in self._chain(int(m.geom_bodyid[g]))]
+        #: every (hand geom, finger joint that moves it) pair: geom ids, joint ids, whether the joint slides
+        self._links = (np.array([g for g, _ in chains], int), np.array([j for _, j in chains], int),
+                       np.array([m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE for _, j in chains], bool))
+        self._margins = m.geom_margin.copy()
 
     # -- placing -------------------------------------------------------------------
     def reset(self, hand_pose: np.ndarray, joints: Mapping[str, float], object_pose: np.ndarray | None = None) -> None:
@@ -305,6 +129,80 @@ class World:
         """Set the hand's weld target to ``pose`` (the hand follows it)."""
         self.data.mocap_pos[self._target] = pose[:3, 3]
         self.data.mocap_quat[self._target] = _quat(pose[:3, :3])
+
+    @staticmethod
+    def targets(poses: np.ndarray) -> np.ndarray:
+        """(n, 7) the weld targets (position, MuJoCo's quaternion) of (n, 4, 4) hand poses, for
+        :meth:`follow` (a path converted once, not a quaternion per step)."""
+        poses = np.asarray(poses, float).reshape(-1, 4, 4)
+        return np.concatenate([poses[:, :3, 3], quats(poses[:, :3, :3])], axis=1)
+
+    def follow(self, target: np.ndarray) -> None:
+        """Set the hand's weld target to a (7,) row of :meth:`targets`."""
+        self.data.mocap_pos[self._target] = target[:3]
+        self.data.mocap_quat[self._target] = target[3:]
+
+    def follow_path(self, targets: np.ndarray) -> None:
+        """One step per row of ``targets`` (:meth:`targets`), the hand's weld target set to the row first
+        (:meth:`follow` then :meth:`step`, without a Python call per step)."""
+        m, d = self.model, self.data
+        position, turn, step = d.mocap_pos[self._target], d.mocap_quat[self._target], mujoco.mj_step
+        for xyz, q in zip(targets[:, :3], targets[:, 3:]):
+            position[:] = xyz
+            turn[:] = q
+            step(m, d)
+
+    def set_fingers(self, positions: Mapping[str, float], speeds: Mapping[str, float], probe: bool = False) -> None:
+        """Finger joints at ``positions`` [rad or m] moving at ``speeds`` [rad/s or m/s] (joints not named
+        keep theirs), hand and object as they are; everything recomputed, or (``probe``) only the bodies'
+        poses, enough for :meth:`clearance` (then set the fingers again before stepping)."""
+        m, d = self.model, self.data
+        for name, value in positions.items():
+            d.qpos[m.jnt_qposadr[self.joints[name]]] = value
+        for name, value in speeds.items():
+            d.qvel[m.jnt_dofadr[self.joints[name]]] = value
+        (mujoco.mj_kinematics if probe else mujoco.mj_forward)(m, d)
+
+    # -- clearance -----------------------------------------------------------------
+    def _chain(self, body: int) -> tuple[int, ...]:
+        """The finger joints (ids) that move ``body``, from it up to the hand's root."""
+        m, out = self.model, []
+        while body > 0 and body != self._hand_body:
+            out += [j for j in range(m.body_jntadr[body], m.body_jntadr[body] + m.body_jntnum[body])
+                    if int(m.jnt_type[j]) in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))]
+            body = int(m.body_parentid[body])
+        return tuple(out)
+
+    def clearance(self, speeds: Mapping[str, float], reach: float) -> tuple[float, float]:
+        """(gap [m], speed [m/s]) of the hand's geoms that finger joints moving at ``speeds`` [rad/s or
+        m/s] move, at the configuration :meth:`set_fingers` left: the least distance from any of them to
+        the object (``reach`` if none is nearer), and a bound on how fast any point of them moves (each
+        joint between a geom and the hand's root adds its speed times the farthest the geom reaches from
+        its axis: the distance of the geom's centre plus its bounding radius; a slide adds its speed).
+        Over a closing time ``(gap - margin) / speed`` no point of them comes nearer to the object than
+        ``margin``, to first order (the reach from an axis changes as the joints below it turn).
+        Contacts are searched with the moving geoms' margin at ``reach`` (the contacts read until the
+        next :meth:`set_fingers` or :meth:`step` are those)."""
+        m, d = self.model, self.data
+        rate = np.zeros(m.njnt)
+        for name, v in speeds.items():
+            rate[self.joints[name]] = abs(v)
+        g, j, slide = self._links
+        arm = np.where(slide, 1.0, np.linalg.norm(np.cross(d.geom_xpos[g] - d.xanchor[j], d.xaxis[j]), axis=1)
+                       + m.geom_rbound[g])
+        bound = np.bincount(g, rate[j] * arm, minlength=m.ngeom)
+        moving = {int(i): float(bound[i]) for i in np.flatnonzero(bound > 0.0)}
+        if not moving:
+            return reach, 0.0
+        try:
+            m.geom_margin[list(moving)] = reach
+            mujoco.mj_collision(m, d)
+            gaps = [float(d.contact[i].dist) for i in range(d.ncon)
+                    if (int(d.contact[i].geom1) in moving and int(d.contact[i].geom2) in self.object_geoms)
+                    or (int(d.contact[i].geom2) in moving and int(d.contact[i].geom1) in self.object_geoms)]
+        finally:
+            m.geom_margin[:] = self._margins
+        return min([reach, *gaps]), max(moving.values())
 
     def set_friction(self, mu: float, torsion: Mapping[str, float]) -> None:
         """Every hand-object contact: sliding friction ``mu``; on the links
@@ -386,7 +284,7 @@ class World:
 
     def hand_pose(self) -> np.ndarray:
         """(4, 4) the hand's root frame in the world (where the weld holds it, not its target)."""
-        body = int(self.model.jnt_bodyid[mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, "__hand_base")])
+        body = self._hand_body
         pose = np.eye(4)
         pose[:3, :3] = self.data.xmat[body].reshape(3, 3)
         pose[:3, 3] = self.data.xpos[body]
@@ -410,7 +308,18 @@ class World:
 
     def touching_links(self) -> set[str]:
         """Hand links in contact with the object now (penetrating or touching)."""
-        return {link for c, link, _ in self._hand_object() if c.dist <= 0.0}
+        d = self.data
+        if d.ncon == 0:  # read every step while a clutch is engaged: no Python loop over the contacts
+            return set()
+        contacts, hand, obj = d.contact, self.hand_geoms, self.object_geoms
+        out = set()
+        for g1, g2, dist in zip(contacts.geom1.tolist(), contacts.geom2.tolist(), contacts.dist.tolist()):
+            if dist <= 0.0:
+                if g1 in hand and g2 in obj:
+                    out.add(hand[g1])
+                elif g2 in hand and g1 in obj:
+                    out.add(hand[g2])
+        return out
 
     def depth(self) -> float:
         """[m] the deepest overlap of the hand and the object now (0 if none)."""

@@ -17,7 +17,15 @@ welded to a moving target, hand gravity-compensated as an arm would carry it):
    (not near the planned contacts); ``start_overlap`` if that open hand is
    deeper than ``max_start_overlap`` in the object.
 2. Close without gravity: each closing joint's position servo follows a
-   target moving at the hand's closing speed to the closed limit; the servo's
+   target moving at the hand's closing speed to the closed limit. The
+   fingers' travel in free space is skipped: while no finger is near the
+   object nothing touches it and it stays at rest, so closing starts where a
+   moving finger first comes within ``free_travel_gap`` of the object (found
+   by conservative advancement: :meth:`~planner.sim.mujoco_world.World.clearance`),
+   the fingers there at their closing speed, on the closing clock (the
+   Barrett's closing was half free travel, 475 -> 230 steps a trial); not
+   when the open hand already touches the object (it is then pushed while
+   the fingers travel). The servo's
    force is limited to the motor's effort (a mimic is geared to its master
    by an equality constraint, so one motor's effort is shared as by a gear
    train), reached ``servo_lag`` behind the target: once a finger is
@@ -36,7 +44,8 @@ welded to a moving target, hand gravity-compensated as an arm would carry it):
 4. Verdict: ``held`` if the object still touches a finger and moved less
    than ``max_translation`` and ``max_rotation`` relative to the hand since
    the fingers closed; ``slipped`` if not (a trial stops as soon as no
-   finger touches). No finger on the object once closed: ``squeezed_out``
+   finger touches, or the object has moved ``drop_factor`` times either
+   threshold: on the tuning poses none came back from there). No finger on the object once closed: ``squeezed_out``
    if closing moved it by more than those thresholds, else ``no_contact``.
 
 At every check (every :data:`CHECK_EVERY` of closing and loading, and after
@@ -49,7 +58,6 @@ validate`` does not store it, so the grasp stays untried).
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 
@@ -60,6 +68,7 @@ from planner.record.grasp import Grasp, Trial
 from planner.sim.mujoco_world import Engine, Solid, World, build
 from planner.specs.hands import HandSpec
 from planner.validation import fingers as fg
+from planner.validation.mujoco_load import down_along, load_path, motion
 from planner.validation.mujoco_settings import DIVERGED, MujocoSettings
 from planner.validation.tolerances import DEFAULT_LEVER, GRAVITY
 
@@ -71,6 +80,15 @@ SERVO_TIME = 0.01
 #: [s] how often a trial reads its contacts while loaded (an early verdict once no finger touches) and
 #: whether its state diverged (while closing and loaded).
 CHECK_EVERY = 0.05
+#: [m] how far the free-travel skip looks for the object (a finger farther away advances by this).
+PROBE_REACH = 0.05
+#: The share of the time to the gap each advance of the skip takes (under 1: the speed bound is first order).
+ADVANCE = 0.8
+#: [s] the least free travel worth skipping (less: closing starts at rest, as without the skip; more
+#: than the servo's lag, so the fingers are at their steady closing speed where closing starts).
+MIN_SKIP = 3 * SERVO_TIME
+#: The most clearance probes one skip takes (then it starts where it got to).
+MAX_PROBES = 40
 #: Worlds kept per process (one per hand and object: building one costs a few ms, more with many parts).
 _KEPT = 8
 #: A breakaway clutch (the BH8's TorqueSwitch) disengages at a force, not at a touch (the BH8 manual,
@@ -229,7 +247,7 @@ class _Run:
         w.step(_steps(s.settle_time, s.timestep))
         self._check()
         closed = self._relative()
-        closing = _motion(before, closed)
+        closing = motion(before, closed)
         touching = self._touching()
         if not touching:
             pushed = closing[0] >= s.max_translation or closing[1] >= s.max_rotation
@@ -266,12 +284,14 @@ class _Run:
         every = _steps(CHECK_EVERY, dt)
         lever = {j.name: 1.0 if j.kind == "prismatic" else DEFAULT_LEVER for j in hand.joints}
         still = 0.0
-        for i in range(_steps(s.max_close_time, dt)):
+        first = self._skip_free_travel(moving) if s.free_travel_gap > 0 else 0
+        for i in range(first, _steps(s.max_close_time, dt)):
             t = (i + 1) * dt
             done = True
             for name, target in moving.items():
-                w.set_target(name, target.at(t))
-                done &= target.at(t) == target.end
+                at = target.at(t)
+                w.set_target(name, at)
+                done &= at == target.end
             w.step()
             if (i + 1) % every == 0:
                 self._check()
@@ -283,6 +303,49 @@ class _Run:
                 break
         if not hand.actuators.backdrivable:
             self._hold_closed()
+
+    def _free_path(self, moving: Mapping[str, _Target], t: float) -> tuple[dict[str, float], dict[str, float]]:
+        """(positions, speeds) of every closing joint at ``t`` [s] into closing when nothing has touched:
+        each servo :data:`SERVO_TIME` behind its target (its steady lag), a mimic geared to its master."""
+        q, v = {}, {}
+        for name, target in moving.items():
+            q[name] = target.at(max(0.0, t - SERVO_TIME))
+            v[name] = 0.0 if q[name] == target.end else target.speed
+        for j in self.hand.joints:
+            if j.mimic in moving and j.name not in moving:
+                q[j.name] = j.multiplier * q[j.mimic] + j.offset
+                v[j.name] = j.multiplier * v[j.mimic]
+        return q, v
+
+    def _skip_free_travel(self, moving: Mapping[str, _Target]) -> int:
+        """The closing step to start from: the fingers' travel in free space skipped up to where a
+        moving finger comes within ``free_travel_gap`` of the object (conservative advancement with
+        :meth:`~planner.sim.mujoco_world.World.clearance`'s speed bound: over the skipped travel no
+        moving point came nearer than the gap), the fingers placed there at their closing speeds.
+        Nothing is skipped (0) when the hand touches the object at the start (the object is not at rest:
+        its push goes on while the fingers travel) or a finger is already within the gap."""
+        w, s, dt = self.world, self.s, self.s.timestep
+        if w.touching_links() or not moving:
+            return 0
+        end = max(abs(t.end - t.start) / abs(t.speed) for t in moving.values()) + SERVO_TIME
+        t, placed = 0.0, 0.0
+        for _ in range(MAX_PROBES):
+            q, v = self._free_path(moving, t)
+            w.set_fingers(q, {}, probe=True)
+            gap, speed = w.clearance(v, PROBE_REACH)
+            if gap < s.free_travel_gap:
+                break
+            placed = t
+            if gap < 1.5 * s.free_travel_gap or t >= end or speed == 0.0:
+                break
+            t = min(end, t + ADVANCE * (gap - s.free_travel_gap) / speed)
+        first = int(placed / dt)  # whole steps: the targets stay on the closing clock
+        if first * dt < MIN_SKIP:  # not worth it: from rest, as without the skip
+            w.set_fingers(self._free_path(moving, 0.0)[0], {})
+            return 0
+        q, v = self._free_path(moving, first * dt)
+        w.set_fingers(q, v)
+        return first
 
     def _break_away(self, clutches: list[_Clutch], touching: set[str], moving: dict[str, _Target], t: float,
                     fastest: float) -> None:
@@ -328,51 +391,29 @@ class _Run:
     def _load(self, closed: np.ndarray) -> tuple[bool, tuple[float, float]]:
         """Gravity, lift, shake, hold; (held, (largest motion [m], rotation [rad]) relative to the hand)."""
         w, s, dt = self.world, self.s, self.s.timestep
-        down = _down(s.down, self.pose[:3, :3] @ self.hand.approach)
+        down = down_along(s.down, self.pose[:3, :3] @ self.hand.approach)
         weight = 0.0 if s.down == "none" else GRAVITY
         worst = [0.0, 0.0]
         every = _steps(CHECK_EVERY, dt)
-        path = self._path(down)
+        path = w.targets(load_path(s, self.pose, self.hand.tcp, self.hand.approach, down))
         ramp = _steps(s.ramp_time, dt)
-        for i, target in enumerate(path):
-            if i <= ramp:
+        gone = (s.drop_factor * s.max_translation, s.drop_factor * s.max_rotation) if s.drop_factor else None
+        for begin in range(0, len(path), every):  # a check after each `every` steps and after the last
+            end = min(begin + every, len(path))
+            for i in range(begin, min(end, ramp + 1)):
                 w.set_gravity(weight * min(1.0, (i + 1) / ramp) * down)
-            w.move_hand(target)
-            w.step()
-            if (i + 1) % every == 0 or i == len(path) - 1:
-                self._check()
-                moved = _motion(closed, self._relative())
-                worst = [max(worst[0], moved[0]), max(worst[1], moved[1])]
-                if not self._touching():
-                    return False, (worst[0], worst[1])
-        final = _motion(closed, self._relative())
+                w.follow(path[i])
+                w.step()
+            if end > ramp + 1:
+                w.follow_path(path[max(begin, ramp + 1):end])
+            self._check()
+            moved = motion(closed, self._relative())
+            worst = [max(worst[0], moved[0]), max(worst[1], moved[1])]
+            if not self._touching() or (gone and (moved[0] >= gone[0] or moved[1] >= gone[1])):
+                return False, (worst[0], worst[1])
+        final = motion(closed, self._relative())
         held = final[0] < s.max_translation and final[1] < s.max_rotation
         return held, (worst[0], worst[1])
-
-    def _path(self, down: np.ndarray) -> np.ndarray:
-        """(n, 4, 4) the hand's target pose at every step of the load: ramp
-        (still), lift, rotations about the two axes across the approach
-        through the tool centre point, translation along gravity, hold
-        (still)."""
-        s, dt, pose = self.s, self.s.timestep, self.pose
-        still = np.repeat(pose[None], _steps(s.ramp_time, dt), axis=0)
-        n = _steps(s.lift_time, dt)
-        lift = np.repeat(pose[None], n, axis=0)
-        lift[:, :3, 3] -= np.outer(s.lift * 0.5 * (1.0 - np.cos(np.pi * np.arange(1, n + 1) / n)), down)
-        top = lift[-1]
-        centre = top[:3, :3] @ self.hand.tcp + top[:3, 3]
-        n = _steps(s.shake_cycles / s.shake_frequency, dt) if s.shake_cycles else 0
-        wave = np.sin(2 * np.pi * s.shake_frequency * dt * np.arange(1, n + 1))
-        turns = []
-        for axis in _across(self.hand.approach):
-            turn = np.repeat(np.eye(4)[None], n, axis=0)
-            turn[:, :3, :3] = _rotations(top[:3, :3] @ axis, s.shake_angle * wave)
-            turn[:, :3, 3] = centre - turn[:, :3, :3] @ centre
-            turns.append(turn @ top)
-        shift = np.repeat(top[None], n, axis=0)
-        shift[:, :3, 3] += np.outer(s.shake_distance * wave, down)
-        hold = np.repeat(top[None], _steps(s.hold_time, dt), axis=0)
-        return np.concatenate([still, lift, *turns, shift, hold])
 
     # -- reading ---------------------------------------------------------------------
     def _check(self) -> None:
@@ -384,41 +425,12 @@ class _Run:
         w = self.world
         frame = w.object_pose()
         frame[:3, 3] = w.centre_of_mass()
-        return np.linalg.inv(w.hand_pose()) @ frame
+        hand = w.hand_pose()
+        inverse = np.eye(4)
+        inverse[:3, :3] = hand[:3, :3].T
+        inverse[:3, 3] = -hand[:3, :3].T @ hand[:3, 3]
+        return inverse @ frame
 
     def _touching(self) -> int:
         links = self.world.touching_links()
         return sum(1 for f in self.fingers if f & links)
-
-
-def _down(name: str, approach: np.ndarray) -> np.ndarray:
-    """(3,) unit vector, world (= object) frame, of :data:`~planner.validation.mujoco_settings.DOWN`'s
-    ``name``; ``approach``: the hand's approach in the world. Without gravity the hand still lifts and
-    shakes along -z."""
-    if name == "approach":
-        return approach / np.linalg.norm(approach)
-    return np.array([0.0, -1.0, 0.0]) if name == "-y" else np.array([0.0, 0.0, -1.0])
-
-
-def _motion(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
-    """(distance [m], angle [rad]) between two (4, 4) frames (the angle from
-    the trace: ~1e-4 rad resolution near 0, plenty for a verdict)."""
-    cos = (float(np.einsum("ij,ij->", a[:3, :3], b[:3, :3])) - 1.0) / 2.0
-    return float(np.linalg.norm(b[:3, 3] - a[:3, 3])), math.acos(min(1.0, max(-1.0, cos)))
-
-
-def _across(approach: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two unit axes (hand frame) across the unit ``approach``: the hand's x
-    (or y, if x is the approach) made perpendicular, and approach x that."""
-    a = np.asarray(approach, float) / np.linalg.norm(approach)
-    seed = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    first = seed - (seed @ a) * a
-    first /= np.linalg.norm(first)
-    return first, np.cross(a, first)
-
-
-def _rotations(axis: np.ndarray, angles: np.ndarray) -> np.ndarray:
-    """(n, 3, 3) rotations by ``angles`` (n,) [rad] about the unit ``axis`` (Rodrigues)."""
-    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return (np.eye(3) + np.sin(angles)[:, None, None] * k
-            + (1 - np.cos(angles))[:, None, None] * (k @ k))

@@ -127,3 +127,82 @@ def test_a_diverged_state_is_seen_until_the_next_reset() -> None:
     assert np.all(np.isfinite(world.data.qvel)) and world.diverged()
     world.reset(pose, {})
     assert not world.diverged()
+
+
+def test_the_model_text_writes_mujocos_own_quaternions() -> None:
+    # the MJCF builder (no mujoco) and the weld targets use one function with mju_mat2Quat's branches
+    import mujoco
+    from scipy.spatial.transform import Rotation
+
+    from planner.sim.mujoco_mjcf import quat, quats
+
+    turns = Rotation.random(500, random_state=np.random.default_rng(0)).as_matrix()
+    flips = np.array([np.diag(d) for d in ([1.0, 1, 1], [1.0, -1, -1], [-1.0, 1, -1], [-1.0, -1, 1])])
+    rotations = np.concatenate([turns, flips])
+    theirs = np.zeros((len(rotations), 4))
+    for row, r in zip(theirs, rotations):
+        mujoco.mju_mat2Quat(row, r.ravel())
+    assert_close(quats(rotations), theirs, QUAT_TOL)
+    assert_close(quat(rotations[7]), theirs[7], QUAT_TOL)
+
+
+#: Quaternions equal to a few units in the last place (the same formulas, normalised in another order).
+QUAT_TOL = 1e-14
+
+
+def test_the_clearance_is_the_distance_to_the_object_and_the_speed_bounds_every_point() -> None:
+    # the Panda from above a cube, its pads 5 mm off the cube's sides (fingers 2.5 cm apart + 5 mm each side)
+    hand = load_hand("panda")
+    world = build(hand, cube())
+    pose = np.diag([-1.0, 1.0, -1.0, 1.0])
+    pose[:3, 3] = -pose[:3, :3] @ hand.tcp
+    opening = 0.02 + 0.005
+    world.reset(pose, {"panda_finger_joint1": opening, "panda_finger_joint2": opening})
+    closing = {"panda_finger_joint1": -0.05, "panda_finger_joint2": -0.05}
+    gap, speed = world.clearance(closing, 0.05)
+    assert_close(gap, 0.005, 0.0005)  # the pads' faces, as the contact test above places them (<2 mm deep)
+    assert_close(speed, 0.05, 1e-12)  # a slide: its own speed
+    assert world.clearance({}, 0.05) == (0.05, 0.0)  # nothing moves: no gap to close
+    world.reset(far_away(), {})
+    assert world.clearance(closing, 0.05)[0] == 0.05  # nothing within reach
+
+
+def test_the_speed_bound_of_a_revolute_finger_holds_its_fastest_point() -> None:
+    # the Barrett's finger 1 turning at 1 rad/s on both joints: no vertex of its links moves faster
+    hand = load_hand("barrett")
+    world = build(hand, cube())
+    world.reset(far_away(), hand.full_configuration({}))
+    world.couple("bh_j13_joint", False)
+    speeds = {"bh_j12_joint": 1.0, "bh_j13_joint": 1.0}
+    _, bound = world.clearance(speeds, 0.05)
+    links = {"bh_finger_12_link", "bh_finger_13_link"}
+    geoms = [g for g, link in world.hand_geoms.items() if link in links]
+
+    def points() -> np.ndarray:  # (n, 3) the geoms' bounding boxes' corners, world frame
+        m, d = world.model, world.data
+        corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+        return np.concatenate([d.geom_xpos[g] + (corners * m.geom_size[g]) @ d.geom_xmat[g].reshape(3, 3).T
+                               for g in geoms])
+
+    before = points()
+    dt = 1e-4
+    world.set_fingers({name: world.joint_position(name) + v * dt for name, v in speeds.items()}, {})
+    fastest = float(np.max(np.linalg.norm(points() - before, axis=1))) / dt
+    assert 0.3 * bound < fastest <= bound
+
+
+def test_following_a_path_in_one_call_steps_as_following_it_step_by_step() -> None:
+    world = build(load_hand("panda"), cube())
+    poses = np.repeat(far_away()[None], 40, axis=0)
+    poses[:, 2, 3] += np.linspace(0.0, 0.02, 40)  # 2 cm up in 40 steps
+    path = world.targets(poses)
+    world.reset(far_away(), {})
+    for row in path:
+        world.follow(row)
+        world.step()
+    one_by_one = world.data.qpos.copy()
+    world.reset(far_away(), {})
+    world.follow_path(path)
+    assert np.array_equal(world.data.qpos, one_by_one)
+    assert_close(world.time, 40 * world.model.opt.timestep, 1e-12)
+    assert world.hand_pose()[2, 3] > 0.015

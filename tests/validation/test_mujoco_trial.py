@@ -52,6 +52,14 @@ def test_a_lower_grip_force_or_friction_margin_drops_what_the_published_ones_hol
         assert not result.success and result.reason == "slipped", scaled
 
 
+@pytest.mark.parametrize("bad", [{"free_travel_gap": -0.001}, {"drop_factor": 0.5}])
+def test_a_negative_gap_or_a_drop_inside_the_thresholds_is_refused(bad) -> None:  # type: ignore[no-untyped-def]
+    from planner.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="free_travel_gap"):
+        MujocoSettings(**bad)
+
+
 @pytest.mark.parametrize("bad", [{"effort_scale": 0.0}, {"friction_scale": -1.0}, {"torsion_scale": -0.1}])
 def test_scales_out_of_range_are_refused(bad) -> None:  # type: ignore[no-untyped-def]
     from planner.errors import ConfigError
@@ -168,6 +176,75 @@ def test_a_state_that_diverges_under_load_ends_the_trial_at_the_next_check(pinch
 
     monkeypatch.setattr(World, "set_gravity", poisoned)
     assert trial(hand, obj, grasp).reason == "diverged"
+
+
+class _Steps:
+    """Counts MuJoCo's steps (every mj_step call, one step each) while patched in."""
+
+    def __init__(self, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+        import mujoco
+
+        self.count = 0
+        stepped = mujoco.mj_step
+
+        def step(model, data, *args) -> None:  # type: ignore[no-untyped-def]
+            assert not args  # one step per call, as the world steps
+            self.count += 1
+            stepped(model, data)
+
+        monkeypatch.setattr(mujoco, "mj_step", step)
+
+
+def test_skipping_the_free_travel_starts_closing_at_the_gap_and_holds_as_before(pinched, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    from planner.validation import mujoco_trial
+
+    hand, obj, grasp = pinched
+    near = replace(MujocoSettings(), free_travel_gap=0.003)
+    far = replace(near, free_travel_gap=0.0)
+    steps = _Steps(monkeypatch)
+    full = trial(hand, obj, grasp, far)
+    from_rest = steps.count
+    starts = []
+    skip = mujoco_trial._Run._skip_free_travel
+
+    def measured(run, moving):  # type: ignore[no-untyped-def]
+        first = skip(run, moving)
+        starts.append((first, run.world.clearance(run._free_path(moving, first * near.timestep)[1], 0.05)[0]))
+        return first
+
+    monkeypatch.setattr(mujoco_trial._Run, "_skip_free_travel", measured)
+    steps.count = 0
+    skipped = trial(hand, obj, grasp, near)
+    (first, gap), = starts
+    assert full.reason == skipped.reason == "held"
+    assert first > 0 and steps.count < from_rest
+    assert near.free_travel_gap <= gap < mujoco_trial.PROBE_REACH
+
+
+def test_a_finger_already_within_the_gap_skips_nothing(pinched, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    hand, obj, grasp = pinched
+    steps = _Steps(monkeypatch)
+    trial(hand, obj, grasp, replace(MujocoSettings(), free_travel_gap=0.0))
+    plain = steps.count
+    steps.count = 0
+    trial(hand, obj, grasp, replace(MujocoSettings(), free_travel_gap=0.05))  # every pad nearer than 5 cm
+    assert steps.count == plain
+
+
+def test_an_object_swinging_far_past_the_thresholds_ends_the_trial_early_as_slipped(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    # a 1 kg bar pinched 4.5 cm off its centre: it swings about the pads (over 1 rad) and stays between them
+    hand = load_hand("panda")
+    bar = box_of((0.12, 0.04, 0.04), 1.0)
+    grasp = pinch(hand, bar, (0.045, 0.0, 0.0))
+    steps = _Steps(monkeypatch)
+    slow = trial(hand, bar, grasp, replace(MujocoSettings(), drop_factor=0.0))
+    to_the_end = steps.count
+    steps.count = 0
+    early = trial(hand, bar, grasp, replace(MujocoSettings(), drop_factor=1.5))
+    assert slow.reason == early.reason == "slipped" and slow.fingers_in_contact == 2
+    assert steps.count < to_the_end
+    limits = MujocoSettings()
+    assert early.shaking_linear >= 1.5 * limits.max_translation or early.shaking_angular >= 1.5 * limits.max_rotation
 
 
 def test_the_stored_settings_name_the_engine_and_the_hand() -> None:

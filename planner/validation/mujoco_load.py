@@ -1,0 +1,77 @@
+"""The load of the MuJoCo trial (:mod:`planner.validation.mujoco_trial`) as
+motion: the hand's target pose at every step (ramp, lift, shake, hold) and
+the measure of how far the object moved relative to the hand. Pure numpy;
+frames are the world (= the object's at rest), poses (4, 4) [m].
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from planner.validation.mujoco_settings import MujocoSettings
+
+
+def _steps(seconds: float, dt: float) -> int:
+    return max(1, int(round(seconds / dt)))
+
+
+def load_path(s: MujocoSettings, pose: np.ndarray, tcp: np.ndarray, approach: np.ndarray,
+              down: np.ndarray) -> np.ndarray:
+    """(n, 4, 4) the hand's target pose at every step of the load from the grasp ``pose``: ramp
+    (still), lift against ``down`` (3,), rotations about the two axes across the hand's unit
+    ``approach`` (hand frame) through the tool centre point ``tcp`` (hand frame), translation along
+    ``down``, hold (still)."""
+    dt = s.timestep
+    still = np.repeat(pose[None], _steps(s.ramp_time, dt), axis=0)
+    n = _steps(s.lift_time, dt)
+    lift = np.repeat(pose[None], n, axis=0)
+    lift[:, :3, 3] -= np.outer(s.lift * 0.5 * (1.0 - np.cos(np.pi * np.arange(1, n + 1) / n)), down)
+    top = lift[-1]
+    centre = top[:3, :3] @ tcp + top[:3, 3]
+    n = _steps(s.shake_cycles / s.shake_frequency, dt) if s.shake_cycles else 0
+    wave = np.sin(2 * np.pi * s.shake_frequency * dt * np.arange(1, n + 1))
+    turns = []
+    for axis in _across(approach):
+        turn = np.repeat(np.eye(4)[None], n, axis=0)
+        turn[:, :3, :3] = _rotations(top[:3, :3] @ axis, s.shake_angle * wave)
+        turn[:, :3, 3] = centre - turn[:, :3, :3] @ centre
+        turns.append(turn @ top)
+    shift = np.repeat(top[None], n, axis=0)
+    shift[:, :3, 3] += np.outer(s.shake_distance * wave, down)
+    hold = np.repeat(top[None], _steps(s.hold_time, dt), axis=0)
+    return np.concatenate([still, lift, *turns, shift, hold])
+
+
+def down_along(name: str, approach: np.ndarray) -> np.ndarray:
+    """(3,) unit vector, world (= object) frame, of :data:`~planner.validation.mujoco_settings.DOWN`'s
+    ``name``; ``approach``: the hand's approach in the world. Without gravity the hand still lifts and
+    shakes along -z."""
+    if name == "approach":
+        return approach / np.linalg.norm(approach)
+    return np.array([0.0, -1.0, 0.0]) if name == "-y" else np.array([0.0, 0.0, -1.0])
+
+
+def motion(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+    """(distance [m], angle [rad]) between two (4, 4) frames (the angle from
+    the trace: ~1e-4 rad resolution near 0, plenty for a verdict)."""
+    cos = (float(np.einsum("ij,ij->", a[:3, :3], b[:3, :3])) - 1.0) / 2.0
+    return float(np.linalg.norm(b[:3, 3] - a[:3, 3])), math.acos(min(1.0, max(-1.0, cos)))
+
+
+def _across(approach: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit axes (hand frame) across the unit ``approach``: the hand's x
+    (or y, if x is the approach) made perpendicular, and approach x that."""
+    a = np.asarray(approach, float) / np.linalg.norm(approach)
+    seed = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    first = seed - (seed @ a) * a
+    first /= np.linalg.norm(first)
+    return first, np.cross(a, first)
+
+
+def _rotations(axis: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """(n, 3, 3) rotations by ``angles`` (n,) [rad] about the unit ``axis`` (Rodrigues)."""
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return (np.eye(3) + np.sin(angles)[:, None, None] * k
+            + (1 - np.cos(angles))[:, None, None] * (k @ k))
