@@ -87,3 +87,23 @@ def start_joints(hand: HandSpec, grasp: Grasp, rates: Mapping[str, float], lever
         step = gap if j.kind == "prismatic" else gap / lever.get(j.name, DEFAULT_LEVER)
         driven[j.name] = float(np.clip(closed - np.sign(rate) * step, j.lower, j.upper))
     return hand.full_configuration(driven)
+
+
+def open_start(hand: HandSpec, grasp: Grasp, rates: Mapping[str, float]) -> dict[str, float]:
+    """Every finger joint where the MuJoCo trial starts: the grasp's open preshape;
+    a driven joint it lacks at its open limit if it closes (``rates``, the
+    preshape's closing rates), else as planned; a mimic it lacks follows its
+    master (the antipodal sweep stores only the driven joints of the opening
+    it fitted to the chord: the Panda's second finger once started 4 cm open
+    beside a first one fitted to 1.4 cm, into a neighbouring lobe of the
+    object, and the gearing snapped it back)."""
+    driven = {}
+    for j in hand.driven:
+        if j.name in grasp.open_joints:
+            driven[j.name] = float(grasp.open_joints[j.name])
+        elif rates.get(j.name, 0.0) != 0.0:
+            driven[j.name] = j.lower if rates[j.name] > 0 else j.upper
+        else:
+            driven[j.name] = float(grasp.closed_joints.get(j.name, j.lower))
+    out = hand.full_configuration(driven)
+    return {**out, **{name: float(v) for name, v in grasp.open_joints.items() if name in out}}

@@ -127,26 +127,6 @@ def trials(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp], setting
     return [_Run(world, hand, g, s, mu).run() for g in grasps]
 
 
-def start_joints(hand: HandSpec, grasp: Grasp, rates: Mapping[str, float]) -> dict[str, float]:
-    """Every finger joint where the trial starts: the grasp's open preshape;
-    a driven joint it lacks at its open limit if it closes (``rates``, the
-    preshape's closing rates), else as planned; a mimic it lacks follows its
-    master (the antipodal sweep stores only the driven joints of the opening
-    it fitted to the chord: the Panda's second finger once started 4 cm open
-    beside a first one fitted to 1.4 cm, into a neighbouring lobe of the
-    object, and the gearing snapped it back)."""
-    driven = {}
-    for j in hand.driven:
-        if j.name in grasp.open_joints:
-            driven[j.name] = float(grasp.open_joints[j.name])
-        elif rates.get(j.name, 0.0) != 0.0:
-            driven[j.name] = j.lower if rates[j.name] > 0 else j.upper
-        else:
-            driven[j.name] = float(grasp.closed_joints.get(j.name, j.lower))
-    out = hand.full_configuration(driven)
-    return {**out, **{name: float(v) for name, v in grasp.open_joints.items() if name in out}}
-
-
 def solid(obj: PreparedObject, mass: float, tolerance: float) -> Solid:
     """The object as the trial collides it: the PyBullet trial's shape
     (:func:`planner.validation.parts.trial_shape`: primitives, else convex
@@ -258,7 +238,7 @@ class _Run:
         return Trial(held, touching, *closing, *shaking, "held" if held else "slipped")
 
     def _open_joints(self) -> dict[str, float]:
-        return start_joints(self.hand, self.grasp, self.rates)
+        return fg.open_start(self.hand, self.grasp, self.rates)
 
     def _close(self, start: Mapping[str, float]) -> None:
         w, s, hand = self.world, self.s, self.hand

@@ -14,7 +14,7 @@ import pytest
 from planner.specs.hands import load_hand
 from planner.validation import fingers as fg
 from planner.validation.mujoco_settings import MujocoSettings
-from planner.validation.mujoco_trial import recorded, start_joints, trial, trials
+from planner.validation.mujoco_trial import recorded, trial, trials
 from tests.validation.support import as_row_of, backed_off, box, box_of, pinch
 
 #: The pinched box (0.2 kg) and the Panda's pad force (one 70 N motor: 35 N a pad): below
@@ -97,7 +97,7 @@ def test_a_mimic_the_stored_opening_lacks_starts_with_its_master(pinched) -> Non
     at its open limit, and the fitted hand is as free of the box as planned."""
     hand, obj, grasp = pinched
     fitted = replace(grasp, open_joints={"panda_finger_joint1": 0.025})
-    start = start_joints(hand, fitted, fg.closing_rates(hand, fitted.preshape))
+    start = fg.open_start(hand, fitted, fg.closing_rates(hand, fitted.preshape))
     assert start == {"panda_finger_joint1": 0.025, "panda_finger_joint2": 0.025}
     assert trial(hand, obj, fitted).reason == "held"
 
