@@ -16,6 +16,7 @@ from planner.datasets import importer
 from planner.datasets.importer import import_files
 from planner.db.store import open_db
 from planner.geometry.solid import load_object
+from planner.specs.hands import load_hand
 from tests import crash_units
 from tests.datasets.support import SAME_ORDER_RULE, export, pose, source_rows
 
@@ -25,6 +26,7 @@ RESCORE_REL_TOL = 0.05
 #: before, so a file re-scored in one world or in several gets epsilons that
 #: differ by this fraction at most (measured: 5e-5).
 SIM_HISTORY_REL = 1e-3
+PANDA = load_hand("panda")
 
 
 def test_acronym_round_trip_is_lossless(db: Path, tmp_path: Path) -> None:
@@ -47,8 +49,11 @@ def test_acronym_round_trip_is_lossless(db: Path, tmp_path: Path) -> None:
             for key in ("epsilon", "volume", "force_closure", "score", "width", "reachability", "manipulability",
                         "preshape", "roll", "standoff", "n_contacts", "links_touching"):
                 assert a[key] == b[key], key
-            for key in ("closed_joints", "open_joints", "contacts", "approach_point", "approach_dir"):
+            for key in ("contacts", "approach_point", "approach_dir"):
                 assert json.loads(a[key]) == json.loads(b[key]), key
+            for key in ("closed_joints", "open_joints"):  # the stored joints exactly; the file's (N, J) matrix
+                stored, back = json.loads(a[key]), json.loads(b[key])  # adds a mimic left out, at its coupling
+                assert {k: back[k] for k in stored} == stored and back == PANDA.posture(stored), key
     # the shake-test and robust-epsilon results came back too
     sim = "SELECT g.candidate, v.success, r.mean, r.quantile FROM grasps g JOIN validation v ON v.grasp_id = g.id" \
           " JOIN robust r ON r.grasp_id = g.id WHERE g.object = 'box' ORDER BY g.candidate"
