@@ -65,11 +65,12 @@ import numpy as np
 
 from planner.geometry.solid import PreparedObject
 from planner.record.grasp import Grasp, Trial
-from planner.sim.mujoco_world import Engine, Solid, World, build
+from planner.sim.mujoco_world import World
 from planner.specs.hands import HandSpec
 from planner.validation import fingers as fg
 from planner.validation.mujoco_load import down_along, load_path, motion
 from planner.validation.mujoco_settings import DIVERGED, MujocoSettings
+from planner.validation.mujoco_worlds import world_for
 from planner.validation.tolerances import DEFAULT_LEVER, GRAVITY
 
 #: Why a MuJoCo trial ended as it did (``Trial.reason``).
@@ -89,8 +90,6 @@ ADVANCE = 0.8
 MIN_SKIP = 3 * SERVO_TIME
 #: The most clearance probes one skip takes (then it starts where it got to).
 MAX_PROBES = 40
-#: Worlds kept per process (one per hand and object: building one costs a few ms, more with many parts).
-_KEPT = 8
 #: A breakaway clutch (the BH8's TorqueSwitch) disengages at a force, not at a touch (the BH8 manual,
 #: "TorqueSwitch operation": the force that disengages it is a setting; the inner link then holds its
 #: position): here once the proximal link touches and its motor pushes with this share of its effort
@@ -98,7 +97,6 @@ _KEPT = 8
 #: no force (the object loose in a cage of fingers: ``no_contact``); at 0.5 the Barrett's figures of
 #: bench/mujoco_protocols.py move by one grasp in 150.
 BREAKAWAY = 1.0
-_WORLDS: dict[tuple, World] = {}
 
 
 def recorded(settings: MujocoSettings, hand: HandSpec) -> str:
@@ -122,35 +120,9 @@ def trials(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp], setting
     """Shake-test grasps of one object in MuJoCo, one after the other in one
     world (each from a fresh state: the results do not depend on the order)."""
     s = settings or MujocoSettings()
-    world = _world(hand, obj, s, obj.mass if mass is None else mass)
+    world = world_for(hand, obj, s, obj.mass if mass is None else mass)
     mu = (obj.friction if friction is None else friction) * s.friction_scale
     return [_Run(world, hand, g, s, mu).run() for g in grasps]
-
-
-def solid(obj: PreparedObject, mass: float, tolerance: float) -> Solid:
-    """The object as the trial collides it: the PyBullet trial's shape
-    (:func:`planner.validation.parts.trial_shape`: primitives, else convex
-    parts simplified to ``tolerance``), at ``mass`` [kg]."""
-    from planner.validation.parts import PRIMITIVES, simplified_parts
-
-    inertia = np.asarray(obj.inertia, float) * (mass / obj.mass)
-    com = np.asarray(obj.com, float)
-    if obj.spec.kind in PRIMITIVES:
-        return Solid(obj.spec.kind, tuple(obj.spec.dims), (), mass, com, inertia)
-    hulls = tuple(v for v, _ in simplified_parts(obj, tolerance))
-    return Solid("hulls", (), hulls, mass, com, inertia)
-
-
-def _world(hand: HandSpec, obj: PreparedObject, s: MujocoSettings, mass: float) -> World:
-    engine = Engine(s.timestep, s.iterations, s.impratio, s.contact_time, 1.0, s.contact_time, s.multiccd)
-    soft = tuple(sorted(link for link, c in hand.contacts.items() if c.model == "soft" and c.torsion_radius > 0))
-    key = (hand.name, str(hand.urdf), soft, obj.mesh_hash, obj.spec.kind, tuple(obj.spec.dims), mass,
-           s.part_tolerance, engine)
-    if key not in _WORLDS:
-        if len(_WORLDS) >= _KEPT:
-            _WORLDS.pop(next(iter(_WORLDS)))
-        _WORLDS[key] = build(hand, solid(obj, mass, s.part_tolerance), engine)
-    return _WORLDS[key]
 
 
 class _Diverged(Exception):
