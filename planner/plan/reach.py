@@ -179,7 +179,7 @@ class ReachScene:
         """Grasp and pre-grasp IK at the current object placement; a mimic
         joint ``open_`` lacks follows its master (the antipodal sweep stores
         the driven joints of the opening it fitted)."""
-        open_ = {**self.hand.full_configuration(open_), **open_}
+        open_ = self.hand.posture(open_)
         world = self.object_pose @ grasp_pose
         pre = world.copy()
         pre[:3, 3] -= (world[:3, :3] @ self.hand.approach) * self.settings.pregrasp_distance
