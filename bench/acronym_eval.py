@@ -121,6 +121,7 @@ class FileResult:
     grasps: list = field(default_factory=list)
     rejected: dict[str, int] = field(default_factory=dict)  # closing's and scoring's reasons, counted
     trial: dict[int, bool] = field(default_factory=dict)  # sampled position -> held
+    top_trial: dict[int, bool] = field(default_factory=dict)  # --trial-top: sampled position -> held
 
     @property
     def closed(self) -> np.ndarray:
@@ -158,29 +159,47 @@ def run_trials(result: FileResult, n: int, seed: int, settings: ShakeSettings | 
     closed = np.flatnonzero(result.closed)
     if n <= 0 or not len(closed):
         return
-    chosen = sample(len(closed), n, seed + 1, result.path.stem)
+    picked = [int(closed[i]) for i in sample(len(closed), n, seed + 1, result.path.stem)]
+    result.trial, result.trial_reasons = _trialled(result, picked, settings, cache, code, pose,  # type: ignore[attr-defined]
+                                                   f"{seed}.{n}")
+
+
+def run_top_trials(result: FileResult, p_hold: np.ndarray, k: int, settings: ShakeSettings | MujocoSettings,
+                   cache: Path, code: str, pose: str) -> None:
+    """``--trial-top``: trial the file's ``k`` best closed poses in rank order (``p_hold`` (m,) per sampled
+    pose, -inf where rejected; force closure first) into ``result.top_trial``."""
+    fc = np.zeros(len(result.rows))
+    fc[np.flatnonzero(result.closed)] = [g.force_closure for g in result.grasps]
+    picked = [int(i) for i in rank_order(p_hold, fc)[:k] if result.closed[i]]
+    if picked:
+        digest = hashlib.sha256(json.dumps(picked).encode()).hexdigest()[:8]
+        result.top_trial, _ = _trialled(result, picked, settings, cache, code, pose, f"top{k}-{digest}")
+
+
+def _trialled(result: FileResult, picked: list[int], settings: ShakeSettings | MujocoSettings, cache: Path,
+              code: str, pose: str, which: str) -> tuple[dict[int, bool], dict[int, str]]:
+    """The trial's verdicts (held, reason) of the sampled positions ``picked``, cached under ``which``."""
     mujoco = isinstance(settings, MujocoSettings)
     if mujoco or pose != "planned":  # the PyBullet trial at planned poses keeps the keys of its earlier figures
         tag = hashlib.sha256((settings.to_json() + pose + trial_source()).encode()).hexdigest()[:8]
         tag = ("mujoco-" if mujoco else "") + tag
     else:
         tag = hashlib.sha256(settings.to_json().encode()).hexdigest()[:8]
-    key = cache / f"{result.path.stem}.trial.{len(result.rows)}.{seed}.{n}.{tag}.{code}.json"
+    key = cache / f"{result.path.stem}.trial.{len(result.rows)}.{which}.{tag}.{code}.json"
     if key.exists():
         stored = json.loads(key.read_text())
-        result.trial = {int(k): bool(v[0] if isinstance(v, list) else v) for k, v in stored.items()}
-        result.trial_reasons = {int(k): v[1] for k, v in stored.items() if isinstance(v, list)}  # type: ignore[attr-defined]
-        return
+        return ({int(k): bool(v[0] if isinstance(v, list) else v) for k, v in stored.items()},
+                {int(k): v[1] for k, v in stored.items() if isinstance(v, list)})
     hand, spec, poses = importer.read_for_rescoring(result.path)
     by_pos = {g.candidate: g if pose == "planned" else replace(g, pose=poses[result.rows[g.candidate]])
               for g in result.grasps}
-    picked = [int(closed[i]) for i in chosen]
     obj = prepare(spec)
     run = mujoco_trial.trials if mujoco else trials
     outcome = run(hand, obj, [by_pos[p] for p in picked], settings)
-    result.trial = {p: bool(t.success) for p, t in zip(picked, outcome)}
-    result.trial_reasons = {p: t.reason for p, t in zip(picked, outcome)}  # type: ignore[attr-defined]
-    key.write_text(json.dumps({p: [result.trial[p], result.trial_reasons[p]] for p in picked}))  # type: ignore[attr-defined]
+    held = {p: bool(t.success) for p, t in zip(picked, outcome)}
+    reasons = {p: t.reason for p, t in zip(picked, outcome)}
+    key.write_text(json.dumps({p: [held[p], reasons[p]] for p in picked}))
+    return held, reasons
 
 
 def trial_source() -> str:
@@ -234,6 +253,13 @@ def evaluate(results: list[FileResult], model, rule: RankingRule, oof: dict[str,
         if model is not None:
             row["auc_p_hold"] = roc_auc(r.labels, s["p_hold"])
             row["top10_p_hold"] = top_hold(s["p_hold"], s["fc"], r.labels)
+            top_trial = getattr(r, "top_trial", {})  # a result pickled before --trial-top has none
+            if top_trial:  # as the database ranks once the trial tried them (success_weight 1)
+                factor = np.ones(len(r.rows))
+                for p, held in top_trial.items():
+                    factor[p] = float(held)
+                row["top10_validated"] = top_hold(s["p_hold"] * factor, s["fc"], r.labels)
+                row["top_trial_n"] = len(top_trial)
         if r.trial:
             pos = np.array(sorted(r.trial))
             verdict = np.array([r.trial[p] for p in pos], int)
@@ -265,7 +291,8 @@ def evaluate(results: list[FileResult], model, rule: RankingRule, oof: dict[str,
             "mean": _mean(_by(per_file, "object")), **pooled}
 
 
-METRICS = ("auc_score", "auc_width", "auc_p_hold", "top10_score", "top10_p_hold", "trial_agree", "success_rate")
+METRICS = ("auc_score", "auc_width", "auc_p_hold", "top10_score", "top10_p_hold", "top10_validated", "trial_agree",
+           "success_rate")
 
 
 def _by(rows: list[dict], key: str) -> list[dict]:
@@ -353,6 +380,8 @@ def main() -> int:
     parser.add_argument("--held-out", action="store_true", help="the held-out objects: the lead runs this ONCE")
     parser.add_argument("--model", type=Path, help="p_hold model TOML (default: the shipped one)")
     parser.add_argument("--trial", type=int, default=0, help="shake-trial this many closed poses per file")
+    parser.add_argument("--trial-top", type=int, default=0,
+                        help="trial each file's K best closed poses (grasp validate --top K) and rank again")
     parser.add_argument("--trial-set", nargs="*", default=[], help="the engine's settings overrides key=value")
     parser.add_argument("--engine", choices=ENGINES, default="pybullet", help="the trial of --trial")
     parser.add_argument("--trial-pose", choices=("planned", "original"),
@@ -402,13 +431,18 @@ def main() -> int:
             args.write_model.write_text(cal.model.to_toml())
             print(f"wrote {args.write_model}", file=sys.stderr)
         model = model or cal.model
+    if args.trial_top:
+        for r in results:
+            run_top_trials(r, scores(r, model, RankingRule(), None if oof is None else oof[r.path.stem])["p_hold"],
+                           args.trial_top, settings, args.cache, code, trial_pose)
     report = evaluate(results, model, RankingRule(), oof)
     if oof is not None:
         report["cv"] = {"folds": args.cv, "note": "p_hold figures are out-of-fold (grouped by object)"}
     report["cpu_seconds"] = time.process_time() - start
     report["settings"] = {"poses": args.poses, "seed": args.seed, "side": "held_out" if args.held_out else "tuning",
                           "files": len(files), "code": code, "trial": args.trial, "trial_set": args.trial_set,
-                          "engine": args.engine, "trial_pose": trial_pose}
+                          "engine": args.engine, "trial_pose": trial_pose,
+                          "trial_top": args.trial_top}
     if args.json:
         print(json.dumps(report, indent=1, default=float))
     else:
