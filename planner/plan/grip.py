@@ -123,10 +123,22 @@ class GripSurface:
         coarse = points[::s.coarse]  # every coarse-th draw: a uniform subsample, the same whatever the frame
         self.coarse = coarse[np.argsort(coarse[:, 0], kind="stable")]
         self.coarse_area = float(mesh.area) / len(self.coarse)
+        # each coordinate as its own contiguous array: a box query reads a slab of x and tests y and z
+        # on the fly (4-5x less work than (m, 2) comparisons over the strided slab and an all())
+        self._columns = tuple(np.ascontiguousarray(self.points.T)), tuple(np.ascontiguousarray(self.coarse.T))
 
     def box(self, lo: np.ndarray, hi: np.ndarray, coarse: bool = False) -> np.ndarray:
-        """Indices of the samples (of :attr:`coarse` if ``coarse``) inside the
-        axis-aligned box ``lo``..``hi`` (3,) [m]."""
+        """Indices (ascending) of the samples (of :attr:`coarse` if ``coarse``)
+        inside the axis-aligned box ``lo``..``hi`` (3,) [m], bounds included;
+        the same as :meth:`box_reference`."""
+        x, y, z = self._columns[int(coarse)]
+        a, b = np.searchsorted(x, [lo[0], hi[0]], side="left")
+        idx = np.flatnonzero((y[a:b] >= lo[1]) & (y[a:b] <= hi[1]))
+        zs = z[a + idx]
+        return a + idx[(zs >= lo[2]) & (zs <= hi[2])]
+
+    def box_reference(self, lo: np.ndarray, hi: np.ndarray, coarse: bool = False) -> np.ndarray:
+        """:meth:`box` the plain way: the x slab, then every coordinate of it at once."""
         points = self.coarse if coarse else self.points
         a, b = np.searchsorted(points[:, 0], [lo[0], hi[0]], side="left")
         sub = points[a:b, 1:]

@@ -233,11 +233,33 @@ class ObjectSurface:
     def nearest(self, points: np.ndarray, k: int = 12) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(closest (n, 3) [m], distance (n,) [m], face (n,)): the nearest
         point on the faces of the k nearest samples of each point."""
+        cand = self._candidates(points, k)
+        # neighbouring samples mostly share a face: each (point, face) pair once, in (point, face) order
+        order = np.argsort(cand, axis=1, kind="stable")
+        ordered = np.take_along_axis(cand, order, axis=1)
+        first = np.ones(cand.shape, bool)
+        first[:, 1:] = ordered[:, 1:] != ordered[:, :-1]
+        inverse = np.empty(cand.shape, np.int64)
+        np.put_along_axis(inverse, order, (np.cumsum(first.ravel()) - 1).reshape(cand.shape), axis=1)
+        row, face = np.nonzero(first)[0], ordered[first]
+        cp = trimesh.triangles.closest_point(self.mesh.triangles[face], points[row])
+        dist = np.linalg.norm(cp - points[row], axis=1)[inverse]  # (n, k): each pair's distance computed once
+        best = np.argmin(dist, axis=1)
+        rows = np.arange(len(points))
+        return cp[inverse[rows, best]], dist[rows, best], cand[rows, best]
+
+    def _candidates(self, points: np.ndarray, k: int) -> np.ndarray:
+        """(n, min(k, samples)) the faces of each point's k nearest samples, nearest first."""
         tree, sample_face = self._samples
         k = min(k, tree.n)
         _, near = tree.query(points, k=k)
-        cand = sample_face[np.asarray(near).reshape(len(points), k)]
-        # neighbouring samples mostly share a face: each (point, face) pair once
+        return sample_face[np.asarray(near).reshape(len(points), k)]
+
+    def nearest_reference(self, points: np.ndarray, k: int = 12) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`nearest` the plain way: ``np.unique`` of the (point, face) pairs, the distance of every pair
+        to its point once per sample."""
+        cand = self._candidates(points, k)
+        k = cand.shape[1]
         pairs, inverse = np.unique(np.arange(len(points))[:, None] * len(self.mesh.faces) + cand,
                                    return_inverse=True)
         row, face = np.divmod(pairs, len(self.mesh.faces))

@@ -240,11 +240,9 @@ def solve(prog: ResistanceProgram, directions: np.ndarray) -> np.ndarray:
     lp.col_lower_, lp.col_upper_ = np.zeros(k + 1), np.r_[np.full(k, inf), prog.cap]
     lp.row_lower_ = np.r_[np.zeros(6), np.full(len(prog.rows), -inf)]
     lp.row_upper_ = np.r_[np.zeros(6), prog.bounds]
-    columns = [np.flatnonzero(matrix[:, j]) for j in range(k + 1)]
+    start, index, value = _columnwise(matrix)
     lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
-    lp.a_matrix_.start_ = np.r_[0, np.cumsum([len(c) for c in columns])].astype(np.int32)
-    lp.a_matrix_.index_ = np.concatenate(columns).astype(np.int32)
-    lp.a_matrix_.value_ = np.concatenate([matrix[c, j] for j, c in enumerate(columns)])
+    lp.a_matrix_.start_, lp.a_matrix_.index_, lp.a_matrix_.value_ = start, index, value
     solver = _solver()
     solver.passModel(lp)
     out = np.zeros(len(directions))
@@ -255,6 +253,22 @@ def solve(prog: ResistanceProgram, directions: np.ndarray) -> np.ndarray:
         if solver.getModelStatus() == highspy.HighsModelStatus.kOptimal:
             out[r] = min(max(-solver.getInfo().objective_function_value, 0.0), prog.cap)
     return out
+
+
+def _columnwise(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(start (c + 1,) int32, index (nnz,) int32, value (nnz,)): the nonzeros of ``matrix`` (r, c) column by
+    column, rows ascending in each (HiGHS's column-wise format; the same arrays as
+    :func:`_columnwise_reference`)."""
+    col, row = np.nonzero(matrix.T)
+    start = np.r_[0, np.cumsum(np.bincount(col, minlength=matrix.shape[1]))].astype(np.int32)
+    return start, row.astype(np.int32), matrix[row, col]
+
+
+def _columnwise_reference(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_columnwise` one column at a time."""
+    columns = [np.flatnonzero(matrix[:, j]) for j in range(matrix.shape[1])]
+    return (np.r_[0, np.cumsum([len(c) for c in columns])].astype(np.int32), np.concatenate(columns).astype(np.int32),
+            np.concatenate([matrix[c, j] for j, c in enumerate(columns)]))
 
 
 def drive_rows(joint_names: Sequence[str], motors: Sequence[tuple[dict[str, float], int, float]]

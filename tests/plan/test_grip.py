@@ -128,3 +128,21 @@ def test_early_exit_hull_tests_equal_the_full_ones(seed: int, band: float) -> No
     outer = ConvexHull(corners).equations
     everything = np.flatnonzero(np.all(surface.coarse @ outer[:, :3].T + outer[:, 3] <= 0.0, axis=1))
     assert len(everything) > 0 and np.array_equal(np.sort(inside), everything)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), half=st.floats(0.0, 0.04), coarse=st.booleans())
+def test_box_query_equals_the_reference(seed: int, half: float, coarse: bool) -> None:
+    """The column-wise box query gives the reference's indices, boxes on sample coordinates included (their bounds
+    are inclusive)."""
+    surface = grip.GripSurface(trimesh.creation.box((0.06, 0.04, 0.08)))
+    rng = np.random.default_rng(seed)
+    points = surface.coarse if coarse else surface.points
+    centre = points[rng.integers(len(points))]
+    lo, hi = centre - half * rng.random(3), centre + half * rng.random(3)
+    if rng.random() < 0.5:  # a box whose faces pass through samples
+        lo, hi = np.minimum(lo, points[rng.integers(len(points))]), np.maximum(hi, points[rng.integers(len(points))])
+        lo[0], hi[2] = points[rng.integers(len(points)), 0], points[rng.integers(len(points)), 2]
+    got, want = surface.box(lo, hi, coarse), surface.box_reference(lo, hi, coarse)
+    assert np.array_equal(got, want)
+    assert np.all((points[got] >= lo) & (points[got] <= hi))

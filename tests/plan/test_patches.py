@@ -6,6 +6,7 @@ sample finds."""
 
 import numpy as np
 import pytest
+import trimesh
 from helpers import SIM_TOL
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -114,3 +115,21 @@ def test_the_cell_bounded_band_is_the_band_of_every_sample(x: float, y: float, z
     lo, hi = obj.mesh.bounds - np.array([[PatchSettings.prefilter], [-PatchSettings.prefilter]])
     idx = np.flatnonzero(np.all((points > lo) & (points < hi), axis=1))
     assert np.array_equal(_band(finger, pose, points, idx, surface), _band_reference(points, idx, surface))
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.sampled_from(["box", "mug"]), st.sampled_from([1, 3, 12]))
+def test_nearest_equals_the_reference_to_the_bit(seed: int, name: str, k: int) -> None:
+    """The (point, face) pairs deduplicated row by row give the reference's closest points, distances and faces,
+    bit for bit, for points near the surface, on its edges and vertices (where faces tie) and farther out."""
+    surface = ObjectSurface(load_object(name).mesh)
+    mesh = surface.mesh
+    rng = np.random.default_rng(seed)
+    near, _ = trimesh.sample.sample_surface(mesh, 200, seed=seed)
+    points = np.vstack([near + rng.normal(scale=0.002, size=near.shape),  # a few mm off the surface
+                        mesh.vertices[rng.integers(len(mesh.vertices), size=50)],  # on vertices: faces tie
+                        mesh.vertices[mesh.edges[rng.integers(len(mesh.edges), size=50)]].mean(axis=1),  # edges
+                        mesh.centroid + rng.normal(scale=0.05, size=(20, 3))])
+    got, want = surface.nearest(points, k), surface.nearest_reference(points, k)
+    for a, b in zip(got, want):
+        assert a.dtype == b.dtype and np.array_equal(a, b)

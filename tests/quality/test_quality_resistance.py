@@ -108,3 +108,17 @@ def test_worst_and_mean_summarise_the_directions() -> None:
     r = weight_resistance(**pinch(), directions=AXES)
     assert r.worst == r.per_direction.min() > 0
     assert_close(r.mean, r.per_direction.mean())
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 9), st.integers(1, 40), st.floats(0.0, 0.95))
+def test_the_column_wise_matrix_equals_the_reference(seed: int, rows: int, cols: int, sparsity: float) -> None:
+    """The nonzeros handed to HiGHS column by column: the same starts, rows and values as one column at a time,
+    empty columns and negative zeros included."""
+    from planner.quality.resistance import _columnwise, _columnwise_reference
+
+    rng = np.random.default_rng(seed)
+    matrix = np.where(rng.random((rows, cols)) < sparsity, 0.0, rng.normal(size=(rows, cols)))
+    matrix[rng.random((rows, cols)) < 0.05] = -0.0
+    for got, want in zip(_columnwise(matrix), _columnwise_reference(matrix)):
+        assert got.dtype == want.dtype and np.array_equal(got, want)
