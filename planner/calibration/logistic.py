@@ -147,7 +147,7 @@ class LogisticModel:
 
     def to_toml(self) -> str:
         """The model as TOML (coefficients and how they were made; no data)."""
-        lines = [f"# p_hold model for the {self.hand}: planner/calibration/model.py reads it.", ""]
+        lines = [f"# p_hold model for the {self.hand}: planner/calibration/logistic.py reads it.", ""]
         lines += [f'hand = "{self.hand}"', f"features = {json.dumps(list(self.features))}",
                   f"mean = {_floats(self.mean)}", f"scale = {_floats(self.scale)}", f"coef = {_floats(self.coef)}",
                   f"intercept = {self.intercept!r}", f"l2 = {self.l2!r}", f"source = {json.dumps(self.source)}", "",
