@@ -43,6 +43,9 @@ def test_the_turns_keep_the_tool_centre_point_and_reach_the_named_peak_accelerat
     centres = turns[:, :3, :3] @ tcp + turns[:, :3, 3]
     assert_close(centres, np.repeat(centres[:1], len(centres), axis=0), TOL)
     angles = np.array([motion(path[start - 1], t)[1] for t in turns[:n]])
-    assert_close(angles.max(), s.shake_angle, 1e-3 * s.shake_angle)
+    # the steps sample the sine: the nearest to its peak is at most half a step away
+    sampling = 1.0 - np.cos(np.pi * s.shake_frequency * s.timestep)
+    assert_close(angles.max(), s.shake_angle, 1.01 * sampling * s.shake_angle)
+    assert angles.max() <= s.shake_angle
     peak = s.shake_angle * (2 * np.pi * s.shake_frequency) ** 2  # [rad/s^2] of a sine of that amplitude
     assert_close(peak, 31.6, 0.5)  # as +-0.2 rad at 2 Hz, the shake the settings were first chosen with
