@@ -227,9 +227,13 @@ class Writing:
             self._rescore(conn, rule, hand=model.hand)
         self.set_meta("p_hold_models", self._models_key())
 
-    def write_validation(self, obj: str, hand: str, results: Sequence[Validated], rule: RankingRule) -> None:
+    def write_validation(self, obj: str, hand: str, results: Sequence[Validated], rule: RankingRule,
+                         rescore: bool = True) -> None:
         """Store trial (PyBullet, MuJoCo) and robust-epsilon results of grasps
-        of one (object, hand), then re-score and re-rank it, in one transaction."""
+        of one (object, hand), then (``rescore``) re-score and re-rank it, in
+        one transaction. A caller that writes many batches of one pair passes
+        False but for the last and calls :meth:`rescore` if it stops early:
+        re-ranking costs time linear in the pair's grasps, per batch."""
         with self._transaction() as conn:
             for v in results:
                 if v.trial is not None:
@@ -243,6 +247,12 @@ class Writing:
                     r = v.robust
                     conn.execute(_insert("robust", _ROBUST_COLUMNS, "INSERT OR REPLACE"),
                                  (v.grasp_id, *_row(_ROBUST, r), v.seed, v.robust_settings))
+            if rescore:
+                self._rescore(conn, rule, (obj, hand))
+
+    def rescore(self, obj: str, hand: str, rule: RankingRule) -> None:
+        """Re-score and re-rank the grasps of one (object, hand) from what is stored."""
+        with self._transaction() as conn:
             self._rescore(conn, rule, (obj, hand))
 
 

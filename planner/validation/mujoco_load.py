@@ -22,7 +22,7 @@ def load_path(s: MujocoSettings, pose: np.ndarray, tcp: np.ndarray, approach: np
     """(n, 4, 4) the hand's target pose at every step of the load from the grasp ``pose``: ramp
     (still), lift against ``down`` (3,), rotations about the two axes across the hand's unit
     ``approach`` (hand frame) through the tool centre point ``tcp`` (hand frame), translation along
-    ``down``, hold (still)."""
+    ``down`` (one after another, or all at once if ``shake_together``), hold (still)."""
     dt = s.timestep
     still = np.repeat(pose[None], _steps(s.ramp_time, dt), axis=0)
     n = _steps(s.lift_time, dt)
@@ -32,16 +32,20 @@ def load_path(s: MujocoSettings, pose: np.ndarray, tcp: np.ndarray, approach: np
     centre = top[:3, :3] @ tcp + top[:3, 3]
     n = _steps(s.shake_cycles / s.shake_frequency, dt) if s.shake_cycles else 0
     wave = np.sin(2 * np.pi * s.shake_frequency * dt * np.arange(1, n + 1))
-    turns = []
-    for axis in _across(approach):
+    turns = [_rotations(top[:3, :3] @ axis, s.shake_angle * wave) for axis in _across(approach)]
+    if s.shake_together:  # one cycle of both turns and the push at once
+        turns = [turns[0] @ turns[1]]
+    shakes = []
+    for rotation in turns:
         turn = np.repeat(np.eye(4)[None], n, axis=0)
-        turn[:, :3, :3] = _rotations(top[:3, :3] @ axis, s.shake_angle * wave)
-        turn[:, :3, 3] = centre - turn[:, :3, :3] @ centre
-        turns.append(turn @ top)
-    shift = np.repeat(top[None], n, axis=0)
+        turn[:, :3, :3] = rotation
+        turn[:, :3, 3] = centre - rotation @ centre
+        shakes.append(turn @ top)
+    shift = shakes[-1].copy() if s.shake_together else np.repeat(top[None], n, axis=0)
     shift[:, :3, 3] += np.outer(s.shake_distance * wave, down)
+    shakes = [*shakes[:-1], shift] if s.shake_together else [*shakes, shift]
     hold = np.repeat(top[None], _steps(s.hold_time, dt), axis=0)
-    return np.concatenate([still, lift, *turns, shift, hold])
+    return np.concatenate([still, lift, *shakes, hold])
 
 
 def down_along(name: str, approach: np.ndarray) -> np.ndarray:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import logging
 import zlib
+from collections import Counter
 from collections.abc import Callable, Iterator
 from contextlib import closing
 from dataclasses import dataclass, field
@@ -183,7 +184,7 @@ def prepare_objects(rows: list[ObjectRow], workers: int) -> None:
                 log.warning("convex decomposition of %s failed: %s", row.name, ran)
 
 
-def write(db: Database, result: TaskResult, rule: RankingRule) -> None:
+def write(db: Database, result: TaskResult, rule: RankingRule, rescore: bool = True) -> None:
     task = result.task
     noise = task.noise.to_json() if task.noise is not None else ""
     if task.engine == "mujoco":
@@ -197,7 +198,7 @@ def write(db: Database, result: TaskResult, rule: RankingRule) -> None:
         settings = recorded(task.trial, load_hand(task.hand))  # type: ignore[arg-type]
         rows = [Validated(g.id, t, r, task.seed, settings, noise)  # type: ignore[arg-type]
                 for g, t, r in zip(task.grasps, result.trials, result.robust)]
-    db.write_validation(task.object, task.hand, rows, rule)
+    db.write_validation(task.object, task.hand, rows, rule, rescore)
 
 
 @dataclass
@@ -247,17 +248,32 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
         prepare_objects(list({t.row.name: t.row for t in tasks}.values()), workers)
         if progress:
             progress(0, len(tasks))
-        for done, result in enumerate(execute(tasks, workers), start=1):
-            if result.error:
-                summary.failed_tasks[f"{result.task.object}/{result.task.hand}"] = result.error
-            else:
-                write(db, result, rule)
-                diverged = sum(t.reason == DIVERGED for t in result.trials)
-                summary.grasps += len(result.trials) - diverged
-                summary.diverged += diverged
-                summary.successes += sum(t.success for t in result.trials)
-            if progress:
-                progress(done, len(tasks))
+        # each (object, hand) is re-ranked once, with its last task's results (or on the way out after
+        # Ctrl-C or an error): re-ranking after every task cost time quadratic in a pair's grasps
+        left = Counter((t.object, t.hand) for t in tasks)
+        unranked: set[tuple[str, str]] = set()
+        try:
+            for done, result in enumerate(execute(tasks, workers), start=1):
+                pair = (result.task.object, result.task.hand)
+                left[pair] -= 1
+                last = left[pair] == 0
+                if result.error:
+                    summary.failed_tasks[f"{pair[0]}/{pair[1]}"] = result.error
+                else:
+                    write(db, result, rule, rescore=last)
+                    (unranked.discard if last else unranked.add)(pair)
+                    diverged = sum(t.reason == DIVERGED for t in result.trials)
+                    summary.grasps += len(result.trials) - diverged
+                    summary.diverged += diverged
+                    summary.successes += sum(t.success for t in result.trials)
+                if last and pair in unranked:  # the pair's last task failed after others were written
+                    db.rescore(*pair, rule)
+                    unranked.discard(pair)
+                if progress:
+                    progress(done, len(tasks))
+        finally:
+            for pair in sorted(unranked):
+                db.rescore(*pair, rule)
         db.set_meta("mujoco_settings" if engine == "mujoco" else "validation_settings", json.dumps(
             {"trial": json.loads(trial_settings.to_json()), "noise": json.loads(noise.to_json()) if noise else None,
              "seed": seed}))

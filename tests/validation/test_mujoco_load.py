@@ -22,7 +22,7 @@ def _path(s: MujocoSettings):  # type: ignore[no-untyped-def]
 
 
 def test_the_path_starts_at_the_grasp_lifts_and_ends_still_at_the_top() -> None:
-    s = MujocoSettings()
+    s = MujocoSettings(shake_together=False)
     pose, _, path = _path(s)
     steps = round(s.ramp_time / s.timestep)
     assert_close(path[:steps], np.repeat(pose[None], steps, axis=0), TOL)
@@ -35,7 +35,7 @@ def test_the_path_starts_at_the_grasp_lifts_and_ends_still_at_the_top() -> None:
 
 
 def test_the_turns_keep_the_tool_centre_point_and_reach_the_named_peak_acceleration() -> None:
-    s = MujocoSettings()
+    s = MujocoSettings(shake_together=False)  # one turn after another
     pose, tcp, path = _path(s)
     start = round((s.ramp_time + s.lift_time) / s.timestep)
     n = round(1 / s.shake_frequency / s.timestep)
@@ -49,3 +49,26 @@ def test_the_turns_keep_the_tool_centre_point_and_reach_the_named_peak_accelerat
     assert angles.max() <= s.shake_angle
     peak = s.shake_angle * (2 * np.pi * s.shake_frequency) ** 2  # [rad/s^2] of a sine of that amplitude
     assert_close(peak, 31.6, 0.5)  # as +-0.2 rad at 2 Hz, the shake the settings were first chosen with
+
+
+def test_a_shake_together_is_one_cycle_of_both_turns_and_the_push_at_once() -> None:
+    s = MujocoSettings(shake_together=True)
+    pose, tcp, path = _path(s)
+    ramp, lift = round(s.ramp_time / s.timestep), round(s.lift_time / s.timestep)
+    n, hold = round(1 / s.shake_frequency / s.timestep), round(s.hold_time / s.timestep)
+    assert len(path) == ramp + lift + n + hold
+    top, shake = path[ramp + lift - 1], path[ramp + lift:ramp + lift + n]
+    wave = np.sin(2 * np.pi * s.shake_frequency * s.timestep * np.arange(1, n + 1))
+    down = np.array([0.0, 0.0, -1.0])
+    centres = shake[:, :3, :3] @ tcp + shake[:, :3, 3]
+    # the tool centre point moves only along gravity, by the push's sine
+    assert_close(centres - np.outer(s.shake_distance * wave, down), np.repeat(
+        (top[:3, :3] @ tcp + top[:3, 3])[None], n, axis=0), TOL)
+    # both turns at once: about an axis across the approach, by up to sqrt(2) of each one's angle
+    angles = np.array([motion(top, t)[1] for t in shake])
+    assert s.shake_angle < angles.max() <= np.sqrt(2) * s.shake_angle * (1 + 1e-6)
+    peak = int(np.argmax(angles))
+    relative = shake[peak, :3, :3] @ top[:3, :3].T
+    axis = np.array([relative[2, 1] - relative[1, 2], relative[0, 2] - relative[2, 0], relative[1, 0] - relative[0, 1]])
+    approach = top[:3, :3] @ np.array([0.0, 0.0, 1.0])
+    assert abs(axis @ approach) / np.linalg.norm(axis) < s.shake_angle  # across it, to second order

@@ -12,6 +12,7 @@ import pytest
 from planner.db.ranking import RankingRule, rule_measures
 from planner.db.store import open_db
 from planner.errors import InputError
+from planner.record.grasp import Trial
 from planner.validation import run
 from planner.validation.run import BATCH, validate
 from planner.validation.shake import REASONS
@@ -117,3 +118,54 @@ def test_a_task_that_kills_its_workers_is_reported_and_the_others_written(refere
         trials = dict(conn.execute("SELECT g.object, COUNT(*) FROM mujoco v JOIN grasps g ON g.id = v.grasp_id"
                                    " GROUP BY g.object").fetchall())
     assert trials == {"sphere": summary.grasps} and summary.grasps > 0
+
+
+def _ranks(db: Path) -> list[tuple]:
+    with sqlite3.connect(db) as conn:
+        return conn.execute("SELECT id, score, rank FROM grasps ORDER BY id").fetchall()
+
+
+def _reranked(db: Path) -> list[tuple]:
+    """The ranks a fresh re-rank of every pair gives from what is stored."""
+    with open_db(db, create=False) as store:
+        rule = store.rule()
+        for obj, hand in store.pairs():
+            store.rescore(obj, hand, rule)
+    return _ranks(db)
+
+
+def _slipped(task: run.Task) -> run.TaskResult:
+    """Every grasp's trial slipped (its score drops to 0), at no cost."""
+    return run.TaskResult(task, [Trial(False, 1, 0.0, 0.0, 0.03, 0.0, "slipped") for _ in task.grasps],
+                          [None] * len(task.grasps))
+
+
+@pytest.mark.parametrize("stop", ["error", "interrupt"])
+def test_each_pair_is_reranked_with_every_stored_verdict_however_its_tasks_end(
+        reference_db: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, stop: str) -> None:
+    """Ranks are rebuilt once per (object, hand), not after every task: with
+    its last task, also when that task fails, or on the way out of Ctrl-C."""
+    db = tmp_path / "r.db"
+    shutil.copy(reference_db, db)
+    before = _ranks(db)
+    seen: list[str] = []
+
+    def fake(task: run.Task) -> run.TaskResult:
+        seen.append(task.object)
+        if task.object == "box" and seen.count("box") == 3:  # box's last task (top 6, 2 a task)
+            if stop == "interrupt":
+                raise KeyboardInterrupt
+            return run.TaskResult(task, error="boom")
+        return _slipped(task)
+
+    monkeypatch.setattr(run, "BATCH", 2)
+    monkeypatch.setattr(run, "run_task", fake)
+    if stop == "interrupt":
+        with pytest.raises(KeyboardInterrupt):
+            validate(db, top=6, robust_samples=0, workers=1)
+    else:
+        summary = validate(db, top=6, robust_samples=0, workers=1)
+        assert list(summary.failed_tasks) == ["box/panda"] and summary.grasps == 4 + 6  # box: two of its three tasks
+    stored = _ranks(db)
+    assert stored != before  # the slipped verdicts moved scores
+    assert stored == _reranked(db)
