@@ -14,7 +14,8 @@ from planner.errors import ConfigError
 #: The dynamic protocols ``grasp validate --engine`` offers; each stores its verdicts apart.
 ENGINES = ("pybullet", "mujoco")
 #: ``grasp validate``'s engine unless told: the trial that agrees best with external labels
-#: (ACRONYM's FleX: MuJoCo 75.0% of 560 held-out poses, PyBullet 62.1% of 280; bench/RESULTS.md).
+#: (ACRONYM's FleX, held-out poses: MuJoCo 74.5% of 560 with today's protocol, PyBullet 62.1% of 280;
+#: bench/RESULTS.md).
 DEFAULT_ENGINE = "mujoco"
 #: The reason (``Trial.reason``) of a MuJoCo trial whose state diverged: no verdict (neither held nor
 #: dropped), so ``grasp validate`` does not store it.
