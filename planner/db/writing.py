@@ -215,8 +215,10 @@ class Writing:
         scores = rule.scores({f.ranked: col[f.ranked] for f in fields.ranked_fields()})
         conn.executemany("UPDATE grasps SET score = ?, p_hold = ? WHERE id = ?",
                          zip(scores.tolist(), col["p_hold"], col["id"]))
-        for o, h in sorted(set(zip(col["object"], col["hand"]))):
+        ranked = set(zip(col["object"], col["hand"]))
+        for o, h in sorted(ranked):
             conn.execute(_RERANK, (o, h))
+        self._set_unranked(conn, self._unranked() - ranked)
 
     def write_model(self, model: LogisticModel, source: str, rule: RankingRule) -> None:
         """Store ``model`` as its hand's p_hold model (replacing any), then
@@ -249,11 +251,25 @@ class Writing:
                                  (v.grasp_id, *_row(_ROBUST, r), v.seed, v.robust_settings))
             if rescore:
                 self._rescore(conn, rule, (obj, hand))
+            else:
+                self._set_unranked(conn, self._unranked() | {(obj, hand)})
 
     def rescore(self, obj: str, hand: str, rule: RankingRule) -> None:
         """Re-score and re-rank the grasps of one (object, hand) from what is stored."""
         with self._transaction() as conn:
             self._rescore(conn, rule, (obj, hand))
+
+    def unranked(self) -> list[tuple[str, str]]:
+        """The (object, hand) pairs whose verdicts were written without a re-rank
+        (a ``grasp validate`` killed before it re-ranked them)."""
+        return sorted(self._unranked())
+
+    def _unranked(self) -> set[tuple[str, str]]:
+        return {(o, h) for o, h in json.loads(self.meta(UNRANKED) or "[]")}
+
+    def _set_unranked(self, conn: sqlite3.Connection, pairs: set[tuple[str, str]]) -> None:
+        if pairs != self._unranked():
+            self._set_meta(conn, UNRANKED, json.dumps(sorted(pairs)))
 
 
 def _object_row(name: str, obj: PreparedObject) -> tuple:
@@ -270,5 +286,8 @@ def _grasp_row(g: Grasp, unit_id: int, score: float, p_hold: float | None) -> tu
     given = {"unit_id": unit_id, "score": score, "p_hold": p_hold}
     return tuple(given[f.column] if f.column in given else _sql(f, get(g)) for f, get in _INSERTED)
 
+
+#: The meta key of the (object, hand) pairs with verdicts written but not yet re-ranked (JSON list).
+UNRANKED = "unranked"
 
 _INSERTED = [(f, fields.getter(f)) for f in _GRASPS if f.column in _GRASP_COLUMNS]

@@ -244,6 +244,8 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
     summary = ValidationSummary()
     with writer_lock(Path(db_path)), open_db(Path(db_path), create=False) as db:
         rule = db.rule()
+        for pair in db.unranked():  # verdicts of a run killed before it re-ranked them
+            db.rescore(*pair, rule)
         tasks = plan(db, objects, hands, Selection(top, sample, every, closure_only), seed, trial_settings, noise)
         prepare_objects(list({t.row.name: t.row for t in tasks}.values()), workers)
         if progress:

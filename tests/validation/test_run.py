@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from planner.db.ranking import RankingRule, rule_measures
+from planner.db.rows import Validated
 from planner.db.store import open_db
 from planner.errors import InputError
 from planner.record.grasp import Trial
@@ -169,3 +170,25 @@ def test_each_pair_is_reranked_with_every_stored_verdict_however_its_tasks_end(
     stored = _ranks(db)
     assert stored != before  # the slipped verdicts moved scores
     assert stored == _reranked(db)
+
+
+def test_verdicts_left_unranked_by_a_killed_run_are_ranked_by_the_next(reference_db: Path, tmp_path: Path,
+                                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """A run killed (kill -9) between a batch's verdicts and its object's re-rank leaves the pair marked
+    in the database; the next ``grasp validate``, of any selection, re-ranks it first."""
+    db = tmp_path / "k.db"
+    shutil.copy(reference_db, db)
+    before = _ranks(db)
+    with open_db(db, create=False) as store:
+        best = store.best("box", "panda", 2)
+        store.write_validation("box", "panda", [Validated(g.id, None, None, 0, "", "", Trial(
+            False, 1, 0.0, 0.0, 0.03, 0.0, "slipped"), "{}") for g in best], store.rule(), rescore=False)
+        assert store.unranked() == [("box", "panda")]
+    assert _ranks(db) == before  # what a kill just after that write leaves
+    monkeypatch.setattr(run, "run_task", _slipped)
+    validate(db, objects=["sphere"], top=1, robust_samples=0, workers=1)
+    with open_db(db, create=False, readonly=True) as store:
+        assert store.unranked() == []
+    box = {i: (score, rank) for i, score, rank in _ranks(db)}
+    assert all(box[g.id][0] == 0 for g in best)  # the slipped verdicts now count
+    assert _ranks(db) == _reranked(db)
