@@ -41,9 +41,9 @@ def load_path(s: MujocoSettings, pose: np.ndarray, tcp: np.ndarray, approach: np
         turn[:, :3, :3] = rotation
         turn[:, :3, 3] = centre - rotation @ centre
         shakes.append(turn @ top)
-    shift = shakes[-1].copy() if s.shake_together else np.repeat(top[None], n, axis=0)
+    shift = shakes.pop() if s.shake_together else np.repeat(top[None], n, axis=0)  # the push, on the turn or alone
     shift[:, :3, 3] += np.outer(s.shake_distance * wave, down)
-    shakes = [*shakes[:-1], shift] if s.shake_together else [*shakes, shift]
+    shakes.append(shift)
     hold = np.repeat(top[None], _steps(s.hold_time, dt), axis=0)
     return np.concatenate([still, lift, *shakes, hold])
 

@@ -201,6 +201,12 @@ def write(db: Database, result: TaskResult, rule: RankingRule, rescore: bool = T
     db.write_validation(task.object, task.hand, rows, rule, rescore)
 
 
+def _rerank_unranked(db: Database, rule: RankingRule) -> None:
+    """Re-rank the (object, hand) pairs the database marks as holding verdicts not yet ranked."""
+    for pair in db.unranked():
+        db.rescore(*pair, rule)
+
+
 @dataclass
 class ValidationSummary:
     """``grasps`` given a verdict (stored), ``successes`` among them, ``diverged``: trials whose state
@@ -244,8 +250,7 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
     summary = ValidationSummary()
     with writer_lock(Path(db_path)), open_db(Path(db_path), create=False) as db:
         rule = db.rule()
-        for pair in db.unranked():  # verdicts of a run killed before it re-ranked them
-            db.rescore(*pair, rule)
+        _rerank_unranked(db, rule)  # verdicts of a run killed before it re-ranked them
         tasks = plan(db, objects, hands, Selection(top, sample, every, closure_only), seed, trial_settings, noise)
         prepare_objects(list({t.row.name: t.row for t in tasks}.values()), workers)
         if progress:
@@ -253,7 +258,6 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
         # each (object, hand) is re-ranked once, with its last task's results (or on the way out after
         # Ctrl-C or an error): re-ranking after every task cost time quadratic in a pair's grasps
         left = Counter((t.object, t.hand) for t in tasks)
-        unranked: set[tuple[str, str]] = set()
         try:
             for done, result in enumerate(execute(tasks, workers), start=1):
                 pair = (result.task.object, result.task.hand)
@@ -263,19 +267,14 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
                     summary.failed_tasks[f"{pair[0]}/{pair[1]}"] = result.error
                 else:
                     write(db, result, rule, rescore=last)
-                    (unranked.discard if last else unranked.add)(pair)
                     diverged = sum(t.reason == DIVERGED for t in result.trials)
                     summary.grasps += len(result.trials) - diverged
                     summary.diverged += diverged
                     summary.successes += sum(t.success for t in result.trials)
-                if last and pair in unranked:  # the pair's last task failed after others were written
-                    db.rescore(*pair, rule)
-                    unranked.discard(pair)
                 if progress:
                     progress(done, len(tasks))
-        finally:
-            for pair in sorted(unranked):
-                db.rescore(*pair, rule)
+        finally:  # pairs whose last task failed or never came back (the database marks them)
+            _rerank_unranked(db, rule)
         db.set_meta("mujoco_settings" if engine == "mujoco" else "validation_settings", json.dumps(
             {"trial": json.loads(trial_settings.to_json()), "noise": json.loads(noise.to_json()) if noise else None,
              "seed": seed}))
