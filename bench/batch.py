@@ -3,6 +3,7 @@ default sweep and a simulated label on every force-closure grasp, and how
 the backends scale.
 
     python bench/batch.py [--objects 50] [--scaling-objects 8] [--hand panda] [--workers 2] [--no-scaling]
+                          [--tree REV]
 
 1. **The 1,000-object extrapolation** (``--objects`` of ``builtin:random``,
    the hand's default sweep exactly as ``grasp generate`` runs it: its
@@ -20,6 +21,12 @@ the backends scale.
    identical grasps and prints each one's speed-up over one process and its
    efficiency (speed-up / workers).
 
+``--tree REV`` (a commit, branch or tag) runs the whole benchmark from that
+commit, unpacked with ``git archive`` into a temporary folder (the script
+starts itself again with the folder first on ``PYTHONPATH``; the pool's and
+Ray's workers inherit it): a run of half an hour imports modules lazily, so
+it must not read a checkout that is being edited meanwhile.
+
 Wall clock throughout (the pool's workers are processes of their own); the
 load average is printed at start and end: the figures mean something only
 on an otherwise idle machine.
@@ -31,9 +38,13 @@ import argparse
 import os
 import platform
 import sqlite3
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
+
+from _trees import unpack
 
 from planner import api
 from planner.plan.sweep import SweepSettings
@@ -104,7 +115,19 @@ def main() -> None:
     parser.add_argument("--hand", default="panda")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--no-scaling", action="store_true")
+    parser.add_argument("--tree", help="run from this commit (git archive into a temporary folder)")
     args = parser.parse_args()
+    if args.tree:
+        with tempfile.TemporaryDirectory() as tmp:
+            tree = unpack(args.tree, Path(tmp))
+            path = os.pathsep.join([str(tree), *filter(None, [os.environ.get("PYTHONPATH")])])
+            env = dict(os.environ, PYTHONPATH=path, GRASP_HOME=str(tree))
+            again = ["--objects", str(args.objects), "--scaling-objects", str(args.scaling_objects), "--hand",
+                     args.hand, "--workers", str(args.workers), *(["--no-scaling"] if args.no_scaling else [])]
+            print(f"# tree {args.tree} unpacked into {tree}", flush=True)
+            sys.exit(subprocess.run([sys.executable, str(tree / "bench" / "batch.py"), *again], env=env,
+                                    cwd=tree).returncode)
+    print(f"# planner imported from {Path(api.__file__).resolve().parents[2]}")
     print(f"# {time.strftime('%Y-%m-%d %H:%M')}, {platform.machine()}, {os.cpu_count()} cores, "
           f"Python {platform.python_version()}")
     print(f"# start: {load()}")
