@@ -121,8 +121,15 @@ def trials(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp], setting
     world (each from a fresh state: the results do not depend on the order)."""
     s = settings or MujocoSettings()
     world = world_for(hand, obj, s, obj.mass if mass is None else mass)
-    mu = (obj.friction if friction is None else friction) * s.friction_scale
+    mu = contact_friction(obj.friction if friction is None else friction, s)
     return [_Run(world, hand, g, s, mu).run() for g in grasps]
+
+
+def contact_friction(mu: float, s: MujocoSettings) -> float:
+    """The hand-object contacts' friction in a trial of an object of friction ``mu``: ``friction_scale`` times
+    it, at most ``friction_cap``."""
+    scaled = mu * s.friction_scale
+    return scaled if s.friction_cap is None else min(scaled, s.friction_cap)
 
 
 class _Diverged(Exception):

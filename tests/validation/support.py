@@ -74,7 +74,7 @@ def box(width: float) -> PreparedObject:
     return box_of((0.05, width, 0.06), 0.2)
 
 
-def box_of(dims: tuple[float, float, float], mass: float) -> PreparedObject:
-    """A box of ``dims`` [m] and ``mass`` [kg], friction 0.5."""
+def box_of(dims: tuple[float, float, float], mass: float, friction: float = 0.5) -> PreparedObject:
+    """A box of ``dims`` [m] and ``mass`` [kg], ``friction``."""
     return prepare(ObjectSpec(name="box_" + "x".join(f"{d * 1000:.0f}" for d in dims), kind="box", dims=dims,
-                              mass=mass, friction=0.5))
+                              mass=mass, friction=friction))

@@ -52,6 +52,25 @@ def test_a_lower_grip_force_or_friction_margin_drops_what_the_published_ones_hol
         assert not result.success and result.reason == "slipped", scaled
 
 
+def test_the_trial_counts_on_a_friction_of_at_most_0_6() -> None:
+    """The default cap (chosen against FleX at ACRONYM's friction 1.0): a pinch whose weight needs a friction of
+    0.54 holds at the object's 1.0 without the cap (1.85 times what it needs) and slips with it (1.1 times: the
+    lift and the shake take the rest); an object at 0.6 or less is trialled at its own friction."""
+    from planner.validation.mujoco_trial import contact_friction
+
+    s = MujocoSettings()
+    assert s.friction_cap == pytest.approx(0.6)
+    assert contact_friction(1.0, s) == pytest.approx(0.6) and contact_friction(0.5, s) == 0.5
+    assert contact_friction(1.0, replace(s, friction_cap=None)) == 1.0
+    assert contact_friction(0.5, replace(s, friction_scale=0.5)) == 0.25
+    hand = load_hand("panda")
+    heavy = box_of((0.05, 0.04, 0.06), 0.54 * 2 * PAD_FORCE / 9.81, friction=1.0)
+    grasp = pinch(hand, heavy)
+    assert trial(hand, heavy, grasp, replace(s, friction_cap=None)).success
+    result = trial(hand, heavy, grasp)
+    assert not result.success and result.reason == "slipped"
+
+
 @pytest.mark.parametrize("bad", [{"free_travel_gap": -0.001}, {"drop_factor": 0.5}])
 def test_a_negative_gap_or_a_drop_inside_the_thresholds_is_refused(bad) -> None:  # type: ignore[no-untyped-def]
     from planner.errors import ConfigError
@@ -60,11 +79,12 @@ def test_a_negative_gap_or_a_drop_inside_the_thresholds_is_refused(bad) -> None:
         MujocoSettings(**bad)
 
 
-@pytest.mark.parametrize("bad", [{"effort_scale": 0.0}, {"friction_scale": -1.0}, {"torsion_scale": -0.1}])
+@pytest.mark.parametrize("bad", [{"effort_scale": 0.0}, {"friction_scale": -1.0}, {"torsion_scale": -0.1},
+                                 {"friction_cap": 0.0}])
 def test_scales_out_of_range_are_refused(bad) -> None:  # type: ignore[no-untyped-def]
     from planner.errors import ConfigError
 
-    with pytest.raises(ConfigError, match="scale"):
+    with pytest.raises(ConfigError, match="scale|cap"):
         MujocoSettings(**bad)
 
 
