@@ -118,8 +118,9 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
                  f"{len(g.contacts)} contacts; reachability {reach}")
     if m is not None:
         settled = "" if m.settled_epsilon is None else f"; settled epsilon {m.settled_epsilon:.4f}"
-        lines.append(f"    holds {m.resist_worst:.1f} g in the worst direction (mean {m.resist_mean:.1f} g); push "
-                     f"{m.push:.2f} (1 = pads square on); feasibility {','.join(m.reasons) or 'ok'}{settled}")
+        lines.append(f"    holds {m.resist_worst:.1f} times its weight in the worst direction (mean "
+                     f"{m.resist_mean:.1f}); push {m.push:.2f} (1 = pads square on); feasibility "
+                     f"{','.join(m.reasons) or 'ok'}{settled}")
     for name, trial in (("shake trial (PyBullet)", g.validation), ("MuJoCo trial", g.mujoco)):
         if trial is not None:
             verdict = "held" if trial.success else "dropped"

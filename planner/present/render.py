@@ -190,7 +190,7 @@ def save_sheet(panels: list[tuple[list[View], str]], out: Path) -> None:
 def title(grasp: Grasp) -> str:
     reach = "n/a" if grasp.reachability is None else f"{grasp.reachability:.2f}"
     m = grasp.measures
-    extra = "" if m is None else (f", holds {m.resist_worst:.1f} g, push {m.push:.2f}"
+    extra = "" if m is None else (f", holds {m.resist_worst:.1f}x its weight, push {m.push:.2f}"
                                   + (f", {'/'.join(m.reasons)}" if m.reasons else ""))
     return (f"#{grasp.rank} {grasp.object}/{grasp.hand} {grasp.preshape}: score {grasp.score:.4f}, "
             f"epsilon {grasp.epsilon:.4f}, reach {reach}, {len(grasp.contacts)} contacts{extra}")

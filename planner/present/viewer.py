@@ -93,7 +93,7 @@ def measures_text(entry: Entry) -> str:
             ("contacts", f"{len(g.contacts)}"), ("reachability", _num(g.reachability, ".2f")),
             ("label", entry.label)]
     if m is not None:
-        rows += [("holds (worst direction)", f"{m.resist_worst:.1f} g"),
+        rows += [("holds (worst direction)", f"{m.resist_worst:.1f} x its weight"),
                  ("open margin", f"{m.open_margin * 1000:.1f} mm"), ("push", f"{m.push:.2f}")]
     tcp = np.asarray(g.pose, float)
     quat = Rotation.from_matrix(tcp[:3, :3]).as_quat()
