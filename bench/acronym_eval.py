@@ -365,7 +365,9 @@ def print_table(report: dict) -> None:
 
 
 def _typed(default: object, text: str) -> object:
-    """A ``--trial-set`` value in the type of the setting's default."""
+    """A ``--trial-set`` value in the type of the setting's default (``none``: None, e.g. no friction cap)."""
+    if text.lower() == "none":
+        return None
     if isinstance(default, bool):
         return text.lower() in ("1", "true", "yes")
     return type(default)(text)

@@ -73,6 +73,9 @@ def parse(pairs: list[str], cls: type) -> dict:
         if key not in kinds:
             sys.exit(f"acronym_mujoco: unknown setting {key}; settings: {', '.join(kinds)}")
         kind = kinds[key]
+        if value.lower() == "none" and "None" in str(kind):  # an optional setting switched off (friction_cap)
+            out[key] = None
+            continue
         out[key] = value if kind == "str" else (value.lower() in ("1", "true", "yes")) if kind == "bool" \
             else int(value) if kind == "int" else float(value)
     return out
