@@ -24,7 +24,16 @@ import numpy as np
 
 from planner.calibration.labels import LabelledSet
 from planner.calibration.metrics import Reliability, reliability, roc_auc
-from planner.calibration.model import DEFAULT_FEATURES, CrossValidation, LogisticModel, cross_validate, fit, log_loss
+from planner.calibration.model import (
+    DEFAULT_FEATURES,
+    DEFAULT_TREES,
+    CrossValidation,
+    LogisticModel,
+    cross_validate,
+    fit,
+    log_loss,
+)
+from planner.calibration.trees import TreeSettings
 from planner.db.ranking import rank_order
 from planner.errors import InputError
 
@@ -50,7 +59,7 @@ class Calibration:
 
 
 def calibrate(data: LabelledSet, *, folds: int = 5, features: Sequence[str] = DEFAULT_FEATURES,
-              source: str = "") -> Calibration:
+              source: str = "", trees: TreeSettings | None = DEFAULT_TREES) -> Calibration:
     """Cross-validate and fit p_hold on ``data`` (see the module docstring)."""
     objects = len(set(data.groups))
     if objects < 2:
@@ -59,11 +68,11 @@ def calibrate(data: LabelledSet, *, folds: int = 5, features: Sequence[str] = DE
     if len(set(data.labels.tolist())) < 2:
         raise InputError("calibration needs both outcomes among the labels (some grasps that hold, some that drop)")
     k = min(folds, objects)
-    cv = cross_validate(data.table, data.labels, data.groups, data.hand, features=features, folds=k)
+    cv = cross_validate(data.table, data.labels, data.groups, data.hand, features=features, folds=k, trees=trees)
     l2 = float(np.exp(np.mean(np.log(cv.l2))))
     figures = held_out_figures(data, cv.p)
     figures["folds"] = float(k)
-    model = fit(data.table, data.labels, data.hand, features=features, l2=l2, source=source)
+    model = fit(data.table, data.labels, data.hand, features=features, l2=l2, source=source, trees=trees)
     table = reliability(data.labels, cv.p)
     model = replace(model, source=source, figures={k_: v for k_, v in figures.items() if math.isfinite(v)},
                     held_out=table)

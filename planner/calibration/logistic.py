@@ -22,10 +22,15 @@ from planner.assets import project_dir
 from planner.calibration.basis import clip, columns, expand
 from planner.calibration.features import FEATURES, PRODUCTS, design
 from planner.calibration.metrics import Reliability
+from planner.calibration.trees import Trees
 from planner.errors import InputError
 
 #: The folder of shipped models.
 FOLDER = "calibration"
+#: The name of the trees' part of the log-odds in :meth:`LogisticModel.terms`.
+INTERACTIONS = "interactions"
+#: The trees' integer arrays (written as integers in TOML).
+TREE_INTS = ("roots", "feature", "left", "right")
 
 
 @dataclass(frozen=True)
@@ -43,7 +48,9 @@ class LogisticModel:
     reliability table (None: not known), drawn by ``grasp report``;
     bounds: per feature, (low, high) of its inputs in the fitting data
     (inputs' units): a grasp's input is clipped to them before use (a
-    feature without bounds is used as it is).
+    feature without bounds is used as it is); trees: the boosted
+    interaction term over the clipped inputs (:mod:`~planner.calibration.trees`;
+    None: the model is additive alone).
     """
 
     hand: str
@@ -58,6 +65,7 @@ class LogisticModel:
     held_out: Reliability | None = None
     knots: Mapping[str, tuple[float, ...]] = field(default_factory=dict)
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    trees: Trees | None = None
 
     def __post_init__(self) -> None:
         wrong = [f for f, b in self.bounds.items() if f not in self.features or len(b) != 2 or not b[0] <= b[1]]
@@ -82,6 +90,9 @@ class LogisticModel:
                              f"available: {', '.join([*FEATURES, *PRODUCTS])}")
         if not np.all(self.scale > 0):
             raise InputError("calibration model: every scale must be > 0")
+        if self.trees is not None and len(self.trees.feature) and self.trees.feature.max() >= len(self.features):
+            raise InputError(f"calibration model: trees split on input {int(self.trees.feature.max())}, the model "
+                             f"has {len(self.features)} features")
 
     @property
     def columns(self) -> tuple[str, ...]:
@@ -89,27 +100,37 @@ class LogisticModel:
         the j-th spline column of a spline feature."""
         return columns(self.features, self.knots)
 
-    def _z(self, table: Mapping[str, np.ndarray]) -> np.ndarray:
-        x = clip(design(table, self.features), self.features, self.bounds)
+    def inputs(self, table: Mapping[str, np.ndarray]) -> np.ndarray:
+        """(n, len(features)) the features' inputs, each clipped to its bounds."""
+        return clip(design(table, self.features), self.features, self.bounds)
+
+    def _z(self, x: np.ndarray) -> np.ndarray:
         return (expand(x, self.features, self.knots) - self.mean) / self.scale
 
     def logit(self, table: Mapping[str, np.ndarray]) -> np.ndarray:
         """(n,) log-odds of holding of the grasps of a measure table."""
-        return self.intercept + self._z(table) @ self.coef
+        x = self.inputs(table)
+        additive = self.intercept + self._z(x) @ self.coef
+        return additive if self.trees is None else additive + self.trees.evaluate(x)
 
     def terms(self, table: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         """Each feature's part of the log-odds, (n,) per feature name: the
-        sum over its columns of coef x standardised column; with
+        sum over its columns of coef x standardised column; and, for a
+        model with trees, ``interactions``: the trees' part. With
         ``intercept`` they add up to :meth:`logit` (``grasp best --explain``
         prints them)."""
-        part = self._z(table) * self.coef
+        x = self.inputs(table)
+        part = self._z(x) * self.coef
         owner = np.array([c.partition("~")[0] for c in self.columns])
-        return {name: part[:, owner == name].sum(axis=1) for name in self.features}
+        out = {name: part[:, owner == name].sum(axis=1) for name in self.features}
+        if self.trees is not None:
+            out[INTERACTIONS] = self.trees.evaluate(x)
+        return out
 
     def standardised(self, table: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         """Each feature's standardised input ``(x - mean) / scale``, (n,) per
         feature name (its first column: the input itself, for a spline feature)."""
-        z = self._z(table)
+        z = self._z(self.inputs(table))
         cols = self.columns
         return {name: z[:, cols.index(name)] for name in self.features}
 
@@ -123,7 +144,8 @@ class LogisticModel:
                 "l2": self.l2, "source": self.source, "figures": dict(self.figures),
                 "knots": {k: list(v) for k, v in self.knots.items()},
                 "bounds": {k: list(v) for k, v in self.bounds.items()},
-                **({"held_out": _table(self.held_out)} if self.held_out is not None else {})}
+                **({"held_out": _table(self.held_out)} if self.held_out is not None else {}),
+                **({"trees": self.trees.to_dict()} if self.trees is not None else {})}
 
     @classmethod
     def from_dict(cls, data: Mapping) -> LogisticModel:
@@ -134,7 +156,8 @@ class LogisticModel:
                        {k: float(v) for k, v in dict(data.get("figures", {})).items()},
                        _reliability(data["held_out"]) if "held_out" in data else None,
                        {str(k): tuple(float(x) for x in v) for k, v in dict(data.get("knots", {})).items()},
-                       {str(k): tuple(float(x) for x in v) for k, v in dict(data.get("bounds", {})).items()})
+                       {str(k): tuple(float(x) for x in v) for k, v in dict(data.get("bounds", {})).items()},
+                       Trees.from_dict(data["trees"]) if "trees" in data else None)
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"calibration model: missing or bad field ({exc})") from None
 
@@ -162,6 +185,10 @@ class LogisticModel:
         if self.held_out is not None:
             lines += ["", "[held_out]  # reliability table of the cross-validated predictions (nan: empty bin)"]
             lines += [f"{k} = {_floats(np.asarray(v, float))}" for k, v in _table(self.held_out, nan=True).items()]
+        if self.trees is not None:
+            lines += ["", "[trees]  # the interaction term: trees boosted over the clipped inputs (trees.py)"]
+            lines += [f"{k} = {json.dumps(v) if k in TREE_INTS else _floats(np.asarray(v, float))}"
+                      for k, v in self.trees.to_dict().items()]
         return "\n".join(lines) + "\n"
 
 

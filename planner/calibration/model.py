@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -56,6 +56,7 @@ from planner.calibration.logistic import (  # noqa: F401 - re-exported
     load_model,
 )
 from planner.calibration.metrics import grouped_folds
+from planner.calibration.trees import TreeSettings, fit_trees
 from planner.errors import InputError
 
 #: The features a model uses unless told otherwise.
@@ -67,14 +68,18 @@ DEFAULT_SPLINES = ("epsilon", "log_resist_worst", "open_margin", "push", "width"
                    "pad_alignment", "opposition", "log_jaw_fill", "palm_gap", "com_lever")
 #: L2 penalties tried by cross-validation (per grasp of the mean log-loss, on standardised features).
 L2_GRID = (1e-4, 1e-3, 1e-2, 1e-1, 1.0)
+#: The interaction trees unless told otherwise (chosen by grouped CV on the dev set's tuning objects:
+#: bench/RESULTS.md, 2026-12-03); None: an additive model alone.
+DEFAULT_TREES: TreeSettings | None = TreeSettings()
 
 
 def fit(table: Mapping[str, np.ndarray], labels: np.ndarray, hand: str, *,
         features: Sequence[str] = DEFAULT_FEATURES, l2: float = 1e-2, source: str = "",
-        splines: Sequence[str] = DEFAULT_SPLINES) -> LogisticModel:
+        splines: Sequence[str] = DEFAULT_SPLINES, trees: TreeSettings | None = None) -> LogisticModel:
     """The model minimising mean log-loss + ``l2``/2 |coef|^2 on grasps with
     ``labels`` (n,) 0/1; the ``splines`` among ``features`` get knots from
-    these grasps (:func:`choose_knots`)."""
+    these grasps (:func:`choose_knots`); ``trees``: then the interaction
+    trees boosted from its log-odds (:func:`~planner.calibration.trees.fit_trees`)."""
     y = np.asarray(labels, float)
     raw = design(table, features)
     knots = choose_knots(raw, features, splines)
@@ -93,8 +98,11 @@ def fit(table: Mapping[str, np.ndarray], labels: np.ndarray, hand: str, *,
     from scipy.optimize import minimize  # fitting only: reading and applying a model needs numpy alone
 
     res = minimize(_loss, w0, args=(z, y, l2), jac=True, method="L-BFGS-B", options={"maxiter": 2000})
-    return LogisticModel(hand, tuple(features), mean, scale, res.x[1:], float(res.x[0]), float(l2), source,
-                         knots=knots, bounds=fitting_bounds(raw, features))
+    model = LogisticModel(hand, tuple(features), mean, scale, res.x[1:], float(res.x[0]), float(l2), source,
+                          knots=knots, bounds=fitting_bounds(raw, features))
+    if trees is None or len(set(y.tolist())) < 2:
+        return model
+    return replace(model, trees=fit_trees(model.inputs(table), y, model.logit(table), trees))
 
 
 def _loss(w: np.ndarray, z: np.ndarray, y: np.ndarray, l2: float) -> tuple[float, np.ndarray]:
@@ -150,8 +158,10 @@ def choose_l2(table: Mapping[str, np.ndarray], labels: np.ndarray, groups: Seque
 
 def cross_validate(table: Mapping[str, np.ndarray], labels: np.ndarray, groups: Sequence[str], hand: str, *,
                    features: Sequence[str] = DEFAULT_FEATURES, folds: int = 5,
-                   grid: Sequence[float] = L2_GRID, splines: Sequence[str] = DEFAULT_SPLINES) -> CrossValidation:
-    """Out-of-fold p_hold over ``folds`` folds grouped by ``groups`` (n,) (object ids)."""
+                   grid: Sequence[float] = L2_GRID, splines: Sequence[str] = DEFAULT_SPLINES,
+                   trees: TreeSettings | None = DEFAULT_TREES) -> CrossValidation:
+    """Out-of-fold p_hold over ``folds`` folds grouped by ``groups`` (n,) (object ids); the penalty is chosen
+    (additive model alone) inside each training fold, then that fold's model gets its ``trees``."""
     y = np.asarray(labels, float)
     groups = list(groups)
     tests = grouped_folds(groups, folds)
@@ -162,6 +172,7 @@ def cross_validate(table: Mapping[str, np.ndarray], labels: np.ndarray, groups: 
         l2 = choose_l2(sub, y[train], [groups[i] for i in train], hand, features=features, folds=folds, grid=grid,
                        splines=splines)
         chosen.append(l2)
-        p[test] = fit(sub, y[train], hand, features=features, l2=l2, splines=splines).predict(_subset(table, test))
+        p[test] = fit(sub, y[train], hand, features=features, l2=l2, splines=splines,
+                      trees=trees).predict(_subset(table, test))
         fold[test] = f
     return CrossValidation(p, fold, np.array(chosen))

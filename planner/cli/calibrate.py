@@ -23,8 +23,10 @@ from planner.cli.app import db_option
 @click.option("--model-out", type=click.Path(path_type=Path), help="Also write the model as TOML.")
 @click.option("--plot", type=click.Path(path_type=Path), help="Write the held-out reliability diagram (PNG).")
 @click.option("--no-store", is_flag=True, help="Fit and report only; leave the database alone.")
+@click.option("--trees/--no-trees", default=True, show_default=True,
+              help="Boost interaction trees on the additive model (--no-trees: one curve per measure alone).")
 def calibrate(labels: tuple[Path, ...], db_path: Path, poses: int, seed: int, folds: int, hand: str | None,
-              workers: int, model_out: Path | None, plot: Path | None, no_store: bool) -> None:
+              workers: int, model_out: Path | None, plot: Path | None, no_store: bool, trees: bool) -> None:
     """Fit p_hold, the calibrated probability of holding, to labelled grasp files (ACRONYM layout:
     grasps/transforms and grasps/qualities/flex/object_in_gripper) and store it for their hand."""
 
@@ -33,7 +35,7 @@ def calibrate(labels: tuple[Path, ...], db_path: Path, poses: int, seed: int, fo
 
     result = api.calibrate(list(labels), db_path=None if no_store else db_path, poses=poses or None, seed=seed,
                            folds=folds, hand=hand, workers=workers, model_out=model_out, plot=plot,
-                           progress=progress)
+                           progress=progress, trees=trees)
     f = result.figures
     click.echo(f"p_hold for {result.model.hand}: {int(f['grasps'])} closed labelled grasps of {int(f['objects'])} "
                f"objects, success rate {f['success_rate']:.3f}")

@@ -134,17 +134,20 @@ def p_hold_terms(grasp: Grasp, model: LogisticModel) -> dict[str, dict[str, floa
     """The model's log-odds of ``grasp`` feature by feature: for each feature
     its input ``x`` (the measure as the model reads it, e.g. log1p of an area
     in mm^2), whether it enters as a spline, and its ``part`` of the log-odds;
-    and the ``intercept``, ``logit`` (their sum) and ``p_hold`` =
-    1 / (1 + e^-logit)."""
+    and the ``intercept``, the trees' ``interactions`` (a model with trees),
+    ``logit`` (their sum) and ``p_hold`` = 1 / (1 + e^-logit)."""
     from planner.calibration import features
+    from planner.calibration.logistic import INTERACTIONS
 
     table = features.of_grasps([grasp])
     x = features.design(table, model.features)[0]
     parts = model.terms(table)
     logit = float(model.logit(table)[0])
+    extra = {INTERACTIONS: float(parts[INTERACTIONS][0])} if INTERACTIONS in parts else {}
     return {"features": {name: {"x": float(x[i]), "spline": float(name in model.knots), "part": float(parts[name][0])}
                          for i, name in enumerate(model.features)},
-            "total": {"intercept": float(model.intercept), "logit": logit, "p_hold": float(model.predict(table)[0])}}
+            "total": {"intercept": float(model.intercept), **extra, "logit": logit,
+                      "p_hold": float(model.predict(table)[0])}}
 
 
 def explain_json(grasp: Grasp, rule: RankingRule, model: LogisticModel | None = None) -> dict:
@@ -187,7 +190,8 @@ def explain(grasp: Grasp, rule: RankingRule, model: LogisticModel | None = None)
     if calibrated:
         lines.append(f"    (the formula: {t['formula']:.4f}; not used: the hand has a calibrated p_hold model)")
         lines.append("    analytic = p_hold = 1 / (1 + exp(-logit)), logit = intercept + each feature's part "
-                     "(a line, or a spline where marked ~, of the feature's input x):")
+                     "(a line, or a spline where marked ~, of the feature's input x)"
+                     + (" + the interactions of its trees:" if model is not None and model.trees is not None else ":"))
         if model is None:
             lines.append("    (the model that made it is no longer the hand's: its terms cannot be shown)")
         else:
@@ -195,6 +199,9 @@ def explain(grasp: Grasp, rule: RankingRule, model: LogisticModel | None = None)
             lines += [f"      {name}{'~' if v['spline'] else ''}: x {v['x']:.4g} -> {v['part']:+.4f}"
                       for name, v in pt["features"].items()]
             total = pt["total"]
+            if "interactions" in total:
+                lines.append(f"      interactions (the model's trees over these inputs together): "
+                             f"{total['interactions']:+.4f}")
             lines.append(f"      intercept {total['intercept']:+.4f}; logit {total['logit']:+.4f} -> p_hold "
                          f"{total['p_hold']:.4f} (stored {t['p_hold']:.4f})")
     reach = m.get("reachability", math.nan)

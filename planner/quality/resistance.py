@@ -215,6 +215,9 @@ def _solver():  # type: ignore[no-untyped-def]
             os.close(saved)
             os.close(devnull)
         solver.setOptionValue("output_flag", False)
+        # presolve finds nothing to remove in these small dense programs and costs ~17% of each solve
+        # (measured on 492 of the Panda's programs: the same optima to 4e-11)
+        solver.setOptionValue("presolve", "off")
         _SOLVERS[os.getpid()] = solver
     solver.clearModel()
     return solver

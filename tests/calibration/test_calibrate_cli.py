@@ -58,6 +58,12 @@ def test_calibrate_fits_reports_and_stores_a_model_that_best_and_exports_use(val
     assert "analytic = p_hold = 1 / (1 + exp(-logit))" in out
     assert re.search(r"^      epsilon~?: x [-0-9.e]+ -> [-+][0-9.]+$", out, re.M), out
     assert f"-> p_hold {grasps[0].p_hold:.4f} (stored {grasps[0].p_hold:.4f})" in out
+    assert "interactions (the model's trees over these inputs together): " in out  # the trees' part, one line
+    assert "[trees]" in (tmp_path / "m.toml").read_text()
+    code, _, err = grasp("calibrate", *map(str, files), "--db", str(db), "--poses", "12", "--folds", "2", "--no-store",
+                         "--no-trees", "--model-out", str(tmp_path / "additive.toml"))
+    assert code == 0, err
+    assert "[trees]" not in (tmp_path / "additive.toml").read_text()
     code, _, err = grasp("export", "--db", str(db), "--format", "csv", "--out", str(tmp_path / "csv"), "--quiet")
     assert code == 0, err
     header = next((tmp_path / "csv").rglob("*.csv")).read_text().splitlines()[0].split(",")

@@ -1,0 +1,118 @@
+"""The interaction trees of p_hold: their evaluation against scikit-learn's and a plain one, what they add
+to the additive model, their files, and bad trees refused."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from planner.calibration import features
+from planner.calibration.logistic import INTERACTIONS, LogisticModel, load_model
+from planner.calibration.metrics import roc_auc
+from planner.calibration.model import cross_validate, fit
+from planner.calibration.trees import LEAF, Trees, TreeSettings, _Margin, fit_trees
+from planner.errors import InputError
+from tests.calibration.test_model import synthetic
+from tests.helpers import assert_close
+
+#: Sums of float64 leaf values in another order differ by round-off only.
+SUM_TOL = 1e-9
+
+
+def xor_truth(table: dict[str, np.ndarray]) -> np.ndarray:
+    """Log-odds of a world where a narrow grasp holds only when pushed square and a wide one only when not:
+    no sum of one part per feature can say it."""
+    return np.where((table["width"] < 0.04) == (table["push"] > 0.5), 2.5, -2.5)
+
+
+def labelled(n: int, seed: int) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    table, _, _ = synthetic(n, seed=seed)
+    rng = np.random.default_rng(seed + 100)
+    return table, (rng.random(n) < 1 / (1 + np.exp(-xor_truth(table)))).astype(float)
+
+
+FEATS = ("push", "width", "epsilon")
+
+
+def test_trees_find_an_interaction_the_additive_model_cannot() -> None:
+    table, y = labelled(4000, 0)
+    test, test_y = labelled(3000, 1)
+    additive = fit(table, y, "panda", features=FEATS, l2=1e-3)
+    boosted = fit(table, y, "panda", features=FEATS, l2=1e-3, trees=TreeSettings())
+    assert additive.trees is None and boosted.trees is not None
+    assert roc_auc(test_y, additive.predict(test)) < 0.6
+    assert roc_auc(test_y, boosted.predict(test)) > 0.8
+
+
+def test_the_term_is_scikit_learns_and_the_plain_walk_agrees() -> None:
+    from sklearn.ensemble import GradientBoostingClassifier
+
+    table, y = labelled(1500, 2)
+    x = features.design(table, FEATS)
+    margin = np.linspace(-1, 1, len(y))
+    s = TreeSettings(n_trees=30)
+    trees = fit_trees(x, y, margin, s)
+    gb = GradientBoostingClassifier(init=_Margin(x, margin), n_estimators=s.n_trees, max_depth=s.depth,
+                                    learning_rate=s.learning_rate, min_samples_leaf=s.min_leaf,
+                                    subsample=s.subsample, random_state=s.seed).fit(x, y)
+    assert_close(margin + trees.evaluate(x), gb.decision_function(x), 1e-6)
+    assert trees.depth == s.depth and len(trees.roots) == s.n_trees
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.tuples(st.floats(-0.5, 1.5), st.floats(-0.05, 0.15), st.floats(-0.1, 0.2)), min_size=1,
+                max_size=30))
+def test_the_fast_evaluation_is_the_plain_one(rows: list[tuple[float, float, float]]) -> None:
+    trees = _fitted().trees
+    x = np.array(rows)
+    assert_close(trees.evaluate(x), trees.evaluate_reference(x), SUM_TOL)
+
+
+_CACHE: dict[str, LogisticModel] = {}
+
+
+def _fitted() -> LogisticModel:
+    if "m" not in _CACHE:
+        table, y = labelled(1500, 3)
+        _CACHE["m"] = fit(table, y, "panda", features=FEATS, l2=1e-3, trees=TreeSettings(n_trees=40))
+    return _CACHE["m"]
+
+
+def test_terms_add_up_to_the_logit_and_files_keep_the_trees(tmp_path: Path) -> None:
+    model = _fitted()
+    table, _ = labelled(200, 4)
+    parts = model.terms(table)
+    assert set(parts) == {*FEATS, INTERACTIONS}
+    assert_close(model.intercept + sum(parts.values()), model.logit(table), SUM_TOL)
+    path = tmp_path / "m.toml"
+    path.write_text(model.to_toml())
+    for again in (load_model(path), LogisticModel.from_json(model.to_json())):
+        assert again.trees is not None
+        assert_close(again.predict(table), model.predict(table), 0.0)
+    assert LogisticModel.from_json(replace(model, trees=None).to_json()).trees is None
+
+
+def test_bad_trees_are_refused_in_one_line() -> None:
+    good = _fitted()
+    t = good.trees.to_dict()
+    out_of_range = dict(t, left=[len(t["left"]) + 5 if v != LEAF else v for v in t["left"]])
+    with pytest.raises(InputError, match="children"):
+        Trees.from_dict(out_of_range)
+    too_many = dict(t, feature=[7 if v != LEAF else v for v in t["feature"]])
+    with pytest.raises(InputError, match="trees split on input 7"):
+        replace(good, trees=Trees.from_dict(too_many))
+    with pytest.raises(InputError, match="learning_rate"):
+        TreeSettings(learning_rate=0.0)
+
+
+def test_cross_validation_with_trees_is_out_of_fold() -> None:
+    table, y = labelled(2000, 5)
+    groups = [f"object{i % 6}" for i in range(len(y))]
+    cv = cross_validate(table, y, groups, "panda", features=FEATS, folds=3, grid=(1e-3,),
+                        trees=TreeSettings(n_trees=40))
+    assert roc_auc(y, cv.p) > 0.8
