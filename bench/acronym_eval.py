@@ -49,7 +49,7 @@ from planner.calibration import features
 from planner.calibration.fitting import calibrate
 from planner.calibration.labels import LabelledSet
 from planner.calibration.metrics import expected_calibration_error, roc_auc
-from planner.calibration.model import default_model, load_model
+from planner.calibration.model import DEFAULT_TREES, default_model, load_model
 from planner.datasets import importer
 from planner.db.ranking import RankingRule, rank_order
 from planner.geometry.solid import prepare
@@ -277,6 +277,9 @@ def evaluate(results: list[FileResult], model, rule: RankingRule, oof: dict[str,
         closed_y = np.concatenate([r.labels[r.closed] for r in results])
         pooled["ece_p_hold"] = expected_calibration_error(closed_y, closed_p) if len(closed_y) else float("nan")
         pooled["closed_poses"] = int(len(closed_y))
+        # p_hold >= 0.5 as a label (what an export without a trial writes): agreement with FleX, pooled
+        pooled["p_hold_label_agree"] = float(np.mean((closed_p >= 0.5) == (closed_y == 1))) if len(closed_y) else \
+            float("nan")
     trial_rows = [f for f in per_file if "trial_n" in f]
     if trial_rows:
         n = sum(f["trial_n"] for f in trial_rows)
@@ -356,7 +359,8 @@ def print_table(report: dict) -> None:
     print(f"objects where the score beats the width baseline: {report['mean'].get('width_beaten')}"
           f" of {len(report['objects'])}; p_hold: {report['mean'].get('width_beaten_p_hold', 'n/a')}")
     if "ece_p_hold" in report:
-        print(f"ECE of p_hold over {report['closed_poses']} closed poses: {report['ece_p_hold']:.4f}")
+        print(f"ECE of p_hold over {report['closed_poses']} closed poses: {report['ece_p_hold']:.4f}; "
+              f"p_hold >= 0.5 as a label agrees with FleX on {report['p_hold_label_agree']:.3f} of them")
     if "trial_n" in report:
         print(f"trial vs FleX: agree {report['trial_agree_pooled']:.3f} of {report['trial_n']} closed poses; "
               f"drops FleX holds {report['trial_drops_flex_holds']}, holds FleX drops "
@@ -395,6 +399,7 @@ def main() -> int:
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--cv", type=int, default=5, help="folds of the grouped CV of p_hold (tuning figures)")
     parser.add_argument("--no-cv", action="store_true", help="p_hold of --model (or the shipped one), no CV")
+    parser.add_argument("--no-trees", action="store_true", help="fit the additive model alone (no interaction trees)")
     parser.add_argument("--write-model", type=Path, help="write the model fitted on every selected file (TOML)")
     args = parser.parse_args()
     files = dev_files(args.dev, args.held_out, args.objects)
@@ -420,9 +425,10 @@ def main() -> int:
         source = (f"bench/acronym_eval.py --poses {args.poses} --seed {args.seed} --cv {args.cv}: fitted on the "
                   f"'tuning' objects of bench/acronym_split.toml ({len(files)} files of "
                   f"../shared/labelled/acronym_dev, ACRONYM FleX object_in_gripper labels, Panda), "
-                  f"{len(data.labels)} closed poses; penalty chosen by "
-                  f"nested grouped CV; figures: held out by {args.cv}-fold CV grouped by object; code {code}")
-        cal = calibrate(data, folds=args.cv, source=source)
+                  f"{len(data.labels)} closed poses; {'no trees' if args.no_trees else DEFAULT_TREES}; "
+                  f"penalty chosen by nested grouped CV; figures: held out by {args.cv}-fold CV grouped by object; "
+                  f"code {code}")
+        cal = calibrate(data, folds=args.cv, source=source, trees=None if args.no_trees else DEFAULT_TREES)
         start_row = 0
         oof = {}
         for r in results:  # data's rows are the closed poses of results, in order

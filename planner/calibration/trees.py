@@ -37,10 +37,10 @@ class TreeSettings:
     hold at least ``min_leaf`` grasps, fitted on a ``subsample`` share of the
     grasps drawn with ``seed``."""
 
-    n_trees: int = 150
+    n_trees: int = 300
     depth: int = 3
     learning_rate: float = 0.05
-    min_leaf: int = 40
+    min_leaf: int = 100
     subsample: float = 0.8
     seed: int = 0
 
