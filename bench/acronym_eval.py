@@ -7,8 +7,10 @@ re-scored as ``grasp import --format acronym FILE --rescore`` does (the same API
 :func:`planner.datasets.importer.rescore_poses`, with the file's mass and friction), and compared
 pose by pose with ``object_in_gripper``:
 
-- ROC AUC of the stored score (the default ranking rule, or p_hold with ``--model``) against the
-  label, per file; a pose rejected by closing counts as the lowest score;
+- ROC AUC against the label, per file, of p_hold (the shipped model, or ``--model FILE``: a Panda
+  grasp's stored score where a model applies, reachability and trials aside) and of the rule's
+  formula (``auc_formula``: the stored score where no model applies); a pose rejected by closing
+  counts as the lowest score;
 - the width baseline ("smaller closed width is better", rejected poses lowest);
 - AUC of p_hold (the shipped model, or ``--model FILE``) and its expected calibration error over
   the closed poses;
@@ -212,15 +214,15 @@ def trial_source() -> str:
 
 
 def scores(result: FileResult, model, rule: RankingRule, p_hold: np.ndarray | None = None) -> dict[str, np.ndarray]:
-    """(m,) per sampled pose: the rule's score, -width, p_hold (``p_hold`` given:
+    """(m,) per sampled pose: the rule's formula, -width, p_hold (``p_hold`` given:
     (closed,) out-of-fold predictions), force closure; rejected poses -inf (fc 0)."""
     m = len(result.rows)
-    out = {name: np.full(m, -np.inf) for name in ("score", "width", "p_hold")}
+    out = {name: np.full(m, -np.inf) for name in ("formula", "width", "p_hold")}
     out["fc"] = np.zeros(m)
     closed = np.flatnonzero(result.closed)
     if len(closed):
         table = features.of_grasps(result.grasps)
-        out["score"][closed] = rule.scores(_rule_measures(table))
+        out["formula"][closed] = rule.scores(_rule_measures(table))
         out["width"][closed] = -np.nan_to_num(table["width"], nan=np.inf)
         out["fc"][closed] = table["force_closure"]
         if p_hold is not None:
@@ -247,8 +249,8 @@ def evaluate(results: list[FileResult], model, rule: RankingRule, oof: dict[str,
         closed = r.closed
         row = {"file": r.path.stem, "category": object_key(r.path)[0], "object": object_key(r.path)[1],
                "poses": len(r.rows), "closed": int(closed.sum()), "success_rate": float(r.labels.mean()),
-               "auc_score": roc_auc(r.labels, s["score"]), "auc_width": roc_auc(r.labels, s["width"]),
-               "top10_score": top_hold(s["score"], s["fc"], r.labels),
+               "auc_formula": roc_auc(r.labels, s["formula"]), "auc_width": roc_auc(r.labels, s["width"]),
+               "top10_formula": top_hold(s["formula"], s["fc"], r.labels),
                "rejected": r.rejected}
         if model is not None:
             row["auc_p_hold"] = roc_auc(r.labels, s["p_hold"])
@@ -294,7 +296,7 @@ def evaluate(results: list[FileResult], model, rule: RankingRule, oof: dict[str,
             "mean": _mean(_by(per_file, "object")), **pooled}
 
 
-METRICS = ("auc_score", "auc_width", "auc_p_hold", "top10_score", "top10_p_hold", "top10_validated", "trial_agree",
+METRICS = ("auc_formula", "auc_width", "auc_p_hold", "top10_formula", "top10_p_hold", "top10_validated", "trial_agree",
            "success_rate")
 
 
@@ -328,7 +330,7 @@ def _mean(rows: list[dict]) -> dict:
         if vals:
             out[m] = float(np.mean(vals))
     if rows:
-        out["width_beaten"] = int(sum(r.get("auc_score", 0) > r.get("auc_width", 1) for r in rows))
+        out["width_beaten_formula"] = int(sum(r.get("auc_formula", 0) > r.get("auc_width", 1) for r in rows))
         if any("auc_p_hold" in r for r in rows):
             out["width_beaten_p_hold"] = int(sum(r.get("auc_p_hold", 0) > r.get("auc_width", 1) for r in rows))
     return out
@@ -356,8 +358,9 @@ def print_table(report: dict) -> None:
               + "".join(f"{c[k]:14.3f}" if k in c else f"{'':14s}" for k in cols))
     print(f"{'MEAN over objects':48s}" + "".join(f"{report['mean'][k]:14.3f}" if k in report["mean"] else f"{'':14s}"
                                             for k in cols))
-    print(f"objects where the score beats the width baseline: {report['mean'].get('width_beaten')}"
-          f" of {len(report['objects'])}; p_hold: {report['mean'].get('width_beaten_p_hold', 'n/a')}")
+    print(f"objects where p_hold (a Panda grasp's stored score where the model applies) beats the width baseline: "
+          f"{report['mean'].get('width_beaten_p_hold', 'n/a')} of {len(report['objects'])}; the rule's formula (the "
+          f"stored score where no model applies): {report['mean'].get('width_beaten_formula')}")
     if "ece_p_hold" in report:
         print(f"ECE of p_hold over {report['closed_poses']} closed poses: {report['ece_p_hold']:.4f}; "
               f"p_hold >= 0.5 as a label agrees with FleX on {report['p_hold_label_agree']:.3f} of them")

@@ -151,9 +151,12 @@ def _barrett_over_a_box(mass: float = 0.3):  # type: ignore[no-untyped-def]
 FINGER_FORCE_BOUND = 200.0
 
 
-def test_a_finger_braked_by_its_clutch_stays_where_it_touched(monkeypatch) -> None:  # type: ignore[no-untyped-def]
-    # the box 15 mm off the palm's centre towards fingers 1 and 2: their proximal links touch first, their
-    # clutches slip, the proximal joints stay where they are and the distal links close on alone
+def test_an_off_centre_box_is_held_by_three_fingers_with_bounded_forces(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    # the box 15 mm off the palm's centre towards fingers 1 and 2: they touch first and finger 3 pushes the box
+    # over to them; every finger ends on it and no contact force exceeds the bound. How far the box travels
+    # while the fingers close is the engine's: 8 mm (turned 0.84 rad) with MuJoCo 4.0.0, 43 mm (0.04 rad) with
+    # 4.0.1, so it is not asserted. (Neither version's closing here breaks a clutch away: measured. The MuJoCo
+    # trial's break-away has no scene of its own yet; the PyBullet closing's is in test_actuation.py.)
     from planner.sim.mujoco_world import World
 
     hand, obj, grasp = _barrett_over_a_box()
@@ -169,7 +172,7 @@ def test_a_finger_braked_by_its_clutch_stays_where_it_touched(monkeypatch) -> No
 
     monkeypatch.setattr(World, "step", step)
     result = trial(hand, obj, replace(grasp, pose=pose))
-    assert result.reason == "held" and result.fingers_in_contact == 3 and result.closing_linear < 0.03
+    assert result.reason == "held" and result.fingers_in_contact == 3
     assert peak[0] < FINGER_FORCE_BOUND
 
 
