@@ -12,9 +12,12 @@ outside the training range are extrapolated by a line, not a cubic): its
 input x and one column per inner knot (:func:`spline_basis`), each with its
 own coefficient. Beyond the range of the fitting data (``bounds``) an
 input is held at the nearest end: a line fitted on nothing out there would
-otherwise drive p_hold to 0 or 1 with certainty it never earned. The model stays additive, one term per feature (a
-generalised additive model), so ``--explain`` still gives each feature's
-part of the log-odds.
+otherwise drive p_hold to 0 or 1 with certainty it never earned. That part
+stays additive, one term per feature (a generalised additive model), so
+``--explain`` still gives each feature's part of the log-odds; with
+``trees``, boosted regression trees then add what the sum of per-feature
+parts misses (:mod:`planner.calibration.trees`), shown as one more term,
+``interactions``.
 
 :func:`fit` fits one; :func:`cross_validate` gives out-of-fold predictions
 over folds grouped by object, choosing the penalty inside each training
