@@ -242,7 +242,10 @@ def top_hold(order_score: np.ndarray, fc: np.ndarray, labels: np.ndarray, k: int
     return float(np.mean(labels[rank_order(order_score, fc)[:k]]))
 
 
-def evaluate(results: list[FileResult], model, rule: RankingRule, oof: dict[str, np.ndarray] | None = None) -> dict:
+def evaluate(results: list[FileResult], model, rule: RankingRule, oof: dict[str, np.ndarray] | None = None,
+             trial_group: str = "") -> dict:
+    """``trial_group``: the record group of ``--trial``'s engine (``mujoco``, ``validation``): where the model
+    updates p_hold by that trial's verdict, the agreement of p_hold_trial >= 0.5 too."""
     per_file = []
     for r in results:
         s = scores(r, model, rule, None if oof is None else oof[r.path.stem])
@@ -261,12 +264,22 @@ def evaluate(results: list[FileResult], model, rule: RankingRule, oof: dict[str,
                 for p, held in top_trial.items():
                     factor[p] = float(held)
                 row["top10_validated"] = top_hold(s["p_hold"] * factor, s["fc"], r.labels)
+                if trial_group in model.updates:  # as the database ranks them now: by p_hold given the verdict
+                    pos = np.array(sorted(top_trial))
+                    updated = s["p_hold"].copy()
+                    updated[pos] = model.given_trial(s["p_hold"][pos], {trial_group: factor[pos]})
+                    row["top10_validated_multiplied"] = row["top10_validated"]
+                    row["top10_validated"] = top_hold(updated, s["fc"], r.labels)
                 row["top_trial_n"] = len(top_trial)
         if r.trial:
             pos = np.array(sorted(r.trial))
             verdict = np.array([r.trial[p] for p in pos], int)
             row["trial_n"] = len(pos)
             row["trial_agree"] = float(np.mean(verdict == r.labels[pos]))
+            if model is not None and trial_group in model.updates:  # the label an export writes after the trial
+                q = model.given_trial(s["p_hold"][pos], {trial_group: verdict.astype(float)})
+                row["p_hold_trial_agree"] = float(np.mean((q >= 0.5) == (r.labels[pos] == 1)))
+                row["p_hold_tried_agree"] = float(np.mean((s["p_hold"][pos] >= 0.5) == (r.labels[pos] == 1)))
             row["trial_drops_flex_holds"] = int(np.sum((verdict == 0) & (r.labels[pos] == 1)))
             row["trial_holds_flex_drops"] = int(np.sum((verdict == 1) & (r.labels[pos] == 0)))
             reasons = getattr(r, "trial_reasons", {})
@@ -287,6 +300,9 @@ def evaluate(results: list[FileResult], model, rule: RankingRule, oof: dict[str,
         n = sum(f["trial_n"] for f in trial_rows)
         pooled["trial_agree_pooled"] = sum(f["trial_agree"] * f["trial_n"] for f in trial_rows) / n
         pooled["trial_n"] = n
+        for key in ("p_hold_trial_agree", "p_hold_tried_agree"):
+            if all(key in f for f in trial_rows):
+                pooled[key + "_pooled"] = sum(f[key] * f["trial_n"] for f in trial_rows) / n
         pooled["trial_drops_flex_holds"] = sum(f["trial_drops_flex_holds"] for f in trial_rows)
         pooled["trial_holds_flex_drops"] = sum(f["trial_holds_flex_drops"] for f in trial_rows)
         pooled["trial_reasons"] = dict(sum((Counter(f["trial_reasons"]) for f in trial_rows), Counter()))
@@ -296,7 +312,8 @@ def evaluate(results: list[FileResult], model, rule: RankingRule, oof: dict[str,
             "mean": _mean(_by(per_file, "object")), **pooled}
 
 
-METRICS = ("auc_formula", "auc_width", "auc_p_hold", "top10_formula", "top10_p_hold", "top10_validated", "trial_agree",
+METRICS = ("auc_formula", "auc_width", "auc_p_hold", "top10_formula", "top10_p_hold", "top10_validated",
+           "top10_validated_multiplied", "trial_agree",
            "success_rate")
 
 
@@ -368,6 +385,9 @@ def print_table(report: dict) -> None:
         print(f"trial vs FleX: agree {report['trial_agree_pooled']:.3f} of {report['trial_n']} closed poses; "
               f"drops FleX holds {report['trial_drops_flex_holds']}, holds FleX drops "
               f"{report['trial_holds_flex_drops']}; reasons {report['trial_reasons']}")
+        if "p_hold_trial_agree_pooled" in report:
+            print(f"on the same poses: p_hold given the verdict >= 0.5 (the export's label after a trial) agrees "
+                  f"{report['p_hold_trial_agree_pooled']:.3f}, p_hold >= 0.5 {report['p_hold_tried_agree_pooled']:.3f}")
     print(f"rejections by reason over {report['poses']} poses: {report['rejected']}")
 
 
@@ -446,7 +466,7 @@ def main() -> int:
         for r in results:
             run_top_trials(r, scores(r, model, RankingRule(), None if oof is None else oof[r.path.stem])["p_hold"],
                            args.trial_top, settings, args.cache, code, trial_pose)
-    report = evaluate(results, model, RankingRule(), oof)
+    report = evaluate(results, model, RankingRule(), oof, "mujoco" if args.engine == "mujoco" else "validation")
     if oof is not None:
         report["cv"] = {"folds": args.cv, "note": "p_hold figures are out-of-fold (grouped by object)"}
     report["cpu_seconds"] = time.process_time() - start

@@ -39,7 +39,7 @@ def calibration_errors(db_path: Path) -> list[str]:
 def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB, poses: int | None = 200, seed: int = 0,
               folds: int = 5, hand: str | None = None, workers: int = 1, model_out: Path | None = None,
               plot: Path | None = None, progress: Callable[[Path, int, int], None] | None = None,
-              trees: bool = True) -> Calibration:
+              trees: bool = True, trial: int = 0, engine: str = "mujoco") -> Calibration:
     """Fit p_hold (and so the ranking, by p_hold) to labelled grasp files in
     ACRONYM layout: a seeded sample of ``poses`` poses per file re-scored as
     ``import --rescore`` does, cross-validated over ``folds`` folds grouped by
@@ -47,7 +47,10 @@ def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB,
     stored), where ``best``, exports and reports use it for its hand;
     ``model_out`` writes it as TOML (the form of the shipped default),
     ``plot`` the held-out reliability diagram as PNG; ``trees``: the model
-    gets its interaction trees (False: the additive model alone)."""
+    gets its interaction trees (False: the additive model alone); ``trial``:
+    that many closed grasps per file tried in ``engine`` (``mujoco`` or
+    ``pybullet``), and the model gets how that trial's verdict updates
+    p_hold (:mod:`planner.calibration.update`)."""
     from planner.calibration.fitting import calibrate as fit_calibration
     from planner.calibration.labels import labelled
     from planner.calibration.model import DEFAULT_TREES
@@ -57,10 +60,12 @@ def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB,
     if folds < 2:
         raise InputError(f"--folds must be at least 2, got {folds}")
     paths = [Path(p) for p in label_files]
-    data = labelled(paths, poses=poses, seed=seed, hand=hand, workers=workers, progress=progress)
+    data = labelled(paths, poses=poses, seed=seed, hand=hand, workers=workers, progress=progress, trial=trial,
+                    engine=engine)
     source = json.dumps({"command": "grasp calibrate", "labels": [p.name for p in paths], "poses_per_file": poses,
                          "seed": seed, "folds": folds, "grasps": len(data.labels), "objects": len(set(data.groups)),
-                         "rejected": data.rejected, "trees": trees}, sort_keys=True)
+                         "rejected": data.rejected, "trees": trees,
+                         **({"trial": trial, "engine": engine} if trial else {})}, sort_keys=True)
     result = fit_calibration(data, folds=folds, source=source, trees=DEFAULT_TREES if trees else None)
     if db_path is not None:
         with writer_lock(Path(db_path)), open_db(Path(db_path)) as db:

@@ -11,6 +11,14 @@ the database's: force closure first, then p_hold):
   better"; ``auc_pooled``: over all grasps;
 - ``top10``: mean over files of the share of the 10 best-ranked grasps that hold;
 - ``ece``: expected calibration error over deciles; ``log_loss``.
+
+Where the labelled set holds trial verdicts (``grasp calibrate --trial N``),
+the model also gets the update of p_hold by that trial's verdict
+(:mod:`planner.calibration.update`), fitted on the out-of-fold p_hold of
+the tried grasps; figures over those grasps, the label as 1 or 0 against
+the file's: ``trialled`` (how many), ``trial_agreement`` (the verdict alone),
+``p_hold_agreement`` (p_hold >= 0.5) and ``p_hold_trial_agreement``
+(p_hold_trial >= 0.5, the update itself fitted without the grasp's fold).
 """
 
 from __future__ import annotations
@@ -34,6 +42,7 @@ from planner.calibration.model import (
     log_loss,
 )
 from planner.calibration.trees import TreeSettings
+from planner.calibration.update import fit_update
 from planner.db.ranking import rank_order
 from planner.errors import InputError
 
@@ -74,9 +83,31 @@ def calibrate(data: LabelledSet, *, folds: int = 5, features: Sequence[str] = DE
     figures["folds"] = float(k)
     model = fit(data.table, data.labels, data.hand, features=features, l2=l2, source=source, trees=trees)
     table = reliability(data.labels, cv.p)
+    updates = {}
+    if data.verdicts is not None and np.any(tried := ~np.isnan(data.verdicts)):
+        figures.update(trial_figures(data, cv))
+        updates[data.engine] = fit_update(data.engine, cv.p[tried], data.verdicts[tried], data.labels[tried])
     model = replace(model, source=source, figures={k_: v for k_, v in figures.items() if math.isfinite(v)},
-                    held_out=table)
+                    held_out=table, updates=updates)
     return Calibration(model, cv, figures, per_object(data, cv.p), table)
+
+
+def trial_figures(data: LabelledSet, cv: CrossValidation) -> dict[str, float]:
+    """Agreement with the labels of the tried grasps (module docstring); the
+    update is fitted per fold on the other folds' tried grasps."""
+    assert data.verdicts is not None
+    tried = np.flatnonzero(~np.isnan(data.verdicts))
+    y, v, p, fold = data.labels[tried], data.verdicts[tried], cv.p[tried], cv.fold[tried]
+    q = np.full(len(tried), np.nan)
+    for f in np.unique(fold):
+        train, test = fold != f, fold == f
+        if len(set(y[train].tolist())) == 2:
+            q[test] = fit_update(data.engine, p[train], v[train], y[train]).apply(p[test], v[test])
+    agree = ~np.isnan(q)
+    return {"trialled": float(len(tried)), "trial_agreement": float(np.mean(v == y)),
+            "p_hold_agreement": float(np.mean((p >= 0.5) == (y == 1))),
+            "p_hold_trial_agreement": float(np.mean((q[agree] >= 0.5) == (y[agree] == 1))) if agree.any()
+            else math.nan}
 
 
 def per_object(data: LabelledSet, p: np.ndarray) -> list[dict]:

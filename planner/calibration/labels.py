@@ -10,6 +10,12 @@ reason: they are never stored, so p_hold is not fitted on them.
 The group of a grasp (its object, for folds grouped by object) is the mesh
 file its file names (the same object at two scales is one group), or the
 built-in object's name.
+
+With ``trial`` > 0, a seeded sample of that many closed grasps per file is
+also tried in a dynamic trial (``engine``: MuJoCo's or PyBullet's, as
+``grasp validate`` runs it, at the file's mass and friction): their
+verdicts are what a :class:`~planner.calibration.update.TrialUpdate` is
+fitted on (p_hold given the verdict).
 """
 
 from __future__ import annotations
@@ -26,7 +32,10 @@ import numpy as np
 from planner.calibration import features
 from planner.datasets import acronym, importer
 from planner.errors import InputError
+from planner.record.grasp import Grasp
 from planner.run import pool
+from planner.specs.hands import HandSpec
+from planner.specs.objects import ObjectSpec
 
 
 @dataclass(frozen=True)
@@ -36,7 +45,9 @@ class LabelledSet:
     table: the measure table (name -> (n,)); labels (n,) 0/1; groups (n,)
     object (mesh) of each grasp; files (n,) the file stem of each grasp;
     hand; sampled: poses sampled per file stem; rejected: why poses did not
-    close, counted per reason over all files.
+    close, counted per reason over all files; verdicts (n,): 1 held, 0
+    dropped in the dynamic trial ``engine`` (its record group: ``mujoco``
+    or ``validation``), NaN not tried (None: no trial asked for).
     """
 
     table: dict[str, np.ndarray]
@@ -46,9 +57,13 @@ class LabelledSet:
     hand: str
     sampled: dict[str, int] = field(default_factory=dict)
     rejected: dict[str, int] = field(default_factory=dict)
+    verdicts: np.ndarray | None = None
+    engine: str = ""
 
     def __post_init__(self) -> None:
         n = len(self.labels)
+        if self.verdicts is not None and len(self.verdicts) != n:
+            raise ValueError("LabelledSet: verdicts must have one entry per grasp (NaN: not tried)")
         if len(self.groups) != n or len(self.files) != n or any(len(v) != n for v in self.table.values()):
             raise ValueError("LabelledSet: table columns, labels, groups and files must have one entry per grasp")
 
@@ -62,13 +77,20 @@ def sample_rows(n: int, k: int | None, seed: int, stem: str) -> np.ndarray:
 
 
 def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, hand: str | None = None,
-             workers: int = 1, progress: Callable[[Path, int, int], None] | None = None) -> LabelledSet:
-    """Re-score a sample of each file's poses and pair the closed ones with their labels."""
+             workers: int = 1, progress: Callable[[Path, int, int], None] | None = None, trial: int = 0,
+             engine: str = "mujoco") -> LabelledSet:
+    """Re-score a sample of each file's poses and pair the closed ones with
+    their labels; ``trial`` > 0: that many closed grasps per file tried in
+    ``engine`` (module docstring)."""
     if not paths:
         raise InputError("no label files given")
     if poses is not None and poses < 1:
         raise InputError(f"--poses must be at least 1, got {poses}")
-    tables, labels, groups, files = [], [], [], []
+    if trial < 0:
+        raise InputError(f"--trial must be >= 0, got {trial}")
+    if engine not in TRIAL_GROUPS:
+        raise InputError(f"--engine must be one of {', '.join(TRIAL_GROUPS)}; got '{engine}'")
+    tables, labels, groups, files, verdicts = [], [], [], [], []
     sampled: dict[str, int] = {}
     rejected: Counter = Counter()
     hands = set()
@@ -89,6 +111,8 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
                 rejected.update(outcome.rejected)
                 grasps.update({g.candidate: g for g in outcome.grasps})  # candidate = position in rows
         order = sorted(grasps)
+        if order and trial:
+            verdicts.append(_tried(spec_hand, spec, [grasps[i] for i in order], trial, seed, path.stem, engine))
         if order:
             tables.append(features.of_grasps([grasps[i] for i in order]))
             labels.append(y[rows[order]])
@@ -102,4 +126,30 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
         raise InputError("no labelled pose closed on its object: nothing to calibrate on")
     table = {k: np.concatenate([t[k] for t in tables]) for k in features.MEASURES}
     return LabelledSet(table, np.concatenate(labels), tuple(groups), tuple(files), hands.pop(), sampled,
-                       dict(rejected))
+                       dict(rejected), np.concatenate(verdicts) if trial else None,
+                       TRIAL_GROUPS[engine] if trial else "")
+
+
+#: The trial engines (``grasp validate --engine``) and the record group that stores each one's verdicts.
+TRIAL_GROUPS = {"mujoco": "mujoco", "pybullet": "validation"}
+
+
+def _tried(hand: HandSpec, spec: ObjectSpec, grasps: list[Grasp], k: int, seed: int, stem: str,
+           engine: str) -> np.ndarray:
+    """(len(grasps),) verdicts of a seeded sample of ``k`` of one file's closed grasps in ``engine``
+    (1 held, 0 dropped; NaN: not in the sample)."""
+    from planner.geometry.solid import prepare
+
+    rows = sample_rows(len(grasps), k, seed + 1, stem)
+    obj = prepare(spec)
+    if engine == "mujoco":
+        from planner.validation import mujoco_trial  # loads MuJoCo: only where asked for
+
+        outcome = mujoco_trial.trials(hand, obj, [grasps[i] for i in rows])
+    else:
+        from planner.validation import shake
+
+        outcome = shake.trials(hand, obj, [grasps[i] for i in rows])
+    out = np.full(len(grasps), np.nan)
+    out[rows] = [float(t.success) for t in outcome]
+    return out

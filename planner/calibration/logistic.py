@@ -23,6 +23,7 @@ from planner.calibration.basis import clip, columns, expand
 from planner.calibration.features import FEATURES, PRODUCTS, design
 from planner.calibration.metrics import Reliability
 from planner.calibration.trees import Trees
+from planner.calibration.update import TrialUpdate
 from planner.errors import InputError
 
 #: The folder of shipped models.
@@ -50,7 +51,10 @@ class LogisticModel:
     (inputs' units): a grasp's input is clipped to them before use (a
     feature without bounds is used as it is); trees: the boosted
     interaction term over the clipped inputs (:mod:`~planner.calibration.trees`;
-    None: the model is additive alone).
+    None: the model is additive alone); updates: per trial group (``mujoco``,
+    ``validation``), how that trial's verdict updates p_hold into
+    ``p_hold_trial`` (:mod:`~planner.calibration.update`; none: a verdict of
+    that engine is used as it is).
     """
 
     hand: str
@@ -66,8 +70,11 @@ class LogisticModel:
     knots: Mapping[str, tuple[float, ...]] = field(default_factory=dict)
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     trees: Trees | None = None
+    updates: Mapping[str, TrialUpdate] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        if any(u.engine != k for k, u in self.updates.items()):
+            raise InputError("calibration model: each trial update must be keyed by its own engine")
         wrong = [f for f, b in self.bounds.items() if f not in self.features or len(b) != 2 or not b[0] <= b[1]]
         if wrong:
             raise InputError(f"calibration model: bounds of {', '.join(wrong)} must belong to a feature and be "
@@ -138,6 +145,25 @@ class LogisticModel:
         """(n,) p_hold in [0, 1]."""
         return _sigmoid(self.logit(table))
 
+    def given_trial(self, p_hold: np.ndarray, verdicts: Mapping[str, np.ndarray]) -> np.ndarray:
+        """(n,) p_hold_trial: ``p_hold`` (n,) updated by the verdict of the
+        first trial in :data:`~planner.record.fields.TRIAL_PRECEDENCE` that
+        tried each grasp (``verdicts``: group -> (n,) 1 held, 0 dropped,
+        NaN or < 0 not tried); NaN where none tried it, where that trial's
+        engine has no update, or where p_hold is NaN."""
+        from planner.record.fields import TRIAL_PRECEDENCE
+
+        p = np.asarray(p_hold, float)
+        out, done = np.full(len(p), np.nan), np.zeros(len(p), bool)
+        for group in TRIAL_PRECEDENCE:
+            v = np.asarray(verdicts.get(group, np.full(len(p), np.nan)), float)
+            tried = ~done & (v >= 0)
+            update = self.updates.get(group)
+            if update is not None and tried.any():
+                out[tried] = update.apply(p[tried], v[tried])
+            done |= tried
+        return np.where(np.isnan(p), np.nan, out)
+
     def to_dict(self) -> dict:
         return {"hand": self.hand, "features": list(self.features), "mean": self.mean.tolist(),
                 "scale": self.scale.tolist(), "coef": self.coef.tolist(), "intercept": self.intercept,
@@ -145,7 +171,8 @@ class LogisticModel:
                 "knots": {k: list(v) for k, v in self.knots.items()},
                 "bounds": {k: list(v) for k, v in self.bounds.items()},
                 **({"held_out": _table(self.held_out)} if self.held_out is not None else {}),
-                **({"trees": self.trees.to_dict()} if self.trees is not None else {})}
+                **({"trees": self.trees.to_dict()} if self.trees is not None else {}),
+                **({"updates": {k: u.to_dict() for k, u in self.updates.items()}} if self.updates else {})}
 
     @classmethod
     def from_dict(cls, data: Mapping) -> LogisticModel:
@@ -157,7 +184,8 @@ class LogisticModel:
                        _reliability(data["held_out"]) if "held_out" in data else None,
                        {str(k): tuple(float(x) for x in v) for k, v in dict(data.get("knots", {})).items()},
                        {str(k): tuple(float(x) for x in v) for k, v in dict(data.get("bounds", {})).items()},
-                       Trees.from_dict(data["trees"]) if "trees" in data else None)
+                       Trees.from_dict(data["trees"]) if "trees" in data else None,
+                       {str(k): TrialUpdate.from_dict(k, v) for k, v in dict(data.get("updates", {})).items()})
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"calibration model: missing or bad field ({exc})") from None
 
@@ -189,6 +217,9 @@ class LogisticModel:
             lines += ["", "[trees]  # the interaction term: trees boosted over the clipped inputs (trees.py)"]
             lines += [f"{k} = {json.dumps(v) if k in TREE_INTS else _floats(np.asarray(v, float))}"
                       for k, v in self.trees.to_dict().items()]
+        for engine, u in self.updates.items():
+            lines += ["", f"[updates.{engine}]  # p_hold given this trial's verdict (update.py)"]
+            lines += [f"{k} = {float(v)!r}" if k != "grasps" else f"{k} = {int(v)}" for k, v in u.to_dict().items()]
         return "\n".join(lines) + "\n"
 
 

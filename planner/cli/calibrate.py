@@ -25,8 +25,14 @@ from planner.cli.app import db_option
 @click.option("--no-store", is_flag=True, help="Fit and report only; leave the database alone.")
 @click.option("--trees/--no-trees", default=True, show_default=True,
               help="Boost interaction trees on the additive model (--no-trees: one curve per measure alone).")
+@click.option("--trial", type=int, default=0, show_default=True, metavar="N",
+              help="Also try N closed grasps per file in a dynamic trial and fit how its verdict updates p_hold "
+              "(p_hold_trial: the label and rank of a validated grasp).")
+@click.option("--engine", type=click.Choice(["mujoco", "pybullet"]), default="mujoco", show_default=True,
+              help="The trial of --trial (as grasp validate --engine runs it).")
 def calibrate(labels: tuple[Path, ...], db_path: Path, poses: int, seed: int, folds: int, hand: str | None,
-              workers: int, model_out: Path | None, plot: Path | None, no_store: bool, trees: bool) -> None:
+              workers: int, model_out: Path | None, plot: Path | None, no_store: bool, trees: bool, trial: int,
+              engine: str) -> None:
     """Fit p_hold, the calibrated probability of holding, to labelled grasp files (ACRONYM layout:
     grasps/transforms and grasps/qualities/flex/object_in_gripper) and store it for their hand."""
 
@@ -35,13 +41,17 @@ def calibrate(labels: tuple[Path, ...], db_path: Path, poses: int, seed: int, fo
 
     result = api.calibrate(list(labels), db_path=None if no_store else db_path, poses=poses or None, seed=seed,
                            folds=folds, hand=hand, workers=workers, model_out=model_out, plot=plot,
-                           progress=progress, trees=trees)
+                           progress=progress, trees=trees, trial=trial, engine=engine)
     f = result.figures
     click.echo(f"p_hold for {result.model.hand}: {int(f['grasps'])} closed labelled grasps of {int(f['objects'])} "
                f"objects, success rate {f['success_rate']:.3f}")
     click.echo(f"held out ({int(f['folds'])} folds grouped by object): mean per-object AUC {f['auc_mean']:.3f} "
                f"(width baseline {f['auc_width']:.3f}), pooled AUC {f['auc_pooled']:.3f}, "
                f"top-10 hold {f['top10']:.3f}, ECE {f['ece']:.4f}, log-loss {f['log_loss']:.4f}")
+    if "trialled" in f:
+        click.echo(f"{int(f['trialled'])} grasps tried in {engine}: agreement with the labels: the verdict "
+                   f"{f['trial_agreement']:.3f}, p_hold >= 0.5 {f['p_hold_agreement']:.3f}, p_hold given the "
+                   f"verdict >= 0.5 {f.get('p_hold_trial_agreement', math.nan):.3f} (held out)")
     for o in result.per_object:
         auc = "n/a" if math.isnan(o["auc_p_hold"]) else f"{o['auc_p_hold']:.3f}"
         width = "n/a" if math.isnan(o["auc_width"]) else f"{o['auc_width']:.3f}"

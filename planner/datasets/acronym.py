@@ -15,7 +15,8 @@ ACRONYM's published layout, readable by its own tools (``acronym_tools``:
                              frame (+z approach, fingers along x) in the object frame
     grasps/qualities/flex/object_in_gripper  int64 (N,)  1 = success, as ``--label``
                              chooses (planner.datasets.labels); attribute ``label_source``:
-                             "trial", "p_hold", "force_closure" (a closure flag) or "mixed"
+                             "p_hold_trial", "trial", "p_hold", "force_closure" (a closure
+                             flag) or "mixed"
     grasps/qualities/label_from  str (N,)  where each row's label came from
     grasps/qualities/flex/object_motion_during_{closing,shaking}_{linear,angular}
                              float64 (N,) [m] / [rad], NaN when not simulated
@@ -49,8 +50,9 @@ This project's extras (a foreign reader ignores them): ``object/name``,
 scale), ``object/mesh_sha256`` (:func:`planner.geometry.mesh.mesh_hash` of
 the mesh); ``gripper/configuration_joints``;
 ``grasps/qualities/{epsilon, volume, force_closure, reachability,
-manipulability, score, p_hold, rank}`` (``p_hold``: the calibrated
-probability of holding, NaN where no model applies), every analytic measure under its declared
+manipulability, score, p_hold, p_hold_trial, rank}`` (``p_hold``: the calibrated
+probability of holding, NaN where no model applies; ``p_hold_trial``: p_hold
+updated by the trial's verdict, NaN where none), every analytic measure under its declared
 name (``resist_worst``, ..., ``settled_epsilon``; ``feasibility``: reasons,
 comma-separated), ``simulated_success`` (-1: not simulated), the trial's
 other fields (``validation_fingers_in_contact``, ``validation_reason``), the

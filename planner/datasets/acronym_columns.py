@@ -37,7 +37,7 @@ ROBUST_EPSILON = ("robust_mean", "robust_quantile")
 #: derived from the declaration (:mod:`planner.record.fields`).
 QUALITIES = {
     **{name: name for name in ("epsilon", "volume", "force_closure", "reachability", "manipulability", "score",
-                               "p_hold", "rank")},
+                               "p_hold", "p_hold_trial", "rank")},
     **{f.name: f.name for f in fields.group("measures")},
     "simulated_success": "validation_success",
     **{f.name: f.name for f in fields.group("validation") if f.name != "validation_success"

@@ -2,8 +2,13 @@
 ``object_in_gripper``, the tables' ``label``), and where each row's label
 came from.
 
-A label is one of three things, each named per grasp in ``label_source``:
+A label is one of four things, each named per grasp in ``label_source``:
 
+- ``p_hold_trial``: p_hold updated by the verdict of the grasp's dynamic
+  trial (the hand's model's update for that trial's engine,
+  :mod:`planner.calibration.update`) thresholded at :data:`P_HOLD_SUCCESS`:
+  against ACRONYM's FleX labels on held-out objects it agrees more often
+  than either the verdict or p_hold alone (bench/RESULTS.md);
 - ``trial``: the grasp's dynamic trial (``grasp validate``): MuJoCo's
   verdict where it tried the grasp, else PyBullet's
   (:data:`~planner.record.fields.TRIAL_PRECEDENCE`: the one that agrees best
@@ -15,8 +20,9 @@ A label is one of three things, each named per grasp in ``label_source``:
   that are not force closure as planned held in the shake trial.
 
 ``--label best`` (the default) takes, per grasp, the best one available in
-that order; ``--label trial`` or ``--label p_hold`` export only the grasps
-that have it; ``--label force_closure`` writes the flag for every grasp.
+that order; ``--label p_hold_trial``, ``--label trial`` or ``--label
+p_hold`` export only the grasps that have it; ``--label force_closure``
+writes the flag for every grasp.
 """
 
 from __future__ import annotations
@@ -29,10 +35,10 @@ from planner.errors import InputError
 from planner.record import fields
 from planner.record.grasp import Grasp
 
-TRIAL, P_HOLD, FORCE_CLOSURE, MIXED = "trial", "p_hold", "force_closure", "mixed"
+P_HOLD_TRIAL, TRIAL, P_HOLD, FORCE_CLOSURE, MIXED = "p_hold_trial", "trial", "p_hold", "force_closure", "mixed"
 BEST = "best"
 #: What ``grasp export --label`` takes.
-CHOICES = (BEST, TRIAL, P_HOLD, FORCE_CLOSURE)
+CHOICES = (BEST, P_HOLD_TRIAL, TRIAL, P_HOLD, FORCE_CLOSURE)
 #: p_hold at or above this is a success label (the probability's own midpoint:
 #: a calibrated p_hold of 0.5 is a coin toss).
 P_HOLD_SUCCESS = 0.5
@@ -45,7 +51,9 @@ def check(choice: str) -> str:
 
 
 def has_label(choice: str, grasp: Grasp) -> bool:
-    """Whether ``grasp`` is exported under ``choice`` (trial and p_hold: only grasps that have one)."""
+    """Whether ``grasp`` is exported under ``choice`` (p_hold_trial, trial, p_hold: only grasps that have one)."""
+    if choice == P_HOLD_TRIAL:
+        return grasp.p_hold_trial is not None
     if choice == TRIAL:
         return grasp.trial is not None
     if choice == P_HOLD:
@@ -56,21 +64,24 @@ def has_label(choice: str, grasp: Grasp) -> bool:
 def labels(columns: Mapping[str, np.ndarray], choice: str) -> tuple[np.ndarray, list[str]]:
     """((n,) int64 0/1 labels, n sources) of a batch's columns
     (``validation_success`` and ``mujoco_success`` -1 where not validated,
-    ``p_hold`` NaN where absent); a trial label is the verdict of the first
-    trial in :data:`~planner.record.fields.TRIAL_PRECEDENCE` that tried the
-    grasp (MuJoCo's, then PyBullet's)."""
+    ``p_hold`` and ``p_hold_trial`` NaN where absent); a trial label is the
+    verdict of the first trial in :data:`~planner.record.fields.TRIAL_PRECEDENCE`
+    that tried the grasp (MuJoCo's, then PyBullet's)."""
     success = np.full(len(np.asarray(columns["force_closure"])), -1)
     for group in reversed(fields.TRIAL_PRECEDENCE):
         verdict = np.asarray(columns[f"{fields.GROUPS[group].prefix}success"])
         success = np.where(verdict >= 0, verdict, success)
     p_hold = np.asarray(columns["p_hold"], float)
+    p_trial = np.asarray(columns["p_hold_trial"], float)
     closure = np.asarray(columns["force_closure"])
     if choice == BEST:
-        source = np.where(success >= 0, TRIAL, np.where(np.isnan(p_hold), FORCE_CLOSURE, P_HOLD))
+        source = np.where(~np.isnan(p_trial), P_HOLD_TRIAL, np.where(
+            success >= 0, TRIAL, np.where(np.isnan(p_hold), FORCE_CLOSURE, P_HOLD)))
     else:
         source = np.full(len(closure), choice)
-    value = np.where(source == TRIAL, success, np.where(source == P_HOLD, np.nan_to_num(p_hold) >= P_HOLD_SUCCESS,
-                                                        closure))
+    value = np.select([source == P_HOLD_TRIAL, source == TRIAL, source == P_HOLD],
+                      [np.nan_to_num(p_trial) >= P_HOLD_SUCCESS, success, np.nan_to_num(p_hold) >= P_HOLD_SUCCESS],
+                      closure)
     return value.astype(np.int64), source.tolist()
 
 

@@ -25,6 +25,9 @@ Where a calibrated probability of holding applies (a p_hold model for the
 hand: fitted by ``grasp calibrate`` and stored, or the project's shipped one,
 :mod:`planner.calibration`), the analytic score *is* ``p_hold``: the model
 has learnt from external labels how much each of those measures counts.
+Where a trial tried the grasp and the model says how that trial's verdict
+updates p_hold (:mod:`planner.calibration.update`), it is ``p_hold_trial``
+and the verdict does not multiply again.
 
 A pressed grasp that does not hold its weight yet still ranks above one that
 is not pressed (half weight): squeezing settles it. Reachability (fraction of
@@ -74,7 +77,9 @@ def _short(value: float) -> str:
 
 
 #: The rule of :meth:`RankingRule.scores` in words, as ``meta.ranking`` stores it.
-FORMULA = ("analytic = p_hold where a calibrated model applies to the hand, else"
+FORMULA = ("analytic = p_hold_trial where the hand's calibrated model updates p_hold by the verdict of the trial"
+           " that tried the grasp (then simulated_success counts as neutral: the verdict is in p_hold_trial),"
+           " else p_hold where a calibrated model applies to the hand, else"
            " gate * (press * (1 + hold) / 2 + eps_weight * quality + settled_weight * settled);"
            f" gate = [open_margin >= min_open_margin] * [close_margin >= {_short(MIN_CLOSE_MARGIN)} m];"
            " press = clip(push, 0, 1); hold = min(resist_worst, cap) / cap;"
@@ -126,8 +131,11 @@ class RankingRule:
         """Every term of the rule, (n,) each, in the order :data:`FORMULA`
         builds them: ``gate``, ``press``, ``hold``, ``quality``, ``settled``,
         ``formula`` (the formula's analytic score), ``p_hold`` (NaN where no
-        calibrated model applies), ``analytic`` (p_hold where given, else
-        the formula's), ``reach_factor``, ``success_factor`` and ``score``
+        calibrated model applies), ``p_hold_trial`` (NaN where the model
+        does not update p_hold by a trial's verdict), ``analytic``
+        (p_hold_trial where given, else p_hold where given, else the
+        formula's), ``reach_factor``, ``success_factor`` (neutral where
+        p_hold_trial is given) and ``score``
         (``grasp best --explain`` prints them; :meth:`analytic` and
         :meth:`scores` are read off them)."""
         eps = _column(measures, "epsilon")
@@ -146,15 +154,19 @@ class RankingRule:
         formula = np.where(gate > 0, press * (1.0 + hold) / 2.0 + self.eps_weight * quality
                            + self.settled_weight * settled, 0.0)
         p_hold = _column(measures, "p_hold", np.full(n, np.nan))
-        analytic = np.where(np.isnan(p_hold), formula, p_hold)
+        p_trial = _column(measures, "p_hold_trial", np.full(n, np.nan))
+        updated = ~np.isnan(p_trial)
+        analytic = np.where(updated, p_trial, np.where(np.isnan(p_hold), formula, p_hold))
         ones = np.ones(n)
         reach = (1.0 - self.reach_weight) + self.reach_weight * _column(measures, "reachability", ones)
         tried = np.full(n, np.nan)  # the verdict of the first trial in precedence that tried it; NaN: none did
         for name in reversed(fields.TRIAL_SUCCESS):
             tried = _column(measures, name, tried)
+        tried = np.where(updated, np.nan, tried)  # counted in p_hold_trial already
         success = (1.0 - self.success_weight) + self.success_weight * np.where(np.isnan(tried), 1.0, tried)
         return {"gate": gate, "press": press, "hold": hold, "quality": quality, "settled": settled,
-                "formula": formula, "p_hold": p_hold, "analytic": analytic, "reach_factor": reach,
+                "formula": formula, "p_hold": p_hold, "p_hold_trial": p_trial, "analytic": analytic,
+                "reach_factor": reach,
                 "success_factor": success, "score": analytic * reach * success}
 
     def analytic(self, measures: Mapping[str, ArrayLike | None]) -> np.ndarray:

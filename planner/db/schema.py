@@ -37,6 +37,10 @@ Tables (the README lists every column):
 - ``mujoco`` (v7): the MuJoCo trial of a grasp (``grasp validate --engine
   mujoco``, :mod:`planner.validation.mujoco_trial`: another engine and
   protocol than ``validation``'s), the same columns as ``validation``.
+- ``grasps`` (v8) gains ``p_hold_trial``: p_hold updated by the verdict of
+  the trial that tried the grasp (:mod:`planner.calibration.update`),
+  written by the store with p_hold; NULL where no trial tried it or the
+  hand's model has no update for that trial's engine.
 
 No pickle: arrays are JSON text. A new database runs :data:`SCHEMA` (version
 1) and then every migration; a newer schema is refused politely; an older one
@@ -57,7 +61,7 @@ from planner.errors import DatabaseError
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 7
+SCHEMA_VERSION = 8
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -147,6 +151,10 @@ CREATE TABLE IF NOT EXISTS mujoco (
     shaking_linear REAL NOT NULL, shaking_angular REAL NOT NULL,
     reason TEXT NOT NULL DEFAULT '', seed INTEGER NOT NULL, settings TEXT NOT NULL
 )
+""",
+    # v8: p_hold given the trial's verdict (issue 26; NULL: not tried, or no update for its engine).
+    7: """
+ALTER TABLE grasps ADD COLUMN p_hold_trial REAL
 """,
 }
 

@@ -12,7 +12,7 @@ import hashlib
 import json
 import sqlite3
 import time
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
@@ -69,21 +69,32 @@ UPDATE grasps SET rank = ranked.r FROM ranked WHERE grasps.id = ranked.id
 """
 
 
-def p_hold_of(col: dict, models: dict[str, LogisticModel | None]) -> list[float | None]:
-    """p_hold of stored grasps rows (columns ``col``: ``hand`` and the model
-    inputs of :data:`_MODEL_INPUTS`, named ``m_<column>``) by each row's
-    hand's model; None where the hand has none."""
+def p_hold_of(col: dict, models: dict[str, LogisticModel | None]) -> tuple[list[float | None], list[float | None]]:
+    """(p_hold, p_hold_trial) of stored grasps rows (columns ``col``:
+    ``hand``, the model inputs of :data:`_MODEL_INPUTS`, named
+    ``m_<column>``, and the trials' ranked verdicts) by each row's hand's
+    model; None where the hand has none (and p_hold_trial None where no
+    trial with an update tried the grasp)."""
     n = len(col["hand"])
-    out: list[float | None] = [None] * n
+    p_hold: list[float | None] = [None] * n
+    p_trial: list[float | None] = [None] * n
     for hand in sorted(set(col["hand"])):
         model = models.get(hand)
         if model is None:
             continue
         rows = [i for i, h in enumerate(col["hand"]) if h == hand]
         sub = {k: [col["m_" + k][i] for i in rows] for k in features.COLUMNS}
-        for i, p in zip(rows, model.predict(features.of_columns(sub)).tolist()):
-            out[i] = p
-    return out
+        p = model.predict(features.of_columns(sub))
+        q = model.given_trial(p, verdicts({name: [col[name][i] for i in rows] for name in fields.TRIAL_SUCCESS}))
+        for i, a, b in zip(rows, p.tolist(), q.tolist()):
+            p_hold[i], p_trial[i] = a, None if b != b else b
+    return p_hold, p_trial
+
+
+def verdicts(ranked: Mapping[str, Sequence | np.ndarray]) -> dict[str, np.ndarray]:
+    """Trial group -> (n,) verdicts (NaN: not tried) from the rule's ranked success columns."""
+    return {group: np.array([np.nan if v is None else v for v in ranked[name]], float)
+            for group, name in zip(fields.TRIAL_PRECEDENCE, fields.TRIAL_SUCCESS)}
 
 
 class Writing:
@@ -139,7 +150,7 @@ class Writing:
         atomically, then re-rank the object's grasps; returns the unit's id."""
         key = (unit.object, unit.hand, unit.settings_hash, unit.seed, unit.chunk)
         status = "failed" if unit.error else "done"
-        scores, p_hold = self._scores(grasps, unit.hand, rule)
+        scores, p_hold, p_trial = self._scores(grasps, unit.hand, rule)
         with self._transaction() as conn:
             conn.execute("DELETE FROM units WHERE object = ? AND hand = ? AND settings_hash = ? AND seed = ?"
                          " AND chunk = ?", key)
@@ -150,20 +161,26 @@ class Writing:
             if obj is not None:
                 conn.execute(_insert("objects", _OBJECT_COLUMNS, "INSERT OR REPLACE"), _object_row(unit.object, obj))
             conn.executemany(_insert("grasps", _GRASP_COLUMNS),
-                             [_grasp_row(g, unit_id, score, p) for g, score, p in zip(grasps, scores.tolist(), p_hold)])
+                             [_grasp_row(g, unit_id, score, p, q)
+                              for g, score, p, q in zip(grasps, scores.tolist(), p_hold, p_trial)])
             conn.execute(_RERANK, (unit.object, unit.hand))
         return int(unit_id)  # type: ignore[arg-type]
 
-    def _scores(self, grasps: Sequence[Grasp], hand: str, rule: RankingRule) -> tuple[np.ndarray, list]:
-        """(n,) scores and the n p_hold values (None: no model) of grasps of
-        ``hand`` as :meth:`write_unit` stores them."""
+    def _scores(self, grasps: Sequence[Grasp], hand: str, rule: RankingRule) -> tuple[np.ndarray, list, list]:
+        """(n,) scores, the n p_hold and the n p_hold_trial values (None: no
+        model, no trial with an update) of grasps of ``hand`` as
+        :meth:`write_unit` stores them."""
         measures = rule_measures(grasps)
         model = self.model(hand)
         p_hold: list = [None] * len(grasps)
+        p_trial: list = [None] * len(grasps)
+        measures["p_hold"] = measures["p_hold_trial"] = np.full(len(grasps), np.nan)  # the model's, not the record's
         if model is not None and grasps:  # the hand's model, on the records' measures; the rule reads it
             measures["p_hold"] = model.predict(features.of_grasps(grasps))
+            measures["p_hold_trial"] = model.given_trial(measures["p_hold"], verdicts(measures))
             p_hold = measures["p_hold"].tolist()
-        return rule.scores(measures), p_hold
+            p_trial = [None if v != v else v for v in measures["p_hold_trial"].tolist()]
+        return rule.scores(measures), p_hold, p_trial
 
     def scored(self, grasps: Sequence[Grasp], hand: str) -> list[Grasp]:
         """Grasps not stored (planned by a query) with the score and p_hold
@@ -172,8 +189,9 @@ class Writing:
         ties in the given order); ``rank`` stays None."""
         if not grasps:
             return []
-        scores, p_hold = self._scores(grasps, hand, self.rule())
-        out = [replace(g, score=float(s), p_hold=p) for g, s, p in zip(grasps, scores.tolist(), p_hold)]
+        scores, p_hold, p_trial = self._scores(grasps, hand, self.rule())
+        out = [replace(g, score=float(s), p_hold=p, p_hold_trial=q)
+               for g, s, p, q in zip(grasps, scores.tolist(), p_hold, p_trial)]
         return [out[i] for i in rank_order(scores, np.array([g.force_closure for g in grasps], float))]
 
     # -- ranking ---------------------------------------------------------------
@@ -211,10 +229,10 @@ class Writing:
         if not rows:
             return
         col = dict(zip(rows[0].keys(), zip(*rows)))
-        col["p_hold"] = p_hold_of(col, models)  # the model's, not the stored one: the model may be new
+        col["p_hold"], col["p_hold_trial"] = p_hold_of(col, models)  # the model's, not the stored: it may be new
         scores = rule.scores({f.ranked: col[f.ranked] for f in fields.ranked_fields()})
-        conn.executemany("UPDATE grasps SET score = ?, p_hold = ? WHERE id = ?",
-                         zip(scores.tolist(), col["p_hold"], col["id"]))
+        conn.executemany("UPDATE grasps SET score = ?, p_hold = ?, p_hold_trial = ? WHERE id = ?",
+                         zip(scores.tolist(), col["p_hold"], col["p_hold_trial"], col["id"]))
         ranked = set(zip(col["object"], col["hand"]))
         for o, h in sorted(ranked):
             conn.execute(_RERANK, (o, h))
@@ -279,11 +297,11 @@ def _object_row(name: str, obj: PreparedObject) -> tuple:
     return tuple(_sql(f, given[f.column] if f.column in given else getattr(obj, f.column)) for f in _OBJECTS)
 
 
-def _grasp_row(g: Grasp, unit_id: int, score: float, p_hold: float | None) -> tuple:
+def _grasp_row(g: Grasp, unit_id: int, score: float, p_hold: float | None, p_trial: float | None) -> tuple:
     """The insert values of a record (:data:`_GRASP_COLUMNS`): what the store
-    made of it (the unit, the rule's score, the hand's model's p_hold) and
-    the record's own values."""
-    given = {"unit_id": unit_id, "score": score, "p_hold": p_hold}
+    made of it (the unit, the rule's score, the hand's model's p_hold and
+    p_hold_trial) and the record's own values."""
+    given = {"unit_id": unit_id, "score": score, "p_hold": p_hold, "p_hold_trial": p_trial}
     return tuple(given[f.column] if f.column in given else _sql(f, get(g)) for f, get in _INSERTED)
 
 

@@ -103,6 +103,9 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
     volume = f"{g.volume:.3g}" if g.volume else "0 (computed only with --volume, for force closure)"
     p_hold = ("n/a (no calibrated model for the hand)" if g.p_hold is None
               else f"{probability(g.p_hold)} (calibrated probability of holding)")
+    if g.p_hold_trial is not None and g.trial is not None:
+        p_hold += (f", {probability(g.p_hold_trial)} given its trial's verdict "
+                   f"({'held' if g.trial.success else 'dropped'})")
     rank = f"#{g.rank}" if g.rank is not None else "#- (planned now with the table, not stored)"
     head = f"{rank} {g.object}/{g.hand} preshape {g.preshape}: p_hold {p_hold}; score {score} (ranking rule, " \
            "higher is better)"
@@ -204,6 +207,12 @@ def explain(grasp: Grasp, rule: RankingRule, model: LogisticModel | None = None)
                              f"{total['interactions']:+.4f}")
             lines.append(f"      intercept {total['intercept']:+.4f}; logit {total['logit']:+.4f} -> p_hold "
                          f"{total['p_hold']:.4f} (stored {t['p_hold']:.4f})")
+    if not math.isnan(t["p_hold_trial"]):
+        update = None if model is None else model.updates.get(_tried_group(m))
+        how = ("" if update is None else f" = 1 / (1 + exp(-({update.slope:.4f} x logit + {update.verdict:.4f} x held"
+               f" + {update.intercept:+.4f})))")
+        lines.append(f"    analytic = p_hold_trial{how} = {t['p_hold_trial']:.4f}: p_hold updated by the trial's "
+                     "verdict, as the model's update for that trial says (the verdict does not multiply again)")
     reach = m.get("reachability", math.nan)
     # the verdict the rule reads: the first trial in precedence that tried the grasp (MuJoCo's, then PyBullet's)
     tried = [(f"{fields.GROUPS[group].engine} trial", m.get(name, math.nan))
@@ -212,9 +221,21 @@ def explain(grasp: Grasp, rule: RankingRule, model: LogisticModel | None = None)
     lines += [f"    = analytic {t['analytic']:.4f}; x reach factor {t['reach_factor']:.3f} ((1 - {rule.reach_weight:g})"
               f" + {rule.reach_weight:g} x reachability {'not computed: 1' if math.isnan(reach) else f'{reach:.2f}'})"
               f" x success factor {t['success_factor']:.3f} ("
-              f"{'trials not run: 1' if math.isnan(success) else f'{trial_name} {success:.0f}'})"
+              f"{_success_text(success, trial_name, not math.isnan(t['p_hold_trial']))})"
               f" = score {t['score']:.4f}"]
     return lines
+
+
+def _tried_group(m: Mapping[str, float]) -> str:
+    """The trial group whose verdict the rule reads (the first in precedence that tried the grasp)."""
+    return next((group for group, name in zip(fields.TRIAL_PRECEDENCE, fields.TRIAL_SUCCESS)
+                 if not math.isnan(m.get(name, math.nan))), "")
+
+
+def _success_text(success: float, trial: str, in_p_hold_trial: bool) -> str:
+    if math.isnan(success):
+        return "trials not run: 1"
+    return f"{trial} {success:.0f}" + (", counted in p_hold_trial: 1" if in_p_hold_trial else "")
 
 
 def probability(p: float) -> str:

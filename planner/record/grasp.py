@@ -127,7 +127,7 @@ class Grasp:
         table_plane: (4,) the table the grasp was planned on (:class:`planner.geometry.support.Support`):
             [nx, ny, nz] the unit normal out of the table and the height [m], object frame (the table top
             is ``n . x = height``); None: planned on the object alone.
-        id, unit_id, score, p_hold, rank: set by the database (rank 1 = best of its object and hand).
+        id, unit_id, score, p_hold, p_hold_trial, rank: set by the database (rank 1 = best of its object and hand).
         validation, mujoco, robust: physical validation results, where they
             exist: the PyBullet trial, the MuJoCo trial (another engine and
             protocol) and the robust epsilon.
@@ -137,6 +137,11 @@ class Grasp:
             (:mod:`planner.calibration`), set by the database where it writes
             the scores (the hand's model applied to the record's measures);
             None where no model applies.
+        p_hold_trial: p_hold updated by the verdict of the grasp's trial
+            (:attr:`trial`), set by the database likewise
+            (:meth:`planner.calibration.logistic.LogisticModel.given_trial`);
+            None where no trial tried it or the model has no update for
+            that trial's engine.
     """
 
     object: str = stored("text", "", 1, "object name (key of the `objects` table)")
@@ -172,6 +177,11 @@ class Grasp:
     p_hold: float | None = stored("real", "", 5, "calibrated probability that the grasp holds (the hand's "
                                   "`grasp calibrate` model, or the shipped one; null: no model)", required=False,
                                   ranked="p_hold", default=None)
+    p_hold_trial: float | None = stored("real", "", 8, "p_hold updated by the verdict of the trial that tried the "
+                                        "grasp (MuJoCo's, else PyBullet's), as the hand's model says "
+                                        "(`planner/calibration/update.py`); null: not tried, or the model has no "
+                                        "update for that trial's engine", required=False, ranked="p_hold_trial",
+                                        default=None)
     rank: int | None = stored("int", "", 1, "1 = best grasp of its (object, hand)", required=False, default=None)
     validation: Trial | None = None
     mujoco: Trial | None = None

@@ -107,3 +107,50 @@ def test_the_shipped_panda_model_loads_and_rescores_a_database(box_db: Path, tmp
         assert conn.execute("SELECT COUNT(*) FROM grasps WHERE p_hold IS NULL").fetchone()[0] == 0
     fc = [g.force_closure for g in grasps]
     assert fc == sorted(fc, reverse=True)  # force closure first
+
+
+def test_calibrate_with_trials_fits_the_update_that_labels_and_ranks_validated_grasps(validated_db: Path,
+                                                                                      tmp_path: Path) -> None:
+    files = labelled_files(validated_db, tmp_path)
+    db = tmp_path / "g.db"
+    shutil.copy(validated_db, db)
+    code, out, err = grasp("calibrate", *map(str, files), "--db", str(db), "--poses", "12", "--folds", "2",
+                           "--no-trees", "--trial", "4", "--engine", "mujoco", "--model-out", str(tmp_path / "m.toml"))
+    assert code == 0, err
+    assert re.search(r"^\d+ grasps tried in mujoco: agreement with the labels: the verdict 0\.\d{3}", out, re.M), out
+    assert "[updates.mujoco]" in (tmp_path / "m.toml").read_text()
+    with open_db(db, create=False, readonly=True) as d:
+        model = d.model("panda")
+    assert model is not None and set(model.updates) == {"mujoco"} and model.updates["mujoco"].grasps > 0
+    code, _, err = grasp("validate", "--db", str(db), "--object", "box", "--hand", "panda", "--top", "2", "--robust",
+                         "0", "--engine", "mujoco", "--workers", "1")
+    assert code == 0, err
+    with open_db(db, create=False, readonly=True) as d:
+        grasps = d.best("box", "panda", 1000)
+        rule = d.rule()
+    tried = [g for g in grasps if g.mujoco is not None]
+    assert len(tried) == 2
+    for g in grasps:  # p_hold updated by the MuJoCo verdict where it tried the grasp, and only there
+        if g.mujoco is None:
+            assert g.p_hold_trial is None
+        else:
+            expected = model.updates["mujoco"].apply(np.array([g.p_hold]), np.array([float(g.mujoco.success)]))[0]
+            assert g.p_hold_trial == pytest.approx(expected, rel=1e-9)
+    assert np.allclose([g.score for g in grasps], rule.scores(rule_measures(grasps)))
+    terms = rule.terms(rule_measures(tried))  # the verdict is in p_hold_trial: it does not multiply again
+    assert np.allclose(terms["analytic"], [g.p_hold_trial for g in tried]) and np.all(terms["success_factor"] == 1)
+    from planner.present.describe import explain
+
+    lines = "\n".join(explain(tried[0], rule, model))
+    assert f"analytic = p_hold_trial = 1 / (1 + exp(-({model.updates['mujoco'].slope:.4f} x logit" in lines
+    assert f"= {tried[0].p_hold_trial:.4f}: p_hold updated by the trial's verdict" in lines
+    assert "counted in p_hold_trial: 1" in lines
+    out_dir = tmp_path / "csv"
+    code, _, err = grasp("export", "--db", str(db), "--format", "csv", "--out", str(out_dir), "--quiet",
+                         "--object", "box", "--label", "p_hold_trial")
+    assert code == 0, err
+    import csv
+
+    rows = list(csv.DictReader(next(out_dir.rglob("*.csv")).open()))
+    assert len(rows) == 2 and {r["label_from"] for r in rows} == {"p_hold_trial"}
+    assert sorted(int(r["label"]) for r in rows) == sorted(int(g.p_hold_trial >= 0.5) for g in tried)  # type: ignore[operator]

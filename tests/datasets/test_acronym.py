@@ -155,13 +155,18 @@ def test_export_label_force_closure_writes_the_flag(db: Path, tmp_path: Path) ->
 def test_labels_pick_the_best_source_per_grasp() -> None:
     from planner.datasets.labels import P_HOLD_SUCCESS, labels
 
-    # the last two: held in PyBullet but dropped in MuJoCo (dropped), and tried in MuJoCo only (held)
-    columns = {"validation_success": np.array([1, 0, -1, -1, -1, 1, -1]),
-               "mujoco_success": np.array([-1, -1, -1, -1, -1, 0, 1]),
-               "p_hold": np.array([0.1, 0.9, 0.7, 0.2, np.nan, 0.9, 0.1]),
-               "force_closure": np.array([0, 1, 0, 1, 1, 1, 0])}
+    # the 6th and 7th: held in PyBullet but dropped in MuJoCo (dropped), and tried in MuJoCo only (held);
+    # the last two: p_hold updated by their verdicts (0.3: dropped although the trial held; 0.8: held)
+    columns = {"validation_success": np.array([1, 0, -1, -1, -1, 1, -1, 1, -1]),
+               "mujoco_success": np.array([-1, -1, -1, -1, -1, 0, 1, -1, 0]),
+               "p_hold": np.array([0.1, 0.9, 0.7, 0.2, np.nan, 0.9, 0.1, 0.4, 0.95]),
+               "p_hold_trial": np.array([np.nan] * 7 + [0.3, 0.8]),
+               "force_closure": np.array([0, 1, 0, 1, 1, 1, 0, 1, 1])}
     value, source = labels(columns, "best")
-    assert source == ["trial", "trial", "p_hold", "p_hold", "force_closure", "trial", "trial"]
-    assert list(value) == [1, 0, int(0.7 >= P_HOLD_SUCCESS), int(0.2 >= P_HOLD_SUCCESS), 1, 0, 1]
+    assert source == ["trial", "trial", "p_hold", "p_hold", "force_closure", "trial", "trial", "p_hold_trial",
+                      "p_hold_trial"]
+    assert list(value) == [1, 0, int(0.7 >= P_HOLD_SUCCESS), int(0.2 >= P_HOLD_SUCCESS), 1, 0, 1, 0, 1]
+    value, source = labels(columns, "trial")
+    assert list(value[-2:]) == [1, 0] and set(source) == {"trial"}
     value, source = labels(columns, "force_closure")
-    assert list(value) == [0, 1, 0, 1, 1, 1, 0] and set(source) == {"force_closure"}
+    assert list(value) == [0, 1, 0, 1, 1, 1, 0, 1, 1] and set(source) == {"force_closure"}

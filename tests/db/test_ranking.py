@@ -20,7 +20,7 @@ README = Path(__file__).parents[2] / "README.md"
 
 def reference(rule: RankingRule, g: tuple) -> float:
     """The rule as FORMULA states it, one grasp at a time."""
-    eps, fc, reach, ok, quantile, resist, push, open_margin, close_margin, settled, p_hold, mujoco_ok = g
+    eps, fc, reach, ok, quantile, resist, push, open_margin, close_margin, settled, p_hold, mujoco_ok, p_trial = g
     gate = (open_margin is None or open_margin >= rule.min_open_margin) and (close_margin is None
                                                                            or close_margin >= 1e-4)
     press = 1.0 if push is None else min(max(push, 0.0), 1.0)
@@ -31,8 +31,10 @@ def reference(rule: RankingRule, g: tuple) -> float:
     analytic = (press * (1 + hold) / 2 + rule.eps_weight * quality + settled_term) if gate else 0.0
     if p_hold is not None:  # a calibrated model applies: the analytic score is p_hold
         analytic = p_hold
-    reach_factor = (1 - rule.reach_weight) + rule.reach_weight * (1.0 if reach is None else reach)
     verdict = mujoco_ok if mujoco_ok is not None else ok  # MuJoCo's where it tried the grasp, else PyBullet's
+    if p_trial is not None:  # p_hold updated by the verdict: the verdict does not count again
+        analytic, verdict = p_trial, None
+    reach_factor = (1 - rule.reach_weight) + rule.reach_weight * (1.0 if reach is None else reach)
     success_factor = (1 - rule.success_weight) + rule.success_weight * (1.0 if verdict is None else float(verdict))
     return analytic * reach_factor * success_factor
 
@@ -46,7 +48,7 @@ def measures(grasps: list) -> dict:
 
 #: The measures in the order of :func:`reference`'s tuples.
 ORDER = ("epsilon", "force_closure", "reachability", "success", "robust_quantile", "resist_worst", "push",
-         "open_margin", "close_margin", "settled_epsilon", "p_hold", "mujoco_success")
+         "open_margin", "close_margin", "settled_epsilon", "p_hold", "mujoco_success", "p_hold_trial")
 
 
 def test_the_rule_reads_the_declared_ranked_fields() -> None:
@@ -58,7 +60,7 @@ maybe = st.none() | st.floats(0.0, 40.0)
 grasp = st.tuples(st.floats(0.0, 0.5), st.booleans(), st.none() | st.floats(0.0, 1.0), st.none() | st.booleans(),
                   st.none() | st.floats(0.0, 0.5), maybe, st.none() | st.floats(-1.0, 1.0),
                   st.none() | st.floats(0.0, 0.02), st.none() | st.floats(0.0, 0.02), st.none() | st.floats(0.0, 0.5),
-                  st.none() | st.floats(0.0, 1.0), st.none() | st.booleans())
+                  st.none() | st.floats(0.0, 1.0), st.none() | st.booleans(), st.none() | st.floats(0.0, 1.0))
 
 
 @settings(max_examples=200, deadline=None)

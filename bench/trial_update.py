@@ -1,0 +1,86 @@
+"""Fit the shipped model's update of p_hold by a trial's verdict (``p_hold_trial``) on the dev set's tuning objects.
+
+The tuning files of bench/acronym_split.toml, re-scored as bench/acronym_eval.py does (its cache:
+``--poses`` per file, seed 0, code ``--code``); ``--per-file`` closed poses per file drawn with ``--sample-seed``
+tried in ``--engine`` at the file's pose, as bench/acronym_mujoco.py runs them (its cache); p_hold out of
+fold (planner.calibration.model.cross_validate, folds grouped by object, the shipped model's penalty and
+trees); then planner.calibration.update.fit_update on every tried grasp, as ``grasp calibrate --trial`` fits
+it. Printed: agreement with FleX of the verdict, of p_hold >= 0.5 and of p_hold_trial >= 0.5 (the update
+fitted without the grasp's fold: planner.calibration.fitting.trial_figures), and the update.
+``--write``: add the update to calibration/<hand>.toml (the rest of the file unchanged). Held-out objects
+are never read here: bench/acronym_eval.py --held-out --trial N --engine mujoco reports them.
+
+    python bench/trial_update.py --dev ../shared/labelled/acronym_dev --code fed4526c8342 [--write]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import acronym_eval as ae  # noqa: E402
+import acronym_mujoco as am  # noqa: E402
+
+from planner.calibration.fitting import trial_figures  # noqa: E402
+from planner.calibration.labels import TRIAL_GROUPS  # noqa: E402
+from planner.calibration.logistic import FOLDER, load_model  # noqa: E402
+from planner.calibration.model import cross_validate  # noqa: E402
+from planner.calibration.update import fit_update  # noqa: E402
+from planner.validation.mujoco_settings import MujocoSettings  # noqa: E402
+from planner.validation.settings import ShakeSettings  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--dev", type=Path, default=ROOT.parent / "shared" / "labelled" / "acronym_dev")
+    ap.add_argument("--poses", type=int, default=200)
+    ap.add_argument("--per-file", type=int, default=200)
+    ap.add_argument("--sample-seed", type=int, default=1)
+    ap.add_argument("--engine", choices=sorted(TRIAL_GROUPS), default="mujoco")
+    ap.add_argument("--code", default=None, help="acronym_eval's cache key of the re-scoring code")
+    ap.add_argument("--hand", default="panda")
+    ap.add_argument("--write", action="store_true", help="add the update to calibration/<hand>.toml")
+    ap.add_argument("--json", type=Path)
+    a = ap.parse_args()
+    code = a.code or ae.source_hash()
+    results = [ae.rescore_file(p, a.poses, 0, 1, ae.CACHE, code) for p in ae.dev_files(a.dev, False, None)]
+    data = ae.labelled_set(results)
+    settings = MujocoSettings() if a.engine == "mujoco" else ShakeSettings()
+    verdicts = []
+    for r in results:
+        v = am.run(r, am.picked(r, a.per_file, a.sample_seed), a.engine, settings, ae.CACHE, "original")
+        verdicts += [float(v[int(p)][0]) if int(p) in v else np.nan for p in np.flatnonzero(r.closed)]
+    path = ROOT / FOLDER / f"{a.hand}.toml"
+    shipped = load_model(path)
+    cv = cross_validate(data.table, data.labels, data.groups, a.hand, folds=5, grid=(shipped.l2,))
+    data = replace(data, verdicts=np.array(verdicts), engine=TRIAL_GROUPS[a.engine])
+    figures = trial_figures(data, cv)
+    tried = ~np.isnan(data.verdicts)
+    update = fit_update(data.engine, cv.p[tried], data.verdicts[tried], data.labels[tried])
+    print(f"{int(figures['trialled'])} tried grasps of {len(set(np.array(data.groups)[tried]))} tuning objects "
+          f"({a.engine}, {a.per_file} per file, re-scoring code {code}); agreement with FleX:")
+    print(f"  verdict {figures['trial_agreement']:.4f}, p_hold >= 0.5 {figures['p_hold_agreement']:.4f} "
+          f"(out of fold), p_hold_trial >= 0.5 {figures['p_hold_trial_agreement']:.4f} (update fitted per fold)")
+    print(f"  update on all: logit' = {update.slope:.4f} logit + {update.verdict:.4f} held + {update.intercept:.4f}"
+          f" (in-sample agreement {update.agreement:.4f})")
+    if a.json:
+        a.json.write_text(json.dumps({"figures": figures, "update": update.to_dict(), "code": code}, indent=1))
+    if a.write:
+        figures_out = {**shipped.figures, **{f"{k}_{a.engine}": v for k, v in figures.items()}}
+        model = replace(shipped, updates={**shipped.updates, update.engine: update}, figures=figures_out)
+        path.write_text(model.to_toml())
+        print(f"wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

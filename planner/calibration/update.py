@@ -1,0 +1,99 @@
+"""p_hold given a dynamic trial's verdict: ``p_hold_trial``.
+
+A trial's verdict (held 1 / dropped 0) is evidence about holding, and so is
+p_hold; neither alone agrees best with external labels. A hand's model may
+carry, per trial engine (the record's trial groups: ``mujoco``,
+``validation`` = PyBullet), a :class:`TrialUpdate`, a logistic regression
+of the label on both::
+
+    logit p_hold_trial = slope * logit p_hold + verdict * held + intercept
+
+fitted by maximum likelihood on labelled grasps that the trial tried, with
+p_hold *out of fold* (the model fitted without the grasp's object), so the
+update learns how far each is to be trusted on objects the model has not
+seen. ``slope`` < 1 shrinks an over-confident p_hold; ``verdict`` is what
+the trial's verdict adds (log-odds). :func:`fit_update` fits one;
+:meth:`TrialUpdate.apply` applies it. Numpy only to apply; scipy to fit.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.errors import InputError
+
+#: p_hold is clipped to [EPS, 1 - EPS] before its logit (a p_hold of exactly 0 or 1 has none).
+EPS = 1e-6
+
+
+def logit(p: np.ndarray) -> np.ndarray:
+    q = np.clip(np.asarray(p, float), EPS, 1 - EPS)
+    return np.log(q / (1 - q))
+
+
+@dataclass(frozen=True)
+class TrialUpdate:
+    """How one engine's verdict updates p_hold (module docstring).
+
+    engine: the trial group (``mujoco`` or ``validation``); slope, verdict,
+    intercept: the coefficients (log-odds); grasps: the labelled trialled
+    grasps it was fitted on; agreement: on those grasps, the share whose
+    label ``p_hold_trial >= 0.5`` equals (in-sample: the three coefficients
+    are all it fits).
+    """
+
+    engine: str
+    slope: float
+    verdict: float
+    intercept: float
+    grasps: int = 0
+    agreement: float = math.nan
+
+    def __post_init__(self) -> None:
+        if not all(math.isfinite(v) for v in (self.slope, self.verdict, self.intercept)):
+            raise InputError(f"trial update ({self.engine}): coefficients must be finite, got "
+                             f"{self.slope}, {self.verdict}, {self.intercept}")
+
+    def apply(self, p_hold: np.ndarray, held: np.ndarray) -> np.ndarray:
+        """(n,) p_hold_trial of grasps with ``p_hold`` (n,) and verdicts ``held`` (n,) 0/1."""
+        z = self.slope * logit(p_hold) + self.verdict * np.asarray(held, float) + self.intercept
+        return 0.5 * (1.0 + np.tanh(0.5 * z))
+
+    def to_dict(self) -> dict:
+        return {"slope": self.slope, "verdict": self.verdict, "intercept": self.intercept, "grasps": self.grasps,
+                **({"agreement": self.agreement} if math.isfinite(self.agreement) else {})}
+
+    @classmethod
+    def from_dict(cls, engine: str, data: Mapping) -> TrialUpdate:
+        return cls(str(engine), float(data["slope"]), float(data["verdict"]), float(data["intercept"]),
+                   int(data.get("grasps", 0)), float(data.get("agreement", math.nan)))
+
+
+def fit_update(engine: str, p_hold: np.ndarray, held: np.ndarray, labels: np.ndarray) -> TrialUpdate:
+    """The update of ``engine`` maximising the likelihood of ``labels`` (n,)
+    0/1 given out-of-fold ``p_hold`` (n,) and the trial's verdicts ``held``
+    (n,) 0/1 (a tiny L2 penalty, 1e-6, keeps it finite where the labels
+    separate)."""
+    y = np.asarray(labels, float)
+    h = np.asarray(held, float)
+    if not len(y) == len(h) == len(np.asarray(p_hold)) or len(y) == 0:
+        raise InputError(f"trial update ({engine}): {len(y)} labels, {len(h)} verdicts and "
+                         f"{len(np.asarray(p_hold))} p_hold values; need the same number, at least one")
+    if not np.all(np.isin(h, (0.0, 1.0))) or not np.all(np.isin(y, (0.0, 1.0))):
+        raise InputError(f"trial update ({engine}): verdicts and labels must be 0 or 1")
+    x = np.column_stack([np.ones(len(y)), logit(p_hold), h])
+    from scipy.optimize import minimize  # fitting only
+
+    def loss(w: np.ndarray) -> tuple[float, np.ndarray]:
+        s = x @ w
+        r = (0.5 * (1.0 + np.tanh(0.5 * s)) - y) / len(y)
+        return float(np.mean(np.logaddexp(0.0, s) - y * s) + 5e-7 * w @ w), x.T @ r + 1e-6 * w
+
+    w = minimize(loss, np.array([0.0, 1.0, 0.0]), jac=True, method="L-BFGS-B").x
+    update = TrialUpdate(engine, float(w[1]), float(w[2]), float(w[0]), len(y))
+    agreement = float(np.mean((update.apply(p_hold, h) >= 0.5) == (y == 1)))
+    return TrialUpdate(engine, update.slope, update.verdict, update.intercept, len(y), agreement)
