@@ -7,10 +7,17 @@ fold (planner.calibration.model.cross_validate, folds grouped by object, the shi
 trees); then planner.calibration.update.fit_update on every tried grasp, as ``grasp calibrate --trial`` fits
 it. Printed: agreement with FleX of the verdict, of p_hold >= 0.5 and of p_hold_trial >= 0.5 (the update
 fitted without the grasp's fold: planner.calibration.fitting.trial_figures), and the update.
-``--write``: add the update to calibration/<hand>.toml (the rest of the file unchanged). Held-out objects
-are never read here: bench/acronym_eval.py --held-out --trial N --engine mujoco reports them.
+``--write``: add the update to calibration/<hand>.toml (the rest of the file unchanged).
+
+The ranking when every pose is tried (``grasp validate --all``): with ``--per-file`` at least the closed poses
+per file, every closed pose of the sample is tried; printed then, for p_hold, p_hold_trial, p_hold times the
+verdict (the rule before p_hold_trial) and the verdict alone: the mean per-object ROC AUC against FleX, the mean
+over files of the share of the 10 best-ranked poses that hold (force closure first), and the label agreement.
+``--held-out``: the same on the held-out objects with the shipped model and its update, nothing fitted (run
+once; bench/acronym_eval.py --held-out --trial N --engine mujoco reports the label agreement of a sample).
 
     python bench/trial_update.py --dev ../shared/labelled/acronym_dev --code fed4526c8342 [--write]
+    python bench/trial_update.py --dev ../shared/labelled/acronym_dev --code fed4526c8342 --held-out
 """
 
 from __future__ import annotations
@@ -28,11 +35,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import acronym_eval as ae  # noqa: E402
 import acronym_mujoco as am  # noqa: E402
 
+from planner.calibration import features  # noqa: E402
 from planner.calibration.fitting import trial_figures  # noqa: E402
 from planner.calibration.labels import TRIAL_GROUPS  # noqa: E402
 from planner.calibration.logistic import FOLDER, load_model  # noqa: E402
+from planner.calibration.metrics import roc_auc  # noqa: E402
 from planner.calibration.model import cross_validate  # noqa: E402
 from planner.calibration.update import fit_update  # noqa: E402
+from planner.db.ranking import rank_order  # noqa: E402
 from planner.validation.mujoco_settings import MujocoSettings  # noqa: E402
 from planner.validation.settings import ShakeSettings  # noqa: E402
 
@@ -50,9 +60,10 @@ def main() -> int:
     ap.add_argument("--hand", default="panda")
     ap.add_argument("--write", action="store_true", help="add the update to calibration/<hand>.toml")
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--held-out", action="store_true", help="the shipped model and update on the held-out objects")
     a = ap.parse_args()
     code = a.code or ae.source_hash()
-    results = [ae.rescore_file(p, a.poses, 0, 1, ae.CACHE, code) for p in ae.dev_files(a.dev, False, None)]
+    results = [ae.rescore_file(p, a.poses, 0, 1, ae.CACHE, code) for p in ae.dev_files(a.dev, a.held_out, None)]
     data = ae.labelled_set(results)
     settings = MujocoSettings() if a.engine == "mujoco" else ShakeSettings()
     verdicts = []
@@ -61,8 +72,13 @@ def main() -> int:
         verdicts += [float(v[int(p)][0]) if int(p) in v else np.nan for p in np.flatnonzero(r.closed)]
     path = ROOT / FOLDER / f"{a.hand}.toml"
     shipped = load_model(path)
-    cv = cross_validate(data.table, data.labels, data.groups, a.hand, folds=5, grid=(shipped.l2,))
     data = replace(data, verdicts=np.array(verdicts), engine=TRIAL_GROUPS[a.engine])
+    if a.held_out:
+        p = shipped.predict(data.table)
+        q = shipped.given_trial(p, {data.engine: data.verdicts})
+        ranking(data, p, np.where(np.isnan(q), p, q), results)
+        return 0
+    cv = cross_validate(data.table, data.labels, data.groups, a.hand, folds=5, grid=(shipped.l2,))
     figures = trial_figures(data, cv)
     tried = ~np.isnan(data.verdicts)
     update = fit_update(data.engine, cv.p[tried], data.verdicts[tried], data.labels[tried])
@@ -72,6 +88,13 @@ def main() -> int:
           f"(out of fold), p_hold_trial >= 0.5 {figures['p_hold_trial_agreement']:.4f} (update fitted per fold)")
     print(f"  update on all: logit' = {update.slope:.4f} logit + {update.verdict:.4f} held + {update.intercept:.4f}"
           f" (in-sample agreement {update.agreement:.4f})")
+    if np.all(tried):
+        q = np.empty(len(tried))
+        for f in np.unique(cv.fold):
+            train, test = cv.fold != f, cv.fold == f
+            q[test] = fit_update(data.engine, cv.p[train], data.verdicts[train], data.labels[train]).apply(
+                cv.p[test], data.verdicts[test])
+        ranking(data, cv.p, q, results)
     if a.json:
         a.json.write_text(json.dumps({"figures": figures, "update": update.to_dict(), "code": code}, indent=1))
     if a.write:
@@ -80,6 +103,21 @@ def main() -> int:
         path.write_text(model.to_toml())
         print(f"wrote {path}")
     return 0
+
+
+def ranking(data, p: np.ndarray, q: np.ndarray, results) -> None:  # type: ignore[no-untyped-def]
+    """Every closed pose tried: AUC per object, top-10 per file and label agreement of each score."""
+    y, v = data.labels, data.verdicts
+    groups, files = np.array(data.groups), np.array(data.files)
+    fc = features.design(data.table, ("force_closure",))[:, 0]
+    print(f"every closed pose tried ({int(np.sum(~np.isnan(v)))} of {len(v)}):")
+    for name, s in (("p_hold", p), ("p_hold_trial", q), ("p_hold x verdict", p * np.nan_to_num(v, nan=1.0)),
+                    ("verdict", np.nan_to_num(v, nan=0.5))):
+        aucs = [roc_auc(y[groups == g], s[groups == g]) for g in np.unique(groups)]
+        tops = [float(np.mean(y[i][rank_order(s[i], fc[i])[:10]])) for i in
+                (np.flatnonzero(files == f) for f in np.unique(files))]
+        print(f"  {name:18s} mean per-object AUC {np.nanmean(aucs):.4f}  top-10 {np.mean(tops):.4f}  "
+              f"label agreement {np.mean((s >= 0.5) == (y == 1)):.4f}")
 
 
 if __name__ == "__main__":
