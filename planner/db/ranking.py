@@ -14,12 +14,11 @@ measures of :mod:`planner.plan.measures` and epsilon:
 * press: the fingers squeeze the object, ``push`` (1 = pads square on it);
 * hold: weight resistance, worst direction, capped: min(resist_worst, cap) / cap;
 * epsilon (Ferrari-Canny with contact patches, or its robust quantile), with
-  weight ``eps_weight``: it orders grasps that press and hold alike and, at
-  weight 1, can outweigh a small difference of press;
+  weight ``eps_weight``: it orders grasps that press and hold alike;
 * settled: the epsilon of the contacts the grasp settles into under a
   dynamic closing (hands with ``settle``, :mod:`planner.plan.settle`; 0
   when not measured), with weight ``settled_weight``: for a hand whose
-  closing moves the object it decides the order.
+  closing moves the object it weighs about as much as press and hold.
 
 Where a calibrated probability of holding applies (a p_hold model for the
 hand: fitted by ``grasp calibrate`` and stored, or the project's shipped one,
@@ -102,12 +101,15 @@ class RankingRule:
     reach_weight, success_weight, robust_weight in [0, 1]; cap [g] > 0, the
     weight resistance that counts as holding; min_open_margin [m] >= 0, the
     clearance the gate asks for; eps_weight >= 0, epsilon's weight;
-    settled_weight >= 0, the settled epsilon's weight. cap, min_open_margin,
-    eps_weight and settled_weight were chosen by cross-validation grouped by
-    object on the tuning objects (bench/RESULTS.md; third round, 2026-11-23:
-    one rule for both hands, every fold chose cap 5 g, min_open_margin 2 mm,
-    eps_weight 3, settled_weight 100: where measured, the settled epsilon
-    decides the order and the rest breaks its ties).
+    settled_weight >= 0, the settled epsilon's weight. cap and
+    min_open_margin were chosen by cross-validation grouped by object on the
+    tuning objects (bench/RESULTS.md; third round, 2026-11-23, against this
+    project's PyBullet trial); eps_weight 0.1 and settled_weight 3 on 22
+    random objects of their own (2026-12-03, bench/barrett_rule.py: the
+    Barrett's grasps against the MuJoCo trial, an independent protocol, and
+    the parallel-jaw formula against ACRONYM's FleX labels): the settled
+    epsilon, the planned epsilon and the press and hold now share the order
+    instead of the settled epsilon deciding it (weight 100 before).
     """
 
     reach_weight: float = 0.5
@@ -115,8 +117,8 @@ class RankingRule:
     robust_weight: float = 0.0
     cap: float = 5.0
     min_open_margin: float = MIN_OPEN_MARGIN
-    eps_weight: float = 3.0
-    settled_weight: float = 100.0
+    eps_weight: float = 0.1
+    settled_weight: float = 3.0
 
     def __post_init__(self) -> None:
         for name in ("reach_weight", "success_weight", "robust_weight"):

@@ -83,13 +83,16 @@ def test_the_analytic_part_presses_then_holds_then_breaks_ties_by_epsilon() -> N
     assert (no_room == 0).all()
 
 
-def test_by_default_the_settled_epsilon_decides_and_the_rest_breaks_its_ties() -> None:
+def test_by_default_the_settled_epsilon_weighs_like_press_and_hold_and_epsilon_breaks_ties() -> None:
     rule = RankingRule(reach_weight=0.0, success_weight=0.0)
     m = {"epsilon": [0.3, 0.05, 0.05, 0.1], "force_closure": [1, 1, 1, 1], "resist_worst": [20, 0.5, 20, 20],
          "push": [1.0, 0.4, 1.0, 1.0], "open_margin": [0.01] * 4, "close_margin": [0.01] * 4,
-         "settled_epsilon": [0.0, 0.02, 0.01, 0.01]}
+         "settled_epsilon": [0.0, 0.3, 0.1, 0.1]}
     s = rule.analytic(m)
-    assert s[1] > s[3] > s[2] > s[0] > 0  # settled first (pushed out by closing: last), then epsilon and hold
+    # a settled epsilon of 0.3 lifts a weak press and hold (0.22) above a full one that settled into nothing,
+    # one of 0.1 does not outweigh a full press and hold; equal otherwise, epsilon decides
+    assert s[3] > s[2] > s[1] > s[0] > 0
+    assert_close(s, [1.0 + 0.1 * 0.3, 0.4 * 1.1 / 2 + 0.1 * 0.05 + 3 * 0.3, 1.0 + 0.1 * 0.05 + 0.3, 1.0 + 0.01 + 0.3])
     unmeasured = rule.analytic({**m, "settled_epsilon": [np.nan] * 4})
     assert unmeasured[0] > unmeasured[3] > unmeasured[2] > unmeasured[1]  # the planned measures alone
 
