@@ -12,7 +12,13 @@ fitted by maximum likelihood on labelled grasps that the trial tried, with
 p_hold *out of fold* (the model fitted without the grasp's object), so the
 update learns how far each is to be trusted on objects the model has not
 seen. ``slope`` < 1 shrinks an over-confident p_hold; ``verdict`` is what
-the trial's verdict adds (log-odds). :func:`fit_update` fits one;
+the trial's verdict adds (log-odds). Where ``verdict`` > 0 (a verdict that
+agrees with the labels), a held verdict never lowers p_hold and a dropped
+one never raises it: ``p_hold_trial`` is at least p_hold after "held" and at
+most p_hold after "dropped". The logistic's slope below 1 would otherwise
+put a grasp that held below an untried one of the same p_hold near 1, where
+the fitting data hold no grasp to tell them apart (the shrinkage is a
+statement about p_hold everywhere, not about the verdict). :func:`fit_update` fits one;
 :meth:`TrialUpdate.apply` applies it. Numpy only to apply; scipy to fit.
 """
 
@@ -60,8 +66,13 @@ class TrialUpdate:
 
     def apply(self, p_hold: np.ndarray, held: np.ndarray) -> np.ndarray:
         """(n,) p_hold_trial of grasps with ``p_hold`` (n,) and verdicts ``held`` (n,) 0/1."""
-        z = self.slope * logit(p_hold) + self.verdict * np.asarray(held, float) + self.intercept
-        return 0.5 * (1.0 + np.tanh(0.5 * z))
+        h = np.asarray(held, float)
+        z = self.slope * logit(p_hold) + self.verdict * h + self.intercept
+        q = 0.5 * (1.0 + np.tanh(0.5 * z))
+        if self.verdict <= 0:
+            return q
+        p = np.asarray(p_hold, float)
+        return np.where(h > 0.5, np.maximum(q, p), np.minimum(q, p))  # held never lowers, dropped never raises
 
     def to_dict(self) -> dict:
         return {"slope": self.slope, "verdict": self.verdict, "intercept": self.intercept, "grasps": self.grasps,

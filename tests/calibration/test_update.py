@@ -44,6 +44,17 @@ def test_the_update_rises_with_p_hold_and_with_holding(p1: float, p2: float, slo
         assert a <= b + 1e-12
     dropped, kept = u.apply(np.array([p1, p1]), np.array([0.0, 1.0]))
     assert dropped < kept and 0.0 < dropped < 1.0
+    assert dropped <= p1 <= kept  # an informative verdict: held never lowers p_hold, dropped never raises it
+
+
+def test_a_held_grasp_near_certainty_stays_above_an_untried_one_of_the_same_p_hold() -> None:
+    u = TrialUpdate("mujoco", 0.85, 2.0, -1.5)
+    p = np.array([0.99999, 0.99999])
+    held, dropped = u.apply(p, np.array([1.0, 0.0]))
+    assert held == pytest.approx(0.99999) and dropped < 0.9999
+    assert u.apply(np.array([0.3]), np.array([1.0]))[0] > 0.3  # below the crossing the logistic itself lifts it
+    inverse = TrialUpdate("mujoco", 1.0, -1.0, 0.0)  # a verdict against the labels: no such bound
+    assert inverse.apply(np.array([0.5]), np.array([1.0]))[0] < 0.5
 
 
 def model_with(updates: dict[str, TrialUpdate]) -> LogisticModel:
