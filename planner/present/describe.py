@@ -209,10 +209,10 @@ def explain(grasp: Grasp, rule: RankingRule, model: LogisticModel | None = None)
                          f"{total['p_hold']:.4f} (stored {t['p_hold']:.4f})")
     if not math.isnan(t["p_hold_trial"]):
         update = None if model is None else model.updates.get(_tried_group(m))
-        how = ("" if update is None else f" = 1 / (1 + exp(-({update.slope:.4f} x logit + {update.verdict:.4f} x held"
-               f" + {update.intercept:+.4f})))")
-        lines.append(f"    analytic = p_hold_trial{how} = {t['p_hold_trial']:.4f}: p_hold updated by the trial's "
-                     "verdict, as the model's update for that trial says (the verdict does not multiply again)")
+        how = ("" if update is None else f" (1 / (1 + exp(-({update.slope:.4f} x logit {update.verdict:+.4f} x held "
+               f"{update.intercept:+.4f}))), held never below p_hold, dropped never above)")
+        lines.append(f"    analytic = p_hold_trial = {t['p_hold_trial']:.4f}: p_hold updated by the trial's verdict as "
+                     f"the model's update for that trial says{how}; the verdict does not multiply again")
     reach = m.get("reachability", math.nan)
     # the verdict the rule reads: the first trial in precedence that tried the grasp (MuJoCo's, then PyBullet's)
     tried = [(f"{fields.GROUPS[group].engine} trial", m.get(name, math.nan))

@@ -139,11 +139,15 @@ def test_calibrate_with_trials_fits_the_update_that_labels_and_ranks_validated_g
     assert np.allclose([g.score for g in grasps], rule.scores(rule_measures(grasps)))
     terms = rule.terms(rule_measures(tried))  # the verdict is in p_hold_trial: it does not multiply again
     assert np.allclose(terms["analytic"], [g.p_hold_trial for g in tried]) and np.all(terms["success_factor"] == 1)
-    from planner.present.describe import explain
+    from planner.present.describe import describe, explain, probability
+    from planner.specs.hands import hand_frame
 
+    head = describe(tried[0], hand_frame("panda"))[0]
+    verdict = "held" if tried[0].mujoco.success else "dropped"  # type: ignore[union-attr]
+    assert f", {probability(tried[0].p_hold_trial)} given its trial's verdict ({verdict})" in head  # type: ignore[arg-type]
     lines = "\n".join(explain(tried[0], rule, model))
-    assert f"analytic = p_hold_trial = 1 / (1 + exp(-({model.updates['mujoco'].slope:.4f} x logit" in lines
-    assert f"= {tried[0].p_hold_trial:.4f}: p_hold updated by the trial's verdict" in lines
+    assert f"(1 / (1 + exp(-({model.updates['mujoco'].slope:.4f} x logit" in lines
+    assert f"analytic = p_hold_trial = {tried[0].p_hold_trial:.4f}: p_hold updated by the trial's verdict" in lines
     assert "counted in p_hold_trial: 1" in lines
     out_dir = tmp_path / "csv"
     code, _, err = grasp("export", "--db", str(db), "--format", "csv", "--out", str(out_dir), "--quiet",
