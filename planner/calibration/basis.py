@@ -91,3 +91,8 @@ def choose_knots(x: np.ndarray, features: Sequence[str], splines: Sequence[str],
         if len(t) == count and np.all(np.diff(t) > MIN_SCALE):
             out[f] = tuple(float(v) for v in t)
     return out
+
+
+def _sigmoid(z: np.ndarray) -> np.ndarray:
+    """The logistic function, overflow-free."""
+    return 0.5 * (1.0 + np.tanh(0.5 * np.asarray(z, float)))

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from planner.assets import project_dir
-from planner.calibration.basis import clip, columns, expand
+from planner.calibration.basis import _sigmoid, clip, columns, expand  # noqa: F401 - _sigmoid re-exported
 from planner.calibration.features import FEATURES, PRODUCTS, design
 from planner.calibration.metrics import Reliability
 from planner.calibration.trees import Trees
@@ -240,10 +240,6 @@ def _reliability(data: Mapping) -> Reliability:
 
 def _floats(a: np.ndarray) -> str:
     return "[" + ", ".join("nan" if math.isnan(v) else repr(float(v)) for v in a) + "]"
-
-
-def _sigmoid(z: np.ndarray) -> np.ndarray:
-    return 0.5 * (1.0 + np.tanh(0.5 * np.asarray(z, float)))  # overflow-free logistic
 
 
 def load_model(path: Path) -> LogisticModel:

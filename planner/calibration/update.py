@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.calibration.basis import _sigmoid
 from planner.errors import InputError
 
 #: p_hold is clipped to [EPS, 1 - EPS] before its logit (a p_hold of exactly 0 or 1 has none).
@@ -68,7 +69,7 @@ class TrialUpdate:
         """(n,) p_hold_trial of grasps with ``p_hold`` (n,) and verdicts ``held`` (n,) 0/1."""
         h = np.asarray(held, float)
         z = self.slope * logit(p_hold) + self.verdict * h + self.intercept
-        q = 0.5 * (1.0 + np.tanh(0.5 * z))
+        q = _sigmoid(z)
         if self.verdict <= 0:
             return q
         p = np.asarray(p_hold, float)
@@ -87,8 +88,9 @@ class TrialUpdate:
 def fit_update(engine: str, p_hold: np.ndarray, held: np.ndarray, labels: np.ndarray) -> TrialUpdate:
     """The update of ``engine`` maximising the likelihood of ``labels`` (n,)
     0/1 given out-of-fold ``p_hold`` (n,) and the trial's verdicts ``held``
-    (n,) 0/1 (a tiny L2 penalty, 1e-6, keeps it finite where the labels
-    separate)."""
+    (n,) 0/1: the p_hold model's own loss (:func:`planner.calibration.model._loss`)
+    on the columns (logit p_hold, held), with a tiny L2 penalty, 1e-6, on
+    slope and verdict that keeps them finite where the labels separate."""
     y = np.asarray(labels, float)
     h = np.asarray(held, float)
     if not len(y) == len(h) == len(np.asarray(p_hold)) or len(y) == 0:
@@ -96,15 +98,12 @@ def fit_update(engine: str, p_hold: np.ndarray, held: np.ndarray, labels: np.nda
                          f"{len(np.asarray(p_hold))} p_hold values; need the same number, at least one")
     if not np.all(np.isin(h, (0.0, 1.0))) or not np.all(np.isin(y, (0.0, 1.0))):
         raise InputError(f"trial update ({engine}): verdicts and labels must be 0 or 1")
-    x = np.column_stack([np.ones(len(y)), logit(p_hold), h])
     from scipy.optimize import minimize  # fitting only
 
-    def loss(w: np.ndarray) -> tuple[float, np.ndarray]:
-        s = x @ w
-        r = (0.5 * (1.0 + np.tanh(0.5 * s)) - y) / len(y)
-        return float(np.mean(np.logaddexp(0.0, s) - y * s) + 5e-7 * w @ w), x.T @ r + 1e-6 * w
+    from planner.calibration.model import _loss  # the model's module imports this one
 
-    w = minimize(loss, np.array([0.0, 1.0, 0.0]), jac=True, method="L-BFGS-B").x
+    z = np.column_stack([logit(p_hold), h])
+    w = minimize(_loss, np.array([0.0, 1.0, 0.0]), args=(z, y, 1e-6), jac=True, method="L-BFGS-B").x
     update = TrialUpdate(engine, float(w[1]), float(w[2]), float(w[0]), len(y))
     agreement = float(np.mean((update.apply(p_hold, h) >= 0.5) == (y == 1)))
     return TrialUpdate(engine, update.slope, update.verdict, update.intercept, len(y), agreement)
