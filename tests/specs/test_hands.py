@@ -136,9 +136,11 @@ def test_fuzz_hand_toml_loads_the_value_or_names_the_field(tmp_path_factory, key
              (isinstance(v, list) and not any(isinstance(x, dict) for x in v))]
     text = "\n".join(lines) + "\n" + "\n".join(toml.read_text().split("\n[[joints]]", 1)[1:2] and
                                                ["[[joints]]" + toml.read_text().split("\n[[joints]]", 1)[1]])
-    toml.write_text(text + ("\n# " + garbage.replace("\n", " ") if garbage else ""))
+    # a line break ends the comment: "\r" too, since the file is read as text (universal newlines)
+    comment = garbage.replace("\r", " ").replace("\n", " ")
+    toml.write_text(text + ("\n# " + comment if garbage else ""))
     # TOML comments may hold any character but the control ones (tab aside)
-    bad_comment = any((ord(c) < 32 and c != "\t") or ord(c) == 127 for c in garbage.replace("\n", " "))
+    bad_comment = any((ord(c) < 32 and c != "\t") or ord(c) == 127 for c in comment)
     try:
         hand = load_folder(folder)
     except PlannerError as exc:
