@@ -41,6 +41,10 @@ Tables (the README lists every column):
   the trial that tried the grasp (:mod:`planner.calibration.update`),
   written by the store with p_hold; NULL where no trial tried it or the
   hand's model has no update for that trial's engine.
+- ``grasps`` (v9) gains the grip measures ``com_height`` and
+  ``gravity_arm`` (:mod:`planner.plan.grip`: where the centre of mass sits
+  about the grip, with the object's weight along -z); NULL for grasps
+  stored before (not measured).
 
 No pickle: arrays are JSON text. A new database runs :data:`SCHEMA` (version
 1) and then every migration; a newer schema is refused politely; an older one
@@ -61,7 +65,7 @@ from planner.errors import DatabaseError
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 8
+SCHEMA_VERSION = 9
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -155,6 +159,11 @@ CREATE TABLE IF NOT EXISTS mujoco (
     # v8: p_hold given the trial's verdict (issue 26; NULL: not tried, or no update for its engine).
     7: """
 ALTER TABLE grasps ADD COLUMN p_hold_trial REAL
+""",
+    # v9: the grip measures about gravity (issue 26; NULL: not measured, grasps stored before).
+    8: """
+ALTER TABLE grasps ADD COLUMN com_height REAL;
+ALTER TABLE grasps ADD COLUMN gravity_arm REAL
 """,
 }
 

@@ -24,6 +24,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
+#: The object frame's up: its +z. An object rests and is lifted with its weight along -UP (the MuJoCo trial's
+#: default gravity, ``MujocoSettings.down = "-z"``; the grip measures ``com_height`` and ``gravity_arm``).
+UP = np.array([0.0, 0.0, 1.0])
 #: |n_x| below this: the tangent helper axis is x, else y (well conditioned).
 HELPER_SWITCH = 0.9
 _X, _Y = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])

@@ -30,6 +30,15 @@ meshes as their hulls):
   line through the pad centres (area-weighted) of the best-opposed pair of
   touching fingers: the lever its weight and a shake have about the grip's
   axis, which only the pads' friction over their area resists.
+* ``com_height`` [m]: the height of the centre of mass above the midpoint
+  of those two pad centres, along the object frame's up
+  (:data:`planner.geometry.frames.UP`): negative where the object hangs
+  below the grip (it swings back under a shake), positive where it stands
+  on it (it tips over).
+* ``gravity_arm`` [m]: the lever the object's weight has about that grip
+  axis when the object hangs as it rests (weight along -UP): the distance
+  from the axis to the centre of mass, across both the axis and the
+  vertical; 0 when the axis is vertical or runs over the centre of mass.
 * ``palm_gap`` [m]: the smallest distance from the object surface inside
   that hull (between the fingers) to the root link's (palm's) hull, at most
   ``palm_reach``: how deep the object sits in the hand.
@@ -49,6 +58,7 @@ import numpy as np
 import trimesh
 from scipy.spatial import ConvexHull, QhullError
 
+from planner.geometry.frames import UP
 from planner.record.contacts import HandContacts
 from planner.specs.hands import HandSpec
 from planner.specs.urdf import load_model
@@ -79,6 +89,8 @@ class Grip:
     jaw_fill: float
     palm_gap: float
     com_lever: float
+    com_height: float
+    gravity_arm: float
 
 
 @dataclass(frozen=True)
@@ -195,9 +207,24 @@ def measure(hand: HandSpec, surface: GripSurface, contacts: HandContacts,
     opposition, a, b = max(pairs, default=(np.nan, 0, 0))
     inside = _inside(np.vstack(corners), surface) if len(fingers) >= 2 else np.zeros(0, int)
     palm = _palm_gap(hand, shapes, link_poses, surface, inside)
-    lever = _lever(np.asarray(com, float), centres[a], centres[b]) if pairs else np.nan
+    com = np.asarray(com, float)
+    lever = _lever(com, centres[a], centres[b]) if pairs else np.nan
+    height, arm = _gravity(com, centres[a], centres[b]) if pairs else (np.nan, np.nan)
     return Grip(pad_area=min(areas, default=0.0), pad_alignment=min(aligns, default=0.0), opposition=opposition,
-                jaw_fill=surface.coarse_area * len(inside), palm_gap=palm, com_lever=lever)
+                jaw_fill=surface.coarse_area * len(inside), palm_gap=palm, com_lever=lever, com_height=height,
+                gravity_arm=arm)
+
+
+def _gravity(com: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+    """(height [m] of ``com`` above the midpoint of ``a`` and ``b`` (3,) along UP, the lever [m] of a weight
+    along -UP at ``com`` about the line through ``a`` and ``b``: |((com - mid) x UP) . axis|; about the
+    vertical through ``a`` if they coincide: the horizontal distance)."""
+    rel = com - 0.5 * (a + b)
+    across = np.cross(rel, UP)
+    axis = b - a
+    length = float(np.linalg.norm(axis))
+    arm = float(np.linalg.norm(across)) if length < 1e-9 else abs(float(across @ axis)) / length
+    return float(rel @ UP), arm
 
 
 def _lever(com: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:

@@ -30,7 +30,9 @@ class Measures:
 
     The grip measures (:mod:`planner.plan.grip`; None: not measured, a grasp
     stored before schema version 6): pad_area [m^2], pad_alignment (cosine),
-    opposition (cosine), jaw_fill [m^2], palm_gap [m], com_lever [m].
+    opposition (cosine), jaw_fill [m^2], palm_gap [m], com_lever [m];
+    com_height [m], gravity_arm [m] (None also for grasps stored before
+    schema version 9).
     """
 
     resist_worst: float = stored("real", "g", 3, "weight resistance, worst of 14 gravity directions (object frame)",
@@ -62,6 +64,11 @@ class Measures:
                                     "at most 5 cm", required=False, default=None)
     com_lever: float | None = stored("real", "m", 6, "distance from the centre of mass to the line through the pad "
                                      "centres of the best-opposed touching fingers", required=False, default=None)
+    com_height: float | None = stored("real", "m", 9, "height of the centre of mass above the midpoint of those pad "
+                                      "centres, along the object frame's +z (< 0: the object hangs below the grip)",
+                                      required=False, default=None)
+    gravity_arm: float | None = stored("real", "m", 9, "lever of the object's weight (along -z) about the line "
+                                       "through those pad centres", required=False, default=None)
 
     @property
     def feasible(self) -> bool:
