@@ -59,6 +59,47 @@ def test_pads_flat_on_a_box_face_each_other_and_the_palm_gap_is_the_box_top(pand
     assert g.palm_gap == pytest.approx(0.1034 - 0.03 - palm_front, abs=GAP_TOL)
 
 
+def test_where_the_weight_sits_about_the_grip_from_below_and_from_the_side(panda) -> None:  # type: ignore[no-untyped-def]
+    # from below (approach +z): the pads' midpoint lies on the vertical through the centre of mass, at the
+    # height com_lever says; the axis (y) is horizontal and passes under it, so the weight has no lever
+    _, below = closed_grip(panda, trimesh.creation.box((0.03, 0.04, 0.06)), centred_pose())
+    assert abs(below.com_height) == pytest.approx(below.com_lever, abs=1e-3)
+    assert below.gravity_arm == pytest.approx(0.0, abs=1e-3)
+    # from the side (approach +x, the same box turned): the midpoint is beside the centre of mass at its height,
+    # and the weight's lever about the horizontal axis is the whole offset
+    side = centred_pose(Rotation.from_euler("y", 90, degrees=True).as_matrix())
+    _, beside = closed_grip(panda, trimesh.creation.box((0.06, 0.04, 0.03)), side)
+    assert beside.com_height == pytest.approx(0.0, abs=1e-3)
+    assert beside.gravity_arm == pytest.approx(beside.com_lever, abs=1e-3)
+    assert beside.gravity_arm == pytest.approx(below.com_lever, abs=GAP_TOL)
+    # the axis vertical (fingers closing along z): no lever, whatever the offset
+    upright = centred_pose(Rotation.from_euler("x", 90, degrees=True).as_matrix())
+    _, vertical = closed_grip(panda, trimesh.creation.box((0.03, 0.06, 0.04)), upright)
+    assert vertical.gravity_arm == pytest.approx(0.0, abs=1e-3)
+    assert vertical.com_lever > 0.005
+
+
+def test_the_weight_measures_turn_only_with_the_vertical(panda) -> None:  # type: ignore[no-untyped-def]
+    mesh = trimesh.creation.capsule(height=0.04, radius=0.018, count=[16, 16])
+    pose = centred_pose(Rotation.from_euler("xy", [30, 60], degrees=True).as_matrix())  # tilted both ways
+    pose[:3, 3] -= pose[:3, 2] * 0.012  # backed off along the approach: the pads hold it off its centre of mass
+    closed, base = closed_grip(panda, mesh, pose)
+    rng = np.random.default_rng(11)
+    for _ in range(3):  # about the vertical and shifted: the same; tilted: the height changes
+        motion = np.eye(4)
+        motion[:3, :3] = Rotation.from_euler("z", rng.uniform(0, 360), degrees=True).as_matrix()
+        motion[:3, 3] = rng.uniform(-0.2, 0.2, 3)
+        moved = mesh.copy()
+        moved.apply_transform(motion)
+        links = {k: motion @ v for k, v in (closed.link_poses or {}).items()}
+        contacts = type(closed.contacts)(closed.contacts.points @ motion[:3, :3].T + motion[:3, 3],
+                                         closed.contacts.normals @ motion[:3, :3].T, closed.contacts.links)
+        again = grip.measure(panda[0], grip.GripSurface(moved), contacts, links, moved.center_mass)
+        assert again.com_height == pytest.approx(base.com_height, abs=1e-4)
+        assert again.gravity_arm == pytest.approx(base.gravity_arm, abs=1e-4)
+    assert abs(base.com_height) > 1e-3 and base.gravity_arm > 1e-3
+
+
 def test_two_walls_fill_the_jaw_more_than_a_block_under_the_same_pads(panda) -> None:  # type: ignore[no-untyped-def]
     _, block = closed_grip(panda, trimesh.creation.box((0.03, 0.04, 0.06)), centred_pose())
     walls = trimesh.util.concatenate([trimesh.creation.box((0.03, 0.002, 0.06)).apply_translation((0, y, 0))
