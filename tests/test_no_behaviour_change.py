@@ -39,7 +39,9 @@ grasps change; the same grasps, and the force-closure grasps' scores and
 ranks as in 7; meshes above 5,000 faces close against a proxy, which none of
 these objects is); 9 (issue 26: the rule's eps_weight 0.1 and settled_weight 3, chosen
 against the MuJoCo trial and FleX's labels; the same grasps, other scores
-and ranks).
+and ranks); 10 (issue 26: the grip measures com_height and gravity_arm and
+a p_hold model that reads them, 600 trees; the same grasps, other p_hold,
+scores and ranks of the Panda's).
 """
 
 from __future__ import annotations

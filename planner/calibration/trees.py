@@ -37,7 +37,7 @@ class TreeSettings:
     hold at least ``min_leaf`` grasps, fitted on a ``subsample`` share of the
     grasps drawn with ``seed``."""
 
-    n_trees: int = 300
+    n_trees: int = 600
     depth: int = 3
     learning_rate: float = 0.05
     min_leaf: int = 100
