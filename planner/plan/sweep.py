@@ -52,7 +52,7 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: 9: the ranking rule's eps_weight 0.1 and settled_weight 3 (were 3 and 100: issue 26, chosen on random
 #: objects against the MuJoCo trial and FleX's labels); the same grasps, other scores and ranks.
 #: 10: the grip measures com_height and gravity_arm, read by a p_hold model with 600 trees (issue 26); the
-#: same grasps, other p_hold, scores and ranks of the Panda's.
+#: same grasps with two more measures, other p_hold, scores and ranks of the Panda's.
 ALGORITHM_VERSION = 10
 
 #: Named in the digest of sweeps on a table only (those of the object alone stay
