@@ -45,6 +45,16 @@ def closed_grip(panda, mesh: trimesh.Trimesh, pose: np.ndarray) -> tuple[Closed,
     return closed, grip.measure(hand, surface, closed.contacts, closed.link_poses or {}, mesh.center_mass)
 
 
+def moved_grip(panda, mesh: trimesh.Trimesh, closed: Closed, motion: np.ndarray) -> grip.Grip:  # type: ignore[no-untyped-def]
+    """The grip of ``closed`` with object and hand both moved by ``motion`` (4, 4) (the samples redrawn)."""
+    moved = mesh.copy()
+    moved.apply_transform(motion)
+    links = {k: motion @ v for k, v in (closed.link_poses or {}).items()}
+    contacts = type(closed.contacts)(closed.contacts.points @ motion[:3, :3].T + motion[:3, 3],
+                                     closed.contacts.normals @ motion[:3, :3].T, closed.contacts.links)
+    return grip.measure(panda[0], grip.GripSurface(moved), contacts, links, moved.center_mass)
+
+
 def test_pads_flat_on_a_box_face_each_other_and_the_palm_gap_is_the_box_top(panda) -> None:  # type: ignore[no-untyped-def]
     box = trimesh.creation.box((0.03, 0.04, 0.06))  # 4 cm across the fingers (hand y), 6 cm along the approach
     closed, g = closed_grip(panda, box, centred_pose())
@@ -89,12 +99,7 @@ def test_the_weight_measures_turn_only_with_the_vertical(panda) -> None:  # type
         motion = np.eye(4)
         motion[:3, :3] = Rotation.from_euler("z", rng.uniform(0, 360), degrees=True).as_matrix()
         motion[:3, 3] = rng.uniform(-0.2, 0.2, 3)
-        moved = mesh.copy()
-        moved.apply_transform(motion)
-        links = {k: motion @ v for k, v in (closed.link_poses or {}).items()}
-        contacts = type(closed.contacts)(closed.contacts.points @ motion[:3, :3].T + motion[:3, 3],
-                                         closed.contacts.normals @ motion[:3, :3].T, closed.contacts.links)
-        again = grip.measure(panda[0], grip.GripSurface(moved), contacts, links, moved.center_mass)
+        again = moved_grip(panda, mesh, closed, motion)
         assert again.com_height == pytest.approx(base.com_height, abs=1e-4)
         assert again.gravity_arm == pytest.approx(base.gravity_arm, abs=1e-4)
     assert abs(base.com_height) > 1e-3 and base.gravity_arm > 1e-3
@@ -126,12 +131,7 @@ def test_grip_is_invariant_under_a_rigid_motion_of_object_and_grasp(panda) -> No
         motion = np.eye(4)
         motion[:3, :3] = Rotation.random(random_state=rng).as_matrix()
         motion[:3, 3] = rng.uniform(-0.2, 0.2, 3)
-        moved = mesh.copy()
-        moved.apply_transform(motion)
-        links = {k: motion @ v for k, v in (closed.link_poses or {}).items()}
-        contacts = type(closed.contacts)(closed.contacts.points @ motion[:3, :3].T + motion[:3, 3],
-                                         closed.contacts.normals @ motion[:3, :3].T, closed.contacts.links)
-        again = grip.measure(panda[0], grip.GripSurface(moved), contacts, links, moved.center_mass)
+        again = moved_grip(panda, mesh, closed, motion)
         assert_close(np.array([again.pad_alignment, again.opposition]),
                      np.array([base.pad_alignment, base.opposition]), 0.02)
         assert_close(np.array([again.pad_area, again.jaw_fill]), np.array([base.pad_area, base.jaw_fill]), AREA_TOL)
