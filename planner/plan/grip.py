@@ -173,9 +173,21 @@ def _hulls(urdf: str, links: tuple[str, ...]) -> dict[str, Hull]:
         if mesh is None:
             continue
         hull = ConvexHull(np.asarray(mesh.vertices, float))
-        eq = hull.equations  # outward normals and offsets: n . x + c <= 0 inside
+        eq = _planes(hull.equations)  # outward normals and offsets: n . x + c <= 0 inside
         out[link] = Hull(hull.points[hull.vertices], eq[:, :3].copy(), -eq[:, 3].copy())
     return out
+
+
+def _planes(equations: np.ndarray) -> np.ndarray:
+    """Qhull's facet ``equations`` (f, 4) without exact repeats, in the order of their first occurrence.
+
+    Qhull triangulates a flat face into triangles that carry the face's very
+    plane (a meshed finger's hull: 252 triangles on 66 planes); a repeat
+    changes no largest plane distance and no inside test, and a tie resolves
+    to the first occurrence, which is kept.
+    """
+    _, first = np.unique(equations, axis=0, return_index=True)
+    return equations[np.sort(first)]
 
 
 def measure(hand: HandSpec, surface: GripSurface, contacts: HandContacts,
@@ -310,19 +322,47 @@ def _pad(hull: Hull, pose: np.ndarray, surface: GripSurface, band: float, contac
 
 
 def _inside(points: np.ndarray, surface: GripSurface) -> np.ndarray:
-    """Indices of the coarse object samples inside the convex hull of ``points`` (k, 3)."""
+    """Indices (ascending) of the coarse object samples inside the convex hull of ``points`` (k, 3).
+
+    Most samples in the hull's box are inside it and would need every face:
+    an inner polytope (the hull of the vertices extreme along the 13 axes of
+    :data:`_INNER`, a few dozen faces) settles those at least ``INNER`` inside
+    it first, which are inside the hull for sure; the others take every face.
+    """
     try:
         hull = ConvexHull(points)
     except QhullError:  # a flat or degenerate point set: nothing is inside
         return np.zeros(0, int)
     idx = surface.box(points.min(axis=0), points.max(axis=0), coarse=True)
-    eq = hull.equations
+    corners = hull.points[hull.vertices]
+    reach = corners @ _INNER.T
+    try:
+        inner = _planes(ConvexHull(corners[np.unique(np.r_[reach.argmax(axis=0), reach.argmin(axis=0)])]).equations)
+    except QhullError:  # the extreme vertices span no volume: every sample takes every face
+        inner = np.zeros((0, 4))
+    if len(inner):
+        sure = np.all(surface.coarse[idx] @ inner[:, :3].T + inner[:, 3] <= -INNER, axis=1)
+        return np.union1d(idx[sure], _within(idx[~sure], surface.coarse, _planes(hull.equations)))
+    return _within(idx, surface.coarse, _planes(hull.equations))
+
+
+def _within(idx: np.ndarray, points: np.ndarray, eq: np.ndarray) -> np.ndarray:
+    """Those of ``idx`` whose ``points`` are on the inner side of every plane of ``eq`` (f, 4), order kept."""
     for start in range(0, len(eq), _BLOCK):  # by blocks of faces: a point outside one is dropped at once
         block = eq[start:start + _BLOCK]
-        idx = idx[np.all(surface.coarse[idx] @ block[:, :3].T + block[:, 3] <= 0.0, axis=1)]
+        idx = idx[np.all(points[idx] @ block[:, :3].T + block[:, 3] <= 0.0, axis=1)]
         if not len(idx):
             break
     return idx
+
+
+#: [m] a sample this far inside the inner polytope is inside the hull whatever the round-off (~1e-17 m).
+INNER = 1e-9
+#: 13 axes (rows, unit): the coordinate axes, the face and the body diagonals of a cube; the hull's vertices
+#: extreme along them (both ways) span the inner polytope of :func:`_inside`.
+_INNER = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0], [1, -1, 0], [1, 0, 1], [1, 0, -1], [0, 1, 1],
+                   [0, 1, -1], [1, 1, 1], [1, 1, -1], [1, -1, 1], [-1, 1, 1]], float)
+_INNER /= np.linalg.norm(_INNER, axis=1, keepdims=True)
 
 
 def _palm_gap(hand: HandSpec, shapes: Mapping[str, Hull], link_poses: Mapping[str, np.ndarray],
@@ -334,5 +374,10 @@ def _palm_gap(hand: HandSpec, shapes: Mapping[str, Hull], link_poses: Mapping[st
         return float("nan")
     if not len(inside):
         return reach
-    dist, _ = _distance(shapes[hand.root_link], link_poses[hand.root_link], surface.coarse[inside])
-    return float(np.clip(dist.min(), 0.0, reach))
+    palm, pose = shapes[hand.root_link], link_poses[hand.root_link]
+    points = surface.coarse[inside]
+    # the sample nearest the palm's centre bounds the smallest distance: only samples below it are read to the end
+    guess = int(np.argmin(np.linalg.norm(points - (palm.centre @ pose[:3, :3].T + pose[:3, 3]), axis=1)))
+    bound = min(float(_distance(palm, pose, points[guess:guess + 1])[0][0]), reach)
+    _, below, _ = _near(palm, pose, points, np.arange(len(points)), bound)
+    return float(np.clip(min(below.min(initial=bound), bound), 0.0, reach))

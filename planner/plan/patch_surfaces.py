@@ -31,6 +31,10 @@ BOUND = 0.02
 CELL = 0.002
 #: [m] round-off allowance of the cells' triangle-inequality bounds.
 SLACK = 1e-9
+#: Samples per leaf of the object's KD-tree (speed only: any leaf size finds
+#: the same nearest distances; x
+#: query and ~1.25x per 12-nearest query against ~0.7 mm samples).
+LEAF = 32
 #: Vertices with at most this many faces have their sharpness computed all
 #: at once (speed only: the others one by one, the same result).
 FEW_FACES = 12
@@ -188,7 +192,7 @@ class ObjectSurface:
         points, faces = trimesh.sample.sample_surface(self.mesh, count, seed=s.seed)
         points = np.vstack([points, self.mesh.triangles_center])  # every face at least once
         faces = np.r_[np.asarray(faces), np.arange(len(self.mesh.faces))]
-        return cKDTree(points), faces
+        return cKDTree(points, leafsize=LEAF), faces
 
     @cached_property
     def sharp_vertex(self) -> np.ndarray:

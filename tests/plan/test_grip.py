@@ -187,3 +187,43 @@ def test_box_query_equals_the_reference(seed: int, half: float, coarse: bool) ->
     got, want = surface.box(lo, hi, coarse), surface.box_reference(lo, hi, coarse)
     assert np.array_equal(got, want)
     assert np.all((points[got] >= lo) & (points[got] <= hi))
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), spread=st.floats(0.0, 0.03))
+def test_inside_and_palm_gap_equal_the_plain_tests_on_a_meshed_hand(seed: int, spread: float) -> None:
+    """On the Barrett's hulls (meshed: qhull repeats a flat face's plane on each of its triangles), the repeats
+    dropped, the inner polytope's shortcut and the palm gap's early exit give what testing every sample against
+    every face gives: the same samples inside, the same smallest distance to the palm, bit for bit."""
+    from scipy.spatial import ConvexHull
+
+    hand = load_hand("barrett")
+    shapes = grip.hulls(hand)
+    rng = np.random.default_rng(seed)
+    finger = shapes["bh_finger_32_link"]
+    assert len(finger.normals) < len(ConvexHull(finger.vertices).equations)  # repeats were dropped
+    poses = []
+    for _ in range(3):  # three finger tips spread about the object, seeded
+        pose = np.eye(4)
+        pose[:3, :3] = Rotation.random(random_state=rng).as_matrix()
+        pose[:3, 3] = rng.normal(size=3) * spread
+        poses.append(pose)
+    corners = np.vstack([finger.vertices @ p[:3, :3].T + p[:3, 3] for p in poses])
+    surface = grip.GripSurface(trimesh.creation.icosphere(subdivisions=3, radius=0.03))
+    inside = grip._inside(corners, surface)
+    outer = ConvexHull(corners).equations
+    everything = np.flatnonzero(np.all(surface.coarse @ outer[:, :3].T + outer[:, 3] <= 0.0, axis=1))
+    assert np.array_equal(inside, everything)
+    palm = np.eye(4)
+    palm[:3, :3] = Rotation.random(random_state=rng).as_matrix()
+    palm[:3, 3] = rng.normal(size=3) * 0.03
+    subset = np.sort(rng.choice(len(surface.coarse), size=200, replace=False))
+    for chosen in (inside, subset):
+        if not len(chosen):
+            continue
+        plain = np.clip(grip._distance(shapes[hand.root_link], palm, surface.coarse[chosen])[0].min(), 0.0, 0.05)
+        assert grip._palm_gap(hand, shapes, {hand.root_link: palm}, surface, chosen) == plain
+        every = ConvexHull(shapes[hand.root_link].vertices).equations  # every triangle's plane, repeats and all
+        local = (surface.coarse[chosen] - palm[:3, 3]) @ palm[:3, :3]
+        assert plain == pytest.approx(np.clip((local @ every[:, :3].T + every[:, 3]).max(axis=1).min(), 0.0, 0.05),
+                                      abs=1e-12)
