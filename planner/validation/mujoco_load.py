@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 
+from planner.geometry.frames import UP
 from planner.validation.mujoco_settings import MujocoSettings
 
 
@@ -50,11 +51,11 @@ def load_path(s: MujocoSettings, pose: np.ndarray, tcp: np.ndarray, approach: np
 
 def down_along(name: str, approach: np.ndarray) -> np.ndarray:
     """(3,) unit vector, world (= object) frame, of :data:`~planner.validation.mujoco_settings.DOWN`'s
-    ``name``; ``approach``: the hand's approach in the world. Without gravity the hand still lifts and
-    shakes along -z."""
+    ``name``; ``approach``: the hand's approach in the world. "-z" (and "none": without gravity the hand
+    still lifts and shakes along it) is the object frame's down, -:data:`~planner.geometry.frames.UP`."""
     if name == "approach":
         return approach / np.linalg.norm(approach)
-    return np.array([0.0, -1.0, 0.0]) if name == "-y" else np.array([0.0, 0.0, -1.0])
+    return np.array([0.0, -1.0, 0.0]) if name == "-y" else 0.0 - UP  # not -UP: no negative zeros
 
 
 def motion(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
