@@ -25,8 +25,20 @@ from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
 #: The object frame's up: its +z. An object rests and is lifted with its weight along -UP (the MuJoCo trial's
-#: default gravity, ``MujocoSettings.down = "-z"``; the grip measures ``com_height`` and ``gravity_arm``).
+#: default gravity, ``MujocoSettings.down = "-z"``; the grip measures ``com_height`` and ``gravity_arm``), or
+#: along the table's down where a grasp was planned on a table (:func:`resting_up`).
 UP = np.array([0.0, 0.0, 1.0])
+
+
+def resting_up(table_plane: np.ndarray | None) -> np.ndarray:
+    """(3,) unit: the object's up as it rests, object frame: the table's up for a grasp planned on a table
+    (``Grasp.table_plane``: its first three entries), else :data:`UP`."""
+    if table_plane is None:
+        return UP
+    up = np.asarray(table_plane, float)[:3]
+    return up / np.linalg.norm(up)
+
+
 #: |n_x| below this: the tangent helper axis is x, else y (well conditioned).
 HELPER_SWITCH = 0.9
 _X, _Y = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])

@@ -31,8 +31,9 @@ meshes as their hulls):
   touching fingers: the lever its weight and a shake have about the grip's
   axis, which only the pads' friction over their area resists.
 * ``com_height`` [m]: the height of the centre of mass above the midpoint
-  of those two pad centres, along the object frame's up
-  (:data:`planner.geometry.frames.UP`): negative where the object hangs
+  of those two pad centres, along the object's up as it rests (the object
+  frame's +z, :data:`planner.geometry.frames.UP`; on a table, the table's
+  up, :func:`~planner.geometry.frames.resting_up`): negative where the object hangs
   below the grip (it swings back under a shake), positive where it stands
   on it (it tips over).
 * ``gravity_arm`` [m]: the lever the object's weight has about that grip
@@ -191,11 +192,13 @@ def _planes(equations: np.ndarray) -> np.ndarray:
 
 
 def measure(hand: HandSpec, surface: GripSurface, contacts: HandContacts,
-            link_poses: Mapping[str, np.ndarray], com: np.ndarray) -> Grip:
+            link_poses: Mapping[str, np.ndarray], com: np.ndarray, up: np.ndarray = UP) -> Grip:
     """The grip measures of a closed grasp: ``contacts`` say which links touch,
     ``link_poses`` (4, 4) place them (object frame; at least every touching
     contact link and the root link); ``com`` (3,) [m] the object's centre of
-    mass."""
+    mass; ``up`` (3,) the object's up as it rests, object frame (its +z,
+    :data:`~planner.geometry.frames.UP`; a grasp planned on a table: the
+    table's up, :func:`~planner.geometry.frames.resting_up`)."""
     s = surface.settings
     shapes = hulls(hand)
     touching = set(contacts.links)
@@ -221,22 +224,23 @@ def measure(hand: HandSpec, surface: GripSurface, contacts: HandContacts,
     palm = _palm_gap(hand, shapes, link_poses, surface, inside)
     com = np.asarray(com, float)
     lever = _lever(com, centres[a], centres[b]) if pairs else np.nan
-    height, arm = _gravity(com, centres[a], centres[b]) if pairs else (np.nan, np.nan)
+    height, arm = _gravity(com, centres[a], centres[b], np.asarray(up, float)) if pairs else (np.nan, np.nan)
     return Grip(pad_area=min(areas, default=0.0), pad_alignment=min(aligns, default=0.0), opposition=opposition,
                 jaw_fill=surface.coarse_area * len(inside), palm_gap=palm, com_lever=lever, com_height=height,
                 gravity_arm=arm)
 
 
-def _gravity(com: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
-    """(height [m] of ``com`` above the midpoint of ``a`` and ``b`` (3,) along UP, the lever [m] of a weight
-    along -UP at ``com`` about the line through ``a`` and ``b``: |((com - mid) x UP) . axis|; about the
+def _gravity(com: np.ndarray, a: np.ndarray, b: np.ndarray, up: np.ndarray = UP) -> tuple[float, float]:
+    """(height [m] of ``com`` above the midpoint of ``a`` and ``b`` (3,) along the unit ``up``, the lever [m] of
+    a weight along -up at ``com`` about the line through ``a`` and ``b``: |((com - mid) x up) . axis|; about the
     vertical through ``a`` if they coincide: the horizontal distance)."""
     rel = com - 0.5 * (a + b)
-    across = np.cross(rel, UP)
+    across = np.cross(rel, up)
     axis = b - a
     length = float(np.linalg.norm(axis))
     arm = float(np.linalg.norm(across)) if length < 1e-9 else abs(float(across @ axis)) / length
-    return float(rel @ UP), arm
+    return float(rel @ up), arm
+
 
 
 def _lever(com: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:

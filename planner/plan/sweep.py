@@ -60,7 +60,9 @@ ALGORITHM_VERSION = 10
 #: 2: the hands' table preshapes (``table = true``) join the sweep on a table (issue 25).
 #: 3: the Allegro's ``table_spread``, and a preshape's ``roll_symmetry`` spreading its rolls (issue 25).
 #: 4: ray samplers also come straight down onto the object's top (planner.plan.sampling.from_above) (issue 25).
-TABLE_VERSION = 4
+#: 5: com_height and gravity_arm about the table's up (the object rests there in another pose), and so p_hold
+#: (issue 26); the same grasps.
+TABLE_VERSION = 5
 
 #: Decimals kept of a table plane in the settings (1e-7: 0.1 um, 1e-7 rad).
 PLANE_DIGITS = 7

@@ -30,7 +30,7 @@ import numpy as np
 
 from planner import quality
 from planner.errors import DegenerateGraspError, InputError, PlannerError
-from planner.geometry.frames import approach_of
+from planner.geometry.frames import approach_of, resting_up
 from planner.geometry.solid import PreparedObject, load_object
 from planner.plan import grip, sampling
 from planner.plan.closing import Closed, Grasper
@@ -169,6 +169,7 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report, obj: PreparedObject
     with Sim() as sim:
         grasper = Grasper.for_object(sim, hand, obj, table=table)
         gripping = grip.GripSurface(obj.mesh)  # the exact surface, whatever proxy closing collides with
+        up = resting_up(settings.table_plane)  # on a table: the table's up (object frame)
         sweep = _antipodal if settings.sampler == "antipodal" else _rays
         for cand, closed, ray in sweep(spec, settings, obj, hand, shapes, rng, grasper, result, t0, budget,
                                     report):
@@ -184,7 +185,7 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report, obj: PreparedObject
                 continue
             width = closed_width(hand, closed.closed_joints)
             m = measure(closed.contacts, closed.frames, hand, cand.preshape, closed.closed_joints, obj, width,  # type: ignore[arg-type]
-                        grip=grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}, obj.com))
+                        grip=grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}, obj.com, up))
             result.timing["quality"] += time.perf_counter() - tb
             point, direction, roll, standoff = ray
             result.grasps.append(Grasp(

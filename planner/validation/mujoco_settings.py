@@ -21,7 +21,8 @@ DEFAULT_ENGINE = "mujoco"
 #: dropped), so ``grasp validate`` does not store it.
 DIVERGED = "diverged"
 #: Where the trial's gravity points: the object frame's -z (the object as it
-#: stands: the project's objects are z-up) or -y (y-up meshes: ShapeNet's, FleX's
+#: stands: the project's objects are z-up; a grasp planned on a table: the
+#: table's down, as the object rests on it) or -y (y-up meshes: ShapeNet's, FleX's
 #: world), along the hand's approach (a pick from above), or nowhere (the shake alone).
 DOWN = ("-z", "-y", "approach", "none")
 

@@ -63,6 +63,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from planner.geometry.frames import resting_up
 from planner.geometry.solid import PreparedObject
 from planner.record.grasp import Grasp, Trial
 from planner.sim.mujoco_world import World
@@ -350,7 +351,7 @@ class _Run:
     def _load(self, closed: np.ndarray) -> tuple[bool, tuple[float, float]]:
         """Gravity, lift, shake, hold; (held, (largest motion [m], rotation [rad]) relative to the hand)."""
         w, s, dt = self.world, self.s, self.s.timestep
-        down = down_along(s.down, self.pose[:3, :3] @ self.hand.approach)
+        down = down_along(s.down, self.pose[:3, :3] @ self.hand.approach, resting_up(self.grasp.table_plane))
         weight = 0.0 if s.down == "none" else GRAVITY
         worst = [0.0, 0.0]
         every = _steps(CHECK_EVERY, dt)

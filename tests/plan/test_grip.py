@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
+from planner.geometry.frames import UP, resting_up
 from planner.plan import grip
 from planner.plan.closing import Closed, Grasper
 from planner.sim import Sim
@@ -45,14 +46,16 @@ def closed_grip(panda, mesh: trimesh.Trimesh, pose: np.ndarray) -> tuple[Closed,
     return closed, grip.measure(hand, surface, closed.contacts, closed.link_poses or {}, mesh.center_mass)
 
 
-def moved_grip(panda, mesh: trimesh.Trimesh, closed: Closed, motion: np.ndarray) -> grip.Grip:  # type: ignore[no-untyped-def]
-    """The grip of ``closed`` with object and hand both moved by ``motion`` (4, 4) (the samples redrawn)."""
+def moved_grip(panda, mesh: trimesh.Trimesh, closed: Closed, motion: np.ndarray,  # type: ignore[no-untyped-def]
+               up: np.ndarray = UP) -> grip.Grip:
+    """The grip of ``closed`` with object and hand both moved by ``motion`` (4, 4) (the samples redrawn),
+    the object's up as it rests ``up`` (3,) in the moved frame."""
     moved = mesh.copy()
     moved.apply_transform(motion)
     links = {k: motion @ v for k, v in (closed.link_poses or {}).items()}
     contacts = type(closed.contacts)(closed.contacts.points @ motion[:3, :3].T + motion[:3, 3],
                                      closed.contacts.normals @ motion[:3, :3].T, closed.contacts.links)
-    return grip.measure(panda[0], grip.GripSurface(moved), contacts, links, moved.center_mass)
+    return grip.measure(panda[0], grip.GripSurface(moved), contacts, links, moved.center_mass, up)
 
 
 def test_pads_flat_on_a_box_face_each_other_and_the_palm_gap_is_the_box_top(panda) -> None:  # type: ignore[no-untyped-def]
@@ -103,6 +106,26 @@ def test_the_weight_measures_turn_only_with_the_vertical(panda) -> None:  # type
         assert again.com_height == pytest.approx(base.com_height, abs=1e-4)
         assert again.gravity_arm == pytest.approx(base.gravity_arm, abs=1e-4)
     assert abs(base.com_height) > 1e-3 and base.gravity_arm > 1e-3
+
+
+def test_on_a_table_the_weight_measures_read_the_tables_up(panda) -> None:  # type: ignore[no-untyped-def]
+    """An object resting in another pose (a table's up, object frame): turned with object and grasp, the up turns
+    with them and the weight measures stay; read about the object's own +z instead, they change."""
+    mesh = trimesh.creation.capsule(height=0.04, radius=0.018, count=[16, 16])
+    pose = centred_pose(Rotation.from_euler("xy", [30, 60], degrees=True).as_matrix())
+    pose[:3, 3] -= pose[:3, 2] * 0.012
+    closed, base = closed_grip(panda, mesh, pose)
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        motion = np.eye(4)
+        motion[:3, :3] = Rotation.random(random_state=rng).as_matrix()
+        table = np.r_[motion[:3, :3] @ UP * 2.0, -0.01]  # a table plane (up, offset): the up need not be unit
+        again = moved_grip(panda, mesh, closed, motion, resting_up(table))
+        assert again.com_height == pytest.approx(base.com_height, abs=1e-4)
+        assert again.gravity_arm == pytest.approx(base.gravity_arm, abs=1e-4)
+        plain = moved_grip(panda, mesh, closed, motion)
+        assert abs(plain.com_height - base.com_height) + abs(plain.gravity_arm - base.gravity_arm) > 1e-3
+    assert np.array_equal(resting_up(None), UP)
 
 
 def test_two_walls_fill_the_jaw_more_than_a_block_under_the_same_pads(panda) -> None:  # type: ignore[no-untyped-def]

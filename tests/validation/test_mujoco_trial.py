@@ -279,3 +279,24 @@ def _no_contacts():  # type: ignore[no-untyped-def]
     from planner.record.contacts import HandContacts
 
     return HandContacts(np.zeros((0, 3)), np.zeros((0, 3)), ())
+
+
+def test_a_grasp_planned_on_a_table_is_pulled_along_the_tables_down(pinched, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """The object rests on the table in another pose: the trial's gravity points along the table's down
+    (object frame), not the object frame's -z."""
+    from planner.sim.mujoco_world import World
+
+    hand, obj, grasp = pinched
+    pulled: list[np.ndarray] = []
+    ramp = World.set_gravity
+
+    def record(world: World, g: np.ndarray) -> None:
+        pulled.append(np.array(g, float))
+        ramp(world, g)
+
+    monkeypatch.setattr(World, "set_gravity", record)
+    for plane, down in ((None, [0.0, 0.0, -1.0]), (np.array([1.0, 0.0, 0.0, -0.02]), [-1.0, 0.0, 0.0])):
+        pulled.clear()
+        trial(hand, obj, replace(grasp, table_plane=plane))
+        loaded = [g for g in pulled if np.linalg.norm(g) > 0]
+        assert loaded and all(np.allclose(g / np.linalg.norm(g), down, atol=1e-12) for g in loaded)
