@@ -242,7 +242,6 @@ def _gravity(com: np.ndarray, a: np.ndarray, b: np.ndarray, up: np.ndarray = UP)
     return float(rel @ up), arm
 
 
-
 def _lever(com: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     """Distance [m] from ``com`` to the line through ``a`` and ``b`` (3,) (to ``a`` if they coincide)."""
     axis = b - a
@@ -330,7 +329,7 @@ def _inside(points: np.ndarray, surface: GripSurface) -> np.ndarray:
 
     Most samples in the hull's box are inside it and would need every face:
     an inner polytope (the hull of the vertices extreme along the 13 axes of
-    :data:`_INNER`, a few dozen faces) settles those at least ``INNER`` inside
+    :data:`_EXTREME_AXES`, a few dozen faces) settles those at least ``INNER_MARGIN`` inside
     it first, which are inside the hull for sure; the others take every face.
     """
     try:
@@ -339,13 +338,13 @@ def _inside(points: np.ndarray, surface: GripSurface) -> np.ndarray:
         return np.zeros(0, int)
     idx = surface.box(points.min(axis=0), points.max(axis=0), coarse=True)
     corners = hull.points[hull.vertices]
-    reach = corners @ _INNER.T
+    reach = corners @ _EXTREME_AXES.T
     try:
         inner = _planes(ConvexHull(corners[np.unique(np.r_[reach.argmax(axis=0), reach.argmin(axis=0)])]).equations)
     except QhullError:  # the extreme vertices span no volume: every sample takes every face
         inner = np.zeros((0, 4))
     if len(inner):
-        sure = np.all(surface.coarse[idx] @ inner[:, :3].T + inner[:, 3] <= -INNER, axis=1)
+        sure = np.all(surface.coarse[idx] @ inner[:, :3].T + inner[:, 3] <= -INNER_MARGIN, axis=1)
         return np.union1d(idx[sure], _within(idx[~sure], surface.coarse, _planes(hull.equations)))
     return _within(idx, surface.coarse, _planes(hull.equations))
 
@@ -361,12 +360,12 @@ def _within(idx: np.ndarray, points: np.ndarray, eq: np.ndarray) -> np.ndarray:
 
 
 #: [m] a sample this far inside the inner polytope is inside the hull whatever the round-off (~1e-17 m).
-INNER = 1e-9
+INNER_MARGIN = 1e-9
 #: 13 axes (rows, unit): the coordinate axes, the face and the body diagonals of a cube; the hull's vertices
 #: extreme along them (both ways) span the inner polytope of :func:`_inside`.
-_INNER = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0], [1, -1, 0], [1, 0, 1], [1, 0, -1], [0, 1, 1],
+_EXTREME_AXES = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0], [1, -1, 0], [1, 0, 1], [1, 0, -1], [0, 1, 1],
                    [0, 1, -1], [1, 1, 1], [1, 1, -1], [1, -1, 1], [-1, 1, 1]], float)
-_INNER /= np.linalg.norm(_INNER, axis=1, keepdims=True)
+_EXTREME_AXES /= np.linalg.norm(_EXTREME_AXES, axis=1, keepdims=True)
 
 
 def _palm_gap(hand: HandSpec, shapes: Mapping[str, Hull], link_poses: Mapping[str, np.ndarray],

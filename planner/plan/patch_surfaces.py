@@ -32,8 +32,8 @@ CELL = 0.002
 #: [m] round-off allowance of the cells' triangle-inequality bounds.
 SLACK = 1e-9
 #: Samples per leaf of the object's KD-tree (speed only: any leaf size finds
-#: the same nearest distances; x
-#: query and ~1.25x per 12-nearest query against ~0.7 mm samples).
+#: the same nearest samples; on a Panda sweep's queries 32 reads ~16% less
+#: than scipy's default 16 for the bounds, about as much for 12 nearest).
 LEAF = 32
 #: Vertices with at most this many faces have their sharpness computed all
 #: at once (speed only: the others one by one, the same result).
