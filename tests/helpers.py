@@ -31,6 +31,29 @@ def assert_close(actual: object, expected: object, tol: float = NUM_TOL) -> None
     assert np.allclose(a, e, atol=tol, rtol=0), f"{a} != {e} (tol {tol})"
 
 
+def brute_distances(triangles: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """(n,) [m] the distance of each of ``points`` (n, 3) to the nearest of
+    ``triangles`` (f, 3, 3), every pair tried the plain way: the foot of the
+    perpendicular where it falls inside a triangle, else the nearest point
+    of its three edges (trimesh's ``closest_point`` misses on slivers:
+    0.1 mm seen on a capsule's)."""
+    out = np.empty(len(points))
+    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
+    normal = np.cross(b - a, c - a)
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    for i, p in enumerate(points):
+        foot = p - np.einsum("fk,fk->f", p - a, normal)[:, None] * normal
+        inside = np.ones(len(triangles), bool)
+        for u, v in ((a, b), (b, c), (c, a)):
+            inside &= np.einsum("fk,fk->f", np.cross(v - u, foot - u), normal) >= 0
+        best = np.where(inside, np.linalg.norm(p - foot, axis=1), np.inf)
+        for u, v in ((a, b), (b, c), (c, a)):
+            t = np.clip(np.einsum("fk,fk->f", p - u, v - u) / np.einsum("fk,fk->f", v - u, v - u), 0.0, 1.0)
+            best = np.minimum(best, np.linalg.norm(p - (u + t[:, None] * (v - u)), axis=1))
+        out[i] = best.min()
+    return out
+
+
 def grasp(*args: str) -> tuple[int, str, str]:
     """Run the ``grasp`` command in-process: (exit code, stdout, stderr)."""
     from planner.cli import main

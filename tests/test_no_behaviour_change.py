@@ -42,7 +42,10 @@ against the MuJoCo trial and FleX's labels; the same grasps, other scores
 and ranks); 10 (issue 26: the grip measures com_height and gravity_arm and
 a p_hold model that reads them, 600 trees: stored grasps gain two measures
 and the Panda's get other p_hold, scores and ranks; the digest, made without
-shipped models and without those columns, is 9's).
+shipped models and without those columns, is 9's); 11 (issue 24: contact
+patches from exact closest points, libigl's AABB tree, instead of the
+faces of the nearest dense surface samples: the same grasps, other contacts
+and measures on some).
 """
 
 from __future__ import annotations

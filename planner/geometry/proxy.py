@@ -15,8 +15,8 @@ exports; contact points are moved onto it (:mod:`planner.plan.closing`).
 
 The deviation is measured, not assumed: the largest distance from any of
 ``samples`` area-weighted surface samples and every vertex of either mesh
-to the other surface (an upper bound: the distance to the nearest of a few
-candidate triangles, found through a KD-tree of dense samples).
+to the other surface (exact point-to-mesh distances,
+:mod:`planner.geometry.distance`).
 
 Proxies are cached on disk by the exact mesh's content hash and the
 settings, as ``.npz`` of plain arrays (no pickle).
@@ -32,14 +32,15 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 import trimesh
-from scipy.spatial import cKDTree
 
 from planner import assets, prepare
+from planner.geometry.distance import MeshDistance
 
 log = logging.getLogger(__name__)
 
-#: Bumped when the same mesh and settings would give another proxy.
-PROXY_VERSION = 1
+#: Bumped when the same mesh and settings would give another proxy (2: the
+#: deviation measured exactly, not bounded through candidate triangles).
+PROXY_VERSION = 2
 #: What making a proxy is called in the preparation lines.
 PROXY = "collision proxy (mesh decimation)"
 
@@ -151,8 +152,7 @@ def decimate(mesh: trimesh.Trimesh, faces: int, aggressiveness: int = 1) -> trim
 
 def surface_deviation(a: trimesh.Trimesh, b: trimesh.Trimesh, samples: int = 20_000, seed: int = 0) -> float:
     """[m] the largest distance from ``samples`` area-weighted points and
-    every vertex of each mesh to the other's surface (an upper bound of
-    each distance)."""
+    every vertex of each mesh to the other's surface."""
     rng = np.random.default_rng(seed)
     worst = 0.0
     for one, other in ((a, b), (b, a)):
@@ -171,49 +171,6 @@ def _sample(mesh: trimesh.Trimesh, count: int, rng: np.random.Generator) -> np.n
     return tri[:, 0] + uv[:, :1] * (tri[:, 1] - tri[:, 0]) + uv[:, 1:] * (tri[:, 2] - tri[:, 0])
 
 
-#: Candidate triangles per query point (those of its nearest pieces).
-CANDIDATES = 16
-#: [m] longest edge of the pieces that find the candidate triangles (a face
-#: is split at the middle of its longest edge until its pieces are this short:
-#: a long sliver of a cylinder's side is found wherever a point is along it).
-PIECE = 0.001
-#: At most about this many pieces (a large object gets longer ones).
-MAX_PIECES = 1_000_000
-
-
 def distances(mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
-    """(n,) [m] distance of each point to the nearest of the candidate
-    triangles of ``mesh`` (those of the pieces whose centroids are nearest):
-    exact for points near the surface, never below the truth."""
-    centres, faces = pieces(mesh, max(PIECE, float(np.sqrt(2.0 * mesh.area / MAX_PIECES))))
-    k = min(CANDIDATES, len(centres))
-    _, near = cKDTree(centres).query(points, k=k)
-    cand = faces[np.asarray(near).reshape(len(points), k)]
-    out = np.full(len(points), np.inf)
-    for column in range(k):
-        tri = mesh.triangles[cand[:, column]]
-        closest = trimesh.triangles.closest_point(tri, points)
-        # trimesh's closest point of a sliver can miss its own corner: the corners bound it too
-        corner = np.linalg.norm(tri - points[:, None], axis=2).min(axis=1)
-        out = np.minimum(out, np.minimum(np.linalg.norm(closest - points, axis=1), corner))
-    return out
-
-
-def pieces(mesh: trimesh.Trimesh, longest: float) -> tuple[np.ndarray, np.ndarray]:
-    """(centroids (m, 3) [m], face of each (m,)) of the mesh's faces split
-    at the middle of their longest edge until no edge is above ``longest``."""
-    tri, face = np.asarray(mesh.triangles, float), np.arange(len(mesh.faces))
-    done_c, done_f = [], []
-    while len(tri):
-        edges = np.linalg.norm(tri - np.roll(tri, -1, axis=1), axis=2)  # edge i: vertex i -> i + 1
-        long = edges.max(axis=1) > longest
-        done_c.append(tri[~long].mean(axis=1))
-        done_f.append(face[~long])
-        tri, face, edges = tri[long], face[long], edges[long]
-        i = np.argmax(edges, axis=1)
-        rows = np.arange(len(tri))
-        a, b, c = tri[rows, i], tri[rows, (i + 1) % 3], tri[rows, (i + 2) % 3]
-        mid = 0.5 * (a + b)
-        tri = np.concatenate([np.stack([a, mid, c], axis=1), np.stack([mid, b, c], axis=1)])
-        face = np.r_[face, face]
-    return np.vstack(done_c), np.concatenate(done_f)
+    """(n,) [m] the exact distance of each point to the surface of ``mesh``."""
+    return MeshDistance(mesh.vertices, mesh.faces).nearest(points).distance

@@ -5,9 +5,9 @@ The hand side: each contact link's collision surface, sampled once per hand
 in its link frame (:class:`LinkSurface`, meshes replaced by their convex
 hull as PyBullet collides them), its samples grouped in cells that bound
 them together (:class:`Cells`). The object side: the object's triangle
-mesh with a KD-tree of dense surface samples that bounds a point's distance
-and finds the candidate faces of its exact closest point, and which edges
-and vertices are sharp (:class:`ObjectSurface`).
+mesh with an AABB tree that gives a point's exact distance and closest
+point (:mod:`planner.geometry.distance`), and which edges and vertices are
+sharp (:class:`ObjectSurface`).
 """
 
 from __future__ import annotations
@@ -18,23 +18,19 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
-from scipy.spatial import cKDTree
 
+from planner.geometry.distance import MeshDistance
 from planner.specs.hands import HandSpec
 from planner.specs.urdf import load_model
 
-#: [m] a link sample farther than this from every object sample is out of
-#: reach (ObjectSurface.bound's default search radius).
+#: [m] a link sample farther than this from the object is out of reach
+#: (ObjectSurface.distance's default search radius).
 BOUND = 0.02
 #: [m] side of the cells that group a link's samples to bound them together
 #: (speed only: any side gives the same samples).
 CELL = 0.002
 #: [m] round-off allowance of the cells' triangle-inequality bounds.
 SLACK = 1e-9
-#: Samples per leaf of the object's KD-tree (speed only: any leaf size finds
-#: the same nearest samples; on a Panda sweep's queries 32 reads ~16% less
-#: than scipy's default 16 for the bounds, about as much for 12 nearest).
-LEAF = 32
 #: Vertices with at most this many faces have their sharpness computed all
 #: at once (speed only: the others one by one, the same result).
 FEW_FACES = 12
@@ -48,15 +44,13 @@ class PatchSettings:
     palm_spacing: float = 0.002  # the hand's root link is large and flat: coarser samples
     depth: float = 0.001  # patch = samples within (the link's smallest gap + depth) of the object
     touch: float = 0.00025  # a region whose smallest gap exceeds its link's by more does not touch
-    prefilter: float = 0.003  # slack of the sampled-surface distance bound before exact queries
+    prefilter: float = 0.0003  # band slack beyond depth: the penetration closing lets through (MAX_PENETRATION <= depth) and PyBullet's margins
     max_exact: int = 600  # at most this many samples per link get exact gaps (seeded subsample)
     link_radius: float = 0.0025  # samples closer than this are neighbours (> spacing: random samples leave gaps)
     split_angle: float = float(np.radians(30.0))  # neighbours whose normals differ more are separate regions
     small: float = 0.004  # a region narrower than this stays one soft-finger contact
     max_points: int = 4  # extreme points per larger region
     sharp_angle: float = float(np.radians(25.0))  # object edges with faces farther apart are sharp
-    object_spacing: float = 0.0007  # object surface samples that find the candidate triangles
-    max_object_samples: int = 400_000  # a large object gets sparser samples
     seed: int = 0
 
 
@@ -105,10 +99,10 @@ class Cells:
     def reach(self, chosen: np.ndarray, pose: np.ndarray, obj: ObjectSurface,
               within: float) -> tuple[np.ndarray, np.ndarray]:
         """(lower (n,), upper (n,)) [m] bounds of the ``chosen`` cells' samples'
-        bounds at ``pose``, by the triangle inequality about each centroid
-        (inf for cells whose centroid has no object sample within ``within``)."""
+        distances to the object at ``pose``, by the triangle inequality about
+        each centroid (inf for cells whose centroid is farther than ``within``)."""
         radius = self.radius[chosen]
-        reach = obj.bound(self.centres[chosen] @ pose[:3, :3].T + pose[:3, 3], within)
+        reach = obj.distance(self.centres[chosen] @ pose[:3, :3].T + pose[:3, 3], within)
         return reach - radius - SLACK, reach + radius + SLACK
 
     def members(self, chosen: np.ndarray, among: np.ndarray) -> np.ndarray:
@@ -178,21 +172,15 @@ def _surfaces(urdf: str, links: tuple[str, ...], root: str, settings: PatchSetti
 
 @dataclass
 class ObjectSurface:
-    """The object's triangle mesh and what exact closest points need."""
+    """The object's triangle mesh, its exact closest points and its sharp edges and vertices."""
 
     mesh: trimesh.Trimesh
     settings: PatchSettings = field(default_factory=PatchSettings)
 
     @cached_property
-    def _samples(self) -> tuple[cKDTree, np.ndarray]:
-        """KD-tree of dense surface samples and the face of each: the candidate
-        faces of exact closest points."""
-        s = self.settings
-        count = int(min(np.ceil(self.mesh.area / s.object_spacing**2), s.max_object_samples))
-        points, faces = trimesh.sample.sample_surface(self.mesh, count, seed=s.seed)
-        points = np.vstack([points, self.mesh.triangles_center])  # every face at least once
-        faces = np.r_[np.asarray(faces), np.arange(len(self.mesh.faces))]
-        return cKDTree(points, leafsize=LEAF), faces
+    def _distance(self) -> MeshDistance:
+        """The mesh's AABB tree: exact closest points."""
+        return MeshDistance(self.mesh.vertices, self.mesh.faces)
 
     @cached_property
     def sharp_vertex(self) -> np.ndarray:
@@ -219,60 +207,26 @@ class ObjectSurface:
         return {(int(min(a, b)), int(max(a, b))): bool(angle > self.settings.sharp_angle)
                 for (a, b), angle in zip(m.face_adjacency_edges, m.face_adjacency_angles)}
 
-    def bound(self, points: np.ndarray, within: float = BOUND) -> np.ndarray:
-        """(k,) distance [m] of each point to the nearest surface sample (an
-        upper bound of its distance to the surface, tight to ~the spacing);
-        inf beyond ``within``."""
-        return self._samples[0].query(points, distance_upper_bound=within)[0]
+    def distance(self, points: np.ndarray, within: float = BOUND) -> np.ndarray:
+        """(k,) distance [m] of each point to the surface; inf beyond ``within``."""
+        dist = self._distance.nearest(points).distance
+        return np.where(dist <= within, dist, np.inf)
 
-    def closest(self, points: np.ndarray, k: int = 12) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def closest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(closest (n, 3), signed gap (n,) [m], outward face normal (n, 3),
-        smooth (n,) bool) of points within a few mm of the surface: exact
-        closest points among the faces of the k nearest samples."""
-        closest, gap, tri = self.nearest(points, k)
+        smooth (n,) bool): each point's closest point on the surface, its
+        gap (negative inside: the side the closest face's normal says), the
+        face's normal and whether the surface is smooth there."""
+        closest, gap, tri = self.nearest(points)
         normal = self.mesh.face_normals[tri]
         sign = np.where(np.einsum("ij,ij->i", points - closest, normal) < 0, -1.0, 1.0)
         return closest, sign * gap, normal, self._smooth(closest, tri)
 
-    def nearest(self, points: np.ndarray, k: int = 12) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(closest (n, 3) [m], distance (n,) [m], face (n,)): the nearest
-        point on the faces of the k nearest samples of each point."""
-        cand = self._candidates(points, k)
-        # neighbouring samples mostly share a face: each (point, face) pair once, in (point, face) order
-        order = np.argsort(cand, axis=1, kind="stable")
-        ordered = np.take_along_axis(cand, order, axis=1)
-        first = np.ones(cand.shape, bool)
-        first[:, 1:] = ordered[:, 1:] != ordered[:, :-1]
-        inverse = np.empty(cand.shape, np.int64)
-        np.put_along_axis(inverse, order, (np.cumsum(first.ravel()) - 1).reshape(cand.shape), axis=1)
-        row, face = np.nonzero(first)[0], ordered[first]
-        cp = trimesh.triangles.closest_point(self.mesh.triangles[face], points[row])
-        dist = np.linalg.norm(cp - points[row], axis=1)[inverse]  # (n, k): each pair's distance computed once
-        best = np.argmin(dist, axis=1)
-        rows = np.arange(len(points))
-        return cp[inverse[rows, best]], dist[rows, best], cand[rows, best]
-
-    def _candidates(self, points: np.ndarray, k: int) -> np.ndarray:
-        """(n, min(k, samples)) the faces of each point's k nearest samples, nearest first."""
-        tree, sample_face = self._samples
-        k = min(k, tree.n)
-        _, near = tree.query(points, k=k)
-        return sample_face[np.asarray(near).reshape(len(points), k)]
-
-    def nearest_reference(self, points: np.ndarray, k: int = 12) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`nearest` the plain way: ``np.unique`` of the (point, face) pairs, the distance of every pair
-        to its point once per sample."""
-        cand = self._candidates(points, k)
-        k = cand.shape[1]
-        pairs, inverse = np.unique(np.arange(len(points))[:, None] * len(self.mesh.faces) + cand,
-                                   return_inverse=True)
-        row, face = np.divmod(pairs, len(self.mesh.faces))
-        cp = trimesh.triangles.closest_point(self.mesh.triangles[face], points[row])
-        cp = cp[inverse.reshape(-1)].reshape(len(points), k, 3)
-        dist = np.linalg.norm(cp - points[:, None], axis=2)
-        best = np.argmin(dist, axis=1)
-        rows = np.arange(len(points))
-        return cp[rows, best], dist[rows, best], cand[rows, best]
+    def nearest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(closest (n, 3) [m], distance (n,) [m], face (n,)): the exact
+        closest point of each point on the mesh."""
+        found = self._distance.nearest(points)
+        return found.points, found.distance, found.face
 
     def _smooth(self, closest: np.ndarray, tri: np.ndarray) -> np.ndarray:
         bary = trimesh.triangles.points_to_barycentric(self.mesh.triangles[tri], closest)

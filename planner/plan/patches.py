@@ -9,8 +9,9 @@ and 2: :mod:`planner.plan.patch_surfaces`):
    about one sample per ``spacing``^2 (area-weighted, seeded); meshes are
    replaced by their convex hull, as PyBullet collides them.
 2. The samples are moved by the link's pose and their signed gap to the
-   object's triangle mesh is computed: a KD-tree of object surface samples
-   bounds it, exact closest points on the candidate triangles give it.
+   object's triangle mesh is computed: exact closest points (an AABB tree of
+   the mesh, :mod:`planner.geometry.distance`), first for cells of samples
+   to skip those far from the object.
 3. The link's patch is its samples within ``depth`` of its own smallest gap
    (closing stops each link a fraction of a millimetre short; a pad pressed
    on the object flattens by about as much).
@@ -58,8 +59,9 @@ from planner.specs.hands import HandSpec
 __all__ = ["ObjectSurface", "PatchSettings", "Region", "collision_mesh", "discretise", "extreme_points",
            "hand_surfaces", "link_regions", "regions"]
 
-#: [m] the first, short search radius of a link's samples to the object's
-#: (ObjectSurface.bound): links in contact need no more (speed only).
+#: [m] the first, short search radius of a link's samples to the object
+#: (ObjectSurface.distance): links in contact need no more (speed only); and
+#: how far outside the object's bounding box a sample may lie and still count.
 NEAR_SEARCH = 0.006
 
 
@@ -87,7 +89,7 @@ def link_regions(link: str, surface: LinkSurface, pose: np.ndarray, obj: ObjectS
     s = obj.settings
     lo, hi = obj.mesh.bounds
     points = surface.points @ pose[:3, :3].T + pose[:3, 3]
-    idx = np.flatnonzero(np.all((points > lo - s.prefilter) & (points < hi + s.prefilter), axis=1))
+    idx = np.flatnonzero(np.all((points > lo - NEAR_SEARCH) & (points < hi + NEAR_SEARCH), axis=1))
     if len(idx) == 0:
         return []
     idx = _band(surface, pose, points, idx, obj)
@@ -118,14 +120,15 @@ def link_regions(link: str, surface: LinkSurface, pose: np.ndarray, obj: ObjectS
 
 def _band(surface: LinkSurface, pose: np.ndarray, points: np.ndarray, idx: np.ndarray,
           obj: ObjectSurface) -> np.ndarray:
-    """The samples ``idx`` (ascending) whose bound is within depth + prefilter
-    of the smallest bound of them all; none when no bound is below ``BOUND``.
+    """The samples ``idx`` (ascending) whose distance to the object is
+    within depth + prefilter of the smallest distance of them all; none
+    when none is below ``BOUND``.
 
-    The same samples as bounding each of them (:func:`_band_reference`), but
-    cells of the link's samples bound whole groups first (triangle
-    inequality: a sample's bound is its cell centre's within the cell's
-    radius), so only the cells near the smallest bound and those straddling
-    the band's edge need their samples' own bounds.
+    The same samples as measuring each of them (:func:`_band_reference`),
+    but cells of the link's samples bound whole groups first (triangle
+    inequality: a sample's distance is its cell centre's within the cell's
+    radius), so only the cells near the smallest distance and those
+    straddling the band's edge need their samples' own distances.
     """
     s = obj.settings
     cells = surface.cells
@@ -140,22 +143,22 @@ def _band(surface: LinkSurface, pose: np.ndarray, points: np.ndarray, idx: np.nd
         lower, upper = cells.reach(chosen, pose, obj, BOUND + cells.radius.max() + SLACK)
     if not np.isfinite(upper).any():
         return idx[:0]
-    # a sample's bound is exact whatever the search radius it is found within
-    near = cells.members(chosen[lower <= upper.min()], inside)  # the smallest bound lies in these cells
-    bound = obj.bound(points[near], min(upper.min(), BOUND))
+    # a sample's distance is exact whatever the search radius it is found within
+    near = cells.members(chosen[lower <= upper.min()], inside)  # the smallest distance lies in these cells
+    bound = obj.distance(points[near], min(upper.min(), BOUND))
     if not np.isfinite(bound).any():
         return idx[:0]
     limit = bound.min() + s.depth + s.prefilter
     whole = (upper <= limit) & (upper < BOUND)  # every sample of the cell is in the band
     edge = cells.members(chosen[(lower <= limit) & ~whole], inside)
     return np.union1d(cells.members(chosen[whole], inside),
-                      edge[obj.bound(points[edge], min(limit + SLACK, BOUND)) <= limit])
+                      edge[obj.distance(points[edge], min(limit + SLACK, BOUND)) <= limit])
 
 
 def _band_reference(points: np.ndarray, idx: np.ndarray, obj: ObjectSurface) -> np.ndarray:
-    """:func:`_band` the plain way: every sample's bound."""
+    """:func:`_band` the plain way: every sample's distance."""
     s = obj.settings
-    bound = obj.bound(points[idx], BOUND)
+    bound = obj.distance(points[idx], BOUND)
     if not np.isfinite(bound).any():
         return idx[:0]
     return idx[bound <= bound.min() + s.depth + s.prefilter]

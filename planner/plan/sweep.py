@@ -53,7 +53,10 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: objects against the MuJoCo trial and FleX's labels); the same grasps, other scores and ranks.
 #: 10: the grip measures com_height and gravity_arm, read by a p_hold model with 600 trees (issue 26); the
 #: same grasps with two more measures, other p_hold, scores and ranks of the Panda's.
-ALGORITHM_VERSION = 10
+#: 11: contact patches read with exact closest points (libigl's AABB tree, planner.geometry.distance)
+#: instead of the faces of the 12 nearest of dense surface samples, with trimesh's closest point, which
+#: misses on slivers (issue 24: faster; the same poses, other contacts on some grasps).
+ALGORITHM_VERSION = 11
 
 #: Named in the digest of sweeps on a table only (those of the object alone stay
 #: as they were), bumped when a change alters only which grasps they produce.

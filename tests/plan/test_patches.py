@@ -1,13 +1,13 @@
 """Contact patches: a flat pad on a box face is an area (>= 3 non-collinear
 contacts, force closure), the legacy point reading stays available, small
 regions become soft fingers, extreme points of a rectangle are its corners,
-the cells' short cut finds the samples near the object that bounding every
+the cells' short cut finds the samples near the object that measuring every
 sample finds."""
 
 import numpy as np
 import pytest
 import trimesh
-from helpers import SIM_TOL
+from helpers import NUM_TOL, SIM_TOL, brute_distances
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
@@ -16,6 +16,7 @@ from planner.geometry.solid import load_object
 from planner.plan.closing import Closed, CloseSettings, Grasper
 from planner.plan.contacts import HandContacts, contact_models
 from planner.plan.patches import (
+    NEAR_SEARCH,
     ObjectSurface,
     PatchSettings,
     Region,
@@ -101,7 +102,7 @@ def test_a_small_region_is_one_soft_contact_with_torsion_from_its_size() -> None
        st.floats(-0.01, 0.03))
 def test_the_cell_bounded_band_is_the_band_of_every_sample(x: float, y: float, z: float, angle: float,
                                                           lift: float) -> None:
-    """The samples near the object that the cells find are those that bounding
+    """The samples near the object that the cells find are those that measuring
     every sample finds, the finger placed anywhere near the box's top face
     (touching, tilted, far)."""
     hand, obj = load_hand("panda"), load_object("box")
@@ -112,16 +113,20 @@ def test_the_cell_bounded_band_is_the_band_of_every_sample(x: float, y: float, z
     pose[:3, :3] = Rotation.from_rotvec(axis / np.linalg.norm(axis) * angle).as_matrix()
     pose[:3, 3] = [0.0, 0.0, obj.mesh.bounds[1, 2] + lift]
     points = finger.points @ pose[:3, :3].T + pose[:3, 3]
-    lo, hi = obj.mesh.bounds - np.array([[PatchSettings.prefilter], [-PatchSettings.prefilter]])
+    lo, hi = obj.mesh.bounds - np.array([[NEAR_SEARCH], [-NEAR_SEARCH]])
     idx = np.flatnonzero(np.all((points > lo) & (points < hi), axis=1))
     assert np.array_equal(_band(finger, pose, points, idx, surface), _band_reference(points, idx, surface))
 
 
 @settings(max_examples=25, deadline=None)
-@given(st.integers(0, 2**32 - 1), st.sampled_from(["box", "mug"]), st.sampled_from([1, 3, 12]))
-def test_nearest_equals_the_reference_to_the_bit(seed: int, name: str, k: int) -> None:
-    """The (point, face) pairs deduplicated row by row give the reference's closest points, distances and faces,
-    bit for bit, for points near the surface, on its edges and vertices (where faces tie) and farther out."""
+@given(st.integers(0, 2**32 - 1), st.sampled_from(["box", "mug"]))
+def test_closest_points_are_the_nearest_of_every_face(seed: int, name: str) -> None:
+    """The object's closest points are the nearest of all its faces' closest
+    points (every face tried), for points near the surface, on its edges and
+    vertices (where faces tie: the distance agrees) and farther out; on the box, a signed gap whose closest point lies inside a
+    face is negative inside the box and positive outside (the mug's walls are
+    thinner than the points' spread: trimesh's ``contains`` is no oracle
+    there)."""
     surface = ObjectSurface(load_object(name).mesh)
     mesh = surface.mesh
     rng = np.random.default_rng(seed)
@@ -130,6 +135,17 @@ def test_nearest_equals_the_reference_to_the_bit(seed: int, name: str, k: int) -
                         mesh.vertices[rng.integers(len(mesh.vertices), size=50)],  # on vertices: faces tie
                         mesh.vertices[mesh.edges[rng.integers(len(mesh.edges), size=50)]].mean(axis=1),  # edges
                         mesh.centroid + rng.normal(scale=0.05, size=(20, 3))])
-    got, want = surface.nearest(points, k), surface.nearest_reference(points, k)
-    for a, b in zip(got, want):
-        assert a.dtype == b.dtype and np.array_equal(a, b)
+    closest, distance, face = surface.nearest(points)
+    want = brute_distances(mesh.triangles, points)
+    assert np.allclose(distance, want, rtol=0, atol=NUM_TOL)
+    assert np.allclose(np.linalg.norm(closest - points, axis=1), distance, rtol=0, atol=NUM_TOL)
+    on_face = [brute_distances(mesh.triangles[f][None], c[None])[0] for f, c in zip(face, closest)]
+    assert np.allclose(on_face, 0.0, atol=NUM_TOL)  # the closest point lies on the face said
+    if name != "box":
+        return
+    gap = surface.closest(points)[1]
+    interior = (trimesh.triangles.points_to_barycentric(mesh.triangles[face], closest) > 1e-6).all(axis=1)
+    sure = interior & (want > 1e-4)
+    contained = mesh.contains(points)
+    assert sure.sum() > 100
+    assert (gap[sure & contained] < 0).all() and (gap[sure & ~contained] > 0).all()
