@@ -44,7 +44,9 @@ class PatchSettings:
     palm_spacing: float = 0.002  # the hand's root link is large and flat: coarser samples
     depth: float = 0.001  # patch = samples within (the link's smallest gap + depth) of the object
     touch: float = 0.00025  # a region whose smallest gap exceeds its link's by more does not touch
-    prefilter: float = 0.0003  # band slack beyond depth: the penetration closing lets through (MAX_PENETRATION <= depth) and PyBullet's margins
+    # the band's slack beyond depth: closing lets penetrations up to MAX_PENETRATION (<= depth) through, and
+    # PyBullet's margins a little more
+    prefilter: float = 0.0003
     max_exact: int = 600  # at most this many samples per link get exact gaps (seeded subsample)
     link_radius: float = 0.0025  # samples closer than this are neighbours (> spacing: random samples leave gaps)
     split_angle: float = float(np.radians(30.0))  # neighbours whose normals differ more are separate regions

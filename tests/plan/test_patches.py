@@ -123,10 +123,10 @@ def test_the_cell_bounded_band_is_the_band_of_every_sample(x: float, y: float, z
 def test_closest_points_are_the_nearest_of_every_face(seed: int, name: str) -> None:
     """The object's closest points are the nearest of all its faces' closest
     points (every face tried), for points near the surface, on its edges and
-    vertices (where faces tie: the distance agrees) and farther out; on the box, a signed gap whose closest point lies inside a
-    face is negative inside the box and positive outside (the mug's walls are
-    thinner than the points' spread: trimesh's ``contains`` is no oracle
-    there)."""
+    vertices (where faces tie: the distance agrees) and farther out; on the
+    box, a signed gap whose closest point lies inside a face is negative
+    inside the box and positive outside (the mug's walls are thinner than
+    the points' spread: trimesh's ``contains`` is no oracle there)."""
     surface = ObjectSurface(load_object(name).mesh)
     mesh = surface.mesh
     rng = np.random.default_rng(seed)
