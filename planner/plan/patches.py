@@ -56,13 +56,14 @@ from planner.plan.patch_surfaces import (
 from planner.record.contacts import HandContacts
 from planner.specs.hands import HandSpec
 
-__all__ = ["ObjectSurface", "PatchSettings", "Region", "collision_mesh", "discretise", "extreme_points",
+__all__ = ["BOX_MARGIN", "ObjectSurface", "PatchSettings", "Region", "collision_mesh", "discretise", "extreme_points",
            "hand_surfaces", "link_regions", "regions"]
 
-#: [m] the first, short search radius of a link's samples to the object
-#: (ObjectSurface.distance): links in contact need no more (speed only); and
-#: how far outside the object's bounding box a sample may lie and still count.
-NEAR_SEARCH = 0.006
+#: [m] how far outside the object's bounding box a link sample is still
+#: measured (a touching link's band lies within depth + prefilter of the
+#: surface, its smallest gap within closing's contact tolerance: 3 mm is ample;
+#: speed only).
+BOX_MARGIN = 0.003
 
 
 @dataclass(frozen=True)
@@ -89,7 +90,7 @@ def link_regions(link: str, surface: LinkSurface, pose: np.ndarray, obj: ObjectS
     s = obj.settings
     lo, hi = obj.mesh.bounds
     points = surface.points @ pose[:3, :3].T + pose[:3, 3]
-    idx = np.flatnonzero(np.all((points > lo - NEAR_SEARCH) & (points < hi + NEAR_SEARCH), axis=1))
+    idx = np.flatnonzero(np.all((points > lo - BOX_MARGIN) & (points < hi + BOX_MARGIN), axis=1))
     if len(idx) == 0:
         return []
     idx = _band(surface, pose, points, idx, obj)
@@ -137,10 +138,7 @@ def _band(surface: LinkSurface, pose: np.ndarray, points: np.ndarray, idx: np.nd
     inside = np.zeros(len(points), bool)
     inside[idx] = True
     chosen = np.flatnonzero(np.bincount(cells.cell[idx], minlength=len(cells.centres)))
-    # a short search first: touching links need no more
-    lower, upper = cells.reach(chosen, pose, obj, NEAR_SEARCH + cells.radius.max() + SLACK)
-    if upper.min() + s.depth + s.prefilter >= NEAR_SEARCH - SLACK:  # cells out of the short search may count
-        lower, upper = cells.reach(chosen, pose, obj, BOUND + cells.radius.max() + SLACK)
+    lower, upper = cells.reach(chosen, pose, obj, BOUND + cells.radius.max() + SLACK)
     if not np.isfinite(upper).any():
         return idx[:0]
     # a sample's distance is exact whatever the search radius it is found within

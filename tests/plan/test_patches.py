@@ -16,7 +16,7 @@ from planner.geometry.solid import load_object
 from planner.plan.closing import Closed, CloseSettings, Grasper
 from planner.plan.contacts import HandContacts, contact_models
 from planner.plan.patches import (
-    NEAR_SEARCH,
+    BOX_MARGIN,
     ObjectSurface,
     PatchSettings,
     Region,
@@ -113,7 +113,7 @@ def test_the_cell_bounded_band_is_the_band_of_every_sample(x: float, y: float, z
     pose[:3, :3] = Rotation.from_rotvec(axis / np.linalg.norm(axis) * angle).as_matrix()
     pose[:3, 3] = [0.0, 0.0, obj.mesh.bounds[1, 2] + lift]
     points = finger.points @ pose[:3, :3].T + pose[:3, 3]
-    lo, hi = obj.mesh.bounds - np.array([[NEAR_SEARCH], [-NEAR_SEARCH]])
+    lo, hi = obj.mesh.bounds - np.array([[BOX_MARGIN], [-BOX_MARGIN]])
     idx = np.flatnonzero(np.all((points > lo) & (points < hi), axis=1))
     assert np.array_equal(_band(finger, pose, points, idx, surface), _band_reference(points, idx, surface))
 
