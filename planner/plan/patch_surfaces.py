@@ -219,10 +219,14 @@ class ObjectSurface:
         smooth (n,) bool): each point's closest point on the surface, its
         gap (negative inside: the side the closest face's normal says), the
         face's normal and whether the surface is smooth there."""
-        closest, gap, tri = self.nearest(points)
-        normal = self.mesh.face_normals[tri]
+        return self.signed(points, *self.nearest(points))
+
+    def signed(self, points: np.ndarray, closest: np.ndarray, distance: np.ndarray,
+               face: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`closest` of ``points`` (n, 3) from their :meth:`nearest`."""
+        normal = self.mesh.face_normals[face]
         sign = np.where(np.einsum("ij,ij->i", points - closest, normal) < 0, -1.0, 1.0)
-        return closest, sign * gap, normal, self._smooth(closest, tri)
+        return closest, sign * distance, normal, self._smooth(closest, face)
 
     def nearest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(closest (n, 3) [m], distance (n,) [m], face (n,)): the exact

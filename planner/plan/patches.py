@@ -93,14 +93,15 @@ def link_regions(link: str, surface: LinkSurface, pose: np.ndarray, obj: ObjectS
     idx = np.flatnonzero(np.all((points > lo - BOX_MARGIN) & (points < hi + BOX_MARGIN), axis=1))
     if len(idx) == 0:
         return []
-    idx = _band(surface, pose, points, idx, obj)
+    idx, nearest = _band(surface, pose, points, idx, obj)
     if len(idx) == 0:
         return []
     weight = 1.0
     if len(idx) > s.max_exact:  # a large flat patch: a seeded subsample keeps its shape and area
         weight = len(idx) / s.max_exact
-        idx = np.sort(np.random.default_rng(s.seed).choice(idx, s.max_exact, replace=False))
-    closest, gap, face_normal, smooth = obj.closest(points[idx])
+        at = np.searchsorted(idx, np.sort(np.random.default_rng(s.seed).choice(idx, s.max_exact, replace=False)))
+        idx, nearest = idx[at], tuple(a[at] for a in nearest)
+    closest, gap, face_normal, smooth = obj.signed(points[idx], *nearest)
     floor = max(float(gap.min()), 0.0)
     keep = gap <= floor + s.depth
     idx, closest, gap, face_normal, smooth = idx[keep], closest[keep], gap[keep], face_normal[keep], smooth[keep]
@@ -120,37 +121,35 @@ def link_regions(link: str, surface: LinkSurface, pose: np.ndarray, obj: ObjectS
 
 
 def _band(surface: LinkSurface, pose: np.ndarray, points: np.ndarray, idx: np.ndarray,
-          obj: ObjectSurface) -> np.ndarray:
+          obj: ObjectSurface) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """The samples ``idx`` (ascending) whose distance to the object is
-    within depth + prefilter of the smallest distance of them all; none
-    when none is below ``BOUND``.
+    within depth + prefilter of the smallest distance of them all (none
+    when none is within ``BOUND``), and their :meth:`ObjectSurface.nearest`.
 
     The same samples as measuring each of them (:func:`_band_reference`),
     but cells of the link's samples bound whole groups first (triangle
     inequality: a sample's distance is its cell centre's within the cell's
-    radius), so only the cells near the smallest distance and those
-    straddling the band's edge need their samples' own distances.
+    radius): the smallest distance is at most the least upper bound of a
+    cell, so only the cells whose lower bound is within depth + prefilter of
+    that can hold samples of the band, and only their samples are measured.
     """
     s = obj.settings
     cells = surface.cells
+    none = idx[:0], (np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64))
     if len(idx) == 0:
-        return idx
+        return none
     inside = np.zeros(len(points), bool)
     inside[idx] = True
     chosen = np.flatnonzero(np.bincount(cells.cell[idx], minlength=len(cells.centres)))
     lower, upper = cells.reach(chosen, pose, obj, BOUND + cells.radius.max() + SLACK)
     if not np.isfinite(upper).any():
-        return idx[:0]
-    # a sample's distance is exact whatever the search radius it is found within
-    near = cells.members(chosen[lower <= upper.min()], inside)  # the smallest distance lies in these cells
-    bound = obj.distance(points[near], min(upper.min(), BOUND))
-    if not np.isfinite(bound).any():
-        return idx[:0]
-    limit = bound.min() + s.depth + s.prefilter
-    whole = (upper <= limit) & (upper < BOUND)  # every sample of the cell is in the band
-    edge = cells.members(chosen[(lower <= limit) & ~whole], inside)
-    return np.union1d(cells.members(chosen[whole], inside),
-                      edge[obj.distance(points[edge], min(limit + SLACK, BOUND)) <= limit])
+        return none
+    maybe = cells.members(chosen[lower <= upper.min() + s.depth + s.prefilter + SLACK], inside)
+    closest, distance, face = obj.nearest(points[maybe])
+    if distance.min() > BOUND:
+        return none
+    keep = (distance <= distance.min() + s.depth + s.prefilter) & (distance <= BOUND)
+    return maybe[keep], (closest[keep], distance[keep], face[keep])
 
 
 def _band_reference(points: np.ndarray, idx: np.ndarray, obj: ObjectSurface) -> np.ndarray:

@@ -115,7 +115,10 @@ def test_the_cell_bounded_band_is_the_band_of_every_sample(x: float, y: float, z
     points = finger.points @ pose[:3, :3].T + pose[:3, 3]
     lo, hi = obj.mesh.bounds - np.array([[BOX_MARGIN], [-BOX_MARGIN]])
     idx = np.flatnonzero(np.all((points > lo) & (points < hi), axis=1))
-    assert np.array_equal(_band(finger, pose, points, idx, surface), _band_reference(points, idx, surface))
+    band, (closest, distance, face) = _band(finger, pose, points, idx, surface)
+    assert np.array_equal(band, _band_reference(points, idx, surface))
+    want = surface.nearest(points[band])
+    assert all(np.array_equal(a, b) for a, b in zip((closest, distance, face), want))
 
 
 @settings(max_examples=25, deadline=None)
