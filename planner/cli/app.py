@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import sqlite3
 import sys
 import traceback
@@ -21,6 +22,7 @@ from planner.errors import DatabaseError, InputError, PlannerError
 #: input, 3 database, 4 simulator).
 EXIT_OTHER = 1  # anything else: an internal error, or nothing found
 EXIT_INTERRUPTED = 130
+EXIT_PIPE = 141  # the reader of the output went away (`grasp best | head`): 128 + SIGPIPE, as shell tools exit
 
 
 class Group(click.Group):
@@ -44,6 +46,9 @@ class Group(click.Group):
             _traceback(debug)
             click.echo(f"grasp: error: database: {exc}", err=True)
             ctx.exit(DatabaseError.exit_code)
+        except BrokenPipeError:  # nothing to say: whoever would read it has gone; stdout must not flush again
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            ctx.exit(EXIT_PIPE)
         except KeyboardInterrupt:
             click.echo("grasp: interrupted; finished units are saved, run the same command to resume", err=True)
             ctx.exit(EXIT_INTERRUPTED)

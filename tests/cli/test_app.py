@@ -76,3 +76,19 @@ def test_the_api_refuses_zero_workers_too(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="--workers must be at least 1, got 0"):
         api.generate(["box"], "panda", db_path=tmp_path / "g.db", workers=0)
     assert not (tmp_path / "g.db").exists()
+
+
+@pytest.mark.parametrize("args", [["objects"], ["hands", "panda"]])
+def test_a_reader_that_goes_away_gets_no_error(args: list[str]) -> None:
+    """`grasp ... | head`: once the reader has closed the pipe, the command stops
+    quietly with 128 + SIGPIPE, as shell tools do (not an internal error)."""
+    import subprocess
+    import sys
+
+    from planner.cli.app import EXIT_PIPE
+
+    child = subprocess.Popen([sys.executable, "-m", "planner.cli", *args], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE)
+    child.stdout.close()  # type: ignore[union-attr]
+    err = child.stderr.read().decode()  # type: ignore[union-attr]
+    assert child.wait() == EXIT_PIPE and err == ""
