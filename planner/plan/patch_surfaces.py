@@ -12,6 +12,7 @@ sharp (:class:`ObjectSurface`).
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field
 from functools import cache, cached_property
 from pathlib import Path
@@ -19,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from planner.geometry.distance import MeshDistance
+from planner.geometry.distance import DistanceBounds, MeshDistance
 from planner.specs.hands import HandSpec
 from planner.specs.urdf import load_model
 
@@ -31,6 +32,19 @@ BOUND = 0.02
 CELL = 0.002
 #: [m] round-off allowance of the cells' triangle-inequality bounds.
 SLACK = 1e-9
+#: [m] how far beyond the object's bounding box the grid of distance bounds
+#: reaches (the cells a band looks at lie within BOX_MARGIN of the box, their
+#: centroids within a cell's radius more; speed only: points beyond get looser
+#: bounds from the border's nodes).
+GRID_MARGIN = 0.006
+#: Largest number of nodes of an object's grid of distance bounds (8 bytes
+#: each; a large object's nodes are spaced wider than ``CELL``; speed only).
+GRID_NODES = 2**21
+#: [m] spacing of the grid's nodes (speed only).
+GRID_SPACING = 0.002
+#: Grids of distance bounds a process keeps, by mesh (the most recently used).
+KEPT_GRIDS = 4
+_GRIDS: dict[str, DistanceBounds] = {}
 #: Vertices with at most this many faces have their sharpness computed all
 #: at once (speed only: the others one by one, the same result).
 FEW_FACES = 12
@@ -98,14 +112,17 @@ class Cells:
         np.maximum.at(radius, cell, np.linalg.norm(points - centres[cell], axis=1))
         return cls(cell, centres, radius)
 
-    def reach(self, chosen: np.ndarray, pose: np.ndarray, obj: ObjectSurface,
-              within: float) -> tuple[np.ndarray, np.ndarray]:
+    def reach(self, chosen: np.ndarray, pose: np.ndarray, obj: ObjectSurface) -> tuple[np.ndarray, np.ndarray]:
         """(lower (n,), upper (n,)) [m] bounds of the ``chosen`` cells' samples'
-        distances to the object at ``pose``, by the triangle inequality about
-        each centroid (inf for cells whose centroid is farther than ``within``)."""
+        distances to the object at ``pose``: the bounds of each centroid's
+        (:meth:`ObjectSurface.bounds`) widened by the cell's radius (triangle
+        inequality); both inf for cells whose samples are all farther than
+        ``BOUND``."""
         radius = self.radius[chosen]
-        reach = obj.distance(self.centres[chosen] @ pose[:3, :3].T + pose[:3, 3], within)
-        return reach - radius - SLACK, reach + radius + SLACK
+        lower, upper = obj.bounds(self.centres[chosen] @ pose[:3, :3].T + pose[:3, 3])
+        lower, upper = lower - radius - SLACK, upper + radius + SLACK
+        far = lower > BOUND
+        return np.where(far, np.inf, lower), np.where(far, np.inf, upper)
 
     def members(self, chosen: np.ndarray, among: np.ndarray) -> np.ndarray:
         """(n,) ascending indices of the samples in ``among`` (k,) bool that
@@ -185,6 +202,23 @@ class ObjectSurface:
         return MeshDistance(self.mesh.vertices, self.mesh.faces)
 
     @cached_property
+    def _bounds(self) -> DistanceBounds:
+        """Bounds of distances near the object, from a grid of exact ones,
+        shared by every ObjectSurface of the same mesh in this process (a
+        sweep's units of one object fill one grid)."""
+        m = self.mesh
+        key = hashlib.sha256(np.ascontiguousarray(m.vertices, float).tobytes()
+                             + np.ascontiguousarray(m.faces, np.int64).tobytes()).hexdigest()
+        grid = _GRIDS.pop(key, None)
+        if grid is None:
+            lo, hi = m.bounds
+            grid = DistanceBounds.around(self._distance, lo - GRID_MARGIN, hi + GRID_MARGIN, GRID_SPACING, GRID_NODES)
+        _GRIDS[key] = grid  # the most recently used last
+        while len(_GRIDS) > KEPT_GRIDS:
+            _GRIDS.pop(next(iter(_GRIDS)))
+        return grid
+
+    @cached_property
     def sharp_vertex(self) -> np.ndarray:
         """(v,) True where the faces at a vertex spread more than ``sharp_angle``."""
         m, cos = self.mesh, np.cos(self.settings.sharp_angle)
@@ -213,6 +247,11 @@ class ObjectSurface:
         """(k,) distance [m] of each point to the surface; inf beyond ``within``."""
         dist = self._distance.nearest(points).distance
         return np.where(dist <= within, dist, np.inf)
+
+    def bounds(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(lower (k,), upper (k,)) [m] bounds of each point's distance to the
+        surface, without a tree search (:class:`DistanceBounds`)."""
+        return self._bounds.bounds(points)
 
     def closest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(closest (n, 3), signed gap (n,) [m], outward face normal (n, 3),

@@ -129,9 +129,11 @@ def _band(surface: LinkSurface, pose: np.ndarray, points: np.ndarray, idx: np.nd
     The same samples as measuring each of them (:func:`_band_reference`),
     but cells of the link's samples bound whole groups first (triangle
     inequality: a sample's distance is its cell centre's within the cell's
-    radius): the smallest distance is at most the least upper bound of a
-    cell, so only the cells whose lower bound is within depth + prefilter of
-    that can hold samples of the band, and only their samples are measured.
+    radius, and the centre's is bounded by the object's grid of exact
+    distances, :meth:`ObjectSurface.bounds`, without a tree search): the
+    smallest distance is at most the least upper bound of a cell, so only
+    the cells whose lower bound is within depth + prefilter of that can hold
+    samples of the band, and only their samples are measured exactly.
     """
     s = obj.settings
     cells = surface.cells
@@ -141,7 +143,7 @@ def _band(surface: LinkSurface, pose: np.ndarray, points: np.ndarray, idx: np.nd
     inside = np.zeros(len(points), bool)
     inside[idx] = True
     chosen = np.flatnonzero(np.bincount(cells.cell[idx], minlength=len(cells.centres)))
-    lower, upper = cells.reach(chosen, pose, obj, BOUND + cells.radius.max() + SLACK)
+    lower, upper = cells.reach(chosen, pose, obj)
     if not np.isfinite(upper).any():
         return none
     maybe = cells.members(chosen[lower <= upper.min() + s.depth + s.prefilter + SLACK], inside)

@@ -1,6 +1,8 @@
 """Exact closest points on a mesh (libigl's AABB tree): known answers on a
 unit cube, every face tried on a random mesh, survives pickling, bad input a
-MeshError."""
+MeshError. The grid of distance bounds: every point's exact distance lies
+between its bounds, in and off the grid, whatever was asked before; exact at
+the nodes; no more nodes than allowed."""
 
 import pickle
 
@@ -12,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from planner.errors import MeshError
-from planner.geometry.distance import MeshDistance
+from planner.geometry.distance import DistanceBounds, MeshDistance
 
 
 def cube() -> MeshDistance:
@@ -60,3 +62,52 @@ def test_a_pickled_tree_answers_the_same() -> None:
 def test_bad_meshes_are_refused(vertices: np.ndarray, faces: np.ndarray) -> None:
     with pytest.raises(MeshError):
         MeshDistance(vertices, faces)
+
+
+def lumpy(seed: int) -> trimesh.Trimesh:
+    rng = np.random.default_rng(seed)
+    mesh = trimesh.creation.icosphere(2, 0.05)
+    mesh.vertices += rng.normal(scale=0.008, size=mesh.vertices.shape)
+    return mesh
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.floats(0.001, 0.02))
+def test_the_exact_distance_lies_between_the_grids_bounds(seed: int, spacing: float) -> None:
+    """Points near the surface, inside it and far off the grid (clamped to its
+    border), asked in two orders on two grids: the same bounds, around the
+    exact distance, and the gap between them at most a node's diagonal
+    inside the grid."""
+    mesh = lumpy(seed)
+    tree = MeshDistance(mesh.vertices, mesh.faces)
+    rng = np.random.default_rng(seed)
+    lo, hi = mesh.bounds
+    points = np.vstack([rng.uniform(lo - 0.01, hi + 0.01, size=(200, 3)), rng.normal(scale=0.3, size=(20, 3))])
+    exact = brute_distances(mesh.triangles, points)
+    first = DistanceBounds.around(tree, lo - 0.01, hi + 0.01, spacing, 10**6)
+    lower, upper = first.bounds(points)
+    assert (lower <= exact + NUM_TOL).all() and (exact <= upper + NUM_TOL).all()
+    inside = np.all((points >= lo - 0.01) & (points <= hi + 0.01), axis=1)
+    assert (upper - lower)[inside].max() <= np.sqrt(3.0) * first.spacing + NUM_TOL
+    second = DistanceBounds.around(tree, lo - 0.01, hi + 0.01, spacing, 10**6)
+    order = rng.permutation(len(points))
+    for half in np.array_split(order, 2):  # the other order, in two parts
+        again = second.bounds(points[half])
+        assert np.array_equal(again[0], lower[half]) and np.array_equal(again[1], upper[half])
+
+
+def test_at_a_node_both_bounds_are_the_exact_distance() -> None:
+    mesh = lumpy(1)
+    tree = MeshDistance(mesh.vertices, mesh.faces)
+    grid = DistanceBounds.around(tree, [-0.1, -0.1, -0.1], [0.1, 0.1, 0.1], 0.01, 10**6)
+    nodes = grid.origin + np.array([[0, 0, 0], [3, 10, 7], [20, 20, 20]]) * grid.spacing
+    lower, upper = grid.bounds(nodes)
+    assert np.array_equal(lower, upper)
+    assert np.allclose(lower, brute_distances(mesh.triangles, nodes), atol=NUM_TOL)
+
+
+def test_a_large_box_gets_wider_spacing_not_more_nodes() -> None:
+    grid = DistanceBounds.around(cube(), [-1.0, -2.0, -3.0], [1.0, 2.0, 3.0], 0.001, 50_000)
+    assert np.prod(grid.shape) <= 50_000 and grid.spacing > 0.001
+    last = grid.origin + (np.array(grid.shape) - 1) * grid.spacing  # the box is covered, not much more
+    assert np.all(last >= [1.0, 2.0, 3.0]) and np.all(last - grid.spacing < [1.0, 2.0, 3.0])
