@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
+from scipy.spatial import cKDTree
 
 from planner.geometry.distance import DistanceBounds, MeshDistance
 from planner.specs.hands import HandSpec
@@ -81,6 +82,28 @@ class LinkSurface:
     points: np.ndarray
     normals: np.ndarray
     area: np.ndarray
+    _near: dict[float, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict, compare=False, repr=False,
+                                                              hash=False)
+
+    def pairs_among(self, idx: np.ndarray, radius: float) -> np.ndarray:
+        """(p, 2) positions in ``idx`` (ascending sample indices) of the pairs
+        of those samples at most ``radius`` [m] apart, first < second: the
+        pairs of the whole surface, found once per radius in the link frame
+        (a pose moves no distance), kept where both ends are in ``idx``."""
+        if radius not in self._near:
+            pairs = cKDTree(self.points).query_pairs(radius, output_type="ndarray")
+            pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+            self._near[radius] = (np.searchsorted(pairs[:, 0], np.arange(len(self.points) + 1)), pairs[:, 1])
+        start, partner = self._near[radius]
+        first, last = start[idx], start[idx + 1]
+        count = last - first
+        rows = np.repeat(np.arange(len(idx)), count)
+        at = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count) + np.repeat(first, count)
+        position = np.full(len(self.points), -1)
+        position[idx] = np.arange(len(idx))
+        cols = position[partner[at]]
+        keep = cols >= 0
+        return np.column_stack([rows[keep], cols[keep]])
 
     @cached_property
     def cells(self) -> Cells:

@@ -39,7 +39,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import coo_matrix
+from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
@@ -107,7 +107,9 @@ def link_regions(link: str, surface: LinkSurface, pose: np.ndarray, obj: ObjectS
     idx, closest, gap, face_normal, smooth = idx[keep], closest[keep], gap[keep], face_normal[keep], smooth[keep]
     link_normal = surface.normals[idx] @ pose[:3, :3].T
     normals = np.where(smooth[:, None], -face_normal, link_normal)
-    labels = _cluster(points[idx], normals, s.link_radius * np.sqrt(weight), s.split_angle)
+    # the whole band: its neighbours from the link's own pairs; a subsample: its own, farther apart
+    pairs = surface.pairs_among(idx, s.link_radius) if weight == 1.0 else None
+    labels = _cluster(points[idx], normals, s.link_radius * np.sqrt(weight), s.split_angle, pairs)
     out = []
     for label in np.unique(labels):
         sel = labels == label
@@ -163,13 +165,18 @@ def _band_reference(points: np.ndarray, idx: np.ndarray, obj: ObjectSurface) -> 
     return idx[bound <= bound.min() + s.depth + s.prefilter]
 
 
-def _cluster(points: np.ndarray, normals: np.ndarray, radius: float, split_angle: float) -> np.ndarray:
+def _cluster(points: np.ndarray, normals: np.ndarray, radius: float, split_angle: float,
+             pairs: np.ndarray | None = None) -> np.ndarray:
     """(k,) labels: connected components of samples closer than ``radius``
-    whose normals differ by less than ``split_angle``."""
-    pairs = cKDTree(points).query_pairs(radius, output_type="ndarray") if len(points) > 1 else np.zeros((0, 2), int)
+    whose normals differ by less than ``split_angle``; ``pairs`` (p, 2):
+    the pairs closer than ``radius`` when already known."""
+    if pairs is None:
+        pairs = cKDTree(points).query_pairs(radius, output_type="ndarray") if len(points) > 1 else np.zeros((0, 2), int)
     if len(pairs):
         pairs = pairs[np.einsum("ij,ij->i", normals[pairs[:, 0]], normals[pairs[:, 1]]) > np.cos(split_angle)]
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(points),) * 2)
+        pairs = pairs[np.argsort(pairs[:, 0], kind="stable")]
+    n = len(points)
+    graph = csr_matrix((np.ones(len(pairs)), pairs[:, 1], np.searchsorted(pairs[:, 0], np.arange(n + 1))), shape=(n, n))
     return connected_components(graph, directed=False)[1]
 
 

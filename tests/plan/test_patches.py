@@ -2,7 +2,7 @@
 contacts, force closure), the legacy point reading stays available, small
 regions become soft fingers, extreme points of a rectangle are its corners,
 the cells' short cut finds the samples near the object that measuring every
-sample finds."""
+sample finds, a link's own neighbour pairs are those of its moved samples."""
 
 import numpy as np
 import pytest
@@ -10,6 +10,7 @@ import trimesh
 from helpers import NUM_TOL, SIM_TOL, brute_distances
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from planner.geometry.solid import load_object
@@ -152,3 +153,20 @@ def test_closest_points_are_the_nearest_of_every_face(seed: int, name: str) -> N
     contained = mesh.contains(points)
     assert sure.sum() > 100
     assert (gap[sure & contained] < 0).all() and (gap[sure & ~contained] > 0).all()
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.floats(0.0005, 0.004))
+def test_a_links_own_pairs_are_the_pairs_of_its_moved_samples(seed: int, radius: float) -> None:
+    """Any subset of a finger's samples, moved anywhere: the pairs kept from the
+    link's own are the pairs a tree of the moved subset finds."""
+    finger = hand_surfaces(load_hand("panda"), PatchSettings())["panda_leftfinger"]
+    rng = np.random.default_rng(seed)
+    idx = np.sort(rng.choice(len(finger.points), size=int(rng.integers(2, 400)), replace=False))
+    rotation = Rotation.random(random_state=seed).as_matrix()
+    moved = finger.points[idx] @ rotation.T + rng.normal(scale=0.1, size=3)
+    want = {tuple(p) for p in cKDTree(moved).query_pairs(radius * (1 - 1e-9), output_type="ndarray")}
+    wide = {tuple(p) for p in cKDTree(moved).query_pairs(radius * (1 + 1e-9), output_type="ndarray")}
+    got = {tuple(p) for p in finger.pairs_among(idx, radius)}
+    assert want <= got <= wide  # the same pairs (up to round-off at exactly the radius)
+    assert all(a < b for a, b in got)
