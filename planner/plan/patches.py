@@ -90,7 +90,8 @@ def link_regions(link: str, surface: LinkSurface, pose: np.ndarray, obj: ObjectS
     s = obj.settings
     lo, hi = obj.mesh.bounds
     points = surface.points @ pose[:3, :3].T + pose[:3, 3]
-    idx = np.flatnonzero(np.all((points > lo - BOX_MARGIN) & (points < hi + BOX_MARGIN), axis=1))
+    within = (points > lo - BOX_MARGIN) & (points < hi + BOX_MARGIN)
+    idx = np.flatnonzero(within[:, 0] & within[:, 1] & within[:, 2])  # np.all(axis=1), at half the cost
     if len(idx) == 0:
         return []
     idx, nearest = _band(surface, pose, points, idx, obj)
