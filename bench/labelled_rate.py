@@ -3,6 +3,7 @@ hand, on the built-ins, on random objects and on a scan-like mesh, with the prev
 
     python bench/labelled_rate.py [--tree REV] [--hand panda --hand barrett] [--builtins mug duck box]
                                   [--random 3] [--scan-faces 100000] [--trials 40] [--save] [--previous FILE]
+                                  [--repeat N] [--against REV]
 
 Per hand and object, one child process (one core) of the tree (this checkout, or ``--tree REV`` unpacked with
 ``git archive``) runs one unit of the hand's default sweep (the hand's sampler, preshapes, rolls and settle; the
@@ -26,6 +27,12 @@ Figures, CPU seconds of the child (``time.process_time``), summed over a group's
 
 The run is written to ``--previous`` (default ``bench/labelled_rate.json``) with ``--save``; the next run prints
 those figures beside its own.
+
+A host's CPU time for the same work can move by 5-10% from one run to the next (neighbours on shared hardware). Two
+options make a comparison hold against that: ``--repeat N`` runs each object's child N times and keeps the least
+sweep and the least trial CPU (the work is the same every time: the runs must agree on the counts); ``--against REV``
+runs a second tree beside the first, each object's children alternating between the two trees, and prints that
+tree's figures in the brackets instead of ``--previous``'s (``--save`` still writes the first tree's).
 """
 
 from __future__ import annotations
@@ -107,6 +114,19 @@ def child(obj: str, hand: str, rays: int, trials: int, out: str, engine: str | N
         "timing": r.timing}))
 
 
+def _least(runs: list[dict]) -> dict:
+    """One object's figures from repeated runs of the same work: the least sweep and trial CPU; an error if any run
+    failed or the runs disagree on what they found."""
+    failed = [r for r in runs if r.get("error")]
+    if failed:
+        return failed[0]
+    counts = {(r["candidates"], r["grasps"], r["fc"], r["tested"], r["held"]) for r in runs}
+    if len(counts) > 1:
+        return {"error": f"repeated runs found different grasps: {sorted(counts)}"}
+    return {**runs[0], "sweep": min(r["sweep"] for r in runs), "trial": min(r["trial"] for r in runs),
+            "sweeps": [r["sweep"] for r in runs], "trials": [r["trial"] for r in runs]}
+
+
 def _run(tree: Path, obj: str, hand: str, args: argparse.Namespace, out: Path) -> dict:
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tree), *filter(None, [os.environ.get("PYTHONPATH")])]),
                GRASP_HOME=str(tree))
@@ -172,50 +192,77 @@ def main() -> None:
     parser.add_argument("--previous", type=Path, default=PREVIOUS)
     parser.add_argument("--save", action="store_true", help="write this run to --previous")
     parser.add_argument("--compare", type=Path, help="show these figures beside this run's (default: --previous)")
+    parser.add_argument("--repeat", type=int, default=1, help="runs per object and tree; the least CPU is kept")
+    parser.add_argument("--against", help="a second git commit, run alternately with the first, shown in brackets")
     parser.add_argument("--child", help=argparse.SUPPRESS)
     parser.add_argument("--json-out", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
         child(args.child, args.hand[0], args.rays, args.trials, args.json_out, args.engine)
         return
+    if args.repeat < 1:
+        parser.error("--repeat must be at least 1")
     hands = args.hand or ["panda", "barrett"]
     sys.path.insert(0, str(ROOT / "tests"))
     import scanlike
 
     label = args.tree or "HEAD"
-    print(f"# labelled_rate: tree {label}, hands {hands}, built-ins {args.builtins}, random {args.random}, "
-          f"scan {args.scan_faces} faces, {args.trials} trials per object; {platform.machine()}, "
-          f"{os.cpu_count()} cores, Python {platform.python_version()}")
+    print(f"# labelled_rate: tree {label}{f' against {args.against}' if args.against else ''}, hands {hands}, "
+          f"built-ins {args.builtins}, random {args.random}, scan {args.scan_faces} faces, {args.trials} trials per "
+          f"object, {args.repeat} run(s) each; {platform.machine()}, {os.cpu_count()} cores, "
+          f"Python {platform.python_version()}")
     print(f"# {time.strftime('%Y-%m-%d %H:%M')} start: {uptime()}")
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        tree = unpack(args.tree, folder) if args.tree else ROOT
+        for side in ("tree", "against"):
+            (folder / side).mkdir()
+        tree = unpack(args.tree, folder / "tree") if args.tree else ROOT
+        other = unpack(args.against, folder / "against") if args.against else None
         scan = folder / f"scan_capsule_{args.scan_faces}.obj"
         scan.write_text(scanlike.uv_obj(args.scan_faces))
         objects = {"built-ins": list(args.builtins), "random": [f"random_{i:03d}" for i in range(args.random)],
                    "scan": [str(scan)]}
-        figures: dict = {"tree": label, "date": time.strftime("%Y-%m-%d %H:%M"), "hands": {}, "objects": {}}
-        commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", args.tree or "HEAD"],
-                                capture_output=True, text=True).stdout.strip()
-        figures["commit"] = commit
+        sides = {"tree": (tree, label, args.tree or "HEAD")}
+        if other is not None:
+            sides["against"] = (other, args.against, args.against)
+        runs: dict = {}
+        for side, (_, name, rev) in sides.items():
+            runs[side] = {"tree": name, "date": time.strftime("%Y-%m-%d %H:%M"), "hands": {}, "objects": {},
+                          "commit": subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", rev],
+                                                   capture_output=True, text=True).stdout.strip()}
         for hand in hands:
-            figures["objects"][hand] = {}
+            for side in sides:
+                runs[side]["objects"][hand] = {}
             for group, names in objects.items():
-                rows = {}
+                rows: dict = {side: {} for side in sides}
                 for name in names:
                     key = Path(name).stem if group == "scan" else name
-                    rows[key] = _run(tree, name, hand, args, folder / f"{hand}_{key}.json")
-                    brief = {k: rows[key].get(k) for k in ("fc", "sweep", "tested", "trial", "error")}
-                    print(f"#   {hand} {key}: {json.dumps(brief)}", flush=True)
-                figures["objects"][hand][group] = rows
-            groups = {g: group_figures(list(figures["objects"][hand][g].values())) for g in objects}
-            groups["all"] = group_figures([r for g in objects for r in figures["objects"][hand][g].values()])
-            figures["hands"][hand] = groups
+                    tries: dict = {side: [] for side in sides}
+                    for i in range(args.repeat):
+                        for side, (root, _, _) in sides.items():  # alternating: a slow spell hits both sides
+                            tries[side].append(_run(root, name, hand, args, folder / f"{side}_{hand}_{key}_{i}.json"))
+                    for side in sides:
+                        rows[side][key] = _least(tries[side])
+                        brief = {k: rows[side][key].get(k) for k in ("fc", "sweep", "tested", "trial", "error")}
+                        print(f"#   {hand} {key}{' (' + sides[side][1] + ')' if other else ''}: {json.dumps(brief)}",
+                              flush=True)
+                for side in sides:
+                    runs[side]["objects"][hand][group] = rows[side]
+            for side in sides:
+                found = runs[side]["objects"][hand]
+                groups = {g: group_figures(list(found[g].values())) for g in objects}
+                groups["all"] = group_figures([r for g in objects for r in found[g].values()])
+                runs[side]["hands"][hand] = groups
+    figures = runs["tree"]
     print(f"# end: {uptime()}")
-    shown = args.compare or args.previous
-    previous = json.loads(shown.read_text()) if shown.is_file() else None  # read now: it may be newer than the start
-    if previous:
-        print(f"# previous run: {previous.get('tree')} at {previous.get('date')} ({previous.get('commit')})")
+    if other is not None:
+        previous = runs["against"]
+        print(f"# in brackets: {args.against}, run alternately with {label}")
+    else:
+        shown = args.compare or args.previous
+        previous = json.loads(shown.read_text()) if shown.is_file() else None  # read now: it may be newer
+        if previous:
+            print(f"# previous run: {previous.get('tree')} at {previous.get('date')} ({previous.get('commit')})")
     _print(figures, previous)
     if args.save:
         args.previous.write_text(json.dumps(figures, indent=1) + "\n")
