@@ -157,11 +157,11 @@ def group_figures(rows: list[dict]) -> dict:
             "trial ms": 1000 * per_trial, "held": sum(r["held"] for r in rows) / tested if tested else float("nan")}
 
 
-def _print(figures: dict, previous: dict | None) -> None:
+def _print(figures: dict, previous: dict | None, bracketed: str = "previous run") -> None:
     keys = ("objects", "candidates", "fc", "candidates/s", "FC/s", "labelled/s", "trial ms", "held")
     for hand, groups in figures["hands"].items():
         print(f"\n## {hand}")
-        print(f"{'group':10s} " + " ".join(f"{k:>13s}" for k in keys) + "   (previous run in brackets)")
+        print(f"{'group':10s} " + " ".join(f"{k:>13s}" for k in keys) + f"   ({bracketed} in brackets)")
         for group in (*GROUPS, "all"):
             now = groups.get(group, {})
             before = ((previous or {}).get("hands", {}).get(hand, {}).get(group, {}))
@@ -263,7 +263,7 @@ def main() -> None:
         previous = json.loads(shown.read_text()) if shown.is_file() else None  # read now: it may be newer
         if previous:
             print(f"# previous run: {previous.get('tree')} at {previous.get('date')} ({previous.get('commit')})")
-    _print(figures, previous)
+    _print(figures, previous, f"{args.against}, run alternately," if other is not None else "previous run")
     if args.save:
         args.previous.write_text(json.dumps(figures, indent=1) + "\n")
         print(f"# written to {args.previous}")
