@@ -14,14 +14,8 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 
 from planner.record import fields
-from planner.record.field import Field
+from planner.record.field import INERTIA_DIGITS, VECTOR_DIGITS, Field, stored_numbers
 from planner.record.grasp import Joints
-
-#: Decimals kept of stored vectors (poses, approach rays, centre of mass: 0.1 um)
-#: and of the inertia tensor [kg m^2].
-VECTOR_DIGITS = 7
-INERTIA_DIGITS = 10
-
 
 #: The declared columns (:mod:`planner.record.fields`) of the record's tables.
 _GRASPS = fields.table("grasps")
@@ -110,7 +104,7 @@ def _json(values: object) -> str:
 
 
 def _vector(a: np.ndarray, digits: int = VECTOR_DIGITS) -> str:
-    return _json([round(float(v), digits) for v in np.ravel(a)])
+    return _json(stored_numbers(a, digits))
 
 
 def json_list(texts: Iterable[str]) -> list:

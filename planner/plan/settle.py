@@ -13,6 +13,13 @@ that the result does not depend on how the grasps are grouped. The contacts
 it settles into (PyBullet's points, each link's contact model) are scored by
 the same Ferrari-Canny epsilon as the planned ones.
 
+Each grasp settles as the database stores it (:meth:`Grasp.as_stored
+<planner.record.grasp.Grasp.as_stored>`: the pose to 0.1 um, the contacts to
+1 um). The settle is chaotic: moving the pose by 1 nm gives another settled
+epsilon on nearly every grasp (bench/RESULTS.md, 2026-12-04), so a settle of
+the unrounded grasp could not be reproduced from the stored one; of the
+stored one it is, to the last bit.
+
 Measured on the tuning objects (bench/RESULTS.md): for the Barrett the
 settled epsilon predicts the shake test far better than the planned epsilon;
 for the Panda, whose jaws close together, it does worse, so the Panda does
@@ -46,11 +53,12 @@ def epsilon_of(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, cone
 
 def settled_epsilons(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp], cone_edges: int = 8,
                      settings: ShakeSettings | None = None) -> np.ndarray:
-    """(n,) epsilon of the contacts each grasp settles into; 0 where the
-    fingers lost the object, the trial is flagged, or the contacts cannot
-    be analysed."""
+    """(n,) epsilon of the contacts each grasp, as stored, settles into; 0
+    where the fingers lost the object, the trial is flagged, or the contacts
+    cannot be analysed."""
     s = replace(settings or ShakeSettings(), batch=1)
-    return np.array([epsilon_of(c, hand, obj, cone_edges) for c in settled_contacts(hand, obj, grasps, s)], float)
+    stored = [g.as_stored() for g in grasps]
+    return np.array([epsilon_of(c, hand, obj, cone_edges) for c in settled_contacts(hand, obj, stored, s)], float)
 
 
 def with_settled(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp], cone_edges: int = 8,

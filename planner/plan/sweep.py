@@ -56,7 +56,11 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: 11: contact patches read with exact closest points (libigl's AABB tree, planner.geometry.distance)
 #: instead of the faces of the 12 nearest of dense surface samples, with trimesh's closest point, which
 #: misses on slivers (issue 24: faster; the same poses, other contacts on some grasps).
-ALGORITHM_VERSION = 11
+#: 12: a grasp settles as the database stores it (planner.record.grasp.Grasp.as_stored: pose to 0.1 um,
+#: contacts to 1 um), so the stored settled epsilon is what the stored grasp settles into (issue 26: the
+#: settle turned the rounding into another settled epsilon on most grasps); the same grasps, other settled
+#: epsilons, scores and ranks of the Barrett's.
+ALGORITHM_VERSION = 12
 
 #: Named in the digest of sweeps on a table only (those of the object alone stay
 #: as they were), bumped when a change alters only which grasps they produce.

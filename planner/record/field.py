@@ -15,6 +15,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 #: How a kind of value is stored and exported: (export dtype, SQL type, neutral value in an export).
 #: ``margin`` is a length that is infinite when no finger touches (NULL in SQL);
 #: ``reasons`` a tuple of names stored comma-separated ('' when empty).
@@ -29,6 +31,17 @@ KINDS: dict[str, tuple[str, str, object]] = {
     "joints": ("string", "TEXT", ""),
     "contacts": ("string", "TEXT", ""),
 }
+
+#: Decimals a ``vector`` keeps in the store (poses, approach rays, centre of mass: 0.1 um), and the inertia tensor
+#: [kg m^2] (the objects' ``inertia``). Contacts keep theirs in :data:`planner.record.contacts.STORED_DIGITS`.
+VECTOR_DIGITS = 7
+INERTIA_DIGITS = 10
+
+
+def stored_numbers(values: Any, digits: int = VECTOR_DIGITS) -> list[float]:
+    """The numbers of an array as a ``vector`` column keeps them: flattened, each rounded to ``digits``
+    decimals (written as their shortest round-trip text, so reading them back gives these very floats)."""
+    return [round(float(v), digits) for v in np.ravel(values)]
 
 
 @dataclass(frozen=True)

@@ -19,12 +19,12 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
 from planner.record.contacts import HandContacts
-from planner.record.field import stored
+from planner.record.field import stored, stored_numbers
 from planner.record.measures import Measures
 
 
@@ -216,6 +216,21 @@ class Grasp:
         out = object.__new__(cls)
         out.__dict__.update(zip(FIELDS, values))
         return out
+
+    def as_stored(self) -> Grasp:
+        """The record as the database gives it back: every ``vector`` (the
+        pose, the approach ray, the table plane) rounded as stored
+        (:data:`~planner.record.field.VECTOR_DIGITS` decimals), the contacts
+        as their stored text (:data:`~planner.record.contacts.STORED_DIGITS`);
+        joint values and measures are stored exactly. What is computed from
+        this record gives what the same computation gives on the stored grasp,
+        to the last bit: it matters for the settle, whose dynamics turn a
+        nanometre of the pose into another settled epsilon."""
+        vectors = {f.name: np.reshape(stored_numbers(getattr(self, f.name)), f.metadata["stored"]["shape"])
+                   for f in fields(self) if "stored" in f.metadata and f.metadata["stored"]["kind"] == "vector"
+                   and getattr(self, f.name) is not None}
+        c = self.contacts
+        return replace(self, contacts=HandContacts.stored(c.json_text(), c.count, c.touching), **vectors)
 
     def to_json(self) -> dict:
         """The grasp as ``grasp best --json`` prints it: every field of

@@ -125,6 +125,34 @@ def test_a_unit_is_written_whole_and_read_back_as_the_same_records(tmp_path: Pat
     assert row == ("done", 9, 3, 2, json.dumps({"missed": 3}, separators=(",", ":")))
 
 
+def test_a_record_as_stored_is_what_the_store_gives_back_to_the_last_bit(tmp_path: Path) -> None:
+    """Grasp.as_stored (what the settle is run on) rounds as the store does: the same floats, not just close."""
+    rng = np.random.default_rng(4)
+    grasps = []
+    for i in range(3):
+        g = made_up(i, 0.05)
+        pose = np.eye(4)
+        pose[:3, :3] = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        pose[:3, 3] = rng.normal(size=3) * 0.1
+        points = rng.normal(size=(2, 3)) * 0.03
+        grasps.append(replace(g, pose=pose, approach_point=rng.normal(size=3) * 0.05,
+                              approach_dir=rng.normal(size=3), table_plane=np.r_[rng.normal(size=3), 0.012345678901],
+                              contacts=type(g.contacts)(points, -points / np.linalg.norm(points, axis=1)[:, None],
+                                                        ("left", "right"))))
+    with open_db(tmp_path / "g.db") as db:
+        db.write_unit(unit(), None, grasps, RankingRule())
+        back = {g.candidate: g for g in db.best("thing", "panda", 10)}
+    for g in grasps:
+        mine, theirs = g.as_stored(), back[g.candidate]
+        assert not np.array_equal(mine.pose, g.pose)  # the random pose has more than 7 decimals
+        for name in ("pose", "approach_point", "approach_dir", "table_plane"):
+            assert np.array_equal(getattr(mine, name), getattr(theirs, name)), name
+        assert np.array_equal(mine.contacts.points, theirs.contacts.points)
+        assert np.array_equal(mine.contacts.normals, theirs.contacts.normals)
+        assert mine.contacts.links == theirs.contacts.links
+        assert dict(mine.closed_joints) == dict(theirs.closed_joints) and mine.epsilon == theirs.epsilon
+
+
 def test_writing_a_unit_again_replaces_it_and_a_failure_is_recorded(tmp_path: Path) -> None:
     with open_db(tmp_path / "g.db") as db:
         db.write_unit(unit(), None, [made_up(0, 0.05)], RankingRule())

@@ -95,3 +95,23 @@ def test_the_settle_does_not_depend_on_the_last_bits_of_a_grasp(barrett_units) -
                       closed_joints={k: v * (1 + 1e-15) for k, v in g.closed_joints.items()}) for g in grasps]
     assert any(not np.array_equal(a.pose, b.pose) for a, b in zip(grasps, nudged))
     assert list(settled_epsilons(hand, settled.obj, nudged)) == list(settled_epsilons(hand, settled.obj, grasps))
+
+
+def test_a_stored_settled_epsilon_is_what_the_stored_grasp_settles_into(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """The settle is chaotic (a nanometre of the pose gives another settled
+    epsilon), so the sweep settles each grasp as the database will store it:
+    a settle re-run from the database gives the stored value exactly."""
+    from planner import api
+    from planner.db.objects import stored_object
+    from planner.db.store import open_db
+
+    db_path = tmp_path / "b.db"
+    api.generate(["box"], "barrett", db_path=db_path, settings=replace(SMALL, chunk=None), seed=3)
+    with open_db(db_path, create=False, readonly=True) as db:
+        closure = [g for g in db.best("box", "barrett", 100) if g.force_closure]
+        obj = stored_object(db.object_row("box"))
+    assert len(closure) >= 3
+    stored = [g.measures.settled_epsilon for g in closure]  # type: ignore[union-attr]
+    again = settled_epsilons(load_hand("barrett"), obj, closure)
+    assert list(again) == stored
+    assert any(e > 0.0 for e in stored)
