@@ -47,7 +47,9 @@ patches from exact closest points, libigl's AABB tree, instead of the
 faces of the nearest dense surface samples: the same grasps, other contacts
 and measures on some); 12 (issue 26: each grasp settles as stored, pose and
 contacts rounded as the database keeps them: the same grasps, other settled
-epsilons, scores and ranks of the Barrett's).
+epsilons, scores and ranks of the Barrett's); 13 (issue 24: the Barrett
+settles with its own, coarser dynamics, hand.toml [settle_dynamics]: the same
+grasps, other settled epsilons, scores and ranks of the Barrett's).
 """
 
 from __future__ import annotations

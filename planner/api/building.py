@@ -106,7 +106,7 @@ def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: i
     if on_table < 0:
         raise InputError(f"--stable-poses must be at least 1, got {on_table}")
     hand_spec = load_hand(hand)
-    settings = settings.resolved(hand_spec.sampler, hand_spec.settle)
+    settings = settings.resolved(hand_spec.sampler, hand_spec.settle, hand_spec.settle_dynamics)
     load_preshapes(hand_spec, list(settings.preshapes) if settings.preshapes else None)
     units, seen = [], {}
     for ref in refs:
@@ -189,7 +189,8 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
         raise InputError(f"--workers must be at least 1, got {workers}")
     physical = Physical.checked({"mass": mass, "density": density, "friction": friction}, prefix="--")
     hand_spec = load_hand(hand)
-    settings = (settings or SweepSettings()).resolved(hand_spec.sampler, hand_spec.settle)
+    settings = (settings or SweepSettings()).resolved(hand_spec.sampler, hand_spec.settle,
+                                                        hand_spec.settle_dynamics)
     units = plan_units(names, hand, settings, seed, scale, physical, on_table)
     summary = Summary()
     start = time.perf_counter()

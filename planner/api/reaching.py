@@ -204,4 +204,4 @@ PLAN_NOW_BUDGET = 40
 def plan_now_settings(hand: HandSpec) -> SweepSettings:
     """The sweep of :data:`PLAN_NOW` for ``hand`` (before the table plane is set)."""
     return SweepSettings(chunk=0, reach_placements=0, fc_budget=PLAN_NOW_BUDGET,
-                         **PLAN_NOW[hand.sampler]).resolved(hand.sampler, hand.settle)
+                         **PLAN_NOW[hand.sampler]).resolved(hand.sampler, hand.settle, hand.settle_dynamics)

@@ -38,6 +38,7 @@ from planner.geometry.solid import PreparedObject
 from planner.plan.contacts import HandContacts, grasp_quality
 from planner.record.grasp import Grasp
 from planner.specs.hands import HandSpec
+from planner.validation.settings import settle_settings
 from planner.validation.shake import ShakeSettings, settled_contacts
 
 
@@ -55,8 +56,9 @@ def settled_epsilons(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp
                      settings: ShakeSettings | None = None) -> np.ndarray:
     """(n,) epsilon of the contacts each grasp, as stored, settles into; 0
     where the fingers lost the object, the trial is flagged, or the contacts
-    cannot be analysed."""
-    s = replace(settings or ShakeSettings(), batch=1)
+    cannot be analysed. ``settings``: the settle's trial; None: the hand's
+    (:func:`~planner.validation.settings.settle_settings`)."""
+    s = settle_settings(hand.settle_dynamics) if settings is None else replace(settings, batch=1)
     stored = [g.as_stored() for g in grasps]
     return np.array([epsilon_of(c, hand, obj, cone_edges) for c in settled_contacts(hand, obj, stored, s)], float)
 
@@ -65,7 +67,7 @@ def with_settled(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp], c
                  settings: ShakeSettings | None = None, only_force_closure: bool = True) -> list[Grasp]:
     """The grasps with ``measures.settled_epsilon`` filled in (grasps without
     measures are returned unchanged); ``settings``: the trial (the sweep's
-    :attr:`~planner.plan.sweep.SweepSettings.trial`).
+    :attr:`~planner.plan.sweep.SweepSettings.trial`; None: the hand's).
 
     ``only_force_closure`` (the sweep's choice, issue 24): only grasps whose
     planned contacts are force closure are settled; the others keep

@@ -22,9 +22,10 @@ import numpy as np
 from planner.errors import InputError
 from planner.geometry.support import Support
 from planner.plan.tolerances import ABOVE_RAYS, PREGRASP_DISTANCE
+from planner.specs.hand_spec import SettleDynamics
 from planner.specs.hands import SAMPLERS
 from planner.specs.preshapes import Preshape
-from planner.validation.settings import ShakeSettings
+from planner.validation.settings import ShakeSettings, settle_settings
 
 if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settings without it
     from planner.plan.sampling import Approaches, Pairs
@@ -60,7 +61,10 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: contacts to 1 um), so the stored settled epsilon is what the stored grasp settles into (issue 26: the
 #: settle turned the rounding into another settled epsilon on most grasps); the same grasps, other settled
 #: epsilons, scores and ranks of the Barrett's.
-ALGORITHM_VERSION = 12
+#: 13: a hand's own settle dynamics (hand.toml [settle_dynamics]; the Barrett's: 240 steps per second, 0.12 s
+#: of closing, 0.05 s at rest, half the cost of the shake trial's) (issue 24); the same grasps, other settled
+#: epsilons, scores and ranks of the Barrett's.
+ALGORITHM_VERSION = 13
 
 #: Named in the digest of sweeps on a table only (those of the object alone stay
 #: as they were), bumped when a change alters only which grasps they produce.
@@ -107,7 +111,7 @@ class SweepSettings:
     pregrasp_distance: float = PREGRASP_DISTANCE  # [m] pre-grasp back-off along the approach
     volume: bool = False  # GWS volume of force-closure grasps (a full 6-D hull, slow; False stores 0)
     settle: bool | None = None  # the settled epsilon of every grasp (a dynamic closing); None: the hand's default
-    trial: ShakeSettings | None = None  # the settle's dynamic closing; None: the default trial (settle only)
+    trial: ShakeSettings | None = None  # the settle's dynamic closing; None: the hand's (settle_settings)
     fc_budget: int = 1000  # about this many force-closure grasps per object (see budget_share); 0: no limit
     table_plane: tuple[float, float, float, float] | None = None  # plan on a table: Support.vector(); None: no table
 
@@ -134,17 +138,20 @@ class SweepSettings:
             except ValueError as exc:
                 raise InputError(f"table plane: {exc}") from None
 
-    def resolved(self, hand_sampler: str, hand_settle: bool = False) -> SweepSettings:
+    def resolved(self, hand_sampler: str, hand_settle: bool = False,
+                 hand_dynamics: SettleDynamics | None = None) -> SweepSettings:
         """These settings with the sampler (``hand_sampler`` unless set), its
         defaults, ``settle`` (``hand_settle`` unless set) and the settle's
-        trial filled in: what a unit runs and what its digest names. The trial
-        (one grasp per world, as :func:`planner.plan.settle.settled_epsilons`
-        runs it) decides the stored settled epsilons, so it is part of the
-        digest when the sweep settles, and absent when it does not."""
+        trial filled in (``trial`` if set, else the hand's ``hand_dynamics``,
+        :func:`~planner.validation.settings.settle_settings`): what a unit
+        runs and what its digest names. The trial (one grasp per world, as
+        :func:`planner.plan.settle.settled_epsilons` runs it) decides the
+        stored settled epsilons, so it is part of the digest when the sweep
+        settles, and absent when it does not."""
         sampler = self.sampler or hand_sampler
         unset = {k: v for k, v in SAMPLER_DEFAULTS[sampler].items() if getattr(self, k) is None}
         settle = hand_settle if self.settle is None else self.settle
-        trial = replace(self.trial or ShakeSettings(), batch=1) if settle else None
+        trial = (replace(self.trial, batch=1) if self.trial else settle_settings(hand_dynamics)) if settle else None
         return replace(self, sampler=sampler, settle=settle, trial=trial, **unset)
 
     def to_json(self) -> str:

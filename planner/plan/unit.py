@@ -157,7 +157,7 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report, obj: PreparedObject
     if obj is None:
         obj = load_object(spec.object_name, scale=spec.scale, label=spec.label, **spec.physical.given())
     hand = load_hand(spec.hand)
-    settings = spec.settings.resolved(hand.sampler, hand.settle)
+    settings = spec.settings.resolved(hand.sampler, hand.settle, hand.settle_dynamics)
     shapes = sweep_preshapes(hand, list(settings.preshapes) if settings.preshapes else None,
                              settings.table_plane is not None)
     result.obj = obj

@@ -77,6 +77,19 @@ class ContactModel:
 
 
 @dataclass(frozen=True)
+class SettleDynamics:
+    """The settle's own dynamic closing (``[settle_dynamics]`` of hand.toml):
+    ``steps_per_second`` [1/s], ``close_time`` [s] the fingers close under
+    their motors, ``rest_time`` [s] the object then rests before the contacts
+    are read. A hand without it settles with the shake trial's
+    (:class:`planner.validation.settings.ShakeSettings`)."""
+
+    steps_per_second: float
+    close_time: float
+    rest_time: float
+
+
+@dataclass(frozen=True)
 class Actuators:
     """The finger motors, from published specifications (``[dynamics]``).
 
@@ -155,6 +168,7 @@ class HandSpec:
     actuators: Actuators  # the finger motors: weight resistance, dynamic trials
     sampler: str = "surface"  # the sweep's approach sampler unless the user picks one
     settle: bool = False  # the sweep measures the settled epsilon (a dynamic closing per grasp) unless told not to
+    settle_dynamics: SettleDynamics | None = None  # the settle's steps and times; None: the shake trial's
 
     def joint(self, name: str) -> JointSpec:
         found = self._joint_map.get(name)

@@ -29,6 +29,7 @@ from planner.specs.hand_spec import (
     FingerDof,
     HandSpec,
     JointSpec,
+    SettleDynamics,
 )
 from planner.specs.toml import Fields, read_toml
 from planner.specs.urdf import cut_subtree, descendants, link_names, load_model, movable_joints
@@ -129,7 +130,21 @@ def load_folder(folder: Path) -> HandSpec:
         actuators=_actuators(f.table("dynamics", {})),
         sampler=_sampler(f, joints),
         settle=f.bool("settle", False),
+        settle_dynamics=_settle_dynamics(f),
     )
+
+
+def _settle_dynamics(f: Fields) -> SettleDynamics | None:
+    """``[settle_dynamics]``, if given: every field positive, at least one step of closing and of rest."""
+    if not f.has("settle_dynamics"):
+        return None
+    t = f.table("settle_dynamics")
+    out = SettleDynamics(t.float("steps_per_second", positive=True), t.float("close_time", positive=True),
+                         t.float("rest_time", positive=True))
+    for key in ("close_time", "rest_time"):
+        if getattr(out, key) * out.steps_per_second < 1.0:
+            raise ConfigError(f"{t.where} field '{key}': shorter than one step (1 / steps_per_second)")
+    return out
 
 
 def _actuators(f: Fields) -> Actuators:

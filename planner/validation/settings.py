@@ -9,6 +9,7 @@ from dataclasses import asdict, dataclass
 
 from planner.errors import ConfigError
 from planner.record.tolerances import MIN_OPEN_MARGIN
+from planner.specs.hand_spec import SettleDynamics
 
 #: Trials one PyBullet world can hold apart: its collision filter bits
 #: (``planner.sim.dynamics.FILTER_BITS``; a test checks they agree).
@@ -48,3 +49,12 @@ class ShakeSettings:
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), sort_keys=True)
+
+
+def settle_settings(dynamics: SettleDynamics | None) -> ShakeSettings:
+    """The settle's trial (one grasp per world) for a hand with ``dynamics``
+    (``[settle_dynamics]`` of hand.toml; None: the shake trial's steps and times)."""
+    if dynamics is None:
+        return ShakeSettings(batch=1)
+    return ShakeSettings(dt=1.0 / dynamics.steps_per_second, close_time=dynamics.close_time,
+                         settle_time=dynamics.rest_time, batch=1)

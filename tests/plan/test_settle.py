@@ -64,6 +64,19 @@ def test_the_barrett_sweep_settles_its_force_closure_grasps_by_default_and_none_
     assert np.isfinite([g.measures.settled_epsilon for g in closure]).all()  # type: ignore[union-attr]
 
 
+def test_the_barrett_settles_with_its_own_dynamics(barrett_units) -> None:  # type: ignore[no-untyped-def]
+    """hand.toml's [settle_dynamics] (coarser steps, shorter phases than the shake trial's) is what the
+    settle runs unless it is given a trial."""
+    from planner.validation.settings import ShakeSettings, settle_settings
+
+    settled, planned = barrett_units
+    hand = load_hand("barrett")
+    closure = [g for g in planned.grasps if g.force_closure][:3]
+    own = list(settled_epsilons(hand, settled.obj, closure))
+    assert own == list(settled_epsilons(hand, settled.obj, closure, settings=settle_settings(hand.settle_dynamics)))
+    assert own != list(settled_epsilons(hand, settled.obj, closure, settings=ShakeSettings()))
+
+
 def test_settling_only_force_closure_grasps_keeps_their_ranks(barrett_units) -> None:  # type: ignore[no-untyped-def]
     """The force-closure grasps rank first whatever the others' settled
     epsilons, so settling only them gives them the same scores and ranks as

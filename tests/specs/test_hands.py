@@ -102,6 +102,40 @@ def test_broken_hand_folder_names_file_and_field(tmp_path: Path, old: str, new: 
     assert "hand.toml" in str(err.value)
 
 
+@pytest.mark.parametrize("table, message", [
+    ("steps_per_second = 0\nclose_time = 0.1\nrest_time = 0.05", r"\[settle_dynamics\] field 'steps_per_second'.*positive"),
+    ("steps_per_second = 240\nclose_time = 0.001\nrest_time = 0.05",
+     r"\[settle_dynamics\] field 'close_time'.*shorter than one step"),
+    ("steps_per_second = 240\nrest_time = 0.05", r"\[settle_dynamics\] field 'close_time'.*missing or not a number"),
+    ("steps_per_second = 240\nclose_time = 0.1\nrest_time = -1", r"\[settle_dynamics\] field 'rest_time'.*positive"),
+])
+def test_broken_settle_dynamics_names_the_file_and_field(tmp_path: Path, table: str, message: str) -> None:
+    folder = hand_copy(tmp_path)
+    toml = folder / "hand.toml"
+    toml.write_text(toml.read_text() + "\n[settle_dynamics]\n" + table + "\n")
+    with pytest.raises(ConfigError, match=message) as err:
+        load_folder(folder)
+    assert "hand.toml" in str(err.value) and "\n" not in str(err.value)
+
+
+def test_a_hand_settles_with_its_own_dynamics_unless_the_sweep_names_a_trial() -> None:
+    from dataclasses import replace
+
+    from planner.plan.sweep import SweepSettings
+    from planner.specs.hand_spec import SettleDynamics
+    from planner.validation.settings import ShakeSettings
+
+    barrett = load_hand("barrett")
+    assert barrett.settle_dynamics == SettleDynamics(240.0, 0.12, 0.05) and load_hand("panda").settle_dynamics is None
+    trial = SweepSettings().resolved(barrett.sampler, barrett.settle, barrett.settle_dynamics).trial
+    assert trial is not None and (trial.dt, trial.close_time, trial.settle_time, trial.batch) == (1 / 240, 0.12,
+                                                                                                  0.05, 1)
+    assert SweepSettings().resolved("surface", True).trial == ShakeSettings()  # no table: the shake trial's
+    mine = ShakeSettings(close_time=0.3, batch=5)
+    assert SweepSettings(trial=mine).resolved("surface", True, barrett.settle_dynamics).trial == replace(mine, batch=1)
+    assert SweepSettings().resolved("surface", False, barrett.settle_dynamics).trial is None
+
+
 def test_malformed_toml_names_the_file(tmp_path: Path) -> None:
     folder = hand_copy(tmp_path)
     (folder / "hand.toml").write_text("approach = [0, 0, 1\n")
