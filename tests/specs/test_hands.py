@@ -103,7 +103,8 @@ def test_broken_hand_folder_names_file_and_field(tmp_path: Path, old: str, new: 
 
 
 @pytest.mark.parametrize("table, message", [
-    ("steps_per_second = 0\nclose_time = 0.1\nrest_time = 0.05", r"\[settle_dynamics\] field 'steps_per_second'.*positive"),
+    ("steps_per_second = 0\nclose_time = 0.1\nrest_time = 0.05",
+     r"\[settle_dynamics\] field 'steps_per_second'.*positive"),
     ("steps_per_second = 240\nclose_time = 0.001\nrest_time = 0.05",
      r"\[settle_dynamics\] field 'close_time'.*shorter than one step"),
     ("steps_per_second = 240\nrest_time = 0.05", r"\[settle_dynamics\] field 'close_time'.*missing or not a number"),
