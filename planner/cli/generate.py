@@ -59,8 +59,9 @@ DEFAULTS = api.SweepSettings()
                    "(0: all). `grasp best --object-pose` checks any grasp exactly.")
 @click.option("--volume", is_flag=True, help="Also compute the grasp wrench space volume of force-closure grasps "
               "(a full 6-D hull: 0.3 s per many-contact grasp); without it the stored volume is 0.")
-@click.option("--settle/--no-settle", default=None, help="Measure the settled epsilon of every grasp (a dynamic "
-              "closing on the free object, ~40 ms per grasp) [default: the hand's `settle` in hand.toml].")
+@click.option("--settle/--no-settle", default=None, help="Measure the settled epsilon of every force-closure "
+              "grasp (a dynamic closing on the free object: the Barrett's ~16 ms per grasp) [default: the hand's "
+              "`settle` in hand.toml].")
 @click.option("--fc-budget", type=int, default=DEFAULTS.fc_budget, show_default=True,
               help="About this many force-closure grasps per object: each of its units of work stops trying new "
                    "rays or points once it has its share (the budget / the object's units, rounded up); 0: no "
