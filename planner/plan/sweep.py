@@ -151,7 +151,8 @@ class SweepSettings:
         sampler = self.sampler or hand_sampler
         unset = {k: v for k, v in SAMPLER_DEFAULTS[sampler].items() if getattr(self, k) is None}
         settle = hand_settle if self.settle is None else self.settle
-        trial = (replace(self.trial, batch=1) if self.trial else settle_settings(hand_dynamics)) if settle else None
+        trial = (settle_settings(hand_dynamics) if self.trial is None else replace(self.trial, batch=1)) if settle \
+            else None
         return replace(self, sampler=sampler, settle=settle, trial=trial, **unset)
 
     def to_json(self) -> str:
