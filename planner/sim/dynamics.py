@@ -126,6 +126,8 @@ class Dynamics:
                                      deterministicOverlappingPairs=1, minimumSolverIslandSize=1,
                                      physicsClientId=self.c)
         pb.setGravity(0, 0, 0, physicsClientId=self.c)
+        self._constraints: set[int] = set()  # made by gear(), not yet released
+        self._limits: dict[tuple[int, int], tuple[float, float]] = {}  # (body, joint) -> limits before set_limits
 
     # -- bodies ------------------------------------------------------------------
     def add_object(self, shape: Shape, mass: float, com: np.ndarray, inertia: np.ndarray, friction: float,
@@ -212,15 +214,41 @@ class Dynamics:
         cid = pb.createConstraint(body.uid, body.joints[master], body.uid, body.joints[mimic], pb.JOINT_GEAR,
                                   [1, 0, 0], [0, 0, 0], [0, 0, 0], physicsClientId=self.c)
         pb.changeConstraint(cid, gearRatio=-1.0 / multiplier, maxForce=max_force, erp=erp, physicsClientId=self.c)
+        self._constraints.add(cid)
         return cid
 
     def release(self, cid: int) -> None:
         """Remove a constraint (a gear that has broken away)."""
         pb.removeConstraint(cid, physicsClientId=self.c)
+        self._constraints.discard(cid)
 
     def set_limits(self, body: Body, joint: str, lower: float, upper: float) -> None:
-        pb.changeDynamics(body.uid, body.joints[joint], jointLowerLimit=lower, jointUpperLimit=upper,
-                          physicsClientId=self.c)
+        index = body.joints[joint]
+        if (body.uid, index) not in self._limits:
+            info = pb.getJointInfo(body.uid, index, physicsClientId=self.c)
+            self._limits[(body.uid, index)] = (info[8], info[9])
+        pb.changeDynamics(body.uid, index, jointLowerLimit=lower, jointUpperLimit=upper, physicsClientId=self.c)
+
+    # -- one hand for many grasps ------------------------------------------------------
+    def save(self) -> int:
+        """PyBullet's record of the world now (every body's pose and velocities, contacts): see :meth:`restore`."""
+        return pb.saveState(physicsClientId=self.c)
+
+    def restore(self, state: int) -> None:
+        """Back to the record ``state`` of :meth:`save` (made with the same bodies in the world)."""
+        pb.restoreState(state, physicsClientId=self.c)
+
+    def undo_fingers(self) -> None:
+        """Remove the gears :meth:`gear` made that are still there and put
+        back the joint limits :meth:`set_limits` changed: with the motors
+        set again and the poses restored (:meth:`restore`), the hand is as
+        loaded."""
+        for cid in sorted(self._constraints):
+            pb.removeConstraint(cid, physicsClientId=self.c)
+        self._constraints.clear()
+        for (uid, index), (lower, upper) in self._limits.items():
+            pb.changeDynamics(uid, index, jointLowerLimit=lower, jointUpperLimit=upper, physicsClientId=self.c)
+        self._limits.clear()
 
     def joint_position(self, body: Body, joint: str) -> float:
         return float(pb.getJointState(body.uid, body.joints[joint], physicsClientId=self.c)[0])

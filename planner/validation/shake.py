@@ -35,10 +35,12 @@ friction (see :mod:`planner.sim.dynamics`) and, on soft links, the torsional
 friction of :class:`~planner.specs.hands.ContactModel` (the same number the
 analytic soft-finger model uses), except on a link whose planned contacts
 are one point on a sharp edge or corner of its shape (no contact patch:
-:mod:`planner.validation.pads`). Several trials can share a world
-(``batch``), each in its own collision filter group: same verdicts on
-clear-cut grasps, not bit-identical for objects made of several convex parts
-(Bullet's contact order depends on the other bodies).
+:mod:`planner.validation.pads`). One trial at a time (``batch`` 1, the
+default) runs in one world that loads the hand once and is put back before
+each grasp: the results of a fresh world per grasp, bit for bit. Several
+trials can share a world (``batch``), each in its own collision filter
+group: same verdicts on clear-cut grasps, not bit-identical for objects made
+of several convex parts (Bullet's contact order depends on the other bodies).
 """
 
 from __future__ import annotations
@@ -101,10 +103,7 @@ def trials(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp], setting
                               "with gears, which keep q = multiplier x q[mimic] only")
     physical = _Physical(obj.friction if friction is None else friction, obj.mass if mass is None else mass)
     shape = trial_shape(obj, s.part_tolerance)
-    out: list[Trial] = []
-    for i in range(0, len(grasps), s.batch):
-        out += _world(hand, obj, shape, physical, grasps[i:i + s.batch], s, on_settled)
-    return out
+    return _worlds(hand, obj, shape, physical, grasps, s, on_settled)
 
 
 @dataclass(frozen=True)
@@ -128,6 +127,8 @@ class _Run:
     closing: tuple[float, float] = (0.0, 0.0)
     shaking: list[float] = field(default_factory=lambda: [0.0, 0.0])
     held: bool = True
+    own_hand: bool = True  # the hand leaves the world with the trial (else it stays for the next grasp)
+    gone: bool = False  # left the world (:func:`_leave`)
 
 
 def settled_contacts(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp],
@@ -146,14 +147,54 @@ def settled_contacts(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp
 
     physical = _Physical(obj.friction, obj.mass)
     shape = trial_shape(obj, s.part_tolerance)
-    for i in range(0, len(grasps), s.batch):
-        _world(hand, obj, shape, physical, grasps[i:i + s.batch], s, keep, load=False)
+    _worlds(hand, obj, shape, physical, grasps, s, keep, load=False)
     empty = HandContacts(np.zeros((0, 3)), np.zeros((0, 3)), ())
     return [seen.get(id(g), empty) for g in grasps]
 
 
+def _worlds(hand: HandSpec, obj: PreparedObject, shape: Shape, physical: _Physical, grasps: Sequence[Grasp],
+            s: ShakeSettings, on_settled: Settled | None = None, load: bool = True) -> list[Trial]:
+    """The trials of ``grasps``, ``s.batch`` to a world (consecutive chunks),
+    or, one to a world (``batch`` 1), one after the other in one world
+    (:func:`_in_turn`)."""
+    if s.batch == 1:
+        return _in_turn(hand, obj, shape, physical, grasps, s, on_settled, load)
+    out: list[Trial] = []
+    for i in range(0, len(grasps), s.batch):
+        out += _world(hand, obj, shape, physical, grasps[i:i + s.batch], s, on_settled, load)
+    return out
+
+
+def _in_turn(hand: HandSpec, obj: PreparedObject, shape: Shape, physical: _Physical, grasps: Sequence[Grasp],
+             s: ShakeSettings, on_settled: Settled | None = None, load: bool = True) -> list[Trial]:
+    """One trial at a time in one world: the hand is loaded once (PyBullet
+    takes ~3 ms to make a hand, a third of a Barrett's settle), the world is
+    put back to its state after loading before each grasp (:meth:`Dynamics.restore`)
+    and the grasp's object, gears and joint limits go after it
+    (:meth:`Dynamics.undo_fingers`). The results are those of a fresh world
+    per grasp (:func:`_world` with one grasp), to the last bit, in any order
+    (measured on the Barrett's and the Panda's sweeps; tested)."""
+    out: list[Trial] = []
+    with fresh_world(s.dt, s.solver_iterations) as dyn:
+        body = dyn.add_hand(hand.urdf)
+        loaded = dyn.save()
+        for grasp in grasps:
+            dyn.restore(loaded)
+            run_or_flag = _set_up(dyn, hand, obj, shape, physical, grasp, 0, s, body)
+            if isinstance(run_or_flag, Trial):
+                out.append(run_or_flag)
+                continue
+            out.append(_simulate(dyn, hand, {0: run_or_flag}, s, on_settled, load)[0])
+            if not run_or_flag.gone:
+                _leave(dyn, run_or_flag)
+            dyn.undo_fingers()
+    return out
+
+
 def _world(hand: HandSpec, obj: PreparedObject, shape: Shape, physical: _Physical, grasps: Sequence[Grasp],
            s: ShakeSettings, on_settled: Settled | None = None, load: bool = True) -> list[Trial]:
+    """The trials of ``grasps`` together in a fresh world, each its own hand
+    and object in its own collision filter group."""
     results: dict[int, Trial] = {}
     with fresh_world(s.dt, s.solver_iterations) as dyn:
         runs: dict[int, _Run] = {}
@@ -173,17 +214,21 @@ def _flag(reason: str) -> Trial:
 
 
 def _set_up(dyn: Dynamics, hand: HandSpec, obj: PreparedObject, shape: Shape, physical: _Physical, grasp: Grasp,
-            bit: int, s: ShakeSettings) -> _Run | Trial:
+            bit: int, s: ShakeSettings, hand_body: Body | None = None) -> _Run | Trial:
     """The hand with its fingers just short of the grasp, motors on, and the
-    object; or the flag that stops the trial before any physics."""
-    body = dyn.add_hand(hand.urdf)
+    object; or the flag that stops the trial before any physics. A new hand
+    (which a flag removes again), or ``hand_body``, a hand as loaded (which
+    stays)."""
+    own = hand_body is None
+    body = dyn.add_hand(hand.urdf) if hand_body is None else hand_body
     rates = fg.closing_rates(hand, grasp.preshape)
     dyn.set_joints(body, hand.full_configuration({j.name: grasp.closed_joints.get(j.name, j.lower)
                                                       for j in hand.driven}))
     axes = joint_axes(dyn.sim, hand, body)
     lever = fg.levers(hand, grasp, axes)
     if fg.clearance(hand, grasp, axes) < s.min_clearance:
-        dyn.remove(body.uid)
+        if own:
+            dyn.remove(body.uid)
         return _flag("no_clearance")
     set_contacts(dyn, hand, body, grasp)
     dyn.set_joints(body, fg.start_joints(hand, grasp, rates, lever, s.start_gap))
@@ -191,12 +236,13 @@ def _set_up(dyn: Dynamics, hand: HandSpec, obj: PreparedObject, shape: Shape, ph
                          np.linalg.inv(np.asarray(grasp.pose, float)))
     dyn.keep_apart([body.uid, uid], bit)
     if dyn.overlap(body, uid) - hand.distance_offset > s.max_start_overlap:
-        dyn.remove(body.uid)
+        if own:
+            dyn.remove(body.uid)
         dyn.remove(uid)
         return _flag("start_overlap")
     clutches = drive_fingers(dyn, hand, body, rates, grasp.closed_joints, s.gear_erp)
     finger_links = tuple(frozenset(body.links[n] for n in f) for f in fg.fingers(hand, rates))
-    return _Run(grasp, body, uid, finger_links, clutches)
+    return _Run(grasp, body, uid, finger_links, clutches, own_hand=own)
 
 
 def _simulate(dyn: Dynamics, hand: HandSpec, runs: dict[int, _Run], s: ShakeSettings,
@@ -226,6 +272,8 @@ def _simulate(dyn: Dynamics, hand: HandSpec, runs: dict[int, _Run], s: ShakeSett
         return {k: _verdict(r, s) for k, r in runs.items()}
     previous = np.zeros(3)
     for direction in LOAD_DIRECTIONS:
+        if not active:  # every trial of the world has its verdict: nothing left to load
+            break
         target = GRAVITY * s.load * direction
         ramp = _steps(s.ramp_time, s.dt)
         for i in range(ramp):
@@ -266,7 +314,9 @@ def _still_held(dyn: Dynamics, r: _Run, s: ShakeSettings) -> bool:
 def _leave(dyn: Dynamics, r: _Run) -> None:
     """A finished trial leaves the world (the others run on without it)."""
     dyn.remove(r.uid)
-    dyn.remove(r.body.uid)
+    if r.own_hand:
+        dyn.remove(r.body.uid)
+    r.gone = True
 
 
 def _verdict(r: _Run, s: ShakeSettings) -> Trial:

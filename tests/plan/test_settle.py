@@ -128,3 +128,41 @@ def test_a_stored_settled_epsilon_is_what_the_stored_grasp_settles_into(tmp_path
     again = settled_epsilons(load_hand("barrett"), obj, closure)
     assert list(again) == stored
     assert any(e > 0.0 for e in stored)
+
+
+def test_grasps_tried_one_after_another_in_one_world_end_as_each_in_a_fresh_world(barrett_units) -> None:  # type: ignore[no-untyped-def]
+    """The settle and the PyBullet trial load the hand once and put the world
+    back before each grasp (planner.validation.shake._in_turn): the settled
+    contacts and the verdicts are those of a fresh world per grasp to the
+    last bit, in either order. The Barrett's closing is chaotic and uses
+    everything a grasp leaves behind (gears, worm-gear joint limits, motors),
+    so any state carried over would show."""
+    from planner.record.contacts import HandContacts
+    from planner.validation import shake
+    from planner.validation.parts import trial_shape
+    from planner.validation.settings import ShakeSettings, settle_settings
+
+    settled, planned = barrett_units
+    hand, obj = load_hand("barrett"), settled.obj
+    grasps = [g.as_stored() for g in planned.grasps[:6]]
+    assert len(grasps) == 6
+
+    def fresh(grasp, s, load, friction=obj.friction):  # type: ignore[no-untyped-def]
+        seen: list[HandContacts] = []
+        trial = shake._world(hand, obj, trial_shape(obj, s.part_tolerance), shake._Physical(friction, obj.mass),
+                             [grasp], s, lambda _, c: seen.append(c), load)[0]
+        return trial, seen
+
+    def same(a: HandContacts, b: HandContacts) -> bool:
+        return np.array_equal(a.points, b.points) and np.array_equal(a.normals, b.normals) and a.links == b.links
+
+    s = settle_settings(hand.settle_dynamics)
+    alone = [fresh(g, s, False)[1] for g in grasps]
+    assert sum(len(c) for c in alone) == len(grasps)  # each settled (no flag)
+    for order in (slice(None), slice(None, None, -1)):
+        together = shake.settled_contacts(hand, obj, grasps[order], s)[order]
+        assert all(same(a[0], b) for a, b in zip(alone, together))
+    tried = [fresh(g, ShakeSettings(), True, friction=0.1)[0] for g in grasps]  # slippery: some drop
+    assert {"held", "slipped", "squeezed_out"} <= {t.reason for t in tried}
+    for order in (slice(None), slice(None, None, -1)):
+        assert shake.trials(hand, obj, grasps[order], friction=0.1)[order] == tried
