@@ -12,6 +12,10 @@ and of the top-10 grasps. None of these objects was used to choose the MuJoCo tr
 (those were chosen on ACRONYM tuning objects: bench/acronym_mujoco.py).
 
     python bench/mujoco_protocols.py [--hands panda barrett] [--objects box cylinder mug duck ...] [--top 10]
+    python bench/mujoco_protocols.py --split held_out_3 --db-dir /tmp/ho3   # 50 random objects never tuned on
+
+``--split NAME`` takes the objects of that list of bench/calibration_split.toml instead of ``--objects``
+(``held_out_3``: 50 random objects fixed on 2026-11-23 and never tuned on since).
 """
 
 from __future__ import annotations
@@ -30,6 +34,16 @@ OBJECTS = ("box", "cylinder", "mug", "duck", "sphere", "teddy", "bunny", "random
 #: A small sweep per hand (the default sweep costs minutes per object on the shared machine).
 SWEEPS = {"panda": dict(approaches=256, reach_placements=0),
           "barrett": dict(approaches=24, rolls=2, reach_placements=0)}
+
+
+def split_objects(name: str, path: Path = Path(__file__).with_name("calibration_split.toml")) -> list[str]:
+    """The objects of list ``name`` of the calibration split (a one-line exit naming the lists otherwise)."""
+    import tomllib
+
+    lists = {k: v for k, v in tomllib.loads(path.read_text()).items() if isinstance(v, list)}
+    if name not in lists:
+        sys.exit(f"mujoco_protocols: no list {name!r} in {path.name}; it has {', '.join(sorted(lists))}")
+    return list(lists[name])
 
 
 def database(hand: str, objects: tuple[str, ...], folder: Path) -> Path:
@@ -112,10 +126,13 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--hands", nargs="*", default=["panda", "barrett"])
     parser.add_argument("--objects", nargs="*", default=list(OBJECTS))
+    parser.add_argument("--split", help="the objects of this list of bench/calibration_split.toml (e.g. held_out_3)")
     parser.add_argument("--top", type=int, default=10)
     parser.add_argument("--db-dir", type=Path, default=Path("out"))
     parser.add_argument("--json", type=Path, help="also write every row and the summaries here")
     args = parser.parse_args()
+    if args.split:
+        args.objects = split_objects(args.split)
     print(f"load: {os.getloadavg()[0]:.1f}", file=sys.stderr)
     report = {}
     for hand in args.hands:
