@@ -315,10 +315,11 @@ def _pad(hull: Hull, pose: np.ndarray, surface: GripSurface, band: float, contac
     if not len(idx) or not len(contacts):
         return _Pad(0.0, 0.0, np.zeros(3), np.zeros(3), corners)
     local = (contacts - pose[:3, 3]) @ pose[:3, :3]
-    touching = np.unique(np.argmax(local @ hull.normals.T - hull.offsets, axis=1))
+    touching = np.zeros(len(hull.normals), bool)  # the faces nearest the contacts
+    touching[np.argmax(local @ hull.normals.T - hull.offsets, axis=1)] = True
     face_normal = hull.normals[face] @ pose[:3, :3].T
     cos = -np.einsum("ij,ij->i", surface.normals[idx], face_normal)
-    under = (dist < band) & (cos > 0) & np.isin(face, touching)
+    under = (dist < band) & (cos > 0) & touching[face]
     return _Pad(surface.area * float(under.sum()), surface.area * float(cos[under].sum()),
                 -surface.area * surface.normals[idx[under]].sum(axis=0),
                 surface.area * surface.points[idx[under]].sum(axis=0), corners)
@@ -344,8 +345,10 @@ def _inside(points: np.ndarray, surface: GripSurface) -> np.ndarray:
     except QhullError:  # the extreme vertices span no volume: every sample takes every face
         inner = np.zeros((0, 4))
     if len(inner):
-        sure = np.all(surface.coarse[idx] @ inner[:, :3].T + inner[:, 3] <= -INNER_MARGIN, axis=1)
-        return np.union1d(idx[sure], _within(idx[~sure], surface.coarse, _planes(hull.equations)))
+        samples = surface.coarse[idx]
+        inside = np.all(samples @ inner[:, :3].T + inner[:, 3] <= -INNER_MARGIN, axis=1)  # sure to be inside
+        inside[_within(np.flatnonzero(~inside), samples, _planes(hull.equations))] = True
+        return idx[inside]
     return _within(idx, surface.coarse, _planes(hull.equations))
 
 
