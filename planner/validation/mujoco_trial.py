@@ -29,7 +29,12 @@ welded to a moving target, hand gravity-compensated as an arm would carry it):
    force is limited to the motor's effort (a mimic is geared to its master
    by an equality constraint, so one motor's effort is shared as by a gear
    train), reached ``servo_lag`` behind the target: once a finger is
-   blocked it squeezes with the motor's effort. A joint the preshape does
+   blocked it squeezes with the motor's effort. A worm-gear finger (not
+   backdrivable: the Barrett) is its motor's: the target leads it by at
+   most that lag (the motor stalls where the object holds the finger and
+   goes on from there at the closing speed once it is free, instead of
+   running on and snapping the finger after it), and no push of the object
+   turns it back (its open-side limit follows it). A joint the preshape does
    not close (a spread) is held where it was set. A breakaway clutch (the
    Barrett's TorqueSwitch) lets go as the planner's closing rule says: the
    proximal joint is held where it touched, the distal one closes on at its
@@ -98,6 +103,9 @@ MAX_PROBES = 40
 #: no force (the object loose in a cage of fingers: ``no_contact``); at 0.5 the Barrett's figures of
 #: bench/mujoco_protocols.py move by one grasp in 150.
 BREAKAWAY = 1.0
+#: How far [servo lags] behind its furthest closing a worm-gear finger's open-side limit trails while it closes
+#: (the worm gear lets no push of the object turn it back; the slack keeps the limit off while it moves on).
+RATCHET = 0.5
 
 
 def recorded(settings: MujocoSettings, hand: HandSpec) -> str:
@@ -105,9 +113,10 @@ def recorded(settings: MujocoSettings, hand: HandSpec) -> str:
     import mujoco
 
     torsion = {link: m.torsion_radius for link, m in sorted(hand.contacts.items()) if m.model == "soft"}
+    worm = {} if hand.actuators.backdrivable else {"worm_gear": {"motor_stalls_with_finger": True, "ratchet": RATCHET}}
     return json.dumps({"engine": "mujoco", "mujoco": mujoco.__version__, **asdict(settings), "hand": hand.name,
                        "actuators": asdict(hand.actuators), "breakaway": [j.name for j in hand.joints if j.breakaway],
-                       "breakaway_effort": BREAKAWAY, "torsion_radius": torsion}, sort_keys=True)
+                       "breakaway_effort": BREAKAWAY, "torsion_radius": torsion, **worm}, sort_keys=True)
 
 
 def trial(hand: HandSpec, obj: PreparedObject, grasp: Grasp, settings: MujocoSettings | None = None,
@@ -243,6 +252,13 @@ class _Run:
         dt = s.timestep
         every = _steps(CHECK_EVERY, dt)
         lever = {j.name: 1.0 if j.kind == "prismatic" else DEFAULT_LEVER for j in hand.joints}
+        # Worm-gear fingers (not backdrivable): the motor turns the finger, so it cannot run ahead of a finger
+        # the object holds back (its target leads the joint by at most the servo's lag, where the servo pushes
+        # with the motor's effort, and goes on at the closing speed from there once the finger is free), and
+        # no push of the object turns a finger back (its open-side limit follows it, RATCHET behind)
+        worm = not hand.actuators.backdrivable
+        lead = {j.name: s.servo_lag / lever[j.name] for j in hand.joints}
+        floor: dict[str, float] = {}
         still = 0.0
         first = self._skip_free_travel(moving) if s.free_travel_gap > 0 else 0
         for i in range(first, _steps(s.max_close_time, dt)):
@@ -250,6 +266,8 @@ class _Run:
             done = True
             for name, target in moving.items():
                 at = target.at(t)
+                if worm:
+                    at = self._worm(name, target, at, t, lead[name], moving, floor)
                 w.set_target(name, at)
                 done &= at == target.end
             w.step()
@@ -339,6 +357,24 @@ class _Run:
                                         joint.upper if rate > 0 else joint.lower, t)
                     kp = share / (s.servo_lag / DEFAULT_LEVER)
                     w.drive(m, moving[m].at(t), kp, kp * SERVO_TIME, share)
+
+    def _worm(self, name: str, target: _Target, at: float, t: float, lead: float, moving: dict[str, _Target],
+              floor: dict[str, float]) -> float:
+        """The target of worm-gear joint ``name`` at ``t`` [s into closing] (see ``_close``): ``at`` held to
+        ``lead`` ahead of the joint (the motor stalls there: ``moving`` restarts from it), and the joint's
+        open-side limit moved up to :data:`RATCHET` leads behind it once it has gone that far past it."""
+        w = self.world
+        q = w.joint_position(name)
+        sign = 1.0 if target.speed > 0 else -1.0
+        if sign * (at - q) > lead:
+            at = q + sign * lead
+            moving[name] = _Target(at, target.speed, target.end, t)
+        back = q - sign * RATCHET * lead
+        if name not in floor or sign * (back - floor[name]) > 0:
+            floor[name] = back
+            joint = self.hand.joint(name)
+            w.set_limits(name, *((back, joint.upper) if sign > 0 else (joint.lower, back)))
+        return at
 
     def _hold_closed(self) -> None:
         """Worm-gear fingers: no load can open a closing joint past where it is now."""

@@ -176,6 +176,72 @@ def test_an_off_centre_box_is_held_by_three_fingers_with_bounded_forces(monkeypa
     assert peak[0] < FINGER_FORCE_BOUND
 
 
+def test_a_worm_gear_finger_is_neither_turned_back_nor_wound_up(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    # The off-centre box above: finger 3 pushes the box over to fingers 1 and 2, which push back. The Barrett's
+    # worm gears let no push of the object turn a finger back, and a motor that a finger could not follow does
+    # not wind up: once free the finger goes on at about its closing speed. Before (a servo following a target
+    # that ran on at the closing speed whatever the finger did) finger 3 was turned back 0.40 rad and fingers
+    # 1 and 2 then snapped shut at 7.7 rad/s (a fingertip at ~0.5 m/s): how the trial's Barrett squeezed small
+    # objects out (bench/RESULTS.md, 2026-12-05).
+    from planner.sim.mujoco_world import World
+    from planner.validation.mujoco_trial import RATCHET
+    from planner.validation.tolerances import DEFAULT_LEVER
+
+    hand, obj, grasp = _barrett_over_a_box()
+    pose = np.array(grasp.pose)
+    pose[1, 3] += 0.015
+    closing = ("bh_j12_joint", "bh_j22_joint", "bh_j32_joint", "bh_j13_joint", "bh_j23_joint", "bh_j33_joint")
+    rows = []
+    stepped = World.step
+
+    def step(world: World, n: int = 1) -> None:
+        for _ in range(n):
+            stepped(world, 1)
+            rows.append([world.joint_position(j) for j in closing] + [abs(world.joint_speed(j)) for j in closing])
+
+    monkeypatch.setattr(World, "step", step)
+    result = trial(hand, obj, replace(grasp, pose=pose))
+    assert result.reason == "held" and result.fingers_in_contact == 3
+    q, speed = np.array(rows)[:, :6], np.array(rows)[:, 6:]
+    turned_back = np.max(np.maximum.accumulate(q, axis=0) - q)
+    lead = MujocoSettings().servo_lag / DEFAULT_LEVER
+    assert turned_back < RATCHET * lead + 0.02  # [rad] the limit trails by RATCHET leads; a soft limit gives a little
+    assert speed.max() < 2 * hand.actuators.closing_speed
+
+
+def test_a_worm_gear_motor_stalls_where_its_finger_is_held_and_goes_on_from_there() -> None:
+    # _Run._worm on a stand-in world: a finger held 0.3 rad behind its running target gets a target one lead
+    # ahead of it (the servo then pushes with the motor's effort) that moves on at the closing speed from
+    # there, not from where the running target had got to; its open-side limit follows it RATCHET leads behind
+    # and never moves back.
+    from types import SimpleNamespace
+
+    from planner.validation.mujoco_trial import RATCHET, _Run, _Target
+
+    class Stand:
+        q = 0.5
+        limits: list = []
+
+        def joint_position(self, name: str) -> float:
+            return self.q
+
+        def set_limits(self, name: str, lower: float, upper: float) -> None:
+            self.limits.append((lower, upper))
+
+    hand = load_hand("barrett")
+    world, lead, name = Stand(), 0.04, "bh_j12_joint"
+    run = SimpleNamespace(world=world, hand=hand)
+    moving = {name: _Target(0.2, 2.4, hand.joint(name).upper, 0.0)}
+    floor: dict[str, float] = {}
+    at = _Run._worm(run, name, moving[name], moving[name].at(0.25), 0.25, lead, moving, floor)  # type: ignore[arg-type]
+    assert at == pytest.approx(0.5 + lead)
+    assert moving[name].at(0.26) == pytest.approx(0.5 + lead + 0.024)  # on at 2.4 rad/s from the stall
+    assert world.limits[-1] == (pytest.approx(0.5 - RATCHET * lead), hand.joint(name).upper)
+    world.q = 0.45  # pushed back: the limit stays
+    _Run._worm(run, name, moving[name], moving[name].at(0.27), 0.27, lead, moving, floor)  # type: ignore[arg-type]
+    assert len(world.limits) == 1
+
+
 def test_a_trial_whose_state_diverges_while_closing_has_no_verdict() -> None:
     # a 50 ms step (25 times the default) with contacts as stiff as it allows: closing diverges and MuJoCo
     # resets the state mid-trial (hand and object at the origin); read on, it would look like a squeeze-out
