@@ -362,7 +362,7 @@ class _Run:
               floor: dict[str, float]) -> float:
         """The target of worm-gear joint ``name`` at ``t`` [s into closing] (see ``_close``): ``at`` held to
         ``lead`` ahead of the joint (the motor stalls there: ``moving`` restarts from it), and the joint's
-        open-side limit moved up to :data:`RATCHET` leads behind it once it has gone that far past it."""
+        open-side limit kept :data:`RATCHET` leads behind the furthest it has closed (moved as it closes on)."""
         w = self.world
         q = w.joint_position(name)
         sign = 1.0 if target.speed > 0 else -1.0
