@@ -36,7 +36,11 @@ SWEEPS = {"panda": dict(approaches=256, reach_placements=0),
           "barrett": dict(approaches=24, rolls=2, reach_placements=0)}
 
 
-def split_objects(name: str, path: Path = Path(__file__).with_name("calibration_split.toml")) -> list[str]:
+#: The calibration split whose lists ``--split`` names.
+SPLIT = Path(__file__).with_name("calibration_split.toml")
+
+
+def split_objects(name: str, path: Path = SPLIT) -> list[str]:
     """The objects of list ``name`` of the calibration split (a one-line exit naming the lists otherwise)."""
     import tomllib
 

@@ -74,6 +74,16 @@ from planner.record.grasp import Grasp, Trial
 from planner.sim.mujoco_world import World
 from planner.specs.hands import HandSpec
 from planner.validation import fingers as fg
+from planner.validation.mujoco_fingers import (
+    BREAKAWAY,
+    RATCHET,
+    SERVO_TIME,
+    Clutch,
+    Target,
+    break_away,
+    hold_closed,
+    worm_target,
+)
 from planner.validation.mujoco_load import down_along, load_path, motion
 from planner.validation.mujoco_settings import DIVERGED, MujocoSettings
 from planner.validation.mujoco_worlds import world_for
@@ -81,9 +91,6 @@ from planner.validation.tolerances import DEFAULT_LEVER, GRAVITY
 
 #: Why a MuJoCo trial ended as it did (``Trial.reason``).
 REASONS = ("held", "slipped", "squeezed_out", "no_contact", "start_overlap", DIVERGED)
-#: [s] the finger servos' damping over their stiffness: the servo lags a
-#: moving target by this times its speed (0.5 mm at the Panda's 5 cm/s).
-SERVO_TIME = 0.01
 #: [s] how often a trial reads its contacts while loaded (an early verdict once no finger touches) and
 #: whether its state diverged (while closing and loaded).
 CHECK_EVERY = 0.05
@@ -96,16 +103,6 @@ ADVANCE = 0.8
 MIN_SKIP = 3 * SERVO_TIME
 #: The most clearance probes one skip takes (then it starts where it got to).
 MAX_PROBES = 40
-#: A breakaway clutch (the BH8's TorqueSwitch) disengages at a force, not at a touch (the BH8 manual,
-#: "TorqueSwitch operation": the force that disengages it is a setting; the inner link then holds its
-#: position): here once the proximal link touches and its motor pushes with this share of its effort
-#: (1: stalled), a grip the worm gear then holds. Slipping at the first touch left the link touching with
-#: no force (the object loose in a cage of fingers: ``no_contact``); at 0.5 the Barrett's figures of
-#: bench/mujoco_protocols.py move by one grasp in 150.
-BREAKAWAY = 1.0
-#: How far [servo lags] behind its furthest closing a worm-gear finger's open-side limit trails while it closes
-#: (the worm gear lets no push of the object turn it back; the slack keeps the limit off while it moves on).
-RATCHET = 0.5
 
 
 def recorded(settings: MujocoSettings, hand: HandSpec) -> str:
@@ -148,32 +145,6 @@ class _Diverged(Exception):
 
 def _steps(seconds: float, dt: float) -> int:
     return max(1, int(round(seconds / dt)))
-
-
-@dataclass(frozen=True)
-class _Target:
-    """A closing joint's servo target: from ``start`` at time ``since`` [s into closing], moving at
-    ``speed`` (signed) [rad/s or m/s] to ``end`` [rad or m], where it stays."""
-
-    start: float
-    speed: float
-    end: float
-    since: float
-
-    def at(self, t: float) -> float:
-        target = self.start + self.speed * (t - self.since)
-        return min(target, self.end) if self.speed > 0 else max(target, self.end)
-
-
-@dataclass
-class _Clutch:
-    """A breakaway driven joint still engaged: its mimics, the links only
-    it moves (``trigger``) and the links its mimics move (``rest``)."""
-
-    driven: str
-    mimics: tuple[str, ...]
-    trigger: frozenset[str]
-    rest: frozenset[str]
 
 
 @dataclass
@@ -233,7 +204,7 @@ class _Run:
         w, s, hand = self.world, self.s, self.hand
         effort = hand.actuators.effort * s.effort_scale
         fastest = max([abs(self.rates[j.name]) for j in hand.driven] + [1e-12])
-        moving: dict[str, _Target] = {}  # the joints whose servo follows a moving target
+        moving: dict[str, Target] = {}  # the joints whose servo follows a moving target
         clutches = []
         for j in hand.driven:
             rate = self.rates[j.name]
@@ -241,14 +212,14 @@ class _Run:
             if rate == 0.0:  # set by the preshape, held there (its motor idle)
                 w.set_limits(j.name, start[j.name], start[j.name])
                 continue
-            moving[j.name] = _Target(start[j.name], hand.actuators.closing_speed * rate / fastest,
-                                     j.upper if rate > 0 else j.lower, 0.0)
+            moving[j.name] = Target(start[j.name], hand.actuators.closing_speed * rate / fastest,
+                                    j.upper if rate > 0 else j.lower, 0.0)
             kp = effort / lag
             w.drive(j.name, start[j.name], kp, kp * SERVO_TIME, effort)
             mimics = tuple(m.name for m in hand.joints if m.mimic == j.name and self.rates[m.name] != 0.0)
             if j.breakaway and mimics:
                 rest = frozenset(link for m in mimics for link in hand.joint(m).moves)
-                clutches.append(_Clutch(j.name, mimics, frozenset(j.moves) - rest, rest))
+                clutches.append(Clutch(j.name, mimics, frozenset(j.moves) - rest, rest))
         dt = s.timestep
         every = _steps(CHECK_EVERY, dt)
         lever = {j.name: 1.0 if j.kind == "prismatic" else DEFAULT_LEVER for j in hand.joints}
@@ -267,22 +238,22 @@ class _Run:
             for name, target in moving.items():
                 at = target.at(t)
                 if worm:
-                    at = self._worm(name, target, at, t, lead[name], moving, floor)
+                    at = worm_target(w, hand, name, target, at, t, lead[name], moving, floor)
                 w.set_target(name, at)
                 done &= at == target.end
             w.step()
             if (i + 1) % every == 0:
                 self._check()
             if clutches:
-                self._break_away(clutches, w.touching_links(), moving, t, fastest)
+                break_away(w, hand, self.rates, s, clutches, w.touching_links(), moving, t, fastest)
             stalled = all(abs(w.joint_speed(name)) * lever[name] < s.stall_speed for name in moving)
             still = still + dt if stalled and (done or i * dt > s.stall_time) else 0.0
             if still >= s.stall_time:
                 break
         if not hand.actuators.backdrivable:
-            self._hold_closed()
+            hold_closed(w, hand, self.rates)
 
-    def _free_path(self, moving: Mapping[str, _Target], t: float) -> tuple[dict[str, float], dict[str, float]]:
+    def _free_path(self, moving: Mapping[str, Target], t: float) -> tuple[dict[str, float], dict[str, float]]:
         """(positions, speeds) of every closing joint at ``t`` [s] into closing when nothing has touched:
         each servo :data:`SERVO_TIME` behind its target (its steady lag), a mimic geared to its master."""
         q, v = {}, {}
@@ -295,7 +266,7 @@ class _Run:
                 v[j.name] = j.multiplier * v[j.mimic]
         return q, v
 
-    def _skip_free_travel(self, moving: Mapping[str, _Target]) -> int:
+    def _skip_free_travel(self, moving: Mapping[str, Target]) -> int:
         """The closing step to start from: the fingers' travel in free space skipped up to where a
         moving finger comes within ``free_travel_gap`` of the object (conservative advancement with
         :meth:`~planner.sim.mujoco_world.World.clearance`'s speed bound: over the skipped travel no
@@ -324,65 +295,6 @@ class _Run:
         q, v = self._free_path(moving, first * dt)
         w.set_fingers(q, v)
         return first
-
-    def _break_away(self, clutches: list[_Clutch], touching: set[str], moving: dict[str, _Target], t: float,
-                    fastest: float) -> None:
-        """The planner's closing rule (``breakaway`` in hand.toml): a finger
-        whose distal links touch first stalls as a whole (its clutch is
-        dropped); once only its proximal link touches and its motor pushes
-        with :data:`BREAKAWAY` of its effort, the gears go, the
-        proximal joint is braked where it is (its servo leaves the closing
-        targets, ``moving``) and each distal joint closes on alone, from
-        where it is at its geared speed (as the motor turns on behind the
-        slipping clutch), with its share of the motor's effort; ``t`` [s]:
-        the time into closing."""
-        w, hand, s = self.world, self.hand, self.s
-        effort = hand.actuators.effort * s.effort_scale
-        for c in list(clutches):
-            if touching & c.rest:
-                clutches.remove(c)
-            elif touching & c.trigger and abs(w.motor_force(c.driven)) >= BREAKAWAY * effort:
-                clutches.remove(c)
-                del moving[c.driven]
-                held = w.joint_position(c.driven)
-                w.drive(c.driven, held, 0.0, 0.0, 0.0)
-                w.set_limits(c.driven, held, held)
-                norm = 1.0 + sum(hand.joint(m).multiplier ** 2 for m in c.mimics)
-                for m in c.mimics:
-                    joint = hand.joint(m)
-                    share = effort * abs(joint.multiplier) / norm
-                    w.couple(m, False)
-                    rate = self.rates[m]
-                    moving[m] = _Target(w.joint_position(m), hand.actuators.closing_speed * rate / fastest,
-                                        joint.upper if rate > 0 else joint.lower, t)
-                    kp = share / (s.servo_lag / DEFAULT_LEVER)
-                    w.drive(m, moving[m].at(t), kp, kp * SERVO_TIME, share)
-
-    def _worm(self, name: str, target: _Target, at: float, t: float, lead: float, moving: dict[str, _Target],
-              floor: dict[str, float]) -> float:
-        """The target of worm-gear joint ``name`` at ``t`` [s into closing] (see ``_close``): ``at`` held to
-        ``lead`` ahead of the joint (the motor stalls there: ``moving`` restarts from it), and the joint's
-        open-side limit kept :data:`RATCHET` leads behind the furthest it has closed (moved as it closes on)."""
-        w = self.world
-        q = w.joint_position(name)
-        sign = 1.0 if target.speed > 0 else -1.0
-        if sign * (at - q) > lead:
-            at = q + sign * lead
-            moving[name] = _Target(at, target.speed, target.end, t)
-        back = q - sign * RATCHET * lead
-        if name not in floor or sign * (back - floor[name]) > 0:
-            floor[name] = back
-            joint = self.hand.joint(name)
-            w.set_limits(name, *((back, joint.upper) if sign > 0 else (joint.lower, back)))
-        return at
-
-    def _hold_closed(self) -> None:
-        """Worm-gear fingers: no load can open a closing joint past where it is now."""
-        for j in self.hand.joints:
-            rate = self.rates[j.name]
-            if rate != 0.0:
-                q = self.world.joint_position(j.name)
-                self.world.set_limits(j.name, *((q, j.upper) if rate > 0 else (j.lower, q)))
 
     def _load(self, closed: np.ndarray) -> tuple[bool, tuple[float, float]]:
         """Gravity, lift, shake, hold; (held, (largest motion [m], rotation [rad]) relative to the hand)."""

@@ -184,7 +184,7 @@ def test_a_worm_gear_finger_is_neither_turned_back_nor_wound_up(monkeypatch) -> 
     # 1 and 2 then snapped shut at 7.7 rad/s (a fingertip at ~0.5 m/s): how the trial's Barrett squeezed small
     # objects out (bench/RESULTS.md, 2026-12-05).
     from planner.sim.mujoco_world import World
-    from planner.validation.mujoco_trial import RATCHET
+    from planner.validation.mujoco_fingers import RATCHET
     from planner.validation.tolerances import DEFAULT_LEVER
 
     hand, obj, grasp = _barrett_over_a_box()
@@ -210,13 +210,11 @@ def test_a_worm_gear_finger_is_neither_turned_back_nor_wound_up(monkeypatch) -> 
 
 
 def test_a_worm_gear_motor_stalls_where_its_finger_is_held_and_goes_on_from_there() -> None:
-    # _Run._worm on a stand-in world: a finger held 0.3 rad behind its running target gets a target one lead
+    # worm_target on a stand-in world: a finger held 0.3 rad behind its running target gets a target one lead
     # ahead of it (the servo then pushes with the motor's effort) that moves on at the closing speed from
     # there, not from where the running target had got to; its open-side limit follows it RATCHET leads behind
     # and never moves back.
-    from types import SimpleNamespace
-
-    from planner.validation.mujoco_trial import RATCHET, _Run, _Target
+    from planner.validation.mujoco_fingers import RATCHET, Target, worm_target
 
     class Stand:
         q = 0.5
@@ -230,15 +228,14 @@ def test_a_worm_gear_motor_stalls_where_its_finger_is_held_and_goes_on_from_ther
 
     hand = load_hand("barrett")
     world, lead, name = Stand(), 0.04, "bh_j12_joint"
-    run = SimpleNamespace(world=world, hand=hand)
-    moving = {name: _Target(0.2, 2.4, hand.joint(name).upper, 0.0)}
+    moving = {name: Target(0.2, 2.4, hand.joint(name).upper, 0.0)}
     floor: dict[str, float] = {}
-    at = _Run._worm(run, name, moving[name], moving[name].at(0.25), 0.25, lead, moving, floor)  # type: ignore[arg-type]
+    at = worm_target(world, hand, name, moving[name], moving[name].at(0.25), 0.25, lead, moving, floor)  # type: ignore[arg-type]
     assert at == pytest.approx(0.5 + lead)
     assert moving[name].at(0.26) == pytest.approx(0.5 + lead + 0.024)  # on at 2.4 rad/s from the stall
     assert world.limits[-1] == (pytest.approx(0.5 - RATCHET * lead), hand.joint(name).upper)
     world.q = 0.45  # pushed back: the limit stays
-    _Run._worm(run, name, moving[name], moving[name].at(0.27), 0.27, lead, moving, floor)  # type: ignore[arg-type]
+    worm_target(world, hand, name, moving[name], moving[name].at(0.27), 0.27, lead, moving, floor)  # type: ignore[arg-type]
     assert len(world.limits) == 1
 
 
