@@ -217,8 +217,8 @@ def test_a_worm_gear_motor_stalls_where_its_finger_is_held_and_goes_on_from_ther
     from planner.validation.mujoco_fingers import RATCHET, Target, worm_target
 
     class Stand:
-        q = 0.5
-        limits: list = []
+        def __init__(self) -> None:
+            self.q, self.limits = 0.5, []
 
         def joint_position(self, name: str) -> float:
             return self.q
