@@ -15,7 +15,8 @@ and of the top-10 grasps. None of these objects was used to choose the MuJoCo tr
     python bench/mujoco_protocols.py --split held_out_3 --db-dir /tmp/ho3   # 50 random objects never tuned on
 
 ``--split NAME`` takes the objects of that list of bench/calibration_split.toml instead of ``--objects``
-(``held_out_3``: 50 random objects fixed on 2026-11-23 and never tuned on since).
+(``held_out_3``: 50 random objects fixed on 2026-11-23 and never tuned on since; ``held_out_4``: 50 more, drawn
+on 2026-12-05 before any of them was swept).
 """
 
 from __future__ import annotations
