@@ -49,7 +49,7 @@ import tomllib
 
 from planner.calibration import features
 from planner.calibration.fitting import calibrate
-from planner.calibration.labels import LabelledSet
+from planner.calibration.labels import LabelledSet, object_properties
 from planner.calibration.metrics import expected_calibration_error, roc_auc
 from planner.calibration.model import DEFAULT_TREES, default_model, load_model
 from planner.datasets import importer
@@ -360,7 +360,8 @@ def labelled_set(results: list[FileResult]) -> LabelledSet:
     labels = np.concatenate([r.labels[r.closed] for r in results])
     groups = tuple(object_key(r.path)[1] for r in results for _ in range(int(r.closed.sum())))
     stems = tuple(r.path.stem for r in results for _ in range(int(r.closed.sum())))
-    return LabelledSet(table, labels, groups, stems, "panda")
+    objects = {r.path.stem: object_properties(importer.read_for_rescoring(r.path)[1]) for r in results if r.grasps}
+    return LabelledSet(table, labels, groups, stems, "panda", objects=objects)
 
 
 def print_table(report: dict) -> None:

@@ -49,7 +49,13 @@ from planner.api.on_table import (  # noqa: F401 - re-exported
     table_command,
 )
 from planner.api.presenting import coverage, show, view  # noqa: F401 - re-exported
-from planner.api.querying import DIVERSE_BATCH, best, p_hold_model, ranking_rule  # noqa: F401 - re-exported
+from planner.api.querying import (  # noqa: F401 - re-exported
+    DIVERSE_BATCH,
+    best,
+    p_hold_model,
+    p_hold_outside,
+    ranking_rule,
+)
 from planner.api.reaching import (  # noqa: F401 - re-exported
     CANDIDATE_BATCH,
     MAX_CANDIDATES,

@@ -55,6 +55,15 @@ def ranking_rule(db_path: Path = DEFAULT_DB) -> RankingRule:
         return db.rule()
 
 
+def p_hold_outside(name: str, hand: str, *, db_path: Path = DEFAULT_DB) -> list[str]:
+    """Where the stored object ``name`` lies outside the labelled objects ``hand``'s p_hold model was fitted on
+    (:meth:`~planner.calibration.logistic.LogisticModel.outside`: one text per property; [] inside, or no model,
+    object or known domain): there p_hold is an extrapolation, which its trials (``grasp validate``) check."""
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        model, row = db.model(hand), db.object_row(name)
+        return [] if model is None or row is None else model.outside(row.properties())
+
+
 def p_hold_model(hand: str, *, db_path: Path = DEFAULT_DB) -> LogisticModel | None:
     """The p_hold model a database applies to ``hand``'s grasps (stored by
     ``grasp calibrate``, else the shipped one; None: none)."""

@@ -88,8 +88,16 @@ def calibrate(data: LabelledSet, *, folds: int = 5, features: Sequence[str] = DE
         figures.update(trial_figures(data, cv))
         updates[data.engine] = fit_update(data.engine, cv.p[tried], data.verdicts[tried], data.labels[tried])
     model = replace(model, source=source, figures={k_: v for k_, v in figures.items() if math.isfinite(v)},
-                    held_out=table, updates=updates)
+                    held_out=table, updates=updates, domain=domain(data))
     return Calibration(model, cv, figures, per_object(data, cv.p), table)
+
+
+def domain(data: LabelledSet) -> dict[str, tuple[float, float]]:
+    """(low, high) of each object property over the labelled set's files (empty where it does not say)."""
+    used = set(data.files)
+    values = [props for stem, props in data.objects.items() if stem in used]
+    names = set.intersection(*(set(v) for v in values)) if values else set()
+    return {k: (min(v[k] for v in values), max(v[k] for v in values)) for k in sorted(names)}
 
 
 def trial_figures(data: LabelledSet, cv: CrossValidation) -> dict[str, float]:

@@ -47,7 +47,10 @@ class LabelledSet:
     hand; sampled: poses sampled per file stem; rejected: why poses did not
     close, counted per reason over all files; verdicts (n,): 1 held, 0
     dropped in the dynamic trial ``engine`` (its record group: ``mujoco``
-    or ``validation``), NaN not tried (None: no trial asked for).
+    or ``validation``), NaN not tried (None: no trial asked for); objects:
+    per file stem, its object's properties (the names of
+    :data:`~planner.calibration.logistic.DOMAIN`, their units), from which a
+    fitted model's domain comes.
     """
 
     table: dict[str, np.ndarray]
@@ -59,6 +62,7 @@ class LabelledSet:
     rejected: dict[str, int] = field(default_factory=dict)
     verdicts: np.ndarray | None = None
     engine: str = ""
+    objects: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         n = len(self.labels)
@@ -92,6 +96,7 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
         raise InputError(f"--engine must be one of {', '.join(TRIAL_GROUPS)}; got '{engine}'")
     tables, labels, groups, files, verdicts = [], [], [], [], []
     sampled: dict[str, int] = {}
+    objects: dict[str, dict[str, float]] = {}
     rejected: Counter = Counter()
     hands = set()
     for path in map(Path, paths):
@@ -114,6 +119,7 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
         if order and trial:
             verdicts.append(_tried(spec_hand, spec, [grasps[i] for i in order], trial, seed, path.stem, engine))
         if order:
+            objects[path.stem] = object_properties(spec)
             tables.append(features.of_grasps([grasps[i] for i in order]))
             labels.append(y[rows[order]])
             groups += [spec.source if spec.kind == "mesh" else spec.name] * len(order)
@@ -127,7 +133,16 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
     table = {k: np.concatenate([t[k] for t in tables]) for k in features.MEASURES}
     return LabelledSet(table, np.concatenate(labels), tuple(groups), tuple(files), hands.pop(), sampled,
                        dict(rejected), np.concatenate(verdicts) if trial else None,
-                       TRIAL_GROUPS[engine] if trial else "")
+                       TRIAL_GROUPS[engine] if trial else "", objects)
+
+
+def object_properties(spec: ObjectSpec) -> dict[str, float]:
+    """The properties of :data:`~planner.calibration.logistic.DOMAIN` of the object ``spec`` makes (its mass and
+    friction as the labelled file gives them; its density from the checked mesh's volume)."""
+    from planner.geometry.solid import prepare
+
+    obj = prepare(spec)
+    return {"density": float(obj.density), "friction": float(obj.friction), "mass": float(obj.mass)}
 
 
 #: The trial engines (``grasp validate --engine``) and the record group that stores each one's verdicts.

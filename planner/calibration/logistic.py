@@ -32,6 +32,11 @@ FOLDER = "calibration"
 INTERACTIONS = "interactions"
 #: The trees' integer arrays (written as integers in TOML).
 TREE_INTS = ("roots", "feature", "left", "right")
+#: The object properties a model's domain spans, with their units: the range of the labelled objects it was
+#: fitted on (:attr:`LogisticModel.domain`). An object outside it gets a p_hold the labels never tested.
+DOMAIN = {"density": "kg/m^3", "friction": "", "mass": "kg"}
+#: Relative slack of :meth:`LogisticModel.outside` (the stored values' rounding).
+DOMAIN_SLACK = 0.02
 
 
 @dataclass(frozen=True)
@@ -54,7 +59,10 @@ class LogisticModel:
     None: the model is additive alone); updates: per trial group (``mujoco``,
     ``validation``), how that trial's verdict updates p_hold into
     ``p_hold_trial`` (:mod:`~planner.calibration.update`; none: a verdict of
-    that engine is used as it is).
+    that engine is used as it is); domain: per property of :data:`DOMAIN`,
+    (low, high) over the labelled objects it was fitted on (empty: not
+    known, a model stored before 2026-12-05): :meth:`outside` says where an
+    object's p_hold is extrapolated.
     """
 
     hand: str
@@ -71,8 +79,14 @@ class LogisticModel:
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     trees: Trees | None = None
     updates: Mapping[str, TrialUpdate] = field(default_factory=dict)
+    domain: Mapping[str, tuple[float, float]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        odd = [k for k, b in self.domain.items() if k not in DOMAIN or len(b) != 2 or not 0 < b[0] <= b[1]]
+        if odd:
+            raise InputError(f"calibration model: domain of {', '.join(map(str, odd))} must be one of "
+                             f"{', '.join(DOMAIN)} as (low, high) with 0 < low <= high")
+        object.__setattr__(self, "domain", {k: (float(b[0]), float(b[1])) for k, b in self.domain.items()})
         if any(u.engine != k for k, u in self.updates.items()):
             raise InputError("calibration model: each trial update must be keyed by its own engine")
         wrong = [f for f, b in self.bounds.items() if f not in self.features or len(b) != 2 or not b[0] <= b[1]]
@@ -164,6 +178,21 @@ class LogisticModel:
             done |= tried
         return np.where(np.isnan(p), np.nan, out)
 
+    def outside(self, properties: Mapping[str, float]) -> list[str]:
+        """Where an object (``properties``: names of :data:`DOMAIN` -> value)
+        lies outside the labelled objects the model was fitted on, one text
+        per property, e.g. ``density 1320 kg/m^3 (labels: 150)``; [] inside
+        (within :data:`DOMAIN_SLACK`) or where the domain is not known."""
+        out = []
+        for name, (low, high) in self.domain.items():
+            value = properties.get(name)
+            if value is None or low * (1 - DOMAIN_SLACK) <= value <= high * (1 + DOMAIN_SLACK):
+                continue
+            unit = f" {DOMAIN[name]}" if DOMAIN[name] else ""
+            span = _short(low) if high <= low * (1 + DOMAIN_SLACK) else f"{_short(low)}-{_short(high)}"
+            out.append(f"{name} {_short(value)}{unit} (labels: {span}{unit})")
+        return out
+
     def to_dict(self) -> dict:
         return {"hand": self.hand, "features": list(self.features), "mean": self.mean.tolist(),
                 "scale": self.scale.tolist(), "coef": self.coef.tolist(), "intercept": self.intercept,
@@ -172,7 +201,8 @@ class LogisticModel:
                 "bounds": {k: list(v) for k, v in self.bounds.items()},
                 **({"held_out": _table(self.held_out)} if self.held_out is not None else {}),
                 **({"trees": self.trees.to_dict()} if self.trees is not None else {}),
-                **({"updates": {k: u.to_dict() for k, u in self.updates.items()}} if self.updates else {})}
+                **({"updates": {k: u.to_dict() for k, u in self.updates.items()}} if self.updates else {}),
+                **({"domain": {k: list(v) for k, v in self.domain.items()}} if self.domain else {})}
 
     @classmethod
     def from_dict(cls, data: Mapping) -> LogisticModel:
@@ -185,7 +215,8 @@ class LogisticModel:
                        {str(k): tuple(float(x) for x in v) for k, v in dict(data.get("knots", {})).items()},
                        {str(k): tuple(float(x) for x in v) for k, v in dict(data.get("bounds", {})).items()},
                        Trees.from_dict(data["trees"]) if "trees" in data else None,
-                       {str(k): TrialUpdate.from_dict(k, v) for k, v in dict(data.get("updates", {})).items()})
+                       {str(k): TrialUpdate.from_dict(k, v) for k, v in dict(data.get("updates", {})).items()},
+                       {str(k): tuple(float(x) for x in v) for k, v in dict(data.get("domain", {})).items()})
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"calibration model: missing or bad field ({exc})") from None
 
@@ -210,6 +241,10 @@ class LogisticModel:
         if self.bounds:
             lines += ["", "[bounds]  # (low, high) of each feature's inputs in the fitting data; inputs clipped to it"]
             lines += [f'"{k}" = {_floats(np.asarray(v, float))}' for k, v in self.bounds.items()]
+        if self.domain:
+            lines += ["", "[domain]  # (low, high) over the labelled objects: " +
+                      ", ".join(f"{k} [{u}]" if u else k for k, u in DOMAIN.items())]
+            lines += [f'"{k}" = {_floats(np.asarray(v, float))}' for k, v in self.domain.items()]
         if self.held_out is not None:
             lines += ["", "[held_out]  # reliability table of the cross-validated predictions (nan: empty bin)"]
             lines += [f"{k} = {_floats(np.asarray(v, float))}" for k, v in _table(self.held_out, nan=True).items()]
@@ -221,6 +256,11 @@ class LogisticModel:
             lines += ["", f"[updates.{engine}]  # p_hold given this trial's verdict (update.py)"]
             lines += [f"{k} = {float(v)!r}" if k != "grasps" else f"{k} = {int(v)}" for k, v in u.to_dict().items()]
         return "\n".join(lines) + "\n"
+
+
+def _short(v: float) -> str:
+    """Three significant digits, without an exponent from 1e-3 to 1e6 (1320, 0.5, 0.0017)."""
+    return f"{v:,.0f}" if 1e3 <= abs(v) < 1e6 else f"{v:.3g}"
 
 
 def _table(r: Reliability, nan: bool = False) -> dict[str, list]:

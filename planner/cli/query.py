@@ -58,12 +58,14 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
         if robot_base is not None:
             raise click.BadParameter("--robot-base needs --object-pose")
         grasps = api.best(object_name, hand, db_path=db_path, top=top, spacing=apart)
+        outside = api.p_hold_outside(grasps[0].object, hand, db_path=db_path)
         if as_json:
-            click.echo(json.dumps([{**g.to_json(), "frames": _frames_json(g, None, rule, model)} for g in grasps],
-                                  indent=2))
+            click.echo(json.dumps([{**g.to_json(), "frames": _frames_json(g, None, rule, model),
+                                    "p_hold_outside": outside} for g in grasps], indent=2))
             return
         for g in grasps:
             _print_grasp(g, rule=rule, model=model)
+        _extrapolated(grasps[0].object, hand, db_path, outside)
         return
     if apart is not None:
         raise click.BadParameter("--diverse is not yet available with --object-pose")
@@ -88,6 +90,14 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
     for r in found:
         _print_grasp(r.grasp, world, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp}, rule,
                      model)
+
+
+def _extrapolated(name: str, hand: str, db_path: Path, outside: list[str]) -> None:
+    """A note under the grasps when the object lies outside what the hand's p_hold model was fitted on."""
+    if outside:
+        click.echo(f"note: p_hold is extrapolated for {name}, outside the labelled objects the {hand}'s model was "
+                   f"fitted on: {'; '.join(outside)}. Its trials at the object's own mass and friction check it: "
+                   f"`grasp validate --db {db_path} --object {name} --hand {hand} --top 10` (p_hold_trial).")
 
 
 def _print_grasp(g: api.Grasp, world: object = None, arm: dict | None = None, rule: object = None,

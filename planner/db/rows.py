@@ -32,6 +32,11 @@ class ObjectRow:
     inertia: np.ndarray
     mesh_sha256: str = ""
 
+    def properties(self) -> dict[str, float]:
+        """Density [kg/m^3], friction and mass [kg]: what a p_hold model's domain is checked on
+        (:meth:`planner.calibration.logistic.LogisticModel.outside`)."""
+        return {"density": self.density, "friction": self.friction, "mass": self.mass}
+
 
 @dataclass(frozen=True)
 class UnitRow:

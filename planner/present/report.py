@@ -141,12 +141,15 @@ def deciles(eps: np.ndarray, success: np.ndarray) -> list[tuple[float, float, fl
 class HandCalibration:
     """A hand's p_hold model as the report shows it: where it came from, its
     held-out reliability table (None: not recorded) and p_hold against the
-    stored trials (None: no trial of a grasp with p_hold)."""
+    stored trials (None: no trial of a grasp with p_hold); outside: per
+    object of the hand outside the labelled objects the model was fitted on,
+    how (:meth:`~planner.calibration.logistic.LogisticModel.outside`)."""
 
     hand: str
     source: str
     held_out: Reliability | None
     trials: Reliability | None
+    outside: dict[str, list[str]] = field(default_factory=dict)
 
     def curves(self) -> list[tuple[str, Reliability]]:
         return [(label, r) for label, r in (("held out, labels", self.held_out), ("trials", self.trials))
@@ -164,7 +167,10 @@ def calibration(db_path: Path) -> list[HandCalibration]:
             tried = [g for g in db.validated() if g.hand == hand and g.p_hold is not None]
             trials = reliability(np.array([g.trial.success for g in tried], float),  # type: ignore[union-attr]
                                  np.array([g.p_hold for g in tried], float)) if tried else None
-            out.append(HandCalibration(hand, db.model_source(hand), model.held_out, trials))
+            rows = {name: db.object_row(name) for name in db.objects_for(hand)}
+            outside = {name: model.outside(row.properties()) for name, row in rows.items() if row is not None}
+            out.append(HandCalibration(hand, db.model_source(hand), model.held_out, trials,
+                                       {name: why for name, why in outside.items() if why}))
     return out
 
 
@@ -174,6 +180,8 @@ def ece_lines(cals: list[HandCalibration]) -> list[str]:
     for c in cals:
         for label, r in c.curves():
             lines.append(f"{c.hand}: ECE of p_hold ({label}, {int(r.count.sum())} grasps) = {r.ece:.4f}")
+        lines += [f"{c.hand}: p_hold of {name} is extrapolated, outside the labelled objects it was fitted on: "
+                  f"{'; '.join(why)}" for name, why in sorted(c.outside.items())]
     return lines
 
 

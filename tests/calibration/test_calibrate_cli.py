@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import re
 import shutil
 import sqlite3
@@ -10,7 +11,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from helpers import grasp
+from helpers import FAST, grasp
 
 from planner.calibration.model import default_model
 from planner.db.ranking import rule_measures
@@ -48,6 +49,13 @@ def test_calibrate_fits_reports_and_stores_a_model_that_best_and_exports_use(val
         assert d.model("panda") is not None and "labels" in d.model_source("panda")
         grasps = d.best("box", "panda", 1000)
         rule = d.rule()
+        rows = {name: d.object_row(name) for name in ("box", "sphere")}
+        domain = d.model("panda").domain  # type: ignore[union-attr]
+    props = [r.properties() for r in rows.values() if r is not None]  # the labelled files' objects, as exported
+    assert len(props) == 2 and set(domain) == {"density", "friction", "mass"}
+    for k, (low, high) in domain.items():
+        assert low == pytest.approx(min(p[k] for p in props), rel=1e-3)
+        assert high == pytest.approx(max(p[k] for p in props), rel=1e-3)
     assert all(0.0 <= g.p_hold <= 1.0 for g in grasps)  # type: ignore[operator]
     assert np.allclose([g.score for g in grasps], rule.scores(rule_measures(grasps)))  # scored by p_hold
     code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(db))
@@ -107,6 +115,34 @@ def test_the_shipped_panda_model_loads_and_rescores_a_database(box_db: Path, tmp
         assert conn.execute("SELECT COUNT(*) FROM grasps WHERE p_hold IS NULL").fetchone()[0] == 0
     fc = [g.force_closure for g in grasps]
     assert fc == sorted(fc, reverse=True)  # force closure first
+
+
+def test_best_and_report_say_where_the_shipped_p_hold_is_extrapolated(box_db: Path, tmp_path: Path,
+                                                                     shipped_models: None) -> None:
+    model = default_model("panda")
+    assert model is not None and model.domain["friction"] == (1.0, 1.0)  # ACRONYM's labels: friction 1
+    assert model.domain["density"][0] == pytest.approx(150.0, rel=1e-3)  # ... and 150 kg/m^3
+    db = tmp_path / "g.db"
+    shutil.copy(box_db, db)  # the box: 0.2 kg, friction 0.5
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(db))
+    assert code == 0, err
+    note = [line for line in out.splitlines() if line.startswith("note: p_hold is extrapolated for box")]
+    assert len(note) == 1 and "friction 0.5 (labels: 1)" in note[0] and "density" in note[0], out
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(db), "--json")
+    assert code == 0, err
+    assert any(w.startswith("friction 0.5") for w in json.loads(out)[0]["p_hold_outside"])
+    code, out, err = grasp("report", "--db", str(db), "--out", str(tmp_path / "rep"))
+    assert code == 0, err
+    assert "panda: p_hold of box is extrapolated" in out
+    inside = tmp_path / "inside.db"  # the same box at the labels' density and friction: nothing to say
+    code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(inside), "--density", "150",
+                         "--friction", "1", "--quiet", *FAST)
+    assert code == 0, err
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(inside))
+    assert code == 0, err
+    assert "p_hold" in out and "extrapolated" not in out
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(inside), "--json")
+    assert code == 0 and json.loads(out)[0]["p_hold_outside"] == []
 
 
 def test_calibrate_with_trials_fits_the_update_that_labels_and_ranks_validated_grasps(validated_db: Path,

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from hypothesis import assume, given
@@ -87,7 +89,28 @@ def test_model_round_trips_through_toml_and_json(tmp_path) -> None:
         assert_close(back.predict(table), model.predict(table), 1e-12)
 
 
+def test_the_domain_travels_with_the_model_and_says_where_an_object_lies_outside(tmp_path) -> None:
+    table, y, _ = synthetic(400)
+    model = replace(fit(table, y, "panda"), domain={"density": (150.0, 157.0), "friction": (1.0, 1.0),
+                                                    "mass": (0.002, 0.5)})
+    path = tmp_path / "panda.toml"
+    path.write_text(model.to_toml())
+    for back in (load_model(path), LogisticModel.from_json(model.to_json())):
+        assert back.domain == model.domain
+    assert model.outside({"density": 151.0, "friction": 1.0, "mass": 0.3}) == []
+    assert model.outside({"density": 158.0, "friction": 1.01, "mass": 0.505}) == []  # within the slack
+    assert model.outside({"density": 1320.0, "friction": 0.5, "mass": 0.3}) == [
+        "density 1,320 kg/m^3 (labels: 150-157 kg/m^3)", "friction 0.5 (labels: 1)"]
+    assert model.outside({"density": 150.0, "friction": 1.0, "mass": 0.9}) == ["mass 0.9 kg (labels: 0.002-0.5 kg)"]
+    assert replace(model, domain={}).outside({"density": 1320.0, "friction": 0.5, "mass": 0.3}) == []  # not known
+    assert "domain" not in replace(model, domain={}).to_dict()
+
+
 def test_bad_models_are_refused_with_a_message() -> None:
+    with pytest.raises(InputError, match="domain of friction"):
+        LogisticModel("panda", ("push",), np.zeros(1), np.ones(1), np.zeros(1), 0.0, 0.0, domain={"friction": (1, 0.5)})
+    with pytest.raises(InputError, match="domain of colour"):
+        LogisticModel("panda", ("push",), np.zeros(1), np.ones(1), np.zeros(1), 0.0, 0.0, domain={"colour": (1, 2)})
     with pytest.raises(InputError, match="one per column"):
         LogisticModel("panda", ("push",), np.zeros(2), np.ones(1), np.zeros(1), 0.0, 0.0)
     with pytest.raises(InputError, match="unknown feature"):
