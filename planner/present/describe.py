@@ -124,6 +124,11 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
         lines.append(f"    holds {m.resist_worst:.1f} times its weight in the worst direction (mean "
                      f"{m.resist_mean:.1f}); push {m.push:.2f} (1 = pads square on); feasibility "
                      f"{','.join(m.reasons) or 'ok'}{settled}")
+    if not g.force_closure:
+        lines.append("    not force closure as planned: it ranks after every force-closure grasp of the object (so it "
+                     "shows only where the object has fewer than asked for); its p_hold is how often labelled grasps "
+                     "with these measures held (a thin pinch often turns the object into line as it closes); "
+                     "`grasp validate` tries it")
     for name, trial in (("shake trial (PyBullet)", g.validation), ("MuJoCo trial", g.mujoco)):
         if trial is not None:
             verdict = "held" if trial.success else "dropped"

@@ -65,6 +65,20 @@ def test_best_prints_one_line_per_grasp_and_show_writes_a_png(box_db: Path, tmp_
     assert code == 0 and (tmp_path / "g.png").stat().st_size > 1000, err
 
 
+def test_a_grasp_that_is_not_force_closure_says_what_that_means(box_db: Path) -> None:
+    from dataclasses import replace
+
+    from planner import api
+    from planner.present.describe import describe
+    from planner.specs.hands import hand_frame
+
+    top = api.best("box", "panda", db_path=box_db, top=1)[0]
+    said = "    not force closure as planned: it ranks after every force-closure grasp"
+    assert top.force_closure and not any(x.startswith(said) for x in describe(top, hand_frame("panda")))
+    lines = describe(replace(top, force_closure=False, epsilon=0.0), hand_frame("panda"))
+    assert any("NOT force closure" in x for x in lines) and any(x.startswith(said) for x in lines), lines
+
+
 def test_every_query_takes_the_database_name_of_a_stored_object(stored_db: Path, tmp_path: Path) -> None:
     """A user mesh in millimetres and a built-in generated at --scale 1.5,
     by the names the database stores them under; and an imported object."""
