@@ -48,7 +48,11 @@ Files written before issue 12 stored the Panda's full opening ``[0.08]``
 This project's extras (a foreign reader ignores them): ``object/name``,
 ``object/source`` and ``object/source_scale`` (the database's mesh file and
 scale), ``object/mesh_sha256`` (:func:`planner.geometry.mesh.mesh_hash` of
-the mesh); ``gripper/configuration_joints``;
+the mesh), ``object/p_hold_outside`` (str: where the object lies outside
+the labelled objects the hand's p_hold model was fitted on, e.g. ``density
+1,320 kg/m^3 (labels: 150-157 kg/m^3); friction 0.5 (labels: 1)``; '' inside:
+there p_hold, and a label taken from it, is an extrapolation);
+``gripper/configuration_joints``;
 ``grasps/qualities/{epsilon, volume, force_closure, reachability,
 manipulability, score, p_hold, p_hold_trial, rank}`` (``p_hold``: the calibrated
 probability of holding, NaN where no model applies; ``p_hold_trial``: p_hold
@@ -183,6 +187,7 @@ def _header(f: Any, info: ExportedObject, hand: HandSpec) -> None:
     f["object/mesh_sha256"] = row.mesh_sha256
     for key in ("mass", "friction", "density", "volume"):
         f[f"object/{key}"] = np.float64(getattr(row, key))
+    f["object/p_hold_outside"] = info.outside_text
     f["object/com"] = np.asarray(row.com, np.float64)
     f["object/inertia"] = np.asarray(row.inertia, np.float64)
     f["grasps/joint_names"] = np.array(joint_names(hand), dtype=h5py.string_dtype())

@@ -24,7 +24,8 @@ allow_pickle=True)``::
               joint_name: closed joint value [rad or m], ...},
      "object_code": "{object}", "mesh_file": "meshes/{object}.obj" (relative to DIR),
      "epsilon", "score", "force_closure", "rank", "width", ..., "object_mass", ...: this project's
-     extras (:data:`EXTRAS`, :data:`PHYSICS`)}
+     extras (:data:`EXTRAS`, :data:`PHYSICS`, ``p_hold_outside``: where the object lies outside
+     the labelled objects the hand's p_hold model was fitted on, '' inside)}
 
 The Euler angles are ``Rotation.from_matrix(R).as_euler("xyz")`` of scipy:
 lower-case "xyz" = *extrinsic* rotations about the fixed x, then y, then z
@@ -101,7 +102,8 @@ def write(path: Path, info: ExportedObject, hand: HandSpec, batches: Iterable[li
     keys = (*WRIST, *names)
     code = path.name[:-len(SUFFIX)]
     grasps: list[dict] = []
-    physics = {name: getattr(info.row, name[len("object_"):]) for name in PHYSICS}
+    physics = {**{name: getattr(info.row, name[len("object_"):]) for name in PHYSICS},
+               "p_hold_outside": info.outside_text}
     for batch in batches:
         c = grasp_columns(batch)
         joints = joint_matrix(c["closed_joints"], names)

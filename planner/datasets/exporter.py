@@ -145,7 +145,7 @@ def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (
         if isinstance(writer, TableWriter):
             path = out_dir / writer.file
             tmp = path.with_name(path.name + ".tmp")
-            streams = (Stream(exported[o], h, sel.batches(db, o, h)) for o, h in pairs)
+            streams = (Stream(_for_hand(db, exported[o], h), h, sel.batches(db, o, h)) for o, h in pairs)
             summary.grasps = writer.write(tmp, streams)
             os.replace(tmp, path)
             summary.files.append(path)
@@ -154,7 +154,7 @@ def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (
         else:
             for obj, hand in pairs:
                 path = out_dir / writer.relative_path(mesh_stem(obj), hand)
-                count = _write_pair(db, writer, path, exported[obj], specs[hand], sel)
+                count = _write_pair(db, writer, path, _for_hand(db, exported[obj], hand), specs[hand], sel)
                 if count:
                     summary.files.append(path)
                     summary.grasps += count
@@ -165,6 +165,12 @@ def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (
     summary.seconds = time.perf_counter() - start
     log.info("exported %d grasps as %s to %s in %.1f s", summary.grasps, fmt, out_dir, summary.seconds)
     return summary
+
+
+def _for_hand(db: Database, obj: ExportedObject, hand: str) -> ExportedObject:
+    """The object as written with ``hand``'s grasps: where it lies outside that hand's p_hold model's domain."""
+    model = db.model(hand)
+    return obj if model is None else replace(obj, p_hold_outside=tuple(model.outside(obj.row.properties())))
 
 
 def _write_pair(db: Database, writer: PairWriter, path: Path, obj: ExportedObject, hand: HandSpec,

@@ -45,13 +45,22 @@ class ExportedObject:
     ``source`` and ``scale``); ``file``: the mesh, relative to the export
     folder, '/'-separated; ``scale``: what turns ``file`` into metres (1: the
     file is in metres); ``label``: which success label the export writes
-    (:mod:`planner.datasets.labels`).
+    (:mod:`planner.datasets.labels`); ``p_hold_outside``: where the object
+    lies outside the labelled objects the exported hand's p_hold model was
+    fitted on (:meth:`~planner.calibration.logistic.LogisticModel.outside`;
+    empty: inside, or no model): :attr:`outside_text` is written with it.
     """
 
     row: ObjectRow
     file: str
     scale: float = 1.0
     label: str = "best"
+    p_hold_outside: tuple[str, ...] = ()
+
+    @property
+    def outside_text(self) -> str:
+        """``p_hold_outside`` as one string, '; '-separated ('' inside)."""
+        return "; ".join(self.p_hold_outside)
 
     @property
     def name(self) -> str:

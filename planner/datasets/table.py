@@ -43,7 +43,10 @@ EXPORT_COLUMNS = (("object_scale", "float64", "scale that turns `object_file` in
                   ("label", "int64", "success label as `--label` chooses: 1 holds, 0 drops (see `label_from`)"),
                   ("label_from", "string", "where the label came from: `p_hold_trial` (p_hold updated by the "
                    "trial's verdict, >= 0.5), `trial` (the dynamic trial: MuJoCo's, else PyBullet's), `p_hold` "
-                   "(p_hold >= 0.5) or `force_closure` (a closure flag, not a success label)"))
+                   "(p_hold >= 0.5) or `force_closure` (a closure flag, not a success label)"),
+                  ("p_hold_outside", "string", "where the object lies outside the labelled objects the hand's "
+                   "p_hold model was fitted on (`density 1,320 kg/m^3 (labels: 150-157 kg/m^3); friction 0.5 "
+                   "(labels: 1)`); empty inside: there p_hold, and a label from it, is an extrapolation"))
 
 
 def _suffixes(shape: tuple[int, ...]) -> list[tuple[str, tuple[int, ...]]]:
@@ -95,7 +98,8 @@ def columns(stream: Stream, batch: list[Grasp]) -> dict[str, np.ndarray | list]:
     """One batch as flat columns (numpy arrays or lists of str)."""
     n, info = len(batch), stream.info
     constants = {"object_mass": info.row.mass, "object_friction": info.row.friction,
-                 "object_density": info.row.density, "object_scale": info.scale, "object_file": info.file}
+                 "object_density": info.row.density, "object_scale": info.scale, "object_file": info.file,
+                 "p_hold_outside": info.outside_text}
     grasps = grasp_columns(batch)
     label, label_from = dataset_labels(grasps, info.label)
     labelled = {"label": label, "label_from": label_from}

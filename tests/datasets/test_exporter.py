@@ -82,3 +82,24 @@ def test_export_streams_in_batches(db: Path, tmp_path: Path, monkeypatch: pytest
         for name, value in got.items():
             np.testing.assert_equal(value, expected[fmt][name])
     assert max(sizes) == 2 and len(sizes) > len(FORMATS) * 4
+
+
+def test_every_format_says_where_the_objects_p_hold_is_extrapolated(db: Path, tmp_path: Path,
+                                                                     shipped_models: None) -> None:
+    import json
+
+    copy = tmp_path / "g.db"
+    copy.write_bytes(db.read_bytes())
+    with store.open_db(copy) as d:
+        d.apply_rule(d.rule())  # p_hold from the shipped Panda model (friction 1 in its labels; the box's 0.5)
+        outside = d.model("panda").outside(d.object_row("box").properties())  # type: ignore[union-attr]
+    text = "; ".join(outside)
+    assert "friction 0.5 (labels: 1)" in text
+    out = {fmt: export(copy, fmt, tmp_path / fmt, "--object", "box") for fmt in FORMATS}
+    with h5py.File(out["acronym"] / "box__panda.h5", "r") as f:
+        assert f["object/p_hold_outside"][()].decode() == text
+    assert json.loads((out["graspgen"] / "grasp_data/panda/box.json").read_text())["object"]["p_hold_outside"] == text
+    rows = np.load(out["dexgraspnet"] / "dataset/panda/box.npy", allow_pickle=True)
+    assert {r["p_hold_outside"] for r in rows} == {text}
+    assert set(pq.read_table(out["parquet"] / "grasps.parquet").column("p_hold_outside").to_pylist()) == {text}
+    assert text in (out["csv"] / "grasps.csv").read_text()
