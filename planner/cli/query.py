@@ -96,8 +96,9 @@ def _extrapolated(name: str, hand: str, db_path: Path, outside: list[str]) -> No
     """A note under the grasps when the object lies outside what the hand's p_hold model was fitted on."""
     if outside:
         click.echo(f"note: p_hold is extrapolated for {name}, outside the labelled objects the {hand}'s model was "
-                   f"fitted on: {'; '.join(outside)}. Its trials at the object's own mass and friction check it: "
-                   f"`grasp validate --db {db_path} --object {name} --hand {hand} --top 10` (p_hold_trial).")
+                   f"fitted on: {'; '.join(outside)}. Trials at the object's own mass and friction check its grasps "
+                   f"(`grasp validate --db {db_path} --object {name} --hand {hand} --top 10`: held ones rank first; "
+                   "p_hold_trial's values come from the same labels).")
 
 
 def _print_grasp(g: api.Grasp, world: object = None, arm: dict | None = None, rule: object = None,
