@@ -25,10 +25,10 @@ if TYPE_CHECKING:
 #: The raw measures read per grasp (units: epsilon, volume dimensionless; resist_* [g]; margins, width [m];
 #: counts; force_closure 0/1; settled_epsilon dimensionless; depth [m], see :func:`contact_depth`; the grip
 #: measures of :mod:`planner.plan.grip`: pad_area, jaw_fill [m^2], pad_alignment, opposition (cosines),
-#: palm_gap, com_lever, com_height, gravity_arm [m]).
+#: palm_gap, com_lever, com_height, gravity_arm [m]; torque_per_mu [N m], :mod:`planner.plan.measures`).
 MEASURES = ("epsilon", "volume", "force_closure", "resist_worst", "resist_mean", "open_margin", "close_margin",
             "push", "width", "n_contacts", "links_touching", "settled_epsilon", "depth", "pad_area", "pad_alignment",
-            "opposition", "jaw_fill", "palm_gap", "com_lever", "com_height", "gravity_arm")
+            "opposition", "jaw_fill", "palm_gap", "com_lever", "com_height", "gravity_arm", "torque_per_mu")
 
 #: The stored columns (declared fields, :mod:`planner.record.fields`) a measure table is built from:
 #: every measure but ``depth``, which comes from the pose, the approach direction and the contacts.
@@ -63,6 +63,7 @@ FEATURES: dict[str, tuple[str, str]] = {
     "com_lever": ("com_lever", "identity"),
     "com_height": ("com_height", "identity"),
     "gravity_arm": ("gravity_arm", "identity"),
+    "torque_per_mu": ("torque_per_mu", "identity"),
 }
 
 #: Products of two features' inputs (after transform and fill): the curvature a linear model lacks where a
@@ -78,7 +79,7 @@ FILL = {"epsilon": 0.0, "force_closure": 0.0, "log_resist_worst": 0.0, "log_resi
         "open_margin": MARGIN_CAP, "close_margin": MARGIN_CAP, "push": 0.0, "width": 0.0, "n_contacts": 0.0,
         "links_touching": 0.0, "settled_epsilon": 0.0, "depth": 0.0, "log_pad_area": 0.0, "pad_alignment": 0.0,
         "opposition": 0.0, "log_jaw_fill": 0.0, "palm_gap": 0.05, "com_lever": 0.0,
-        "com_height": 0.0, "gravity_arm": 0.0}
+        "com_height": 0.0, "gravity_arm": 0.0, "torque_per_mu": 0.0}
 
 
 def _transform(kind: str, x: np.ndarray) -> np.ndarray:

@@ -66,11 +66,11 @@ from planner.errors import InputError
 DEFAULT_FEATURES = ("epsilon", "force_closure", "log_resist_worst", "log_resist_mean", "open_margin", "close_margin",
                     "push", "width", "n_contacts", "links_touching", "settled_epsilon", "depth", "log_pad_area",
                     "pad_alignment", "opposition", "log_jaw_fill", "palm_gap", "com_lever", "com_height",
-                    "gravity_arm")
+                    "gravity_arm", "torque_per_mu")
 #: The features that enter as splines unless told otherwise (:func:`spline_basis`).
 DEFAULT_SPLINES = ("epsilon", "log_resist_worst", "open_margin", "push", "width", "depth", "log_pad_area",
                    "pad_alignment", "opposition", "log_jaw_fill", "palm_gap", "com_lever", "com_height",
-                   "gravity_arm")
+                   "gravity_arm", "torque_per_mu")
 #: L2 penalties tried by cross-validation (per grasp of the mean log-loss, on standardised features).
 L2_GRID = (1e-4, 1e-3, 1e-2, 1e-1, 1.0)
 #: The interaction trees unless told otherwise (chosen by grouped CV on the dev set's tuning objects:

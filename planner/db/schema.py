@@ -45,6 +45,9 @@ Tables (the README lists every column):
   ``gravity_arm`` (:mod:`planner.plan.grip`: where the centre of mass sits
   about the grip, with the object's weight along -z); NULL for grasps
   stored before (not measured).
+- ``grasps`` (v10) gains ``torque_per_mu`` (:mod:`planner.plan.measures`:
+  the weight's torque about the grip axis over the friction coefficient);
+  NULL for grasps stored before (not measured).
 
 No pickle: arrays are JSON text. A new database runs :data:`SCHEMA` (version
 1) and then every migration; a newer schema is refused politely; an older one
@@ -65,7 +68,7 @@ from planner.errors import DatabaseError
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 9
+SCHEMA_VERSION = 10
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -164,6 +167,10 @@ ALTER TABLE grasps ADD COLUMN p_hold_trial REAL
     8: """
 ALTER TABLE grasps ADD COLUMN com_height REAL;
 ALTER TABLE grasps ADD COLUMN gravity_arm REAL
+""",
+    # v10: the weight's torque about the grip over the friction (issue 26; NULL: not measured, grasps stored before).
+    9: """
+ALTER TABLE grasps ADD COLUMN torque_per_mu REAL
 """,
 }
 

@@ -22,6 +22,13 @@ Feasibility, each a number and a reason (stored per grasp):
   ``cannot_hold_weight`` (the patches are too small, or the fingers too weak,
   to hold the object's weight at its friction in some direction).
 
+The load on the grip (no flag): ``torque_per_mu`` [N m], the torque of the
+object's weight about the grip axis (its mass x g x the grip measure
+``gravity_arm``) over the object's friction coefficient: what the pads'
+friction must resist as a torque, per unit of friction (Coulomb: the same
+grip slips at twice the torque on half the friction). None where the grip
+measures are not computed.
+
 Motors (hand.toml ``[dynamics] effort``): one per driven joint, its mimics
 geared to it; a Barrett finger that broke away (its distal joint closed on
 past the 1:3 coupling) drives its distal joint alone while its proximal joint
@@ -110,7 +117,17 @@ def measure(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: 
     if resist.worst < MIN_RESISTANCE:
         reasons.append("cannot_hold_weight")
     grips = {} if grip is None else {k: float(v) for k, v in asdict(grip).items()}
+    if grip is not None:
+        grips["torque_per_mu"] = torque_per_mu(obj.mass, obj.friction, grip.gravity_arm)
     return Measures(resist.worst, resist.mean, open_margin, close_margin, push, tuple(reasons), **grips)
+
+
+def torque_per_mu(mass: float, friction: float, gravity_arm: float) -> float:
+    """[N m] the weight's torque about the grip axis over the friction coefficient: ``mass`` [kg] x g x
+    ``gravity_arm`` [m] / ``friction``."""
+    from planner.quality.tolerances import GRAVITY
+
+    return float(mass * GRAVITY * gravity_arm / friction)
 
 
 def _resistance(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: Preshape,

@@ -64,7 +64,10 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: 13: a hand's own settle dynamics (hand.toml [settle_dynamics]; the Barrett's: 240 steps per second, 0.12 s
 #: of closing, 0.05 s at rest, half the cost of the shake trial's) (issue 24); the same grasps, other settled
 #: epsilons, scores and ranks of the Barrett's.
-ALGORITHM_VERSION = 13
+#: 14: the measure torque_per_mu (the weight's torque about the grip over the friction coefficient), read by a
+#: p_hold model that learns from it how the weight of an object twists it out of the grip (issue 26); the same
+#: grasps with one more measure, other p_hold, scores and ranks of the Panda's.
+ALGORITHM_VERSION = 14
 
 #: Named in the digest of sweeps on a table only (those of the object alone stay
 #: as they were), bumped when a change alters only which grasps they produce.

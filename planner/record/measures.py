@@ -32,7 +32,9 @@ class Measures:
     stored before schema version 6): pad_area [m^2], pad_alignment (cosine),
     opposition (cosine), jaw_fill [m^2], palm_gap [m], com_lever [m];
     com_height [m], gravity_arm [m] (None also for grasps stored before
-    schema version 9).
+    schema version 9); torque_per_mu [N m]: the object's weight's torque
+    about the grip axis over its friction coefficient (mass x g x
+    gravity_arm / mu; None also for grasps stored before schema version 10).
     """
 
     resist_worst: float = stored("real", "g", 3, "weight resistance, worst of 14 gravity directions (object frame)",
@@ -70,6 +72,9 @@ class Measures:
                                       required=False, default=None)
     gravity_arm: float | None = stored("real", "m", 9, "lever of the object's weight (along -z, or the table's "
                                        "down) about the line through those pad centres", required=False, default=None)
+    torque_per_mu: float | None = stored("real", "N m", 10, "the object's weight's torque about that line over its "
+                                         "friction coefficient (mass x g x gravity_arm / mu)", required=False,
+                                         default=None)
 
     @property
     def feasible(self) -> bool:
