@@ -67,3 +67,27 @@ def test_barrett_fingers_break_away_and_curl_their_distal_links_on() -> None:
     assert q["bh_j13_joint"] == pytest.approx(q["bh_j12_joint"] * 0.3333)  # fingers 1 and 2 stayed coupled
     m = measure(closed.contacts, closed.frames, hand, wrap, q, obj)  # type: ignore[arg-type]
     assert m.resist_worst >= 0 and np.isfinite(m.resist_mean)
+
+
+def test_the_weight_torque_per_friction_scales_with_mass_and_inverse_friction(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """torque_per_mu = m g gravity_arm / mu for every stored grasp; twice the mass at half the friction: 4x."""
+    from planner import api
+    from planner.db.store import open_db
+    from planner.plan.sweep import SweepSettings
+
+    settings = SweepSettings(approaches=4, rolls=2, preshapes=("wide",), reach_placements=0)
+    found = {}
+    for tag, mass, friction in (("plain", 0.2, 0.5), ("heavy", 0.4, 0.25)):
+        db = tmp_path / f"{tag}.db"
+        api.generate(["box"], "panda", db_path=db, settings=settings, workers=1, mass=mass, friction=friction)
+        with open_db(db, create=False, readonly=True) as d:
+            grasps = d.best("box", "panda", 1000)
+        assert grasps and all(g.measures is not None and g.measures.torque_per_mu is not None for g in grasps)
+        for g in grasps:
+            assert g.measures.torque_per_mu == pytest.approx(mass * GRAVITY * g.measures.gravity_arm / friction,
+                                                             rel=1e-9, abs=1e-12)
+        found[tag] = {g.candidate: g.measures.torque_per_mu for g in grasps}
+    common = sorted(set(found["plain"]) & set(found["heavy"]))
+    assert common and any(found["plain"][c] > 1e-4 for c in common)
+    for c in common:  # the same poses: the same arms
+        assert found["heavy"][c] == pytest.approx(4 * found["plain"][c], rel=1e-6, abs=1e-9)
