@@ -181,7 +181,7 @@ class LogisticModel:
     def outside(self, properties: Mapping[str, float]) -> list[str]:
         """Where an object (``properties``: names of :data:`DOMAIN` -> value)
         lies outside the labelled objects the model was fitted on, one text
-        per property, e.g. ``density 1320 kg/m^3 (labels: 150)``; [] inside
+        per property, e.g. ``density 1,320 kg/m^3 (labels: 150 kg/m^3)``; [] inside
         (within :data:`DOMAIN_SLACK`) or where the domain is not known."""
         out = []
         for name, (low, high) in self.domain.items():
