@@ -59,9 +59,11 @@ def p_hold_outside(name: str, hand: str, *, db_path: Path = DEFAULT_DB) -> list[
     """Where the stored object ``name`` lies outside the labelled objects ``hand``'s p_hold model was fitted on
     (:meth:`~planner.calibration.logistic.LogisticModel.outside`: one text per property; [] inside, or no model,
     object or known domain): there p_hold is an extrapolation, which its trials (``grasp validate``) check."""
+    from planner.calibration.logistic import outside
+
     with open_db(Path(db_path), create=False, readonly=True) as db:
-        model, row = db.model(hand), db.object_row(name)
-        return [] if model is None or row is None else model.outside(row.properties())
+        domain, row = db.model_domain(hand), db.object_row(name)
+        return [] if row is None else outside(domain, row.properties())
 
 
 def p_hold_model(hand: str, *, db_path: Path = DEFAULT_DB) -> LogisticModel | None:

@@ -179,19 +179,8 @@ class LogisticModel:
         return np.where(np.isnan(p), np.nan, out)
 
     def outside(self, properties: Mapping[str, float]) -> list[str]:
-        """Where an object (``properties``: names of :data:`DOMAIN` -> value)
-        lies outside the labelled objects the model was fitted on, one text
-        per property, e.g. ``density 1,320 kg/m^3 (labels: 150 kg/m^3)``; [] inside
-        (within :data:`DOMAIN_SLACK`) or where the domain is not known."""
-        out = []
-        for name, (low, high) in self.domain.items():
-            value = properties.get(name)
-            if value is None or low * (1 - DOMAIN_SLACK) <= value <= high * (1 + DOMAIN_SLACK):
-                continue
-            unit = f" {DOMAIN[name]}" if DOMAIN[name] else ""
-            span = _short(low) if high <= low * (1 + DOMAIN_SLACK) else f"{_short(low)}-{_short(high)}"
-            out.append(f"{name} {_short(value)}{unit} (labels: {span}{unit})")
-        return out
+        """:func:`outside` of the model's domain."""
+        return outside(self.domain, properties)
 
     def to_dict(self) -> dict:
         return {"hand": self.hand, "features": list(self.features), "mean": self.mean.tolist(),
@@ -258,6 +247,22 @@ class LogisticModel:
         return "\n".join(lines) + "\n"
 
 
+def outside(domain: Mapping[str, tuple[float, float]], properties: Mapping[str, float]) -> list[str]:
+    """Where an object (``properties``: names of :data:`DOMAIN` -> value)
+    lies outside a model's ``domain`` (:attr:`LogisticModel.domain`), one text
+    per property, e.g. ``density 1,320 kg/m^3 (labels: 150 kg/m^3)``; [] inside
+    (within :data:`DOMAIN_SLACK`) or where the domain is not known."""
+    out = []
+    for name, (low, high) in domain.items():
+        value = properties.get(name)
+        if value is None or low * (1 - DOMAIN_SLACK) <= value <= high * (1 + DOMAIN_SLACK):
+            continue
+        unit = f" {DOMAIN[name]}" if DOMAIN[name] else ""
+        span = _short(low) if high <= low * (1 + DOMAIN_SLACK) else f"{_short(low)}-{_short(high)}"
+        out.append(f"{name} {_short(value)}{unit} (labels: {span}{unit})")
+    return out
+
+
 def _short(v: float) -> str:
     """Three significant digits, without an exponent from 1e-3 to 1e6 (1320, 0.5, 0.0017)."""
     return f"{v:,.0f}" if 1e3 <= abs(v) < 1e6 else f"{v:.3g}"
@@ -305,6 +310,28 @@ def default_model(hand: str) -> LogisticModel | None:
     if os.environ.get(SHIPPED_ENV, "1") == "0":
         return None
     return _shipped(hand)
+
+
+def default_domain(hand: str) -> dict[str, tuple[float, float]]:
+    """The shipped model's domain ({} if no model or none recorded), read from its ``[domain]`` table alone:
+    the whole file (its trees) takes ~0.1 s to parse, a start-up cost ``grasp best`` does not otherwise pay."""
+    if os.environ.get(SHIPPED_ENV, "1") == "0":
+        return {}
+    return dict(_shipped_domain(hand))
+
+
+@functools.cache
+def _shipped_domain(hand: str) -> tuple[tuple[str, tuple[float, float]], ...]:
+    import tomllib
+
+    path = project_dir(FOLDER) / f"{hand}.toml"
+    text = path.read_text() if path.is_file() else ""
+    start = text.find("\n[domain]")
+    if start < 0:
+        return ()
+    end = text.find("\n[", start + 1)
+    table = tomllib.loads(text[start:end if end >= 0 else len(text)])["domain"]
+    return tuple((str(k), (float(v[0]), float(v[1]))) for k, v in table.items())
 
 
 @functools.cache

@@ -17,6 +17,7 @@ both for every grasp of its hand.
 
 from __future__ import annotations
 
+import json
 import sqlite3
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
@@ -24,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from planner.calibration.logistic import default_domain
 from planner.calibration.model import LogisticModel, default_model
 from planner.db.columns import (  # noqa: F401 - VECTOR_DIGITS, INERTIA_DIGITS, json_list re-exported
     _ALIAS,
@@ -132,6 +134,16 @@ class Database(Writing):
             if row is not None:
                 return LogisticModel.from_json(row["model"])
         return default_model(hand)
+
+    @_reads
+    def model_domain(self, hand: str) -> dict[str, tuple[float, float]]:
+        """The domain of the hand's model (:attr:`LogisticModel.domain`; {} if none), without building the model."""
+        if "calibration" in table_names(self._conn):
+            row = self._conn.execute("SELECT model FROM calibration WHERE hand = ?", (hand,)).fetchone()
+            if row is not None:
+                data = json.loads(row["model"]).get("domain", {})
+                return {str(k): (float(v[0]), float(v[1])) for k, v in data.items()}
+        return default_domain(hand)
 
     @_reads
     def model_source(self, hand: str) -> str:

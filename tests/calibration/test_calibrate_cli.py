@@ -51,6 +51,7 @@ def test_calibrate_fits_reports_and_stores_a_model_that_best_and_exports_use(val
         rule = d.rule()
         rows = {name: d.object_row(name) for name in ("box", "sphere")}
         domain = d.model("panda").domain  # type: ignore[union-attr]
+        assert d.model_domain("panda") == domain  # the stored model's, without building it
     props = [r.properties() for r in rows.values() if r is not None]  # the labelled files' objects, as exported
     assert len(props) == 2 and set(domain) == {"density", "friction", "mass"}
     for k, (low, high) in domain.items():
@@ -119,8 +120,11 @@ def test_the_shipped_panda_model_loads_and_rescores_a_database(box_db: Path, tmp
 
 def test_best_and_report_say_where_the_shipped_p_hold_is_extrapolated(box_db: Path, tmp_path: Path,
                                                                      shipped_models: None) -> None:
+    from planner.calibration.logistic import default_domain
+
     model = default_model("panda")
     assert model is not None and model.domain["friction"] == (1.0, 1.0)  # ACRONYM's labels: friction 1
+    assert default_domain("panda") == model.domain  # read from its [domain] table alone, as `grasp best` does
     assert model.domain["density"][0] == pytest.approx(150.0, rel=1e-3)  # ... and 150 kg/m^3
     db = tmp_path / "g.db"
     shutil.copy(box_db, db)  # the box: 0.2 kg, friction 0.5
