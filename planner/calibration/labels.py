@@ -139,10 +139,10 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
 def object_properties(spec: ObjectSpec) -> dict[str, float]:
     """The properties of :data:`~planner.calibration.logistic.DOMAIN` of the object ``spec`` makes (its mass and
     friction as the labelled file gives them; its density from the checked mesh's volume)."""
+    from planner.calibration.logistic import properties
     from planner.geometry.solid import prepare
 
-    obj = prepare(spec)
-    return {"density": float(obj.density), "friction": float(obj.friction), "mass": float(obj.mass)}
+    return properties(prepare(spec))
 
 
 #: The trial engines (``grasp validate --engine``) and the record group that stores each one's verdicts.

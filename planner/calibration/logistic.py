@@ -247,6 +247,12 @@ class LogisticModel:
         return "\n".join(lines) + "\n"
 
 
+def properties(item: object) -> dict[str, float]:
+    """The :data:`DOMAIN` properties of anything that has them as attributes (a stored object's row, a prepared
+    object): what :func:`outside` reads and a fitted model's domain spans."""
+    return {name: float(getattr(item, name)) for name in DOMAIN}
+
+
 def outside(domain: Mapping[str, tuple[float, float]], properties: Mapping[str, float]) -> list[str]:
     """Where an object (``properties``: names of :data:`DOMAIN` -> value)
     lies outside a model's ``domain`` (:attr:`LogisticModel.domain`), one text

@@ -34,8 +34,10 @@ class ObjectRow:
 
     def properties(self) -> dict[str, float]:
         """Density [kg/m^3], friction and mass [kg]: what a p_hold model's domain is checked on
-        (:meth:`planner.calibration.logistic.LogisticModel.outside`)."""
-        return {"density": self.density, "friction": self.friction, "mass": self.mass}
+        (:func:`planner.calibration.logistic.properties`)."""
+        from planner.calibration.logistic import properties
+
+        return properties(self)
 
 
 @dataclass(frozen=True)
