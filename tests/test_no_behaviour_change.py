@@ -49,7 +49,9 @@ and measures on some); 12 (issue 26: each grasp settles as stored, pose and
 contacts rounded as the database keeps them: the same grasps, other settled
 epsilons, scores and ranks of the Barrett's); 13 (issue 24: the Barrett
 settles with its own, coarser dynamics, hand.toml [settle_dynamics]: the same
-grasps, other settled epsilons, scores and ranks of the Barrett's).
+grasps, other settled epsilons, scores and ranks of the Barrett's); 14 (issue
+26: the measure torque_per_mu, read by p_hold: the digest is 13's); 15 (issue
+26: the measure local_sdf, read by p_hold's trees: the digest is 14's).
 """
 
 from __future__ import annotations

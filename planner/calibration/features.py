@@ -18,6 +18,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from planner.errors import InputError
+from planner.plan.local_sdf import CLIP as LOCAL_CLIP
+from planner.specs.hand_spec import LOCAL_CELLS
 
 if TYPE_CHECKING:
     from planner.record.grasp import Grasp
@@ -25,14 +27,22 @@ if TYPE_CHECKING:
 #: The raw measures read per grasp (units: epsilon, volume dimensionless; resist_* [g]; margins, width [m];
 #: counts; force_closure 0/1; settled_epsilon dimensionless; depth [m], see :func:`contact_depth`; the grip
 #: measures of :mod:`planner.plan.grip`: pad_area, jaw_fill [m^2], pad_alignment, opposition (cosines),
-#: palm_gap, com_lever, com_height, gravity_arm [m]; torque_per_mu [N m], :mod:`planner.plan.measures`).
+#: palm_gap, com_lever, com_height, gravity_arm [m]; torque_per_mu [N m], :mod:`planner.plan.measures`);
+#: the cells of ``local_sdf`` are :data:`LOCAL`.
 MEASURES = ("epsilon", "volume", "force_closure", "resist_worst", "resist_mean", "open_margin", "close_margin",
             "push", "width", "n_contacts", "links_touching", "settled_epsilon", "depth", "pad_area", "pad_alignment",
             "opposition", "jaw_fill", "palm_gap", "com_lever", "com_height", "gravity_arm", "torque_per_mu")
 
+#: The cells of the measure ``local_sdf`` [m] (:mod:`planner.plan.local_sdf`), one table entry each (the
+#: trees read them, :attr:`planner.calibration.logistic.LogisticModel.tree_features`); NaN: not measured.
+LOCAL = tuple(f"local_sdf_{i:02d}" for i in range(LOCAL_CELLS))
+#: Every name of a measure table.
+TABLE = (*MEASURES, *LOCAL)
+
 #: The stored columns (declared fields, :mod:`planner.record.fields`) a measure table is built from:
-#: every measure but ``depth``, which comes from the pose, the approach direction and the contacts.
-COLUMNS = (*(m for m in MEASURES if m != "depth"), "pose", "approach_dir", "contacts")
+#: every measure but ``depth``, which comes from the pose, the approach direction and the contacts, and
+#: ``local_sdf`` for its cells.
+COLUMNS = (*(m for m in MEASURES if m != "depth"), "local_sdf", "pose", "approach_dir", "contacts")
 
 #: [m] margins above this are all "plenty of travel" (an untouched finger's margin is inf).
 MARGIN_CAP = 0.04
@@ -64,6 +74,7 @@ FEATURES: dict[str, tuple[str, str]] = {
     "com_height": ("com_height", "identity"),
     "gravity_arm": ("gravity_arm", "identity"),
     "torque_per_mu": ("torque_per_mu", "identity"),
+    **{name: (name, "identity") for name in LOCAL},
 }
 
 #: Products of two features' inputs (after transform and fill): the curvature a linear model lacks where a
@@ -79,7 +90,8 @@ FILL = {"epsilon": 0.0, "force_closure": 0.0, "log_resist_worst": 0.0, "log_resi
         "open_margin": MARGIN_CAP, "close_margin": MARGIN_CAP, "push": 0.0, "width": 0.0, "n_contacts": 0.0,
         "links_touching": 0.0, "settled_epsilon": 0.0, "depth": 0.0, "log_pad_area": 0.0, "pad_alignment": 0.0,
         "opposition": 0.0, "log_jaw_fill": 0.0, "palm_gap": 0.05, "com_lever": 0.0,
-        "com_height": 0.0, "gravity_arm": 0.0, "torque_per_mu": 0.0}
+        "com_height": 0.0, "gravity_arm": 0.0, "torque_per_mu": 0.0,
+        **dict.fromkeys(LOCAL, LOCAL_CLIP)}  # a cell not measured: nothing of the object near
 
 
 def _transform(kind: str, x: np.ndarray) -> np.ndarray:
@@ -97,6 +109,8 @@ def _input(table: Mapping[str, np.ndarray], name: str) -> np.ndarray:
         a, b = PRODUCTS[name]
         return _input(table, a) * _input(table, b)
     measure, kind = FEATURES[name]
+    if measure not in table and measure in LOCAL:  # a table of the other measures alone: not measured
+        return np.full(len(np.asarray(table["epsilon"])), FILL[name])
     raw = np.asarray(table[measure], float)
     return np.where(np.isnan(raw), FILL[name], _transform(kind, raw))
 
@@ -138,7 +152,17 @@ def of_grasps(grasps: Sequence[Grasp]) -> dict[str, np.ndarray]:
     out["depth"] = contact_depth(np.array([g.pose for g in grasps], float).reshape(-1, 4, 4),
                                  np.array([g.approach_dir for g in grasps], float).reshape(-1, 3),
                                  [g.contacts.points for g in grasps])
+    out.update(local_cells(list(fields.values(fields.by_name("local_sdf"), grasps))))
     return out
+
+
+def local_cells(values: Sequence[np.ndarray | None]) -> dict[str, np.ndarray]:
+    """The table entries of :data:`LOCAL` from n grasps' ``local_sdf`` ((LOCAL_CELLS,) or None: NaN)."""
+    cells = np.full((len(values), LOCAL_CELLS), np.nan)
+    for i, v in enumerate(values):
+        if v is not None:
+            cells[i] = v
+    return {name: cells[:, j] for j, name in enumerate(LOCAL)}
 
 
 def of_columns(col: Mapping[str, Sequence[object]]) -> dict[str, np.ndarray]:
@@ -158,4 +182,6 @@ def of_columns(col: Mapping[str, Sequence[object]]) -> dict[str, np.ndarray]:
     approach = np.array(parsed(col["approach_dir"]), float).reshape(n, 3)
     points = [np.array([c["point"] for c in items], float) for items in parsed(col["contacts"])]
     out["depth"] = contact_depth(poses, approach, points)
+    local = [None if v is None else np.asarray(json.loads(str(v)), float) for v in col["local_sdf"]]
+    out.update(local_cells(local))
     return out

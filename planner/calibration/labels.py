@@ -130,7 +130,7 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
         raise InputError(f"label files of several hands ({', '.join(sorted(hands))}): calibrate one hand at a time")
     if not tables:
         raise InputError("no labelled pose closed on its object: nothing to calibrate on")
-    table = {k: np.concatenate([t[k] for t in tables]) for k in features.MEASURES}
+    table = {k: np.concatenate([t[k] for t in tables]) for k in features.TABLE}
     return LabelledSet(table, np.concatenate(labels), tuple(groups), tuple(files), hands.pop(), sampled,
                        dict(rejected), np.concatenate(verdicts) if trial else None,
                        TRIAL_GROUPS[engine] if trial else "", objects)

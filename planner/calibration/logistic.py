@@ -55,7 +55,9 @@ class LogisticModel:
     bounds: per feature, (low, high) of its inputs in the fitting data
     (inputs' units): a grasp's input is clipped to them before use (a
     feature without bounds is used as it is); trees: the boosted
-    interaction term over the clipped inputs (:mod:`~planner.calibration.trees`;
+    interaction term over the clipped inputs and the inputs of
+    ``tree_features`` (features only the trees read, after the others: the
+    cells of ``local_sdf``) (:mod:`~planner.calibration.trees`;
     None: the model is additive alone); updates: per trial group (``mujoco``,
     ``validation``), how that trial's verdict updates p_hold into
     ``p_hold_trial`` (:mod:`~planner.calibration.update`; none: a verdict of
@@ -80,8 +82,10 @@ class LogisticModel:
     trees: Trees | None = None
     updates: Mapping[str, TrialUpdate] = field(default_factory=dict)
     domain: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    tree_features: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "tree_features", tuple(self.tree_features))
         odd = [k for k, b in self.domain.items() if k not in DOMAIN or len(b) != 2 or not 0 < b[0] <= b[1]]
         if odd:
             raise InputError(f"calibration model: domain of {', '.join(map(str, odd))} must be one of "
@@ -105,15 +109,16 @@ class LogisticModel:
             if a.shape != (k,):
                 raise InputError(f"calibration model: {name} must have {k} entries (one per column), got {a.shape}")
             object.__setattr__(self, name, a)
-        unknown = [f for f in self.features if f not in FEATURES and f not in PRODUCTS]
+        unknown = [f for f in (*self.features, *self.tree_features) if f not in FEATURES and f not in PRODUCTS]
         if unknown:
             raise InputError(f"calibration model: unknown feature(s) {', '.join(unknown)}; "
                              f"available: {', '.join([*FEATURES, *PRODUCTS])}")
         if not np.all(self.scale > 0):
             raise InputError("calibration model: every scale must be > 0")
-        if self.trees is not None and len(self.trees.feature) and self.trees.feature.max() >= len(self.features):
+        inputs = len(self.features) + len(self.tree_features)
+        if self.trees is not None and len(self.trees.feature) and self.trees.feature.max() >= inputs:
             raise InputError(f"calibration model: trees split on input {int(self.trees.feature.max())}, the model "
-                             f"has {len(self.features)} features")
+                             f"has {inputs} inputs")
 
     @property
     def columns(self) -> tuple[str, ...]:
@@ -125,6 +130,12 @@ class LogisticModel:
         """(n, len(features)) the features' inputs, each clipped to its bounds."""
         return clip(design(table, self.features), self.features, self.bounds)
 
+    def tree_inputs(self, table: Mapping[str, np.ndarray], x: np.ndarray | None = None) -> np.ndarray:
+        """(n, len(features) + len(tree_features)) what the trees read: :meth:`inputs` (``x``, if given)
+        and the inputs of :attr:`tree_features`."""
+        x = self.inputs(table) if x is None else x
+        return np.hstack([x, design(table, self.tree_features)]) if self.tree_features else x
+
     def _z(self, x: np.ndarray) -> np.ndarray:
         return (expand(x, self.features, self.knots) - self.mean) / self.scale
 
@@ -132,7 +143,7 @@ class LogisticModel:
         """(n,) log-odds of holding of the grasps of a measure table."""
         x = self.inputs(table)
         additive = self.intercept + self._z(x) @ self.coef
-        return additive if self.trees is None else additive + self.trees.evaluate(x)
+        return additive if self.trees is None else additive + self.trees.evaluate(self.tree_inputs(table, x))
 
     def terms(self, table: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         """Each feature's part of the log-odds, (n,) per feature name: the
@@ -145,7 +156,7 @@ class LogisticModel:
         owner = np.array([c.partition("~")[0] for c in self.columns])
         out = {name: part[:, owner == name].sum(axis=1) for name in self.features}
         if self.trees is not None:
-            out[INTERACTIONS] = self.trees.evaluate(x)
+            out[INTERACTIONS] = self.trees.evaluate(self.tree_inputs(table, x))
         return out
 
     def standardised(self, table: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -191,7 +202,8 @@ class LogisticModel:
                 **({"held_out": _table(self.held_out)} if self.held_out is not None else {}),
                 **({"trees": self.trees.to_dict()} if self.trees is not None else {}),
                 **({"updates": {k: u.to_dict() for k, u in self.updates.items()}} if self.updates else {}),
-                **({"domain": {k: list(v) for k, v in self.domain.items()}} if self.domain else {})}
+                **({"domain": {k: list(v) for k, v in self.domain.items()}} if self.domain else {}),
+                **({"tree_features": list(self.tree_features)} if self.tree_features else {})}
 
     @classmethod
     def from_dict(cls, data: Mapping) -> LogisticModel:
@@ -205,7 +217,8 @@ class LogisticModel:
                        {str(k): tuple(float(x) for x in v) for k, v in dict(data.get("bounds", {})).items()},
                        Trees.from_dict(data["trees"]) if "trees" in data else None,
                        {str(k): TrialUpdate.from_dict(k, v) for k, v in dict(data.get("updates", {})).items()},
-                       {str(k): tuple(float(x) for x in v) for k, v in dict(data.get("domain", {})).items()})
+                       {str(k): tuple(float(x) for x in v) for k, v in dict(data.get("domain", {})).items()},
+                       tuple(str(f) for f in data.get("tree_features", ())))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"calibration model: missing or bad field ({exc})") from None
 
@@ -220,6 +233,7 @@ class LogisticModel:
         """The model as TOML (coefficients and how they were made; no data)."""
         lines = [f"# p_hold model for the {self.hand}: planner/calibration/logistic.py reads it.", ""]
         lines += [f'hand = "{self.hand}"', f"features = {json.dumps(list(self.features))}",
+                  *([f"tree_features = {json.dumps(list(self.tree_features))}"] if self.tree_features else []),
                   f"mean = {_floats(self.mean)}", f"scale = {_floats(self.scale)}", f"coef = {_floats(self.coef)}",
                   f"intercept = {self.intercept!r}", f"l2 = {self.l2!r}", f"source = {json.dumps(self.source)}", "",
                   "[figures]"]

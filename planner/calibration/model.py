@@ -49,7 +49,7 @@ from planner.calibration.basis import (  # noqa: F401 - re-exported
     fitting_bounds,
     spline_basis,
 )
-from planner.calibration.features import design
+from planner.calibration.features import LOCAL, design
 from planner.calibration.logistic import (  # noqa: F401 - re-exported
     FOLDER,
     SHIPPED_ENV,
@@ -74,8 +74,8 @@ DEFAULT_SPLINES = ("epsilon", "log_resist_worst", "open_margin", "push", "width"
 #: L2 penalties tried by cross-validation (per grasp of the mean log-loss, on standardised features).
 L2_GRID = (1e-4, 1e-3, 1e-2, 1e-1, 1.0)
 #: The interaction trees unless told otherwise (chosen by grouped CV on the dev set's tuning objects:
-#: bench/RESULTS.md, 2026-12-03); None: an additive model alone.
-DEFAULT_TREES: TreeSettings | None = TreeSettings()
+#: bench/RESULTS.md, 2026-12-03), reading the cells of local_sdf too (2026-12-05); None: an additive model alone.
+DEFAULT_TREES: TreeSettings | None = TreeSettings(extra=LOCAL)
 
 
 def fit(table: Mapping[str, np.ndarray], labels: np.ndarray, hand: str, *,
@@ -107,7 +107,8 @@ def fit(table: Mapping[str, np.ndarray], labels: np.ndarray, hand: str, *,
                           knots=knots, bounds=fitting_bounds(raw, features))
     if trees is None or len(set(y.tolist())) < 2:
         return model
-    return replace(model, trees=fit_trees(model.inputs(table), y, model.logit(table), trees))
+    model = replace(model, tree_features=tuple(trees.extra))
+    return replace(model, trees=fit_trees(model.tree_inputs(table), y, model.logit(table), trees))
 
 
 def _loss(w: np.ndarray, z: np.ndarray, y: np.ndarray, l2: float) -> tuple[float, np.ndarray]:

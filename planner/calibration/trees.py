@@ -35,7 +35,9 @@ class TreeSettings:
     """How the trees are grown (scikit-learn's names): ``n_trees`` rounds of
     ``learning_rate``, each a tree of at most ``depth`` levels whose leaves
     hold at least ``min_leaf`` grasps, fitted on a ``subsample`` share of the
-    grasps drawn with ``seed``."""
+    grasps drawn with ``seed``; ``extra``: features (keys of
+    :data:`~planner.calibration.features.FEATURES`) that only the trees read,
+    after the model's own (the cells of ``local_sdf``)."""
 
     n_trees: int = 600
     depth: int = 3
@@ -43,6 +45,7 @@ class TreeSettings:
     min_leaf: int = 100
     subsample: float = 0.8
     seed: int = 0
+    extra: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.n_trees < 1 or self.depth < 1 or self.min_leaf < 1:

@@ -64,6 +64,7 @@ from planner.geometry.frames import approach_of
 from planner.geometry.solid import PreparedObject, prepare
 from planner.plan import grip
 from planner.plan.closing import Closed, Grasper
+from planner.plan.local_sdf import LocalSurface
 from planner.plan.measures import measure
 from planner.plan.unit import closed_width, scored
 from planner.record.grasp import Grasp
@@ -316,6 +317,7 @@ def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: C
     with Sim() as sim:
         grasper = Grasper.for_object(sim, hand, obj)
         gripping = grip.GripSurface(obj.mesh)  # the exact surface, whatever proxy closing collides with
+        local = LocalSurface(hand, obj.mesh)
         for i, pose in enumerate(poses, start=first):
             closed = grasper.close_at(pose, shape, MAX_BACK_OFF)
             if not isinstance(closed, Closed):
@@ -326,7 +328,8 @@ def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: C
                 continue
             width = closed_width(hand, closed.closed_joints)
             m = measure(closed.contacts, closed.frames, hand, shape, closed.closed_joints, obj, width,  # type: ignore[arg-type]
-                        grip=grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}, obj.com))
+                        grip=grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}, obj.com),
+                        local_sdf=local.of(closed.pose))
             point, direction, roll = approach_of(closed.pose, hand.approach, shape.tcp)
             out.append(Grasp(
                 object=obj.name, hand=hand.name, preshape=shape.name, candidate=i, seed=0,

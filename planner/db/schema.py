@@ -48,6 +48,9 @@ Tables (the README lists every column):
 - ``grasps`` (v10) gains ``torque_per_mu`` (:mod:`planner.plan.measures`:
   the weight's torque about the grip axis over the friction coefficient);
   NULL for grasps stored before (not measured).
+- ``grasps`` (v11) gains ``local_sdf`` (:mod:`planner.plan.local_sdf`: the
+  object's signed distance at a grid fixed in the hand frame, a JSON list);
+  NULL for grasps stored before and for hands without a grid.
 
 No pickle: arrays are JSON text. A new database runs :data:`SCHEMA` (version
 1) and then every migration; a newer schema is refused politely; an older one
@@ -68,7 +71,7 @@ from planner.errors import DatabaseError
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 10
+SCHEMA_VERSION = 11
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -171,6 +174,10 @@ ALTER TABLE grasps ADD COLUMN gravity_arm REAL
     # v10: the weight's torque about the grip over the friction (issue 26; NULL: not measured, grasps stored before).
     9: """
 ALTER TABLE grasps ADD COLUMN torque_per_mu REAL
+""",
+    # v11: the object around the grasp, read by p_hold's trees (issue 26; NULL: not measured).
+    10: """
+ALTER TABLE grasps ADD COLUMN local_sdf TEXT
 """,
 }
 

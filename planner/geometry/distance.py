@@ -3,13 +3,18 @@ triangle mesh (the only module importing ``igl``).
 
 A query returns, for each point, the nearest point of the mesh's triangles,
 its distance and the triangle it lies on: the exact answer, whatever the
-tessellation (no sampling of the surface). The tree is built once per mesh
+tessellation (no sampling of the surface). :meth:`MeshDistance.signed` adds
+the side: negative inside a closed mesh, by the angle-weighted pseudonormal
+of the face, edge or vertex the closest point lies on (Baerentzen and
+Aanaes, 2005: exact for a closed, consistently oriented mesh, whatever the
+closest feature). The tree is built once per mesh
 (~1 ms for 1,000 faces, ~0.1 s for 100,000) and rebuilt after unpickling.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -70,6 +75,70 @@ class MeshDistance:
         squared, face, closest = self._tree.squared_distance(self.vertices, self.faces, query)  # type: ignore[attr-defined]
         return Nearest(np.asarray(closest, float).reshape(-1, 3), np.sqrt(np.asarray(squared, float)),
                        np.asarray(face, np.int64))
+
+    def signed(self, points: ArrayLike) -> np.ndarray:
+        """(n,) signed distance [m] of ``points`` (n, 3) to the mesh: negative
+        inside (the side of the pseudonormal where the closest point lies)."""
+        query = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+        found = self.nearest(query)
+        if not len(query):
+            return found.distance
+        tri = self.vertices[self.faces[found.face]]  # (n, 3, 3)
+        bary = _barycentric(tri, found.points)
+        on = bary > BARY_TOL  # the corners the closest point is not opposite to
+        count = on.sum(axis=1)
+        face_n, edge_n, vertex_n = self._pseudonormals
+        normal = face_n[found.face]
+        edge, vertex = count == 2, count == 1
+        opposite = np.argmin(bary, axis=1)  # on an edge: the corner across it
+        normal[edge] = edge_n[found.face[edge], opposite[edge]]
+        corner = self.faces[found.face[vertex], np.argmax(bary[vertex], axis=1)]
+        normal[vertex] = vertex_n[corner]
+        side = np.einsum("ij,ij->i", query - found.points, normal)
+        return np.where(side < 0.0, -found.distance, found.distance)
+
+    @cached_property
+    def _pseudonormals(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Unit outward normals: (f, 3) per face, (f, 3, 3) per face and the
+        edge across each corner (the sum of the faces that share it), (v, 3)
+        per vertex (its faces' normals weighted by their angles there)."""
+        v, f = self.vertices, self.faces
+        tri = v[f]
+        cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        face_n = _unit(cross)
+        vertex_n = np.zeros_like(v)
+        edge_keys = np.empty((len(f), 3), np.int64)
+        for k in range(3):
+            a, b = tri[:, (k + 1) % 3] - tri[:, k], tri[:, (k + 2) % 3] - tri[:, k]
+            cos = np.einsum("ij,ij->i", _unit(a), _unit(b))
+            np.add.at(vertex_n, f[:, k], np.arccos(np.clip(cos, -1.0, 1.0))[:, None] * face_n)
+            lo, hi = np.minimum(f[:, (k + 1) % 3], f[:, (k + 2) % 3]), np.maximum(f[:, (k + 1) % 3], f[:, (k + 2) % 3])
+            edge_keys[:, k] = lo * len(v) + hi
+        keys, inverse = np.unique(edge_keys.ravel(), return_inverse=True)
+        summed = np.zeros((len(keys), 3))
+        np.add.at(summed, inverse, np.repeat(face_n, 3, axis=0))
+        return face_n, _unit(summed)[inverse].reshape(len(f), 3, 3), _unit(vertex_n)
+
+
+#: A barycentric coordinate at most this is 0: the closest point lies on the edge or corner across it.
+BARY_TOL = 1e-9
+
+
+def _unit(a: np.ndarray) -> np.ndarray:
+    """Rows of ``a`` scaled to unit length (zero rows stay zero)."""
+    norm = np.linalg.norm(a, axis=-1, keepdims=True)
+    return np.divide(a, norm, out=np.zeros_like(a), where=norm > 0)
+
+
+def _barycentric(tri: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """(n, 3) barycentric coordinates of ``points`` (n, 3) in the triangles ``tri`` (n, 3, 3)."""
+    e0, e1, rel = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], points - tri[:, 0]
+    d00, d01, d11 = (np.einsum("ij,ij->i", x, y) for x, y in ((e0, e0), (e0, e1), (e1, e1)))
+    d20, d21 = np.einsum("ij,ij->i", rel, e0), np.einsum("ij,ij->i", rel, e1)
+    denom = d00 * d11 - d01 * d01
+    safe = np.where(np.abs(denom) > 0, denom, 1.0)
+    b1, b2 = (d11 * d20 - d01 * d21) / safe, (d00 * d21 - d01 * d20) / safe
+    return np.stack([1.0 - b1 - b2, b1, b2], axis=1)
 
 
 @dataclass(eq=False)

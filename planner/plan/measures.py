@@ -96,10 +96,12 @@ def _axes(frames: JointFrames) -> dict[str, tuple[np.ndarray, np.ndarray]]:
 
 def measure(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: Preshape,
             closed: Mapping[str, float], obj: PreparedObject, width: float | None = None,
-            directions: np.ndarray | None = None, grip: Grip | None = None) -> Measures:
+            directions: np.ndarray | None = None, grip: Grip | None = None,
+            local_sdf: np.ndarray | None = None) -> Measures:
     """Weight resistance and feasibility of a closed grasp (object frame);
     ``directions`` (k, 3) of the weight (None: the 14 of :data:`planner.quality.resistance.SPHERE14`);
-    ``grip``: its grip measures (:mod:`planner.plan.grip`), stored with the rest (None: not measured)."""
+    ``grip``: its grip measures (:mod:`planner.plan.grip`), stored with the rest (None: not measured);
+    ``local_sdf``: the object around it (:mod:`planner.plan.local_sdf`; None: not measured)."""
     from planner.quality.resistance import SPHERE14
 
     directions = SPHERE14 if directions is None else directions
@@ -119,7 +121,8 @@ def measure(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: 
     grips = {} if grip is None else {k: float(v) for k, v in asdict(grip).items()}
     if grip is not None:
         grips["torque_per_mu"] = torque_per_mu(obj.mass, obj.friction, grip.gravity_arm)
-    return Measures(resist.worst, resist.mean, open_margin, close_margin, push, tuple(reasons), **grips)
+    return Measures(resist.worst, resist.mean, open_margin, close_margin, push, tuple(reasons), **grips,
+                    local_sdf=local_sdf)
 
 
 def torque_per_mu(mass: float, friction: float, gravity_arm: float) -> float:

@@ -67,7 +67,10 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: 14: the measure torque_per_mu (the weight's torque about the grip over the friction coefficient), read by a
 #: p_hold model that learns from it how the weight of an object twists it out of the grip (issue 26); the same
 #: grasps with one more measure, other p_hold, scores and ranks of the Panda's.
-ALGORITHM_VERSION = 14
+#: 15: the measure local_sdf (the object's signed distance at a grid fixed in the hand frame), read by the
+#: p_hold model's trees (issue 26); the same grasps with one more measure, other p_hold, scores and ranks of the
+#: Panda's.
+ALGORITHM_VERSION = 15
 
 #: Named in the digest of sweeps on a table only (those of the object alone stay
 #: as they were), bumped when a change alters only which grasps they produce.

@@ -35,6 +35,7 @@ from planner.geometry.solid import PreparedObject, load_object
 from planner.plan import grip, sampling
 from planner.plan.closing import Closed, Grasper
 from planner.plan.contacts import HandContacts, grasp_quality
+from planner.plan.local_sdf import LocalSurface
 from planner.plan.measures import MIN_RESISTANCE, measure
 from planner.plan.reach import ReachSettings, reach_scene
 from planner.plan.settle import with_settled
@@ -169,6 +170,7 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report, obj: PreparedObject
     with Sim() as sim:
         grasper = Grasper.for_object(sim, hand, obj, table=table)
         gripping = grip.GripSurface(obj.mesh)  # the exact surface, whatever proxy closing collides with
+        local = LocalSurface(hand, obj.mesh)
         up = resting_up(settings.table_plane)  # on a table: the table's up (object frame)
         sweep = _antipodal if settings.sampler == "antipodal" else _rays
         for cand, closed, ray in sweep(spec, settings, obj, hand, shapes, rng, grasper, result, t0, budget,
@@ -185,7 +187,8 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report, obj: PreparedObject
                 continue
             width = closed_width(hand, closed.closed_joints)
             m = measure(closed.contacts, closed.frames, hand, cand.preshape, closed.closed_joints, obj, width,  # type: ignore[arg-type]
-                        grip=grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}, obj.com, up))
+                        grip=grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}, obj.com, up),
+                        local_sdf=local.of(closed.pose))
             result.timing["quality"] += time.perf_counter() - tb
             point, direction, roll, standoff = ray
             result.grasps.append(Grasp(

@@ -92,7 +92,7 @@ class HandReport:
 
 
 #: The analytic measures the report reads: every numeric field of the measures record.
-ANALYTIC_MEASURES = tuple(f.name for f in fields.group("measures") if f.dtype != "string")
+ANALYTIC_MEASURES = tuple(f.name for f in fields.group("measures") if f.dtype != "string" and not f.shape)
 #: Measures whose ROC AUC the report shows (higher should mean "holds").
 AUC_MEASURES = ("analytic", "p_hold", "epsilon", *ANALYTIC_MEASURES, "feasible", "reachability", "robust_mean",
                 "robust_quantile")

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.record.field import stored
+from planner.specs.hand_spec import LOCAL_CELLS
 
 #: The feasibility reasons a grasp can carry (:attr:`Measures.reasons`).
 REASONS = ("open_limit", "too_wide", "at_close_stop", "back_or_side_contact", "cannot_hold_weight")
@@ -34,7 +35,10 @@ class Measures:
     com_height [m], gravity_arm [m] (None also for grasps stored before
     schema version 9); torque_per_mu [N m]: the object's weight's torque
     about the grip axis over its friction coefficient (mass x g x
-    gravity_arm / mu; None also for grasps stored before schema version 10).
+    gravity_arm / mu; None also for grasps stored before schema version 10);
+    local_sdf (LOCAL_CELLS,) [m]: the object's clipped signed distance at
+    the hand's grid (:mod:`planner.plan.local_sdf`; None: the hand declares
+    no grid, or a grasp stored before schema version 11).
     """
 
     resist_worst: float = stored("real", "g", 3, "weight resistance, worst of 14 gravity directions (object frame)",
@@ -75,6 +79,10 @@ class Measures:
     torque_per_mu: float | None = stored("real", "N m", 10, "the object's weight's torque about that line over its "
                                          "friction coefficient (mass x g x gravity_arm / mu)", required=False,
                                          default=None)
+    local_sdf: np.ndarray | None = stored("vector", "m", 11, "the object around the grasp: its signed distance "
+                                          "(< 0 inside; clipped to +-2 cm, 0.1 mm) at the hand's [local_sdf] grid "
+                                          "of 75 points, hand frame, x slowest", required=False, default=None,
+                                          shape=(LOCAL_CELLS,))
 
     @property
     def feasible(self) -> bool:

@@ -89,6 +89,29 @@ class SettleDynamics:
     rest_time: float
 
 
+#: Points of every hand's ``[local_sdf]`` grid: the stored measure's length, the same for all hands.
+LOCAL_CELLS = 75
+
+
+@dataclass(frozen=True)
+class LocalGrid:
+    """Where the measure ``local_sdf`` reads the object around a grasp
+    (``[local_sdf]`` of hand.toml, :mod:`planner.plan.local_sdf`): the box
+    ``low``..``high`` (3,) [m] in the hand frame, ``counts`` (3,) points per
+    axis (their product: :data:`LOCAL_CELLS`), spread evenly
+    from face to face."""
+
+    low: tuple[float, float, float]
+    high: tuple[float, float, float]
+    counts: tuple[int, int, int]
+
+    def points(self) -> np.ndarray:
+        """(CELLS, 3) [m] the grid's points, hand frame, x slowest and z fastest."""
+        axes = [np.linspace(a, b, n) if n > 1 else np.array([(a + b) / 2]) for a, b, n in
+                zip(self.low, self.high, self.counts)]
+        return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+
+
 @dataclass(frozen=True)
 class Actuators:
     """The finger motors, from published specifications (``[dynamics]``).
@@ -169,6 +192,7 @@ class HandSpec:
     sampler: str = "surface"  # the sweep's approach sampler unless the user picks one
     settle: bool = False  # the sweep measures the settled epsilon (a dynamic closing per grasp) unless told not to
     settle_dynamics: SettleDynamics | None = None  # the settle's steps and times; None: the shake trial's
+    local_grid: LocalGrid | None = None  # where local_sdf reads the object; None: not measured for this hand
 
     def joint(self, name: str) -> JointSpec:
         found = self._joint_map.get(name)

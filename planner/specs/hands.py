@@ -22,6 +22,7 @@ from planner import assets
 from planner.errors import ConfigError, UnknownNameError
 from planner.specs.hand_spec import (
     BREAKAWAY_TOL,
+    LOCAL_CELLS,
     STILL,
     Actuators,
     ArmSpec,
@@ -29,6 +30,7 @@ from planner.specs.hand_spec import (
     FingerDof,
     HandSpec,
     JointSpec,
+    LocalGrid,
     SettleDynamics,
 )
 from planner.specs.toml import Fields, read_toml
@@ -38,9 +40,9 @@ if TYPE_CHECKING:
     import yourdfpy
 
 __all__ = ["BREAKAWAY_TOL", "CONTACT_MODELS", "DEFAULT_CLOSING_SPEED", "DEFAULT_DISTANCE_OFFSET",
-           "DEFAULT_FINGER_FORCE", "SAMPLERS", "STILL", "Actuators", "ArmSpec", "ContactModel", "FingerDof",
-           "HandFrame", "HandSpec", "JointSpec", "check_hand_name", "hand_frame", "hand_names", "hands_dir",
-           "load_folder", "load_hand", "parallel_jaw", "roll_symmetry"]
+           "DEFAULT_FINGER_FORCE", "LOCAL_CELLS", "SAMPLERS", "STILL", "Actuators", "ArmSpec", "ContactModel",
+           "FingerDof", "HandFrame", "HandSpec", "JointSpec", "LocalGrid", "check_hand_name", "hand_frame",
+           "hand_names", "hands_dir", "load_folder", "load_hand", "parallel_jaw", "roll_symmetry"]
 
 CONTACT_MODELS = ("frictionless", "point", "soft")
 #: Approach samplers (planner.plan.sampling): rays onto the surface, or antipodal pairs for parallel jaws.
@@ -131,7 +133,24 @@ def load_folder(folder: Path) -> HandSpec:
         sampler=_sampler(f, joints),
         settle=f.bool("settle", False),
         settle_dynamics=_settle_dynamics(f),
+        local_grid=_local_grid(f),
     )
+
+
+def _local_grid(f: Fields) -> LocalGrid | None:
+    """``[local_sdf]``, if given: a box (low < high on every axis) and points per axis whose product is
+    :data:`~planner.specs.hand_spec.LOCAL_CELLS` (the stored measure's length)."""
+    if not f.has("local_sdf"):
+        return None
+    t = f.table("local_sdf")
+    low, high = tuple(t.floats("low", 3)), tuple(t.floats("high", 3))
+    counts = t.floats("counts", 3)
+    if any(a >= b for a, b in zip(low, high)):
+        raise ConfigError(f"{t.where} fields 'low', 'high': low must be below high on every axis")
+    if any(c != int(c) or c < 1 for c in counts) or int(np.prod(counts)) != LOCAL_CELLS:
+        raise ConfigError(f"{t.where} field 'counts': whole numbers of points per axis, >= 1, whose product is "
+                          f"{LOCAL_CELLS}")
+    return LocalGrid(low, high, tuple(int(c) for c in counts))  # type: ignore[arg-type]
 
 
 def _settle_dynamics(f: Fields) -> SettleDynamics | None:

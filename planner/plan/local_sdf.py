@@ -1,0 +1,64 @@
+"""The object around a grasp, as the p_hold model reads it: the measure
+``local_sdf`` (issue 26).
+
+The grip measures (:mod:`planner.plan.grip`) say how the object sits between
+the fingers in a few numbers; what decides whether a grasp survives a shake
+also depends on the shape around them in ways no few numbers say (a rim
+that the fingers hook under, a body that fills the jaw or leaves it hollow,
+a handle beside a pad). ``local_sdf`` is that shape, sampled: the object's
+signed distance [m] (negative inside) at a grid of
+:data:`~planner.specs.hand_spec.LOCAL_CELLS` points fixed in the hand frame
+(``[local_sdf]`` of hand.toml, :class:`~planner.specs.hand_spec.LocalGrid`),
+clipped to +-:data:`CLIP` and rounded to :data:`DIGITS` decimals (0.1 mm:
+the stored value and the one the model reads at planning time are the
+same number). The exact surface gives it (not a collision proxy), the sign
+from :meth:`planner.geometry.distance.MeshDistance.signed`.
+
+Measured against ACRONYM's FleX labels on the dev set's tuning objects
+(grouped by object, bench/RESULTS.md), the model's trees read it beside the
+other measures.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from planner.specs.hand_spec import LOCAL_CELLS, LocalGrid
+
+if TYPE_CHECKING:
+    import trimesh
+
+    from planner.geometry.distance import MeshDistance
+    from planner.specs.hands import HandSpec
+
+#: [m] distances beyond +-CLIP are all "far outside" / "deep inside".
+CLIP = 0.02
+#: Decimals kept [m]: 0.1 mm.
+DIGITS = 4
+
+__all__ = ["CLIP", "DIGITS", "LOCAL_CELLS", "LocalSurface", "measure"]
+
+
+class LocalSurface:
+    """One object's exact surface for a hand's ``local_sdf`` (nothing to
+    measure where the hand declares no grid)."""
+
+    def __init__(self, hand: HandSpec, mesh: trimesh.Trimesh) -> None:
+        from planner.geometry.distance import MeshDistance
+
+        self.grid = hand.local_grid
+        self.surface = None if self.grid is None else MeshDistance(mesh.vertices, mesh.faces)
+
+    def of(self, pose: np.ndarray) -> np.ndarray | None:
+        """:func:`measure` at ``pose``, or None for a hand without a grid."""
+        return None if self.grid is None or self.surface is None else measure(self.grid, self.surface, pose)
+
+
+def measure(grid: LocalGrid, surface: MeshDistance, pose: np.ndarray) -> np.ndarray:
+    """(LOCAL_CELLS,) the clipped, rounded signed distance [m] of the object
+    (``surface``, object frame) at the ``grid``'s points for the hand at
+    ``pose`` (4, 4), hand frame in the object frame."""
+    points = grid.points() @ pose[:3, :3].T + pose[:3, 3]
+    return np.round(np.clip(surface.signed(points), -CLIP, CLIP), DIGITS)
