@@ -1,4 +1,5 @@
-"""The measure table: the same model inputs from grasp records and from stored columns; contact depth."""
+"""The measure table: the same model inputs from grasp records and from stored columns (local_sdf's cells
+too, the fill where it was not measured); contact depth."""
 
 from __future__ import annotations
 
@@ -20,8 +21,12 @@ STORED_TOL = 1e-6
 
 
 def test_stored_columns_give_the_measure_table_of_the_records(tmp_path: Path) -> None:
+    rng = np.random.default_rng(0)
+    # local_sdf measured on some grasps (its cells: what the trees read), not on the others (NULL: the fill)
+    local = [np.round(rng.uniform(-0.02, 0.02, 75), 4) if i % 2 else None for i in range(4)]
     grasps = [replace(made_up(i, 0.01 * i, fc=i % 2 == 0), measures=Measures(2.0 * i, 3.0 * i, 0.003, np.inf,
-                                                                              0.9, ())) for i in range(4)]
+                                                                              0.9, (), local_sdf=local[i]))
+              for i in range(4)]
     unit = UnitRow("thing", "panda", "h" * 16, json.dumps({}), 5, 0, None)
     with open_db(tmp_path / "g.db") as db:
         db.write_unit(unit, None, grasps, RankingRule())
@@ -33,6 +38,9 @@ def test_stored_columns_give_the_measure_table_of_the_records(tmp_path: Path) ->
     # an untouched margin: inf in the record, NULL in the store; both are the cap as model inputs
     assert_close(features.design(features.of_columns(col), names), features.design(features.of_grasps(grasps), names),
                  STORED_TOL)
+    cells = features.design(features.of_columns(col), features.LOCAL)
+    assert_close(cells[1], local[1], 0.0)
+    assert_close(cells[0], np.full(75, features.FILL["local_sdf_00"]), 0.0)
 
 
 def test_contact_depth_is_the_mean_distance_along_the_approach_and_moves_with_the_hand() -> None:

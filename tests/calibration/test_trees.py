@@ -116,3 +116,38 @@ def test_cross_validation_with_trees_is_out_of_fold() -> None:
     cv = cross_validate(table, y, groups, "panda", features=FEATS, folds=3, grid=(1e-3,),
                         trees=TreeSettings(n_trees=40))
     assert roc_auc(y, cv.p) > 0.8
+
+
+def test_trees_read_features_the_additive_part_does_not(tmp_path: Path) -> None:
+    # a world where a grasp holds only where the object fills one cell of local_sdf (< 0: inside) and the
+    # closed width is small: only trees that read that cell can tell
+    cells = ("local_sdf_12", "local_sdf_40")
+
+    def world(n: int, seed: int) -> tuple[dict[str, np.ndarray], np.ndarray]:
+        table, _, _ = synthetic(n, seed=seed)
+        rng = np.random.default_rng(seed + 7)
+        for name in features.LOCAL:
+            table[name] = rng.uniform(-0.02, 0.02, n)
+        logit = np.where((table[cells[0]] < 0) & (table["width"] < 0.05), 2.5, -2.5)
+        return table, (rng.random(n) < 1 / (1 + np.exp(-logit))).astype(float)
+
+    table, y = world(4000, 5)
+    test, test_y = world(3000, 6)
+    plain = fit(table, y, "panda", features=FEATS, l2=1e-3, trees=TreeSettings(n_trees=100))
+    seeing = fit(table, y, "panda", features=FEATS, l2=1e-3, trees=TreeSettings(n_trees=100, extra=cells))
+    assert plain.tree_features == () and seeing.tree_features == cells
+    assert roc_auc(test_y, seeing.predict(test)) > roc_auc(test_y, plain.predict(test)) + 0.1
+    assert seeing.trees is not None and (seeing.trees.feature >= len(FEATS)).any()  # it splits on a cell
+    path = tmp_path / "m.toml"
+    path.write_text(seeing.to_toml())
+    for again in (load_model(path), LogisticModel.from_json(seeing.to_json())):
+        assert again.tree_features == cells
+        assert_close(again.predict(test), seeing.predict(test), 0.0)
+    # a table without the cells (a grasp whose hand declares no grid) reads them as "nothing near"
+    bare = {k: v for k, v in test.items() if k not in features.LOCAL}
+    filled = dict(bare, **{k: np.full(len(test_y), features.FILL[k]) for k in features.LOCAL})
+    assert_close(seeing.predict(bare), seeing.predict(filled), 0.0)
+    beyond = dict(seeing.trees.to_dict(), feature=[len(FEATS) + len(cells) if v != LEAF else v
+                                                     for v in seeing.trees.feature.tolist()])
+    with pytest.raises(InputError, match=f"trees split on input {len(FEATS) + len(cells)}, the model has 5 inputs"):
+        replace(seeing, trees=Trees.from_dict(beyond))

@@ -1,0 +1,103 @@
+"""The measure local_sdf (planner/plan/local_sdf.py): the grid a hand declares
+(hand.toml [local_sdf]; a broken table is a one-line error naming it), the
+object's clipped signed distance at it against a box's known distances, and a
+sweep that stores it for the Panda (read back as the stored pose gives it) and
+not for a hand without a grid."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from helpers import hand_copy
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from planner import api
+from planner.db.store import open_db
+from planner.errors import ConfigError
+from planner.geometry.distance import MeshDistance
+from planner.plan.local_sdf import CLIP, DIGITS, LocalSurface, measure
+from planner.plan.sweep import SweepSettings
+from planner.specs.hand_spec import LOCAL_CELLS, LocalGrid
+from planner.specs.hands import load_folder, load_hand
+
+
+def test_the_panda_declares_a_grid_the_barrett_none() -> None:
+    grid = load_hand("panda").local_grid
+    assert grid is not None and load_hand("barrett").local_grid is None
+    points = grid.points()
+    assert points.shape == (LOCAL_CELLS, 3)
+    assert np.allclose(points.min(axis=0), grid.low) and np.allclose(points.max(axis=0), grid.high)
+    # x slowest, z fastest: the first points differ in z only
+    assert np.allclose(points[0, :2], points[1, :2]) and points[1, 2] > points[0, 2]
+
+
+@pytest.mark.parametrize("table, message", [
+    ("low = [0.03, -0.04, 0.05]\nhigh = [0.03, 0.04, 0.13]\ncounts = [3, 5, 5]", r"low must be below high"),
+    ("low = [-0.03, -0.04, 0.05]\nhigh = [0.03, 0.04, 0.13]\ncounts = [3, 5, 4]", r"field 'counts'.*75"),
+    ("low = [-0.03, -0.04, 0.05]\nhigh = [0.03, 0.04, 0.13]\ncounts = [3, 5, 5.5]", r"field 'counts'.*whole"),
+    ("low = [-0.03, -0.04]\nhigh = [0.03, 0.04, 0.13]\ncounts = [3, 5, 5]", r"field 'low'.*3 numbers"),
+])
+def test_a_broken_grid_names_the_file_and_field(tmp_path: Path, table: str, message: str) -> None:
+    folder = hand_copy(tmp_path)
+    toml = folder / "hand.toml"
+    text = toml.read_text()
+    toml.write_text(text[:text.index("[local_sdf]")] + "[local_sdf]\n" + table + "\n")
+    with pytest.raises(ConfigError, match=message) as err:
+        load_folder(folder)
+    assert "hand.toml" in str(err.value) and "\n" not in str(err.value)
+
+
+def _box_distance(points: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """Exact signed distance to an axis-aligned box of half-extents ``half`` about the origin."""
+    q = np.abs(points) - half
+    outside = np.linalg.norm(np.maximum(q, 0.0), axis=1)
+    return outside + np.minimum(q.max(axis=1), 0.0)
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.floats(-0.05, 0.05), st.floats(-0.05, 0.05), st.floats(-0.12, -0.02), st.floats(-np.pi, np.pi))
+def test_a_box_seen_from_the_hand(x: float, y: float, z: float, yaw: float) -> None:
+    half = np.array([0.03, 0.02, 0.04])
+    box = trimesh.creation.box(2 * half)
+    grid = load_hand("panda").local_grid
+    assert grid is not None
+    pose = np.eye(4)
+    c, s = np.cos(yaw), np.sin(yaw)
+    pose[:3, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
+    pose[:3, 3] = [x, y, z]
+    got = measure(grid, MeshDistance(box.vertices, box.faces), pose)
+    points = grid.points() @ pose[:3, :3].T + pose[:3, 3]
+    want = np.clip(_box_distance(points, half), -CLIP, CLIP)
+    assert got.shape == (LOCAL_CELLS,)
+    assert np.allclose(got, want, atol=0.5 * 10.0**-DIGITS + 1e-12)
+    assert np.array_equal(got, np.round(got, DIGITS)) and np.abs(got).max() <= CLIP
+
+
+def test_a_grid_spans_its_box_with_one_point_on_an_axis_in_the_middle() -> None:
+    grid = LocalGrid((-1.0, 0.0, 0.0), (1.0, 1.0, 4.0), (1, 3, 25))
+    points = grid.points()
+    assert points.shape == (LOCAL_CELLS, 3) and np.allclose(points[:, 0], 0.0)
+    assert np.allclose(np.unique(points[:, 2]), np.linspace(0.0, 4.0, 25))
+
+
+def test_a_sweep_stores_it_for_the_panda_and_not_for_the_barrett(tmp_path: Path) -> None:
+    db_path = tmp_path / "g.db"
+    settings_ = SweepSettings(approaches=4, rolls=2)
+    for hand in ("panda", "barrett"):
+        api.generate(["box"], hand, db_path=db_path, settings=settings_, workers=1)
+    db = open_db(db_path, create=False, readonly=True)
+    panda = db.best("box", "panda", 1000, 0)
+    barrett = db.best("box", "barrett", 1000, 0)
+    assert panda and barrett
+    assert all(g.measures.local_sdf is None for g in barrett)
+    from planner.db.objects import stored_object
+
+    surface = LocalSurface(load_hand("panda"), stored_object(db.object_row("box")).mesh)
+    for g in panda[:20]:
+        stored = g.measures.local_sdf
+        assert stored is not None and stored.shape == (LOCAL_CELLS,)
+        # the pose as stored (0.1 um) gives the same cells to the stored 0.1 mm
+        assert np.allclose(surface.of(g.pose), stored, atol=1.01 * 10.0**-DIGITS)
+    assert any((g.measures.local_sdf < 0).any() for g in panda)  # the box lies between the fingers
