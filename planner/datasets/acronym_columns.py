@@ -112,6 +112,9 @@ def _file_values(f: Field, data: np.ndarray | None, n: int) -> list:
     if f.dtype == "string":
         texts = [""] * n if data is None else [as_text(v) for v in data]
         return [tuple(r for r in t.split(",") if r) for t in texts] if f.kind == "reasons" else texts
+    if f.kind == "vector":  # (n, *shape): a row of NaN is a vector not measured
+        rows = np.full((n, *f.shape), np.nan) if data is None else np.asarray(data, float)
+        return [None if np.isnan(r).all() else r for r in rows]
     values = np.full(n, np.nan) if data is None else np.asarray(data, float)
     if f.kind == "margin":
         return [math.inf if math.isnan(v) else v for v in values.tolist()]

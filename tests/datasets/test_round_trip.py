@@ -54,7 +54,7 @@ NOT_CARRIED = {
     "parquet": set(),
     "csv": set(),
     "dexgraspnet": {"id", "unit_id", "object", "hand", "approach_point", "approach_dir", "open_joints", "contacts",
-                    "table_plane"},
+                    "table_plane", "local_sdf"},
 }
 #: Formats whose records are a fixed message (``moveit_msgs/Grasp``): they carry
 #: what the message has a field for, not the measures or the object's physics.
