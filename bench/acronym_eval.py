@@ -356,7 +356,7 @@ def _mean(rows: list[dict]) -> dict:
 def labelled_set(results: list[FileResult]) -> LabelledSet:
     """The closed poses of every file as one labelled set, grouped by object (``Category_id``)."""
     tables = [features.of_grasps(r.grasps) for r in results if r.grasps]
-    table = {k: np.concatenate([t[k] for t in tables]) for k in features.MEASURES}
+    table = {k: np.concatenate([t[k] for t in tables]) for k in features.TABLE}
     labels = np.concatenate([r.labels[r.closed] for r in results])
     groups = tuple(object_key(r.path)[1] for r in results for _ in range(int(r.closed.sum())))
     stems = tuple(r.path.stem for r in results for _ in range(int(r.closed.sum())))
