@@ -47,6 +47,12 @@ class TreeSettings:
     seed: int = 0
     extra: tuple[str, ...] = ()
 
+    def __str__(self) -> str:  # a model's source line: a long run of cells named by its ends
+        extra = self.extra if len(self.extra) <= 2 else f"{self.extra[0]}..{self.extra[-1]}"
+        return (f"TreeSettings(n_trees={self.n_trees}, depth={self.depth}, learning_rate={self.learning_rate}, "
+                f"min_leaf={self.min_leaf}, subsample={self.subsample}, seed={self.seed}"
+                + (f", extra={extra}" if self.extra else "") + ")")
+
     def __post_init__(self) -> None:
         if self.n_trees < 1 or self.depth < 1 or self.min_leaf < 1:
             raise InputError("trees: n_trees, depth and min_leaf must be >= 1")
