@@ -10,7 +10,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.record.field import stored
-from planner.specs.hand_spec import LOCAL_CELLS
+
+#: Points of every hand's ``[local_sdf]`` grid (:class:`planner.specs.hand_spec.LocalGrid`): the stored measure's
+#: length, the same for all hands.
+LOCAL_CELLS = 75
 
 #: The feasibility reasons a grasp can carry (:attr:`Measures.reasons`).
 REASONS = ("open_limit", "too_wide", "at_close_stop", "back_or_side_contact", "cannot_hold_weight")

@@ -23,6 +23,7 @@ from typing import Protocol, TypeVar
 import numpy as np
 
 from planner.errors import UnknownNameError
+from planner.record.measures import LOCAL_CELLS  # noqa: F401 - the grid's size, declared with the measure
 
 #: [rad or m] a mimic joint further than this from its coupling broke away.
 BREAKAWAY_TOL = 1e-6
@@ -89,8 +90,6 @@ class SettleDynamics:
     rest_time: float
 
 
-#: Points of every hand's ``[local_sdf]`` grid: the stored measure's length, the same for all hands.
-LOCAL_CELLS = 75
 
 
 @dataclass(frozen=True)

@@ -2,9 +2,10 @@
 unit cube, every face tried on a random mesh, survives pickling, bad input a
 MeshError. The signed distance: known signs at a cube's faces, edges and
 corners, the inside of a lumpy solid and of a hollow one (a mug-like cup)
-agree with an independent inside test (trimesh's ray casting). The grid of distance bounds: every point's exact distance lies
-between its bounds, in and off the grid, whatever was asked before; exact at
-the nodes; no more nodes than allowed."""
+agree with an independent inside test (trimesh's ray casting). The grid of
+distance bounds: every point's exact distance lies between its bounds, in
+and off the grid, whatever was asked before; exact at the nodes; no more
+nodes than allowed."""
 
 import pickle
 
