@@ -11,8 +11,12 @@ signed distance [m] (negative inside) at a grid of
 (``[local_sdf]`` of hand.toml, :class:`~planner.specs.hand_spec.LocalGrid`),
 clipped to +-:data:`CLIP` and rounded to :data:`DIGITS` decimals (0.1 mm:
 the stored value and the one the model reads at planning time are the
-same number). The exact surface gives it (not a collision proxy), the sign
-from :meth:`planner.geometry.distance.MeshDistance.signed`.
+same number). The surface closing collides with gives it: the exact mesh,
+or for a mesh with more faces than the collision proxy's threshold
+(:mod:`planner.geometry.proxy`) its proxy, within the proxy's stated
+deviation (0.22 mm on a 100k-face scan) and at the cost of a small mesh's
+(2.15 ms a grasp on the exact 100k faces, bench/RESULTS.md); the sign from
+:meth:`planner.geometry.distance.MeshDistance.signed`.
 
 Measured against ACRONYM's FleX labels on the dev set's tuning objects
 (grouped by object, bench/RESULTS.md), the model's trees read it beside the

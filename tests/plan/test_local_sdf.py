@@ -2,7 +2,8 @@
 (hand.toml [local_sdf]; a broken table is a one-line error naming it), the
 object's clipped signed distance at it against a box's known distances, and a
 sweep that stores it for the Panda (read back as the stored pose gives it) and
-not for a hand without a grid."""
+not for a hand without a grid; a large mesh's collision proxy gives the cells
+within the proxy's deviation."""
 
 from pathlib import Path
 
@@ -101,3 +102,24 @@ def test_a_sweep_stores_it_for_the_panda_and_not_for_the_barrett(tmp_path: Path)
         # the pose as stored (0.1 um) gives the same cells to the stored 0.1 mm
         assert np.allclose(surface.of(g.pose), stored, atol=1.01 * 10.0**-DIGITS)
     assert any((g.measures.local_sdf < 0).any() for g in panda)  # the box lies between the fingers
+
+
+def test_a_large_meshs_proxy_gives_the_cells_within_its_deviation() -> None:
+    import scanlike
+
+    from planner import assets
+    from planner.geometry.proxy import collision_proxy
+
+    fine = scanlike.capsule(12_000)  # above the proxy's threshold (5,000 faces)
+    key = assets.sha256_bytes(np.ascontiguousarray(fine.vertices).tobytes() + np.asarray(fine.faces).tobytes())
+    proxy = collision_proxy(fine, key)
+    assert not proxy.exact and len(proxy.mesh.faces) < len(fine.faces)
+    hand = load_hand("panda")
+    exact, coarse = LocalSurface(hand, fine), LocalSurface(hand, proxy.mesh)
+    rng = np.random.default_rng(3)
+    for _ in range(10):
+        pose = np.eye(4)
+        pose[:3, 3] = [*rng.normal(scale=0.01, size=2), -0.09 + rng.normal(scale=0.01)]
+        a, b = exact.of(pose), coarse.of(pose)
+        assert a is not None and b is not None
+        assert np.abs(a - b).max() <= proxy.deviation + 10.0**-DIGITS
