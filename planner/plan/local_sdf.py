@@ -46,8 +46,9 @@ __all__ = ["CLIP", "DIGITS", "LOCAL_CELLS", "LocalSurface", "measure"]
 
 
 class LocalSurface:
-    """One object's exact surface for a hand's ``local_sdf`` (nothing to
-    measure where the hand declares no grid)."""
+    """The surface ``local_sdf`` reads for one object and hand (``mesh``: the
+    one closing collides with, see the module docstring); nothing to measure
+    where the hand declares no grid."""
 
     def __init__(self, hand: HandSpec, mesh: trimesh.Trimesh) -> None:
         from planner.geometry.distance import MeshDistance

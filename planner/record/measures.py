@@ -84,8 +84,8 @@ class Measures:
                                          default=None)
     local_sdf: np.ndarray | None = stored("vector", "m", 11, "the object around the grasp: its signed distance "
                                           "(< 0 inside; clipped to +-2 cm, 0.1 mm) at the hand's [local_sdf] grid "
-                                          "of 75 points, hand frame, x slowest", required=False, default=None,
-                                          shape=(LOCAL_CELLS,))
+                                          f"of {LOCAL_CELLS} points, hand frame, x slowest", required=False,
+                                          default=None, shape=(LOCAL_CELLS,))
 
     @property
     def feasible(self) -> bool:
