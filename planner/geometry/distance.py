@@ -76,13 +76,19 @@ class MeshDistance:
         return Nearest(np.asarray(closest, float).reshape(-1, 3), np.sqrt(np.asarray(squared, float)),
                        np.asarray(face, np.int64))
 
-    def signed(self, points: ArrayLike) -> np.ndarray:
+    def signed(self, points: ArrayLike, *, winding: bool = False) -> np.ndarray:
         """(n,) signed distance [m] of ``points`` (n, 3) to the mesh: negative
-        inside (the side of the pseudonormal where the closest point lies)."""
+        inside. The side is the pseudonormal's where the closest point lies
+        (exact for one closed body), or with ``winding`` the generalised
+        winding number's (:meth:`winding` > 1/2: inside; right also where
+        closed bodies overlap, where the nearest surface may be one body's
+        face inside another)."""
         query = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
         found = self.nearest(query)
         if not len(query):
             return found.distance
+        if winding:
+            return np.where(self.winding(query) > 0.5, -found.distance, found.distance)
         tri = self.vertices[self.faces[found.face]]  # (n, 3, 3)
         bary = _barycentric(tri, found.points)
         on = bary > BARY_TOL  # the corners the closest point is not opposite to
@@ -96,6 +102,23 @@ class MeshDistance:
         normal[vertex] = vertex_n[corner]
         side = np.einsum("ij,ij->i", query - found.points, normal)
         return np.where(side < 0.0, -found.distance, found.distance)
+
+    def winding(self, points: ArrayLike) -> np.ndarray:
+        """(n,) the generalised winding number of the mesh at ``points`` (n, 3)
+        [m] (Jacobson et al., 2013; 1 inside a closed outward-oriented body,
+        0 outside, the sum over bodies where they overlap), by libigl's fast
+        approximation (Barill et al., 2018: within ~0.003 of the exact sum),
+        its hierarchy built on first use."""
+        query = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+        return np.asarray(self._winding_tree.winding_number(query), float) if len(query) else np.zeros(0)
+
+    @cached_property
+    def _winding_tree(self) -> object:
+        import igl
+
+        tree = igl.FastWindingNumberBVH()
+        tree.init(self.vertices, self.faces)
+        return tree
 
     @cached_property
     def _pseudonormals(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

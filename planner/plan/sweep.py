@@ -70,7 +70,10 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: 15: the measure local_sdf (the object's signed distance at a grid fixed in the hand frame), read by the
 #: p_hold model's trees (issue 26); the same grasps with one more measure, other p_hold, scores and ranks of the
 #: Panda's.
-ALGORITHM_VERSION = 15
+#: 16: local_sdf sided by the winding number on a mesh of several bodies or an open one (the duck, the mug, the
+#: teddy, the random objects: a cell inside one body, nearest to another's face buried in it, read outside);
+#: one closed body as before (issue 26); other cells, p_hold, scores and ranks of the Panda's on those objects.
+ALGORITHM_VERSION = 16
 
 #: Named in the digest of sweeps on a table only (those of the object alone stay
 #: as they were), bumped when a change alters only which grasps they produce.

@@ -2,7 +2,9 @@
 unit cube, every face tried on a random mesh, survives pickling, bad input a
 MeshError. The signed distance: known signs at a cube's faces, edges and
 corners, the inside of a lumpy solid and of a hollow one (a mug-like cup)
-agree with an independent inside test (trimesh's ray casting). The grid of
+agree with an independent inside test (trimesh's ray casting); where two
+bodies overlap the winding number gives the side the pseudonormals miss
+(points inside one body, nearest to a face of the other buried in it). The grid of
 distance bounds: every point's exact distance lies between its bounds, in
 and off the grid, whatever was asked before; exact at the nodes; no more
 nodes than allowed."""
@@ -86,6 +88,35 @@ def test_the_sign_agrees_with_an_independent_inside_test(seed: int, kind: str) -
     assert np.allclose(np.abs(signed), distance.nearest(points).distance)
     clear = np.abs(signed) > 1e-6  # ray casting is unreliable on the surface itself
     assert np.array_equal((signed < 0)[clear], mesh.contains(points)[clear])
+
+
+def _two_overlapping_cubes() -> trimesh.Trimesh:
+    """Two unit cubes, the second shifted by half a side along x: one mesh of two closed bodies whose
+    faces at x = 0 and x = 0.5 each lie inside the other body."""
+    a = trimesh.creation.box((1.0, 1.0, 1.0))
+    b = a.copy()
+    b.apply_translation([0.5, 0.0, 0.0])
+    return trimesh.util.concatenate([a, b])
+
+
+@settings(max_examples=10, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_the_winding_number_sides_points_where_bodies_overlap(seed: int) -> None:
+    mesh = _two_overlapping_cubes()
+    distance = MeshDistance(mesh.vertices, mesh.faces)
+    rng = np.random.default_rng(seed)
+    points = rng.uniform([-0.8, -0.8, -0.8], [1.3, 0.8, 0.8], size=(400, 3))
+    inside_a = np.all(np.abs(points) < 0.5, axis=1)
+    inside_b = np.all(np.abs(points - [0.5, 0.0, 0.0]) < 0.5, axis=1)
+    winding = distance.winding(points)
+    assert np.allclose(winding, inside_a.astype(float) + inside_b, atol=0.01)  # the sum over bodies
+    signed = distance.signed(points, winding=True)
+    assert np.allclose(np.abs(signed), distance.nearest(points).distance)
+    assert np.array_equal(signed < 0, inside_a | inside_b)
+    # the pseudonormals alone: inside one cube, nearest to the other's buried face, read as outside
+    buried = np.array([[-0.05, 0.0, 0.0], [0.55, 0.3, -0.2]])
+    assert (distance.signed(buried) > 0).all() and (distance.signed(buried, winding=True) < 0).all()
+    assert distance.winding(np.zeros((0, 3))).shape == (0,)
 
 
 def test_a_pickled_tree_answers_the_same() -> None:
