@@ -57,7 +57,11 @@ class LogisticModel:
     feature without bounds is used as it is); trees: the boosted
     interaction term over the clipped inputs and the inputs of
     ``tree_features`` (features only the trees read, after the others: the
-    cells of ``local_sdf``) (:mod:`~planner.calibration.trees`;
+    cells of ``local_sdf``); tree_turns: orders of the trees' inputs in
+    which a grasp is the same grasp (the hand turned onto itself,
+    :attr:`~planner.specs.hand_spec.HandSpec.cell_turns`): the trees were
+    grown on every grasp in each order and their term is the mean over the
+    orders, the inputs' own included (:mod:`~planner.calibration.trees`;
     None: the model is additive alone); updates: per trial group (``mujoco``,
     ``validation``), how that trial's verdict updates p_hold into
     ``p_hold_trial`` (:mod:`~planner.calibration.update`; none: a verdict of
@@ -83,9 +87,14 @@ class LogisticModel:
     updates: Mapping[str, TrialUpdate] = field(default_factory=dict)
     domain: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     tree_features: tuple[str, ...] = ()
+    tree_turns: tuple[tuple[int, ...], ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "tree_features", tuple(self.tree_features))
+        object.__setattr__(self, "tree_turns", tuple(tuple(int(i) for i in t) for t in self.tree_turns))
+        width = len(self.features) + len(self.tree_features)
+        if any(sorted(t) != list(range(width)) for t in self.tree_turns):
+            raise InputError(f"calibration model: each of tree_turns must order the trees' {width} inputs")
         odd = [k for k, b in self.domain.items() if k not in DOMAIN or len(b) != 2 or not 0 < b[0] <= b[1]]
         if odd:
             raise InputError(f"calibration model: domain of {', '.join(map(str, odd))} must be one of "
@@ -143,7 +152,13 @@ class LogisticModel:
         """(n,) log-odds of holding of the grasps of a measure table."""
         x = self.inputs(table)
         additive = self.intercept + self._z(x) @ self.coef
-        return additive if self.trees is None else additive + self.trees.evaluate(self.tree_inputs(table, x))
+        return additive if self.trees is None else additive + self._tree_term(self.tree_inputs(table, x))
+
+    def _tree_term(self, inputs: np.ndarray) -> np.ndarray:
+        """(n,) the trees' part of the log-odds: their mean over the grasps' views (:attr:`tree_turns`)."""
+        assert self.trees is not None
+        views = [inputs, *(inputs[:, list(t)] for t in self.tree_turns)]
+        return np.mean([self.trees.evaluate(v) for v in views], axis=0)
 
     def terms(self, table: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         """Each feature's part of the log-odds, (n,) per feature name: the
@@ -156,7 +171,7 @@ class LogisticModel:
         owner = np.array([c.partition("~")[0] for c in self.columns])
         out = {name: part[:, owner == name].sum(axis=1) for name in self.features}
         if self.trees is not None:
-            out[INTERACTIONS] = self.trees.evaluate(self.tree_inputs(table, x))
+            out[INTERACTIONS] = self._tree_term(self.tree_inputs(table, x))
         return out
 
     def standardised(self, table: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -203,7 +218,8 @@ class LogisticModel:
                 **({"trees": self.trees.to_dict()} if self.trees is not None else {}),
                 **({"updates": {k: u.to_dict() for k, u in self.updates.items()}} if self.updates else {}),
                 **({"domain": {k: list(v) for k, v in self.domain.items()}} if self.domain else {}),
-                **({"tree_features": list(self.tree_features)} if self.tree_features else {})}
+                **({"tree_features": list(self.tree_features)} if self.tree_features else {}),
+                **({"tree_turns": [list(t) for t in self.tree_turns]} if self.tree_turns else {})}
 
     @classmethod
     def from_dict(cls, data: Mapping) -> LogisticModel:
@@ -218,7 +234,8 @@ class LogisticModel:
                        Trees.from_dict(data["trees"]) if "trees" in data else None,
                        {str(k): TrialUpdate.from_dict(k, v) for k, v in dict(data.get("updates", {})).items()},
                        {str(k): tuple(float(x) for x in v) for k, v in dict(data.get("domain", {})).items()},
-                       tuple(str(f) for f in data.get("tree_features", ())))
+                       tuple(str(f) for f in data.get("tree_features", ())),
+                       tuple(tuple(int(i) for i in t) for t in data.get("tree_turns", ())))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"calibration model: missing or bad field ({exc})") from None
 
@@ -234,6 +251,7 @@ class LogisticModel:
         lines = [f"# p_hold model for the {self.hand}: planner/calibration/logistic.py reads it.", ""]
         lines += [f'hand = "{self.hand}"', f"features = {json.dumps(list(self.features))}",
                   *([f"tree_features = {json.dumps(list(self.tree_features))}"] if self.tree_features else []),
+                  *([f"tree_turns = {json.dumps([list(t) for t in self.tree_turns])}"] if self.tree_turns else []),
                   f"mean = {_floats(self.mean)}", f"scale = {_floats(self.scale)}", f"coef = {_floats(self.coef)}",
                   f"intercept = {self.intercept!r}", f"l2 = {self.l2!r}", f"source = {json.dumps(self.source)}", "",
                   "[figures]"]

@@ -108,7 +108,32 @@ def fit(table: Mapping[str, np.ndarray], labels: np.ndarray, hand: str, *,
     if trees is None or len(set(y.tolist())) < 2:
         return model
     model = replace(model, tree_features=tuple(trees.extra))
-    return replace(model, trees=fit_trees(model.tree_inputs(table), y, model.logit(table), trees))
+    model = replace(model, tree_turns=tree_turns(hand, len(features), model.tree_features))
+    inputs, views = model.tree_inputs(table), 1 + len(model.tree_turns)
+    grown = np.vstack([inputs, *(inputs[:, list(t)] for t in model.tree_turns)])
+    # every grasp in each of its views, a leaf holding as many grasps' worth as without them
+    settings = replace(trees, min_leaf=trees.min_leaf * views)
+    return replace(model, trees=fit_trees(grown, np.tile(y, views), np.tile(model.logit(table), views), settings))
+
+
+def tree_turns(hand: str, features: int, tree_features: Sequence[str]) -> tuple[tuple[int, ...], ...]:
+    """The orders of the trees' inputs (``features`` columns of the model's
+    own, then ``tree_features``) in which the ``hand`` turned onto itself
+    sees the same grasp (:attr:`~planner.specs.hand_spec.HandSpec.cell_turns`):
+    each cell of ``local_sdf`` among ``tree_features`` moved to the cell it
+    turns into, everything else in place; none where the trees read no cell
+    or a cell's turned twin is not among them."""
+    if not set(tree_features) & set(LOCAL):
+        return ()
+    from planner.specs.hands import load_hand
+
+    at = {name: i for i, name in enumerate(tree_features)}
+    out = []
+    for turn in load_hand(hand).cell_turns:
+        twin = {LOCAL[i]: LOCAL[j] for i, j in enumerate(turn)}
+        if all(twin.get(f, f) in at for f in tree_features):
+            out.append(tuple(range(features)) + tuple(features + at[twin.get(f, f)] for f in tree_features))
+    return tuple(out)
 
 
 def _loss(w: np.ndarray, z: np.ndarray, y: np.ndarray, l2: float) -> tuple[float, np.ndarray]:

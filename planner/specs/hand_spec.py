@@ -92,6 +92,10 @@ class SettleDynamics:
 
 
 
+#: [m] a turned grid point this close to another is that point.
+GRID_TOL = 1e-9
+
+
 @dataclass(frozen=True)
 class LocalGrid:
     """Where the measure ``local_sdf`` reads the object around a grasp
@@ -192,6 +196,31 @@ class HandSpec:
     settle: bool = False  # the sweep measures the settled epsilon (a dynamic closing per grasp) unless told not to
     settle_dynamics: SettleDynamics | None = None  # the settle's steps and times; None: the shake trial's
     local_grid: LocalGrid | None = None  # where local_sdf reads the object; None: not measured for this hand
+
+    @cached_property
+    def cell_turns(self) -> tuple[tuple[int, ...], ...]:
+        """The hand turned onto itself reads the same object in another
+        order of its ``local_sdf`` cells: for each turn by 2 pi j /
+        ``roll_symmetry`` (j >= 1) about the approach axis through the
+        hand frame's origin that maps the grid onto itself, the index of the
+        point each grid point lands on (the turned hand's cells are the
+        cells in this order; the Panda's half turn swaps its fingers: the
+        same grasp). Empty: no grid, no symmetry, or a grid the turns do
+        not map onto itself."""
+        if self.local_grid is None:
+            return ()
+        points = self.local_grid.points()
+        k = np.asarray(self.approach, float)
+        cross = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+        out = []
+        for j in range(1, self.roll_symmetry):
+            angle = 2.0 * np.pi * j / self.roll_symmetry  # Rodrigues' rotation about the unit axis k
+            turn = np.eye(3) + np.sin(angle) * cross + (1.0 - np.cos(angle)) * cross @ cross
+            gaps = np.linalg.norm((points @ turn.T)[:, None, :] - points[None, :, :], axis=2)
+            order = np.argmin(gaps, axis=1)
+            if np.all(gaps[np.arange(len(points)), order] < GRID_TOL) and len(set(order.tolist())) == len(points):
+                out.append(tuple(int(i) for i in order))
+        return tuple(out)
 
     def joint(self, name: str) -> JointSpec:
         found = self._joint_map.get(name)

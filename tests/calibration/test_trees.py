@@ -151,3 +151,43 @@ def test_trees_read_features_the_additive_part_does_not(tmp_path: Path) -> None:
                                                      for v in seeing.trees.feature.tolist()])
     with pytest.raises(InputError, match=f"trees split on input {len(FEATS) + len(cells)}, the model has 5 inputs"):
         replace(seeing, trees=Trees.from_dict(beyond))
+
+
+def test_the_turned_hand_sees_the_same_grasp(tmp_path: Path) -> None:
+    # the Panda turned half about its approach swaps its fingers: a world where a grasp holds where the
+    # object fills either of two cells the turn swaps; the trees grow on both views and read their mean
+    from planner.calibration.model import tree_turns
+    from planner.specs.hands import load_hand
+
+    (turn,) = load_hand("panda").cell_turns
+    a = 12
+    b = turn[a]
+
+    def world(n: int, seed: int) -> tuple[dict[str, np.ndarray], np.ndarray]:
+        table, _, _ = synthetic(n, seed=seed)
+        rng = np.random.default_rng(seed + 7)
+        for name in features.LOCAL:
+            table[name] = rng.uniform(-0.02, 0.02, n)
+        logit = np.where(np.minimum(table[features.LOCAL[a]], table[features.LOCAL[b]]) < -0.01, 2.5, -2.5)
+        return table, (rng.random(n) < 1 / (1 + np.exp(-logit))).astype(float)
+
+    table, y = world(3000, 5)
+    model = fit(table, y, "panda", features=FEATS, l2=1e-3, trees=TreeSettings(n_trees=60, extra=features.LOCAL))
+    (order,) = model.tree_turns
+    assert order == tree_turns("panda", len(FEATS), features.LOCAL)[0]
+    assert order[:len(FEATS)] == tuple(range(len(FEATS)))
+    assert order[len(FEATS) + a] == len(FEATS) + b and order[len(FEATS) + b] == len(FEATS) + a
+    test, test_y = world(2000, 6)
+    turned = dict(test, **{features.LOCAL[i]: test[features.LOCAL[j]] for i, j in enumerate(turn)})
+    assert_close(model.predict(turned), model.predict(test), SUM_TOL)  # the same grasp, the same p_hold
+    assert roc_auc(test_y, model.predict(test)) > 0.8
+    assert fit(table, y, "barrett", features=FEATS, l2=1e-3,
+               trees=TreeSettings(n_trees=5, extra=features.LOCAL)).tree_turns == ()  # no grid, no turn
+    assert tree_turns("panda", len(FEATS), features.LOCAL[:10]) == ()  # their twins are not read
+    path = tmp_path / "m.toml"
+    path.write_text(model.to_toml())
+    for again in (load_model(path), LogisticModel.from_json(model.to_json())):
+        assert again.tree_turns == model.tree_turns
+        assert_close(again.predict(test), model.predict(test), 0.0)
+    with pytest.raises(InputError, match="each of tree_turns must order the trees' 78 inputs"):
+        replace(model, tree_turns=((0,) * (len(FEATS) + 75),))

@@ -151,3 +151,18 @@ def test_overlapping_bodies_are_sided_by_the_winding_number() -> None:
     # the pseudonormals alone read some of them outside (nearest to the other body's buried face)
     plain = measure(grid, MeshDistance(mesh.vertices, mesh.faces), np.eye(4))
     assert ((plain > 0) & inside).any()
+
+
+def test_the_half_turn_of_the_panda_maps_its_grid_onto_itself() -> None:
+    from dataclasses import replace
+
+    hand = load_hand("panda")
+    assert hand.roll_symmetry == 2 and load_hand("barrett").cell_turns == ()
+    (turn,) = hand.cell_turns
+    grid = hand.local_grid
+    assert grid is not None
+    points = grid.points()
+    assert sorted(turn) == list(range(LOCAL_CELLS))
+    assert np.allclose(points[list(turn)], points * [-1.0, -1.0, 1.0])  # half a turn about the approach, z
+    lopsided = LocalGrid((-0.02, -0.04, 0.05), (0.03, 0.04, 0.13), (3, 5, 5))
+    assert replace(hand, local_grid=lopsided).cell_turns == ()  # a grid the turn does not map onto itself
