@@ -16,10 +16,10 @@ or for a mesh with more faces than the collision proxy's threshold
 (:mod:`planner.geometry.proxy`) its proxy, within the proxy's stated
 deviation (0.22 mm on a 100k-face scan) and at the cost of a small mesh's
 (2.15 ms a grasp on the exact 100k faces, bench/RESULTS.md); the sign from
-:meth:`planner.geometry.distance.MeshDistance.signed`: the pseudonormals for
-one closed body (exact there), the winding number for a mesh of several
-bodies or an open one (where bodies overlap, the nearest face can be one
-body's, inside another: the pseudonormal calls that point outside).
+:meth:`planner.geometry.distance.MeshDistance.signed`: the pseudonormals where
+they are exact, the winding number where bodies overlap (the nearest face
+can be one body's, inside another: the pseudonormal calls that point
+outside) or the mesh is open.
 
 Measured against ACRONYM's FleX labels on the dev set's tuning objects
 (grouped by object, bench/RESULTS.md), the model's trees read it beside the
@@ -45,39 +45,28 @@ CLIP = 0.02
 #: Decimals kept [m]: 0.1 mm.
 DIGITS = 4
 
-__all__ = ["CLIP", "DIGITS", "LOCAL_CELLS", "LocalSurface", "measure", "needs_winding"]
+__all__ = ["CLIP", "DIGITS", "LOCAL_CELLS", "LocalSurface", "measure"]
 
 
 class LocalSurface:
     """The surface ``local_sdf`` reads for one object and hand (``mesh``: the
     one closing collides with, see the module docstring); nothing to measure
-    where the hand declares no grid; ``winding``: the side by the winding
-    number (:func:`needs_winding`)."""
+    where the hand declares no grid."""
 
     def __init__(self, hand: HandSpec, mesh: trimesh.Trimesh) -> None:
         from planner.geometry.distance import MeshDistance
 
         self.grid = hand.local_grid
         self.surface = None if self.grid is None else MeshDistance(mesh.vertices, mesh.faces)
-        self.winding = self.grid is not None and needs_winding(mesh)
 
     def of(self, pose: np.ndarray) -> np.ndarray | None:
         """:func:`measure` at ``pose``, or None for a hand without a grid."""
-        if self.grid is None or self.surface is None:
-            return None
-        return measure(self.grid, self.surface, pose, winding=self.winding)
+        return None if self.grid is None or self.surface is None else measure(self.grid, self.surface, pose)
 
 
-def needs_winding(mesh: trimesh.Trimesh) -> bool:
-    """Whether the pseudonormals can misplace a point's side on ``mesh``:
-    it has several bodies (which may overlap) or is not closed."""
-    return bool(mesh.body_count > 1 or not mesh.is_watertight)
-
-
-def measure(grid: LocalGrid, surface: MeshDistance, pose: np.ndarray, *, winding: bool = False) -> np.ndarray:
+def measure(grid: LocalGrid, surface: MeshDistance, pose: np.ndarray) -> np.ndarray:
     """(LOCAL_CELLS,) the clipped, rounded signed distance [m] of the object
     (``surface``, object frame) at the ``grid``'s points for the hand at
-    ``pose`` (4, 4), hand frame in the object frame; the side by the winding
-    number where ``winding`` (:meth:`~planner.geometry.distance.MeshDistance.signed`)."""
+    ``pose`` (4, 4), hand frame in the object frame."""
     points = grid.points() @ pose[:3, :3].T + pose[:3, 3]
-    return np.round(np.clip(surface.signed(points, winding=winding), -CLIP, CLIP), DIGITS)
+    return np.round(np.clip(surface.signed(points), -CLIP, CLIP), DIGITS)

@@ -4,7 +4,9 @@ MeshError. The signed distance: known signs at a cube's faces, edges and
 corners, the inside of a lumpy solid and of a hollow one (a mug-like cup)
 agree with an independent inside test (trimesh's ray casting); where two
 bodies overlap the winding number gives the side the pseudonormals miss
-(points inside one body, nearest to a face of the other buried in it). The grid of
+(points inside one body, nearest to a face of the other buried in it), and
+only there: one closed body, or bodies far apart, use the pseudonormals
+alone, an open mesh the winding number everywhere. The grid of
 distance bounds: every point's exact distance lies between its bounds, in
 and off the grid, whatever was asked before; exact at the nodes; no more
 nodes than allowed."""
@@ -110,13 +112,33 @@ def test_the_winding_number_sides_points_where_bodies_overlap(seed: int) -> None
     inside_b = np.all(np.abs(points - [0.5, 0.0, 0.0]) < 0.5, axis=1)
     winding = distance.winding(points)
     assert np.allclose(winding, inside_a.astype(float) + inside_b, atol=0.01)  # the sum over bodies
-    signed = distance.signed(points, winding=True)
+    signed = distance.signed(points)
     assert np.allclose(np.abs(signed), distance.nearest(points).distance)
     assert np.array_equal(signed < 0, inside_a | inside_b)
-    # the pseudonormals alone: inside one cube, nearest to the other's buried face, read as outside
+    # inside one cube, nearest to the other's face buried in it: the pseudonormals alone read them outside
     buried = np.array([[-0.05, 0.0, 0.0], [0.55, 0.3, -0.2]])
-    assert (distance.signed(buried) > 0).all() and (distance.signed(buried, winding=True) < 0).all()
+    assert (distance.signed(buried) < 0).all()
     assert distance.winding(np.zeros((0, 3))).shape == (0,)
+
+
+def test_the_winding_number_only_where_the_pseudonormals_can_fail() -> None:
+    assert not cube()._unsure.any()
+    apart = trimesh.creation.box((1.0, 1.0, 1.0))
+    other = apart.copy()
+    other.apply_translation([3.0, 0.0, 0.0])
+    assert not MeshDistance(*_arrays(trimesh.util.concatenate([apart, other])))._unsure.any()
+    two = _two_overlapping_cubes()
+    x = two.triangles[:, :, 0]
+    far_ends = np.isclose(x, -0.5).all(axis=1) | np.isclose(x, 1.0).all(axis=1)
+    # the outer ends (x = -0.5 and x = 1) are off the other cube's box; every other face meets it
+    assert np.array_equal(MeshDistance(*_arrays(two))._unsure, ~far_ends) and far_ends.sum() == 4
+    open_box = trimesh.creation.box((1.0, 1.0, 1.0))
+    open_box.update_faces(np.arange(len(open_box.faces)) != 0)  # one triangle taken out: an open mesh
+    assert MeshDistance(*_arrays(open_box))._unsure.all()
+
+
+def _arrays(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray]:
+    return np.asarray(mesh.vertices), np.asarray(mesh.faces)
 
 
 def test_a_pickled_tree_answers_the_same() -> None:
