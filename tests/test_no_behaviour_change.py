@@ -52,8 +52,8 @@ settles with its own, coarser dynamics, hand.toml [settle_dynamics]: the same
 grasps, other settled epsilons, scores and ranks of the Barrett's); 14 (issue
 26: the measure torque_per_mu, read by p_hold: the digest is 13's); 15 (issue
 26: the measure local_sdf, read by p_hold's trees: the digest is 14's); 16
-(issue 26: local_sdf sided by the winding number on meshes of several bodies:
-the digest is 15's).
+(issue 26: local_sdf sided by the winding number where pseudonormals can
+fail, overlapping bodies and open meshes: the digest is 15's).
 """
 
 from __future__ import annotations

@@ -70,9 +70,10 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: 15: the measure local_sdf (the object's signed distance at a grid fixed in the hand frame), read by the
 #: p_hold model's trees (issue 26); the same grasps with one more measure, other p_hold, scores and ranks of the
 #: Panda's.
-#: 16: local_sdf sided by the winding number on a mesh of several bodies or an open one (the duck, the mug, the
-#: teddy, the random objects: a cell inside one body, nearest to another's face buried in it, read outside);
-#: one closed body as before (issue 26); other cells, p_hold, scores and ranks of the Panda's on those objects.
+#: 16: local_sdf sided by the winding number where pseudonormals can fail: an open mesh, and on several bodies
+#: (the duck, the mug, the teddy, the random objects) the points whose nearest face's box meets another body's (a
+#: cell inside one body, nearest to another's face buried in it, read outside); one closed body as before (issue
+#: 26); other cells, p_hold, scores and ranks of the Panda's on those objects.
 ALGORITHM_VERSION = 16
 
 #: Named in the digest of sweeps on a table only (those of the object alone stay
