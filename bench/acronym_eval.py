@@ -50,7 +50,7 @@ import tomllib
 from planner.calibration import features
 from planner.calibration.fitting import calibrate
 from planner.calibration.labels import LabelledSet, object_properties
-from planner.calibration.metrics import expected_calibration_error, roc_auc
+from planner.calibration.metrics import INTERVAL_SEED, expected_calibration_error, group_interval, roc_auc
 from planner.calibration.model import DEFAULT_TREES, default_model, load_model
 from planner.datasets import importer
 from planner.db.ranking import RankingRule, rank_order
@@ -308,8 +308,36 @@ def evaluate(results: list[FileResult], model, rule: RankingRule, oof: dict[str,
         pooled["trial_reasons"] = dict(sum((Counter(f["trial_reasons"]) for f in trial_rows), Counter()))
     pooled["rejected"] = dict(sum((Counter(f["rejected"]) for f in per_file), Counter()))
     pooled["poses"] = sum(f["poses"] for f in per_file)
-    return {"files": per_file, "objects": _by(per_file, "object"), "categories": _by_category(per_file),
-            "mean": _mean(_by(per_file, "object")), **pooled}
+    objects = _by(per_file, "object")
+    closed = [(object_key(r.path)[1], r.labels[r.closed],
+               scores(r, model, rule, None if oof is None else oof[r.path.stem])["p_hold"][r.closed])
+              for r in results] if model is not None else []
+    return {"files": per_file, "objects": objects, "categories": _by_category(per_file),
+            "mean": _mean(objects), "intervals": intervals(objects, closed), **pooled}
+
+
+def intervals(objects: list[dict], closed: list[tuple[str, np.ndarray, np.ndarray]]) -> dict[str, tuple[float, float]]:
+    """95% intervals over objects (planner.calibration.metrics.group_interval, a bootstrap drawing objects) of
+    the MEAN row's figures (means over objects) and of the pooled ECE and label agreement of p_hold;
+    ``closed``: (object, labels, p_hold) of each file's closed poses."""
+    rng = np.random.default_rng(INTERVAL_SEED)
+    out = {}
+    for m in ("auc_p_hold", "auc_width", "auc_formula", "top10_p_hold", "top10_formula"):
+        values = np.array([o.get(m, np.nan) for o in objects], float)
+        if np.isfinite(values).any():
+            out[m] = group_interval(lambda picked, v=values: float(np.nanmean(v[picked])), len(values), rng)
+    names = sorted({name for name, _, _ in closed})
+    if names:
+        y = [np.concatenate([lab for n, lab, _ in closed if n == name]) for name in names]
+        p = [np.concatenate([q for n, _, q in closed if n == name]) for name in names]
+
+        def pooled(picked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            return np.concatenate([y[i] for i in picked]), np.concatenate([p[i] for i in picked])
+
+        out["ece_p_hold"] = group_interval(lambda picked: expected_calibration_error(*pooled(picked)), len(names), rng)
+        out["p_hold_label_agree"] = group_interval(
+            lambda picked: float(np.mean((pooled(picked)[1] >= 0.5) == (pooled(picked)[0] == 1))), len(names), rng)
+    return out
 
 
 METRICS = ("auc_formula", "auc_width", "auc_p_hold", "top10_formula", "top10_p_hold", "top10_validated",
@@ -376,6 +404,9 @@ def print_table(report: dict) -> None:
               + "".join(f"{c[k]:14.3f}" if k in c else f"{'':14s}" for k in cols))
     print(f"{'MEAN over objects':48s}" + "".join(f"{report['mean'][k]:14.3f}" if k in report["mean"] else f"{'':14s}"
                                             for k in cols))
+    if report.get("intervals"):
+        print("95% intervals over objects (a bootstrap drawing objects): " + ", ".join(
+            f"{k} [{lo:.3f}, {hi:.3f}]" for k, (lo, hi) in report["intervals"].items()))
     print(f"objects where p_hold (a Panda grasp's stored score where the model applies) beats the width baseline: "
           f"{report['mean'].get('width_beaten_p_hold', 'n/a')} of {len(report['objects'])}; the rule's formula (the "
           f"stored score where no model applies): {report['mean'].get('width_beaten_formula')}")

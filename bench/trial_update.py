@@ -12,7 +12,9 @@ fitted without the grasp's fold: planner.calibration.fitting.trial_figures), and
 The ranking when every pose is tried (``grasp validate --all``): with ``--per-file`` at least the closed poses
 per file, every closed pose of the sample is tried; printed then, for p_hold, p_hold_trial, p_hold times the
 verdict (the rule before p_hold_trial) and the verdict alone: the mean per-object ROC AUC against FleX, the mean
-over files of the share of the 10 best-ranked poses that hold (force closure first), and the label agreement.
+over files of the share of the 10 best-ranked poses that hold (force closure first), and the label agreement; for
+p_hold and p_hold_trial also their 95% intervals over objects (planner.calibration.metrics.object_figures: a
+bootstrap drawing objects).
 ``--held-out``: the same on the held-out objects with the shipped model and its update, nothing fitted (run
 once; bench/acronym_eval.py --held-out --trial N --engine mujoco reports the label agreement of a sample).
 
@@ -39,7 +41,7 @@ from planner.calibration import features  # noqa: E402
 from planner.calibration.fitting import trial_figures  # noqa: E402
 from planner.calibration.labels import TRIAL_GROUPS  # noqa: E402
 from planner.calibration.logistic import FOLDER, load_model  # noqa: E402
-from planner.calibration.metrics import roc_auc  # noqa: E402
+from planner.calibration.metrics import INTERVAL_SEED, object_figures, roc_auc  # noqa: E402
 from planner.calibration.model import cross_validate  # noqa: E402
 from planner.calibration.update import fit_update  # noqa: E402
 from planner.db.ranking import rank_order  # noqa: E402
@@ -118,6 +120,11 @@ def ranking(data, p: np.ndarray, q: np.ndarray, results) -> None:  # type: ignor
                 (np.flatnonzero(files == f) for f in np.unique(files))]
         print(f"  {name:18s} mean per-object AUC {np.nanmean(aucs):.4f}  top-10 {np.mean(tops):.4f}  "
               f"label agreement {np.mean((s >= 0.5) == (y == 1)):.4f}")
+        if name in ("p_hold", "p_hold_trial"):
+            iv = object_figures(y, s, groups, files, fc, 10, np.random.default_rng(INTERVAL_SEED))
+            print(f"  {'':18s} 95% over objects: AUC [{iv['auc_mean_lo']:.3f}, {iv['auc_mean_hi']:.3f}]  top-10 "
+                  f"[{iv['top10_lo']:.3f}, {iv['top10_hi']:.3f}]  agreement [{iv['agreement_lo']:.3f}, "
+                  f"{iv['agreement_hi']:.3f}]  ECE [{iv['ece_lo']:.4f}, {iv['ece_hi']:.4f}]")
 
 
 if __name__ == "__main__":

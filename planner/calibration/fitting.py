@@ -10,7 +10,12 @@ the database's: force closure first, then p_hold):
   object's files pooled); ``auc_width``: the same for "smaller closed width is
   better"; ``auc_pooled``: over all grasps;
 - ``top10``: mean over files of the share of the 10 best-ranked grasps that hold;
-- ``ece``: expected calibration error over deciles; ``log_loss``.
+- ``ece``: expected calibration error over deciles; ``log_loss``;
+- ``<figure>_lo``, ``<figure>_hi`` for ``auc_mean``, ``top10``, ``ece`` and
+  ``agreement`` (p_hold >= 0.5 against the label): the 95% interval of the
+  figure over objects (a percentile bootstrap drawing objects, seeded:
+  :func:`planner.calibration.metrics.object_figures`), how far another set of
+  as many objects could move it.
 
 Where the labelled set holds trial verdicts (``grasp calibrate --trial N``),
 the model also gets the update of p_hold by that trial's verdict
@@ -31,7 +36,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from planner.calibration.labels import LabelledSet
-from planner.calibration.metrics import Reliability, reliability, roc_auc
+from planner.calibration.metrics import INTERVAL_SEED, Reliability, object_figures, reliability, roc_auc
 from planner.calibration.model import (
     DEFAULT_FEATURES,
     DEFAULT_TREES,
@@ -146,4 +151,7 @@ def held_out_figures(data: LabelledSet, p: np.ndarray) -> dict[str, float]:
             "auc_width": float(np.mean(width)) if width else math.nan,
             "auc_pooled": roc_auc(data.labels, p), "top10": float(np.mean(tops)),
             "ece": reliability(data.labels, p).ece, "log_loss": log_loss(data.labels, p),
-            "success_rate": float(np.mean(data.labels))}
+            "agreement": float(np.mean((p >= 0.5) == (data.labels > 0.5))),
+            "success_rate": float(np.mean(data.labels)),
+            **object_figures(data.labels, p, data.groups, data.files, data.table["force_closure"], TOP_K,
+                             np.random.default_rng(INTERVAL_SEED))}

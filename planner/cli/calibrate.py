@@ -10,6 +10,9 @@ import click
 from planner import api
 from planner.cli.app import db_option
 
+#: Below this many objects the bootstrap's intervals (drawn from the objects at hand) are said to be too narrow.
+FEW_OBJECTS = 10
+
 
 @click.command()
 @click.argument("labels", nargs=-1, required=True, type=click.Path(path_type=Path))
@@ -46,8 +49,13 @@ def calibrate(labels: tuple[Path, ...], db_path: Path, poses: int, seed: int, fo
     click.echo(f"p_hold for {result.model.hand}: {int(f['grasps'])} closed labelled grasps of {int(f['objects'])} "
                f"objects, success rate {f['success_rate']:.3f}")
     click.echo(f"held out ({int(f['folds'])} folds grouped by object): mean per-object AUC {f['auc_mean']:.3f} "
-               f"(width baseline {f['auc_width']:.3f}), pooled AUC {f['auc_pooled']:.3f}, "
-               f"top-10 hold {f['top10']:.3f}, ECE {f['ece']:.4f}, log-loss {f['log_loss']:.4f}")
+               f"{_interval(f, 'auc_mean', 3)} (width baseline {f['auc_width']:.3f}), pooled AUC "
+               f"{f['auc_pooled']:.3f}, top-10 hold {f['top10']:.3f} {_interval(f, 'top10', 3)}, ECE {f['ece']:.4f} "
+               f"{_interval(f, 'ece', 4)}, p_hold >= 0.5 agrees {f['agreement']:.3f} {_interval(f, 'agreement', 3)}, "
+               f"log-loss {f['log_loss']:.4f}")
+    few = "; from so few objects they understate the spread" if f["objects"] < FEW_OBJECTS else ""
+    click.echo(f"  [95% intervals over objects: a bootstrap drawing objects, how far another set of as many objects "
+               f"could move each figure{few}]")
     if "trialled" in f:
         click.echo(f"{int(f['trialled'])} grasps tried in {engine}: agreement with the labels: the verdict "
                    f"{f['trial_agreement']:.3f}, p_hold >= 0.5 {f['p_hold_agreement']:.3f}, p_hold given the "
@@ -59,3 +67,8 @@ def calibrate(labels: tuple[Path, ...], db_path: Path, poses: int, seed: int, fo
                    f"AUC {auc} (width {width})")
     if not no_store:
         click.echo(f"stored in {db_path}: best, exports and reports of {result.model.hand} grasps use it")
+
+
+def _interval(figures: dict[str, float], name: str, digits: int) -> str:
+    lo, hi = figures.get(f"{name}_lo", math.nan), figures.get(f"{name}_hi", math.nan)
+    return "[n/a]" if not (math.isfinite(lo) and math.isfinite(hi)) else f"[{lo:.{digits}f}, {hi:.{digits}f}]"

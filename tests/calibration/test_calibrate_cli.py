@@ -44,6 +44,7 @@ def test_calibrate_fits_reports_and_stores_a_model_that_best_and_exports_use(val
                            "--plot", str(png), "--model-out", str(tmp_path / "m.toml"))
     assert code == 0, err
     assert "held out (2 folds grouped by object)" in out and "ECE" in out and "stored in" in out
+    assert "95% intervals over objects" in out and "from so few objects they understate the spread" in out
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and (tmp_path / "m.toml").read_text().startswith("# p_hold")
     with open_db(db, create=False, readonly=True) as d:
         assert d.model("panda") is not None and "labels" in d.model_source("panda")
