@@ -57,18 +57,41 @@ def trial_rows(db: Path, table: str = "mujoco") -> list[tuple]:
                             " JOIN grasps g ON g.id = v.grasp_id ORDER BY g.object, g.candidate").fetchall()
 
 
-def test_every_grasp_validated_the_same_with_one_or_two_workers(validated_db: Path, tmp_path: Path) -> None:
+def test_every_grasp_validated_the_same_with_one_or_two_workers(validated_db: Path, tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(run, "MUJOCO_BATCH", BATCH)  # several tasks of this small database: both workers busy
     one, two = tmp_path / "one.db", tmp_path / "two.db"
     for path, workers in ((one, 1), (two, 2)):
         shutil.copy(validated_db, path)
         summary = validate(path, every=True, robust_samples=0, workers=workers)
-        assert not summary.failed_tasks and summary.grasps > 2 * BATCH  # several tasks: both workers busy
+        assert not summary.failed_tasks and summary.grasps > 2 * BATCH
     with sqlite3.connect(one) as conn:
         stored = conn.execute("SELECT COUNT(*) FROM grasps").fetchone()[0]
     rows = trial_rows(one)
     assert len(rows) == stored and {r[-1] for r in rows} <= set(REASONS)
     assert any(r[-1] == "held" for r in rows)
     assert rows == trial_rows(two)  # bit for bit: one world per trial, whatever process runs it
+
+
+def test_tasks_hold_more_mujoco_trials_than_pybullet_or_robust_ones(validated_db: Path) -> None:
+    """A MuJoCo trial alone is short (~8 ms): MUJOCO_BATCH a task; a PyBullet trial or robust samples: BATCH."""
+    from planner.validation.mujoco_settings import MujocoSettings
+    from planner.validation.robust import NoiseSettings
+    from planner.validation.settings import ShakeSettings
+
+    everything = run.Selection(every=True)
+    with open_db(validated_db, create=False, readonly=True) as db:
+        counts = [len(db.best(o, h, 10_000)) for o, h in db.pairs()]
+        sizes = {name: sorted(len(t.grasps) for t in run.plan(db, None, None, everything, 0, trial, noise))
+                 for name, trial, noise in (("mujoco", MujocoSettings(), None), ("pybullet", ShakeSettings(), None),
+                                            ("robust", MujocoSettings(), NoiseSettings(samples=2)))}
+
+    def chunks(k: int) -> list[int]:
+        return sorted(min(k, c - i) for c in counts for i in range(0, c, k))
+
+    assert max(counts) > run.BATCH  # the sizes differ on this database
+    assert sizes["mujoco"] == chunks(run.MUJOCO_BATCH)
+    assert sizes["pybullet"] == sizes["robust"] == chunks(run.BATCH)
 
 
 def test_a_seeded_sample_is_uniform_and_replayable(validated_db: Path, tmp_path: Path) -> None:
@@ -159,7 +182,7 @@ def test_each_pair_is_reranked_with_every_stored_verdict_however_its_tasks_end(
             return run.TaskResult(task, error="boom")
         return _slipped(task)
 
-    monkeypatch.setattr(run, "BATCH", 2)
+    monkeypatch.setattr(run, "MUJOCO_BATCH", 2)
     monkeypatch.setattr(run, "run_task", fake)
     if stop == "interrupt":
         with pytest.raises(KeyboardInterrupt):
