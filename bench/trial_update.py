@@ -87,7 +87,9 @@ def main() -> int:
     print(f"{int(figures['trialled'])} tried grasps of {len(set(np.array(data.groups)[tried]))} tuning objects "
           f"({a.engine}, {a.per_file} per file, re-scoring code {code}); agreement with FleX:")
     print(f"  verdict {figures['trial_agreement']:.4f}, p_hold >= 0.5 {figures['p_hold_agreement']:.4f} "
-          f"(out of fold), p_hold_trial >= 0.5 {figures['p_hold_trial_agreement']:.4f} (update fitted per fold)")
+          f"(out of fold), p_hold_trial >= 0.5 {figures['p_hold_trial_agreement']:.4f} "
+          f"[{figures['p_hold_trial_agreement_lo']:.3f}, {figures['p_hold_trial_agreement_hi']:.3f}] over objects "
+          f"(update fitted per fold)")
     print(f"  update on all: logit' = {update.slope:.4f} logit + {update.verdict:.4f} held + {update.intercept:.4f}"
           f" (in-sample agreement {update.agreement:.4f})")
     if np.all(tried):

@@ -23,7 +23,8 @@ the model also gets the update of p_hold by that trial's verdict
 the tried grasps; figures over those grasps, the label as 1 or 0 against
 the file's: ``trialled`` (how many), ``trial_agreement`` (the verdict alone),
 ``p_hold_agreement`` (p_hold >= 0.5) and ``p_hold_trial_agreement``
-(p_hold_trial >= 0.5, the update itself fitted without the grasp's fold).
+(p_hold_trial >= 0.5, the update itself fitted without the grasp's fold),
+with its 95% interval over objects (``p_hold_trial_agreement_lo``, ``_hi``).
 """
 
 from __future__ import annotations
@@ -36,7 +37,15 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from planner.calibration.labels import LabelledSet
-from planner.calibration.metrics import INTERVAL_SEED, Reliability, object_figures, reliability, roc_auc
+from planner.calibration.metrics import (
+    INTERVAL_SEED,
+    Reliability,
+    agreement,
+    group_interval,
+    object_figures,
+    reliability,
+    roc_auc,
+)
 from planner.calibration.model import (
     DEFAULT_FEATURES,
     DEFAULT_TREES,
@@ -117,10 +126,18 @@ def trial_figures(data: LabelledSet, cv: CrossValidation) -> dict[str, float]:
         if len(set(y[train].tolist())) == 2:
             q[test] = fit_update(data.engine, p[train], v[train], y[train]).apply(p[test], v[test])
     agree = ~np.isnan(q)
+    groups = np.asarray(data.groups)[tried]
+    members = [np.flatnonzero(groups == g) for g in np.unique(groups)]
+
+    def pooled(picked: np.ndarray) -> float:
+        idx = np.concatenate([members[g] for g in picked])
+        return agreement(y[idx], q[idx])
+
+    lo, hi = group_interval(pooled, len(members), np.random.default_rng(INTERVAL_SEED))
     return {"trialled": float(len(tried)), "trial_agreement": float(np.mean(v == y)),
             "p_hold_agreement": float(np.mean((p >= 0.5) == (y == 1))),
             "p_hold_trial_agreement": float(np.mean((q[agree] >= 0.5) == (y[agree] == 1))) if agree.any()
-            else math.nan}
+            else math.nan, "p_hold_trial_agreement_lo": lo, "p_hold_trial_agreement_hi": hi}
 
 
 def per_object(data: LabelledSet, p: np.ndarray) -> list[dict]:

@@ -148,7 +148,7 @@ def object_figures(labels: np.ndarray, p: np.ndarray, groups: Sequence[str], fil
         "auc_mean": lambda picked: float(np.nanmean(auc[picked])) if np.isfinite(auc[picked]).any() else math.nan,
         "top10": lambda picked: float(np.mean([t for g in picked for t in tops[g]])),
         "ece": lambda picked: reliability(y[pooled(picked)], q[pooled(picked)]).ece,
-        "agreement": lambda picked: _agreement(y[pooled(picked)], q[pooled(picked)]),
+        "agreement": lambda picked: agreement(y[pooled(picked)], q[pooled(picked)]),
     }
     out = {}
     for name, statistic in stats.items():
@@ -156,7 +156,7 @@ def object_figures(labels: np.ndarray, p: np.ndarray, groups: Sequence[str], fil
     return out
 
 
-def _agreement(labels: np.ndarray, p: np.ndarray) -> float:
+def agreement(labels: np.ndarray, p: np.ndarray) -> float:
     """Share of the grasps with a finite ``p`` where p >= 0.5 matches the label (NaN if none)."""
     keep = np.isfinite(p)
     return float(np.mean((p[keep] >= 0.5) == (labels[keep] > 0.5))) if keep.any() else math.nan

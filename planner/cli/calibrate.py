@@ -59,7 +59,8 @@ def calibrate(labels: tuple[Path, ...], db_path: Path, poses: int, seed: int, fo
     if "trialled" in f:
         click.echo(f"{int(f['trialled'])} grasps tried in {engine}: agreement with the labels: the verdict "
                    f"{f['trial_agreement']:.3f}, p_hold >= 0.5 {f['p_hold_agreement']:.3f}, p_hold given the "
-                   f"verdict >= 0.5 {f.get('p_hold_trial_agreement', math.nan):.3f} (held out)")
+                   f"verdict >= 0.5 {f.get('p_hold_trial_agreement', math.nan):.3f} "
+                   f"{_interval(f, 'p_hold_trial_agreement', 3)} (held out)")
     for o in result.per_object:
         auc = "n/a" if math.isnan(o["auc_p_hold"]) else f"{o['auc_p_hold']:.3f}"
         width = "n/a" if math.isnan(o["auc_width"]) else f"{o['auc_width']:.3f}"

@@ -159,6 +159,8 @@ def test_calibrate_with_trials_fits_the_update_that_labels_and_ranks_validated_g
                            "--no-trees", "--trial", "4", "--engine", "mujoco", "--model-out", str(tmp_path / "m.toml"))
     assert code == 0, err
     assert re.search(r"^\d+ grasps tried in mujoco: agreement with the labels: the verdict 0\.\d{3}", out, re.M), out
+    interval = r"\[[01]\.\d{3}, [01]\.\d{3}\]"  # its 95% interval over objects
+    assert re.search(r"p_hold given the verdict >= 0\.5 [01]\.\d{3} " + interval + r" \(held out\)", out), out
     assert "[updates.mujoco]" in (tmp_path / "m.toml").read_text()
     with open_db(db, create=False, readonly=True) as d:
         model = d.model("panda")
