@@ -50,7 +50,13 @@ import tomllib
 from planner.calibration import features
 from planner.calibration.fitting import calibrate
 from planner.calibration.labels import LabelledSet, object_properties
-from planner.calibration.metrics import INTERVAL_SEED, expected_calibration_error, group_interval, roc_auc
+from planner.calibration.metrics import (
+    INTERVAL_SEED,
+    agreement,
+    expected_calibration_error,
+    group_interval,
+    roc_auc,
+)
 from planner.calibration.model import DEFAULT_TREES, default_model, load_model
 from planner.datasets import importer
 from planner.db.ranking import RankingRule, rank_order
@@ -335,8 +341,7 @@ def intervals(objects: list[dict], closed: list[tuple[str, np.ndarray, np.ndarra
             return np.concatenate([y[i] for i in picked]), np.concatenate([p[i] for i in picked])
 
         out["ece_p_hold"] = group_interval(lambda picked: expected_calibration_error(*pooled(picked)), len(names), rng)
-        out["p_hold_label_agree"] = group_interval(
-            lambda picked: float(np.mean((pooled(picked)[1] >= 0.5) == (pooled(picked)[0] == 1))), len(names), rng)
+        out["p_hold_label_agree"] = group_interval(lambda picked: agreement(*pooled(picked)), len(names), rng)
     return out
 
 

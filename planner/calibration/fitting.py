@@ -125,7 +125,6 @@ def trial_figures(data: LabelledSet, cv: CrossValidation) -> dict[str, float]:
         train, test = fold != f, fold == f
         if len(set(y[train].tolist())) == 2:
             q[test] = fit_update(data.engine, p[train], v[train], y[train]).apply(p[test], v[test])
-    agree = ~np.isnan(q)
     groups = np.asarray(data.groups)[tried]
     members = [np.flatnonzero(groups == g) for g in np.unique(groups)]
 
@@ -136,8 +135,8 @@ def trial_figures(data: LabelledSet, cv: CrossValidation) -> dict[str, float]:
     lo, hi = group_interval(pooled, len(members), np.random.default_rng(INTERVAL_SEED))
     return {"trialled": float(len(tried)), "trial_agreement": float(np.mean(v == y)),
             "p_hold_agreement": float(np.mean((p >= 0.5) == (y == 1))),
-            "p_hold_trial_agreement": float(np.mean((q[agree] >= 0.5) == (y[agree] == 1))) if agree.any()
-            else math.nan, "p_hold_trial_agreement_lo": lo, "p_hold_trial_agreement_hi": hi}
+            "p_hold_trial_agreement": agreement(y, q), "p_hold_trial_agreement_lo": lo,
+            "p_hold_trial_agreement_hi": hi}
 
 
 def per_object(data: LabelledSet, p: np.ndarray) -> list[dict]:
@@ -168,7 +167,7 @@ def held_out_figures(data: LabelledSet, p: np.ndarray) -> dict[str, float]:
             "auc_width": float(np.mean(width)) if width else math.nan,
             "auc_pooled": roc_auc(data.labels, p), "top10": float(np.mean(tops)),
             "ece": reliability(data.labels, p).ece, "log_loss": log_loss(data.labels, p),
-            "agreement": float(np.mean((p >= 0.5) == (data.labels > 0.5))),
+            "agreement": agreement(data.labels, p),
             "success_rate": float(np.mean(data.labels)),
             **object_figures(data.labels, p, data.groups, data.files, data.table["force_closure"], TOP_K,
                              np.random.default_rng(INTERVAL_SEED))}
