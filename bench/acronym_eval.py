@@ -213,7 +213,8 @@ def _trialled(result: FileResult, picked: list[int], settings: ShakeSettings | M
 def trial_source() -> str:
     """Hash of the trial modules' source (the trial's cache key; re-scoring's is :func:`source_hash`)."""
     h = hashlib.sha256()
-    for p in sorted((ROOT / "planner" / "validation").glob("*.py")) + [ROOT / "planner" / "sim" / "mujoco_world.py"]:
+    extra = [ROOT / "planner" / "sim" / "mujoco_world.py", ROOT / "planner" / "geometry" / "decompose.py"]  # the parts
+    for p in sorted((ROOT / "planner" / "validation").glob("*.py")) + extra:
         if p.name not in ("run.py", "robust.py"):
             h.update(p.read_bytes())
     return h.hexdigest()[:12]

@@ -59,7 +59,8 @@ def trial_code() -> str:
     h = hashlib.sha256()
     sim = ROOT / "planner" / "sim"
     for p in sorted((ROOT / "planner" / "validation").glob("*.py")) + [sim / "mujoco_world.py", sim / "mujoco_mjcf.py",
-                                                                       sim / "dynamics.py"]:
+                                                                       sim / "dynamics.py",
+                                                                       ROOT / "planner" / "geometry" / "decompose.py"]:
         if p.name not in ("run.py", "robust.py"):  # what runs and stores trials, not the trials
             h.update(p.read_bytes())
     return h.hexdigest()[:10]

@@ -38,7 +38,7 @@ def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], to
              as_json: bool) -> None:
     """Shake-test grasps in PyBullet or MuJoCo (the best, a sample or all), add robust epsilon, re-rank.
 
-    The first run on a mesh decomposes it into convex parts (CoACD, 10-60 s,
+    The first run on a concave mesh decomposes it into convex parts (CoACD, seconds to minutes,
     cached afterwards); a line on stderr says when that starts and ends."""
     show_preparation(not as_json)
     summary = api.validate(db_path, objects=list(objects) or None, hands=list(hands) or None, top=top,

@@ -34,3 +34,26 @@ def test_concave_object_is_decomposed_once_and_cached(monkeypatch) -> None:  # t
     assert all(np.array_equal(x, y) for x, y in zip(first.vertices, again.vertices))
     hull_volume = sum(trimesh.Trimesh(v, f).convex_hull.volume for v, f in zip(first.vertices, first.faces))
     assert abs(hull_volume - ell.volume) < 0.3 * ell.volume
+
+
+def test_every_setting_reaches_coacd_and_names_the_cache(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    import dataclasses
+
+    import coacd
+
+    seen: dict = {}
+
+    def record(mesh: object, **kwargs: object) -> list:
+        seen.update(kwargs)
+        return [(np.eye(4, 3), np.array([[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]]))]
+
+    monkeypatch.setattr(coacd, "run_coacd", record)
+    settings = decompose.CoacdSettings(threshold=0.07, mcts_iterations=11, mcts_nodes=7, mcts_max_depth=1,
+                                       preprocess_resolution=33)
+    box = trimesh.creation.box(extents=[0.04, 0.04, 0.04])
+    parts = decompose._run_coacd(box, settings)
+    assert seen == dataclasses.asdict(settings) and parts.method == "coacd" and len(parts) == 1
+    # a decomposition made with other tree-search settings is not read back as this one's
+    other = dataclasses.replace(settings, mcts_iterations=12)
+    assert decompose._cache_path("abc", settings) != decompose._cache_path("abc", other)
+    assert decompose._cache_path("abc", settings) == decompose._cache_path("abc", dataclasses.replace(settings))
