@@ -4,7 +4,7 @@ A moving (dynamic) object in a trial (PyBullet's or MuJoCo's) collides as a
 set of convex parts. The parts are cached by the mesh's content hash and the
 CoACD settings, as an ``.npz`` of plain arrays (no pickle), so each object is
 decomposed once per machine whatever the number of runs and workers (CoACD
-takes 0.2-150 s of CPU per object here, median 11 s on the dev set's meshes).
+takes 0.2-153 s of CPU per object here, median 11 s on the dev set's meshes).
 
 Meshes whose connected bodies are each convex already (primitives, the
 VHACD-made duck, teddy and random objects of pybullet_data) skip CoACD: their

@@ -4,10 +4,10 @@ Box, sphere and cylinder objects collide as PyBullet primitives (exact and
 cheap). Every other object collides as its convex parts
 (:mod:`planner.geometry.decompose`), each simplified to at most
 ``tolerance`` inside its hull: Bullet's GJK costs time linear in a hull's
-vertices (the mug's parts: 4,943 -> 552 vertices at 0.5 mm). CoACD parts of a
-concave mesh are fatter than the mesh (the mug's by up to 5.7 mm, 2.2 mm at
-the 95th percentile); the trial records how deep the open hand starts inside
-them.
+vertices (the mug's 32 parts: 5,287 -> 632 vertices at 0.5 mm). CoACD parts of a
+concave mesh are fatter than the mesh (the mug's by up to 3.0 mm, 1.75 mm at
+the 95th percentile: ``bench/decomposition.py``); the trial records how deep
+the open hand starts inside them.
 """
 
 from __future__ import annotations
