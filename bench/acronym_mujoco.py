@@ -34,7 +34,7 @@ import json
 import sys
 import time
 from collections import Counter, defaultdict
-from dataclasses import fields, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -42,6 +42,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import acronym_eval as ae  # noqa: E402
+from _settings import parse  # noqa: E402
 
 from planner.datasets import importer  # noqa: E402
 from planner.geometry.solid import prepare  # noqa: E402
@@ -64,22 +65,6 @@ def trial_code() -> str:
         if p.name not in ("run.py", "robust.py"):  # what runs and stores trials, not the trials
             h.update(p.read_bytes())
     return h.hexdigest()[:10]
-
-
-def parse(pairs: list[str], cls: type) -> dict:
-    kinds = {f.name: f.type for f in fields(cls)}
-    out: dict = {}
-    for kv in pairs:
-        key, _, value = kv.partition("=")
-        if key not in kinds:
-            sys.exit(f"acronym_mujoco: unknown setting {key}; settings: {', '.join(kinds)}")
-        kind = kinds[key]
-        if value.lower() == "none" and "None" in str(kind):  # an optional setting switched off (friction_cap)
-            out[key] = None
-            continue
-        out[key] = value if kind == "str" else (value.lower() in ("1", "true", "yes")) if kind == "bool" \
-            else int(value) if kind == "int" else float(value)
-    return out
 
 
 def picked(result: ae.FileResult, n: int, seed: int) -> list[int]:
@@ -222,7 +207,7 @@ def main() -> int:
         files = files[:args.files]
     code = args.code or ae.source_hash()
     results = [ae.rescore_file(p, args.poses, args.seed, 1, args.cache, code) for p in files]
-    base = parse(args.overrides, MujocoSettings)
+    base = parse(args.overrides, MujocoSettings, "acronym_mujoco")
     grid = json.loads(args.grid.read_text()) if args.grid else [{}]
     report: dict = {"files": len(files), "per_file": args.per_file, "sample_seed": args.sample_seed, "code": code,
                     "trial_code": trial_code(), "pose": args.pose, "runs": []}

@@ -29,7 +29,7 @@ import json
 import multiprocessing as mp
 import sys
 import time
-from dataclasses import asdict, fields, replace
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import numpy as np
@@ -89,16 +89,12 @@ def measure(source: str, dev: Path, settings: dict, timeout: float) -> dict:
 
 
 def parse_settings(pairs: list[str]) -> dict:
+    """The shipped ``CoacdSettings`` with ``pairs`` (``key=value``) changed, as a dict."""
+    from _settings import parse
+
     from planner.geometry.decompose import DEFAULT_SETTINGS
 
-    kinds = {f.name: f.type for f in fields(DEFAULT_SETTINGS)}
-    changes: dict = {}
-    for pair in pairs:
-        key, _, value = pair.partition("=")
-        if key not in kinds:
-            sys.exit(f"decomposition: unknown setting {key!r}; settings: {', '.join(kinds)}")
-        changes[key] = float(value) if kinds[key] == "float" else int(value)
-    return asdict(replace(DEFAULT_SETTINGS, **changes))
+    return asdict(replace(DEFAULT_SETTINGS, **parse(pairs, type(DEFAULT_SETTINGS), "decomposition")))
 
 
 def summary(rows: list[dict]) -> str:
