@@ -12,8 +12,8 @@ wraps these functions (and the names re-exported here).
 - calibrating: :func:`calibrate` (p_hold fitted to labelled grasp files),
   in :mod:`~planner.api.calibrating` with :func:`report`;
 - datasets: :func:`export`, :func:`import_files`;
-- descriptions: :func:`hands`, :func:`hand`, :func:`objects`
-  (:mod:`~planner.api.describing`);
+- descriptions: :func:`hands`, :func:`hand`, :func:`objects`,
+  :func:`stored_objects` (:mod:`~planner.api.describing`);
 - maintenance: :func:`check_db`.
 
 This module defines nothing else: every function lives in one of the
@@ -40,7 +40,7 @@ from planner.api.building import (  # noqa: F401 - re-exported
     unit_row,
 )
 from planner.api.calibrating import calibrate, calibration_errors, report
-from planner.api.describing import check_db, default_workers, hand, hands, objects
+from planner.api.describing import check_db, default_workers, hand, hands, objects, stored_objects
 from planner.api.on_table import (  # noqa: F401 - re-exported
     TABLE_AT,
     TableGrasps,
@@ -95,7 +95,8 @@ __all__ = [
     "GenerateProgress", "ImportResult", "RankingRule", "ReachableGrasp", "SAMPLERS", "SAMPLER_DEFAULTS", "Summary",
     "SweepSettings", "UnitResult", "ValidationSummary",
     "best", "best_at", "calibrate", "calibration_errors", "check_db", "default_workers", "export", "generate",
-    "hand", "hands", "import_files", "objects", "plan_units", "report", "resolve_object", "show", "validate",
+    "hand", "hands", "import_files", "objects", "plan_units", "report", "resolve_object", "show", "stored_objects",
+    "validate",
 ]
 
 #: Names of this module loaded from their modules on first use: name -> (module, attribute).

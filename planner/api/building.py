@@ -141,9 +141,15 @@ def table_supports(obj: PreparedObject, poses: int) -> list[Support]:
     return [Support.resting(r.pose) for r in resting_poses(obj.mesh, obj.com, poses)]
 
 
-def _check_stored_physics(db: Database, units: Sequence[UnitSpec]) -> None:
-    """Refuse to add grasps of an object at another mass, density or friction
-    than its stored grasps were measured at: one name, one set of properties."""
+def _check_stored(db: Database, units: Sequence[UnitSpec]) -> None:
+    """Refuse to add grasps of an object stored under the same name from
+    another mesh (another file of that name, the file changed since, another
+    scale) or at another mass, density or friction than its stored grasps
+    were planned and measured on: one name, one object. An object whose mesh
+    no longer loads is left to its units (stored as failed)."""
+    from planner.errors import PlannerError
+    from planner.geometry.solid import prepare
+
     checked: set[str] = set()
     for unit in units:
         name = unit.label or unit.object_name
@@ -162,6 +168,16 @@ def _check_stored_physics(db: Database, units: Sequence[UnitSpec]) -> None:
             raise InputError(f"object '{name}' is stored in {db.path} with {text(stored)}, this run gives "
                              f"{text(given)}; its grasps were measured at the stored values: use another --db, or "
                              "name the object apart (copy the mesh under another name)")
+        try:
+            mesh_hash = prepare(spec).mesh_hash
+        except PlannerError:
+            continue
+        if row.mesh_sha256 and mesh_hash != row.mesh_sha256:
+            raise InputError(f"object '{name}' is stored in {db.path} from another mesh than "
+                             f"{spec.source or spec.kind} at scale {spec.scale:g} gives now (stored: "
+                             f"{row.source} at scale {row.scale:g}; another file of that name, the file edited "
+                             "since, or another --scale): its grasps were planned on the stored mesh; use another "
+                             "--db, or name the object apart (copy the mesh under another name)")
 
 
 def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, settings: SweepSettings | None = None,
@@ -195,7 +211,7 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
     summary = Summary()
     start = time.perf_counter()
     with writer_lock(Path(db_path)), open_db(Path(db_path)) as db:
-        _check_stored_physics(db, units)
+        _check_stored(db, units)
         rule = rule or db.rule()
         db.apply_rule(rule)
         done = {d: db.units_done(hand, d, seed) for d in sorted({u.settings.digest for u in units})}
@@ -258,8 +274,10 @@ def _tally(summary: Summary, result: UnitResult, seconds: float) -> None:
     row = next((r for r in summary.per_object if r["object"] == name), None)
     if row is None:
         row = {"object": name, "units": 0, "candidates": 0, "grasps": 0, "force_closure": 0, "seconds": 0.0,
-               "error": None}
+               "error": None, "mass": None, "friction": None}
         summary.per_object.append(row)
+    if result.obj is not None:  # the values the grasps were measured at (flags, manifest, sidecar or defaults)
+        row["mass"], row["friction"] = result.obj.mass, result.obj.friction
     row["units"] += 1
     row["candidates"] += result.candidates
     row["grasps"] += len(result.grasps)

@@ -1,5 +1,6 @@
 """Descriptions and maintenance: the built-in hands (with their preshapes)
-and objects, a database's integrity check, the default number of workers.
+and objects, a database's objects as stored, its integrity check, the
+default number of workers.
 """
 
 from __future__ import annotations
@@ -7,7 +8,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from planner.db.store import open_db
+from planner.db.store import ObjectRow, open_db
 from planner.specs.hands import HandSpec, hand_names, load_hand
 from planner.specs.objects import ObjectSpec, builtin_specs
 from planner.specs.preshapes import Preshape, load_preshapes
@@ -27,6 +28,18 @@ def hand(name: str) -> tuple[HandSpec, tuple[Preshape, ...]]:
 def objects() -> dict[str, ObjectSpec]:
     """The built-in objects by name (``random_NNN`` are not listed)."""
     return builtin_specs()
+
+
+def stored_objects(db_path: Path) -> list[tuple[ObjectRow, list[str]]]:
+    """Every object of the database as stored (file, scale, mass, density,
+    friction, volume: what its grasps were planned and measured at), with
+    the hands that have grasps of it."""
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        hands: dict[str, list[str]] = {}
+        for obj, hand in db.pairs():
+            hands.setdefault(obj, []).append(hand)
+        rows = [db.object_row(name) for name in db.object_names()]
+        return [(row, hands.get(row.name, [])) for row in rows if row is not None]
 
 
 def check_db(db_path: Path) -> list[str]:

@@ -23,6 +23,16 @@ if TYPE_CHECKING:
 DIVERSE_BATCH = 500  # grasps read at a time while picking diverse ones
 
 
+#: What the commonest rejection of a sweep that kept nothing means for the user.
+SWEPT_EMPTY = {
+    "too_wide": "the object is wider than the hand opens wherever it was sampled",
+    "too_thin": "the object is thinner than the fingers can hold",
+    "overlap": "the open hand overlapped the object",
+    "no_contact": "the fingers closed on air",
+    "cone": "no two surface points face each other within the friction cone",
+}
+
+
 def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1, spacing: Spacing | None = None
          ) -> list[Grasp]:
     """The ``top`` best grasps of an object for a hand, in rank order; with
@@ -44,6 +54,15 @@ def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1, spac
                 grasps = diverse(ranked, top, spacing, spec.tcp, spec.approach, spec.roll_symmetry)
         if not grasps:
             known = db.objects_for(hand)
+            units, candidates, rejected = db.swept(key, hand)
+            if units:  # swept, nothing kept: running the same sweep again would keep nothing again
+                common = rejected.most_common(4)
+                why = ", ".join(f"{reason} {count:,}" for reason, count in common)
+                meaning = f"; {common[0][0]}: {SWEPT_EMPTY[common[0][0]]}" if common and common[0][0] in SWEPT_EMPTY \
+                    else ""
+                raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}: its sweep ({units} units, "
+                                 f"{candidates:,} candidates) kept none (rejected: {why or 'none'}{meaning}); try "
+                                 "another hand or other sweep settings")
             raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}; objects with grasps: "
                              f"{', '.join(known) or '(none)'}; run `{generate_command(name, row, hand, db_path)}`")
     return grasps

@@ -145,11 +145,14 @@ def _print_summary(summary: api.Summary, db_path: Path) -> None:
     from rich.table import Table
 
     table = Table(title=f"grasp generate -> {db_path}")
-    for col in ("object", "units", "candidates", "grasps", "force-closure", "worker s", "error"):
+    for col in ("object", "mass kg", "friction", "units", "candidates", "grasps", "force-closure", "worker s",
+                "error"):
         table.add_column(col)
     for row in summary.per_object:
-        table.add_row(row["object"], str(row["units"]), str(row["candidates"]), str(row["grasps"]),
-                      str(row["force_closure"]), f"{row['seconds']:.1f}", row["error"] or "")
+        table.add_row(row["object"], "" if row["mass"] is None else f"{row['mass']:.4g}",
+                      "" if row["friction"] is None else f"{row['friction']:.3g}", str(row["units"]),
+                      str(row["candidates"]), str(row["grasps"]), str(row["force_closure"]), f"{row['seconds']:.1f}",
+                      row["error"] or "")
     console = Console()
     console.print(table)
     console.print(f"candidates tried: {summary.candidates}, grasps with contacts: {summary.grasps}, "

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import sqlite3
+from collections import Counter
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -124,6 +125,16 @@ class Database(Writing):
             (hand, settings_hash, seed))
         return {(r["object"], r["chunk"]) for r in rows}
 
+    @_reads
+    def swept(self, obj: str, hand: str) -> tuple[int, int, Counter]:
+        """(finished units, their candidates, their rejections by reason) of ``obj``'s sweeps for ``hand``."""
+        rows = self._conn.execute("SELECT candidates, rejected FROM units WHERE object = ? AND hand = ? AND "
+                                  "status = 'done'", (obj, hand)).fetchall()
+        rejected: Counter = Counter()
+        for r in rows:
+            rejected.update(json.loads(r["rejected"] or "{}"))
+        return len(rows), sum(int(r["candidates"] or 0) for r in rows), rejected
+
     # -- calibration -------------------------------------------------------------
     @_reads
     def model(self, hand: str) -> LogisticModel | None:
@@ -181,6 +192,11 @@ class Database(Writing):
     @_reads
     def objects_for(self, hand: str) -> list[str]:
         return [r["object"] for r in self._conn.execute("SELECT DISTINCT object FROM grasps WHERE hand = ?", (hand,))]
+
+    @_reads
+    def object_names(self) -> list[str]:
+        """Every stored object, sorted (with or without grasps)."""
+        return [r["name"] for r in self._conn.execute("SELECT name FROM objects ORDER BY name")]
 
     @_reads
     def object_row(self, name: str) -> ObjectRow | None:

@@ -44,7 +44,7 @@ from planner.db.failures import write_failed
 from planner.db.ranking import ORDER_BY, RankingRule, rank_order, rule_measures
 from planner.db.rows import UnitRow, Validated
 from planner.db.schema import transaction
-from planner.errors import DatabaseError
+from planner.errors import DatabaseError, InputError
 from planner.record import fields
 from planner.record.grasp import Grasp
 
@@ -159,6 +159,10 @@ class Writing:
                 sum(g.force_closure for g in grasps), _json(unit.rejected), unit.seconds,
                 time.strftime("%Y-%m-%dT%H:%M:%S"))).lastrowid
             if obj is not None:
+                stored = conn.execute("SELECT mesh_sha256 FROM objects WHERE name = ?", (unit.object,)).fetchone()
+                if stored is not None and stored[0] and stored[0] != obj.mesh_hash:
+                    raise InputError(f"object '{unit.object}' is stored in {self.path} from another mesh than this "
+                                     "unit's: its grasps were planned on the stored one; nothing of this unit written")
                 conn.execute(_insert("objects", _OBJECT_COLUMNS, "INSERT OR REPLACE"), _object_row(unit.object, obj))
             conn.executemany(_insert("grasps", _GRASP_COLUMNS),
                              [_grasp_row(g, unit_id, score, p, q)

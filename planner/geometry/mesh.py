@@ -65,6 +65,7 @@ def checked_solid(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh:
     mesh = mesh.copy()
     mesh.merge_vertices()
     mesh.update_faces(mesh.nondegenerate_faces())
+    mesh.update_faces(mesh.unique_faces())  # an exporter's repeated triangles (the same three corners): one kept
     mesh.remove_unreferenced_vertices()
     if len(mesh.faces) == 0:
         raise MeshError(f"{where}: every triangle is degenerate (zero area)")
@@ -81,12 +82,46 @@ def checked_solid(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh:
     return mesh
 
 
+#: Share of the bodies' summed volume their union may lack and still count as
+#: their sum: bodies that touch (the built-ins' convex pieces) keep their own
+#: mass properties to the last bit; bodies that overlap take their union's.
+OVERLAP_TOL = 1e-6
+
+
+def union_of_bodies(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh | None:
+    """The union of ``mesh``'s bodies when they overlap, whose volume, centre
+    of mass and inertia are the object's (summed, the bodies count the
+    shared volume twice); None when they do not (one body, no two bodies'
+    boxes meet, or the union lacks less than :data:`OVERLAP_TOL` of their
+    sum). The boolean is manifold3d's, through trimesh; where it fails the
+    bodies' sum stands, with a warning."""
+    bodies = mesh.split(only_watertight=False)
+    if len(bodies) < 2:
+        return None
+    lo, hi = np.array([b.bounds[0] for b in bodies]), np.array([b.bounds[1] for b in bodies])
+    meet = np.all((lo[:, None] < hi[None]) & (lo[None] < hi[:, None]), axis=2)
+    np.fill_diagonal(meet, False)
+    if not meet.any():
+        return None
+    try:
+        union = trimesh.boolean.union(bodies, engine="manifold")
+    except Exception as exc:  # manifold3d refuses a body it cannot read as a solid
+        log.warning("%s: the union of its %d bodies failed (%s): their summed volume stands", where, len(bodies), exc)
+        return None
+    total = float(sum(b.volume for b in bodies))
+    if not (isinstance(union, trimesh.Trimesh) and 0 < union.volume <= total * (1 + OVERLAP_TOL)):
+        log.warning("%s: the union of its %d bodies is not a solid within theirs: their summed volume stands",
+                    where, len(bodies))
+        return None
+    return union if union.volume < total * (1 - OVERLAP_TOL) else None
+
+
 def check_extent(mesh: trimesh.Trimesh, where: str) -> None:
     extent = float(np.max(mesh.extents))
     if extent > MAX_EXTENT:
         raise MeshError(
             f"{where}: object is {extent:.3g} m across, larger than any hand can grasp; "
-            "if the mesh is in millimetres pass --scale 0.001"
+            "if the mesh is in millimetres pass --scale 0.001, in centimetres --scale 0.01"
         )
     if extent < MIN_EXTENT:
         raise MeshError(

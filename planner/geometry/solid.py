@@ -2,8 +2,8 @@
 the on-disk cache of checked meshes.
 
 The object frame is the frame of the (scaled) mesh file. Centre of mass,
-inertia and volume come from the closed mesh and the spec's mass (uniform
-density); the torque scale rho and the radius of gyration come from
+inertia and volume come from the closed mesh (the union of its bodies where
+they overlap) and the spec's mass (uniform density); the torque scale rho and the radius of gyration come from
 :mod:`planner.geometry.mass`.
 """
 
@@ -20,11 +20,11 @@ import trimesh
 from planner import assets
 from planner.errors import MeshError
 from planner.geometry.mass import radius_of_gyration, torque_scale_max_distance
-from planner.geometry.mesh import load_mesh_file, mesh_hash
+from planner.geometry.mesh import load_mesh_file, mesh_hash, union_of_bodies
 from planner.specs.objects import ObjectSpec, file_scale, resolve_spec, source_path, urdf_mesh
 
 #: Bumped when the checked mesh of the same source would come out differently.
-CACHE_VERSION = 1
+CACHE_VERSION = 2  # 2: the union of overlapping bodies cached beside the mesh
 #: Faces around a built-in cylinder; subdivisions of a built-in sphere.
 CYLINDER_SECTIONS = 48
 SPHERE_SUBDIVISIONS = 3
@@ -80,14 +80,15 @@ def load_object(name: str, *, label: str | None = None, **overrides: float | Non
 
 def prepare(spec: ObjectSpec) -> PreparedObject:
     """The checked object; a spec with a ``density`` gets the mass density x volume."""
-    mesh, source_file = _cached_mesh(spec)
-    volume = float(mesh.volume)
+    mesh, source_file, union = _cached_mesh(spec)
+    solid = mesh if union is None else union  # what the mass fills: overlapping bodies count once
+    volume = float(solid.volume)
     if spec.density is not None:
         spec = replace(spec, mass=spec.density * volume)
     density = spec.mass / volume if spec.density is None else spec.density
-    mesh.density = density
-    com = np.asarray(mesh.center_mass, float)
-    inertia = np.asarray(mesh.moment_inertia, float)
+    solid.density = density
+    com = np.asarray(solid.center_mass, float)
+    inertia = np.asarray(solid.moment_inertia, float)
     return PreparedObject(
         spec=spec, mesh=mesh, source_file=source_file, file_scale=file_scale(spec), mesh_hash=mesh_hash(mesh),
         volume=volume, density=density, com=com, inertia=inertia,
@@ -96,11 +97,13 @@ def prepare(spec: ObjectSpec) -> PreparedObject:
     )
 
 
-def _cached_mesh(spec: ObjectSpec) -> tuple[trimesh.Trimesh, str]:
-    """The checked, repaired mesh, cached on disk by source content and scale
-    (``.npz`` of plain arrays, no pickle) and shared by runs and workers."""
+def _cached_mesh(spec: ObjectSpec) -> tuple[trimesh.Trimesh, str, trimesh.Trimesh | None]:
+    """The checked, repaired mesh, its source file and the union of its
+    bodies where they overlap (:func:`~planner.geometry.mesh.union_of_bodies`),
+    cached on disk by source content and scale (``.npz`` of plain arrays, no
+    pickle) and shared by runs and workers."""
     if spec.kind in ("box", "cylinder", "sphere"):
-        return _build_mesh(spec)
+        return (*_build_mesh(spec), None)
     source = source_path(spec)
     if not source.is_file():
         raise MeshError(f"{source}: file not found")
@@ -115,16 +118,22 @@ def _cached_mesh(spec: ObjectSpec) -> tuple[trimesh.Trimesh, str]:
         try:
             with np.load(path, allow_pickle=False) as data:
                 mesh = trimesh.Trimesh(data["vertices"], data["faces"], process=False)
+                union = (trimesh.Trimesh(data["union_vertices"], data["union_faces"], process=False)
+                         if "union_vertices" in data else None)
             # the file this spec names, not the cached one: the same bytes may have been cached from
             # another path (an earlier export folder, another environment's pybullet_data)
-            return mesh, str(source if spec.kind == "mesh" else urdf_mesh(spec)[0])
+            return mesh, str(source if spec.kind == "mesh" else urdf_mesh(spec)[0]), union
         except (OSError, ValueError, KeyError):
             path.unlink(missing_ok=True)  # a damaged cache entry is rebuilt
     mesh, source_file = _build_mesh(spec)
+    union = union_of_bodies(mesh, source_file)
+    extra = {} if union is None else {"union_vertices": np.asarray(union.vertices),
+                                      "union_faces": np.asarray(union.faces)}
     buffer = io.BytesIO()
-    np.savez(buffer, vertices=np.asarray(mesh.vertices), faces=np.asarray(mesh.faces), source=np.array(source_file))
+    np.savez(buffer, vertices=np.asarray(mesh.vertices), faces=np.asarray(mesh.faces), source=np.array(source_file),
+             **extra)
     assets.atomic_write(path, buffer.getvalue())
-    return mesh, source_file
+    return mesh, source_file, union
 
 
 def _build_mesh(spec: ObjectSpec) -> tuple[trimesh.Trimesh, str]:

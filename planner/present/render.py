@@ -40,6 +40,8 @@ MIN_DISC = 0.0015  # [m] smallest drawn disc radius (visible at these scales)
 CONE_LENGTH = 0.015  # [m] drawn height of a friction cone
 VIEW_SIZE = (640, 520)  # [px] width, height of one view
 FOV = 40.0  # [deg] vertical field of view
+#: The camera stands this many times as far as puts the box around the object and the hand just inside the view.
+FRAME_MARGIN = 1.08
 CONTACT_MARK = 7.0  # [pt] radius of a contact's mark drawn over the picture
 #: Viewing directions (from the target towards the eye), before scaling.
 VIEWS = (np.array([1.0, -1.2, 0.8]), np.array([-1.0, -0.4, 0.5]), np.array([0.3, 1.2, -0.25]))
@@ -69,8 +71,14 @@ def grasp_views(hand: HandSpec, obj: PreparedObject, grasp: Grasp, size: tuple[i
         for point, normal in zip(grasp.contacts.points, grasp.contacts.normals):
             _add_contact(sim, point, normal, obj.friction)
         centre = 0.5 * (obj.mesh.bounds[0] + obj.mesh.bounds[1])
-        target = 0.5 * (centre + np.array(grasp.pose)[:3, 3])
-        radius = float(np.linalg.norm(obj.mesh.extents)) + 0.12
+        radius = float(np.linalg.norm(obj.mesh.extents)) + 0.12  # the table slab's half width
+        lo, hi = obj.mesh.bounds
+        for link in body.links:  # the object and the whole hand in view, whatever their sizes
+            if sim.has_collision(body, link):
+                a, b = sim.link_aabb(body, link)
+                lo, hi = np.minimum(lo, a), np.maximum(hi, b)
+        target = 0.5 * (lo + hi)
+        corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
         up = np.array([0.0, 0.0, 1.0])
         turn = np.eye(3)
         if grasp.table_plane is not None:  # the views turned with the table's up, all from above it
@@ -81,10 +89,28 @@ def grasp_views(hand: HandSpec, obj: PreparedObject, grasp: Grasp, size: tuple[i
         for view in VIEWS:
             if grasp.table_plane is not None:
                 view = turn @ np.array([view[0], view[1], abs(view[2])])
-            eye = target + view / np.linalg.norm(view) * radius * 1.25
+            view = view / np.linalg.norm(view)
+            eye = target + view * FRAME_MARGIN * framing_distance(corners - target, view, up, size, FOV)
             views.append(View(sim.render(eye, target, up, size, fov=FOV),
                               project(grasp.contacts.points, eye, target, up, size, FOV)))
         return views
+
+
+def framing_distance(points: np.ndarray, view: np.ndarray, up: np.ndarray, size: tuple[int, int], fov: float
+                     ) -> float:
+    """[m] the least distance along the unit ``view`` (from the target towards
+    the eye) at which ``points`` (k, 3), relative to the target, all project
+    inside a ``size`` (width, height) [px] picture of vertical field of view
+    ``fov`` [deg] (the camera of :func:`project`)."""
+    forward = -view
+    right = np.cross(forward, up)
+    right /= np.linalg.norm(right)
+    true_up = np.cross(right, forward)
+    tan_v = np.tan(np.radians(fov) / 2)
+    tan_h = tan_v * size[0] / size[1]
+    ahead = points @ forward  # nearer the eye: negative
+    need = np.maximum(np.abs(points @ right) / tan_h, np.abs(points @ true_up) / tan_v) - ahead
+    return float(need.max())
 
 
 def table_slab(normal: np.ndarray, height: float, centre: np.ndarray, half: float
@@ -183,7 +209,7 @@ def save_sheet(panels: list[tuple[list[View], str]], out: Path) -> None:
         axes[r][0].set_title(title, loc="left", fontsize=11, pad=8)
     fig.tight_layout(pad=1.2)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=100)
+    fig.savefig(out, dpi=100, bbox_inches="tight", pad_inches=0.15)  # the titles' tops inside the picture
     plt.close(fig)
 
 

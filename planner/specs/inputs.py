@@ -10,17 +10,20 @@ Accepted, in any mix:
 - ``@list.txt``: a manifest, one object per line, optionally followed by a
   scale and ``key=value`` columns (``scale=``, ``mass=`` [kg] or
   ``density=`` [kg/m^3], ``friction=``), e.g. ``banana.obj 1 mass=0.066
-  friction=0.8``; ``#`` starts a comment; relative paths are relative to the
-  manifest. A line's values win over the run's (``--scale``, ``--mass`` ...).
+  friction=0.8``; ``#`` starts a comment; a path with blanks or ``#`` goes in
+  quotes (``"my meshes/box #2.obj" mass=0.3``); relative paths are relative
+  to the manifest. A line's values win over the run's (``--scale``, ``--mass`` ...).
 
 Mesh files are named by their file stem; when two files of one run share a
-stem, their parent folders are prefixed until the names differ.
+stem, their parent folders are prefixed until the names differ, and where
+only their suffixes differ (``part.obj``, ``part.stl``) the names keep them.
 """
 
 from __future__ import annotations
 
 import glob
 import math
+import shlex
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -113,17 +116,32 @@ def _manifest(path: Path, scale: float | None, physical: Physical) -> list[Objec
         raise InputError(f"{path}: manifest not found")
     refs = []
     for number, raw in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
-        line = raw.split("#", 1)[0].strip()
-        if line:
-            refs.append(_manifest_line(line, f"{path}:{number}", path.parent, scale, physical))
+        where = f"{path}:{number}"
+        tokens = _tokens(raw, where)
+        if tokens:
+            refs.append(_manifest_line(tokens, where, path.parent, scale, physical))
     if not refs:
         raise InputError(f"{path}: manifest lists no objects")
     return refs
 
 
-def _manifest_line(line: str, where: str, folder: Path, scale: float | None, physical: Physical) -> ObjectRef:
-    """One manifest line (see :data:`MANIFEST_LINE`); ``where``: file:line for errors."""
-    source, *rest = line.split()
+def _tokens(raw: str, where: str) -> list[str]:
+    """A manifest line's fields: split at blanks as a shell does, a path with
+    blanks or ``#`` in quotes; ``#`` outside quotes starts a comment;
+    backslashes are kept as they are (no escapes)."""
+    lex = shlex.shlex(raw, posix=True)
+    lex.whitespace_split, lex.commenters, lex.escape = True, "#", ""
+    try:
+        return list(lex)
+    except ValueError as exc:  # an unclosed quote
+        raise InputError(f"{where}: {exc} in '{raw.strip()}'") from None
+
+
+def _manifest_line(tokens: list[str], where: str, folder: Path, scale: float | None, physical: Physical
+                   ) -> ObjectRef:
+    """One manifest line's fields (see :data:`MANIFEST_LINE`); ``where``: file:line for errors."""
+    source, *rest = tokens
+    line = shlex.join(tokens)
     columns: dict[str, str] = {}
     for i, token in enumerate(rest):
         key, sep, value = token.partition("=")
@@ -141,29 +159,40 @@ def _manifest_line(line: str, where: str, folder: Path, scale: float | None, phy
             raise InputError(f"{where}: scale '{text}' is not a number") from None
         if not (math.isfinite(item_scale) and item_scale > 0):
             raise InputError(f"{where}: scale must be a positive number, got {item_scale:g}")
-    if Path(source).suffix.lower() in MESH_SUFFIXES and not Path(source).is_absolute():
-        source = str((folder / source).resolve())
+    if Path(source).suffix.lower() in MESH_SUFFIXES:
+        if not Path(source).is_absolute():
+            source = str((folder / source).resolve())
+        if not Path(source).is_file():
+            raise InputError(f"{where}: {source}: file not found")
     return ObjectRef(source, item_scale, physical=Physical.checked(columns, where).over(physical))
 
 
 def _unique_labels(refs: list[ObjectRef]) -> list[ObjectRef]:
-    """Drop repeats; give mesh files sharing a stem distinct names."""
+    """Drop repeats; give mesh files sharing a stem distinct names: their
+    parent folders prefixed until the names differ, and the file's suffix
+    kept where only it differs (``part.obj``, ``part.stl``)."""
     seen: dict[tuple[str, float | None, Physical], ObjectRef] = {}
     for ref in refs:
         seen.setdefault((ref.source, ref.scale, ref.physical), ref)
     refs = list(seen.values())
-    files = [r for r in refs if Path(r.source).suffix.lower() in MESH_SUFFIXES]
-    depth = 0
-    while True:
-        labels = {r.source: _label(Path(r.source), depth) for r in files}
-        if len(set(labels.values())) == len(labels) or depth > 8:
-            break
-        depth += 1
-    if depth == 0:
-        return refs
-    return [replace(r, label=labels[r.source]) if r.source in labels else r for r in refs]
+    sources = sorted({r.source for r in refs if Path(r.source).suffix.lower() in MESH_SUFFIXES})
+    deepest = max((len(_folders(Path(s))) for s in sources), default=0)
+    for suffix in (False, True):
+        for depth in range(deepest + 1):
+            labels = {s: _label(Path(s), depth, suffix) for s in sources}
+            if len(set(labels.values())) == len(labels):
+                if depth == 0 and not suffix:
+                    return refs
+                return [replace(r, label=labels[r.source]) if r.source in labels else r for r in refs]
+    return refs  # not reached: distinct paths differ in some folder or in their name
 
 
-def _label(path: Path, depth: int) -> str:
-    parts = path.with_suffix("").parts
-    return "/".join(parts[-(depth + 1):])
+def _folders(path: Path) -> tuple[str, ...]:
+    """The folders of ``path`` that may prefix its name (not the root)."""
+    return tuple(p for p in path.parent.parts if p != path.anchor)
+
+
+def _label(path: Path, depth: int, suffix: bool = False) -> str:
+    """``path``'s stem (its name with ``suffix``), after its last ``depth`` folders."""
+    folders = _folders(path)
+    return "/".join([*folders[len(folders) - min(depth, len(folders)):], path.name if suffix else path.stem])

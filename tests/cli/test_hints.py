@@ -34,3 +34,15 @@ def test_best_at_a_pose_out_of_reach_is_an_error_with_a_hint(box_db: Path) -> No
                            "5,0,0.02,0,0,0,1", "--max-candidates", "3")
     one_line_error(code, err, 1, "grasp: error: none of the 3 best grasps of 'box'", "--max-candidates 30")
     assert out == ""
+
+
+def test_best_of_an_object_swept_to_nothing_says_why_not_the_same_command(tmp_path: Path) -> None:
+    mesh = tmp_path / "bigcube.obj"
+    trimesh.creation.box(extents=[0.3, 0.3, 0.3]).export(mesh)  # wider than the Panda opens
+    db = tmp_path / "g.db"
+    code, _, err = grasp("generate", str(mesh), "--hand", "panda", "--db", str(db), "--quiet", *FAST)
+    assert code == 0, err
+    code, _, err = grasp("best", "bigcube", "--hand", "panda", "--db", str(db))
+    one_line_error(code, err, 2, "no grasps of 'bigcube' for hand 'panda'", "kept none (rejected: too_wide",
+                   "too_wide: the object is wider than the hand opens")
+    assert "grasp generate" not in err

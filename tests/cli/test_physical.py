@@ -15,6 +15,8 @@ import pytest
 import trimesh
 from helpers import FAST, NUM_TOL, grasp, one_line_error
 
+from planner.errors import InputError
+
 BRICK = (0.05, 0.04, 0.06)  # [m]
 VOLUME = BRICK[0] * BRICK[1] * BRICK[2]
 
@@ -140,3 +142,68 @@ def test_worker_processes_plan_at_the_given_values(tmp_path: Path) -> None:
     assert code == 0, err
     assert stored(two)["box"][:2] == (0.3, 0.6)
     assert measures(two) == measures(one)
+
+
+def _file_bytes(db: Path) -> bytes:
+    with sqlite3.connect(db) as conn:
+        conn.execute("PRAGMA wal_checkpoint(TRUNCATE)")
+    return db.read_bytes()
+
+
+@pytest.mark.parametrize("change", ["scale", "other_file", "edited"])
+def test_another_mesh_under_a_stored_name_is_refused(tmp_path: Path, brick: Path, change: str) -> None:
+    """One name, one mesh: another --scale, another file of the same name or
+    the file edited since are refused before anything is written (their
+    grasps would be ranked and exported with the stored ones)."""
+    db = tmp_path / "g.db"
+    assert generate(db, str(brick))[0] == 0
+    before = _file_bytes(db)
+    source, extra = str(brick), []
+    if change == "scale":
+        extra = ["--scale", "0.5"]
+    elif change == "other_file":
+        other = tmp_path / "elsewhere" / "brick.obj"
+        other.parent.mkdir()
+        trimesh.creation.box(extents=(0.03, 0.03, 0.05)).export(other)
+        source = str(other)
+    else:
+        trimesh.creation.box(extents=(0.05, 0.04, 0.07)).export(brick)
+    code, _, err = generate(db, source, *extra)
+    one_line_error(code, err, 2, "object 'brick' is stored", "from another mesh", "use another --db")
+    assert _file_bytes(db) == before
+    assert grasp("best", "brick", "--hand", "panda", "--db", str(db))[0] == 0
+
+
+def test_the_store_refuses_a_unit_of_another_mesh(tmp_path: Path) -> None:
+    """The store's own guard, beneath generate's check: a unit whose object
+    has another mesh than the stored one of its name writes nothing."""
+    from dataclasses import replace
+
+    from planner.db.rows import UnitRow
+    from planner.db.store import open_db
+    from planner.geometry.solid import load_object
+
+    db = tmp_path / "g.db"
+    assert generate(db, "box")[0] == 0
+    before = _file_bytes(db)
+    other = replace(load_object("box"), mesh_hash="0" * 64)
+    with open_db(db) as store:
+        with pytest.raises(InputError, match="from another mesh than this unit's"):
+            store.write_unit(UnitRow("box", "panda", "x", "{}", 0, 99), other, [], store.rule())
+    assert _file_bytes(db) == before
+
+
+def test_generate_and_db_objects_say_the_values_used(tmp_path: Path, brick: Path) -> None:
+    brick.with_suffix(".toml").write_text("mass = 0.066\nfriction = 0.8\n")
+    db = tmp_path / "g.db"
+    code, out, err = grasp("generate", str(brick), "box", "--hand", "panda", "--db", str(db), "--json", *FAST)
+    assert code == 0, err
+    rows = {r["object"]: r for r in json.loads(out)["objects"]}
+    assert (rows["brick"]["mass"], rows["brick"]["friction"]) == (0.066, 0.8)  # the sidecar's
+    assert (rows["box"]["mass"], rows["box"]["friction"]) == (stored(db)["box"][0], stored(db)["box"][1])
+    code, out, err = grasp("db", "objects", "--db", str(db))
+    assert code == 0, err
+    lines = {line.split(":")[0]: line for line in out.splitlines()}
+    assert set(lines) == {"box", "brick"}
+    assert "mass 0.066 kg" in lines["brick"] and "friction 0.8" in lines["brick"] and str(brick) in lines["brick"]
+    assert f"density {0.066 / VOLUME:.4g} kg/m^3" in lines["brick"] and "grasps for panda" in lines["brick"]

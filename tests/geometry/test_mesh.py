@@ -93,6 +93,17 @@ def test_open_mesh_is_repaired_and_nonmanifold_refused(tmp_path: Path) -> None:
         meshes.checked_solid(fin, "fin")
 
 
+def test_repeated_triangles_are_dropped() -> None:
+    """An exporter's leftovers: a triangle given twice (also from another
+    corner, or wound the other way) is kept once; the solid is the box."""
+    box = trimesh.creation.box(extents=[0.04, 0.04, 0.08])
+    again = np.vstack([box.faces, box.faces[:2], np.roll(box.faces[2:4], 1, axis=1), box.faces[4:5, ::-1]])
+    solid = meshes.checked_solid(trimesh.Trimesh(box.vertices, again, process=False), "repeated")
+    assert solid.is_watertight and len(solid.faces) == len(box.faces)
+    assert_close(solid.volume, 0.04 * 0.04 * 0.08, 1e-12)
+    assert meshes.mesh_hash(solid) == meshes.mesh_hash(meshes.checked_solid(box, "box"))
+
+
 def test_millions_of_faces_refused_before_work(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(meshes, "MAX_FACES", 1000)
     big = trimesh.creation.icosphere(subdivisions=4, radius=0.03)  # 5,120 faces

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from helpers import assert_close
 
+from planner.geometry.mesh import union_of_bodies
 from planner.geometry.solid import load_object
 
 
@@ -62,3 +63,32 @@ def test_a_cached_mesh_keeps_the_path_it_was_asked_for(tmp_path: Path) -> None:
         trimesh.creation.box(extents=[0.04, 0.05, 0.06]).export(path)
     assert load_object(str(first)).source_file == str(first)
     assert load_object(str(second)).source_file == str(second)
+
+
+def test_overlapping_bodies_count_their_shared_volume_once(tmp_path: Path) -> None:
+    """Two 4 x 4 x 8 cm boxes 2 cm apart along z, in one file: the object is
+    their union (4 x 4 x 10 cm), its mass from a density and its centre of
+    mass the union's, the same when read again from the cache; bodies
+    whose boxes meet but not their solids keep their sum."""
+    import trimesh
+
+    a = trimesh.creation.box(extents=[0.04, 0.04, 0.08])
+    b = a.copy()
+    b.apply_translation([0.0, 0.0, 0.02])
+    path = tmp_path / "two.obj"
+    trimesh.util.concatenate([a, b]).export(path)
+    for _ in range(2):  # built, then from the cache
+        o = load_object(str(path), density=500.0)
+        # manifold3d's boolean rounds coordinates to float32: ~1e-9 m here
+        assert o.volume == pytest.approx(0.04 * 0.04 * 0.10, rel=1e-6)
+        assert o.mass == pytest.approx(500.0 * 0.04 * 0.04 * 0.10, rel=1e-6)
+        assert_close(o.com, [0.0, 0.0, 0.01], 1e-8)
+        assert o.inertia[0, 0] == pytest.approx(o.mass * (0.04**2 + 0.10**2) / 12, rel=1e-6)
+        assert len(o.mesh.split(only_watertight=False)) == 2  # the surface planned on is the file's
+    ball = trimesh.creation.icosphere(subdivisions=2, radius=0.019)
+    ball.apply_translation([0.035, 0.035, 0.0])  # its box meets the box's, the solids 2 mm apart
+    apart = tmp_path / "apart.obj"
+    trimesh.util.concatenate([a, ball]).export(apart)
+    o = load_object(str(apart))
+    assert union_of_bodies(o.mesh, "apart") is None
+    assert o.volume == pytest.approx(a.volume + ball.volume, rel=1e-6)  # OBJ keeps ~7 digits

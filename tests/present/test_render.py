@@ -109,3 +109,44 @@ def test_a_grasp_planned_on_a_table_is_drawn_with_the_table_seen_from_above(db: 
     # every view shows the table and, seen from its side, the object above it
     assert all(colour_share(v.image, TABLE_RGBA) > 0.05 for v in on_table)
     assert all(colour_share(v.image, OBJECT_RGBA) > 0.005 for v in on_table)
+
+
+def test_framing_distance_puts_every_point_just_inside_the_picture() -> None:
+    from planner.present.render import FOV, framing_distance, project
+
+    rng = np.random.default_rng(5)
+    size, up = (640, 520), np.array([0.0, 0.0, 1.0])
+    for _ in range(20):
+        points = rng.uniform(-0.1, 0.1, (8, 3)) * rng.uniform(0.2, 2.0, 3)
+        view = rng.normal(size=3)
+        view[2] = abs(view[2]) * 0.5
+        view /= np.linalg.norm(view)
+        d = framing_distance(points, view, up, size, FOV)
+        px = project(points, view * d, np.zeros(3), up, size, FOV)
+        assert np.all(px >= -1e-6) and np.all(px <= np.array(size) + 1e-6)
+        closer = project(points, view * 0.95 * d, np.zeros(3), up, size, FOV)
+        assert np.any((closer < 0) | (closer > np.array(size)))  # the least such distance
+
+
+def test_the_views_hold_the_whole_object_and_hand(tmp_path: Path) -> None:
+    """No object or hand pixel on a view's border: nothing cut off (a tall
+    box, which the views cut before they were framed on both)."""
+    import trimesh
+
+    from planner.db.objects import stored_object
+    from planner.db.store import open_db
+    from planner.present.render import grasp_views
+    from planner.specs.hands import load_hand
+
+    mesh, db = tmp_path / "tall.obj", tmp_path / "g.db"
+    trimesh.creation.box(extents=[0.06, 0.04, 0.12]).export(mesh)
+    api.generate([str(mesh)], "panda", db_path=db, settings=SweepSettings(approaches=32, reach_placements=0),
+                 workers=1)
+    with open_db(db, create=False, readonly=True) as store:
+        grasps, obj = store.best("tall", "panda", 6), stored_object(store.object_row("tall"))
+    assert grasps
+    for grasp in grasps:
+        for view in grasp_views(load_hand("panda"), obj, grasp):
+            border = np.concatenate([view.image[0], view.image[-1], view.image[:, 0], view.image[:, -1]])[None]
+            assert colour_share(border, OBJECT_RGBA) == 0.0 and colour_share(border, HAND_RGBA) == 0.0
+            assert colour_share(view.image, OBJECT_RGBA) > 0.005 and colour_share(view.image, HAND_RGBA) > 0.005

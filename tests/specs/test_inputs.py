@@ -35,3 +35,34 @@ def test_inputs_expand_folders_globs_manifests_and_builtins(tmp_path: Path) -> N
 def test_bad_arguments(arg: str, message: str) -> None:
     with pytest.raises(InputError, match=message):
         inputs.expand([arg])
+
+
+def test_files_differing_only_in_suffix_keep_it_in_their_names(tmp_path: Path) -> None:
+    box = trimesh.creation.box(extents=[0.03, 0.03, 0.03])
+    for name in ("part.obj", "part.stl", "other.obj"):
+        box.export(tmp_path / name)
+    (tmp_path / "deeper").mkdir()
+    box.export(tmp_path / "deeper" / "part.obj")
+    names = sorted(r.name for r in inputs.expand([str(tmp_path)]))
+    assert names == ["deeper/part.obj", f"{tmp_path.name}/other.obj", f"{tmp_path.name}/part.obj",
+                     f"{tmp_path.name}/part.stl"]
+    assert not any(n.startswith("/") for n in names)
+    assert sorted(r.name for r in inputs.expand([str(tmp_path / "part.obj"), str(tmp_path / "other.obj")])) == [
+        "other", "part"]  # no shared stem: the stems alone
+
+
+def test_manifest_paths_with_blanks_and_hashes_go_in_quotes(tmp_path: Path) -> None:
+    folder = tmp_path / "my meshes"
+    folder.mkdir()
+    trimesh.creation.box(extents=[0.03, 0.03, 0.03]).export(folder / "box #2.obj")
+    manifest = tmp_path / "list.txt"
+    manifest.write_text('"my meshes/box #2.obj" mass=0.3  # a comment\n\'my meshes/box #2.obj\' 0.5\n')
+    refs = inputs.expand([f"@{manifest}"])
+    assert [Path(r.source).name for r in refs] == ["box #2.obj", "box #2.obj"]
+    assert refs[0].physical.mass == 0.3 and refs[1].scale == 0.5
+    manifest.write_text('"my meshes/box #2.obj mass=0.3\n')
+    with pytest.raises(InputError, match=r"list.txt:1: No closing quotation"):
+        inputs.expand([f"@{manifest}"])
+    manifest.write_text("box\nmissing.obj mass=0.3\n")
+    with pytest.raises(InputError, match=r"list.txt:2: .*missing.obj: file not found"):
+        inputs.expand([f"@{manifest}"])
