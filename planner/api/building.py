@@ -141,15 +141,20 @@ def table_supports(obj: PreparedObject, poses: int) -> list[Support]:
     return [Support.resting(r.pose) for r in resting_poses(obj.mesh, obj.com, poses)]
 
 
-def _check_stored(db: Database, units: Sequence[UnitSpec]) -> None:
-    """Refuse to add grasps of an object stored under the same name from
-    another mesh (another file of that name, the file changed since, another
-    scale) or at another mass, density or friction than its stored grasps
-    were planned and measured on: one name, one object. An object whose mesh
-    no longer loads is left to its units (stored as failed)."""
+def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSpec]) -> None:
+    """Refuse to add grasps of an object stored under the same name at
+    another mass, density or friction, or from another mesh or with other
+    mass properties (:func:`planner.db.objects.differs`) than its stored
+    grasps were planned and measured on: one name, one object. The mesh is
+    prepared and compared for the objects with units ``todo``; an object
+    whose units are all done is compared by its file and scale, and prepared
+    only where those moved. An object whose mesh no longer loads is left to
+    its units (stored as failed)."""
+    from planner.db.objects import differs
     from planner.errors import PlannerError
     from planner.geometry.solid import prepare
 
+    running = {u.label or u.object_name for u in todo}
     checked: set[str] = set()
     for unit in units:
         name = unit.label or unit.object_name
@@ -168,16 +173,15 @@ def _check_stored(db: Database, units: Sequence[UnitSpec]) -> None:
             raise InputError(f"object '{name}' is stored in {db.path} with {text(stored)}, this run gives "
                              f"{text(given)}; its grasps were measured at the stored values: use another --db, or "
                              "name the object apart (copy the mesh under another name)")
+        if name not in running and spec.kind == "mesh" and row.source == spec.source and row.scale == spec.scale:
+            continue  # nothing of it runs, and it names the stored file at the stored scale
         try:
-            mesh_hash = prepare(spec).mesh_hash
+            why = differs(row, prepare(spec))
         except PlannerError:
             continue
-        if row.mesh_sha256 and mesh_hash != row.mesh_sha256:
-            raise InputError(f"object '{name}' is stored in {db.path} from another mesh than "
-                             f"{spec.source or spec.kind} at scale {spec.scale:g} gives now (stored: "
-                             f"{row.source} at scale {row.scale:g}; another file of that name, the file edited "
-                             "since, or another --scale): its grasps were planned on the stored mesh; use another "
-                             "--db, or name the object apart (copy the mesh under another name)")
+        if why:
+            raise InputError(f"object '{name}' is stored in {db.path} {why}: its grasps were planned on the stored "
+                             "one; use another --db, or name the object apart (copy the mesh under another name)")
 
 
 def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, settings: SweepSettings | None = None,
@@ -211,11 +215,11 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
     summary = Summary()
     start = time.perf_counter()
     with writer_lock(Path(db_path)), open_db(Path(db_path)) as db:
-        _check_stored(db, units)
-        rule = rule or db.rule()
-        db.apply_rule(rule)
         done = {d: db.units_done(hand, d, seed) for d in sorted({u.settings.digest for u in units})}
         todo = [u for u in units if (u.label, u.chunk) not in done[u.settings.digest]]
+        _check_stored(db, units, todo)
+        rule = rule or db.rule()
+        db.apply_rule(rule)
         summary.skipped = len(units) - len(todo)
         names = list(settings.preshapes) if settings.preshapes else None
         tally = Tally([candidate_count(u.settings, sweep_preshapes(hand_spec, names, u.settings.support() is not None),

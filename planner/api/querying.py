@@ -55,14 +55,15 @@ def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1, spac
         if not grasps:
             known = db.objects_for(hand)
             units, candidates, rejected = db.swept(key, hand)
-            if units:  # swept, nothing kept: running the same sweep again would keep nothing again
+            if units:  # swept, nothing kept: the same sweep again keeps nothing (unless it was cut short)
                 common = rejected.most_common(4)
                 why = ", ".join(f"{reason} {count:,}" for reason, count in common)
                 meaning = f"; {common[0][0]}: {SWEPT_EMPTY[common[0][0]]}" if common and common[0][0] in SWEPT_EMPTY \
                     else ""
-                raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}: its sweep ({units} units, "
-                                 f"{candidates:,} candidates) kept none (rejected: {why or 'none'}{meaning}); try "
-                                 "another hand or other sweep settings")
+                raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}: its {units} finished units "
+                                 f"({candidates:,} candidates) kept none (rejected: {why or 'none'}{meaning}); try "
+                                 "another hand or other sweep settings, or, if its sweep was cut short, "
+                                 f"`{generate_command(name, row, hand, db_path)}` finishes it")
             raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}; objects with grasps: "
                              f"{', '.join(known) or '(none)'}; run `{generate_command(name, row, hand, db_path)}`")
     return grasps

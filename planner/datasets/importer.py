@@ -13,7 +13,9 @@ row index in the file. Reading the file is the format's reader's
   whose mesh is the file's (``object/mesh_sha256``, in this project's files
   since issue 12; older files carry no hash and are taken at their word),
   else ``object/file`` with ``object/scale`` under the name
-  ``object/name`` (or the file's stem), relative paths looked up next to
+  ``object/name``, or the .h5 file's stem (ACRONYM names each file by
+  category, mesh and scale: two scales of one mesh are two objects), relative
+  paths looked up next to
   the .h5 file (this project's export folders: ``meshes/`` beside the .h5
   files) and then one folder up (ACRONYM keeps ``grasps/`` beside
   ``meshes/``). So a built-in object exported at another ``--scale``, or
@@ -44,6 +46,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import time
 from collections import Counter
 from collections.abc import Callable, Sequence
@@ -151,6 +154,7 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
             progress(result)
 
     with writer_lock(Path(db_path)), open_db(Path(db_path)) as db:
+        _check_objects(db, plans)
         rule = db.rule()
         db.apply_rule(rule)
         rescoring: dict[int, _Rescoring] = {}
@@ -277,6 +281,31 @@ def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: s
     return _Plan(path, spec, obj, lossless, ImportSettings(fmt, str(path), digest.hexdigest(), not lossless), reader)
 
 
+def _check_objects(db: Database, plans: Sequence[_Plan]) -> None:
+    """One name, one object, before anything is written: a file's object
+    against the one the database stores under its name (mesh, mass
+    properties, mass and friction; :func:`planner.db.objects.differs`) and
+    against the other files' of this import that name it."""
+    from planner.db.objects import differs
+
+    named: dict[str, tuple[Path, PreparedObject]] = {}
+    for plan in plans:
+        name = plan.spec.name
+        obj = prepare(plan.spec)
+        row = db.object_row(name)
+        why = differs(row, obj) if row is not None else None
+        if row is not None and why is None and not (
+                math.isclose(row.mass, obj.mass, rel_tol=1e-9) and math.isclose(row.friction, obj.friction,
+                                                                                rel_tol=1e-9)):
+            why = f"with mass {row.mass:g}, friction {row.friction:g} (this file: {obj.mass:g}, {obj.friction:g})"
+        if why:
+            raise InputError(f"{plan.path}: object '{name}' is stored in {db.path} {why}: import into another --db")
+        first = named.setdefault(name, (plan.path, obj))
+        if first[1].mesh_hash != obj.mesh_hash or not math.isclose(first[1].mass, obj.mass, rel_tol=1e-9):
+            raise InputError(f"{plan.path} and {first[0]} name one object '{name}' with other meshes, scales or "
+                             "masses: import them into different --db")
+
+
 def _hand_name(path: Path, gripper: str) -> str:
     name = HAND_ALIASES.get(gripper.lower(), gripper)
     if name not in hand_names():
@@ -305,7 +334,7 @@ def _object_spec(h: AcronymHeader, object_name: str | None) -> ObjectSpec:
     if found is None:
         raise InputError(f"{path}: object/file '{mesh}' not found (looked at {', '.join(map(str, tried))}); "
                          "pass --object NAME or a mesh path")
-    return resolve_spec(str(found), scale=h.scale, label=label, **props)
+    return resolve_spec(str(found), scale=h.scale, label=label or path.stem, **props)
 
 
 def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: Counter, first: int = 0

@@ -22,9 +22,12 @@ friction are the stored ones.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
+
+import numpy as np
 
 from planner import assets
 from planner.db.store import ObjectRow
@@ -51,6 +54,29 @@ def stored_object(row: ObjectRow) -> PreparedObject:
         tried.append(f"{spec.source or spec.kind} gives another mesh than the database's")
     raise InputError(f"object '{row.name}': cannot rebuild the mesh its grasps were planned on "
                      f"({'; '.join(tried) or 'no source'})")
+
+
+#: How far a prepared object's volume (relative) and centre of mass [m] may lie from its stored row's and still be
+#: the stored object (the row keeps the centre of mass to 0.1 um).
+VOLUME_RTOL, COM_TOL = 1e-6, 1e-6
+
+
+def differs(row: ObjectRow, obj: PreparedObject) -> str | None:
+    """Why ``obj`` is not the object ``row`` stores under its name (None: it
+    is): another mesh (another file of that name, the file edited since,
+    another scale), or other mass properties from the same mesh (an earlier
+    planner's: overlapping bodies are counted once since 2026-12-05).
+    Grasps planned on one are not grasps of the other."""
+    if row.mesh_sha256 and obj.mesh_hash != row.mesh_sha256:
+        return (f"from another mesh than {obj.source_file} at scale {obj.file_scale:.10g} gives now (stored: "
+                f"{row.source} at scale {row.scale:.10g}; another file of that name, the file edited since, or another "
+                "scale)")
+    if not math.isclose(obj.volume, row.volume, rel_tol=VOLUME_RTOL) or \
+            float(np.linalg.norm(np.asarray(obj.com) - row.com)) > COM_TOL:
+        return (f"with a volume of {row.volume * 1e6:.6g} cm^3 where this planner makes the same mesh "
+                f"{obj.volume * 1e6:.6g} cm^3 (an earlier planner's mass properties: overlapping bodies are counted "
+                "once since 2026-12-05)")
+    return None
 
 
 def _candidates(row: ObjectRow) -> Iterator[ObjectSpec]:

@@ -93,16 +93,21 @@ def union_of_bodies(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh | None
     of mass and inertia are the object's (summed, the bodies count the
     shared volume twice); None when they do not (one body, no two bodies'
     boxes meet, or the union lacks less than :data:`OVERLAP_TOL` of their
-    sum). The boolean is manifold3d's, through trimesh; where it fails the
-    bodies' sum stands, with a warning."""
+    sum). The boolean is manifold3d's, through trimesh; where it fails on
+    these bodies the bodies' sum stands, with a warning (the same every time:
+    it is cached so); without manifold3d, a MeshError."""
     bodies = mesh.split(only_watertight=False)
     if len(bodies) < 2:
         return None
     lo, hi = np.array([b.bounds[0] for b in bodies]), np.array([b.bounds[1] for b in bodies])
-    meet = np.all((lo[:, None] < hi[None]) & (lo[None] < hi[:, None]), axis=2)
-    np.fill_diagonal(meet, False)
-    if not meet.any():
+    # any two boxes meet? one body against the later ones at a time: memory grows with the bodies, not their square
+    if not any(np.all((lo[i] < hi[i + 1:]) & (lo[i + 1:] < hi[i]), axis=1).any() for i in range(len(bodies) - 1)):
         return None
+    try:
+        import manifold3d  # noqa: F401 - trimesh's boolean engine
+    except ImportError:
+        raise MeshError(f"{where}: its bodies overlap, and their union needs manifold3d, a dependency of this "
+                        "planner: pip install -e .") from None
     try:
         union = trimesh.boolean.union(bodies, engine="manifold")
     except Exception as exc:  # manifold3d refuses a body it cannot read as a solid

@@ -90,8 +90,10 @@ def grasp_views(hand: HandSpec, obj: PreparedObject, grasp: Grasp, size: tuple[i
             if grasp.table_plane is not None:
                 view = turn @ np.array([view[0], view[1], abs(view[2])])
             view = view / np.linalg.norm(view)
-            eye = target + view * FRAME_MARGIN * framing_distance(corners - target, view, up, size, FOV)
-            views.append(View(sim.render(eye, target, up, size, fov=FOV),
+            distance = FRAME_MARGIN * framing_distance(corners - target, view, up, size, FOV)
+            eye = target + view * distance
+            far = distance + float(np.linalg.norm(hi - lo)) + 1.0  # behind the farthest corner, whatever the size
+            views.append(View(sim.render(eye, target, up, size, fov=FOV, far=far),
                               project(grasp.contacts.points, eye, target, up, size, FOV)))
         return views
 

@@ -11,7 +11,7 @@ Accepted, in any mix:
   scale and ``key=value`` columns (``scale=``, ``mass=`` [kg] or
   ``density=`` [kg/m^3], ``friction=``), e.g. ``banana.obj 1 mass=0.066
   friction=0.8``; ``#`` starts a comment; a path with blanks or ``#`` goes in
-  quotes (``"my meshes/box #2.obj" mass=0.3``); relative paths are relative
+  double quotes (``"my meshes/box #2.obj" mass=0.3``); relative paths are relative
   to the manifest. A line's values win over the run's (``--scale``, ``--mass`` ...).
 
 Mesh files are named by their file stem; when two files of one run share a
@@ -126,15 +126,18 @@ def _manifest(path: Path, scale: float | None, physical: Physical) -> list[Objec
 
 
 def _tokens(raw: str, where: str) -> list[str]:
-    """A manifest line's fields: split at blanks as a shell does, a path with
-    blanks or ``#`` in quotes; ``#`` outside quotes starts a comment;
-    backslashes are kept as they are (no escapes)."""
+    """A manifest line's fields: split at blanks, a path with blanks or ``#``
+    in double quotes; ``#`` outside them starts a comment; apostrophes and
+    backslashes are kept as they are (``bob's mug.obj`` in quotes, a Windows
+    path)."""
     lex = shlex.shlex(raw, posix=True)
-    lex.whitespace_split, lex.commenters, lex.escape = True, "#", ""
+    lex.whitespace_split, lex.commenters, lex.escape, lex.quotes = True, "#", "", '"'
+
     try:
         return list(lex)
     except ValueError as exc:  # an unclosed quote
-        raise InputError(f"{where}: {exc} in '{raw.strip()}'") from None
+        raise InputError(f"{where}: {exc} in '{raw.strip()}' (a path with blanks or # goes in double quotes)") \
+            from None
 
 
 def _manifest_line(tokens: list[str], where: str, folder: Path, scale: float | None, physical: Physical
@@ -142,6 +145,8 @@ def _manifest_line(tokens: list[str], where: str, folder: Path, scale: float | N
     """One manifest line's fields (see :data:`MANIFEST_LINE`); ``where``: file:line for errors."""
     source, *rest = tokens
     line = shlex.join(tokens)
+    if not source:
+        raise InputError(f"{where}: expected '{MANIFEST_LINE}', got '{line}' (an empty object)")
     columns: dict[str, str] = {}
     for i, token in enumerate(rest):
         key, sep, value = token.partition("=")
@@ -175,16 +180,26 @@ def _unique_labels(refs: list[ObjectRef]) -> list[ObjectRef]:
     for ref in refs:
         seen.setdefault((ref.source, ref.scale, ref.physical), ref)
     refs = list(seen.values())
-    sources = sorted({r.source for r in refs if Path(r.source).suffix.lower() in MESH_SUFFIXES})
-    deepest = max((len(_folders(Path(s))) for s in sources), default=0)
+    files = {r.source: _absolute(r.source) for r in refs if Path(r.source).suffix.lower() in MESH_SUFFIXES}
+    paths = sorted(set(files.values()))  # one file given two ways (./m/a.obj, m/a.obj) is one path
+    deepest = max((len(_folders(p)) for p in paths), default=0)
     for suffix in (False, True):
         for depth in range(deepest + 1):
-            labels = {s: _label(Path(s), depth, suffix) for s in sources}
+            labels = {p: _label(p, depth, suffix) for p in paths}
             if len(set(labels.values())) == len(labels):
-                if depth == 0 and not suffix:
-                    return refs
-                return [replace(r, label=labels[r.source]) if r.source in labels else r for r in refs]
-    return refs  # not reached: distinct paths differ in some folder or in their name
+                break
+        else:
+            continue
+        break
+    else:  # the same folders and name under two roots (two Windows drives): the whole paths
+        labels = {p: str(p) for p in paths}
+    if depth == 0 and not suffix:
+        return refs
+    return [replace(r, label=labels[files[r.source]]) if r.source in files else r for r in refs]
+
+
+def _absolute(source: str) -> Path:
+    return Path(source).expanduser().resolve()
 
 
 def _folders(path: Path) -> tuple[str, ...]:

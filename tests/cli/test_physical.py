@@ -166,8 +166,9 @@ def test_another_mesh_under_a_stored_name_is_refused(tmp_path: Path, brick: Path
         other.parent.mkdir()
         trimesh.creation.box(extents=(0.03, 0.03, 0.05)).export(other)
         source = str(other)
-    else:
+    else:  # edited in place: checked where units run (here another seed); a finished sweep is only skipped
         trimesh.creation.box(extents=(0.05, 0.04, 0.07)).export(brick)
+        extra = ["--seed", "1"]
     code, _, err = generate(db, source, *extra)
     one_line_error(code, err, 2, "object 'brick' is stored", "from another mesh", "use another --db")
     assert _file_bytes(db) == before
@@ -207,3 +208,30 @@ def test_generate_and_db_objects_say_the_values_used(tmp_path: Path, brick: Path
     assert set(lines) == {"box", "brick"}
     assert "mass 0.066 kg" in lines["brick"] and "friction 0.8" in lines["brick"] and str(brick) in lines["brick"]
     assert f"density {0.066 / VOLUME:.4g} kg/m^3" in lines["brick"] and "grasps for panda" in lines["brick"]
+
+
+def test_the_same_mesh_from_another_folder_resumes(tmp_path: Path, brick: Path) -> None:
+    """A stored object whose file moved (the same bytes elsewhere) is the
+    same object: its finished units are skipped, new ones run."""
+    db = tmp_path / "g.db"
+    assert generate(db, str(brick))[0] == 0
+    moved = tmp_path / "moved" / "brick.obj"
+    moved.parent.mkdir()
+    moved.write_bytes(brick.read_bytes())
+    code, out, err = grasp("generate", str(moved), "--hand", "panda", "--db", str(db), "--json", *FAST)
+    assert code == 0, err
+    assert json.loads(out)["skipped"] >= 1
+    assert generate(db, str(moved), "--seed", "1")[0] == 0  # new units of the same object
+
+
+def test_mass_properties_of_an_earlier_planner_are_not_mixed(tmp_path: Path, brick: Path) -> None:
+    """A row whose volume this planner does not give the same mesh (an
+    earlier planner's, e.g. overlapping bodies counted twice): new units
+    are refused; finished ones are still skipped."""
+    db = tmp_path / "g.db"
+    assert generate(db, str(brick))[0] == 0
+    with sqlite3.connect(db) as conn:
+        conn.execute("UPDATE objects SET volume = volume * 1.3 WHERE name = 'brick'")
+    assert generate(db, str(brick))[0] == 0  # nothing to run
+    code, _, err = generate(db, str(brick), "--seed", "1")
+    one_line_error(code, err, 2, "object 'brick' is stored", "with a volume of", "use another --db")

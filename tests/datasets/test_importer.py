@@ -197,3 +197,33 @@ def test_files_written_before_issue_12_import_alike(stored_db: Path, tmp_path: P
     for name in ("box", "capsule"):
         assert stored_hash(fresh, name) == stored_hash(stored_db, name), name
         assert len(source_rows(fresh, name)) == len(source_rows(stored_db, name, "hand = 'panda'"))
+
+
+def _db_bytes(path: Path) -> bytes:
+    with sqlite3.connect(path) as conn:
+        conn.execute("PRAGMA wal_checkpoint(TRUNCATE)")
+    return path.read_bytes()
+
+
+def test_two_scales_of_one_mesh_are_two_objects_and_another_mesh_is_refused(db: Path, tmp_path: Path) -> None:
+    """ACRONYM names each file by category, mesh and scale: a foreign file's
+    object takes the file's stem, so two scales of one mesh are two objects;
+    a file naming a stored object from another mesh is refused before
+    anything is written."""
+    crate, _ = foreign_file(db, tmp_path, "box", "crate")
+    half = crate.with_name("crate_half.h5")
+    shutil.copy(crate, half)
+    with h5py.File(half, "r+") as f:
+        del f["object/scale"]
+        f["object/scale"] = 0.5
+    fresh = tmp_path / "fresh.db"
+    results = import_files([crate, half], fresh, workers=1)
+    assert [r.object for r in results] == ["crate", "crate_half"] and all(r.grasps > 0 for r in results)
+    with open_db(fresh, create=False, readonly=True) as store:
+        full, small = store.object_row("crate"), store.object_row("crate_half")
+    assert full is not None and small is not None and small.scale == 0.5 and full.scale == 1.0
+    other, _ = foreign_file(db, tmp_path / "elsewhere", "sphere", "crate")  # another mesh, the same file name
+    before = _db_bytes(fresh)
+    code, _, err = grasp("import", str(other), "--db", str(fresh))
+    assert code == 2 and "object 'crate' is stored in" in err and "from another mesh" in err, err
+    assert _db_bytes(fresh) == before

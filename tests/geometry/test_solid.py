@@ -92,3 +92,18 @@ def test_overlapping_bodies_count_their_shared_volume_once(tmp_path: Path) -> No
     o = load_object(str(apart))
     assert union_of_bodies(o.mesh, "apart") is None
     assert o.volume == pytest.approx(a.volume + ball.volume, rel=1e-6)  # OBJ keeps ~7 digits
+
+
+def test_overlapping_bodies_without_manifold3d_are_a_one_line_error(monkeypatch: pytest.MonkeyPatch) -> None:
+    import sys
+
+    import trimesh
+
+    from planner.errors import MeshError
+
+    a = trimesh.creation.box(extents=[0.04, 0.04, 0.08])
+    b = a.copy()
+    b.apply_translation([0.0, 0.0, 0.02])
+    monkeypatch.setitem(sys.modules, "manifold3d", None)  # as if not installed: nothing is cached
+    with pytest.raises(MeshError, match="needs manifold3d"):
+        union_of_bodies(trimesh.util.concatenate([a, b]), "two")

@@ -56,13 +56,31 @@ def test_manifest_paths_with_blanks_and_hashes_go_in_quotes(tmp_path: Path) -> N
     folder.mkdir()
     trimesh.creation.box(extents=[0.03, 0.03, 0.03]).export(folder / "box #2.obj")
     manifest = tmp_path / "list.txt"
-    manifest.write_text('"my meshes/box #2.obj" mass=0.3  # a comment\n\'my meshes/box #2.obj\' 0.5\n')
+    trimesh.creation.box(extents=[0.03, 0.03, 0.03]).export(tmp_path / "bob's.obj")
+    manifest.write_text('"my meshes/box #2.obj" mass=0.3  # a comment\nbob\'s.obj 0.5\n')
     refs = inputs.expand([f"@{manifest}"])
-    assert [Path(r.source).name for r in refs] == ["box #2.obj", "box #2.obj"]
+    assert [Path(r.source).name for r in refs] == ["box #2.obj", "bob's.obj"]
     assert refs[0].physical.mass == 0.3 and refs[1].scale == 0.5
     manifest.write_text('"my meshes/box #2.obj mass=0.3\n')
     with pytest.raises(InputError, match=r"list.txt:1: No closing quotation"):
         inputs.expand([f"@{manifest}"])
     manifest.write_text("box\nmissing.obj mass=0.3\n")
     with pytest.raises(InputError, match=r"list.txt:2: .*missing.obj: file not found"):
+        inputs.expand([f"@{manifest}"])
+
+
+def test_one_file_given_two_ways_is_one_object(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    box = trimesh.creation.box(extents=[0.03, 0.03, 0.03])
+    (tmp_path / "m" / "sub").mkdir(parents=True)
+    box.export(tmp_path / "m" / "a.obj")
+    box.export(tmp_path / "m" / "sub" / "a.obj")
+    monkeypatch.chdir(tmp_path)
+    refs = inputs.expand(["m/a.obj", "./m/a.obj", "m/sub/a.obj"])
+    assert sorted({r.name for r in refs}) == ["m/a", "sub/a"]
+
+
+def test_an_empty_manifest_name_names_its_line(tmp_path: Path) -> None:
+    manifest = tmp_path / "list.txt"
+    manifest.write_text('box\n"" 0.5\n')
+    with pytest.raises(InputError, match=r"list.txt:2: expected .* \(an empty object\)"):
         inputs.expand([f"@{manifest}"])
