@@ -62,6 +62,7 @@ def checked_solid(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh:
         raise MeshError(f"{where}: {len(mesh.faces):,} faces; simplify it below {MAX_FACES:,} first")
     if not np.all(np.isfinite(mesh.vertices)):
         raise MeshError(f"{where}: mesh has NaN or infinite vertex coordinates")
+    given = mesh
     mesh = mesh.copy()
     mesh.merge_vertices()
     mesh.update_faces(mesh.nondegenerate_faces())
@@ -71,7 +72,7 @@ def checked_solid(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh:
         raise MeshError(f"{where}: every triangle is degenerate (zero area)")
     check_extent(mesh, where)
     if not mesh.is_watertight:
-        mesh = _repair(mesh, where)
+        mesh = _repair(mesh, where, given)
     with np.errstate(divide="ignore", invalid="ignore"):  # a flat mesh's centre of mass is 0/0: refused below
         trimesh.repair.fix_normals(mesh, multibody=True)
         volume = float(mesh.volume)
@@ -135,20 +136,53 @@ def check_extent(mesh: trimesh.Trimesh, where: str) -> None:
         )
 
 
-def _repair(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh:
-    """Close small holes: trimesh's fill, then a fan cap on each open loop."""
+def _repair(mesh: trimesh.Trimesh, where: str, given: trimesh.Trimesh) -> trimesh.Trimesh:
+    """Close small holes: trimesh's fill, then a fan cap on each open loop;
+    else the file's own bodies, each closed, kept apart (:func:`closed_bodies`)."""
     trimesh.repair.fill_holes(mesh)
     if mesh.is_watertight:
         log.info("%s: filled small holes", where)
         return mesh
     capped = cap_boundary_loops(mesh)
     if not capped.is_watertight:
+        apart = closed_bodies(given)
+        if apart is not None:
+            log.info("%s: its bodies touch along shared edges; kept as %d closed bodies", where,
+                     len(apart.split(only_watertight=False)))
+            return apart
         raise MeshError(
             f"{where}: mesh is not watertight and could not be repaired "
             "(non-manifold edges or self-overlapping holes); close it in a mesh editor"
         )
     log.info("%s: capped open boundary loops", where)
     return capped
+
+
+def closed_bodies(given: trimesh.Trimesh) -> trimesh.Trimesh | None:
+    """The bodies of ``given`` as its faces join them (its own vertex
+    indices), each with its vertices merged, side by side; None unless there
+    are several and each is closed. Convex pieces that touch (the V-HACD
+    pieces of pybullet_data's random objects, CAD parts) share edges once
+    their vertices are merged across pieces, four faces on one edge: not a
+    solid. Kept apart, each piece is one; their union's mass properties
+    are the object's (:func:`union_of_bodies`)."""
+    pieces = given.split(only_watertight=False, repair=False)
+    if len(pieces) < 2:
+        return None
+    closed = []
+    for piece in pieces:
+        piece = piece.copy()
+        piece.merge_vertices()
+        piece.update_faces(piece.nondegenerate_faces())
+        piece.update_faces(piece.unique_faces())
+        piece.remove_unreferenced_vertices()
+        if len(piece.faces) and not piece.is_watertight:  # a piece's small holes, closed as a whole mesh's are
+            trimesh.repair.fill_holes(piece)
+            piece = piece if piece.is_watertight else cap_boundary_loops(piece)
+        if not len(piece.faces) or not piece.is_watertight or abs(piece.volume) < MIN_VOLUME:
+            return None  # open, or a flat piece (a fin) closed into nothing
+        closed.append(piece)
+    return trimesh.util.concatenate(closed)
 
 
 def cap_boundary_loops(mesh: trimesh.Trimesh) -> trimesh.Trimesh:

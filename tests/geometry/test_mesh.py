@@ -104,6 +104,28 @@ def test_repeated_triangles_are_dropped() -> None:
     assert meshes.mesh_hash(solid) == meshes.mesh_hash(meshes.checked_solid(box, "box"))
 
 
+def test_bodies_touching_along_an_edge_are_kept_apart() -> None:
+    """Two cubes sharing one edge: merged, that edge has four faces (not a
+    solid); kept as the file's two closed bodies, they are one object."""
+    a = trimesh.creation.box(extents=[0.03, 0.03, 0.03])
+    b = a.copy()
+    b.apply_translation([0.03, 0.03, 0.0])
+    given = trimesh.util.concatenate([a, b])
+    merged = given.copy()
+    merged.merge_vertices()
+    assert not merged.is_watertight
+    solid = meshes.checked_solid(given, "two")
+    assert solid.is_watertight and len(solid.split(only_watertight=False)) == 2
+    assert_close(solid.volume, 2 * 0.03**3, 1e-12)
+    holed = trimesh.Trimesh(given.vertices, given.faces[1:], process=False)  # a piece's small hole: closed
+    assert_close(meshes.checked_solid(holed, "holed").volume, 2 * 0.03**3, 1e-12)
+    fin = np.vstack([given.vertices, [[0.0, 0.0, 0.1]]])  # a fin on a piece: that piece cannot be closed
+    edge = a.edges_unique[0]
+    finned = trimesh.Trimesh(fin, np.vstack([given.faces, [[edge[0], edge[1], len(fin) - 1]]]), process=False)
+    with pytest.raises(MeshError, match="not watertight"):
+        meshes.checked_solid(finned, "finned")
+
+
 def test_millions_of_faces_refused_before_work(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(meshes, "MAX_FACES", 1000)
     big = trimesh.creation.icosphere(subdivisions=4, radius=0.03)  # 5,120 faces

@@ -29,7 +29,8 @@ def test_box_torque_scale_is_half_diagonal() -> None:
     assert o.torque_scale == pytest.approx(0.5 * np.linalg.norm(o.spec.dims), rel=1e-9)
 
 
-@pytest.mark.parametrize("name", ["mug", "duck", "teddy", "bunny", "box", "cylinder", "sphere", "random_007"])
+@pytest.mark.parametrize("name", ["mug", "duck", "teddy", "bunny", "box", "cylinder", "sphere", "random_007",
+                                  "random_037"])  # 53 V-HACD pieces, some sharing edges
 def test_builtins_load_as_closed_solids_of_hand_size(name: str) -> None:
     o = load_object(name)
     assert o.mesh.is_watertight and o.volume > 0
