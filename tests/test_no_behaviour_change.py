@@ -53,7 +53,10 @@ grasps, other settled epsilons, scores and ranks of the Barrett's); 14 (issue
 26: the measure torque_per_mu, read by p_hold: the digest is 13's); 15 (issue
 26: the measure local_sdf, read by p_hold's trees: the digest is 14's); 16
 (issue 26: local_sdf sided by the winding number where pseudonormals can
-fail, overlapping bodies and open meshes: the digest is 15's).
+fail, overlapping bodies and open meshes: the digest is 15's); 17 (issue 24:
+the prismatic finger axes read with the hand at the origin, so a unit's
+grasps no longer depend on the candidates before it, the chunking: one soft
+contact of one grasp moved 0.9 mm, every other value within 1e-6).
 """
 
 from __future__ import annotations

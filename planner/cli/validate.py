@@ -50,7 +50,9 @@ def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], to
         click.echo(f"validated {summary.grasps} grasps in {engine}: {summary.successes} held "
                    f"({summary.successes / max(summary.grasps, 1):.0%})"
                    + (f"; {summary.diverged} diverged (MuJoCo's state; no verdict, not stored)"
-                      if summary.diverged else ""))
+                      if summary.diverged else "")
+                   + (f"; {summary.kept} already tried with these settings and seed, kept "
+                      f"({summary.kept_successes} held)" if summary.kept else ""))
     report_failures(summary.failed_tasks)
 
 

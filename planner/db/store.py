@@ -126,6 +126,17 @@ class Database(Writing):
         return {(r["object"], r["chunk"]) for r in rows}
 
     @_reads
+    def validated_ids(self, obj: str, hand: str, table: str, seed: int, settings: str) -> set[int]:
+        """Ids of ``obj``'s grasps for ``hand`` with a row in ``table`` (``validation``: PyBullet's trial,
+        ``mujoco``, ``robust``) made with ``seed`` and ``settings`` (as stored)."""
+        if table not in ("validation", "mujoco", "robust"):
+            raise ValueError(f"no validation table '{table}'")
+        rows = self._conn.execute(f"SELECT v.grasp_id FROM {table} v JOIN grasps g ON g.id = v.grasp_id "
+                                  "WHERE g.object = ? AND g.hand = ? AND v.seed = ? AND v.settings = ?",
+                                  (obj, hand, seed, settings))
+        return {int(r["grasp_id"]) for r in rows}
+
+    @_reads
     def swept(self, obj: str, hand: str) -> tuple[int, int, Counter]:
         """(finished units, their candidates, their rejections by reason) of ``obj``'s sweeps for ``hand``."""
         rows = self._conn.execute("SELECT candidates, rejected FROM units WHERE object = ? AND hand = ? AND "

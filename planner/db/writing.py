@@ -168,6 +168,10 @@ class Writing:
                              [_grasp_row(g, unit_id, score, p, q)
                               for g, score, p, q in zip(grasps, scores.tolist(), p_hold, p_trial)])
             conn.execute(_RERANK, (unit.object, unit.hand))
+            known = json.loads(self.meta("p_hold_models") or "{}")
+            if grasps and unit.hand not in known:  # a hand's first grasps, scored just now by its model
+                known[unit.hand] = self._model_hash(unit.hand)  # (else the next run re-scores them all once)
+                self._set_meta(conn, "p_hold_models", json.dumps(known, sort_keys=True))
         return int(unit_id)  # type: ignore[arg-type]
 
     def _scores(self, grasps: Sequence[Grasp], hand: str, rule: RankingRule) -> tuple[np.ndarray, list, list]:
@@ -216,8 +220,10 @@ class Writing:
         """Which p_hold model scores each stored hand (JSON, hashes of the
         models): scores made with other models are re-made by the next write."""
         hands = sorted({h for _, h in self.pairs()})
-        return json.dumps({h: None if (m := self.model(h)) is None else
-                           hashlib.sha256(m.to_json().encode()).hexdigest()[:16] for h in hands}, sort_keys=True)
+        return json.dumps({h: self._model_hash(h) for h in hands}, sort_keys=True)
+
+    def _model_hash(self, hand: str) -> str | None:
+        return None if (m := self.model(hand)) is None else hashlib.sha256(m.to_json().encode()).hexdigest()[:16]
 
     def _rescore(self, conn: sqlite3.Connection, rule: RankingRule, pair: tuple[str, str] | None = None,
                  hand: str | None = None) -> None:

@@ -126,7 +126,12 @@ class Grasper(FingerClosing, ContactReading):
         self.names = {index: name for name, index in self.body.links.items()}
         self.geometry = tuple(n for n in self.hand.links if self.sim.has_collision(self.body, n))
         self._front: dict[str, float] = {}
-        self._axes: dict[str, np.ndarray] = {}
+        # the prismatic finger axes in the hand frame, read once with the hand at the origin: read at a
+        # candidate's pose they differ in the last bits with that pose, and so a unit's grasps with the
+        # candidates before them (a sweep split into other chunks closed ~5e-10 m apart)
+        self._place(np.eye(4), {})
+        self._axes: dict[str, np.ndarray] = {j.name: self.sim.joint_axis_in_base(self.body, j.name)
+                                             for j in self.hand.joints if j.kind == "prismatic"}
         self._bounds: dict[tuple, dict[str, float]] = {}
         self._relative: dict[tuple, list[np.ndarray]] = {}
         self.queries = 0

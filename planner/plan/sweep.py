@@ -74,7 +74,11 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: (the duck, the mug, the teddy, the random objects) the points whose nearest face's box meets another body's (a
 #: cell inside one body, nearest to another's face buried in it, read outside); one closed body as before (issue
 #: 26); other cells, p_hold, scores and ranks of the Panda's on those objects.
-ALGORITHM_VERSION = 16
+#: 17: the prismatic finger axes read once with the hand at the origin, not at a unit's first closing's pose, so a
+#: unit's grasps no longer depend on the candidates closed before them (the chunking: closed joints ~5e-10 m
+#: apart, and where a patch's split is that close, other contacts); objects whose bodies overlap get their union's
+#: mass properties, touching convex pieces load (issue 24).
+ALGORITHM_VERSION = 17
 
 #: Named in the digest of sweeps on a table only (those of the object alone stay
 #: as they were), bumped when a change alters only which grasps they produce.

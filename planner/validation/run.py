@@ -127,19 +127,50 @@ class Selection:
         return [grasps[i] for i in sorted(rng.choice(len(grasps), size=self.sample, replace=False))]
 
 
+def _already(db: Database, obj: str, hand: str, seed: int, trial_settings: ShakeSettings | MujocoSettings,
+             noise: NoiseSettings | None) -> set[int]:
+    """Ids of the pair's grasps this run would give the results they hold:
+    a verdict of its engine with its seed and settings (as :func:`write`
+    records them), and its robust epsilon if it asks for one. The trials are
+    deterministic, so a run killed half way, or run again, does not try
+    them again."""
+    spec = load_hand(hand)
+    if isinstance(trial_settings, MujocoSettings):
+        from planner.validation import mujoco_trial
+
+        done = db.validated_ids(obj, hand, "mujoco", seed, mujoco_trial.recorded(trial_settings, spec))
+    else:
+        done = db.validated_ids(obj, hand, "validation", seed, recorded(trial_settings, spec))
+    if noise is not None:
+        done &= db.validated_ids(obj, hand, "robust", seed, noise.to_json())
+    return done
+
+
 def plan(db: Database, objects: list[str] | None, hands: list[str] | None, selection: Selection, seed: int,
-         trial_settings: ShakeSettings | MujocoSettings, noise: NoiseSettings | None) -> list[Task]:
+         trial_settings: ShakeSettings | MujocoSettings, noise: NoiseSettings | None,
+         kept: list[Grasp] | None = None) -> list[Task]:
+    """The tasks of a run; the selected grasps it would not change (:func:`_already`) go to ``kept``."""
+    kept = [] if kept is None else kept
     stored = {pair: db.object_row(pair[0]) for pair in db.pairs()}
     pairs = {pair: row for pair, row in stored.items() if row is not None}
     known = sorted({obj for obj, _ in pairs})
+    if not known:
+        raise InputError(f"no grasps in {db.path}; run `grasp generate ... --db {db.path}` first")
     for name in objects or []:
         if name not in known:
             raise InputError(f"no grasps of object '{name}' in {db.path}; objects: {', '.join(known) or '(none)'}")
+    with_grasps = sorted({hand for _, hand in pairs})
+    for name in hands or []:
+        if name not in with_grasps:
+            raise InputError(f"no grasps of hand '{name}' in {db.path}; hands: {', '.join(with_grasps)}")
     tasks = []
     for (obj, hand), row in pairs.items():
         if (objects and obj not in objects) or (hands and hand not in hands):
             continue
-        grasps = selection.pick(db, obj, hand, seed)
+        picked = selection.pick(db, obj, hand, seed)
+        done = _already(db, obj, hand, seed, trial_settings, noise)
+        grasps = [g for g in picked if g.id not in done]
+        kept.extend(g for g in picked if g.id in done)
         size = MUJOCO_BATCH if isinstance(trial_settings, MujocoSettings) and noise is None else BATCH
         for i in range(0, len(grasps), size):
             tasks.append(Task(row, hand, tuple(grasps[i:i + size]), seed, trial_settings, noise))
@@ -217,16 +248,19 @@ def _rerank_unranked(db: Database, rule: RankingRule) -> None:
 @dataclass
 class ValidationSummary:
     """``grasps`` given a verdict (stored), ``successes`` among them, ``diverged``: trials whose state
-    diverged (MuJoCo's; no verdict, not stored), ``failed_tasks``: object/hand -> error."""
+    diverged (MuJoCo's; no verdict, not stored), ``failed_tasks``: object/hand -> error; ``kept``: selected
+    grasps that already held this run's results (not tried again), ``kept_successes`` among them."""
 
     grasps: int = 0
     successes: int = 0
     diverged: int = 0
     failed_tasks: dict[str, str] = field(default_factory=dict)
+    kept: int = 0
+    kept_successes: int = 0
 
     def to_json(self) -> dict:
         return {"grasps": self.grasps, "successes": self.successes, "diverged": self.diverged,
-                "failed": self.failed_tasks}
+                "failed": self.failed_tasks, "kept": self.kept, "kept_successes": self.kept_successes}
 
 
 def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str] | None = None, top: int = 10,
@@ -258,7 +292,12 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
     with writer_lock(Path(db_path)), open_db(Path(db_path), create=False) as db:
         rule = db.rule()
         _rerank_unranked(db, rule)  # verdicts of a run killed before it re-ranked them
-        tasks = plan(db, objects, hands, Selection(top, sample, every, closure_only), seed, trial_settings, noise)
+        kept: list[Grasp] = []
+        tasks = plan(db, objects, hands, Selection(top, sample, every, closure_only), seed, trial_settings, noise,
+                     kept)
+        summary.kept = len(kept)
+        verdicts = [g.mujoco if engine == "mujoco" else g.validation for g in kept]
+        summary.kept_successes = sum(bool(t.success) for t in verdicts if t is not None)
         prepare_objects(list({t.row.name: t.row for t in tasks}.values()), workers)
         if progress:
             progress(0, len(tasks))

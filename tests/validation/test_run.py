@@ -82,7 +82,8 @@ def test_tasks_hold_more_mujoco_trials_than_pybullet_or_robust_ones(validated_db
     everything = run.Selection(every=True)
     with open_db(validated_db, create=False, readonly=True) as db:
         counts = [len(db.best(o, h, 10_000)) for o, h in db.pairs()]
-        sizes = {name: sorted(len(t.grasps) for t in run.plan(db, None, None, everything, 0, trial, noise))
+        # seed 99: no stored result was made with it, so every grasp is planned (none kept)
+        sizes = {name: sorted(len(t.grasps) for t in run.plan(db, None, None, everything, 99, trial, noise))
                  for name, trial, noise in (("mujoco", MujocoSettings(), None), ("pybullet", ShakeSettings(), None),
                                             ("robust", MujocoSettings(), NoiseSettings(samples=2)))}
 
@@ -215,3 +216,42 @@ def test_verdicts_left_unranked_by_a_killed_run_are_ranked_by_the_next(reference
     box = {i: (score, rank) for i, score, rank in _ranks(db)}
     assert all(box[g.id][0] == 0 for g in best)  # the slipped verdicts now count
     assert _ranks(db) == _reranked(db)
+
+
+def _verdicts(db: Path, table: str) -> dict[int, tuple]:
+    with sqlite3.connect(db) as conn:
+        return {r[0]: r[1:] for r in conn.execute(f"SELECT grasp_id, success, closing_linear, shaking_linear, seed, "
+                                                   f"settings FROM {table}")}
+
+
+def test_a_run_cut_short_tries_only_what_it_had_not(box_db: Path, tmp_path: Path) -> None:
+    """The trials are deterministic: a run killed half way (half its
+    verdicts stored), or run again, keeps what is stored and tries the rest;
+    the verdicts are those of one uninterrupted run. Another seed, or robust
+    samples the stored rows lack, try again."""
+    db = tmp_path / "g.db"
+    shutil.copy(box_db, db)
+    first = validate(db, every=True, closure_only=True, robust_samples=0, workers=1)
+    assert first.grasps > 4 and first.kept == 0
+    whole = _verdicts(db, "mujoco")
+    with sqlite3.connect(db) as conn:  # as if killed after half the tasks
+        gone = [i for i, in conn.execute("SELECT grasp_id FROM mujoco ORDER BY grasp_id")][::2]
+        conn.executemany("DELETE FROM mujoco WHERE grasp_id = ?", [(i,) for i in gone])
+    again = validate(db, every=True, closure_only=True, robust_samples=0, workers=1)
+    assert (again.grasps, again.kept) == (len(gone), first.grasps - len(gone))
+    assert again.successes + again.kept_successes == first.successes
+    assert _verdicts(db, "mujoco") == whole
+    assert validate(db, every=True, closure_only=True, robust_samples=0, workers=1).grasps == 0  # nothing left
+    assert validate(db, every=True, closure_only=True, robust_samples=0, workers=1, seed=1).kept == 0
+    assert validate(db, every=True, closure_only=True, robust_samples=1, workers=1, seed=1).kept == 0  # no robust rows
+
+
+def test_an_empty_database_or_an_unknown_hand_is_an_error(box_db: Path, tmp_path: Path) -> None:
+    db = tmp_path / "g.db"
+    shutil.copy(box_db, db)
+    with pytest.raises(InputError, match="no grasps of hand 'barrett'.*hands: panda"):
+        validate(db, hands=["barrett"], robust_samples=0)
+    with sqlite3.connect(db) as conn:
+        conn.execute("DELETE FROM grasps")
+    with pytest.raises(InputError, match="no grasps in .*run `grasp generate"):
+        validate(db, robust_samples=0)
