@@ -326,8 +326,12 @@ def read_labels(path: Path) -> np.ndarray:
             raise InputError(f"{path}: no {key}: not a labelled grasp file")
         labels = np.asarray(f[key][:], float)
         n = len(f["grasps/transforms"]) if "grasps/transforms" in f else len(labels)
-    if len(labels) != n or not np.isin(labels, (0.0, 1.0)).all():
+    if len(labels) != n:
         raise InputError(f"{path}: {key} must hold one 0/1 label per grasp ({n}), got {len(labels)} values")
+    bad = labels[~np.isin(labels, (0.0, 1.0))]
+    if len(bad):
+        shown = ", ".join(f"{v:g}" for v in np.unique(bad)[:3])
+        raise InputError(f"{path}: {key} must hold 0/1 labels; {len(bad)} of {n} are not ({shown})")
     return labels
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -14,6 +15,9 @@ from planner.db.diverse import COVERAGE_RADIUS, Spacing, coverage, diverse
 from planner.db.objects import stored_object
 from planner.db.store import open_db
 from planner.specs.hands import load_hand
+
+if TYPE_CHECKING:
+    import trimesh
 
 SURFACE_SAMPLES = 4000  # surface points per object (an even sample, fixed seed)
 
@@ -37,8 +41,6 @@ class Coverage:
 
 def coverages(db_path: Path, top: int = 10, spacing: Spacing | None = None, seed: int = 0) -> list[Coverage]:
     """:class:`Coverage` of every (object, hand) with ranked grasps in the database."""
-    import trimesh
-
     spacing = spacing or Spacing()
     out = []
     with open_db(Path(db_path), create=False, readonly=True) as db:
@@ -55,8 +57,26 @@ def coverages(db_path: Path, top: int = 10, spacing: Spacing | None = None, seed
             finally:
                 batches.close()
             mesh = stored_object(row).mesh
-            surface, _ = trimesh.sample.sample_surface_even(mesh, SURFACE_SAMPLES, seed=seed)
+            surface = _even_samples(mesh, seed)
             points = lambda gs: np.vstack([g.contacts.points for g in gs])  # noqa: E731
             out.append(Coverage(obj_name, hand, top, coverage(surface, points(ranked)),
                                 coverage(surface, points(apart)), len(ranked)))
     return out
+
+
+def _even_samples(mesh: trimesh.Trimesh, seed: int) -> np.ndarray:
+    """About :data:`SURFACE_SAMPLES` points spread evenly on ``mesh``
+    (trimesh's even sampler, which keeps fewer where they would crowd and
+    says so in a warning: the count is not what coverage needs, their
+    spread is)."""
+    import logging
+
+    import trimesh
+
+    quiet = logging.getLogger("trimesh")
+    level = quiet.level
+    quiet.setLevel(logging.ERROR)
+    try:
+        return trimesh.sample.sample_surface_even(mesh, SURFACE_SAMPLES, seed=seed)[0]
+    finally:
+        quiet.setLevel(level)

@@ -170,3 +170,20 @@ def test_labels_pick_the_best_source_per_grasp() -> None:
     assert list(value[-2:]) == [1, 0] and set(source) == {"trial"}
     value, source = labels(columns, "force_closure")
     assert list(value) == [0, 1, 0, 1, 1, 1, 0, 1, 1] and set(source) == {"force_closure"}
+
+
+def test_labels_that_are_not_0_or_1_are_named(tmp_path: Path) -> None:
+    from planner.datasets.acronym import read_labels
+    from planner.errors import InputError
+
+    path = tmp_path / "labels.h5"
+    with h5py.File(path, "w") as f:
+        f["grasps/transforms"] = np.tile(np.eye(4), (4, 1, 1))
+        f["grasps/qualities/flex/object_in_gripper"] = np.array([0.0, 1.0, 2.0, np.nan])
+    with pytest.raises(InputError, match=r"must hold 0/1 labels; 2 of 4 are not \(2, nan\)"):
+        read_labels(path)
+    with h5py.File(path, "r+") as f:
+        del f["grasps/qualities/flex/object_in_gripper"]
+        f["grasps/qualities/flex/object_in_gripper"] = np.array([0, 1, 1])
+    with pytest.raises(InputError, match=r"one 0/1 label per grasp \(4\), got 3 values"):
+        read_labels(path)
