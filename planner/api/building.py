@@ -29,7 +29,7 @@ from planner.errors import InputError
 from planner.plan.sweep import SweepSettings, candidate_count
 from planner.specs.hands import load_hand
 from planner.specs.inputs import expand
-from planner.specs.objects import NO_PHYSICAL, Physical, resolve_spec
+from planner.specs.objects import NO_PHYSICAL, ObjectSpec, Physical, resolve_spec
 from planner.specs.preshapes import load_preshapes, sweep_preshapes
 
 if TYPE_CHECKING:
@@ -171,8 +171,9 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
                 return ", ".join(f"{k} {v:g}" for k, v in values.items())
 
             raise InputError(f"object '{name}' is stored in {db.path} with {text(stored)}, this run gives "
-                             f"{text(given)}; its grasps were measured at the stored values: use another --db, or "
-                             "name the object apart (copy the mesh under another name)")
+                             f"{text(given)}{_from_sidecar(spec, unit.physical)}; its grasps were measured at the "
+                             "stored values: use another --db, or name the object apart (copy the mesh under another "
+                             "name)")
         if name not in running and spec.kind == "mesh" and row.source == spec.source and row.scale == spec.scale:
             continue  # nothing of it runs, and it names the stored file at the stored scale
         try:
@@ -182,6 +183,18 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
         if why:
             raise InputError(f"object '{name}' is stored in {db.path} {why}: its grasps were planned on the stored "
                              "one; use another --db, or name the object apart (copy the mesh under another name)")
+
+
+def _from_sidecar(spec: ObjectSpec, given: Physical) -> str:
+    """`` (mass from banana.toml)`` where a mesh's sidecar gave what the run did not."""
+    from planner.specs.objects import SIDECAR_SUFFIX, sidecar
+
+    if spec.kind != "mesh" or not spec.source:
+        return ""
+    side = sidecar(Path(spec.source))
+    keys = [k for k in ("mass", "density", "friction") if getattr(side, k) is not None and
+            (getattr(given, k) is None if k == "friction" else given.mass is None and given.density is None)]
+    return f" ({' and '.join(keys)} from {Path(spec.source).with_suffix(SIDECAR_SUFFIX).name})" if keys else ""
 
 
 def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, settings: SweepSettings | None = None,

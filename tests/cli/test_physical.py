@@ -235,3 +235,15 @@ def test_mass_properties_of_an_earlier_planner_are_not_mixed(tmp_path: Path, bri
     assert generate(db, str(brick))[0] == 0  # nothing to run
     code, _, err = generate(db, str(brick), "--seed", "1")
     one_line_error(code, err, 2, "object 'brick' is stored", "with a volume of", "use another --db")
+
+
+def test_a_refusal_says_when_the_sidecar_gave_the_value(tmp_path: Path, brick: Path) -> None:
+    db = tmp_path / "g.db"
+    brick.with_suffix(".toml").write_text("mass = 0.066\n")
+    assert generate(db, str(brick))[0] == 0
+    brick.with_suffix(".toml").write_text("mass = 0.1\nfriction = 0.7\n")
+    code, _, err = generate(db, str(brick))
+    one_line_error(code, err, 2, "with mass 0.066, friction 0.5", "this run gives mass 0.1, friction 0.7 "
+                   "(mass and friction from brick.toml)")
+    code, _, err = generate(db, str(brick), "--mass", "0.2", "--friction", "0.5")  # the flags win: no sidecar named
+    one_line_error(code, err, 2, "this run gives mass 0.2, friction 0.5;")
