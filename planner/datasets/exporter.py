@@ -139,6 +139,9 @@ def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (
         pairs = sel.pairs(db)
         specs = {h: load_hand(h) for h in sorted({h for _, h in pairs})}  # unknown hands fail up front
         models = {h: db.model(h) for h in specs}  # read once: a model with trees is ~0.3 MB of JSON
+        if not any(_has_one(sel.batches(db, o, h)) for o, h in pairs):
+            raise InputError(f"{db_path}: no grasp of the {len(pairs)} (object, hand) pairs selected passes the "
+                             "filters (--top, --min-epsilon, --label): nothing written")
         out_dir = _out_dir(Path(out_dir))
         copies = writer.mesh_copies if isinstance(writer, PairWriter) else ()
         exported = {name: replace(o, label=sel.label)
@@ -183,6 +186,16 @@ def _write_pair(db: Database, writer: PairWriter, path: Path, obj: ExportedObjec
         return 0
     path.parent.mkdir(parents=True, exist_ok=True)
     return int(writer.write(path, obj, hand, chain([first], batches)))
+
+
+def _has_one(batches: Iterator[list]) -> bool:
+    """Whether ``batches`` (closed here) hold a grasp."""
+    try:
+        return next(batches, None) is not None
+    finally:
+        close = getattr(batches, "close", None)
+        if close is not None:
+            close()
 
 
 def _out_dir(path: Path) -> Path:

@@ -103,3 +103,11 @@ def test_every_format_says_where_the_objects_p_hold_is_extrapolated(db: Path, tm
     assert {r["p_hold_outside"] for r in rows} == {text}
     assert set(pq.read_table(out["parquet"] / "grasps.parquet").column("p_hold_outside").to_pylist()) == {text}
     assert text in (out["csv"] / "grasps.csv").read_text()
+
+
+@pytest.mark.parametrize("fmt", ["acronym", "csv"])
+def test_filters_that_leave_no_grasp_write_nothing(db: Path, tmp_path: Path, fmt: str) -> None:
+    out = tmp_path / "out"
+    code, _, err = grasp("export", "--db", str(db), "--format", fmt, "--out", str(out), "--min-epsilon", "100")
+    assert code == 2 and "passes the filters" in err and len(err.strip().splitlines()) == 1, err
+    assert not out.exists()
