@@ -16,7 +16,7 @@ import numpy as np
 
 from planner.db.store import Database, ObjectRow
 from planner.errors import InputError, UnknownNameError
-from planner.specs.objects import is_registered, resolve_spec
+from planner.specs.objects import PROPERTY_RTOL, is_registered, resolve_spec  # noqa: F401 - PROPERTY_RTOL re-exported
 
 if TYPE_CHECKING:
     from planner.geometry.solid import PreparedObject
@@ -26,9 +26,6 @@ DEFAULT_DB = Path("grasps.db")
 QUATERNION_NORM = (0.5, 2.0)
 #: Stored object names an "unknown object" error lists at most.
 LISTED_NAMES = 12
-#: Relative difference below which a stored mass, density or friction is the
-#: one given: a density comes back from the store as mass / volume, a few ulp off.
-PROPERTY_RTOL = 1e-9
 
 
 def resolve_object(db: Database, name: str) -> tuple[str, ObjectRow | None]:

@@ -74,7 +74,7 @@ from planner.record.grasp import Grasp
 from planner.run import pool
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, hand_names, load_hand
-from planner.specs.objects import ObjectSpec, is_registered, resolve_spec
+from planner.specs.objects import PROPERTY_RTOL, ObjectSpec, is_registered, resolve_spec
 from planner.specs.preshapes import sweep_preshapes
 
 #: Every format with a reader (:mod:`planner.datasets.registry`).
@@ -294,14 +294,10 @@ def _check_objects(db: Database, plans: Sequence[_Plan]) -> None:
         obj = prepare(plan.spec)
         row = db.object_row(name)
         why = differs(row, obj) if row is not None else None
-        if row is not None and why is None and not (
-                math.isclose(row.mass, obj.mass, rel_tol=1e-9) and math.isclose(row.friction, obj.friction,
-                                                                                rel_tol=1e-9)):
-            why = f"with mass {row.mass:g}, friction {row.friction:g} (this file: {obj.mass:g}, {obj.friction:g})"
         if why:
             raise InputError(f"{plan.path}: object '{name}' is stored in {db.path} {why}: import into another --db")
         first = named.setdefault(name, (plan.path, obj))
-        if first[1].mesh_hash != obj.mesh_hash or not math.isclose(first[1].mass, obj.mass, rel_tol=1e-9):
+        if first[1].mesh_hash != obj.mesh_hash or not math.isclose(first[1].mass, obj.mass, rel_tol=PROPERTY_RTOL):
             raise InputError(f"{plan.path} and {first[0]} name one object '{name}' with other meshes, scales or "
                              "masses: import them into different --db")
 

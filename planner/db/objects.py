@@ -33,7 +33,7 @@ from planner import assets
 from planner.db.store import ObjectRow
 from planner.errors import InputError, PlannerError
 from planner.geometry.solid import PreparedObject, prepare
-from planner.specs.objects import PRIMITIVES, ObjectSpec, builtin_specs, is_registered, resolve_spec
+from planner.specs.objects import PRIMITIVES, PROPERTY_RTOL, ObjectSpec, builtin_specs, is_registered, resolve_spec
 
 PRIMITIVE_PREFIX = "primitive:"
 PYBULLET_DATA = "pybullet_data"
@@ -64,9 +64,10 @@ VOLUME_RTOL, COM_TOL = 1e-6, 1e-6
 def differs(row: ObjectRow, obj: PreparedObject) -> str | None:
     """Why ``obj`` is not the object ``row`` stores under its name (None: it
     is): another mesh (another file of that name, the file edited since,
-    another scale), or other mass properties from the same mesh (an earlier
-    planner's: overlapping bodies are counted once since 2026-12-05).
-    Grasps planned on one are not grasps of the other."""
+    another scale), other mass properties from the same mesh (an earlier
+    planner's: overlapping bodies are counted once since 2026-12-05), or
+    another mass or friction. Grasps planned on one are not grasps of the
+    other."""
     if row.mesh_sha256 and obj.mesh_hash != row.mesh_sha256:
         return (f"from another mesh than {obj.source_file} at scale {obj.file_scale:.10g} gives now (stored: "
                 f"{row.source} at scale {row.scale:.10g}; another file of that name, the file edited since, or another "
@@ -76,6 +77,9 @@ def differs(row: ObjectRow, obj: PreparedObject) -> str | None:
         return (f"with a volume of {row.volume * 1e6:.6g} cm^3 where this planner makes the same mesh "
                 f"{obj.volume * 1e6:.6g} cm^3 (an earlier planner's mass properties: overlapping bodies are counted "
                 "once since 2026-12-05)")
+    if not (math.isclose(obj.mass, row.mass, rel_tol=PROPERTY_RTOL) and
+            math.isclose(obj.friction, row.friction, rel_tol=PROPERTY_RTOL)):
+        return f"with mass {row.mass:g}, friction {row.friction:g} (now {obj.mass:g}, {obj.friction:g})"
     return None
 
 

@@ -32,6 +32,9 @@ from planner.specs.urdf import object_mesh
 REGISTRY_FILE = "objects.toml"
 DEFAULT_MASS = 0.2  # kg, for user meshes given without a mass
 DEFAULT_FRICTION = 0.5
+#: Relative difference below which a stored mass, density or friction is the
+#: one given: a density comes back from the store as mass / volume, a few ulp off.
+PROPERTY_RTOL = 1e-9
 RANDOM_PREFIX = "random_"
 RANDOM_COUNT = 1000
 RANDOM_MASS = 0.1  # kg: the generated objects are 5-10 cm across
