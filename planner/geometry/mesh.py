@@ -63,11 +63,7 @@ def checked_solid(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh:
     if not np.all(np.isfinite(mesh.vertices)):
         raise MeshError(f"{where}: mesh has NaN or infinite vertex coordinates")
     given = mesh
-    mesh = mesh.copy()
-    mesh.merge_vertices()
-    mesh.update_faces(mesh.nondegenerate_faces())
-    mesh.update_faces(mesh.unique_faces())  # an exporter's repeated triangles (the same three corners): one kept
-    mesh.remove_unreferenced_vertices()
+    mesh = _cleaned(mesh)
     if len(mesh.faces) == 0:
         raise MeshError(f"{where}: every triangle is degenerate (zero area)")
     check_extent(mesh, where)
@@ -136,14 +132,33 @@ def check_extent(mesh: trimesh.Trimesh, where: str) -> None:
         )
 
 
-def _repair(mesh: trimesh.Trimesh, where: str, given: trimesh.Trimesh) -> trimesh.Trimesh:
-    """Close small holes: trimesh's fill, then a fan cap on each open loop;
-    else the file's own bodies, each closed, kept apart (:func:`closed_bodies`)."""
+def _cleaned(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """A copy of ``mesh`` with its vertices at one position merged (a UV seam
+    closes), its zero-area triangles and repeated ones (an exporter's
+    leftovers, the same three corners in any order) dropped, and its unused
+    vertices."""
+    mesh = mesh.copy()
+    mesh.merge_vertices()
+    mesh.update_faces(mesh.nondegenerate_faces())
+    mesh.update_faces(mesh.unique_faces())
+    mesh.remove_unreferenced_vertices()
+    return mesh
+
+
+def _closed(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """``mesh``, or with its small holes closed: trimesh's fill (in place),
+    then a fan cap on each open loop; watertight only if that closed it."""
     trimesh.repair.fill_holes(mesh)
-    if mesh.is_watertight:
+    return mesh if mesh.is_watertight else cap_boundary_loops(mesh)
+
+
+def _repair(mesh: trimesh.Trimesh, where: str, given: trimesh.Trimesh) -> trimesh.Trimesh:
+    """Close small holes (:func:`_closed`); else the file's own bodies, each
+    closed, kept apart (:func:`closed_bodies`)."""
+    capped = _closed(mesh)
+    if capped is mesh and mesh.is_watertight:
         log.info("%s: filled small holes", where)
         return mesh
-    capped = cap_boundary_loops(mesh)
     if not capped.is_watertight:
         apart = closed_bodies(given)
         if apart is not None:
@@ -171,14 +186,9 @@ def closed_bodies(given: trimesh.Trimesh) -> trimesh.Trimesh | None:
         return None
     closed = []
     for piece in pieces:
-        piece = piece.copy()
-        piece.merge_vertices()
-        piece.update_faces(piece.nondegenerate_faces())
-        piece.update_faces(piece.unique_faces())
-        piece.remove_unreferenced_vertices()
+        piece = _cleaned(piece)
         if len(piece.faces) and not piece.is_watertight:  # a piece's small holes, closed as a whole mesh's are
-            trimesh.repair.fill_holes(piece)
-            piece = piece if piece.is_watertight else cap_boundary_loops(piece)
+            piece = _closed(piece)
         if not len(piece.faces) or not piece.is_watertight or abs(piece.volume) < MIN_VOLUME:
             return None  # open, or a flat piece (a fin) closed into nothing
         closed.append(piece)
