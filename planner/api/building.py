@@ -148,7 +148,8 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
     grasps were planned and measured on: one name, one object. The mesh is
     prepared and compared for the objects with units ``todo``; an object
     whose units are all done is compared by its file and scale, and prepared
-    only where those moved. An object whose mesh no longer loads is left to
+    only where those moved or the file was modified since its last unit
+    finished (its mtime: a copy that keeps an older mtime is not seen). An object whose mesh no longer loads is left to
     its units (stored as failed)."""
     from planner.db.objects import differs
     from planner.errors import PlannerError
@@ -174,8 +175,9 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
                              f"{text(given)}{_from_sidecar(spec, unit.physical)}; its grasps were measured at the "
                              "stored values: use another --db, or name the object apart (copy the mesh under another "
                              "name)")
-        if name not in running and spec.kind == "mesh" and row.source == spec.source and row.scale == spec.scale:
-            continue  # nothing of it runs, and it names the stored file at the stored scale
+        if name not in running and spec.kind == "mesh" and row.source == spec.source and row.scale == spec.scale \
+                and not _edited_since(Path(spec.source), db.last_finished(name)):
+            continue  # nothing of it runs, and it names the stored file, unchanged since, at the stored scale
         try:
             why = differs(row, prepare(spec))
         except PlannerError:
@@ -183,6 +185,15 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
         if why:
             raise InputError(f"object '{name}' is stored in {db.path} {why}: its grasps were planned on the stored "
                              "one; use another --db, or name the object apart (copy the mesh under another name)")
+
+
+def _edited_since(source: Path, finished: float | None) -> bool:
+    """Whether ``source`` may have changed since ``finished`` (its last unit's end [s]; the file's mtime from
+    that second on, or no time known, or no file to read: compare it)."""
+    try:
+        return finished is None or source.stat().st_mtime >= finished
+    except OSError:
+        return True
 
 
 def _from_sidecar(spec: ObjectSpec, given: Physical) -> str:

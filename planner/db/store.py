@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import sqlite3
+import time
 from collections import Counter
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
@@ -57,7 +58,7 @@ from planner.db.schema import (
     schema_version,
     table_names,
 )
-from planner.db.writing import Writing, p_hold_of  # noqa: F401 - p_hold_of re-exported
+from planner.db.writing import TIME_FORMAT, Writing, p_hold_of  # noqa: F401 - p_hold_of re-exported
 from planner.errors import DatabaseError
 from planner.record import fields
 from planner.record.contacts import HandContacts
@@ -135,6 +136,17 @@ class Database(Writing):
                                   "WHERE g.object = ? AND g.hand = ? AND v.seed = ? AND v.settings = ?",
                                   (obj, hand, seed, settings))
         return {int(r["grasp_id"]) for r in rows}
+
+    @_reads
+    def last_finished(self, obj: str) -> float | None:
+        """When ``obj``'s last unit (any hand) finished [s since the epoch; the stored local time, to the second];
+        None: none has."""
+        r = self._conn.execute("SELECT MAX(finished_at) AS t FROM units WHERE object = ? AND status = 'done'",
+                               (obj,)).fetchone()
+        try:
+            return time.mktime(time.strptime(r["t"], TIME_FORMAT)) if r["t"] else None
+        except ValueError:
+            return None
 
     @_reads
     def swept(self, obj: str, hand: str) -> tuple[int, int, Counter]:

@@ -52,6 +52,8 @@ if TYPE_CHECKING:
     from planner.geometry.solid import PreparedObject
 
 
+#: How ``units.finished_at`` and ``calibration.created_at`` are written (local time, to the second).
+TIME_FORMAT = "%Y-%m-%dT%H:%M:%S"
 #: What the ranking rule reads, by the rule's names.
 _RANKED = ", ".join(f"{_ALIAS[f.table]}.{f.column} AS {f.ranked}" for f in fields.ranked_fields())
 #: The stored columns a p_hold model reads (:data:`planner.calibration.features.COLUMNS`), as ``m_<column>``.
@@ -157,7 +159,7 @@ class Writing:
             unit_id = conn.execute(_insert("units", _UNIT_COLUMNS), (
                 *key, unit.settings, status, unit.error, unit.candidates, len(grasps),
                 sum(g.force_closure for g in grasps), _json(unit.rejected), unit.seconds,
-                time.strftime("%Y-%m-%dT%H:%M:%S"))).lastrowid
+                time.strftime(TIME_FORMAT))).lastrowid
             if obj is not None:
                 stored = conn.execute("SELECT mesh_sha256 FROM objects WHERE name = ?", (unit.object,)).fetchone()
                 if stored is not None and stored[0] and stored[0] != obj.mesh_hash:
@@ -253,7 +255,7 @@ class Writing:
         re-score and re-rank that hand's grasps, in one transaction."""
         with self._transaction() as conn:
             conn.execute(_insert("calibration", ("hand", "model", "source", "created_at"), "INSERT OR REPLACE"),
-                         (model.hand, model.to_json(), source, time.strftime("%Y-%m-%dT%H:%M:%S")))
+                         (model.hand, model.to_json(), source, time.strftime(TIME_FORMAT)))
             self._rescore(conn, rule, hand=model.hand)
         self.set_meta("p_hold_models", self._models_key())
 

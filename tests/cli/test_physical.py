@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import sqlite3
 from pathlib import Path
 
@@ -150,7 +151,7 @@ def _file_bytes(db: Path) -> bytes:
     return db.read_bytes()
 
 
-@pytest.mark.parametrize("change", ["scale", "other_file", "edited"])
+@pytest.mark.parametrize("change", ["scale", "other_file", "edited", "edited_finished"])
 def test_another_mesh_under_a_stored_name_is_refused(tmp_path: Path, brick: Path, change: str) -> None:
     """One name, one mesh: another --scale, another file of the same name or
     the file edited since are refused before anything is written (their
@@ -166,13 +167,24 @@ def test_another_mesh_under_a_stored_name_is_refused(tmp_path: Path, brick: Path
         other.parent.mkdir()
         trimesh.creation.box(extents=(0.03, 0.03, 0.05)).export(other)
         source = str(other)
-    else:  # edited in place: checked where units run (here another seed); a finished sweep is only skipped
+    else:  # edited in place: units to run (another seed), or the same finished sweep again
         trimesh.creation.box(extents=(0.05, 0.04, 0.07)).export(brick)
-        extra = ["--seed", "1"]
+        extra = ["--seed", "1"] if change == "edited" else []
     code, _, err = generate(db, source, *extra)
     one_line_error(code, err, 2, "object 'brick' is stored", "from another mesh", "use another --db")
     assert _file_bytes(db) == before
     assert grasp("best", "brick", "--hand", "panda", "--db", str(db))[0] == 0
+
+
+def test_a_finished_sweep_of_an_unchanged_file_is_skipped(tmp_path: Path, brick: Path) -> None:
+    """The same command again on a file untouched since its sweep finished skips every unit (the mesh is not
+    compared), also when the file was last modified long before."""
+    db = tmp_path / "g.db"
+    os.utime(brick, (1e9, 1e9))  # 2001
+    assert generate(db, str(brick))[0] == 0
+    code, out, err = grasp("generate", str(brick), "--hand", "panda", "--db", str(db), "--json", *FAST)
+    assert code == 0, err
+    assert json.loads(out)["skipped"] > 0 and json.loads(out)["units"] == 0
 
 
 def test_the_store_refuses_a_unit_of_another_mesh(tmp_path: Path) -> None:
