@@ -25,6 +25,23 @@ EXIT_INTERRUPTED = 130
 EXIT_PIPE = 141  # the reader of the output went away (`grasp best | head`): 128 + SIGPIPE, as shell tools exit
 
 
+def echo_json(value: Any) -> None:
+    """Print ``value`` as strict JSON (indented): a float that is not finite (a NaN of a measure not taken)
+    becomes null, which every JSON reader accepts (Python's ``NaN`` token is not JSON)."""
+    import json
+
+    def strict(v: Any) -> Any:
+        if isinstance(v, float):
+            return v if math.isfinite(v) else None
+        if isinstance(v, dict):
+            return {k: strict(x) for k, x in v.items()}
+        if isinstance(v, (list, tuple)):
+            return [strict(x) for x in v]
+        return v
+
+    click.echo(json.dumps(strict(value), indent=2, allow_nan=False))
+
+
 class Group(click.Group):
     """Maps every error to a one-line message and an exit code."""
 

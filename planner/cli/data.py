@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import click
 
 from planner import api
-from planner.cli.app import LazyHelp, db_option, diverse_options, report_failures, spacing
+from planner.cli.app import LazyHelp, db_option, diverse_options, echo_json, report_failures, spacing
 
 
 @click.command(name="export")
@@ -43,7 +42,7 @@ def export(db_path: Path, fmt: str, out_dir: Path, objects: tuple[str, ...], han
     summary = api.export(db_path, fmt, out_dir, objects=objects, hands=hands, min_epsilon=min_epsilon, top=top,
                          spacing=spacing(diverse, min_translation, min_rotation), label=label, progress=progress)
     if as_json:
-        click.echo(json.dumps(summary.to_json(), indent=2))
+        echo_json(summary.to_json())
     elif not quiet:
         rate = summary.grasps / max(summary.seconds, 1e-9)
         click.echo(f"exported {summary.grasps} grasps as {fmt} to {len(summary.files)} file(s) in {out_dir} "
@@ -85,5 +84,5 @@ def import_files(paths: tuple[Path, ...], fmt: str, db_path: Path, hand: str | N
     results = api.import_files(paths, db_path, fmt=fmt, hand=hand, object_name=object_name, rescore=rescore,
                                workers=workers, progress=progress)
     if as_json:
-        click.echo(json.dumps([r.to_json() for r in results], indent=2))
+        echo_json([r.to_json() for r in results])
     report_failures({str(r.path): r.error for r in results if r.error})

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
 import click
 
 from planner import api
-from planner.cli.app import db_option, floats, report_failures
+from planner.cli.app import db_option, echo_json, floats, report_failures
 
 DEFAULTS = api.SweepSettings()
 
@@ -134,7 +133,7 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
         if tasks:
             bar.stop()
     if as_json:
-        click.echo(json.dumps(summary.to_json(), indent=2))
+        echo_json(summary.to_json())
     elif not quiet:
         _print_summary(summary, db_path)
     report_failures(summary.failed)

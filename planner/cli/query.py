@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import click
 
 from planner import api
-from planner.cli.app import db_option, diverse_options, floats, spacing
+from planner.cli.app import db_option, diverse_options, echo_json, floats, spacing
 from planner.errors import NotFoundError
 from planner.specs.hands import hand_frame
 
@@ -60,8 +59,8 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
         grasps = api.best(object_name, hand, db_path=db_path, top=top, spacing=apart)
         outside = api.p_hold_outside(grasps[0].object, hand, db_path=db_path)
         if as_json:
-            click.echo(json.dumps([{**g.to_json(), "frames": _frames_json(g, None, rule, model),
-                                    "p_hold_outside": outside} for g in grasps], indent=2))
+            echo_json([{**g.to_json(), "frames": _frames_json(g, None, rule, model), "p_hold_outside": outside}
+                       for g in grasps])
             return
         for g in grasps:
             _print_grasp(g, rule=rule, model=model)
@@ -75,8 +74,7 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
                         seed=seed)
     world = api.object_pose_matrix(floats(object_pose) or ())
     if as_json:
-        click.echo(json.dumps([{**r.to_json(), "frames": _frames_json(r.grasp, world, rule, model)} for r in found],
-                              indent=2))
+        echo_json([{**r.to_json(), "frames": _frames_json(r.grasp, world, rule, model)} for r in found])
         return
     if not found:
         table = "" if api.planned_on_table(object_name, hand, floats(object_pose) or (), db_path=db_path) else (
@@ -167,7 +165,7 @@ def _on_table(name: str, hand: str, db_path: Path, top: int, table_at: str, pose
     tables = api.best_on_table(name, hand, db_path=db_path, top=top, at=floats(table_at) or (), poses=poses,
                                robot_base=floats(robot_base), max_candidates=max_candidates, plan=plan, seed=seed)
     if as_json:
-        click.echo(json.dumps([t.to_json() for t in tables], indent=2))
+        echo_json([t.to_json() for t in tables])
     for i, t in enumerate(tables if not as_json else ()):
         pose = ",".join(f"{v:.4f}" for v in t.object_pose7())
         click.echo(f"resting pose {i + 1} of {len(tables)} (probability {t.resting.probability:.2f}): "

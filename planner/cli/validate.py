@@ -3,13 +3,12 @@ the scores predict it."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import click
 
 from planner import api
-from planner.cli.app import db_option, report_failures, show_preparation
+from planner.cli.app import db_option, echo_json, report_failures, show_preparation
 from planner.validation.mujoco_settings import DEFAULT_ENGINE, ENGINES
 
 
@@ -45,7 +44,7 @@ def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], to
                            sample=sample, every=every, robust_samples=robust_samples, seed=seed, workers=workers,
                            closure_only=closure_only, engine=engine)
     if as_json:
-        click.echo(json.dumps(summary.to_json(), indent=2))
+        echo_json(summary.to_json())
     else:
         click.echo(f"validated {summary.grasps} grasps in {engine}: {summary.successes} held "
                    f"({summary.successes / max(summary.grasps, 1):.0%})"
