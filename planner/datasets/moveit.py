@@ -43,8 +43,8 @@ import numpy as np
 from planner.datasets import registry
 from planner.datasets.acronym import joint_names
 from planner.datasets.meshes import ExportedObject
+from planner.geometry.quaternion import canonical_xyzw
 from planner.plan.tolerances import PREGRASP_DISTANCE
-from planner.present.describe import quaternion_xyzw
 from planner.record.grasp import Grasp
 from planner.specs.hands import HandSpec
 
@@ -88,7 +88,7 @@ def message(g: Grasp, hand: HandSpec) -> dict:
     mount = np.eye(4) if hand.arm is None else hand.arm.mount
     approach = mount[:3, :3] @ hand.approach  # the hand's approach axis in the end-effector frame
     names = joint_names(hand)
-    q = quaternion_xyzw(ee[:3, :3])
+    q = canonical_xyzw(ee[:3, :3])
     return {"id": f"{g.object}/{g.hand}/{g.rank}",
             "pre_grasp_posture": _posture(names, hand.posture(g.open_joints)),
             "grasp_posture": _posture(names, hand.posture(g.closed_joints)),

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from planner.geometry.quaternion import canonical_xyzw
 from planner.record import fields
 from planner.record.grasp import Grasp
 from planner.specs.hands import HandFrame
@@ -57,30 +58,7 @@ def frames(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None) -> Fr
     pose = np.asarray(grasp.pose, float) if world is None else np.asarray(world, float) @ np.asarray(grasp.pose)
     rotation = pose[:3, :3]
     return Frames("object" if world is None else "world", pose[:3, 3].copy(), rotation @ hand.tcp + pose[:3, 3],
-                  quaternion_xyzw(rotation), rotation @ hand.approach)
-
-
-def quaternion_xyzw(rotation: np.ndarray) -> np.ndarray:
-    """(4,) unit quaternion (x, y, z, w), w >= 0, of a (3, 3) rotation matrix.
-
-    Written with numpy (Shepperd's method: the largest of the four squares
-    first, for accuracy) rather than taken from scipy, whose import is most
-    of ``grasp best``'s start-up; tests check it against scipy's."""
-    r = np.asarray(rotation, float)
-    trace = np.trace(r)
-    squares = np.array([1 + 2 * r[0, 0] - trace, 1 + 2 * r[1, 1] - trace, 1 + 2 * r[2, 2] - trace, 1 + trace])
-    k = int(np.argmax(squares))
-    q = np.empty(4)
-    q[k] = np.sqrt(squares[k]) / 2
-    if k == 3:
-        q[:3] = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]]) / (4 * q[3])
-    else:
-        i, j, m = k, (k + 1) % 3, (k + 2) % 3
-        q[j] = (r[j, i] + r[i, j]) / (4 * q[i])
-        q[m] = (r[m, i] + r[i, m]) / (4 * q[i])
-        q[3] = (r[m, j] - r[j, m]) / (4 * q[i])
-    q /= np.linalg.norm(q)
-    return -q if q[3] < 0 else q
+                  canonical_xyzw(rotation), rotation @ hand.approach)
 
 
 def _xyz(v: np.ndarray, digits: int = 3) -> str:

@@ -22,7 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from planner import assets
-from planner.sim import Body, Sim, pb, pb_to_pose, pose_to_pb, quaternion_xyzw
+from planner.geometry.quaternion import quaternion_xyzw
+from planner.sim import Body, Sim, pb, pb_to_pose, pose_to_pb
 
 #: [kg m^2] smallest principal moment given to PyBullet: a flat part's eigen
 #: solver may return 0 (or -1e-20), which PyBullet rejects.

@@ -34,7 +34,10 @@ from planner.sim.mujoco_mjcf import HAND_BASE, HAND_BITS, OBJECT, TARGET, Builde
 from planner.specs.hands import HandSpec
 from planner.validation.mujoco_settings import Engine
 
-__all__ = ["OBJECT", "TARGET", "Engine", "Solid", "World", "build"]
+__all__ = ["OBJECT", "TARGET", "VERSION", "Engine", "Solid", "World", "build"]
+
+#: The MuJoCo release the trials run on (stored with each trial's settings).
+VERSION: str = mujoco.__version__
 
 log = logging.getLogger(__name__)
 # MuJoCo's warnings (a diverged state it resets, a full contact buffer) go to the log, not to stdout and a

@@ -36,6 +36,7 @@ from planner.specs.objects import (
     RANDOM_PREFIX,
     Physical,
     builtin_specs,
+    is_registered,
     resolve_spec,
 )
 
@@ -78,11 +79,16 @@ def _expand_plain(arg: str, scale: float | None) -> list[ObjectRef]:
         return [ObjectRef(name) for name in builtin_specs()]
     if arg.startswith("builtin:random"):
         return [ObjectRef(f"{RANDOM_PREFIX}{i:03d}") for i in _random_range(arg)]
+    if arg.startswith("builtin:"):
+        if not is_registered(arg[len("builtin:"):]):
+            raise InputError(f"'{arg}': no built-in object of that name (see `grasp objects`)")
+        return [ObjectRef(arg[len("builtin:"):])]
     path = Path(arg).expanduser()
     if path.is_dir():
         files = sorted(p for p in path.rglob("*") if p.suffix.lower() in MESH_SUFFIXES and p.is_file())
         if not files:
-            raise InputError(f"{path}: folder holds no mesh files ({', '.join(MESH_SUFFIXES)})")
+            also = f"; for the built-in object of that name write builtin:{arg}" if is_registered(arg) else ""
+            raise InputError(f"{path}: folder holds no mesh files ({', '.join(MESH_SUFFIXES)}){also}")
         return [ObjectRef(str(p.resolve()), scale) for p in files]
     if any(c in arg for c in "*?["):
         files = sorted(Path(p) for p in glob.glob(str(path), recursive=True)
@@ -175,27 +181,34 @@ def _manifest_line(tokens: list[str], where: str, folder: Path, scale: float | N
 def _unique_labels(refs: list[ObjectRef]) -> list[ObjectRef]:
     """Drop repeats; give mesh files sharing a stem distinct names: their
     parent folders prefixed until the names differ, and the file's suffix
-    kept where only it differs (``part.obj``, ``part.stl``)."""
+    kept where only it differs (``part.obj``, ``part.stl``). A file whose
+    stem no other file of the run shares keeps its stem alone."""
     seen: dict[tuple[str, float | None, Physical], ObjectRef] = {}
     for ref in refs:
         seen.setdefault((ref.source, ref.scale, ref.physical), ref)
     refs = list(seen.values())
     files = {r.source: _absolute(r.source) for r in refs if Path(r.source).suffix.lower() in MESH_SUFFIXES}
-    paths = sorted(set(files.values()))  # one file given two ways (./m/a.obj, m/a.obj) is one path
+    by_stem: dict[str, list[Path]] = {}
+    for path in sorted(set(files.values())):  # one file given two ways (./m/a.obj, m/a.obj) is one path
+        by_stem.setdefault(path.stem, []).append(path)
+    labels = {p: label for group in by_stem.values() for p, label in _apart(group).items()}
+    if len(set(labels.values())) < len(labels):  # a prefixed name met another file's (part.obj.stl): all at once
+        labels = _apart(list(labels))
+    if all(label == p.stem for p, label in labels.items()):
+        return refs
+    return [replace(r, label=labels[files[r.source]]) if r.source in files else r for r in refs]
+
+
+def _apart(paths: list[Path]) -> dict[Path, str]:
+    """Distinct labels of ``paths``: the fewest parent folders prefixed, then the suffix kept too; the whole
+    paths where neither tells them apart (the same folders and name under two roots: two Windows drives)."""
     deepest = max((len(_folders(p)) for p in paths), default=0)
     for suffix in (False, True):
         for depth in range(deepest + 1):
             labels = {p: _label(p, depth, suffix) for p in paths}
             if len(set(labels.values())) == len(labels):
-                break
-        else:
-            continue
-        break
-    else:  # the same folders and name under two roots (two Windows drives): the whole paths
-        labels = {p: str(p) for p in paths}
-    if depth == 0 and not suffix:
-        return refs
-    return [replace(r, label=labels[files[r.source]]) if r.source in files else r for r in refs]
+                return labels
+    return {p: str(p) for p in paths}
 
 
 def _absolute(source: str) -> Path:

@@ -71,7 +71,7 @@ import numpy as np
 from planner.geometry.frames import resting_up
 from planner.geometry.solid import PreparedObject
 from planner.record.grasp import Grasp, Trial
-from planner.sim.mujoco_world import World
+from planner.sim.mujoco_world import VERSION, World
 from planner.specs.hands import HandSpec
 from planner.validation import fingers as fg
 from planner.validation.mujoco_fingers import (
@@ -107,11 +107,9 @@ MAX_PROBES = 40
 
 def recorded(settings: MujocoSettings, hand: HandSpec) -> str:
     """What decides a hand's MuJoCo trials, as stored with each result (JSON)."""
-    import mujoco
-
     torsion = {link: m.torsion_radius for link, m in sorted(hand.contacts.items()) if m.model == "soft"}
     worm = {} if hand.actuators.backdrivable else {"worm_gear": {"motor_stalls_with_finger": True, "ratchet": RATCHET}}
-    return json.dumps({"engine": "mujoco", "mujoco": mujoco.__version__, **asdict(settings), "hand": hand.name,
+    return json.dumps({"engine": "mujoco", "mujoco": VERSION, **asdict(settings), "hand": hand.name,
                        "actuators": asdict(hand.actuators), "breakaway": [j.name for j in hand.joints if j.breakaway],
                        "breakaway_effort": BREAKAWAY, "torsion_radius": torsion, **worm}, sort_keys=True)
 

@@ -180,17 +180,19 @@ def test_an_unreachable_pose_explains_the_miss(box_db: Path) -> None:
                    "nearest ranks tried #1: ", "of 4 tried: ", "--max-candidates 40")
 
 
-def test_quaternion_matches_scipy() -> None:
+def test_quaternions_match_scipy() -> None:
     from scipy.spatial.transform import Rotation
 
-    from planner.present.describe import quaternion_xyzw
+    from planner.geometry.quaternion import canonical_xyzw, quaternion_xyzw
 
     rotations = Rotation.random(200, random_state=4).as_matrix()
     turns = [Rotation.from_rotvec(v).as_matrix() for v in np.pi * np.eye(3)]  # half turns: w = 0
     for r in [*rotations, *turns, np.eye(3)]:
-        q = quaternion_xyzw(r)
+        q = canonical_xyzw(r)
         assert np.allclose(Rotation.from_quat(q).as_matrix(), r, atol=1e-12)
         assert np.isclose(np.linalg.norm(q), 1.0) and q[3] >= 0
+        assert np.allclose(Rotation.from_quat(quaternion_xyzw(r)).as_matrix(), r, atol=1e-12)  # the simulators'
+        assert np.isclose(np.linalg.norm(quaternion_xyzw(r)), 1.0, atol=1e-12)
 
 
 def test_hand_frame_reads_what_load_hand_reads() -> None:

@@ -270,7 +270,7 @@ def read_moveit(out: Path) -> dict:
     effector's times the hand's mount; joints from the two postures."""
     import yaml
 
-    from planner.present.describe import quaternion_xyzw
+    from planner.geometry.quaternion import canonical_xyzw
 
     rows = {}
     for hand in hand_names():
@@ -281,7 +281,7 @@ def read_moveit(out: Path) -> dict:
             ee = np.eye(4)
             ee[:3, 3] = [p["x"], p["y"], p["z"]]
             ee[:3, :3] = _matrix(np.array([o["x"], o["y"], o["z"], o["w"]]))
-            assert np.allclose(quaternion_xyzw(ee[:3, :3]), [o["x"], o["y"], o["z"], o["w"]], atol=1e-9)
+            assert np.allclose(canonical_xyzw(ee[:3, :3]), [o["x"], o["y"], o["z"], o["w"]], atol=1e-9)
             pose = ee @ (np.eye(4) if spec.arm is None else spec.arm.mount)
             joints = [dict(zip(msg[k]["joint_names"], msg[k]["points"][0]["positions"]))
                       for k in ("pre_grasp_posture", "grasp_posture")]

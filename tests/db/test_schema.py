@@ -106,3 +106,8 @@ def test_version_2_trials_read_back_with_an_unknown_reason(tmp_path: Path) -> No
         assert db.validated()[0].measures is None  # v3 and v4 measures: not measured
     assert len(list(tmp_path.glob("v2.db.v2.*.bak"))) == 1
 
+
+
+def test_the_readme_gives_the_schema_version() -> None:
+    readme = (Path(__file__).parents[2] / "README.md").read_text(encoding="utf-8")
+    assert f"Schema version {SCHEMA_VERSION};" in readme

@@ -9,6 +9,7 @@ import trimesh
 
 from planner.errors import InputError
 from planner.specs import inputs
+from planner.specs.objects import resolve_spec
 
 
 def test_inputs_expand_folders_globs_manifests_and_builtins(tmp_path: Path) -> None:
@@ -44,8 +45,7 @@ def test_files_differing_only_in_suffix_keep_it_in_their_names(tmp_path: Path) -
     (tmp_path / "deeper").mkdir()
     box.export(tmp_path / "deeper" / "part.obj")
     names = sorted(r.name for r in inputs.expand([str(tmp_path)]))
-    assert names == ["deeper/part.obj", f"{tmp_path.name}/other.obj", f"{tmp_path.name}/part.obj",
-                     f"{tmp_path.name}/part.stl"]
+    assert names == ["deeper/part.obj", "other", f"{tmp_path.name}/part.obj", f"{tmp_path.name}/part.stl"]
     assert not any(n.startswith("/") for n in names)
     assert sorted(r.name for r in inputs.expand([str(tmp_path / "part.obj"), str(tmp_path / "other.obj")])) == [
         "other", "part"]  # no shared stem: the stems alone
@@ -84,3 +84,25 @@ def test_an_empty_manifest_name_names_its_line(tmp_path: Path) -> None:
     manifest.write_text('box\n"" 0.5\n')
     with pytest.raises(InputError, match=r"list.txt:2: expected .* \(an empty object\)"):
         inputs.expand([f"@{manifest}"])
+
+
+def test_only_files_sharing_a_stem_get_folders_in_their_names(tmp_path: Path) -> None:
+    box = trimesh.creation.box(extents=[0.03, 0.03, 0.03])
+    for rel in ("cube.obj", "a/part.obj", "b/part.obj", "a/deep/x/bolt.obj", "b/deep/x/bolt.obj", "part.obj.stl"):
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        box.export(tmp_path / rel)
+    names = sorted(r.name for r in inputs.expand([str(tmp_path)]))
+    assert names == ["a/deep/x/bolt", "a/part", "b/deep/x/bolt", "b/part", "cube", "part.obj"]
+
+
+def test_a_folder_named_like_a_builtin_is_a_folder_and_builtin_names_the_builtin(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    (tmp_path / "box").mkdir()
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(InputError, match="folder holds no mesh files .*; for the built-in object of that name "
+                                         "write builtin:box"):
+        inputs.expand(["box"])
+    assert [r.name for r in inputs.expand(["builtin:box"])] == ["box"]
+    assert resolve_spec(inputs.expand(["builtin:box"])[0].source).kind == "box"  # the primitive, not the folder
+    with pytest.raises(InputError, match="no built-in object of that name"):
+        inputs.expand(["builtin:boxx"])
