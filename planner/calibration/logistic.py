@@ -288,7 +288,7 @@ def properties(item: object) -> dict[str, float]:
 def outside(domain: Mapping[str, tuple[float, float]], properties: Mapping[str, float]) -> list[str]:
     """Where an object (``properties``: names of :data:`DOMAIN` -> value)
     lies outside a model's ``domain`` (:attr:`LogisticModel.domain`), one text
-    per property, e.g. ``density 1,320 kg/m^3 (labels: 150 kg/m^3)``; [] inside
+    per property, e.g. ``density 1,322 kg/m^3 (labels: 150 kg/m^3)``; [] inside
     (within :data:`DOMAIN_SLACK`) or where the domain is not known."""
     out = []
     for name, (low, high) in domain.items():

@@ -50,7 +50,7 @@ This project's extras (a foreign reader ignores them): ``object/name``,
 scale), ``object/mesh_sha256`` (:func:`planner.geometry.mesh.mesh_hash` of
 the mesh), ``object/p_hold_outside`` (str: where the object lies outside
 the labelled objects the hand's p_hold model was fitted on, e.g. ``density
-1,320 kg/m^3 (labels: 150-157 kg/m^3); friction 0.5 (labels: 1)``; '' inside:
+1,322 kg/m^3 (labels: 150-157 kg/m^3); friction 0.5 (labels: 1)``; '' inside:
 there p_hold, and a label taken from it, is an extrapolation);
 ``gripper/configuration_joints``;
 ``grasps/qualities/{epsilon, volume, force_closure, reachability,

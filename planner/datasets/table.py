@@ -45,7 +45,7 @@ EXPORT_COLUMNS = (("object_scale", "float64", "scale that turns `object_file` in
                    "trial's verdict, >= 0.5), `trial` (the dynamic trial: MuJoCo's, else PyBullet's), `p_hold` "
                    "(p_hold >= 0.5) or `force_closure` (a closure flag, not a success label)"),
                   ("p_hold_outside", "string", "where the object lies outside the labelled objects the hand's "
-                   "p_hold model was fitted on (`density 1,320 kg/m^3 (labels: 150-157 kg/m^3); friction 0.5 "
+                   "p_hold model was fitted on (`density 1,322 kg/m^3 (labels: 150-157 kg/m^3); friction 0.5 "
                    "(labels: 1)`); empty inside: there p_hold, and a label from it, is an extrapolation"))
 
 
