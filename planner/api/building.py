@@ -22,9 +22,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from planner.api.resolving import DEFAULT_DB, PROPERTY_RTOL
-from planner.db.lock import writer_lock
 from planner.db.ranking import RankingRule
-from planner.db.store import Database, UnitRow, open_db
+from planner.db.store import Database, UnitRow, open_for_writing
 from planner.errors import InputError
 from planner.plan.sweep import SweepSettings, candidate_count
 from planner.specs.hands import load_hand
@@ -238,7 +237,7 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
     units = plan_units(names, hand, settings, seed, scale, physical, on_table)
     summary = Summary()
     start = time.perf_counter()
-    with writer_lock(Path(db_path)), open_db(Path(db_path)) as db:
+    with open_for_writing(Path(db_path)) as db:
         done = {d: db.units_done(hand, d, seed) for d in sorted({u.settings.digest for u in units})}
         todo = [u for u in units if (u.label, u.chunk) not in done[u.settings.digest]]
         _check_stored(db, units, todo)

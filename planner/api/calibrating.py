@@ -11,8 +11,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from planner.api.resolving import DEFAULT_DB
-from planner.db.lock import writer_lock
-from planner.db.store import open_db
+from planner.db.store import open_for_writing
 from planner.errors import InputError
 
 if TYPE_CHECKING:
@@ -68,7 +67,7 @@ def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB,
                          **({"trial": trial, "engine": engine} if trial else {})}, sort_keys=True)
     result = fit_calibration(data, folds=folds, source=source, trees=DEFAULT_TREES if trees else None)
     if db_path is not None:
-        with writer_lock(Path(db_path)), open_db(Path(db_path)) as db:
+        with open_for_writing(Path(db_path)) as db:
             db.write_model(result.model, source, db.rule())
     if model_out is not None:
         Path(model_out).write_text(result.model.to_toml(), encoding="utf-8")

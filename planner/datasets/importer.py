@@ -59,9 +59,8 @@ import numpy as np
 from planner.datasets import formats
 from planner.datasets.acronym import AcronymHeader
 from planner.datasets.registry import Reader
-from planner.db.lock import writer_lock
 from planner.db.ranking import RankingRule
-from planner.db.store import Database, UnitRow, Validated, open_db
+from planner.db.store import Database, UnitRow, Validated, open_for_writing
 from planner.errors import InputError
 from planner.geometry.frames import approach_of
 from planner.geometry.solid import PreparedObject, prepare
@@ -153,7 +152,7 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
         if progress:
             progress(result)
 
-    with writer_lock(Path(db_path)), open_db(Path(db_path)) as db:
+    with open_for_writing(Path(db_path)) as db:
         _check_objects(db, plans)
         rule = db.rule()
         db.apply_rule(rule)

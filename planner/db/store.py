@@ -22,7 +22,7 @@ import sqlite3
 import time
 from collections import Counter
 from collections.abc import Iterable, Iterator
-from contextlib import contextmanager
+from contextlib import closing, contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -46,6 +46,7 @@ from planner.db.columns import (  # noqa: F401 - VECTOR_DIGITS, INERTIA_DIGITS, 
     json_list,
 )
 from planner.db.failures import _reads, read_failed, write_failed  # noqa: F401 - the failures re-exported
+from planner.db.lock import writer_lock
 from planner.db.ranking import RankingRule
 from planner.db.rows import ObjectRow, UnitRow, Validated  # noqa: F401 - re-exported
 from planner.db.schema import (
@@ -324,29 +325,57 @@ def _own(f: Field, col: dict, n: int) -> Iterable:
     return _decoded(f, col[f.column])
 
 
+@contextmanager
+def open_for_writing(path: Path, *, create: bool = True) -> Iterator[Database]:
+    """The database under its writer lock (:func:`~planner.db.lock.writer_lock`). A file that is not a grasp
+    database is refused before the lock is taken and before anything is set in it: no lock file beside
+    another application's SQLite file, and its journal mode as it was."""
+    path = Path(path)
+    if not create and not path.exists():
+        raise DatabaseError(_missing(path))
+    if path.is_file() and path.stat().st_size > 0:
+        _check_header(path)
+        try:
+            with closing(sqlite3.connect(f"file:{path}?mode=ro", uri=True, timeout=BUSY_TIMEOUT_S)) as conn:
+                conn.row_factory = sqlite3.Row
+                schema_version(conn, path)
+        except sqlite3.DatabaseError as exc:
+            raise DatabaseError(f"{path}: cannot open database: {exc}") from exc
+    with writer_lock(path), open_db(path, create=create) as db:
+        yield db
+
+
+def _missing(path: Path) -> str:
+    return f"{path}: no such database; run `grasp generate ... --db {path}` first"
+
+
+def _check_header(path: Path) -> None:
+    with path.open("rb") as fh:
+        if fh.read(16) != b"SQLite format 3\x00":
+            raise DatabaseError(f"{path}: not an SQLite database; pick another --db path")
+
+
 def open_db(path: Path, *, create: bool = True, readonly: bool = False) -> Database:
     """Open (or create) a grasp database, checking what the file is first."""
     path = Path(path)
     exists = path.exists()
     if not exists and not create:
-        raise DatabaseError(f"{path}: no such database; run `grasp generate ... --db {path}` first")
+        raise DatabaseError(_missing(path))
     if exists and path.is_dir():
         raise DatabaseError(f"{path}: is a folder, not a database file")
     if exists and path.stat().st_size > 0:
-        with path.open("rb") as fh:
-            if fh.read(16) != b"SQLite format 3\x00":
-                raise DatabaseError(f"{path}: not an SQLite database; pick another --db path")
+        _check_header(path)
     if not exists and not path.parent.exists():
         raise DatabaseError(f"{path}: folder {path.parent} does not exist")
     try:
         uri = f"file:{path}?mode=ro" if readonly else f"file:{path}"
         conn = sqlite3.connect(uri, uri=True, timeout=BUSY_TIMEOUT_S, isolation_level=None)
         conn.row_factory = sqlite3.Row
+        version = schema_version(conn, path)  # before anything is set: another application's file stays as it is
         if not readonly:
             conn.execute("PRAGMA journal_mode = WAL")
             conn.execute("PRAGMA synchronous = NORMAL")
         conn.execute("PRAGMA foreign_keys = ON")
-        version = schema_version(conn, path)
     except sqlite3.DatabaseError as exc:
         raise DatabaseError(f"{path}: cannot open database: {exc}") from exc
     if version > SCHEMA_VERSION:

@@ -21,10 +21,9 @@ from pathlib import Path
 import numpy as np
 
 from planner import prepare
-from planner.db.lock import writer_lock
 from planner.db.objects import stored_object
 from planner.db.ranking import RankingRule
-from planner.db.store import Database, ObjectRow, Validated, open_db
+from planner.db.store import Database, ObjectRow, Validated, open_for_writing
 from planner.errors import InputError, PlannerError
 from planner.record.grasp import Grasp, RobustEpsilon, Trial
 from planner.run import pool
@@ -289,7 +288,7 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
     trial_settings = settings or (MujocoSettings() if engine == "mujoco" else ShakeSettings())
     noise = NoiseSettings(samples=robust_samples) if robust_samples > 0 else None
     summary = ValidationSummary()
-    with writer_lock(Path(db_path)), open_db(Path(db_path), create=False) as db:
+    with open_for_writing(Path(db_path), create=False) as db:
         rule = db.rule()
         _rerank_unranked(db, rule)  # verdicts of a run killed before it re-ranked them
         kept: list[Grasp] = []

@@ -36,6 +36,25 @@ def test_foreign_sqlite_is_refused(tmp_path: Path) -> None:
         open_db(path)
 
 
+@pytest.mark.parametrize("command", [["generate", "box", "--hand", "panda", *FAST], ["validate"]])
+def test_another_applications_sqlite_file_is_left_as_it_was(tmp_path: Path, command: list[str]) -> None:
+    """Refused before anything is set in it (its journal mode) or made beside it (the writer's lock file)."""
+    path = tmp_path / "other.db"
+    with sqlite3.connect(path) as conn:
+        conn.execute("CREATE TABLE t (x)")
+    before = path.read_bytes()
+    code, _, err = grasp(*command, "--db", str(path))
+    one_line_error(code, err, 3, "an SQLite file, but not a grasp database")
+    assert path.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["other.db"]
+
+
+def test_validate_on_a_missing_database_makes_no_lock_file(tmp_path: Path) -> None:
+    code, _, err = grasp("validate", "--db", str(tmp_path / "none.db"))
+    one_line_error(code, err, 3, "no such database")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_newer_schema_refuses_politely(tmp_path: Path) -> None:
     path = tmp_path / "new.db"
     open_db(path).close()
