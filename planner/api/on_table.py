@@ -91,9 +91,9 @@ def best_on_table(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int 
     with open_db(Path(db_path), create=False, readonly=True) as db, db.snapshot(), Sim() as sim:
         key, obj = _stored(db, name, hand)
         scene = ReachScene(sim, spec, obj, ReachSettings(table_height=table_height), base)
-        rng = np.random.default_rng(seed)
         for resting in resting_poses(obj.mesh, obj.com, poses):
             pose = resting.placed(xy[0], xy[1], table_height)
+            rng = np.random.default_rng(seed)  # each pose as best_at(..., seed) finds it: its --object-pose repeats it
             misses: list[tuple[int, str]] = []
             found = _reachable(db, scene, key, hand, pose, top, max_candidates, rng, misses)
             if plan and _closures(found) < top:

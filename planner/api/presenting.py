@@ -28,8 +28,8 @@ def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: i
     ``spacing``, the K best diverse ones) to a PNG."""
     from planner.present import render  # matplotlib: only for pictures
 
-    count = top or 1
-    first = 1 if top else rank
+    count = 1 if top is None else top
+    first = 1 if top is not None else rank
     if count < 1 or first < 1:
         raise InputError("--rank and --top must be at least 1")
     spec = load_hand(hand)

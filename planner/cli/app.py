@@ -9,7 +9,7 @@ import os
 import sqlite3
 import sys
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -136,9 +136,21 @@ def diverse_options(command):  # type: ignore[no-untyped-def]
                         "--min-rotation degrees from every better one listed.")(command)
 
 
+def unused(names: Sequence[str], why: str) -> None:
+    """Refuse the options ``names`` (parameter names) where given on the command line: this call would not read
+    them (``why``: "need --on-table", say). An option left at its default says nothing and passes."""
+    ctx = click.get_current_context()
+    given = [p for p in ctx.command.params if p.name in names and
+             ctx.get_parameter_source(p.name) is click.core.ParameterSource.COMMANDLINE]
+    if given:
+        flags = " and ".join(p.opts[0] for p in given)
+        raise click.UsageError(f"{flags} {'do' if len(given) > 1 else 'does'} nothing here: {why}")
+
+
 def spacing(diverse: bool, min_translation: float, min_rotation: float):  # type: ignore[no-untyped-def]
     """The :class:`~planner.db.diverse.Spacing` the options ask for, or None."""
     if not diverse:
+        unused(["min_translation", "min_rotation"], "used with --diverse only")
         return None
     from planner.db.diverse import Spacing
 

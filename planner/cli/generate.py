@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from planner import api
-from planner.cli.app import db_option, echo_json, floats, report_failures
+from planner.cli.app import db_option, echo_json, floats, report_failures, unused
 
 DEFAULTS = api.SweepSettings()
 
@@ -89,6 +89,8 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
     [friction=MU]), builtin:all, builtin:random[:COUNT | :FIRST-LAST]. A mesh
     file's sidecar (banana.obj + banana.toml) may give mass or density and friction.
     """
+    if not on_table:
+        unused(["stable_poses"], "used with --on-table only")
     settings = api.SweepSettings(approaches=approaches, sampler=sampler, box_delta=box_delta, rolls=rolls,
                                  depths=floats(depths) or DEFAULTS.depths, fan_count=fan_count,
                                  standoffs=floats(standoffs), chunk=chunk, reach_placements=reach_placements,

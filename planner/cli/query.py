@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from planner import api
-from planner.cli.app import db_option, diverse_options, echo_json, floats, spacing
+from planner.cli.app import db_option, diverse_options, echo_json, floats, spacing, unused
 from planner.errors import NotFoundError
 from planner.specs.hands import hand_frame
 
@@ -47,11 +47,15 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
     rule = api.ranking_rule(db_path) if explain else None
     model = api.p_hold_model(hand, db_path=db_path) if explain else None
     apart = spacing(diverse, min_translation, min_rotation)
+    if not on_table:
+        unused(["table_at", "stable_poses"], "used with --on-table only")
+        if object_pose is None:
+            unused(["max_candidates", "plan", "seed"], "used with --object-pose or --on-table only")
     if on_table:
         if object_pose is not None or apart is not None:
             raise click.BadParameter("--on-table chooses the object pose itself: leave out --object-pose, --diverse")
         _on_table(object_name, hand, db_path, top, table_at, stable_poses, robot_base, max_candidates, as_json, plan,
-                  seed)
+                  seed, rule, model)
         return
     if object_pose is None:
         if robot_base is not None:
@@ -136,6 +140,8 @@ def _frames_json(g: api.Grasp, world: object = None, rule: object = None, model:
 def show(object_name: str, hand: str, db_path: Path, rank: int, top: int | None, out: Path, diverse: bool,
          min_translation: float, min_rotation: float) -> None:
     """Render grasps (hand closed on the object, contacts, friction cones) to a PNG."""
+    if top is not None:
+        unused(["rank"], "--top draws the K best instead")
     grasps = api.show(object_name, hand, out, db_path=db_path, rank=rank, top=top,
                       spacing=spacing(diverse, min_translation, min_rotation))
     click.echo(f"{out}: {len(grasps)} grasp(s) from {len(grasps) and 3} viewpoints")
@@ -161,19 +167,23 @@ def _misses(misses: list[tuple[int, str]]) -> str:
 
 
 def _on_table(name: str, hand: str, db_path: Path, top: int, table_at: str, poses: int, robot_base: str | None,
-              max_candidates: int, as_json: bool, plan: bool, seed: int) -> None:
+              max_candidates: int, as_json: bool, plan: bool, seed: int, rule: object, model: object) -> None:
     tables = api.best_on_table(name, hand, db_path=db_path, top=top, at=floats(table_at) or (), poses=poses,
                                robot_base=floats(robot_base), max_candidates=max_candidates, plan=plan, seed=seed)
     if as_json:
-        echo_json([t.to_json() for t in tables])
+        outside = api.p_hold_outside(name, hand, db_path=db_path)
+        echo_json([{**t.to_json(), "grasps": [{**r.to_json(), "frames": _frames_json(r.grasp, t.object_pose, rule,
+                                                                                       model)} for r in t.grasps],
+                    "p_hold_outside": outside} for t in tables])
     for i, t in enumerate(tables if not as_json else ()):
-        pose = ",".join(f"{v:.4f}" for v in t.object_pose7())
+        pose = ",".join(repr(v) for v in t.object_pose7())  # whole: the same command with it repeats the search
         click.echo(f"resting pose {i + 1} of {len(tables)} (probability {t.resting.probability:.2f}): "
                    f"--object-pose {pose}")
         if not t.grasps:
             click.echo(f"    no grasp among the top {max_candidates} is reachable ({_misses(t.misses)})")
         for r in t.grasps:
-            _print_grasp(r.grasp, t.object_pose, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp})
+            _print_grasp(r.grasp, t.object_pose, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp}, rule,
+                         model)
     if not any(t.grasps for t in tables):
         planned = any(api.planned_on_table(name, hand, t.object_pose7(), db_path=db_path) for t in tables)
         table = "" if planned else f", or grasps planned on the table (`{api.table_command(name, hand, db_path)}`)"

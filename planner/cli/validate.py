@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from planner import api
-from planner.cli.app import db_option, echo_json, report_failures, show_preparation
+from planner.cli.app import db_option, echo_json, report_failures, show_preparation, unused
 from planner.validation.mujoco_settings import DEFAULT_ENGINE, ENGINES
 
 
@@ -23,7 +23,7 @@ from planner.validation.mujoco_settings import DEFAULT_ENGINE, ENGINES
 @click.option("--all", "every", is_flag=True, help="Instead: every stored grasp.")
 @click.option("--force-closure", "closure_only", is_flag=True,
               help="With --all or --sample: of the force-closure grasps only.")
-@click.option("--robust", "robust_samples", type=int, default=10, show_default=True,
+@click.option("--robust", "robust_samples", type=click.IntRange(min=0), default=10, show_default=True,
               help="Noise samples for robust epsilon (0: skip).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of --sample and of the robust noise.")
 @click.option("--engine", type=click.Choice(ENGINES), default=DEFAULT_ENGINE, show_default=True,
@@ -39,6 +39,10 @@ def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], to
 
     The first run on a concave mesh decomposes it into convex parts (CoACD, seconds to minutes,
     cached afterwards); a line on stderr says when that starts and ends."""
+    if sample is not None or every:
+        unused(["top"], "--sample and --all choose the grasps instead")
+    else:
+        unused(["closure_only"], "used with --all or --sample only (--top's grasps are force closure)")
     show_preparation(not as_json)
     summary = api.validate(db_path, objects=list(objects) or None, hands=list(hands) or None, top=top,
                            sample=sample, every=every, robust_samples=robust_samples, seed=seed, workers=workers,

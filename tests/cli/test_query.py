@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -161,16 +162,48 @@ def test_best_gives_the_frames_people_use(box_db: Path) -> None:
 
 def test_on_table_uses_resting_poses_and_its_pose_reproduces_the_grasp(box_db: Path) -> None:
     code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--on-table", "--stable-poses", "2",
-                           "--max-candidates", "30")
+                           "--max-candidates", "30", "--top", "2")
     assert code == 0, err
-    heads = [line for line in out.splitlines() if line.startswith("resting pose ")]
-    assert len(heads) == 2 and heads[0].startswith("resting pose 1 of 2 (probability ")
-    pose = heads[0].split("--object-pose ")[1]
-    rank = next(line for line in out.splitlines() if line.startswith("#")).split()[0]
-    code, again, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--object-pose", pose,
-                             "--max-candidates", "30")
-    assert code == 0, err
-    assert again.splitlines()[0].split()[0] == rank
+    blocks = out.split("resting pose ")[1:]
+    assert len(blocks) == 2 and blocks[0].startswith("1 of 2 (probability ")
+    for block in blocks:  # every pose, not only the first: each is searched as --object-pose searches it
+        pose = block.splitlines()[0].split("--object-pose ")[1]
+        ranks = [line.split()[0] for line in block.splitlines() if line.startswith("#")]
+        code, again, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--object-pose", pose,
+                                 "--max-candidates", "30", "--top", "2")
+        assert code == 0, err
+        assert [line.split()[0] for line in again.splitlines() if line.startswith("#")] == ranks
+
+
+def test_each_resting_pose_is_searched_from_the_seed(box_db: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The IK restarts of every resting pose start from ``seed``, as ``best_at(..., seed)`` starts: the pose printed
+    with ``--object-pose`` repeats the search (a generator shared by the poses gave pose 2 other grasps)."""
+    from planner.api import on_table, reaching
+
+    states = []
+
+    def recording(*args, **kwargs):  # type: ignore[no-untyped-def]
+        states.append(args[7].bit_generator.state["state"]["state"])
+        found = reaching._reachable(*args, **kwargs)
+        args[7].random()  # as IK restarts draw: whatever a pose draws, the next starts from the seed
+        return found
+
+    monkeypatch.setattr(on_table, "_reachable", recording)
+    api.best_on_table("box", "panda", db_path=box_db, poses=2, top=2, max_candidates=30, seed=5)
+    assert states == [np.random.default_rng(5).bit_generator.state["state"]["state"]] * 2
+
+
+@pytest.mark.parametrize("args, flag", [
+    (["best", "--table-at", "0.4,0"], "--table-at"), (["best", "--seed", "3"], "--seed"),
+    (["best", "--no-plan"], "--plan"), (["best", "--min-translation", "0.1"], "--min-translation"),
+    (["validate", "--top", "2", "--all"], "--top"), (["validate", "--force-closure"], "--force-closure"),
+    (["show", "--rank", "2", "--top", "3"], "--rank"), (["generate", "--stable-poses", "2"], "--stable-poses")])
+def test_an_option_that_would_do_nothing_is_refused(box_db: Path, tmp_path: Path, args: list[str], flag: str) -> None:
+    db = tmp_path / "copy.db"
+    shutil.copy(box_db, db)
+    where = [] if args[0] == "validate" else ["box", "--hand", "panda"]
+    code, _, err = grasp(args[0], *where, *args[1:], "--db", str(db))
+    one_line_error(code, err, 2, f"{flag} does nothing here: ")
 
 
 def test_an_unreachable_pose_explains_the_miss(box_db: Path) -> None:
