@@ -230,6 +230,8 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
 
     if workers < 1:
         raise InputError(f"--workers must be at least 1, got {workers}")
+    if unit_timeout is not None and not (math.isfinite(unit_timeout) and unit_timeout > 0):
+        raise InputError(f"--unit-timeout must be a positive number of seconds, got {unit_timeout}")
     physical = Physical.checked({"mass": mass, "density": density, "friction": friction}, prefix="--")
     hand_spec = load_hand(hand)
     settings = (settings or SweepSettings()).resolved(hand_spec.sampler, hand_spec.settle,

@@ -22,8 +22,13 @@ if TYPE_CHECKING:
     from planner.geometry.solid import PreparedObject
 
 DEFAULT_DB = Path("grasps.db")
-#: A typed quaternion whose norm lies outside this range is a mistake, not round-off.
-QUATERNION_NORM = (0.5, 2.0)
+#: A typed quaternion whose norm lies outside this range is a mistake (a component missing or wrong, the w-first
+#: order of another tool is still unit: see the troubleshooting table), not the round-off of its printed digits
+#: (4 decimals: ~1e-4); inside it, it is normalised.
+QUATERNION_NORM = (0.99, 1.01)
+#: [m] A typed position farther than this from the origin is a mistake (an arm reaches metres); beyond it the
+#: reachability search would run on numbers too large for it (1e308 ran for more than 10 minutes).
+MAX_DISTANCE = 1000.0
 #: Stored object names an "unknown object" error lists at most.
 LISTED_NAMES = 12
 
@@ -93,9 +98,13 @@ def _pose7(values: Sequence[float], option: str) -> np.ndarray:
     vals = [float(v) for v in values]
     if len(vals) != 7 or not all(np.isfinite(vals)):
         raise InputError(f"{option} needs 7 finite numbers x,y,z,qx,qy,qz,qw; got {values}")
+    if np.linalg.norm(vals[:3]) > MAX_DISTANCE:
+        raise InputError(f"{option}: position {vals[:3]} lies more than {MAX_DISTANCE:g} m from the origin; give "
+                         "metres")
     q = np.array(vals[3:])
     lo, hi = QUATERNION_NORM
     if not lo < np.linalg.norm(q) < hi:
-        raise InputError(f"{option}: quaternion {vals[3:]} is not close to unit length")
+        raise InputError(f"{option}: quaternion {vals[3:]} has length {np.linalg.norm(q):.4g}, not 1 (within "
+                         f"{hi - 1:.0%}); give x,y,z,qx,qy,qz,qw with a unit quaternion")
     vals[3:] = list(q / np.linalg.norm(q))
     return pose_from_xyzquat(vals)

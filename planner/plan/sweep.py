@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import zlib
-from collections.abc import Collection
+from collections.abc import Collection, Sequence
 from dataclasses import asdict, dataclass, replace
 from itertools import product
 from typing import TYPE_CHECKING
@@ -140,10 +141,13 @@ class SweepSettings:
                 or self.pregrasp_distance < 0 or self.fc_budget < 0:
             raise InputError("chunk, reach placements, reach top, pre-grasp distance and the force-closure budget "
                              "must be >= 0")
-        if self.standoffs is not None and (not self.standoffs or min(self.standoffs) < 0):
-            raise InputError("standoffs must be non-negative distances in metres")
-        if not self.depths or min(self.depths) < 0:
-            raise InputError("depths must be non-negative distances in metres")
+        if self.standoffs is not None and not _distances(self.standoffs):
+            raise InputError(f"--standoffs must be non-negative distances in metres, got {list(self.standoffs)}")
+        if not _distances(self.depths):
+            raise InputError(f"--depths must be non-negative distances in metres, got {list(self.depths)}")
+        if not (math.isfinite(self.box_delta) and self.box_delta > 0) or not _distances([self.pregrasp_distance]):
+            raise InputError(f"--box-delta must be a positive distance in metres (got {self.box_delta}), the "
+                             f"pre-grasp distance a non-negative one (got {self.pregrasp_distance})")
         if self.sampler == "antipodal" and self.fan_count:
             raise InputError("--fan tilts approach rays: it needs the surface or box sampler")
         if self.table_plane is not None:
@@ -329,3 +333,8 @@ def candidate_count(settings: SweepSettings, shapes: tuple[Preshape, ...], chunk
     points += settings.above_rays(chunk)
     per_ray = sum(len(settings.standoffs or shape.standoffs) for shape in shapes)
     return points * settings._resolved_field("rolls") * per_ray
+
+
+def _distances(values: Sequence[float]) -> bool:
+    """At least one value, each finite and >= 0 [m]."""
+    return bool(len(values)) and all(math.isfinite(v) and v >= 0 for v in values)

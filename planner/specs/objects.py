@@ -227,8 +227,13 @@ def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = 
         spec = builtin[name]
         if scale is not None and spec.kind in ("mesh", "urdf"):
             spec = replace(spec, scale=spec.scale * scale)
+        elif scale is not None and scale != 1:
+            raise InputError(f"object '{name}': --scale applies to meshes; {name} is a primitive of fixed size "
+                             f"({spec.description}): for another size give a mesh file (trimesh.creation makes one)")
     elif _random_index(name) is not None:
         spec = random_spec(_random_index(name))  # type: ignore[arg-type]
+        if scale is not None:
+            spec = replace(spec, scale=spec.scale * scale)
     elif Path(name).suffix.lower() in MESH_SUFFIXES or Path(name).exists():
         path = Path(name).expanduser().resolve()
         spec = ObjectSpec(name=path.stem, kind="mesh", source=str(path), scale=1.0 if scale is None else scale)

@@ -95,6 +95,13 @@ def test_scale_zero_is_refused_like_a_negative_one(brick: Path) -> None:
             resolve_spec("box", scale=scale)
 
 
+def test_scale_applies_to_random_objects_and_is_refused_for_primitives() -> None:
+    assert resolve_spec("random_005", scale=2.0).scale == 2.0 * resolve_spec("random_005").scale
+    assert resolve_spec("box", scale=1.0).dims == resolve_spec("box").dims
+    with pytest.raises(InputError, match="--scale applies to meshes; box is a primitive of fixed size"):
+        resolve_spec("box", scale=2.0)
+
+
 def test_manifest_columns(tmp_path: Path, brick: Path) -> None:
     (tmp_path / "objects.txt").write_text(
         "brick.obj 0.5 mass=0.066 friction=0.8  # scale, then columns\n"
