@@ -108,6 +108,25 @@ def _num(value: float | None, fmt: str) -> str:
     return "n/a" if value is None else format(value, fmt)
 
 
+def _check_address(host: str, port: int) -> None:
+    """Refuse what viser's server thread would fail on while the caller waits for it forever: a port outside
+    0-65535, a host that names no address of this machine. (A port in use is fine: viser takes the next free
+    one.)"""
+    import socket
+
+    from planner.errors import InputError
+
+    if not 0 <= port <= 65535:
+        raise InputError(f"--port must be within 0-65535, got {port}")
+    try:
+        family, kind, _, _, address = socket.getaddrinfo(host, 0, type=socket.SOCK_STREAM)[0]
+        with socket.socket(family, kind) as probe:
+            probe.bind(address)
+    except OSError as exc:
+        raise InputError(f"cannot serve on --host {host}: {exc.strerror or exc} (127.0.0.1: this machine only; "
+                         "0.0.0.0: every interface)") from None
+
+
 @dataclass
 class Viewer:
     """A running viewer: ``url`` to open; :meth:`stop` to end it.
@@ -125,6 +144,7 @@ class Viewer:
     def __post_init__(self) -> None:
         if not self.entries:
             raise ValueError("Viewer needs at least one grasp")
+        _check_address(self.host, self.port)
         with contextlib.redirect_stdout(io.StringIO()):  # viser prints a banner; the CLI prints the address
             self.server = viser.ViserServer(host=self.host, port=self.port, verbose=False)
         self._lock = threading.Lock()

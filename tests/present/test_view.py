@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import grasp, one_line_error
 
 from planner import api
 from planner.present import scene as scenes
@@ -145,3 +146,11 @@ def test_page_loads_in_a_real_browser(box_db: Path, tmp_path: Path) -> None:
     keep = os.environ.get("GRASP_VIEW_SCREENSHOT")
     if keep:  # for looking at it: GRASP_VIEW_SCREENSHOT=/tmp/view.png pytest -k real_browser
         shutil.copy(shot, keep)
+
+
+@pytest.mark.parametrize("option, message", [(["--port", "99999"], "--port must be within 0-65535"),
+                                             (["--host", "10.255.255.1"], "cannot serve on --host 10.255.255.1")])
+def test_an_address_the_server_cannot_take_is_a_one_line_error(box_db: Path, option: list[str], message: str) -> None:
+    """viser's server thread failed on these while the command waited for it forever."""
+    code, _, err = grasp("view", "box", "--hand", "panda", "--db", str(box_db), *option)
+    one_line_error(code, err, 2, message)
