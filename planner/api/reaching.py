@@ -36,6 +36,9 @@ log = logging.getLogger(__package__)
 CANDIDATE_BATCH = 50
 #: ``best_at`` tries at most this many top-ranked grasps by default.
 MAX_CANDIDATES = 300
+#: [m] How far below the table top an object at ``--object-pose`` may reach (round-off of a typed resting pose)
+#: before the pose is refused as one that puts the object through the table.
+BELOW_TABLE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -83,7 +86,14 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
     missed = misses if misses is not None else []
     with open_db(Path(db_path), create=False, readonly=True) as db, db.snapshot(), Sim() as sim:
         key, obj = _stored(db, name, hand)
-        scene = ReachScene(sim, spec, obj, ReachSettings(pregrasp_distance=pregrasp_distance), base)
+        settings = ReachSettings(pregrasp_distance=pregrasp_distance)
+        lowest = float((obj.mesh.vertices @ obj_pose[:3, :3].T)[:, 2].min() + obj_pose[2, 3])
+        if lowest < settings.table_height - BELOW_TABLE:
+            raise InputError(f"--object-pose puts {key} through the table: its lowest point at z = {lowest:.4f} m, "
+                             f"{(settings.table_height - lowest) * 1000:.1f} mm below the table top z = "
+                             f"{settings.table_height:g} (the pose is of the object frame, the mesh's; `grasp best "
+                             f"{key} --hand {hand} --on-table` gives its resting poses on the table)")
+        scene = ReachScene(sim, spec, obj, settings, base)
         rng = np.random.default_rng(seed)
         found = _reachable(db, scene, key, hand, obj_pose, top, max_candidates, rng, missed)
         if plan and _closures(found) < top:

@@ -98,7 +98,7 @@ def _pose7(values: Sequence[float], option: str) -> np.ndarray:
     vals = [float(v) for v in values]
     if len(vals) != 7 or not all(np.isfinite(vals)):
         raise InputError(f"{option} needs 7 finite numbers x,y,z,qx,qy,qz,qw; got {values}")
-    if np.linalg.norm(vals[:3]) > MAX_DISTANCE:
+    if math.hypot(*vals[:3]) > MAX_DISTANCE:
         raise InputError(f"{option}: position {vals[:3]} lies more than {MAX_DISTANCE:g} m from the origin; give "
                          "metres")
     q = np.array(vals[3:])

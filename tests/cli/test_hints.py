@@ -31,7 +31,7 @@ def test_best_of_a_stored_mesh_suggests_its_file(tmp_path: Path) -> None:
 
 def test_best_at_a_pose_out_of_reach_is_an_error_with_a_hint(box_db: Path) -> None:
     code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--object-pose",
-                           "5,0,0.02,0,0,0,1", "--max-candidates", "3")
+                           "5,0,0.04,0,0,0,1", "--max-candidates", "3")
     one_line_error(code, err, 1, "grasp: error: none of the 3 best grasps of 'box'", "--max-candidates 30")
     assert out == ""
 

@@ -271,3 +271,10 @@ def test_p_hold_is_never_printed_as_a_certainty_it_is_not(p, shown) -> None:  # 
     from planner.present.describe import probability
 
     assert probability(p) == shown
+
+
+def test_a_pose_through_the_table_is_refused(box_db: Path) -> None:
+    """The box's origin is its centre: at z = 0 it sinks 4 cm into the table top."""
+    code, _, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--object-pose", "0.5,0,0,0,0,0,1")
+    one_line_error(code, err, 2, "--object-pose puts box through the table", "40.0 mm below the table top",
+                   "--on-table")
