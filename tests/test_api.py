@@ -72,3 +72,9 @@ def test_show_and_best_at_use_the_stored_mesh(stored_db: Path, tmp_path: Path, m
         assert api.resolve_object(db, "random_007") == ("random_007", None)  # known, not stored
     with pytest.raises(InputError, match="no grasps of 'random_007' for hand 'panda'"):
         api.best_at("random_007", "panda", [0.5, 0, 0, 0, 0, 0, 1], db_path=stored_db)
+
+
+@pytest.mark.parametrize("pose", [np.eye(4), "abc", [0.5, 0, 0.04, 0, 0, 0, "w"]])
+def test_a_pose_of_the_wrong_kind_is_an_input_error(box_db: Path, pose: object) -> None:
+    with pytest.raises(InputError, match="needs 7 finite numbers"):
+        api.best_at("box", "panda", pose, db_path=box_db)  # type: ignore[arg-type]

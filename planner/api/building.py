@@ -150,7 +150,7 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
     only where those moved or the file was modified since its last unit
     finished (its mtime: a copy that keeps an older mtime is not seen). An object whose mesh no longer loads is left to
     its units (stored as failed)."""
-    from planner.db.objects import differs
+    from planner.db.objects import differs, edited_since
     from planner.errors import PlannerError
     from planner.geometry.solid import prepare
 
@@ -175,7 +175,7 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
                              "stored values: use another --db, or name the object apart (copy the mesh under another "
                              "name)")
         if name not in running and spec.kind == "mesh" and row.source == spec.source and row.scale == spec.scale \
-                and not _edited_since(Path(spec.source), db.last_finished(name)):
+                and not edited_since(Path(spec.source), db.last_finished(name)):
             continue  # nothing of it runs, and it names the stored file, unchanged since, at the stored scale
         try:
             why = differs(row, prepare(spec))
@@ -184,15 +184,6 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
         if why:
             raise InputError(f"object '{name}' is stored in {db.path} {why}: its grasps were planned on the stored "
                              "one; use another --db, or name the object apart (copy the mesh under another name)")
-
-
-def _edited_since(source: Path, finished: float | None) -> bool:
-    """Whether ``source`` may have changed since ``finished`` (its last unit's end [s]; the file's mtime from
-    that second on, or no time known, or no file to read: compare it)."""
-    try:
-        return finished is None or source.stat().st_mtime >= finished
-    except OSError:
-        return True
 
 
 def _from_sidecar(spec: ObjectSpec, given: Physical) -> str:

@@ -86,6 +86,18 @@ def p_hold_outside(name: str, hand: str, *, db_path: Path = DEFAULT_DB) -> list[
         return [] if row is None else outside(domain, row.properties())
 
 
+def mesh_modified(name: str, *, db_path: Path = DEFAULT_DB) -> str | None:
+    """Where the stored object ``name``'s mesh file was modified after its last unit finished: the file (its grasps
+    were planned on the mesh as it was, which ``best`` does not read); None: not modified, or not a file."""
+    from planner.db.objects import edited_since
+
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        row = db.object_row(name)
+        if row is None or row.source.startswith("primitive:") or not Path(row.source).is_file():
+            return None
+        return row.source if edited_since(Path(row.source), db.last_finished(name)) else None
+
+
 def p_hold_model(hand: str, *, db_path: Path = DEFAULT_DB) -> LogisticModel | None:
     """The p_hold model a database applies to ``hand``'s grasps (stored by
     ``grasp calibrate``, else the shipped one; None: none)."""

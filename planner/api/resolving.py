@@ -95,7 +95,11 @@ def object_pose_matrix(values: Sequence[float]) -> np.ndarray:
 def _pose7(values: Sequence[float], option: str) -> np.ndarray:
     from planner.geometry.frames import pose_from_xyzquat
 
-    vals = [float(v) for v in values]
+    try:
+        vals = [float(v) for v in values]
+    except (TypeError, ValueError):  # a 4x4 matrix, a string
+        got = f"an array of shape {np.shape(values)}" if isinstance(values, np.ndarray) else repr(values)
+        raise InputError(f"{option} needs 7 finite numbers x,y,z,qx,qy,qz,qw; got {got}") from None
     if len(vals) != 7 or not all(np.isfinite(vals)):
         raise InputError(f"{option} needs 7 finite numbers x,y,z,qx,qy,qz,qw; got {values}")
     if math.hypot(*vals[:3]) > MAX_DISTANCE:

@@ -95,7 +95,13 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
 
 
 def _extrapolated(name: str, hand: str, db_path: Path, outside: list[str]) -> None:
-    """A note under the grasps when the object lies outside what the hand's p_hold model was fitted on."""
+    """A note under the grasps when the object lies outside what the hand's p_hold model was fitted on, and when
+    its mesh file changed after it was swept."""
+    modified = api.mesh_modified(name, db_path=db_path)
+    if modified:
+        click.echo(f"note: {modified} was modified after {name}'s grasps were planned on it: they are the grasps of "
+                   "the mesh as it was (`grasp show` and `grasp export` refuse the changed file; sweep it under "
+                   "another name or --db)", err=True)
     if outside:
         click.echo(f"note: p_hold is extrapolated for {name}, outside the labelled objects the {hand}'s model was "
                    f"fitted on: {'; '.join(outside)}. Trials at the object's own mass and friction check its grasps "

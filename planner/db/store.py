@@ -19,10 +19,10 @@ from __future__ import annotations
 
 import json
 import sqlite3
-import time
 from collections import Counter
 from collections.abc import Iterable, Iterator
 from contextlib import closing, contextmanager
+from datetime import datetime
 from pathlib import Path
 
 import numpy as np
@@ -59,7 +59,7 @@ from planner.db.schema import (
     schema_version,
     table_names,
 )
-from planner.db.writing import TIME_FORMAT, Writing, p_hold_of  # noqa: F401 - p_hold_of re-exported
+from planner.db.writing import Writing, p_hold_of  # noqa: F401 - p_hold_of re-exported
 from planner.errors import DatabaseError
 from planner.record import fields
 from planner.record.contacts import HandContacts
@@ -140,12 +140,12 @@ class Database(Writing):
 
     @_reads
     def last_finished(self, obj: str) -> float | None:
-        """When ``obj``'s last unit (any hand) finished [s since the epoch; the stored local time, to the second];
-        None: none has."""
+        """When ``obj``'s last unit (any hand) finished [s since the epoch, from the stored local time]; None: none
+        has."""
         r = self._conn.execute("SELECT MAX(finished_at) AS t FROM units WHERE object = ? AND status = 'done'",
                                (obj,)).fetchone()
         try:
-            return time.mktime(time.strptime(r["t"], TIME_FORMAT)) if r["t"] else None
+            return datetime.fromisoformat(r["t"]).timestamp() if r["t"] else None
         except ValueError:
             return None
 

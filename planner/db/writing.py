@@ -11,10 +11,10 @@ from __future__ import annotations
 import hashlib
 import json
 import sqlite3
-import time
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import replace
+from datetime import datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -52,8 +52,12 @@ if TYPE_CHECKING:
     from planner.geometry.solid import PreparedObject
 
 
-#: How ``units.finished_at`` and ``calibration.created_at`` are written (local time, to the second).
-TIME_FORMAT = "%Y-%m-%dT%H:%M:%S"
+def now_text() -> str:
+    """Now as ``units.finished_at`` and ``calibration.created_at`` keep it: local time, ISO 8601, to the
+    microsecond (rows written before 2026-12-05 to the second); :func:`datetime.datetime.fromisoformat` reads both."""
+    return datetime.now().isoformat(timespec="microseconds")
+
+
 #: What the ranking rule reads, by the rule's names.
 _RANKED = ", ".join(f"{_ALIAS[f.table]}.{f.column} AS {f.ranked}" for f in fields.ranked_fields())
 #: The stored columns a p_hold model reads (:data:`planner.calibration.features.COLUMNS`), as ``m_<column>``.
@@ -159,7 +163,7 @@ class Writing:
             unit_id = conn.execute(_insert("units", _UNIT_COLUMNS), (
                 *key, unit.settings, status, unit.error, unit.candidates, len(grasps),
                 sum(g.force_closure for g in grasps), _json(unit.rejected), unit.seconds,
-                time.strftime(TIME_FORMAT))).lastrowid
+                now_text())).lastrowid
             if obj is not None:
                 stored = conn.execute("SELECT mesh_sha256 FROM objects WHERE name = ?", (unit.object,)).fetchone()
                 if stored is not None and stored[0] and stored[0] != obj.mesh_hash:
@@ -255,7 +259,7 @@ class Writing:
         re-score and re-rank that hand's grasps, in one transaction."""
         with self._transaction() as conn:
             conn.execute(_insert("calibration", ("hand", "model", "source", "created_at"), "INSERT OR REPLACE"),
-                         (model.hand, model.to_json(), source, time.strftime(TIME_FORMAT)))
+                         (model.hand, model.to_json(), source, now_text()))
             self._rescore(conn, rule, hand=model.hand)
         self.set_meta("p_hold_models", self._models_key())
 

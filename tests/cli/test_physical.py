@@ -173,7 +173,9 @@ def test_another_mesh_under_a_stored_name_is_refused(tmp_path: Path, brick: Path
     code, _, err = generate(db, source, *extra)
     one_line_error(code, err, 2, "object 'brick' is stored", "from another mesh", "use another --db")
     assert _file_bytes(db) == before
-    assert grasp("best", "brick", "--hand", "panda", "--db", str(db))[0] == 0
+    code, _, err = grasp("best", "brick", "--hand", "panda", "--db", str(db))
+    assert code == 0
+    assert ("was modified after brick's grasps were planned on it" in err) == change.startswith("edited"), err
 
 
 def test_a_finished_sweep_of_an_unchanged_file_is_skipped(tmp_path: Path, brick: Path) -> None:
