@@ -150,9 +150,10 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
     only where those moved or the file was modified since its last unit
     finished (its mtime: a copy that keeps an older mtime is not seen). An object whose mesh no longer loads is left to
     its units (stored as failed)."""
-    from planner.db.objects import differs, edited_since
+    from planner.db.objects import differs
     from planner.errors import PlannerError
     from planner.geometry.solid import prepare
+    from planner.specs.objects import edited_since
 
     running = {u.label or u.object_name for u in todo}
     checked: set[str] = set()

@@ -97,16 +97,6 @@ def _candidates(row: ObjectRow) -> Iterator[ObjectSpec]:
                 yield replace(spec, name=row.name, **props)
 
 
-def edited_since(source: Path, finished: float | None) -> bool:
-    """Whether the mesh file ``source`` may have changed since ``finished`` (its object's last unit's end [s];
-    :meth:`~planner.db.store.Database.last_finished`): modified from that second on, no time known, or no file to
-    read. A copy that keeps an older modification time is not seen."""
-    try:
-        return finished is None or source.stat().st_mtime >= finished
-    except OSError:
-        return True
-
-
 def local_file(path: Path) -> Path:
     """``path``, or the same file in this machine's ``pybullet_data`` when
     ``path`` is missing and lies in some ``pybullet_data`` folder."""

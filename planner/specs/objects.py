@@ -277,3 +277,13 @@ def file_scale(spec: ObjectSpec) -> float:
     if spec.kind == "urdf":
         return urdf_mesh(spec)[1] * spec.scale
     return spec.scale
+
+
+def edited_since(source: Path, finished: float | None) -> bool:
+    """Whether the mesh file ``source`` may have changed since ``finished`` (its object's last unit's end [s];
+    :meth:`~planner.db.store.Database.last_finished`): modified from that second on, no time known, or no file to
+    read. A copy that keeps an older modification time is not seen."""
+    try:
+        return finished is None or source.stat().st_mtime >= finished
+    except OSError:
+        return True
