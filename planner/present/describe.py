@@ -75,7 +75,7 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
     """The lines ``grasp best`` prints for one grasp (with ``world`` and the
     ``arm`` joint solutions by stage when it was reached at an object pose)."""
     g, m = grasp, grasp.measures
-    score = "n/a" if g.score is None else f"{g.score:.4f}"
+    score = "n/a" if g.score is None else score_text(g.score)
     reach = "not computed" if g.reachability is None else f"{g.reachability:.2f} of table placements"
     width = "n/a (not a parallel jaw)" if g.width is None else f"{g.width * 1000:.1f} mm"
     volume = f"{g.volume:.3g}" if g.volume else "0 (computed only with --volume, for force closure)"
@@ -219,6 +219,12 @@ def _success_text(success: float, trial: str, in_p_hold_trial: bool) -> str:
     if math.isnan(success):
         return "trials not run: 1"
     return f"{trial} {success:.0f}" + (", counted in p_hold_trial: 1" if in_p_hold_trial else "")
+
+
+def score_text(score: float) -> str:
+    """A score with four decimals, except just below 1, where p_hold-based scores crowd and four decimals would
+    print a row of equal 1.0000: ``1 - 2.3e-05``, so the printed order is the rank order."""
+    return f"1 - {1.0 - score:.3g}" if 0.99995 <= score < 1.0 else f"{score:.4f}"
 
 
 def probability(p: float) -> str:

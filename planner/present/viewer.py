@@ -25,6 +25,7 @@ import numpy as np
 import viser
 from scipy.spatial.transform import Rotation
 
+from planner.present.describe import score_text
 from planner.present.scene import APPROACH_RGB, CONTACT_RADIUS, CONTACT_RGB, GraspScene, Part
 from planner.record.grasp import Grasp
 from planner.specs.hands import HandSpec
@@ -87,7 +88,7 @@ def measures_text(entry: Entry) -> str:
     g = entry.grasp
     m = g.measures
     rows = [("rank", "planned now with the table, not stored" if g.rank is None else f"{g.rank}"),
-            ("score (ranking rule, higher is better)", _num(g.score, ".4f")),
+            ("score (ranking rule, higher is better)", "n/a" if g.score is None else score_text(g.score)),
             ("epsilon (Ferrari-Canny L1)", f"{g.epsilon:.4f}"), ("force closure", "yes" if g.force_closure else "no"),
             ("finger width", "n/a" if g.width is None else f"{g.width * 1000:.1f} mm"),
             ("contacts", f"{len(g.contacts)}"), ("reachability", _num(g.reachability, ".2f")),

@@ -278,3 +278,11 @@ def test_a_pose_through_the_table_is_refused(box_db: Path) -> None:
     code, _, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--object-pose", "0.5,0,0,0,0,0,1")
     one_line_error(code, err, 2, "--object-pose puts box through the table", "40.0 mm below the table top",
                    "--on-table")
+
+
+@pytest.mark.parametrize("score, shown", [(1.02, "1.0200"), (0.9985, "0.9985"), (0.99994, "0.9999"),
+                                          (0.99998, "1 - 2e-05"), (0.9999987, "1 - 1.3e-06"), (1.0, "1.0000")])
+def test_scores_just_below_1_are_printed_in_their_order(score: float, shown: str) -> None:
+    from planner.present.describe import score_text
+
+    assert score_text(score) == shown
