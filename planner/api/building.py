@@ -140,6 +140,29 @@ def table_supports(obj: PreparedObject, poses: int) -> list[Support]:
     return [Support.resting(r.pose) for r in resting_poses(obj.mesh, obj.com, poses)]
 
 
+def _stored_names(db: Database, units: Sequence[UnitSpec]) -> list[UnitSpec]:
+    """The units, a mesh file's under the name the database already stores it by (from that file at that scale)
+    where this run names it otherwise: runs before 2026-12-05 prefixed the folders of every file of a run in which
+    two files shared a stem, so a resume of such a run finds its objects, not new ones of the same files. Not where
+    the stored name is another file's name in this run."""
+    from planner.specs.objects import MESH_SUFFIXES
+
+    stored = db.names_by_source()
+    if not stored:
+        return list(units)
+    taken = {u.label or u.object_name for u in units}
+    renamed: dict[str, str] = {}
+    for unit in units:
+        label = unit.label or unit.object_name
+        if label in renamed or Path(unit.object_name).suffix.lower() not in MESH_SUFFIXES:
+            continue
+        names = stored.get((str(Path(unit.object_name).expanduser().resolve()), unit.scale or 1.0), [])
+        other = [n for n in names if n not in taken]
+        if names and label not in names and other:
+            renamed[label] = other[0]
+    return [replace(u, label=renamed.get(u.label or u.object_name, u.label)) for u in units]
+
+
 def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSpec]) -> None:
     """Refuse to add grasps of an object stored under the same name at
     another mass, density or friction, or from another mesh or with other
@@ -232,6 +255,7 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
     summary = Summary()
     start = time.perf_counter()
     with open_for_writing(Path(db_path)) as db:
+        units = _stored_names(db, units)
         done = {d: db.units_done(hand, d, seed) for d in sorted({u.settings.digest for u in units})}
         todo = [u for u in units if (u.label, u.chunk) not in done[u.settings.digest]]
         _check_stored(db, units, todo)

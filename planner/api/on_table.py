@@ -57,9 +57,9 @@ class TableGrasps:
 
     def object_pose7(self) -> list[float]:
         """x, y, z, qx, qy, qz, qw, as ``--object-pose`` takes it."""
-        from scipy.spatial.transform import Rotation
+        from planner.geometry.quaternion import canonical_xyzw
 
-        return [*self.object_pose[:3, 3].tolist(), *Rotation.from_matrix(self.object_pose[:3, :3]).as_quat().tolist()]
+        return [*self.object_pose[:3, 3].tolist(), *canonical_xyzw(self.object_pose[:3, :3]).tolist()]
 
     def to_json(self) -> dict:
         return {"resting_probability": self.resting.probability, "object_pose": self.object_pose7(),

@@ -22,10 +22,10 @@ if TYPE_CHECKING:
     from planner.geometry.solid import PreparedObject
 
 DEFAULT_DB = Path("grasps.db")
-#: A typed quaternion whose norm lies outside this range is a mistake (a component missing or wrong, the w-first
-#: order of another tool is still unit: see the troubleshooting table), not the round-off of its printed digits
-#: (4 decimals: ~1e-4); inside it, it is normalised.
-QUATERNION_NORM = (0.99, 1.01)
+#: A typed quaternion whose norm lies outside this range is a mistake (a component missing or wrong; the w-first
+#: order of another tool is still unit: see the troubleshooting table), not a rotation typed with few digits
+#: (0,0,0.7,0.7: 0.99); inside it, it is normalised.
+QUATERNION_NORM = (0.9, 1.1)
 #: [m] A typed position farther than this from the origin is a mistake (an arm reaches metres); beyond it the
 #: reachability search would run on numbers too large for it (1e308 ran for more than 10 minutes).
 MAX_DISTANCE = 1000.0

@@ -143,7 +143,8 @@ def unused(names: Sequence[str], why: str) -> None:
     given = [p for p in ctx.command.params if p.name in names and
              ctx.get_parameter_source(p.name) is click.core.ParameterSource.COMMANDLINE]
     if given:
-        flags = " and ".join(p.opts[0] for p in given)
+        flags = " and ".join(p.secondary_opts[0] if p.secondary_opts and ctx.params.get(p.name) is False
+                             else p.opts[0] for p in given)  # --no-plan as given, not --plan
         raise click.UsageError(f"{flags} {'do' if len(given) > 1 else 'does'} nothing here: {why}")
 
 

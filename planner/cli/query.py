@@ -99,9 +99,9 @@ def _extrapolated(name: str, hand: str, db_path: Path, outside: list[str]) -> No
     its mesh file changed after it was swept."""
     modified = api.mesh_modified(name, db_path=db_path)
     if modified:
-        click.echo(f"note: {modified} was modified after {name}'s grasps were planned on it: they are the grasps of "
-                   "the mesh as it was (`grasp show` and `grasp export` refuse the changed file; sweep it under "
-                   "another name or --db)", err=True)
+        click.echo(f"note: {modified} was modified (its modification time) after {name}'s grasps were planned on "
+                   "it: if its mesh changed, these are the grasps of the mesh as it was (`grasp generate` on the file "
+                   "compares the two and refuses a changed one under this name)", err=True)
     if outside:
         click.echo(f"note: p_hold is extrapolated for {name}, outside the labelled objects the {hand}'s model was "
                    f"fitted on: {'; '.join(outside)}. Trials at the object's own mass and friction check its grasps "

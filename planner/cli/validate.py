@@ -17,12 +17,12 @@ from planner.validation.mujoco_settings import DEFAULT_ENGINE, ENGINES
 @click.option("--object", "objects", multiple=True, help="Only these objects (repeat).")
 @click.option("--hand", "hands", multiple=True, help="Only these hands (repeat).")
 @click.option("--top", type=int, default=10, show_default=True,
-              help="Validate each object's K best force-closure grasps.")
+              help="Validate each object's K best grasps (force-closure grasps rank first).")
 @click.option("--sample", type=int, default=None,
               help="Instead: a uniform sample of N of each object's grasps, drawn with --seed.")
 @click.option("--all", "every", is_flag=True, help="Instead: every stored grasp.")
 @click.option("--force-closure", "closure_only", is_flag=True,
-              help="With --all or --sample: of the force-closure grasps only.")
+              help="Of the force-closure grasps only.")
 @click.option("--robust", "robust_samples", type=click.IntRange(min=0), default=10, show_default=True,
               help="Noise samples for robust epsilon (0: skip).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of --sample and of the robust noise.")
@@ -41,8 +41,6 @@ def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], to
     cached afterwards); a line on stderr says when that starts and ends."""
     if sample is not None or every:
         unused(["top"], "--sample and --all choose the grasps instead")
-    else:
-        unused(["closure_only"], "used with --all or --sample only (--top's grasps are force closure)")
     show_preparation(not as_json)
     summary = api.validate(db_path, objects=list(objects) or None, hands=list(hands) or None, top=top,
                            sample=sample, every=every, robust_samples=robust_samples, seed=seed, workers=workers,

@@ -19,10 +19,8 @@ from __future__ import annotations
 
 import json
 import sqlite3
-from collections import Counter
 from collections.abc import Iterable, Iterator
 from contextlib import closing, contextmanager
-from datetime import datetime
 from pathlib import Path
 
 import numpy as np
@@ -59,6 +57,7 @@ from planner.db.schema import (
     schema_version,
     table_names,
 )
+from planner.db.units import UnitReads
 from planner.db.writing import Writing, p_hold_of  # noqa: F401 - p_hold_of re-exported
 from planner.errors import DatabaseError
 from planner.record import fields
@@ -83,9 +82,9 @@ LEFT JOIN {{robust}} r ON r.grasp_id = g.id
 """
 
 
-class Database(Writing):
+class Database(Writing, UnitReads):
     """A grasp database file; open with :func:`open_db`. Its writes are
-    :class:`~planner.db.writing.Writing`'s."""
+    :class:`~planner.db.writing.Writing`'s, its reads of units :class:`~planner.db.units.UnitReads`'."""
 
     def __init__(self, path: Path, conn: sqlite3.Connection) -> None:
         self.path = path
@@ -117,47 +116,6 @@ class Database(Writing):
         except sqlite3.DatabaseError as exc:
             return [str(exc)]
         return [r["integrity_check"] for r in rows if r["integrity_check"] != "ok"]
-
-    # -- units ----------------------------------------------------------------
-    @_reads
-    def units_done(self, hand: str, settings_hash: str, seed: int) -> set[tuple[str, int]]:
-        """(object, chunk) of every finished unit with these settings."""
-        rows = self._conn.execute(
-            "SELECT object, chunk FROM units WHERE hand = ? AND settings_hash = ? AND seed = ? AND status = 'done'",
-            (hand, settings_hash, seed))
-        return {(r["object"], r["chunk"]) for r in rows}
-
-    @_reads
-    def validated_ids(self, obj: str, hand: str, table: str, seed: int, settings: str) -> set[int]:
-        """Ids of ``obj``'s grasps for ``hand`` with a row in ``table`` (``validation``: PyBullet's trial,
-        ``mujoco``, ``robust``) made with ``seed`` and ``settings`` (as stored)."""
-        if table not in ("validation", "mujoco", "robust"):
-            raise ValueError(f"no validation table '{table}'")
-        rows = self._conn.execute(f"SELECT v.grasp_id FROM {table} v JOIN grasps g ON g.id = v.grasp_id "
-                                  "WHERE g.object = ? AND g.hand = ? AND v.seed = ? AND v.settings = ?",
-                                  (obj, hand, seed, settings))
-        return {int(r["grasp_id"]) for r in rows}
-
-    @_reads
-    def last_finished(self, obj: str) -> float | None:
-        """When ``obj``'s last unit (any hand) finished [s since the epoch, from the stored local time]; None: none
-        has."""
-        r = self._conn.execute("SELECT MAX(finished_at) AS t FROM units WHERE object = ? AND status = 'done'",
-                               (obj,)).fetchone()
-        try:
-            return datetime.fromisoformat(r["t"]).timestamp() if r["t"] else None
-        except ValueError:
-            return None
-
-    @_reads
-    def swept(self, obj: str, hand: str) -> tuple[int, int, Counter]:
-        """(finished units, their candidates, their rejections by reason) of ``obj``'s sweeps for ``hand``."""
-        rows = self._conn.execute("SELECT candidates, rejected FROM units WHERE object = ? AND hand = ? AND "
-                                  "status = 'done'", (obj, hand)).fetchall()
-        rejected: Counter = Counter()
-        for r in rows:
-            rejected.update(json.loads(r["rejected"] or "{}"))
-        return len(rows), sum(int(r["candidates"] or 0) for r in rows), rejected
 
     # -- calibration -------------------------------------------------------------
     @_reads

@@ -14,7 +14,7 @@ import sqlite3
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import replace
-from datetime import datetime
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -53,9 +53,10 @@ if TYPE_CHECKING:
 
 
 def now_text() -> str:
-    """Now as ``units.finished_at`` and ``calibration.created_at`` keep it: local time, ISO 8601, to the
-    microsecond (rows written before 2026-12-05 to the second); :func:`datetime.datetime.fromisoformat` reads both."""
-    return datetime.now().isoformat(timespec="microseconds")
+    """Now as ``units.finished_at`` and ``calibration.created_at`` keep it: UTC with its offset, ISO 8601, to the
+    microsecond, the same instant wherever the database is read (rows written before 2026-12-05: local time
+    without offset, to the second); :func:`datetime.datetime.fromisoformat` reads both."""
+    return datetime.now(timezone.utc).isoformat(timespec="microseconds")
 
 
 #: What the ranking rule reads, by the rule's names.

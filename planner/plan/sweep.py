@@ -145,9 +145,11 @@ class SweepSettings:
             raise InputError(f"--standoffs must be non-negative distances in metres, got {list(self.standoffs)}")
         if not _distances(self.depths):
             raise InputError(f"--depths must be non-negative distances in metres, got {list(self.depths)}")
-        if not (math.isfinite(self.box_delta) and self.box_delta > 0) or not _distances([self.pregrasp_distance]):
-            raise InputError(f"--box-delta must be a positive distance in metres (got {self.box_delta}), the "
-                             f"pre-grasp distance a non-negative one (got {self.pregrasp_distance})")
+        if not (math.isfinite(self.box_delta) and self.box_delta > 0):
+            raise InputError(f"--box-delta must be a positive distance in metres, got {self.box_delta}")
+        if not _distances([self.pregrasp_distance]):
+            raise InputError(f"the pre-grasp distance must be a non-negative distance in metres, got "
+                             f"{self.pregrasp_distance}")
         if self.sampler == "antipodal" and self.fan_count:
             raise InputError("--fan tilts approach rays: it needs the surface or box sampler")
         if self.table_plane is not None:

@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import viser
-from scipy.spatial.transform import Rotation
 
+from planner.geometry.quaternion import canonical_xyzw, quaternion_xyzw
 from planner.present.describe import score_text
 from planner.present.scene import APPROACH_RGB, CONTACT_RADIUS, CONTACT_RGB, GraspScene, Part
 from planner.record.grasp import Grasp
@@ -97,7 +97,7 @@ def measures_text(entry: Entry) -> str:
         rows += [("holds (worst direction)", f"{m.resist_worst:.1f} x its weight"),
                  ("open margin", f"{m.open_margin * 1000:.1f} mm"), ("push", f"{m.push:.2f}")]
     tcp = np.asarray(g.pose, float)
-    quat = Rotation.from_matrix(tcp[:3, :3]).as_quat()
+    quat = canonical_xyzw(tcp[:3, :3])  # as `grasp best` prints it
     rows += [("hand base, object frame", "(" + ", ".join(f"{v:.3f}" for v in tcp[:3, 3]) + ") m"),
              ("orientation (xyzw)", "(" + ", ".join(f"{v:.3f}" for v in quat) + ")")]
     body = "\n".join(f"| {k} | {v} |" for k, v in rows)
@@ -119,6 +119,8 @@ def _check_address(host: str, port: int) -> None:
 
     if not 0 <= port <= 65535:
         raise InputError(f"--port must be within 0-65535, got {port}")
+    if host == "":  # every interface, as 0.0.0.0
+        return
     try:
         family, kind, _, _, address = socket.getaddrinfo(host, 0, type=socket.SOCK_STREAM)[0]
         with socket.socket(family, kind) as probe:
@@ -239,7 +241,7 @@ class Viewer:
             self._visibility()
 
     def _add(self, part: Part, opacity: float | None = None) -> None:
-        wxyz = Rotation.from_matrix(part.pose[:3, :3]).as_quat(scalar_first=True)
+        wxyz = np.roll(quaternion_xyzw(part.pose[:3, :3]), 1)
         self.nodes[part.name] = self.server.scene.add_mesh_simple(
             f"/{part.name}", part.vertices, part.faces, color=part.rgb, opacity=opacity, wxyz=wxyz,
             position=tuple(part.pose[:3, 3]), side="double" if opacity else "front")

@@ -76,13 +76,13 @@ def _expand_one(arg: str, scale: float | None, physical: Physical) -> list[Objec
 
 def _expand_plain(arg: str, scale: float | None) -> list[ObjectRef]:
     if arg == "builtin:all":
-        return [ObjectRef(name) for name in builtin_specs()]
-    if arg.startswith("builtin:random"):
-        return [ObjectRef(f"{RANDOM_PREFIX}{i:03d}") for i in _random_range(arg)]
-    if arg.startswith("builtin:"):
+        return [ObjectRef(name, scale) for name in builtin_specs()]
+    if arg == "builtin:random" or arg.startswith("builtin:random:"):
+        return [ObjectRef(f"{RANDOM_PREFIX}{i:03d}", scale) for i in _random_range(arg)]
+    if arg.startswith("builtin:"):  # one by name (random_NNN too), even where a folder of that name is in the way
         if not is_registered(arg[len("builtin:"):]):
             raise InputError(f"'{arg}': no built-in object of that name (see `grasp objects`)")
-        return [ObjectRef(arg[len("builtin:"):])]
+        return [ObjectRef(arg[len("builtin:"):], scale)]
     path = Path(arg).expanduser()
     if path.is_dir():
         files = sorted(p for p in path.rglob("*") if p.suffix.lower() in MESH_SUFFIXES and p.is_file())

@@ -106,9 +106,9 @@ def _run_task(task: Task, out: TaskResult) -> None:
 
 @dataclass(frozen=True)
 class Selection:
-    """Which grasps of each object and hand: the ``top`` best force-closure
-    ones (default), a seeded uniform ``sample`` of that many, or ``every`` one;
-    ``closure_only``: of the force-closure grasps only (sample and every)."""
+    """Which grasps of each object and hand: the ``top`` best (default; force-closure grasps rank first, so
+    they are force closure where the object has ``top`` of them), a seeded uniform ``sample`` of that many, or
+    ``every`` one; ``closure_only``: of the force-closure grasps only."""
 
     top: int = 10
     sample: int | None = None
@@ -117,7 +117,7 @@ class Selection:
 
     def pick(self, db: Database, obj: str, hand: str, seed: int) -> list[Grasp]:
         if not self.every and self.sample is None:
-            return [g for g in db.best(obj, hand, self.top) if g.score]  # pressed grasps may rank high without closure
+            return [g for g in db.best(obj, hand, self.top) if g.score and (g.force_closure or not self.closure_only)]
         grasps = sorted((g for batch in db.grasp_batches(obj, hand) for g in batch
                          if g.force_closure or not self.closure_only), key=lambda g: g.id or 0)
         if self.every or self.sample is None or self.sample >= len(grasps):

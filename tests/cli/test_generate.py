@@ -154,3 +154,23 @@ def test_running_the_same_command_again_changes_nothing(tmp_path: Path, shipped_
     before = _stored(tmp_path / "g.db", ())
     assert grasp("generate", *args)[0] == 0
     assert _stored(tmp_path / "g.db", ()) == before
+
+
+def test_a_resume_keeps_the_names_an_earlier_run_stored_files_under(tmp_path: Path) -> None:
+    """Runs before 2026-12-05 prefixed the folders of every file of a run where two files shared a stem
+    (``lab/cup``); today's run names ``cup.obj`` ``cup``: a resume finds the stored objects, sweeps nothing again."""
+    for rel in ("a/part.obj", "b/part.obj", "cup.obj"):
+        (tmp_path / "lab" / rel).parent.mkdir(parents=True, exist_ok=True)
+        trimesh.creation.box(extents=(0.03, 0.03, 0.05)).export(tmp_path / "lab" / rel)
+    db = tmp_path / "g.db"
+    args = ["generate", str(tmp_path / "lab"), "--hand", "panda", "--db", str(db), "--json", *FAST]
+    code, out, err = grasp(*args)
+    assert code == 0, err
+    with sqlite3.connect(db) as conn:  # as the earlier planner named it
+        for table, column in (("objects", "name"), ("units", "object"), ("grasps", "object")):
+            conn.execute(f"UPDATE {table} SET {column} = 'lab/cup' WHERE {column} = 'cup'")
+    code, out, err = grasp(*args)
+    assert code == 0, err
+    assert json.loads(out)["units"] == 0 and json.loads(out)["skipped"] > 0
+    with sqlite3.connect(db) as conn:
+        assert sorted(n for (n,) in conn.execute("SELECT name FROM objects")) == ["a/part", "b/part", "lab/cup"]

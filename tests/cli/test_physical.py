@@ -175,7 +175,7 @@ def test_another_mesh_under_a_stored_name_is_refused(tmp_path: Path, brick: Path
     assert _file_bytes(db) == before
     code, _, err = grasp("best", "brick", "--hand", "panda", "--db", str(db))
     assert code == 0
-    assert ("was modified after brick's grasps were planned on it" in err) == change.startswith("edited"), err
+    assert ("was modified (its modification time) after brick" in err) == change.startswith("edited"), err
 
 
 def test_a_finished_sweep_of_an_unchanged_file_is_skipped(tmp_path: Path, brick: Path) -> None:
@@ -261,3 +261,25 @@ def test_a_refusal_says_when_the_sidecar_gave_the_value(tmp_path: Path, brick: P
                    "(mass and friction from brick.toml)")
     code, _, err = generate(db, str(brick), "--mass", "0.2", "--friction", "0.5")  # the flags win: no sidecar named
     one_line_error(code, err, 2, "this run gives mass 0.2, friction 0.5;")
+
+
+def test_an_edit_is_seen_in_another_time_zone(tmp_path: Path, brick: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """units.finished_at carries its offset: a database swept in UTC and read west of it still sees the file
+    edited after the sweep (as local wall-clock text it read 8 hours late there)."""
+    import time
+
+    db = tmp_path / "g.db"
+    monkeypatch.setenv("TZ", "UTC")
+    time.tzset()
+    try:
+        assert generate(db, str(brick))[0] == 0
+        trimesh.creation.box(extents=(0.05, 0.04, 0.07)).export(brick)
+        monkeypatch.setenv("TZ", "America/Los_Angeles")
+        time.tzset()
+        code, _, err = grasp("best", "brick", "--hand", "panda", "--db", str(db))
+        assert code == 0 and "was modified (its modification time) after brick" in err, err
+        code, _, err = generate(db, str(brick))
+        one_line_error(code, err, 2, "object 'brick' is stored", "from another mesh")
+    finally:
+        monkeypatch.delenv("TZ")
+        time.tzset()

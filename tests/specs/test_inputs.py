@@ -106,3 +106,9 @@ def test_a_folder_named_like_a_builtin_is_a_folder_and_builtin_names_the_builtin
     assert resolve_spec(inputs.expand(["builtin:box"])[0].source).kind == "box"  # the primitive, not the folder
     with pytest.raises(InputError, match="no built-in object of that name"):
         inputs.expand(["builtin:boxx"])
+    assert [r.name for r in inputs.expand(["builtin:random_003"])] == ["random_003"]
+
+
+@pytest.mark.parametrize("arg", ["builtin:mug", "builtin:random:3-3", "builtin:random_003", "builtin:all"])
+def test_every_builtin_spelling_takes_the_scale(arg: str) -> None:
+    assert {r.scale for r in inputs.expand([arg], scale=0.5)} == {0.5}

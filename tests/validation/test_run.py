@@ -255,3 +255,15 @@ def test_an_empty_database_or_an_unknown_hand_is_an_error(box_db: Path, tmp_path
         conn.execute("DELETE FROM grasps")
     with pytest.raises(InputError, match="no grasps in .*run `grasp generate"):
         validate(db, robust_samples=0)
+
+
+def test_top_with_force_closure_takes_only_force_closure_grasps() -> None:
+    """Force-closure grasps rank first, so --top takes others only where an object has fewer than K of them;
+    --force-closure leaves those out."""
+    from types import SimpleNamespace
+
+    ranked = [SimpleNamespace(score=0.9, force_closure=True), SimpleNamespace(score=0.8, force_closure=False),
+              SimpleNamespace(score=0.0, force_closure=False)]
+    db = SimpleNamespace(best=lambda obj, hand, top: ranked[:top])
+    assert run.Selection(top=3).pick(db, "o", "h", 0) == ranked[:2]  # type: ignore[arg-type]
+    assert run.Selection(top=3, closure_only=True).pick(db, "o", "h", 0) == ranked[:1]  # type: ignore[arg-type]

@@ -1,0 +1,69 @@
+"""The database's reads of its units of work and of where objects came from (a part of
+:class:`planner.db.store.Database`): which units are done, which grasps hold a run's results, when an object was
+last swept, which names a file is stored under."""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+from collections import Counter
+from datetime import datetime
+
+from planner.db.failures import _reads
+
+
+class UnitReads:
+    """Reads of ``units`` and ``objects`` rows, mixed into :class:`~planner.db.store.Database`."""
+
+    _conn: sqlite3.Connection
+
+    @_reads
+    def units_done(self, hand: str, settings_hash: str, seed: int) -> set[tuple[str, int]]:
+        """(object, chunk) of every finished unit with these settings."""
+        rows = self._conn.execute(
+            "SELECT object, chunk FROM units WHERE hand = ? AND settings_hash = ? AND seed = ? AND status = 'done'",
+            (hand, settings_hash, seed))
+        return {(r["object"], r["chunk"]) for r in rows}
+
+    @_reads
+    def validated_ids(self, obj: str, hand: str, table: str, seed: int, settings: str) -> set[int]:
+        """Ids of ``obj``'s grasps for ``hand`` with a row in ``table`` (``validation``: PyBullet's trial,
+        ``mujoco``, ``robust``) made with ``seed`` and ``settings`` (as stored)."""
+        if table not in ("validation", "mujoco", "robust"):
+            raise ValueError(f"no validation table '{table}'")
+        rows = self._conn.execute(f"SELECT v.grasp_id FROM {table} v JOIN grasps g ON g.id = v.grasp_id "
+                                  "WHERE g.object = ? AND g.hand = ? AND v.seed = ? AND v.settings = ?",
+                                  (obj, hand, seed, settings))
+        return {int(r["grasp_id"]) for r in rows}
+
+    @_reads
+    def last_finished(self, obj: str) -> float | None:
+        """When ``obj``'s last unit (any hand) finished [s since the epoch]; None: none has. Rows with an offset
+        (UTC, since 2026-12-05) are exact anywhere; older ones are the writer's local time, read as this
+        machine's."""
+        rows = self._conn.execute("SELECT finished_at FROM units WHERE object = ? AND status = 'done'", (obj,))
+        times = []
+        for r in rows:
+            try:
+                times.append(datetime.fromisoformat(r["finished_at"]).timestamp())
+            except (TypeError, ValueError):
+                continue
+        return max(times, default=None)
+
+    @_reads
+    def swept(self, obj: str, hand: str) -> tuple[int, int, Counter]:
+        """(finished units, their candidates, their rejections by reason) of ``obj``'s sweeps for ``hand``."""
+        rows = self._conn.execute("SELECT candidates, rejected FROM units WHERE object = ? AND hand = ? AND "
+                                  "status = 'done'", (obj, hand)).fetchall()
+        rejected: Counter = Counter()
+        for r in rows:
+            rejected.update(json.loads(r["rejected"] or "{}"))
+        return len(rows), sum(int(r["candidates"] or 0) for r in rows), rejected
+
+    @_reads
+    def names_by_source(self) -> dict[tuple[str, float], list[str]]:
+        """(source, scale) -> the names of the objects stored from that file at that scale."""
+        out: dict[tuple[str, float], list[str]] = {}
+        for r in self._conn.execute("SELECT name, source, scale FROM objects ORDER BY name"):
+            out.setdefault((r["source"], float(r["scale"])), []).append(r["name"])
+        return out
