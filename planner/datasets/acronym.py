@@ -84,7 +84,6 @@ own files come back losslessly, foreign ones give poses to re-score.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from collections.abc import Iterable
@@ -95,6 +94,7 @@ from typing import Any
 import numpy as np
 
 from planner.datasets import registry
+from planner.datasets.acronym_checks import check_joints, contact_items
 from planner.datasets.acronym_columns import (
     DATASETS,
     EXTRAS,
@@ -216,8 +216,8 @@ def _append(f: Any, key: str, values: Column, start: int) -> None:
 class AcronymHeader:
     """What an ACRONYM file says about its gripper and object.
 
-    ``scale``, ``mass`` and ``friction`` are None when absent or not a
-    positive number; ``mesh_sha256``: the hash of the mesh the grasps were
+    ``scale``, ``mass`` and ``friction`` are None when absent (a value that
+    is not a positive number is refused); ``mesh_sha256``: the hash of the mesh the grasps were
     planned on (this project's files since issue 12); ``extras``: the file
     carries this project's qualities, joints and contacts (it can be read
     back losslessly).
@@ -303,12 +303,13 @@ def read_grasps(path: Path, hand: HandSpec, obj: str, poses: np.ndarray) -> list
         roll = g["roll"][()] if "roll" in g else [r[2] for r in rays]
         standoff = g["standoff"][()] if "standoff" in g else np.zeros(n)
         planes = g["table_plane"][()] if "table_plane" in g else np.full((n, 4), np.nan)
-        contacts = g["contacts"].asstr()[()]
+        contacts = contact_items(path, list(g["contacts"].asstr()[()]), n)
+    check_joints(path, hand, names, n, joints_closed=closed, joints_open=opened)
     return [Grasp(object=obj, hand=hand.name, preshape=str(preshape[i]), candidate=i, seed=0,
                   approach_point=np.asarray(approach_point[i], float), approach_dir=np.asarray(approach_dir[i], float),
                   roll=float(roll[i]), standoff=float(standoff[i]), pose=poses[i],
                   open_joints=_joints(names, opened[i]), closed_joints=_joints(names, closed[i]),
-                  width=_maybe(width[i]), contacts=_contacts(path, json.loads(contacts[i]), hand),
+                  width=_maybe(width[i]), contacts=_contacts(path, contacts[i], hand),
                   epsilon=float(col["epsilon"][i]), volume=float(col["volume"][i]),
                   force_closure=bool(col["force_closure"][i]), reachability=_maybe(col["reachability"][i]),
                   manipulability=_maybe(col["manipulability"][i]),
@@ -372,10 +373,13 @@ def _contacts(path: Path, items: list[dict], hand: HandSpec) -> HandContacts:
 
 
 def _positive(f: Any, key: str) -> float | None:
+    """A positive number the file gives (None: absent); a value that is not one is refused."""
     if key not in f:
         return None
     value = float(np.asarray(f[key][()]).reshape(-1)[0])
-    return value if math.isfinite(value) and value > 0 else None
+    if not (math.isfinite(value) and value > 0):
+        raise InputError(f"{Path(f.filename)}: {key} is {value:g}; it must be a positive number")
+    return value
 
 
 registry.register("acronym", registry.PairWriter(relative_path, write),

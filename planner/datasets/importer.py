@@ -273,6 +273,14 @@ def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: s
     spec = load_hand(hand or _hand_name(path, header.gripper))
     obj = _object_spec(header, object_name)
     lossless = not rescore and header.extras
+    if lossless:  # its contacts, joints and measures are of the file's mesh and hand: stored as they are
+        if header.mesh_sha256 and prepare(obj).mesh_hash != header.mesh_sha256:
+            raise InputError(f"{path}: {obj.source or obj.name} is not the mesh this file's grasps were planned on "
+                             "(object/mesh_sha256): their contacts and measures would be stored on another mesh; "
+                             "give that mesh, or pass --rescore to re-score the poses on this one")
+        if hand is not None and HAND_ALIASES.get(header.gripper.lower(), header.gripper) != spec.name:
+            raise InputError(f"{path}: its grasps are the {header.gripper}'s (joints, contacts); pass --rescore to "
+                             f"re-score the poses with hand '{spec.name}'")
     digest = hashlib.sha256()
     with open(path, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):
@@ -295,10 +303,27 @@ def _check_objects(db: Database, plans: Sequence[_Plan]) -> None:
         why = differs(row, obj) if row is not None else None
         if why:
             raise InputError(f"{plan.path}: object '{name}' is stored in {db.path} {why}: import into another --db")
+        done = (name, 0) in db.units_done(plan.hand.name, plan.settings.digest, 0)  # imported before: skipped
+        if row is not None and plan.lossless and not done:
+            _check_not_stored(db, plan)
         first = named.setdefault(name, (plan.path, obj))
         if first[1].mesh_hash != obj.mesh_hash or not math.isclose(first[1].mass, obj.mass, rel_tol=PROPERTY_RTOL):
             raise InputError(f"{plan.path} and {first[0]} name one object '{name}' with other meshes, scales or "
                              "masses: import them into different --db")
+
+
+def _check_not_stored(db: Database, plan: _Plan) -> None:
+    """Refuse a file whose grasps the database holds already (an export of it, imported back: each one twice)."""
+    def key(pose: np.ndarray) -> bytes:
+        return np.round(np.asarray(pose, float)[:3], 5).tobytes()  # 10 um: the file's and the stored rounding
+
+    stored = {key(g.pose) for batch in db.grasp_batches(plan.spec.name, plan.hand.name) for g in batch}
+    poses = plan.reader.poses(plan.path, plan.hand)
+    again = sum(key(p) in stored for p in poses)
+    if again:
+        raise InputError(f"{plan.path}: {again} of its {len(poses)} grasps are stored in {db.path} already "
+                         f"('{plan.spec.name}', {plan.hand.name}): an export of this database? Import it into "
+                         "another --db")
 
 
 def _hand_name(path: Path, gripper: str) -> str:

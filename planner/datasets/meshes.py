@@ -93,20 +93,25 @@ def write_meshes(db: Database, names: Sequence[str], out_dir: Path, copies: Sequ
             raise InputError(f"objects '{stems[stem]}' and '{name}' would share the mesh file {stem}.obj; "
                              "export them separately (--object)")
         stems[stem] = name
-    exported = {}
+    exported, texts = {}, {}
     last: tuple[tuple[str, float, str], str] | None = None  # copies of one mesh are rebuilt and formatted once
     for stem, name in stems.items():
         row = _row(db, name)
         key = (row.source, row.scale, row.mesh_sha256)
         if last is None or last[0] != key or not row.mesh_sha256:
             last = key, obj_text(stored_object(row).mesh)
-        text = last[1]
         relative = f"{MESH_DIR}/{stem}.obj"
         for target in (relative, *(c.format(stem=stem) for c in copies)):
-            path = out_dir / target
-            path.parent.mkdir(parents=True, exist_ok=True)
-            assets.atomic_write(path, text.encode("utf-8"))
+            texts[out_dir / target] = (last[1].encode("utf-8"), name)
         exported[name] = ExportedObject(row, relative)
+    for path, (data, name) in texts.items():  # nothing written where a file of another mesh would be replaced
+        if path.is_file() and path.read_bytes() != data:
+            raise InputError(f"{path} holds another mesh than this database's '{name}' (an object of "
+                             "that name exported there from another database?): its grasp files would point at the "
+                             "wrong mesh; export into another --out")
+    for path, (data, _) in texts.items():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        assets.atomic_write(path, data)
     log.info("wrote %d meshes to %s", len(exported), out_dir / MESH_DIR)
     return exported
 

@@ -170,7 +170,8 @@ class Writing:
                 if stored is not None and stored[0] and stored[0] != obj.mesh_hash:
                     raise InputError(f"object '{unit.object}' is stored in {self.path} from another mesh than this "
                                      "unit's: its grasps were planned on the stored one; nothing of this unit written")
-                conn.execute(_insert("objects", _OBJECT_COLUMNS, "INSERT OR REPLACE"), _object_row(unit.object, obj))
+                if stored is None:  # a stored row stays as it is: its source is where its first grasps came from
+                    conn.execute(_insert("objects", _OBJECT_COLUMNS), _object_row(unit.object, obj))
             conn.executemany(_insert("grasps", _GRASP_COLUMNS),
                              [_grasp_row(g, unit_id, score, p, q)
                               for g, score, p, q in zip(grasps, scores.tolist(), p_hold, p_trial)])

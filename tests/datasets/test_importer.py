@@ -227,3 +227,68 @@ def test_two_scales_of_one_mesh_are_two_objects_and_another_mesh_is_refused(db: 
     code, _, err = grasp("import", str(other), "--db", str(fresh))
     assert code == 2 and "object 'crate' is stored in" in err and "from another mesh" in err, err
     assert _db_bytes(fresh) == before
+
+
+def _copy_with(src: Path, dst: Path, change) -> Path:  # type: ignore[no-untyped-def]
+    shutil.copy(src, dst)
+    with h5py.File(dst, "r+") as f:
+        change(f)
+    return dst
+
+
+def _set(key: str, value):  # type: ignore[no-untyped-def]
+    def change(f):  # type: ignore[no-untyped-def]
+        del f[key]
+        f[key] = value
+    return change
+
+
+def _joint(f, row: int, col: int, value: float) -> None:  # type: ignore[no-untyped-def]
+    data = f["grasps/joints_closed"][()]
+    data[row, col] = value
+    _set("grasps/joints_closed", data)(f)
+
+
+@pytest.mark.parametrize("change, message", [
+    (_set("grasps/joint_names", np.array(["x", "y", "z"], dtype=h5py.string_dtype())), "are not joints of hand"),
+    (lambda f: _joint(f, 0, 0, 50.0), "lies outside its limits"),
+    (lambda f: _joint(f, 1, 0, np.inf), "holds an infinite value"),
+    (_set("object/mass", -1.0), "object/mass is -1; it must be a positive number"),
+    (lambda f: f["grasps/contacts"].__setitem__(0, "not json"), "grasps/contacts row 0 is not a JSON list"),
+])
+def test_a_damaged_file_is_refused_naming_the_dataset(db: Path, tmp_path: Path, change, message: str) -> None:
+    """Hand-edited or damaged files were stored and broke `show` later (a joint 'x': KeyError)."""
+    files = sorted(export(db, "acronym", tmp_path / "h5").glob("box__*.h5"))
+    bad = _copy_with(files[0], tmp_path / "bad.h5", change)
+    fresh = tmp_path / "fresh.db"
+    code, _, err = grasp("import", "--format", "acronym", str(bad), "--db", str(fresh))
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err
+    assert not fresh.exists() or not sqlite3.connect(fresh).execute("SELECT COUNT(*) FROM grasps").fetchone()[0]
+
+
+def test_our_file_is_refused_on_another_mesh_or_hand_and_back_into_its_own_database(db: Path, tmp_path: Path) -> None:
+    files = sorted(export(db, "acronym", tmp_path / "h5").glob("box__*.h5"))
+    fresh = tmp_path / "fresh.db"
+    code, _, err = grasp("import", "--format", "acronym", str(files[0]), "--db", str(fresh), "--object", "sphere")
+    assert code == 2 and "is not the mesh this file's grasps were planned on" in err and "--rescore" in err, err
+    code, _, err = grasp("import", "--format", "acronym", str(files[0]), "--db", str(fresh), "--hand", "barrett")
+    assert code == 2 and "pass --rescore to re-score the poses with hand 'barrett'" in err, err
+    copy = tmp_path / "copy.db"
+    shutil.copy(db, copy)
+    before = sqlite3.connect(copy).execute("SELECT COUNT(*), (SELECT source FROM objects WHERE name = 'box') "
+                                           "FROM grasps").fetchone()
+    code, _, err = grasp("import", "--format", "acronym", str(files[0]), "--db", str(copy))
+    assert code == 2 and "grasps are stored in" in err and "an export of this database?" in err, err
+    after = sqlite3.connect(copy).execute("SELECT COUNT(*), (SELECT source FROM objects WHERE name = 'box') "
+                                          "FROM grasps").fetchone()
+    assert after == before
+
+
+def test_an_export_does_not_replace_another_databases_mesh(db: Path, tmp_path: Path) -> None:
+    out = export(db, "acronym", tmp_path / "h5")
+    mesh = out / "meshes" / "box.obj"
+    mesh.write_text(mesh.read_text().replace("v ", "v 1", 1))  # another object named box exported there
+    before = {p.name: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    code, _, err = grasp("export", "--db", str(db), "--format", "acronym", "--out", str(out))
+    assert code == 2 and "holds another mesh than this database's 'box'" in err, err
+    assert {p.name: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before

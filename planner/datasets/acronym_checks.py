@@ -1,0 +1,56 @@
+"""What an ACRONYM file must hold before its grasps are read back losslessly (this project's extras): joints of
+the hand within its limits, contacts as JSON, one row per grasp. A file that fails is refused with a one-line
+error naming the dataset (a hand-edited or damaged file would otherwise store grasps that break ``show`` and
+exports later)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from planner.errors import InputError
+from planner.specs.hands import HandSpec
+
+#: [rad or m] How far past a joint's limit a stored value may lie (the simulator's own overshoot).
+LIMIT_SLACK = 1e-3
+
+
+def check_joints(path: Path, hand: HandSpec, names: list[str], n: int, **matrices: np.ndarray) -> None:
+    """``names`` (J,) joints of ``hand``; each matrix (``joints_closed``, ``joints_open``) (n, J), its finite
+    values within the joints' limits (NaN: a joint the grasp does not set)."""
+    joints = {j.name: j for j in hand.joints}
+    unknown = [name for name in names if name not in joints]
+    if unknown:
+        raise InputError(f"{path}: grasps/joint_names {unknown[:3]} are not joints of hand '{hand.name}' "
+                         f"({', '.join(joints)})")
+    lower = np.array([joints[name].lower for name in names]) - LIMIT_SLACK
+    upper = np.array([joints[name].upper for name in names]) + LIMIT_SLACK
+    for key, values in matrices.items():
+        values = np.asarray(values, float)
+        if values.shape != (n, len(names)):
+            raise InputError(f"{path}: grasps/{key} has shape {values.shape}; expected ({n}, {len(names)})")
+        if np.isinf(values).any():
+            raise InputError(f"{path}: grasps/{key} holds an infinite value")
+        outside = np.isfinite(values) & ((values < lower) | (values > upper))
+        if outside.any():
+            row, col = (int(v[0]) for v in np.nonzero(outside))
+            raise InputError(f"{path}: grasps/{key} row {row}: {names[col]} = {values[row, col]:.6g} lies outside "
+                             f"its limits [{lower[col] + LIMIT_SLACK:.6g}, {upper[col] - LIMIT_SLACK:.6g}]")
+
+
+def contact_items(path: Path, texts: list[str], n: int) -> list[list[dict]]:
+    """The n rows of ``grasps/contacts``, each a JSON list of contact objects."""
+    if len(texts) != n:
+        raise InputError(f"{path}: grasps/contacts holds {len(texts)} rows for {n} grasps")
+    out = []
+    for i, text in enumerate(texts):
+        try:
+            items = json.loads(text)
+        except ValueError:
+            items = None
+        if not isinstance(items, list) or not all(isinstance(c, dict) and "link" in c for c in items):
+            raise InputError(f"{path}: grasps/contacts row {i} is not a JSON list of contacts")
+        out.append(items)
+    return out
