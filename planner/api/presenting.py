@@ -22,6 +22,10 @@ if TYPE_CHECKING:
     from planner.db.diverse import Spacing
 
 
+#: The most grasps one ``grasp show --top`` sheet draws (each three views, one row).
+MAX_SHEET = 100
+
+
 def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: int = 1, top: int | None = None,
          spacing: Spacing | None = None) -> list[Grasp]:
     """Render grasp ``rank`` (or the ``top`` K as a contact sheet; with
@@ -32,6 +36,9 @@ def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: i
     first = 1 if top is not None else rank
     if count < 1 or first < 1:
         raise InputError("--rank and --top must be at least 1")
+    if count > MAX_SHEET:
+        raise InputError(f"--top {count}: a contact sheet holds at most {MAX_SHEET} grasps (500 made a 517-megapixel "
+                         "PNG that image readers refuse); browse more in `grasp view`")
     spec = load_hand(hand)
     if Path(out).suffix.lower() != ".png":
         raise InputError(f"{out}: the picture is written as PNG; give a .png path")

@@ -95,7 +95,7 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
                                  depths=floats(depths) or DEFAULTS.depths, fan_count=fan_count,
                                  standoffs=floats(standoffs), chunk=chunk, reach_placements=reach_placements,
                                  reach_top=reach_top, volume=volume, settle=settle, fc_budget=fc_budget,
-                                 preshapes=tuple(preshape_names.split(",")) if preshape_names else None)
+                                 preshapes=tuple(preshape_names.split(",")) if preshape_names is not None else None)
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     show = not quiet and not as_json

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from planner import api
-from planner.cli.app import db_option
+from planner.cli.app import db_option, report_failures
 from planner.errors import PlannerError
 
 
@@ -15,10 +15,20 @@ from planner.errors import PlannerError
 @click.argument("name", required=False)
 def hands(name: str | None) -> None:
     """List the built-in hands, or show one in detail."""
-    if name is None:
-        for spec, shapes in api.hands():
+    if name is None:  # every hand that loads; then one error line per folder that does not (exit 2)
+        from planner.errors import PlannerError
+        from planner.specs.hands import hand_names
+
+        failed = {}
+        for hand_name in hand_names():
+            try:
+                spec, shapes = api.hand(hand_name)
+            except PlannerError as exc:
+                failed[f"hand '{hand_name}'"] = str(exc)
+                continue
             click.echo(f"{spec.name:12s} {len(spec.joints):2d} finger joints  preshapes: "
                        f"{', '.join(s.name for s in shapes)}  - {spec.description}")
+        report_failures(failed)
         return
     spec, shapes = api.hand(name)
     click.echo(f"{spec.name}: {spec.description}\n  urdf: {spec.urdf}\n  root link: {spec.root_link}\n"

@@ -38,6 +38,8 @@ def test_bad_input_is_one_line_and_exit_code(tmp_path: Path, monkeypatch: pytest
     (["best", "box", "--hand", "panda", "--object-pose", "0.5,0,0,0,0,0,1", "--robot-base", "0,0,0,1,0,0,1"],
      "--robot-base: quaternion"),
     (["generate", "box", "--hand", "panda", "--depths", "nan"], "--depths"),
+    (["show", "box", "--hand", "panda", "--top", "101"], "a contact sheet holds at most 100 grasps"),
+    (["generate", "box", "--hand", "barrett", "--preshapes", ""], "unknown preshape ''"),
     (["generate", "box", "--hand", "panda", "--standoffs", "inf"], "--standoffs"),
     (["generate", "box", "--hand", "panda", "--unit-timeout", "-1"], "--unit-timeout"),
     (["generate", "box", "--hand", "panda", "--sampler", "box", "--box-delta", "-1"], "--box-delta"),

@@ -322,3 +322,24 @@ def test_open_travel_is_the_fastest_contacts_way_back_to_the_open_limit() -> Non
     assert_close(panda.travel({"panda_finger_joint1": -1.0}, closed, 1.0, "closed"), 0.03, NUM_TOL)
     with pytest.raises(ValueError, match="towards"):
         panda.travel({"panda_finger_joint1": -1.0}, closed, 1.0, "shut")
+
+
+def test_one_broken_hand_folder_leaves_the_others_listed(tmp_path: Path) -> None:
+    """`grasp hands` lists every hand that loads, then one error line per folder that does not (exit 2)."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    from planner.assets import PROJECT_ROOT
+
+    for name in ("hands", "preshapes", "objects"):
+        shutil.copytree(PROJECT_ROOT / name, tmp_path / name)
+    shutil.copytree(tmp_path / "hands" / "panda", tmp_path / "hands" / "mypanda")
+    toml = tmp_path / "hands" / "mypanda" / "hand.toml"
+    toml.write_text(toml.read_text().replace("[[joints]]", "[[joints]", 1))
+    run = subprocess.run([sys.executable, "-m", "planner.cli", "hands"], capture_output=True, text=True, timeout=120,
+                         env={**os.environ, "GRASP_HOME": str(tmp_path)})
+    assert run.returncode == 2
+    assert {line.split()[0] for line in run.stdout.splitlines()} == {"allegro", "barrett", "panda", "pr2"}
+    assert run.stderr.startswith("grasp: error: hand 'mypanda': ") and "malformed TOML" in run.stderr
