@@ -7,7 +7,7 @@ the contacts with their friction cones, the approach, and the arm when the
 grasp was reached at a world pose. Building it needs no display backend:
 the viewer (:mod:`planner.present.viewer`, viser) and the tests read the same
 scene. Hand and arm meshes come from their URDFs at the given joint values,
-with yourdfpy's forward kinematics (mimic joints follow their masters).
+with yourdfpy's forward kinematics (every joint as the grasp stores it, mimics included).
 
 Frames: the world is the object frame unless an object pose is given
 (``object_pose``: the object frame in the world). Metres throughout.
@@ -99,9 +99,14 @@ class GraspScene:
 def _model(urdf: Path) -> yourdfpy.URDF:
     # mesh paths as the file gives them, absolute, relative or package:// (pybullet_data's arms)
     # resolved against the URDF's folder
+    # mimic tags dropped: every joint is set from the configuration drawn (a hand's posture, a broken-away
+    # Barrett distal included, whose stored angle is not its coupling's)
     handler = partial(_resolve, folder=urdf.parent)
-    return yourdfpy.URDF.load(str(urdf), build_scene_graph=True, load_meshes=True, filename_handler=handler,
-                              build_collision_scene_graph=False, load_collision_meshes=False)
+    robot = yourdfpy.URDF.load(str(urdf), build_scene_graph=False, load_meshes=False, filename_handler=handler).robot
+    for joint in robot.joints:
+        joint.mimic = None
+    return yourdfpy.URDF(robot, build_scene_graph=True, load_meshes=True, filename_handler=handler,
+                         build_collision_scene_graph=False, load_collision_meshes=False)
 
 
 def _resolve(fname: str, folder: Path) -> str:
@@ -115,8 +120,8 @@ def _resolve(fname: str, folder: Path) -> str:
 
 def robot_parts(urdf: Path, joints: Mapping[str, float], base: np.ndarray, prefix: str, rgb: tuple[int, int, int],
                 skip_below: str | None = None) -> tuple[Part, ...]:
-    """The visual meshes of a URDF at ``joints`` [rad or m] (unnamed actuated
-    joints at 0; mimic joints follow their masters), its root link at ``base``
+    """The visual meshes of a URDF at ``joints`` [rad or m] (every joint as given, mimics too: a hand's
+    :meth:`~planner.specs.hand_spec.HandSpec.posture`; joints not given at 0), its root link at ``base``
     (4, 4) in the world. ``skip_below``: leave out that link and the links
     under it (an arm's own hand, drawn apart)."""
     model = _model(Path(urdf))
@@ -157,9 +162,9 @@ def grasp_scene(hand: HandSpec, mesh: trimesh.Trimesh, grasp: Grasp, friction: f
     world = np.eye(4) if object_pose is None else np.asarray(object_pose, float)
     hand_pose = world @ np.asarray(grasp.pose, float)
     obj = object_part(mesh, world)
-    closed = robot_parts(hand.urdf, dict(grasp.closed_joints), hand_pose, "hand/closed", HAND_RGB)
+    closed = robot_parts(hand.urdf, hand.posture(grasp.closed_joints), hand_pose, "hand/closed", HAND_RGB)
     # the open hand: only the links opening moves (the palm is where the closed one is)
-    opened = tuple(p for p, c in zip(robot_parts(hand.urdf, dict(grasp.open_joints), hand_pose, "hand/open",
+    opened = tuple(p for p, c in zip(robot_parts(hand.urdf, hand.posture(grasp.open_joints), hand_pose, "hand/open",
                                                  OPEN_RGB), closed)
                    if not np.allclose(p.pose, c.pose, atol=MOVED))
     points = grasp.contacts.points @ world[:3, :3].T + world[:3, 3]
