@@ -121,8 +121,8 @@ def load_folder(folder: Path) -> HandSpec:
         if link not in links:
             raise ConfigError(f"{path} field 'contact_links': unknown link '{link}'; links: {', '.join(links)}")
     contacts = _contact_models(f, contact_links)
-    return HandSpec(
-        name=folder.name, folder=folder, description=f.data.get("description", ""), urdf=urdf,
+    spec = HandSpec(
+        name=folder.name, folder=folder, description=f.get("description", ""), urdf=urdf,
         root_link=root_link, approach=approach / np.linalg.norm(approach), tcp=np.array(f.floats("tcp", 3)),
         joints=joints, contact_links=contact_links, contacts=contacts, centering=f.bool("centering", False),
         distance_offset=f.float("distance_offset", DEFAULT_DISTANCE_OFFSET),
@@ -135,6 +135,8 @@ def load_folder(folder: Path) -> HandSpec:
         settle_dynamics=_settle_dynamics(f),
         local_grid=_local_grid(f),
     )
+    f.check_unknown()
+    return spec
 
 
 def _local_grid(f: Fields) -> LocalGrid | None:
@@ -170,7 +172,7 @@ def _actuators(f: Fields) -> Actuators:
     """``[dynamics]``: the motors; ``effort`` defaults to ``finger_force``."""
     effort = f.float("effort", f.float("finger_force", DEFAULT_FINGER_FORCE, positive=True), positive=True)
     return Actuators(effort, f.float("closing_speed", DEFAULT_CLOSING_SPEED, positive=True),
-                     f.bool("backdrivable", True), f.data.get("source", "not given"))
+                     f.bool("backdrivable", True), f.get("source", "not given"))
 
 
 def _sampler(f: Fields, joints: tuple[JointSpec, ...]) -> str:
@@ -191,7 +193,7 @@ def parallel_jaw(centering: bool, joints: tuple[JointSpec, ...]) -> bool:
 
 def roll_symmetry(f: Fields) -> int:
     """The field ``roll_symmetry`` of a hand or a preshape (default 1)."""
-    value = f.data.get("roll_symmetry", 1)
+    value = f.get("roll_symmetry", 1)
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:
         raise ConfigError(f"{f.where} field 'roll_symmetry': must be a whole number >= 1")
     return value
@@ -214,7 +216,7 @@ def _joint(model: yourdfpy.URDF, source: Path, f: Fields) -> JointSpec:
     if upper < lower:
         raise ConfigError(f"{f.where}: joint '{name}' has lower limit {lower} above upper {upper}")
     mimic = node.mimic
-    mimic_of = f.data.get("mimic", mimic.joint if mimic is not None else None)
+    mimic_of = f.get("mimic", mimic.joint if mimic is not None else None)
     if mimic_of is not None and mimic_of not in model.joint_map:
         raise ConfigError(f"{f.where} field 'mimic': joint '{mimic_of}' is not in {source.name}")
     multiplier = f.float("multiplier", mimic.multiplier if mimic is not None else 1.0)
@@ -233,10 +235,10 @@ def _contact_models(f: Fields, links: tuple[str, ...]) -> dict[str, ContactModel
     default = _contact_model(table.table("default", {"model": "point"}))
     per_link = table.table("links", {})
     models = {link: default for link in links}
-    for link, spec in per_link.data.items():
+    for link, spec in zip(per_link.names(), per_link.data.values()):
         if link not in links:
             raise ConfigError(f"{per_link.where}: link '{link}' is not in contact_links")
-        models[link] = _contact_model(Fields(spec, f"{per_link.where}[{link}]"))
+        models[link] = _contact_model(per_link.child(spec, f"{per_link.where}[{link}]"))
     return models
 
 

@@ -73,9 +73,10 @@ def sweep_preshapes(hand: HandSpec, names: list[str] | None = None, on_table: bo
 
 def _parse(hand: HandSpec, path: Path) -> tuple[Preshape, ...]:
     f = Fields(read_toml(path), str(path))
-    if f.data.get("hand", hand.name) != hand.name:
+    if f.get("hand", hand.name) != hand.name:
         raise ConfigError(f"{path} field 'hand': says '{f.data['hand']}', expected '{hand.name}'")
     shapes = [_preshape(hand, item) for item in f.tables("preshape")]
+    f.check_unknown()
     by_name = {s.name: s for s in shapes}
     if len(by_name) != len(shapes):
         raise ConfigError(f"{path}: two preshapes share a name")
@@ -89,7 +90,7 @@ def _preshape(hand: HandSpec, f: Fields) -> Preshape:
             raise ConfigError(f"{f.where} field 'tags': unknown tag '{tag}'; use {', '.join(TAGS)}")
     driven = {j.name: j for j in hand.driven}
     values = f.table("joints")
-    for name in values.data:
+    for name in values.names():
         if name not in driven:
             raise ConfigError(f"{values.where}: '{name}' is not a driven joint of hand '{hand.name}'; "
                               f"driven joints: {', '.join(driven)}")
@@ -97,11 +98,11 @@ def _preshape(hand: HandSpec, f: Fields) -> Preshape:
         v = values.float(name)
         if not joint.lower - 1e-9 <= v <= joint.upper + 1e-9:
             raise ConfigError(f"{values.where}: {name} = {v} is outside its limits [{joint.lower}, {joint.upper}]")
-    open_driven = {name: values.float(name) if name in values.data else j.lower for name, j in driven.items()}
+    open_driven = {name: values.float(name) if values.has(name) else j.lower for name, j in driven.items()}
     close = {j.name: j.close for j in hand.driven}
     if f.has("close"):
         override = f.table("close")
-        for name in override.data:
+        for name in override.names():
             if name not in driven:
                 raise ConfigError(f"{override.where}: '{name}' is not a driven joint of hand '{hand.name}'")
             close[name] = override.float(name)
@@ -112,6 +113,6 @@ def _preshape(hand: HandSpec, f: Fields) -> Preshape:
         raise ConfigError(f"{f.where} field 'standoffs': needs non-negative distances [m]")
     tcp = np.array(f.floats("tcp", 3)) if f.has("tcp") else hand.tcp
     table = f.bool("table", False)
-    return Preshape(name=f.str("name"), tags=tags, taxonomy=f.data.get("taxonomy", ""),
+    return Preshape(name=f.str("name"), tags=tags, taxonomy=f.get("taxonomy", ""),
                     joints=hand.full_configuration(open_driven), close=close, standoffs=standoffs, tcp=tcp,
                     table=table, roll_symmetry=roll_symmetry(f))

@@ -35,26 +35,53 @@ def read_toml(path: Path) -> dict[str, Any]:
 class Fields:
     """Typed access to one TOML table; errors say ``file: [table] field: problem``."""
 
-    def __init__(self, data: Any, where: str) -> None:
+    def __init__(self, data: Any, where: str, read: dict[int, tuple[str, dict, set]] | None = None) -> None:
         if not isinstance(data, dict):
             raise ConfigError(f"{where}: expected a table, got {type(data).__name__}")
         self.data = data
         self.where = where
+        # every table reached from the file's root (by identity) and the keys read in it, for check_unknown
+        self._read = {} if read is None else read
+        self._keys = self._read.setdefault(id(data), (where, data, set()))[2]
 
     def _fail(self, key: str, problem: str) -> ConfigError:
         return ConfigError(f"{self.where} field '{key}': {problem}")
 
     def has(self, key: str) -> bool:
+        self._keys.add(key)
         return key in self.data
 
+    def get(self, key: str, default: Any = None) -> Any:
+        """The raw value (``default`` if absent)."""
+        self._keys.add(key)
+        return self.data.get(key, default)
+
+    def names(self) -> list[str]:
+        """The table's keys, where they are names (joints, links) rather than fields: all of them read."""
+        self._keys.update(self.data)
+        return list(self.data)
+
+    def child(self, data: Any, where: str) -> Fields:
+        """A table found inside this one's values (checked by :meth:`check_unknown` with it)."""
+        return Fields(data, where, self._read)
+
+    def check_unknown(self) -> None:
+        """Refuse a field that nothing read in this file's tables reached so far: a misspelt name (``efort``,
+        ``setle``), whose default would be used silently, or one this hand's other settings never read."""
+        for where, data, keys in self._read.values():
+            unknown = sorted(set(data) - keys)
+            if unknown:
+                raise ConfigError(f"{where} field '{unknown[0]}': not a field read here (misspelt? known here: "
+                                  f"{', '.join(sorted(keys & set(data))) or 'none'})")
+
     def str(self, key: str, default: str | None = None) -> str:
-        value = self.data.get(key, default)
+        value = self.get(key, default)
         if not isinstance(value, str) or not value:
             raise self._fail(key, "missing or not a non-empty string")
         return value
 
     def float(self, key: str, default: float | None = None, *, positive: bool = False) -> float:
-        value = self.data.get(key, default)
+        value = self.get(key, default)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self._fail(key, "missing or not a number")
         if not math.isfinite(value) or (positive and value <= 0):
@@ -62,13 +89,13 @@ class Fields:
         return float(value)
 
     def bool(self, key: str, default: bool) -> bool:
-        value = self.data.get(key, default)
+        value = self.get(key, default)
         if not isinstance(value, bool):
             raise self._fail(key, "must be true or false")
         return value
 
     def floats(self, key: str, length: int | None = None, default: list[float] | None = None) -> list[float]:
-        value = self.data.get(key, default)
+        value = self.get(key, default)
         if not isinstance(value, list) or not all(
             isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value
         ):
@@ -78,19 +105,19 @@ class Fields:
         return [float(v) for v in value]
 
     def strs(self, key: str, default: list[str] | None = None) -> list[str]:
-        value = self.data.get(key, default)
+        value = self.get(key, default)
         if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
             raise self._fail(key, "missing or not a list of strings")
         return list(value)
 
     def table(self, key: str, default: dict[str, Any] | None = None) -> Fields:
-        value = self.data.get(key, default)
+        value = self.get(key, default)
         if value is None:
             raise self._fail(key, "missing table")
-        return Fields(value, f"{self.where}[{key}]")
+        return self.child(value, f"{self.where}[{key}]")
 
     def tables(self, key: str) -> list[Fields]:
-        value = self.data.get(key)
+        value = self.get(key)
         if not isinstance(value, list) or not value or not all(isinstance(v, dict) for v in value):
             raise self._fail(key, "missing or not an array of tables ([[...]])")
-        return [Fields(v, f"{self.where}[[{key}]] #{i + 1}") for i, v in enumerate(value)]
+        return [self.child(v, f"{self.where}[[{key}]] #{i + 1}") for i, v in enumerate(value)]

@@ -79,3 +79,15 @@ def test_the_allegros_table_preshapes_pinch_across_each_other() -> None:
     assert {j for j, r in spread.close.items() if r} == {"index_abd", "ring_abd"}
     assert spread.close["index_abd"] < 0 < spread.close["ring_abd"]  # each towards the other
     assert spread.joints["index_abd"] > 0 > spread.joints["ring_abd"]  # opened outwards
+
+
+@pytest.mark.parametrize("typo", ["standofs = [0.05]", "tabel = true"])
+def test_a_misspelt_preshape_field_is_refused(typo: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """It was ignored: the default (standoff 0, not a table preshape) used without a word."""
+    folder = tmp_path / "preshapes"
+    folder.mkdir()
+    (folder / "panda.toml").write_text('hand = "panda"\n[[preshape]]\nname = "w"\ntags = ["power"]\n'
+                                       f'joints = {{ panda_finger_joint1 = 0.04 }}\n{typo}\n')
+    monkeypatch.setattr(preshapes.assets, "project_dir", lambda name: tmp_path / name)
+    with pytest.raises(ConfigError, match=f"field '{typo.split()[0]}': not a field read here"):
+        load_preshapes(load_hand("panda"))
