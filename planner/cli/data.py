@@ -47,6 +47,8 @@ def export(db_path: Path, fmt: str, out_dir: Path, objects: tuple[str, ...], han
         rate = summary.grasps / max(summary.seconds, 1e-9)
         click.echo(f"exported {summary.grasps} grasps as {fmt} to {len(summary.files)} file(s) in {out_dir} "
                    f"({summary.seconds:.1f} s, {rate:.0f} grasps/s)")
+        for note in summary.notes:
+            click.echo(f"note: {note}", err=True)
 
 
 @click.command(name="import")

@@ -119,10 +119,12 @@ class ExportSummary:
     meshes: list[Path] = field(default_factory=list)  # DIR/meshes/<object>.obj
     grasps: int = 0
     seconds: float = 0.0
+    notes: list[str] = field(default_factory=list)  # what a reader of the labels should know
 
     def to_json(self) -> dict:
         return {"format": self.format, "files": [str(p) for p in self.files],
-                "meshes": [str(p) for p in self.meshes], "grasps": self.grasps, "seconds": round(self.seconds, 3)}
+                "meshes": [str(p) for p in self.meshes], "grasps": self.grasps, "seconds": round(self.seconds, 3),
+                "notes": self.notes}
 
 
 def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (), hands: Sequence[str] = (),
@@ -139,6 +141,11 @@ def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (
         pairs = sel.pairs(db)
         specs = {h: load_hand(h) for h in sorted({h for _, h in pairs})}  # unknown hands fail up front
         models = {h: db.model(h) for h in specs}  # read once: a model with trees is ~0.3 MB of JSON
+        if sel.label == BEST:
+            summary.notes += [f"hand '{h}' has no calibrated p_hold model: its grasps no trial tried are labelled by "
+                              "the force-closure flag (label_from force_closure), which is not a success label; "
+                              "`grasp validate --all --force-closure` gives each a trial's verdict"
+                              for h, model in models.items() if model is None]
         if not any(_has_one(sel.batches(db, o, h)) for o, h in pairs):
             raise InputError(f"{db_path}: no grasp of the {len(pairs)} (object, hand) pairs selected passes the "
                              "filters (--top, --min-epsilon, --label): nothing written")
