@@ -25,7 +25,7 @@ from planner.api.resolving import DEFAULT_DB, PROPERTY_RTOL
 from planner.db.ranking import RankingRule
 from planner.db.store import Database, UnitRow, open_for_writing
 from planner.errors import InputError
-from planner.plan.sweep import SweepSettings, candidate_count
+from planner.plan.sweep import SweepSettings, candidate_count, check_sampler
 from planner.specs.hands import load_hand
 from planner.specs.inputs import expand
 from planner.specs.objects import NO_PHYSICAL, ObjectSpec, Physical, resolve_spec
@@ -106,6 +106,7 @@ def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: i
         raise InputError(f"--stable-poses must be at least 1, got {on_table}")
     hand_spec = load_hand(hand)
     settings = settings.resolved(hand_spec.sampler, hand_spec.settle, hand_spec.settle_dynamics)
+    check_sampler(settings, hand_spec)
     load_preshapes(hand_spec, list(settings.preshapes) if settings.preshapes else None)
     units, seen = [], {}
     for ref in refs:

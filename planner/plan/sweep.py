@@ -30,6 +30,7 @@ from planner.validation.settings import ShakeSettings, settle_settings
 
 if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settings without it
     from planner.plan.sampling import Approaches, Pairs
+    from planner.specs.hand_spec import HandSpec
 
 #: Bumped whenever a change alters which grasps a sweep produces, so stale
 #: units are recomputed rather than mixed with new ones.
@@ -340,3 +341,10 @@ def candidate_count(settings: SweepSettings, shapes: tuple[Preshape, ...], chunk
 def _distances(values: Sequence[float]) -> bool:
     """At least one value, each finite and >= 0 [m]."""
     return bool(len(values)) and all(math.isfinite(v) and v >= 0 for v in values)
+
+
+def check_sampler(settings: SweepSettings, hand: HandSpec) -> None:
+    """Refuse the antipodal sampler for a hand that is not a parallel jaw (before any unit runs)."""
+    if settings.sampler == "antipodal" and hand.jaw is None:
+        raise InputError(f"hand '{hand.name}': the antipodal sampler needs a parallel jaw; use --sampler surface or "
+                         "box")

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from planner import quality
-from planner.errors import DegenerateGraspError, InputError, PlannerError
+from planner.errors import DegenerateGraspError, PlannerError
 from planner.geometry.frames import approach_of, resting_up
 from planner.geometry.solid import PreparedObject, load_object
 from planner.plan import grip, sampling
@@ -46,6 +46,7 @@ from planner.plan.sweep import (
     SweepSettings,
     antipodal_candidates,
     candidates,
+    check_sampler,
     unit_rng,
 )
 from planner.plan.tolerances import FINGER_CLEARANCE, MIN_CLEARANCE, TABLE_CLEARANCE, TABLE_ELEVATION
@@ -286,9 +287,7 @@ def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, han
                                max_width=max(openings.values()) - 2 * MIN_CLEARANCE)
     todo = antipodal_candidates(pairs, shapes, openings, settings, MIN_CLEARANCE,
                                 settings.ray_range(spec.chunk, len(pairs)))
-    if hand.jaw is None:
-        raise InputError(f"hand '{hand.name}': the antipodal sampler needs a parallel jaw; "
-                         "use --sampler surface or box")
+    check_sampler(settings, hand)
     master = hand.jaw[0]
     usable = [c for c in todo if not pairs.reasons[c.ray]]
     rows = np.array([c.ray for c in usable], int)

@@ -39,6 +39,7 @@ def test_bad_input_is_one_line_and_exit_code(tmp_path: Path, monkeypatch: pytest
      "--robot-base: quaternion"),
     (["generate", "box", "--hand", "panda", "--depths", "nan"], "--depths"),
     (["show", "box", "--hand", "panda", "--top", "101"], "a contact sheet holds at most 100 grasps"),
+    (["generate", "box", "--hand", "barrett", "--sampler", "antipodal"], "the antipodal sampler needs a parallel jaw"),
     (["generate", "box", "--hand", "barrett", "--preshapes", ""], "unknown preshape ''"),
     (["generate", "box", "--hand", "panda", "--standoffs", "inf"], "--standoffs"),
     (["generate", "box", "--hand", "panda", "--unit-timeout", "-1"], "--unit-timeout"),
