@@ -33,7 +33,8 @@ def export(db_path: Path, fmt: str, out_dir: Path, objects: tuple[str, ...], han
            min_translation: float, min_rotation: float) -> None:
     """Export grasps as dataset files: acronym (HDF5 per object and hand),
     graspgen (JSON per object and hand), dexgraspnet (.npy per object and
-    hand), parquet or csv (one table of all grasps)."""
+    hand), moveit (YAML of moveit_msgs/Grasp per object and hand), parquet or
+    csv (one table of all grasps)."""
 
     def progress(path: Path, count: int) -> None:
         if not quiet and not as_json:
