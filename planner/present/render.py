@@ -23,6 +23,7 @@ import trimesh
 
 from planner.geometry.frames import rotation_onto, tangent_bases
 from planner.geometry.solid import PreparedObject
+from planner.present.describe import score_text
 from planner.record.contacts import HandContacts
 from planner.record.grasp import Grasp
 from planner.sim import Sim
@@ -220,5 +221,5 @@ def title(grasp: Grasp) -> str:
     m = grasp.measures
     extra = "" if m is None else (f", holds {m.resist_worst:.1f}x its weight, push {m.push:.2f}"
                                   + (f", {'/'.join(m.reasons)}" if m.reasons else ""))
-    return (f"#{grasp.rank} {grasp.object}/{grasp.hand} {grasp.preshape}: score {grasp.score:.4f}, "
+    return (f"#{grasp.rank} {grasp.object}/{grasp.hand} {grasp.preshape}: score {score_text(grasp.score)}, "
             f"epsilon {grasp.epsilon:.4f}, reach {reach}, {len(grasp.contacts)} contacts{extra}")
