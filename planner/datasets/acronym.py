@@ -283,8 +283,9 @@ def _rigid(path: Path, transforms: np.ndarray) -> np.ndarray:
 
 
 def read_grasps(path: Path, hand: HandSpec, obj: str, poses: np.ndarray) -> list[Grasp]:
-    """This project's grasps back from a file with its extras; candidate = the
-    row number, seed 0, the object named ``obj``."""
+    """This project's grasps back from a file with its extras, the object named ``obj``: candidate and seed as
+    the file gives them (``grasps/candidate``, ``grasps/seed``) where its candidates are distinct, else the row
+    number and 0."""
     n = len(poses)
     with _open(path) as f:
         g = f["grasps"]
@@ -304,8 +305,12 @@ def read_grasps(path: Path, hand: HandSpec, obj: str, poses: np.ndarray) -> list
         standoff = g["standoff"][()] if "standoff" in g else np.zeros(n)
         planes = g["table_plane"][()] if "table_plane" in g else np.full((n, 4), np.nan)
         contacts = contact_items(path, list(g["contacts"].asstr()[()]), n)
+        kept = g["candidate"][()] if "candidate" in g else None  # the sweep's numbers, where they tell grasps apart
+        kept = kept if kept is not None and len(kept) == n and len(np.unique(kept)) == n else None
+        seeds = g["seed"][()] if kept is not None and "seed" in g else np.zeros(n, np.int64)
     check_joints(path, hand, names, n, joints_closed=closed, joints_open=opened)
-    return [Grasp(object=obj, hand=hand.name, preshape=str(preshape[i]), candidate=i, seed=0,
+    return [Grasp(object=obj, hand=hand.name, preshape=str(preshape[i]), candidate=i if kept is None else int(kept[i]),
+                  seed=int(seeds[i]),
                   approach_point=np.asarray(approach_point[i], float), approach_dir=np.asarray(approach_dir[i], float),
                   roll=float(roll[i]), standoff=float(standoff[i]), pose=poses[i],
                   open_joints=_joints(names, opened[i]), closed_joints=_joints(names, closed[i]),

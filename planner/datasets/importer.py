@@ -2,8 +2,8 @@
 
 Each file becomes one unit of work in the database (object, hand, settings
 = the import source and the file's sha256, seed 0, chunk 0); importing the
-same file again finds the unit done and skips it. Grasp ``candidate`` = the
-row index in the file. Reading the file is the format's reader's
+same file again finds the unit done and skips it. Grasp ``candidate`` (and
+``seed``) as an own file gives them, else the row index in the file. Reading the file is the format's reader's
 (:mod:`planner.datasets.registry`; ACRONYM's is :mod:`planner.datasets.acronym`).
 
 - Hand: ``gripper/type`` ("panda" and "franka_panda" mean ``panda``; any
@@ -250,22 +250,23 @@ def _import_lossless(db: Database, plan: _Plan, rule: RankingRule) -> ImportResu
     unit = UnitRow(obj.name, plan.hand.name, plan.settings.digest, plan.settings.to_json(), 0, 0,
                    candidates=len(poses), seconds=time.perf_counter() - start)
     unit_id = db.write_unit(unit, obj, grasps, rule)
-    _restore_simulation(db, plan, unit_id, obj.name, rule)
+    _restore_simulation(db, plan, unit_id, obj.name, rule, [g.candidate for g in grasps])
     return ImportResult(plan.path, obj.name, plan.hand.name, len(grasps), sum(g.force_closure for g in grasps),
                         False, False, {})
 
 
-def _restore_simulation(db: Database, plan: _Plan, unit_id: int, obj: str, rule: RankingRule) -> None:
+def _restore_simulation(db: Database, plan: _Plan, unit_id: int, obj: str, rule: RankingRule,
+                        candidates: list[int]) -> None:
     """Our own files carry shake-test results (PyBullet's and MuJoCo's) and
     robust epsilon per grasp: put them back into ``validation`` / ``mujoco``
-    / ``robust`` and re-score."""
+    / ``robust`` and re-score. ``candidates``: each file row's grasp."""
     results = plan.reader.simulation(plan.path)
     if not results:
         return
     source = json.dumps({"imported_from": str(plan.path)})
     ids = db.grasp_ids(unit_id)
-    db.write_validation(obj, plan.hand.name, [Validated(grasp_id, results[i][0], results[i][1], 0, source, source,
-                                                        results[i][2], source) for i, grasp_id in ids.items()], rule)
+    db.write_validation(obj, plan.hand.name, [Validated(ids[c], results[i][0], results[i][1], 0, source, source,
+                                                        results[i][2], source) for i, c in enumerate(candidates)], rule)
 
 
 def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: str | None, rescore: bool) -> _Plan:

@@ -42,12 +42,12 @@ def test_acronym_round_trip_is_lossless(db: Path, tmp_path: Path) -> None:
         before = source_rows(db, obj)
         after = sqlite3.connect(fresh)
         after.row_factory = sqlite3.Row
-        imported = after.execute("SELECT * FROM grasps WHERE object = ? ORDER BY candidate", (obj,)).fetchall()
+        imported = after.execute("SELECT * FROM grasps WHERE object = ? ORDER BY rank, id", (obj,)).fetchall()
         assert len(imported) == len(before) > 0
         for a, b in zip(before, imported):
             assert_close(pose(b), pose(a))
             for key in ("epsilon", "volume", "force_closure", "score", "width", "reachability", "manipulability",
-                        "preshape", "roll", "standoff", "n_contacts", "links_touching"):
+                        "preshape", "roll", "standoff", "n_contacts", "links_touching", "candidate", "seed"):
                 assert a[key] == b[key], key
             for key in ("contacts", "approach_point", "approach_dir"):
                 assert json.loads(a[key]) == json.loads(b[key]), key
