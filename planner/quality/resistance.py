@@ -41,7 +41,7 @@ from planner.errors import DegenerateGraspError
 from planner.quality.contacts import FRICTIONLESS, SOFT, Contacts, ModelArg, as_array, as_center, as_contacts
 from planner.quality.grasp_matrix import partial_grasp_matrices, selection_lengths
 from planner.quality.jacobian import hand_jacobian
-from planner.quality.tolerances import GRAVITY, RESISTANCE_CAP
+from planner.quality.tolerances import GRAVITY, RANK_TOL, RESISTANCE_CAP
 from planner.quality.wrenches import _cone_table, as_cone_edges
 
 #: The six axes +-x, +-y, +-z and the eight cube diagonals: 14 unit gravity
@@ -232,24 +232,33 @@ def _solver():  # type: ignore[no-untyped-def]
 
 def solve(prog: ResistanceProgram, directions: np.ndarray) -> np.ndarray:
     """(k,) largest s per direction: one HiGHS model, warm-started between
-    directions (only the load column changes)."""
+    directions (only the load column changes). The equilibrium rows are those
+    of the wrench matrix's numerical row space (singular values above
+    ``RANK_TOL`` of the largest): a direction no contact wrench reaches (two
+    point contacts exert no torque about their line) would otherwise be a row
+    of round-off that the solver's scaling turns into a constraint (the same
+    pinch resisted 17.84 or 12.61 g depending on a 1e-7 rad turn). A load with
+    a part outside that space cannot be balanced: 0."""
     import highspy
 
     k = prog.wrench.shape[1]
     if k == 0:
         return np.zeros(len(directions))
-    n_rows = 6 + len(prog.rows)
+    u, sing, _ = np.linalg.svd(prog.wrench, full_matrices=True)
+    rank = int((sing > sing[0] * RANK_TOL).sum()) if sing[0] > 0 else 0
+    basis, outside = u[:, :rank], u[:3, rank:]
+    n_rows = rank + len(prog.rows)
     matrix = np.zeros((n_rows, k + 1))
-    matrix[:6, :k] = prog.wrench
-    matrix[6:, :k] = prog.rows
-    matrix[:3, k] = prog.weight * directions[0]
+    matrix[:rank, :k] = basis.T @ prog.wrench
+    matrix[rank:, :k] = prog.rows
+    matrix[:rank, k] = basis[:3].T @ (prog.weight * directions[0])
     inf = highspy.kHighsInf
     lp = highspy.HighsLp()
     lp.num_col_, lp.num_row_ = k + 1, n_rows
     lp.col_cost_ = np.r_[np.zeros(k), -1.0]
     lp.col_lower_, lp.col_upper_ = np.zeros(k + 1), np.r_[np.full(k, inf), prog.cap]
-    lp.row_lower_ = np.r_[np.zeros(6), np.full(len(prog.rows), -inf)]
-    lp.row_upper_ = np.r_[np.zeros(6), prog.bounds]
+    lp.row_lower_ = np.r_[np.zeros(rank), np.full(len(prog.rows), -inf)]
+    lp.row_upper_ = np.r_[np.zeros(rank), prog.bounds]
     start, index, value = _columnwise(matrix)
     lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
     lp.a_matrix_.start_, lp.a_matrix_.index_, lp.a_matrix_.value_ = start, index, value
@@ -257,8 +266,11 @@ def solve(prog: ResistanceProgram, directions: np.ndarray) -> np.ndarray:
     solver.passModel(lp)
     out = np.zeros(len(directions))
     for r, d in enumerate(directions):
-        for row in range(3):
-            solver.changeCoeff(row, k, float(prog.weight * d[row]))
+        load = basis[:3].T @ (prog.weight * d)
+        for row in range(rank):
+            solver.changeCoeff(row, k, float(load[row]))
+        if np.abs(outside.T @ d).max(initial=0.0) > RANK_TOL:  # a load the contacts cannot balance at all
+            continue
         solver.run()
         if solver.getModelStatus() == highspy.HighsModelStatus.kOptimal:
             out[r] = min(max(-solver.getObjectiveValue(), 0.0), prog.cap)

@@ -124,10 +124,11 @@ def test_the_column_wise_matrix_equals_the_reference(seed: int, rows: int, cols:
         assert got.dtype == want.dtype and np.array_equal(got, want)
 
 
-@pytest.mark.xfail(strict=True, reason="found 2026-12-05 by the property test above, not fixed yet: the pinch's "
-                   "weight resistance along its own axis is 17.84 g or 12.61 g depending on round-off (a rotation of "
-                   "1e-7 rad; scipy's linprog gives the same values): the program's optimum is discontinuous there")
 def test_weight_resistance_does_not_depend_on_round_off_along_the_pinch_axis() -> None:
+    """Found 2026-12-05 by the property test above: the pinch's resistance across its axis was 17.84 g or 12.61 g
+    depending on round-off (turned 1 rad, tilted 1e-7 rad). Its grasp-wrench matrix has rank 5 (no torque about the
+    line of the contacts): the equality row along that direction was round-off, which the solver's row scaling made a
+    real constraint. The program is now solved in the matrix's numerical row space."""
     rot = Rotation.from_euler("zyz", [1.0, 1e-7, 0.0]).as_matrix()
     base = weight_resistance(**pinch(), directions=SPHERE14).per_direction
     moved = weight_resistance(**pinch(rot, np.zeros(3)), directions=SPHERE14 @ rot.T).per_direction
