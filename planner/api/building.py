@@ -172,8 +172,9 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
     prepared and compared for the objects with units ``todo``; an object
     whose units are all done is compared by its file and scale, and prepared
     only where those moved or the file was modified since its last unit
-    finished (its mtime: a copy that keeps an older mtime is not seen). An object whose mesh no longer loads is left to
-    its units (stored as failed)."""
+    finished (its mtime: a copy that keeps an older mtime is not seen). An
+    object whose mesh no longer loads is left to its units (stored as
+    failed)."""
     from planner.db.objects import differs
     from planner.errors import PlannerError
     from planner.geometry.solid import prepare

@@ -138,7 +138,7 @@ def diverse_options(command):  # type: ignore[no-untyped-def]
 
 def unused(names: Sequence[str], why: str) -> None:
     """Refuse the options ``names`` (parameter names) where given on the command line: this call would not read
-    them (``why``: "need --on-table", say). An option left at its default says nothing and passes."""
+    them (``why``: "used with --on-table only", say). An option left at its default says nothing and passes."""
     ctx = click.get_current_context()
     given = [p for p in ctx.command.params if p.name in names and
              ctx.get_parameter_source(p.name) is click.core.ParameterSource.COMMANDLINE]
