@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from planner.api.resolving import DEFAULT_DB, PROPERTY_RTOL
+from planner.db.hand_files import check_hand_files
 from planner.db.ranking import RankingRule
 from planner.db.store import Database, UnitRow, open_for_writing
 from planner.errors import InputError
@@ -257,6 +258,7 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
     summary = Summary()
     start = time.perf_counter()
     with open_for_writing(Path(db_path)) as db:
+        check_hand_files(db, [hand])
         units = _stored_names(db, units)
         done = {d: db.units_done(hand, d, seed) for d in sorted({u.settings.digest for u in units})}
         todo = [u for u in units if (u.label, u.chunk) not in done[u.settings.digest]]

@@ -15,10 +15,9 @@ same file again finds the unit done and skips it. Grasp ``candidate`` (and
   else ``object/file`` with ``object/scale`` under the name
   ``object/name``, or the .h5 file's stem (ACRONYM names each file by
   category, mesh and scale: two scales of one mesh are two objects), relative
-  paths looked up next to
-  the .h5 file (this project's export folders: ``meshes/`` beside the .h5
-  files) and then one folder up (ACRONYM keeps ``grasps/`` beside
-  ``meshes/``). So a built-in object exported at another ``--scale``, or
+  paths looked up next to the .h5 file (this project's export folders:
+  ``meshes/`` beside the .h5 files), then one folder up (ACRONYM keeps
+  ``grasps/`` beside ``meshes/``). So a built-in object exported at another ``--scale``, or
   under a copied name, comes back as the mesh its grasps were planned on.
   The file's ``object/mass`` and ``object/friction`` override the object's.
 - Poses: ``grasps/transforms @ inverse(export_frame)``, the file's
@@ -31,11 +30,10 @@ same file again finds the unit done and skips it. Grasp ``candidate`` (and
   closed and centred (:meth:`Grasper.close_at`), its contacts read as
   patches, and evaluated by :func:`planner.plan.unit.grasp_quality` and
   :func:`planner.plan.measures.measure` (the same analytic measures and rule
-  as a sweep); poses where the hand does not
-  close on the object are counted by reason and dropped. The stored pose is
-  the closed hand's (after back-off and centring). Reachability is not
-  computed (None). Re-scoring runs in the crash-safe worker pool
-  (:mod:`planner.run.pool`, ``workers`` processes) in units of
+  as a sweep); poses where the hand does not close on the object are counted
+  by reason and dropped. The stored pose is
+  the closed hand's (after back-off and centring); reachability is None.
+  Re-scoring runs in the crash-safe worker pool (:mod:`planner.run.pool`, ``workers`` processes) in units of
   :data:`RESCORE_CHUNK` poses; a file is written once all its poses are
   back, its grasps in file order. A file whose re-scoring fails (a worker
   died twice) is stored as a failed unit with its error, and the next import
@@ -59,6 +57,7 @@ import numpy as np
 from planner.datasets import formats
 from planner.datasets.acronym import AcronymHeader
 from planner.datasets.registry import Reader
+from planner.db.hand_files import check_hand_files
 from planner.db.ranking import RankingRule
 from planner.db.store import Database, UnitRow, Validated, open_for_writing
 from planner.errors import InputError
@@ -154,6 +153,7 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
 
     with open_for_writing(Path(db_path)) as db:
         _check_objects(db, plans)
+        check_hand_files(db, {p.hand.name for p in plans})
         rule = db.rule()
         db.apply_rule(rule)
         rescoring: dict[int, _Rescoring] = {}

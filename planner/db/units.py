@@ -26,6 +26,12 @@ class UnitReads:
         return {(r["object"], r["chunk"]) for r in rows}
 
     @_reads
+    def hand_swept(self, hand: str) -> bool:
+        """Whether any finished unit (a sweep or an import) stored ``hand``'s results."""
+        return self._conn.execute("SELECT 1 FROM units WHERE hand = ? AND status = 'done' LIMIT 1",
+                                  (hand,)).fetchone() is not None
+
+    @_reads
     def validated_ids(self, obj: str, hand: str, table: str, seed: int, settings: str) -> set[int]:
         """Ids of ``obj``'s grasps for ``hand`` with a row in ``table`` (``validation``: PyBullet's trial,
         ``mujoco``, ``robust``) made with ``seed`` and ``settings`` (as stored)."""

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from planner import prepare
+from planner.db.hand_files import check_hand_files
 from planner.db.objects import stored_object
 from planner.db.ranking import RankingRule
 from planner.db.store import Database, ObjectRow, Validated, open_for_writing
@@ -294,6 +295,7 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
         kept: list[Grasp] = []
         tasks = plan(db, objects, hands, Selection(top, sample, every, closure_only), seed, trial_settings, noise,
                      kept)
+        check_hand_files(db, {t.hand for t in tasks} | {g.hand for g in kept})
         summary.kept = len(kept)
         verdicts = [g.mujoco if engine == "mujoco" else g.validation for g in kept]
         summary.kept_successes = sum(bool(t.success) for t in verdicts if t is not None)

@@ -1,0 +1,117 @@
+"""A database records the files of the hand its grasps were made with, and
+refuses to store, validate or import grasps of an edited hand under the
+same name (planner.db.hand_files)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sqlite3
+from collections.abc import Iterator
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from planner import assets
+from planner.db.hand_files import META_KEY, check_hand_files
+from planner.db.ranking import RankingRule
+from planner.db.store import UnitRow, open_for_writing
+from planner.errors import InputError
+from planner.geometry.solid import load_object
+from planner.specs.hand_files import changed, hand_files
+from planner.specs.hands import load_hand
+from tests.helpers import content, grasp, made_up, one_line_error
+
+
+@pytest.fixture
+def project(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
+    """A project folder holding copies of the Panda's and the Allegro's hand and preshapes."""
+    root = tmp_path / "project"
+    for hand in ("panda", "allegro"):
+        shutil.copytree(assets.PROJECT_ROOT / "hands" / hand, root / "hands" / hand)
+        (root / "preshapes").mkdir(parents=True, exist_ok=True)
+        shutil.copy(assets.PROJECT_ROOT / "preshapes" / f"{hand}.toml", root / "preshapes")
+    shutil.copytree(assets.PROJECT_ROOT / "objects", root / "objects")
+    monkeypatch.setattr(assets, "PROJECT_ROOT", root)
+    load_hand.cache_clear()
+    yield root
+    load_hand.cache_clear()
+
+
+def edit(path: Path, old: str, new: str) -> None:
+    text = path.read_text()
+    assert old in text
+    path.write_text(text.replace(old, new, 1))
+
+
+def test_the_files_of_a_hand_and_what_counts_as_an_edit(project: Path) -> None:
+    before = hand_files("panda")
+    assert {"hands/panda/hand.toml", "preshapes/panda.toml", "pybullet_data:franka_panda/panda.urdf",
+            "pybullet_data:franka_panda/meshes/collision/finger.obj"} <= set(before)
+    toml = project / "hands" / "panda" / "hand.toml"
+    with toml.open("a") as fh:
+        fh.write("\n# a comment\n")
+    edit(toml, 'description = "', 'description = "edited: ')
+    assert hand_files("panda") == before  # comments, layout and the description do not count
+    edit(toml, "tcp = [0.0, 0.0, 0.1034]", "tcp = [0.0, 0.0, 0.1040]")
+    assert changed(before, hand_files("panda")) == ["hands/panda/hand.toml"]
+    allegro = hand_files("allegro")
+    with (project / "hands" / "allegro" / "palm.obj").open("a") as fh:  # a collision mesh, by its bytes
+        fh.write("\n")
+    assert changed(allegro, hand_files("allegro")) == ["hands/allegro/palm.obj"]
+    edit(project / "preshapes" / "allegro.toml", "[[preshape]]", "[[preshape]]\n# moved\n")
+    assert changed(allegro, hand_files("allegro")) == ["hands/allegro/palm.obj"]
+
+
+def swept(db_path: Path) -> None:
+    """A database holding one finished unit of the Panda, the hand's files recorded."""
+    with open_for_writing(db_path) as db:
+        check_hand_files(db, ["panda"])
+        db.write_unit(UnitRow("box", "panda", "h" * 16, json.dumps({}), 5, 0, None, candidates=3), load_object("box"),
+                      [replace(made_up(i, 0.05), object="box") for i in range(2)], RankingRule())
+
+
+def test_an_edited_hand_is_refused_by_every_writer_and_nothing_is_written(project: Path, tmp_path: Path) -> None:
+    db_path = tmp_path / "g.db"
+    swept(db_path)
+    with open_for_writing(db_path) as db:
+        check_hand_files(db, ["panda"])  # the same files: accepted
+    before = content(db_path)
+    edit(project / "preshapes" / "panda.toml", "standoffs = [0.0, 0.02]", "standoffs = [0.0, 0.03]")
+    load_hand.cache_clear()
+    for args in (["generate", "box", "--hand", "panda"], ["validate", "--top", "1"]):
+        code, _, err = grasp(*args, "--db", str(db_path))
+        one_line_error(code, err, InputError.exit_code, "hand 'panda' was edited since g.db",
+                       "preshapes/panda.toml changed", "--db")
+    assert content(db_path) == before
+    with sqlite3.connect(db_path) as conn:  # the record still names the files the grasps were made with
+        stored = json.loads(conn.execute("SELECT value FROM meta WHERE key = ?", (META_KEY,)).fetchone()[0])
+    conn.close()
+    assert changed(stored["panda"], hand_files("panda")) == ["preshapes/panda.toml"]
+    with open_for_writing(tmp_path / "other.db") as db:  # another database takes the edited hand
+        check_hand_files(db, ["panda"])
+        assert json.loads(db.meta(META_KEY) or "{}")["panda"] == hand_files("panda")
+
+
+def test_a_database_without_grasps_of_the_hand_or_without_a_record_takes_its_files(project: Path,
+                                                                                   tmp_path: Path) -> None:
+    db_path = tmp_path / "g.db"
+    with open_for_writing(db_path) as db:
+        check_hand_files(db, ["panda"])  # recorded, but no grasp of the hand stored yet
+    edit(project / "hands" / "panda" / "hand.toml", "tcp = [0.0, 0.0, 0.1034]", "tcp = [0.0, 0.0, 0.1040]")
+    with open_for_writing(db_path) as db:
+        check_hand_files(db, ["panda"])
+        assert json.loads(db.meta(META_KEY) or "{}")["panda"] == hand_files("panda")
+    old = tmp_path / "old.db"  # written before the record existed: the files as they are at its next write
+    swept(old)
+    with open_for_writing(old) as db:
+        db.set_meta(META_KEY, "{}")
+        check_hand_files(db, ["panda"])
+        assert json.loads(db.meta(META_KEY) or "{}") == {"panda": hand_files("panda")}
+    with open_for_writing(old) as db, pytest.raises(InputError, match="allegro"):
+        db.write_unit(UnitRow("thing", "allegro", "h" * 16, json.dumps({}), 5, 0, None), None, [], RankingRule())
+        check_hand_files(db, ["allegro"])
+        with (project / "hands" / "allegro" / "palm.obj").open("a") as fh:
+            fh.write("\n")
+        check_hand_files(db, ["panda", "allegro"])
