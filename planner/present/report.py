@@ -143,13 +143,17 @@ class HandCalibration:
     held-out reliability table (None: not recorded) and p_hold against the
     stored trials (None: no trial of a grasp with p_hold); outside: per
     object of the hand outside the labelled objects the model was fitted on,
-    how (:meth:`~planner.calibration.logistic.LogisticModel.outside`)."""
+    how (:meth:`~planner.calibration.logistic.LogisticModel.outside`);
+    held_out_ece: the 95% interval over objects of the held-out ECE that
+    the fit recorded (``ece_lo``, ``ece_hi`` of its figures; None: a fit
+    that predates them)."""
 
     hand: str
     source: str
     held_out: Reliability | None
     trials: Reliability | None
     outside: dict[str, list[str]] = field(default_factory=dict)
+    held_out_ece: tuple[float, float] | None = None
 
     def curves(self) -> list[tuple[str, Reliability]]:
         return [(label, r) for label, r in (("held out, labels", self.held_out), ("trials", self.trials))
@@ -169,8 +173,10 @@ def calibration(db_path: Path) -> list[HandCalibration]:
                                  np.array([g.p_hold for g in tried], float)) if tried else None
             rows = {name: db.object_row(name) for name in db.objects_for(hand)}
             outside = {name: model.outside(row.properties()) for name, row in rows.items() if row is not None}
+            lo, hi = (model.figures.get(f"ece_{end}", math.nan) for end in ("lo", "hi"))
             out.append(HandCalibration(hand, db.model_source(hand), model.held_out, trials,
-                                       {name: why for name, why in outside.items() if why}))
+                                       {name: why for name, why in outside.items() if why},
+                                       (lo, hi) if math.isfinite(lo) and math.isfinite(hi) else None))
     return out
 
 
@@ -179,10 +185,17 @@ def ece_lines(cals: list[HandCalibration]) -> list[str]:
     lines = []
     for c in cals:
         for label, r in c.curves():
-            lines.append(f"{c.hand}: ECE of p_hold ({label}, {int(r.count.sum())} grasps) = {r.ece:.4f}")
+            lines.append(f"{c.hand}: ECE of p_hold ({label}, {int(r.count.sum())} grasps) = {r.ece:.4f}"
+                         + (_interval(c.held_out_ece) if r is c.held_out else ""))
         lines += [f"{c.hand}: p_hold of {name} is extrapolated, outside the labelled objects it was fitted on: "
                   f"{'; '.join(why)}" for name, why in sorted(c.outside.items())]
     return lines
+
+
+def _interval(ece: tuple[float, float] | None) -> str:
+    if ece is None:
+        return " (no interval: the model's fit predates them; `grasp calibrate` records one)"
+    return f" [{ece[0]:.4f}, {ece[1]:.4f}] (95% over objects: a bootstrap drawing the labelled objects)"
 
 
 def _reliability_png(c: HandCalibration) -> bytes:

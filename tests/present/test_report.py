@@ -79,3 +79,15 @@ def test_auc_of_a_large_sample_is_not_marked() -> None:
     rows = dict(report._summary_rows(rep))
     assert "note" not in rows and "small sample" not in rows["ROC AUC(epsilon, success)"]
     assert rows["validated grasps"] == "120 (60 held, 60 slipped)"
+
+
+def test_the_held_out_ece_is_printed_with_its_interval_or_why_there_is_none(validated_db: Path,
+                                                                             shipped_models: None) -> None:
+    """The shipped Panda model's fit recorded no interval of its ECE: the report says so; a model whose
+    figures hold one prints it."""
+    cals = report.calibration(validated_db)
+    assert [c.hand for c in cals] == ["panda"] and cals[0].held_out_ece is None
+    line = report.ece_lines(cals)[0]
+    assert line.startswith("panda: ECE of p_hold (held out, labels, ") and "no interval: the model's fit" in line
+    lines = report.ece_lines([replace(cals[0], held_out_ece=(0.0125, 0.0581))])
+    assert lines[0].endswith("= 0.0162 [0.0125, 0.0581] (95% over objects: a bootstrap drawing the labelled objects)")
