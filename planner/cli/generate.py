@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from planner import api
-from planner.cli.app import db_option, echo_json, floats, report_failures, unused
+from planner.cli.app import db_option, echo_json, floats, report_failures, show_preparation, unused
 
 DEFAULTS = api.SweepSettings()
 
@@ -99,6 +99,7 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     show = not quiet and not as_json
+    show_preparation(show)  # a mesh repaired, a proxy that did not fit: one line each, the first time only
     # the bar starts when the work does (the first progress call): an input error comes alone. It counts
     # candidates, finished ones of the running units included, so its ETA shows within seconds.
     bar = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[candidates]} candidates"),

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from planner import prepare
 from planner.errors import MeshError
 from planner.specs.objects import MESH_SUFFIXES
 
@@ -67,8 +68,10 @@ def checked_solid(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh:
     if len(mesh.faces) == 0:
         raise MeshError(f"{where}: every triangle is degenerate (zero area)")
     check_extent(mesh, where)
+    repaired = ""
     if not mesh.is_watertight:
-        mesh = _repair(mesh, where, given)
+        with np.errstate(divide="ignore", invalid="ignore"):  # a flat piece's centre of mass is 0/0: refused
+            mesh, repaired = _repair(mesh, where, given)
     with np.errstate(divide="ignore", invalid="ignore"):  # a flat mesh's centre of mass is 0/0: refused below
         trimesh.repair.fix_normals(mesh, multibody=True)
         volume = float(mesh.volume)
@@ -76,6 +79,11 @@ def checked_solid(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh:
         mesh.invert()
     if abs(volume) < MIN_VOLUME:
         raise MeshError(f"{where}: mesh encloses no volume ({abs(volume):.3g} m^3): it is flat or open")
+    flat = _flat_bodies(mesh)
+    if flat:  # a sheet closed into nothing by the repair: no mass, yet it would set the torque scale and collide
+        raise MeshError(f"{where}: {flat}; remove it in a mesh editor")
+    if repaired:  # said once the mesh is taken: a refused one gets its one line alone
+        prepare.noted(where, f"{repaired} (once: cached afterwards)")
     return mesh
 
 
@@ -152,25 +160,51 @@ def _closed(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
     return mesh if mesh.is_watertight else cap_boundary_loops(mesh)
 
 
-def _repair(mesh: trimesh.Trimesh, where: str, given: trimesh.Trimesh) -> trimesh.Trimesh:
+def _repair(mesh: trimesh.Trimesh, where: str, given: trimesh.Trimesh) -> tuple[trimesh.Trimesh, str]:
     """Close small holes (:func:`_closed`); else the file's own bodies, each
-    closed, kept apart (:func:`closed_bodies`)."""
+    closed, kept apart (:func:`closed_bodies`). Returns the mesh and the
+    geometry added to it, in words ('' when none was)."""
     capped = _closed(mesh)
     if capped is mesh and mesh.is_watertight:
-        log.info("%s: filled small holes", where)
-        return mesh
+        return mesh, "filled small holes in the mesh"
     if not capped.is_watertight:
         apart = closed_bodies(given)
         if apart is not None:
-            log.info("%s: its bodies touch along shared edges; kept as %d closed bodies", where,
-                     len(apart.split(only_watertight=False)))
-            return apart
+            return apart, ""  # no geometry added: the file's own closed bodies, read as such (V-HACD pieces)
+        flat = _flat_bodies(given)
         raise MeshError(
+            f"{where}: {flat}; remove it in a mesh editor" if flat else
             f"{where}: mesh is not watertight and could not be repaired "
             "(non-manifold edges or self-overlapping holes); close it in a mesh editor"
         )
-    log.info("%s: capped open boundary loops", where)
-    return capped
+    return capped, "capped the mesh's open boundary loops, closing it into a solid"
+
+
+#: A body whose vertices lie within this fraction of its size of one plane is flat.
+FLAT_TOL = 1e-9
+
+
+def _flat_bodies(mesh: trimesh.Trimesh) -> str:
+    """What is flat among ``mesh``'s several bodies (a sheet, a ground plane, a
+    scrap triangle of a scan: no volume), said in words; '' when none is. A
+    flat piece with a corner on another body (a fin on an edge) is not a body
+    of its own: the caller's other message says what is wrong there."""
+    if mesh.body_count < 2:
+        return ""
+    bodies = mesh.split(only_watertight=False, repair=False)
+    flat, solid = [], []
+    for body in bodies:
+        points = np.asarray(body.vertices) - body.vertices.mean(axis=0)
+        sing = np.linalg.svd(points, compute_uv=False) if len(points) > 2 else np.zeros(3)
+        (flat if len(sing) < 3 or sing[2] <= FLAT_TOL * max(sing[0], 1e-12) else solid).append(body)
+    corners = {tuple(v) for body in solid for v in np.round(body.vertices, 9)}
+    flat = [body for body in flat if not any(tuple(v) in corners for v in np.round(body.vertices, 9))]
+    if not flat:
+        return ""
+    first = flat[0]
+    return (f"{len(flat)} of its {len(bodies)} bodies {'is' if len(flat) == 1 else 'are'} flat, enclosing no "
+            f"volume (a sheet, a ground plane or a scrap of scan; one {np.max(first.extents) * 1000:.3g} mm "
+            f"across at {', '.join(f'{c:.3g}' for c in first.bounds.mean(axis=0))} m)")
 
 
 def closed_bodies(given: trimesh.Trimesh) -> trimesh.Trimesh | None:

@@ -104,7 +104,7 @@ def collision_proxy(mesh: trimesh.Trimesh, mesh_hash: str, settings: ProxySettin
             path.unlink(missing_ok=True)  # a damaged cache entry is rebuilt
     prepare.started(PROXY, name)
     t0 = time.perf_counter()
-    proxy = build_proxy(mesh, s)
+    proxy = build_proxy(mesh, s, name)
     prepare.ended(PROXY, name, time.perf_counter() - t0)
     buffer = io.BytesIO()
     np.savez(buffer, vertices=np.asarray(proxy.mesh.vertices), faces=np.asarray(proxy.mesh.faces),
@@ -117,7 +117,7 @@ def _key(mesh_hash: str, s: ProxySettings) -> str:
     return json.dumps([PROXY_VERSION, mesh_hash, asdict(s)], sort_keys=True)
 
 
-def build_proxy(mesh: trimesh.Trimesh, settings: ProxySettings | None = None) -> Proxy:
+def build_proxy(mesh: trimesh.Trimesh, settings: ProxySettings | None = None, name: str = "the mesh") -> Proxy:
     """Decimate ``mesh`` to ``faces``, 2 x ``faces``, ... faces until the
     result lies within ``tolerance`` of it; the exact mesh when none of fewer
     than half its faces does (no cache)."""
@@ -131,8 +131,10 @@ def build_proxy(mesh: trimesh.Trimesh, settings: ProxySettings | None = None) ->
                      deviation * 1e3)
             return Proxy(proxy, False, deviation, len(mesh.faces))
         target *= 2
-    log.info("collision proxy: no proxy of %d faces is within %.3f mm; closing uses the exact mesh",
-             len(mesh.faces), s.tolerance * 1e3)
+    if target > s.faces:  # one was tried and did not fit (a mesh under twice ``faces`` is closed as it is)
+        prepare.noted(name, f"no collision proxy of fewer than {len(mesh.faces) // 2:,} faces lies within "
+                            f"{s.tolerance * 1e3:.2f} mm of the mesh's {len(mesh.faces):,} (a rough scan?): "
+                            "closing uses the exact mesh, at its cost (once: cached afterwards)")
     return Proxy(mesh, True, 0.0, len(mesh.faces))
 
 

@@ -21,10 +21,10 @@ from planner import assets
 from planner.errors import MeshError
 from planner.geometry.mass import radius_of_gyration, torque_scale_max_distance
 from planner.geometry.mesh import load_mesh_file, mesh_hash, union_of_bodies
-from planner.specs.objects import ObjectSpec, file_scale, resolve_spec, source_path, urdf_mesh
+from planner.specs.objects import ObjectSpec, file_scale, gltf_buffers, resolve_spec, source_path, urdf_mesh
 
 #: Bumped when the checked mesh of the same source would come out differently.
-CACHE_VERSION = 2  # 2: the union of overlapping bodies cached beside the mesh
+CACHE_VERSION = 3  # 2: the union of overlapping bodies cached beside the mesh; 3: flat bodies refused
 #: Faces around a built-in cylinder; subdivisions of a built-in sphere.
 CYLINDER_SECTIONS = 48
 SPHERE_SUBDIVISIONS = 3
@@ -113,6 +113,8 @@ def _cached_mesh(spec: ObjectSpec) -> tuple[trimesh.Trimesh, str, trimesh.Trimes
         mesh_file, _ = urdf_mesh(spec)
         if mesh_file.is_file():
             h.update(mesh_file.read_bytes())
+    for buffer_file in gltf_buffers(source):  # a .gltf's geometry is in the files it names
+        h.update(buffer_file.read_bytes() if buffer_file.is_file() else f"missing {buffer_file}".encode())
     path = assets.cache_dir("objects") / f"{h.hexdigest()[:24]}.npz"
     if path.is_file():
         try:

@@ -37,6 +37,36 @@ def _import_quietly():  # type: ignore[no-untyped-def]
 pb = _import_quietly()
 
 
+#: Faces of one PyBullet triangle-mesh shape at most. PyBullet 3.2.7 refuses
+#: a shape of more than 2^19 indices (~175k faces), and a distance query
+#: whose reach holds many of one shape's triangles answers wrongly or crashes
+#: the process. Measured 2026-12-06 (a box 7.5 mm from a sphere of 3 cm,
+#: asked within 5 cm, so every triangle is in reach): an icosphere of 20,480
+#: faces right, 81,920 wrong (-3 cm, "inside"; right when asked within 2 cm);
+#: a cap of one of 45,000 faces right, 50,000 a crash. 30,000 a shape, as
+#: many shapes as it takes, was right on spheres of up to 327,680 faces.
+MESH_FACES = 30_000
+
+
+def mesh_pieces(vertices: np.ndarray, faces: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The mesh (vertices (v, 3) [m], faces (f, 3)) as pieces of at most
+    :data:`MESH_FACES` faces, each (its own vertices, faces indexing them):
+    the faces in the order of their centroids along the mesh's longest
+    extent, so that each piece is a slab (a compact box for its bounding
+    volume tree, few pieces within a finger's reach). One piece, the mesh as
+    given, when it is small."""
+    vertices, faces = np.asarray(vertices, float), np.asarray(faces, int)
+    if len(faces) <= MESH_FACES:
+        return [(vertices, faces)]
+    axis = int(np.argmax(np.ptp(vertices, axis=0)))
+    order = np.argsort(vertices[faces, axis].mean(axis=1), kind="stable")
+    pieces = []
+    for part in np.array_split(order, -(-len(faces) // MESH_FACES)):
+        used, local = np.unique(faces[part], return_inverse=True)
+        pieces.append((vertices[used], local.reshape(-1, 3)))
+    return pieces
+
+
 @dataclass(frozen=True)
 class Closest:
     """Closest-point pairs between two bodies (a batch of k pairs).
@@ -122,6 +152,8 @@ class Sim:
             raise SimulationError("cannot start a PyBullet DIRECT client")
         #: body id -> ((v, 3) vertices, (f, 3) faces) of the static meshes added here, object frame
         self.meshes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        #: body id -> the ids of the bodies it stands for (a mesh added in pieces: :func:`mesh_pieces`)
+        self.groups: dict[int, list[int]] = {}
 
     def __enter__(self) -> Sim:
         return self
@@ -135,18 +167,25 @@ class Sim:
             self.client = -1
 
     def add_static_mesh(self, vertices: np.ndarray, faces: np.ndarray, pose: np.ndarray | None = None) -> int:
-        """A fixed body colliding as the exact (possibly concave) triangle mesh."""
-        shape = pb.createCollisionShape(
-            pb.GEOM_MESH, vertices=np.asarray(vertices, float).tolist(),
-            indices=np.asarray(faces, int).reshape(-1).tolist(), flags=pb.GEOM_FORCE_CONCAVE_TRIMESH,
-            physicsClientId=self.client)
-        if shape < 0:
-            raise SimulationError("PyBullet refused the object mesh")
+        """A fixed body colliding as the exact (possibly concave) triangle
+        mesh; a mesh of more than :data:`MESH_FACES` faces is a group of
+        bodies of that many faces at most (:func:`mesh_pieces`), which every
+        method here takes as one by the id returned."""
+        uids = []
+        for v, f in mesh_pieces(vertices, faces):
+            shape = pb.createCollisionShape(pb.GEOM_MESH, vertices=v.tolist(), indices=f.reshape(-1).tolist(),
+                                            flags=pb.GEOM_FORCE_CONCAVE_TRIMESH, physicsClientId=self.client)
+            if shape < 0:
+                raise SimulationError("PyBullet refused the object mesh")
+            uids.append(self._fixed_body(shape, -1, pose))
+        self.groups[uids[0]] = uids
+        self.meshes[uids[0]] = (np.asarray(vertices, float), np.asarray(faces, int))
+        return uids[0]
+
+    def _fixed_body(self, collision: int, visual: int, pose: np.ndarray | None) -> int:
         position, orientation = pose_to_pb(np.eye(4) if pose is None else pose)
-        uid = pb.createMultiBody(0.0, shape, basePosition=position, baseOrientation=orientation,
-                                 physicsClientId=self.client)
-        self.meshes[uid] = (np.asarray(vertices, float), np.asarray(faces, int))
-        return uid
+        return pb.createMultiBody(0.0, collision, visual, basePosition=position, baseOrientation=orientation,
+                                  physicsClientId=self.client)
 
     def add_static_hulls(self, hulls: tuple[np.ndarray, ...] | list[np.ndarray]) -> int:
         """A fixed body made of convex hulls, one per (k_i, 3) vertex array [m]
@@ -172,7 +211,8 @@ class Sim:
         return uid
 
     def remove_body(self, uid: int) -> None:
-        pb.removeBody(uid, physicsClientId=self.client)
+        for member in self.groups.pop(uid, [uid]):
+            pb.removeBody(member, physicsClientId=self.client)
         self.meshes.pop(uid, None)
 
     def load_urdf(self, path: Path, *, fixed: bool = True, self_collision: bool = False, visual: bool = True) -> Body:
@@ -241,7 +281,8 @@ class Sim:
     def set_base_pose(self, uid: int, pose: np.ndarray) -> None:
         """Place a body created here (no inertial offset) at ``pose``."""
         position, orientation = pose_to_pb(pose)
-        pb.resetBasePositionAndOrientation(uid, position, orientation, physicsClientId=self.client)
+        for member in self.groups.get(uid, [uid]):
+            pb.resetBasePositionAndOrientation(member, position, orientation, physicsClientId=self.client)
 
     def joint_limits(self, body: Body, joint: str) -> tuple[float, float]:
         info = pb.getJointInfo(body.uid, body.joints[joint], physicsClientId=self.client)
@@ -284,14 +325,16 @@ class Sim:
 
     def add_visual_mesh(self, vertices: np.ndarray, faces: np.ndarray, rgba: tuple[float, ...],
                         pose: np.ndarray | None = None) -> int:
-        """A body that is only seen (no collision), for pictures."""
-        tri = np.asarray(faces, int)
-        shape = pb.createVisualShape(pb.GEOM_MESH, vertices=np.asarray(vertices, float).tolist(),
-                                     indices=tri.reshape(-1).tolist(), rgbaColor=list(rgba),
-                                     physicsClientId=self.client)
-        position, orientation = pose_to_pb(np.eye(4) if pose is None else pose)
-        return pb.createMultiBody(0.0, -1, shape, basePosition=position, baseOrientation=orientation,
-                                  physicsClientId=self.client)
+        """A body that is only seen (no collision), for pictures (in pieces as :meth:`add_static_mesh`'s)."""
+        uids = []
+        for v, f in mesh_pieces(vertices, faces):
+            shape = pb.createVisualShape(pb.GEOM_MESH, vertices=v.tolist(), indices=f.reshape(-1).tolist(),
+                                         rgbaColor=list(rgba), physicsClientId=self.client)
+            if shape < 0:
+                raise SimulationError("PyBullet refused the mesh to draw")
+            uids.append(self._fixed_body(-1, shape, pose))
+        self.groups[uids[0]] = uids
+        return uids[0]
 
     def set_color(self, body: Body, rgba: tuple[float, ...]) -> None:
         for index in body.links.values():
@@ -314,7 +357,9 @@ class Sim:
     def closest(self, a: int, b: int, max_distance: float, link_a: int | None = None) -> Closest:
         """Closest-point pairs between bodies ``a`` and ``b`` within ``max_distance`` [m]."""
         kwargs = {} if link_a is None else {"linkIndexA": link_a}
-        rows = pb.getClosestPoints(a, b, max_distance, physicsClientId=self.client, **kwargs)
+        rows = [row for member_a in self.groups.get(a, [a]) for member_b in self.groups.get(b, [b])
+                for row in pb.getClosestPoints(member_a, member_b, max_distance, physicsClientId=self.client,
+                                               **kwargs)]
         if not rows:
             return _EMPTY
         n = len(rows)

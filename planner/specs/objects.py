@@ -18,11 +18,13 @@ the other, never both, and the first source that gives either decides.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from functools import lru_cache
 from pathlib import Path
+from urllib.parse import unquote
 
 from planner import assets
 from planner.errors import ConfigError, InputError, UnknownNameError
@@ -280,10 +282,27 @@ def file_scale(spec: ObjectSpec) -> float:
 
 
 def edited_since(source: Path, finished: float | None) -> bool:
-    """Whether the mesh file ``source`` may have changed since ``finished`` (its object's last unit's end [s];
-    :meth:`~planner.db.store.Database.last_finished`): modified from that second on, no time known, or no file to
-    read. A copy that keeps an older modification time is not seen."""
+    """Whether the mesh file ``source`` (or a buffer file of a ``.gltf``, :func:`gltf_buffers`) may have changed
+    since ``finished`` (its object's last unit's end [s]; :meth:`~planner.db.store.Database.last_finished`):
+    modified from that second on, no time known, or no file to read. A copy that keeps an older modification time
+    is not seen."""
     try:
-        return finished is None or source.stat().st_mtime >= finished
+        return finished is None or any(f.stat().st_mtime >= finished for f in [source, *gltf_buffers(source)])
     except OSError:
         return True
+
+
+def gltf_buffers(path: Path) -> list[Path]:
+    """The files the buffers of a ``.gltf`` name, where its geometry is
+    (relative to it; embedded ``data:`` buffers are in the file itself); []
+    for any other file, or one that is not JSON (its loader says why)."""
+    if path.suffix.lower() != ".gltf":
+        return []
+    try:
+        data = json.loads(path.read_bytes())
+    except (OSError, ValueError):
+        return []
+    buffers = data.get("buffers", []) if isinstance(data, dict) else []
+    uris = [b.get("uri") for b in buffers if isinstance(b, dict)]
+    return [path.parent / unquote(u) for u in uris if isinstance(u, str) and u and not u.startswith("data:")]
+

@@ -45,3 +45,21 @@ def test_json_keeps_stderr_clean(tmp_path: Path) -> None:
     assert code == 0, err
     code, out, err = grasp("validate", "--db", str(db), "--top", "1", "--robust", "0", "--workers", "1", "--json")
     assert code == 0 and out.startswith("{") and decomposition_lines(err) == [], err
+
+
+def test_generate_says_once_that_it_closed_an_open_mesh(tmp_path: Path) -> None:
+    """A repair changes the object the user gave (an open cup becomes a solid): `generate` says so on stderr
+    the first time (the repaired mesh is cached: not again), and not under --quiet or --json."""
+    def open_cup(height: float) -> Path:
+        cup = trimesh.creation.cylinder(radius=0.03, height=height)
+        top = cup.triangles_center[:, 2] > height / 2 - 1e-9
+        path = tmp_path / f"cup{height}.obj"
+        trimesh.Trimesh(cup.vertices, cup.faces[~top]).export(path)
+        return path
+
+    for path, flags, expected in ((open_cup(0.08), (), 1), (open_cup(0.08), (), 0), (open_cup(0.07), ("--json",), 0)):
+        code, _, err = grasp("generate", str(path), "--hand", "panda", "--db", str(tmp_path / "cup.db"), *flags,
+                             *FAST)
+        assert code == 0, err
+        lines = [line for line in err.splitlines() if "closing it into a solid" in line]
+        assert len(lines) == expected and all(line.startswith(f"{path}: capped") for line in lines), err

@@ -154,3 +154,23 @@ def test_fuzz_meshes_load_or_refuse_cleanly(vertices, faces, scale) -> None:  # 
     except MeshError:
         return
     assert solid.is_watertight and solid.volume > 0 and np.all(np.isfinite(solid.vertices))
+
+
+@pytest.mark.parametrize("debris, where", [
+    (trimesh.Trimesh([[0.3, 0.0, 0.0], [0.301, 0.0, 0.0], [0.3, 0.001, 0.0]], [[0, 1, 2]]), "1 mm across at 0.3"),
+    (trimesh.Trimesh([[0.3, 0.0, 0.0], [0.301, 0.0, 0.0], [0.301, 0.001, 0.0], [0.3, 0.001, 0.0]],
+                     [[0, 1, 2], [0, 2, 3]]), "1 mm across at 0.3"),
+    (trimesh.Trimesh([[-0.1, -0.1, -0.03], [0.1, -0.1, -0.03], [0.1, 0.1, -0.03], [-0.1, 0.1, -0.03]],
+                     [[0, 1, 2], [0, 2, 3]]), "200 mm across at 0, 0, -0.03"),
+])
+def test_a_flat_body_beside_the_object_is_refused_saying_where(debris: trimesh.Trimesh, where: str) -> None:
+    """A scrap triangle or quad of a scan 30 cm away, or a ground plane: the repair closed them into bodies
+    of no volume, kept without a word (every epsilon cut sevenfold by the torque scale they set), or refused
+    as 'not watertight'."""
+    cube = trimesh.creation.box(extents=[0.05, 0.05, 0.05])
+    with pytest.raises(MeshError, match="1 of its 2 bodies is flat") as refused:
+        meshes.checked_solid(trimesh.util.concatenate([cube, debris]), "scan")
+    assert where in str(refused.value) and "remove it in a mesh editor" in str(refused.value)
+    fleck = trimesh.creation.box(extents=[0.002, 0.002, 0.002])  # a closed fleck has volume: an object's body
+    fleck.apply_translation([0.3, 0.0, 0.0])
+    assert meshes.checked_solid(trimesh.util.concatenate([cube, fleck]), "scan").body_count == 2

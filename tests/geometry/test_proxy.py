@@ -92,3 +92,14 @@ def test_making_a_proxy_is_announced_once(caplog: pytest.LogCaptureFixture) -> N
     lines = [r.getMessage() for r in caplog.records if r.name == prepare.LOGGER]
     assert len(lines) == 2 and all(line.startswith(f"{PROXY} of scan: ") for line in lines)
     assert "started" in lines[0] and "done in" in lines[1]
+
+
+def test_a_proxy_that_does_not_fit_is_said(caplog: pytest.LogCaptureFixture) -> None:
+    """A rough scan whose decimations all miss the tolerance is closed against its exact mesh, at its cost:
+    said once (it was a debug line nobody saw)."""
+    mesh = capsule(20_000)
+    with caplog.at_level(logging.INFO, logger=prepare.LOGGER):
+        proxy = collision_proxy(mesh, mesh_hash(mesh), ProxySettings(tolerance=1e-7, samples=500), name="rough")
+    lines = [r.getMessage() for r in caplog.records if r.name == prepare.LOGGER]
+    assert proxy.exact and any(line.startswith("rough: no collision proxy of fewer than") and
+                               "closing uses the exact mesh" in line for line in lines), lines

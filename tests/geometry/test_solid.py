@@ -108,3 +108,24 @@ def test_overlapping_bodies_without_manifold3d_are_a_one_line_error(monkeypatch:
     monkeypatch.setitem(sys.modules, "manifold3d", None)  # as if not installed: nothing is cached
     with pytest.raises(MeshError, match="needs manifold3d"):
         union_of_bodies(trimesh.util.concatenate([a, b]), "two")
+
+
+def test_a_gltf_is_read_again_when_its_buffer_file_changes(tmp_path: Path) -> None:
+    """A .gltf keeps its geometry in the files its buffers name: the object cache is keyed by them too
+    (it was keyed by the .gltf's own bytes, which stay the same when only the buffer is edited)."""
+    import trimesh
+
+    folder = tmp_path / "scan"
+    folder.mkdir()
+    ball = trimesh.creation.icosphere(subdivisions=2, radius=0.03)
+    pinched = ball.copy()
+    waist = np.abs(ball.vertices[:, 2]) < 0.01
+    pinched.vertices[waist, :2] *= 0.6
+    for shape in (ball, pinched):
+        files = shape.export(file_type="gltf")  # model.gltf and the buffers it names
+        for name, data in files.items():
+            if name.endswith(".bin") or shape is ball:  # the .gltf's bounds keep the ball's: only buffers change
+                (folder / name).write_bytes(data)
+        volume = load_object(str(folder / "model.gltf")).volume
+        assert volume == pytest.approx(shape.volume, rel=1e-6)
+    assert pinched.volume < 0.9 * ball.volume

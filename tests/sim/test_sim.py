@@ -9,7 +9,7 @@ from scipy.spatial.transform import Rotation
 
 from planner.errors import SimulationError
 from planner.geometry.solid import load_object
-from planner.sim import MAX_LINKS, Sim, pb, pb_to_pose, pose_to_pb
+from planner.sim import MAX_LINKS, MESH_FACES, Sim, mesh_pieces, pb, pb_to_pose, pose_to_pb
 from planner.specs.hands import load_hand
 
 #: PyBullet stores poses in float32 in places; round trips agree to this.
@@ -75,3 +75,43 @@ def test_hull_bodies_keep_every_hull_or_refuse() -> None:
         assert pb.getNumJoints(body, physicsClientId=sim.client) == MAX_LINKS
         with pytest.raises(SimulationError):
             sim.add_static_hulls(hulls)
+
+
+#: [m] how far the icosphere of 20,480 faces lies inside the sphere it approximates, and more.
+SAGITTA = 2e-4
+
+
+def test_a_mesh_beyond_pybullets_index_limit_collides_and_draws_whole() -> None:
+    """PyBullet refuses a mesh shape of more than 2^19 indices (~175k faces) and answers a distance query
+    whose reach holds many of a shape's triangles wrongly (this sphere in one shape, 7.5 mm from the probe,
+    asked within 5 cm: 3 cm inside it): a large mesh goes in as slabs of at most MESH_FACES faces, every
+    face in exactly one, and collides and draws as the whole."""
+    import trimesh
+
+    fine = trimesh.creation.icosphere(subdivisions=6, radius=0.03)  # 81,920 faces: in one shape, "inside" it
+    assert len(fine.faces) > MESH_FACES
+    pieces = mesh_pieces(fine.vertices, fine.faces)
+    assert len(pieces) == -(-len(fine.faces) // MESH_FACES) and all(len(f) <= MESH_FACES for _, f in pieces)
+    triangles = np.sort(np.concatenate([v[f] for v, f in pieces]).reshape(-1, 9), axis=0)
+    assert np.array_equal(triangles, np.sort(fine.vertices[fine.faces].reshape(-1, 9), axis=0))
+    plain = trimesh.creation.icosphere(subdivisions=5, radius=0.03)  # 20,480 faces: one shape
+    directions = np.random.default_rng(0).normal(size=(24, 3))
+    directions = np.r_[np.eye(3), -np.eye(3), directions / np.linalg.norm(directions, axis=1)[:, None]]
+    with Sim() as sim:
+        target, reference = (sim.add_static_mesh(m.vertices, m.faces) for m in (fine, plain))
+        probe = sim.add_box((0.005, 0.005, 0.005), np.eye(4))
+        for direction in directions:  # every slab, all round
+            at = np.eye(4)
+            at[:3, 3] = direction * (0.03 + 0.005 + 0.0075)
+            sim.set_base_pose(probe, at)
+            gap = sim.closest(probe, target, 0.05).min_distance
+            assert gap == pytest.approx(sim.closest(probe, reference, 0.05).min_distance, abs=SAGITTA)
+        sim.remove_body(probe)
+        sim.remove_body(target)
+        seen = []
+        for sphere in (fine, plain):
+            body = sim.add_visual_mesh(sphere.vertices, sphere.faces, (0.8, 0.5, 0.2, 1.0))
+            image = sim.render(np.array([0.2, 0.0, 0.0]), np.zeros(3), np.array([0.0, 0.0, 1.0]), (96, 96))
+            seen.append(int((np.abs(image.astype(int) - image[0, 0]).sum(axis=2) > 30).sum()))
+            sim.remove_body(body)
+    assert seen[1] > 500 and seen[0] == pytest.approx(seen[1], rel=0.05)
