@@ -56,6 +56,7 @@ from planner.api.querying import (  # noqa: F401 - re-exported
     p_hold_model,
     p_hold_outside,
     ranking_rule,
+    ranks_stale,
 )
 from planner.api.reaching import (  # noqa: F401 - re-exported
     CANDIDATE_BATCH,

@@ -28,7 +28,7 @@ from planner.db.store import Database, UnitRow, open_for_writing
 from planner.errors import InputError
 from planner.plan.sweep import SweepSettings, candidate_count, check_sampler
 from planner.specs.hands import load_hand
-from planner.specs.inputs import expand
+from planner.specs.inputs import check_seed, expand
 from planner.specs.objects import NO_PHYSICAL, ObjectSpec, Physical, resolve_spec
 from planner.specs.preshapes import load_preshapes, sweep_preshapes
 
@@ -250,6 +250,7 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
         raise InputError(f"--workers must be at least 1, got {workers}")
     if unit_timeout is not None and not (math.isfinite(unit_timeout) and unit_timeout > 0):
         raise InputError(f"--unit-timeout must be a positive number of seconds, got {unit_timeout}")
+    check_seed(seed)
     physical = Physical.checked({"mass": mass, "density": density, "friction": friction}, prefix="--")
     hand_spec = load_hand(hand)
     settings = (settings or SweepSettings()).resolved(hand_spec.sampler, hand_spec.settle,

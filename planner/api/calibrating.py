@@ -5,6 +5,7 @@ and stores it; :func:`report` writes the calibration report and
 
 from __future__ import annotations
 
+import contextlib
 import json
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -13,6 +14,7 @@ from typing import TYPE_CHECKING
 from planner.api.resolving import DEFAULT_DB
 from planner.db.store import open_for_writing
 from planner.errors import InputError
+from planner.specs.inputs import check_seed
 
 if TYPE_CHECKING:
     from planner.calibration.fitting import Calibration
@@ -58,16 +60,20 @@ def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB,
         raise InputError(f"{plot}: the reliability diagram is written as PNG; give a .png path")
     if folds < 2:
         raise InputError(f"--folds must be at least 2, got {folds}")
+    check_seed(seed)
+    if workers < 1:
+        raise InputError(f"--workers must be at least 1, got {workers}")
     paths = [Path(p) for p in label_files]
-    data = labelled(paths, poses=poses, seed=seed, hand=hand, workers=workers, progress=progress, trial=trial,
-                    engine=engine)
-    source = json.dumps({"command": "grasp calibrate", "labels": [p.name for p in paths], "poses_per_file": poses,
-                         "seed": seed, "folds": folds, "grasps": len(data.labels), "objects": len(set(data.groups)),
-                         "rejected": data.rejected, "trees": trees,
-                         **({"trial": trial, "engine": engine} if trial else {})}, sort_keys=True)
-    result = fit_calibration(data, folds=folds, source=source, trees=DEFAULT_TREES if trees else None)
-    if db_path is not None:
-        with open_for_writing(Path(db_path)) as db:
+    # the database is opened (and locked) first: one that cannot take the model says so before the fit, not after
+    with open_for_writing(Path(db_path)) if db_path is not None else contextlib.nullcontext() as db:
+        data = labelled(paths, poses=poses, seed=seed, hand=hand, workers=workers, progress=progress, trial=trial,
+                        engine=engine)
+        source = json.dumps({"command": "grasp calibrate", "labels": [p.name for p in paths],
+                             "poses_per_file": poses, "seed": seed, "folds": folds, "grasps": len(data.labels),
+                             "objects": len(set(data.groups)), "rejected": data.rejected, "trees": trees,
+                             **({"trial": trial, "engine": engine} if trial else {})}, sort_keys=True)
+        result = fit_calibration(data, folds=folds, source=source, trees=DEFAULT_TREES if trees else None)
+        if db is not None:
             db.write_model(result.model, source, db.rule())
     if model_out is not None:
         Path(model_out).write_text(result.model.to_toml(), encoding="utf-8")

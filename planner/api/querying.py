@@ -98,6 +98,13 @@ def mesh_modified(name: str, *, db_path: Path = DEFAULT_DB) -> str | None:
         return row.source if edited_since(Path(row.source), db.last_finished(name)) else None
 
 
+def ranks_stale(name: str, hand: str, *, db_path: Path = DEFAULT_DB) -> bool:
+    """Whether ``name``'s grasps for ``hand`` carry trial verdicts their ranks do not yet reflect (a ``grasp
+    validate`` killed before it re-ranked them; the next ``grasp validate`` on the database re-ranks first)."""
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        return (name, hand) in db.unranked()
+
+
 def p_hold_model(hand: str, *, db_path: Path = DEFAULT_DB) -> LogisticModel | None:
     """The p_hold model a database applies to ``hand``'s grasps (stored by
     ``grasp calibrate``, else the shipped one; None: none)."""

@@ -6,8 +6,10 @@ from __future__ import annotations
 import logging
 import math
 import os
+import signal
 import sqlite3
 import sys
+import threading
 import traceback
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -42,6 +44,21 @@ def echo_json(value: Any) -> None:
     click.echo(json.dumps(strict(value), indent=2, allow_nan=False))
 
 
+#: What an interrupted subcommand leaves, said in the one line (others write nothing).
+INTERRUPTED = {
+    "generate": "finished units are saved, run the same command to resume",
+    "import": "the files imported so far are saved, run the same command to resume",
+    "validate": "the verdicts stored so far are kept and ranked, run the same command to go on",
+    "export": "no file under its final name is partial, unfinished ones were removed; run the export again",
+    "calibrate": "nothing was stored",
+}
+
+
+def _terminated(signum: int, frame: object) -> None:
+    """SIGTERM (``timeout``, a scheduler, systemd) ends a run as Ctrl-C does: cleanly, with its one line."""
+    raise KeyboardInterrupt
+
+
 class Group(click.Group):
     """Maps every error to a one-line message and an exit code."""
 
@@ -66,8 +83,9 @@ class Group(click.Group):
         except BrokenPipeError:  # nothing to say: whoever would read it has gone; stdout must not flush again
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             ctx.exit(EXIT_PIPE)
-        except KeyboardInterrupt:
-            click.echo("grasp: interrupted; finished units are saved, run the same command to resume", err=True)
+        except KeyboardInterrupt:  # Ctrl-C, or SIGTERM (``main``)
+            click.echo(f"grasp: interrupted; {INTERRUPTED.get(ctx.invoked_subcommand or '', 'nothing was changed')}",
+                       err=True)
             ctx.exit(EXIT_INTERRUPTED)
         except Exception as exc:
             _traceback(debug)
@@ -88,6 +106,8 @@ def _traceback(debug: bool) -> None:
 @click.version_option(package_name="grasp-planner")
 def main(debug: bool) -> None:
     """Knowledge-based grasp planner: build, query and export grasp databases."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _terminated)
     logging.basicConfig(level=logging.DEBUG if debug else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
 
 

@@ -8,7 +8,7 @@ import click
 
 from planner import api
 from planner.cli.app import db_option, report_failures
-from planner.errors import PlannerError
+from planner.errors import DatabaseError
 
 
 @click.command(name="hands")
@@ -78,6 +78,6 @@ def check(db_path: Path) -> None:
     problems = api.check_db(db_path)
     if problems:
         for p in problems:
-            click.echo(p, err=True)
-        raise PlannerError(f"{db_path}: integrity check failed ({len(problems)} problems)")
+            click.echo(p)
+        raise DatabaseError(f"{db_path}: integrity check failed ({len(problems)} problems, listed on stdout)")
     click.echo(f"{db_path}: ok")

@@ -97,6 +97,10 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
 def _extrapolated(name: str, hand: str, db_path: Path, outside: list[str]) -> None:
     """A note under the grasps when the object lies outside what the hand's p_hold model was fitted on, and when
     its mesh file changed after it was swept."""
+    if api.ranks_stale(name, hand, db_path=db_path):
+        click.echo(f"note: the ranks of {name}'s {hand} grasps predate trial verdicts stored by a `grasp validate` "
+                   f"that was killed before it re-ranked them: grasps it saw drop may still rank first; any `grasp "
+                   f"validate --db {db_path}` re-ranks them first", err=True)
     modified = api.mesh_modified(name, db_path=db_path)
     if modified:
         click.echo(f"note: {modified} was modified (its modification time) after {name}'s grasps were planned on "

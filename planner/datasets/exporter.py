@@ -24,6 +24,7 @@ written under a temporary name and renamed when complete.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import os
@@ -133,6 +134,24 @@ def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (
     """Export the selected grasps of ``db_path`` as ``fmt`` into ``out_dir``
     (created if missing). ``top``: rank <= top per (object, hand);
     ``min_epsilon``: epsilon >= it. ``progress(file, grasps)`` after each file."""
+    started = time.time()
+    try:
+        return _export(db_path, fmt, out_dir, objects, hands, min_epsilon, top, spacing, label, progress)
+    except BaseException as exc:  # a full disk, Ctrl-C: no file is left half-written, under any name
+        for tmp in Path(out_dir).rglob("*.tmp") if Path(out_dir).is_dir() else ():
+            with contextlib.suppress(OSError):
+                if tmp.stat().st_mtime >= started - 1:
+                    tmp.unlink()
+        if isinstance(exc, OSError):
+            raise InputError(f"{out_dir}: cannot write the export ({exc.strerror or exc}): no file under its final "
+                             "name is partial, unfinished ones were removed; free space or choose another --out") \
+                from exc
+        raise
+
+
+def _export(db_path: Path, fmt: str, out_dir: Path, objects: Sequence[str], hands: Sequence[str],
+            min_epsilon: float | None, top: int | None, spacing: Spacing | None, label: str,
+            progress: Callable[[Path, int], None] | None) -> ExportSummary:
     writer = formats.writer(fmt)
     sel = Selection(tuple(objects), tuple(hands), min_epsilon, top, spacing, check(label))
     summary = ExportSummary(fmt)

@@ -5,6 +5,7 @@ to do) and a read (:func:`_reads`, the decorator every read of
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import inspect
 import sqlite3
@@ -22,7 +23,9 @@ def write_failed(path: Path, exc: sqlite3.Error, kept: int | None) -> str:
     """The one line for a write SQLite refused: why, what is kept, what to do.
     SQLite rolls the failed transaction back, so every commit before it stays."""
     name, text = getattr(exc, "sqlite_errorname", ""), str(exc)  # the name: Python >= 3.11
-    if name.startswith("SQLITE_READONLY") or "readonly" in text:
+    if name.startswith(("SQLITE_CORRUPT", "SQLITE_NOTADB")) or "malformed" in text:  # "disk image": not the disk
+        cause, fix = "the database file is damaged", "check it with `grasp db check`"
+    elif name.startswith("SQLITE_READONLY") or "readonly" in text:
         cause, fix = "the database is read-only", "make it writable"
     elif name == "SQLITE_FULL" or name.startswith("SQLITE_IOERR") or "disk" in text:
         # a full disk is SQLITE_FULL; a file-size limit (EFBIG) is SQLITE_IOERR_WRITE
@@ -50,10 +53,20 @@ def _reads(method: F) -> F:
     if inspect.isgeneratorfunction(method):
         @functools.wraps(method)
         def rows(self: Database, *args: Any, **kwargs: Any) -> Iterator[Any]:
-            try:
-                yield from method(self, *args, **kwargs)
-            except sqlite3.Error as exc:
-                raise DatabaseError(read_failed(self.path, exc)) from exc
+            inner = method(self, *args, **kwargs)
+            while True:
+                try:
+                    item = next(inner)
+                except StopIteration:
+                    return
+                except sqlite3.Error as exc:
+                    raise DatabaseError(read_failed(self.path, exc)) from exc
+                try:
+                    yield item
+                except GeneratorExit:  # dropped (an error or Ctrl-C elsewhere), maybe after its connection closed:
+                    with contextlib.suppress(sqlite3.Error):  # nothing is left to read, and nothing is wrong
+                        inner.close()
+                    raise
         return rows  # type: ignore[return-value]
 
     @functools.wraps(method)

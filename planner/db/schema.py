@@ -60,6 +60,7 @@ is migrated after a backup copy is written next to the file.
 from __future__ import annotations
 
 import logging
+import os
 import shutil
 import sqlite3
 import time
@@ -243,7 +244,15 @@ def migrate(conn: sqlite3.Connection, path: Path, version: int) -> None:
     if version > 0 and path.exists():
         backup = path.with_name(f"{path.name}.v{version}.{int(time.time())}.bak")
         conn.execute("PRAGMA wal_checkpoint(TRUNCATE)")
-        shutil.copy2(path, backup)
+        partial = backup.with_name(f".{backup.name}.tmp")
+        try:  # under its own name only when whole: a full disk left a damaged copy under the backup's name
+            shutil.copy2(path, partial)
+            os.replace(partial, backup)
+        except OSError as exc:
+            partial.unlink(missing_ok=True)
+            raise DatabaseError(f"{path}: the backup copy before migrating schema v{version} -> v{SCHEMA_VERSION} "
+                                f"could not be written ({exc.strerror or exc}): the database was not changed; free "
+                                "disk space and run the command again") from exc
         log.warning("%s: migrating schema v%d -> v%d; backup at %s", path, version, SCHEMA_VERSION, backup)
     scripts = ([SCHEMA] if version == 0 else []) + [MIGRATIONS[v] for v in range(max(version, 1), SCHEMA_VERSION)]
     with transaction(conn, path):

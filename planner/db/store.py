@@ -18,6 +18,7 @@ both for every grasp of its hand.
 from __future__ import annotations
 
 import json
+import os
 import sqlite3
 from collections.abc import Iterable, Iterator
 from contextlib import closing, contextmanager
@@ -289,6 +290,12 @@ def open_for_writing(path: Path, *, create: bool = True) -> Iterator[Database]:
     database is refused before the lock is taken and before anything is set in it: no lock file beside
     another application's SQLite file, and its journal mode as it was."""
     path = Path(path)
+    if path.is_dir():  # "" is "." too
+        raise DatabaseError(f"{path}: is a folder, not a database file")
+    folder = path.parent if str(path.parent) else Path(".")
+    if folder.is_dir() and not os.access(folder, os.W_OK):
+        raise DatabaseError(f"{path}: its folder is read-only: a run writes beside the database (its lock and "
+                            "SQLite's journal); nothing was changed: copy it to a writable folder")
     if not create and not path.exists():
         raise DatabaseError(_missing(path))
     if path.is_file() and path.stat().st_size > 0:
@@ -301,6 +308,14 @@ def open_for_writing(path: Path, *, create: bool = True) -> Iterator[Database]:
             raise DatabaseError(f"{path}: cannot open database: {exc}") from exc
     with writer_lock(path), open_db(path, create=create) as db:
         yield db
+
+
+def _frozen(path: Path) -> bool:
+    """A database in a folder this process cannot write in (a read-only folder or filesystem: no writer can
+    make its journal there either), with no write-ahead log to read: SQLite's read-only opening still makes a
+    -shm file beside a WAL database, and fails there; read as immutable, it needs none."""
+    wal = path.with_name(path.name + "-wal")
+    return path.is_file() and not os.access(path.parent, os.W_OK) and not (wal.exists() and wal.stat().st_size > 0)
 
 
 def _missing(path: Path) -> str:
@@ -327,6 +342,8 @@ def open_db(path: Path, *, create: bool = True, readonly: bool = False) -> Datab
         raise DatabaseError(f"{path}: folder {path.parent} does not exist")
     try:
         uri = f"file:{path}?mode=ro" if readonly else f"file:{path}"
+        if readonly and _frozen(path):  # SQLite cannot make its -shm beside it: read it as the file that it is
+            uri += "&immutable=1"
         conn = sqlite3.connect(uri, uri=True, timeout=BUSY_TIMEOUT_S, isolation_level=None)
         conn.row_factory = sqlite3.Row
         version = schema_version(conn, path)  # before anything is set: another application's file stays as it is

@@ -174,10 +174,19 @@ def from_above(mesh: trimesh.Trimesh, up: np.ndarray, com: np.ndarray, approach_
                       np.tile(-up, (ABOVE_RAYS, 1)), phases)
 
 
+#: Rays the box sampler may cast on one object (a 2 mm grid on a 30 cm box: 135,000).
+MAX_BOX_RAYS = 1_000_000
+
+
 def _box_rays(mesh: trimesh.Trimesh, delta: float) -> tuple[np.ndarray, np.ndarray]:
     if delta <= 0:
         raise InputError(f"box sampler spacing must be positive, got {delta}")
     lo, hi = mesh.bounds[0] - BOX_MARGIN, mesh.bounds[1] + BOX_MARGIN
+    steps = np.floor((hi - lo) / delta) + 1
+    rays = 2 * (steps[1] * steps[2] + steps[0] * steps[2] + steps[0] * steps[1])
+    if rays > MAX_BOX_RAYS:  # before the grid is made: 1e-9 m took 24 GB and the machine's memory killer
+        raise InputError(f"--box-delta {delta:g} m casts {rays:.3g} rays on this object's box (at most "
+                         f"{MAX_BOX_RAYS:,}): use a larger spacing")
     origins, dirs = [], []
     for axis in range(3):
         u, v = [a for a in range(3) if a != axis]

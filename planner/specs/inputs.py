@@ -224,3 +224,15 @@ def _label(path: Path, depth: int, suffix: bool = False) -> str:
     """``path``'s stem (its name with ``suffix``), after its last ``depth`` folders."""
     folders = _folders(path)
     return "/".join([*folders[len(folders) - min(depth, len(folders)):], path.name if suffix else path.stem])
+
+
+#: Seeds are stored as SQLite integers and seed numpy's generators, which take no negative ones.
+MAX_SEED = 2**63 - 1
+
+
+def check_seed(seed: int) -> int:
+    """``seed``, or a one-line error before anything runs (a negative one failed every unit, stored as failed;
+    one beyond SQLite's integers was an internal error)."""
+    if not 0 <= seed <= MAX_SEED:
+        raise InputError(f"--seed must be an integer from 0 to {MAX_SEED}, got {seed}")
+    return seed

@@ -30,6 +30,7 @@ from planner.record.grasp import Grasp, RobustEpsilon, Trial
 from planner.run import pool
 from planner.run.progress import Report
 from planner.specs.hands import load_hand
+from planner.specs.inputs import check_seed
 from planner.threads import one_blas_thread
 from planner.validation.mujoco_settings import DEFAULT_ENGINE, DIVERGED, ENGINES, MujocoSettings
 from planner.validation.robust import NoiseSettings, robust_epsilon
@@ -280,6 +281,7 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
         raise InputError(f"unknown engine '{engine}'; use {' or '.join(ENGINES)}")
     if settings is not None and isinstance(settings, MujocoSettings) != (engine == "mujoco"):
         raise InputError(f"the trial settings given are not {engine}'s")
+    check_seed(seed)
     if top < 1:
         raise InputError(f"--top must be at least 1, got {top}")
     if sample is not None and sample < 1:

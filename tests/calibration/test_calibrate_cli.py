@@ -202,3 +202,15 @@ def test_calibrate_with_trials_fits_the_update_that_labels_and_ranks_validated_g
     rows = list(csv.DictReader(next(out_dir.rglob("*.csv")).open()))
     assert len(rows) == 2 and {r["label_from"] for r in rows} == {"p_hold_trial"}
     assert sorted(int(r["label"]) for r in rows) == sorted(int(g.p_hold_trial >= 0.5) for g in tried)  # type: ignore[operator]
+
+
+def test_a_database_that_cannot_take_the_model_is_refused_before_the_fit(validated_db: Path, tmp_path: Path) -> None:
+    """A --db that is a folder (or locked by a writer, or of a newer schema) failed only after the whole fit
+    (23 s on a helper's run), the model thrown away; now before any pose is re-scored."""
+    file = labelled_files(validated_db, tmp_path)[0]
+    folder = tmp_path / "folder.db"
+    folder.mkdir()
+    code, _, err = grasp("calibrate", str(file), "--db", str(folder), "--poses", "12", "--folds", "2")
+    assert code == 3 and "poses closed on the object" not in err and len(err.strip().splitlines()) == 1, err
+    code, _, err = grasp("calibrate", str(file), "--db", str(tmp_path / "g.db"), "--workers", "0")
+    assert code == 2 and "--workers must be at least 1" in err, err

@@ -3,6 +3,7 @@ the error, never a traceback; names not found list the valid ones."""
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import pytest
@@ -103,3 +104,35 @@ def test_a_reader_that_goes_away_gets_no_error(args: list[str]) -> None:
     child.stdout.close()  # type: ignore[union-attr]
     err = child.stderr.read().decode()  # type: ignore[union-attr]
     assert child.wait() == EXIT_PIPE and err == ""
+
+
+def test_sigterm_ends_a_run_as_ctrl_c_does(tmp_path: Path) -> None:
+    """`timeout`, a batch scheduler or systemd stop a run with SIGTERM: it died at once (exit 143, no line, a
+    validate's ranks left stale); now it ends as Ctrl-C does, with its one line, and resumes."""
+    import signal
+    import sqlite3
+    import subprocess
+
+    from processes import STARTUP, env, wait_until
+
+    db = tmp_path / "g.db"
+    args = [sys.executable, "-m", "planner.cli", "generate", "mug", "box", "--hand", "panda", "--db", str(db),
+            "--workers", "1", "--chunk", "16", "--quiet"]
+    run = subprocess.Popen(args, env=env(), stderr=subprocess.PIPE, text=True)
+
+    def units() -> int:
+        try:
+            with sqlite3.connect(db) as conn:
+                return int(conn.execute("SELECT COUNT(*) FROM units").fetchone()[0])
+        except sqlite3.Error:
+            return 0
+
+    try:
+        wait_until(lambda: units() > 0, STARTUP, "a first unit written")
+        run.send_signal(signal.SIGTERM)
+        _, err = run.communicate(timeout=STARTUP)
+    finally:
+        run.kill()
+    assert run.returncode == 130, err
+    assert err.strip().splitlines()[-1] == "grasp: interrupted; finished units are saved, run the same command to " \
+                                           "resume", err

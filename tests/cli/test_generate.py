@@ -174,3 +174,18 @@ def test_a_resume_keeps_the_names_an_earlier_run_stored_files_under(tmp_path: Pa
     assert json.loads(out)["units"] == 0 and json.loads(out)["skipped"] > 0
     with sqlite3.connect(db) as conn:
         assert sorted(n for (n,) in conn.execute("SELECT name FROM objects")) == ["a/part", "b/part", "lab/cup"]
+
+
+@pytest.mark.parametrize("args, code, needle", [
+    (["--seed", "-1"], 2, "--seed must be an integer from 0 to"),  # every unit failed, stored as failed
+    (["--seed", "99999999999999999999"], 2, "--seed must be an integer from 0 to"),  # an internal OverflowError
+    (["--db", ""], 3, "is a folder, not a database file"),  # an internal ValueError
+])
+def test_seeds_and_database_paths_that_cannot_be_are_one_line(box_db: Path, tmp_path: Path, args: list[str],
+                                                              code: int, needle: str) -> None:
+    db = tmp_path / "g.db"
+    shutil.copy(box_db, db)
+    before = snapshot(db)
+    exit_code, _, err = grasp("generate", "sphere", "--hand", "panda", "--db", str(db), *FAST, "--quiet", *args)
+    one_line_error(exit_code, err, code, needle)
+    assert snapshot(db) == before

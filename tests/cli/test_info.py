@@ -41,3 +41,18 @@ def test_one_hand_in_detail() -> None:
     code, out, _ = grasp("hands", "barrett")
     assert code == 0 and "root link: bh_palm" in out and "joint bh_j32_joint (revolute)" in out
     assert "preshape wrap tags=power" in out
+
+
+def test_a_damaged_page_is_said_to_be_damage_not_a_full_disk(box_db: Path, tmp_path: Path) -> None:
+    """One page of the grasps table zeroed: `db check` lists the problems on stdout and fails with one line and
+    the database's exit code 3 (it was 1, the problems on stderr); a write names the damage (it said the disk
+    was full: SQLite's "database disk image is malformed")."""
+    from helpers import damaged
+
+    from planner.db.failures import write_failed
+
+    broken = damaged(box_db, tmp_path / "broken.db")
+    code, out, err = grasp("db", "check", "--db", str(broken))
+    assert code == 3 and len(err.strip().splitlines()) == 1 and "integrity check failed" in err and out.strip(), err
+    line = write_failed(broken, sqlite3.DatabaseError("database disk image is malformed"), 4)
+    assert "the database file is damaged" in line and "disk is full" not in line

@@ -286,3 +286,20 @@ def test_scores_just_below_1_are_printed_in_their_order(score: float, shown: str
     from planner.present.describe import score_text
 
     assert score_text(score) == shown
+
+
+def test_best_says_when_its_ranks_predate_stored_trial_verdicts(box_db: Path, tmp_path: Path) -> None:
+    """A `grasp validate` killed before it re-ranked leaves the pair marked (meta.unranked): `best` then
+    printed grasps its trials saw drop as the best without a word."""
+    import sqlite3
+
+    db = tmp_path / "g.db"
+    shutil.copy(box_db, db)
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(db))
+    assert code == 0 and "predate trial verdicts" not in err, err
+    with sqlite3.connect(db) as conn:
+        conn.execute("INSERT INTO meta (key, value) VALUES ('unranked', ?)", ('[["box", "panda"]]',))
+    conn.close()
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(db))
+    assert code == 0 and out.startswith("#1 box/panda"), err
+    assert "note: the ranks of box's panda grasps predate trial verdicts" in err and f"--db {db}` re-ranks" in err

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import errno
+import os
 import sqlite3
 from pathlib import Path
 
@@ -111,3 +113,31 @@ def test_filters_that_leave_no_grasp_write_nothing(db: Path, tmp_path: Path, fmt
     code, _, err = grasp("export", "--db", str(db), "--format", fmt, "--out", str(out), "--min-epsilon", "100")
     assert code == 2 and "passes the filters" in err and len(err.strip().splitlines()) == 1, err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("fmt", ["csv", "moveit", "acronym"])
+@pytest.mark.parametrize("stop, code, needle", [
+    (OSError(errno.ENOSPC, "No space left on device"), 2, "cannot write the export (No space left on device)"),
+    (KeyboardInterrupt(), 130, "interrupted; no file under its final name is partial"),
+])
+def test_an_export_stopped_midway_leaves_no_file_half_written(box_db: Path, tmp_path: Path,
+                                                               monkeypatch: pytest.MonkeyPatch, fmt: str,
+                                                               stop: BaseException, code: int, needle: str) -> None:
+    """A full disk or Ctrl-C while a file is written: one line (the full disk's was an internal error with a
+    traceback, Ctrl-C's said 'run the same command to resume' and printed a database traceback), no partial
+    file under any name (the .tmp files stayed)."""
+    real = os.replace
+
+    def replace_then_stop(src: object, dst: object) -> None:
+        if str(dst).endswith((".csv", ".yaml", ".h5")):  # the grasp file itself, its .tmp written in full
+            raise stop
+        real(src, dst)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(os, "replace", replace_then_stop)
+    monkeypatch.setattr(exporter.os, "replace", replace_then_stop)
+    out = tmp_path / "out"
+    exit_code, _, err = grasp("export", "--db", str(box_db), "--format", fmt, "--out", str(out), "--quiet")
+    assert exit_code == code and needle in err and len(err.strip().splitlines()) == 1, err
+    assert "Traceback" not in err and "Exception ignored" not in err, err
+    left = [p for p in out.rglob("*") if p.suffix in (".tmp", ".csv", ".yaml", ".h5")]
+    assert left == [], left

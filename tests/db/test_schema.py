@@ -130,3 +130,58 @@ def test_version_2_trials_read_back_with_an_unknown_reason(tmp_path: Path) -> No
 def test_the_readme_gives_the_schema_version() -> None:
     readme = (Path(__file__).parents[2] / "README.md").read_text(encoding="utf-8")
     assert f"Schema version {SCHEMA_VERSION};" in readme
+
+
+def test_a_backup_that_cannot_be_written_leaves_neither_a_damaged_copy_nor_a_changed_file(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A full disk while the backup was copied left a damaged copy under the backup's own name (a helper's
+    tmpfs: 3.2 of 5 MB, "malformed") and an internal error; now one line, no copy, the file as it was."""
+    import errno
+
+    from planner.db import schema
+
+    old = tmp_path / "old.db"
+    with sqlite3.connect(old) as conn:
+        for statement in filter(str.strip, SCHEMA.split(";")):
+            conn.execute(statement)
+        conn.execute("INSERT INTO meta VALUES ('schema_version', '1')")
+    conn.close()
+
+    def copy_half_then_fail(src: Path, dst: Path) -> None:
+        Path(dst).write_bytes(Path(src).read_bytes()[:1000])
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(schema.shutil, "copy2", copy_half_then_fail)
+    with pytest.raises(DatabaseError, match=r"backup copy .* could not be written \(No space left on device\): the "
+                                            "database was not changed"):
+        open_db(old)
+    with sqlite3.connect(old) as conn:
+        assert conn.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()[0] == "1"
+    conn.close()
+    assert not [p.name for p in tmp_path.iterdir() if p.name.endswith((".bak", ".tmp"))]
+
+
+def test_a_database_in_a_read_only_folder_is_read_and_writers_say_why_not(
+        box_db: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """SQLite's read-only opening of a WAL database makes a -shm file beside it, and failed in a read-only
+    folder ("unable to open database file" for best, show, export, db check); a writer said the same. Readers
+    now read the file as immutable there, writers refuse in one line. (This process may write anywhere as
+    root: the folder is reported read-only. Checked on a read-only tmpfs too: bench/RESULTS.md, 2026-12-06.)"""
+    import os
+
+    from planner.db import store
+
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    db = folder / "g.db"
+    shutil.copy(box_db, db)
+    real = os.access
+    monkeypatch.setattr(store.os, "access", lambda p, mode: False if Path(p) == folder else real(p, mode))
+    opened: list[str] = []
+    connect = sqlite3.connect
+    monkeypatch.setattr(store.sqlite3, "connect", lambda name, *a, **kw: opened.append(name) or connect(name, *a, **kw))
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(db))
+    assert code == 0 and out.startswith("#1 box/panda"), err
+    assert opened and all(name.endswith("?mode=ro&immutable=1") for name in opened), opened
+    code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(db), *FAST, "--quiet")
+    one_line_error(code, err, 3, "its folder is read-only", "nothing was changed")

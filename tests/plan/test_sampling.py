@@ -238,3 +238,13 @@ def test_antipodal_candidates_are_numbered_per_point_and_fit_the_preshape() -> N
     assert_close(angles, [0.0, 2 * np.pi / 3, 4 * np.pi / 3], 1e-12)
     part = antipodal_candidates(pairs, shapes, openings, settings_, 0.002, rays=range(4, 8))
     assert [(c.index, c.roll, c.standoff) for c in part] == [(c.index, c.roll, c.standoff) for c in every[24:48]]
+
+
+def test_a_box_grid_too_fine_to_cast_is_refused_before_it_is_made() -> None:
+    """--box-delta 1e-9 made a grid that grew one worker to 24 GB: refused, counting the rays first."""
+    from planner.errors import InputError
+
+    box = trimesh.creation.box(extents=[0.05, 0.04, 0.08])
+    with pytest.raises(InputError, match=r"--box-delta 1e-09 m casts 3\.\d+e\+16 rays .*at most 1,000,000"):
+        sampling.sample(box, sampler="box", count=0, rng=np.random.default_rng(0), delta=1e-9)
+    assert len(sampling.sample(box, sampler="box", count=0, rng=np.random.default_rng(0), delta=0.01).points) > 0
