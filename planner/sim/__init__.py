@@ -152,7 +152,7 @@ class Sim:
             raise SimulationError("cannot start a PyBullet DIRECT client")
         #: body id -> ((v, 3) vertices, (f, 3) faces) of the static meshes added here, object frame
         self.meshes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        #: body id -> the ids of the bodies it stands for (a mesh added in pieces: :func:`mesh_pieces`)
+        #: body id -> the ids of the bodies it stands for (a mesh added in several pieces: :func:`mesh_pieces`)
         self.groups: dict[int, list[int]] = {}
 
     def __enter__(self) -> Sim:
@@ -178,7 +178,8 @@ class Sim:
             if shape < 0:
                 raise SimulationError("PyBullet refused the object mesh")
             uids.append(self._fixed_body(shape, -1, pose))
-        self.groups[uids[0]] = uids
+        if len(uids) > 1:
+            self.groups[uids[0]] = uids
         self.meshes[uids[0]] = (np.asarray(vertices, float), np.asarray(faces, int))
         return uids[0]
 
@@ -333,7 +334,8 @@ class Sim:
             if shape < 0:
                 raise SimulationError("PyBullet refused the mesh to draw")
             uids.append(self._fixed_body(-1, shape, pose))
-        self.groups[uids[0]] = uids
+        if len(uids) > 1:
+            self.groups[uids[0]] = uids
         return uids[0]
 
     def set_color(self, body: Body, rgba: tuple[float, ...]) -> None:
@@ -357,9 +359,12 @@ class Sim:
     def closest(self, a: int, b: int, max_distance: float, link_a: int | None = None) -> Closest:
         """Closest-point pairs between bodies ``a`` and ``b`` within ``max_distance`` [m]."""
         kwargs = {} if link_a is None else {"linkIndexA": link_a}
-        rows = [row for member_a in self.groups.get(a, [a]) for member_b in self.groups.get(b, [b])
-                for row in pb.getClosestPoints(member_a, member_b, max_distance, physicsClientId=self.client,
-                                               **kwargs)]
+        if a in self.groups or b in self.groups:
+            rows = [row for member_a in self.groups.get(a, [a]) for member_b in self.groups.get(b, [b])
+                    for row in pb.getClosestPoints(member_a, member_b, max_distance, physicsClientId=self.client,
+                                                   **kwargs)]
+        else:
+            rows = pb.getClosestPoints(a, b, max_distance, physicsClientId=self.client, **kwargs)
         if not rows:
             return _EMPTY
         n = len(rows)
