@@ -103,15 +103,21 @@ class Owner:
         return self.host != socket.gethostname() or procs.alive(self.pid, self.start)
 
 
+#: Characters of a command kept in the lock (what a refused second writer is told).
+COMMAND_CHARS = 200
+
+
 def _command() -> str:
-    """This process's command, short: ``grasp generate box`` (argv 0..2)."""
+    """This process's command: ``grasp generate box random_001 --hand panda`` (cut at
+    :data:`COMMAND_CHARS`)."""
     if not sys.argv or not sys.argv[0]:
         return "python"
     program = Path(sys.argv[0]).name
     if program == "__main__.py":  # python -m package
         spec = getattr(sys.modules.get("__main__"), "__spec__", None)
         program = f"python -m {spec.name.removesuffix('.__main__')}" if spec else "python"
-    return " ".join([program, *sys.argv[1:3]])
+    text = " ".join([program, *sys.argv[1:]])
+    return text if len(text) <= COMMAND_CHARS else text[:COMMAND_CHARS - 3] + "..."
 
 
 @contextmanager
@@ -120,7 +126,8 @@ def writer_lock(db_path: Path) -> Iterator[Owner | None]:
     lock was taken over (it died while writing), else None. Raises
     :class:`LockBusy` if a live process holds it."""
     db_path = Path(db_path)
-    lock_path = db_path.with_name(db_path.name + ".lock")
+    real = db_path.resolve()  # one lock per file, by whichever path (a symlink) it is named
+    lock_path = real.with_name(real.name + ".lock")
     try:
         fd = os.open(lock_path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
     except OSError as exc:

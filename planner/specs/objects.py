@@ -123,11 +123,12 @@ NO_PHYSICAL = Physical()
 
 
 def sidecar(mesh: Path) -> Physical:
-    """The properties in ``mesh``'s sidecar (same stem, ``.toml``), if any."""
-    path = mesh.with_suffix(SIDECAR_SUFFIX)
-    if not path.is_file():
-        return NO_PHYSICAL
-    return Physical.checked(read_toml(path), str(path))
+    """The properties in ``mesh``'s sidecar (same stem, ``.toml`` or ``.TOML``: ``B.STL`` + ``B.TOML``), if any;
+    two sidecars of one mesh are refused."""
+    found = [mesh.with_suffix(s) for s in (SIDECAR_SUFFIX, SIDECAR_SUFFIX.upper()) if mesh.with_suffix(s).is_file()]
+    if len(found) > 1 and len({p.resolve() for p in found}) > 1:  # one file on a case-blind file system
+        raise InputError(f"{mesh}: two sidecars, {' and '.join(p.name for p in found)}: keep one")
+    return Physical.checked(read_toml(found[0]), str(found[0])) if found else NO_PHYSICAL
 
 
 @dataclass(frozen=True)

@@ -168,3 +168,15 @@ def test_unreadable_owner_record_is_no_owner(tmp_path: Path, caplog) -> None:  #
     with caplog.at_level(logging.WARNING), writer_lock(db) as previous:
         assert previous is None
     assert not caplog.records
+
+
+def test_one_lock_per_file_whichever_path_names_it(tmp_path: Path) -> None:
+    """The lock was named after the path given: two writers through a symlink both ran (a helper's two
+    generates did the full work twice); now the file's real path names it."""
+    db = tmp_path / "x.db"
+    db.touch()
+    (tmp_path / "link.db").symlink_to(db)
+    with writer_lock(db):
+        with pytest.raises(LockBusy):
+            with writer_lock(tmp_path / "link.db"):
+                pass

@@ -136,3 +136,15 @@ def test_run_values_apply_to_every_plain_argument(tmp_path: Path, brick: Path) -
     run = Physical(friction=0.7)
     refs = inputs.expand(["box", str(tmp_path)], physical=run)
     assert [r.physical for r in refs] == [run, run]
+
+
+def test_an_upper_case_sidecar_is_read_and_two_are_refused(brick: Path) -> None:
+    """B.STL with B.TOML got the defaults without a word (a scanner writing upper-case names)."""
+    brick.with_suffix(".TOML").write_text("mass = 0.066\nfriction = 0.8\n")
+    spec = resolve_spec(str(brick))
+    assert (spec.mass, spec.friction) == (0.066, 0.8)
+    brick.with_suffix(".toml").write_text("mass = 0.07\n")
+    if brick.with_suffix(".toml").samefile(brick.with_suffix(".TOML")):
+        pytest.skip("a case-blind file system: brick.toml and brick.TOML are one file")
+    with pytest.raises(InputError, match=r"two sidecars, brick\.toml and brick\.TOML: keep one"):
+        resolve_spec(str(brick))
