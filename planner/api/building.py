@@ -12,6 +12,7 @@ test may patch them (:func:`_lazy`).
 from __future__ import annotations
 
 import importlib
+import json
 import math
 import time
 from collections import Counter
@@ -165,6 +166,23 @@ def _stored_names(db: Database, units: Sequence[UnitSpec]) -> list[UnitSpec]:
     return [replace(u, label=renamed.get(u.label or u.object_name, u.label)) for u in units]
 
 
+def _check_chunks(db: Database, hand: str, seed: int, todo: Sequence[UnitSpec]) -> None:
+    """Refuse to sweep an object again with settings that differ from a stored sweep's in ``--chunk`` alone:
+    the same candidates cut into other units, so every grasp would be stored twice (a resume with another
+    ``--chunk`` stored 404 poses again)."""
+    def without_chunk(settings: str) -> str:
+        return json.dumps({k: v for k, v in json.loads(settings).items() if k != "chunk"}, sort_keys=True)
+
+    for name in sorted({u.label or u.object_name for u in todo}):
+        ours = {u.settings.to_json() for u in todo if (u.label or u.object_name) == name}
+        for stored in db.swept_settings(name, hand, seed) - ours:
+            chunk = json.loads(stored).get("chunk")
+            if without_chunk(stored) in {without_chunk(s) for s in ours}:
+                raise InputError(f"{name} was swept for {hand} with these settings but --chunk {chunk}: another "
+                                 f"--chunk cuts the same candidates into other units and would store every grasp "
+                                 f"again; resume with --chunk {chunk}, or use another --db")
+
+
 def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSpec]) -> None:
     """Refuse to add grasps of an object stored under the same name at
     another mass, density or friction, or from another mesh or with other
@@ -264,6 +282,7 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
         done = {d: db.units_done(hand, d, seed) for d in sorted({u.settings.digest for u in units})}
         todo = [u for u in units if (u.label, u.chunk) not in done[u.settings.digest]]
         _check_stored(db, units, todo)
+        _check_chunks(db, hand, seed, todo)
         rule = rule or db.rule()
         db.apply_rule(rule)
         summary.skipped = len(units) - len(todo)

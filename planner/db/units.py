@@ -32,6 +32,13 @@ class UnitReads:
                                   (hand,)).fetchone() is not None
 
     @_reads
+    def swept_settings(self, obj: str, hand: str, seed: int) -> set[str]:
+        """The settings (JSON, as stored) of ``obj``'s finished units for ``hand`` with ``seed``."""
+        rows = self._conn.execute("SELECT DISTINCT settings FROM units WHERE object = ? AND hand = ? AND seed = ? "
+                                  "AND status = 'done'", (obj, hand, seed))
+        return {r["settings"] for r in rows}
+
+    @_reads
     def validated_ids(self, obj: str, hand: str, table: str, seed: int, settings: str) -> set[int]:
         """Ids of ``obj``'s grasps for ``hand`` with a row in ``table`` (``validation``: PyBullet's trial,
         ``mujoco``, ``robust``) made with ``seed`` and ``settings`` (as stored)."""

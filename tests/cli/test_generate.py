@@ -189,3 +189,17 @@ def test_seeds_and_database_paths_that_cannot_be_are_one_line(box_db: Path, tmp_
     exit_code, _, err = grasp("generate", "sphere", "--hand", "panda", "--db", str(db), *FAST, "--quiet", *args)
     one_line_error(exit_code, err, code, needle)
     assert snapshot(db) == before
+
+
+def test_a_resume_with_another_chunk_is_refused_not_stored_twice(box_db: Path, tmp_path: Path) -> None:
+    """--chunk cuts the same candidates into other units: a resume with another one swept the object again
+    and stored every grasp twice (a helper's run: 404 duplicate poses)."""
+    db = tmp_path / "g.db"
+    shutil.copy(box_db, db)
+    before = snapshot(db)
+    code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(db), *FAST, "--quiet", "--chunk", "2")
+    one_line_error(code, err, 2, "box was swept for panda with these settings but --chunk", "resume with --chunk")
+    assert snapshot(db) == before
+    code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(db), *FAST, "--quiet", "--seed", "3",
+                         "--chunk", "2")  # another seed is another sweep: its own candidates
+    assert code == 0, err
