@@ -343,10 +343,11 @@ def _tally(summary: Summary, result: UnitResult, seconds: float) -> None:
     row = next((r for r in summary.per_object if r["object"] == name), None)
     if row is None:
         row = {"object": name, "units": 0, "candidates": 0, "grasps": 0, "force_closure": 0, "seconds": 0.0,
-               "error": None, "mass": None, "friction": None}
+               "error": None, "mass": None, "friction": None, "density": None}
         summary.per_object.append(row)
     if result.obj is not None:  # the values the grasps were measured at (flags, manifest, sidecar or defaults)
         row["mass"], row["friction"] = result.obj.mass, result.obj.friction
+        row["density"] = result.obj.mass / result.obj.volume
     row["units"] += 1
     row["candidates"] += result.candidates
     row["grasps"] += len(result.grasps)

@@ -11,6 +11,9 @@ from planner import api
 from planner.cli.app import db_option, echo_json, floats, report_failures, show_preparation, unused
 
 DEFAULTS = api.SweepSettings()
+#: [kg/m^3] from a foam (expanded polystyrene ~10) to osmium (22,590): an object's mass over its volume outside
+#: these is noted (a 5 mm bead at the default 0.2 kg: 3e6).
+PLAUSIBLE_DENSITY = (5.0, 23_000.0)
 
 
 @click.command()
@@ -162,3 +165,9 @@ def _print_summary(summary: api.Summary, db_path: Path) -> None:
                   f"time: {summary.seconds:.1f} s")
     if summary.rejected:
         console.print("rejected: " + ", ".join(f"{k} {v}" for k, v in sorted(summary.rejected.items())))
+    for row in summary.per_object:
+        if row.get("density") is not None and not PLAUSIBLE_DENSITY[0] <= row["density"] <= PLAUSIBLE_DENSITY[1]:
+            click.echo(f"note: {row['object']} weighs {row['mass']:.3g} kg in its volume: {row['density']:.3g} kg/m^3, "
+                       f"outside any solid's {PLAUSIBLE_DENSITY[0]:g}-{PLAUSIBLE_DENSITY[1]:,.0f} (the default is "
+                       "0.2 kg); if that is not its weight, give --mass or --density (or a sidecar) and another --db",
+                       err=True)

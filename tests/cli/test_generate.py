@@ -203,3 +203,17 @@ def test_a_resume_with_another_chunk_is_refused_not_stored_twice(box_db: Path, t
     code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(db), *FAST, "--quiet", "--seed", "3",
                          "--chunk", "2")  # another seed is another sweep: its own candidates
     assert code == 0, err
+
+
+def test_a_weight_no_solid_has_is_noted(tmp_path: Path) -> None:
+    """A 5 mm bead at the default 0.2 kg is 1.6e6 kg/m^3 (every measure and trial at that weight) without a
+    word; now a note after the summary, none at a density given."""
+    import trimesh
+
+    bead = tmp_path / "bead.stl"
+    trimesh.creation.box(extents=[0.005, 0.005, 0.005]).export(bead)
+    code, _, err = grasp("generate", str(bead), "--hand", "panda", "--db", str(tmp_path / "a.db"), *FAST)
+    assert code == 0 and "note: bead weighs 0.2 kg in its volume: 1.6e+06 kg/m^3, outside any solid's" in err, err
+    code, _, err = grasp("generate", str(bead), "--hand", "panda", "--db", str(tmp_path / "b.db"), *FAST,
+                         "--density", "1000")
+    assert code == 0 and "note:" not in err, err
