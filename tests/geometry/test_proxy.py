@@ -5,6 +5,7 @@ below the truth."""
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -103,3 +104,20 @@ def test_a_proxy_that_does_not_fit_is_said(caplog: pytest.LogCaptureFixture) -> 
     lines = [r.getMessage() for r in caplog.records if r.name == prepare.LOGGER]
     assert proxy.exact and any(line.startswith("rough: no collision proxy of fewer than") and
                                "closing uses the exact mesh" in line for line in lines), lines
+
+
+def test_a_rough_scan_gets_a_proxy_within_the_tolerance_nearly_everywhere(caplog: pytest.LogCaptureFixture) -> None:
+    """A scan's noise, not its shape, keeps every decimation from the tolerance somewhere: it was closed on
+    its exact mesh, at ~7x the cost; it gets the first proxy within the tolerance at 99.9% of the samples and
+    within the spike bound everywhere, and says so. (A capsule of 15k faces, 0.1 mm of noise along its
+    normals: its 4,000-face proxy, the only one tried, is 0.28 mm away at most, 0.20 mm at 99.9%.)"""
+    mesh = capsule(15_000)
+    noise = np.random.default_rng(0).normal(0.0, 0.0001, (len(mesh.vertices), 1))
+    rough = trimesh.Trimesh(mesh.vertices + mesh.vertex_normals * noise, mesh.faces, process=False)
+    s = ProxySettings()
+    with caplog.at_level(logging.INFO, logger=prepare.LOGGER):
+        proxy = build_proxy(rough, s, name="rough")
+    assert not proxy.exact and s.tolerance < proxy.deviation <= s.spike
+    lines = [r.getMessage() for r in caplog.records if r.name == prepare.LOGGER]
+    assert any(line.startswith("rough: a rough surface: its collision proxy of 4,000 faces") for line in lines), lines
+    assert build_proxy(rough, replace(s, quantile=1.0)).exact  # the rule before: the exact mesh
