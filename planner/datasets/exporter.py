@@ -134,14 +134,13 @@ def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (
     """Export the selected grasps of ``db_path`` as ``fmt`` into ``out_dir``
     (created if missing). ``top``: rank <= top per (object, hand);
     ``min_epsilon``: epsilon >= it. ``progress(file, grasps)`` after each file."""
-    started = time.time()
+    writing: list[Path] = []  # the files this export writes, each under its name + ".tmp" until whole
     try:
-        return _export(db_path, fmt, out_dir, objects, hands, min_epsilon, top, spacing, label, progress)
-    except BaseException as exc:  # a full disk, Ctrl-C: no file is left half-written, under any name
-        for tmp in Path(out_dir).rglob("*.tmp") if Path(out_dir).is_dir() else ():
+        return _export(db_path, fmt, out_dir, objects, hands, min_epsilon, top, spacing, label, progress, writing)
+    except BaseException as exc:  # a full disk, Ctrl-C: no file of this export is left half-written, under any name
+        for path in writing:
             with contextlib.suppress(OSError):
-                if tmp.stat().st_mtime >= started - 1:
-                    tmp.unlink()
+                path.with_name(path.name + ".tmp").unlink(missing_ok=True)
         if isinstance(exc, OSError):
             raise InputError(f"{out_dir}: cannot write the export ({exc.strerror or exc}): no file under its final "
                              "name is partial, unfinished ones were removed; free space or choose another --out") \
@@ -151,7 +150,7 @@ def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (
 
 def _export(db_path: Path, fmt: str, out_dir: Path, objects: Sequence[str], hands: Sequence[str],
             min_epsilon: float | None, top: int | None, spacing: Spacing | None, label: str,
-            progress: Callable[[Path, int], None] | None) -> ExportSummary:
+            progress: Callable[[Path, int], None] | None, writing: list[Path]) -> ExportSummary:
     writer = formats.writer(fmt)
     sel = Selection(tuple(objects), tuple(hands), min_epsilon, top, spacing, check(label))
     summary = ExportSummary(fmt)
@@ -175,6 +174,7 @@ def _export(db_path: Path, fmt: str, out_dir: Path, objects: Sequence[str], hand
         summary.meshes = [out_dir / o.file for o in exported.values()]
         if isinstance(writer, TableWriter):
             path = out_dir / writer.file
+            writing.append(path)
             tmp = path.with_name(path.name + ".tmp")
             streams = (Stream(_for_hand(models[h], exported[o]), h, sel.batches(db, o, h)) for o, h in pairs)
             summary.grasps = writer.write(tmp, streams)
@@ -185,6 +185,7 @@ def _export(db_path: Path, fmt: str, out_dir: Path, objects: Sequence[str], hand
         else:
             for obj, hand in pairs:
                 path = out_dir / writer.relative_path(mesh_stem(obj), hand)
+                writing.append(path)
                 count = _write_pair(db, writer, path, _for_hand(models[hand], exported[obj]), specs[hand], sel)
                 if count:
                     summary.files.append(path)

@@ -18,6 +18,7 @@ both for every grasp of its hand.
 from __future__ import annotations
 
 import json
+import logging
 import os
 import sqlite3
 from collections.abc import Iterable, Iterator
@@ -66,6 +67,10 @@ from planner.record.contacts import HandContacts
 from planner.record.field import Field
 from planner.record.grasp import FIELDS as GRASP_FIELDS
 from planner.record.grasp import Grasp
+
+log = logging.getLogger(__name__)
+#: Databases this process was told it reads as immutable (:func:`_frozen`).
+_FROZEN_SAID: set[Path] = set()
 
 #: How long a connection waits for another one's write lock [s].
 BUSY_TIMEOUT_S = 60.0
@@ -292,12 +297,16 @@ def open_for_writing(path: Path, *, create: bool = True) -> Iterator[Database]:
     path = Path(path)
     if path.is_dir():  # "" is "." too
         raise DatabaseError(f"{path}: is a folder, not a database file")
-    folder = path.parent if str(path.parent) else Path(".")
+    folder = path.resolve().parent  # SQLite's journal and the lock go beside the file itself (a symlink's target)
     if folder.is_dir() and not os.access(folder, os.W_OK):
         raise DatabaseError(f"{path}: its folder is read-only: a run writes beside the database (its lock and "
                             "SQLite's journal); nothing was changed: copy it to a writable folder")
     if not create and not path.exists():
         raise DatabaseError(_missing(path))
+    if path.is_file() and path.stat().st_nlink > 1:  # the lock is by name: a second name would let a second writer in
+        raise DatabaseError(f"{path}: the file has {path.stat().st_nlink} names (hard links, e.g. a `cp -al` "
+                            "snapshot): a writer through one would not see a writer through another, and a write "
+                            "changes every name; nothing was changed: write to a copy (cp)")
     if path.is_file() and path.stat().st_size > 0:
         _check_header(path)
         try:
@@ -311,11 +320,15 @@ def open_for_writing(path: Path, *, create: bool = True) -> Iterator[Database]:
 
 
 def _frozen(path: Path) -> bool:
-    """A database in a folder this process cannot write in (a read-only folder or filesystem: no writer can
-    make its journal there either), with no write-ahead log to read: SQLite's read-only opening still makes a
-    -shm file beside a WAL database, and fails there; read as immutable, it needs none."""
-    wal = path.with_name(path.name + "-wal")
-    return path.is_file() and not os.access(path.parent, os.W_OK) and not (wal.exists() and wal.stat().st_size > 0)
+    """A database (its real file, through any symlink) in a folder this process cannot write in, nor the file
+    itself (a read-only folder or filesystem: no writer through this path can make its journal there), with
+    no write-ahead log to read: SQLite's read-only opening still makes a -shm file beside a WAL database, and
+    fails there; read as immutable, it needs none. A writer through another mount of the same file is not
+    seen (said when it is opened so: :func:`open_db`)."""
+    real = path.resolve()
+    wal = real.with_name(real.name + "-wal")
+    return (real.is_file() and not os.access(real.parent, os.W_OK) and not os.access(real, os.W_OK)
+            and not (wal.exists() and wal.stat().st_size > 0))
 
 
 def _missing(path: Path) -> str:
@@ -343,7 +356,11 @@ def open_db(path: Path, *, create: bool = True, readonly: bool = False) -> Datab
     try:
         uri = f"file:{path}?mode=ro" if readonly else f"file:{path}"
         if readonly and _frozen(path):  # SQLite cannot make its -shm beside it: read it as the file that it is
-            uri += "&immutable=1"
+            uri = f"file:{path.resolve()}?mode=ro&immutable=1"
+            if path not in _FROZEN_SAID:  # once: a command opens its database several times
+                _FROZEN_SAID.add(path)
+                log.warning("%s: in a read-only folder: read as it is now (a writer through another mount of it "
+                            "would not be seen)", path)
         conn = sqlite3.connect(uri, uri=True, timeout=BUSY_TIMEOUT_S, isolation_level=None)
         conn.row_factory = sqlite3.Row
         version = schema_version(conn, path)  # before anything is set: another application's file stays as it is
@@ -352,6 +369,10 @@ def open_db(path: Path, *, create: bool = True, readonly: bool = False) -> Datab
             conn.execute("PRAGMA synchronous = NORMAL")
         conn.execute("PRAGMA foreign_keys = ON")
     except sqlite3.DatabaseError as exc:
+        if readonly and not os.access(path.resolve().parent, os.W_OK):
+            raise DatabaseError(f"{path}: cannot read it in a read-only folder while its file may be written "
+                                f"(SQLite needs a -shm file beside it; {exc}): copy it to a writable folder, or "
+                                "make the file read-only too") from exc
         raise DatabaseError(f"{path}: cannot open database: {exc}") from exc
     if version > SCHEMA_VERSION:
         conn.close()

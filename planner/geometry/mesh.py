@@ -182,13 +182,16 @@ def _repair(mesh: trimesh.Trimesh, where: str, given: trimesh.Trimesh) -> tuple[
 
 #: A body whose vertices lie within this fraction of its size of one plane is flat.
 FLAT_TOL = 1e-9
+#: [m] a flat body within the box of the object's other bodies, widened by this, is inside or on it: kept.
+FLAT_INSIDE = 1e-3
 
 
 def _flat_bodies(mesh: trimesh.Trimesh) -> str:
     """What is flat among ``mesh``'s several bodies (a sheet, a ground plane, a
     scrap triangle of a scan: no volume), said in words; '' when none is. A
     flat piece with a corner on another body (a fin on an edge) is not a body
-    of its own: the caller's other message says what is wrong there."""
+    of its own: the caller's other message says what is wrong there; one
+    within the other bodies' box (an internal face, a decal) is left as it was."""
     if mesh.body_count < 2:
         return ""
     bodies = mesh.split(only_watertight=False, repair=False)
@@ -199,6 +202,10 @@ def _flat_bodies(mesh: trimesh.Trimesh) -> str:
         (flat if len(sing) < 3 or sing[2] <= FLAT_TOL * max(sing[0], 1e-12) else solid).append(body)
     corners = {tuple(v) for body in solid for v in np.round(body.vertices, 9)}
     flat = [body for body in flat if not any(tuple(v) in corners for v in np.round(body.vertices, 9))]
+    if solid:  # a face inside the object or on it (an internal face, a decal) changes neither its reach nor its mass
+        lo = np.min([b.bounds[0] for b in solid], axis=0) - FLAT_INSIDE
+        hi = np.max([b.bounds[1] for b in solid], axis=0) + FLAT_INSIDE
+        flat = [body for body in flat if not (np.all(body.vertices >= lo) and np.all(body.vertices <= hi))]
     if not flat:
         return ""
     first = flat[0]

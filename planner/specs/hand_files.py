@@ -3,12 +3,14 @@ database records of the hand its grasps were made with (``meta.hand_files``,
 checked by :mod:`planner.db.hand_files`), so that grasps of an edited hand
 are not stored, validated or imported beside those of the hand as it was.
 
-The files: ``hands/<name>/hand.toml`` and ``preshapes/<name>.toml`` (their
-parsed content: comments, layout and hand.toml's ``description`` do not
-count), the URDF that
-``hand.toml`` names and the collision meshes of its links, and the arm's
-URDF and collision meshes when the hand has an arm (reachability); each
-URDF and mesh by its bytes. Visual meshes are left out: they draw pictures,
+The files: ``hands/<name>/hand.toml`` and ``preshapes/<name>.toml`` as
+parsed (comments, layout, ``4e-2`` for ``0.04``, ``70`` for ``70.0`` and the
+text fields ``description``, ``taxonomy`` and ``source`` do not count), each
+preshape apart (a preshape added is not an edit of the others); the URDF
+that ``hand.toml`` names as parsed XML (comments, blank text and line ends
+do not count) and the collision meshes of its links by their bytes (line
+ends do not count); and the arm's URDF and collision meshes when the hand
+has an arm (reachability). Visual meshes are left out: they draw pictures,
 no stored value depends on them.
 """
 
@@ -35,25 +37,29 @@ def hand_files(name: str) -> dict[str, str]:
     folder = check_hand_name(name)
     toml_path = folder / "hand.toml"
     data = read_toml(toml_path)
-    out = {_label(toml_path): _parsed_digest({k: v for k, v in data.items() if k != "description"})}
+    out = {f"hands/{name}/hand.toml": _parsed_digest(data)}
     preshapes = assets.project_dir("preshapes") / f"{name}.toml"
     if preshapes.is_file():
-        out[_label(preshapes)] = _parsed_digest(read_toml(preshapes))
+        table = read_toml(preshapes)
+        out[f"preshapes/{name}.toml"] = _parsed_digest({k: v for k, v in table.items() if k != "preshape"})
+        for shape in table.get("preshape", []) if isinstance(table.get("preshape"), list) else []:
+            if isinstance(shape, dict):
+                out[f"preshapes/{name}.toml [{shape.get('name')}]"] = _parsed_digest(shape)
     urdfs = [assets.resolve(str(data["urdf"]), folder, f"{toml_path} field 'urdf'")]
     arm = data.get("arm")
     if isinstance(arm, dict) and "urdf" in arm:
         urdfs.append(assets.resolve(str(arm["urdf"]), folder, f"{toml_path} field 'arm.urdf'"))
     for urdf in urdfs:
-        out[_label(urdf)] = _bytes_digest(urdf)
+        out[_label(urdf, name, folder)] = _xml_digest(urdf)
         for mesh in _collision_meshes(urdf):
-            out[_label(mesh)] = _bytes_digest(mesh)
+            out[_label(mesh, name, folder)] = _bytes_digest(mesh)
     return dict(sorted(out.items()))
 
 
 def changed(stored: dict[str, str], now: dict[str, str]) -> list[str]:
-    """Labels of the files that differ between two :func:`hand_files`
-    (added, removed or edited), sorted."""
-    return sorted(k for k in stored.keys() | now.keys() if stored.get(k) != now.get(k))
+    """Labels of ``stored`` whose file (or preshape) is now another or gone, sorted: the edits that would mix
+    two hands under one name (a file or preshape added is not one)."""
+    return sorted(k for k in stored if stored[k] != now.get(k))
 
 
 def _collision_meshes(urdf: Path) -> list[Path]:
@@ -64,18 +70,49 @@ def _collision_meshes(urdf: Path) -> list[Path]:
     return sorted(p for p in paths if p.is_file())  # a missing mesh is the hand loader's error to give
 
 
+#: Text fields that describe and do not configure (hand.toml's, a preshape's, [dynamics]').
+TEXT_FIELDS = ("description", "taxonomy", "source")
+
+
+def _canonical(value: object) -> object:
+    """``value`` with its text fields dropped and every number a float (``70`` and ``70.0`` are one value)."""
+    if isinstance(value, dict):
+        return {k: _canonical(v) for k, v in value.items() if k not in TEXT_FIELDS}
+    if isinstance(value, list):
+        return [_canonical(v) for v in value]
+    if isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    return value
+
+
 def _parsed_digest(data: dict) -> str:
-    text = json.dumps(data, sort_keys=True, default=str, separators=(",", ":"))
+    text = json.dumps(_canonical(data), sort_keys=True, default=str, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()[:DIGEST_CHARS]
 
 
 def _bytes_digest(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()[:DIGEST_CHARS]
+    return hashlib.sha256(path.read_bytes().replace(b"\r\n", b"\n")).hexdigest()[:DIGEST_CHARS]
 
 
-def _label(path: Path) -> str:
+def _xml_digest(path: Path) -> str:
+    """The URDF as parsed: without comments and blank text, canonical XML (line ends and attribute order do not
+    count); its bytes if it does not parse (the hand's loader says why)."""
+    from lxml import etree
+
+    try:
+        tree = etree.fromstring(path.read_bytes(), etree.XMLParser(remove_comments=True, remove_blank_text=True))
+        data = etree.tostring(tree, method="c14n")
+    except (etree.XMLSyntaxError, ValueError):
+        return _bytes_digest(path)
+    return hashlib.sha256(data).hexdigest()[:DIGEST_CHARS]
+
+
+def _label(path: Path, name: str, folder: Path) -> str:
+    """A file's label: under the hand's folder (as named, whatever it links to), ``pybullet_data`` or the
+    project; else its absolute path."""
     path = path.resolve()
-    for root, prefix in ((assets.pybullet_data_root().resolve(), assets.PYBULLET_DATA_PREFIX),
+    for root, prefix in ((folder.resolve(), f"hands/{name}/"),
+                         (assets.pybullet_data_root().resolve(), assets.PYBULLET_DATA_PREFIX),
                          (assets.PROJECT_ROOT, "")):
         if path.is_relative_to(root):
             return prefix + path.relative_to(root).as_posix()

@@ -288,15 +288,17 @@ def edited_since(source: Path, finished: float | None) -> bool:
     modified from that second on, no time known, or no file to read. A copy that keeps an older modification time
     is not seen."""
     try:
-        return finished is None or any(f.stat().st_mtime >= finished for f in [source, *gltf_buffers(source)])
+        return finished is None or any(f.stat().st_mtime >= finished
+                                       for f in [source, *(b for b in gltf_buffers(source) if b.exists())])
     except OSError:
         return True
 
 
 def gltf_buffers(path: Path) -> list[Path]:
     """The files the buffers of a ``.gltf`` name, where its geometry is
-    (relative to it; embedded ``data:`` buffers are in the file itself); []
-    for any other file, or one that is not JSON (its loader says why)."""
+    (relative to it, each as written and URL-decoded: loaders differ; embedded
+    ``data:`` buffers are in the file itself); [] for any other file, or one
+    that is not glTF JSON (its loader says why)."""
     if path.suffix.lower() != ".gltf":
         return []
     try:
@@ -304,6 +306,6 @@ def gltf_buffers(path: Path) -> list[Path]:
     except (OSError, ValueError):
         return []
     buffers = data.get("buffers", []) if isinstance(data, dict) else []
-    uris = [b.get("uri") for b in buffers if isinstance(b, dict)]
-    return [path.parent / unquote(u) for u in uris if isinstance(u, str) and u and not u.startswith("data:")]
-
+    uris = [b.get("uri") for b in buffers if isinstance(b, dict)] if isinstance(buffers, list) else []
+    names = [u for u in uris if isinstance(u, str) and u and not u.startswith("data:")]
+    return [path.parent / n for n in dict.fromkeys(n for u in names for n in (u, unquote(u)))]

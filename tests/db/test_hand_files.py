@@ -62,6 +62,16 @@ def test_the_files_of_a_hand_and_what_counts_as_an_edit(project: Path) -> None:
     assert changed(allegro, hand_files("allegro")) == ["hands/allegro/palm.obj"]
     edit(project / "preshapes" / "allegro.toml", "[[preshape]]", "[[preshape]]\n# moved\n")
     assert changed(allegro, hand_files("allegro")) == ["hands/allegro/palm.obj"]
+    # what does not mix two hands: a preshape added, text fields, 70 for 70.0, the URDF's comments and line ends
+    panda = hand_files("panda")
+    with (project / "preshapes" / "panda.toml").open("a") as fh:
+        fh.write('\n[[preshape]]\nname = "new"\ntaxonomy = "x"\njoints = { panda_finger_joint1 = 0.03 }\n')
+    edit(project / "preshapes" / "panda.toml", 'taxonomy = "Feix: prismatic', 'taxonomy = "Feix, edited: prismatic')
+    assert changed(panda, hand_files("panda")) == []
+    urdf = project / "hands" / "allegro" / "allegro.urdf"
+    before = hand_files("allegro")
+    urdf.write_bytes(urdf.read_bytes().replace(b"\n", b"\r\n").replace(b"<robot", b"<!-- a note -->\n<robot", 1))
+    assert changed(before, hand_files("allegro")) == []
 
 
 def swept(db_path: Path) -> None:
@@ -83,12 +93,12 @@ def test_an_edited_hand_is_refused_by_every_writer_and_nothing_is_written(projec
     for args in (["generate", "box", "--hand", "panda"], ["validate", "--top", "1"]):
         code, _, err = grasp(*args, "--db", str(db_path))
         one_line_error(code, err, InputError.exit_code, "hand 'panda' was edited since g.db",
-                       "preshapes/panda.toml changed", "--db")
+                       "preshapes/panda.toml [wide] changed", "--db")
     assert content(db_path) == before
     with sqlite3.connect(db_path) as conn:  # the record still names the files the grasps were made with
         stored = json.loads(conn.execute("SELECT value FROM meta WHERE key = ?", (META_KEY,)).fetchone()[0])
     conn.close()
-    assert changed(stored["panda"], hand_files("panda")) == ["preshapes/panda.toml"]
+    assert changed(stored["panda"], hand_files("panda")) == ["preshapes/panda.toml [wide]"]
     with open_for_writing(tmp_path / "other.db") as db:  # another database takes the edited hand
         check_hand_files(db, ["panda"])
         assert json.loads(db.meta(META_KEY) or "{}")["panda"] == hand_files("panda")

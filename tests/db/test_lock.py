@@ -180,3 +180,15 @@ def test_one_lock_per_file_whichever_path_names_it(tmp_path: Path) -> None:
         with pytest.raises(LockBusy):
             with writer_lock(tmp_path / "link.db"):
                 pass
+
+
+def test_a_database_with_a_second_name_is_not_written(box_db: Path, tmp_path: Path) -> None:
+    """A hard link (a `cp -al` snapshot) is a second name the lock, named after the file, does not see: two
+    writers ran at once and one's unit was lost. Refused, nothing changed."""
+    db = tmp_path / "a.db"
+    db.write_bytes(box_db.read_bytes())
+    os.link(db, tmp_path / "b.db")
+    before = db.read_bytes()
+    code, _, err = grasp("generate", "sphere", "--hand", "panda", "--db", str(tmp_path / "b.db"), *FAST, "--quiet")
+    one_line_error(code, err, 3, "the file has 2 names (hard links", "nothing was changed")
+    assert db.read_bytes() == before

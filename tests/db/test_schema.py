@@ -162,7 +162,7 @@ def test_a_backup_that_cannot_be_written_leaves_neither_a_damaged_copy_nor_a_cha
 
 
 def test_a_database_in_a_read_only_folder_is_read_and_writers_say_why_not(
-        box_db: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+        box_db: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture) -> None:
     """SQLite's read-only opening of a WAL database makes a -shm file beside it, and failed in a read-only
     folder ("unable to open database file" for best, show, export, db check); a writer said the same. Readers
     now read the file as immutable there, writers refuse in one line. (This process may write anywhere as
@@ -176,12 +176,15 @@ def test_a_database_in_a_read_only_folder_is_read_and_writers_say_why_not(
     db = folder / "g.db"
     shutil.copy(box_db, db)
     real = os.access
-    monkeypatch.setattr(store.os, "access", lambda p, mode: False if Path(p) == folder else real(p, mode))
+    read_only = {folder.resolve(), db.resolve()}  # a read-only filesystem: neither may be written
+    monkeypatch.setattr(store.os, "access",
+                        lambda p, mode: False if mode == os.W_OK and Path(p).resolve() in read_only else real(p, mode))
     opened: list[str] = []
     connect = sqlite3.connect
     monkeypatch.setattr(store.sqlite3, "connect", lambda name, *a, **kw: opened.append(name) or connect(name, *a, **kw))
     code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(db))
     assert code == 0 and out.startswith("#1 box/panda"), err
     assert opened and all(name.endswith("?mode=ro&immutable=1") for name in opened), opened
+    assert any("in a read-only folder: read as it is now" in r.getMessage() for r in caplog.records)
     code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(db), *FAST, "--quiet")
     one_line_error(code, err, 3, "its folder is read-only", "nothing was changed")

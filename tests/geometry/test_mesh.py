@@ -174,3 +174,13 @@ def test_a_flat_body_beside_the_object_is_refused_saying_where(debris: trimesh.T
     fleck = trimesh.creation.box(extents=[0.002, 0.002, 0.002])  # a closed fleck has volume: an object's body
     fleck.apply_translation([0.3, 0.0, 0.0])
     assert meshes.checked_solid(trimesh.util.concatenate([cube, fleck]), "scan").body_count == 2
+
+
+def test_a_flat_face_inside_or_on_the_object_is_left_as_it_was() -> None:
+    """An internal triangle or a decal on a face loaded before the flat-body check and changes neither the
+    object's reach nor its mass: still loads (the reviewer's tri_inside.obj, tri_decal_on_top.obj)."""
+    cube = trimesh.creation.box(extents=[0.05, 0.05, 0.05])
+    for z in (0.0, 0.025):  # inside, on the top face
+        tri = trimesh.Trimesh([[0.0, 0.0, z], [0.01, 0.0, z], [0.0, 0.01, z]], [[0, 1, 2]])
+        solid = meshes.checked_solid(trimesh.util.concatenate([cube, tri]), "decal")
+        assert_close(solid.bounds, cube.bounds, 1e-12)

@@ -129,3 +129,16 @@ def test_a_gltf_is_read_again_when_its_buffer_file_changes(tmp_path: Path) -> No
         volume = load_object(str(folder / "model.gltf")).volume
         assert volume == pytest.approx(shape.volume, rel=1e-6)
     assert pinched.volume < 0.9 * ball.volume
+
+
+def test_gltf_buffer_names_as_written_and_decoded_and_a_file_that_is_not_gltf(tmp_path: Path) -> None:
+    """trimesh opens a buffer's URI as written (`lit%20name.bin`); the key read only the decoded name, so an
+    edit of that file went unseen; `"buffers": 5` was an internal error."""
+    from planner.specs.objects import gltf_buffers
+
+    gltf = tmp_path / "m.gltf"
+    gltf.write_text('{"buffers": [{"uri": "lit%20name.bin"}, {"uri": "data:application/octet-stream;base64,AA=="},'
+                    ' {"uri": "plain.bin"}]}')
+    assert gltf_buffers(gltf) == [tmp_path / "lit%20name.bin", tmp_path / "lit name.bin", tmp_path / "plain.bin"]
+    gltf.write_text('{"buffers": 5}')
+    assert gltf_buffers(gltf) == []
