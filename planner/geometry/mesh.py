@@ -84,7 +84,24 @@ def checked_solid(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh:
         raise MeshError(f"{where}: {flat}; remove it in a mesh editor")
     if repaired:  # said once the mesh is taken: a refused one gets its one line alone
         prepare.noted(where, f"{repaired} (once: cached afterwards)")
+    apart, count = _apart(mesh)
+    if apart:
+        prepare.noted(where, f"{apart} of its {count} bodies stand apart from the others (their boxes meet no "
+                             "other's): the whole is taken as one rigid object (a grasp of one part lifts all); "
+                             "split the file to plan each on its own (once: cached afterwards)")
     return mesh
+
+
+def _apart(mesh: trimesh.Trimesh) -> tuple[int, int]:
+    """(bodies of ``mesh`` whose box, widened by 1 mm, meets no other body's box; bodies): (0, n) when it is one
+    body or its bodies touch (convex pieces, CAD parts)."""
+    if mesh.body_count < 2:
+        return 0, mesh.body_count
+    bodies = mesh.split(only_watertight=False, repair=False)
+    lo = np.array([b.bounds[0] for b in bodies]) - FLAT_INSIDE
+    hi = np.array([b.bounds[1] for b in bodies]) + FLAT_INSIDE
+    meets = np.all((lo[:, None] <= hi[None]) & (lo[None] <= hi[:, None]), axis=2)
+    return int((meets.sum(axis=1) == 1).sum()), len(bodies)
 
 
 #: Share of the bodies' summed volume their union may lack and still count as

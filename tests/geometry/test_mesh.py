@@ -184,3 +184,24 @@ def test_a_flat_face_inside_or_on_the_object_is_left_as_it_was() -> None:
         tri = trimesh.Trimesh([[0.0, 0.0, z], [0.01, 0.0, z], [0.0, 0.01, z]], [[0, 1, 2]])
         solid = meshes.checked_solid(trimesh.util.concatenate([cube, tri]), "decal")
         assert_close(solid.bounds, cube.bounds, 1e-12)
+
+
+def test_bodies_that_stand_apart_are_said_to_be_one_rigid_object(caplog: pytest.LogCaptureFixture) -> None:
+    """A cube and a ball 10 cm apart in one file loaded as one rigid object without a word (its grasps on the
+    ball 'lift' the cube); touching pieces (convex parts, CAD) are not noted."""
+    import logging
+
+    from planner import prepare
+
+    cube = trimesh.creation.box(extents=[0.03, 0.03, 0.03])
+    ball = trimesh.creation.icosphere(subdivisions=2, radius=0.015)
+    ball.apply_translation([0.1, 0.0, 0.0])
+    touching = trimesh.creation.box(extents=[0.03, 0.03, 0.03])
+    touching.apply_translation([0.03, 0.0, 0.0])
+    with caplog.at_level(logging.INFO, logger=prepare.LOGGER):
+        meshes.checked_solid(trimesh.util.concatenate([cube, ball]), "pair")
+        meshes.checked_solid(trimesh.util.concatenate([cube, touching]), "pieces")
+    lines = [r.getMessage() for r in caplog.records if r.name == prepare.LOGGER]
+    assert lines == ["pair: 2 of its 2 bodies stand apart from the others (their boxes meet no other's): the whole "
+                     "is taken as one rigid object (a grasp of one part lifts all); split the file to plan each on "
+                     "its own (once: cached afterwards)"], lines
