@@ -175,9 +175,10 @@ def _check_chunks(db: Database, hand: str, seed: int, todo: Sequence[UnitSpec]) 
 
     for name in sorted({u.label or u.object_name for u in todo}):
         ours = {u.settings.to_json() for u in todo if (u.label or u.object_name) == name}
+        same = {without_chunk(s) for s in ours}
         for stored in db.swept_settings(name, hand, seed) - ours:
-            chunk = json.loads(stored).get("chunk")
-            if without_chunk(stored) in {without_chunk(s) for s in ours}:
+            if without_chunk(stored) in same:
+                chunk = json.loads(stored).get("chunk")
                 raise InputError(f"{name} was swept for {hand} with these settings but --chunk {chunk}: another "
                                  f"--chunk cuts the same candidates into other units and would store every grasp "
                                  f"again; resume with --chunk {chunk}, or use another --db")

@@ -169,5 +169,5 @@ def _print_summary(summary: api.Summary, db_path: Path) -> None:
         if row.get("density") is not None and not PLAUSIBLE_DENSITY[0] <= row["density"] <= PLAUSIBLE_DENSITY[1]:
             click.echo(f"note: {row['object']} weighs {row['mass']:.3g} kg in its volume: {row['density']:.3g} kg/m^3, "
                        f"outside any solid's {PLAUSIBLE_DENSITY[0]:g}-{PLAUSIBLE_DENSITY[1]:,.0f} (the default is "
-                       "0.2 kg); if that is not its weight, give --mass or --density (or a sidecar) and another --db",
-                       err=True)
+                       f"{api.DEFAULT_MASS:g} kg); if that is not its weight, give --mass or --density (or a "
+                       "sidecar) and another --db", err=True)

@@ -79,29 +79,34 @@ def checked_solid(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh:
         mesh.invert()
     if abs(volume) < MIN_VOLUME:
         raise MeshError(f"{where}: mesh encloses no volume ({abs(volume):.3g} m^3): it is flat or open")
-    flat = _flat_bodies(mesh)
+    bodies = _bodies(mesh)
+    flat = _flat_bodies(bodies)
     if flat:  # a sheet closed into nothing by the repair: no mass, yet it would set the torque scale and collide
         raise MeshError(f"{where}: {flat}; remove it in a mesh editor")
     if repaired:  # said once the mesh is taken: a refused one gets its one line alone
         prepare.noted(where, f"{repaired} (once: cached afterwards)")
-    apart, count = _apart(mesh)
+    apart = _apart(bodies)
     if apart:
-        prepare.noted(where, f"{apart} of its {count} bodies stand apart from the others (their boxes meet no "
+        prepare.noted(where, f"{apart} of its {len(bodies)} bodies stand apart from the others (their boxes meet no "
                              "other's): the whole is taken as one rigid object (a grasp of one part lifts all); "
                              "split the file to plan each on its own (once: cached afterwards)")
     return mesh
 
 
-def _apart(mesh: trimesh.Trimesh) -> tuple[int, int]:
-    """(bodies of ``mesh`` whose box, widened by 1 mm, meets no other body's box; bodies): (0, n) when it is one
-    body or its bodies touch (convex pieces, CAD parts)."""
-    if mesh.body_count < 2:
-        return 0, mesh.body_count
-    bodies = mesh.split(only_watertight=False, repair=False)
-    lo = np.array([b.bounds[0] for b in bodies]) - FLAT_INSIDE
-    hi = np.array([b.bounds[1] for b in bodies]) + FLAT_INSIDE
+def _bodies(mesh: trimesh.Trimesh) -> list[trimesh.Trimesh]:
+    """``mesh``'s bodies as its faces join them when there are several; [] for one."""
+    return list(mesh.split(only_watertight=False, repair=False)) if mesh.body_count > 1 else []
+
+
+def _apart(bodies: list[trimesh.Trimesh]) -> int:
+    """How many of ``bodies`` have a box, widened by :data:`BODY_MARGIN`, that meets no other's (0: they touch,
+    as convex pieces and CAD parts do)."""
+    if len(bodies) < 2:
+        return 0
+    lo = np.array([b.bounds[0] for b in bodies]) - BODY_MARGIN
+    hi = np.array([b.bounds[1] for b in bodies]) + BODY_MARGIN
     meets = np.all((lo[:, None] <= hi[None]) & (lo[None] <= hi[:, None]), axis=2)
-    return int((meets.sum(axis=1) == 1).sum()), len(bodies)
+    return int((meets.sum(axis=1) == 1).sum())
 
 
 #: Share of the bodies' summed volume their union may lack and still count as
@@ -188,7 +193,7 @@ def _repair(mesh: trimesh.Trimesh, where: str, given: trimesh.Trimesh) -> tuple[
         apart = closed_bodies(given)
         if apart is not None:
             return apart, ""  # no geometry added: the file's own closed bodies, read as such (V-HACD pieces)
-        flat = _flat_bodies(given)
+        flat = _flat_bodies(_bodies(given))
         raise MeshError(
             f"{where}: {flat}; remove it in a mesh editor" if flat else
             f"{where}: mesh is not watertight and could not be repaired "
@@ -199,19 +204,19 @@ def _repair(mesh: trimesh.Trimesh, where: str, given: trimesh.Trimesh) -> tuple[
 
 #: A body whose vertices lie within this fraction of its size of one plane is flat.
 FLAT_TOL = 1e-9
-#: [m] a flat body within the box of the object's other bodies, widened by this, is inside or on it: kept.
-FLAT_INSIDE = 1e-3
+#: [m] how far boxes are widened where bodies are compared: a flat body within the box of the object's other
+#: bodies is inside or on it (kept); a body whose box meets no other's stands apart (noted).
+BODY_MARGIN = 1e-3
 
 
-def _flat_bodies(mesh: trimesh.Trimesh) -> str:
-    """What is flat among ``mesh``'s several bodies (a sheet, a ground plane, a
+def _flat_bodies(bodies: list[trimesh.Trimesh]) -> str:
+    """What is flat among an object's ``bodies`` (:func:`_bodies`; a sheet, a ground plane, a
     scrap triangle of a scan: no volume), said in words; '' when none is. A
     flat piece with a corner on another body (a fin on an edge) is not a body
     of its own: the caller's other message says what is wrong there; one
     within the other bodies' box (an internal face, a decal) is left as it was."""
-    if mesh.body_count < 2:
+    if len(bodies) < 2:
         return ""
-    bodies = mesh.split(only_watertight=False, repair=False)
     flat, solid = [], []
     for body in bodies:
         points = np.asarray(body.vertices) - body.vertices.mean(axis=0)
@@ -220,8 +225,8 @@ def _flat_bodies(mesh: trimesh.Trimesh) -> str:
     corners = {tuple(v) for body in solid for v in np.round(body.vertices, 9)}
     flat = [body for body in flat if not any(tuple(v) in corners for v in np.round(body.vertices, 9))]
     if solid:  # a face inside the object or on it (an internal face, a decal) changes neither its reach nor its mass
-        lo = np.min([b.bounds[0] for b in solid], axis=0) - FLAT_INSIDE
-        hi = np.max([b.bounds[1] for b in solid], axis=0) + FLAT_INSIDE
+        lo = np.min([b.bounds[0] for b in solid], axis=0) - BODY_MARGIN
+        hi = np.max([b.bounds[1] for b in solid], axis=0) + BODY_MARGIN
         flat = [body for body in flat if not (np.all(body.vertices >= lo) and np.all(body.vertices <= hi))]
     if not flat:
         return ""

@@ -25,13 +25,12 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cache
-from pathlib import Path
 
 import numpy as np
 import trimesh
 
 from planner.specs.hands import HandSpec
-from planner.specs.urdf import load_model
+from planner.specs.urdf import load_model, mesh_path
 from planner.validation.mujoco_settings import Engine
 
 #: Collision bits: hand geoms collide with the object only, never with each other.
@@ -159,7 +158,7 @@ class Builder:
         if g.mesh is not None:
             scale = (1.0, 1.0, 1.0) if g.mesh.scale is None else tuple(
                 float(s) for s in np.broadcast_to(np.asarray(g.mesh.scale, float), (3,)))
-            path = Path(self.hand.urdf).parent / g.mesh.filename.replace("package://", "")
+            path = mesh_path(self.hand.urdf, g.mesh.filename)
             return f'<geom type="mesh" mesh="{self._mesh(_hull(str(path), scale))}" {common}/>'
         return ""
 

@@ -23,17 +23,16 @@ from pathlib import Path
 from planner import assets
 from planner.specs.hands import check_hand_name
 from planner.specs.toml import read_toml
-from planner.specs.urdf import load_model
+from planner.specs.urdf import load_model, mesh_path
 
 #: Hex digits of each file's sha256 kept (64 bits: a collision by chance is not a concern).
 DIGEST_CHARS = 16
 
 
 def hand_files(name: str) -> dict[str, str]:
-    """{file label: digest} of hand ``name``'s files, labels sorted; a label is
-    the file's path under the project (``hands/panda/hand.toml``) or under
-    ``pybullet_data`` (``pybullet_data:franka_panda/panda.urdf``), else its
-    absolute path."""
+    """{file label: digest} of hand ``name``'s files, labels sorted: see :func:`_label`
+    (``hands/panda/hand.toml``, ``pybullet_data:franka_panda/panda.urdf``);
+    one per preshape (``preshapes/panda.toml [wide]``)."""
     folder = check_hand_name(name)
     toml_path = folder / "hand.toml"
     data = read_toml(toml_path)
@@ -66,7 +65,7 @@ def _collision_meshes(urdf: Path) -> list[Path]:
     model = load_model(urdf)
     names = {c.geometry.mesh.filename for link in model.robot.links for c in link.collisions
              if c.geometry is not None and c.geometry.mesh is not None and c.geometry.mesh.filename}
-    paths = {(urdf.parent / n.replace("package://", "")).resolve() for n in names}
+    paths = {mesh_path(urdf, n) for n in names}
     return sorted(p for p in paths if p.is_file())  # a missing mesh is the hand loader's error to give
 
 

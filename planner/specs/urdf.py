@@ -110,9 +110,14 @@ def cut_subtree(source: Path, root_link: str, where: str) -> Path:
     return out
 
 
+def mesh_path(urdf: Path, filename: str) -> Path:
+    """Where a mesh a URDF names is (``package://`` or relative to the file); it may not exist."""
+    return (Path(urdf).parent / filename.replace("package://", "")).resolve()
+
+
 def _mesh_file(urdf: Path, filename: str) -> Path:
-    """A mesh a URDF names (``package://`` or relative to the file), which must exist."""
-    path = (urdf.parent / filename.replace("package://", "")).resolve()
+    """A mesh a URDF names (:func:`mesh_path`), which must exist."""
+    path = mesh_path(urdf, filename)
     if not path.is_file():
         raise ConfigError(f"{urdf}: mesh file not found: {filename} (looked at {path})")
     return path
@@ -134,5 +139,4 @@ def object_mesh(urdf: Path, geometry: str, where: str) -> tuple[Path, float]:
     scales = np.atleast_1d(1.0 if mesh.scale is None else mesh.scale).astype(float)
     if len(set(scales.tolist())) != 1:
         raise MeshError(f"{urdf}: non-uniform mesh scale {scales.tolist()} is not supported")
-    path = (urdf.parent / mesh.filename.replace("package://", "")).resolve()
-    return path, float(scales[0])
+    return mesh_path(urdf, mesh.filename), float(scales[0])

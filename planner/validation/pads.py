@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from planner.specs.urdf import load_model
+from planner.specs.urdf import load_model, mesh_path
 from planner.validation.tolerances import PAD_ALIGN, PAD_EDGE, PAD_SHARP
 
 
@@ -35,7 +35,7 @@ def link_planes(urdf: Path, link: str) -> tuple[np.ndarray, ...]:
         g = element.geometry
         if g.mesh is not None:
             scale = 1.0 if g.mesh.scale is None else np.broadcast_to(np.asarray(g.mesh.scale, float), (3,))
-            mesh = trimesh.load(Path(urdf).parent / g.mesh.filename.replace("package://", ""), force="mesh")
+            mesh = trimesh.load(mesh_path(urdf, g.mesh.filename), force="mesh")
             mesh.apply_scale(scale)
         elif g.box is not None:
             mesh = trimesh.creation.box(extents=g.box.size)
