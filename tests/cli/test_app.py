@@ -136,3 +136,32 @@ def test_sigterm_ends_a_run_as_ctrl_c_does(tmp_path: Path) -> None:
     assert run.returncode == 130, err
     assert err.strip().splitlines()[-1] == "grasp: interrupted; finished units are saved, run the same command to " \
                                            "resume", err
+
+
+def test_a_sigterm_inside_a_destructor_is_sent_again(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Python drops an exception raised in a destructor: a SIGTERM that came while numpy's NpzFile.__del__ ran
+    let the run go on to its end with exit 0 (a fresh-clone CI run). Inside one it is sent again; elsewhere it
+    interrupts at once."""
+    import inspect
+    import signal
+
+    from planner.cli import app
+
+    timers: list[tuple] = []
+
+    class Timer:
+        def __init__(self, delay: float, fn: object, args: tuple) -> None:
+            timers.append((delay, fn, args))
+
+        def start(self) -> None:
+            pass
+
+    monkeypatch.setattr(app.threading, "Timer", Timer)
+
+    def __del__() -> None:  # what a destructor's frame is named
+        app._terminated(signal.SIGTERM, inspect.currentframe())
+
+    __del__()
+    assert timers == [(app.TERM_RETRY, app.os.kill, (app.os.getpid(), signal.SIGTERM))]
+    with pytest.raises(KeyboardInterrupt):
+        app._terminated(signal.SIGTERM, inspect.currentframe())
