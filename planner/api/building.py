@@ -128,9 +128,14 @@ def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: i
         units += [unit_spec(ref.source, hand, plan, seed, ref.scale, chunk, label=spec.name, physical=ref.physical)
                   for plan in planned for chunk in range(plan.chunks())]
     if len(refs) == 1:
-        # One object: a broken mesh is the user's input error, reported before
-        # the database is opened. In a batch it is recorded and the rest go on.
-        load_object(refs[0].source, scale=refs[0].scale, **refs[0].physical.given())
+        # One object: a broken mesh (or a box-sampler grid too fine for it) is
+        # the user's input error, reported before the database is opened. In a
+        # batch it is recorded and the rest go on.
+        obj = load_object(refs[0].source, scale=refs[0].scale, **refs[0].physical.given())
+        if settings.sampler == "box":
+            from planner.plan.sampling import check_box_rays
+
+            check_box_rays(obj.mesh, settings.box_delta)
     return units
 
 

@@ -51,7 +51,6 @@ import logging
 import math
 import os
 import shutil
-import tempfile
 from collections.abc import Iterable, Sequence
 from contextlib import ExitStack
 from pathlib import Path
@@ -90,7 +89,11 @@ def write(path: Path, info: ExportedObject, hand: HandSpec, batches: Iterable[li
     """Write the file (atomically); returns the number of grasps."""
     total = 0
     sources: set[str] = set()
-    with tempfile.TemporaryDirectory(dir=path.parent, prefix=".graspgen-") as spool, ExitStack() as stack:
+    spool = path.with_name(f".{path.name}.spool")  # one name per file: a rerun clears what a kill -9 left
+    shutil.rmtree(spool, ignore_errors=True)
+    spool.mkdir()
+    with ExitStack() as stack:
+        stack.callback(shutil.rmtree, spool, ignore_errors=True)  # after the parts below are closed
         lists: dict[str, IO[str]] = {}
         for batch in batches:
             columns = per_grasp(batch, hand, info.label)

@@ -178,15 +178,22 @@ def from_above(mesh: trimesh.Trimesh, up: np.ndarray, com: np.ndarray, approach_
 MAX_BOX_RAYS = 1_000_000
 
 
-def _box_rays(mesh: trimesh.Trimesh, delta: float) -> tuple[np.ndarray, np.ndarray]:
+def check_box_rays(mesh: trimesh.Trimesh, delta: float) -> None:
+    """Refuse a box-sampler spacing ``delta`` [m] that casts more than
+    :data:`MAX_BOX_RAYS` rays on ``mesh``'s box, before the grid is made
+    (1e-9 m took 24 GB and the machine's memory killer)."""
     if delta <= 0:
         raise InputError(f"box sampler spacing must be positive, got {delta}")
-    lo, hi = mesh.bounds[0] - BOX_MARGIN, mesh.bounds[1] + BOX_MARGIN
-    steps = np.floor((hi - lo) / delta) + 1
+    steps = np.floor((mesh.bounds[1] - mesh.bounds[0] + 2 * BOX_MARGIN) / delta) + 1
     rays = 2 * (steps[1] * steps[2] + steps[0] * steps[2] + steps[0] * steps[1])
-    if rays > MAX_BOX_RAYS:  # before the grid is made: 1e-9 m took 24 GB and the machine's memory killer
+    if rays > MAX_BOX_RAYS:
         raise InputError(f"--box-delta {delta:g} m casts {rays:.3g} rays on this object's box (at most "
                          f"{MAX_BOX_RAYS:,}): use a larger spacing")
+
+
+def _box_rays(mesh: trimesh.Trimesh, delta: float) -> tuple[np.ndarray, np.ndarray]:
+    check_box_rays(mesh, delta)
+    lo, hi = mesh.bounds[0] - BOX_MARGIN, mesh.bounds[1] + BOX_MARGIN
     origins, dirs = [], []
     for axis in range(3):
         u, v = [a for a in range(3) if a != axis]

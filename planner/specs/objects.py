@@ -123,9 +123,14 @@ NO_PHYSICAL = Physical()
 
 
 def sidecar(mesh: Path) -> Physical:
-    """The properties in ``mesh``'s sidecar (same stem, ``.toml`` or ``.TOML``: ``B.STL`` + ``B.TOML``), if any;
-    two sidecars of one mesh are refused."""
-    found = [mesh.with_suffix(s) for s in (SIDECAR_SUFFIX, SIDECAR_SUFFIX.upper()) if mesh.with_suffix(s).is_file()]
+    """The properties in ``mesh``'s sidecar (same stem, ``.toml`` in any case: ``B.STL`` + ``B.TOML`` or
+    ``B.Toml``), if any; two sidecars of one mesh are refused. The folder is listed, not probed name by name: a
+    case-insensitive file system (macOS, Windows) answers every spelling of one file."""
+    try:
+        found = sorted(p for p in mesh.parent.iterdir()
+                       if p.stem == mesh.stem and p.suffix.lower() == SIDECAR_SUFFIX and p.is_file())
+    except OSError:  # an unreadable folder: the mesh's own read says what is wrong
+        found = []
     if len(found) > 1 and len({p.resolve() for p in found}) > 1:  # one file on a case-blind file system
         raise InputError(f"{mesh}: two sidecars, {' and '.join(p.name for p in found)}: keep one")
     return Physical.checked(read_toml(found[0]), str(found[0])) if found else NO_PHYSICAL

@@ -45,6 +45,8 @@ def test_bad_input_is_one_line_and_exit_code(tmp_path: Path, monkeypatch: pytest
     (["generate", "box", "--hand", "panda", "--standoffs", "inf"], "--standoffs"),
     (["generate", "box", "--hand", "panda", "--unit-timeout", "-1"], "--unit-timeout"),
     (["generate", "box", "--hand", "panda", "--sampler", "box", "--box-delta", "-1"], "--box-delta"),
+    (["generate", "box", "--hand", "barrett", "--sampler", "box", "--box-delta", "1e-5"],
+     "--box-delta 1e-05 m casts"),  # was a failed unit in the database, found in the worker
     (["generate", "box", "--hand", "panda", "--reach-weight", "3"], "--reach-weight must be in [0, 1]"),
 ])
 def test_unknown_names_list_the_valid_ones(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, args: list[str],

@@ -28,3 +28,15 @@ def test_graspgen_json_has_the_acronym_content(db: Path, tmp_path: Path) -> None
     assert data["grasps"]["simulated_success"][:3] == [0, 1, -1]
     assert data["grasps"]["robust_epsilon_mean"][2] is None  # NaN -> null
     assert {"point", "normal", "link"} <= set(data["grasps"]["contacts"][0][0])
+
+
+def test_a_killed_exports_spool_is_cleared_by_the_next(db: Path, tmp_path: Path) -> None:
+    """A kill -9 during a GraspGen export left its spool folder (a random name, never cleared); the spool is named
+    after its file, so the next export of that file clears it, and a finished export leaves none."""
+    folder = tmp_path / "json" / "grasp_data" / "panda"
+    folder.mkdir(parents=True)
+    left = folder / ".box.json.spool"
+    left.mkdir()
+    (left / "0.part").write_text("[1, 2")  # what a killed export leaves
+    export(db, "graspgen", tmp_path / "json", "--object", "box")
+    assert sorted(p.name for p in folder.iterdir()) == ["box.json", "map_uuid_to_path.json"]

@@ -146,5 +146,13 @@ def test_an_upper_case_sidecar_is_read_and_two_are_refused(brick: Path) -> None:
     brick.with_suffix(".toml").write_text("mass = 0.07\n")
     if brick.with_suffix(".toml").samefile(brick.with_suffix(".TOML")):
         pytest.skip("a case-blind file system: brick.toml and brick.TOML are one file")
-    with pytest.raises(InputError, match=r"two sidecars, brick\.toml and brick\.TOML: keep one"):
+    with pytest.raises(InputError, match=r"two sidecars, brick\.TOML and brick\.toml: keep one"):
         resolve_spec(str(brick))
+
+
+def test_a_mixed_case_sidecar_is_read(brick: Path) -> None:
+    """B.Toml was not read (only .toml and .TOML were probed)."""
+    brick.with_suffix(".Toml").write_text("mass = 0.066\nfriction = 0.8\n")
+    brick.with_name("brick_other.toml").write_text("mass = 5\n")  # another stem: not this mesh's
+    spec = resolve_spec(str(brick))
+    assert (spec.mass, spec.friction) == (0.066, 0.8)
