@@ -22,6 +22,8 @@ allow_pickle=True)``::
      "qpos": {"WRJTx", "WRJTy", "WRJTz": wrist (hand frame) translation [m], object frame,
               "WRJRx", "WRJRy", "WRJRz": wrist rotation as Euler angles [rad],
               joint_name: closed joint value [rad or m], ...},
+     "qpos_open": the same wrist, joint_name: the preshape's open joint value (where closing
+                  starts: the pre-grasp posture; DexGraspNet's own qpos_st is its optimiser's start, not this),
      "object_code": "{object}", "mesh_file": "meshes/{object}.obj" (relative to DIR),
      "epsilon", "score", "force_closure", "rank", "width", ..., "object_mass", ...: this project's
      extras (:data:`EXTRAS`, :data:`PHYSICS`, ``p_hold_outside``: where the object lies outside
@@ -65,8 +67,8 @@ MESH_COPIES = ("meshdata/{stem}/coacd/decomposed.obj",)
 
 #: This project's extras in every dict: every plain declared field of the record
 #: (:mod:`planner.record.fields`; absent values as NaN, -1 or ''), and the object's
-#: physical properties. Not carried: vectors and contacts (the wrist and qpos
-#: hold the pose and the closed joints), the database's ids, the open joints.
+#: physical properties. Not carried: vectors and contacts (the wrist, qpos and
+#: qpos_open hold the pose, the closed and the open joints), the database's ids.
 EXTRAS = tuple(f.name for f in record_fields() if not f.shape and f.kind not in ("joints", "contacts")
                and f.name not in ("id", "unit_id", "object", "hand"))
 BOOLEANS = tuple(f.name for f in record_fields() if f.kind == "bool" and "." not in f.attr)
@@ -106,16 +108,13 @@ def write(path: Path, info: ExportedObject, hand: HandSpec, batches: Iterable[li
                "p_hold_outside": info.outside_text}
     for batch in batches:
         c = grasp_columns(batch)
-        joints = joint_matrix(c["closed_joints"], names)
-        rows = np.hstack([wrist(c["pose"]), joints]).tolist()
-        if np.isnan(joints).any():  # NaN: a joint not stored; left out of qpos
-            qposes = [{k: v for k, v in zip(keys, row) if v == v} for row in rows]
-        else:
-            qposes = [dict(zip(keys, row)) for row in rows]
+        at = wrist(c["pose"])
+        closed, opened = (_qposes(keys, at, joint_matrix(c[k], names)) for k in ("closed_joints", "open_joints"))
         extras = [c[name].astype(bool).tolist() if name in BOOLEANS else
                   c[name] if isinstance(c[name], list) else c[name].tolist() for name in EXTRAS]
-        grasps += [{"scale": info.scale, "qpos": qpos, "object_code": code, "mesh_file": info.file,
-                    **physics, **dict(zip(EXTRAS, values))} for qpos, *values in zip(qposes, *extras)]
+        grasps += [{"scale": info.scale, "qpos": qpos, "qpos_open": qpos_open, "object_code": code,
+                    "mesh_file": info.file, **physics, **dict(zip(EXTRAS, values))}
+                   for qpos, qpos_open, *values in zip(closed, opened, *extras)]
     data = np.empty(len(grasps), dtype=object)
     data[:] = grasps
     tmp = path.with_name(path.name + ".tmp")
@@ -123,6 +122,14 @@ def write(path: Path, info: ExportedObject, hand: HandSpec, batches: Iterable[li
         np.save(fh, data, allow_pickle=True)
     os.replace(tmp, path)
     return len(grasps)
+
+
+def _qposes(keys: tuple[str, ...], at: np.ndarray, joints: np.ndarray) -> list[dict[str, float]]:
+    """One qpos dict per row of wrists ``at`` (n, 6) and ``joints`` (n, j); a NaN joint (not stored) left out."""
+    rows = np.hstack([at, joints]).tolist()
+    if np.isnan(joints).any():
+        return [{k: v for k, v in zip(keys, row) if v == v} for row in rows]
+    return [dict(zip(keys, row)) for row in rows]
 
 
 registry.register("dexgraspnet", registry.PairWriter(relative_path, write, mesh_copies=MESH_COPIES))

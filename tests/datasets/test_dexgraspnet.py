@@ -29,6 +29,10 @@ def test_dexgraspnet_npy_loads_into_documented_dicts(db: Path, tmp_path: Path) -
         rebuilt[:3, 3] = [qpos["WRJTx"], qpos["WRJTy"], qpos["WRJTz"]]
         assert_close(rebuilt, pose(row), ROUNDED_TOL)
         assert qpos["panda_finger_joint1"] == json.loads(row["closed_joints"])["panda_finger_joint1"]
+        opened = grasp["qpos_open"]  # the pre-grasp posture: the same wrist, the preshape's open joints
+        assert {k: opened[k] for k in wrist} == {k: qpos[k] for k in wrist}
+        assert {k: v for k, v in opened.items() if k not in wrist} == json.loads(row["open_joints"])
+        assert opened["panda_finger_joint1"] > qpos["panda_finger_joint1"]
 
 
 def test_qpos_gives_back_the_pose() -> None:
