@@ -21,6 +21,7 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
+from planner.geometry.cones import nearest_in_cone, nearest_in_wedge
 from planner.geometry.distance import DistanceBounds, MeshDistance
 from planner.specs.hands import HandSpec
 from planner.specs.urdf import load_model
@@ -260,12 +261,6 @@ class ObjectSurface:
             out[v] = (n @ n.T).min() < cos
         return out
 
-    @cached_property
-    def sharp_edge(self) -> dict[tuple[int, int], bool]:
-        m = self.mesh
-        return {(int(min(a, b)), int(max(a, b))): bool(angle > self.settings.sharp_angle)
-                for (a, b), angle in zip(m.face_adjacency_edges, m.face_adjacency_angles)}
-
     def distance(self, points: np.ndarray, within: float = BOUND) -> np.ndarray:
         """(k,) distance [m] of each point to the surface; inf beyond ``within``."""
         dist = self._distance.nearest(points).distance
@@ -296,31 +291,83 @@ class ObjectSurface:
         found = self._distance.nearest(points)
         return found.points, found.distance, found.face
 
-    def _smooth(self, closest: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    def contact_normals(self, closest: np.ndarray, face: np.ndarray, smooth: np.ndarray,
+                        toward: np.ndarray) -> np.ndarray:
+        """(n, 3) unit contact normals into the object at ``closest`` (n, 3)
+        on faces ``face``: the face's where the surface is smooth there
+        (``smooth``, from :meth:`signed`); at a sharp edge or vertex, the
+        direction of its normal cone (the outward normals of the faces that
+        meet there, and their non-negative combinations) nearest the other
+        body's ``toward`` (n, 3), its own normal into the object: a pad laid
+        on an edge keeps its normal, a link's side or rim touching an edge
+        gets the nearest normal the object can have there (the side's normal
+        pushed the object out through a face no finger touched). Where the
+        edge or vertex has no cone (an open border), ``toward``."""
+        normals = np.where(smooth[:, None], -self.mesh.face_normals[face], toward)
+        sharp = np.flatnonzero(~smooth)
+        if not len(sharp):
+            return normals
+        count, first, last = self._feature(closest[sharp], face[sharp])
+        edge = count == 2
+        if edge.any():
+            at, known = self._edge_faces(first[edge], last[edge])
+            rows = sharp[edge][known]
+            n = self.mesh.face_normals[at[known]]
+            wedge = -nearest_in_wedge(n[:, 0], n[:, 1], -toward[rows])
+            normals[rows] = np.where(np.isfinite(wedge), wedge, toward[rows])
+        for row, vertex in zip(sharp[count == 1], first[count == 1]):
+            faces = self.mesh.vertex_faces[vertex]
+            cone = -nearest_in_cone(self.mesh.face_normals[faces[faces >= 0]], -toward[row])
+            normals[row] = cone if np.isfinite(cone).all() else toward[row]
+        return normals
+
+    def _feature(self, closest: np.ndarray, tri: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(count (n,): 3 inside face ``tri``, 2 on an edge, 1 on a vertex; the
+        feature's first and last vertex (on a vertex: the one vertex))."""
         bary = trimesh.triangles.points_to_barycentric(self.mesh.triangles[tri], closest)
         on = bary >= 1e-6  # the face's vertices the point is not opposite to
-        count = on.sum(axis=1)
-        smooth = np.ones(len(closest), bool)
-        # on a vertex: the one vertex left; on an edge: its two vertices, in order
         first = self.mesh.faces[tri, np.argmax(on, axis=1)]
         last = self.mesh.faces[tri, 2 - np.argmax(on[:, ::-1], axis=1)]
+        return on.sum(axis=1), first, last
+
+    def _smooth(self, closest: np.ndarray, tri: np.ndarray) -> np.ndarray:
+        count, first, last = self._feature(closest, tri)
+        smooth = np.ones(len(closest), bool)
         vertex, edge = count == 1, count == 2
         smooth[vertex] = ~self.sharp_vertex[first[vertex]]
         smooth[edge] = ~self._sharp_edges(first[edge], last[edge])
         return smooth
 
     @cached_property
-    def _edge_table(self) -> tuple[np.ndarray, np.ndarray]:
-        """(sorted keys a * V + b of the mesh's shared edges, a < b; their sharpness)."""
-        keys = np.array([a * len(self.mesh.vertices) + b for a, b in self.sharp_edge], np.int64)
-        order = np.argsort(keys)
-        return keys[order], np.array(list(self.sharp_edge.values()), bool)[order]
+    def _edge_table(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(sorted keys a * V + b of the mesh's shared edges, a < b; their
+        sharpness; (e, 2) the two faces that share each)."""
+        m = self.mesh
+        edges = np.sort(np.asarray(m.face_adjacency_edges, np.int64).reshape(-1, 2), axis=1)
+        keys = edges[:, 0] * len(m.vertices) + edges[:, 1]
+        order = np.argsort(keys, kind="stable")
+        sharp = np.asarray(m.face_adjacency_angles, float).reshape(-1) > self.settings.sharp_angle
+        return keys[order], sharp[order], np.asarray(m.face_adjacency, np.int64).reshape(-1, 2)[order]
+
+    def _lookup(self, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(index into :attr:`_edge_table` of each edge (a, b), whether the edge is there)."""
+        keys = self._edge_table[0]
+        if not len(keys):
+            return np.zeros(len(a), np.int64), np.zeros(len(a), bool)
+        want = np.minimum(a, b).astype(np.int64) * len(self.mesh.vertices) + np.maximum(a, b)
+        # an edge of more than two faces: its last pair, as the table's sharpness always took
+        at = np.maximum(np.searchsorted(keys, want, side="right") - 1, 0)
+        return at, keys[at] == want
 
     def _sharp_edges(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """(n,) True where the edge (a, b) is sharp or not shared by two faces."""
-        keys, sharp = self._edge_table
-        if not len(keys):
-            return np.ones(len(a), bool)
-        want = np.minimum(a, b).astype(np.int64) * len(self.mesh.vertices) + np.maximum(a, b)
-        at = np.minimum(np.searchsorted(keys, want), len(keys) - 1)
-        return np.where(keys[at] == want, sharp[at], True)
+        at, known = self._lookup(a, b)
+        sharp = self._edge_table[1]
+        return np.where(known, sharp[at], True) if len(sharp) else np.ones(len(a), bool)
+
+    def _edge_faces(self, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """((n, 2) the faces that share each edge (a, b), whether it has two)."""
+        at, known = self._lookup(a, b)
+        faces = self._edge_table[2]
+        return (faces[at] if len(faces) else np.zeros((len(a), 2), np.int64)), known
+

@@ -29,8 +29,10 @@ and 2: :mod:`planner.plan.patch_surfaces`):
 Normals come from the surface that is smooth at the contact: the object's
 face normal inside a face or on an edge whose faces meet at less than
 ``sharp_angle``; the link's own normal where the object has a sharp edge or
-corner there (a box edge pressed into a pad). Contact points lie on the
-object. Everything downstream (G, epsilon, forces) takes these contacts
+corner there (a box edge pressed into a pad), or the nearest normal the
+object has there when the link's is not one of them (a link's side or rim
+on an edge: :meth:`ObjectSurface.contact_normals`). Contact points lie on
+the object. Everything downstream (G, epsilon, forces) takes these contacts
 unchanged.
 """
 
@@ -102,12 +104,11 @@ def link_regions(link: str, surface: LinkSurface, pose: np.ndarray, obj: ObjectS
         weight = len(idx) / s.max_exact
         at = np.searchsorted(idx, np.sort(np.random.default_rng(s.seed).choice(idx, s.max_exact, replace=False)))
         idx, nearest = idx[at], tuple(a[at] for a in nearest)
-    closest, gap, face_normal, smooth = obj.signed(points[idx], *nearest)
+    closest, gap, _, smooth = obj.signed(points[idx], *nearest)
     floor = max(float(gap.min()), 0.0)
     keep = gap <= floor + s.depth
-    idx, closest, gap, face_normal, smooth = idx[keep], closest[keep], gap[keep], face_normal[keep], smooth[keep]
-    link_normal = surface.normals[idx] @ pose[:3, :3].T
-    normals = np.where(smooth[:, None], -face_normal, link_normal)
+    idx, closest, gap, smooth, face = idx[keep], closest[keep], gap[keep], smooth[keep], nearest[2][keep]
+    normals = obj.contact_normals(closest, face, smooth, surface.normals[idx] @ pose[:3, :3].T)
     # the whole band: its neighbours from the link's own pairs; a subsample: its own, farther apart
     pairs = surface.pairs_among(idx, s.link_radius) if weight == 1.0 else None
     labels = _cluster(points[idx], normals, s.link_radius * np.sqrt(weight), s.split_angle, pairs)

@@ -80,7 +80,12 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: unit's grasps no longer depend on the candidates closed before them (the chunking: closed joints ~5e-10 m
 #: apart, and where a patch's split is that close, other contacts); objects whose bodies overlap get their union's
 #: mass properties, touching convex pieces load (issue 24).
-ALGORITHM_VERSION = 17
+#: 18: a contact on a sharp edge or corner of the object gets the normal of the object's normal cone there nearest
+#: the link's (a link's side or rim gave its own normal, up to 90 degrees outside the cone: epsilon and force closure
+#: of grasps on edges; issue 26); the table is a convex hull in PyBullet and the hands' collision boxes and spheres
+#: are meshes, so every gap is read with the same 2 mm of margins (the table's gaps read 1 mm large; the PR2's box
+#: fingertips 0.15-0.73 mm small: its closing, contacts and grasps on every object).
+ALGORITHM_VERSION = 18
 
 #: Named in the digest of sweeps on a table only (those of the object alone stay
 #: as they were), bumped when a change alters only which grasps they produce.

@@ -7,6 +7,7 @@ quaternions (x, y, z, w) never leave this module.
 
 from __future__ import annotations
 
+import itertools
 import os
 import sys
 from dataclasses import dataclass, field
@@ -273,8 +274,13 @@ class Sim:
         return base[:3, :3].T @ self.link_pose(body, child)[:3, :3] @ body.joint_axes[joint]
 
     def add_box(self, half_extents: tuple[float, float, float], pose: np.ndarray) -> int:
-        """A fixed box (e.g. a table)."""
-        shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=list(half_extents), physicsClientId=self.client)
+        """A fixed box (e.g. a table) [m], as the convex hull of its corners:
+        PyBullet then pads it by a mesh's margin, so a gap to it reads as a
+        gap to the object does (the hand's ``distance_offset``). A GEOM_BOX is
+        padded by less: its gaps read 1 mm too large, and the table clearance
+        let a finger 0.2 mm into the table."""
+        corners = np.array(list(itertools.product(*[(-h, h) for h in half_extents])), float)
+        shape = pb.createCollisionShape(pb.GEOM_MESH, vertices=corners.tolist(), physicsClientId=self.client)
         position, orientation = pose_to_pb(pose)
         return pb.createMultiBody(0.0, shape, basePosition=position, baseOrientation=orientation,
                                   physicsClientId=self.client)

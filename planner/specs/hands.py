@@ -51,8 +51,9 @@ DEFAULT_FINGER_FORCE = 20.0  # [N or N m] per finger motor, when [dynamics] does
 DEFAULT_CLOSING_SPEED = 0.5  # [m/s or rad/s] of a driven joint, when [dynamics] does not say
 #: PyBullet inflates convex hull meshes, cylinders and triangle meshes by 1 mm
 #: each, so a reported closest distance is the true gap minus 2 mm (measured
-#: on a box). URDF <box> and <sphere> links are off by less (0.4-1 mm, 0 mm):
-#: model hand links as meshes or cylinders, or set ``distance_offset``.
+#: on a box). URDF <box> and <sphere> links are padded by less and unevenly:
+#: a hand's cut URDF has them as meshes (:func:`planner.specs.urdf.cut_subtree`),
+#: and the table is a hull too (:meth:`planner.sim.Sim.add_box`).
 DEFAULT_DISTANCE_OFFSET = 0.002
 
 

@@ -83,7 +83,9 @@ def descendants(model: yourdfpy.URDF, link: str) -> list[str]:
 
 def cut_subtree(source: Path, root_link: str, where: str) -> Path:
     """Write the subtree of ``source`` below ``root_link``, with absolute mesh
-    paths, into the cache (named by its content); returns the file."""
+    paths and its collision boxes and spheres as meshes
+    (:func:`_primitives_as_meshes`), into the cache (named by its content);
+    returns the file."""
     model = load_model(source)
     if root_link not in model.link_map:
         raise ConfigError(f"{where}: link '{root_link}' is not in {source.name}")
@@ -103,11 +105,46 @@ def cut_subtree(source: Path, root_link: str, where: str) -> Path:
     for mesh in robot.iter("mesh"):
         name = mesh.get("filename", "")
         mesh.set("filename", str(meshes.get(name) or _mesh_file(source, name)))
+    _primitives_as_meshes(robot, f"{where} ({source.name})")
     data = etree.tostring(robot, encoding="utf-8")
     out = assets.cache_dir("hands") / f"{source.stem}-{root_link}-{assets.sha256_bytes(data)[:12]}.urdf"
     if not out.exists():
         assets.atomic_write(out, data)
     return out
+
+
+#: Subdivisions of the icosphere a collision sphere becomes (642 vertices: within 0.2% of its radius).
+SPHERE_SUBDIVISIONS = 3
+
+
+def _primitives_as_meshes(robot: etree._Element, where: str) -> None:
+    """Turn every ``<collision>`` box and sphere into a mesh of the same
+    shape (an OBJ in the cache, in metres). PyBullet pads a mesh and a
+    cylinder by 1 mm, which the hand's ``distance_offset`` takes off every
+    reported gap, but a box or sphere by less, and unevenly: the PR2's box
+    fingertips read 0.15-0.73 mm smaller than they are, so closing pressed
+    them ~1.5 mm into the object and the table clearance let them 1 mm
+    nearer the table than it says. As meshes every link is padded alike."""
+    import trimesh
+
+    for shape in list(robot.iterfind("link/collision/geometry/*")):
+        try:
+            if shape.tag == "box":
+                mesh = trimesh.creation.box(extents=[float(v) for v in shape.get("size", "").split()])
+            elif shape.tag == "sphere":
+                mesh = trimesh.creation.icosphere(SPHERE_SUBDIVISIONS, float(shape.get("radius", "")))
+            else:
+                continue
+        except ValueError as exc:
+            raise ConfigError(f"{where}: collision <{shape.tag}> with bad dimensions: {exc}") from exc
+        text = trimesh.exchange.obj.export_obj(mesh, include_normals=False, include_texture=False,
+                                               digits=17).encode()
+        out = assets.cache_dir("hands") / f"{shape.tag}-{assets.sha256_bytes(text)[:16]}.obj"
+        if not out.exists():
+            assets.atomic_write(out, text)
+        replacement = etree.Element("mesh", filename=str(out))
+        replacement.tail = shape.tail
+        shape.getparent().replace(shape, replacement)
 
 
 def mesh_path(urdf: Path, filename: str) -> Path:

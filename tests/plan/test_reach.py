@@ -105,8 +105,8 @@ def test_cli_best_at_pose_returns_fk_consistent_joint_solutions(tmp_path: Path) 
             target = obj_pose @ np.array(g["pose"])
             assert np.linalg.norm(ee[:3, 3] - target[:3, 3]) <= POSITION_TOL
             assert angle_between(ee[:3, :3], target[:3, :3]) <= ANGLE_TOL
-            for link in scene.arm_links:
-                assert scene._gap(scene.arm, link, scene.table) > 0
+            for link in scene.arm_links:  # the base link is bolted to the table top: it touches it
+                assert scene._gap(scene.arm, link, scene.table) > 0 or scene.arm.links[link] < 0
     rows = sqlite3.connect(db).execute("SELECT COUNT(*) FROM grasps WHERE reachability IS NOT NULL").fetchone()[0]
     assert rows > 0
 
