@@ -112,7 +112,12 @@ def _random_range(arg: str) -> range:
             result = range(int(spec))
     except ValueError:
         raise InputError(f"'{arg}': use builtin:random, builtin:random:COUNT or builtin:random:FIRST-LAST") from None
-    if not result or result.start < 0 or result.stop > RANDOM_COUNT:
+    if "-" not in spec and not 1 <= result.stop <= RANDOM_COUNT:
+        why = "names no objects" if result.stop < 1 else f"is more than the {RANDOM_COUNT} random objects"
+        raise InputError(f"'{arg}': a count of {result.stop} {why}; give a count of 1 to {RANDOM_COUNT}")
+    if not result:
+        raise InputError(f"'{arg}': the first, {lo}, comes after the last, {hi}; write builtin:random:{hi}-{lo}")
+    if result.start < 0 or result.stop > RANDOM_COUNT:
         raise InputError(f"'{arg}': range must lie within 0-{RANDOM_COUNT - 1}")
     return result
 

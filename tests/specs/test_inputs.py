@@ -30,7 +30,11 @@ def test_inputs_expand_folders_globs_manifests_and_builtins(tmp_path: Path) -> N
     assert len(inputs.expand(["box", "box"])) == 1
 
 
-@pytest.mark.parametrize("arg, message", [("builtin:random:2000", "range must lie within"),
+@pytest.mark.parametrize("arg, message", [("builtin:random:5-2000", "range must lie within 0-999"),
+                                          ("builtin:random:2000", "a count of 2000 is more than the 1000 random"),
+                                          ("builtin:random:0", "a count of 0 names no objects; give a count of 1"),
+                                          ("builtin:random:7-3", "the first, 7, comes after the last, 3; write "
+                                                                 "builtin:random:3-7"),
                                           ("builtin:random:x", "use builtin:random"),
                                           ("@nowhere.txt", "manifest not found")])
 def test_bad_arguments(arg: str, message: str) -> None:
