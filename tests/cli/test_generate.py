@@ -243,3 +243,14 @@ def test_a_ray_cluster_that_cannot_be_reached_is_one_line(tmp_path: Path, monkey
                          *FAST)
     one_line_error(code, err, 2, f"--ray {address}:", *needles)
     assert "internal error" not in err
+
+
+def test_the_help_and_the_readme_name_every_manifest_column() -> None:
+    """The help left out the `[scale=S]` column the README documents: both now say the reader's own line."""
+    from planner.specs.inputs import MANIFEST_LINE
+
+    code, out, err = grasp("generate", "--help")
+    assert code == 0, err
+    assert MANIFEST_LINE in " ".join(out.split()) and "[scale=S]" in MANIFEST_LINE
+    readme = (Path(__file__).parents[2] / "README.md").read_text(encoding="utf-8")
+    assert MANIFEST_LINE in " ".join(readme.split())
