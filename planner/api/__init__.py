@@ -82,7 +82,8 @@ from planner.errors import InputError  # noqa: F401 - re-exported
 from planner.plan.sweep import SAMPLER_DEFAULTS, SweepSettings
 from planner.record.grasp import Grasp
 from planner.specs.hands import SAMPLERS
-from planner.specs.objects import DEFAULT_MASS, RANDOM_COUNT, RANDOM_PREFIX
+from planner.specs.inputs import MANIFEST_LINE
+from planner.specs.objects import DEFAULT_FRICTION, DEFAULT_MASS, RANDOM_COUNT, RANDOM_MASS, RANDOM_PREFIX
 
 if TYPE_CHECKING:
     from planner.datasets.exporter import FORMATS as EXPORT_FORMATS
@@ -93,7 +94,8 @@ if TYPE_CHECKING:
     from planner.validation.run import ValidationSummary, validate
 
 __all__ = [
-    "DEFAULT_DB", "DEFAULT_MASS", "EXPORT_FORMATS", "IMPORT_FORMATS", "RANDOM_COUNT", "RANDOM_PREFIX",
+    "DEFAULT_DB", "DEFAULT_FRICTION", "DEFAULT_MASS", "EXPORT_FORMATS", "IMPORT_FORMATS", "MANIFEST_LINE",
+    "RANDOM_COUNT", "RANDOM_MASS", "RANDOM_PREFIX",
     "ExportSummary", "Grasp",
     "GenerateProgress", "ImportResult", "RankingRule", "ReachableGrasp", "SAMPLERS", "SAMPLER_DEFAULTS", "Summary",
     "SweepSettings", "UnitResult", "ValidationSummary",

@@ -38,8 +38,9 @@ def resolve_object(db: Database, name: str) -> tuple[str, ObjectRow | None]:
 
     ``name`` is a stored object's name (any object with grasps: built-in,
     ``random_NNN``, a user mesh by its stem or label, an imported object, a
-    mesh generated with ``--scale``), else a built-in name, ``random_NNN`` or
-    mesh path, named as ``generate`` names it. The row (None when the object
+    mesh generated with ``--scale``), else a built-in name or ``random_NNN``,
+    named as ``generate`` names it, or a mesh path: the object stored from
+    that file (:func:`_from_file`). The row (None when the object
     is not stored) holds the source, scale, mass and friction its grasps were
     planned with: :func:`~planner.db.objects.stored_object` rebuilds it.
     """
@@ -47,14 +48,36 @@ def resolve_object(db: Database, name: str) -> tuple[str, ObjectRow | None]:
     if row is not None:
         return name, row
     try:
-        key = resolve_spec(name).name
+        spec = resolve_spec(name)
     except UnknownNameError:
         stored = sorted({o for o, _ in db.pairs()})
         listed = ", ".join(stored[:LISTED_NAMES]) + (f", ... ({len(stored)} in all)" if len(stored) > LISTED_NAMES
                                                      else "")
         raise InputError(f"unknown object '{name}': not stored in {db.path} (objects: {listed or 'none'}) and not "
                          f"a built-in name, random_NNN or mesh file (see `grasp objects`)") from None
-    return key, db.object_row(key)
+    if spec.kind == "mesh":
+        return _from_file(db, name, spec.name, spec.source)
+    return spec.name, db.object_row(spec.name)
+
+
+def _from_file(db: Database, name: str, key: str, source: str) -> tuple[str, ObjectRow | None]:
+    """The object the mesh file ``name`` (``source``, resolved) means in ``db``: the one ``generate`` stores it
+    as (its stem ``key`` at scale 1), else the one object stored from that file (a manifest's scale, a name with
+    folders); several of them are named for the user to pick one. An object of that name from another file that
+    is here is not this file's."""
+    rows = [r for r in map(db.object_row, db.objects_from(source)) if r is not None]
+    own = next((r for r in rows if r.name == key and r.scale == 1.0), None)
+    if own is not None or len(rows) == 1:
+        found = own or rows[0]
+        return found.name, found
+    if rows:
+        listed = ", ".join(f"'{r.name}' (scale {r.scale:g})" for r in rows)
+        raise InputError(f"{name} is stored in {db.path} as {len(rows)} objects, {listed}: give the object's name")
+    row = db.object_row(key)
+    if row is not None and Path(row.source).is_file() and Path(row.source) != Path(source):
+        raise InputError(f"{name} is not stored in {db.path}: its object '{key}' is another file, {row.source}; "
+                         f"plan {name} into another --db (`grasp generate {shlex.quote(name)} --hand H --db ...`)")
+    return key, row
 
 
 def _stored(db: Database, name: str, hand: str) -> tuple[str, PreparedObject]:

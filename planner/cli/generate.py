@@ -16,7 +16,12 @@ DEFAULTS = api.SweepSettings()
 PLAUSIBLE_DENSITY = (5.0, 23_000.0)
 
 
-@click.command()
+@click.command(help=f"""Sweep preshapes x approaches x rolls x standoffs and store the grasps.
+
+    OBJECT: a built-in name, random_NNN, a mesh file, a folder, a glob, @manifest.txt (one object per line:
+    {api.MANIFEST_LINE}), builtin:all, builtin:random[:COUNT | :FIRST-LAST]. A mesh file's sidecar
+    (banana.obj + banana.toml) may give mass or density and friction.
+    """)
 @click.argument("names", metavar="OBJECT...", nargs=-1, required=True)
 @click.option("--hand", required=True, help="Hand name (see `grasp hands`).")
 @db_option
@@ -85,13 +90,8 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
              ray_target: str | None, unit_timeout: float | None, chunk: int | None, reach_placements: int,
              reach_top: int, volume: bool, settle: bool | None, fc_budget: int, reach_weight: float | None,
              on_table: bool, stable_poses: int, quiet: bool, as_json: bool) -> None:
-    """Sweep preshapes x approaches x rolls x standoffs and store the grasps.
-
-    OBJECT: a built-in name, random_NNN, a mesh file, a folder, a glob,
-    @manifest.txt (one object per line: OBJECT [SCALE] [mass=KG | density=KG_M3]
-    [friction=MU]), builtin:all, builtin:random[:COUNT | :FIRST-LAST]. A mesh
-    file's sidecar (banana.obj + banana.toml) may give mass or density and friction.
-    """
+    """Sweep objects for a hand into the database (the help text: the decorator's, which names the manifest
+    line as the manifest reader declares it)."""
     if not on_table:
         unused(["stable_poses"], "used with --on-table only")
     settings = api.SweepSettings(approaches=approaches, sampler=sampler, box_delta=box_delta, rolls=rolls,

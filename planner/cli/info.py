@@ -48,8 +48,9 @@ def objects() -> None:
         click.echo(f"{name:10s} {spec.kind:8s} mass {spec.mass:.3f} kg  friction {spec.friction:.2f}  "
                    f"- {spec.description}")
     last = f"{api.RANDOM_COUNT - 1:03d}"
-    click.echo(f"{api.RANDOM_PREFIX}000 .. {api.RANDOM_PREFIX}{last}  the procedurally generated objects "
-               "of pybullet_data/random_urdfs")
+    click.echo(f"{api.RANDOM_PREFIX}000 .. {api.RANDOM_PREFIX}{last}  mass {api.RANDOM_MASS:.3f} kg  friction "
+               f"{api.DEFAULT_FRICTION:.2f}  - the procedurally generated objects of pybullet_data/random_urdfs, "
+               "5-10 cm across")
 
 
 @click.group()

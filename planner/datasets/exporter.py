@@ -135,12 +135,15 @@ def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (
     (created if missing). ``top``: rank <= top per (object, hand);
     ``min_epsilon``: epsilon >= it. ``progress(file, grasps)`` after each file."""
     writing: list[Path] = []  # the files this export writes, each under its name + ".tmp" until whole
+    made = _missing_root(Path(out_dir))
     try:
         return _export(db_path, fmt, out_dir, objects, hands, min_epsilon, top, spacing, label, progress, writing)
     except BaseException as exc:  # a full disk, Ctrl-C: no file of this export is left half-written, under any name
         for path in writing:
             with contextlib.suppress(OSError):
                 path.with_name(path.name + ".tmp").unlink(missing_ok=True)
+        if made is not None:  # a refusal (a name clash) after the folder was made: no empty folder left behind
+            _remove_empty(made)
         if isinstance(exc, OSError):
             raise InputError(f"{out_dir}: cannot write the export ({exc.strerror or exc}): no file under its final "
                              "name is partial, unfinished ones were removed; free space or choose another --out") \
@@ -233,3 +236,20 @@ def _out_dir(path: Path) -> Path:
     except OSError as exc:
         raise InputError(f"{path}: cannot create the output folder ({exc.strerror})") from exc
     return path
+
+
+def _missing_root(path: Path) -> Path | None:
+    """The outermost folder of ``path`` that does not exist yet, which an export creates (None: ``path`` exists)."""
+    missing = None
+    for folder in (path, *path.parents):
+        if folder.exists():
+            break
+        missing = folder
+    return missing
+
+
+def _remove_empty(top: Path) -> None:
+    """Remove ``top``, a folder this export created, and every folder under it, where nothing was written."""
+    for folder, _, _ in os.walk(top, topdown=False):
+        with contextlib.suppress(OSError):  # not empty: something was written there, which stays
+            os.rmdir(folder)

@@ -61,7 +61,7 @@ from planner.db.hand_files import check_hand_files
 from planner.db.ranking import RankingRule
 from planner.db.store import Database, UnitRow, Validated, open_for_writing
 from planner.errors import InputError
-from planner.geometry.frames import approach_of
+from planner.geometry.frames import approach_of, same_poses
 from planner.geometry.solid import PreparedObject, prepare
 from planner.plan import grip
 from planner.plan.closing import Closed, Grasper
@@ -315,12 +315,9 @@ def _check_objects(db: Database, plans: Sequence[_Plan]) -> None:
 
 def _check_not_stored(db: Database, plan: _Plan) -> None:
     """Refuse a file whose grasps the database holds already (an export of it, imported back: each one twice)."""
-    def key(pose: np.ndarray) -> bytes:
-        return np.round(np.asarray(pose, float)[:3], 5).tobytes()  # 10 um: the file's and the stored rounding
-
-    stored = {key(g.pose) for batch in db.grasp_batches(plan.spec.name, plan.hand.name) for g in batch}
+    stored = [g.pose for batch in db.grasp_batches(plan.spec.name, plan.hand.name) for g in batch]
     poses = plan.reader.poses(plan.path, plan.hand)
-    again = sum(key(p) in stored for p in poses)
+    again = int(same_poses(poses, np.reshape(stored, (-1, 4, 4))).sum())
     if again:
         raise InputError(f"{plan.path}: {again} of its {len(poses)} grasps are stored in {db.path} already "
                          f"('{plan.spec.name}', {plan.hand.name}): an export of this database? Import it into "

@@ -187,6 +187,12 @@ class Database(Writing, UnitReads):
         return [r["name"] for r in self._conn.execute("SELECT name FROM objects ORDER BY name")]
 
     @_reads
+    def objects_from(self, source: str) -> list[str]:
+        """The stored objects whose ``source`` is this file (any name, any scale), sorted."""
+        return [r["name"] for r in self._conn.execute("SELECT name FROM objects WHERE source = ? ORDER BY name",
+                                                      (source,))]
+
+    @_reads
     def object_row(self, name: str) -> ObjectRow | None:
         r = self._conn.execute("SELECT * FROM objects WHERE name = ?", (name,)).fetchone()
         if r is None:

@@ -12,6 +12,8 @@
   (x, y, z, w), the form a user types.
 - :func:`angle_between`: the angle [rad] of the rotation from one frame to
   another.
+- :func:`same_poses`: which poses equal one of a set, entry by entry within
+  :data:`SAME_POSE_TOL`.
 
 Poses are 4x4 homogeneous matrices, lengths in metres, angles in radians.
 (The PyBullet adapter converts poses for the simulator itself, per move, with
@@ -22,6 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike
+from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 #: The object frame's up: its +z. An object rests and is lifted with its weight along -UP (the MuJoCo trial's
@@ -147,3 +150,19 @@ def approach_of(pose: np.ndarray, approach_hand: ArrayLike, tcp: ArrayLike) -> t
     rotation = pose[:3, :3]
     direction = rotation @ approach_hand
     return rotation @ tcp + pose[:3, 3], direction, roll_about(rotation, approach_hand, direction)
+
+
+#: Largest difference [m, or unitless for the rotation] in any entry of two poses that are one pose: 10 um, far
+#: above what a file's round trip changes (float32 transforms, an export frame multiplied in and out, the store's
+#: 7 decimals) and far below two planned grasps' spacing. Entries are compared as numbers, not as rounded bytes:
+#: -0.0 is 0.0, and two values a hair apart never fall on either side of a rounding boundary.
+SAME_POSE_TOL = 1e-5
+
+
+def same_poses(poses: np.ndarray, among: np.ndarray, tol: float = SAME_POSE_TOL) -> np.ndarray:
+    """(n,) bool: which of ``poses`` (n, 4, 4) has every entry within ``tol`` of one of ``among`` (m, 4, 4)."""
+    poses, among = np.asarray(poses, float), np.asarray(among, float)
+    if not len(poses) or not len(among):
+        return np.zeros(len(poses), bool)
+    gap, _ = cKDTree(among[:, :3].reshape(len(among), 12)).query(poses[:, :3].reshape(len(poses), 12), p=np.inf)
+    return gap <= tol

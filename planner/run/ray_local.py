@@ -61,11 +61,37 @@ def on_ray(fn: Callable[[U], R], units: Iterable[U], workers: int, target: str, 
         with local_ray(workers):
             yield from run_ray(fn, units, max(1, workers), timeout=timeout)
     else:
-        ray.init(address=target, log_to_driver=False, logging_level=logging.WARNING)
+        _attach(ray, target)
         try:
             yield from run_ray(fn, units, _cluster_cpus(ray, workers), timeout=timeout)
         finally:
             ray.shutdown()
+
+
+def _attach(ray: Any, target: str) -> None:
+    """Connect to the cluster at ``target``; Ray's refusals (a ``ValueError``
+    for a ray:// address without Ray Client or an address it cannot parse, a
+    ``ConnectionError`` for no cluster there) as input errors that say what
+    to do. Ray's own wording names its ``--address`` flag and ``RAY_ADDRESS``,
+    not ours."""
+    local = "or give --ray without an address for a private local Ray instance with --workers CPUs"
+    try:
+        ray.init(address=target, log_to_driver=False, logging_level=logging.WARNING)
+    except ValueError as exc:
+        if "ray[client]" in str(exc):
+            raise InputError(f"--ray {target}: a ray:// address needs Ray Client: pip install 'ray[client]' "
+                             f"(or pip install -e '.[ray]'), {local}") from None
+        raise InputError(f"--ray {target}: {_sentence(exc)}; give ray://HOST:10001, HOST:6379 or auto, "
+                         f"{local}") from None
+    except ConnectionError as exc:
+        raise InputError(f"--ray {target}: could not connect to a Ray cluster ({_sentence(exc)}); start one "
+                         f"('ray start --head') and give its address, {local}") from None
+
+
+def _sentence(exc: Exception) -> str:
+    """The first sentence of ``exc``'s message, on one line."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text.split(". ")[0].rstrip(".")
 
 
 def _cluster_cpus(ray: Any, default: int) -> int:

@@ -112,7 +112,12 @@ def _random_range(arg: str) -> range:
             result = range(int(spec))
     except ValueError:
         raise InputError(f"'{arg}': use builtin:random, builtin:random:COUNT or builtin:random:FIRST-LAST") from None
-    if not result or result.start < 0 or result.stop > RANDOM_COUNT:
+    if "-" not in spec and not 1 <= result.stop <= RANDOM_COUNT:
+        why = "names no objects" if result.stop < 1 else f"is more than the {RANDOM_COUNT} random objects"
+        raise InputError(f"'{arg}': a count of {result.stop} {why}; give a count of 1 to {RANDOM_COUNT}")
+    if not result:
+        raise InputError(f"'{arg}': the first, {lo}, comes after the last, {hi}; write builtin:random:{hi}-{lo}")
+    if result.start < 0 or result.stop > RANDOM_COUNT:
         raise InputError(f"'{arg}': range must lie within 0-{RANDOM_COUNT - 1}")
     return result
 
@@ -121,7 +126,8 @@ def _manifest(path: Path, scale: float | None, physical: Physical) -> list[Objec
     if not path.is_file():
         raise InputError(f"{path}: manifest not found")
     refs = []
-    for number, raw in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+    # utf-8-sig: a byte-order mark (Windows editors write one) is not part of the first object's name
+    for number, raw in enumerate(path.read_text(encoding="utf-8-sig").splitlines(), start=1):
         where = f"{path}:{number}"
         tokens = _tokens(raw, where)
         if tokens:
@@ -161,8 +167,8 @@ def _manifest_line(tokens: list[str], where: str, folder: Path, scale: float | N
         elif not sep or key not in ("scale", *PHYSICAL_KEYS) or key in columns:
             raise InputError(f"{where}: expected '{MANIFEST_LINE}', got '{line}'")
         columns[key] = value
-    item_scale = scale
-    if "scale" in columns:
+    item_scale, row_scale = scale, "scale" in columns
+    if row_scale:
         text = columns.pop("scale")
         try:
             item_scale = float(text)
@@ -170,11 +176,21 @@ def _manifest_line(tokens: list[str], where: str, folder: Path, scale: float | N
             raise InputError(f"{where}: scale '{text}' is not a number") from None
         if not (math.isfinite(item_scale) and item_scale > 0):
             raise InputError(f"{where}: scale must be a positive number, got {item_scale:g}")
-    if Path(source).suffix.lower() in MESH_SUFFIXES:
+    suffix = Path(source).suffix.lower()
+    if suffix in MESH_SUFFIXES:
         if not Path(source).is_absolute():
             source = str((folder / source).resolve())
         if not Path(source).is_file():
             raise InputError(f"{where}: {source}: file not found")
+    elif suffix and not is_registered(source):
+        also = " (a URDF: give the mesh file its link names)" if suffix == ".urdf" else ""
+        raise InputError(f"{where}: {source}: unsupported mesh type '{suffix}'; use one of "
+                         f"{', '.join(MESH_SUFFIXES)}{also}")
+    else:  # a name, and the scale a primitive refuses, checked here where the line is known
+        try:
+            resolve_spec(source, scale=item_scale, scale_from="the row's scale" if row_scale else "--scale")
+        except InputError as exc:
+            raise InputError(f"{where}: {exc}") from None
     return ObjectRef(source, item_scale, physical=Physical.checked(columns, where).over(physical))
 
 

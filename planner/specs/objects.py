@@ -220,12 +220,13 @@ def random_spec(index: int) -> ObjectSpec:
 
 
 def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = None,
-                 friction: float | None = None, label: str | None = None, density: float | None = None
-                 ) -> ObjectSpec:
+                 friction: float | None = None, label: str | None = None, density: float | None = None,
+                 scale_from: str = "--scale") -> ObjectSpec:
     """A built-in name, ``random_NNN``, or a path to a mesh file; ``label``
     renames it (two mesh files of one run with the same stem). ``mass`` (or
     ``density``) and ``friction`` override the object's own, a mesh file's
-    from its sidecar (see the module docstring)."""
+    from its sidecar (see the module docstring). ``scale_from``: what gave
+    ``scale``, for the error of a primitive, which takes none."""
     given = Physical.checked({"mass": mass, "density": density, "friction": friction}, f"object '{name}'")
     if scale is not None and not (math.isfinite(scale) and scale > 0):
         raise InputError(f"object '{name}': scale must be a positive number, got {scale:g} (0.001 for a mesh in "
@@ -236,8 +237,9 @@ def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = 
         if scale is not None and spec.kind in ("mesh", "urdf"):
             spec = replace(spec, scale=spec.scale * scale)
         elif scale is not None and scale != 1:
-            raise InputError(f"object '{name}': --scale applies to meshes; {name} is a primitive of fixed size "
-                             f"({spec.description}): for another size give a mesh file (trimesh.creation makes one)")
+            raise InputError(f"object '{name}': {scale_from} applies to meshes only; {name} is a primitive of "
+                             f"fixed size ({spec.description}): for another size give a mesh file (trimesh.creation "
+                             "makes one)")
     elif _random_index(name) is not None:
         spec = random_spec(_random_index(name))  # type: ignore[arg-type]
         if scale is not None:

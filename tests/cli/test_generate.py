@@ -217,3 +217,40 @@ def test_a_weight_no_solid_has_is_noted(tmp_path: Path) -> None:
     code, _, err = grasp("generate", str(bead), "--hand", "panda", "--db", str(tmp_path / "b.db"), *FAST,
                          "--density", "1000")
     assert code == 0 and "note:" not in err, err
+
+
+@pytest.mark.parametrize("address, raised, needles", [
+    ("ray://127.0.0.1:10001", ValueError("Ray Client requires pip package `ray[client]`. If you installed the "
+                                         "minimal Ray, please reinstall."), ("pip install 'ray[client]'",)),
+    ("auto", ConnectionError("Could not find any running Ray instance. Please specify the one to connect to by "
+                             "setting `--address` flag or `RAY_ADDRESS` environment variable."),
+     ("Could not find any running Ray instance", "ray start --head", "--ray without an address")),
+    ("ray://head:10001", ConnectionError("ray client connection timeout"), ("ray start --head",)),
+    ("head", ValueError("Invalid address format: head"), ("Invalid address format", "HOST:6379")),
+])
+def test_a_ray_cluster_that_cannot_be_reached_is_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                          address: str, raised: Exception,
+                                                          needles: tuple[str, ...]) -> None:
+    """ray.init's refusals were internal errors (exit 1). Its errors are faked: no network, no cluster."""
+    ray = pytest.importorskip("ray")
+
+    def refuse(**_: object) -> None:
+        raise raised
+
+    monkeypatch.setattr(ray, "init", refuse)
+    monkeypatch.setattr(ray, "is_initialized", lambda: False)
+    code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(tmp_path / "r.db"), "--ray", address,
+                         *FAST)
+    one_line_error(code, err, 2, f"--ray {address}:", *needles)
+    assert "internal error" not in err
+
+
+def test_the_help_and_the_readme_name_every_manifest_column() -> None:
+    """The help left out the `[scale=S]` column the README documents: both now say the reader's own line."""
+    from planner.specs.inputs import MANIFEST_LINE
+
+    code, out, err = grasp("generate", "--help")
+    assert code == 0, err
+    assert MANIFEST_LINE in " ".join(out.split()) and "[scale=S]" in MANIFEST_LINE
+    readme = (Path(__file__).parents[2] / "README.md").read_text(encoding="utf-8")
+    assert MANIFEST_LINE in " ".join(readme.split())

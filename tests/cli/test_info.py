@@ -14,6 +14,7 @@ def test_lists() -> None:
     assert code == 0 and "panda" in out
     code, out, _ = grasp("objects")
     assert code == 0 and all(n in out for n in ("mug", "duck", "teddy", "bunny", "box", "cylinder", "sphere"))
+    assert "random_000 .. random_999  mass 0.100 kg  friction 0.50" in out  # the README's weight points here
 
 
 def test_db_check(box_db: Path) -> None:

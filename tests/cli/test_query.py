@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import damaged, grasp, one_line_error
+from helpers import FAST, damaged, grasp, one_line_error
 
 from planner import api
 
@@ -99,6 +99,32 @@ def test_every_query_takes_the_database_name_of_a_stored_object(stored_db: Path,
     assert code == 0, err
     code, _, err = grasp("show", "capsule", "--hand", "panda", "--db", str(imported), "--out", str(tmp_path / "i.png"))
     assert code == 0 and (tmp_path / "i.png").stat().st_size > 1000, err
+
+
+def test_a_mesh_path_names_the_object_stored_from_that_file(tmp_path: Path) -> None:
+    """`best a/cube.obj` on an object a manifest stored as 'a/cube' at scale 0.05 said 'no grasps of cube' and
+    told the user to generate a new 1 m object; the file of another object named 'cube' gave that one's grasps."""
+    import trimesh
+
+    for folder, height in (("a", 1.0), ("b", 1.2)):
+        (tmp_path / folder).mkdir()
+        trimesh.creation.box(extents=[1.0, 1.0, height]).export(tmp_path / folder / "cube.obj")
+    (tmp_path / "both.txt").write_text("a/cube.obj scale=0.05\nb/cube.obj scale=0.05\n")
+    (tmp_path / "one.txt").write_text("a/cube.obj scale=0.04\n")
+    both, one = tmp_path / "both.db", tmp_path / "one.db"
+    for manifest, db in (("both.txt", both), ("one.txt", one)):
+        code, _, err = grasp("generate", f"@{tmp_path / manifest}", "--hand", "panda", "--db", str(db), "--quiet",
+                             *FAST)
+        assert code == 0, err
+    code, out, err = grasp("best", str(tmp_path / "a" / "cube.obj"), "--hand", "panda", "--db", str(both), "--json")
+    assert code == 0 and json.loads(out)[0]["object"] == "a/cube", err
+    code, _, err = grasp("best", str(tmp_path / "b" / "cube.obj"), "--hand", "panda", "--db", str(one))
+    one_line_error(code, err, 2, "is not stored in", "its object 'cube' is another file", str(tmp_path / "a"))
+    code, _, err = grasp("generate", f"@{tmp_path / 'one.txt'}", "--hand", "panda", "--db", str(both), "--quiet",
+                         *FAST)  # the same file at another scale: 'cube'
+    assert code == 0, err
+    code, _, err = grasp("best", str(tmp_path / "a" / "cube.obj"), "--hand", "panda", "--db", str(both))
+    one_line_error(code, err, 2, "as 2 objects, 'a/cube' (scale 0.05), 'cube' (scale 0.04): give the object's name")
 
 
 @pytest.mark.parametrize("command", [["show", "--out", "x.png"], ["best"], ["best", "--object-pose", "0,0,0,0,0,0,1"]])

@@ -141,3 +141,24 @@ def test_an_export_stopped_midway_leaves_no_file_half_written(box_db: Path, tmp_
     assert "Traceback" not in err and "Exception ignored" not in err, err
     left = [p for p in out.rglob("*") if p.suffix in (".tmp", ".csv", ".yaml", ".h5")]
     assert left == [], left
+
+
+def test_an_export_refused_before_writing_leaves_no_folder_it_made(tmp_path: Path) -> None:
+    """A name clash ('a/cube' and 'a__cube': one mesh file) is found after --out is made; that empty folder (and
+    the parents it needed) stayed behind. A folder that was there stays."""
+    import trimesh
+    from helpers import FAST
+
+    for rel in ("a/cube.obj", "b/cube.obj", "a__cube.obj"):
+        (tmp_path / rel).parent.mkdir(exist_ok=True)
+        trimesh.creation.box(extents=[0.04, 0.04, 0.05]).export(tmp_path / rel)
+    (tmp_path / "m.txt").write_text("a/cube.obj\nb/cube.obj\na__cube.obj\n")
+    db = tmp_path / "g.db"
+    code, _, err = grasp("generate", f"@{tmp_path / 'm.txt'}", "--hand", "panda", "--db", str(db), "--quiet", *FAST)
+    assert code == 0, err
+    kept = tmp_path / "kept"
+    kept.mkdir()
+    for out in (tmp_path / "new" / "deeper", kept):
+        code, _, err = grasp("export", "--db", str(db), "--format", "acronym", "--out", str(out))
+        assert code == 2 and "objects 'a/cube' and 'a__cube' would share the mesh file a__cube.obj" in err, err
+    assert not (tmp_path / "new").exists() and kept.is_dir() and not any(kept.iterdir())

@@ -86,3 +86,18 @@ def test_rows_cross_is_numpys_cross_to_the_bit(seed: int, n: int) -> None:
     with np.errstate(over="ignore", invalid="ignore"):
         got, want = frames.rows_cross(a, b), np.cross(a, b).reshape(-1, 3)
     assert got.shape == want.shape and got.tobytes() == want.tobytes()
+
+
+@settings(max_examples=100, deadline=None)
+@given(angle=st.floats(-3, 3), step=st.floats(-1e-9, 1e-9))
+def test_same_poses_matches_equal_values_whatever_their_sign_of_zero_or_rounding(angle: float, step: float) -> None:
+    """An import compared rounded bytes: -0.0 is not 0.0 there, and 0.1234549999 and 0.1234550001 round apart."""
+    pose = np.eye(4)
+    pose[:3, :3] = Rotation.from_rotvec([0, 0, angle]).as_matrix()
+    pose[:3, 3] = [0.0, 0.123455, 0.0]
+    again = pose + step
+    again[again == 0] = -0.0  # as `transforms @ inv(export_frame)` gives
+    other = pose.copy()
+    other[0, 3] += 2 * frames.SAME_POSE_TOL
+    assert list(frames.same_poses(np.stack([again, other]), pose[None])) == [True, False]
+    assert not frames.same_poses(pose[None], np.empty((0, 4, 4))).any()

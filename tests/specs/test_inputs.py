@@ -30,7 +30,11 @@ def test_inputs_expand_folders_globs_manifests_and_builtins(tmp_path: Path) -> N
     assert len(inputs.expand(["box", "box"])) == 1
 
 
-@pytest.mark.parametrize("arg, message", [("builtin:random:2000", "range must lie within"),
+@pytest.mark.parametrize("arg, message", [("builtin:random:5-2000", "range must lie within 0-999"),
+                                          ("builtin:random:2000", "a count of 2000 is more than the 1000 random"),
+                                          ("builtin:random:0", "a count of 0 names no objects; give a count of 1"),
+                                          ("builtin:random:7-3", "the first, 7, comes after the last, 3; write "
+                                                                 "builtin:random:3-7"),
                                           ("builtin:random:x", "use builtin:random"),
                                           ("@nowhere.txt", "manifest not found")])
 def test_bad_arguments(arg: str, message: str) -> None:
@@ -112,3 +116,24 @@ def test_a_folder_named_like_a_builtin_is_a_folder_and_builtin_names_the_builtin
 @pytest.mark.parametrize("arg", ["builtin:mug", "builtin:random:3-3", "builtin:random_003", "builtin:all"])
 def test_every_builtin_spelling_takes_the_scale(arg: str) -> None:
     assert {r.scale for r in inputs.expand([arg], scale=0.5)} == {0.5}
+
+
+@pytest.mark.parametrize("text, message", [
+    ("box\nduck.urdf 0.5\n", r"m.txt:2: .*duck.urdf: unsupported mesh type '.urdf'; use one of .obj"),
+    ("sphere\nbox 2\n", r"m.txt:2: object 'box': the row's scale applies to meshes only; box is a primitive"),
+    ("\ufeffbox\nmugg\n", r"m.txt:2: unknown object 'mugg'"),  # and the BOM is not part of line 1's 'box'
+])
+def test_a_manifest_rows_error_names_its_line(tmp_path: Path, text: str, message: str) -> None:
+    """These three named no line (a URDF row failed at loading, with a message about --scale when none was given;
+    a byte-order mark made line 1 the unknown object '\\ufeffbox')."""
+    (tmp_path / "duck.urdf").write_text("<robot name='duck'/>")
+    (tmp_path / "m.txt").write_text(text, encoding="utf-8")
+    with pytest.raises(InputError, match=message):
+        inputs.expand([f"@{tmp_path / 'm.txt'}"])
+
+
+def test_a_manifest_row_of_a_primitive_under_the_runs_scale_names_its_line_and_the_flag(tmp_path: Path) -> None:
+    (tmp_path / "m.txt").write_text("\ufeffbox\n", encoding="utf-8")
+    with pytest.raises(InputError, match=r"m.txt:1: object 'box': --scale applies to meshes only"):
+        inputs.expand([f"@{tmp_path / 'm.txt'}"], scale=2.0)
+    assert [r.name for r in inputs.expand([f"@{tmp_path / 'm.txt'}"])] == ["box"]

@@ -98,7 +98,7 @@ def test_scale_zero_is_refused_like_a_negative_one(brick: Path) -> None:
 def test_scale_applies_to_random_objects_and_is_refused_for_primitives() -> None:
     assert resolve_spec("random_005", scale=2.0).scale == 2.0 * resolve_spec("random_005").scale
     assert resolve_spec("box", scale=1.0).dims == resolve_spec("box").dims
-    with pytest.raises(InputError, match="--scale applies to meshes; box is a primitive of fixed size"):
+    with pytest.raises(InputError, match="--scale applies to meshes only; box is a primitive of fixed size"):
         resolve_spec("box", scale=2.0)
 
 
@@ -106,7 +106,7 @@ def test_manifest_columns(tmp_path: Path, brick: Path) -> None:
     (tmp_path / "objects.txt").write_text(
         "brick.obj 0.5 mass=0.066 friction=0.8  # scale, then columns\n"
         "box density=700\n"
-        "sphere scale=2\n")
+        "random_004 scale=2\n")  # a primitive takes no scale: refused (test_inputs)
     refs = inputs.expand([f"@{tmp_path / 'objects.txt'}"], physical=Physical(mass=0.3, friction=0.4))
     assert [(r.scale, r.physical) for r in refs] == [
         (0.5, Physical(mass=0.066, friction=0.8)),
