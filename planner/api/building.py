@@ -58,11 +58,12 @@ class Summary:
     rejected: Counter = field(default_factory=Counter)
     seconds: float = 0.0
     per_object: list[dict] = field(default_factory=list)
+    replaced: int = 0  # grasps of earlier sweeps removed by ``replace``
 
     def to_json(self) -> dict:
         return {"units": self.units, "skipped": self.skipped, "failed": self.failed, "candidates": self.candidates,
                 "grasps": self.grasps, "force_closure": self.force_closure, "rejected": dict(self.rejected),
-                "seconds": round(self.seconds, 3), "objects": self.per_object}
+                "seconds": round(self.seconds, 3), "objects": self.per_object, "replaced": self.replaced}
 
 
 @dataclass(frozen=True)
@@ -171,22 +172,36 @@ def _stored_names(db: Database, units: Sequence[UnitSpec]) -> list[UnitSpec]:
     return [replace(u, label=renamed.get(u.label or u.object_name, u.label)) for u in units]
 
 
-def _check_chunks(db: Database, hand: str, seed: int, todo: Sequence[UnitSpec]) -> None:
-    """Refuse to sweep an object again with settings that differ from a stored sweep's in ``--chunk`` alone:
-    the same candidates cut into other units, so every grasp would be stored twice (a resume with another
-    ``--chunk`` stored 404 poses again)."""
+def _check_sweeps(db: Database, hand: str, seed: int, todo: Sequence[UnitSpec], replace: bool) -> list[tuple[str, str]]:
+    """The stored sweeps (object, settings JSON) this run would sweep again
+    (:func:`planner.plan.sweep.stored_conflict`: every grasp stored twice,
+    with the same pose): refused, or with ``replace`` returned to be
+    removed. A stored sweep that differs in ``--chunk`` alone is refused in
+    any case: it is this run's, resumed with another chunk."""
+    from planner.plan.sweep import stored_conflict
+
     def without_chunk(settings: str) -> str:
         return json.dumps({k: v for k, v in json.loads(settings).items() if k != "chunk"}, sort_keys=True)
 
+    removed = []
     for name in sorted({u.label or u.object_name for u in todo}):
-        ours = {u.settings.to_json() for u in todo if (u.label or u.object_name) == name}
-        same = {without_chunk(s) for s in ours}
-        for stored in db.swept_settings(name, hand, seed) - ours:
-            if without_chunk(stored) in same:
+        ours = sorted({u.settings.to_json() for u in todo if (u.label or u.object_name) == name})
+        for stored in sorted(db.swept_settings(name, hand, seed) - set(ours)):
+            if without_chunk(stored) in {without_chunk(s) for s in ours}:
                 chunk = json.loads(stored).get("chunk")
                 raise InputError(f"{name} was swept for {hand} with these settings but --chunk {chunk}: another "
                                  f"--chunk cuts the same candidates into other units and would store every grasp "
                                  f"again; resume with --chunk {chunk}, or use another --db")
+            why = stored_conflict(stored, ours)
+            if why is None:
+                continue
+            if not replace:
+                raise InputError(f"{name} was swept for {hand} with seed {seed} and other settings ({why}): these "
+                                 "try the same candidates again and would store their grasps twice; give another "
+                                 "--seed for other candidates, another --db, or --replace to remove the stored "
+                                 "sweep (its grasps and their trials) and sweep it again")
+            removed.append((name, stored))
+    return removed
 
 
 def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSpec]) -> None:
@@ -254,7 +269,7 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
              use_ray: bool = False, ray_address: str | None = None, unit_timeout: float | None = None,
              progress: Callable[[GenerateProgress], None] | None = None,
              mass: float | None = None, density: float | None = None, friction: float | None = None,
-             on_table: int = 0) -> Summary:
+             on_table: int = 0, replace: bool = False) -> Summary:
     """Build (or extend) a grasp database; finished units are skipped, so a
     run that was killed resumes when called again. Units run in this process
     (``workers`` 1), in a crash-safe pool of ``workers`` processes, or on Ray
@@ -266,7 +281,11 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
     ``on_table`` > 0: plan on the table in each object's ``on_table`` most
     probable resting poses (the grasps keep the hand off the table and record
     its plane, ``table_plane``), not on the object alone.
-    ``progress(GenerateProgress)`` once the work is planned, then as it goes."""
+    ``progress(GenerateProgress)`` once the work is planned, then as it goes.
+    An object swept for ``hand`` with ``seed`` and other settings that try
+    the same candidates (another planner version, budget, reach settings...)
+    is refused; ``replace`` removes that sweep (its grasps and their trials)
+    first and sweeps it anew."""
     from planner.run import pool
     from planner.run.progress import Tally
 
@@ -288,7 +307,8 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
         done = {d: db.units_done(hand, d, seed) for d in sorted({u.settings.digest for u in units})}
         todo = [u for u in units if (u.label, u.chunk) not in done[u.settings.digest]]
         _check_stored(db, units, todo)
-        _check_chunks(db, hand, seed, todo)
+        for name, stored in _check_sweeps(db, hand, seed, todo, replace):
+            summary.replaced += db.remove_sweep(name, hand, seed, stored)
         rule = rule or db.rule()
         db.apply_rule(rule)
         summary.skipped = len(units) - len(todo)

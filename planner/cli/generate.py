@@ -81,6 +81,9 @@ PLAUSIBLE_DENSITY = (5.0, 23_000.0)
               "--object-pose/--on-table` tries them first.")
 @click.option("--stable-poses", type=click.IntRange(min=1), default=3, show_default=True,
               help="With --on-table: how many resting poses, most probable first.")
+@click.option("--replace", is_flag=True, help="Remove an object's stored sweep for this hand and seed with other "
+              "settings (another planner version, budget, reach settings...: the same candidates), its grasps and "
+              "their trials, and sweep it again; without it such a run is refused (it would store every grasp twice).")
 @click.option("--quiet", is_flag=True, help="No progress bar and no summary table.")
 @click.option("--json", "as_json", is_flag=True, help="Print a machine-readable summary.")
 def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approaches: int | None,
@@ -89,7 +92,7 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
              density: float | None, friction: float | None, workers: int,
              ray_target: str | None, unit_timeout: float | None, chunk: int | None, reach_placements: int,
              reach_top: int, volume: bool, settle: bool | None, fc_budget: int, reach_weight: float | None,
-             on_table: bool, stable_poses: int, quiet: bool, as_json: bool) -> None:
+             on_table: bool, stable_poses: int, replace: bool, quiet: bool, as_json: bool) -> None:
     """Sweep objects for a hand into the database (the help text: the decorator's, which names the manifest
     line as the manifest reader declares it)."""
     if not on_table:
@@ -134,7 +137,7 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
                                scale=scale, rule=rule, progress=advance, use_ray=ray_target is not None,
                                ray_address=None if ray_target in (None, "local") else ray_target,
                                unit_timeout=unit_timeout, mass=mass, density=density, friction=friction,
-                               on_table=stable_poses if on_table else 0)
+                               on_table=stable_poses if on_table else 0, replace=replace)
     finally:
         if tasks:
             bar.stop()
@@ -165,6 +168,8 @@ def _print_summary(summary: api.Summary, db_path: Path) -> None:
                   f"time: {summary.seconds:.1f} s")
     if summary.rejected:
         console.print("rejected: " + ", ".join(f"{k} {v}" for k, v in sorted(summary.rejected.items())))
+    if summary.replaced:
+        console.print(f"replaced: {summary.replaced} grasps of the earlier sweeps removed (--replace)")
     for row in summary.per_object:
         if row.get("density") is not None and not PLAUSIBLE_DENSITY[0] <= row["density"] <= PLAUSIBLE_DENSITY[1]:
             click.echo(f"note: {row['object']} weighs {row['mass']:.3g} kg in its volume: {row['density']:.3g} kg/m^3, "

@@ -182,6 +182,19 @@ class Writing:
                 self._set_meta(conn, "p_hold_models", json.dumps(known, sort_keys=True))
         return int(unit_id)  # type: ignore[arg-type]
 
+    def remove_sweep(self, obj: str, hand: str, seed: int, settings: str) -> int:
+        """Remove every unit of ``obj`` for ``hand`` with ``seed`` and
+        ``settings`` (JSON, as stored), their grasps and the grasps' trials
+        (foreign keys cascade), and re-rank the rest, in one transaction;
+        returns the number of grasps removed."""
+        with self._transaction() as conn:
+            where = "FROM units WHERE object = ? AND hand = ? AND seed = ? AND settings = ?"
+            key = (obj, hand, seed, settings)
+            count = conn.execute(f"SELECT COALESCE(SUM(grasps), 0) {where}", key).fetchone()[0]
+            conn.execute(f"DELETE {where}", key)
+            conn.execute(_RERANK, (obj, hand))
+        return int(count)
+
     def _scores(self, grasps: Sequence[Grasp], hand: str, rule: RankingRule) -> tuple[np.ndarray, list, list]:
         """(n,) scores, the n p_hold and the n p_hold_trial values (None: no
         model, no trial with an update) of grasps of ``hand`` as

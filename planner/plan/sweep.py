@@ -353,3 +353,29 @@ def check_sampler(settings: SweepSettings, hand: HandSpec) -> None:
     if settings.sampler == "antipodal" and hand.jaw is None:
         raise InputError(f"hand '{hand.name}': the antipodal sampler needs a parallel jaw; use --sampler surface or "
                          "box")
+
+
+def stored_conflict(stored: str, ours: Sequence[str]) -> str | None:
+    """Why a sweep stored with settings ``stored`` (JSON, as the units table
+    holds it) would be swept again by a run with settings ``ours`` (JSON, one
+    per table plane), or None: another table plane, an import, or explicit
+    preshapes that share none is another set of candidates; any other
+    difference (the planner's version, a budget, the reach settings, the
+    preshapes named or not) tries the same candidates again and would store
+    their grasps twice. The reason lists what differs, ours then stored."""
+    old = json.loads(stored)
+    if "import" in old:
+        return None
+    for new in map(json.loads, ours):
+        if new.get("table_plane") != old.get("table_plane"):
+            continue
+        if new.get("preshapes") and old.get("preshapes") and not set(new["preshapes"]) & set(old["preshapes"]):
+            continue
+        keys = sorted(k for k in new.keys() | old.keys() if new.get(k) != old.get(k))
+        return ", ".join(f"{_NAMED.get(k, k)} {json.dumps(new.get(k))} (stored {json.dumps(old.get(k))})"
+                         for k in keys)
+    return None
+
+
+#: How :func:`stored_conflict` names the settings that are not options.
+_NAMED = {"algorithm": "the planner's algorithm version", "table_version": "the table sweep's version"}

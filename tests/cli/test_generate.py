@@ -205,6 +205,52 @@ def test_a_resume_with_another_chunk_is_refused_not_stored_twice(box_db: Path, t
     assert code == 0, err
 
 
+@pytest.mark.parametrize("args, differs", [
+    (["--fc-budget", "0"], "fc_budget 0 (stored 1000)"),
+    (["--reach-top", "0"], "reach_top 0 (stored 8)"),
+    (["--preshapes", "wide,half"], 'preshapes ["wide", "half"] (stored ["wide"])'),
+])
+def test_a_run_that_tries_the_stored_candidates_again_is_refused_or_replaced(box_db: Path, tmp_path: Path,
+                                                                             args: list[str], differs: str) -> None:
+    """Settings that leave the candidates as they were started a second sweep: every grasp stored again with
+    the same pose (best --top 4 gave one grasp four times; an export held each pose twice). Refused, naming what
+    differs; --replace removes the stored sweep and its trials, and sweeps it again."""
+    db = tmp_path / "g.db"
+    shutil.copy(box_db, db)
+    before = snapshot(db)
+    code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(db), *FAST, "--quiet", *args)
+    one_line_error(code, err, 2, "box was swept for panda with seed 0 and other settings (" + differs, "--replace")
+    assert snapshot(db) == before
+    code, _, err = grasp("validate", "--db", str(db), "--object", "box", "--hand", "panda", "--top", "2",
+                         "--robust", "0")
+    assert code == 0, err
+    code, out, err = grasp("generate", "box", "--hand", "panda", "--db", str(db), *FAST, "--json", "--replace", *args)
+    assert code == 0, err
+    assert json.loads(out)["replaced"] == len(before)
+    with sqlite3.connect(db) as conn:
+        poses = [r[0] for r in conn.execute("SELECT pose FROM grasps")]
+        assert len(poses) == len(set(poses)) > 0
+        assert conn.execute("SELECT COUNT(*) FROM mujoco").fetchone()[0] == 0  # the removed grasps' trials
+        assert conn.execute("SELECT COUNT(DISTINCT settings) FROM units").fetchone()[0] == 1  # this run's alone
+
+
+def test_an_upgraded_planner_does_not_add_its_grasps_beside_the_old_ones(box_db: Path, tmp_path: Path) -> None:
+    """After an upgrade (ALGORITHM_VERSION is in the settings) the same command swept every object again: 39
+    grasps became 78, each pose twice with another p_hold. Refused, saying so; sweeps of other candidates (another
+    seed, preshapes the stored sweep has none of) are added."""
+    db = tmp_path / "g.db"
+    shutil.copy(box_db, db)
+    with sqlite3.connect(db) as conn:
+        conn.execute("UPDATE units SET settings = replace(settings, '\"algorithm\": ', '\"algorithm\": 1'), "
+                     "settings_hash = 'old' || settings_hash")  # as an earlier version stored them
+    code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(db), *FAST, "--quiet")
+    one_line_error(code, err, 2, "the planner's algorithm version")
+    for other in (["--seed", "5"], ["--preshapes", "half"]):
+        code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(db), *FAST[:4], *FAST[6:], "--quiet",
+                             *(other if other[0] == "--preshapes" else ["--preshapes", "wide", *other]))
+        assert code == 0, err
+
+
 def test_a_weight_no_solid_has_is_noted(tmp_path: Path) -> None:
     """A 5 mm bead at the default 0.2 kg is 1.6e6 kg/m^3 (every measure and trial at that weight) without a
     word; now a note after the summary, none at a density given."""
