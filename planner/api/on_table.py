@@ -89,7 +89,7 @@ def best_on_table(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int 
     spec = load_hand(hand)
     out = []
     with open_db(Path(db_path), create=False, readonly=True) as db, db.snapshot(), Sim() as sim:
-        key, obj = _stored(db, name, hand)
+        key, obj = _stored(db, name, hand, "the table check")
         scene = ReachScene(sim, spec, obj, ReachSettings(table_height=table_height), base)
         for resting in resting_poses(obj.mesh, obj.com, poses):
             pose = resting.placed(xy[0], xy[1], table_height)

@@ -43,7 +43,7 @@ def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: i
     if Path(out).suffix.lower() != ".png":
         raise InputError(f"{out}: the picture is written as PNG; give a .png path")
     with open_db(Path(db_path), create=False, readonly=True) as db:
-        key, obj = _stored(db, name, hand)
+        key, obj = _stored(db, name, hand, "the picture")
         grasps = db.best(key, hand, count, first - 1) if spacing is None else \
             best(key, hand, db_path=db_path, top=first - 1 + count, spacing=spacing)[first - 1:]
     if not grasps:
@@ -61,6 +61,7 @@ def view(name: str, hands: Sequence[str] | None = None, *, db_path: Path = DEFAU
     placed in the world with the arm (stored ones; if none is reachable,
     grasps planned on the spot with the table, as ``best --object-pose``). Returns the running viewer (``url``,
     ``stop()``)."""
+    from planner.db.hand_files import refuse_edited
     from planner.db.objects import stored_object
     from planner.present import scene as scenes
     from planner.present import viewer
@@ -74,6 +75,10 @@ def view(name: str, hands: Sequence[str] | None = None, *, db_path: Path = DEFAU
             raise InputError(f"no grasps of '{key}' in {db_path}; run `grasp generate {name} --hand panda`")
         obj = stored_object(row)
     chosen = list(hands) if hands else stored
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        for h in chosen:
+            if h in stored:
+                refuse_edited(db, h, "the viewer")
     missing = [h for h in chosen if h not in stored]
     if missing:
         raise InputError(f"no grasps of '{key}' for hand(s) {', '.join(missing)} in {db_path} "

@@ -98,6 +98,15 @@ def mesh_modified(name: str, *, db_path: Path = DEFAULT_DB) -> str | None:
         return row.source if edited_since(Path(row.source), db.last_finished(name)) else None
 
 
+def hand_edited(hand: str, *, db_path: Path = DEFAULT_DB) -> list[str]:
+    """The files of ``hand`` edited since the database stored its grasps (:func:`planner.db.hand_files.edited`;
+    [] for none): its stored grasps were planned on the hand as it was."""
+    from planner.db.hand_files import edited
+
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        return edited(db, hand)
+
+
 def ranks_stale(name: str, hand: str, *, db_path: Path = DEFAULT_DB) -> bool:
     """Whether ``name``'s grasps for ``hand`` carry trial verdicts their ranks do not yet reflect (a ``grasp
     validate`` killed before it re-ranked them; the next ``grasp validate`` on the database re-ranks first)."""

@@ -85,7 +85,7 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
     spec = load_hand(hand)
     missed = misses if misses is not None else []
     with open_db(Path(db_path), create=False, readonly=True) as db, db.snapshot(), Sim() as sim:
-        key, obj = _stored(db, name, hand)
+        key, obj = _stored(db, name, hand, "the reach check")
         settings = ReachSettings(pregrasp_distance=pregrasp_distance)
         lowest = float((obj.mesh.vertices @ obj_pose[:3, :3].T)[:, 2].min() + obj_pose[2, 3])
         if lowest < settings.table_height - BELOW_TABLE:

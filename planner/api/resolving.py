@@ -80,9 +80,14 @@ def _from_file(db: Database, name: str, key: str, source: str) -> tuple[str, Obj
     return key, row
 
 
-def _stored(db: Database, name: str, hand: str) -> tuple[str, PreparedObject]:
-    """Name and rebuilt object of a stored object; an object without grasps is an error."""
+def _stored(db: Database, name: str, hand: str, doing: str) -> tuple[str, PreparedObject]:
+    """Name and rebuilt object of a stored object, for ``doing`` with ``hand``'s
+    geometry (refused where the hand was edited since its grasps were stored:
+    :func:`planner.db.hand_files.refuse_edited`); an object without grasps is an error."""
+    from planner.db.hand_files import refuse_edited
     from planner.db.objects import stored_object
+
+    refuse_edited(db, hand, doing)
 
     key, row = resolve_object(db, name)
     if row is None:

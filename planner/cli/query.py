@@ -101,6 +101,10 @@ def _extrapolated(name: str, hand: str, db_path: Path, outside: list[str]) -> No
         click.echo(f"note: the ranks of {name}'s {hand} grasps predate trial verdicts stored by a `grasp validate` "
                    f"that was killed before it re-ranked them: grasps it saw drop may still rank first; any `grasp "
                    f"validate --db {db_path}` re-ranks them first", err=True)
+    files = api.hand_edited(hand, db_path=db_path)
+    if files:
+        click.echo(f"note: hand '{hand}' was edited since {db_path} stored its grasps ({', '.join(files)} changed): "
+                   "these are the grasps of the hand as it was; `show` and `best --object-pose` refuse it", err=True)
     modified = api.mesh_modified(name, db_path=db_path)
     if modified:
         click.echo(f"note: {modified} was modified (its modification time) after {name}'s grasps were planned on "

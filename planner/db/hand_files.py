@@ -6,7 +6,10 @@ the hand's files: a hand edited after a sweep would get its new grasps stored,
 its old ones validated, or imported grasps scored, under the same name as the
 hand it was. Every writer that uses a hand's geometry (``generate``,
 ``validate``, ``import``) calls :func:`check_hand_files` first: an edited hand
-is refused, naming the files, before anything is written. The record is made
+is refused, naming the files, before anything is written; every reader that
+puts stored joint values on the hand's geometry (``show``, ``view``, ``best``
+at an object pose or on the table) calls :func:`refuse_edited`, and ``best``
+notes it. The record is made
 by the first such write (for a database written before it existed: the files
 as they are then).
 """
@@ -22,6 +25,26 @@ from planner.specs.hand_files import changed, hand_files
 
 #: The meta key of the record.
 META_KEY = "hand_files"
+
+
+def edited(db: Database, hand: str) -> list[str]:
+    """The files of ``hand`` that differ from those the database's grasps of
+    it were made with ([]: the same, no record, or no grasps of it)."""
+    before = json.loads(db.meta(META_KEY) or "{}").get(hand)
+    if before is None:
+        return []
+    now = hand_files(hand)
+    return changed(before, now) if before != now and db.hand_swept(hand) else []
+
+
+def refuse_edited(db: Database, hand: str, doing: str) -> None:
+    """Refuse ``doing`` (what would put the stored grasps' joint values on
+    the hand's geometry: a picture, the reach check) with an edited hand."""
+    files = edited(db, hand)
+    if files:
+        raise InputError(f"hand '{hand}' was edited since {db.path.name} stored its grasps ({', '.join(files)} "
+                         f"changed): {doing} would put their joint values on the edited hand; restore its files, "
+                         f"or sweep the edited hand under a new name (copy hands/{hand}/ and preshapes/{hand}.toml)")
 
 
 def check_hand_files(db: Database, hands: Iterable[str]) -> None:

@@ -104,6 +104,26 @@ def test_an_edited_hand_is_refused_by_every_writer_and_nothing_is_written(projec
         assert json.loads(db.meta(META_KEY) or "{}")["panda"] == hand_files("panda")
 
 
+def test_an_edited_hand_is_refused_where_stored_joints_meet_its_geometry_and_noted_by_best(
+        project: Path, tmp_path: Path) -> None:
+    """show and best --object-pose put the stored joint values on the edited hand's links without a word (a
+    longer finger drawn, reach checked on geometry never planned); best's numbers are the stored grasps: a note."""
+    db_path = tmp_path / "g.db"
+    swept(db_path)
+    edit(project / "hands" / "panda" / "hand.toml", "tcp = [0.0, 0.0, 0.1034]", "tcp = [0.0, 0.0, 0.1040]")
+    load_hand.cache_clear()
+    db = ["--db", str(db_path)]
+    for args, doing in ((["show", "box", "--hand", "panda", "--out", str(tmp_path / "a.png")], "the picture"),
+                        (["best", "box", "--hand", "panda", "--object-pose", "0.5,0,0.04,0,0,0,1"], "the reach check"),
+                        (["best", "box", "--hand", "panda", "--on-table"], "the table check")):
+        code, _, err = grasp(*args, *db)
+        one_line_error(code, err, InputError.exit_code, "hand 'panda' was edited since g.db",
+                       "hands/panda/hand.toml changed", doing)
+    assert not (tmp_path / "a.png").exists()
+    code, out, err = grasp("best", "box", "--hand", "panda", *db)
+    assert code == 0 and out.startswith("#1") and "note: hand 'panda' was edited since" in err
+
+
 def test_a_database_without_grasps_of_the_hand_or_without_a_record_takes_its_files(project: Path,
                                                                                    tmp_path: Path) -> None:
     db_path = tmp_path / "g.db"
