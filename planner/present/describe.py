@@ -99,7 +99,7 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
                  f"{len(g.contacts)} contacts; reachability {reach}")
     if m is not None:
         settled = "" if m.settled_epsilon is None else f"; settled epsilon {m.settled_epsilon:.4f}"
-        lines.append(f"    holds {m.resist_worst:.1f} times its weight in the worst direction (mean "
+        lines.append(f"    holds {m.resist_worst:.1f} times its weight in the worst of 14 directions (mean "
                      f"{m.resist_mean:.1f}); push {m.push:.2f} (1 = pads square on); feasibility "
                      f"{','.join(m.reasons) or 'ok'}{settled}")
     if not g.force_closure:
@@ -107,10 +107,18 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
                      "shows only where the object has fewer than asked for); its p_hold is how often labelled grasps "
                      "with these measures held (a thin pinch often turns the object into line as it closes); "
                      "`grasp validate` tries it")
+    held_by = []
     for name, trial in (("shake trial (PyBullet)", g.validation), ("MuJoCo trial", g.mujoco)):
         if trial is not None:
             verdict = "held" if trial.success else "dropped"
-            lines.append(f"    {name}: {verdict} ({trial.reason or 'no reason stored'})")
+            why = "" if trial.reason == verdict else f" ({trial.reason or 'no reason stored'})"
+            lines.append(f"    {name}: {verdict}{why}")
+            held_by += [name] if trial.success else []
+    if m is not None and "cannot_hold_weight" in m.reasons and held_by:
+        lines.append(f"    its weight: the {held_by[-1]} held it loaded along one direction (the object's -z, or the "
+                     f"table's down, unless `grasp validate --set down=...`); cannot_hold_weight is the worst of 14 "
+                     f"directions, where the fingers' force limits hold {m.resist_worst:.1f} times its weight: hold "
+                     "it as it stands, do not turn it")
     for stage, joints in (arm or {}).items():
         lines.append(f"    arm at {stage} [rad]: " + ", ".join(f"{k} {v:.4f}" for k, v in joints.items()))
     return lines

@@ -59,7 +59,7 @@ def test_best_prints_one_line_per_grasp_and_show_writes_a_png(box_db: Path, tmp_
     first = out.split("\n#2")[0]
     assert "object frame: hand base (panda_hand) at (" in first and "tool centre point at (" in first
     assert "orientation xyzw (" in first and "approach direction (" in first and "finger width " in first
-    assert " holds " in first and " times its weight in the worst direction" in first  # analytic measures
+    assert " holds " in first and " times its weight in the worst of 14 directions" in first  # analytic measures
     assert "feasibility " in first
     assert "world frame" not in first
     code, out, err = grasp("show", "box", "--hand", "panda", "--db", str(box_db), "--out", str(tmp_path / "g.png"))
@@ -329,3 +329,25 @@ def test_best_says_when_its_ranks_predate_stored_trial_verdicts(box_db: Path, tm
     code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(db))
     assert code == 0 and out.startswith("#1 box/panda"), err
     assert "note: the ranks of box's panda grasps predate trial verdicts" in err and f"--db {db}` re-ranks" in err
+
+
+def test_a_held_grasp_that_cannot_hold_its_weight_in_every_direction_says_why_both_hold() -> None:
+    """The quick start's best mug grasp read 'cannot_hold_weight', 'p_hold >0.999' and 'MuJoCo trial: held (held)'
+    with nothing to tell the user which to trust: the trial loads one direction, the flag is the worst of 14."""
+    from dataclasses import replace
+
+    from planner.present.describe import describe
+    from planner.record.grasp import Trial
+    from planner.record.measures import Measures
+    from planner.specs.hands import load_hand
+    from tests.helpers import made_up
+
+    weak = Measures(0.2, 5.2, 0.01, 0.01, 0.97, ("cannot_hold_weight",))
+    held, dropped = Trial(True, 2, 0.001, 0.01, 0.002, 0.02, "held"), Trial(False, 1, 0.03, 0.2, 0.1, 0.5, "slipped")
+    lines = describe(replace(made_up(1, 0.01), measures=weak, mujoco=held), load_hand("panda"))
+    assert "    MuJoCo trial: held" in lines and not any("(held)" in line for line in lines)
+    assert any(line.startswith("    its weight: the MuJoCo trial held it loaded along one direction") and
+               "worst of 14 directions, where the fingers' force limits hold 0.2 times its weight" in line
+               for line in lines)
+    lines = describe(replace(made_up(1, 0.01), measures=weak, mujoco=dropped), load_hand("panda"))
+    assert "    MuJoCo trial: dropped (slipped)" in lines and not any("its weight:" in line for line in lines)
