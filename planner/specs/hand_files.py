@@ -21,9 +21,10 @@ import json
 from pathlib import Path
 
 from planner import assets
+from planner.errors import ConfigError
 from planner.specs.hands import check_hand_name
 from planner.specs.toml import read_toml
-from planner.specs.urdf import load_model, mesh_path
+from planner.specs.urdf import mesh_path, urdf_xml
 
 #: Hex digits of each file's sha256 kept (64 bits: a collision by chance is not a concern).
 DIGEST_CHARS = 16
@@ -62,9 +63,15 @@ def changed(stored: dict[str, str], now: dict[str, str]) -> list[str]:
 
 
 def _collision_meshes(urdf: Path) -> list[Path]:
-    model = load_model(urdf)
-    names = {c.geometry.mesh.filename for link in model.robot.links for c in link.collisions
-             if c.geometry is not None and c.geometry.mesh is not None and c.geometry.mesh.filename}
+    """The mesh files of the URDF's links' ``<collision>`` elements, read with lxml (not yourdfpy, which loads
+    trimesh and scipy: ``grasp best`` checks the hand's files and starts in a fraction of a second)."""
+    from lxml import etree
+
+    try:
+        robot = etree.fromstring(urdf_xml(urdf))  # checked well formed, its XML declaration dropped
+    except ConfigError:
+        return []  # the hand's loader says what is wrong with it
+    names = {m.get("filename") for m in robot.iterfind("link/collision/geometry/mesh") if m.get("filename")}
     paths = {mesh_path(urdf, n) for n in names}
     return sorted(p for p in paths if p.is_file())  # a missing mesh is the hand loader's error to give
 

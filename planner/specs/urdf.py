@@ -37,7 +37,7 @@ MOVABLE = ("revolute", "prismatic", "continuous")
 _DECLARATION = re.compile(rb"^\s*<\?xml[^>]*\?>")
 
 
-def _xml(path: Path) -> bytes:
+def urdf_xml(path: Path) -> bytes:
     """The URDF's text without its XML declaration, checked to be well formed
     (yourdfpy alone would recover from broken XML silently)."""
     try:
@@ -52,7 +52,7 @@ def load_model(path: Path) -> yourdfpy.URDF:
     """The URDF's kinematic model (no meshes loaded); a malformed file is a ConfigError."""
     import yourdfpy
 
-    text = _xml(path)
+    text = urdf_xml(path)
     try:
         return yourdfpy.URDF.load(io.BytesIO(text), build_scene_graph=False, build_collision_scene_graph=False,
                                   load_meshes=False, load_collision_meshes=False)
@@ -97,7 +97,7 @@ def cut_subtree(source: Path, root_link: str, where: str) -> Path:
             mesh = element.geometry.mesh if element.geometry is not None else None
             if mesh is not None:
                 meshes[mesh.filename] = _mesh_file(source, mesh.filename)
-    robot = etree.fromstring(_xml(source), etree.XMLParser(remove_comments=True))
+    robot = etree.fromstring(urdf_xml(source), etree.XMLParser(remove_comments=True))
     for element in list(robot):
         name = element.get("name")
         if (element.tag == "link" and name not in keep) or (element.tag == "joint" and name not in joints):

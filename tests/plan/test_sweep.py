@@ -113,19 +113,23 @@ def test_the_settles_trial_is_in_the_digest_of_a_sweep_that_settles_only() -> No
     assert still.digest == SweepSettings().resolved("antipodal").digest
 
 
-def test_a_resumed_run_with_another_trial_redoes_its_units_apart(tmp_path: Path) -> None:
-    """Finished units of other trial settings are not taken as done: they
-    are stored as units of their own, and the same settings again skip."""
+def test_a_run_with_another_settle_trial_is_not_taken_as_done_nor_stored_beside(tmp_path: Path) -> None:
+    """Finished units of other trial settings are not taken as done; they
+    were stored as units of their own, the same candidates' grasps twice:
+    refused, or replaced with ``replace``; the same settings again skip."""
     db = tmp_path / "g.db"
     small = SweepSettings(approaches=2, rolls=1, preshapes=("pinch",), reach_placements=0)
+    other = replace(small, trial=ShakeSettings(gear_erp=0.5))
     first = api.generate(["box"], "barrett", db_path=db, settings=small)
-    other = api.generate(["box"], "barrett", db_path=db, settings=replace(small, trial=ShakeSettings(gear_erp=0.5)))
-    again = api.generate(["box"], "barrett", db_path=db, settings=small)
-    assert first.units == other.units == 1 and other.skipped == 0
+    with pytest.raises(InputError, match=r"other settings \(trial .*gear_erp.*--replace"):
+        api.generate(["box"], "barrett", db_path=db, settings=other)
+    replaced = api.generate(["box"], "barrett", db_path=db, settings=other, replace=True)
+    again = api.generate(["box"], "barrett", db_path=db, settings=other)
+    assert first.units == replaced.units == 1 and replaced.replaced == first.grasps
     assert again.units == 0 and again.skipped == 1
     with sqlite3.connect(db) as conn:
         trials = [json.loads(s)["trial"]["gear_erp"] for (s,) in conn.execute("SELECT settings FROM units")]
-    assert sorted(trials) == [0.5, ShakeSettings().gear_erp]
+    assert trials == [0.5]
 
 
 def test_the_force_closure_budget_is_shared_evenly_by_an_objects_units() -> None:
