@@ -12,17 +12,18 @@ test may patch them (:func:`_lazy`).
 from __future__ import annotations
 
 import importlib
-import json
 import math
 import time
 from collections import Counter
 from collections.abc import Callable, Sequence
 from contextlib import closing
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
+from dataclasses import replace as replaced
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from planner.api.resolving import DEFAULT_DB, PROPERTY_RTOL
+from planner.api.sweeps import Replacement
 from planner.db.hand_files import check_hand_files
 from planner.db.ranking import RankingRule
 from planner.db.store import Database, UnitRow, open_for_writing
@@ -169,39 +170,7 @@ def _stored_names(db: Database, units: Sequence[UnitSpec]) -> list[UnitSpec]:
         other = [n for n in names if n not in taken]
         if names and label not in names and other:
             renamed[label] = other[0]
-    return [replace(u, label=renamed.get(u.label or u.object_name, u.label)) for u in units]
-
-
-def _check_sweeps(db: Database, hand: str, seed: int, todo: Sequence[UnitSpec], replace: bool) -> list[tuple[str, str]]:
-    """The stored sweeps (object, settings JSON) this run would sweep again
-    (:func:`planner.plan.sweep.stored_conflict`: every grasp stored twice,
-    with the same pose): refused, or with ``replace`` returned to be
-    removed. A stored sweep that differs in ``--chunk`` alone is refused in
-    any case: it is this run's, resumed with another chunk."""
-    from planner.plan.sweep import stored_conflict
-
-    def without_chunk(settings: str) -> str:
-        return json.dumps({k: v for k, v in json.loads(settings).items() if k != "chunk"}, sort_keys=True)
-
-    removed = []
-    for name in sorted({u.label or u.object_name for u in todo}):
-        ours = sorted({u.settings.to_json() for u in todo if (u.label or u.object_name) == name})
-        for stored in sorted(db.swept_settings(name, hand, seed) - set(ours)):
-            if without_chunk(stored) in {without_chunk(s) for s in ours}:
-                chunk = json.loads(stored).get("chunk")
-                raise InputError(f"{name} was swept for {hand} with these settings but --chunk {chunk}: another "
-                                 f"--chunk cuts the same candidates into other units and would store every grasp "
-                                 f"again; resume with --chunk {chunk}, or use another --db")
-            why = stored_conflict(stored, ours)
-            if why is None:
-                continue
-            if not replace:
-                raise InputError(f"{name} was swept for {hand} with seed {seed} and other settings ({why}): these "
-                                 "try the same candidates again and would store their grasps twice; give another "
-                                 "--seed for other candidates, another --db, or --replace to remove the stored "
-                                 "sweep (its grasps and their trials) and sweep it again")
-            removed.append((name, stored))
-    return removed
+    return [replaced(u, label=renamed.get(u.label or u.object_name, u.label)) for u in units]
 
 
 def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSpec]) -> None:
@@ -284,8 +253,9 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
     ``progress(GenerateProgress)`` once the work is planned, then as it goes.
     An object swept for ``hand`` with ``seed`` and other settings that try
     the same candidates (another planner version, budget, reach settings...)
-    is refused; ``replace`` removes that sweep (its grasps and their trials)
-    first and sweeps it anew."""
+    is refused; ``replace`` sweeps it anew and removes the stored sweep (its
+    grasps and their trials) once the new one is whole
+    (:class:`planner.api.sweeps.Replacement`)."""
     from planner.run import pool
     from planner.run.progress import Tally
 
@@ -307,8 +277,8 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
         done = {d: db.units_done(hand, d, seed) for d in sorted({u.settings.digest for u in units})}
         todo = [u for u in units if (u.label, u.chunk) not in done[u.settings.digest]]
         _check_stored(db, units, todo)
-        for name, stored in _check_sweeps(db, hand, seed, todo, replace):
-            summary.replaced += db.remove_sweep(name, hand, seed, stored)
+        replacing = Replacement(db, hand_spec, seed, units, todo, replace)  # refuses a second sweep
+        replacing.ready()
         rule = rule or db.rule()
         db.apply_rule(rule)
         summary.skipped = len(units) - len(todo)
@@ -327,7 +297,7 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
 
         tell()
         if unit_timeout:
-            todo = [replace(u, timeout=unit_timeout) for u in todo]
+            todo = [replaced(u, timeout=unit_timeout) for u in todo]
         hard_timeout = unit_timeout + UNIT_TIMEOUT_GRACE if unit_timeout else None
         ray = (ray_address or "local") if use_ray else None
         unit_result = _lazy("UnitResult")
@@ -337,10 +307,12 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
             for unit, outcome, seconds in outcomes:
                 result = outcome if isinstance(outcome, unit_result) else unit_result(unit, error=str(outcome))
                 db.write_unit(unit_row(result, seconds), result.obj, result.grasps, rule)
+                replacing.stored(unit, bool(result.error))
                 _tally(summary, result, seconds)
                 finished += 1
                 tally.finish(index[_unit_key(unit)])
                 tell(result)
+        summary.replaced = replacing.removed
     summary.seconds = time.perf_counter() - start
     return summary
 

@@ -355,7 +355,8 @@ class ObjectSurface:
         if not len(keys):
             return np.zeros(len(a), np.int64), np.zeros(len(a), bool)
         want = np.minimum(a, b).astype(np.int64) * len(self.mesh.vertices) + np.maximum(a, b)
-        # an edge of more than two faces: its last pair, as the table's sharpness always took
+        # the last of equal keys (none: trimesh's face_adjacency leaves out an edge of more than two faces,
+        # which falls back to the link's normal as an open border does)
         at = np.maximum(np.searchsorted(keys, want, side="right") - 1, 0)
         return at, keys[at] == want
 

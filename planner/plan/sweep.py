@@ -355,14 +355,15 @@ def check_sampler(settings: SweepSettings, hand: HandSpec) -> None:
                          "box")
 
 
-def stored_conflict(stored: str, ours: Sequence[str]) -> str | None:
-    """Why a sweep stored with settings ``stored`` (JSON, as the units table
-    holds it) would be swept again by a run with settings ``ours`` (JSON, one
-    per table plane), or None: another table plane, an import, or explicit
-    preshapes that share none is another set of candidates; any other
-    difference (the planner's version, a budget, the reach settings, the
-    preshapes named or not) tries the same candidates again and would store
-    their grasps twice. The reason lists what differs, ours then stored."""
+def stored_conflict(stored: str, ours: Sequence[str]) -> tuple[dict, dict, list[str]] | None:
+    """(stored settings, ours, the keys that differ) where a sweep stored with
+    settings ``stored`` (JSON, as the units table holds it) would be swept
+    again by a run with settings ``ours`` (JSON, one per table plane), else
+    None: another table plane, an import, or explicit preshapes that share
+    none is another set of candidates; any other difference (the planner's
+    version, a budget, the reach settings, the chunk, the preshapes named or
+    not or in another order) tries the same candidates again and would store
+    their grasps twice."""
     old = json.loads(stored)
     if "import" in old:
         return None
@@ -371,11 +372,14 @@ def stored_conflict(stored: str, ours: Sequence[str]) -> str | None:
             continue
         if new.get("preshapes") and old.get("preshapes") and not set(new["preshapes"]) & set(old["preshapes"]):
             continue
-        keys = sorted(k for k in new.keys() | old.keys() if new.get(k) != old.get(k))
-        return ", ".join(f"{_NAMED.get(k, k)} {json.dumps(new.get(k))} (stored {json.dumps(old.get(k))})"
-                         for k in keys)
+        return old, new, sorted(k for k in new.keys() | old.keys() if new.get(k) != old.get(k))
     return None
 
 
-#: How :func:`stored_conflict` names the settings that are not options.
+def differences(old: dict, new: dict, keys: Sequence[str]) -> str:
+    """``keys`` of two settings as a run's message says them: ours, then stored."""
+    return ", ".join(f"{_NAMED.get(k, k)} {json.dumps(new.get(k))} (stored {json.dumps(old.get(k))})" for k in keys)
+
+
+#: How :func:`differences` names the settings that are not options.
 _NAMED = {"algorithm": "the planner's algorithm version", "table_version": "the table sweep's version"}

@@ -116,7 +116,7 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
             held_by += [name] if trial.success else []
     if m is not None and "cannot_hold_weight" in m.reasons and held_by:
         lines.append(f"    its weight: the {held_by[-1]} held it loaded along one direction (the object's -z, or the "
-                     f"table's down, unless `grasp validate --set down=...`); cannot_hold_weight is the worst of 14 "
+                     f"table's down); cannot_hold_weight is the worst of 14 "
                      f"directions, where the fingers' force limits hold {m.resist_worst:.1f} times its weight: hold "
                      "it as it stands, do not turn it")
     for stage, joints in (arm or {}).items():

@@ -23,8 +23,10 @@ Geometry is read from the URDF (one fcl shape per ``<collision>`` element,
 as PyBullet makes one per element): ``<mesh>`` as the convex hull of the
 scaled mesh file (PyBullet collides a URDF mesh as its hull), ``<box>``,
 ``<cylinder>``, ``<sphere>`` as fcl primitives (PyBullet turns a URDF
-cylinder into a 32-sided hull: up to ~0.2 mm apart). fcl shapes carry no
-collision margin: they are the true geometry.
+cylinder into a 32-sided hull: up to ~0.2 mm apart; a hand's collision
+boxes and spheres are meshes in its cut URDF,
+:func:`planner.specs.urdf.cut_subtree`, so they reach here as hulls). fcl
+shapes carry no collision margin: they are the true geometry.
 """
 
 from __future__ import annotations

@@ -6,8 +6,10 @@ Model (one per hand and object, compiled once and reused for every grasp):
 
 - every URDF link below the root is a body at its joint's origin, with the
   URDF's inertial; revolute and prismatic joints with their limits; each
-  collision element a geom (boxes, cylinders and spheres as MuJoCo
-  primitives, meshes as their convex hulls, as MuJoCo collides them);
+  collision element a geom (cylinders as MuJoCo primitives, meshes as their
+  convex hulls, as MuJoCo collides them; a hand's collision boxes and
+  spheres are meshes already in its cut URDF:
+  :func:`planner.specs.urdf.cut_subtree`);
 - the hand's root link is a free body welded to a mocap body (``TARGET``);
 - a mimic joint is an equality constraint ``q = multiplier q_master + offset``;
 - every finger joint has a position actuator (``motor:<joint>``) whose gain and force range the

@@ -29,7 +29,9 @@ from planner.validation.tolerances import PAD_ALIGN, PAD_EDGE, PAD_SHARP
 @cache
 def link_planes(urdf: Path, link: str) -> tuple[np.ndarray, ...]:
     """(k, 4) face planes of each collision element's convex hull, link frame;
-    spheres and capsules (no sharp edges) give none."""
+    spheres and capsules (no sharp edges) give none (a hand's collision
+    spheres are icospheres in its cut URDF: their many small faces meet at
+    less than ``PAD_SHARP``, so no edge of theirs counts)."""
     out = []
     for element in load_model(urdf).link_map[link].collisions:
         g = element.geometry

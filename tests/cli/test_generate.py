@@ -234,6 +234,40 @@ def test_a_run_that_tries_the_stored_candidates_again_is_refused_or_replaced(box
         assert conn.execute("SELECT COUNT(DISTINCT settings) FROM units").fetchone()[0] == 1  # this run's alone
 
 
+def test_replace_removes_the_stored_sweep_only_once_the_new_one_is_whole(box_db: Path, tmp_path: Path) -> None:
+    """--replace removed the stored sweep before any work: a run that then failed (a --unit-timeout, which
+    crashed besides, an unreachable Ray cluster, Ctrl-C) left the object with no grasps. And it removed preshapes
+    the run does not sweep again. Now the stored sweep stays until the new one is stored whole."""
+    db = tmp_path / "g.db"
+    shutil.copy(box_db, db)
+    before = snapshot(db)
+    code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(db), *FAST, "--quiet", "--fc-budget", "0",
+                         "--replace", "--unit-timeout", "1e-6")  # every unit fails
+    assert code != 0 and "time-out" in err
+    assert snapshot(db) == before  # the stored sweep kept, nothing of the failed one
+    code, out, err = grasp("generate", "box", "--hand", "panda", "--db", str(db), *FAST, "--json", "--fc-budget",
+                           "0", "--replace", "--unit-timeout", "600")
+    assert code == 0, err
+    assert json.loads(out)["replaced"] == len(before)
+    both = str(tmp_path / "both.db")
+    common = ["generate", "box", "--hand", "panda", "--db", both, *FAST[:4], *FAST[6:], "--quiet"]
+    code, _, err = grasp(*common, "--preshapes", "wide,half")
+    assert code == 0, err
+    code, _, err = grasp(*common, "--preshapes", "half", "--fc-budget", "0", "--replace")
+    one_line_error(code, err, 2, "preshapes wide too: --replace would remove their grasps")
+
+
+def test_preshapes_in_another_order_say_how_to_resume(tmp_path: Path) -> None:
+    """The candidates are numbered in the order of --preshapes: another order is another sweep of the same
+    candidates, refused with the stored order to resume with."""
+    db = str(tmp_path / "g.db")
+    common = ["generate", "box", "--hand", "panda", "--db", db, *FAST[:4], *FAST[6:], "--quiet"]
+    code, _, err = grasp(*common, "--preshapes", "wide,half")
+    assert code == 0, err
+    code, _, err = grasp(*common, "--preshapes", "half,wide")
+    one_line_error(code, err, 2, "with --preshapes wide,half, in that order", "resume with --preshapes wide,half")
+
+
 def test_an_upgraded_planner_does_not_add_its_grasps_beside_the_old_ones(box_db: Path, tmp_path: Path) -> None:
     """After an upgrade (ALGORITHM_VERSION is in the settings) the same command swept every object again: 39
     grasps became 78, each pose twice with another p_hold. Refused, saying so; sweeps of other candidates (another

@@ -156,3 +156,12 @@ def test_a_mixed_case_sidecar_is_read(brick: Path) -> None:
     brick.with_name("brick_other.toml").write_text("mass = 5\n")  # another stem: not this mesh's
     spec = resolve_spec(str(brick))
     assert (spec.mass, spec.friction) == (0.066, 0.8)
+
+
+def test_one_sidecar_answering_to_two_spellings_is_read_once(brick: Path) -> None:
+    """A case-blind file system (macOS, Windows) answers brick.toml and brick.TOML with one file; the listing
+    that replaced the probes missed B.toml beside b.stl there. One file (here a hard link under both names) is one
+    sidecar, read, not refused as two."""
+    brick.with_suffix(".toml").write_text("mass = 0.066\n")
+    brick.with_suffix(".TOML").hardlink_to(brick.with_suffix(".toml"))
+    assert resolve_spec(str(brick)).mass == 0.066
