@@ -81,9 +81,10 @@ PLAUSIBLE_DENSITY = (5.0, 23_000.0)
               "--object-pose/--on-table` tries them first.")
 @click.option("--stable-poses", type=click.IntRange(min=1), default=3, show_default=True,
               help="With --on-table: how many resting poses, most probable first.")
-@click.option("--replace", is_flag=True, help="Remove an object's stored sweep for this hand and seed with other "
-              "settings (another planner version, budget, reach settings...: the same candidates), its grasps and "
-              "their trials, and sweep it again; without it such a run is refused (it would store every grasp twice).")
+@click.option("--replace", is_flag=True, help="Sweep again an object stored for this hand and seed with other "
+              "settings (another planner version, budget, reach settings...: the same candidates), then remove the "
+              "stored sweep, its grasps and their trials, once the new one is whole; without it such a run is "
+              "refused (it would store every grasp twice).")
 @click.option("--quiet", is_flag=True, help="No progress bar and no summary table.")
 @click.option("--json", "as_json", is_flag=True, help="Print a machine-readable summary.")
 def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approaches: int | None,
