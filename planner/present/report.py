@@ -27,6 +27,7 @@ import base64
 import html
 import io
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -60,7 +61,7 @@ class HandReport:
         ``analytic`` (the rule without simulation) or ``feasible``; NaN where
         not computed."""
         if name == "analytic":
-            return self.rule.analytic(rule_measures(self.grasps))
+            return untried_analytic(self.rule, self.grasps)
         if name == "feasible":
             return np.array([np.nan if g.measures is None else g.measures.feasible for g in self.grasps], float)
         return np.array([np.nan if v is None else v for v in fields.values(fields.by_name(name), self.grasps)], float)
@@ -89,6 +90,15 @@ class HandReport:
         orders = [(np.arange(len(ids)), np.array([ok.get(i, np.nan) for i in ids], float))
                   for ids in self.analytic_orders.values()]
         return top_k_success(orders, k)
+
+
+def untried_analytic(rule: RankingRule, grasps: Sequence[Grasp]) -> np.ndarray:
+    """(n,) the rule's analytic score as the sweep gave it, without simulation: p_hold (else the formula), not
+    p_hold_trial, which the hand's model makes from the verdict of the trial that tried the grasp (scored against
+    those verdicts it read an AUC of 1.000 after `grasp calibrate --trial`)."""
+    measures = rule_measures(grasps)
+    measures["p_hold_trial"] = np.full(len(grasps), np.nan)
+    return rule.analytic(measures)
 
 
 #: The analytic measures the report reads: every numeric field of the measures record.
@@ -155,9 +165,11 @@ class HandCalibration:
     outside: dict[str, list[str]] = field(default_factory=dict)
     held_out_ece: tuple[float, float] | None = None
 
+    engines: str = ""  # whose verdicts ``trials`` holds (:func:`engines`)
+
     def curves(self) -> list[tuple[str, Reliability]]:
-        return [(label, r) for label, r in (("held out, labels", self.held_out), ("trials", self.trials))
-                if r is not None]
+        return [(label, r) for label, r in (("held out on its labels: the model's source", self.held_out),
+                                            (f"trials: {self.engines}", self.trials)) if r is not None]
 
 
 def calibration(db_path: Path) -> list[HandCalibration]:
@@ -174,10 +186,20 @@ def calibration(db_path: Path) -> list[HandCalibration]:
             rows = {name: db.object_row(name) for name in db.objects_for(hand)}
             outside = {name: model.outside(row.properties()) for name, row in rows.items() if row is not None}
             lo, hi = (model.figures.get(f"ece_{end}", math.nan) for end in ("lo", "hi"))
-            out.append(HandCalibration(hand, db.model_source(hand), model.held_out, trials,
+            source = db.model_source(hand)
+            source = f"{source}: {model.source}" if source == "shipped" and model.source else source
+            out.append(HandCalibration(hand, source, model.held_out, trials,
                                        {name: why for name, why in outside.items() if why},
-                                       (lo, hi) if math.isfinite(lo) and math.isfinite(hi) else None))
+                                       (lo, hi) if math.isfinite(lo) and math.isfinite(hi) else None,
+                                       engines(tried)))
     return out
+
+
+def engines(grasps: Sequence[Grasp]) -> str:
+    """Whose verdicts label ``grasps`` (each its :attr:`Grasp.trial`): ``MuJoCo 120, PyBullet 298``."""
+    mujoco = sum(g.mujoco is not None for g in grasps)
+    return f"MuJoCo {mujoco}, PyBullet {len(grasps) - mujoco}" + (
+        " (MuJoCo's verdict where both tried a grasp)" if mujoco and any(g.validation for g in grasps) else "")
 
 
 def ece_lines(cals: list[HandCalibration]) -> list[str]:
@@ -216,7 +238,7 @@ def collect(db_path: Path, allow_empty: bool = False) -> list[HandReport]:
         for rep in reports.values():
             for name in rep.objects:
                 sweep = [g for batch in db.grasp_batches(name, rep.hand) for g in batch]
-                score = rule.analytic(rule_measures(sweep))
+                score = untried_analytic(rule, sweep)
                 fc = np.array([g.force_closure for g in sweep], bool)
                 order = np.lexsort((np.array([g.candidate for g in sweep]), -score, ~fc))
                 rep.analytic_orders[name] = [sweep[i].id for i in order]  # type: ignore[misc]
@@ -263,6 +285,7 @@ def _summary_rows(report: HandReport) -> list[tuple[str, str]]:
     mark = f" (small sample: fewer than {AUC_MIN_CLASS} of a class)" if small else ""
     rows: list[tuple[str, float | str]] = [
         ("validated grasps", f"{len(ok)} ({held} held, {slipped} slipped)"),
+        ("verdicts from", engines(report.grasps)),
         ("objects", str(n)),
         ("overall success rate", float(np.nanmean(ok))),
         ("top-1 grasp succeeds, final ranking (objects)", f"{wins}/{n} = {wins / max(n, 1):.1%}"),

@@ -80,8 +80,10 @@ def test_calibrate_fits_reports_and_stores_a_model_that_best_and_exports_use(val
     assert "p_hold" in header
     code, out, err = grasp("report", "--db", str(db), "--out", str(tmp_path / "rep"))
     assert code == 0, err
-    assert "panda: ECE of p_hold (held out, labels" in out and (tmp_path / "rep" / "reliability_panda.png").exists()
-    assert re.search(r"held out, labels, \d+ grasps\) = [0-9.]+ \[[0-9.]+, [0-9.]+\] \(95% over objects", out), out
+    assert "panda: ECE of p_hold (held out on its labels: the model's source" in out
+    assert (tmp_path / "rep" / "reliability_panda.png").exists()
+    assert re.search(r"held out on its labels: the model's source, \d+ grasps\) = [0-9.]+ \[[0-9.]+, [0-9.]+\] "
+                     r"\(95% over objects", out), out
 
 
 @pytest.mark.parametrize("args, message", [

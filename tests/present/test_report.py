@@ -88,6 +88,22 @@ def test_the_held_out_ece_is_printed_with_its_interval_or_why_there_is_none(vali
     cals = report.calibration(validated_db)
     assert [c.hand for c in cals] == ["panda"] and cals[0].held_out_ece is None
     line = report.ece_lines(cals)[0]
-    assert line.startswith("panda: ECE of p_hold (held out, labels, ") and "no interval: the model's fit" in line
+    assert line.startswith("panda: ECE of p_hold (held out on its labels: the model's source, ")
+    assert "no interval: the model's fit" in line
     lines = report.ece_lines([replace(cals[0], held_out_ece=(0.0125, 0.0581))])
     assert lines[0].endswith("= 0.0162 [0.0125, 0.0581] (95% over objects: a bootstrap drawing the labelled objects)")
+
+
+def test_the_analytic_score_is_read_without_the_trials_it_is_scored_against() -> None:
+    """The report's 'analytic' AUC took p_hold_trial, which the model makes from the verdict of the trial it is
+    scored against: it read 1.000 after `grasp calibrate --trial`. It is the sweep's p_hold now."""
+    from planner.db.ranking import RankingRule
+    from planner.record.grasp import Trial
+
+    grasps = [replace(made_up(i, 0.05), rank=i + 1, p_hold=p, p_hold_trial=float(held),
+                      mujoco=Trial(held, 2, 0.0, 0.0, 0.0, 0.0, "held" if held else "slipped"))
+              for i, (p, held) in enumerate([(0.9, False), (0.8, True), (0.3, True), (0.2, False)])]
+    rep = report.HandReport("panda", rule=RankingRule(), grasps=grasps)
+    assert np.allclose(rep.measure("analytic"), [0.9, 0.8, 0.3, 0.2])
+    assert np.allclose(report.untried_analytic(RankingRule(), grasps), [0.9, 0.8, 0.3, 0.2])
+    assert dict(report._summary_rows(rep))["verdicts from"] == "MuJoCo 4, PyBullet 0"  # the report says whose
