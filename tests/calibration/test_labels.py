@@ -1,0 +1,61 @@
+"""The labelled files ``grasp calibrate`` reads (planner/calibration/labels.py): paths, objects, hands, labels."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from helpers import grasp, one_line_error
+
+from tests.calibration.test_calibrate_cli import LABEL, labelled_files
+
+FAST_FIT = ("--poses", "6", "--folds", "2", "--no-trees", "--no-store")
+
+
+def acronym_layout(files: list[Path], root: Path) -> list[Path]:
+    """Each labelled file as ACRONYM keeps it: ``root/grasps/<stem>.h5`` naming ``meshes/<object>.obj`` (one folder
+    up) as its object/file, without this project's object/name and mesh hash."""
+    (root / "grasps").mkdir(parents=True)
+    out = []
+    for path in files:
+        target = root / "grasps" / path.name
+        shutil.copy(path, target)
+        with h5py.File(target, "r+") as f:
+            del f["object/name"], f["object/mesh_sha256"]
+            mesh = f["object/file"][()].decode()
+        (root / "meshes").mkdir(exist_ok=True)
+        shutil.copy(path.parent / mesh, root / mesh)
+        out.append(target)
+    return out
+
+
+def tiny_file(path: Path, **datasets: object) -> Path:
+    """A labelled Panda file of three identity poses; ``datasets`` (key with '__' for '/') added or replaced."""
+    with h5py.File(path, "w") as f:
+        f["gripper/type"], f["grasps/transforms"] = "franka_panda", np.tile(np.eye(4), (3, 1, 1))
+        f["object/file"], f["object/scale"], f[LABEL] = "meshes/nowhere.obj", 1.0, np.array([1, 0, 1])
+        for key, value in datasets.items():
+            name = key.replace("__", "/")
+            if name in f:
+                del f[name]
+            f[name] = value
+    return path
+
+
+def test_relative_paths_find_acronyms_meshes_folder(validated_db: Path, tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """`cd acr/grasps && grasp calibrate r3.h5 ...` looked for meshes/ at '.' twice (Path('r3.h5').parent.parent)."""
+    files = acronym_layout(labelled_files(validated_db, tmp_path), tmp_path / "acr")
+    monkeypatch.chdir(tmp_path / "acr" / "grasps")
+    code, out, err = grasp("calibrate", *(f.name for f in files), *FAST_FIT)
+    assert code == 0 and "held out (2 folds grouped by object)" in out, err
+
+
+def test_a_missing_mesh_is_named_with_calibrates_own_hint(tmp_path: Path) -> None:
+    """The hint said `pass --object`, an option of `grasp import` that `grasp calibrate` does not have."""
+    code, _, err = grasp("calibrate", str(tiny_file(tmp_path / "r1.h5")), "--no-store")
+    one_line_error(code, err, 2, "r1.h5: object/file 'meshes/nowhere.obj' not found", "put the mesh there")
+    assert "--object" not in err
