@@ -34,7 +34,9 @@ def hand_name(path: Path, gripper: str) -> str:
 
 def object_spec(h: AcronymHeader, object_name: str | None, command: str = "import") -> ObjectSpec:
     """The object an ACRONYM header names (see :mod:`planner.datasets.importer`); ``command``: whose hint an
-    error gives (a key of :data:`HINTS`)."""
+    error gives (a key of :data:`HINTS`). A built-in ``object/name`` is taken where its mesh is the file's:
+    ``object/mesh_sha256``, or without one the file's own ``object/file`` where it is found (a user's file
+    naming its own mesh 'box' was fitted on the built-in box)."""
     props = {"mass": h.mass, "friction": h.friction}
     if object_name is not None:
         if is_registered(object_name):
@@ -43,15 +45,29 @@ def object_spec(h: AcronymHeader, object_name: str | None, command: str = "impor
     label = h.object_name
     if label is not None and is_registered(label):
         builtin = resolve_spec(label, **props)
-        if h.mesh_sha256 is None or prepare(builtin).mesh_hash == h.mesh_sha256:
+        # without a hash, the file's own mesh (where found) says which mesh its grasps are of
+        own = None if h.mesh_sha256 else _own_mesh(h, props, None)
+        wanted = h.mesh_sha256 or (prepare(own).mesh_hash if own is not None else None)
+        if wanted is None or prepare(builtin).mesh_hash == wanted:
             return builtin
-    path, mesh = h.path, h.object_file
-    if mesh is None:
-        raise InputError(f"{path}: no object/file; {HINTS[command]}")
-    here = Path(path).absolute()  # Path('r3.h5').parent.parent is '.', not the folder above
-    tried = [here.parent / mesh, here.parent.parent / mesh]
+        if own is not None:
+            return own
+    return _own_mesh(h, props, command)  # type: ignore[return-value]
+
+
+def _own_mesh(h: AcronymHeader, props: dict, command: str | None) -> ObjectSpec | None:
+    """``object/file`` at ``object/scale`` under the name ``object/name`` or the .h5 file's stem, looked up next to
+    the .h5 file, then one folder up; not found: None if ``command`` is None, else refused with its hint."""
+    if h.object_file is None:
+        if command is None:
+            return None
+        raise InputError(f"{h.path}: no object/file; {HINTS[command]}")
+    here = Path(h.path).absolute()  # Path('r3.h5').parent.parent is '.', not the folder above
+    tried = [here.parent / h.object_file, here.parent.parent / h.object_file]
     found = next((p for p in tried if p.is_file()), None)
-    if found is None:
-        raise InputError(f"{path}: object/file '{mesh}' not found (looked at {', '.join(map(str, tried))}); "
-                         f"{HINTS[command]}")
-    return resolve_spec(str(found), scale=h.scale, label=label or path.stem, **props)
+    if found is not None:
+        return resolve_spec(str(found), scale=h.scale, label=h.object_name or h.path.stem, **props)
+    if command is None:
+        return None
+    raise InputError(f"{h.path}: object/file '{h.object_file}' not found (looked at {', '.join(map(str, tried))}); "
+                     f"{HINTS[command]}")

@@ -11,7 +11,8 @@ same file again finds the unit done and skips it. Grasp ``candidate`` (and
 - Object: ``--object`` (a built-in name or a mesh path; a mesh path gets the
   file's ``object/scale``), else ``object/name`` when it is a built-in name
   whose mesh is the file's (``object/mesh_sha256``, in this project's files
-  since issue 12; older files carry no hash and are taken at their word),
+  since issue 12; without it, when the file's own ``object/file``, where
+  found, is the built-in's mesh or none is found),
   else ``object/file`` with ``object/scale`` under the name
   ``object/name``, or the .h5 file's stem (ACRONYM names each file by
   category, mesh and scale: two scales of one mesh are two objects), relative

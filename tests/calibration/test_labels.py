@@ -59,3 +59,22 @@ def test_a_missing_mesh_is_named_with_calibrates_own_hint(tmp_path: Path) -> Non
     code, _, err = grasp("calibrate", str(tiny_file(tmp_path / "r1.h5")), "--no-store")
     one_line_error(code, err, 2, "r1.h5: object/file 'meshes/nowhere.obj' not found", "put the mesh there")
     assert "--object" not in err
+
+
+def test_a_built_in_name_without_a_hash_is_the_files_own_mesh_where_that_differs(tmp_path: Path) -> None:
+    """A user's file naming its own mesh 'box' (no object/mesh_sha256) was fitted on the built-in box."""
+    import trimesh
+
+    from planner.datasets import importer
+    from planner.datasets.acronym import read_header
+    from planner.datasets.file_objects import object_spec
+    from planner.geometry.solid import load_object
+
+    mesh = tmp_path / "meshes" / "box.obj"
+    mesh.parent.mkdir()
+    trimesh.creation.box((0.05, 0.06, 0.07)).export(mesh)
+    path = tiny_file(tmp_path / "mine.h5", object__name="box", object__file="meshes/box.obj")
+    for spec in (importer.read_for_rescoring(path)[1], object_spec(read_header(path), None, "import")):
+        assert spec.kind == "mesh" and spec.source == str(mesh.resolve()) and spec.name == "box"
+    load_object("box").mesh.export(mesh)  # the built-in's own mesh: the built-in
+    assert importer.read_for_rescoring(path)[1].kind == "box"
