@@ -98,10 +98,9 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
     sampled: dict[str, int] = {}
     objects: dict[str, dict[str, float]] = {}
     rejected: Counter = Counter()
-    hands = set()
+    hand_name = file_hand(list(map(Path, paths)), hand)
     for path in map(Path, paths):
-        spec_hand, spec, all_poses = importer.read_for_rescoring(path, hand)
-        hands.add(spec_hand.name)
+        spec_hand, spec, all_poses = importer.read_for_rescoring(path, hand_name)
         y = acronym.read_labels(path)
         rows = sample_rows(len(all_poses), poses, seed, path.stem)
         sampled[path.stem] = len(rows)
@@ -126,14 +125,38 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
             files += [path.stem] * len(order)
         if progress:
             progress(path, len(order), len(rows))
-    if len(hands) > 1:
-        raise InputError(f"label files of several hands ({', '.join(sorted(hands))}): calibrate one hand at a time")
     if not tables:
         raise InputError("no labelled pose closed on its object: nothing to calibrate on")
     table = {k: np.concatenate([t[k] for t in tables]) for k in features.TABLE}
-    return LabelledSet(table, np.concatenate(labels), tuple(groups), tuple(files), hands.pop(), sampled,
+    return LabelledSet(table, np.concatenate(labels), tuple(groups), tuple(files), hand_name, sampled,
                        dict(rejected), np.concatenate(verdicts) if trial else None,
                        TRIAL_GROUPS[engine] if trial else "", objects)
+
+
+def file_hand(paths: Sequence[Path], hand: str | None) -> str:
+    """The one hand of every file, from its ``gripper/type`` (read before any pose is re-scored); ``hand``
+    (``--hand``) only for files whose type names no known hand. A file whose type names another hand than
+    ``hand``, or than most files, is refused by name: its labels are another hand's."""
+    from planner.datasets.file_objects import HAND_ALIASES, hand_name
+    from planner.specs.hands import hand_names
+
+    of: dict[Path, str] = {}
+    for path in paths:
+        gripper = acronym.read_header(path).gripper
+        named = HAND_ALIASES.get(gripper.lower(), gripper)
+        if hand is not None and named in hand_names() and named != hand:
+            raise InputError(f"{path}: gripper/type '{gripper}' is not --hand {hand}: its labels are the "
+                             f"{named}'s; leave --hand out, or calibrate the {named}'s files alone")
+        of[path] = hand or hand_name(path, gripper)
+    counts = Counter(of.values())
+    usual = max(counts, key=lambda h: (counts[h], -list(of.values()).index(h)))  # most files; a tie: the first
+    odd = next((p for p, h in of.items() if h != usual), None)
+    if odd is not None:
+        others = [p.name for p, h in of.items() if h == usual]
+        shown = ", ".join(others[:3]) + (", ..." if len(others) > 3 else "")
+        raise InputError(f"{odd}: gripper/type '{acronym.read_header(odd).gripper}' is hand {of[odd]}, but the "
+                         f"other files' hand is {usual} ({shown}): calibrate one hand at a time")
+    return usual
 
 
 def object_properties(spec: ObjectSpec) -> dict[str, float]:

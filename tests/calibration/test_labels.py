@@ -78,3 +78,24 @@ def test_a_built_in_name_without_a_hash_is_the_files_own_mesh_where_that_differs
         assert spec.kind == "mesh" and spec.source == str(mesh.resolve()) and spec.name == "box"
     load_object("box").mesh.export(mesh)  # the built-in's own mesh: the built-in
     assert importer.read_for_rescoring(path)[1].kind == "box"
+
+
+def boxes(folder: Path, *grippers: str) -> list[Path]:
+    """Tiny labelled files of a box mesh (``folder/meshes/box.obj``), one per gripper type."""
+    import trimesh
+
+    (folder / "meshes").mkdir(parents=True, exist_ok=True)
+    trimesh.creation.box((0.05, 0.06, 0.07)).export(folder / "meshes" / "box.obj")
+    return [tiny_file(folder / f"{i}_{g}.h5", gripper__type=g, object__file="meshes/box.obj")
+            for i, g in enumerate(grippers)]
+
+
+def test_a_file_of_another_hand_is_named_before_any_pose_is_rescored(tmp_path: Path) -> None:
+    """--hand panda silently re-scored a barrett-typed file with the Panda; a barrett file among Panda files was
+    refused only after every file was re-scored, without naming it."""
+    files = boxes(tmp_path, "franka_panda", "barrett", "panda")
+    code, _, err = grasp("calibrate", *map(str, files), "--no-store")  # one line: no file re-scored first
+    one_line_error(code, err, 2, "1_barrett.h5: gripper/type 'barrett'", "the other files' hand is panda",
+                   "one hand at a time")
+    code, _, err = grasp("calibrate", str(files[1]), "--hand", "panda", "--no-store")
+    one_line_error(code, err, 2, "1_barrett.h5: gripper/type 'barrett' is not --hand panda")
