@@ -99,3 +99,33 @@ def test_a_file_of_another_hand_is_named_before_any_pose_is_rescored(tmp_path: P
                    "one hand at a time")
     code, _, err = grasp("calibrate", str(files[1]), "--hand", "panda", "--no-store")
     one_line_error(code, err, 2, "1_barrett.h5: gripper/type 'barrett' is not --hand panda")
+
+
+def test_files_of_one_name_in_two_folders_are_two_files_and_a_file_given_twice_is_refused(
+        validated_db: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """day1/grasps.h5 and day2/grasps.h5 were one stem 'grasps': the domain kept one object's properties, the
+    top-10 merged the files, the source listed ["grasps.h5", "grasps.h5"]; a file given twice counted twice."""
+    import json
+
+    from planner.db.store import open_db
+
+    box, sphere = labelled_files(validated_db, tmp_path)
+    days = []
+    for day, src in (("day1", box), ("day2", sphere)):
+        shutil.copytree(src.parent / "meshes", tmp_path / day / "meshes")
+        days.append(Path(shutil.copy(src, tmp_path / day / "grasps.h5")))
+    db = tmp_path / "g.db"
+    shutil.copy(validated_db, db)
+    code, out, err = grasp("calibrate", *map(str, days), *FAST_FIT[:-1], "--db", str(db))
+    assert code == 0, err
+    with open_db(db, create=False, readonly=True) as d:
+        domain = d.model_domain("panda")
+        source = json.loads(d.model_source("panda"))
+        masses = [d.object_row(name).properties()["mass"] for name in ("box", "sphere")]  # type: ignore[union-attr]
+    assert source["labels"] == ["day1/grasps.h5", "day2/grasps.h5"]
+    assert domain["mass"] == pytest.approx((min(masses), max(masses)), rel=1e-3) and masses[0] != masses[1]
+    monkeypatch.chdir(box.parent)  # overlapping globs give one file twice, spelt alike or not
+    code, _, err = grasp("calibrate", str(box), box.name, str(sphere), *FAST_FIT)
+    one_line_error(code, err, 2, f"{box.name}: given twice (as {box} and {box.name})", "give each file once")
+    code, _, err = grasp("calibrate", box.name, box.name, str(sphere), *FAST_FIT)
+    one_line_error(code, err, 2, f"{box.name}: given twice: its labels would count twice")
