@@ -129,3 +129,17 @@ def test_files_of_one_name_in_two_folders_are_two_files_and_a_file_given_twice_i
     one_line_error(code, err, 2, f"{box.name}: given twice (as {box} and {box.name})", "give each file once")
     code, _, err = grasp("calibrate", box.name, box.name, str(sphere), *FAST_FIT)
     one_line_error(code, err, 2, f"{box.name}: given twice: its labels would count twice")
+
+
+@pytest.mark.parametrize("labels, message", [
+    (np.array([b"yes", b"no", b"yes"]), "holds text values (b'yes', b'no', ...)"),
+    (np.array([[1, 0], [0, 1], [1, 1]]), "has shape (3, 2)"),
+])
+def test_labels_calibrate_cannot_read_are_one_line_errors(tmp_path: Path, labels: np.ndarray, message: str) -> None:
+    """Text labels and an (N, 2) array were `internal error: ValueError` (exit 1)."""
+    path = boxes(tmp_path, "panda")[0]
+    with h5py.File(path, "r+") as f:
+        del f[LABEL]
+        f[LABEL] = labels
+    code, _, err = grasp("calibrate", str(path), "--no-store")
+    one_line_error(code, err, 2, f"0_panda.h5: {LABEL} {message}")
