@@ -53,7 +53,7 @@ def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB,
     ``pybullet``), and the model gets how that trial's verdict updates
     p_hold (:mod:`planner.calibration.update`)."""
     from planner.calibration.fitting import calibrate as fit_calibration
-    from planner.calibration.labels import labelled
+    from planner.calibration.labels import label_names, labelled
     from planner.calibration.model import DEFAULT_TREES
 
     if plot is not None and Path(plot).suffix.lower() != ".png":
@@ -68,7 +68,7 @@ def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB,
     with open_for_writing(Path(db_path)) if db_path is not None else contextlib.nullcontext() as db:
         data = labelled(paths, poses=poses, seed=seed, hand=hand, workers=workers, progress=progress, trial=trial,
                         engine=engine)
-        source = json.dumps({"command": "grasp calibrate", "labels": [p.name for p in paths],
+        source = json.dumps({"command": "grasp calibrate", "labels": label_names(paths),
                              "poses_per_file": poses, "seed": seed, "folds": folds, "grasps": len(data.labels),
                              "objects": len(set(data.groups)), "rejected": data.rejected, "trees": trees,
                              **({"trial": trial, "engine": engine} if trial else {})}, sort_keys=True)

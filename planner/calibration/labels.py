@@ -11,6 +11,13 @@ The group of a grasp (its object, for folds grouped by object) is the mesh
 file its file names (the same object at two scales is one group), or the
 built-in object's name.
 
+A file is known by its resolved path and shown by the shortest tail of it
+that no other file given shares (:func:`label_names`: ``day1/grasps.h5``
+and ``day2/grasps.h5``, ``a.h5`` alone where it is the only ``a.h5``); a
+file given twice (``a.h5 ./a.h5``, overlapping globs) is refused, since it
+would count twice. Its pose sample is seeded by its stem (where it lies
+does not change it).
+
 With ``trial`` > 0, a seeded sample of that many closed grasps per file is
 also tried in a dynamic trial (``engine``: MuJoCo's or PyBullet's, as
 ``grasp validate`` runs it, at the file's mass and friction): their
@@ -43,12 +50,13 @@ class LabelledSet:
     """Closed, labelled grasps of several files.
 
     table: the measure table (name -> (n,)); labels (n,) 0/1; groups (n,)
-    object (mesh) of each grasp; files (n,) the file stem of each grasp;
-    hand; sampled: poses sampled per file stem; rejected: why poses did not
+    object (mesh) of each grasp; files (n,) the file of each grasp (its
+    name as :func:`label_names` shows it, one per file); hand; sampled:
+    poses sampled per file; rejected: why poses did not
     close, counted per reason over all files; verdicts (n,): 1 held, 0
     dropped in the dynamic trial ``engine`` (its record group: ``mujoco``
     or ``validation``), NaN not tried (None: no trial asked for); objects:
-    per file stem, its object's properties (the names of
+    per file, its object's properties (the names of
     :data:`~planner.calibration.logistic.DOMAIN`, their units), from which a
     fitted model's domain comes.
     """
@@ -98,13 +106,12 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
     sampled: dict[str, int] = {}
     objects: dict[str, dict[str, float]] = {}
     rejected: Counter = Counter()
-    hands = set()
-    for path in map(Path, paths):
-        spec_hand, spec, all_poses = importer.read_for_rescoring(path, hand)
-        hands.add(spec_hand.name)
+    hand_name = file_hand(list(map(Path, paths)), hand)
+    for path, name in zip(map(Path, paths), label_names(paths)):
+        spec_hand, spec, all_poses = importer.read_for_rescoring(path, hand_name)
         y = acronym.read_labels(path)
         rows = sample_rows(len(all_poses), poses, seed, path.stem)
-        sampled[path.stem] = len(rows)
+        sampled[name] = len(rows)
         chunk = importer.RESCORE_CHUNK
         units = [importer.RescoreUnit(0, i, all_poses[rows[i:i + chunk]], spec_hand, spec)
                  for i in range(0, len(rows), chunk)]
@@ -119,21 +126,64 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
         if order and trial:
             verdicts.append(_tried(spec_hand, spec, [grasps[i] for i in order], trial, seed, path.stem, engine))
         if order:
-            objects[path.stem] = object_properties(spec)
+            objects[name] = object_properties(spec)
             tables.append(features.of_grasps([grasps[i] for i in order]))
             labels.append(y[rows[order]])
             groups += [spec.source if spec.kind == "mesh" else spec.name] * len(order)
-            files += [path.stem] * len(order)
+            files += [name] * len(order)
         if progress:
             progress(path, len(order), len(rows))
-    if len(hands) > 1:
-        raise InputError(f"label files of several hands ({', '.join(sorted(hands))}): calibrate one hand at a time")
     if not tables:
         raise InputError("no labelled pose closed on its object: nothing to calibrate on")
     table = {k: np.concatenate([t[k] for t in tables]) for k in features.TABLE}
-    return LabelledSet(table, np.concatenate(labels), tuple(groups), tuple(files), hands.pop(), sampled,
+    return LabelledSet(table, np.concatenate(labels), tuple(groups), tuple(files), hand_name, sampled,
                        dict(rejected), np.concatenate(verdicts) if trial else None,
                        TRIAL_GROUPS[engine] if trial else "", objects)
+
+
+def label_names(paths: Sequence[Path]) -> list[str]:
+    """Each file's name as shown and stored: the shortest tail of its resolved path that no other of ``paths``
+    shares; a file given twice is refused."""
+    resolved = [Path(p).resolve() for p in paths]
+    seen: dict[Path, Path] = {}
+    for given, path in zip(map(Path, paths), resolved):
+        if path in seen:
+            spelt = f" (as {seen[path]} and {given})" if seen[path] != given else ""
+            raise InputError(f"{given}: given twice{spelt}: its labels would count twice; give each file once")
+        seen[path] = given
+    out = []
+    for path in resolved:
+        k = 1
+        while k < len(path.parts) and any(o != path and o.parts[-k:] == path.parts[-k:] for o in resolved):
+            k += 1
+        out.append(str(Path(*path.parts[-k:])))
+    return out
+
+
+def file_hand(paths: Sequence[Path], hand: str | None) -> str:
+    """The one hand of every file, from its ``gripper/type`` (read before any pose is re-scored); ``hand``
+    (``--hand``) only for files whose type names no known hand. A file whose type names another hand than
+    ``hand``, or than most files, is refused by name: its labels are another hand's."""
+    from planner.datasets.file_objects import HAND_ALIASES, hand_name
+    from planner.specs.hands import hand_names
+
+    of: dict[Path, str] = {}
+    for path in paths:
+        gripper = acronym.read_header(path).gripper
+        named = HAND_ALIASES.get(gripper.lower(), gripper)
+        if hand is not None and named in hand_names() and named != hand:
+            raise InputError(f"{path}: gripper/type '{gripper}' is not --hand {hand}: its labels are the "
+                             f"{named}'s; leave --hand out, or calibrate the {named}'s files alone")
+        of[path] = hand or hand_name(path, gripper)
+    counts = Counter(of.values())
+    usual = max(counts, key=lambda h: (counts[h], -list(of.values()).index(h)))  # most files; a tie: the first
+    odd = next((p for p, h in of.items() if h != usual), None)
+    if odd is not None:
+        others = [p.name for p, h in of.items() if h == usual]
+        shown = ", ".join(others[:3]) + (", ..." if len(others) > 3 else "")
+        raise InputError(f"{odd}: gripper/type '{acronym.read_header(odd).gripper}' is hand {of[odd]}, but the "
+                         f"other files' hand is {usual} ({shown}): calibrate one hand at a time")
+    return usual
 
 
 def object_properties(spec: ObjectSpec) -> dict[str, float]:

@@ -40,7 +40,7 @@ def calibrate(labels: tuple[Path, ...], db_path: Path, poses: int, seed: int, fo
     grasps/transforms and grasps/qualities/flex/object_in_gripper) and store it for their hand."""
 
     def progress(path: Path, closed: int, sampled: int) -> None:
-        click.echo(f"{path.name}: {closed} of {sampled} poses closed on the object", err=True)
+        click.echo(f"{path}: {closed} of {sampled} poses closed on the object", err=True)
 
     result = api.calibrate(list(labels), db_path=None if no_store else db_path, poses=poses or None, seed=seed,
                            folds=folds, hand=hand, workers=workers, model_out=model_out, plot=plot,

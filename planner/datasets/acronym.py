@@ -94,7 +94,7 @@ from typing import Any
 import numpy as np
 
 from planner.datasets import registry
-from planner.datasets.acronym_checks import check_joints, contact_items
+from planner.datasets.acronym_checks import check_joints, contact_items, label_values
 from planner.datasets.acronym_columns import (
     DATASETS,
     EXTRAS,
@@ -325,20 +325,13 @@ def read_grasps(path: Path, hand: HandSpec, obj: str, poses: np.ndarray) -> list
 
 def read_labels(path: Path) -> np.ndarray:
     """(N,) 0/1 ``grasps/qualities/flex/object_in_gripper`` of a grasp file (a
-    label set: FleX's, a real robot's outcomes)."""
+    label set: FleX's, a real robot's outcomes); a column (N, 1) is read as N labels."""
     with _open(path) as f:
         key = f"grasps/{FLEX}object_in_gripper"
         if key not in f:
             raise InputError(f"{path}: no {key}: not a labelled grasp file")
-        labels = np.asarray(f[key][:], float)
-        n = len(f["grasps/transforms"]) if "grasps/transforms" in f else len(labels)
-    if len(labels) != n:
-        raise InputError(f"{path}: {key} must hold one 0/1 label per grasp ({n}), got {len(labels)} values")
-    bad = labels[~np.isin(labels, (0.0, 1.0))]
-    if len(bad):
-        shown = ", ".join(f"{v:g}" for v in np.unique(bad)[:3])
-        raise InputError(f"{path}: {key} must hold 0/1 labels; {len(bad)} of {n} are not ({shown})")
-    return labels
+        n = len(f["grasps/transforms"]) if "grasps/transforms" in f else None
+        return label_values(path, key, f[key][()], n)
 
 
 def read_simulation(path: Path) -> list[tuple[Trial | None, RobustEpsilon | None, Trial | None]]:

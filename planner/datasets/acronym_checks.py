@@ -1,7 +1,7 @@
 """What an ACRONYM file must hold before its grasps are read back losslessly (this project's extras): joints of
 the hand within its limits, contacts as JSON, one row per grasp. A file that fails is refused with a one-line
 error naming the dataset (a hand-edited or damaged file would otherwise store grasps that break ``show`` and
-exports later)."""
+exports later). Labels (``object_in_gripper``, read by ``grasp calibrate``) are checked alike."""
 
 from __future__ import annotations
 
@@ -54,3 +54,27 @@ def contact_items(path: Path, texts: list[str], n: int) -> list[list[dict]]:
             raise InputError(f"{path}: grasps/contacts row {i} is not a JSON list of contacts")
         out.append(items)
     return out
+
+
+def label_values(path: Path, key: str, data: np.ndarray, n: int | None) -> np.ndarray:
+    """(n,) float 0/1 labels of dataset ``key``: numbers or booleans, one per grasp (``n``: the file's grasps;
+    None: as many as there are), shaped (n,) or as one column (n, 1), which is unambiguous."""
+    data = np.asarray(data)
+    if data.dtype.kind not in "biuf":
+        kind = "text" if data.dtype.kind in "SUO" else str(data.dtype)
+        shown = ", ".join(repr(v) for v in data.ravel()[:2].tolist())
+        raise InputError(f"{path}: {key} holds {kind} values ({shown}, ...); it must hold 0/1 numbers "
+                         "(1: held, 0: dropped)")
+    if data.ndim == 2 and data.shape[1] == 1:
+        data = data[:, 0]
+    if data.ndim != 1:
+        raise InputError(f"{path}: {key} has shape {data.shape}; it must hold one 0/1 label per grasp, (N,) or (N, 1)")
+    n = len(data) if n is None else n
+    if len(data) != n:
+        raise InputError(f"{path}: {key} must hold one 0/1 label per grasp ({n}), got {len(data)} values")
+    labels = data.astype(float)
+    bad = labels[~np.isin(labels, (0.0, 1.0))]
+    if len(bad):
+        shown = ", ".join(f"{v:g}" for v in np.unique(bad)[:3])
+        raise InputError(f"{path}: {key} must hold 0/1 labels; {len(bad)} of {n} are not ({shown})")
+    return labels

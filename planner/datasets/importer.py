@@ -11,14 +11,17 @@ same file again finds the unit done and skips it. Grasp ``candidate`` (and
 - Object: ``--object`` (a built-in name or a mesh path; a mesh path gets the
   file's ``object/scale``), else ``object/name`` when it is a built-in name
   whose mesh is the file's (``object/mesh_sha256``, in this project's files
-  since issue 12; older files carry no hash and are taken at their word),
+  since issue 12; without it, when the file's own ``object/file``, where
+  found, is the built-in's mesh or none is found),
   else ``object/file`` with ``object/scale`` under the name
   ``object/name``, or the .h5 file's stem (ACRONYM names each file by
   category, mesh and scale: two scales of one mesh are two objects), relative
   paths looked up next to the .h5 file (this project's export folders:
   ``meshes/`` beside the .h5 files), then one folder up (ACRONYM keeps
-  ``grasps/`` beside ``meshes/``). So a built-in object exported at another ``--scale``, or
-  under a copied name, comes back as the mesh its grasps were planned on.
+  ``grasps/`` beside ``meshes/``), from the .h5 file's absolute path
+  (:mod:`planner.datasets.file_objects`, which ``grasp calibrate`` shares).
+  So a built-in object exported at another ``--scale``, or under a copied
+  name, comes back as the mesh its grasps were planned on.
   The file's ``object/mass`` and ``object/friction`` override the object's.
 - Poses: ``grasps/transforms @ inverse(export_frame)``, the file's
   ``grasps/export_frame`` if present, else the hand's.
@@ -55,7 +58,7 @@ from pathlib import Path
 import numpy as np
 
 from planner.datasets import formats
-from planner.datasets.acronym import AcronymHeader
+from planner.datasets.file_objects import HAND_ALIASES, hand_name, object_spec
 from planner.datasets.registry import Reader
 from planner.db.hand_files import check_hand_files
 from planner.db.ranking import RankingRule
@@ -71,13 +74,12 @@ from planner.plan.unit import closed_width, scored
 from planner.record.grasp import Grasp
 from planner.run import pool
 from planner.sim import Sim
-from planner.specs.hands import HandSpec, hand_names, load_hand
-from planner.specs.objects import PROPERTY_RTOL, ObjectSpec, is_registered, resolve_spec
+from planner.specs.hands import HandSpec, load_hand
+from planner.specs.objects import PROPERTY_RTOL, ObjectSpec
 from planner.specs.preshapes import sweep_preshapes
 
 #: Every format with a reader (:mod:`planner.datasets.registry`).
 FORMATS = formats.IMPORT_FORMATS
-HAND_ALIASES = {"panda": "panda", "franka_panda": "panda"}
 #: Friction cone edges of a re-scored grasp (the sweep's default).
 CONE_EDGES = 8
 #: [m] how far a re-scored hand may back off when it starts in collision.
@@ -269,10 +271,11 @@ def _restore_simulation(db: Database, plan: _Plan, unit_id: int, obj: str, rule:
                                                         results[i][2], source) for i, c in enumerate(candidates)], rule)
 
 
-def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: str | None, rescore: bool) -> _Plan:
+def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: str | None, rescore: bool,
+          command: str = "import") -> _Plan:
     header = reader.header(path)
-    spec = load_hand(hand or _hand_name(path, header.gripper))
-    obj = _object_spec(header, object_name)
+    spec = load_hand(hand or hand_name(path, header.gripper))
+    obj = object_spec(header, object_name, command)
     lossless = not rescore and header.extras
     if lossless:  # its contacts, joints and measures are of the file's mesh and hand: stored as they are
         if header.mesh_sha256 and prepare(obj).mesh_hash != header.mesh_sha256:
@@ -324,37 +327,6 @@ def _check_not_stored(db: Database, plan: _Plan) -> None:
                          "another --db")
 
 
-def _hand_name(path: Path, gripper: str) -> str:
-    name = HAND_ALIASES.get(gripper.lower(), gripper)
-    if name not in hand_names():
-        raise InputError(f"{path}: gripper type '{gripper}' is not a known hand; pass --hand "
-                         f"(available hands: {', '.join(hand_names())})")
-    return name
-
-
-def _object_spec(h: AcronymHeader, object_name: str | None) -> ObjectSpec:
-    """The object an ACRONYM header names (see the module docstring)."""
-    props = {"mass": h.mass, "friction": h.friction}
-    if object_name is not None:
-        if is_registered(object_name):
-            return resolve_spec(object_name, **props)
-        return resolve_spec(object_name, scale=h.scale, **props)
-    label = h.object_name
-    if label is not None and is_registered(label):
-        builtin = resolve_spec(label, **props)
-        if h.mesh_sha256 is None or prepare(builtin).mesh_hash == h.mesh_sha256:
-            return builtin
-    path, mesh = h.path, h.object_file
-    if mesh is None:
-        raise InputError(f"{path}: no object/file; pass --object NAME or a mesh path")
-    tried = [path.parent / mesh, path.parent.parent / mesh]
-    found = next((p for p in tried if p.is_file()), None)
-    if found is None:
-        raise InputError(f"{path}: object/file '{mesh}' not found (looked at {', '.join(map(str, tried))}); "
-                         "pass --object NAME or a mesh path")
-    return resolve_spec(str(found), scale=h.scale, label=label or path.stem, **props)
-
-
 def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: Counter, first: int = 0
              ) -> list[Grasp]:
     """Grasps of the poses where the hand closes on the object; candidate =
@@ -392,5 +364,5 @@ def read_for_rescoring(path: Path, hand: str | None = None, fmt: str = "acronym"
     """The hand, the object (with the file's mass and friction) and the
     (n, 4, 4) hand poses of a grasp file, as ``--rescore`` reads them."""
     reader = formats.reader(fmt)
-    plan = _plan(Path(path), fmt, reader, hand, None, True)
+    plan = _plan(Path(path), fmt, reader, hand, None, True, "calibrate")
     return plan.hand, plan.spec, reader.poses(plan.path, plan.hand)

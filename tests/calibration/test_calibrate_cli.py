@@ -100,7 +100,7 @@ def test_bad_calibrate_input_is_one_line_and_exit_2(args: list[str], message: st
 
 def test_one_object_cannot_be_cross_validated_by_object(validated_db: Path, tmp_path: Path) -> None:
     file = labelled_files(validated_db, tmp_path)[0]
-    code, _, err = grasp("calibrate", str(file), str(file), "--poses", "5", "--no-store")
+    code, _, err = grasp("calibrate", str(file), "--poses", "5", "--no-store")
     assert code == 2 and "at least 2 objects" in err
 
 

@@ -187,3 +187,26 @@ def test_labels_that_are_not_0_or_1_are_named(tmp_path: Path) -> None:
         f["grasps/qualities/flex/object_in_gripper"] = np.array([0, 1, 1])
     with pytest.raises(InputError, match=r"one 0/1 label per grasp \(4\), got 3 values"):
         read_labels(path)
+
+
+def test_labels_as_text_or_of_another_shape_are_named_and_a_column_is_read(tmp_path: Path) -> None:
+    """b'yes'/b'no' labels and an (N, 2) array raised numpy's errors (exit 1 from grasp calibrate)."""
+    from planner.datasets.acronym import read_labels
+    from planner.errors import InputError
+
+    path = tmp_path / "labels.h5"
+    key = "grasps/qualities/flex/object_in_gripper"
+    with h5py.File(path, "w") as f:
+        f["grasps/transforms"] = np.tile(np.eye(4), (3, 1, 1))
+        f[key] = np.array([b"yes", b"no", b"yes"])
+    with pytest.raises(InputError, match=rf"labels.h5: {key} holds text values \(b'yes', b'no', ...\); it must"):
+        read_labels(path)
+    with h5py.File(path, "r+") as f:
+        del f[key]
+        f[key] = np.zeros((3, 2))
+    with pytest.raises(InputError, match=rf"labels.h5: {key} has shape \(3, 2\); it must hold one 0/1 label per"):
+        read_labels(path)
+    with h5py.File(path, "r+") as f:
+        del f[key]
+        f[key] = np.array([[1], [0], [1]], np.int64)  # one column: unambiguous
+    assert read_labels(path).tolist() == [1.0, 0.0, 1.0]

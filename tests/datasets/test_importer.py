@@ -10,7 +10,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from helpers import assert_close, grasp
+from helpers import assert_close, grasp, one_line_error
 
 from planner.datasets import importer
 from planner.datasets.importer import import_files
@@ -100,6 +100,20 @@ def test_foreign_acronym_file_is_rescored(db: Path, tmp_path: Path) -> None:
     assert np.mean(close) >= 0.8
     settings = json.loads(conn.execute("SELECT settings FROM units").fetchone()[0])
     assert settings["import"] == "acronym" and len(settings["sha256"]) == 64 and settings["rescore"]
+
+
+def test_a_relative_path_finds_acronyms_meshes_folder(db: Path, tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """`cd grasps && grasp import crate.h5`: Path('crate.h5').parent.parent is '.', so meshes/ one folder up was
+    looked for at meshes/crate.obj twice."""
+    foreign, _ = foreign_file(db, tmp_path, "box", "crate")
+    monkeypatch.chdir(foreign.parent)
+    code, out, err = grasp("import", foreign.name, "--db", str(tmp_path / "fresh.db"))
+    assert code == 0 and "re-scored" in out, err
+    (tmp_path / "foreign" / "meshes" / "crate.obj").unlink()
+    code, _, err = grasp("import", foreign.name, "--db", str(tmp_path / "other.db"))
+    one_line_error(code, err, 2, "crate.h5: object/file 'meshes/crate.obj' not found",
+                   str(tmp_path / "foreign" / "meshes" / "crate.obj"), "pass --object NAME or a mesh path")
 
 
 def imported(db: Path) -> list[tuple]:

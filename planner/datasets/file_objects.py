@@ -1,0 +1,73 @@
+"""The hand and the object an ACRONYM grasp file names, as ``grasp import``
+and ``grasp calibrate`` both read them (the rules: :mod:`planner.datasets.importer`).
+
+A relative ``object/file`` is looked up from the .h5 file's absolute path
+(next to it, then one folder up), so a file given as ``r3.h5`` from inside
+ACRONYM's ``grasps/`` finds ``../meshes/``. What an error suggests depends on
+the command: ``import`` has ``--object``, ``calibrate`` has not (``HINTS``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from planner.datasets.acronym import AcronymHeader
+from planner.errors import InputError
+from planner.geometry.solid import prepare
+from planner.specs.hands import hand_names
+from planner.specs.objects import ObjectSpec, is_registered, resolve_spec
+
+HAND_ALIASES = {"panda": "panda", "franka_panda": "panda"}
+#: What to do about a file whose object cannot be found, per command.
+HINTS = {"import": "pass --object NAME or a mesh path",
+         "calibrate": "put the mesh there, or set object/file to its path"}
+
+
+def hand_name(path: Path, gripper: str) -> str:
+    """The hand ``gripper/type`` names ("panda" and "franka_panda" mean ``panda``)."""
+    name = HAND_ALIASES.get(gripper.lower(), gripper)
+    if name not in hand_names():
+        raise InputError(f"{path}: gripper type '{gripper}' is not a known hand; pass --hand "
+                         f"(available hands: {', '.join(hand_names())})")
+    return name
+
+
+def object_spec(h: AcronymHeader, object_name: str | None, command: str = "import") -> ObjectSpec:
+    """The object an ACRONYM header names (see :mod:`planner.datasets.importer`); ``command``: whose hint an
+    error gives (a key of :data:`HINTS`). A built-in ``object/name`` is taken where its mesh is the file's:
+    ``object/mesh_sha256``, or without one the file's own ``object/file`` where it is found (a user's file
+    naming its own mesh 'box' was fitted on the built-in box)."""
+    props = {"mass": h.mass, "friction": h.friction}
+    if object_name is not None:
+        if is_registered(object_name):
+            return resolve_spec(object_name, **props)
+        return resolve_spec(object_name, scale=h.scale, **props)
+    label = h.object_name
+    if label is not None and is_registered(label):
+        builtin = resolve_spec(label, **props)
+        # without a hash, the file's own mesh (where found) says which mesh its grasps are of
+        own = None if h.mesh_sha256 else _own_mesh(h, props, None)
+        wanted = h.mesh_sha256 or (prepare(own).mesh_hash if own is not None else None)
+        if wanted is None or prepare(builtin).mesh_hash == wanted:
+            return builtin
+        if own is not None:
+            return own
+    return _own_mesh(h, props, command)  # type: ignore[return-value]
+
+
+def _own_mesh(h: AcronymHeader, props: dict, command: str | None) -> ObjectSpec | None:
+    """``object/file`` at ``object/scale`` under the name ``object/name`` or the .h5 file's stem, looked up next to
+    the .h5 file, then one folder up; not found: None if ``command`` is None, else refused with its hint."""
+    if h.object_file is None:
+        if command is None:
+            return None
+        raise InputError(f"{h.path}: no object/file; {HINTS[command]}")
+    here = Path(h.path).absolute()  # Path('r3.h5').parent.parent is '.', not the folder above
+    tried = [here.parent / h.object_file, here.parent.parent / h.object_file]
+    found = next((p for p in tried if p.is_file()), None)
+    if found is not None:
+        return resolve_spec(str(found), scale=h.scale, label=h.object_name or h.path.stem, **props)
+    if command is None:
+        return None
+    raise InputError(f"{h.path}: object/file '{h.object_file}' not found (looked at {', '.join(map(str, tried))}); "
+                     f"{HINTS[command]}")

@@ -1,0 +1,145 @@
+"""The labelled files ``grasp calibrate`` reads (planner/calibration/labels.py): paths, objects, hands, labels."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from helpers import grasp, one_line_error
+
+from tests.calibration.test_calibrate_cli import LABEL, labelled_files
+
+FAST_FIT = ("--poses", "6", "--folds", "2", "--no-trees", "--no-store")
+
+
+def acronym_layout(files: list[Path], root: Path) -> list[Path]:
+    """Each labelled file as ACRONYM keeps it: ``root/grasps/<stem>.h5`` naming ``meshes/<object>.obj`` (one folder
+    up) as its object/file, without this project's object/name and mesh hash."""
+    (root / "grasps").mkdir(parents=True)
+    out = []
+    for path in files:
+        target = root / "grasps" / path.name
+        shutil.copy(path, target)
+        with h5py.File(target, "r+") as f:
+            del f["object/name"], f["object/mesh_sha256"]
+            mesh = f["object/file"][()].decode()
+        (root / "meshes").mkdir(exist_ok=True)
+        shutil.copy(path.parent / mesh, root / mesh)
+        out.append(target)
+    return out
+
+
+def tiny_file(path: Path, **datasets: object) -> Path:
+    """A labelled Panda file of three identity poses; ``datasets`` (key with '__' for '/') added or replaced."""
+    with h5py.File(path, "w") as f:
+        f["gripper/type"], f["grasps/transforms"] = "franka_panda", np.tile(np.eye(4), (3, 1, 1))
+        f["object/file"], f["object/scale"], f[LABEL] = "meshes/nowhere.obj", 1.0, np.array([1, 0, 1])
+        for key, value in datasets.items():
+            name = key.replace("__", "/")
+            if name in f:
+                del f[name]
+            f[name] = value
+    return path
+
+
+def test_relative_paths_find_acronyms_meshes_folder(validated_db: Path, tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """`cd acr/grasps && grasp calibrate r3.h5 ...` looked for meshes/ at '.' twice (Path('r3.h5').parent.parent)."""
+    files = acronym_layout(labelled_files(validated_db, tmp_path), tmp_path / "acr")
+    monkeypatch.chdir(tmp_path / "acr" / "grasps")
+    code, out, err = grasp("calibrate", *(f.name for f in files), *FAST_FIT)
+    assert code == 0 and "held out (2 folds grouped by object)" in out, err
+
+
+def test_a_missing_mesh_is_named_with_calibrates_own_hint(tmp_path: Path) -> None:
+    """The hint said `pass --object`, an option of `grasp import` that `grasp calibrate` does not have."""
+    code, _, err = grasp("calibrate", str(tiny_file(tmp_path / "r1.h5")), "--no-store")
+    one_line_error(code, err, 2, "r1.h5: object/file 'meshes/nowhere.obj' not found", "put the mesh there")
+    assert "--object" not in err
+
+
+def test_a_built_in_name_without_a_hash_is_the_files_own_mesh_where_that_differs(tmp_path: Path) -> None:
+    """A user's file naming its own mesh 'box' (no object/mesh_sha256) was fitted on the built-in box."""
+    import trimesh
+
+    from planner.datasets import importer
+    from planner.datasets.acronym import read_header
+    from planner.datasets.file_objects import object_spec
+    from planner.geometry.solid import load_object
+
+    mesh = tmp_path / "meshes" / "box.obj"
+    mesh.parent.mkdir()
+    trimesh.creation.box((0.05, 0.06, 0.07)).export(mesh)
+    path = tiny_file(tmp_path / "mine.h5", object__name="box", object__file="meshes/box.obj")
+    for spec in (importer.read_for_rescoring(path)[1], object_spec(read_header(path), None, "import")):
+        assert spec.kind == "mesh" and spec.source == str(mesh.resolve()) and spec.name == "box"
+    load_object("box").mesh.export(mesh)  # the built-in's own mesh: the built-in
+    assert importer.read_for_rescoring(path)[1].kind == "box"
+
+
+def boxes(folder: Path, *grippers: str) -> list[Path]:
+    """Tiny labelled files of a box mesh (``folder/meshes/box.obj``), one per gripper type."""
+    import trimesh
+
+    (folder / "meshes").mkdir(parents=True, exist_ok=True)
+    trimesh.creation.box((0.05, 0.06, 0.07)).export(folder / "meshes" / "box.obj")
+    return [tiny_file(folder / f"{i}_{g}.h5", gripper__type=g, object__file="meshes/box.obj")
+            for i, g in enumerate(grippers)]
+
+
+def test_a_file_of_another_hand_is_named_before_any_pose_is_rescored(tmp_path: Path) -> None:
+    """--hand panda silently re-scored a barrett-typed file with the Panda; a barrett file among Panda files was
+    refused only after every file was re-scored, without naming it."""
+    files = boxes(tmp_path, "franka_panda", "barrett", "panda")
+    code, _, err = grasp("calibrate", *map(str, files), "--no-store")  # one line: no file re-scored first
+    one_line_error(code, err, 2, "1_barrett.h5: gripper/type 'barrett'", "the other files' hand is panda",
+                   "one hand at a time")
+    code, _, err = grasp("calibrate", str(files[1]), "--hand", "panda", "--no-store")
+    one_line_error(code, err, 2, "1_barrett.h5: gripper/type 'barrett' is not --hand panda")
+
+
+def test_files_of_one_name_in_two_folders_are_two_files_and_a_file_given_twice_is_refused(
+        validated_db: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """day1/grasps.h5 and day2/grasps.h5 were one stem 'grasps': the domain kept one object's properties, the
+    top-10 merged the files, the source listed ["grasps.h5", "grasps.h5"]; a file given twice counted twice."""
+    import json
+
+    from planner.db.store import open_db
+
+    box, sphere = labelled_files(validated_db, tmp_path)
+    days = []
+    for day, src in (("day1", box), ("day2", sphere)):
+        shutil.copytree(src.parent / "meshes", tmp_path / day / "meshes")
+        days.append(Path(shutil.copy(src, tmp_path / day / "grasps.h5")))
+    db = tmp_path / "g.db"
+    shutil.copy(validated_db, db)
+    code, out, err = grasp("calibrate", *map(str, days), *FAST_FIT[:-1], "--db", str(db))
+    assert code == 0, err
+    with open_db(db, create=False, readonly=True) as d:
+        domain = d.model_domain("panda")
+        source = json.loads(d.model_source("panda"))
+        masses = [d.object_row(name).properties()["mass"] for name in ("box", "sphere")]  # type: ignore[union-attr]
+    assert source["labels"] == ["day1/grasps.h5", "day2/grasps.h5"]
+    assert domain["mass"] == pytest.approx((min(masses), max(masses)), rel=1e-3) and masses[0] != masses[1]
+    monkeypatch.chdir(box.parent)  # overlapping globs give one file twice, spelt alike or not
+    code, _, err = grasp("calibrate", str(box), box.name, str(sphere), *FAST_FIT)
+    one_line_error(code, err, 2, f"{box.name}: given twice (as {box} and {box.name})", "give each file once")
+    code, _, err = grasp("calibrate", box.name, box.name, str(sphere), *FAST_FIT)
+    one_line_error(code, err, 2, f"{box.name}: given twice: its labels would count twice")
+
+
+@pytest.mark.parametrize("labels, message", [
+    (np.array([b"yes", b"no", b"yes"]), "holds text values (b'yes', b'no', ...)"),
+    (np.array([[1, 0], [0, 1], [1, 1]]), "has shape (3, 2)"),
+])
+def test_labels_calibrate_cannot_read_are_one_line_errors(tmp_path: Path, labels: np.ndarray, message: str) -> None:
+    """Text labels and an (N, 2) array were `internal error: ValueError` (exit 1)."""
+    path = boxes(tmp_path, "panda")[0]
+    with h5py.File(path, "r+") as f:
+        del f[LABEL]
+        f[LABEL] = labels
+    code, _, err = grasp("calibrate", str(path), "--no-store")
+    one_line_error(code, err, 2, f"0_panda.h5: {LABEL} {message}")
