@@ -25,6 +25,7 @@ written under a temporary name and renamed when complete.
 from __future__ import annotations
 
 import contextlib
+import json
 import logging
 import math
 import os
@@ -121,11 +122,38 @@ class ExportSummary:
     grasps: int = 0
     seconds: float = 0.0
     notes: list[str] = field(default_factory=list)  # what a reader of the labels should know
+    counts: list[int] = field(default_factory=list)  # grasps of each of ``files``
+    manifest: Path | None = None  # DIR/export-<format>.json, written last (:data:`MANIFEST`)
 
     def to_json(self) -> dict:
         return {"format": self.format, "files": [str(p) for p in self.files],
                 "meshes": [str(p) for p in self.meshes], "grasps": self.grasps, "seconds": round(self.seconds, 3),
-                "notes": self.notes}
+                "notes": self.notes, "manifest": None if self.manifest is None else str(self.manifest)}
+
+
+#: The export's manifest in DIR, one per format: removed before the export writes anything and written (atomically)
+#: after its last file, so that a folder holding it holds that export whole (a killed or failed export leaves none):
+#: what was exported, from which database, with which selection and labels, and each file with its grasps and bytes.
+MANIFEST = "export-{format}.json"
+
+
+def _manifest(summary: ExportSummary, out_dir: Path, db_path: Path, sel: Selection) -> Path:
+    from planner import assets
+    from planner.db.writing import now_text
+
+    rel = lambda p: p.relative_to(out_dir).as_posix()  # noqa: E731
+    record = {"format": summary.format, "complete": True, "finished_at": now_text(),
+              "database": str(Path(db_path).resolve()), "grasps": summary.grasps,
+              "selection": {"objects": list(sel.objects), "hands": list(sel.hands), "top": sel.top,
+                            "min_epsilon": sel.min_epsilon, "label": sel.label,
+                            "diverse": None if sel.spacing is None else {"translation": sel.spacing.translation,
+                                                                         "rotation": sel.spacing.rotation}},
+              "files": [{"path": rel(p), "grasps": n, "bytes": p.stat().st_size}
+                        for p, n in zip(summary.files, summary.counts)],
+              "meshes": [rel(p) for p in summary.meshes], "notes": summary.notes}
+    path = out_dir / MANIFEST.format(format=summary.format)
+    assets.atomic_write(path, (json.dumps(record, indent=2) + "\n").encode())
+    return path
 
 
 def export(db_path: Path, fmt: str, out_dir: Path, *, objects: Sequence[str] = (), hands: Sequence[str] = (),
@@ -172,8 +200,9 @@ def _export(db_path: Path, fmt: str, out_dir: Path, objects: Sequence[str], hand
                              "filters (--top, --min-epsilon, --label): nothing written")
         out_dir = _out_dir(Path(out_dir))
         copies = writer.mesh_copies if isinstance(writer, PairWriter) else ()
-        exported = {name: replace(o, label=sel.label)
+        exported = {name: replace(o, label=sel.label)  # a mesh another database put there is refused first
                     for name, o in write_meshes(db, sorted({o for o, _ in pairs}), out_dir, copies).items()}
+        (out_dir / MANIFEST.format(format=fmt)).unlink(missing_ok=True)  # no stale "complete" over new files
         summary.meshes = [out_dir / o.file for o in exported.values()]
         if isinstance(writer, TableWriter):
             path = out_dir / writer.file
@@ -183,6 +212,7 @@ def _export(db_path: Path, fmt: str, out_dir: Path, objects: Sequence[str], hand
             summary.grasps = writer.write(tmp, streams)
             os.replace(tmp, path)
             summary.files.append(path)
+            summary.counts.append(summary.grasps)
             if progress:
                 progress(path, summary.grasps)
         else:
@@ -192,11 +222,13 @@ def _export(db_path: Path, fmt: str, out_dir: Path, objects: Sequence[str], hand
                 count = _write_pair(db, writer, path, _for_hand(models[hand], exported[obj]), specs[hand], sel)
                 if count:
                     summary.files.append(path)
+                    summary.counts.append(count)
                     summary.grasps += count
                     if progress:
                         progress(path, count)
             if writer.finish is not None:
                 writer.finish(out_dir, sorted(specs))
+        summary.manifest = _manifest(summary, out_dir, Path(db_path), sel)
     summary.seconds = time.perf_counter() - start
     log.info("exported %d grasps as %s to %s in %.1f s", summary.grasps, fmt, out_dir, summary.seconds)
     return summary

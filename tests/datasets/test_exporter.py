@@ -68,8 +68,48 @@ def read_all(path: Path) -> object:
 
 
 def files(folder: Path) -> dict[str, object]:
-    """Every file of an export folder by its relative path, read."""
-    return {str(p.relative_to(folder)): read_all(p) for p in sorted(folder.rglob("*")) if p.is_file()}
+    """Every file of an export folder by its relative path, read (the manifest without the time it was written)."""
+    import json
+
+    out = {str(p.relative_to(folder)): read_all(p) for p in sorted(folder.rglob("*")) if p.is_file()}
+    for name in [n for n in out if n.startswith("export-") and n.endswith(".json")]:
+        manifest = json.loads(folder.joinpath(name).read_text())
+        out[name] = {**{k: v for k, v in manifest.items() if k not in ("finished_at", "files")},  # when; bytes: the
+                     "files": [{k: v for k, v in f.items() if k != "bytes"} for f in manifest["files"]]}  # batches
+    return out
+
+
+def test_a_complete_export_says_so_last_and_a_new_one_first_takes_that_back(db: Path, tmp_path: Path) -> None:
+    """A folder of an export killed midway looked like a finished one (a kill -9 of a GraspGen export, stop 53). The
+    manifest export-<format>.json is written after the last file, and removed before a new export of the format
+    writes its first grasp file: present, it lists that export whole."""
+    import json
+
+    from planner.datasets import acronym
+
+    out = export(db, "acronym", tmp_path / "a")
+    manifest = json.loads((out / "export-acronym.json").read_text())
+    assert manifest["complete"] and manifest["database"] == str(db.resolve())
+    assert [f["path"] for f in manifest["files"]] == ["box__panda.h5", "sphere__panda.h5"]
+    assert sum(f["grasps"] for f in manifest["files"]) == manifest["grasps"] == sum(
+        len(acronym.read_labels(out / f["path"])) for f in manifest["files"])
+    assert all(f["bytes"] == (out / f["path"]).stat().st_size for f in manifest["files"])
+    seen = []
+    original = exporter._write_pair
+
+    def failing(*args, **kwargs):  # type: ignore[no-untyped-def]
+        seen.append((out / "export-acronym.json").exists())
+        if len(seen) == 2:
+            raise OSError(28, "No space left on device")
+        return original(*args, **kwargs)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(exporter, "_write_pair", failing)
+        code, _, err = grasp("export", "--db", str(db), "--format", "acronym", "--out", str(out), "--quiet")
+    assert code == 2 and "cannot write the export" in err
+    assert seen == [False, False] and not (out / "export-acronym.json").exists()  # the stopped export: no manifest
+    export(db, "acronym", out)
+    assert json.loads((out / "export-acronym.json").read_text())["grasps"] == manifest["grasps"]
 
 
 def test_export_streams_in_batches(db: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
