@@ -223,14 +223,14 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
 
 def _from_sidecar(spec: ObjectSpec, given: Physical) -> str:
     """`` (mass from banana.toml)`` where a mesh's sidecar gave what the run did not."""
-    from planner.specs.objects import SIDECAR_SUFFIX, sidecar
+    from planner.specs.objects import sidecar, sidecar_path
 
     if spec.kind != "mesh" or not spec.source:
         return ""
-    side = sidecar(Path(spec.source))
+    side, path = sidecar(Path(spec.source)), sidecar_path(Path(spec.source))
     keys = [k for k in ("mass", "density", "friction") if getattr(side, k) is not None and
             (getattr(given, k) is None if k == "friction" else given.mass is None and given.density is None)]
-    return f" ({' and '.join(keys)} from {Path(spec.source).with_suffix(SIDECAR_SUFFIX).name})" if keys else ""
+    return f" ({' and '.join(keys)} from {path.name})" if keys and path is not None else ""
 
 
 def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, settings: SweepSettings | None = None,

@@ -47,10 +47,11 @@ class Replacement:
         self.failed: set[str] = set()
         for name in sorted({_name(u) for u in (units if replace else todo)}):
             ours = sorted({u.settings.to_json() for u in units if _name(u) == name})
-            for stored in sorted(db.swept_settings(name, hand.name, seed) - set(ours)):
+            swept = db.swept_settings(name, hand.name, seed)
+            for stored in sorted(swept - set(ours)):
                 found = stored_conflict(stored, ours)
                 if found is not None:
-                    _check(name, hand, seed, *found, replace)
+                    _check(name, hand, seed, *found, replace, unfinished=bool(swept & set(ours)))
                     self.pending.setdefault(name, []).append(stored)
 
     def ready(self) -> None:
@@ -76,8 +77,11 @@ def _name(unit: UnitSpec) -> str:
     return unit.label or unit.object_name
 
 
-def _check(name: str, hand: HandSpec, seed: int, old: dict, new: dict, keys: list[str], replace: bool) -> None:
-    """Refuse what ``replace`` cannot mend, and, without it, every stored sweep this run would sweep again."""
+def _check(name: str, hand: HandSpec, seed: int, old: dict, new: dict, keys: list[str], replace: bool,
+           unfinished: bool) -> None:
+    """Refuse what ``replace`` cannot mend, and, without it, every stored sweep this run would sweep again
+    (``unfinished``: some of this run's units are stored already, beside the other sweep: a ``--replace`` run
+    that was stopped)."""
     lost = _preshapes(hand, old) - _preshapes(hand, new)
     if replace and lost:
         raise InputError(f"{name} was swept for {hand.name} with seed {seed} and preshapes {', '.join(sorted(lost))} "
@@ -86,17 +90,23 @@ def _check(name: str, hand: HandSpec, seed: int, old: dict, new: dict, keys: lis
     if replace:
         return
     again = "or --replace to remove the stored sweep (its grasps and their trials) and sweep it again"
+    if unfinished:
+        raise InputError(f"{name} holds two sweeps for {hand.name} with seed {seed}: part of this run's and one "
+                         f"with other settings ({differences(old, new, keys)}), as a --replace run that was stopped "
+                         "leaves them; run it again with --replace to finish (the other is removed once this one "
+                         "is whole)")
+    if keys == ["preshapes"] and _preshapes(hand, old) == _preshapes(hand, new):
+        named = f"--preshapes {','.join(old['preshapes'])}" if old["preshapes"] else "no --preshapes (all of them)"
+        raise InputError(f"{name} was swept for {hand.name} with {named}: the same preshapes, named otherwise (and "
+                         f"the candidates are numbered in their order); resume with {named}, {again}")
     if keys == ["chunk"]:
         raise InputError(f"{name} was swept for {hand.name} with these settings but --chunk {old['chunk']}: another "
                          f"--chunk cuts the same candidates into other units and would store every grasp again; "
                          f"resume with --chunk {old['chunk']}, use another --db, {again}")
-    if keys == ["preshapes"] and set(old["preshapes"] or ()) == set(new["preshapes"] or ()):
-        raise InputError(f"{name} was swept for {hand.name} with --preshapes {','.join(old['preshapes'])}, in that "
-                         f"order (the candidates are numbered by it): resume with --preshapes "
-                         f"{','.join(old['preshapes'])}, {again}")
     raise InputError(f"{name} was swept for {hand.name} with seed {seed} and other settings "
-                     f"({differences(old, new, keys)}): these try the same candidates again and would store their "
-                     f"grasps twice; give another --seed for other candidates, another --db, {again}")
+                     f"({differences(old, new, keys)}): a second sweep under one seed would stand beside it (where "
+                     f"the two try the same candidates, every grasp twice); give another --seed for other "
+                     f"candidates, another --db, {again}")
 
 
 def _preshapes(hand: HandSpec, settings: dict) -> set[str]:

@@ -33,9 +33,10 @@ class UnitReads:
 
     @_reads
     def swept_settings(self, obj: str, hand: str, seed: int) -> set[str]:
-        """The settings (JSON, as stored) of ``obj``'s finished units for ``hand`` with ``seed``."""
-        rows = self._conn.execute("SELECT DISTINCT settings FROM units WHERE object = ? AND hand = ? AND seed = ? "
-                                  "AND status = 'done'", (obj, hand, seed))
+        """The settings (JSON, as stored) of ``obj``'s units for ``hand`` with ``seed``, finished or failed (a
+        failed unit keeps the grasps it found before its error)."""
+        rows = self._conn.execute("SELECT DISTINCT settings FROM units WHERE object = ? AND hand = ? AND seed = ?",
+                                  (obj, hand, seed))
         return {r["settings"] for r in rows}
 
     @_reads

@@ -370,8 +370,9 @@ def stored_conflict(stored: str, ours: Sequence[str]) -> tuple[dict, dict, list[
     for new in map(json.loads, ours):
         if new.get("table_plane") != old.get("table_plane"):
             continue
-        if new.get("preshapes") and old.get("preshapes") and not set(new["preshapes"]) & set(old["preshapes"]):
-            continue
+        if new.get("preshapes") and old.get("preshapes") and not set(new["preshapes"]) & set(old["preshapes"]) and \
+                "antipodal" not in (new.get("sampler"), old.get("sampler")):
+            continue  # rays: each preshape its own candidates (antipodal: the chord's, whatever opens on it)
         return old, new, sorted(k for k in new.keys() | old.keys() if new.get(k) != old.get(k))
     return None
 

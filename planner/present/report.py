@@ -199,7 +199,7 @@ def engines(grasps: Sequence[Grasp]) -> str:
     """Whose verdicts label ``grasps`` (each its :attr:`Grasp.trial`): ``MuJoCo 120, PyBullet 298``."""
     mujoco = sum(g.mujoco is not None for g in grasps)
     return f"MuJoCo {mujoco}, PyBullet {len(grasps) - mujoco}" + (
-        " (MuJoCo's verdict where both tried a grasp)" if mujoco and any(g.validation for g in grasps) else "")
+        " (MuJoCo's verdict where both tried a grasp)" if any(g.mujoco and g.validation for g in grasps) else "")
 
 
 def ece_lines(cals: list[HandCalibration]) -> list[str]:

@@ -124,7 +124,13 @@ NO_PHYSICAL = Physical()
 
 
 def sidecar(mesh: Path) -> Physical:
-    """The properties in ``mesh``'s sidecar (same stem, ``.toml`` in any case: ``B.STL`` + ``B.TOML`` or
+    """The properties in ``mesh``'s sidecar (:func:`sidecar_path`), if any."""
+    path = sidecar_path(mesh)
+    return Physical.checked(read_toml(path), str(path)) if path is not None else NO_PHYSICAL
+
+
+def sidecar_path(mesh: Path) -> Path | None:
+    """``mesh``'s sidecar (same stem, ``.toml`` in any case: ``B.STL`` + ``B.TOML`` or
     ``B.Toml``), if any; two sidecars of one mesh are refused. ``.toml`` and ``.TOML`` are probed (a case-blind
     file system, macOS's or Windows', answers them with ``b.toml`` beside ``B.STL``, once: files are told apart by
     identity), other spellings found in the folder's listing, made once per folder and change."""
@@ -140,21 +146,22 @@ def sidecar(mesh: Path) -> Physical:
     paths = sorted(found.values())
     if len(paths) > 1:
         raise InputError(f"{mesh}: two sidecars, {' and '.join(p.name for p in paths)}: keep one")
-    return Physical.checked(read_toml(paths[0]), str(paths[0])) if paths else NO_PHYSICAL
+    return paths[0] if paths else None
 
 
 def _odd_sidecars(folder: Path) -> dict[str, tuple[Path, ...]]:
     """stem -> the folder's sidecars spelt neither ``.toml`` nor ``.TOML`` (``.Toml``); {} if unreadable."""
     try:
-        return _listing(folder, folder.stat().st_mtime_ns)
+        st = folder.stat()
+        return _listing(folder, st.st_mtime_ns, st.st_ctime_ns)  # ctime: an mtime put back (cp -a, tar) moves it
     except OSError:  # an unreadable folder: the mesh's own read says what is wrong
         return {}
 
 
 @lru_cache(maxsize=64)
-def _listing(folder: Path, mtime_ns: int) -> dict[str, tuple[Path, ...]]:
-    """:func:`_odd_sidecars` of ``folder`` as it was at ``mtime_ns`` (a dataset folder of 20,000 meshes was listed
-    once per mesh and per look: 27 ms each)."""
+def _listing(folder: Path, mtime_ns: int, ctime_ns: int) -> dict[str, tuple[Path, ...]]:
+    """:func:`_odd_sidecars` of ``folder`` as it was at ``mtime_ns`` and ``ctime_ns`` (a dataset folder of 20,000
+    meshes was listed once per mesh and per look: 27 ms each)."""
     out: dict[str, list[Path]] = {}
     for p in folder.iterdir():
         if p.suffix.lower() == SIDECAR_SUFFIX and p.suffix not in (SIDECAR_SUFFIX, SIDECAR_SUFFIX.upper()):
