@@ -359,8 +359,11 @@ def stored_conflict(stored: str, ours: Sequence[str]) -> tuple[dict, dict, list[
     """(stored settings, ours, the keys that differ) where a sweep stored with
     settings ``stored`` (JSON, as the units table holds it) would be swept
     again by a run with settings ``ours`` (JSON, one per table plane), else
-    None: another table plane, an import, or explicit preshapes that share
-    none is another set of candidates; any other difference (the planner's
+    None: another table plane, an import, or (ray samplers) explicit
+    preshapes that share none is another set of candidates (an antipodal
+    candidate is a chord, an approach and a depth: the preshape only opens
+    the jaw on it, so the same chords close alike under another); any other
+    difference (the planner's
     version, a budget, the reach settings, the chunk, the preshapes named or
     not or in another order) tries the same candidates again and would store
     their grasps twice."""
