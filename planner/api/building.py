@@ -154,7 +154,7 @@ def _stored_names(db: Database, units: Sequence[UnitSpec]) -> list[UnitSpec]:
     """The units, a mesh file's under the name the database already stores it by (from that file at that scale)
     where this run names it otherwise: runs before 2026-12-05 prefixed the folders of every file of a run in which
     two files shared a stem, so a resume of such a run finds its objects, not new ones of the same files. Not where
-    the stored name is another file's name in this run."""
+    the stored name is another file's name in this run, nor another name than the file's (a symlink's to it)."""
     from planner.specs.objects import MESH_SUFFIXES
 
     stored = db.names_by_source()
@@ -166,8 +166,10 @@ def _stored_names(db: Database, units: Sequence[UnitSpec]) -> list[UnitSpec]:
         label = unit.label or unit.object_name
         if label in renamed or Path(unit.object_name).suffix.lower() not in MESH_SUFFIXES:
             continue
-        names = stored.get((str(Path(unit.object_name).expanduser().resolve()), unit.scale or 1.0), [])
-        other = [n for n in names if n not in taken]
+        named = Path(unit.object_name).expanduser()
+        names = stored.get((str(named.resolve()), unit.scale or 1.0), [])
+        # the file's own name, folder-prefixed: not another link's name to the same file (a link is its own object)
+        other = [n for n in names if n not in taken and n.rsplit("/", 1)[-1] in (named.stem, named.name)]
         if names and label not in names and other:
             renamed[label] = other[0]
     return [replaced(u, label=renamed.get(u.label or u.object_name, u.label)) for u in units]
@@ -206,9 +208,9 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
                 return ", ".join(f"{k} {v:g}" for k, v in values.items())
 
             raise InputError(f"object '{name}' is stored in {db.path} with {text(stored)}, this run gives "
-                             f"{text(given)}{_from_sidecar(spec, unit.physical)}; its grasps were measured at the "
-                             "stored values: use another --db, or name the object apart (copy the mesh under another "
-                             "name)")
+                             f"{text(given)}{_from_sidecar(unit.object_name, spec, unit.physical)}; its grasps "
+                             "were measured at the stored values: use another --db, or name the object apart (copy "
+                             "the mesh under another name)")
         if name not in running and spec.kind == "mesh" and row.source == spec.source and row.scale == spec.scale \
                 and not edited_since(Path(spec.source), db.last_finished(name)):
             continue  # nothing of it runs, and it names the stored file, unchanged since, at the stored scale
@@ -221,16 +223,18 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
                              "one; use another --db, or name the object apart (copy the mesh under another name)")
 
 
-def _from_sidecar(spec: ObjectSpec, given: Physical) -> str:
-    """`` (mass from banana.toml)`` where a mesh's sidecar gave what the run did not."""
-    from planner.specs.objects import sidecar, sidecar_path
+def _from_sidecar(named: str, spec: ObjectSpec, given: Physical) -> str:
+    """`` (mass from banana.toml)`` where the sidecar of the mesh ``named`` gave what the run did not."""
+    from planner.specs.objects import mesh_sidecar
+    from planner.specs.toml import read_toml
 
-    if spec.kind != "mesh" or not spec.source:
+    path = mesh_sidecar(Path(named)) if spec.kind == "mesh" and spec.source else None
+    if path is None:
         return ""
-    side, path = sidecar(Path(spec.source)), sidecar_path(Path(spec.source))
+    side = Physical.checked(read_toml(path), str(path))
     keys = [k for k in ("mass", "density", "friction") if getattr(side, k) is not None and
             (getattr(given, k) is None if k == "friction" else given.mass is None and given.density is None)]
-    return f" ({' and '.join(keys)} from {path.name})" if keys and path is not None else ""
+    return f" ({' and '.join(keys)} from {path.name})" if keys else ""
 
 
 def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, settings: SweepSettings | None = None,

@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import re
 import secrets
 import subprocess
 import sys
@@ -75,6 +76,7 @@ def _attach(ray: Any, target: str) -> None:
     to do. Ray's own wording names its ``--address`` flag and ``RAY_ADDRESS``,
     not ours."""
     local = "or give --ray without an address for a private local Ray instance with --workers CPUs"
+    _reachable(target, local)
     try:
         ray.init(address=target, log_to_driver=False, logging_level=logging.WARNING)
     except ValueError as exc:
@@ -85,6 +87,30 @@ def _attach(ray: Any, target: str) -> None:
                          f"{local}") from None
     except ConnectionError as exc:
         raise InputError(f"--ray {target}: could not connect to a Ray cluster ({_sentence(exc)}); start one "
+                         f"('ray start --head') and give its address, {local}") from None
+
+
+#: [s] how long an address's port may take to answer before --ray gives up on it.
+PROBE_TIMEOUT = 5.0
+
+
+def _reachable(target: str, local: str) -> None:
+    """Refuse a ``HOST:PORT`` or ``ray://HOST:PORT`` address nothing answers
+    at (a TCP connection within ``PROBE_TIMEOUT``): ``ray.init`` would wait
+    in its own reconnect loop for minutes. Other forms (``auto``) are left
+    to Ray."""
+    import socket
+
+    found = re.fullmatch(r"(?:ray://)?\[?([^\[\]/]+?)\]?:(\d+)/?", target.strip())
+    if found is None:
+        return
+    host, port = found.group(1), int(found.group(2))
+    try:
+        with socket.create_connection((host, port), timeout=PROBE_TIMEOUT):
+            pass
+    except OSError as exc:
+        reason = "timed out" if isinstance(exc, TimeoutError) else (exc.strerror or type(exc).__name__).lower()
+        raise InputError(f"--ray {target}: nothing answers at {host}:{port} ({reason}); start a cluster there "
                          f"('ray start --head') and give its address, {local}") from None
 
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import stat
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
@@ -127,6 +128,17 @@ def sidecar(mesh: Path) -> Physical:
     """The properties in ``mesh``'s sidecar (:func:`sidecar_path`), if any."""
     path = sidecar_path(mesh)
     return Physical.checked(read_toml(path), str(path)) if path is not None else NO_PHYSICAL
+
+
+def mesh_sidecar(named: Path) -> Path | None:
+    """The sidecar of the mesh file a path names: beside that path (a
+    symlink's own, ``link.toml`` beside ``link.obj``), else beside the file
+    it leads to."""
+    own = sidecar_path(named)
+    if own is not None:
+        return own
+    target = named.resolve()
+    return sidecar_path(target) if target != Path(os.path.abspath(named)) else None
 
 
 def sidecar_path(mesh: Path) -> Path | None:
@@ -278,9 +290,12 @@ def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = 
         if scale is not None:
             spec = replace(spec, scale=spec.scale * scale)
     elif Path(name).suffix.lower() in MESH_SUFFIXES or Path(name).exists():
-        path = Path(name).expanduser().resolve()
-        spec = ObjectSpec(name=path.stem, kind="mesh", source=str(path), scale=1.0 if scale is None else scale)
-        given = given.over(sidecar(path))
+        # named as given and its sidecar beside it (a symlink's own name and folder; the target's sidecar where
+        # the link has none); the source is the file itself, whatever path names it
+        named, path = Path(name).expanduser(), Path(name).expanduser().resolve()
+        spec = ObjectSpec(name=named.stem, kind="mesh", source=str(path), scale=1.0 if scale is None else scale)
+        found = mesh_sidecar(named)
+        given = given.over(Physical.checked(read_toml(found), str(found)) if found is not None else NO_PHYSICAL)
     else:
         raise UnknownNameError("object", name,
                                [*builtin, f"{RANDOM_PREFIX}000..{RANDOM_PREFIX}999", "or a mesh file path"])

@@ -176,6 +176,29 @@ def test_a_resume_keeps_the_names_an_earlier_run_stored_files_under(tmp_path: Pa
         assert sorted(n for (n,) in conn.execute("SELECT name FROM objects")) == ["a/part", "b/part", "lab/cup"]
 
 
+def test_two_symlinks_to_one_mesh_are_two_objects_with_their_own_sidecars(tmp_path: Path) -> None:
+    """A folder of links into a content store: each link named its object after the target (both 'a1b2') and
+    read the target's sidecar; the second link's run then added grasps to the first link's object. Now each link
+    is its own object, as a copy would be, with its own mass."""
+    store = tmp_path / "store"
+    store.mkdir()
+    trimesh.creation.box(extents=(0.03, 0.04, 0.05)).export(store / "a1b2.obj")
+    objects = tmp_path / "objects"
+    objects.mkdir()
+    for name, mass in (("brick", 0.3), ("block", 0.05)):
+        (objects / f"{name}.obj").symlink_to(store / "a1b2.obj")
+        (objects / f"{name}.toml").write_text(f"mass = {mass}\n")
+    db = tmp_path / "g.db"
+    for name in ("brick", "block"):
+        code, _, err = grasp("generate", str(objects / f"{name}.obj"), "--hand", "panda", "--db", str(db), *FAST,
+                             "--quiet")
+        assert code == 0, err
+    with sqlite3.connect(db) as conn:
+        assert sorted(conn.execute("SELECT name, mass FROM objects")) == [("block", 0.05), ("brick", 0.3)]
+        counts = dict(conn.execute("SELECT object, COUNT(*) FROM grasps GROUP BY object"))
+    assert counts["block"] > 0 and counts["brick"] > 0  # their own sweeps (seeds derive from the name)
+
+
 @pytest.mark.parametrize("args, code, needle", [
     (["--seed", "-1"], 2, "--seed must be an integer from 0 to"),  # every unit failed, stored as failed
     (["--seed", "99999999999999999999"], 2, "--seed must be an integer from 0 to"),  # an internal OverflowError
@@ -337,10 +360,36 @@ def test_a_ray_cluster_that_cannot_be_reached_is_one_line(tmp_path: Path, monkey
 
     monkeypatch.setattr(ray, "init", refuse)
     monkeypatch.setattr(ray, "is_initialized", lambda: False)
+    monkeypatch.setattr("planner.run.ray_local._reachable", lambda *_: None)  # Ray's own refusals, past the probe
     code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(tmp_path / "r.db"), "--ray", address,
                          *FAST)
     one_line_error(code, err, 2, f"--ray {address}:", *needles)
     assert "internal error" not in err
+
+
+@pytest.mark.parametrize("form", ["127.0.0.1:{port}", "ray://127.0.0.1:{port}", "ray://[::1]:{port}"])
+def test_a_ray_address_nothing_answers_at_is_refused_at_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                             form: str) -> None:
+    """`--ray 127.0.0.1:1` waited in Ray's own reconnect loop (minutes); a port nothing listens on is refused
+    before ray.init is called, in one line (a real TCP refusal on this machine: a port just released)."""
+    import socket
+
+    ray = pytest.importorskip("ray")
+    family = socket.AF_INET6 if "::1" in form else socket.AF_INET
+    try:
+        with socket.socket(family) as sock:
+            sock.bind(("::1" if family == socket.AF_INET6 else "127.0.0.1", 0))
+            port = sock.getsockname()[1]
+    except OSError:
+        pytest.skip("no IPv6 loopback here")
+    called: list[object] = []
+    monkeypatch.setattr(ray, "init", lambda **kw: called.append(kw))
+    monkeypatch.setattr(ray, "is_initialized", lambda: False)
+    address = form.format(port=port)
+    code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(tmp_path / "r.db"), "--ray", address,
+                         *FAST)
+    one_line_error(code, err, 2, f"--ray {address}: nothing answers at", f":{port}", "ray start --head")
+    assert not called
 
 
 def test_the_help_and_the_readme_name_every_manifest_column() -> None:

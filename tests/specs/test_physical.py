@@ -165,3 +165,30 @@ def test_one_sidecar_answering_to_two_spellings_is_read_once(brick: Path) -> Non
     brick.with_suffix(".toml").write_text("mass = 0.066\n")
     brick.with_suffix(".TOML").hardlink_to(brick.with_suffix(".toml"))
     assert resolve_spec(str(brick)).mass == 0.066
+
+
+def test_a_symlinked_mesh_is_named_and_sidecared_as_its_link(tmp_path: Path, brick: Path) -> None:
+    """A mesh given through a symlink (a dataset folder of links into a content store) took the target's name
+    and read the target's sidecar, never the one beside the link; by a folder, a glob and a manifest line too.
+    The link's own sidecar now, the target's where the link has none; the source is the file itself."""
+    store = tmp_path / "store"
+    store.mkdir()
+    target = store / "3f9a1c.obj"
+    brick.rename(target)
+    target.with_suffix(".toml").write_text("mass = 0.5\n")
+    objects = tmp_path / "objects"
+    objects.mkdir()
+    (objects / "banana.obj").symlink_to(target)
+    (objects / "banana.toml").write_text("mass = 0.066\nfriction = 0.8\n")
+    (objects / "plain.obj").symlink_to(target)  # no sidecar of its own
+    spec = resolve_spec(str(objects / "banana.obj"))
+    assert (spec.name, spec.mass, spec.friction, spec.source) == ("banana", 0.066, 0.8, str(target.resolve()))
+    plain = resolve_spec(str(objects / "plain.obj"))
+    assert (plain.name, plain.mass) == ("plain", 0.5)
+    (tmp_path / "list.txt").write_text("objects/banana.obj\n")
+    for arg in (str(objects), str(objects / "*.obj"), f"@{tmp_path / 'list.txt'}"):
+        refs = inputs.expand([arg])
+        names = sorted(resolve_spec(r.source, label=r.label).name for r in refs)
+        assert names == (["banana"] if arg.startswith("@") else ["banana", "plain"]), arg
+        banana = next(r for r in refs if Path(r.source).name == "banana.obj")
+        assert resolve_spec(banana.source, label=banana.label).mass == 0.066
