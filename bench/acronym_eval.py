@@ -43,7 +43,6 @@ from contextlib import closing
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-import h5py
 import numpy as np
 import tomllib
 
@@ -59,6 +58,7 @@ from planner.calibration.metrics import (
 )
 from planner.calibration.model import DEFAULT_TREES, default_model, load_model
 from planner.datasets import importer
+from planner.datasets.acronym import read_labels
 from planner.db.ranking import RankingRule, rank_order
 from planner.geometry.solid import prepare
 from planner.run import pool
@@ -70,7 +70,6 @@ ROOT = Path(__file__).resolve().parents[1]
 SPLIT = ROOT / "bench" / "acronym_split.toml"
 DEV = ROOT.parent / "shared" / "labelled" / "acronym_dev"
 CACHE = Path.home() / ".cache" / "grasp-planner" / "acronym_eval"
-LABEL = "grasps/qualities/flex/object_in_gripper"
 #: The k of "the k best-scored poses hold".
 TOP_K = 10
 
@@ -141,8 +140,7 @@ def rescore_file(path: Path, poses: int, seed: int, workers: int, cache: Path, c
     if key.exists():
         return pickle.loads(key.read_bytes())
     hand, spec, all_poses = importer.read_for_rescoring(path)
-    with h5py.File(path, "r") as f:
-        labels_all = np.asarray(f[LABEL][:], int)
+    labels_all = np.asarray(read_labels(path), int)  # (N,) or an (N, 1) column, as `grasp calibrate` reads them
     rows = sample(len(all_poses), poses, seed, path.stem)
     chunk = importer.RESCORE_CHUNK
     units = [importer.RescoreUnit(0, i, all_poses[rows[i:i + chunk]], hand, spec)

@@ -99,10 +99,10 @@ def measure(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: 
             directions: np.ndarray | None = None, grip: Grip | None = None,
             local_sdf: np.ndarray | None = None) -> Measures:
     """Weight resistance and feasibility of a closed grasp (object frame);
-    ``directions`` (k, 3) of the weight (None: the 14 of :data:`planner.quality.resistance.SPHERE14`);
+    ``directions`` (k, 3) of the weight (None: the 14 of :data:`planner.geometry.gravity.SPHERE14`);
     ``grip``: its grip measures (:mod:`planner.plan.grip`), stored with the rest (None: not measured);
     ``local_sdf``: the object around it (:mod:`planner.plan.local_sdf`; None: not measured)."""
-    from planner.quality.resistance import SPHERE14
+    from planner.geometry.gravity import SPHERE14
 
     directions = SPHERE14 if directions is None else directions
     resist = _resistance(contacts, frames, hand, shape, closed, obj, directions)

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from planner.geometry.gravity import DIRECTIONS
 from planner.geometry.quaternion import canonical_xyzw
 from planner.record import fields
 from planner.record.grasp import Grasp
@@ -99,7 +100,7 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
                  f"{len(g.contacts)} contacts; reachability {reach}")
     if m is not None:
         settled = "" if m.settled_epsilon is None else f"; settled epsilon {m.settled_epsilon:.4f}"
-        lines.append(f"    holds {m.resist_worst:.1f} times its weight in the worst of 14 directions (mean "
+        lines.append(f"    holds {m.resist_worst:.1f} times its weight in the worst of {DIRECTIONS} directions (mean "
                      f"{m.resist_mean:.1f}); push {m.push:.2f} (1 = pads square on); feasibility "
                      f"{','.join(m.reasons) or 'ok'}{settled}")
     if not g.force_closure:
@@ -116,7 +117,7 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
             held_by += [name] if trial.success else []
     if m is not None and "cannot_hold_weight" in m.reasons and held_by:
         lines.append(f"    its weight: the {held_by[-1]} held it loaded along one direction (the object's -z, or the "
-                     f"table's down); cannot_hold_weight is the worst of 14 "
+                     f"table's down); cannot_hold_weight is the worst of {DIRECTIONS} "
                      f"directions, where the fingers' force limits hold {m.resist_worst:.1f} times its weight: hold "
                      "it as it stands, do not turn it")
     for stage, joints in (arm or {}).items():

@@ -38,17 +38,12 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from planner.errors import DegenerateGraspError
+from planner.geometry.gravity import AXES, DIAGONALS, SPHERE14  # noqa: F401 (the directions, named here too)
 from planner.quality.contacts import FRICTIONLESS, SOFT, Contacts, ModelArg, as_array, as_center, as_contacts
 from planner.quality.grasp_matrix import partial_grasp_matrices, selection_lengths
 from planner.quality.jacobian import hand_jacobian
 from planner.quality.tolerances import GRAVITY, RANK_TOL, RESISTANCE_CAP
 from planner.quality.wrenches import _cone_table, as_cone_edges
-
-#: The six axes +-x, +-y, +-z and the eight cube diagonals: 14 unit gravity
-#: directions spread over the sphere (rows).
-AXES = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
-DIAGONALS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float) / np.sqrt(3.0)
-SPHERE14 = np.vstack([AXES, DIAGONALS])
 
 
 @dataclass(frozen=True)

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.geometry.gravity import DIRECTIONS
 from planner.record.field import stored
 
 #: Points of every hand's ``[local_sdf]`` grid (:class:`planner.specs.hand_spec.LocalGrid`): the stored measure's
@@ -44,9 +45,11 @@ class Measures:
     no grid, or a grasp stored before schema version 11).
     """
 
-    resist_worst: float = stored("real", "g", 3, "weight resistance, worst of 14 gravity directions (object frame)",
+    resist_worst: float = stored("real", "g", 3,
+                                 f"weight resistance, worst of {DIRECTIONS} gravity directions (object frame)",
                                  required=False, ranked="resist_worst")
-    resist_mean: float = stored("real", "g", 3, "weight resistance, mean over the 14 directions", required=False)
+    resist_mean: float = stored("real", "g", 3, f"weight resistance, mean over the {DIRECTIONS} directions",
+                                required=False)
     open_margin: float = stored("margin", "m", 3, "smallest travel a touching finger has left towards its open limit",
                                 required=False, ranked="open_margin")
     close_margin: float = stored("margin", "m", 3, "smallest travel a touching finger has left towards its closing "
