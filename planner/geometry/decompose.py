@@ -9,6 +9,13 @@ takes 0.2-153 s of CPU per object here, median 11 s on the dev set's meshes).
 Meshes whose connected bodies are each convex already (primitives, the
 VHACD-made duck, teddy and random objects of pybullet_data) skip CoACD: their
 bodies are the parts.
+
+CoACD has no time limit of its own, so it runs in a child process that is
+killed after ``GRASP_COACD_TIME_LIMIT`` seconds (:data:`TIME_LIMIT` unless
+set; ``0``: none): a mesh it cannot finish fails with a one-line reason
+instead of holding a batch's worker for hours, and the failure is recorded
+beside the cache, so the object's other trials fail at once rather than each
+running CoACD again (a larger limit tries again).
 """
 
 from __future__ import annotations
@@ -16,6 +23,10 @@ from __future__ import annotations
 import io
 import json
 import logging
+import os
+import subprocess
+import sys
+import tempfile
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -29,6 +40,10 @@ log = logging.getLogger(__name__)
 
 #: A body is convex when its volume is within this fraction of its hull's.
 CONVEX_TOL = 0.02
+#: [s] CoACD's time limit per mesh unless ``GRASP_COACD_TIME_LIMIT`` says otherwise (with these settings the
+#: slowest of the dev set's 30 tuning meshes, a bowl, took 153 s of CPU; their median 10.8 s).
+TIME_LIMIT = 900.0
+TIME_LIMIT_ENV = "GRASP_COACD_TIME_LIMIT"
 
 
 @dataclass(frozen=True)
@@ -76,13 +91,35 @@ class Parts:
         return len(self.vertices)
 
 
-def convex_parts(mesh: trimesh.Trimesh, mesh_hash: str, settings: CoacdSettings | None = None) -> Parts:
+def convex_parts(mesh: trimesh.Trimesh, mesh_hash: str, settings: CoacdSettings | None = None,
+                 limit: float | None = None) -> Parts:
+    """The object's convex parts: its bodies if each is convex, else CoACD's
+    (cached), run within ``limit`` seconds (None: :func:`time_limit`; 0: no
+    limit). A mesh CoACD did not finish within a limit at least this large
+    before is refused at once (:class:`~planner.errors.MeshError`)."""
     settings = settings or DEFAULT_SETTINGS
     parts = ready_parts(mesh, mesh_hash, settings)
     if parts is None:
-        parts = _run_coacd(mesh, settings)
-        _write(_cache_path(mesh_hash, settings), parts)
+        limit = time_limit() if limit is None else limit
+        path = _cache_path(mesh_hash, settings)
+        refuse_known_timeout(mesh_hash, settings, limit)
+        parts = _run_limited(mesh, settings, limit, path) if limit else _run_coacd(mesh, settings)
+        _write(path, parts)
     return parts
+
+
+def time_limit() -> float:
+    """[s] CoACD's time limit: ``$GRASP_COACD_TIME_LIMIT`` (0: none), else :data:`TIME_LIMIT`."""
+    text = os.environ.get(TIME_LIMIT_ENV, "").strip()
+    if not text:
+        return TIME_LIMIT
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not value >= 0 or value == float("inf"):
+        raise MeshError(f"{TIME_LIMIT_ENV}={text!r}: give seconds (0 for no limit)")
+    return value
 
 
 def ready_parts(mesh: trimesh.Trimesh, mesh_hash: str, settings: CoacdSettings | None = None) -> Parts | None:
@@ -130,6 +167,72 @@ def _run_coacd(mesh: trimesh.Trimesh, settings: CoacdSettings) -> Parts:
                  "coacd")
 
 
+def _timeout_path(path: Path) -> Path:
+    return path.with_suffix(".timeout.json")
+
+
+def refuse_known_timeout(mesh_hash: str, settings: CoacdSettings | None = None, limit: float | None = None) -> None:
+    """Raise the recorded reason (:class:`~planner.errors.MeshError`) if CoACD ran out of a limit >= ``limit``
+    (None: :func:`time_limit`; 0: none) on this mesh with these settings before."""
+    limit = time_limit() if limit is None else limit
+    try:
+        known = json.loads(_timeout_path(_cache_path(mesh_hash, settings or DEFAULT_SETTINGS)).read_text())
+        tried, reason = float(known["limit"]), str(known["reason"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return
+    if limit and tried >= limit:
+        raise MeshError(f"{reason} (recorded earlier; set {TIME_LIMIT_ENV} above {tried:g} to try again)")
+
+
+def _run_limited(mesh: trimesh.Trimesh, settings: CoacdSettings, limit: float, path: Path) -> Parts:
+    """:func:`_run_coacd` in a child process (``python -m planner.geometry.decompose``), killed after ``limit``
+    seconds; a timeout is recorded beside ``path`` (the cache file the parts would have gone to)."""
+    with tempfile.TemporaryDirectory(prefix="grasp-coacd-") as folder:
+        given, made = Path(folder) / "mesh.npz", Path(folder) / "parts.npz"
+        np.savez(given, vertices=np.asarray(mesh.vertices, float), faces=np.asarray(mesh.faces, np.int64),
+                 settings=np.array(json.dumps(asdict(settings))))
+        log.info("running CoACD (%d faces, at most %g s); cached afterwards", len(mesh.faces), limit)
+        try:
+            done = subprocess.run([sys.executable, "-m", __name__, str(given), str(made)], capture_output=True,
+                                  text=True, timeout=limit)
+        except subprocess.TimeoutExpired:
+            reason = (f"CoACD did not finish the convex decomposition of this mesh ({len(mesh.faces)} faces) within "
+                      f"{limit:g} s")
+            assets.atomic_write(_timeout_path(path), json.dumps({"limit": limit, "reason": reason}).encode())
+            raise MeshError(f"{reason}: simplify the mesh, or set {TIME_LIMIT_ENV} (seconds, 0: none)") from None
+        if done.returncode or not made.is_file():
+            last = (done.stderr.strip().splitlines() or [f"exit {done.returncode}"])[-1]
+            raise MeshError(last if last.startswith(("CoACD failed", "CoACD returned")) else f"CoACD failed on this "
+                            f"mesh: {last}")
+        return _read(made)
+
+
+def _child(given: str, made: str) -> int:
+    """The child of :func:`_run_limited`: CoACD on the mesh in ``given``, its parts written to ``made``. It
+    stops when its parent is gone (a worker killed by a unit's timeout or kill -9), not running on orphaned."""
+    import threading
+    import time
+
+    parent = os.getppid()
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True).start()
+    with np.load(given, allow_pickle=False) as data:
+        mesh = trimesh.Trimesh(data["vertices"], data["faces"], process=False)
+        settings = CoacdSettings(**json.loads(str(data["settings"])))
+    try:
+        parts = _run_coacd(mesh, settings)
+    except MeshError as exc:
+        print(exc, file=sys.stderr)
+        return 1
+    _write(Path(made), parts)
+    return 0
+
+
 def _write(path, parts: Parts) -> None:  # type: ignore[no-untyped-def]
     arrays = {"method": np.array(parts.method)}
     for i, (v, f) in enumerate(zip(parts.vertices, parts.faces)):
@@ -144,3 +247,7 @@ def _read(path) -> Parts:  # type: ignore[no-untyped-def]
         n = int(data["count"])
         return Parts(tuple(data[f"v{i}"] for i in range(n)), tuple(data[f"f{i}"] for i in range(n)),
                      str(data["method"]))
+
+
+if __name__ == "__main__":
+    sys.exit(_child(*sys.argv[1:3]))

@@ -190,13 +190,14 @@ def execute(tasks: list[Task], workers: int) -> Iterator[TaskResult]:
 def decompose(row: ObjectRow, report: Report) -> bool:
     """Make sure the stored object's convex parts are ready (cached) for
     its trials; ``report(0, 1)`` just before CoACD runs. True if it ran."""
-    from planner.geometry.decompose import convex_parts, ready_parts
+    from planner.geometry.decompose import convex_parts, ready_parts, refuse_known_timeout
     from planner.validation.parts import PRIMITIVES
 
     with one_blas_thread():
         obj = stored_object(row)
         if obj.spec.kind in PRIMITIVES or ready_parts(obj.mesh, obj.mesh_hash) is not None:
             return False
+        refuse_known_timeout(obj.mesh_hash)  # not announced as started when it ran out of this time limit before
         report(0, 1)
         convex_parts(obj.mesh, obj.mesh_hash)
     return True

@@ -57,3 +57,56 @@ def test_every_setting_reaches_coacd_and_names_the_cache(monkeypatch) -> None:  
     other = dataclasses.replace(settings, mcts_iterations=12)
     assert decompose._cache_path("abc", settings) != decompose._cache_path("abc", other)
     assert decompose._cache_path("abc", settings) == decompose._cache_path("abc", dataclasses.replace(settings))
+
+
+def _ell() -> trimesh.Trimesh:
+    outline = np.array([[-0.03, -0.01], [0.03, -0.01], [0.03, 0.01], [-0.01, 0.01], [-0.01, 0.05], [-0.03, 0.05]])
+    return trimesh.creation.extrude_polygon(trimesh.path.polygons.Polygon(outline), 0.02)
+
+
+def test_coacd_over_its_time_limit_fails_in_one_line_and_is_not_run_again(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """CoACD has no time limit: a mesh it cannot finish held a batch's worker for as long as it took, and every
+    trial of the object ran it again. It runs in a child killed at the limit; the failure is recorded, so the
+    next call is refused at once, and a larger limit tries again."""
+    import subprocess
+
+    import pytest
+
+    from planner.errors import MeshError
+
+    ell, settings = _ell(), decompose.CoacdSettings(threshold=0.1, max_convex_hull=4, resolution=500, seed=7)
+    key = mesh_hash(ell)
+    monkeypatch.setenv(decompose.TIME_LIMIT_ENV, "0.01")  # less than the child needs to start
+    with pytest.raises(MeshError) as info:
+        decompose.convex_parts(ell, key, settings)
+    message = str(info.value)
+    assert "did not finish" in message and "within 0.01 s" in message and decompose.TIME_LIMIT_ENV in message
+    assert "\n" not in message
+    real_run = subprocess.run
+
+    def no_child(*_: object, **__: object) -> None:
+        raise AssertionError("CoACD ran again after it had run out of the same limit")
+
+    monkeypatch.setattr(subprocess, "run", no_child)
+    with pytest.raises(MeshError, match="recorded earlier"):
+        decompose.convex_parts(ell, key, settings)
+    monkeypatch.setattr(subprocess, "run", real_run)
+    monkeypatch.setenv(decompose.TIME_LIMIT_ENV, "120")
+    parts = decompose.convex_parts(ell, key, settings)
+    assert parts.method == "coacd" and 2 <= len(parts) <= 4
+    assert decompose.ready_parts(ell, key, settings) is not None  # cached for every later call
+
+
+def test_a_limit_that_is_not_seconds_is_refused(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    import pytest
+
+    from planner.errors import MeshError
+
+    for text in ("soon", "-5", "nan", "inf"):
+        monkeypatch.setenv(decompose.TIME_LIMIT_ENV, text)
+        with pytest.raises(MeshError, match="give seconds"):
+            decompose.time_limit()
+    monkeypatch.setenv(decompose.TIME_LIMIT_ENV, "0")
+    assert decompose.time_limit() == 0.0
+    monkeypatch.delenv(decompose.TIME_LIMIT_ENV)
+    assert decompose.time_limit() == decompose.TIME_LIMIT
