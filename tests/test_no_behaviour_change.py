@@ -56,7 +56,9 @@ grasps, other settled epsilons, scores and ranks of the Barrett's); 14 (issue
 fail, overlapping bodies and open meshes: the digest is 15's); 17 (issue 24:
 the prismatic finger axes read with the hand at the origin, so a unit's
 grasps no longer depend on the candidates before it, the chunking: one soft
-contact of one grasp moved 0.9 mm, every other value within 1e-6).
+contact of one grasp moved 0.9 mm, every other value within 1e-6); 18 (issue 26: contact normals at sharp
+edges; the table and the hands' primitives as meshes in PyBullet); 19 (the settle's object keeps every
+convex part, PyBullet kept 16 of more: the box and cylinder are primitives, the digest is 18's).
 """
 
 from __future__ import annotations

@@ -81,6 +81,34 @@ def part_file(vertices: np.ndarray, faces: np.ndarray) -> str:
     return str(path)
 
 
+#: The most children PyBullet 3.2.7 builds from one createCollisionShapeArray
+#: (MAX_COMPOUND_COLLISION_SHAPES of its command API): it drops the rest without
+#: a word (until 2026-12-06 a mug's 32 CoACD parts were 16 in the PyBullet trial
+#: and the settle).
+MAX_SHAPE_ARRAY = 16
+
+
+def parts_file(files: tuple[str, ...]) -> str:
+    """The convex parts of :func:`part_file` in one OBJ file, each part an
+    object (``o``) of its own, in the cache (named by its content): PyBullet
+    reads such a file as a compound of one convex hull per object."""
+    text, offset = [], 0
+    for i, name in enumerate(files):
+        lines = Path(name).read_text().splitlines()
+        vertices = [line for line in lines if line.startswith("v ")]
+        text.append(f"o part{i}\n" + "".join(line + "\n" for line in vertices))
+        for line in lines:
+            if line.startswith("f "):
+                a, b, c = (int(k) + offset for k in line.split()[1:4])
+                text.append(f"f {a} {b} {c}\n")
+        offset += len(vertices)
+    data = "".join(text).encode()
+    path = assets.cache_dir("parts") / f"all-{assets.sha256_bytes(data)[:20]}.obj"
+    if not path.is_file():
+        assets.atomic_write(path, data)
+    return str(path)
+
+
 def rigid_urdf(urdf: Path) -> Path:
     """The URDF without its ``<contact>`` blocks (the Panda's fingers carry a
     soft contact, stiffness 3e4 N/m, that lets them sink ~1 cm into the
@@ -167,8 +195,12 @@ class Dynamics:
         # no `flags` here: PyBullet 3.2.7's createCollisionShapeArray corrupts memory when
         # given a flags list (a segfault with 24 parts; with one part, later closest-point
         # queries silently return nothing)
-        return pb.createCollisionShapeArray([pb.GEOM_MESH] * len(shape.files), fileNames=list(shape.files),
-                                            physicsClientId=c)
+        if len(shape.files) <= MAX_SHAPE_ARRAY:
+            return pb.createCollisionShapeArray([pb.GEOM_MESH] * len(shape.files), fileNames=list(shape.files),
+                                                physicsClientId=c)
+        # more parts than an array keeps: one OBJ file with each part an object of its own, which PyBullet
+        # reads as a compound of their convex hulls (every part)
+        return pb.createCollisionShape(pb.GEOM_MESH, fileName=parts_file(shape.files), physicsClientId=c)
 
     def add_hand(self, urdf: Path) -> Body:
         """The hand, rigid contacts (:func:`rigid_urdf`), its base fixed at the

@@ -69,11 +69,18 @@ from planner.validation.tolerances import GRAVITY, LOAD_DIRECTIONS
 REASONS = ("held", "slipped", "squeezed_out", "no_contact", "no_clearance", "start_overlap")
 
 
+#: How the trial builds the object's collision shape, stored with each result so that a verdict of
+#: another shape is tried again: 2, every convex part (until 2026-12-06 an object of more than 16 parts
+#: kept its first 16 in PyBullet: planner.sim.dynamics.MAX_SHAPE_ARRAY).
+OBJECT_SHAPE = 2
+
+
 def recorded(settings: ShakeSettings, hand: HandSpec) -> str:
     """What decides a hand's trials, as stored with each result (JSON): the
     settings, the finger actuators and the torsion radii of the soft links."""
     torsion = {link: m.torsion_radius for link, m in sorted(hand.contacts.items()) if m.model == "soft"}
-    return json.dumps({**asdict(settings), "hand": hand.name, "actuators": asdict(hand.actuators),
+    return json.dumps({**asdict(settings), "object_shape": OBJECT_SHAPE, "hand": hand.name,
+                       "actuators": asdict(hand.actuators),
                        "breakaway": [j.name for j in hand.joints if j.breakaway], "torsion_radius": torsion},
                       sort_keys=True)
 

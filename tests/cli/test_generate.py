@@ -452,4 +452,4 @@ def test_whose_verdicts_the_report_counts_and_which_sidecar_gave_a_value(tmp_pat
     mesh = tmp_path / "S.STL"
     trimesh.creation.box(extents=[0.03, 0.03, 0.03]).export(mesh)
     mesh.with_suffix(".TOML").write_text("mass = 0.07\n")
-    assert _from_sidecar(resolve_spec(str(mesh)), NO_PHYSICAL) == " (mass from S.TOML)"
+    assert _from_sidecar(str(mesh), resolve_spec(str(mesh)), NO_PHYSICAL) == " (mass from S.TOML)"
