@@ -187,6 +187,15 @@ def _planes(equations: np.ndarray) -> np.ndarray:
     changes no largest plane distance and no inside test, and a tie resolves
     to the first occurrence, which is kept.
     """
+    order = np.lexsort(equations.T[::-1])  # stable: the first of equal rows leads them, as in np.unique
+    ranked = equations[order]
+    first = np.ones(len(ranked), bool)
+    np.any(ranked[1:] != ranked[:-1], axis=1, out=first[1:])
+    return equations[np.sort(order[first])]
+
+
+def _planes_reference(equations: np.ndarray) -> np.ndarray:
+    """:func:`_planes` by np.unique (its structured sort costs ~4x the lexsort on a hull's few dozen planes)."""
     _, first = np.unique(equations, axis=0, return_index=True)
     return equations[np.sort(first)]
 

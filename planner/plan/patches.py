@@ -171,12 +171,17 @@ def _cluster(points: np.ndarray, normals: np.ndarray, radius: float, split_angle
              pairs: np.ndarray | None = None) -> np.ndarray:
     """(k,) labels: connected components of samples closer than ``radius``
     whose normals differ by less than ``split_angle``; ``pairs`` (p, 2):
-    the pairs closer than ``radius`` when already known."""
+    the pairs closer than ``radius`` when already known, ascending by their
+    first sample (:meth:`LinkSurface.pairs_among`)."""
+    known = pairs is not None
     if pairs is None:
         pairs = cKDTree(points).query_pairs(radius, output_type="ndarray") if len(points) > 1 else np.zeros((0, 2), int)
-    if len(pairs):
-        pairs = pairs[np.einsum("ij,ij->i", normals[pairs[:, 0]], normals[pairs[:, 1]]) > np.cos(split_angle)]
-        pairs = pairs[np.argsort(pairs[:, 0], kind="stable")]
+    if len(pairs):  # take and compress: a third of the time of fancy indexing and a boolean mask
+        first, second = pairs.T
+        similar = np.einsum("ij,ij->i", normals.take(first, axis=0), normals.take(second, axis=0)) > np.cos(split_angle)
+        pairs = pairs.compress(similar, axis=0)
+    if not known:  # the graph's rows; their order within a row changes no label (numbered by smallest member)
+        pairs = pairs[np.argsort(pairs[:, 0])]
     n = len(points)
     graph = csr_matrix((np.ones(len(pairs)), pairs[:, 1], np.searchsorted(pairs[:, 0], np.arange(n + 1))), shape=(n, n))
     return connected_components(graph, directed=False)[1]

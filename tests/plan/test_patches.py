@@ -23,6 +23,7 @@ from planner.plan.patches import (
     Region,
     _band,
     _band_reference,
+    _cluster,
     discretise,
     extreme_points,
     hand_surfaces,
@@ -170,6 +171,40 @@ def test_a_links_own_pairs_are_the_pairs_of_its_moved_samples(seed: int, radius:
     got = {tuple(p) for p in finger.pairs_among(idx, radius)}
     assert want <= got <= wide  # the same pairs (up to round-off at exactly the radius)
     assert all(a < b for a, b in got)
+
+
+def _components(count: int, pairs: np.ndarray) -> np.ndarray:
+    """(count,) labels of the connected components of ``pairs`` (p, 2), numbered in the order of their smallest
+    member: a plain union-find."""
+    parent = list(range(count))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            i = parent[i]
+        return i
+
+    for a, b in pairs:
+        ra, rb = root(int(a)), root(int(b))
+        parent[max(ra, rb)] = min(ra, rb)
+    return np.unique([root(i) for i in range(count)], return_inverse=True)[1].reshape(-1)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.floats(0.0005, 0.004), st.floats(0.0, np.pi))
+def test_regions_are_the_components_of_close_samples_of_similar_normals(seed: int, radius: float,
+                                                                       split: float) -> None:
+    """The regions of any subset of a finger's samples with normals spread about one direction, from the link's own
+    pairs or a tree's: the components of the pairs whose normals differ by less than the split angle."""
+    finger = hand_surfaces(load_hand("panda"), PatchSettings())["panda_leftfinger"]
+    rng = np.random.default_rng(seed)
+    idx = np.sort(rng.choice(len(finger.points), size=int(rng.integers(2, 400)), replace=False))
+    normals = rng.normal(size=(len(idx), 3)) * rng.uniform(0.0, 2.0) + [0.0, 0.0, 1.0]
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    points = finger.points[idx]
+    for pairs in (finger.pairs_among(idx, radius), None):
+        close = cKDTree(points).query_pairs(radius, output_type="ndarray") if pairs is None else pairs
+        similar = close[np.einsum("ij,ij->i", normals[close[:, 0]], normals[close[:, 1]]) > np.cos(split)]
+        assert np.array_equal(_cluster(points, normals, radius, split, pairs), _components(len(idx), similar))
 
 
 def _outside_cone(point: np.ndarray, normal: np.ndarray, half: np.ndarray) -> float:

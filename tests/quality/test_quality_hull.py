@@ -9,6 +9,8 @@ import tracemalloc
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from quality_support import EXACT, JOGGLE, SPHERE_RADIUS, antipodal_box_case, assert_close, lifted_square_grasp
 from scipy.spatial import ConvexHull, QhullError
 
@@ -29,6 +31,7 @@ from planner.quality.hull import (
     minkowski_points,
     minkowski_vertices,
     qhull,
+    unique_rows,
 )
 from planner.quality.reference import joggled_l1, joggled_linf, reference_epsilon, reference_volume
 from planner.quality.tolerances import CLUSTER_RADIUS, FACET_TOL, HULL_TOL
@@ -162,6 +165,18 @@ def test_support_functions_are_the_same_in_blocks(rng: np.random.Generator,
     for (value, point), support in zip(whole, (L1Support(wrenches), LinfSupport(wrenches, owner))):
         assert_close(support.value(dirs), value)
         assert_close(support.point(dirs), point)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 30), st.integers(1, 7), st.integers(1, 6))
+def test_unique_rows_are_numpys_unique_rows(seed: int, rows: int, pool: int, dim: int) -> None:
+    """The rows of a round drawn from a few distinct ones, ties in leading columns included: the same rows in
+    the same order as np.unique(axis=0)."""
+    rng = np.random.default_rng(seed)
+    distinct = rng.normal(size=(pool, dim))
+    distinct[:, 0] = rng.integers(0, 2, pool)              # ties in the first column
+    points = distinct[rng.integers(0, pool, rows)]
+    assert np.array_equal(unique_rows(points), np.unique(points, axis=0))
 
 
 # Nearly coincident wrenches (hypothesis, test_force_closure_agrees_with_epsilon):
