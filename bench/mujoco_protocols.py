@@ -158,8 +158,8 @@ def main() -> int:
               f"{s['cpu_ms_pybullet_median']:.1f}); verdicts agree {s['agreement']:.3f} (held: MuJoCo "
               f"{s['held_mujoco']:.2f}, PyBullet {s['held_pybullet']:.2f}); top-1 held: MuJoCo {s['top1_mujoco']:.2f}, "
               f"PyBullet {s['top1_pybullet']:.2f}, both {s['top1_both']:.2f}; top-10 held: MuJoCo "
-              f"{s['top10_mujoco']:.2f}, PyBullet {s['top10_pybullet']:.2f} ({s['top10_not_force_closure']} of them not "
-              f"force closure as planned); top-1 dropped in MuJoCo: "
+              f"{s['top10_mujoco']:.2f}, PyBullet {s['top10_pybullet']:.2f} ({s['top10_not_force_closure']} of them "
+              f"not force closure as planned); top-1 dropped in MuJoCo: "
               f"{s['top1_not_held_mujoco']}; MuJoCo reasons {s['reasons_mujoco']}, diverged (left out) "
               f"{s['diverged_mujoco']}", flush=True)
     print(f"load: {os.getloadavg()[0]:.1f}", file=sys.stderr)
