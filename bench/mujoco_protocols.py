@@ -1,5 +1,6 @@
 """Two independent dynamic protocols on the planner's own grasps (issue 26 item 6, issue 24 item 3):
-PyBullet's shake trial and the MuJoCo trial on each object's best grasps, Panda and Barrett.
+PyBullet's shake trial and the MuJoCo trial on each object's best grasps, Panda and Barrett (and, with
+``--hands allegro pr2``, the other two built-in hands).
 
 For each hand, a small sweep of each object (one process; no reachability: the default ranking
 otherwise, p_hold where the hand has a model) into ``--db-dir``, unless the database exists; then the
@@ -11,7 +12,7 @@ two verdicts, and the share of objects whose top-1 grasp held in MuJoCo, in PyBu
 and of the top-10 grasps. None of these objects was used to choose the MuJoCo trial's settings
 (those were chosen on ACRONYM tuning objects: bench/acronym_mujoco.py).
 
-    python bench/mujoco_protocols.py [--hands panda barrett] [--objects box cylinder mug duck ...] [--top 10]
+    python bench/mujoco_protocols.py [--hands panda barrett allegro pr2] [--objects box cylinder mug ...] [--top 10]
     python bench/mujoco_protocols.py --split held_out_3 --db-dir /tmp/ho3   # 50 random objects never tuned on
 
 ``--split NAME`` takes the objects of that list of bench/calibration_split.toml instead of ``--objects``
@@ -33,8 +34,12 @@ import numpy as np
 OBJECTS = ("box", "cylinder", "mug", "duck", "sphere", "teddy", "bunny", "random_100", "random_101", "random_102",
            "random_103", "random_104", "random_105", "random_106", "random_107")
 #: A small sweep per hand (the default sweep costs minutes per object on the shared machine).
+#: The Allegro (surface rays, six preshapes, 16 joints closed one by one) as the Barrett: 4-30 CPU s an object;
+#: the PR2 (surface rays, two preshapes) at its sampler's default 48 rays x 4 rolls: 5-20 CPU s an object.
 SWEEPS = {"panda": dict(approaches=256, reach_placements=0),
-          "barrett": dict(approaches=24, rolls=2, reach_placements=0)}
+          "barrett": dict(approaches=24, rolls=2, reach_placements=0),
+          "allegro": dict(approaches=24, rolls=2, reach_placements=0),
+          "pr2": dict(approaches=48, rolls=4, reach_placements=0)}
 
 
 #: The calibration split whose lists ``--split`` names.
@@ -121,7 +126,10 @@ def summary(rows: list[dict]) -> dict:
         "top1_both": float(np.mean([r["mujoco"]["held"] and r["pybullet"]["held"] for r in first])),
         "top10_mujoco": float(np.mean([r["mujoco"]["held"] for r in top10])),
         "top10_pybullet": float(np.mean([r["pybullet"]["held"] for r in top10])),
+        "top10_not_force_closure": int(sum(not r.get("force_closure", True) for r in top10)),
         "top1_not_held_mujoco": [f"{r['object']} ({r['mujoco']['reason']})" for r in first if not r["mujoco"]["held"]],
+        "top1_not_held_pybullet": [f"{r['object']} ({r['pybullet']['reason']})" for r in first
+                                   if not r["pybullet"]["held"]],
         "reasons_mujoco": {k: int(sum(r["mujoco"]["reason"] == k for r in rows))
                            for k in sorted({r["mujoco"]["reason"] for r in rows})},
     }
@@ -129,7 +137,7 @@ def summary(rows: list[dict]) -> dict:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--hands", nargs="*", default=["panda", "barrett"])
+    parser.add_argument("--hands", nargs="*", default=["panda", "barrett"], choices=sorted(SWEEPS))
     parser.add_argument("--objects", nargs="*", default=list(OBJECTS))
     parser.add_argument("--split", help="the objects of this list of bench/calibration_split.toml (e.g. held_out_3)")
     parser.add_argument("--top", type=int, default=10)
@@ -150,7 +158,8 @@ def main() -> int:
               f"{s['cpu_ms_pybullet_median']:.1f}); verdicts agree {s['agreement']:.3f} (held: MuJoCo "
               f"{s['held_mujoco']:.2f}, PyBullet {s['held_pybullet']:.2f}); top-1 held: MuJoCo {s['top1_mujoco']:.2f}, "
               f"PyBullet {s['top1_pybullet']:.2f}, both {s['top1_both']:.2f}; top-10 held: MuJoCo "
-              f"{s['top10_mujoco']:.2f}, PyBullet {s['top10_pybullet']:.2f}; top-1 dropped in MuJoCo: "
+              f"{s['top10_mujoco']:.2f}, PyBullet {s['top10_pybullet']:.2f} ({s['top10_not_force_closure']} of them "
+              f"not force closure as planned); top-1 dropped in MuJoCo: "
               f"{s['top1_not_held_mujoco']}; MuJoCo reasons {s['reasons_mujoco']}, diverged (left out) "
               f"{s['diverged_mujoco']}", flush=True)
     print(f"load: {os.getloadavg()[0]:.1f}", file=sys.stderr)

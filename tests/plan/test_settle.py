@@ -64,6 +64,18 @@ def test_the_barrett_sweep_settles_its_force_closure_grasps_by_default_and_none_
     assert np.isfinite([g.measures.settled_epsilon for g in closure]).all()  # type: ignore[union-attr]
 
 
+def test_the_allegro_sweep_settles_its_force_closure_grasps_by_default() -> None:
+    """The Allegro's fingers reach a free object one after another (the first to touch pushes it off before
+    the others arrive): its sweep settles, as the Barrett's; the parallel jaws' do not."""
+    assert load_hand("allegro").settle and not load_hand("pr2").settle
+    small = SweepSettings(approaches=2, rolls=1, preshapes=("power_wrap",), reach_placements=0, chunk=0)
+    unit = run_unit(UnitSpec("box", "allegro", small, seed=3))
+    assert unit.error is None
+    closure = [g for g in unit.grasps if g.force_closure]
+    assert closure and all(g.measures is not None and g.measures.settled_epsilon is not None for g in closure)
+    assert unit.timing["settle"] > 0.0
+
+
 def test_the_barrett_settles_with_its_own_dynamics(barrett_units) -> None:  # type: ignore[no-untyped-def]
     """hand.toml's [settle_dynamics] (coarser steps, shorter phases than the shake trial's) is what the
     settle runs unless it is given a trial."""

@@ -363,3 +363,72 @@ def test_a_grasp_planned_on_a_table_is_pulled_along_the_tables_down(pinched, mon
         trial(hand, obj, replace(grasp, table_plane=plane))
         loaded = [g for g in pulled if np.linalg.norm(g) > 0]
         assert loaded and all(np.allclose(g / np.linalg.norm(g), down, atol=1e-12) for g in loaded)
+
+
+#: The Allegro's pinch of a 5 x 4 x 8 cm box from the planner's own sweep (`grasp generate box --hand allegro`,
+#: 24 approaches x 2 rolls, its rank 3): the thumb touches 0.73 rad from its open preshape, the index curls to its
+#: stop. Object frame; open and closed joints not listed are 0.
+ALLEGRO_PINCH_POSE = [[0.0, -1.0, 0.0, 0.001862], [1.0, 0.0, 0.0, -0.0322], [0.0, 0.0, 1.0, -0.026198],
+                      [0.0, 0.0, 0.0, 1.0]]
+ALLEGRO_PINCH_OPEN = {"index_mcp": 0.3, "index_pip": 0.2, "thumb_rot": 1.396, "thumb_abd": 0.1, "thumb_mcp": 0.2}
+
+
+def _allegro_pinch(shift: float = 0.0):  # type: ignore[no-untyped-def]
+    hand = load_hand("allegro")
+    obj = box_of((0.05, 0.04, 0.08), 0.2)
+    pose = np.array(ALLEGRO_PINCH_POSE)
+    pose[:3, 3] += pose[:3, :3] @ np.array([0.0, 0.0, shift])  # along the fingers, away from the box
+    grasp = as_row_of("allegro", pose, {}, _no_contacts(), preshape="pinch",
+                      open_joints={j.name: ALLEGRO_PINCH_OPEN.get(j.name, 0.0) for j in hand.joints})
+    return hand, obj, grasp
+
+
+def test_a_slow_finger_closes_over_its_whole_travel() -> None:
+    """The Allegro's flexion joints close at 0.5 rad/s over up to 1.9 rad (3.8 s): with nothing in the way
+    and no free travel skipped, the index curls to its stop (the closing was cut at 1.5 s: 0.75 rad from
+    where it started, short of any object it meets later)."""
+    from planner.validation.mujoco_trial import _Run, contact_friction
+    from planner.validation.mujoco_worlds import world_for
+
+    hand, obj, grasp = _allegro_pinch(shift=0.5)  # the box half a metre past the fingertips
+    s = MujocoSettings(free_travel_gap=0.0)
+    run = _Run(world_for(hand, obj, s, obj.mass), hand, grasp, s, contact_friction(obj.friction, s))
+    start = fg.open_start(hand, grasp, run.rates)
+    run.world.reset(run.pose, start)
+    run._close(start)
+    assert run.world.joint_position("index_mcp") == pytest.approx(hand.joint("index_mcp").upper, abs=0.02)
+    assert run.world.joint_position("thumb_mcp") == pytest.approx(hand.joint("thumb_mcp").upper, abs=0.02)
+
+
+def test_the_allegro_pinch_reaches_the_box_it_was_planned_on() -> None:
+    hand, obj, grasp = _allegro_pinch()
+    result = trial(hand, obj, grasp)
+    assert result.reason != "no_contact" and result.fingers_in_contact >= 1
+
+
+@pytest.mark.parametrize("name", ["panda", "barrett"])
+def test_the_parallel_jaw_and_the_barrett_close_within_the_set_time(name: str) -> None:
+    """Their whole travel at their closing speed ends well inside ``max_close_time``: the longer closing of
+    slow fingers does not reach them."""
+    from planner.specs.preshapes import load_preshapes
+    from planner.validation.mujoco_fingers import Target
+    from planner.validation.mujoco_trial import closing_time
+
+    hand, s = load_hand(name), MujocoSettings()
+    for shape in load_preshapes(hand):
+        rates = fg.closing_rates(hand, shape.name)
+        fastest = max(abs(r) for r in rates.values())
+        targets = [Target(j.lower if rates[j.name] > 0 else j.upper,
+                          hand.actuators.closing_speed * rates[j.name] / fastest,
+                          j.upper if rates[j.name] > 0 else j.lower, 0.0)
+                   for j in hand.driven if rates[j.name] != 0.0]
+        assert targets and closing_time(s, targets) == s.max_close_time, shape.name
+
+
+def test_a_hand_that_closes_over_its_whole_travel_records_it() -> None:
+    """Trials stored before the Allegro closed over its whole travel are not taken for today's; the Panda's,
+    the Barrett's and the PR2's close within max_close_time and record as before."""
+    s = MujocoSettings()
+    assert '"closing": "whole_travel"' in recorded(s, load_hand("allegro"))
+    for name in ("panda", "barrett", "pr2"):
+        assert "whole_travel" not in recorded(s, load_hand(name)), name
