@@ -56,10 +56,24 @@ def hand_files(name: str) -> dict[str, str]:
     return dict(sorted(out.items()))
 
 
+#: The project's own changes to a shipped hand's file that leave the hand what it was (no stored grasp's
+#: geometry, joints, contacts or trial changes): label -> (the file's digest as shipped now, {an earlier shipped
+#: digest: what changed}). A database made before such a change reads, shows and validates as before (its
+#: sweep is still another: ``ALGORITHM_VERSION``); the file edited any further is an edit again.
+SAME_HAND: dict[str, tuple[str, dict[str, str]]] = {
+    "hands/allegro/hand.toml": ("6806297ce4d71df3", {
+        "5386eec9e1cb2ab7": "2026-12-06: settle = true (a force-closure grasp's settled epsilon, for ranking)"}),
+}
+
+
 def changed(stored: dict[str, str], now: dict[str, str]) -> list[str]:
     """Labels of ``stored`` whose file (or preshape) is now another or gone, sorted: the edits that would mix
-    two hands under one name (a file or preshape added is not one)."""
-    return sorted(k for k in stored if stored[k] != now.get(k))
+    two hands under one name (a file or preshape added is not one; a change of :data:`SAME_HAND` is not one)."""
+    def same(label: str) -> bool:
+        shipped, earlier = SAME_HAND.get(label, ("", {}))
+        return stored[label] == now.get(label) or (now.get(label) == shipped and stored[label] in earlier)
+
+    return sorted(k for k in stored if not same(k))
 
 
 def _collision_meshes(urdf: Path) -> list[Path]:

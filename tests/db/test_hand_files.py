@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from planner import assets
-from planner.db.hand_files import META_KEY, check_hand_files
+from planner.db.hand_files import META_KEY, check_hand_files, refuse_edited
 from planner.db.ranking import RankingRule
 from planner.db.store import UnitRow, open_for_writing
 from planner.errors import InputError
@@ -145,3 +145,45 @@ def test_a_database_without_grasps_of_the_hand_or_without_a_record_takes_its_fil
         with (project / "hands" / "allegro" / "palm.obj").open("a") as fh:
             fh.write("\n")
         check_hand_files(db, ["panda", "allegro"])
+
+
+def test_the_projects_same_hand_changes_name_the_files_as_shipped_now() -> None:
+    """A declaration of a shipped hand's earlier file as the same hand holds for the file as shipped now only: a
+    change to that file again fails here until it is declared (or its databases are meant to be refused)."""
+    from planner.specs.hand_files import SAME_HAND
+
+    for label, (shipped, earlier) in SAME_HAND.items():
+        hand = label.split("/")[1]
+        assert hand_files(hand)[label] == shipped, label
+        assert shipped not in earlier and earlier
+
+
+def test_a_database_made_before_the_allegro_settled_reads_shows_and_validates_as_before(
+        project: Path, tmp_path: Path) -> None:
+    """settle = true in the Allegro's hand.toml (2026-12-06) made every Allegro database made before it 'edited':
+    show and validate refused it, telling the user to restore files they never changed. The project's declared
+    change is not an edit; the same file edited any further still is."""
+    from planner.specs.hand_files import SAME_HAND
+
+    label = "hands/allegro/hand.toml"
+    shipped, earlier = SAME_HAND[label]
+    db_path = tmp_path / "g.db"
+    with open_for_writing(db_path) as db:
+        check_hand_files(db, ["allegro"])
+        db.write_unit(UnitRow("box", "allegro", "h" * 16, json.dumps({}), 5, 0, None, candidates=3),
+                      load_object("box"), [replace(made_up(i, 0.05), object="box", hand="allegro") for i in range(2)],
+                      RankingRule())
+        files = json.loads(db.meta(META_KEY))
+        files["allegro"][label] = next(iter(earlier))  # as a database of the hand before the change records it
+        db.set_meta(META_KEY, json.dumps(files, sort_keys=True))
+    now = hand_files("allegro")
+    assert now[label] == shipped and changed(files["allegro"], now) == []
+    with open_for_writing(db_path) as db:
+        check_hand_files(db, ["allegro"])  # validate, generate and import go on (the sweep rule judges a re-run)
+    with open_for_writing(db_path) as db:
+        refuse_edited(db, "allegro", "the picture")  # what show and best --object-pose ask
+    edit(project / "hands" / "allegro" / "hand.toml", "settle = true", "settle = false")
+    load_hand.cache_clear()
+    assert changed(files["allegro"], hand_files("allegro")) == [label]
+    with pytest.raises(InputError, match="was edited since"), open_for_writing(db_path) as db:
+        check_hand_files(db, ["allegro"])
