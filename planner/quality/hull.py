@@ -235,11 +235,9 @@ def _attempt(points: np.ndarray, options: str, tol: float, failures: list[str]) 
 
 def unique_rows(points: np.ndarray) -> np.ndarray:
     """The distinct rows of (k, d) points without NaN in lexicographic order:
-    ``np.unique(points, axis=0)`` at a fifth of its cost on the few rows of a
-    round (no structured dtype).  Of rows equal as floats, the first in a
-    stable sort is kept; they differ at most in the sign of a zero, which the
-    support points here never do (rows of distinct deduplicated wrenches,
-    or sums of them starting from +0)."""
+    ``np.unique(points, axis=0)`` at a fifth of its cost (no structured
+    dtype). Of rows equal as floats the first in a stable sort is kept; they
+    differ at most in a zero's sign, which support points here never do."""
     ranked = points[np.lexsort(points.T[::-1])]
     first = np.ones(len(ranked), bool)
     np.any(ranked[1:] != ranked[:-1], axis=1, out=first[1:])
