@@ -68,11 +68,16 @@ class Fields:
     def check_unknown(self) -> None:
         """Refuse a field that nothing read in this file's tables reached so far: a misspelt name (``efort``,
         ``setle``), whose default would be used silently, or one this hand's other settings never read."""
+        from difflib import get_close_matches
+
         for where, data, keys in self._read.values():
             unknown = sorted(set(data) - keys)
             if unknown:
-                raise ConfigError(f"{where} field '{unknown[0]}': not a field read here (misspelt? known here: "
-                                  f"{', '.join(sorted(keys & set(data))) or 'none'})")
+                # every field this table is read for, given or not: the misspelt one's right name among them
+                close = get_close_matches(unknown[0], sorted(keys), n=1)
+                hint = f"did you mean '{close[0]}'?" if close else "misspelt?"
+                raise ConfigError(f"{where} field '{unknown[0]}': not a field read here ({hint} known here: "
+                                  f"{', '.join(sorted(keys)) or 'none'})")
 
     def str(self, key: str, default: str | None = None) -> str:
         value = self.get(key, default)
