@@ -78,3 +78,20 @@ def test_soft_fingers_are_rejected() -> None:
     with pytest.raises(DegenerateGraspError, match="frictionless' and 'point'"):
         contact_forces(PINCH_POINTS, PINCH_FRAMES, GRAVITY, mu=0.5, center=np.zeros(3),
                        model="soft")
+
+
+@pytest.mark.parametrize("seed, mu", [(2360, 0.2), (580, 0.2), (952, 0.2), (1169, 0.2)])
+def test_a_grasp_near_the_edge_of_closure_still_gets_its_forces(seed: int, mu: float) -> None:
+    """Hypothesis found a force-closure grasp (epsilon 7.7e-4) for which SLSQP's line search failed (status 8)
+    and contact_forces said no forces exist; 10 of 3,463 such random closure cases. Restarted from forces
+    inside the inscribed pyramids (a linear program), it finds them; they balance the load inside the cones."""
+    rng = np.random.default_rng(seed)
+    pts, frames = sphere_grasp(rng, 4)
+    wrench = np.r_[rng.normal(size=3), rng.normal(size=3) * 0.05]
+    assert force_closure(pts, frames, mu=mu, center=np.zeros(3), torque_scale=0.05)
+    forces = contact_forces(pts, frames, wrench, mu=mu, center=np.zeros(3), torque_scale=0.05)
+    assert forces is not None
+    check_solution(pts, frames, forces, wrench, mu)
+    local = np.einsum("nji,nj->ni", frames, forces).ravel()
+    assert_close(grasp_matrix(pts, frames, np.zeros(3)) @ local, -wrench,
+                 abs_=EQUILIBRIUM_TOL * max(1.0, np.linalg.norm(wrench)))
