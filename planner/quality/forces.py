@@ -134,16 +134,12 @@ def _pyramid_forces(eq_matrix: np.ndarray, eq_target: np.ndarray, lengths: np.nd
     from scipy.optimize import linprog
 
     angles = 2.0 * np.pi * np.arange(PYRAMID_EDGES) / PYRAMID_EDGES
-    blocks, rows = [], np.cumsum(lengths) - lengths
-    edges = np.zeros((int(lengths.sum()), 0))
-    for start, k, m in zip(rows, lengths, mu):
+    blocks, size = [], int(lengths.sum())
+    for start, k, m in zip(np.cumsum(lengths) - lengths, lengths, mu):
+        block = np.zeros((size, PYRAMID_EDGES if k == 3 else 1))
+        block[start] = 1.0
         if k == 3:
-            block = np.zeros((len(edges), PYRAMID_EDGES))
-            block[start] = 1.0
             block[start + 1], block[start + 2] = m * np.cos(angles), m * np.sin(angles)
-        else:
-            block = np.zeros((len(edges), 1))
-            block[start] = 1.0
         blocks.append(block)
     edges = np.hstack(blocks)
     result = linprog(np.ones(edges.shape[1]), A_eq=eq_matrix @ edges, b_eq=eq_target, bounds=(0.0, None),

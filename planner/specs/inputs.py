@@ -90,13 +90,13 @@ def _expand_plain(arg: str, scale: float | None) -> list[ObjectRef]:
         if not files:
             also = f"; for the built-in object of that name write builtin:{arg}" if is_registered(arg) else ""
             raise InputError(f"{path}: folder holds no mesh files ({', '.join(MESH_SUFFIXES)}){also}")
-        return [ObjectRef(_absolute_path(p), scale) for p in files]
+        return [ObjectRef(str(_absolute(str(p))), scale) for p in files]
     if any(c in arg for c in "*?["):
         files = sorted(Path(p) for p in glob.glob(str(path), recursive=True)
                        if Path(p).suffix.lower() in MESH_SUFFIXES)
         if not files:
             raise InputError(f"'{arg}': no mesh files match")
-        return [ObjectRef(_absolute_path(p), scale) for p in files]
+        return [ObjectRef(str(_absolute(str(p))), scale) for p in files]
     return [ObjectRef(arg, scale)]
 
 
@@ -180,7 +180,7 @@ def _manifest_line(tokens: list[str], where: str, folder: Path, scale: float | N
     suffix = Path(source).suffix.lower()
     if suffix in MESH_SUFFIXES:
         if not Path(source).is_absolute():
-            source = _absolute_path(folder / source)
+            source = str(_absolute(str(folder / source)))
         if not Path(source).is_file():
             raise InputError(f"{where}: {source}: file not found")
     elif suffix and not is_registered(source):
@@ -232,10 +232,6 @@ def _absolute(source: str) -> Path:
     """``source`` as an absolute path, ``..`` and ``.`` folded, symlinks kept (a link is its own file, as a copy
     is: its name and its sidecar)."""
     return Path(os.path.abspath(Path(source).expanduser()))
-
-
-def _absolute_path(path: Path) -> str:
-    return str(_absolute(str(path)))
 
 
 def _folders(path: Path) -> tuple[str, ...]:
