@@ -14,9 +14,9 @@ built-in object's name.
 A file is known by its resolved path and shown by the shortest tail of it
 that no other file given shares (:func:`label_names`: ``day1/grasps.h5``
 and ``day2/grasps.h5``, ``a.h5`` alone where it is the only ``a.h5``); a
-file given twice (``a.h5 ./a.h5``, overlapping globs) is refused, since it
-would count twice. Its pose sample is seeded by its stem (where it lies
-does not change it).
+file given twice (``a.h5 ./a.h5``, overlapping globs) or a copy of one (the
+same bytes under another name) is refused, since it would count twice.
+Its pose sample is seeded by its stem (where it lies does not change it).
 
 With ``trial`` > 0, a seeded sample of that many closed grasps per file is
 also tried in a dynamic trial (``engine``: MuJoCo's or PyBullet's, as
@@ -143,7 +143,7 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
 
 def label_names(paths: Sequence[Path]) -> list[str]:
     """Each file's name as shown and stored: the shortest tail of its resolved path that no other of ``paths``
-    shares; a file given twice is refused."""
+    shares; a file given twice, or two files of the same bytes, are refused."""
     resolved = [Path(p).resolve() for p in paths]
     seen: dict[Path, Path] = {}
     for given, path in zip(map(Path, paths), resolved):
@@ -151,6 +151,13 @@ def label_names(paths: Sequence[Path]) -> list[str]:
             spelt = f" (as {seen[path]} and {given})" if seen[path] != given else ""
             raise InputError(f"{given}: given twice{spelt}: its labels would count twice; give each file once")
         seen[path] = given
+    contents: dict[str, Path] = {}
+    for given, path in zip(map(Path, paths), resolved):
+        digest = _digest(path)
+        if digest in contents:
+            raise InputError(f"{given}: the same bytes as {contents[digest]} (a copy): its labels would count twice; "
+                             "give each file once")
+        contents[digest] = given
     out = []
     for path in resolved:
         k = 1
@@ -158,6 +165,17 @@ def label_names(paths: Sequence[Path]) -> list[str]:
             k += 1
         out.append(str(Path(*path.parts[-k:])))
     return out
+
+
+def _digest(path: Path) -> str:
+    """sha256 of a file's bytes (a name of its own where it cannot be read: the reader says why, by name)."""
+    import hashlib
+
+    try:
+        with path.open("rb") as f:
+            return hashlib.file_digest(f, "sha256").hexdigest()
+    except OSError:
+        return f"unreadable:{path}"
 
 
 def file_hand(paths: Sequence[Path], hand: str | None) -> str:

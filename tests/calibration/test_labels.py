@@ -131,6 +131,17 @@ def test_files_of_one_name_in_two_folders_are_two_files_and_a_file_given_twice_i
     one_line_error(code, err, 2, f"{box.name}: given twice: its labels would count twice")
 
 
+def test_a_copy_of_a_label_file_under_another_name_is_refused(validated_db: Path, tmp_path: Path) -> None:
+    """A byte-identical copy (a dataset folder holding one file twice) was two files: its labels counted twice."""
+    box, sphere = labelled_files(validated_db, tmp_path)
+    (tmp_path / "again").mkdir()
+    shutil.copytree(box.parent / "meshes", tmp_path / "again" / "meshes")
+    copy = Path(shutil.copy(box, tmp_path / "again" / "copy.h5"))
+    code, _, err = grasp("calibrate", str(box), str(sphere), str(copy), *FAST_FIT)
+    one_line_error(code, err, 2, f"{copy}: the same bytes as {box} (a copy): its labels would count twice",
+                   "give each file once")
+
+
 @pytest.mark.parametrize("labels, message", [
     (np.array([b"yes", b"no", b"yes"]), "holds text values (b'yes', b'no', ...)"),
     (np.array([[1, 0], [0, 1], [1, 1]]), "has shape (3, 2)"),
