@@ -53,7 +53,9 @@ def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], to
                    + (f"; {summary.diverged} diverged (MuJoCo's state; no verdict, not stored)"
                       if summary.diverged else "")
                    + (f"; {summary.kept} already tried with these settings and seed, kept "
-                      f"({summary.kept_successes} held)" if summary.kept else ""))
+                      f"({summary.kept_successes} held)" if summary.kept else "")
+                   + (f"; {summary.rounds} rounds (grasps that dropped left the top {top}, the next were tried)"
+                      if summary.rounds > 1 else ""))
     report_failures(summary.failed_tasks)
 
 

@@ -15,7 +15,7 @@ import zlib
 from collections import Counter
 from collections.abc import Callable, Iterator
 from contextlib import closing
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -241,6 +241,42 @@ def write(db: Database, result: TaskResult, rule: RankingRule, rescore: bool = T
     db.write_validation(task.object, task.hand, rows, rule, rescore)
 
 
+def _round(db: Database, tasks: list[Task], rule: RankingRule, workers: int, summary: ValidationSummary,
+           progress: Callable[[int, int], None] | None) -> None:
+    """Run ``tasks``, store their results and re-rank each (object, hand) once, with its last task's
+    results (or on the way out after Ctrl-C or an error): re-ranking after every task cost time quadratic
+    in a pair's grasps."""
+    if progress:
+        progress(0, len(tasks))
+    left = Counter((t.object, t.hand) for t in tasks)
+    try:
+        for done, result in enumerate(execute(tasks, workers), start=1):
+            pair = (result.task.object, result.task.hand)
+            left[pair] -= 1
+            if result.error:
+                summary.failed_tasks[f"{pair[0]}/{pair[1]}"] = result.error
+            else:
+                write(db, result, rule, rescore=left[pair] == 0)
+                diverged = sum(t.reason == DIVERGED for t in result.trials)
+                summary.grasps += len(result.trials) - diverged
+                summary.diverged += diverged
+                summary.successes += sum(t.success for t in result.trials)
+            if progress:
+                progress(done, len(tasks))
+    finally:  # pairs whose last task failed or never came back (the database marks them)
+        _rerank_unranked(db, rule)
+
+
+def _untried(tasks: list[Task], tried: set[int]) -> list[Task]:
+    """``tasks`` without the grasps of ``tried`` (tasks left empty dropped)."""
+    out = []
+    for task in tasks:
+        grasps = tuple(g for g in task.grasps if g.id not in tried)
+        if grasps:
+            out.append(replace(task, grasps=grasps))
+    return out
+
+
 def _rerank_unranked(db: Database, rule: RankingRule) -> None:
     """Re-rank the (object, hand) pairs the database marks as holding verdicts not yet ranked."""
     for pair in db.unranked():
@@ -259,10 +295,12 @@ class ValidationSummary:
     failed_tasks: dict[str, str] = field(default_factory=dict)
     kept: int = 0
     kept_successes: int = 0
+    rounds: int = 0
 
     def to_json(self) -> dict:
         return {"grasps": self.grasps, "successes": self.successes, "diverged": self.diverged,
-                "failed": self.failed_tasks, "kept": self.kept, "kept_successes": self.kept_successes}
+                "failed": self.failed_tasks, "kept": self.kept, "kept_successes": self.kept_successes,
+                "rounds": self.rounds}
 
 
 def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str] | None = None, top: int = 10,
@@ -296,35 +334,24 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
         rule = db.rule()
         _rerank_unranked(db, rule)  # verdicts of a run killed before it re-ranked them
         kept: list[Grasp] = []
-        tasks = plan(db, objects, hands, Selection(top, sample, every, closure_only), seed, trial_settings, noise,
-                     kept)
+        selection = Selection(top, sample, every, closure_only)
+        tasks = plan(db, objects, hands, selection, seed, trial_settings, noise, kept)
         check_hand_files(db, {t.hand for t in tasks} | {g.hand for g in kept})
         summary.kept = len(kept)
         verdicts = [g.mujoco if engine == "mujoco" else g.validation for g in kept]
         summary.kept_successes = sum(bool(t.success) for t in verdicts if t is not None)
-        prepare_objects(list({t.row.name: t.row for t in tasks}.values()), workers)
-        if progress:
-            progress(0, len(tasks))
-        # each (object, hand) is re-ranked once, with its last task's results (or on the way out after
-        # Ctrl-C or an error): re-ranking after every task cost time quadratic in a pair's grasps
-        left = Counter((t.object, t.hand) for t in tasks)
-        try:
-            for done, result in enumerate(execute(tasks, workers), start=1):
-                pair = (result.task.object, result.task.hand)
-                left[pair] -= 1
-                last = left[pair] == 0
-                if result.error:
-                    summary.failed_tasks[f"{pair[0]}/{pair[1]}"] = result.error
-                else:
-                    write(db, result, rule, rescore=last)
-                    diverged = sum(t.reason == DIVERGED for t in result.trials)
-                    summary.grasps += len(result.trials) - diverged
-                    summary.diverged += diverged
-                    summary.successes += sum(t.success for t in result.trials)
-                if progress:
-                    progress(done, len(tasks))
-        finally:  # pairs whose last task failed or never came back (the database marks them)
-            _rerank_unranked(db, rule)
+        tried: set[int] = set()
+        while tasks:
+            prepare_objects(list({t.row.name: t.row for t in tasks}.values()), workers)
+            _round(db, tasks, rule, workers, summary, progress)
+            summary.rounds += 1
+            tried.update(g.id for t in tasks for g in t.grasps if g.id is not None)
+            if every or sample is not None:
+                break
+            # verdicts re-rank: grasps that dropped leave the top K and others move up; they are tried
+            # next, until the top K all carry this run's verdicts (a grasp tried once in this run, even
+            # one whose trial diverged or failed, is not tried again: the trials are deterministic)
+            tasks = _untried(plan(db, objects, hands, selection, seed, trial_settings, noise), tried)
         db.set_meta("mujoco_settings" if engine == "mujoco" else "validation_settings", json.dumps(
             {"trial": json.loads(trial_settings.to_json()), "noise": json.loads(noise.to_json()) if noise else None,
              "seed": seed}))

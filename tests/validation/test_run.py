@@ -190,10 +190,40 @@ def test_each_pair_is_reranked_with_every_stored_verdict_however_its_tasks_end(
             validate(db, top=6, robust_samples=0, workers=1)
     else:
         summary = validate(db, top=6, robust_samples=0, workers=1)
-        assert list(summary.failed_tasks) == ["box/panda"] and summary.grasps == 4 + 6  # box: two of its three tasks
+        assert list(summary.failed_tasks) == ["box/panda"]  # box: one of its tasks; its grasps are not tried again
+        with open_db(db, create=False, readonly=True) as store:
+            stored_trials = len(store.validated())
+        assert summary.grasps == stored_trials and summary.rounds > 1  # every slipped grasp left the top 6
     stored = _ranks(db)
     assert stored != before  # the slipped verdicts moved scores
     assert stored == _reranked(db)
+
+
+def test_top_k_ends_with_the_top_k_tried(reference_db: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Verdicts re-rank: a grasp that slipped leaves the top K and an untried one moves up. One `validate
+    --top K` used to stop there (the top K not all tried: "run it again until it tries nothing"); it now
+    tries those too, round after round, until the top K all carry a verdict, and tries no grasp twice."""
+    db = tmp_path / "t.db"
+    shutil.copy(reference_db, db)
+    tried: list[int] = []
+
+    def half_hold(task: run.Task) -> run.TaskResult:  # odd candidates slip (score 0), even ones hold
+        tried.extend(g.id for g in task.grasps)
+        return run.TaskResult(task, [Trial(g.candidate % 2 == 0, 2, 0.0, 0.0, 0.0 if g.candidate % 2 == 0 else 0.03,
+                                           0.0, "held" if g.candidate % 2 == 0 else "slipped") for g in task.grasps],
+                              [None] * len(task.grasps))
+
+    monkeypatch.setattr(run, "run_task", half_hold)
+    summary = validate(db, top=3, robust_samples=0, workers=1)
+    with open_db(db, create=False, readonly=True) as store:
+        pairs = store.pairs()
+        for obj, hand in pairs:
+            best = store.best(obj, hand, 3)
+            assert len(best) == 3 and all(g.mujoco is not None and g.mujoco.success for g in best), (obj, hand)
+        stored = sum(len(batch) for pair in pairs for batch in store.grasp_batches(*pair))
+    assert len(tried) == len(set(tried)) == summary.grasps < stored  # each tried once; not every grasp
+    again = validate(db, top=3, robust_samples=0, workers=1)
+    assert (again.grasps, again.kept) == (0, 3 * len(pairs))
 
 
 def test_verdicts_left_unranked_by_a_killed_run_are_ranked_by_the_next(reference_db: Path, tmp_path: Path,
