@@ -6,7 +6,8 @@ Accepted, in any mix:
 - ``builtin:all`` (every registry object), ``builtin:random`` (all 1,000
   generated objects), ``builtin:random:20`` (the first 20),
   ``builtin:random:100-149`` (a range, inclusive);
-- a folder (its mesh files, recursively) or a glob (``meshes/**/*.obj``);
+- a folder (its mesh files, recursively, hidden ones and ``__MACOSX/`` skipped) or a glob
+  (``meshes/**/*.obj``);
 - ``@list.txt``: a manifest, one object per line, optionally followed by a
   scale and ``key=value`` columns (``scale=``, ``mass=`` [kg] or
   ``density=`` [kg/m^3], ``friction=``), e.g. ``banana.obj 1 mass=0.066
@@ -86,7 +87,8 @@ def _expand_plain(arg: str, scale: float | None) -> list[ObjectRef]:
         return [ObjectRef(arg[len("builtin:"):], scale)]
     path = Path(arg).expanduser()
     if path.is_dir():
-        files = sorted(p for p in path.rglob("*") if p.suffix.lower() in MESH_SUFFIXES and p.is_file())
+        files = sorted(p for p in path.rglob("*") if p.suffix.lower() in MESH_SUFFIXES and p.is_file()
+                       and not _hidden(p.relative_to(path)))
         if not files:
             also = f"; for the built-in object of that name write builtin:{arg}" if is_registered(arg) else ""
             raise InputError(f"{path}: folder holds no mesh files ({', '.join(MESH_SUFFIXES)}){also}")
@@ -98,6 +100,16 @@ def _expand_plain(arg: str, scale: float | None) -> list[ObjectRef]:
             raise InputError(f"'{arg}': no mesh files match")
         return [ObjectRef(str(_absolute(str(p))), scale) for p in files]
     return [ObjectRef(arg, scale)]
+
+
+#: Folders a folder's walk skips besides hidden ones: the resource forks a zip made on macOS holds.
+SKIPPED_FOLDERS = ("__MACOSX",)
+
+
+def _hidden(relative: Path) -> bool:
+    """Whether a folder's walk skips the file at ``relative`` to it: a hidden file or one in a hidden folder
+    (``.git/``, macOS's ``._mug.obj`` resource forks), or in ``__MACOSX/``: as a glob's ``*`` skips them."""
+    return any(part.startswith(".") or part in SKIPPED_FOLDERS for part in relative.parts)
 
 
 def _random_range(arg: str) -> range:

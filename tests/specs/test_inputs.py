@@ -137,3 +137,15 @@ def test_a_manifest_row_of_a_primitive_under_the_runs_scale_names_its_line_and_t
     with pytest.raises(InputError, match=r"m.txt:1: object 'box': --scale applies to meshes only"):
         inputs.expand([f"@{tmp_path / 'm.txt'}"], scale=2.0)
     assert [r.name for r in inputs.expand([f"@{tmp_path / 'm.txt'}"])] == ["box"]
+
+
+def test_a_folder_walk_skips_hidden_files_and_macos_resource_forks(tmp_path: Path) -> None:
+    """A folder unzipped from a macOS zip holds ``._mug.obj`` and ``__MACOSX/._can.stl`` (resource forks, not
+    meshes): each failed its unit ('mesh has no triangles') and the run exited 2, on every rerun."""
+    folder = tmp_path / ".scans"  # a hidden folder given itself is read
+    (folder / "__MACOSX").mkdir(parents=True)
+    (folder / ".git").mkdir()
+    trimesh.creation.box(extents=[0.03, 0.03, 0.03]).export(folder / "mug.obj")
+    for junk in ("._mug.obj", "__MACOSX/._can.stl", ".git/old.obj"):
+        (folder / junk).write_bytes(b"\x00\x05\x16\x07\x00\x02\x00\x00Mac OS X        " + bytes(100))
+    assert [r.name for r in inputs.expand([str(folder)])] == ["mug"]
