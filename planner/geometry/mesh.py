@@ -15,7 +15,7 @@ import trimesh
 
 from planner import prepare
 from planner.errors import MeshError
-from planner.specs.objects import MESH_SUFFIXES
+from planner.specs.objects import MESH_SUFFIXES, URDF_HINT
 
 log = logging.getLogger(__name__)
 
@@ -37,7 +37,8 @@ def load_mesh_file(path: Path, scale: float = 1.0) -> trimesh.Trimesh:
     if not path.exists():
         raise MeshError(f"{path}: file not found")
     if path.suffix.lower() not in MESH_SUFFIXES:
-        raise MeshError(f"{path}: unsupported mesh type '{path.suffix}'; use one of {', '.join(MESH_SUFFIXES)}")
+        raise MeshError(f"{path}: unsupported mesh type '{path.suffix}'; use one of {', '.join(MESH_SUFFIXES)}"
+                        f"{URDF_HINT if path.suffix.lower() == '.urdf' else ''}")
     size = path.stat().st_size
     if size == 0:
         raise MeshError(f"{path}: file is empty")
@@ -51,8 +52,21 @@ def load_mesh_file(path: Path, scale: float = 1.0) -> trimesh.Trimesh:
         raise MeshError(f"{path}: cannot parse mesh: {exc}") from exc
     if not isinstance(loaded, trimesh.Trimesh):
         raise MeshError(f"{path}: holds no triangles")
+    if len(loaded.faces) == 0:
+        _refuse_point_cloud(path)
     mesh = trimesh.Trimesh(np.asarray(loaded.vertices, float) * scale, np.asarray(loaded.faces), process=False)
     return checked_solid(mesh, str(path))
+
+
+def _refuse_point_cloud(path: Path) -> None:
+    """A MeshError where ``path`` holds points alone (a scanner's PLY), which ``force="mesh"`` reads as no mesh."""
+    try:
+        points = trimesh.load(str(path), process=False)
+    except Exception:  # read once already: the caller says what is missing
+        return
+    if isinstance(points, trimesh.PointCloud) and len(points.vertices):
+        raise MeshError(f"{path}: a point cloud of {len(points.vertices):,} points, no triangles: make a surface of "
+                        "it first (a Poisson reconstruction: MeshLab, Open3D)")
 
 
 def checked_solid(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh:

@@ -36,6 +36,7 @@ from planner.specs.objects import (
     PHYSICAL_KEYS,
     RANDOM_COUNT,
     RANDOM_PREFIX,
+    URDF_HINT,
     Physical,
     builtin_specs,
     is_registered,
@@ -196,7 +197,7 @@ def _manifest_line(tokens: list[str], where: str, folder: Path, scale: float | N
         if not Path(source).is_file():
             raise InputError(f"{where}: {source}: file not found")
     elif suffix and not is_registered(source):
-        also = " (a URDF: give the mesh file its link names)" if suffix == ".urdf" else ""
+        also = URDF_HINT.replace("--scale", "the row's scale") if suffix == ".urdf" else ""
         raise InputError(f"{where}: {source}: unsupported mesh type '{suffix}'; use one of "
                          f"{', '.join(MESH_SUFFIXES)}{also}")
     else:  # a name, and the scale a primitive refuses, checked here where the line is known

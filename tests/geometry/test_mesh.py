@@ -73,6 +73,18 @@ def test_missing_and_empty_files(tmp_path: Path) -> None:
         meshes.load_mesh_file(tmp_path / "junk.stl")
 
 
+def test_a_point_cloud_and_a_urdf_are_refused_saying_what_to_give(tmp_path: Path) -> None:
+    """A scanner's PLY of points alone said 'mesh has no triangles', as a text file did; a URDF given as the
+    object said its type is unsupported, without what to give instead."""
+    trimesh.PointCloud(trimesh.creation.icosphere(radius=0.03).vertices).export(tmp_path / "scan.ply")
+    with pytest.raises(MeshError, match=r"scan.ply: a point cloud of 642 points, no triangles: make a surface"):
+        meshes.load_mesh_file(tmp_path / "scan.ply")
+    (tmp_path / "duck.urdf").write_text("<robot name='duck'/>")
+    with pytest.raises(MeshError, match=r"unsupported mesh type '.urdf'.*give the mesh file its link names, its "
+                                        r"<mesh scale> as --scale"):
+        meshes.load_mesh_file(tmp_path / "duck.urdf")
+
+
 def test_hash_depends_on_geometry_only() -> None:
     a = trimesh.creation.box(extents=[0.04, 0.04, 0.04])
     assert meshes.mesh_hash(a) == meshes.mesh_hash(a.copy())
