@@ -15,6 +15,7 @@ import trimesh
 
 from planner import prepare
 from planner.errors import MeshError
+from planner.geometry.gltf import gltf_problem
 from planner.specs.objects import MESH_SUFFIXES, URDF_HINT
 
 log = logging.getLogger(__name__)
@@ -46,6 +47,9 @@ def load_mesh_file(path: Path, scale: float = 1.0) -> trimesh.Trimesh:
         raise MeshError(f"{path}: {size / 2**20:.0f} MiB is too large; simplify the mesh below {MAX_FACES:,} faces")
     if not np.isfinite(scale) or scale <= 0:
         raise MeshError(f"{path}: scale must be a positive number, got {scale}")
+    unreadable = gltf_problem(path)  # a .gltf without its buffers, compressed geometry trimesh cannot decode here
+    if unreadable:
+        raise MeshError(f"{path}: cannot read it: {unreadable}")
     try:
         loaded = trimesh.load(str(path), force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for broken files

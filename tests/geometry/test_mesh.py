@@ -85,6 +85,38 @@ def test_a_point_cloud_and_a_urdf_are_refused_saying_what_to_give(tmp_path: Path
         meshes.load_mesh_file(tmp_path / "duck.urdf")
 
 
+def test_a_gltf_without_its_buffer_or_with_compressed_geometry_says_what_to_do(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A .gltf copied without its .bin said 'cannot parse mesh: gltf_buffer_0.bin'; Draco-compressed geometry,
+    which trimesh decodes only with DracoPy (not installed here), said 'cannot parse mesh: 'POSITION'' (a .glb:
+    'every triangle is degenerate', trimesh's placeholder zeros), each after trimesh's warnings."""
+    import json
+
+    import planner.geometry.gltf as gltf
+
+    files = trimesh.creation.box(extents=[0.03, 0.04, 0.05]).export(file_type="gltf")
+    for name, data in files.items():
+        (tmp_path / name).write_bytes(data)
+    assert meshes.load_mesh_file(tmp_path / "model.gltf").volume == pytest.approx(6e-5)
+    buffer = "gltf_buffer_0.bin"
+    (tmp_path / buffer).unlink()
+    with pytest.raises(MeshError, match=f"model.gltf: cannot read it: the buffer file holding its geometry, {buffer}, "
+                                        "is not beside it: copy it with the .gltf, or export a .glb"):
+        meshes.load_mesh_file(tmp_path / "model.gltf")
+    (tmp_path / buffer).write_bytes(files[buffer])
+    draco = json.loads(files["model.gltf"])
+    draco["extensionsUsed"] = draco["extensionsRequired"] = ["KHR_draco_mesh_compression"]
+    for primitive in draco["meshes"][0]["primitives"]:  # the geometry is in the extension's buffer view
+        primitive["extensions"] = {"KHR_draco_mesh_compression": {"bufferView": 0, "attributes": {"POSITION": 0}}}
+        primitive["attributes"] = {}
+    (tmp_path / "draco.gltf").write_text(json.dumps(draco))
+    real = gltf.importlib.util.find_spec
+    monkeypatch.setattr(gltf.importlib.util, "find_spec", lambda name, *a: None if name == "DracoPy" else real(name))
+    with pytest.raises(MeshError, match=r"draco.gltf: cannot read it: its geometry is Draco-compressed "
+                                        r"\(KHR_draco_mesh_compression\): pip install DracoPy"):
+        meshes.load_mesh_file(tmp_path / "draco.gltf")
+
+
 def test_hash_depends_on_geometry_only() -> None:
     a = trimesh.creation.box(extents=[0.04, 0.04, 0.04])
     assert meshes.mesh_hash(a) == meshes.mesh_hash(a.copy())
