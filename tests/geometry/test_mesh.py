@@ -90,9 +90,8 @@ def test_a_gltf_without_its_buffer_or_with_compressed_geometry_says_what_to_do(
     """A .gltf copied without its .bin said 'cannot parse mesh: gltf_buffer_0.bin'; Draco-compressed geometry,
     which trimesh decodes only with DracoPy (not installed here), said 'cannot parse mesh: 'POSITION'' (a .glb:
     'every triangle is degenerate', trimesh's placeholder zeros), each after trimesh's warnings."""
+    import importlib.util
     import json
-
-    import planner.geometry.gltf as gltf
 
     files = trimesh.creation.box(extents=[0.03, 0.04, 0.05]).export(file_type="gltf")
     for name, data in files.items():
@@ -110,8 +109,8 @@ def test_a_gltf_without_its_buffer_or_with_compressed_geometry_says_what_to_do(
         primitive["extensions"] = {"KHR_draco_mesh_compression": {"bufferView": 0, "attributes": {"POSITION": 0}}}
         primitive["attributes"] = {}
     (tmp_path / "draco.gltf").write_text(json.dumps(draco))
-    real = gltf.importlib.util.find_spec
-    monkeypatch.setattr(gltf.importlib.util, "find_spec", lambda name, *a: None if name == "DracoPy" else real(name))
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "DracoPy" else real(name, *a))
     with pytest.raises(MeshError, match=r"draco.gltf: cannot read it: its geometry is Draco-compressed "
                                         r"\(KHR_draco_mesh_compression\): pip install DracoPy"):
         meshes.load_mesh_file(tmp_path / "draco.gltf")
