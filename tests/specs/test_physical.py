@@ -158,6 +158,28 @@ def test_a_mixed_case_sidecar_is_read(brick: Path) -> None:
     assert (spec.mass, spec.friction) == (0.066, 0.8)
 
 
+def test_a_sidecar_meant_for_a_mesh_but_named_otherwise_is_refused(tmp_path: Path) -> None:
+    """Banana.obj + banana.toml (read on macOS and Windows, whose file systems are case-blind) and
+    Kiwi.obj + Kiwi.obj.toml got the default 0.2 kg on Linux without a word."""
+    folders = {name: tmp_path / name for name in ("case", "whole", "other")}
+    for folder, (mesh, toml) in zip(folders.values(), [("Banana.obj", "banana.toml"), ("Kiwi.obj", "Kiwi.obj.toml"),
+                                                        ("Banana.obj", "banana.toml")]):
+        folder.mkdir()
+        trimesh.creation.box(extents=BRICK).export(folder / mesh)
+        (folder / toml).write_text("mass = 0.066\n")
+    if (folders["case"] / "Banana.toml").exists():
+        pytest.skip("a case-blind file system: banana.toml is Banana.obj's sidecar")
+    trimesh.creation.box(extents=BRICK).export(folders["other"] / "banana.stl")  # banana.toml is banana.stl's
+    with pytest.raises(InputError, match=r"Banana.obj: banana.toml beside it is not read as its sidecar \(one takes "
+                                         r"the mesh's name, in the same case, with .toml in place of .obj\): rename "
+                                         r"it Banana.toml"):
+        [r.name for r in inputs.expand([str(folders["case"])])]
+    with pytest.raises(InputError, match=r"Kiwi.obj.toml beside it is not read .* rename it Kiwi.toml"):
+        resolve_spec(str(folders["whole"] / "Kiwi.obj"))
+    assert resolve_spec(str(folders["other"] / "Banana.obj")).mass == pytest.approx(0.2)
+    assert resolve_spec(str(folders["other"] / "banana.stl")).mass == pytest.approx(0.066)
+
+
 def test_one_sidecar_answering_to_two_spellings_is_read_once(brick: Path) -> None:
     """A case-blind file system (macOS, Windows) answers brick.toml and brick.TOML with one file; the listing
     that replaced the probes missed B.toml beside b.stl there. One file (here a hard link under both names) is one
