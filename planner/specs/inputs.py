@@ -22,6 +22,7 @@ only their suffixes differ (``part.obj``, ``part.stl``) the names keep them.
 
 from __future__ import annotations
 
+import codecs
 import glob
 import math
 import os
@@ -140,8 +141,7 @@ def _manifest(path: Path, scale: float | None, physical: Physical) -> list[Objec
     if not path.is_file():
         raise InputError(f"{path}: manifest not found")
     refs = []
-    # utf-8-sig: a byte-order mark (Windows editors write one) is not part of the first object's name
-    for number, raw in enumerate(path.read_text(encoding="utf-8-sig").splitlines(), start=1):
+    for number, raw in enumerate(_manifest_text(path).splitlines(), start=1):
         where = f"{path}:{number}"
         tokens = _tokens(raw, where)
         if tokens:
@@ -149,6 +149,20 @@ def _manifest(path: Path, scale: float | None, physical: Physical) -> list[Objec
     if not refs:
         raise InputError(f"{path}: manifest lists no objects")
     return refs
+
+
+def _manifest_text(path: Path) -> str:
+    """A manifest's text: UTF-8, or UTF-16 with its byte-order mark (Windows PowerShell's ``>`` and Notepad's
+    'Unicode' write it; a UTF-8 one, other Windows editors', is no part of the first object's name either);
+    other bytes (a Latin-1 name) are an error naming the line."""
+    data = path.read_bytes()
+    utf16 = data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE))
+    try:
+        return data.decode("utf-16" if utf16 else "utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        raise InputError(f"{path}:{line}: not {'UTF-16' if utf16 else 'UTF-8'} text (byte 0x{data[exc.start]:02x}): "
+                         "save the manifest as UTF-8") from None
 
 
 def _tokens(raw: str, where: str) -> list[str]:
@@ -195,7 +209,8 @@ def _manifest_line(tokens: list[str], where: str, folder: Path, scale: float | N
         if not Path(source).is_absolute():
             source = str(_absolute(str(folder / source)))
         if not Path(source).is_file():
-            raise InputError(f"{where}: {source}: file not found")
+            windows = " (a Windows path? write / between folders)" if "\\" in tokens[0] else ""
+            raise InputError(f"{where}: {source}: file not found{windows}")
     elif suffix and not is_registered(source):
         also = URDF_HINT.replace("--scale", "the row's scale") if suffix == ".urdf" else ""
         raise InputError(f"{where}: {source}: unsupported mesh type '{suffix}'; use one of "

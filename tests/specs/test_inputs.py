@@ -149,3 +149,18 @@ def test_a_folder_walk_skips_hidden_files_and_macos_resource_forks(tmp_path: Pat
     for junk in ("._mug.obj", "__MACOSX/._can.stl", ".git/old.obj"):
         (folder / junk).write_bytes(b"\x00\x05\x16\x07\x00\x02\x00\x00Mac OS X        " + bytes(100))
     assert [r.name for r in inputs.expand([str(folder)])] == ["mug"]
+
+
+def test_a_manifest_written_on_windows_is_read_or_refused_naming_its_line(tmp_path: Path) -> None:
+    """Windows PowerShell's `>` and Notepad's 'Unicode' write UTF-16 (a byte-order mark first): 'internal error:
+    UnicodeDecodeError', exit 1; so did a Latin-1 name. A backslashed path said 'file not found' alone."""
+    trimesh.creation.box(extents=[0.03, 0.03, 0.03]).export(tmp_path / "can.stl")
+    (tmp_path / "wide.txt").write_text("# mine\r\ncan.stl mass=0.3\r\n", encoding="utf-16")
+    (ref,) = inputs.expand([f"@{tmp_path / 'wide.txt'}"])
+    assert (Path(ref.source).name, ref.physical.mass) == ("can.stl", 0.3)
+    (tmp_path / "latin.txt").write_bytes(b"can.stl\nc\xe4n.stl\n")
+    with pytest.raises(InputError, match=r"latin.txt:2: not UTF-8 text \(byte 0xe4\): save the manifest as UTF-8"):
+        inputs.expand([f"@{tmp_path / 'latin.txt'}"])
+    (tmp_path / "win.txt").write_text("meshes\\can.stl\n")
+    with pytest.raises(InputError, match=r"win.txt:1: .*meshes\\can.stl: file not found \(a Windows path\? write / "):
+        inputs.expand([f"@{tmp_path / 'win.txt'}"])
