@@ -22,7 +22,6 @@ only their suffixes differ (``part.obj``, ``part.stl``) the names keep them.
 
 from __future__ import annotations
 
-import codecs
 import glob
 import math
 import os
@@ -43,6 +42,7 @@ from planner.specs.objects import (
     is_registered,
     resolve_spec,
 )
+from planner.specs.toml import decode_text
 
 #: What a manifest line holds.
 MANIFEST_LINE = "OBJECT [SCALE] [scale=S] [mass=KG | density=KG_M3] [friction=MU]"
@@ -152,17 +152,9 @@ def _manifest(path: Path, scale: float | None, physical: Physical) -> list[Objec
 
 
 def _manifest_text(path: Path) -> str:
-    """A manifest's text: UTF-8, or UTF-16 with its byte-order mark (Windows PowerShell's ``>`` and Notepad's
-    'Unicode' write it; a UTF-8 one, other Windows editors', is no part of the first object's name either);
-    other bytes (a Latin-1 name) are an error naming the line."""
-    data = path.read_bytes()
-    utf16 = data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE))
-    try:
-        return data.decode("utf-16" if utf16 else "utf-8-sig")
-    except UnicodeDecodeError as exc:
-        line = data[:exc.start].count(b"\n") + 1
-        raise InputError(f"{path}:{line}: not {'UTF-16' if utf16 else 'UTF-8'} text (byte 0x{data[exc.start]:02x}): "
-                         "save the manifest as UTF-8") from None
+    """A manifest's text (:func:`~planner.specs.toml.decode_text`: a UTF-16 one, Windows PowerShell's ``>``'s,
+    was an internal error; a byte-order mark is no part of the first object's name)."""
+    return decode_text(path.read_bytes(), path, "the manifest", InputError)
 
 
 def _tokens(raw: str, where: str) -> list[str]:

@@ -10,7 +10,7 @@ import pytest
 import trimesh
 from helpers import NUM_TOL
 
-from planner.errors import InputError
+from planner.errors import ConfigError, InputError
 from planner.geometry.solid import load_object
 from planner.specs import inputs
 from planner.specs.objects import MAX_FRICTION, Physical, resolve_spec
@@ -178,6 +178,18 @@ def test_a_sidecar_meant_for_a_mesh_but_named_otherwise_is_refused(tmp_path: Pat
         resolve_spec(str(folders["whole"] / "Kiwi.obj"))
     assert resolve_spec(str(folders["other"] / "Banana.obj")).mass == pytest.approx(0.2)
     assert resolve_spec(str(folders["other"] / "banana.stl")).mass == pytest.approx(0.066)
+
+
+@pytest.mark.parametrize("encoding", ["utf-8-sig", "utf-16"])
+def test_a_sidecar_saved_by_a_windows_editor_is_read(brick: Path, encoding: str) -> None:
+    """A UTF-8 byte-order mark (Notepad before 2019) said 'malformed TOML: Invalid statement (at line 1, column
+    1)'; UTF-16 (Notepad's 'Unicode', PowerShell's >) said 'cannot read: 'utf-8' codec can't decode byte 0xff'."""
+    brick.with_suffix(".toml").write_text("# Bäume\nmass = 0.066\nfriction = 0.8\n", encoding=encoding)
+    spec = resolve_spec(str(brick))
+    assert (spec.mass, spec.friction) == (0.066, 0.8)
+    brick.with_suffix(".toml").write_text("# Bäume\nmass = 0.066\n", encoding="latin-1")
+    with pytest.raises(ConfigError, match=r"brick.toml:1: not UTF-8 text \(byte 0xe4\): save the file as UTF-8"):
+        resolve_spec(str(brick))
 
 
 def test_one_sidecar_answering_to_two_spellings_is_read_once(brick: Path) -> None:
