@@ -68,9 +68,11 @@ def _refuse_point_cloud(path: Path) -> None:
         points = trimesh.load(str(path), process=False)
     except Exception:  # read once already: the caller says what is missing
         return
-    if isinstance(points, trimesh.PointCloud) and len(points.vertices):
-        raise MeshError(f"{path}: a point cloud of {len(points.vertices):,} points, no triangles: make a surface of "
-                        "it first (a Poisson reconstruction: MeshLab, Open3D)")
+    clouds = list(points.geometry.values()) if isinstance(points, trimesh.Scene) else [points]  # a .glb's: a scene
+    count = sum(len(c.vertices) for c in clouds if isinstance(c, trimesh.PointCloud))
+    if count and not any(isinstance(c, trimesh.Trimesh) and len(c.faces) for c in clouds):
+        raise MeshError(f"{path}: a point cloud of {count:,} points, no triangles: make a surface of it first (a "
+                        "Poisson reconstruction: MeshLab, Open3D)")
 
 
 def checked_solid(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh:

@@ -79,6 +79,9 @@ def test_a_point_cloud_and_a_urdf_are_refused_saying_what_to_give(tmp_path: Path
     trimesh.PointCloud(trimesh.creation.icosphere(radius=0.03).vertices).export(tmp_path / "scan.ply")
     with pytest.raises(MeshError, match=r"scan.ply: a point cloud of 642 points, no triangles: make a surface"):
         meshes.load_mesh_file(tmp_path / "scan.ply")
+    trimesh.Scene(trimesh.PointCloud(trimesh.creation.icosphere(radius=0.03).vertices)).export(tmp_path / "scan.glb")
+    with pytest.raises(MeshError, match=r"scan.glb: a point cloud of 642 points, no triangles"):
+        meshes.load_mesh_file(tmp_path / "scan.glb")
     (tmp_path / "duck.urdf").write_text("<robot name='duck'/>")
     with pytest.raises(MeshError, match=r"unsupported mesh type '.urdf'.*give the mesh file its link names, its "
                                         r"<mesh scale> as --scale"):
