@@ -196,6 +196,10 @@ def _manifest_line(tokens: list[str], where: str, folder: Path, scale: float | N
             raise InputError(f"{where}: scale '{text}' is not a number") from None
         if not (math.isfinite(item_scale) and item_scale > 0):
             raise InputError(f"{where}: scale must be a positive number, got {item_scale:g}")
+    target = _absolute(str(folder / Path(source).expanduser()))  # an absolute path stays itself
+    if not is_registered(source) and (target.is_dir() or (any(c in source for c in "*?[") and not target.is_file())):
+        raise InputError(f"{where}: {source} is a {'folder' if target.is_dir() else 'glob'}: a manifest's line names "
+                         f"one object; give it on the command line (grasp generate '{target}'), or list its files")
     suffix = Path(source).suffix.lower()
     if suffix in MESH_SUFFIXES:
         if not Path(source).is_absolute():

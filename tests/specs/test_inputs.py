@@ -164,3 +164,19 @@ def test_a_manifest_written_on_windows_is_read_or_refused_naming_its_line(tmp_pa
     (tmp_path / "win.txt").write_text("meshes\\can.stl\n")
     with pytest.raises(InputError, match=r"win.txt:1: .*meshes\\can.stl: file not found \(a Windows path\? write / "):
         inputs.expand([f"@{tmp_path / 'win.txt'}"])
+
+
+def test_a_manifest_line_naming_a_folder_or_a_glob_says_so(tmp_path: Path) -> None:
+    """'sub' (a folder beside the manifest) said '/.../sub: file not found' without the line, or, run from
+    another folder, 'unknown object'; 'sub/*.stl' said 'file not found'. A built-in's name stays the built-in."""
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "mug").mkdir()
+    trimesh.creation.box(extents=[0.03, 0.03, 0.03]).export(tmp_path / "sub" / "can.stl")
+    trimesh.creation.box(extents=[0.03, 0.03, 0.03]).export(tmp_path / "box [2].stl")
+    for line, what in (("sub", "folder"), ("sub/*.stl", "glob")):
+        (tmp_path / "m.txt").write_text(f"mug\n{line} mass=0.1\n")
+        with pytest.raises(InputError, match=rf"m.txt:2: sub.* is a {what}: a manifest's line names one object; give "
+                                             rf"it on the command line \(grasp generate '{tmp_path}/sub"):
+            inputs.expand([f"@{tmp_path / 'm.txt'}"])
+    (tmp_path / "m.txt").write_text('mug\n"box [2].stl"\n')
+    assert [r.name for r in inputs.expand([f"@{tmp_path / 'm.txt'}"])] == ["mug", "box [2]"]
