@@ -105,12 +105,28 @@ def checked_solid(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh:
         raise MeshError(f"{where}: {flat}; remove it in a mesh editor")
     if repaired:  # said once the mesh is taken: a refused one gets its one line alone
         prepare.noted(where, f"{repaired} (once: cached afterwards)")
+    gap = _origin_gap(mesh)
+    if gap > max(FAR_ORIGIN, float(np.max(mesh.extents))):
+        prepare.noted(where, f"its frame's origin lies {gap:.2g} m from the mesh (a part exported in an assembly's "
+                             "frame?): its grasps, exports and --object-pose are in that frame; move the mesh to the "
+                             "origin in a mesh editor if that is not meant (once: cached afterwards)")
     apart = _apart(bodies)
     if apart:
         prepare.noted(where, f"{apart} of its {len(bodies)} bodies stand apart from the others (their boxes meet no "
                              "other's): the whole is taken as one rigid object (a grasp of one part lifts all); "
                              "split the file to plan each on its own (once: cached afterwards)")
     return mesh
+
+
+#: [m] the least distance of a mesh from its frame's origin that is said (and more than the mesh's size):
+#: a CAD part exported in its assembly's frame, whose grasp poses and --object-pose are in that frame.
+FAR_ORIGIN = 0.1
+
+
+def _origin_gap(mesh: trimesh.Trimesh) -> float:
+    """[m] the distance from the frame's origin to ``mesh``'s bounding box (0 inside it)."""
+    lo, hi = mesh.bounds
+    return float(np.linalg.norm(np.maximum(lo, 0.0) + np.maximum(-hi, 0.0)))
 
 
 def _bodies(mesh: trimesh.Trimesh) -> list[trimesh.Trimesh]:

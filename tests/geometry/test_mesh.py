@@ -232,6 +232,26 @@ def test_a_flat_face_inside_or_on_the_object_is_left_as_it_was() -> None:
         assert_close(solid.bounds, cube.bounds, 1e-12)
 
 
+def test_a_mesh_far_from_its_frames_origin_is_said(caplog: pytest.LogCaptureFixture) -> None:
+    """A CAD part exported at x = 1.2 m in its assembly's frame loaded without a word: its grasp poses and
+    --object-pose are 1.2 m off its geometry. A mesh resting on its origin (a base at z = 0) is not noted."""
+    import logging
+
+    from planner import prepare
+
+    far = trimesh.creation.box(extents=[0.05, 0.05, 0.1])
+    far.apply_translation([1.2, 0.0, 0.0])
+    standing = trimesh.creation.box(extents=[0.05, 0.05, 0.1])
+    standing.apply_translation([0.0, 0.0, 0.05])
+    with caplog.at_level(logging.INFO, logger=prepare.LOGGER):
+        meshes.checked_solid(far, "part")
+        meshes.checked_solid(standing, "mug")
+    lines = [r.getMessage() for r in caplog.records if r.name == prepare.LOGGER]
+    assert lines == ["part: its frame's origin lies 1.2 m from the mesh (a part exported in an assembly's frame?): its "
+                     "grasps, exports and --object-pose are in that frame; move the mesh to the origin in a mesh "
+                     "editor if that is not meant (once: cached afterwards)"]
+
+
 def test_bodies_that_stand_apart_are_said_to_be_one_rigid_object(caplog: pytest.LogCaptureFixture) -> None:
     """A cube and a ball 10 cm apart in one file loaded as one rigid object without a word (its grasps on the
     ball 'lift' the cube); touching pieces (convex parts, CAD) are not noted."""
