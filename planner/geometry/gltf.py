@@ -36,6 +36,9 @@ def gltf_problem(path: Path) -> str:
         module, advice = COMPRESSION[extension]
         if module is None or importlib.util.find_spec(module) is None:
             return f"its geometry is {advice}"
+    if _normalized_positions(data):
+        return ("its positions are quantized to normalized integers (KHR_mesh_quantization), which trimesh reads "
+                "unscaled (a 5 cm box read 2.6 km across): export it with float positions (gltf-transform dequantize)")
     buffers = data.get("buffers", [])
     uris = [b.get("uri") for b in buffers if isinstance(b, dict)] if isinstance(buffers, list) else []
     missing = [u for u in uris if isinstance(u, str) and u and not u.startswith("data:")
@@ -45,6 +48,18 @@ def gltf_problem(path: Path) -> str:
                 f"{'are' if len(missing) > 1 else 'is'} not beside it: copy {'them' if len(missing) > 1 else 'it'} "
                 "with the .gltf, or export a .glb (one file)")
     return ""
+
+
+def _normalized_positions(data: dict) -> bool:
+    """Whether a primitive's POSITION accessor holds normalized integers (not floats: componentType 5126)."""
+    accessors = data.get("accessors", [])
+    meshes = data.get("meshes", [])
+    if not isinstance(accessors, list) or not isinstance(meshes, list):
+        return False
+    found = [p.get("attributes", {}).get("POSITION") for m in meshes if isinstance(m, dict)
+             for p in m.get("primitives", []) if isinstance(p, dict) and isinstance(p.get("attributes"), dict)]
+    return any(isinstance(i, int) and 0 <= i < len(accessors) and isinstance(accessors[i], dict)
+               and accessors[i].get("normalized") is True and accessors[i].get("componentType") != 5126 for i in found)
 
 
 def _gltf_json(path: Path) -> dict | None:

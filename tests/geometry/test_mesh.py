@@ -119,6 +119,35 @@ def test_a_gltf_without_its_buffer_or_with_compressed_geometry_says_what_to_do(
         meshes.load_mesh_file(tmp_path / "draco.gltf")
 
 
+def test_a_gltf_of_normalized_integer_positions_is_refused(tmp_path: Path) -> None:
+    """KHR_mesh_quantization's normalized int16 positions (a 5 cm box stored as 0..32767 with a node scale of
+    0.04): trimesh ignores 'normalized', so the box read 2.62 km across and was refused as 'in millimetres? pass
+    --scale 0.001', which would plan a 2.6 m box."""
+    import base64
+    import json
+
+    box = trimesh.creation.box(extents=[0.05, 0.06, 0.08])
+    ints = np.round(box.vertices / 0.04 * 32767).astype(np.int16)
+    indices = box.faces.astype(np.uint16).tobytes()
+    positions = np.hstack([ints, np.zeros((len(ints), 1), np.int16)]).tobytes()  # 8-byte stride
+    data = indices + positions
+    (tmp_path / "q.gltf").write_text(json.dumps({
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0, "scale": [0.04] * 3}],
+        "extensionsUsed": ["KHR_mesh_quantization"], "extensionsRequired": ["KHR_mesh_quantization"],
+        "buffers": [{"byteLength": len(data), "uri": "data:application/octet-stream;base64," +
+                     base64.b64encode(data).decode()}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": len(indices)},
+                        {"buffer": 0, "byteOffset": len(indices), "byteLength": len(positions), "byteStride": 8}],
+        "accessors": [{"bufferView": 0, "componentType": 5123, "type": "SCALAR", "count": box.faces.size},
+                      {"bufferView": 1, "componentType": 5122, "type": "VEC3", "count": len(ints), "normalized": True,
+                       "min": ints.min(axis=0).tolist(), "max": ints.max(axis=0).tolist()}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 1}, "indices": 0}]}]}))
+    with pytest.raises(MeshError, match=r"q.gltf: cannot read it: its positions are quantized to normalized integers "
+                                        r"\(KHR_mesh_quantization\), which trimesh reads unscaled"):
+        meshes.load_mesh_file(tmp_path / "q.gltf")
+
+
 def test_hash_depends_on_geometry_only() -> None:
     a = trimesh.creation.box(extents=[0.04, 0.04, 0.04])
     assert meshes.mesh_hash(a) == meshes.mesh_hash(a.copy())
