@@ -184,13 +184,17 @@ def union_of_bodies(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh | None
     return union if union.volume < total * (1 - OVERLAP_TOL) else None
 
 
+#: Units a mesh file too large in metres may be in, and the --scale each takes (US CAD exports inches).
+UNITS = (("millimetres", 0.001), ("centimetres", 0.01), ("inches", 0.0254))
+
+
 def check_extent(mesh: trimesh.Trimesh, where: str) -> None:
     extent = float(np.max(mesh.extents))
     if extent > MAX_EXTENT:
-        raise MeshError(
-            f"{where}: object is {extent:.3g} m across, larger than any hand can grasp; "
-            "if the mesh is in millimetres pass --scale 0.001, in centimetres --scale 0.01"
-        )
+        units = ", ".join(f"in {unit}{' pass' if i == 0 else ''} --scale {factor:g} ({extent * factor:.2g} m across)"
+                          for i, (unit, factor) in enumerate(UNITS))
+        raise MeshError(f"{where}: object is {extent:.3g} m across, larger than any hand can grasp; if the mesh is "
+                        f"{units}")
     if extent < MIN_EXTENT:
         raise MeshError(
             f"{where}: object is {extent * 1000:.3g} mm across, smaller than a millimetre; "

@@ -62,6 +62,16 @@ def test_bad_meshes_are_refused(name: str, build, message: str) -> None:  # type
         meshes.checked_solid(build(), name)
 
 
+def test_a_mesh_too_large_in_metres_is_told_its_size_in_other_units() -> None:
+    """A can exported in inches (US CAD's default), 4.72 units tall, was told 'millimetres --scale 0.001,
+    centimetres --scale 0.01': the first plans a 4.7 mm can, the second a 4.7 cm one; not inches."""
+    can = trimesh.creation.cylinder(radius=1.38, height=4.72)
+    with pytest.raises(MeshError, match=r"can: object is 4.72 m across, larger than any hand can grasp; if the mesh is "
+                                        r"in millimetres pass --scale 0.001 \(0.0047 m across\), in centimetres "
+                                        r"--scale 0.01 \(0.047 m across\), in inches --scale 0.0254 \(0.12 m across\)"):
+        meshes.checked_solid(can, "can")
+
+
 def test_missing_and_empty_files(tmp_path: Path) -> None:
     with pytest.raises(MeshError, match="not found"):
         meshes.load_mesh_file(tmp_path / "nope.obj")
