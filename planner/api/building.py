@@ -248,6 +248,8 @@ def _from_sidecar(named: str, spec: ObjectSpec, given: Physical) -> str:
 
 def _note_overridden(named: str, spec: ObjectSpec, given: Physical) -> None:
     """Say (a line on stderr) where the run's values (flags, a manifest's columns) replace its sidecar's."""
+    if not given.given():  # nothing replaces anything: no sidecar read again
+        return
     name, keys, side = _sidecar_keys(named, spec, given, used=False)
     if keys:
         heavy = "mass" in keys or "density" in keys
