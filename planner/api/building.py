@@ -22,6 +22,7 @@ from dataclasses import replace as replaced
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from planner import prepare
 from planner.api.resolving import DEFAULT_DB, PROPERTY_RTOL
 from planner.api.sweeps import Replacement
 from planner.db.hand_files import check_hand_files
@@ -123,6 +124,7 @@ def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: i
                                  "friction; give it once")
             continue
         seen[spec.name] = spec
+        _note_overridden(ref.source, spec, ref.physical)
         planned = [settings]
         if on_table:
             obj = load_object(ref.source, scale=ref.scale, label=spec.name, **ref.physical.given())
@@ -223,18 +225,37 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
                              "one; use another --db, or name the object apart (copy the mesh under another name)")
 
 
-def _from_sidecar(named: str, spec: ObjectSpec, given: Physical) -> str:
-    """`` (mass from banana.toml)`` where the sidecar of the mesh ``named`` gave what the run did not."""
-    from planner.specs.objects import mesh_sidecar
+def _sidecar_keys(named: str, spec: ObjectSpec, given: Physical, used: bool) -> tuple[str, list[str], Physical]:
+    """The sidecar of the mesh ``named`` (its name), the keys it gives that the run's ``given`` values do not
+    (``used``) or do, and its values; ('', [], ...) without one."""
+    from planner.specs.objects import NO_PHYSICAL, mesh_sidecar
     from planner.specs.toml import read_toml
 
     path = mesh_sidecar(Path(named)) if spec.kind == "mesh" and spec.source else None
     if path is None:
-        return ""
+        return "", [], NO_PHYSICAL
     side = Physical.checked(read_toml(path), str(path))
-    keys = [k for k in ("mass", "density", "friction") if getattr(side, k) is not None and
+    keys = [k for k in ("mass", "density", "friction") if getattr(side, k) is not None and used ==
             (getattr(given, k) is None if k == "friction" else given.mass is None and given.density is None)]
-    return f" ({' and '.join(keys)} from {path.name})" if keys else ""
+    return path.name, keys, side
+
+
+def _from_sidecar(named: str, spec: ObjectSpec, given: Physical) -> str:
+    """`` (mass from banana.toml)`` where the sidecar of the mesh ``named`` gave what the run did not."""
+    name, keys, _ = _sidecar_keys(named, spec, given, used=True)
+    return f" ({' and '.join(keys)} from {name})" if keys else ""
+
+
+def _note_overridden(named: str, spec: ObjectSpec, given: Physical) -> None:
+    """Say (a line on stderr) where the run's values (flags, a manifest's columns) replace its sidecar's."""
+    if not given.given():  # nothing replaces anything: no sidecar read again
+        return
+    name, keys, side = _sidecar_keys(named, spec, given, used=False)
+    if keys:
+        heavy = "mass" in keys or "density" in keys
+        ours = [f"{k} {v:g}" for k, v in given.given().items() if (k in keys if k == "friction" else heavy)]
+        prepare.noted(f"object '{spec.name}'", f"{', '.join(ours)} as given replace{'s' if len(ours) == 1 else ''} "
+                      f"{name}'s {', '.join(f'{k} {getattr(side, k):g}' for k in keys)}")
 
 
 def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, settings: SweepSettings | None = None,

@@ -176,4 +176,6 @@ def _print_summary(summary: api.Summary, db_path: Path) -> None:
             click.echo(f"note: {row['object']} weighs {row['mass']:.3g} kg in its volume: {row['density']:.3g} kg/m^3, "
                        f"outside any solid's {PLAUSIBLE_DENSITY[0]:g}-{PLAUSIBLE_DENSITY[1]:,.0f} (the default is "
                        f"{api.DEFAULT_MASS:g} kg); if that is not its weight, give --mass or --density (or a "
-                       "sidecar) and another --db", err=True)
+                       "sidecar) and another --db" + ("; if its mesh is not in metres (a model scaled to 1 unit "
+                                                      "across), --scale" if row["density"] < PLAUSIBLE_DENSITY[0]
+                                                     else ""), err=True)

@@ -188,6 +188,9 @@ def _export(db_path: Path, fmt: str, out_dir: Path, objects: Sequence[str], hand
     start = time.perf_counter()
     with open_db(Path(db_path), create=False, readonly=True) as db:
         pairs = sel.pairs(db)
+        if not pairs:  # nothing to filter: every sweep kept none (a named object or hand without grasps: above)
+            raise InputError(f"{db_path}: no grasps stored: nothing written; `grasp best OBJECT --hand HAND --db "
+                             f"{db_path}` says why an object has none")
         specs = {h: load_hand(h) for h in sorted({h for _, h in pairs})}  # unknown hands fail up front
         models = {h: db.model(h) for h in specs}  # read once: a model with trees is ~0.3 MB of JSON
         if sel.label == BEST:

@@ -15,7 +15,8 @@ import trimesh
 
 from planner import prepare
 from planner.errors import MeshError
-from planner.specs.objects import MESH_SUFFIXES
+from planner.geometry.gltf import gltf_problem
+from planner.specs.objects import MESH_SUFFIXES, URDF_HINT
 
 log = logging.getLogger(__name__)
 
@@ -37,7 +38,8 @@ def load_mesh_file(path: Path, scale: float = 1.0) -> trimesh.Trimesh:
     if not path.exists():
         raise MeshError(f"{path}: file not found")
     if path.suffix.lower() not in MESH_SUFFIXES:
-        raise MeshError(f"{path}: unsupported mesh type '{path.suffix}'; use one of {', '.join(MESH_SUFFIXES)}")
+        raise MeshError(f"{path}: unsupported mesh type '{path.suffix}'; use one of {', '.join(MESH_SUFFIXES)}"
+                        f"{URDF_HINT if path.suffix.lower() == '.urdf' else ''}")
     size = path.stat().st_size
     if size == 0:
         raise MeshError(f"{path}: file is empty")
@@ -45,14 +47,32 @@ def load_mesh_file(path: Path, scale: float = 1.0) -> trimesh.Trimesh:
         raise MeshError(f"{path}: {size / 2**20:.0f} MiB is too large; simplify the mesh below {MAX_FACES:,} faces")
     if not np.isfinite(scale) or scale <= 0:
         raise MeshError(f"{path}: scale must be a positive number, got {scale}")
+    unreadable = gltf_problem(path)  # a .gltf without its buffers, compressed geometry trimesh cannot decode here
+    if unreadable:
+        raise MeshError(f"{path}: cannot read it: {unreadable}")
     try:
         loaded = trimesh.load(str(path), force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for broken files
         raise MeshError(f"{path}: cannot parse mesh: {exc}") from exc
     if not isinstance(loaded, trimesh.Trimesh):
         raise MeshError(f"{path}: holds no triangles")
+    if len(loaded.faces) == 0:
+        _refuse_point_cloud(path)
     mesh = trimesh.Trimesh(np.asarray(loaded.vertices, float) * scale, np.asarray(loaded.faces), process=False)
     return checked_solid(mesh, str(path))
+
+
+def _refuse_point_cloud(path: Path) -> None:
+    """A MeshError where ``path`` holds points alone (a scanner's PLY), which ``force="mesh"`` reads as no mesh."""
+    try:
+        points = trimesh.load(str(path), process=False)
+    except Exception:  # read once already: the caller says what is missing
+        return
+    clouds = list(points.geometry.values()) if isinstance(points, trimesh.Scene) else [points]  # a .glb's: a scene
+    count = sum(len(c.vertices) for c in clouds if isinstance(c, trimesh.PointCloud))
+    if count and not any(isinstance(c, trimesh.Trimesh) and len(c.faces) for c in clouds):
+        raise MeshError(f"{path}: a point cloud of {count:,} points, no triangles: make a surface of it first (a "
+                        "Poisson reconstruction: MeshLab, Open3D)")
 
 
 def checked_solid(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh:
@@ -85,12 +105,28 @@ def checked_solid(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh:
         raise MeshError(f"{where}: {flat}; remove it in a mesh editor")
     if repaired:  # said once the mesh is taken: a refused one gets its one line alone
         prepare.noted(where, f"{repaired} (once: cached afterwards)")
+    gap = _origin_gap(mesh)
+    if gap > max(FAR_ORIGIN, float(np.max(mesh.extents))):
+        prepare.noted(where, f"its frame's origin lies {gap:.2g} m from the mesh (a part exported in an assembly's "
+                             "frame?): its grasps, exports and --object-pose are in that frame; move the mesh to the "
+                             "origin in a mesh editor if that is not meant (once: cached afterwards)")
     apart = _apart(bodies)
     if apart:
         prepare.noted(where, f"{apart} of its {len(bodies)} bodies stand apart from the others (their boxes meet no "
                              "other's): the whole is taken as one rigid object (a grasp of one part lifts all); "
                              "split the file to plan each on its own (once: cached afterwards)")
     return mesh
+
+
+#: [m] the least distance of a mesh from its frame's origin that is said (and more than the mesh's size):
+#: a CAD part exported in its assembly's frame, whose grasp poses and --object-pose are in that frame.
+FAR_ORIGIN = 0.1
+
+
+def _origin_gap(mesh: trimesh.Trimesh) -> float:
+    """[m] the distance from the frame's origin to ``mesh``'s bounding box (0 inside it)."""
+    lo, hi = mesh.bounds
+    return float(np.linalg.norm(np.maximum(lo, 0.0) + np.maximum(-hi, 0.0)))
 
 
 def _bodies(mesh: trimesh.Trimesh) -> list[trimesh.Trimesh]:
@@ -148,13 +184,17 @@ def union_of_bodies(mesh: trimesh.Trimesh, where: str) -> trimesh.Trimesh | None
     return union if union.volume < total * (1 - OVERLAP_TOL) else None
 
 
+#: Units a mesh file too large in metres may be in, and the --scale each takes (US CAD exports inches).
+UNITS = (("millimetres", 0.001), ("centimetres", 0.01), ("inches", 0.0254))
+
+
 def check_extent(mesh: trimesh.Trimesh, where: str) -> None:
     extent = float(np.max(mesh.extents))
     if extent > MAX_EXTENT:
-        raise MeshError(
-            f"{where}: object is {extent:.3g} m across, larger than any hand can grasp; "
-            "if the mesh is in millimetres pass --scale 0.001, in centimetres --scale 0.01"
-        )
+        units = ", ".join(f"in {unit}{' pass' if i == 0 else ''} --scale {factor:g} ({extent * factor:.2g} m across)"
+                          for i, (unit, factor) in enumerate(UNITS))
+        raise MeshError(f"{where}: object is {extent:.3g} m across, larger than any hand can grasp; if the mesh is "
+                        f"{units}")
     if extent < MIN_EXTENT:
         raise MeshError(
             f"{where}: object is {extent * 1000:.3g} mm across, smaller than a millimetre; "

@@ -6,7 +6,8 @@ Accepted, in any mix:
 - ``builtin:all`` (every registry object), ``builtin:random`` (all 1,000
   generated objects), ``builtin:random:20`` (the first 20),
   ``builtin:random:100-149`` (a range, inclusive);
-- a folder (its mesh files, recursively) or a glob (``meshes/**/*.obj``);
+- a folder (its mesh files, recursively, hidden ones and ``__MACOSX/`` skipped) or a glob
+  (``meshes/**/*.obj``);
 - ``@list.txt``: a manifest, one object per line, optionally followed by a
   scale and ``key=value`` columns (``scale=``, ``mass=`` [kg] or
   ``density=`` [kg/m^3], ``friction=``), e.g. ``banana.obj 1 mass=0.066
@@ -35,11 +36,13 @@ from planner.specs.objects import (
     PHYSICAL_KEYS,
     RANDOM_COUNT,
     RANDOM_PREFIX,
+    URDF_HINT,
     Physical,
     builtin_specs,
     is_registered,
     resolve_spec,
 )
+from planner.specs.toml import decode_text
 
 #: What a manifest line holds.
 MANIFEST_LINE = "OBJECT [SCALE] [scale=S] [mass=KG | density=KG_M3] [friction=MU]"
@@ -86,7 +89,8 @@ def _expand_plain(arg: str, scale: float | None) -> list[ObjectRef]:
         return [ObjectRef(arg[len("builtin:"):], scale)]
     path = Path(arg).expanduser()
     if path.is_dir():
-        files = sorted(p for p in path.rglob("*") if p.suffix.lower() in MESH_SUFFIXES and p.is_file())
+        files = sorted(p for p in path.rglob("*") if p.suffix.lower() in MESH_SUFFIXES and p.is_file()
+                       and not _hidden(p.relative_to(path)))
         if not files:
             also = f"; for the built-in object of that name write builtin:{arg}" if is_registered(arg) else ""
             raise InputError(f"{path}: folder holds no mesh files ({', '.join(MESH_SUFFIXES)}){also}")
@@ -98,6 +102,16 @@ def _expand_plain(arg: str, scale: float | None) -> list[ObjectRef]:
             raise InputError(f"'{arg}': no mesh files match")
         return [ObjectRef(str(_absolute(str(p))), scale) for p in files]
     return [ObjectRef(arg, scale)]
+
+
+#: Folders a folder's walk skips besides hidden ones: the resource forks a zip made on macOS holds.
+SKIPPED_FOLDERS = ("__MACOSX",)
+
+
+def _hidden(relative: Path) -> bool:
+    """Whether a folder's walk skips the file at ``relative`` to it: a hidden file or one in a hidden folder
+    (``.git/``, macOS's ``._mug.obj`` resource forks), or in ``__MACOSX/``: as a glob's ``*`` skips them."""
+    return any(part.startswith(".") or part in SKIPPED_FOLDERS for part in relative.parts)
 
 
 def _random_range(arg: str) -> range:
@@ -127,8 +141,7 @@ def _manifest(path: Path, scale: float | None, physical: Physical) -> list[Objec
     if not path.is_file():
         raise InputError(f"{path}: manifest not found")
     refs = []
-    # utf-8-sig: a byte-order mark (Windows editors write one) is not part of the first object's name
-    for number, raw in enumerate(path.read_text(encoding="utf-8-sig").splitlines(), start=1):
+    for number, raw in enumerate(_manifest_text(path).splitlines(), start=1):
         where = f"{path}:{number}"
         tokens = _tokens(raw, where)
         if tokens:
@@ -136,6 +149,12 @@ def _manifest(path: Path, scale: float | None, physical: Physical) -> list[Objec
     if not refs:
         raise InputError(f"{path}: manifest lists no objects")
     return refs
+
+
+def _manifest_text(path: Path) -> str:
+    """A manifest's text (:func:`~planner.specs.toml.decode_text`: a UTF-16 one, Windows PowerShell's ``>``'s,
+    was an internal error; a byte-order mark is no part of the first object's name)."""
+    return decode_text(path.read_bytes(), path, "the manifest", InputError)
 
 
 def _tokens(raw: str, where: str) -> list[str]:
@@ -177,14 +196,19 @@ def _manifest_line(tokens: list[str], where: str, folder: Path, scale: float | N
             raise InputError(f"{where}: scale '{text}' is not a number") from None
         if not (math.isfinite(item_scale) and item_scale > 0):
             raise InputError(f"{where}: scale must be a positive number, got {item_scale:g}")
+    target = _absolute(str(folder / Path(source).expanduser()))  # an absolute path stays itself
+    if not is_registered(source) and (target.is_dir() or (any(c in source for c in "*?[") and not target.is_file())):
+        raise InputError(f"{where}: {source} is a {'folder' if target.is_dir() else 'glob'}: a manifest's line names "
+                         f"one object; give it on the command line (grasp generate '{target}'), or list its files")
     suffix = Path(source).suffix.lower()
     if suffix in MESH_SUFFIXES:
         if not Path(source).is_absolute():
             source = str(_absolute(str(folder / source)))
         if not Path(source).is_file():
-            raise InputError(f"{where}: {source}: file not found")
+            windows = " (a Windows path? write / between folders)" if "\\" in tokens[0] else ""
+            raise InputError(f"{where}: {source}: file not found{windows}")
     elif suffix and not is_registered(source):
-        also = " (a URDF: give the mesh file its link names)" if suffix == ".urdf" else ""
+        also = URDF_HINT.replace("--scale", "the row's scale") if suffix == ".urdf" else ""
         raise InputError(f"{where}: {source}: unsupported mesh type '{suffix}'; use one of "
                          f"{', '.join(MESH_SUFFIXES)}{also}")
     else:  # a name, and the scale a primitive refuses, checked here where the line is known

@@ -44,6 +44,8 @@ RANDOM_COUNT = 1000
 RANDOM_MASS = 0.1  # kg: the generated objects are 5-10 cm across
 #: Mesh files an object (or a folder of objects) may be given as.
 MESH_SUFFIXES = (".obj", ".stl", ".ply", ".glb", ".gltf", ".off")
+#: Said where a URDF is given as an object: its mesh is planned on, at the scale the URDF gives it.
+URDF_HINT = " (a URDF: give the mesh file its link names, its <mesh scale> as --scale)"
 #: Largest Coulomb friction coefficient accepted: rubber on rough surfaces
 #: reaches about 1-2, so a larger value is a typo (a percentage, a unit mix-up).
 MAX_FRICTION = 3.0
@@ -158,27 +160,44 @@ def sidecar_path(mesh: Path) -> Path | None:
     paths = sorted(found.values())
     if len(paths) > 1:
         raise InputError(f"{mesh}: two sidecars, {' and '.join(p.name for p in paths)}: keep one")
+    meant = [p for key in (mesh.stem.lower(), mesh.name.lower()) for p in _folder_tomls(mesh.parent)[1].get(key, ())]
+    if not paths and meant:  # read on a case-blind file system, the defaults here: refused, not silently differing
+        raise InputError(f"{mesh}: {meant[0].name} beside it is not read as its sidecar (one takes the mesh's name, "
+                         f"in the same case, with .toml in place of {mesh.suffix}): rename it {mesh.stem}.toml")
     return paths[0] if paths else None
 
 
 def _odd_sidecars(folder: Path) -> dict[str, tuple[Path, ...]]:
     """stem -> the folder's sidecars spelt neither ``.toml`` nor ``.TOML`` (``.Toml``); {} if unreadable."""
+    return _folder_tomls(folder)[0]
+
+
+def _folder_tomls(folder: Path) -> tuple[dict[str, tuple[Path, ...]], dict[str, tuple[Path, ...]]]:
+    """:func:`_listing` of ``folder`` as it is now; nothing if unreadable."""
     try:
         st = folder.stat()
         return _listing(folder, st.st_mtime_ns, st.st_ctime_ns)  # ctime: an mtime put back (cp -a, tar) moves it
     except OSError:  # an unreadable folder: the mesh's own read says what is wrong
-        return {}
+        return {}, {}
 
 
 @lru_cache(maxsize=64)
-def _listing(folder: Path, mtime_ns: int, ctime_ns: int) -> dict[str, tuple[Path, ...]]:
-    """:func:`_odd_sidecars` of ``folder`` as it was at ``mtime_ns`` and ``ctime_ns`` (a dataset folder of 20,000
-    meshes was listed once per mesh and per look: 27 ms each)."""
-    out: dict[str, list[Path]] = {}
-    for p in folder.iterdir():
+def _listing(folder: Path, mtime_ns: int, ctime_ns: int
+             ) -> tuple[dict[str, tuple[Path, ...]], dict[str, tuple[Path, ...]]]:
+    """The sidecars of ``folder`` as it was at ``mtime_ns`` and ``ctime_ns`` (a dataset folder of 20,000 meshes
+    was listed once per mesh and per look: 27 ms each): stem -> those spelt neither ``.toml`` nor ``.TOML``
+    (``.Toml``), and lower-case stem -> the TOML files whose stem no mesh file of the folder has (a sidecar
+    meant for ``Banana.obj`` spelt ``banana.toml`` or ``Banana.obj.toml``)."""
+    odd: dict[str, list[Path]] = {}
+    lost: dict[str, list[Path]] = {}
+    files = sorted(folder.iterdir())
+    stems = {p.stem for p in files if p.suffix.lower() in MESH_SUFFIXES}
+    for p in files:
         if p.suffix.lower() == SIDECAR_SUFFIX and p.suffix not in (SIDECAR_SUFFIX, SIDECAR_SUFFIX.upper()):
-            out.setdefault(p.stem, []).append(p)
-    return {k: tuple(v) for k, v in out.items()}
+            odd.setdefault(p.stem, []).append(p)
+        if p.suffix.lower() == SIDECAR_SUFFIX and p.stem not in stems:
+            lost.setdefault(p.stem.lower(), []).append(p)
+    return {k: tuple(v) for k, v in odd.items()}, {k: tuple(v) for k, v in lost.items()}
 
 
 @dataclass(frozen=True)

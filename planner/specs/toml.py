@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import codecs
 import math
 import sys
 from pathlib import Path
@@ -15,13 +16,26 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 
+def decode_text(data: bytes, path: Path, what: str, error: type[Exception] = ConfigError) -> str:
+    """A text file's ``data``: UTF-8, or UTF-16 with its byte-order mark (Windows PowerShell's ``>`` and Notepad's
+    'Unicode' write it); a UTF-8 byte-order mark (other Windows editors') is dropped. Other bytes (a Latin-1 name)
+    raise ``error`` naming the line and saying to save ``what`` as UTF-8."""
+    utf16 = data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE))
+    try:
+        return data.decode("utf-16" if utf16 else "utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        raise error(f"{path}:{line}: not {'UTF-16' if utf16 else 'UTF-8'} text (byte 0x{data[exc.start]:02x}): save "
+                    f"{what} as UTF-8") from None
+
+
 def read_toml(path: Path) -> dict[str, Any]:
-    """Parse a TOML file; a missing, empty or malformed file is a ConfigError."""
+    """Parse a TOML file (:func:`decode_text`); a missing, empty or malformed file is a ConfigError."""
     if not path.is_file():
         raise ConfigError(f"{path}: file not found")
     try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
+        text = decode_text(path.read_bytes(), path, "the file")
+    except OSError as exc:
         raise ConfigError(f"{path}: cannot read: {exc}") from exc
     try:
         data = tomllib.loads(text)

@@ -335,9 +335,16 @@ def test_a_weight_no_solid_has_is_noted(tmp_path: Path) -> None:
     trimesh.creation.box(extents=[0.005, 0.005, 0.005]).export(bead)
     code, _, err = grasp("generate", str(bead), "--hand", "panda", "--db", str(tmp_path / "a.db"), *FAST)
     assert code == 0 and "note: bead weighs 0.2 kg in its volume: 1.6e+06 kg/m^3, outside any solid's" in err, err
+    assert "--scale" not in err
     code, _, err = grasp("generate", str(bead), "--hand", "panda", "--db", str(tmp_path / "b.db"), *FAST,
                          "--density", "1000")
     assert code == 0 and "note:" not in err, err
+    # a mug modelled 1 unit across (as model datasets normalise them) is a 1 m mug: 0.2 kg in 0.5 m^3
+    mug = tmp_path / "mug.stl"
+    trimesh.creation.cylinder(radius=0.4, height=1.0).export(mug)
+    code, _, err = grasp("generate", str(mug), "--hand", "panda", "--db", str(tmp_path / "c.db"), *FAST)
+    assert code == 0 and "note: mug weighs 0.2 kg in its volume: 0.4" in err, err
+    assert "another --db; if its mesh is not in metres (a model scaled to 1 unit across), --scale" in err
 
 
 @pytest.mark.parametrize("address, raised, needles", [

@@ -46,3 +46,10 @@ def test_best_of_an_object_swept_to_nothing_says_why(tmp_path: Path) -> None:
     one_line_error(code, err, 2, "no grasps of 'bigcube' for hand 'panda'", "kept none (rejected: too_wide",
                    "too_wide: the object is wider than the hand opens")
     assert err.index("try another hand") < err.index("if its sweep was cut short")  # not a plain "run it"
+    # show said 'no grasp of rank 1', export 'no grasp of the 0 (object, hand) pairs selected passes the filters
+    # (--top, --min-epsilon, --label)' when none was given
+    code, _, err = grasp("show", "bigcube", "--hand", "panda", "--db", str(db), "--out", str(tmp_path / "x.png"))
+    one_line_error(code, err, 2, "no grasps of 'bigcube' for hand 'panda'", "kept none (rejected: too_wide")
+    code, _, err = grasp("export", "--db", str(db), "--format", "csv", "--out", str(tmp_path / "csv"))
+    one_line_error(code, err, 2, "no grasps stored: nothing written; `grasp best OBJECT --hand HAND --db")
+    assert not (tmp_path / "csv").exists()

@@ -283,3 +283,18 @@ def test_an_edit_is_seen_in_another_time_zone(tmp_path: Path, brick: Path, monke
     finally:
         monkeypatch.delenv("TZ")
         time.tzset()
+
+
+def test_a_flag_replacing_a_sidecars_value_is_said(tmp_path: Path, brick: Path) -> None:
+    """--mass with a sidecar giving a mass: the flag wins (as documented), without a word that the sidecar's
+    mass was set aside."""
+    brick.with_suffix(".toml").write_text("mass = 0.066\nfriction = 0.8\n")
+    db = tmp_path / "g.db"
+    code, _, err = grasp("generate", str(brick), "--hand", "panda", "--db", str(db), "--mass", "0.3", *FAST)
+    assert code == 0, err
+    assert "object 'brick': mass 0.3 as given replaces brick.toml's mass 0.066" in err
+    assert stored(db)["brick"][:2] == (0.3, 0.8)  # the sidecar's friction, which no flag replaced
+    code, _, err = grasp("generate", str(brick), "--hand", "panda", "--db", str(tmp_path / "h.db"), "--friction",
+                         "0.9", "--density", "500", *FAST)
+    assert code == 0, err
+    assert "object 'brick': density 500, friction 0.9 as given replace brick.toml's mass 0.066, friction 0.8" in err

@@ -62,6 +62,16 @@ def test_bad_meshes_are_refused(name: str, build, message: str) -> None:  # type
         meshes.checked_solid(build(), name)
 
 
+def test_a_mesh_too_large_in_metres_is_told_its_size_in_other_units() -> None:
+    """A can exported in inches (US CAD's default), 4.72 units tall, was told 'millimetres --scale 0.001,
+    centimetres --scale 0.01': the first plans a 4.7 mm can, the second a 4.7 cm one; not inches."""
+    can = trimesh.creation.cylinder(radius=1.38, height=4.72)
+    with pytest.raises(MeshError, match=r"can: object is 4.72 m across, larger than any hand can grasp; if the mesh is "
+                                        r"in millimetres pass --scale 0.001 \(0.0047 m across\), in centimetres "
+                                        r"--scale 0.01 \(0.047 m across\), in inches --scale 0.0254 \(0.12 m across\)"):
+        meshes.checked_solid(can, "can")
+
+
 def test_missing_and_empty_files(tmp_path: Path) -> None:
     with pytest.raises(MeshError, match="not found"):
         meshes.load_mesh_file(tmp_path / "nope.obj")
@@ -71,6 +81,81 @@ def test_missing_and_empty_files(tmp_path: Path) -> None:
     (tmp_path / "junk.stl").write_bytes(b"\x00garbage" * 3)
     with pytest.raises(MeshError):
         meshes.load_mesh_file(tmp_path / "junk.stl")
+
+
+def test_a_point_cloud_and_a_urdf_are_refused_saying_what_to_give(tmp_path: Path) -> None:
+    """A scanner's PLY of points alone said 'mesh has no triangles', as a text file did; a URDF given as the
+    object said its type is unsupported, without what to give instead."""
+    trimesh.PointCloud(trimesh.creation.icosphere(radius=0.03).vertices).export(tmp_path / "scan.ply")
+    with pytest.raises(MeshError, match=r"scan.ply: a point cloud of 642 points, no triangles: make a surface"):
+        meshes.load_mesh_file(tmp_path / "scan.ply")
+    trimesh.Scene(trimesh.PointCloud(trimesh.creation.icosphere(radius=0.03).vertices)).export(tmp_path / "scan.glb")
+    with pytest.raises(MeshError, match=r"scan.glb: a point cloud of 642 points, no triangles"):
+        meshes.load_mesh_file(tmp_path / "scan.glb")
+    (tmp_path / "duck.urdf").write_text("<robot name='duck'/>")
+    with pytest.raises(MeshError, match=r"unsupported mesh type '.urdf'.*give the mesh file its link names, its "
+                                        r"<mesh scale> as --scale"):
+        meshes.load_mesh_file(tmp_path / "duck.urdf")
+
+
+def test_a_gltf_without_its_buffer_or_with_compressed_geometry_says_what_to_do(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A .gltf copied without its .bin said 'cannot parse mesh: gltf_buffer_0.bin'; Draco-compressed geometry,
+    which trimesh decodes only with DracoPy (not installed here), said 'cannot parse mesh: 'POSITION'' (a .glb:
+    'every triangle is degenerate', trimesh's placeholder zeros), each after trimesh's warnings."""
+    import importlib.util
+    import json
+
+    files = trimesh.creation.box(extents=[0.03, 0.04, 0.05]).export(file_type="gltf")
+    for name, data in files.items():
+        (tmp_path / name).write_bytes(data)
+    assert meshes.load_mesh_file(tmp_path / "model.gltf").volume == pytest.approx(6e-5)
+    buffer = "gltf_buffer_0.bin"
+    (tmp_path / buffer).unlink()
+    with pytest.raises(MeshError, match=f"model.gltf: cannot read it: the buffer file holding its geometry, {buffer}, "
+                                        "is not beside it: copy it with the .gltf, or export a .glb"):
+        meshes.load_mesh_file(tmp_path / "model.gltf")
+    (tmp_path / buffer).write_bytes(files[buffer])
+    draco = json.loads(files["model.gltf"])
+    draco["extensionsUsed"] = draco["extensionsRequired"] = ["KHR_draco_mesh_compression"]
+    for primitive in draco["meshes"][0]["primitives"]:  # the geometry is in the extension's buffer view
+        primitive["extensions"] = {"KHR_draco_mesh_compression": {"bufferView": 0, "attributes": {"POSITION": 0}}}
+        primitive["attributes"] = {}
+    (tmp_path / "draco.gltf").write_text(json.dumps(draco))
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "DracoPy" else real(name, *a))
+    with pytest.raises(MeshError, match=r"draco.gltf: cannot read it: its geometry is Draco-compressed "
+                                        r"\(KHR_draco_mesh_compression\): pip install DracoPy"):
+        meshes.load_mesh_file(tmp_path / "draco.gltf")
+
+
+def test_a_gltf_of_normalized_integer_positions_is_refused(tmp_path: Path) -> None:
+    """KHR_mesh_quantization's normalized int16 positions (a 5 cm box stored as 0..32767 with a node scale of
+    0.04): trimesh ignores 'normalized', so the box read 2.62 km across and was refused as 'in millimetres? pass
+    --scale 0.001', which would plan a 2.6 m box."""
+    import base64
+    import json
+
+    box = trimesh.creation.box(extents=[0.05, 0.06, 0.08])
+    ints = np.round(box.vertices / 0.04 * 32767).astype(np.int16)
+    indices = box.faces.astype(np.uint16).tobytes()
+    positions = np.hstack([ints, np.zeros((len(ints), 1), np.int16)]).tobytes()  # 8-byte stride
+    data = indices + positions
+    (tmp_path / "q.gltf").write_text(json.dumps({
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0, "scale": [0.04] * 3}],
+        "extensionsUsed": ["KHR_mesh_quantization"], "extensionsRequired": ["KHR_mesh_quantization"],
+        "buffers": [{"byteLength": len(data), "uri": "data:application/octet-stream;base64," +
+                     base64.b64encode(data).decode()}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": len(indices)},
+                        {"buffer": 0, "byteOffset": len(indices), "byteLength": len(positions), "byteStride": 8}],
+        "accessors": [{"bufferView": 0, "componentType": 5123, "type": "SCALAR", "count": box.faces.size},
+                      {"bufferView": 1, "componentType": 5122, "type": "VEC3", "count": len(ints), "normalized": True,
+                       "min": ints.min(axis=0).tolist(), "max": ints.max(axis=0).tolist()}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 1}, "indices": 0}]}]}))
+    with pytest.raises(MeshError, match=r"q.gltf: cannot read it: its positions are quantized to normalized integers "
+                                        r"\(KHR_mesh_quantization\), which trimesh reads unscaled"):
+        meshes.load_mesh_file(tmp_path / "q.gltf")
 
 
 def test_hash_depends_on_geometry_only() -> None:
@@ -184,6 +269,26 @@ def test_a_flat_face_inside_or_on_the_object_is_left_as_it_was() -> None:
         tri = trimesh.Trimesh([[0.0, 0.0, z], [0.01, 0.0, z], [0.0, 0.01, z]], [[0, 1, 2]])
         solid = meshes.checked_solid(trimesh.util.concatenate([cube, tri]), "decal")
         assert_close(solid.bounds, cube.bounds, 1e-12)
+
+
+def test_a_mesh_far_from_its_frames_origin_is_said(caplog: pytest.LogCaptureFixture) -> None:
+    """A CAD part exported at x = 1.2 m in its assembly's frame loaded without a word: its grasp poses and
+    --object-pose are 1.2 m off its geometry. A mesh resting on its origin (a base at z = 0) is not noted."""
+    import logging
+
+    from planner import prepare
+
+    far = trimesh.creation.box(extents=[0.05, 0.05, 0.1])
+    far.apply_translation([1.2, 0.0, 0.0])
+    standing = trimesh.creation.box(extents=[0.05, 0.05, 0.1])
+    standing.apply_translation([0.0, 0.0, 0.05])
+    with caplog.at_level(logging.INFO, logger=prepare.LOGGER):
+        meshes.checked_solid(far, "part")
+        meshes.checked_solid(standing, "mug")
+    lines = [r.getMessage() for r in caplog.records if r.name == prepare.LOGGER]
+    assert lines == ["part: its frame's origin lies 1.2 m from the mesh (a part exported in an assembly's frame?): its "
+                     "grasps, exports and --object-pose are in that frame; move the mesh to the origin in a mesh "
+                     "editor if that is not meant (once: cached afterwards)"]
 
 
 def test_bodies_that_stand_apart_are_said_to_be_one_rigid_object(caplog: pytest.LogCaptureFixture) -> None:

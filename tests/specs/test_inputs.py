@@ -137,3 +137,46 @@ def test_a_manifest_row_of_a_primitive_under_the_runs_scale_names_its_line_and_t
     with pytest.raises(InputError, match=r"m.txt:1: object 'box': --scale applies to meshes only"):
         inputs.expand([f"@{tmp_path / 'm.txt'}"], scale=2.0)
     assert [r.name for r in inputs.expand([f"@{tmp_path / 'm.txt'}"])] == ["box"]
+
+
+def test_a_folder_walk_skips_hidden_files_and_macos_resource_forks(tmp_path: Path) -> None:
+    """A folder unzipped from a macOS zip holds ``._mug.obj`` and ``__MACOSX/._can.stl`` (resource forks, not
+    meshes): each failed its unit ('mesh has no triangles') and the run exited 2, on every rerun."""
+    folder = tmp_path / ".scans"  # a hidden folder given itself is read
+    (folder / "__MACOSX").mkdir(parents=True)
+    (folder / ".git").mkdir()
+    trimesh.creation.box(extents=[0.03, 0.03, 0.03]).export(folder / "mug.obj")
+    for junk in ("._mug.obj", "__MACOSX/._can.stl", ".git/old.obj"):
+        (folder / junk).write_bytes(b"\x00\x05\x16\x07\x00\x02\x00\x00Mac OS X        " + bytes(100))
+    assert [r.name for r in inputs.expand([str(folder)])] == ["mug"]
+
+
+def test_a_manifest_written_on_windows_is_read_or_refused_naming_its_line(tmp_path: Path) -> None:
+    """Windows PowerShell's `>` and Notepad's 'Unicode' write UTF-16 (a byte-order mark first): 'internal error:
+    UnicodeDecodeError', exit 1; so did a Latin-1 name. A backslashed path said 'file not found' alone."""
+    trimesh.creation.box(extents=[0.03, 0.03, 0.03]).export(tmp_path / "can.stl")
+    (tmp_path / "wide.txt").write_text("# mine\r\ncan.stl mass=0.3\r\n", encoding="utf-16")
+    (ref,) = inputs.expand([f"@{tmp_path / 'wide.txt'}"])
+    assert (Path(ref.source).name, ref.physical.mass) == ("can.stl", 0.3)
+    (tmp_path / "latin.txt").write_bytes(b"can.stl\nc\xe4n.stl\n")
+    with pytest.raises(InputError, match=r"latin.txt:2: not UTF-8 text \(byte 0xe4\): save the manifest as UTF-8"):
+        inputs.expand([f"@{tmp_path / 'latin.txt'}"])
+    (tmp_path / "win.txt").write_text("meshes\\can.stl\n")
+    with pytest.raises(InputError, match=r"win.txt:1: .*meshes\\can.stl: file not found \(a Windows path\? write / "):
+        inputs.expand([f"@{tmp_path / 'win.txt'}"])
+
+
+def test_a_manifest_line_naming_a_folder_or_a_glob_says_so(tmp_path: Path) -> None:
+    """'sub' (a folder beside the manifest) said '/.../sub: file not found' without the line, or, run from
+    another folder, 'unknown object'; 'sub/*.stl' said 'file not found'. A built-in's name stays the built-in."""
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "mug").mkdir()
+    trimesh.creation.box(extents=[0.03, 0.03, 0.03]).export(tmp_path / "sub" / "can.stl")
+    trimesh.creation.box(extents=[0.03, 0.03, 0.03]).export(tmp_path / "box [2].stl")
+    for line, what in (("sub", "folder"), ("sub/*.stl", "glob")):
+        (tmp_path / "m.txt").write_text(f"mug\n{line} mass=0.1\n")
+        with pytest.raises(InputError, match=rf"m.txt:2: sub.* is a {what}: a manifest's line names one object; give "
+                                             rf"it on the command line \(grasp generate '{tmp_path}/sub"):
+            inputs.expand([f"@{tmp_path / 'm.txt'}"])
+    (tmp_path / "m.txt").write_text('mug\n"box [2].stl"\n')
+    assert [r.name for r in inputs.expand([f"@{tmp_path / 'm.txt'}"])] == ["mug", "box [2]"]

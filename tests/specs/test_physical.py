@@ -10,7 +10,7 @@ import pytest
 import trimesh
 from helpers import NUM_TOL
 
-from planner.errors import InputError
+from planner.errors import ConfigError, InputError
 from planner.geometry.solid import load_object
 from planner.specs import inputs
 from planner.specs.objects import MAX_FRICTION, Physical, resolve_spec
@@ -156,6 +156,40 @@ def test_a_mixed_case_sidecar_is_read(brick: Path) -> None:
     brick.with_name("brick_other.toml").write_text("mass = 5\n")  # another stem: not this mesh's
     spec = resolve_spec(str(brick))
     assert (spec.mass, spec.friction) == (0.066, 0.8)
+
+
+def test_a_sidecar_meant_for_a_mesh_but_named_otherwise_is_refused(tmp_path: Path) -> None:
+    """Banana.obj + banana.toml (read on macOS and Windows, whose file systems are case-blind) and
+    Kiwi.obj + Kiwi.obj.toml got the default 0.2 kg on Linux without a word."""
+    folders = {name: tmp_path / name for name in ("case", "whole", "other")}
+    for folder, (mesh, toml) in zip(folders.values(), [("Banana.obj", "banana.toml"), ("Kiwi.obj", "Kiwi.obj.toml"),
+                                                        ("Banana.obj", "banana.toml")]):
+        folder.mkdir()
+        trimesh.creation.box(extents=BRICK).export(folder / mesh)
+        (folder / toml).write_text("mass = 0.066\n")
+    if (folders["case"] / "Banana.toml").exists():
+        pytest.skip("a case-blind file system: banana.toml is Banana.obj's sidecar")
+    trimesh.creation.box(extents=BRICK).export(folders["other"] / "banana.stl")  # banana.toml is banana.stl's
+    with pytest.raises(InputError, match=r"Banana.obj: banana.toml beside it is not read as its sidecar \(one takes "
+                                         r"the mesh's name, in the same case, with .toml in place of .obj\): rename "
+                                         r"it Banana.toml"):
+        [r.name for r in inputs.expand([str(folders["case"])])]
+    with pytest.raises(InputError, match=r"Kiwi.obj.toml beside it is not read .* rename it Kiwi.toml"):
+        resolve_spec(str(folders["whole"] / "Kiwi.obj"))
+    assert resolve_spec(str(folders["other"] / "Banana.obj")).mass == pytest.approx(0.2)
+    assert resolve_spec(str(folders["other"] / "banana.stl")).mass == pytest.approx(0.066)
+
+
+@pytest.mark.parametrize("encoding", ["utf-8-sig", "utf-16"])
+def test_a_sidecar_saved_by_a_windows_editor_is_read(brick: Path, encoding: str) -> None:
+    """A UTF-8 byte-order mark (Notepad before 2019) said 'malformed TOML: Invalid statement (at line 1, column
+    1)'; UTF-16 (Notepad's 'Unicode', PowerShell's >) said 'cannot read: 'utf-8' codec can't decode byte 0xff'."""
+    brick.with_suffix(".toml").write_text("# Bäume\nmass = 0.066\nfriction = 0.8\n", encoding=encoding)
+    spec = resolve_spec(str(brick))
+    assert (spec.mass, spec.friction) == (0.066, 0.8)
+    brick.with_suffix(".toml").write_text("# Bäume\nmass = 0.066\n", encoding="latin-1")
+    with pytest.raises(ConfigError, match=r"brick.toml:1: not UTF-8 text \(byte 0xe4\): save the file as UTF-8"):
+        resolve_spec(str(brick))
 
 
 def test_one_sidecar_answering_to_two_spellings_is_read_once(brick: Path) -> None:
