@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -202,12 +202,16 @@ class Dynamics:
         # reads as a compound of their convex hulls (every part)
         return pb.createCollisionShape(pb.GEOM_MESH, fileName=parts_file(shape.files), physicsClientId=c)
 
-    def add_hand(self, urdf: Path) -> Body:
+    def add_hand(self, urdf: Path, inertia: Mapping[str, Sequence[float]] | None = None) -> Body:
         """The hand, rigid contacts (:func:`rigid_urdf`), its base fixed at the
         world origin: the world frame is the hand frame. No visual shapes: a
-        trial is never drawn."""
+        trial is never drawn. PyBullet gives each link the URDF's mass and centre of mass and the moments of
+        inertia of its collision shapes (not the URDF's); ``inertia`` {link: (3,) [kg m^2] principal moments}
+        replaces those of the links it names."""
         body = self.sim.load_urdf(rigid_urdf(urdf), fixed=True, visual=False)
         self.sim.set_pose(body, np.eye(4))
+        for link, moments in (inertia or {}).items():
+            pb.changeDynamics(body.uid, body.links[link], localInertiaDiagonal=list(moments), physicsClientId=self.c)
         return body
 
     def set_contact(self, uid: int, link: int, spinning: float) -> None:

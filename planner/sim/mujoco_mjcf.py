@@ -5,7 +5,8 @@ trimesh, no mujoco): :mod:`planner.sim.mujoco_world` compiles it and runs it.
 Model (one per hand and object, compiled once and reused for every grasp):
 
 - every URDF link below the root is a body at its joint's origin, with the
-  URDF's inertial; revolute and prismatic joints with their limits; each
+  URDF's inertial (its moments those of hand.toml's ``[dynamics.link_inertia]`` where
+  given: :attr:`~planner.specs.hand_spec.HandSpec.link_inertia`); revolute and prismatic joints with their limits; each
   collision element a geom (cylinders as MuJoCo primitives, meshes as their
   convex hulls, as MuJoCo collides them; a hand's collision boxes and
   spheres are meshes already in its cut URDF:
@@ -173,6 +174,8 @@ class Builder:
         if inertial is not None and inertial.mass is not None and inertial.mass > 0:
             origin = np.eye(4) if inertial.origin is None else inertial.origin
             tensor = np.eye(3) * _MIN_INERTIA if inertial.inertia is None else inertial.inertia
+            if link in self.hand.link_inertia:  # the URDF's is a placeholder (hand.toml [dynamics.link_inertia])
+                tensor = np.diag(self.hand.link_inertia[link])
             parts.append(_inertial(inertial.mass, origin[:3, 3], tensor, origin[:3, :3]))
         else:
             parts.append(_inertial(_MIN_MASS, np.zeros(3), np.eye(3) * _MIN_INERTIA))

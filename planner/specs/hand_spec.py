@@ -15,7 +15,7 @@ centre point [m] that the approach ray passes through.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 from typing import Protocol, TypeVar
@@ -196,6 +196,9 @@ class HandSpec:
     settle: bool = False  # the sweep measures the settled epsilon (a dynamic closing per grasp) unless told not to
     settle_dynamics: SettleDynamics | None = None  # the settle's steps and times; None: the shake trial's
     local_grid: LocalGrid | None = None  # where local_sdf reads the object; None: not measured for this hand
+    #: {link: (3,) [kg m^2]} principal moments of inertia, about the URDF's centre of mass in its inertial axes,
+    #: replacing the URDF's (a placeholder) in both dynamic trials ([dynamics.link_inertia]); empty: the URDF's
+    link_inertia: Mapping[str, tuple[float, float, float]] = field(default_factory=dict)
 
     @cached_property
     def cell_turns(self) -> tuple[tuple[int, ...], ...]:

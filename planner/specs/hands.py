@@ -131,6 +131,7 @@ def load_folder(folder: Path) -> HandSpec:
         links=tuple(links), arm=_arm(f, folder), export_frame=_export_frame(f),
         finger_force=f.table("dynamics", {}).float("finger_force", DEFAULT_FINGER_FORCE, positive=True),
         actuators=_actuators(f.table("dynamics", {})),
+        link_inertia=_link_inertia(f.table("dynamics", {}), links),
         sampler=_sampler(f, joints),
         settle=f.bool("settle", False),
         settle_dynamics=_settle_dynamics(f),
@@ -174,6 +175,24 @@ def _actuators(f: Fields) -> Actuators:
     effort = f.float("effort", f.float("finger_force", DEFAULT_FINGER_FORCE, positive=True), positive=True)
     return Actuators(effort, f.float("closing_speed", DEFAULT_CLOSING_SPEED, positive=True),
                      f.bool("backdrivable", True), f.get("source", "not given"))
+
+
+def _link_inertia(f: Fields, links: list[str]) -> dict[str, tuple[float, float, float]]:
+    """``[dynamics.link_inertia]``, if given: {link of the hand: its three principal moments [kg m^2]}, each
+    positive and each at most the sum of the other two (a rigid body's; MuJoCo refuses any other)."""
+    if not f.has("link_inertia"):
+        return {}
+    t = f.table("link_inertia")
+    out = {}
+    for link in t.names():
+        if link not in links:
+            raise ConfigError(f"{t.where} field '{link}': unknown link; links: {', '.join(links)}")
+        a, b, c = t.floats(link, 3)
+        if min(a, b, c) <= 0 or 2 * max(a, b, c) > a + b + c:
+            raise ConfigError(f"{t.where} field '{link}': principal moments must be positive, each at most the "
+                              f"sum of the other two, got {[a, b, c]}")
+        out[link] = (a, b, c)
+    return out
 
 
 def _sampler(f: Fields, joints: tuple[JointSpec, ...]) -> str:

@@ -107,3 +107,10 @@ def open_start(hand: HandSpec, grasp: Grasp, rates: Mapping[str, float]) -> dict
             driven[j.name] = float(grasp.closed_joints.get(j.name, j.lower))
     out = hand.full_configuration(driven)
     return {**out, **{name: float(v) for name, v in grasp.open_joints.items() if name in out}}
+
+
+def inertia(hand: HandSpec) -> dict[str, dict[str, list[float]]]:
+    """The links' moments of inertia a hand's trials replace (``link_inertia``), as their stored settings record
+    them: a hand's verdicts made before it replaced them (or with others) are of another trial; {} for a hand
+    that replaces none (its settings as before)."""
+    return {"link_inertia": {k: list(v) for k, v in sorted(hand.link_inertia.items())}} if hand.link_inertia else {}

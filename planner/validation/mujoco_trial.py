@@ -118,7 +118,8 @@ def recorded(settings: MujocoSettings, hand: HandSpec) -> str:
         else {}
     return json.dumps({"engine": "mujoco", "mujoco": VERSION, **asdict(settings), "hand": hand.name,
                        "actuators": asdict(hand.actuators), "breakaway": [j.name for j in hand.joints if j.breakaway],
-                       "breakaway_effort": BREAKAWAY, "torsion_radius": torsion, **worm, **slow}, sort_keys=True)
+                       "breakaway_effort": BREAKAWAY, "torsion_radius": torsion, **worm, **slow, **fg.inertia(hand)},
+                      sort_keys=True)
 
 
 def trial(hand: HandSpec, obj: PreparedObject, grasp: Grasp, settings: MujocoSettings | None = None,

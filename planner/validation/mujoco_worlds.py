@@ -37,7 +37,8 @@ def world_for(hand: HandSpec, obj: PreparedObject, s: MujocoSettings, mass: floa
     settings ``s``: built once per process and kept (the last :data:`KEPT`)."""
     engine = Engine(s.timestep, s.iterations, s.impratio, s.contact_time, 1.0, s.contact_time, s.multiccd)
     soft = tuple(sorted(link for link, c in hand.contacts.items() if c.model == "soft" and c.torsion_radius > 0))
-    key = (hand.name, str(hand.urdf), soft, obj.mesh_hash, obj.spec.kind, tuple(obj.spec.dims), mass,
+    inertia = tuple(sorted(hand.link_inertia.items()))
+    key = (hand.name, str(hand.urdf), soft, inertia, obj.mesh_hash, obj.spec.kind, tuple(obj.spec.dims), mass,
            s.part_tolerance, engine)
     if key not in WORLDS:
         if len(WORLDS) >= KEPT:

@@ -81,8 +81,8 @@ def recorded(settings: ShakeSettings, hand: HandSpec) -> str:
     torsion = {link: m.torsion_radius for link, m in sorted(hand.contacts.items()) if m.model == "soft"}
     return json.dumps({**asdict(settings), "object_shape": OBJECT_SHAPE, "hand": hand.name,
                        "actuators": asdict(hand.actuators),
-                       "breakaway": [j.name for j in hand.joints if j.breakaway], "torsion_radius": torsion},
-                      sort_keys=True)
+                       "breakaway": [j.name for j in hand.joints if j.breakaway], "torsion_radius": torsion,
+                       **fg.inertia(hand)}, sort_keys=True)
 
 
 def trial(hand: HandSpec, obj: PreparedObject, grasp: Grasp, settings: ShakeSettings | None = None,
@@ -183,7 +183,7 @@ def _in_turn(hand: HandSpec, obj: PreparedObject, shape: Shape, physical: _Physi
     (measured on the Barrett's and the Panda's sweeps; tested)."""
     out: list[Trial] = []
     with fresh_world(s.dt, s.solver_iterations) as dyn:
-        body = dyn.add_hand(hand.urdf)
+        body = dyn.add_hand(hand.urdf, hand.link_inertia)
         loaded = dyn.save()
         for grasp in grasps:
             dyn.restore(loaded)
@@ -227,7 +227,7 @@ def _set_up(dyn: Dynamics, hand: HandSpec, obj: PreparedObject, shape: Shape, ph
     (which a flag removes again), or ``hand_body``, a hand as loaded (which
     stays)."""
     own = hand_body is None
-    body = dyn.add_hand(hand.urdf) if hand_body is None else hand_body
+    body = dyn.add_hand(hand.urdf, hand.link_inertia) if hand_body is None else hand_body
     rates = fg.closing_rates(hand, grasp.preshape)
     dyn.set_joints(body, hand.full_configuration({j.name: grasp.closed_joints.get(j.name, j.lower)
                                                       for j in hand.driven}))

@@ -72,6 +72,23 @@ def test_the_hand_is_fixed_at_the_origin_with_rigid_contacts() -> None:
         assert (finger[1], finger[7]) == (1.0, 0.004)  # lateral 1: the contact takes the object's mu
 
 
+def test_the_hand_gets_the_moments_of_inertia_it_is_given_for_the_links_named() -> None:
+    """PyBullet gives each link the moments of its collision shapes (not the URDF's, here pybullet_data's 1 kg
+    m^2 placeholder); hand.toml's [dynamics.link_inertia] replaces those of the links it names, others stay."""
+    hand = load_hand("pr2")
+    with Sim() as sim:
+        dyn = Dynamics(sim)
+        plain = dyn.add_hand(hand.urdf)
+        given = dyn.add_hand(hand.urdf, {"left_tip": (2e-5, 3e-5, 4e-5)})
+
+        def moments(body, link):  # type: ignore[no-untyped-def]
+            return pb.getDynamicsInfo(body.uid, body.links[link], physicsClientId=sim.client)[2]
+
+        assert moments(given, "left_tip") == pytest.approx((2e-5, 3e-5, 4e-5), rel=1e-9)
+        assert max(moments(plain, "left_tip")) < 1e-3  # the collision box's, not the URDF's 1 kg m^2
+        assert moments(given, "right_tip") == moments(plain, "right_tip")
+
+
 def test_a_gear_keeps_the_mimic_at_its_multiplier() -> None:
     # PyBullet's gear keeps q_parent + ratio q_child = 0; ratio -m would jam the Barrett's distal at a third
     hand = load_hand("barrett")

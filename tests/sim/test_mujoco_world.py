@@ -4,6 +4,9 @@ was put with its mass, and the hand follows its weld target."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
+import mujoco
 import numpy as np
 import pytest
 from helpers import assert_close
@@ -206,3 +209,18 @@ def test_following_a_path_in_one_call_steps_as_following_it_step_by_step() -> No
     assert np.array_equal(world.data.qpos, one_by_one)
     assert_close(world.time, 40 * world.model.opt.timestep, 1e-12)
     assert world.hand_pose()[2, 3] > 0.015
+
+
+def test_link_inertia_replaces_the_urdfs_moments_of_the_links_it_names() -> None:
+    """hand.toml's [dynamics.link_inertia] (the PR2's URDF gives its finger links a placeholder 1 kg m^2): those
+    links' principal moments in the model, mass and centre of mass the URDF's; every other link as before."""
+    panda = load_hand("panda")
+    before, after = (build(h, cube()).model for h in
+                     (panda, replace(panda, link_inertia={"panda_leftfinger": (2e-5, 3e-5, 4e-5)})))
+    left, right = (mujoco.mj_name2id(after, mujoco.mjtObj.mjOBJ_BODY, n) for n in ("panda_leftfinger",
+                                                                                   "panda_rightfinger"))
+    assert sorted(after.body_inertia[left]) == pytest.approx([2e-5, 3e-5, 4e-5], rel=1e-9)
+    assert sorted(before.body_inertia[left]) == pytest.approx([0.1, 0.1, 0.1], rel=1e-9)  # the URDF's placeholder
+    assert after.body_mass[left] == before.body_mass[left]
+    assert_close(after.body_ipos[left], before.body_ipos[left], 0.0)
+    assert_close(after.body_inertia[right], before.body_inertia[right], 0.0)

@@ -122,6 +122,31 @@ def test_broken_settle_dynamics_names_the_file_and_field(tmp_path: Path, table: 
     assert "hand.toml" in str(err.value) and "\n" not in str(err.value)
 
 
+@pytest.mark.parametrize("table, message", [
+    ("panda_thumb = [1e-5, 1e-5, 1e-5]", r"\[dynamics\]\[link_inertia\] field 'panda_thumb': unknown link; links: "
+     r".*panda_leftfinger"),
+    ("panda_leftfinger = [1e-5, 1e-5]", r"field 'panda_leftfinger': needs 3 numbers"),
+    ("panda_leftfinger = [1e-5, 0.0, 1e-5]", r"field 'panda_leftfinger': principal moments must be positive"),
+    ("panda_leftfinger = [1e-5, 1e-5, 3e-5]", r"field 'panda_leftfinger': .*each at most the sum of the other two"),
+])
+def test_broken_link_inertia_names_the_file_table_and_link(tmp_path: Path, table: str, message: str) -> None:
+    folder = hand_copy(tmp_path)
+    toml = folder / "hand.toml"
+    toml.write_text(toml.read_text().replace("\n[dynamics]\n", "\n[dynamics.link_inertia]\n" + table +
+                                             "\n\n[dynamics]\n", 1))
+    with pytest.raises(ConfigError, match=message) as err:
+        load_folder(folder)
+    assert "hand.toml" in str(err.value) and "\n" not in str(err.value)
+
+
+def test_link_inertia_replaces_the_moments_of_the_links_it_names_only(tmp_path: Path) -> None:
+    folder = hand_copy(tmp_path)
+    toml = folder / "hand.toml"
+    toml.write_text(toml.read_text() + "\n[dynamics.link_inertia]\npanda_leftfinger = [2e-5, 3e-5, 4e-5]\n")
+    assert load_folder(folder).link_inertia == {"panda_leftfinger": (2e-5, 3e-5, 4e-5)}
+    assert load_hand("panda").link_inertia == {}
+
+
 def test_a_hand_settles_with_its_own_dynamics_unless_the_sweep_names_a_trial() -> None:
     from dataclasses import replace
 

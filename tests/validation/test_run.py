@@ -297,3 +297,35 @@ def test_top_with_force_closure_takes_only_force_closure_grasps() -> None:
     db = SimpleNamespace(best=lambda obj, hand, top: ranked[:top])
     assert run.Selection(top=3).pick(db, "o", "h", 0) == ranked[:2]  # type: ignore[arg-type]
     assert run.Selection(top=3, closure_only=True).pick(db, "o", "h", 0) == ranked[:1]  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("engine", ["mujoco", "pybullet"])
+def test_verdicts_of_a_hand_before_it_replaced_link_inertia_are_tried_again(
+        box_db: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, engine: str) -> None:
+    """A stored verdict records what it was made with (its trial's settings, the hand's motors): a hand whose
+    trials now give some links other moments of inertia (hand.toml [dynamics.link_inertia]) runs another
+    trial, so the verdicts made before are not kept as this trial's."""
+    from dataclasses import replace
+
+    from planner.specs.hands import load_hand
+    from planner.validation.mujoco_settings import MujocoSettings
+    from planner.validation.settings import ShakeSettings
+
+    db = tmp_path / "g.db"
+    shutil.copy(box_db, db)
+    first = validate(db, top=2, robust_samples=0, workers=1, engine=engine)
+    assert first.grasps == 2
+    settings = MujocoSettings() if engine == "mujoco" else ShakeSettings()
+    kept: list = []
+    with open_db(db, create=False, readonly=True) as handle:
+        assert run.plan(handle, None, None, run.Selection(top=2), 0, settings, None, kept) == [] and len(kept) == 2
+        panda = load_hand("panda")
+        lighter = replace(panda, link_inertia={"panda_leftfinger": (2e-5, 3e-5, 4e-5)})
+        monkeypatch.setattr(run, "load_hand", lambda name: lighter)
+        kept = []
+        tasks = run.plan(handle, None, None, run.Selection(top=2), 0, settings, None, kept)
+    assert kept == [] and sum(len(t.grasps) for t in tasks) == 2
+    from planner.validation import mujoco_trial, shake
+
+    recorded = mujoco_trial.recorded if engine == "mujoco" else shake.recorded
+    assert "link_inertia" not in recorded(settings, panda)  # a hand that replaces none records as before
