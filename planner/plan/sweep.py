@@ -88,7 +88,10 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: 19: the settle's object has every convex part: PyBullet kept the first 16 of an object of more (the mug's 32:
 #: the fingers closed on air where the others were; planner.sim.dynamics.MAX_SHAPE_ARRAY); the same grasps, other
 #: settled epsilons, scores and ranks of the Barrett's on such objects.
-ALGORITHM_VERSION = 19
+#: 20: the PR2's motors and fingers as they are (effort 3.15 N m at its hinges, 30 N at the pads, not 30 N m; its
+#: fingers' inertia from their collision shapes, not the URDF's 1 kg m^2 placeholder): its weight resistance,
+#: feasibility, scores and ranks (its grasps, epsilons and contacts the same), and its trials.
+ALGORITHM_VERSION = 20
 
 #: Named in the digest of sweeps on a table only (those of the object alone stay
 #: as they were), bumped when a change alters only which grasps they produce.

@@ -57,12 +57,16 @@ def hand_files(name: str) -> dict[str, str]:
 
 
 #: The project's own changes to a shipped hand's file that leave the hand what it was (no stored grasp's
-#: geometry, joints, contacts or trial changes): label -> (the file's digest as shipped now, {an earlier shipped
+#: geometry, joints or contacts changes; a measure or a trial of the hand's motors may): label -> (the file's digest as shipped now, {an earlier shipped
 #: digest: what changed}). A database made before such a change reads, shows and validates as before (its
 #: sweep is still another: ``ALGORITHM_VERSION``); the file edited any further is an edit again.
 SAME_HAND: dict[str, tuple[str, dict[str, str]]] = {
     "hands/allegro/hand.toml": ("6806297ce4d71df3", {
         "5386eec9e1cb2ab7": "2026-12-06: settle = true (a force-closure grasp's settled epsilon, for ranking)"}),
+    "hands/pr2/hand.toml": ("5782d429c3d41b3b", {
+        "5f6f243e9fb20f0e": "2026-12-06: effort 30 -> 3.15 N m (30 N at the pads) and the fingers' own inertia "
+                            "([dynamics.link_inertia]): its weight resistance stored before is of the stronger "
+                            "model; its verdicts made before are tried again"}),
 }
 
 

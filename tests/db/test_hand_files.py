@@ -26,9 +26,9 @@ from tests.helpers import content, grasp, made_up, one_line_error
 
 @pytest.fixture
 def project(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
-    """A project folder holding copies of the Panda's and the Allegro's hand and preshapes."""
+    """A project folder holding copies of the Panda's, the Allegro's and the PR2's hand and preshapes."""
     root = tmp_path / "project"
-    for hand in ("panda", "allegro"):
+    for hand in ("panda", "allegro", "pr2"):
         shutil.copytree(assets.PROJECT_ROOT / "hands" / hand, root / "hands" / hand)
         (root / "preshapes").mkdir(parents=True, exist_ok=True)
         shutil.copy(assets.PROJECT_ROOT / "preshapes" / f"{hand}.toml", root / "preshapes")
@@ -158,32 +158,35 @@ def test_the_projects_same_hand_changes_name_the_files_as_shipped_now() -> None:
         assert shipped not in earlier and earlier
 
 
-def test_a_database_made_before_the_allegro_settled_reads_shows_and_validates_as_before(
-        project: Path, tmp_path: Path) -> None:
+@pytest.mark.parametrize("hand, before, after", [("allegro", "settle = true", "settle = false"),
+                                                  ("pr2", "effort = 3.15", "effort = 3.2")])
+def test_a_database_made_before_a_declared_change_reads_shows_and_validates_as_before(
+        project: Path, tmp_path: Path, hand: str, before: str, after: str) -> None:
     """settle = true in the Allegro's hand.toml (2026-12-06) made every Allegro database made before it 'edited':
-    show and validate refused it, telling the user to restore files they never changed. The project's declared
-    change is not an edit; the same file edited any further still is."""
+    show and validate refused it, telling the user to restore files they never changed; the PR2's motors and
+    finger inertias as they are (2026-12-06) would have done the same. The project's declared change is not an
+    edit; the same file edited any further still is."""
     from planner.specs.hand_files import SAME_HAND
 
-    label = "hands/allegro/hand.toml"
+    label = f"hands/{hand}/hand.toml"
     shipped, earlier = SAME_HAND[label]
     db_path = tmp_path / "g.db"
     with open_for_writing(db_path) as db:
-        check_hand_files(db, ["allegro"])
-        db.write_unit(UnitRow("box", "allegro", "h" * 16, json.dumps({}), 5, 0, None, candidates=3),
-                      load_object("box"), [replace(made_up(i, 0.05), object="box", hand="allegro") for i in range(2)],
+        check_hand_files(db, [hand])
+        db.write_unit(UnitRow("box", hand, "h" * 16, json.dumps({}), 5, 0, None, candidates=3),
+                      load_object("box"), [replace(made_up(i, 0.05), object="box", hand=hand) for i in range(2)],
                       RankingRule())
         files = json.loads(db.meta(META_KEY))
-        files["allegro"][label] = next(iter(earlier))  # as a database of the hand before the change records it
+        files[hand][label] = next(iter(earlier))  # as a database of the hand before the change records it
         db.set_meta(META_KEY, json.dumps(files, sort_keys=True))
-    now = hand_files("allegro")
-    assert now[label] == shipped and changed(files["allegro"], now) == []
+    now = hand_files(hand)
+    assert now[label] == shipped and changed(files[hand], now) == []
     with open_for_writing(db_path) as db:
-        check_hand_files(db, ["allegro"])  # validate, generate and import go on (the sweep rule judges a re-run)
+        check_hand_files(db, [hand])  # validate, generate and import go on (the sweep rule judges a re-run)
     with open_for_writing(db_path) as db:
-        refuse_edited(db, "allegro", "the picture")  # what show and best --object-pose ask
-    edit(project / "hands" / "allegro" / "hand.toml", "settle = true", "settle = false")
+        refuse_edited(db, hand, "the picture")  # what show and best --object-pose ask
+    edit(project / "hands" / hand / "hand.toml", before, after)
     load_hand.cache_clear()
-    assert changed(files["allegro"], hand_files("allegro")) == [label]
+    assert changed(files[hand], hand_files(hand)) == [label]
     with pytest.raises(InputError, match="was edited since"), open_for_writing(db_path) as db:
-        check_hand_files(db, ["allegro"])
+        check_hand_files(db, [hand])
