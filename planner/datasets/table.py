@@ -20,7 +20,7 @@ ACRONYM's gripper frame is ``pose`` times the hand's export frame.
 from __future__ import annotations
 
 import csv
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -158,5 +158,42 @@ def write_csv(path: Path, streams: Iterable[Stream]) -> int:
     return total
 
 
+#: Cells ``pandas.read_csv`` reads as missing by default (its ``STR_NA_VALUES``), and the booleans it
+#: (and ``polars.read_csv``) turns into True / False.
+PANDAS_MISSING = frozenset({"", "#N/A", "#N/A N/A", "#NA", "-1.#IND", "-1.#QNAN", "-NaN", "-nan", "1.#IND",
+                            "1.#QNAN", "<NA>", "N/A", "NA", "NULL", "NaN", "None", "n/a", "nan", "null"})
+CSV_BOOLEANS = frozenset({"true", "false"})
+
+
+def misread_name(name: str) -> bool:
+    """Whether a reader that infers each CSV column's type from its text
+    (``pandas.read_csv``, ``polars.read_csv``) may not give ``name`` back as
+    that text: a number ('001' reads as 1, '1e3' as 1000.0), a boolean or
+    one of pandas' missing-value markers ('NA', 'null')."""
+    if name in PANDAS_MISSING or name.strip().lower() in CSV_BOOLEANS:
+        return True
+    try:
+        float(name)
+    except ValueError:
+        return False
+    return True
+
+
+def csv_notes(pairs: Sequence[tuple[str, str]]) -> list[str]:
+    """A note for every text column of names whose values a type-inferring reader turns into numbers or
+    missing values (the object names of a folder of ``000.obj``, ``001.obj``, ...)."""
+    notes = []
+    for column, index in (("object", 0), ("hand", 1)):
+        bad = sorted({p[index] for p in pairs if misread_name(p[index])})
+        if bad:
+            notes.append(f"{column} names {', '.join(repr(n) for n in bad)} look like numbers or missing values: "
+                         f"pandas.read_csv and polars.read_csv infer each column's type from its text and read "
+                         f"them as such, silently; read grasps.csv with pd.read_csv(path, dtype={{'{column}': str}}, "
+                         f"keep_default_na=False, na_values=['']) or pl.read_csv(path, "
+                         f"schema_overrides={{'{column}': pl.String}}), or export --format parquet, which keeps "
+                         f"every column's type")
+    return notes
+
+
 registry.register("parquet", registry.TableWriter("grasps.parquet", write_parquet))
-registry.register("csv", registry.TableWriter("grasps.csv", write_csv))
+registry.register("csv", registry.TableWriter("grasps.csv", write_csv, csv_notes))
