@@ -4,7 +4,8 @@ Every column of the ``grasps`` table, flat (JSON vectors expanded, joints
 and contacts kept as JSON text), with the grasp's validation and robust
 rows and its object's properties. Rows come per (object, hand) in rank
 order. Empty / null means absent (not computed, not validated). Parquet is
-written with an explicit schema, one row group per database batch; CSV by
+written with an explicit schema (each field's metadata holds its ``unit``
+and ``description``: :func:`field_metadata`), one row group per database batch; CSV by
 the ``csv`` module with a header row, floats written in full precision.
 ``object_file`` names the object's mesh in the export folder,
 ``meshes/{object}.obj``, in metres (:mod:`planner.datasets.meshes`).
@@ -122,11 +123,25 @@ def _nulls(name: str, values: np.ndarray) -> np.ndarray | None:
     return np.isnan(values) if values.dtype.kind == "f" else values < 0
 
 
+def field_metadata(column: str) -> dict[str, str]:
+    """A Parquet column's field metadata: its ``unit`` ('' for none: m, rad, g, kg ...) and ``description``,
+    as the README's column table gives them (``pyarrow.parquet.read_schema(path).field(column).metadata``)."""
+    f = _FIELDS[column]
+    if f is None:
+        return {"unit": "", "description": _EXPORT_MEANINGS[column]}
+    return {"unit": f.unit, "description": f.doc}
+
+
+_FIELDS = {name: f for name, _, _, _, f in _SPEC}
+_EXPORT_MEANINGS = {name: meaning for name, _, meaning in EXPORT_COLUMNS}
+
+
 def write_parquet(path: Path, streams: Iterable[Stream]) -> int:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    schema = pa.schema([(name, getattr(pa, kind)()) for name, kind, *_ in _SPEC])
+    schema = pa.schema([pa.field(name, getattr(pa, kind)(), metadata=field_metadata(name))
+                        for name, kind, *_ in _SPEC])
     total = 0
     with pq.ParquetWriter(path, schema) as writer:
         for stream in streams:

@@ -68,3 +68,13 @@ def test_names_that_csv_readers_turn_into_numbers_booleans_or_missing_values_are
 
     assert all(map(misread_name, ("001", "1e3", "0.5", "-2", "NA", "null", "None", "nan", "True", "false")))
     assert not any(map(misread_name, ("box", "random_001", "a dir/my thing", "0x1f", "1a2b", "mug.obj")))
+
+
+def test_every_parquet_column_carries_its_unit_and_meaning(db: Path, tmp_path: Path) -> None:
+    schema = pq.read_schema(export(db, "parquet", tmp_path) / "grasps.parquet")
+    meta = {f.name: {k.decode(): v.decode() for k, v in (f.metadata or {}).items()} for f in schema}
+    assert set(meta) == set(COLUMNS) and all(set(m) == {"unit", "description"} for m in meta.values())
+    assert [meta[c]["unit"] for c in ("pose_03", "roll", "resist_worst", "object_mass", "epsilon")] == \
+        ["m", "rad", "g", "kg", ""]
+    assert all(meta[c]["description"] for c in COLUMNS)
+    assert meta["label"]["description"].startswith("success label")
