@@ -198,6 +198,8 @@ def _export(db_path: Path, fmt: str, out_dir: Path, objects: Sequence[str], hand
                               "the force-closure flag (label_from force_closure), which is not a success label; "
                               "`grasp validate --all --force-closure` gives each a trial's verdict"
                               for h, model in models.items() if model is None]
+        if isinstance(writer, TableWriter) and writer.notes is not None:
+            summary.notes += writer.notes(pairs)
         if not any(_has_one(sel.batches(db, o, h)) for o, h in pairs):
             raise InputError(f"{db_path}: no grasp of the {len(pairs)} (object, hand) pairs selected passes the "
                              "filters (--top, --min-epsilon, --label): nothing written")

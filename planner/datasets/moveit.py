@@ -104,10 +104,26 @@ def message(g: Grasp, hand: HandSpec) -> dict:
             "allowed_touch_objects": [g.object]}
 
 
-def write(path: Path, info: ExportedObject, hand: HandSpec, batches: Iterable[list[Grasp]]) -> int:
-    """Write the file (atomically), one YAML document: the list of messages in rank order."""
+def _dumper() -> type:
+    """PyYAML's safe dumper writing every value in full: without it the joint names both postures of a message
+    share become an anchor and an alias (``&id001`` ... ``*id001``), numbered from ``id001`` again by each
+    batch's dump, so a file of more than one batch (a pair of over 5,000 grasps) held duplicate anchors,
+    which ``yaml.safe_load`` refuses."""
     import yaml
 
+    class Dumper(yaml.SafeDumper):
+        def ignore_aliases(self, data: object) -> bool:
+            return True
+
+    return Dumper
+
+
+def write(path: Path, info: ExportedObject, hand: HandSpec, batches: Iterable[list[Grasp]]) -> int:
+    """Write the file (atomically), one YAML document: the list of messages in rank order, with no anchors
+    or aliases (:func:`_dumper`)."""
+    import yaml
+
+    dumper = _dumper()
     tmp = path.with_name(path.name + ".tmp")
     total = 0
     with open(tmp, "w", encoding="utf-8") as fh:
@@ -116,7 +132,8 @@ def write(path: Path, info: ExportedObject, hand: HandSpec, batches: Iterable[li
         for batch in batches:
             ranked = [g for g in batch if g.rank is not None]
             if ranked:
-                yaml.safe_dump([message(g, hand) for g in ranked], fh, sort_keys=False, default_flow_style=None)
+                yaml.dump([message(g, hand) for g in ranked], fh, Dumper=dumper, sort_keys=False,
+                          default_flow_style=None)
             total += len(ranked)
         if total == 0:
             fh.write("[]\n")

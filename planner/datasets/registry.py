@@ -17,7 +17,9 @@ Kinds of writers:
   after every pair (optional); ``mesh_copies``: where else below the export
   folder each object's mesh goes (``{stem}`` in the path);
 - :class:`TableWriter`: one file ``file`` of every grasp, written by
-  ``write(path, streams)``.
+  ``write(path, streams)``; ``notes(pairs)`` (optional): what a reader of
+  that file should know about the exported (object, hand) pairs, printed
+  and kept in the manifest with the export's other notes.
 
 A :class:`Reader` reads one grasp file back for ``grasp import``:
 ``header(path)``, ``poses(path, hand)``, ``grasps(path, hand, object,
@@ -79,11 +81,12 @@ class TableWriter:
 
     file: str
     write: Callable
+    notes: Callable | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.file, str) or not self.file or "/" in self.file:
             raise RegistrationError(f"TableWriter.file: {self.file!r} must be a file name")
-        _check_hooks(self, {"write": 2})
+        _check_hooks(self, {"write": 2, "notes": 1}, optional=("notes",))
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,8 @@ Every column of the ``grasps`` table, flat (JSON vectors expanded, joints
 and contacts kept as JSON text), with the grasp's validation and robust
 rows and its object's properties. Rows come per (object, hand) in rank
 order. Empty / null means absent (not computed, not validated). Parquet is
-written with an explicit schema, one row group per database batch; CSV by
+written with an explicit schema (each field's metadata holds its ``unit``
+and ``description``: :func:`field_metadata`), one row group per database batch; CSV by
 the ``csv`` module with a header row, floats written in full precision.
 ``object_file`` names the object's mesh in the export folder,
 ``meshes/{object}.obj``, in metres (:mod:`planner.datasets.meshes`).
@@ -20,7 +21,7 @@ ACRONYM's gripper frame is ``pose`` times the hand's export frame.
 from __future__ import annotations
 
 import csv
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -122,11 +123,25 @@ def _nulls(name: str, values: np.ndarray) -> np.ndarray | None:
     return np.isnan(values) if values.dtype.kind == "f" else values < 0
 
 
+def field_metadata(column: str) -> dict[str, str]:
+    """A Parquet column's field metadata: its ``unit`` ('' for none: m, rad, g, kg ...) and ``description``,
+    as the README's column table gives them (``pyarrow.parquet.read_schema(path).field(column).metadata``)."""
+    f = _FIELDS[column]
+    if f is None:
+        return {"unit": "", "description": _EXPORT_MEANINGS[column]}
+    return {"unit": f.unit, "description": f.doc}
+
+
+_FIELDS = {name: f for name, _, _, _, f in _SPEC}
+_EXPORT_MEANINGS = {name: meaning for name, _, meaning in EXPORT_COLUMNS}
+
+
 def write_parquet(path: Path, streams: Iterable[Stream]) -> int:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    schema = pa.schema([(name, getattr(pa, kind)()) for name, kind, *_ in _SPEC])
+    schema = pa.schema([pa.field(name, getattr(pa, kind)(), metadata=field_metadata(name))
+                        for name, kind, *_ in _SPEC])
     total = 0
     with pq.ParquetWriter(path, schema) as writer:
         for stream in streams:
@@ -158,5 +173,42 @@ def write_csv(path: Path, streams: Iterable[Stream]) -> int:
     return total
 
 
+#: Cells ``pandas.read_csv`` reads as missing by default (its ``STR_NA_VALUES``), and the booleans it
+#: (and ``polars.read_csv``) turns into True / False.
+PANDAS_MISSING = frozenset({"", "#N/A", "#N/A N/A", "#NA", "-1.#IND", "-1.#QNAN", "-NaN", "-nan", "1.#IND",
+                            "1.#QNAN", "<NA>", "N/A", "NA", "NULL", "NaN", "None", "n/a", "nan", "null"})
+CSV_BOOLEANS = frozenset({"true", "false"})
+
+
+def misread_name(name: str) -> bool:
+    """Whether a reader that infers each CSV column's type from its text
+    (``pandas.read_csv``, ``polars.read_csv``) may not give ``name`` back as
+    that text: a number ('001' reads as 1, '1e3' as 1000.0), a boolean or
+    one of pandas' missing-value markers ('NA', 'null')."""
+    if name in PANDAS_MISSING or name.strip().lower() in CSV_BOOLEANS:
+        return True
+    try:
+        float(name)
+    except ValueError:
+        return False
+    return True
+
+
+def csv_notes(pairs: Sequence[tuple[str, str]]) -> list[str]:
+    """A note for every text column of names whose values a type-inferring reader turns into numbers or
+    missing values (the object names of a folder of ``000.obj``, ``001.obj``, ...)."""
+    notes = []
+    for column, index in (("object", 0), ("hand", 1)):
+        bad = sorted({p[index] for p in pairs if misread_name(p[index])})
+        if bad:
+            notes.append(f"{column} names {', '.join(repr(n) for n in bad)} look like numbers or missing values: "
+                         f"pandas.read_csv and polars.read_csv infer each column's type from its text and read "
+                         f"them as such, silently; read grasps.csv with pd.read_csv(path, dtype={{'{column}': str}}, "
+                         f"keep_default_na=False, na_values=['']) or pl.read_csv(path, "
+                         f"schema_overrides={{'{column}': pl.String}}), or export --format parquet, which keeps "
+                         f"every column's type")
+    return notes
+
+
 registry.register("parquet", registry.TableWriter("grasps.parquet", write_parquet))
-registry.register("csv", registry.TableWriter("grasps.csv", write_csv))
+registry.register("csv", registry.TableWriter("grasps.csv", write_csv, csv_notes))

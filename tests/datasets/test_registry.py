@@ -61,6 +61,7 @@ def test_the_exporter_meets_each_hook_the_formats_register() -> None:
     (lambda: PairWriter(_path, _write, finish=lambda out: None), "PairWriter.finish must take 2"),
     (lambda: PairWriter(_path, _write, mesh_copies=("meshes/copy.obj",)), "must be a path with '{stem}'"),
     (lambda: TableWriter("out/grasps.x", lambda path, streams: 0), "must be a file name"),
+    (lambda: TableWriter("grasps.x", lambda path, streams: 0, notes=lambda: []), "TableWriter.notes must take 1"),
     (lambda: Reader(print, None, print, print), "Reader.poses must be a function"),  # type: ignore[arg-type]
     (lambda: registry.register("acronym", PairWriter(_path, _write)), "format 'acronym' is registered twice"),
     (lambda: registry.register("Bad-Name", PairWriter(_path, _write)), "must be lower case"),

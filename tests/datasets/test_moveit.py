@@ -1,0 +1,27 @@
+"""MoveIt YAML: a file written in several batches loads as one list."""
+
+from __future__ import annotations
+
+import sqlite3
+from pathlib import Path
+
+import pytest
+import yaml
+
+from planner import api
+from planner.datasets import exporter, moveit
+
+
+def test_a_pair_written_in_several_batches_loads_with_safe_load(db: Path, tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each batch was dumped on its own, anchors numbered from id001 each time: a pair of more than one batch
+    (over 5,000 grasps) gave a file that yaml.safe_load refuses (duplicate anchor 'id001')."""
+    total = sqlite3.connect(db).execute("SELECT COUNT(*) FROM grasps WHERE object = 'box'").fetchone()[0]
+    monkeypatch.setattr(exporter, "BATCH_SIZE", 2)
+    assert total > 2 * exporter.BATCH_SIZE
+    api.export(db, "moveit", tmp_path, objects=["box"])
+    text = (tmp_path / moveit.relative_path("box", "panda")).read_text()
+    messages = yaml.safe_load(text)
+    assert [m["id"] for m in messages] == [f"box/panda/{rank}" for rank in range(1, total + 1)]
+    assert "&id" not in text and "*id" not in text  # every value written in full: no anchors, no aliases
+    assert all(m["grasp_posture"]["joint_names"] == m["pre_grasp_posture"]["joint_names"] for m in messages)
