@@ -158,7 +158,8 @@ class Grasp:
                               "object frame", shape=(4, 4))
     open_joints: Joints = stored("joints", "rad or m", 1, "JSON `{joint: value}` of the preshape")
     closed_joints: Joints = stored("joints", "rad or m", 1, "JSON `{joint: value}` of the closed hand")
-    width: float | None = stored("real", "m", 1, "distance between the fingers (parallel jaws)", required=False)
+    width: float | None = stored("real", "m", 1, "distance between the fingers of a self-centring parallel jaw "
+                                 "(the Panda); null for the other hands", required=False)
     contacts: HandContacts = stored("contacts", "m", 1, "JSON `[{point, normal, link}]`, object frame, normals "
                                     "into the object")
     epsilon: float = stored("real", "", 1, "Ferrari-Canny L1 epsilon (0 unless force-closure)", ranked="epsilon")

@@ -57,9 +57,10 @@ def hand_files(name: str) -> dict[str, str]:
 
 
 #: The project's own changes to a shipped hand's file that leave the hand what it was (no stored grasp's
-#: geometry, joints or contacts changes; a measure or a trial of the hand's motors may): label -> (the file's digest as shipped now, {an earlier shipped
-#: digest: what changed}). A database made before such a change reads, shows and validates as before (its
-#: sweep is still another: ``ALGORITHM_VERSION``); the file edited any further is an edit again.
+#: geometry, joints or contacts changes; a measure or a trial of the hand's motors may): label -> (the file's
+#: digest as shipped now, {an earlier shipped digest: what changed}). A database made before such a change
+#: reads, shows and validates as before (its sweep is still another: ``ALGORITHM_VERSION``; verdicts record the
+#: motors they were made with, so those made before are tried again); the file edited any further is an edit again.
 SAME_HAND: dict[str, tuple[str, dict[str, str]]] = {
     "hands/allegro/hand.toml": ("6806297ce4d71df3", {
         "5386eec9e1cb2ab7": "2026-12-06: settle = true (a force-closure grasp's settled epsilon, for ranking)"}),
