@@ -70,24 +70,32 @@ def database(hand: str, objects: tuple[str, ...], folder: Path) -> Path:
     return db
 
 
-def trialled(db: Path, hand_name: str, objects: tuple[str, ...], top: int) -> list[dict]:
-    """One row per trialled grasp: object, rank, both verdicts and CPU seconds."""
+
+def top_grasps(db: Path, hand_name: str, objects: list[str], top: int) -> list[tuple[str, object, list]]:
+    """(name, the stored object, its ``top`` best grasps) of each of ``objects`` that has grasps in ``db``."""
     from planner.db.objects import stored_object
     from planner.db.store import open_db
-    from planner.specs.hands import load_hand
-    from planner.validation import mujoco_trial, shake
     from planner.validation.run import Selection
 
-    hand = load_hand(hand_name)
-    rows = []
     with open_db(db, create=False, readonly=True) as handle:
         picked = {o: Selection(top=top).pick(handle, o, hand_name, 0) for o in objects}
         stored = {o: handle.object_row(o) for o in objects}
+    out = []
     for name, grasps in picked.items():
         if not grasps or stored[name] is None:
             print(f"{hand_name}/{name}: no grasp", file=sys.stderr)
             continue
-        obj = stored_object(stored[name])
+        out.append((name, stored_object(stored[name]), grasps))
+    return out
+
+def trialled(db: Path, hand_name: str, objects: tuple[str, ...], top: int) -> list[dict]:
+    """One row per trialled grasp: object, rank, both verdicts and CPU seconds."""
+    from planner.specs.hands import load_hand
+    from planner.validation import mujoco_trial, shake
+
+    hand = load_hand(hand_name)
+    rows = []
+    for name, obj, grasps in top_grasps(db, hand_name, objects, top):
         for engine in (mujoco_trial, shake):  # build the world, load the parts
             engine.trials(hand, obj, grasps[:1])
         for g in grasps:

@@ -22,7 +22,7 @@ import mujoco
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from mujoco_protocols import database  # noqa: E402
+from mujoco_protocols import database, top_grasps  # noqa: E402
 
 #: [s] the steady force: the mean over this long before gravity comes on (the end of the settle).
 STEADY = 0.02
@@ -47,26 +47,17 @@ class Recorder:
 def trialled(hand_name: str, db: Path, objects: list[str], top: int, changes: dict[str, float]) -> list[dict]:
     from dataclasses import replace
 
-    from planner.db.objects import stored_object
-    from planner.db.store import open_db
     from planner.specs.hands import load_hand
     from planner.validation import fingers as fg
     from planner.validation import mujoco_trial
     from planner.validation.mujoco_settings import MujocoSettings
     from planner.validation.mujoco_worlds import world_for
-    from planner.validation.run import Selection
 
     hand = load_hand(hand_name)
     s = replace(MujocoSettings(), **changes)
     step = mujoco.mj_step
     out = []
-    with open_db(db, create=False, readonly=True) as handle:
-        picked = {o: Selection(top=top).pick(handle, o, hand_name, 0) for o in objects}
-        stored = {o: handle.object_row(o) for o in objects}
-    for name, grasps in picked.items():
-        if not grasps or stored[name] is None:
-            continue
-        obj = stored_object(stored[name])
+    for name, obj, grasps in top_grasps(db, hand_name, objects, top):
         world = world_for(hand, obj, s, obj.mass)
         for g in grasps:
             rates = fg.closing_rates(hand, g.preshape)
