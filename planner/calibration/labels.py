@@ -167,13 +167,20 @@ def label_names(paths: Sequence[Path]) -> list[str]:
     return out
 
 
+#: [bytes] read at a time to hash a label file (an HDF5 file may be large).
+_BLOCK = 1 << 20
+
+
 def _digest(path: Path) -> str:
     """sha256 of a file's bytes (a name of its own where it cannot be read: the reader says why, by name)."""
     import hashlib
 
+    digest = hashlib.sha256()
     try:
-        with path.open("rb") as f:
-            return hashlib.file_digest(f, "sha256").hexdigest()
+        with path.open("rb") as f:  # hashlib.file_digest is Python 3.11's; the project runs on 3.10
+            for block in iter(lambda: f.read(_BLOCK), b""):
+                digest.update(block)
+        return digest.hexdigest()
     except OSError:
         return f"unreadable:{path}"
 

@@ -182,7 +182,7 @@ CSV_BOOLEANS = frozenset({"true", "false"})
 
 def misread_name(name: str) -> bool:
     """Whether a reader that infers each CSV column's type from its text
-    (``pandas.read_csv``, ``polars.read_csv``) may not give ``name`` back as
+    (``pandas.read_csv``, ``polars.read_csv``, ``pyarrow.csv.read_csv``) may not give ``name`` back as
     that text: a number ('001' reads as 1, '1e3' as 1000.0), a boolean or
     one of pandas' missing-value markers ('NA', 'null')."""
     if name in PANDAS_MISSING or name.strip().lower() in CSV_BOOLEANS:
@@ -191,7 +191,7 @@ def misread_name(name: str) -> bool:
         float(name)
     except ValueError:
         return False
-    return True
+    return "_" not in name  # Python's float() reads '1_000'; the CSV readers keep it as text
 
 
 def csv_notes(pairs: Sequence[tuple[str, str]]) -> list[str]:
@@ -202,8 +202,9 @@ def csv_notes(pairs: Sequence[tuple[str, str]]) -> list[str]:
         bad = sorted({p[index] for p in pairs if misread_name(p[index])})
         if bad:
             notes.append(f"{column} names {', '.join(repr(n) for n in bad)} look like numbers or missing values: "
-                         f"pandas.read_csv and polars.read_csv infer each column's type from its text and read "
-                         f"them as such, silently; read grasps.csv with pd.read_csv(path, dtype={{'{column}': str}}, "
+                         f"pandas.read_csv, polars.read_csv and pyarrow.csv.read_csv infer each column's type from "
+                         f"its text and may read them as such, silently; read grasps.csv with pd.read_csv(path, "
+                         f"dtype={{'{column}': str}}, "
                          f"keep_default_na=False, na_values=['']) or pl.read_csv(path, "
                          f"schema_overrides={{'{column}': pl.String}}), or export --format parquet, which keeps "
                          f"every column's type")

@@ -34,7 +34,7 @@ def gltf_problem(path: Path) -> str:
             for e in data[key] if isinstance(e, str) and e in COMPRESSION]
     for extension in dict.fromkeys(used):
         module, advice = COMPRESSION[extension]
-        if module is None or importlib.util.find_spec(module) is None:
+        if (module is None or importlib.util.find_spec(module) is None) and not _draco_fallback(data, extension):
             return f"its geometry is {advice}"
     if _normalized_positions(data):
         return ("its positions are quantized to normalized integers (KHR_mesh_quantization), which trimesh reads "
@@ -48,6 +48,24 @@ def gltf_problem(path: Path) -> str:
                 f"{'are' if len(missing) > 1 else 'is'} not beside it: copy {'them' if len(missing) > 1 else 'it'} "
                 "with the .gltf, or export a .glb (one file)")
     return ""
+
+
+def _draco_fallback(data: dict, extension: str) -> bool:
+    """Whether a file Draco-compresses its geometry as an option only: the extension used, not required, and
+    every compressed primitive's positions also stored plain (an accessor with a ``bufferView``), which trimesh
+    reads without DracoPy (the glTF extension's fallback)."""
+    required = data.get("extensionsRequired")
+    if extension != "KHR_draco_mesh_compression" or (isinstance(required, list) and extension in required):
+        return False
+    accessors = data.get("accessors", [])
+    meshes = data.get("meshes", [])
+    if not isinstance(accessors, list) or not isinstance(meshes, list):
+        return False
+    compressed = [p for m in meshes if isinstance(m, dict) for p in m.get("primitives", [])
+                  if isinstance(p, dict) and extension in (p.get("extensions") or {})]
+    positions = [(p.get("attributes") or {}).get("POSITION") for p in compressed]
+    return all(isinstance(i, int) and 0 <= i < len(accessors) and isinstance(accessors[i], dict)
+               and "bufferView" in accessors[i] for i in positions)
 
 
 def _normalized_positions(data: dict) -> bool:

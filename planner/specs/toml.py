@@ -21,10 +21,13 @@ def decode_text(data: bytes, path: Path, what: str, error: type[Exception] = Con
     'Unicode' write it); a UTF-8 byte-order mark (other Windows editors') is dropped. Other bytes (a Latin-1 name)
     raise ``error`` naming the line and saying to save ``what`` as UTF-8."""
     utf16 = data.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE))
+    if data.startswith(codecs.BOM_UTF8):  # dropped here: utf-8-sig counts an error's offset after it
+        data = data[len(codecs.BOM_UTF8):]
+    codec = "utf-16" if utf16 else "utf-8"
     try:
-        return data.decode("utf-16" if utf16 else "utf-8-sig")
-    except UnicodeDecodeError as exc:
-        line = data[:exc.start].count(b"\n") + 1
+        return data.decode(codec)
+    except UnicodeDecodeError as exc:  # lines counted as text: a UTF-16 character may hold a 0x0a byte
+        line = data[:exc.start].decode(codec, errors="replace").count("\n") + 1
         raise error(f"{path}:{line}: not {'UTF-16' if utf16 else 'UTF-8'} text (byte 0x{data[exc.start]:02x}): save "
                     f"{what} as UTF-8") from None
 

@@ -337,9 +337,6 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
         selection = Selection(top, sample, every, closure_only)
         tasks = plan(db, objects, hands, selection, seed, trial_settings, noise, kept)
         check_hand_files(db, {t.hand for t in tasks} | {g.hand for g in kept})
-        summary.kept = len(kept)
-        verdicts = [g.mujoco if engine == "mujoco" else g.validation for g in kept]
-        summary.kept_successes = sum(bool(t.success) for t in verdicts if t is not None)
         tried: set[int] = set()
         while tasks:
             prepare_objects(list({t.row.name: t.row for t in tasks}.values()), workers)
@@ -351,7 +348,13 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
             # verdicts re-rank: grasps that dropped leave the top K and others move up; they are tried
             # next, until the top K all carry this run's verdicts (a grasp tried once in this run, even
             # one whose trial diverged or failed, is not tried again: the trials are deterministic)
-            tasks = _untried(plan(db, objects, hands, selection, seed, trial_settings, noise), tried)
+            tasks = _untried(plan(db, objects, hands, selection, seed, trial_settings, noise, kept), tried)
+        # kept: what a round selected with a verdict from before this run, each once (a later round's plan
+        # also finds the verdicts this run stored: those were tried, not kept)
+        before = list({g.id: g for g in kept if g.id not in tried}.values())
+        summary.kept = len(before)
+        verdicts = [g.mujoco if engine == "mujoco" else g.validation for g in before]
+        summary.kept_successes = sum(bool(t.success) for t in verdicts if t is not None)
         db.set_meta("mujoco_settings" if engine == "mujoco" else "validation_settings", json.dumps(
             {"trial": json.loads(trial_settings.to_json()), "noise": json.loads(noise.to_json()) if noise else None,
              "seed": seed}))

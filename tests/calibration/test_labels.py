@@ -154,3 +154,23 @@ def test_labels_calibrate_cannot_read_are_one_line_errors(tmp_path: Path, labels
         f[LABEL] = labels
     code, _, err = grasp("calibrate", str(path), "--no-store")
     one_line_error(code, err, 2, f"0_panda.h5: {LABEL} {message}")
+
+
+def test_copies_are_told_apart_without_pythons_3_11_file_digest(tmp_path: Path,
+                                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """The project runs on Python 3.10 (pyproject's requires-python), which has no hashlib.file_digest: the
+    copy check gave 'internal error: AttributeError' for any two label files there."""
+    import hashlib
+
+    from planner.calibration.labels import label_names
+    from planner.errors import InputError
+
+    monkeypatch.delattr(hashlib, "file_digest", raising=False)  # as on Python 3.10
+    (tmp_path / "a").mkdir()
+    one, other, copy = tmp_path / "one.h5", tmp_path / "other.h5", tmp_path / "a" / "copy.h5"
+    one.write_bytes(b"\x89HDF" + bytes(3 << 20))  # over one block read
+    other.write_bytes(b"\x89HDF" + bytes(3 << 20) + b"\x01")
+    shutil.copy(one, copy)
+    assert label_names([one, other]) == ["one.h5", "other.h5"]
+    with pytest.raises(InputError, match=r"copy.h5: the same bytes as .*one.h5 \(a copy\)"):
+        label_names([one, other, copy])

@@ -68,6 +68,21 @@ def test_names_that_csv_readers_turn_into_numbers_booleans_or_missing_values_are
 
     assert all(map(misread_name, ("001", "1e3", "0.5", "-2", "NA", "null", "None", "nan", "True", "false")))
     assert not any(map(misread_name, ("box", "random_001", "a dir/my thing", "0x1f", "1a2b", "mug.obj")))
+    assert not misread_name("1_000")  # float() reads it as 1000.0; pandas, polars and pyarrow keep the text
+
+
+def test_the_csv_note_names_pyarrows_reader_which_misreads_such_names_too(tmp_path: Path) -> None:
+    """pyarrow.csv.read_csv (the README's reader that 'reads it right') reads an object '001' as the integer 1 and
+    'NA' as null as well; the note named pandas and polars only."""
+    import pyarrow.csv as pc
+
+    from planner.datasets.table import csv_notes
+
+    path = tmp_path / "names.csv"
+    path.write_text("object,hand\n001,panda\nNA,panda\n")
+    assert pc.read_csv(path).column("object").to_pylist() == [1, None]
+    (note,) = csv_notes([("001", "panda"), ("NA", "panda")])
+    assert "pyarrow.csv.read_csv" in note
 
 
 def test_every_parquet_column_carries_its_unit_and_meaning(db: Path, tmp_path: Path) -> None:

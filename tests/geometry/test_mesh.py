@@ -310,3 +310,28 @@ def test_bodies_that_stand_apart_are_said_to_be_one_rigid_object(caplog: pytest.
     assert lines == ["pair: 2 of its 2 bodies stand apart from the others (their boxes meet no other's): the whole "
                      "is taken as one rigid object (a grasp of one part lifts all); split the file to plan each on "
                      "its own (once: cached afterwards)"], lines
+
+
+def test_a_gltf_whose_draco_compression_is_optional_loads_from_its_plain_geometry(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """KHR_draco_mesh_compression in extensionsUsed only (not extensionsRequired): the file stores its geometry
+    plain too (the extension's fallback), which trimesh reads without DracoPy; it was refused ('pip install
+    DracoPy')."""
+    import importlib.util
+    import json
+
+    files = trimesh.creation.box(extents=[0.03, 0.04, 0.05]).export(file_type="gltf")
+    for name, data in files.items():
+        (tmp_path / name).write_bytes(data)
+    fallback = json.loads(files["model.gltf"])
+    fallback["extensionsUsed"] = ["KHR_draco_mesh_compression"]
+    for primitive in fallback["meshes"][0]["primitives"]:  # compressed, and its plain accessors kept
+        primitive["extensions"] = {"KHR_draco_mesh_compression": {"bufferView": 0, "attributes": {"POSITION": 0}}}
+    (tmp_path / "fallback.gltf").write_text(json.dumps(fallback))
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "DracoPy" else real(name, *a))
+    assert meshes.load_mesh_file(tmp_path / "fallback.gltf").volume == pytest.approx(6e-5)
+    fallback["extensionsRequired"] = ["KHR_draco_mesh_compression"]  # no fallback: refused as before
+    (tmp_path / "required.gltf").write_text(json.dumps(fallback))
+    with pytest.raises(MeshError, match=r"required.gltf: cannot read it: its geometry is Draco-compressed"):
+        meshes.load_mesh_file(tmp_path / "required.gltf")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import codecs
 from pathlib import Path
 
 import pytest
@@ -59,3 +60,17 @@ def test_fuzz_arbitrary_toml_text_is_refused_cleanly(tmp_path_factory, text: str
         patch.setattr(preshapes.assets, "project_dir", lambda name: root / name)
         preshapes.load_preshapes(hand)
     assert len(str(refused.value).splitlines()) == 1 and str(presets) in str(refused.value)
+
+
+@pytest.mark.parametrize("data, line, byte", [
+    # a UTF-8 byte-order mark and a Latin-1 'ä' on line 2: utf-8-sig counted the offset past the mark, so the
+    # message named line 1 and the byte 0x62 ('b') three bytes before the one at fault
+    (codecs.BOM_UTF8 + b"a = 1\nb = 'c\xe4'\n", 2, 0xE4),
+    # UTF-16 whose 'Ċ' (U+010A) holds a 0x0a byte, then an unpaired surrogate on line 2 (not line 3)
+    (codecs.BOM_UTF16_LE + "a = 'Ċ'\nb = '".encode("utf-16-le") + b"\x00\xd8" + "'\n".encode("utf-16-le"), 2, 0x00),
+])
+def test_undecodable_bytes_are_named_with_their_line_and_byte(data: bytes, line: int, byte: int) -> None:
+    from planner.specs.toml import decode_text
+
+    with pytest.raises(ConfigError, match=rf"x.toml:{line}: not UTF-(8|16) text \(byte 0x{byte:02x}\)"):
+        decode_text(data, Path("x.toml"), "the file")

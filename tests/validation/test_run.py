@@ -226,6 +226,35 @@ def test_top_k_ends_with_the_top_k_tried(reference_db: Path, tmp_path: Path, mon
     assert (again.grasps, again.kept) == (0, 3 * len(pairs))
 
 
+def test_top_k_counts_as_kept_the_verdicts_from_before_that_any_round_finds(
+        reference_db: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A grasp that moves up into the top K in a later round with a verdict of an earlier run (here a
+    --sample's) is kept, not tried: the line's 'N already tried ..., kept' counted the first round's only."""
+    db = tmp_path / "t.db"
+    shutil.copy(reference_db, db)
+    tried: list[int] = []
+
+    def half_hold(task: run.Task) -> run.TaskResult:  # odd candidates slip, even ones hold
+        tried.extend(g.id for g in task.grasps)
+        return run.TaskResult(task, [Trial(g.candidate % 2 == 0, 2, 0.0, 0.0, 0.0 if g.candidate % 2 == 0 else 0.03,
+                                           0.0, "held" if g.candidate % 2 == 0 else "slipped") for g in task.grasps],
+                              [None] * len(task.grasps))
+
+    monkeypatch.setattr(run, "run_task", half_hold)
+    validate(db, sample=6, robust_samples=0, workers=1)
+    with open_db(db, create=False, readonly=True) as store:
+        before = {g.id: bool(g.mujoco and g.mujoco.success) for g in store.validated()}
+    tried.clear()
+    summary = validate(db, top=3, robust_samples=0, workers=1)
+    with open_db(db, create=False, readonly=True) as store:
+        final = {g.id for pair in store.pairs() for g in store.best(*pair, 3)}
+    assert final <= set(tried) | set(before) and not set(tried) & set(before)
+    from_before = final & set(before)
+    assert len(from_before) > 0 and summary.grasps == len(tried)
+    assert len(from_before) <= summary.kept <= len(before)  # was: the first round's 2 of these 3
+    assert summary.kept_successes <= sum(before.values())
+
+
 def test_verdicts_left_unranked_by_a_killed_run_are_ranked_by_the_next(reference_db: Path, tmp_path: Path,
                                                                        monkeypatch: pytest.MonkeyPatch) -> None:
     """A run killed (kill -9) between a batch's verdicts and its object's re-rank leaves the pair marked
