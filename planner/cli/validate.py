@@ -55,7 +55,9 @@ def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], to
                    + (f"; {summary.kept} already tried with these settings and seed, kept "
                       f"({summary.kept_successes} held)" if summary.kept else "")
                    + (f"; {summary.rounds} rounds (grasps that dropped left the top {top}, the next were tried)"
-                      if summary.rounds > 1 else ""))
+                      if summary.rounds > 1 else "")
+                   + (f"; stopped at {summary.cap} tried of {', '.join(summary.capped)}: its best {top} are not "
+                      "all tried (run again to go on)" if summary.capped else ""))
     report_failures(summary.failed_tasks)
 
 

@@ -208,7 +208,8 @@ def _manifest_line(tokens: list[str], where: str, folder: Path, scale: float | N
             windows = " (a Windows path? write / between folders)" if "\\" in tokens[0] else ""
             raise InputError(f"{where}: {source}: file not found{windows}")
     elif suffix and not is_registered(source):
-        also = URDF_HINT.replace("--scale", "the row's scale") if suffix == ".urdf" else ""
+        also = "" if suffix != ".urdf" else \
+            URDF_HINT.replace("--scale", "the row's scale").replace("--mass", "the row's mass")
         raise InputError(f"{where}: {source}: unsupported mesh type '{suffix}'; use one of "
                          f"{', '.join(MESH_SUFFIXES)}{also}")
     else:  # a name, and the scale a primitive refuses, checked here where the line is known

@@ -45,7 +45,7 @@ RANDOM_MASS = 0.1  # kg: the generated objects are 5-10 cm across
 #: Mesh files an object (or a folder of objects) may be given as.
 MESH_SUFFIXES = (".obj", ".stl", ".ply", ".glb", ".gltf", ".off")
 #: Said where a URDF is given as an object: its mesh is planned on, at the scale the URDF gives it.
-URDF_HINT = " (a URDF: give the mesh file its link names, its <mesh scale> as --scale)"
+URDF_HINT = " (a URDF: give the mesh file its link names, its <mesh scale> as --scale, its <inertial> mass as --mass)"
 #: Largest Coulomb friction coefficient accepted: rubber on rough surfaces
 #: reaches about 1-2, so a larger value is a typo (a percentage, a unit mix-up).
 MAX_FRICTION = 3.0

@@ -47,6 +47,9 @@ log = logging.getLogger(__name__)
 #: independent of their order and company).
 BATCH = 8
 MUJOCO_BATCH = 32
+#: ``--top K`` tries at most this many times K grasps of an (object, hand) in one run: where every grasp
+#: drops (a hand that cannot hold the object), the rounds would otherwise try them all.
+TOP_TRIES = 5
 
 
 @dataclass(frozen=True)
@@ -267,11 +270,18 @@ def _round(db: Database, tasks: list[Task], rule: RankingRule, workers: int, sum
         _rerank_unranked(db, rule)
 
 
-def _untried(tasks: list[Task], tried: set[int]) -> list[Task]:
-    """``tasks`` without the grasps of ``tried`` (tasks left empty dropped)."""
+def _untried(tasks: list[Task], tried: set[int], counts: Counter, most: int, capped: set[str]) -> list[Task]:
+    """``tasks`` without the grasps of ``tried``, and without those past ``most`` tried of a pair
+    (``counts``: tried so far, by (object, hand); such a pair goes into ``capped``); tasks left empty dropped."""
     out = []
     for task in tasks:
         grasps = tuple(g for g in task.grasps if g.id not in tried)
+        pair = (task.object, task.hand)
+        room = max(most - counts[pair], 0)
+        if len(grasps) > room:
+            capped.add(f"{task.object}/{task.hand}")
+            grasps = grasps[:room]
+        counts[pair] += len(grasps)
         if grasps:
             out.append(replace(task, grasps=grasps))
     return out
@@ -296,11 +306,13 @@ class ValidationSummary:
     kept: int = 0
     kept_successes: int = 0
     rounds: int = 0
+    capped: list[str] = field(default_factory=list)  # object/hand whose K best are not all tried: TOP_TRIES
+    cap: int = 0  # the most grasps of a pair --top K tries in one run (TOP_TRIES x K)
 
     def to_json(self) -> dict:
         return {"grasps": self.grasps, "successes": self.successes, "diverged": self.diverged,
                 "failed": self.failed_tasks, "kept": self.kept, "kept_successes": self.kept_successes,
-                "rounds": self.rounds}
+                "rounds": self.rounds, "capped": self.capped, "cap": self.cap}
 
 
 def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str] | None = None, top: int = 10,
@@ -338,6 +350,8 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
         tasks = plan(db, objects, hands, selection, seed, trial_settings, noise, kept)
         check_hand_files(db, {t.hand for t in tasks} | {g.hand for g in kept})
         tried: set[int] = set()
+        counts = Counter((t.object, t.hand) for t in tasks for _ in t.grasps)
+        capped: set[str] = set()
         while tasks:
             prepare_objects(list({t.row.name: t.row for t in tasks}.values()), workers)
             _round(db, tasks, rule, workers, summary, progress)
@@ -348,7 +362,9 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
             # verdicts re-rank: grasps that dropped leave the top K and others move up; they are tried
             # next, until the top K all carry this run's verdicts (a grasp tried once in this run, even
             # one whose trial diverged or failed, is not tried again: the trials are deterministic)
-            tasks = _untried(plan(db, objects, hands, selection, seed, trial_settings, noise, kept), tried)
+            tasks = _untried(plan(db, objects, hands, selection, seed, trial_settings, noise, kept), tried, counts,
+                             TOP_TRIES * top, capped)
+        summary.capped, summary.cap = sorted(capped), (0 if every or sample is not None else TOP_TRIES * top)
         # kept: what a round selected with a verdict from before this run, each once (a later round's plan
         # also finds the verdicts this run stored: those were tried, not kept)
         before = list({g.id: g for g in kept if g.id not in tried}.values())

@@ -255,6 +255,26 @@ def test_top_k_counts_as_kept_the_verdicts_from_before_that_any_round_finds(
     assert summary.kept_successes <= sum(before.values())
 
 
+def test_top_k_tries_at_most_a_few_times_k_of_a_pair(reference_db: Path, tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """Where every grasp drops (a hand that cannot hold the object), the rounds of --top 1 tried every stored
+    grasp (24 of 24 in 16 rounds); now at most TOP_TRIES x K of a pair, and the summary names the pair."""
+    db = tmp_path / "c.db"
+    shutil.copy(reference_db, db)
+    tried: list[tuple[str, int]] = []
+
+    def drops(task: run.Task) -> run.TaskResult:
+        tried.extend((task.object, g.id) for g in task.grasps)
+        return _slipped(task)
+
+    monkeypatch.setattr(run, "run_task", drops)
+    summary = validate(db, top=1, robust_samples=0, workers=1)
+    per_pair = {obj: sum(o == obj for o, _ in tried) for obj in ("box", "sphere")}
+    assert per_pair == {"box": run.TOP_TRIES, "sphere": run.TOP_TRIES}, per_pair
+    assert summary.capped == ["box/panda", "sphere/panda"] and summary.cap == run.TOP_TRIES
+    assert summary.to_json()["capped"] == ["box/panda", "sphere/panda"]
+
+
 def test_verdicts_left_unranked_by_a_killed_run_are_ranked_by_the_next(reference_db: Path, tmp_path: Path,
                                                                        monkeypatch: pytest.MonkeyPatch) -> None:
     """A run killed (kill -9) between a batch's verdicts and its object's re-rank leaves the pair marked
