@@ -129,10 +129,14 @@ def field_metadata(column: str) -> dict[str, str]:
     f = _FIELDS[column]
     if f is None:
         return {"unit": "", "description": _EXPORT_MEANINGS[column]}
+    index = _INDEX[column]
+    if f.shape == (4, 4) and not (index[1] == 3 and index[0] < 3):  # a pose: only its translation is in [m]
+        return {"unit": "", "description": f.doc}
     return {"unit": f.unit, "description": f.doc}
 
 
 _FIELDS = {name: f for name, _, _, _, f in _SPEC}
+_INDEX = {name: index for name, _, _, index, _ in _SPEC}
 _EXPORT_MEANINGS = {name: meaning for name, _, meaning in EXPORT_COLUMNS}
 
 

@@ -91,5 +91,7 @@ def test_every_parquet_column_carries_its_unit_and_meaning(db: Path, tmp_path: P
     assert set(meta) == set(COLUMNS) and all(set(m) == {"unit", "description"} for m in meta.values())
     assert [meta[c]["unit"] for c in ("pose_03", "roll", "resist_worst", "object_mass", "epsilon")] == \
         ["m", "rad", "g", "kg", ""]
+    assert {c: meta[c]["unit"] for c in COLUMNS if c.startswith("pose_") and meta[c]["unit"]} == \
+        {"pose_03": "m", "pose_13": "m", "pose_23": "m"}  # the rotation's entries and the last row are numbers
     assert all(meta[c]["description"] for c in COLUMNS)
     assert meta["label"]["description"].startswith("success label")
