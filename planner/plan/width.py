@@ -3,8 +3,12 @@
 A hand that declares ``width_links`` (hand.toml: the PR2's ``left_tip`` and
 ``right_tip``) gets the gap between those two links' collision shapes, read
 in the hand's own frame (the same wherever the hand is) with python-fcl
-(:class:`planner.sim.fcl.LinkGap`): the opening the hand's own gripper
-command takes, negative where the pads overlap (the PR2's at joints 0, -10 mm).
+(:class:`planner.sim.fcl.LinkGap`), negative where the pads overlap (the
+PR2's at joints 0, -10 mm). The real PR2's gripper command takes the gap
+between its pads, which a linkage keeps parallel; the URDF's fingers are
+plain hinges whose pads turn with them, so the gap is the pads' closest
+approach, at their inner ends: an object held at the fingertips is thicker
+there (box and duck, 2026-12-06: by a median 12-13 mm, up to 27 mm).
 A self-centring parallel jaw (the Panda) that declares none gets its opening
 (:meth:`~planner.specs.hand_spec.HandSpec.opening`, the sum of its prismatic
 joints); any other hand None.
