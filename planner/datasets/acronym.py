@@ -65,7 +65,7 @@ its motions, ...) and ``robust_epsilon_mean``, ``robust_epsilon_quantile``, ``ro
 (:data:`QUALITIES`, derived from :mod:`planner.record.fields`; NaN or -1
 when absent);
 ``grasps/joint_names`` (J,), ``joints_closed`` / ``joints_open`` (N, J)
-[rad or m]; ``width`` (N,) [m] (NaN: not a parallel jaw); ``preshape``,
+[rad or m]; ``width`` (N,) [m] (NaN: a hand with none); ``preshape``,
 ``candidate``, ``seed``; ``contacts`` (N,) JSON text ``[{point, normal,
 link}]`` in the object frame; ``approach_point``, ``approach_dir`` (N, 3),
 ``roll`` [rad], ``standoff`` [m]; ``table_plane`` (N, 4) the table top the grasp

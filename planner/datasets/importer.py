@@ -70,7 +70,8 @@ from planner.plan import grip
 from planner.plan.closing import Closed, Grasper
 from planner.plan.local_sdf import LocalSurface
 from planner.plan.measures import measure
-from planner.plan.unit import closed_width, scored
+from planner.plan.unit import scored
+from planner.plan.width import closed_width
 from planner.record.grasp import Grasp
 from planner.run import pool
 from planner.sim import Sim

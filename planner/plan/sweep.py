@@ -90,7 +90,8 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: settled epsilons, scores and ranks of the Barrett's on such objects.
 #: 20: the PR2's motors and fingers as they are (effort 3.15 N m at its hinges, 30 N at the pads, not 30 N m; its
 #: fingers' inertia from their collision shapes, not the URDF's 1 kg m^2 placeholder): its weight resistance,
-#: feasibility, scores and ranks (its grasps, epsilons and contacts the same), and its trials.
+#: feasibility, scores and ranks (its grasps, epsilons and contacts the same), and its trials; and the PR2 stores
+#: its width (the gap between its fingertip pads at the closed joints, hand.toml width_links; null before).
 ALGORITHM_VERSION = 20
 
 #: Named in the digest of sweeps on a table only (those of the object alone stay

@@ -23,7 +23,7 @@ import logging
 import time
 import traceback
 from collections import Counter
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -50,6 +50,7 @@ from planner.plan.sweep import (
     unit_rng,
 )
 from planner.plan.tolerances import FINGER_CLEARANCE, MIN_CLEARANCE, TABLE_CLEARANCE, TABLE_ELEVATION
+from planner.plan.width import closed_width
 from planner.record.grasp import Grasp
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, load_hand
@@ -389,7 +390,3 @@ def scored(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, cone_edg
         log.debug("%s/%s: grasp rejected, quality not computable: %s", obj.name, hand.name, exc)
         return None
 
-
-def closed_width(hand: HandSpec, closed_joints: Mapping[str, float]) -> float | None:
-    """[m] distance between the fingers of a self-centring parallel jaw, else None."""
-    return hand.opening(closed_joints) if hand.centering else None

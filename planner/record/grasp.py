@@ -119,7 +119,7 @@ class Grasp:
         roll: [rad] about the approach direction; standoff: [m] back-off before closing.
         pose: (4, 4) hand frame in the object frame [m].
         open_joints / closed_joints: finger joint values by name [rad or m].
-        width: [m] distance between the fingers of a parallel jaw, else None.
+        width: [m] distance between the fingers at the closed joints (:mod:`planner.plan.width`), else None.
         contacts: the contacts, object frame.
         epsilon, volume: Ferrari-Canny L1 epsilon and GWS volume (0 unless force closure).
         reachability: fraction of sampled table placements an arm reaches (None: not computed).
@@ -158,8 +158,10 @@ class Grasp:
                               "object frame", shape=(4, 4))
     open_joints: Joints = stored("joints", "rad or m", 1, "JSON `{joint: value}` of the preshape")
     closed_joints: Joints = stored("joints", "rad or m", 1, "JSON `{joint: value}` of the closed hand")
-    width: float | None = stored("real", "m", 1, "distance between the fingers of a self-centring parallel jaw "
-                                 "(the Panda); null for the other hands", required=False)
+    width: float | None = stored("real", "m", 1, "distance between the fingers at the closed joints: a "
+                                 "self-centring parallel jaw's opening (the Panda), the gap between the pads a hand "
+                                 "names in `width_links` (the PR2's fingertips; negative: they overlap); null for the "
+                                 "other hands", required=False)
     contacts: HandContacts = stored("contacts", "m", 1, "JSON `[{point, normal, link}]`, object frame, normals "
                                     "into the object")
     epsilon: float = stored("real", "", 1, "Ferrari-Canny L1 epsilon (0 unless force-closure)", ranked="epsilon")

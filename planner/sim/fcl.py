@@ -16,8 +16,11 @@ python-fcl 0.7 behaviour this module works around (so callers need not):
   (BVH, shape) order: the BVH always goes first here;
 - distance between overlapping BVH pairs is -1 (no depth); Convex-Box
   distance is wrong for face-parallel boxes and Convex-Halfspace distance
-  crashes: only :meth:`LinkShapes.collides` and the BVH-first
-  :meth:`LinkShapes.distance` are offered.
+  crashes: only :meth:`LinkShapes.collides`, the BVH-first
+  :meth:`LinkShapes.distance` and :class:`LinkGap`'s convex-convex signed
+  distance (GJK apart, EPA's depth overlapping: PyBullet's closest points
+  less its margins within 1 um on the PR2's pads, tests/sim/test_fcl.py)
+  are offered.
 
 Geometry is read from the URDF (one fcl shape per ``<collision>`` element,
 as PyBullet makes one per element): ``<mesh>`` as the convex hull of the
@@ -158,3 +161,53 @@ class LinkShapes:
         <= 0 when they overlap (python-fcl gives no depth for BVH pairs)."""
         request = self._distance
         return min(fcl.distance(other, obj, request, fcl.DistanceResult()) for _, _, obj in self.shapes)
+
+
+def _convex(collision: object, folder: Path) -> fcl.Convex:
+    """A ``<collision>`` element as one convex shape: a mesh as its hull (as :func:`_geometry`), a primitive as
+    the hull of its mesh (a cylinder 32-sided, as PyBullet collides it)."""
+    geometry = collision.geometry  # type: ignore[attr-defined]
+    if geometry.mesh is not None:
+        shape = _geometry(collision, folder)
+        assert isinstance(shape, fcl.Convex)
+        return shape
+    if geometry.box is not None:
+        mesh = trimesh.creation.box(extents=np.asarray(geometry.box.size, float))
+    elif geometry.cylinder is not None:
+        mesh = trimesh.creation.cylinder(float(geometry.cylinder.radius), float(geometry.cylinder.length),
+                                         sections=32)
+    elif geometry.sphere is not None:
+        mesh = trimesh.creation.icosphere(3, float(geometry.sphere.radius))
+    else:
+        raise ConfigError(f"{folder}: a <collision> element with no geometry python-fcl can model")
+    faces = np.hstack([np.full((len(mesh.faces), 1), 3), mesh.faces]).ravel()
+    return fcl.Convex(np.asarray(mesh.vertices, float), len(mesh.faces), faces)
+
+
+class LinkGap:
+    """The signed gap [m] between the collision shapes of two links ``a`` and
+    ``b`` of a URDF, each link placed by its (4, 4) frame: the least distance
+    between a shape of one and a shape of the other, negative where they
+    overlap (minus the depth). Each ``<collision>`` element is a convex
+    shape (:func:`_convex`) with no margin: the true geometry."""
+
+    def __init__(self, urdf: Path, a: str, b: str) -> None:
+        model = load_model(urdf)
+
+        def shapes(link: str) -> list[tuple[np.ndarray, fcl.CollisionObject]]:
+            return [(np.eye(4) if c.origin is None else np.asarray(c.origin, float),
+                     fcl.CollisionObject(_convex(c, urdf.parent), fcl.Transform()))
+                    for c in model.link_map[link].collisions]
+
+        self.a, self.b = shapes(a), shapes(b)
+        if not self.a or not self.b:
+            raise ConfigError(f"{urdf}: links '{a}' and '{b}' need collision shapes to measure the gap between them")
+        self._request = fcl.DistanceRequest(enable_signed_distance=True)
+
+    def __call__(self, frame_a: np.ndarray, frame_b: np.ndarray) -> float:
+        """[m] the signed gap with link ``a`` at ``frame_a`` (4, 4) and link ``b`` at ``frame_b`` (4, 4), one frame."""
+        for frame, shapes in ((frame_a, self.a), (frame_b, self.b)):
+            for origin, obj in shapes:
+                place(obj, frame @ origin)
+        return float(min(fcl.distance(x, y, self._request, fcl.DistanceResult())
+                         for _, x in self.a for _, y in self.b))

@@ -64,10 +64,12 @@ def hand_files(name: str) -> dict[str, str]:
 SAME_HAND: dict[str, tuple[str, dict[str, str]]] = {
     "hands/allegro/hand.toml": ("6806297ce4d71df3", {
         "5386eec9e1cb2ab7": "2026-12-06: settle = true (a force-closure grasp's settled epsilon, for ranking)"}),
-    "hands/pr2/hand.toml": ("5782d429c3d41b3b", {
+    "hands/pr2/hand.toml": ("9e884185902b2d8a", {
         "5f6f243e9fb20f0e": "2026-12-06: effort 30 -> 3.15 N m (30 N at the pads) and the fingers' own inertia "
                             "([dynamics.link_inertia]): its weight resistance stored before is of the stronger "
-                            "model; its verdicts made before are tried again"}),
+                            "model; its verdicts made before are tried again",
+        "5782d429c3d41b3b": "2026-12-06: width_links (a grasp's width is the gap between the fingertip pads): "
+                            "its grasps stored before have no width"}),
 }
 
 

@@ -199,6 +199,9 @@ class HandSpec:
     #: {link: (3,) [kg m^2]} principal moments of inertia, about the URDF's centre of mass in its inertial axes,
     #: replacing the URDF's (a placeholder) in both dynamic trials ([dynamics.link_inertia]); empty: the URDF's
     link_inertia: Mapping[str, tuple[float, float, float]] = field(default_factory=dict)
+    #: the two links (pads) the grasp's width is the gap between, at its closed joints
+    #: (:mod:`planner.plan.width`); None: a self-centring jaw's opening, or no width
+    width_links: tuple[str, str] | None = None
 
     @cached_property
     def cell_turns(self) -> tuple[tuple[int, ...], ...]:

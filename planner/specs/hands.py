@@ -136,6 +136,7 @@ def load_folder(folder: Path) -> HandSpec:
         settle=f.bool("settle", False),
         settle_dynamics=_settle_dynamics(f),
         local_grid=_local_grid(f),
+        width_links=_width_links(f, model),
     )
     f.check_unknown()
     return spec
@@ -155,6 +156,22 @@ def _local_grid(f: Fields) -> LocalGrid | None:
         raise ConfigError(f"{t.where} field 'counts': whole numbers of points per axis, >= 1, whose product is "
                           f"{LOCAL_CELLS}")
     return LocalGrid(low, high, tuple(int(c) for c in counts))  # type: ignore[arg-type]
+
+
+def _width_links(f: Fields, model: yourdfpy.URDF) -> tuple[str, str] | None:
+    """``width_links``, if given: two different links of the hand, each with collision geometry (the pads whose
+    gap is the grasp's width)."""
+    if not f.has("width_links"):
+        return None
+    names = f.strs("width_links")
+    if len(names) != 2 or names[0] == names[1]:
+        raise ConfigError(f"{f.where} field 'width_links': needs two different links (the pads), got {names}")
+    for name in names:
+        if name not in model.link_map or not model.link_map[name].collisions:
+            raise ConfigError(f"{f.where} field 'width_links': '{name}' is not a link of the hand with collision "
+                              f"geometry; links with it: "
+                              f"{', '.join(k for k, v in model.link_map.items() if v.collisions)}")
+    return names[0], names[1]
 
 
 def _settle_dynamics(f: Fields) -> SettleDynamics | None:

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import io
 import re
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -79,6 +81,53 @@ def descendants(model: yourdfpy.URDF, link: str) -> list[str]:
         out.append(current)
         stack.extend(children.get(current, []))
     return out
+
+
+@dataclass(frozen=True)
+class LinkChain:
+    """The joints from a URDF's root link down to one link: that link's frame
+    at any joint values (forward kinematics, pure numpy; PyBullet's and
+    yourdfpy's to float32 round-off, tests/specs/test_urdf.py).
+
+    Attributes:
+        joints: (k,) joint names, root first; kinds: (k,) their URDF types.
+        origins: (k, 4, 4) each joint's frame in its parent link's frame.
+        axes: (k, 3) each joint's unit axis in its own frame.
+    """
+
+    joints: tuple[str, ...]
+    kinds: tuple[str, ...]
+    origins: np.ndarray
+    axes: np.ndarray
+
+    def frame(self, values: Mapping[str, float]) -> np.ndarray:
+        """(4, 4) the link's frame in the root link's frame with the joints at
+        ``values`` [rad or m] (a joint left out at 0)."""
+        out = np.eye(4)
+        for name, kind, origin, axis in zip(self.joints, self.kinds, self.origins, self.axes):
+            motion = np.eye(4)
+            q = float(values.get(name, 0.0))
+            if kind in ("revolute", "continuous"):
+                cross = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+                motion[:3, :3] += np.sin(q) * cross + (1.0 - np.cos(q)) * cross @ cross  # Rodrigues
+            elif kind == "prismatic":
+                motion[:3, 3] = q * axis
+            out = out @ origin @ motion
+        return out
+
+
+def link_chain(model: yourdfpy.URDF, link: str) -> LinkChain:
+    """The :class:`LinkChain` of ``link`` (a link of ``model``) from the model's root."""
+    parent = {j.child: j for j in model.robot.joints}
+    chain = []
+    while link in parent:
+        chain.append(parent[link])
+        link = parent[link].parent
+    chain.reverse()
+    axes = [np.zeros(3) if j.axis is None else np.asarray(j.axis, float) / np.linalg.norm(j.axis) for j in chain]
+    return LinkChain(tuple(j.name for j in chain), tuple(j.type or "fixed" for j in chain),
+                     np.array([np.eye(4) if j.origin is None else np.asarray(j.origin, float) for j in chain]
+                              ).reshape(-1, 4, 4), np.array(axes).reshape(-1, 3))
 
 
 def cut_subtree(source: Path, root_link: str, where: str) -> Path:

@@ -158,18 +158,23 @@ def test_the_projects_same_hand_changes_name_the_files_as_shipped_now() -> None:
         assert shipped not in earlier and earlier
 
 
-@pytest.mark.parametrize("hand, before, after", [("allegro", "settle = true", "settle = false"),
-                                                  ("pr2", "effort = 3.15", "effort = 3.2")])
+@pytest.mark.parametrize("hand, digest, before, after", [
+    ("allegro", "5386eec9e1cb2ab7", "settle = true", "settle = false"),
+    ("pr2", "5f6f243e9fb20f0e", "effort = 3.15", "effort = 3.2"),  # before its motors and inertias
+    ("pr2", "5782d429c3d41b3b", 'width_links = ["left_tip", "right_tip"]', 'width_links = ["right_tip", "left_tip"]'),
+])
 def test_a_database_made_before_a_declared_change_reads_shows_and_validates_as_before(
-        project: Path, tmp_path: Path, hand: str, before: str, after: str) -> None:
+        project: Path, tmp_path: Path, hand: str, digest: str, before: str, after: str) -> None:
     """settle = true in the Allegro's hand.toml (2026-12-06) made every Allegro database made before it 'edited':
     show and validate refused it, telling the user to restore files they never changed; the PR2's motors and
-    finger inertias as they are (2026-12-06) would have done the same. The project's declared change is not an
-    edit; the same file edited any further still is."""
+    finger inertias as they are (2026-12-06), then its width_links (2026-12-06), would have done the same. The
+    project's declared change is not an edit, whichever earlier file the database records; the same file edited
+    any further still is."""
     from planner.specs.hand_files import SAME_HAND
 
     label = f"hands/{hand}/hand.toml"
     shipped, earlier = SAME_HAND[label]
+    assert digest in earlier
     db_path = tmp_path / "g.db"
     with open_for_writing(db_path) as db:
         check_hand_files(db, [hand])
@@ -177,7 +182,7 @@ def test_a_database_made_before_a_declared_change_reads_shows_and_validates_as_b
                       load_object("box"), [replace(made_up(i, 0.05), object="box", hand=hand) for i in range(2)],
                       RankingRule())
         files = json.loads(db.meta(META_KEY))
-        files[hand][label] = next(iter(earlier))  # as a database of the hand before the change records it
+        files[hand][label] = digest  # as a database of the hand before the change records it
         db.set_meta(META_KEY, json.dumps(files, sort_keys=True))
     now = hand_files(hand)
     assert now[label] == shipped and changed(files[hand], now) == []

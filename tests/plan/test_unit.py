@@ -18,7 +18,7 @@ from planner import quality
 from planner.geometry.solid import load_object
 from planner.plan import unit
 from planner.plan.sweep import SweepSettings
-from planner.plan.unit import QUALITY_FAILED, UnitSpec, closed_width, grasp_quality, run_unit
+from planner.plan.unit import QUALITY_FAILED, UnitSpec, grasp_quality, run_unit
 from planner.quality.hull import HullError
 from planner.record.contacts import HandContacts
 from planner.record.grasp import Grasp
@@ -96,11 +96,6 @@ def test_each_contact_is_scored_with_its_link_model() -> None:
     assert hand.contacts["panda_leftfinger"].model == "soft" and hand.contacts["panda_hand"].model == "point"
     assert grasp_quality(pads, hand, obj, 8).force_closure
     assert not grasp_quality(palm, hand, obj, 8).force_closure
-
-
-def test_width_is_for_parallel_jaws_only() -> None:
-    assert closed_width(load_hand("panda"), {"panda_finger_joint1": 0.01, "panda_finger_joint2": 0.01}) == 0.02
-    assert closed_width(load_hand("barrett"), {}) is None
 
 
 def test_a_grasp_whose_quality_fails_is_rejected_with_a_counted_reason(box_unit,  # type: ignore[no-untyped-def]

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from planner.errors import ConfigError
 from planner.geometry.solid import load_object
 from planner.sim import Sim
 from planner.sim import fcl as adapter
@@ -20,6 +21,8 @@ from planner.specs.hands import DEFAULT_DISTANCE_OFFSET, load_hand
 PYBULLET_TOL = 3e-4
 #: fcl's own distances between exact shapes [m].
 EXACT_TOL = 1e-7
+#: fcl's signed distance between convex shapes [m]: GJK's apart, EPA's depth overlapping (libccd's tolerances).
+EPA_TOL = 1e-6
 #: A URDF <box> is a Bullet box shape whose margin lies inside its extents:
 #: against a mesh only the mesh's 1 mm margin shows (meshes and URDF
 #: cylinders add 1 mm each: DEFAULT_DISTANCE_OFFSET) [m].
@@ -132,3 +135,57 @@ def test_shapes_placed_relative_to_the_base_match_the_simulator(probe: Path) -> 
             sim.set_pose(body, pose)
             shapes.update()
             assert shapes.collides_at(pose, relative, bvh) == shapes.collides(bvh)
+
+
+PADS = """<?xml version="1.0"?>
+<robot name="pads">
+  <link name="base"/>
+  <link name="left">
+    <collision><geometry><box size="0.01 0.02 0.02"/></geometry></collision>
+  </link>
+  <link name="right">
+    <collision><origin xyz="0.02 0 0" rpy="1.5707963267948966 0 0"/>
+      <geometry><cylinder radius="0.005" length="0.02"/></geometry></collision>
+    <collision><geometry><box size="0.01 0.02 0.02"/></geometry></collision>
+  </link>
+  <link name="bare"/>
+  <joint name="l" type="prismatic"><parent link="base"/><child link="left"/><axis xyz="1 0 0"/>
+    <limit lower="-0.1" upper="0.1" effort="1" velocity="1"/></joint>
+  <joint name="r" type="prismatic"><parent link="base"/><child link="right"/><axis xyz="1 0 0"/>
+    <limit lower="-0.1" upper="0.1" effort="1" velocity="1"/></joint>
+  <joint name="b" type="fixed"><parent link="base"/><child link="bare"/></joint>
+</robot>
+"""
+
+
+def at(x: float, y: float = 0.0) -> np.ndarray:
+    out = np.eye(4)
+    out[:2, 3] = x, y
+    return out
+
+
+@pytest.mark.parametrize("right, gap", [
+    (at(0.013), 0.003),  # apart along x: the boxes' faces 3 mm apart
+    (at(0.010), 0.0),  # touching
+    (at(0.006), -0.004),  # overlapping 4 mm along x (20 mm along y and z): the depth
+    (at(0.013, 0.024), np.hypot(0.003, 0.004)),  # apart across an edge
+    (at(-0.033), 0.003),  # the right link's cylinder (radius 5 mm, 2 cm out along x) 3 mm from the left box
+])
+def test_the_gap_between_two_links_is_signed_and_exact(tmp_path: Path, right: np.ndarray, gap: float) -> None:
+    """Two box pads (a URDF's primitives, made convex hulls) and a cylinder: fcl's distance apart, EPA's
+    depth overlapping; the same whatever rigid motion moves both links."""
+    urdf = tmp_path / "pads.urdf"
+    urdf.write_text(PADS)
+    pads = adapter.LinkGap(urdf, "left", "right")
+    assert pads(np.eye(4), right) == pytest.approx(gap, abs=EPA_TOL)
+    motion = np.eye(4)
+    motion[:3, :3] = Rotation.from_euler("xyz", [0.3, -1.1, 2.0]).as_matrix()
+    motion[:3, 3] = [0.4, -0.2, 1.5]
+    assert pads(motion, motion @ right) == pytest.approx(gap, abs=EPA_TOL)
+
+
+def test_a_link_without_collision_geometry_has_no_gap(tmp_path: Path) -> None:
+    urdf = tmp_path / "pads.urdf"
+    urdf.write_text(PADS)
+    with pytest.raises(ConfigError, match="'left' and 'bare' need collision shapes"):
+        adapter.LinkGap(urdf, "left", "bare")

@@ -147,6 +147,30 @@ def test_link_inertia_replaces_the_moments_of_the_links_it_names_only(tmp_path: 
     assert load_hand("panda").link_inertia == {}
 
 
+@pytest.mark.parametrize("value, message", [
+    ('["panda_leftfinger"]',
+     r"field 'width_links': needs two different links \(the pads\), got \['panda_leftfinger'\]"),
+    ('["panda_leftfinger", "panda_leftfinger"]', "field 'width_links': needs two different links"),
+    ('["panda_leftfinger", "thumb"]', "field 'width_links': 'thumb' is not a link of the hand with collision "
+     "geometry; links with it: panda_hand, panda_leftfinger, panda_rightfinger"),
+    ('["panda_leftfinger", "panda_grasptarget"]', "'panda_grasptarget' is not a link of the hand with collision"),
+    ('"panda_leftfinger"', "field 'width_links': missing or not a list of strings"),
+])
+def test_broken_width_links_name_the_file_and_field(tmp_path: Path, value: str, message: str) -> None:
+    folder = broken_copy(tmp_path, "centering = true", f"centering = true\nwidth_links = {value}")
+    with pytest.raises(ConfigError, match=message) as err:
+        load_folder(folder)
+    assert "hand.toml" in str(err.value) and "\n" not in str(err.value)
+
+
+def test_the_pr2_declares_its_pads_as_its_width_links(tmp_path: Path) -> None:
+    assert load_hand("pr2").width_links == ("left_tip", "right_tip")
+    assert all(load_hand(name).width_links is None for name in ("panda", "barrett", "allegro"))
+    folder = broken_copy(tmp_path, "centering = true", 'centering = true\nwidth_link = ["a", "b"]')
+    with pytest.raises(ConfigError, match=r"field 'width_link': not a field read here \(did you mean 'width_links'"):
+        load_folder(folder)
+
+
 def test_a_hand_settles_with_its_own_dynamics_unless_the_sweep_names_a_trial() -> None:
     from dataclasses import replace
 

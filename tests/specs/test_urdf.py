@@ -14,7 +14,7 @@ from planner import assets
 from planner.errors import ConfigError, MeshError
 from planner.sim import Sim, pb
 from planner.specs.hands import hand_names, load_folder, load_hand
-from planner.specs.urdf import cut_subtree, descendants, load_model, object_mesh
+from planner.specs.urdf import cut_subtree, descendants, link_chain, load_model, object_mesh
 
 HANDS = hand_names()
 SEED = 0
@@ -38,6 +38,24 @@ def test_pybullet_and_yourdfpy_kinematics_agree(name: str) -> None:
             root = np.linalg.inv(sim.link_pose(body, hand.root_link))
             for link in hand.links:
                 assert_close(root @ sim.link_pose(body, link), robot.get_transform(link, hand.root_link), FK_TOL)
+
+
+@pytest.mark.parametrize("name", HANDS)
+def test_a_links_chain_gives_its_frame_as_pybullet_does(name: str) -> None:
+    """LinkChain's forward kinematics (the width's pads) against PyBullet's, every link of every hand."""
+    hand = load_hand(name)
+    model = load_model(hand.urdf)
+    chains = {link: link_chain(model, link) for link in hand.links}
+    assert chains[hand.root_link].joints == ()
+    rng = np.random.default_rng(SEED)
+    with Sim() as sim:
+        body = sim.load_urdf(hand.urdf)
+        for _ in range(3):
+            q = hand.full_configuration({j.name: float(rng.uniform(j.lower, j.upper)) for j in hand.driven})
+            sim.set_joints(body, q)
+            root = np.linalg.inv(sim.link_pose(body, hand.root_link))
+            for link, chain in chains.items():
+                assert_close(chain.frame(q), root @ sim.link_pose(body, link), FK_TOL)
 
 
 def test_panda_urdf_matches_yourdfpy_kinematics() -> None:
