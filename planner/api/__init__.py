@@ -52,6 +52,7 @@ from planner.api.presenting import coverage, show, view  # noqa: F401 - re-expor
 from planner.api.querying import (  # noqa: F401 - re-exported
     DIVERSE_BATCH,
     best,
+    hand_changed,
     hand_edited,
     mesh_modified,
     p_hold_model,

@@ -107,6 +107,15 @@ def hand_edited(hand: str, *, db_path: Path = DEFAULT_DB) -> list[str]:
         return edited(db, hand)
 
 
+def hand_changed(hand: str, *, db_path: Path = DEFAULT_DB) -> list[str]:
+    """What the project changed in ``hand`` since the database stored its grasps
+    (:func:`planner.db.hand_files.changed_by_project`; [] for nothing)."""
+    from planner.db.hand_files import changed_by_project
+
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        return changed_by_project(db, hand)
+
+
 def ranks_stale(name: str, hand: str, *, db_path: Path = DEFAULT_DB) -> bool:
     """Whether ``name``'s grasps for ``hand`` carry trial verdicts their ranks do not yet reflect (a ``grasp
     validate`` killed before it re-ranked them; the next ``grasp validate`` on the database re-ranks first)."""

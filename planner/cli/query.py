@@ -105,6 +105,9 @@ def _extrapolated(name: str, hand: str, db_path: Path, outside: list[str]) -> No
     if files:
         click.echo(f"note: hand '{hand}' was edited since {db_path} stored its grasps ({', '.join(files)} changed): "
                    "these are the grasps of the hand as it was; `show` and `best --object-pose` refuse it", err=True)
+    for change in api.hand_changed(hand, db_path=db_path):
+        click.echo(f"note: the project changed hand '{hand}' since {db_path} stored its grasps ({change}): sweep "
+                   "again (`grasp generate ... --replace`, or another --db) to have them made with it", err=True)
     modified = api.mesh_modified(name, db_path=db_path)
     if modified:
         click.echo(f"note: {modified} was modified (its modification time) after {name}'s grasps were planned on "

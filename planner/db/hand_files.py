@@ -21,7 +21,7 @@ from collections.abc import Iterable
 
 from planner.db.store import Database
 from planner.errors import InputError
-from planner.specs.hand_files import changed, hand_files
+from planner.specs.hand_files import changed, declared, hand_files
 
 #: The meta key of the record.
 META_KEY = "hand_files"
@@ -35,6 +35,13 @@ def edited(db: Database, hand: str) -> list[str]:
         return []
     now = hand_files(hand)
     return changed(before, now) if before != now and db.hand_swept(hand) else []
+
+
+def changed_by_project(db: Database, hand: str) -> list[str]:
+    """What the project changed in ``hand``'s files since the database's grasps of it were made (the
+    declarations of :data:`planner.specs.hand_files.SAME_HAND`; [] for none)."""
+    before = json.loads(db.meta(META_KEY) or "{}").get(hand)
+    return [] if before is None or not db.hand_swept(hand) else declared(before, hand_files(hand))
 
 
 def refuse_edited(db: Database, hand: str, doing: str) -> None:

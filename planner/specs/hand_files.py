@@ -67,7 +67,8 @@ SAME_HAND: dict[str, tuple[str, dict[str, str]]] = {
     "hands/pr2/hand.toml": ("9e884185902b2d8a", {
         "5f6f243e9fb20f0e": "2026-12-06: effort 30 -> 3.15 N m (30 N at the pads) and the fingers' own inertia "
                             "([dynamics.link_inertia]): its weight resistance stored before is of the stronger "
-                            "model; its verdicts made before are tried again",
+                            "model; its verdicts made before are tried again; and width_links: its grasps stored "
+                            "before have no width",
         "5782d429c3d41b3b": "2026-12-06: width_links (a grasp's width is the gap between the fingertip pads): "
                             "its grasps stored before have no width"}),
 }
@@ -81,6 +82,17 @@ def changed(stored: dict[str, str], now: dict[str, str]) -> list[str]:
         return stored[label] == now.get(label) or (now.get(label) == shipped and stored[label] in earlier)
 
     return sorted(k for k in stored if not same(k))
+
+
+def declared(stored: dict[str, str], now: dict[str, str]) -> list[str]:
+    """What changed, as :data:`SAME_HAND` says it, in each file of ``stored`` that the project changed since
+    (an earlier shipped digest, the file as shipped now), sorted by label."""
+    out = []
+    for label in sorted(stored):
+        shipped, earlier = SAME_HAND.get(label, ("", {}))
+        if now.get(label) == shipped and stored[label] in earlier:
+            out.append(f"{label}, {earlier[stored[label]]}")
+    return out
 
 
 def _collision_meshes(urdf: Path) -> list[Path]:

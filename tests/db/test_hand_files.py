@@ -14,13 +14,13 @@ from pathlib import Path
 import pytest
 
 from planner import assets
-from planner.db.hand_files import META_KEY, check_hand_files, refuse_edited
+from planner.db.hand_files import META_KEY, changed_by_project, check_hand_files, refuse_edited
 from planner.db.ranking import RankingRule
 from planner.db.store import UnitRow, open_for_writing
 from planner.errors import InputError
 from planner.geometry.solid import load_object
 from planner.specs.hand_files import changed, hand_files
-from planner.specs.hands import load_hand
+from planner.specs.hands import hand_frame, load_hand
 from tests.helpers import content, grasp, made_up, one_line_error
 
 
@@ -34,9 +34,16 @@ def project(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
         shutil.copy(assets.PROJECT_ROOT / "preshapes" / f"{hand}.toml", root / "preshapes")
     shutil.copytree(assets.PROJECT_ROOT / "objects", root / "objects")
     monkeypatch.setattr(assets, "PROJECT_ROOT", root)
-    load_hand.cache_clear()
+    forget_hands()
     yield root
+    forget_hands()
+
+
+def forget_hands() -> None:
+    """Drop every cached reading of a hand's files (the hand, and the frame `best` reads without loading it):
+    left cached, the copies' edits leaked into the tests that run after these (the Panda's tcp)."""
     load_hand.cache_clear()
+    hand_frame.cache_clear()
 
 
 def edit(path: Path, old: str, new: str) -> None:
@@ -89,7 +96,7 @@ def test_an_edited_hand_is_refused_by_every_writer_and_nothing_is_written(projec
         check_hand_files(db, ["panda"])  # the same files: accepted
     before = content(db_path)
     edit(project / "preshapes" / "panda.toml", "standoffs = [0.0, 0.02]", "standoffs = [0.0, 0.03]")
-    load_hand.cache_clear()
+    forget_hands()
     for args in (["generate", "box", "--hand", "panda"], ["validate", "--top", "1"]):
         code, _, err = grasp(*args, "--db", str(db_path))
         one_line_error(code, err, InputError.exit_code, "hand 'panda' was edited since g.db",
@@ -111,7 +118,7 @@ def test_an_edited_hand_is_refused_where_stored_joints_meet_its_geometry_and_not
     db_path = tmp_path / "g.db"
     swept(db_path)
     edit(project / "hands" / "panda" / "hand.toml", "tcp = [0.0, 0.0, 0.1034]", "tcp = [0.0, 0.0, 0.1040]")
-    load_hand.cache_clear()
+    forget_hands()
     db = ["--db", str(db_path)]
     for args, doing in ((["show", "box", "--hand", "panda", "--out", str(tmp_path / "a.png")], "the picture"),
                         (["best", "box", "--hand", "panda", "--object-pose", "0.5,0,0.04,0,0,0,1"], "the reach check"),
@@ -190,8 +197,9 @@ def test_a_database_made_before_a_declared_change_reads_shows_and_validates_as_b
         check_hand_files(db, [hand])  # validate, generate and import go on (the sweep rule judges a re-run)
     with open_for_writing(db_path) as db:
         refuse_edited(db, hand, "the picture")  # what show and best --object-pose ask
+        assert changed_by_project(db, hand) == [f"{label}, {earlier[files[hand][label]]}"]  # best's note says it
     edit(project / "hands" / hand / "hand.toml", before, after)
-    load_hand.cache_clear()
+    forget_hands()
     assert changed(files[hand], hand_files(hand)) == [label]
     with pytest.raises(InputError, match="was edited since"), open_for_writing(db_path) as db:
         check_hand_files(db, [hand])
