@@ -190,7 +190,6 @@ class HandSpec:
     links: tuple[str, ...]
     arm: ArmSpec | None
     export_frame: np.ndarray  # (4, 4) dataset gripper frame in the hand frame (ACRONYM convention)
-    finger_force: float  # [N or N m] force limit of each finger motor in dynamic trials
     actuators: Actuators  # the finger motors: weight resistance, dynamic trials
     sampler: str = "surface"  # the sweep's approach sampler unless the user picks one
     settle: bool = False  # the sweep measures the settled epsilon (a dynamic closing per grasp) unless told not to

@@ -129,9 +129,8 @@ def load_folder(folder: Path) -> HandSpec:
         distance_offset=f.float("distance_offset", DEFAULT_DISTANCE_OFFSET),
         roll_symmetry=roll_symmetry(f),
         links=tuple(links), arm=_arm(f, folder), export_frame=_export_frame(f),
-        finger_force=f.table("dynamics", {}).float("finger_force", DEFAULT_FINGER_FORCE, positive=True),
         actuators=_actuators(f.table("dynamics", {})),
-        link_inertia=_link_inertia(f.table("dynamics", {}), links),
+        link_inertia=_link_inertia(f.table("dynamics", {}), model),
         sampler=_sampler(f, joints),
         settle=f.bool("settle", False),
         settle_dynamics=_settle_dynamics(f),
@@ -194,16 +193,22 @@ def _actuators(f: Fields) -> Actuators:
                      f.bool("backdrivable", True), f.get("source", "not given"))
 
 
-def _link_inertia(f: Fields, links: list[str]) -> dict[str, tuple[float, float, float]]:
+def _link_inertia(f: Fields, model) -> dict[str, tuple[float, float, float]]:  # type: ignore[no-untyped-def]
     """``[dynamics.link_inertia]``, if given: {link of the hand: its three principal moments [kg m^2]}, each
-    positive and each at most the sum of the other two (a rigid body's; MuJoCo refuses any other)."""
+    positive and each at most the sum of the other two (a rigid body's; MuJoCo refuses any other), of a link
+    whose URDF gives it a mass (the moments replace its URDF's; the trials give a massless link none)."""
     if not f.has("link_inertia"):
         return {}
     t = f.table("link_inertia")
+    links = link_names(model)
     out = {}
     for link in t.names():
         if link not in links:
             raise ConfigError(f"{t.where} field '{link}': unknown link; links: {', '.join(links)}")
+        inertial = model.link_map[link].inertial
+        if inertial is None or inertial.mass is None or inertial.mass <= 0:
+            raise ConfigError(f"{t.where} field '{link}': its URDF gives the link no <inertial> mass: moments "
+                              "replace a placeholder's of a link with one (give it <inertial> in the URDF)")
         a, b, c = t.floats(link, 3)
         if min(a, b, c) <= 0 or 2 * max(a, b, c) > a + b + c:
             raise ConfigError(f"{t.where} field '{link}': principal moments must be positive, each at most the "

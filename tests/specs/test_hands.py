@@ -128,6 +128,8 @@ def test_broken_settle_dynamics_names_the_file_and_field(tmp_path: Path, table: 
     ("panda_leftfinger = [1e-5, 1e-5]", r"field 'panda_leftfinger': needs 3 numbers"),
     ("panda_leftfinger = [1e-5, 0.0, 1e-5]", r"field 'panda_leftfinger': principal moments must be positive"),
     ("panda_leftfinger = [1e-5, 1e-5, 3e-5]", r"field 'panda_leftfinger': .*each at most the sum of the other two"),
+    # a massless link: PyBullet gave it the moments, MuJoCo's model its placeholder (the two trials differed)
+    ("panda_grasptarget = [1e-5, 1e-5, 1e-5]", r"field 'panda_grasptarget': its URDF gives the link no <inertial>"),
 ])
 def test_broken_link_inertia_names_the_file_table_and_link(tmp_path: Path, table: str, message: str) -> None:
     folder = hand_copy(tmp_path)
