@@ -108,8 +108,9 @@ class LinkChain:
             motion = np.eye(4)
             q = float(values.get(name, 0.0))
             if kind in ("revolute", "continuous"):
-                cross = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-                motion[:3, :3] += np.sin(q) * cross + (1.0 - np.cos(q)) * cross @ cross  # Rodrigues
+                from scipy.spatial.transform import Rotation  # loaded by the hands that measure a pad gap only
+
+                motion[:3, :3] = Rotation.from_rotvec(q * axis).as_matrix()
             elif kind == "prismatic":
                 motion[:3, 3] = q * axis
             out = out @ origin @ motion
