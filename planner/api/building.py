@@ -32,7 +32,8 @@ from planner.errors import InputError
 from planner.plan.sweep import SweepSettings, candidate_count, check_sampler
 from planner.specs.hands import load_hand
 from planner.specs.inputs import check_seed, expand
-from planner.specs.objects import NO_PHYSICAL, ObjectSpec, Physical, resolve_spec
+from planner.specs.objects import ObjectSpec, resolve_spec
+from planner.specs.physical import NO_PHYSICAL, Physical
 from planner.specs.preshapes import load_preshapes, sweep_preshapes
 
 if TYPE_CHECKING:
@@ -228,7 +229,8 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
 def _sidecar_keys(named: str, spec: ObjectSpec, given: Physical, used: bool) -> tuple[str, list[str], Physical]:
     """The sidecar of the mesh ``named`` (its name), the keys it gives that the run's ``given`` values do not
     (``used``) or do, and its values; ('', [], ...) without one."""
-    from planner.specs.objects import NO_PHYSICAL, mesh_sidecar
+    from planner.specs.objects import mesh_sidecar
+    from planner.specs.physical import NO_PHYSICAL
     from planner.specs.toml import read_toml
 
     path = mesh_sidecar(Path(named)) if spec.kind == "mesh" and spec.source else None

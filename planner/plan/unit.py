@@ -54,7 +54,7 @@ from planner.plan.width import closed_width
 from planner.record.grasp import Grasp
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, load_hand
-from planner.specs.objects import NO_PHYSICAL, Physical
+from planner.specs.physical import NO_PHYSICAL, Physical
 from planner.specs.preshapes import Preshape, sweep_preshapes
 from planner.threads import one_blas_thread
 

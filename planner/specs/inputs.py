@@ -32,16 +32,14 @@ from pathlib import Path
 from planner.errors import InputError
 from planner.specs.objects import (
     MESH_SUFFIXES,
-    NO_PHYSICAL,
-    PHYSICAL_KEYS,
     RANDOM_COUNT,
     RANDOM_PREFIX,
     URDF_HINT,
-    Physical,
     builtin_specs,
     is_registered,
     resolve_spec,
 )
+from planner.specs.physical import NO_PHYSICAL, PHYSICAL_KEYS, Physical
 from planner.specs.toml import decode_text
 
 #: What a manifest line holds.

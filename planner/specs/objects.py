@@ -22,7 +22,6 @@ import json
 import math
 import os
 import stat
-from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from functools import lru_cache
 from pathlib import Path
@@ -30,6 +29,7 @@ from urllib.parse import unquote
 
 from planner import assets
 from planner.errors import ConfigError, InputError, UnknownNameError
+from planner.specs.physical import NO_PHYSICAL, Physical
 from planner.specs.toml import Fields, read_toml
 from planner.specs.urdf import object_mesh
 
@@ -46,84 +46,8 @@ RANDOM_MASS = 0.1  # kg: the generated objects are 5-10 cm across
 MESH_SUFFIXES = (".obj", ".stl", ".ply", ".glb", ".gltf", ".off")
 #: Said where a URDF is given as an object: its mesh is planned on, at the scale the URDF gives it.
 URDF_HINT = " (a URDF: give the mesh file its link names, its <mesh scale> as --scale, its <inertial> mass as --mass)"
-#: Largest Coulomb friction coefficient accepted: rubber on rough surfaces
-#: reaches about 1-2, so a larger value is a typo (a percentage, a unit mix-up).
-MAX_FRICTION = 3.0
-#: The keys of a physical-properties sidecar (``banana.toml`` beside ``banana.obj``).
+#: The suffix of a physical-properties sidecar (``banana.toml`` beside ``banana.obj``).
 SIDECAR_SUFFIX = ".toml"
-PHYSICAL_KEYS = ("mass", "density", "friction")
-_UNITS = {"mass": "kg", "density": "kg/m^3", "friction": "Coulomb coefficient"}
-
-
-@dataclass(frozen=True)
-class Physical:
-    """Physical properties a user gives for an object; None: not given.
-
-    ``mass`` [kg] or ``density`` [kg/m^3] (uniform over the closed mesh; the
-    mass is then density x volume), never both; ``friction``: Coulomb
-    coefficient, 0 < mu <= :data:`MAX_FRICTION`. Build with :meth:`checked`
-    from user input for an error naming the source and field.
-    """
-
-    mass: float | None = None
-    density: float | None = None
-    friction: float | None = None
-
-    def __post_init__(self) -> None:
-        check_physical(self.mass, self.density, self.friction, "", "")
-
-    @classmethod
-    def checked(cls, values: Mapping[str, object], where: str = "", prefix: str = "") -> Physical:
-        """From raw values (numbers, or text of numbers); the error names
-        ``where`` (a file and line) and the field as ``prefix + key``."""
-        unknown = sorted(set(values) - set(PHYSICAL_KEYS))
-        if unknown:
-            raise InputError(f"{_at(where)}unknown field '{prefix}{unknown[0]}'; use "
-                             f"{', '.join(prefix + k for k in PHYSICAL_KEYS)}")
-        numbers = {k: _number(values[k], k, where, prefix) for k in PHYSICAL_KEYS if values.get(k) is not None}
-        check_physical(numbers.get("mass"), numbers.get("density"), numbers.get("friction"), where, prefix)
-        return cls(**numbers)
-
-    def over(self, base: Physical) -> Physical:
-        """These properties, with ``base``'s where these give none (mass or
-        density together: whichever gives either decides)."""
-        heavy = self.mass is not None or self.density is not None
-        return Physical(self.mass if heavy else base.mass, self.density if heavy else base.density,
-                        self.friction if self.friction is not None else base.friction)
-
-    def given(self) -> dict[str, float]:
-        return {k: v for k in PHYSICAL_KEYS if (v := getattr(self, k)) is not None}
-
-
-def _at(where: str) -> str:
-    return f"{where}: " if where else ""
-
-
-def _number(value: object, key: str, where: str, prefix: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
-        raise InputError(f"{_at(where)}{prefix}{key} must be a number [{_UNITS[key]}], got {value!r}")
-    try:
-        return float(value)
-    except ValueError:
-        raise InputError(f"{_at(where)}{prefix}{key} must be a number [{_UNITS[key]}], got '{value}'") from None
-
-
-def check_physical(mass: float | None, density: float | None, friction: float | None, where: str = "",
-                   prefix: str = "") -> None:
-    """Raise an InputError naming the field of the first bad value."""
-    if mass is not None and density is not None:
-        raise InputError(f"{_at(where)}{prefix}mass and {prefix}density exclude each other (the mass is density x "
-                         "volume); give one")
-    for key, value in (("mass", mass), ("density", density), ("friction", friction)):
-        if value is not None and not (math.isfinite(value) and value > 0):
-            raise InputError(f"{_at(where)}{prefix}{key} must be a positive number [{_UNITS[key]}], got {value}")
-    if friction is not None and friction > MAX_FRICTION:
-        raise InputError(f"{_at(where)}{prefix}friction must lie in (0, {MAX_FRICTION:g}] (a Coulomb coefficient), "
-                         f"got {friction}")
-
-
-#: No property given: each object keeps its own.
-NO_PHYSICAL = Physical()
 
 
 def sidecar(mesh: Path) -> Physical:

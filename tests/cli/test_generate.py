@@ -449,7 +449,8 @@ def test_whose_verdicts_the_report_counts_and_which_sidecar_gave_a_value(tmp_pat
     from planner.api.building import _from_sidecar
     from planner.present.report import engines
     from planner.record.grasp import Trial
-    from planner.specs.objects import NO_PHYSICAL, resolve_spec
+    from planner.specs.objects import resolve_spec
+    from planner.specs.physical import NO_PHYSICAL
     from tests.helpers import made_up
 
     held = Trial(True, 2, 0.0, 0.0, 0.0, 0.0, "held")

@@ -13,7 +13,8 @@ from helpers import NUM_TOL
 from planner.errors import ConfigError, InputError
 from planner.geometry.solid import load_object
 from planner.specs import inputs
-from planner.specs.objects import MAX_FRICTION, Physical, resolve_spec
+from planner.specs.objects import resolve_spec
+from planner.specs.physical import MAX_FRICTION, Physical
 
 BRICK = (0.05, 0.04, 0.06)  # [m]: volume 1.2e-4 m^3
 
