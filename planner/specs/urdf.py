@@ -197,9 +197,21 @@ def _primitives_as_meshes(robot: etree._Element, where: str) -> None:
         shape.getparent().replace(shape, replacement)
 
 
+#: What PyBullet drops from the head of a mesh's filename before it looks for the file (its UrdfFindMeshFile).
+MESH_URL_PREFIXES = ("file://", "package://", "model://")
+
+
 def mesh_path(urdf: Path, filename: str) -> Path:
-    """Where a mesh a URDF names is (``package://`` or relative to the file); it may not exist."""
-    return (Path(urdf).parent / filename.replace("package://", "")).resolve()
+    """Where a mesh a URDF names is, looked for as PyBullet does (less its last resort, the working folder): a
+    ``file://``, ``package://`` or ``model://`` dropped, the rest taken from the URDF's folder, else from the nearest
+    folder above it that holds it (``package://pkg/meshes/m.obj`` of ``pkg/urdf/o.urdf`` is ``pkg/meshes/m.obj``);
+    where none does, the path beside the URDF, which does not exist."""
+    name = next((filename[len(p):] for p in MESH_URL_PREFIXES if filename.startswith(p)), filename)
+    folder = Path(urdf).absolute().parent  # the folder it is named in (a link's, not its target's), as before
+    beside = (folder / name).resolve()
+    if beside.exists() or Path(name).is_absolute():
+        return beside
+    return next((found for above in folder.parents if (found := (above / name).resolve()).exists()), beside)
 
 
 def _mesh_file(urdf: Path, filename: str) -> Path:

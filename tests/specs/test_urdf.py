@@ -14,7 +14,7 @@ from planner import assets
 from planner.errors import ConfigError, MeshError
 from planner.sim import Sim, pb
 from planner.specs.hands import hand_names, load_folder, load_hand
-from planner.specs.urdf import cut_subtree, descendants, link_chain, load_model, object_mesh
+from planner.specs.urdf import cut_subtree, descendants, link_chain, load_model, mesh_path, object_mesh
 
 HANDS = hand_names()
 SEED = 0
@@ -110,6 +110,20 @@ def test_malformed_urdf_is_a_config_error(tmp_path: Path) -> None:
     bad.write_text("<robot name='x'><link name='a'></robot>")
     with pytest.raises(ConfigError, match="bad.urdf: malformed URDF"):
         load_model(bad)
+
+
+def test_mesh_paths_are_found_as_pybullet_finds_them(tmp_path: Path) -> None:
+    """``package://pkg/...`` of ``pkg/urdf/o.urdf`` is ``pkg/...`` (PyBullet tries the URDF's folder and each one
+    above it); ``file://`` and absolute paths are themselves; one found nowhere is the path beside the URDF."""
+    urdf = tmp_path / "pkg" / "urdf" / "o.urdf"
+    mesh = tmp_path / "pkg" / "meshes" / "m.obj"
+    mesh.parent.mkdir(parents=True)
+    urdf.parent.mkdir()
+    mesh.write_text("v 0 0 0\n")
+    assert mesh_path(urdf, "package://pkg/meshes/m.obj") == mesh
+    assert mesh_path(urdf, "../meshes/m.obj") == mesh
+    assert mesh_path(urdf, f"file://{mesh}") == mesh == mesh_path(urdf, str(mesh))
+    assert mesh_path(urdf, "package://other/m.obj") == urdf.parent / "other" / "m.obj"
 
 
 def test_object_mesh_and_its_scale() -> None:
