@@ -158,7 +158,7 @@ def _stored_names(db: Database, units: Sequence[UnitSpec]) -> list[UnitSpec]:
     where this run names it otherwise: runs before 2026-12-05 prefixed the folders of every file of a run in which
     two files shared a stem, so a resume of such a run finds its objects, not new ones of the same files. Not where
     the stored name is another file's name in this run, nor another name than the file's (a symlink's to it)."""
-    from planner.specs.objects import MESH_SUFFIXES
+    from planner.specs.objects import OBJECT_SUFFIXES
 
     stored = db.names_by_source()
     if not stored:
@@ -167,7 +167,7 @@ def _stored_names(db: Database, units: Sequence[UnitSpec]) -> list[UnitSpec]:
     renamed: dict[str, str] = {}
     for unit in units:
         label = unit.label or unit.object_name
-        if label in renamed or Path(unit.object_name).suffix.lower() not in MESH_SUFFIXES:
+        if label in renamed or Path(unit.object_name).suffix.lower() not in OBJECT_SUFFIXES:
             continue
         named = Path(unit.object_name).expanduser()
         names = stored.get((str(named.resolve()), unit.scale or 1.0), [])
@@ -211,10 +211,10 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
                 return ", ".join(f"{k} {v:g}" for k, v in values.items())
 
             raise InputError(f"object '{name}' is stored in {db.path} with {text(stored)}, this run gives "
-                             f"{text(given)}{_from_sidecar(unit.object_name, spec, unit.physical)}; its grasps "
+                             f"{text(given)}{_from_files(unit.object_name, spec, unit.physical)}; its grasps "
                              "were measured at the stored values: use another --db, or name the object apart (copy "
                              "the mesh under another name)")
-        if name not in running and spec.kind == "mesh" and row.source == spec.source and row.scale == spec.scale \
+        if name not in running and spec.user_file and row.source == spec.source and row.scale == spec.scale \
                 and not edited_since(Path(spec.source), db.last_finished(name)):
             continue  # nothing of it runs, and it names the stored file, unchanged since, at the stored scale
         try:
@@ -226,38 +226,51 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
                              "one; use another --db, or name the object apart (copy the mesh under another name)")
 
 
-def _sidecar_keys(named: str, spec: ObjectSpec, given: Physical, used: bool) -> tuple[str, list[str], Physical]:
-    """The sidecar of the mesh ``named`` (its name), the keys it gives that the run's ``given`` values do not
-    (``used``) or do, and its values; ('', [], ...) without one."""
-    from planner.specs.objects import mesh_sidecar
-    from planner.specs.physical import NO_PHYSICAL
-    from planner.specs.toml import read_toml
+def _givers(named: str, spec: ObjectSpec, given: Physical) -> dict[str, list[tuple[str, dict[str, float]]]]:
+    """For the mass (or density) and the friction of the object ``named``: who gives it, first first, each as
+    (its file's name, '' for the run's ``given`` values: flags, a manifest's columns; its values of that property):
+    the run, the sidecar, a URDF's own (:func:`~planner.specs.objects.file_values`)."""
+    from planner.specs.objects import file_values
 
-    path = mesh_sidecar(Path(named)) if spec.kind == "mesh" and spec.source else None
-    if path is None:
-        return "", [], NO_PHYSICAL
-    side = Physical.checked(read_toml(path), str(path))
-    keys = [k for k in ("mass", "density", "friction") if getattr(side, k) is not None and used ==
-            (getattr(given, k) is None if k == "friction" else given.mass is None and given.density is None)]
-    return path.name, keys, side
+    layers = [("", given.given()), *file_values(named, spec)]
+    props = {"mass": ("mass", "density"), "friction": ("friction",)}
+    return {prop: [(who, part) for who, values in layers if (part := {k: v for k, v in values.items() if k in keys})]
+            for prop, keys in props.items()}
 
 
-def _from_sidecar(named: str, spec: ObjectSpec, given: Physical) -> str:
-    """`` (mass from banana.toml)`` where the sidecar of the mesh ``named`` gave what the run did not."""
-    name, keys, _ = _sidecar_keys(named, spec, given, used=True)
-    return f" ({' and '.join(keys)} from {name})" if keys else ""
+def _from_files(named: str, spec: ObjectSpec, given: Physical) -> str:
+    """`` (mass from banana.toml)`` where a file of the object ``named`` (its sidecar, a URDF) gave what the run
+    did not."""
+    used: dict[str, list[str]] = {}
+    for prop, givers in _givers(named, spec, given).items():
+        if givers and givers[0][0]:
+            used.setdefault(givers[0][0], []).append(prop)
+    said = [" and ".join(props) + f" from {who}" for who, props in used.items()]
+    return f" ({', '.join(said)})" if said else ""
 
 
 def _note_overridden(named: str, spec: ObjectSpec, given: Physical) -> None:
-    """Say (a line on stderr) where the run's values (flags, a manifest's columns) replace its sidecar's."""
-    if not given.given():  # nothing replaces anything: no sidecar read again
+    """Say (a line on stderr) where the run's values (flags, a manifest's columns) replace its files' (a sidecar's,
+    a URDF's), and where a sidecar's replace a URDF's."""
+    from planner.specs.objects import URDF_FILE
+
+    if not given.given() and spec.kind != URDF_FILE:  # nothing replaces anything: no sidecar read again
         return
-    name, keys, side = _sidecar_keys(named, spec, given, used=False)
-    if keys:
-        heavy = "mass" in keys or "density" in keys
-        ours = [f"{k} {v:g}" for k, v in given.given().items() if (k in keys if k == "friction" else heavy)]
-        prepare.noted(f"object '{spec.name}'", f"{', '.join(ours)} as given replace{'s' if len(ours) == 1 else ''} "
-                      f"{name}'s {', '.join(f'{k} {getattr(side, k):g}' for k in keys)}")
+    pairs: dict[tuple[str, str], tuple[dict[str, float], dict[str, float]]] = {}
+    for givers in _givers(named, spec, given).values():
+        if len(givers) > 1:
+            (winner, ours), (loser, theirs) = givers[:2]
+            both = pairs.setdefault((winner, loser), ({}, {}))
+            both[0].update(ours)
+            both[1].update(theirs)
+    for (winner, loser), (ours, theirs) in pairs.items():
+        verb = "replaces" if len(ours) == 1 else "replace"
+        prepare.noted(f"object '{spec.name}'", f"{_listed(ours)} {f'from {winner}' if winner else 'as given'} "
+                      f"{verb} {loser}'s {_listed(theirs)}")
+
+
+def _listed(values: dict[str, float]) -> str:
+    return ", ".join(f"{k} {v:g}" for k, v in values.items())
 
 
 def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, settings: SweepSettings | None = None,

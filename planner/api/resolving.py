@@ -37,10 +37,10 @@ def resolve_object(db: Database, name: str) -> tuple[str, ObjectRow | None]:
     """The database's name and ``objects`` row of the object ``name`` means.
 
     ``name`` is a stored object's name (any object with grasps: built-in,
-    ``random_NNN``, a user mesh by its stem or label, an imported object, a
-    mesh generated with ``--scale``), else a built-in name or ``random_NNN``,
-    named as ``generate`` names it, or a mesh path: the object stored from
-    that file (:func:`_from_file`). The row (None when the object
+    ``random_NNN``, a user mesh or URDF by its stem or label, an imported
+    object, a mesh generated with ``--scale``), else a built-in name or
+    ``random_NNN``, named as ``generate`` names it, or a mesh or URDF path:
+    the object stored from that file (:func:`_from_file`). The row (None when the object
     is not stored) holds the source, scale, mass and friction its grasps were
     planned with: :func:`~planner.db.objects.stored_object` rebuilds it.
     """
@@ -55,7 +55,7 @@ def resolve_object(db: Database, name: str) -> tuple[str, ObjectRow | None]:
                                                      else "")
         raise InputError(f"unknown object '{name}': not stored in {db.path} (objects: {listed or 'none'}) and not "
                          f"a built-in name, random_NNN or mesh file (see `grasp objects`)") from None
-    if spec.kind == "mesh":
+    if spec.user_file:
         return _from_file(db, name, spec.name, spec.source)
     return spec.name, db.object_row(spec.name)
 

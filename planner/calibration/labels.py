@@ -129,7 +129,7 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
             objects[name] = object_properties(spec)
             tables.append(features.of_grasps([grasps[i] for i in order]))
             labels.append(y[rows[order]])
-            groups += [spec.source if spec.kind == "mesh" else spec.name] * len(order)
+            groups += [spec.source if spec.user_file else spec.name] * len(order)
             files += [name] * len(order)
         if progress:
             progress(path, len(order), len(rows))

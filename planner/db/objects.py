@@ -3,8 +3,8 @@ function for every stage that reads stored objects (``grasp validate``,
 exports, queries).
 
 An ``objects`` row keeps where the object's mesh came from (``source``: a
-mesh file, or ``primitive:box`` ...), the ``scale`` that turns that file into
-metres, and the hash of the checked mesh the planner used
+mesh file, a URDF file, or ``primitive:box`` ...), the ``scale`` that turns
+that file into metres, and the hash of the checked mesh the planner used
 (:func:`planner.geometry.mesh.mesh_hash`). :func:`stored_object` rebuilds the
 object from the first of these that gives back that hash:
 
@@ -33,7 +33,16 @@ from planner import assets
 from planner.db.store import ObjectRow
 from planner.errors import InputError, PlannerError
 from planner.geometry.solid import PreparedObject, prepare
-from planner.specs.objects import PRIMITIVES, PROPERTY_RTOL, ObjectSpec, builtin_specs, is_registered, resolve_spec
+from planner.specs.objects import (
+    PRIMITIVES,
+    PROPERTY_RTOL,
+    URDF_FILE,
+    ObjectSpec,
+    builtin_specs,
+    is_registered,
+    resolve_spec,
+)
+from planner.specs.urdf_objects import URDF_SUFFIX
 
 PRIMITIVE_PREFIX = "primitive:"
 PYBULLET_DATA = "pybullet_data"
@@ -87,8 +96,9 @@ def _candidates(row: ObjectRow) -> Iterator[ObjectSpec]:
     props = {"mass": row.mass, "friction": row.friction}
     kind = row.source[len(PRIMITIVE_PREFIX):] if row.source.startswith(PRIMITIVE_PREFIX) else None
     if kind is None:
-        yield ObjectSpec(name=row.name, kind="mesh", source=str(local_file(Path(row.source))), scale=row.scale,
-                         **props)
+        source = local_file(Path(row.source))
+        yield ObjectSpec(name=row.name, kind=URDF_FILE if source.suffix.lower() == URDF_SUFFIX else "mesh",
+                         source=str(source), scale=row.scale, **props)
     if is_registered(row.name):
         yield replace(resolve_spec(row.name), **props)
     if kind in PRIMITIVES:

@@ -16,7 +16,7 @@ import trimesh
 from planner import prepare
 from planner.errors import MeshError
 from planner.geometry.gltf import gltf_problem
-from planner.specs.objects import MESH_SUFFIXES, URDF_HINT
+from planner.specs.objects import MESH_SUFFIXES
 
 log = logging.getLogger(__name__)
 
@@ -31,10 +31,18 @@ MAX_EXTENT = 1.5
 MIN_EXTENT = 1e-3
 #: Volume [m^3] under which a closed mesh counts as flat (a 1 mm^3 solid).
 MIN_VOLUME = 1e-9
+#: Said where a URDF is read as a mesh file (:func:`planner.geometry.solid.load_object` reads it as an object).
+URDF_HINT = " (a URDF describes an object, not a mesh: give it as the object, e.g. grasp generate obj.urdf)"
 
 
 def load_mesh_file(path: Path, scale: float = 1.0) -> trimesh.Trimesh:
     """Read a mesh file into one triangle mesh, scaled to metres, and check it."""
+    return checked_solid(read_mesh_file(path, scale), str(path))
+
+
+def read_mesh_file(path: Path, scale: float | np.ndarray = 1.0) -> trimesh.Trimesh:
+    """A mesh file's triangles as they are, scaled (``scale``: one factor, or (3,) one per axis), unchecked:
+    :func:`checked_solid` makes a solid of them."""
     if not path.exists():
         raise MeshError(f"{path}: file not found")
     if path.suffix.lower() not in MESH_SUFFIXES:
@@ -45,7 +53,7 @@ def load_mesh_file(path: Path, scale: float = 1.0) -> trimesh.Trimesh:
         raise MeshError(f"{path}: file is empty")
     if size > MAX_FILE_BYTES:
         raise MeshError(f"{path}: {size / 2**20:.0f} MiB is too large; simplify the mesh below {MAX_FACES:,} faces")
-    if not np.isfinite(scale) or scale <= 0:
+    if not np.all(np.isfinite(scale)) or np.any(np.asarray(scale) <= 0):
         raise MeshError(f"{path}: scale must be a positive number, got {scale}")
     unreadable = gltf_problem(path)  # a .gltf without its buffers, compressed geometry trimesh cannot decode here
     if unreadable:
@@ -58,8 +66,8 @@ def load_mesh_file(path: Path, scale: float = 1.0) -> trimesh.Trimesh:
         raise MeshError(f"{path}: holds no triangles")
     if len(loaded.faces) == 0:
         _refuse_point_cloud(path)
-    mesh = trimesh.Trimesh(np.asarray(loaded.vertices, float) * scale, np.asarray(loaded.faces), process=False)
-    return checked_solid(mesh, str(path))
+        raise MeshError(f"{path}: mesh has no triangles")
+    return trimesh.Trimesh(np.asarray(loaded.vertices, float) * scale, np.asarray(loaded.faces), process=False)
 
 
 def _refuse_point_cloud(path: Path) -> None:

@@ -21,13 +21,21 @@ from planner import assets
 from planner.errors import MeshError
 from planner.geometry.mass import radius_of_gyration, torque_scale_max_distance
 from planner.geometry.mesh import load_mesh_file, mesh_hash, union_of_bodies
-from planner.specs.objects import ObjectSpec, file_scale, gltf_buffers, resolve_spec, source_path, urdf_mesh
+from planner.geometry.shapes import primitive_mesh, urdf_solid
+from planner.specs.objects import (
+    PRIMITIVES,
+    URDF_FILE,
+    ObjectSpec,
+    file_scale,
+    object_files,
+    resolve_spec,
+    source_path,
+    urdf_mesh,
+)
+from planner.specs.urdf_objects import read_urdf_object
 
 #: Bumped when the checked mesh of the same source would come out differently.
 CACHE_VERSION = 3  # 2: the union of overlapping bodies cached beside the mesh; 3: flat bodies refused
-#: Faces around a built-in cylinder; subdivisions of a built-in sphere.
-CYLINDER_SECTIONS = 48
-SPHERE_SUBDIVISIONS = 3
 
 
 @dataclass(frozen=True)
@@ -102,19 +110,16 @@ def _cached_mesh(spec: ObjectSpec) -> tuple[trimesh.Trimesh, str, trimesh.Trimes
     bodies where they overlap (:func:`~planner.geometry.mesh.union_of_bodies`),
     cached on disk by source content and scale (``.npz`` of plain arrays, no
     pickle) and shared by runs and workers."""
-    if spec.kind in ("box", "cylinder", "sphere"):
+    if spec.kind in PRIMITIVES:
         return (*_build_mesh(spec), None)
     source = source_path(spec)
     if not source.is_file():
         raise MeshError(f"{source}: file not found")
     h = hashlib.sha256(json.dumps([CACHE_VERSION, spec.kind, spec.geometry, spec.scale]).encode())
     h.update(source.read_bytes())
-    if spec.kind == "urdf":  # the mesh the URDF points at matters as much as the URDF
-        mesh_file, _ = urdf_mesh(spec)
-        if mesh_file.is_file():
-            h.update(mesh_file.read_bytes())
-    for buffer_file in gltf_buffers(source):  # a .gltf's geometry is in the files it names
-        h.update(buffer_file.read_bytes() if buffer_file.is_file() else f"missing {buffer_file}".encode())
+    # the meshes a URDF points at matter as much as the URDF, and a .gltf's geometry is in the files it names
+    for file in object_files(source, spec.geometry)[1:]:
+        h.update(file.read_bytes() if file.is_file() else f"missing {file}".encode())
     path = assets.cache_dir("objects") / f"{h.hexdigest()[:24]}.npz"
     if path.is_file():
         try:
@@ -124,7 +129,7 @@ def _cached_mesh(spec: ObjectSpec) -> tuple[trimesh.Trimesh, str, trimesh.Trimes
                          if "union_vertices" in data else None)
             # the file this spec names, not the cached one: the same bytes may have been cached from
             # another path (an earlier export folder, another environment's pybullet_data)
-            return mesh, str(source if spec.kind == "mesh" else urdf_mesh(spec)[0]), union
+            return mesh, str(urdf_mesh(spec)[0] if spec.kind == "urdf" else source), union
         except (OSError, ValueError, KeyError):
             path.unlink(missing_ok=True)  # a damaged cache entry is rebuilt
     mesh, source_file = _build_mesh(spec)
@@ -139,17 +144,14 @@ def _cached_mesh(spec: ObjectSpec) -> tuple[trimesh.Trimesh, str, trimesh.Trimes
 
 
 def _build_mesh(spec: ObjectSpec) -> tuple[trimesh.Trimesh, str]:
-    if spec.kind == "box":
-        return trimesh.creation.box(extents=spec.dims), "primitive:box"
-    if spec.kind == "cylinder":
-        radius, height = spec.dims
-        return (trimesh.creation.cylinder(radius=radius, height=height, sections=CYLINDER_SECTIONS),
-                "primitive:cylinder")
-    if spec.kind == "sphere":
-        return trimesh.creation.icosphere(subdivisions=SPHERE_SUBDIVISIONS, radius=spec.dims[0]), "primitive:sphere"
+    """The checked mesh and the file it is stored as (``primitive:box`` ...; a URDF file itself, a registry URDF
+    entry its mesh file)."""
+    if spec.kind in PRIMITIVES:
+        return primitive_mesh(spec.kind, spec.dims), f"primitive:{spec.kind}"
+    path = source_path(spec)
     if spec.kind == "mesh":
-        path = source_path(spec)
         return load_mesh_file(path, spec.scale), str(path)
-    path, scale = urdf_mesh(spec)
-    return load_mesh_file(path, scale * spec.scale), str(path)
-
+    if spec.kind == URDF_FILE:
+        return urdf_solid(read_urdf_object(path, spec.geometry), spec.scale), str(path)
+    mesh_file, scale = urdf_mesh(spec)
+    return load_mesh_file(mesh_file, scale * spec.scale), str(mesh_file)

@@ -2,7 +2,7 @@
 
 Accepted, in any mix:
 
-- a built-in name (``mug``), ``random_NNN``, or a mesh file path;
+- a built-in name (``mug``), ``random_NNN``, a mesh file or a URDF file path;
 - ``builtin:all`` (every registry object), ``builtin:random`` (all 1,000
   generated objects), ``builtin:random:20`` (the first 20),
   ``builtin:random:100-149`` (a range, inclusive);
@@ -15,7 +15,7 @@ Accepted, in any mix:
   double quotes (``"my meshes/box #2.obj" mass=0.3``); relative paths are relative
   to the manifest. A line's values win over the run's (``--scale``, ``--mass`` ...).
 
-Mesh files are named by their file stem; when two files of one run share a
+Mesh and URDF files are named by their file stem; when two files of one run share a
 stem, their parent folders are prefixed until the names differ, and where
 only their suffixes differ (``part.obj``, ``part.stl``) the names keep them.
 """
@@ -32,15 +32,16 @@ from pathlib import Path
 from planner.errors import InputError
 from planner.specs.objects import (
     MESH_SUFFIXES,
+    OBJECT_SUFFIXES,
     RANDOM_COUNT,
     RANDOM_PREFIX,
-    URDF_HINT,
     builtin_specs,
     is_registered,
     resolve_spec,
 )
 from planner.specs.physical import NO_PHYSICAL, PHYSICAL_KEYS, Physical
 from planner.specs.toml import decode_text
+from planner.specs.urdf_objects import URDF_SUFFIX
 
 #: What a manifest line holds.
 MANIFEST_LINE = "OBJECT [SCALE] [scale=S] [mass=KG | density=KG_M3] [friction=MU]"
@@ -199,23 +200,23 @@ def _manifest_line(tokens: list[str], where: str, folder: Path, scale: float | N
         raise InputError(f"{where}: {source} is a {'folder' if target.is_dir() else 'glob'}: a manifest's line names "
                          f"one object; give it on the command line (grasp generate '{target}'), or list its files")
     suffix = Path(source).suffix.lower()
-    if suffix in MESH_SUFFIXES:
+    given = Physical.checked(columns, where).over(physical)
+    if suffix in OBJECT_SUFFIXES:
         if not Path(source).is_absolute():
             source = str(_absolute(str(folder / source)))
         if not Path(source).is_file():
             windows = " (a Windows path? write / between folders)" if "\\" in tokens[0] else ""
             raise InputError(f"{where}: {source}: file not found{windows}")
     elif suffix and not is_registered(source):
-        also = "" if suffix != ".urdf" else \
-            URDF_HINT.replace("--scale", "the row's scale").replace("--mass", "the row's mass")
         raise InputError(f"{where}: {source}: unsupported mesh type '{suffix}'; use one of "
-                         f"{', '.join(MESH_SUFFIXES)}{also}")
-    else:  # a name, and the scale a primitive refuses, checked here where the line is known
+                         f"{', '.join(MESH_SUFFIXES)}, or a URDF ({URDF_SUFFIX})")
+    if suffix not in MESH_SUFFIXES:  # a name, the scale a primitive refuses, a URDF: checked where the line is known
         try:
-            resolve_spec(source, scale=item_scale, scale_from="the row's scale" if row_scale else "--scale")
+            resolve_spec(source, scale=item_scale, scale_from="the row's scale" if row_scale else "--scale",
+                         **given.given())
         except InputError as exc:
             raise InputError(f"{where}: {exc}") from None
-    return ObjectRef(source, item_scale, physical=Physical.checked(columns, where).over(physical))
+    return ObjectRef(source, item_scale, physical=given)
 
 
 def _unique_labels(refs: list[ObjectRef]) -> list[ObjectRef]:
@@ -227,7 +228,7 @@ def _unique_labels(refs: list[ObjectRef]) -> list[ObjectRef]:
     for ref in refs:
         seen.setdefault((ref.source, ref.scale, ref.physical), ref)
     refs = list(seen.values())
-    files = {r.source: _absolute(r.source) for r in refs if Path(r.source).suffix.lower() in MESH_SUFFIXES}
+    files = {r.source: _absolute(r.source) for r in refs if Path(r.source).suffix.lower() in OBJECT_SUFFIXES}
     by_stem: dict[str, list[Path]] = {}
     for path in sorted(set(files.values())):  # one file given two ways (./m/a.obj, m/a.obj) is one path
         by_stem.setdefault(path.stem, []).append(path)

@@ -1,16 +1,18 @@
 """Objects to grasp: the built-in registry (``objects/objects.toml``), the
-procedurally generated ``random_NNN`` objects, user mesh files.
+procedurally generated ``random_NNN`` objects, user mesh files and URDF files.
 
 An :class:`ObjectSpec` says where an object's mesh comes from and its
 physical parameters; :mod:`planner.geometry.solid` turns it into a checked
 solid. The object frame is the frame of the (scaled) mesh file, as in
-ACRONYM: every grasp pose in the database is expressed in it. Lengths in
-metres, masses in kilograms.
+ACRONYM (a URDF's: its root link's): every grasp pose in the database is
+expressed in it. Lengths in metres, masses in kilograms.
 
 An object's mass (or density) and friction come, the first that gives them:
 a manifest line's columns, ``grasp generate --mass/--density/--friction``
 (every object of the run), a TOML sidecar beside a mesh file
-(``banana.obj`` + ``banana.toml`` with ``mass``, ``density``, ``friction``),
+(``banana.obj`` + ``banana.toml`` with ``mass``, ``density``, ``friction``;
+``obj.urdf`` + ``obj.toml``), a URDF file's own (its ``<inertial>`` mass,
+its ``<lateral_friction>``: :meth:`~planner.specs.urdf_objects.UrdfObject.own`),
 the registry entry, else :data:`DEFAULT_MASS` and :data:`DEFAULT_FRICTION`.
 Mass and density are one property given two ways: a source gives one or
 the other, never both, and the first source that gives either decides.
@@ -31,7 +33,7 @@ from planner import assets
 from planner.errors import ConfigError, InputError, UnknownNameError
 from planner.specs.physical import NO_PHYSICAL, Physical
 from planner.specs.toml import Fields, read_toml
-from planner.specs.urdf import object_mesh
+from planner.specs.urdf_objects import URDF_SUFFIX, read_urdf_object
 
 REGISTRY_FILE = "objects.toml"
 DEFAULT_MASS = 0.2  # kg, for user meshes given without a mass
@@ -44,8 +46,11 @@ RANDOM_COUNT = 1000
 RANDOM_MASS = 0.1  # kg: the generated objects are 5-10 cm across
 #: Mesh files an object (or a folder of objects) may be given as.
 MESH_SUFFIXES = (".obj", ".stl", ".ply", ".glb", ".gltf", ".off")
-#: Said where a URDF is given as an object: its mesh is planned on, at the scale the URDF gives it.
-URDF_HINT = " (a URDF: give the mesh file its link names, its <mesh scale> as --scale, its <inertial> mass as --mass)"
+#: Files an object may be given as: a mesh file or a URDF.
+OBJECT_SUFFIXES = (*MESH_SUFFIXES, URDF_SUFFIX)
+#: The kind of a user's URDF file: its links' geometry merged (:mod:`planner.specs.urdf_objects`), stored as the
+#: URDF itself. A registry entry of kind ``urdf`` is one mesh of a URDF, stored as that mesh file.
+URDF_FILE = "urdf_file"
 #: The suffix of a physical-properties sidecar (``banana.toml`` beside ``banana.obj``).
 SIDECAR_SUFFIX = ".toml"
 
@@ -115,7 +120,7 @@ def _listing(folder: Path, mtime_ns: int, ctime_ns: int
     odd: dict[str, list[Path]] = {}
     lost: dict[str, list[Path]] = {}
     files = sorted(folder.iterdir())
-    stems = {p.stem for p in files if p.suffix.lower() in MESH_SUFFIXES}
+    stems = {p.stem for p in files if p.suffix.lower() in OBJECT_SUFFIXES}
     for p in files:
         if p.suffix.lower() == SIDECAR_SUFFIX and p.suffix not in (SIDECAR_SUFFIX, SIDECAR_SUFFIX.upper()):
             odd.setdefault(p.stem, []).append(p)
@@ -128,9 +133,10 @@ def _listing(folder: Path, mtime_ns: int, ctime_ns: int
 class ObjectSpec:
     """Where an object comes from and its physical parameters.
 
-    ``kind`` is ``mesh`` (a mesh file), ``urdf`` (the mesh a URDF link
-    declares, with the URDF's scale) or a primitive (``box``, ``cylinder``,
-    ``sphere`` with ``dims`` in metres).
+    ``kind`` is ``mesh`` (a mesh file), ``urdf`` (a registry entry: the mesh
+    a URDF link declares, with the URDF's scale), :data:`URDF_FILE` (a user's
+    URDF file, ``geometry`` the elements it is made of) or a primitive
+    (``box``, ``cylinder``, ``sphere`` with ``dims`` in metres).
     """
 
     name: str
@@ -143,6 +149,11 @@ class ObjectSpec:
     friction: float = DEFAULT_FRICTION
     description: str = ""
     density: float | None = None  # [kg/m^3] when the user gave a density, else None (from the mass)
+
+    @property
+    def user_file(self) -> bool:
+        """Whether the object is a user's file, a mesh or a URDF, named by its path."""
+        return self.kind in ("mesh", URDF_FILE)
 
 
 def registry_path() -> Path:
@@ -232,6 +243,8 @@ def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = 
         spec = random_spec(_random_index(name))  # type: ignore[arg-type]
         if scale is not None:
             spec = replace(spec, scale=spec.scale * scale)
+    elif Path(name).suffix.lower() == URDF_SUFFIX:
+        spec, given = _urdf_spec(Path(name).expanduser(), scale, given)
     elif Path(name).suffix.lower() in MESH_SUFFIXES or Path(name).exists():
         # named as given and its sidecar beside it (a symlink's own name and folder; the target's sidecar where
         # the link has none); the source is the file itself, whatever path names it
@@ -247,12 +260,43 @@ def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = 
     return with_physical(spec, given)
 
 
+def _urdf_spec(named: Path, scale: float | None, given: Physical) -> tuple[ObjectSpec, Physical]:
+    """The spec of the URDF file ``named`` and the properties the run ``given``, over its sidecar's, over its
+    own; its mesh files checked to be of a type the planner reads."""
+    if not named.is_file():
+        raise InputError(f"{named}: file not found")
+    path = named.resolve()
+    own = read_urdf_object(path)
+    odd = next((p for p in own.parts if p.file is not None and p.file.suffix.lower() not in MESH_SUFFIXES), None)
+    if odd is not None and odd.file is not None:
+        raise InputError(f"{path}: link '{odd.link}': {odd.file.name}: unsupported mesh type '{odd.file.suffix}'; use "
+                         f"one of {', '.join(MESH_SUFFIXES)} (convert it, e.g. in Blender or MeshLab)")
+    found = mesh_sidecar(named)
+    given = given.over(Physical.checked(read_toml(found), str(found)) if found is not None else NO_PHYSICAL)
+    spec = ObjectSpec(name=named.stem, kind=URDF_FILE, source=str(path), scale=1.0 if scale is None else scale,
+                      geometry=own.geometry)
+    return spec, given.over(own.own(given))
+
+
 def with_physical(spec: ObjectSpec, physical: Physical) -> ObjectSpec:
     """``spec`` with the properties ``physical`` gives (a mass clears a density)."""
     overrides: dict[str, float | None] = dict(physical.given())
     if physical.mass is not None:
         overrides["density"] = None
     return replace(spec, **overrides) if overrides else spec
+
+
+def file_values(named: str, spec: ObjectSpec) -> list[tuple[str, dict[str, float]]]:
+    """The values the files of the user's file ``named`` (as the run names it; ``spec`` its object) give,
+    first first, each with its file's name: its sidecar's, then a URDF's own
+    (:meth:`~planner.specs.urdf_objects.UrdfObject.stated`, unchecked); [] for other objects."""
+    if not spec.user_file or not spec.source:
+        return []
+    found = mesh_sidecar(Path(named))
+    out = [] if found is None else [(found.name, Physical.checked(read_toml(found), str(found)).given())]
+    if spec.kind == URDF_FILE:
+        out.append((Path(spec.source).name, read_urdf_object(Path(spec.source), spec.geometry).stated()))
+    return out
 
 
 PRIMITIVES = ("box", "cylinder", "sphere")
@@ -266,13 +310,13 @@ def source_path(spec: ObjectSpec) -> Path:
 
 
 def urdf_mesh(spec: ObjectSpec) -> tuple[Path, float]:
-    """A ``urdf`` object's mesh file and the URDF's own scale of it."""
-    return object_mesh(source_path(spec), spec.geometry, f"object '{spec.name}'")
+    """A registry ``urdf`` object's mesh file and the URDF's own scale of it."""
+    return read_urdf_object(source_path(spec), spec.geometry).single_mesh()
 
 
 def file_scale(spec: ObjectSpec) -> float:
-    """The factor turning the object's mesh file into metres: the registry's
-    ``scale`` times, for URDF objects, the URDF's own ``<mesh scale>``."""
+    """The factor turning the file the object is stored as into metres: the registry's ``scale`` times, for its
+    URDF objects, the URDF's own ``<mesh scale>``; a URDF file's, the ``--scale`` of the whole."""
     if spec.kind in PRIMITIVES:
         return 1.0
     if spec.kind == "urdf":
@@ -280,15 +324,25 @@ def file_scale(spec: ObjectSpec) -> float:
     return spec.scale
 
 
+def object_files(source: Path, geometry: str = "collision") -> list[Path]:
+    """The files whose bytes make the object of the file ``source``: itself, a URDF's mesh files (of its
+    ``geometry`` elements: :func:`~planner.specs.urdf_objects.read_urdf_object`), and the buffer files each
+    ``.gltf`` of these names (:func:`gltf_buffers`; they may not exist). A URDF that does not read is an
+    InputError."""
+    files = [source, *(read_urdf_object(source, geometry).files if source.suffix.lower() == URDF_SUFFIX else ())]
+    return [*files, *(b for f in files for b in gltf_buffers(f))]
+
+
 def edited_since(source: Path, finished: float | None) -> bool:
-    """Whether the mesh file ``source`` (or a buffer file of a ``.gltf``, :func:`gltf_buffers`) may have changed
-    since ``finished`` (its object's last unit's end [s]; :meth:`~planner.db.store.Database.last_finished`):
-    modified from that second on, no time known, or no file to read. A copy that keeps an older modification time
-    is not seen."""
+    """Whether the object of the file ``source`` (:func:`object_files`: a ``.gltf``'s buffers, a URDF's meshes)
+    may have changed since ``finished`` (its object's last unit's end [s];
+    :meth:`~planner.db.store.Database.last_finished`): modified from that second on, no time known, or no file to
+    read. A copy that keeps an older modification time is not seen."""
     try:
-        return finished is None or any(f.stat().st_mtime >= finished
-                                       for f in [source, *(b for b in gltf_buffers(source) if b.exists())])
-    except OSError:
+        files = object_files(source)
+        buffers = {b for f in files for b in gltf_buffers(f)}  # each spelling of a buffer's name: one may be missing
+        return finished is None or any(f.stat().st_mtime >= finished for f in files if f not in buffers or f.exists())
+    except (OSError, InputError):
         return True
 
 

@@ -1,5 +1,6 @@
 """URDF files, parsed with yourdfpy: a hand's kinematic tree, the hand subtree
-cut out of a whole robot for PyBullet, and the mesh of a URDF object.
+cut out of a whole robot for PyBullet, and where a mesh a URDF names is (a
+URDF object, its links' geometry merged: :mod:`planner.specs.urdf_objects`).
 
 The cut keeps, of the source file, the links below ``root_link`` and the
 joints between them (yourdfpy's model decides which), with absolute mesh
@@ -28,7 +29,7 @@ if TYPE_CHECKING:
     import yourdfpy  # imports trimesh: loaded by load_model, where it is used
 
 from planner import assets
-from planner.errors import ConfigError, MeshError
+from planner.errors import ConfigError
 
 #: Joint types that move (the others are fixed or floating).
 MOVABLE = ("revolute", "prismatic", "continuous")
@@ -220,22 +221,3 @@ def _mesh_file(urdf: Path, filename: str) -> Path:
     if not path.is_file():
         raise ConfigError(f"{urdf}: mesh file not found: {filename} (looked at {path})")
     return path
-
-
-def object_mesh(urdf: Path, geometry: str, where: str) -> tuple[Path, float]:
-    """The first ``<geometry><mesh>`` (``geometry``: ``visual`` or ``collision``)
-    of the URDF's links, with its URDF scale."""
-    model = load_model(urdf)
-    found = next(((element, element.geometry.mesh) for link in model.robot.links
-                  for element in (link.visuals if geometry == "visual" else link.collisions)
-                  if element.geometry is not None and element.geometry.mesh is not None
-                  and element.geometry.mesh.filename), None)
-    if found is None:
-        raise ConfigError(f"{urdf}: {where} needs a <{geometry}> mesh in its first link")
-    element, mesh = found
-    if element.origin is not None and not np.array_equal(element.origin, np.eye(4)):
-        raise MeshError(f"{urdf}: {geometry} origin offsets are not supported; export the mesh in the link frame")
-    scales = np.atleast_1d(1.0 if mesh.scale is None else mesh.scale).astype(float)
-    if len(set(scales.tolist())) != 1:
-        raise MeshError(f"{urdf}: non-uniform mesh scale {scales.tolist()} is not supported")
-    return mesh_path(urdf, mesh.filename), float(scales[0])

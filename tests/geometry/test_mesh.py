@@ -93,8 +93,8 @@ def test_a_point_cloud_and_a_urdf_are_refused_saying_what_to_give(tmp_path: Path
     with pytest.raises(MeshError, match=r"scan.glb: a point cloud of 642 points, no triangles"):
         meshes.load_mesh_file(tmp_path / "scan.glb")
     (tmp_path / "duck.urdf").write_text("<robot name='duck'/>")
-    with pytest.raises(MeshError, match=r"unsupported mesh type '.urdf'.*give the mesh file its link names, its "
-                                        r"<mesh scale> as --scale"):
+    with pytest.raises(MeshError, match=r"unsupported mesh type '.urdf'.*a URDF describes an object, not a mesh: "
+                                        r"give it as the object"):
         meshes.load_mesh_file(tmp_path / "duck.urdf")
 
 

@@ -119,12 +119,12 @@ def test_every_builtin_spelling_takes_the_scale(arg: str) -> None:
 
 
 @pytest.mark.parametrize("text, message", [
-    ("box\nduck.urdf 0.5\n", r"m.txt:2: .*duck.urdf: unsupported mesh type '.urdf'; use one of .obj"),
+    ("box\nduck.dae 0.5\n", r"m.txt:2: .*duck.dae: unsupported mesh type '.dae'; use one of .obj.*or a URDF"),
     ("sphere\nbox 2\n", r"m.txt:2: object 'box': the row's scale applies to meshes only; box is a primitive"),
     ("\ufeffbox\nmugg\n", r"m.txt:2: unknown object 'mugg'"),  # and the BOM is not part of line 1's 'box'
 ])
 def test_a_manifest_rows_error_names_its_line(tmp_path: Path, text: str, message: str) -> None:
-    """These three named no line (a URDF row failed at loading, with a message about --scale when none was given;
+    """These three named no line (a row of an unread type failed at loading;
     a byte-order mark made line 1 the unknown object '\\ufeffbox')."""
     (tmp_path / "duck.urdf").write_text("<robot name='duck'/>")
     (tmp_path / "m.txt").write_text(text, encoding="utf-8")

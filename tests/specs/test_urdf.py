@@ -1,5 +1,5 @@
 """URDFs with yourdfpy: the cut hand subtree loads in PyBullet with the same
-kinematics, keeps PyBullet's contact extension, and URDF objects give their mesh."""
+kinematics, keeps PyBullet's contact extension; mesh paths found as PyBullet finds them."""
 
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ import yourdfpy
 from helpers import assert_close, hand_copy
 
 from planner import assets
-from planner.errors import ConfigError, MeshError
+from planner.errors import ConfigError
 from planner.sim import Sim, pb
 from planner.specs.hands import hand_names, load_folder, load_hand
-from planner.specs.urdf import cut_subtree, descendants, link_chain, load_model, mesh_path, object_mesh
+from planner.specs.urdf import cut_subtree, descendants, link_chain, load_model, mesh_path
 
 HANDS = hand_names()
 SEED = 0
@@ -124,18 +124,3 @@ def test_mesh_paths_are_found_as_pybullet_finds_them(tmp_path: Path) -> None:
     assert mesh_path(urdf, "../meshes/m.obj") == mesh
     assert mesh_path(urdf, f"file://{mesh}") == mesh == mesh_path(urdf, str(mesh))
     assert mesh_path(urdf, "package://other/m.obj") == urdf.parent / "other" / "m.obj"
-
-
-def test_object_mesh_and_its_scale() -> None:
-    duck = assets.pybullet_data_root() / "duck_vhacd.urdf"
-    path, scale = object_mesh(duck, "collision", "duck")
-    assert path.name == "duck_vhacd.obj" and scale == 0.05
-
-
-@pytest.mark.parametrize("mesh, message", [('<mesh filename="m.obj" scale="1 2 1"/>', "non-uniform mesh scale"),
-                                           ("<box size='1 1 1'/>", "needs a <visual> mesh")])
-def test_object_meshes_we_cannot_use(tmp_path: Path, mesh: str, message: str) -> None:
-    urdf = tmp_path / "o.urdf"
-    urdf.write_text(f"<robot name='o'><link name='l'><visual><geometry>{mesh}</geometry></visual></link></robot>")
-    with pytest.raises((ConfigError, MeshError), match=message):
-        object_mesh(urdf, "visual", "o")

@@ -1,0 +1,51 @@
+"""Objects made of shapes: the primitives (box, cylinder, sphere) as meshes,
+and a URDF object's parts placed in its frame and merged into one solid.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import trimesh
+
+from planner import prepare
+from planner.geometry.mesh import checked_solid, read_mesh_file
+from planner.specs.urdf_objects import UrdfObject
+
+#: Faces around a cylinder; subdivisions of a sphere (642 vertices: within 0.2% of its radius).
+CYLINDER_SECTIONS = 48
+SPHERE_SUBDIVISIONS = 3
+
+
+def primitive_mesh(kind: str, dims: Sequence[float]) -> trimesh.Trimesh:
+    """A ``box`` (dims: (3,) extents), ``cylinder`` (radius, height along z) or ``sphere`` (radius) [m],
+    centred on the origin."""
+    if kind == "box":
+        return trimesh.creation.box(extents=dims)
+    if kind == "cylinder":
+        radius, height = dims
+        return trimesh.creation.cylinder(radius=radius, height=height, sections=CYLINDER_SECTIONS)
+    if kind == "sphere":
+        return trimesh.creation.icosphere(subdivisions=SPHERE_SUBDIVISIONS, radius=dims[0])
+    raise ValueError(f"unknown primitive {kind!r}")
+
+
+def urdf_solid(urdf: UrdfObject, scale: float = 1.0) -> trimesh.Trimesh:
+    """The checked solid of a URDF object: each part (a mesh file at its per-axis scale, or a primitive) placed
+    by its pose in the object frame, all of them one mesh, times ``scale`` about the frame's origin [m]. Parts
+    that overlap stay as they are: the object's mass properties are their union's
+    (:func:`~planner.geometry.mesh.union_of_bodies`)."""
+    vertices, faces, count = [], [], 0
+    for part in urdf.parts:
+        piece = read_mesh_file(part.file, np.asarray(part.scale)) if part.file is not None else \
+            primitive_mesh(part.shape, part.dims)
+        points = np.asarray(piece.vertices, float)
+        vertices.append((points @ part.pose[:3, :3].T + part.pose[:3, 3]) * scale)
+        faces.append(np.asarray(piece.faces) + count)
+        count += len(points)
+    if urdf.geometry != "collision":
+        prepare.noted(str(urdf.path), "it has no <collision> element: its <visual> geometry is planned on (once: "
+                                      "cached afterwards)")
+    return checked_solid(trimesh.Trimesh(np.concatenate(vertices), np.concatenate(faces), process=False),
+                         str(urdf.path))
