@@ -6,8 +6,9 @@ Accepted, in any mix:
 - ``builtin:all`` (every registry object), ``builtin:random`` (all 1,000
   generated objects), ``builtin:random:20`` (the first 20),
   ``builtin:random:100-149`` (a range, inclusive);
-- a folder (its mesh files, recursively, hidden ones and ``__MACOSX/`` skipped) or a glob
-  (``meshes/**/*.obj``);
+- a folder (its mesh and URDF files, recursively, hidden ones and ``__MACOSX/`` skipped) or a glob
+  (``meshes/**/*.obj``); a mesh file that a URDF of the folder or glob names is left to it: each object
+  once, with its URDF's scale, placement, mass and friction;
 - ``@list.txt``: a manifest, one object per line, optionally followed by a
   scale and ``key=value`` columns (``scale=``, ``mass=`` [kg] or
   ``density=`` [kg/m^3], ``friction=``), e.g. ``banana.obj 1 mass=0.066
@@ -26,6 +27,7 @@ import glob
 import math
 import os
 import shlex
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -41,7 +43,7 @@ from planner.specs.objects import (
 )
 from planner.specs.physical import NO_PHYSICAL, PHYSICAL_KEYS, Physical
 from planner.specs.toml import decode_text
-from planner.specs.urdf_objects import URDF_SUFFIX
+from planner.specs.urdf_objects import URDF_SUFFIX, named_meshes
 
 #: What a manifest line holds.
 MANIFEST_LINE = "OBJECT [SCALE] [scale=S] [mass=KG | density=KG_M3] [friction=MU]"
@@ -88,19 +90,27 @@ def _expand_plain(arg: str, scale: float | None) -> list[ObjectRef]:
         return [ObjectRef(arg[len("builtin:"):], scale)]
     path = Path(arg).expanduser()
     if path.is_dir():
-        files = sorted(p for p in path.rglob("*") if p.suffix.lower() in MESH_SUFFIXES and p.is_file()
-                       and not _hidden(p.relative_to(path)))
+        files = _objects(p for p in path.rglob("*") if p.suffix.lower() in OBJECT_SUFFIXES and p.is_file()
+                         and not _hidden(p.relative_to(path)))
         if not files:
             also = f"; for the built-in object of that name write builtin:{arg}" if is_registered(arg) else ""
-            raise InputError(f"{path}: folder holds no mesh files ({', '.join(MESH_SUFFIXES)}){also}")
+            raise InputError(f"{path}: folder holds no mesh or URDF files ({', '.join(OBJECT_SUFFIXES)}){also}")
         return [ObjectRef(str(_absolute(str(p))), scale) for p in files]
     if any(c in arg for c in "*?["):
-        files = sorted(Path(p) for p in glob.glob(str(path), recursive=True)
-                       if Path(p).suffix.lower() in MESH_SUFFIXES)
+        files = _objects(Path(p) for p in glob.glob(str(path), recursive=True)
+                         if Path(p).suffix.lower() in OBJECT_SUFFIXES)
         if not files:
-            raise InputError(f"'{arg}': no mesh files match")
+            raise InputError(f"'{arg}': no mesh or URDF files match")
         return [ObjectRef(str(_absolute(str(p))), scale) for p in files]
     return [ObjectRef(arg, scale)]
+
+
+def _objects(files: Iterable[Path]) -> list[Path]:
+    """The objects among a folder's or a glob's ``files``, sorted: each URDF, and each mesh file no URDF of them
+    names (a URDF's meshes are its object's parts, planned as it places them)."""
+    files = sorted(files)
+    parts = {m for p in files if p.suffix.lower() == URDF_SUFFIX for m in named_meshes(p)}
+    return [p for p in files if p.suffix.lower() == URDF_SUFFIX or p.resolve() not in parts]
 
 
 #: Folders a folder's walk skips besides hidden ones: the resource forks a zip made on macOS holds.

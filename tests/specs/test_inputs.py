@@ -103,7 +103,7 @@ def test_a_folder_named_like_a_builtin_is_a_folder_and_builtin_names_the_builtin
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     (tmp_path / "box").mkdir()
     monkeypatch.chdir(tmp_path)
-    with pytest.raises(InputError, match="folder holds no mesh files .*; for the built-in object of that name "
+    with pytest.raises(InputError, match="folder holds no mesh or URDF files .*; for the built-in object of that name "
                                          "write builtin:box"):
         inputs.expand(["box"])
     assert [r.name for r in inputs.expand(["builtin:box"])] == ["box"]

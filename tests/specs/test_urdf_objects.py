@@ -231,6 +231,19 @@ def test_an_edit_of_the_urdf_or_of_its_mesh_is_seen(tmp_path: Path) -> None:
     assert edited_since(urdf, finished)  # its mesh gone: it cannot be the one stored
 
 
+def test_a_folder_or_glob_takes_each_urdf_and_the_meshes_no_urdf_names(tmp_path: Path) -> None:
+    """pybullet_data's layout: duck.urdf names duck.obj (visual) and duck_vhacd.obj (collision); cup.obj stands
+    alone. Three mesh files, two objects: the duck from its URDF (its scale, mass, friction), the cup."""
+    for name in ("duck.obj", "duck_vhacd.obj", "cup.obj"):
+        brick(tmp_path / "objects", name)
+    write(tmp_path / "objects", link("base", element("<mesh filename='duck.obj'/>", tag="visual"),
+                                     element("<mesh filename='duck_vhacd.obj' scale='0.5'/>")), name="duck")
+    assert sorted(Path(r.source).name for r in inputs.expand([str(tmp_path / "objects")])) == ["cup.obj", "duck.urdf"]
+    assert sorted(Path(r.source).name for r in inputs.expand([str(tmp_path / "objects" / "*")])) == \
+        ["cup.obj", "duck.urdf"]
+    assert [r.name for r in inputs.expand([str(tmp_path / "objects" / "*.obj")])] == ["cup", "duck", "duck_vhacd"]
+
+
 def test_a_manifest_line_names_a_urdf_and_its_columns_win(tmp_path: Path) -> None:
     urdf = write(tmp_path, link("a", element("<box size='0.05 0.05 0.05'/>"), mass=0, friction=1.0), name="tray")
     (tmp_path / "m.txt").write_text("tray.urdf 2 mass=0.3\n")
