@@ -18,9 +18,10 @@ PLAUSIBLE_DENSITY = (5.0, 23_000.0)
 
 @click.command(help=f"""Sweep preshapes x approaches x rolls x standoffs and store the grasps.
 
-    OBJECT: a built-in name, random_NNN, a mesh file, a folder, a glob, @manifest.txt (one object per line:
-    {api.MANIFEST_LINE}), builtin:all, builtin:random[:COUNT | :FIRST-LAST]. A mesh file's sidecar
-    (banana.obj + banana.toml) may give mass or density and friction.
+    OBJECT: a built-in name, random_NNN, a mesh or URDF file, a folder, a glob, @manifest.txt (one object per
+    line: {api.MANIFEST_LINE}), builtin:all, builtin:random[:COUNT | :FIRST-LAST]. A mesh or URDF file's sidecar
+    (banana.obj + banana.toml) may give mass or density and friction; a URDF gives its own below it (its
+    <inertial> mass, its <contact><lateral_friction>).
     """)
 @click.argument("names", metavar="OBJECT...", nargs=-1, required=True)
 @click.option("--hand", required=True, help="Hand name (see `grasp hands`).")
@@ -42,13 +43,13 @@ PLAUSIBLE_DENSITY = (5.0, 23_000.0)
 @click.option("--fan", "fan_count", type=int, default=0, show_default=True, help="Tilted directions per ray.")
 @click.option("--standoffs", help="Comma-separated standoffs [m] (default: each preshape's).")
 @click.option("--preshapes", "preshape_names", help="Comma-separated preshape names (default: all).")
-@click.option("--scale", type=float, help="Scale for mesh files (e.g. 0.001 for millimetres).")
+@click.option("--scale", type=float, help="Scale for mesh and URDF files (e.g. 0.001 for millimetres).")
 @click.option("--mass", type=float, help="Mass of every object given [kg] (a manifest line's own wins) "
-              "[default: a mesh's sidecar TOML, the registry's, else 0.2].")
+              "[default: a mesh's or URDF's sidecar TOML, a URDF's <inertial> masses, the registry's, else 0.2].")
 @click.option("--density", type=float, help="Uniform density of every object given [kg/m^3]: the mass is density "
               "x the mesh's volume; excludes --mass.")
 @click.option("--friction", type=float, help="Coulomb friction coefficient of every object given, 0 < mu <= 3 "
-              "[default: a mesh's sidecar TOML, the registry's, else 0.5].")
+              "[default: a mesh's or URDF's sidecar TOML, a URDF's <lateral_friction>, the registry's, else 0.5].")
 @click.option("--workers", type=click.IntRange(min=1), default=api.default_workers(),
               show_default="all cores",
               help="Worker processes.")

@@ -53,7 +53,7 @@ MANIFEST_LINE = "OBJECT [SCALE] [scale=S] [mass=KG | density=KG_M3] [friction=MU
 class ObjectRef:
     """One object of a run: how to load it and the name it is stored under."""
 
-    source: str  # built-in name or mesh path
+    source: str  # built-in name, mesh or URDF path
     scale: float | None = None
     label: str | None = None  # database name (None: the default one)
     physical: Physical = NO_PHYSICAL  # the user's mass or density and friction (None: the object's own)
