@@ -221,10 +221,10 @@ def random_spec(index: int) -> ObjectSpec:
 def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = None,
                  friction: float | None = None, label: str | None = None, density: float | None = None,
                  scale_from: str = "--scale") -> ObjectSpec:
-    """A built-in name, ``random_NNN``, or a path to a mesh file; ``label``
-    renames it (two mesh files of one run with the same stem). ``mass`` (or
-    ``density``) and ``friction`` override the object's own, a mesh file's
-    from its sidecar (see the module docstring). ``scale_from``: what gave
+    """A built-in name, ``random_NNN``, or a path to a mesh or URDF file;
+    ``label`` renames it (two files of one run with the same stem). ``mass``
+    (or ``density``) and ``friction`` override the object's own, a file's
+    from its sidecar, a URDF's own (see the module docstring). ``scale_from``: what gave
     ``scale``, for the error of a primitive, which takes none."""
     given = Physical.checked({"mass": mass, "density": density, "friction": friction}, f"object '{name}'")
     if scale is not None and not (math.isfinite(scale) and scale > 0):
@@ -254,7 +254,7 @@ def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = 
         given = given.over(Physical.checked(read_toml(found), str(found)) if found is not None else NO_PHYSICAL)
     else:
         raise UnknownNameError("object", name,
-                               [*builtin, f"{RANDOM_PREFIX}000..{RANDOM_PREFIX}999", "or a mesh file path"])
+                               [*builtin, f"{RANDOM_PREFIX}000..{RANDOM_PREFIX}999", "or a mesh or URDF file path"])
     if label:
         spec = replace(spec, name=label)
     return with_physical(spec, given)
