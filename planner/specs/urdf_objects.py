@@ -24,13 +24,17 @@ import os
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from lxml import etree
 
+if TYPE_CHECKING:
+    import yourdfpy  # imports trimesh: loaded by load_model, where it is used
+
 from planner.errors import ConfigError, InputError, MeshError
 from planner.specs.physical import Physical
-from planner.specs.urdf import link_chain, load_model, mesh_path, urdf_xml
+from planner.specs.urdf import descendants, link_chain, load_model, mesh_path, urdf_xml
 
 URDF_SUFFIX = ".urdf"
 #: The geometry elements a URDF object is made of, the first preferred: the collision shape is the one PyBullet
@@ -151,6 +155,7 @@ def read_urdf_object(path: Path, geometry: str = GEOMETRIES[0]) -> UrdfObject:
 
 @lru_cache(maxsize=256)
 def _read(path: Path, geometry: str, mtime_ns: int, ctime_ns: int, size: int) -> UrdfObject:
+    """:func:`read_urdf_object` of the file as it was at that modification and change time and size."""
     root = etree.fromstring(urdf_xml(path), etree.XMLParser(remove_comments=True))
     odd = next((s for s in root.iterfind("link/*/geometry/*") if s.tag not in SHAPES), None)
     if odd is not None:
@@ -167,20 +172,24 @@ def _read(path: Path, geometry: str, mtime_ns: int, ctime_ns: int, size: int) ->
                   for link in links for element in getattr(link, f"{geometry}s"))
     masses = [float(link.inertial.mass) for link in links if link.inertial is not None
               and link.inertial.mass is not None]
-    bad = next((m for m in masses if not m >= 0), None)
-    frictions = _frictions(path, root, {p.link for p in parts})
-    return UrdfObject(path, geometry, parts, bad if bad is not None else math.fsum(masses) if masses else None,
-                      frictions)
+    mass = next((m for m in masses if not m >= 0), None)  # a negative or NaN one, for the check to refuse
+    if mass is None and masses:
+        mass = math.fsum(masses)
+    return UrdfObject(path, geometry, parts, mass, _frictions(path, root, {p.link for p in parts}))
 
 
-def _check_rigid(path: Path, model: object) -> None:
-    """Refuse links that are not one tree, and joints that move."""
-    robot = model.robot  # type: ignore[attr-defined]
-    children = {j.child for j in robot.joints}
+def _check_rigid(path: Path, model: yourdfpy.URDF) -> None:
+    """Refuse links that are not one tree (PyBullet refuses them too), and joints that move."""
+    robot = model.robot
+    children = [j.child for j in robot.joints]
     roots = [link.name for link in robot.links if link.name not in children]
-    if len(roots) != 1:
-        raise ConfigError(f"{path}: " + (f"links {', '.join(roots)} are joined to none above them: one object is "
-                                         "one tree of links" if roots else "its joints make a loop"))
+    if len(roots) != 1 or len(set(children)) < len(children):
+        raise ConfigError(f"{path}: " + (f"links {', '.join(roots)} are joined to none above them" if len(roots) > 1
+                                         else "its joints make a loop") + ": one object is one tree of links")
+    apart = [link.name for link in robot.links if link.name not in set(descendants(model, roots[0]))]
+    if apart:
+        raise ConfigError(f"{path}: links {', '.join(apart)} are not joined to {roots[0]} (their joints make a "
+                          "loop): one object is one tree of links")
     moving = [f"'{j.name}' ({j.type})" for j in robot.joints if j.type != "fixed"]
     if moving:
         raise ConfigError(f"{path}: joint{'s' if len(moving) > 1 else ''} {', '.join(moving)} move"
@@ -188,12 +197,11 @@ def _check_rigid(path: Path, model: object) -> None:
                           "ones; make the joint fixed at the pose to grasp (type=\"fixed\"), or give one link's mesh")
 
 
-def _part(path: Path, link: str, element: object, frame: np.ndarray) -> UrdfPart:
-    """One element of ``link`` (whose frame in the object's is ``frame``), checked."""
+def _part(path: Path, link: str, element: yourdfpy.Collision | yourdfpy.Visual, frame: np.ndarray) -> UrdfPart:
+    """One element of ``link`` (whose frame in the object's is ``frame``, (4, 4)), checked."""
     where = f"{path}: link '{link}'"
-    origin = getattr(element, "origin", None)
-    pose = frame @ (np.eye(4) if origin is None else np.asarray(origin, float))
-    g = getattr(element, "geometry", None)
+    pose = frame @ (np.eye(4) if element.origin is None else np.asarray(element.origin, float))
+    g = element.geometry
     if g is None or all(getattr(g, s) is None for s in SHAPES):
         raise ConfigError(f"{where}: a <geometry> without <mesh>, <box>, <cylinder> or <sphere>")
     if g.mesh is not None:

@@ -130,6 +130,8 @@ def test_links_joined_by_fixed_joints_are_merged_where_their_chains_put_them(tmp
     (joint("base", "lid", kind="prismatic"), "(prismatic) moves"),
     (joint("base", "lid", kind="floating"), "(floating) moves"),
     ("", "links base, lid are joined to none above them: one object is one tree of links"),
+    (joint("base", "lid") + joint("lid", "base"), "its joints make a loop"),
+    (joint("lid", "tip") + joint("tip", "lid") + link("tip"), "links lid, tip are not joined to base"),
 ])
 def test_an_articulated_or_disjoint_urdf_is_refused_in_one_line(tmp_path: Path, extra: str, message: str) -> None:
     box = element("<box size='0.02 0.02 0.02'/>")
