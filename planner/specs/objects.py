@@ -13,7 +13,9 @@ a manifest line's columns, ``grasp generate --mass/--density/--friction``
 (``banana.obj`` + ``banana.toml`` with ``mass``, ``density``, ``friction``),
 the registry entry, else :data:`DEFAULT_MASS` and :data:`DEFAULT_FRICTION`.
 Mass and density are one property given two ways: a source gives one or
-the other, never both, and the first source that gives either decides.
+the other, never both, and the first source that gives either decides. Its
+``up`` (:mod:`planner.specs.up`) comes from the same sources, else
+:func:`~planner.specs.up.default_up` of its file (``+y`` for glTF, else ``+z``).
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from urllib.parse import unquote
 from planner import assets
 from planner.errors import ConfigError, InputError, UnknownNameError
 from planner.specs.toml import Fields, read_toml
+from planner.specs.up import DEFAULT_UP, default_up, up_axis
 from planner.specs.urdf import object_mesh
 
 REGISTRY_FILE = "objects.toml"
@@ -51,7 +54,7 @@ URDF_HINT = " (a URDF: give the mesh file its link names, its <mesh scale> as --
 MAX_FRICTION = 3.0
 #: The keys of a physical-properties sidecar (``banana.toml`` beside ``banana.obj``).
 SIDECAR_SUFFIX = ".toml"
-PHYSICAL_KEYS = ("mass", "density", "friction")
+PHYSICAL_KEYS = ("mass", "density", "friction", "up")
 _UNITS = {"mass": "kg", "density": "kg/m^3", "friction": "Coulomb coefficient"}
 
 
@@ -61,16 +64,20 @@ class Physical:
 
     ``mass`` [kg] or ``density`` [kg/m^3] (uniform over the closed mesh; the
     mass is then density x volume), never both; ``friction``: Coulomb
-    coefficient, 0 < mu <= :data:`MAX_FRICTION`. Build with :meth:`checked`
-    from user input for an error naming the source and field.
+    coefficient, 0 < mu <= :data:`MAX_FRICTION`; ``up``: the axis of the
+    object frame that is up as it stands (:data:`planner.specs.up.AXES`).
+    Build with :meth:`checked` from user input for an error naming the source and field.
     """
 
     mass: float | None = None
     density: float | None = None
     friction: float | None = None
+    up: str | None = None
 
     def __post_init__(self) -> None:
         check_physical(self.mass, self.density, self.friction, "", "")
+        if self.up is not None:
+            object.__setattr__(self, "up", up_axis(self.up))
 
     @classmethod
     def checked(cls, values: Mapping[str, object], where: str = "", prefix: str = "") -> Physical:
@@ -80,18 +87,20 @@ class Physical:
         if unknown:
             raise InputError(f"{_at(where)}unknown field '{prefix}{unknown[0]}'; use "
                              f"{', '.join(prefix + k for k in PHYSICAL_KEYS)}")
-        numbers = {k: _number(values[k], k, where, prefix) for k in PHYSICAL_KEYS if values.get(k) is not None}
+        numbers = {k: _number(values[k], k, where, prefix) for k in PHYSICAL_KEYS[:3] if values.get(k) is not None}
         check_physical(numbers.get("mass"), numbers.get("density"), numbers.get("friction"), where, prefix)
-        return cls(**numbers)
+        up = None if values.get("up") is None else up_axis(values["up"], where, f"{prefix}up")
+        return cls(**numbers, up=up)
 
     def over(self, base: Physical) -> Physical:
         """These properties, with ``base``'s where these give none (mass or
         density together: whichever gives either decides)."""
         heavy = self.mass is not None or self.density is not None
         return Physical(self.mass if heavy else base.mass, self.density if heavy else base.density,
-                        self.friction if self.friction is not None else base.friction)
+                        self.friction if self.friction is not None else base.friction,
+                        self.up if self.up is not None else base.up)
 
-    def given(self) -> dict[str, float]:
+    def given(self) -> dict[str, float | str]:
         return {k: v for k in PHYSICAL_KEYS if (v := getattr(self, k)) is not None}
 
 
@@ -219,6 +228,7 @@ class ObjectSpec:
     friction: float = DEFAULT_FRICTION
     description: str = ""
     density: float | None = None  # [kg/m^3] when the user gave a density, else None (from the mass)
+    up: str = DEFAULT_UP  # the axis of the object frame that is up as it stands (planner.specs.up)
 
 
 def registry_path() -> Path:
@@ -285,13 +295,13 @@ def random_spec(index: int) -> ObjectSpec:
 
 def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = None,
                  friction: float | None = None, label: str | None = None, density: float | None = None,
-                 scale_from: str = "--scale") -> ObjectSpec:
+                 up: str | None = None, scale_from: str = "--scale") -> ObjectSpec:
     """A built-in name, ``random_NNN``, or a path to a mesh file; ``label``
     renames it (two mesh files of one run with the same stem). ``mass`` (or
-    ``density``) and ``friction`` override the object's own, a mesh file's
+    ``density``), ``friction`` and ``up`` override the object's own, a mesh file's
     from its sidecar (see the module docstring). ``scale_from``: what gave
     ``scale``, for the error of a primitive, which takes none."""
-    given = Physical.checked({"mass": mass, "density": density, "friction": friction}, f"object '{name}'")
+    given = Physical.checked({"mass": mass, "density": density, "friction": friction, "up": up}, f"object '{name}'")
     if scale is not None and not (math.isfinite(scale) and scale > 0):
         raise InputError(f"object '{name}': scale must be a positive number, got {scale:g} (0.001 for a mesh in "
                          "millimetres)")
@@ -312,7 +322,8 @@ def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = 
         # named as given and its sidecar beside it (a symlink's own name and folder; the target's sidecar where
         # the link has none); the source is the file itself, whatever path names it
         named, path = Path(name).expanduser(), Path(name).expanduser().resolve()
-        spec = ObjectSpec(name=named.stem, kind="mesh", source=str(path), scale=1.0 if scale is None else scale)
+        spec = ObjectSpec(name=named.stem, kind="mesh", source=str(path), scale=1.0 if scale is None else scale,
+                          up=default_up(path))
         found = mesh_sidecar(named)
         given = given.over(Physical.checked(read_toml(found), str(found)) if found is not None else NO_PHYSICAL)
     else:
@@ -325,7 +336,7 @@ def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = 
 
 def with_physical(spec: ObjectSpec, physical: Physical) -> ObjectSpec:
     """``spec`` with the properties ``physical`` gives (a mass clears a density)."""
-    overrides: dict[str, float | None] = dict(physical.given())
+    overrides: dict[str, float | str | None] = dict(physical.given())
     if physical.mass is not None:
         overrides["density"] = None
     return replace(spec, **overrides) if overrides else spec
