@@ -22,6 +22,7 @@ from planner.errors import MeshError
 from planner.geometry.mass import radius_of_gyration, torque_scale_max_distance
 from planner.geometry.mesh import load_mesh_file, mesh_hash, union_of_bodies
 from planner.specs.objects import ObjectSpec, file_scale, gltf_buffers, resolve_spec, source_path, urdf_mesh
+from planner.specs.up import up_vector
 
 #: Bumped when the checked mesh of the same source would come out differently.
 CACHE_VERSION = 3  # 2: the union of overlapping bodies cached beside the mesh; 3: flat bodies refused
@@ -46,6 +47,8 @@ class PreparedObject:
             (seed section 2.2.1).
         gyration_radius: radius of gyration [m], the other choice of rho
             (sqrt(trace(I) / (3 m)), from the mean principal moment).
+        up: (3,) unit, object frame: the object's up as it stands (its spec's ``up``,
+            :mod:`planner.specs.up`; the mesh stays in the file's frame).
     """
 
     spec: ObjectSpec
@@ -72,8 +75,12 @@ class PreparedObject:
     def friction(self) -> float:
         return self.spec.friction
 
+    @property
+    def up(self) -> np.ndarray:
+        return up_vector(self.spec.up)
 
-def load_object(name: str, *, label: str | None = None, **overrides: float | None) -> PreparedObject:
+
+def load_object(name: str, *, label: str | None = None, **overrides: float | str | None) -> PreparedObject:
     """Resolve and prepare an object by name or mesh path."""
     return prepare(resolve_spec(name, label=label, **overrides))
 
