@@ -120,8 +120,8 @@ def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: i
             raise InputError(f"{spec.source}: file not found")
         if spec.name in seen:
             if seen[spec.name] != spec:
-                raise InputError(f"object '{spec.name}' is given twice with different scale, mass, density or "
-                                 "friction; give it once")
+                raise InputError(f"object '{spec.name}' is given twice with different scale, mass, density, "
+                                 "friction or up; give it once")
             continue
         seen[spec.name] = spec
         _note_overridden(ref.source, spec, ref.physical)
@@ -179,7 +179,7 @@ def _stored_names(db: Database, units: Sequence[UnitSpec]) -> list[UnitSpec]:
 
 def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSpec]) -> None:
     """Refuse to add grasps of an object stored under the same name at
-    another mass, density or friction, or from another mesh or with other
+    another mass, density, friction or up, or from another mesh or with other
     mass properties (:func:`planner.db.objects.differs`) than its stored
     grasps were planned and measured on: one name, one object. The mesh is
     prepared and compared for the objects with units ``todo``; an object
@@ -205,9 +205,11 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
         stored = {"density": row.density} if spec.density is not None else {"mass": row.mass}
         given = {"density": spec.density} if spec.density is not None else {"mass": spec.mass}
         stored["friction"], given["friction"] = row.friction, spec.friction
-        if any(not math.isclose(given[k], stored[k], rel_tol=PROPERTY_RTOL) for k in given):
+        stored["up"], given["up"] = row.up, spec.up  # type: ignore[assignment]
+        if row.up != spec.up or any(not math.isclose(given[k], stored[k], rel_tol=PROPERTY_RTOL) for k in given
+                                    if k != "up"):
             def text(values: dict[str, float]) -> str:
-                return ", ".join(f"{k} {v:g}" for k, v in values.items())
+                return ", ".join(f"{k} {v:g}" if k != "up" else f"up {v}" for k, v in values.items())
 
             raise InputError(f"object '{name}' is stored in {db.path} with {text(stored)}, this run gives "
                              f"{text(given)}{_from_sidecar(unit.object_name, spec, unit.physical)}; its grasps "
@@ -235,8 +237,8 @@ def _sidecar_keys(named: str, spec: ObjectSpec, given: Physical, used: bool) -> 
     if path is None:
         return "", [], NO_PHYSICAL
     side = Physical.checked(read_toml(path), str(path))
-    keys = [k for k in ("mass", "density", "friction") if getattr(side, k) is not None and used ==
-            (getattr(given, k) is None if k == "friction" else given.mass is None and given.density is None)]
+    keys = [k for k in ("mass", "density", "friction", "up") if getattr(side, k) is not None and used ==
+            (getattr(given, k) is None if k in ("friction", "up") else given.mass is None and given.density is None)]
     return path.name, keys, side
 
 
@@ -253,9 +255,11 @@ def _note_overridden(named: str, spec: ObjectSpec, given: Physical) -> None:
     name, keys, side = _sidecar_keys(named, spec, given, used=False)
     if keys:
         heavy = "mass" in keys or "density" in keys
-        ours = [f"{k} {v:g}" for k, v in given.given().items() if (k in keys if k == "friction" else heavy)]
+        ours = [f"{k} {v:g}" if k != "up" else f"up {v}" for k, v in given.given().items()
+                if (k in keys if k in ("friction", "up") else heavy)]
+        theirs = [f"{k} {getattr(side, k):g}" if k != "up" else f"up {side.up}" for k in keys]
         prepare.noted(f"object '{spec.name}'", f"{', '.join(ours)} as given replace{'s' if len(ours) == 1 else ''} "
-                      f"{name}'s {', '.join(f'{k} {getattr(side, k):g}' for k in keys)}")
+                      f"{name}'s {', '.join(theirs)}")
 
 
 def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, settings: SweepSettings | None = None,
@@ -263,15 +267,15 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
              use_ray: bool = False, ray_address: str | None = None, unit_timeout: float | None = None,
              progress: Callable[[GenerateProgress], None] | None = None,
              mass: float | None = None, density: float | None = None, friction: float | None = None,
-             on_table: int = 0, replace: bool = False) -> Summary:
+             up: str | None = None, on_table: int = 0, replace: bool = False) -> Summary:
     """Build (or extend) a grasp database; finished units are skipped, so a
     run that was killed resumes when called again. Units run in this process
     (``workers`` 1), in a crash-safe pool of ``workers`` processes, or on Ray
     (:func:`planner.run.pool.execute`); a unit whose worker dies twice, or
     that fails, is stored as failed with its error and the batch goes on.
-    ``mass`` [kg] or ``density`` [kg/m^3], and ``friction``, apply to every
-    object except where a manifest line gives its own (see
-    :mod:`planner.specs.objects`); an object stored at other values is refused.
+    ``mass`` [kg] or ``density`` [kg/m^3], ``friction`` and ``up`` (an axis,
+    :mod:`planner.specs.up`) apply to every object except where a manifest line
+    gives its own (see :mod:`planner.specs.objects`); an object stored at other values is refused.
     ``on_table`` > 0: plan on the table in each object's ``on_table`` most
     probable resting poses (the grasps keep the hand off the table and record
     its plane, ``table_plane``), not on the object alone.
@@ -289,7 +293,7 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
     if unit_timeout is not None and not (math.isfinite(unit_timeout) and unit_timeout > 0):
         raise InputError(f"--unit-timeout must be a positive number of seconds, got {unit_timeout}")
     check_seed(seed)
-    physical = Physical.checked({"mass": mass, "density": density, "friction": friction}, prefix="--")
+    physical = Physical.checked({"mass": mass, "density": density, "friction": friction, "up": up}, prefix="--")
     hand_spec = load_hand(hand)
     settings = (settings or SweepSettings()).resolved(hand_spec.sampler, hand_spec.settle,
                                                         hand_spec.settle_dynamics)
@@ -366,11 +370,11 @@ def _tally(summary: Summary, result: UnitResult, seconds: float) -> None:
     row = next((r for r in summary.per_object if r["object"] == name), None)
     if row is None:
         row = {"object": name, "units": 0, "candidates": 0, "grasps": 0, "force_closure": 0, "seconds": 0.0,
-               "error": None, "mass": None, "friction": None, "density": None}
+               "error": None, "mass": None, "friction": None, "density": None, "up": None}
         summary.per_object.append(row)
     if result.obj is not None:  # the values the grasps were measured at (flags, manifest, sidecar or defaults)
         row["mass"], row["friction"] = result.obj.mass, result.obj.friction
-        row["density"] = result.obj.mass / result.obj.volume
+        row["density"], row["up"] = result.obj.mass / result.obj.volume, result.obj.spec.up
     row["units"] += 1
     row["candidates"] += result.candidates
     row["grasps"] += len(result.grasps)
