@@ -205,9 +205,10 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
         stored = {"density": row.density} if spec.density is not None else {"mass": row.mass}
         given = {"density": spec.density} if spec.density is not None else {"mass": spec.mass}
         stored["friction"], given["friction"] = row.friction, spec.friction
-        stored["up"], given["up"] = row.up, spec.up  # type: ignore[assignment]
-        if row.up != spec.up or any(not math.isclose(given[k], stored[k], rel_tol=PROPERTY_RTOL) for k in given
-                                    if k != "up"):
+        if row.up != spec.up:  # said where it differs
+            stored["up"], given["up"] = row.up, spec.up  # type: ignore[assignment]
+        if any(given[k] != stored[k] if k == "up" else not math.isclose(given[k], stored[k], rel_tol=PROPERTY_RTOL)
+               for k in given):
             def text(values: dict[str, float]) -> str:
                 return ", ".join(f"{k} {v:g}" if k != "up" else f"up {v}" for k, v in values.items())
 
