@@ -4,7 +4,7 @@ Tables (the README lists every column):
 
 - ``meta``: key/value -- schema version, ranking rule (JSON), validation settings.
 - ``objects``: one row per object name: source, scale, mesh hash, mass
-  properties, friction, torque scale.
+  properties, friction, torque scale; (v12) its up.
 - ``units``: one row per unit of work (object, hand, settings hash, seed, chunk);
   a unit's grasps are written in the same transaction that marks it done, so
   an interrupted run leaves either all of a unit or none of it.
