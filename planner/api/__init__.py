@@ -55,6 +55,7 @@ from planner.api.querying import (  # noqa: F401 - re-exported
     hand_changed,
     hand_edited,
     mesh_modified,
+    object_up,
     p_hold_model,
     p_hold_outside,
     ranking_rule,

@@ -121,8 +121,8 @@ def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: i
             raise InputError(f"{spec.source}: file not found")
         if spec.name in seen:
             if seen[spec.name] != spec:
-                raise InputError(f"object '{spec.name}' is given twice with different scale, mass, density or "
-                                 "friction; give it once")
+                raise InputError(f"object '{spec.name}' is given twice with different scale, mass, density, "
+                                 "friction or up; give it once")
             continue
         seen[spec.name] = spec
         _note_overridden(ref.source, spec, ref.physical)
@@ -180,7 +180,7 @@ def _stored_names(db: Database, units: Sequence[UnitSpec]) -> list[UnitSpec]:
 
 def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSpec]) -> None:
     """Refuse to add grasps of an object stored under the same name at
-    another mass, density or friction, or from another mesh or with other
+    another mass, density, friction or up, or from another mesh or with other
     mass properties (:func:`planner.db.objects.differs`) than its stored
     grasps were planned and measured on: one name, one object. The mesh is
     prepared and compared for the objects with units ``todo``; an object
@@ -206,9 +206,12 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
         stored = {"density": row.density} if spec.density is not None else {"mass": row.mass}
         given = {"density": spec.density} if spec.density is not None else {"mass": spec.mass}
         stored["friction"], given["friction"] = row.friction, spec.friction
-        if any(not math.isclose(given[k], stored[k], rel_tol=PROPERTY_RTOL) for k in given):
+        if row.up != spec.up:  # said where it differs
+            stored["up"], given["up"] = row.up, spec.up  # type: ignore[assignment]
+        if any(given[k] != stored[k] if k == "up" else not math.isclose(given[k], stored[k], rel_tol=PROPERTY_RTOL)
+               for k in given):
             def text(values: dict[str, float]) -> str:
-                return ", ".join(f"{k} {v:g}" for k, v in values.items())
+                return ", ".join(f"{k} {v:g}" if k != "up" else f"up {v}" for k, v in values.items())
 
             raise InputError(f"object '{name}' is stored in {db.path} with {text(stored)}, this run gives "
                              f"{text(given)}{_from_files(unit.object_name, spec, unit.physical)}; its grasps "
@@ -226,14 +229,14 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
                              "one; use another --db, or name the object apart (copy the mesh under another name)")
 
 
-def _givers(named: str, spec: ObjectSpec, given: Physical) -> dict[str, list[tuple[str, dict[str, float]]]]:
-    """For the mass (or density) and the friction of the object ``named``: who gives it, first first, each as
+def _givers(named: str, spec: ObjectSpec, given: Physical) -> dict[str, list[tuple[str, dict[str, float | str]]]]:
+    """For the mass (or density), the friction and the up of the object ``named``: who gives it, first first, each as
     (its file's name, '' for the run's ``given`` values: flags, a manifest's columns; its values of that property):
     the run, the sidecar, a URDF's own (:func:`~planner.specs.objects.file_values`)."""
     from planner.specs.objects import file_values
 
     layers = [("", given.given()), *file_values(named, spec)]
-    props = {"mass": ("mass", "density"), "friction": ("friction",)}
+    props = {"mass": ("mass", "density"), "friction": ("friction",), "up": ("up",)}
     return {prop: [(who, part) for who, values in layers if (part := {k: v for k, v in values.items() if k in keys})]
             for prop, keys in props.items()}
 
@@ -256,7 +259,7 @@ def _note_overridden(named: str, spec: ObjectSpec, given: Physical) -> None:
 
     if not given.given() and spec.kind != URDF_FILE:  # nothing replaces anything: no sidecar read again
         return
-    pairs: dict[tuple[str, str], tuple[dict[str, float], dict[str, float]]] = {}
+    pairs: dict[tuple[str, str], tuple[dict[str, float | str], dict[str, float | str]]] = {}
     for givers in _givers(named, spec, given).values():
         if len(givers) > 1:
             (winner, ours), (loser, theirs) = givers[:2]
@@ -269,8 +272,8 @@ def _note_overridden(named: str, spec: ObjectSpec, given: Physical) -> None:
                       f"{verb} {loser}'s {_listed(theirs)}")
 
 
-def _listed(values: dict[str, float]) -> str:
-    return ", ".join(f"{k} {v:g}" for k, v in values.items())
+def _listed(values: dict[str, float | str]) -> str:
+    return ", ".join(f"{k} {v}" if isinstance(v, str) else f"{k} {v:g}" for k, v in values.items())
 
 
 def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, settings: SweepSettings | None = None,
@@ -278,15 +281,15 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
              use_ray: bool = False, ray_address: str | None = None, unit_timeout: float | None = None,
              progress: Callable[[GenerateProgress], None] | None = None,
              mass: float | None = None, density: float | None = None, friction: float | None = None,
-             on_table: int = 0, replace: bool = False) -> Summary:
+             up: str | None = None, on_table: int = 0, replace: bool = False) -> Summary:
     """Build (or extend) a grasp database; finished units are skipped, so a
     run that was killed resumes when called again. Units run in this process
     (``workers`` 1), in a crash-safe pool of ``workers`` processes, or on Ray
     (:func:`planner.run.pool.execute`); a unit whose worker dies twice, or
     that fails, is stored as failed with its error and the batch goes on.
-    ``mass`` [kg] or ``density`` [kg/m^3], and ``friction``, apply to every
-    object except where a manifest line gives its own (see
-    :mod:`planner.specs.objects`); an object stored at other values is refused.
+    ``mass`` [kg] or ``density`` [kg/m^3], ``friction`` and ``up`` (an axis,
+    :mod:`planner.specs.up`) apply to every object except where a manifest line
+    gives its own (see :mod:`planner.specs.objects`); an object stored at other values is refused.
     ``on_table`` > 0: plan on the table in each object's ``on_table`` most
     probable resting poses (the grasps keep the hand off the table and record
     its plane, ``table_plane``), not on the object alone.
@@ -304,7 +307,7 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
     if unit_timeout is not None and not (math.isfinite(unit_timeout) and unit_timeout > 0):
         raise InputError(f"--unit-timeout must be a positive number of seconds, got {unit_timeout}")
     check_seed(seed)
-    physical = Physical.checked({"mass": mass, "density": density, "friction": friction}, prefix="--")
+    physical = Physical.checked({"mass": mass, "density": density, "friction": friction, "up": up}, prefix="--")
     hand_spec = load_hand(hand)
     settings = (settings or SweepSettings()).resolved(hand_spec.sampler, hand_spec.settle,
                                                         hand_spec.settle_dynamics)
@@ -381,11 +384,11 @@ def _tally(summary: Summary, result: UnitResult, seconds: float) -> None:
     row = next((r for r in summary.per_object if r["object"] == name), None)
     if row is None:
         row = {"object": name, "units": 0, "candidates": 0, "grasps": 0, "force_closure": 0, "seconds": 0.0,
-               "error": None, "mass": None, "friction": None, "density": None}
+               "error": None, "mass": None, "friction": None, "density": None, "up": None}
         summary.per_object.append(row)
     if result.obj is not None:  # the values the grasps were measured at (flags, manifest, sidecar or defaults)
         row["mass"], row["friction"] = result.obj.mass, result.obj.friction
-        row["density"] = result.obj.mass / result.obj.volume
+        row["density"], row["up"] = result.obj.mass / result.obj.volume, result.obj.spec.up
     row["units"] += 1
     row["candidates"] += result.candidates
     row["grasps"] += len(result.grasps)

@@ -32,7 +32,7 @@ def objects() -> dict[str, ObjectSpec]:
 
 def stored_objects(db_path: Path) -> list[tuple[ObjectRow, list[str]]]:
     """Every object of the database as stored (file, scale, mass, density,
-    friction, volume: what its grasps were planned and measured at), with
+    friction, up, volume: what its grasps were planned and measured at), with
     the hands that have grasps of it."""
     with open_db(Path(db_path), create=False, readonly=True) as db:
         hands: dict[str, list[str]] = {}

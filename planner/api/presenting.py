@@ -103,7 +103,8 @@ def view(name: str, hands: Sequence[str] | None = None, *, db_path: Path = DEFAU
     if not entries:
         raise InputError(f"no grasp of '{key}' is reachable at --object-pose {object_pose}, stored or planned on "
                          "the spot with the table; `grasp best ... --object-pose ...` says why")
-    return viewer.Viewer(entries, specs, scenes.object_part(obj.mesh, world), host=host, port=port)
+    return viewer.Viewer(entries, specs, scenes.object_part(obj.mesh, world), host=host, port=port,
+                         up=obj.spec.up if world is None else "+z")  # with a pose: the world's, z up
 
 
 def coverage(db_path: Path, top: int = 10):  # -> list[planner.present.coverage.Coverage]

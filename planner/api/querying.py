@@ -86,6 +86,14 @@ def p_hold_outside(name: str, hand: str, *, db_path: Path = DEFAULT_DB) -> list[
         return [] if row is None else outside(domain, row.properties())
 
 
+def object_up(name: str, *, db_path: Path = DEFAULT_DB) -> str:
+    """The stored object ``name``'s up as it stands (an axis of its frame, :mod:`planner.specs.up`: what its grip
+    measures and its MuJoCo trial read); ``+z`` where it is not stored."""
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        row = db.object_row(name)
+        return "+z" if row is None else row.up
+
+
 def mesh_modified(name: str, *, db_path: Path = DEFAULT_DB) -> str | None:
     """Where the stored object ``name``'s mesh file was modified after its last unit finished: the file (its grasps
     were planned on the mesh as it was, which ``best`` does not read); None: not modified, or not a file."""

@@ -99,10 +99,11 @@ def _stored(db: Database, name: str, hand: str, doing: str) -> tuple[str, Prepar
 def generate_command(name: str, row: ObjectRow | None, hand: str, db_path: Path) -> str:
     """The ``grasp generate`` command that plans the object ``name`` means
     for ``hand``: a stored mesh by its file (its name alone is no object),
-    with the stored scale, mass and friction where the file does not give them."""
+    with the stored scale, mass, friction and up where the file does not give them."""
     db = "" if Path(db_path) == DEFAULT_DB else f" --db {shlex.quote(str(db_path))}"
     if row is None or is_registered(row.name) or not Path(row.source).is_file():
-        return f"grasp generate {shlex.quote(name)} --hand {hand}{db}"
+        up = "" if row is None or row.up == "+z" else f" --up {row.up}"
+        return f"grasp generate {shlex.quote(name)} --hand {hand}{up}{db}"
     scale = None if row.scale == 1.0 else row.scale
     own = resolve_spec(row.source, scale=scale)
     extra = "" if scale is None else f" --scale {scale!r}"
@@ -112,6 +113,8 @@ def generate_command(name: str, row: ObjectRow | None, hand: str, db_path: Path)
         extra += f" --density {row.density!r}"
     if not math.isclose(own.friction, row.friction, rel_tol=PROPERTY_RTOL):
         extra += f" --friction {row.friction!r}"
+    if own.up != row.up:
+        extra += f" --up {row.up}"
     return f"grasp generate {shlex.quote(row.source)} --hand {hand}{extra}{db}"
 
 

@@ -20,8 +20,8 @@ PLAUSIBLE_DENSITY = (5.0, 23_000.0)
 
     OBJECT: a built-in name, random_NNN, a mesh or URDF file, a folder, a glob, @manifest.txt (one object per
     line: {api.MANIFEST_LINE}), builtin:all, builtin:random[:COUNT | :FIRST-LAST]. A mesh or URDF file's sidecar
-    (banana.obj + banana.toml) may give mass or density and friction; a URDF gives its own below it (its
-    <inertial> mass, its <contact><lateral_friction>).
+    (banana.obj + banana.toml) may give mass or density, friction and up; a URDF gives its own mass and friction
+    below it (its <inertial> mass, its <contact><lateral_friction>).
     """)
 @click.argument("names", metavar="OBJECT...", nargs=-1, required=True)
 @click.option("--hand", required=True, help="Hand name (see `grasp hands`).")
@@ -50,6 +50,9 @@ PLAUSIBLE_DENSITY = (5.0, 23_000.0)
               "x the mesh's volume; excludes --mass.")
 @click.option("--friction", type=float, help="Coulomb friction coefficient of every object given, 0 < mu <= 3 "
               "[default: a mesh's or URDF's sidecar TOML, a URDF's <lateral_friction>, the registry's, else 0.5].")
+@click.option("--up", help="The axis of every object's file that is up as it stands: +x -x +y -y +z -z (x, y, z "
+              "mean +); its grip measures and its MuJoCo trial's weight read it; the file's frame is kept "
+              "[default: a mesh's or URDF's sidecar TOML, else +y for .glb/.gltf (glTF's own), else +z].")
 @click.option("--workers", type=click.IntRange(min=1), default=api.default_workers(),
               show_default="all cores",
               help="Worker processes.")
@@ -91,7 +94,7 @@ PLAUSIBLE_DENSITY = (5.0, 23_000.0)
 def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approaches: int | None,
              sampler: str | None, box_delta: float, rolls: int | None, depths: str | None, fan_count: int,
              standoffs: str | None, preshape_names: str | None, scale: float | None, mass: float | None,
-             density: float | None, friction: float | None, workers: int,
+             density: float | None, friction: float | None, up: str | None, workers: int,
              ray_target: str | None, unit_timeout: float | None, chunk: int | None, reach_placements: int,
              reach_top: int, volume: bool, settle: bool | None, fc_budget: int, reach_weight: float | None,
              on_table: bool, stable_poses: int, replace: bool, quiet: bool, as_json: bool) -> None:
@@ -138,7 +141,7 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
         summary = api.generate(names, hand, db_path=db_path, settings=settings, seed=seed, workers=workers,
                                scale=scale, rule=rule, progress=advance, use_ray=ray_target is not None,
                                ray_address=None if ray_target in (None, "local") else ray_target,
-                               unit_timeout=unit_timeout, mass=mass, density=density, friction=friction,
+                               unit_timeout=unit_timeout, mass=mass, density=density, friction=friction, up=up,
                                on_table=stable_poses if on_table else 0, replace=replace)
     finally:
         if tasks:
@@ -155,12 +158,12 @@ def _print_summary(summary: api.Summary, db_path: Path) -> None:
     from rich.table import Table
 
     table = Table(title=f"grasp generate -> {db_path}")
-    for col in ("object", "mass kg", "friction", "units", "candidates", "grasps", "force-closure", "worker s",
+    for col in ("object", "mass kg", "friction", "up", "units", "candidates", "grasps", "force-closure", "worker s",
                 "error"):
         table.add_column(col)
     for row in summary.per_object:
         table.add_row(row["object"], "" if row["mass"] is None else f"{row['mass']:.4g}",
-                      "" if row["friction"] is None else f"{row['friction']:.3g}", str(row["units"]),
+                      "" if row["friction"] is None else f"{row['friction']:.3g}", row["up"] or "", str(row["units"]),
                       str(row["candidates"]), str(row["grasps"]), str(row["force_closure"]), f"{row['seconds']:.1f}",
                       row["error"] or "")
     console = Console()

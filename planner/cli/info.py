@@ -62,13 +62,13 @@ def db() -> None:
 @db_option
 def db_objects(db_path: Path) -> None:
     """List the database's objects as stored: what their grasps were planned
-    and measured at (file, scale, mass, density, friction, volume)."""
+    and measured at (file, scale, mass, density, friction, up, volume)."""
     rows = api.stored_objects(db_path)
     if not rows:
         click.echo(f"{db_path}: no objects")
     for row, hands_with in rows:
         click.echo(f"{row.name}: mass {row.mass:.4g} kg, density {row.density:.4g} kg/m^3, friction "
-                   f"{row.friction:.3g}, volume {row.volume * 1e6:.4g} cm^3, scale {row.scale:g}, "
+                   f"{row.friction:.3g}, up {row.up}, volume {row.volume * 1e6:.4g} cm^3, scale {row.scale:g}, "
                    f"grasps for {', '.join(hands_with) or 'no hand'}; {row.source}")
 
 

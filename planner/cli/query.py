@@ -62,12 +62,13 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
             raise click.BadParameter("--robot-base needs --object-pose")
         grasps = api.best(object_name, hand, db_path=db_path, top=top, spacing=apart)
         outside = api.p_hold_outside(grasps[0].object, hand, db_path=db_path)
+        up = api.object_up(grasps[0].object, db_path=db_path)
         if as_json:
-            echo_json([{**g.to_json(), "frames": _frames_json(g, None, rule, model), "p_hold_outside": outside}
-                       for g in grasps])
+            echo_json([{**g.to_json(), "frames": _frames_json(g, None, rule, model), "p_hold_outside": outside,
+                        "object_up": up} for g in grasps])
             return
         for g in grasps:
-            _print_grasp(g, rule=rule, model=model)
+            _print_grasp(g, rule=rule, model=model, up=up)
         _extrapolated(grasps[0].object, hand, db_path, outside)
         return
     if apart is not None:
@@ -89,9 +90,10 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
                             f"reachable with the object at {object_pose} ({_misses(misses)}); try more of them "
                             f"(--max-candidates {max_candidates * 10}), an object pose nearer the arm{table}{spot}, "
                             "--on-table, or check --robot-base")
+    up = api.object_up(found[0].grasp.object, db_path=db_path)
     for r in found:
         _print_grasp(r.grasp, world, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp}, rule,
-                     model)
+                     model, up)
 
 
 def _extrapolated(name: str, hand: str, db_path: Path, outside: list[str]) -> None:
@@ -121,10 +123,10 @@ def _extrapolated(name: str, hand: str, db_path: Path, outside: list[str]) -> No
 
 
 def _print_grasp(g: api.Grasp, world: object = None, arm: dict | None = None, rule: object = None,
-                 model: object = None) -> None:
+                 model: object = None, up: str = "+z") -> None:
     from planner.present.describe import describe, explain
 
-    for line in describe(g, hand_frame(g.hand), world, arm):  # type: ignore[arg-type]
+    for line in describe(g, hand_frame(g.hand), world, arm, up):  # type: ignore[arg-type]
         click.echo(line)
     if rule is not None:
         click.echo("    why this score (the ranking rule, `meta.ranking` of the database):")
@@ -200,7 +202,7 @@ def _on_table(name: str, hand: str, db_path: Path, top: int, table_at: str, pose
             click.echo(f"    no grasp among the top {max_candidates} is reachable ({_misses(t.misses)})")
         for r in t.grasps:
             _print_grasp(r.grasp, t.object_pose, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp}, rule,
-                         model)
+                         model, api.object_up(r.grasp.object, db_path=db_path))
     if not any(t.grasps for t in tables):
         planned = any(api.planned_on_table(name, hand, t.object_pose7(), db_path=db_path) for t in tables)
         table = "" if planned else f", or grasps planned on the table (`{api.table_command(name, hand, db_path)}`)"

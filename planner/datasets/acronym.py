@@ -9,6 +9,7 @@ ACRONYM's published layout, readable by its own tools (``acronym_tools``:
     object/file              str     "meshes/{object}.obj", relative to DIR (the mesh in metres)
     object/scale             float64 1.0: what turns object/file into metres
     object/{mass,friction,density,volume}  float64 scalars
+    object/up                str     the object's up as it stands, an axis of its frame ("+z", "+y", ...)
     object/com               float64 (3,)   [m], object frame
     object/inertia           float64 (3, 3) [kg m^2] about the COM
     grasps/transforms        float64 (N, 4, 4)  pose @ export_frame: gripper
@@ -121,6 +122,7 @@ from planner.record.contacts import HandContacts
 from planner.record.grasp import Grasp, RobustEpsilon, Trial
 from planner.specs.hands import HandSpec
 from planner.specs.preshapes import load_preshapes, sweep_preshapes
+from planner.specs.up import up_axis
 
 __all__ = ["CHUNK_ROWS", "CONFIGURATION_DOC", "DATASETS", "EXTRAS", "FLEX", "IMPLIED", "MISSING", "MOTIONS",
            "QUALITIES", "ROBUST_EPSILON", "ROTATION_TOL", "SUFFIX", "AcronymHeader", "carried", "gripper_configuration",
@@ -187,6 +189,7 @@ def _header(f: Any, info: ExportedObject, hand: HandSpec) -> None:
     f["object/mesh_sha256"] = row.mesh_sha256
     for key in ("mass", "friction", "density", "volume"):
         f[f"object/{key}"] = np.float64(getattr(row, key))
+    f["object/up"] = row.up
     f["object/p_hold_outside"] = info.outside_text
     f["object/com"] = np.asarray(row.com, np.float64)
     f["object/inertia"] = np.asarray(row.inertia, np.float64)
@@ -216,8 +219,8 @@ def _append(f: Any, key: str, values: Column, start: int) -> None:
 class AcronymHeader:
     """What an ACRONYM file says about its gripper and object.
 
-    ``scale``, ``mass`` and ``friction`` are None when absent (a value that
-    is not a positive number is refused); ``mesh_sha256``: the hash of the mesh the grasps were
+    ``scale``, ``mass``, ``friction`` and ``up`` are None when absent (a value that
+    is not a positive number, an up that is no axis, is refused); ``mesh_sha256``: the hash of the mesh the grasps were
     planned on (this project's files since issue 12); ``extras``: the file
     carries this project's qualities, joints and contacts (it can be read
     back losslessly).
@@ -232,6 +235,7 @@ class AcronymHeader:
     friction: float | None
     extras: bool
     mesh_sha256: str | None = None
+    up: str | None = None
 
 
 def _open(path: Path) -> Any:
@@ -257,7 +261,8 @@ def read_header(path: Path) -> AcronymHeader:
             object_file=as_text(f["object/file"][()]) if "object/file" in f else None,
             scale=_positive(f, "object/scale"), mass=_positive(f, "object/mass"),
             friction=_positive(f, "object/friction"), extras=all(f"grasps/{k}" in f for k in EXTRAS),
-            mesh_sha256=as_text(f["object/mesh_sha256"][()]) or None if "object/mesh_sha256" in f else None)
+            mesh_sha256=as_text(f["object/mesh_sha256"][()]) or None if "object/mesh_sha256" in f else None,
+            up=up_axis(as_text(f["object/up"][()]), str(path), "object/up") if "object/up" in f else None)
 
 
 def read_poses(path: Path, hand: HandSpec) -> np.ndarray:

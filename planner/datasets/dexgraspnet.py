@@ -72,7 +72,7 @@ MESH_COPIES = ("meshdata/{stem}/coacd/decomposed.obj",)
 EXTRAS = tuple(f.name for f in record_fields() if not f.shape and f.kind not in ("joints", "contacts")
                and f.name not in ("id", "unit_id", "object", "hand"))
 BOOLEANS = tuple(f.name for f in record_fields() if f.kind == "bool" and "." not in f.attr)
-PHYSICS = ("object_mass", "object_friction", "object_density")
+PHYSICS = ("object_mass", "object_friction", "object_density", "object_up")
 
 
 def relative_path(stem: str, hand: str) -> str:

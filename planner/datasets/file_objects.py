@@ -37,7 +37,7 @@ def object_spec(h: AcronymHeader, object_name: str | None, command: str = "impor
     error gives (a key of :data:`HINTS`). A built-in ``object/name`` is taken where its mesh is the file's:
     ``object/mesh_sha256``, or without one the file's own ``object/file`` where it is found (a user's file
     naming its own mesh 'box' was fitted on the built-in box)."""
-    props = {"mass": h.mass, "friction": h.friction}
+    props = {"mass": h.mass, "friction": h.friction, "up": h.up}
     if object_name is not None:
         if is_registered(object_name):
             return resolve_spec(object_name, **props)

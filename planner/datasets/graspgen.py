@@ -15,7 +15,7 @@ the mesh file and never share a folder. Each file holds the content of the
 ACRONYM export (see :mod:`planner.datasets.acronym`)::
 
     {"object": {"file", "scale", "name", "source", "source_scale", "mesh_sha256", "mass", "friction",
-                "density", "volume", "com", "inertia", "p_hold_outside"},
+                "density", "volume", "com", "inertia", "up", "p_hold_outside"},
      "gripper": {"type", "configuration", "configuration_joints", "joint_names", "export_frame"},
      "grasps": {"transforms": [N x 4 x 4], "object_in_gripper": [N booleans], "label_source": str,
                 "label_from": [N str: p_hold_trial, trial, p_hold or force_closure],
@@ -148,7 +148,7 @@ def _object(info: ExportedObject) -> dict:
     scalars = {k: getattr(row, k) for k in ("mass", "friction", "density", "volume")}
     return {"file": info.file, "scale": info.scale, "name": row.name, "source": row.source,
             "source_scale": row.scale, "mesh_sha256": row.mesh_sha256, **_nulls_dict(scalars),
-            "com": _nulls(row.com.tolist()), "inertia": _nulls(row.inertia.tolist()),
+            "com": _nulls(row.com.tolist()), "inertia": _nulls(row.inertia.tolist()), "up": row.up,
             "p_hold_outside": info.outside_text}
 
 

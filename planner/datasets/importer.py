@@ -22,7 +22,8 @@ same file again finds the unit done and skips it. Grasp ``candidate`` (and
   (:mod:`planner.datasets.file_objects`, which ``grasp calibrate`` shares).
   So a built-in object exported at another ``--scale``, or under a copied
   name, comes back as the mesh its grasps were planned on.
-  The file's ``object/mass`` and ``object/friction`` override the object's.
+  The file's ``object/mass``, ``object/friction`` and ``object/up`` (this project's files) override the
+  object's; a file without ``object/up`` leaves the object's own (its mesh file's: ``+z`` for an OBJ).
 - Poses: ``grasps/transforms @ inverse(export_frame)``, the file's
   ``grasps/export_frame`` if present, else the hand's.
 - Files with this project's extras (qualities, joints, contacts) are
@@ -348,7 +349,8 @@ def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: C
                 continue
             width = closed_width(hand, closed.closed_joints)
             m = measure(closed.contacts, closed.frames, hand, shape, closed.closed_joints, obj, width,  # type: ignore[arg-type]
-                        grip=grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}, obj.com),
+                        grip=grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}, obj.com,
+                                          obj.up),
                         local_sdf=local.of(closed.pose))
             point, direction, roll = approach_of(closed.pose, hand.approach, shape.tcp)
             out.append(Grasp(

@@ -13,7 +13,7 @@ the ``csv`` module with a header row, floats written in full precision.
 The columns are the declared fields (:func:`planner.record.fields.record_fields`),
 vectors expanded (``pose_00`` ... ``pose_33``), ``id`` as ``grasp_id`` and
 the robust epsilon as ``robust_epsilon_*``, then the object's
-``object_mass``, ``object_friction``, ``object_density``, ``object_scale`` and
+``object_mass``, ``object_friction``, ``object_density``, ``object_up``, ``object_scale`` and
 ``object_file``; :data:`COLUMNS_DOC` is the table of them the README shows.
 ACRONYM's gripper frame is ``pose`` times the hand's export frame.
 """
@@ -36,7 +36,7 @@ _AXES = ("x", "y", "z")
 #: Flat names renamed in the table.
 RENAMED = {"id": "grasp_id", "robust_mean": "robust_epsilon_mean", "robust_quantile": "robust_epsilon_quantile"}
 #: The object's declared fields the table repeats on every row.
-OBJECT_FIELDS = ("object_mass", "object_friction", "object_density")
+OBJECT_FIELDS = ("object_mass", "object_friction", "object_density", "object_up")
 #: Columns of the export, not of the database: (name, arrow type, meaning).
 EXPORT_COLUMNS = (("object_scale", "float64", "scale that turns `object_file` into metres: 1 (the mesh file is in "
                    "metres)"),
@@ -99,7 +99,8 @@ def columns(stream: Stream, batch: list[Grasp]) -> dict[str, np.ndarray | list]:
     """One batch as flat columns (numpy arrays or lists of str)."""
     n, info = len(batch), stream.info
     constants = {"object_mass": info.row.mass, "object_friction": info.row.friction,
-                 "object_density": info.row.density, "object_scale": info.scale, "object_file": info.file,
+                 "object_density": info.row.density, "object_up": info.row.up, "object_scale": info.scale,
+                 "object_file": info.file,
                  "p_hold_outside": info.outside_text}
     grasps = grasp_columns(batch)
     label, label_from = dataset_labels(grasps, info.label)

@@ -16,8 +16,8 @@ object from the first of these that gives back that hash:
    renamed object).
 
 So the mesh is the one the grasps were planned on, in the object frame, or
-an :class:`~planner.errors.InputError` says why it cannot be had. Mass and
-friction are the stored ones.
+an :class:`~planner.errors.InputError` says why it cannot be had. Mass,
+friction and up are the stored ones.
 """
 
 from __future__ import annotations
@@ -49,8 +49,8 @@ PYBULLET_DATA = "pybullet_data"
 
 
 def stored_object(row: ObjectRow) -> PreparedObject:
-    """The object a database row describes, with the stored mass and friction,
-    rebuilt as the planner had it (see the module docstring)."""
+    """The object a database row describes, with the stored mass, friction and
+    up, rebuilt as the planner had it (see the module docstring)."""
     tried: list[str] = []
     for spec in _candidates(row):
         try:
@@ -75,7 +75,7 @@ def differs(row: ObjectRow, obj: PreparedObject) -> str | None:
     is): another mesh (another file of that name, the file edited since,
     another scale), other mass properties from the same mesh (an earlier
     planner's: overlapping bodies are counted once since 2026-12-05), or
-    another mass or friction. Grasps planned on one are not grasps of the
+    another mass, friction or up. Grasps planned on one are not grasps of the
     other."""
     if row.mesh_sha256 and obj.mesh_hash != row.mesh_sha256:
         return (f"from another mesh than {obj.source_file} at scale {obj.file_scale:.10g} gives now (stored: "
@@ -89,11 +89,13 @@ def differs(row: ObjectRow, obj: PreparedObject) -> str | None:
     if not (math.isclose(obj.mass, row.mass, rel_tol=PROPERTY_RTOL) and
             math.isclose(obj.friction, row.friction, rel_tol=PROPERTY_RTOL)):
         return f"with mass {row.mass:g}, friction {row.friction:g} (now {obj.mass:g}, {obj.friction:g})"
+    if obj.spec.up != row.up:
+        return f"with up {row.up} (now {obj.spec.up})"
     return None
 
 
 def _candidates(row: ObjectRow) -> Iterator[ObjectSpec]:
-    props = {"mass": row.mass, "friction": row.friction}
+    props = {"mass": row.mass, "friction": row.friction, "up": row.up}
     kind = row.source[len(PRIMITIVE_PREFIX):] if row.source.startswith(PRIMITIVE_PREFIX) else None
     if kind is None:
         source = local_file(Path(row.source))

@@ -18,7 +18,8 @@ class ObjectRow:
 
     ``scale`` turns ``source`` (the mesh file) into metres; ``com`` (3,) [m]
     and ``inertia`` (3, 3) [kg m^2] about the COM are in the scaled mesh frame;
-    ``mesh_sha256``: :func:`~planner.geometry.mesh.mesh_hash` of the checked mesh.
+    ``mesh_sha256``: :func:`~planner.geometry.mesh.mesh_hash` of the checked mesh;
+    ``up``: the axis of that frame that is up as the object stands (:data:`planner.specs.up.AXES`).
     """
 
     name: str
@@ -31,6 +32,7 @@ class ObjectRow:
     com: np.ndarray
     inertia: np.ndarray
     mesh_sha256: str = ""
+    up: str = "+z"
 
     def properties(self) -> dict[str, float]:
         """Density [kg/m^3], friction and mass [kg]: what a p_hold model's domain is checked on

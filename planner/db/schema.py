@@ -4,7 +4,7 @@ Tables (the README lists every column):
 
 - ``meta``: key/value -- schema version, ranking rule (JSON), validation settings.
 - ``objects``: one row per object name: source, scale, mesh hash, mass
-  properties, friction, torque scale.
+  properties, friction, torque scale; (v12) its up.
 - ``units``: one row per unit of work (object, hand, settings hash, seed, chunk);
   a unit's grasps are written in the same transaction that marks it done, so
   an interrupted run leaves either all of a unit or none of it.
@@ -51,6 +51,9 @@ Tables (the README lists every column):
 - ``grasps`` (v11) gains ``local_sdf`` (:mod:`planner.plan.local_sdf`: the
   object's signed distance at a grid fixed in the hand frame, a JSON list);
   NULL for grasps stored before and for hands without a grid.
+- ``objects`` (v12) gains ``up`` (:mod:`planner.specs.up`: the axis of the
+  object frame that is up as the object stands, ``+z``, ``+y``, ...);
+  ``+z`` for objects stored before (the up every object had).
 
 No pickle: arrays are JSON text. A new database runs :data:`SCHEMA` (version
 1) and then every migration; a newer schema is refused politely; an older one
@@ -72,7 +75,7 @@ from planner.errors import DatabaseError
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 11
+SCHEMA_VERSION = 12
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -179,6 +182,10 @@ ALTER TABLE grasps ADD COLUMN torque_per_mu REAL
     # v11: the object around the grasp, read by p_hold's trees (issue 26; NULL: not measured).
     10: """
 ALTER TABLE grasps ADD COLUMN local_sdf TEXT
+""",
+    # v12: the object's up (an axis of its frame; '+z' for objects stored before, the up every object had).
+    11: """
+ALTER TABLE objects ADD COLUMN up TEXT NOT NULL DEFAULT '+z'
 """,
 }
 

@@ -197,7 +197,7 @@ class Database(Writing, UnitReads):
         r = self._conn.execute("SELECT * FROM objects WHERE name = ?", (name,)).fetchone()
         if r is None:
             return None
-        kept = set(ObjectRow.__dataclass_fields__)
+        kept = set(ObjectRow.__dataclass_fields__) & set(r.keys())  # an older file read read-only: its columns
         return ObjectRow(**{f.column: next(iter(_decoded(f, [r[f.column]]))) for f in _OBJECTS if f.column in kept})
 
     @_reads

@@ -166,10 +166,14 @@ class Writing:
                 sum(g.force_closure for g in grasps), _json(unit.rejected), unit.seconds,
                 now_text())).lastrowid
             if obj is not None:
-                stored = conn.execute("SELECT mesh_sha256 FROM objects WHERE name = ?", (unit.object,)).fetchone()
+                stored = conn.execute("SELECT mesh_sha256, up FROM objects WHERE name = ?", (unit.object,)).fetchone()
                 if stored is not None and stored[0] and stored[0] != obj.mesh_hash:
                     raise InputError(f"object '{unit.object}' is stored in {self.path} from another mesh than this "
                                      "unit's: its grasps were planned on the stored one; nothing of this unit written")
+                if stored is not None and stored[1] != obj.spec.up:
+                    raise InputError(f"object '{unit.object}' is stored in {self.path} with up {stored[1]}, this "
+                                     f"unit's is {obj.spec.up}: its grasps were measured about the stored one; nothing "
+                                     "of this unit written")
                 if stored is None:  # a stored row stays as it is: its source is where its first grasps came from
                     conn.execute(_insert("objects", _OBJECT_COLUMNS), _object_row(unit.object, obj))
             conn.executemany(_insert("grasps", _GRASP_COLUMNS),
@@ -324,7 +328,7 @@ class Writing:
 def _object_row(name: str, obj: PreparedObject) -> tuple:
     """The objects row of a prepared object (:data:`_OBJECT_COLUMNS`)."""
     given = {"name": name, "source": obj.source_file, "scale": obj.file_scale, "mesh_sha256": obj.mesh_hash,
-             "extents": obj.mesh.extents}
+             "extents": obj.mesh.extents, "up": obj.spec.up}
     return tuple(_sql(f, given[f.column] if f.column in given else getattr(obj, f.column)) for f in _OBJECTS)
 
 

@@ -27,17 +27,19 @@ from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
-#: The object frame's up: its +z. An object rests and is lifted with its weight along -UP (the MuJoCo trial's
+#: The object frame's +z: the up of an object nobody gave another (:data:`planner.specs.up.DEFAULT_UP`; an object's
+#: own is ``PreparedObject.up``). An object rests and is lifted with its weight along -up (the MuJoCo trial's
 #: default gravity, ``MujocoSettings.down = "-z"``; the grip measures ``com_height`` and ``gravity_arm``), or
 #: along the table's down where a grasp was planned on a table (:func:`resting_up`).
 UP = np.array([0.0, 0.0, 1.0])
 
 
-def resting_up(table_plane: np.ndarray | None) -> np.ndarray:
+def resting_up(table_plane: np.ndarray | None, up: np.ndarray = UP) -> np.ndarray:
     """(3,) unit: the object's up as it rests, object frame: the table's up for a grasp planned on a table
-    (``Grasp.table_plane``: its first three entries), else :data:`UP`."""
+    (``Grasp.table_plane``: its first three entries; the table's up wins), else the object's own ``up`` (3,)
+    (``PreparedObject.up``; :data:`UP` unless told)."""
     if table_plane is None:
-        return UP
+        return up
     up = np.asarray(table_plane, float)[:3]
     return up / np.linalg.norm(up)
 

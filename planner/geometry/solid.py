@@ -32,6 +32,7 @@ from planner.specs.objects import (
     source_path,
     urdf_mesh,
 )
+from planner.specs.up import up_vector
 from planner.specs.urdf_objects import read_urdf_object
 
 #: Bumped when the checked mesh of the same source would come out differently.
@@ -54,6 +55,8 @@ class PreparedObject:
             (seed section 2.2.1).
         gyration_radius: radius of gyration [m], the other choice of rho
             (sqrt(trace(I) / (3 m)), from the mean principal moment).
+        up: (3,) unit, object frame: the object's up as it stands (its spec's ``up``,
+            :mod:`planner.specs.up`; the mesh stays in the file's frame).
     """
 
     spec: ObjectSpec
@@ -80,8 +83,12 @@ class PreparedObject:
     def friction(self) -> float:
         return self.spec.friction
 
+    @property
+    def up(self) -> np.ndarray:
+        return up_vector(self.spec.up)
 
-def load_object(name: str, *, label: str | None = None, **overrides: float | None) -> PreparedObject:
+
+def load_object(name: str, *, label: str | None = None, **overrides: float | str | None) -> PreparedObject:
     """Resolve and prepare an object by name or mesh path."""
     return prepare(resolve_spec(name, label=label, **overrides))
 

@@ -31,13 +31,13 @@ meshes as their hulls):
   touching fingers: the lever its weight and a shake have about the grip's
   axis, which only the pads' friction over their area resists.
 * ``com_height`` [m]: the height of the centre of mass above the midpoint
-  of those two pad centres, along the object's up as it rests (the object
-  frame's +z, :data:`planner.geometry.frames.UP`; on a table, the table's
+  of those two pad centres, along the object's up as it rests (its own,
+  ``PreparedObject.up``: the object frame's +z unless told; on a table, the table's
   up, :func:`~planner.geometry.frames.resting_up`): negative where the object hangs
   below the grip (it swings back under a shake), positive where it stands
   on it (it tips over).
 * ``gravity_arm`` [m]: the lever the object's weight has about that grip
-  axis when the object hangs as it rests (weight along -UP): the distance
+  axis when the object hangs as it rests (weight along -up): the distance
   from the axis to the centre of mass, across both the axis and the
   vertical; 0 when the axis is vertical or runs over the centre of mass.
 * ``palm_gap`` [m]: the smallest distance from the object surface inside
@@ -205,8 +205,8 @@ def measure(hand: HandSpec, surface: GripSurface, contacts: HandContacts,
     """The grip measures of a closed grasp: ``contacts`` say which links touch,
     ``link_poses`` (4, 4) place them (object frame; at least every touching
     contact link and the root link); ``com`` (3,) [m] the object's centre of
-    mass; ``up`` (3,) the object's up as it rests, object frame (its +z,
-    :data:`~planner.geometry.frames.UP`; a grasp planned on a table: the
+    mass; ``up`` (3,) the object's up as it rests, object frame (its own,
+    ``PreparedObject.up``, +z unless told; a grasp planned on a table: the
     table's up, :func:`~planner.geometry.frames.resting_up`)."""
     s = surface.settings
     shapes = hulls(hand)

@@ -38,6 +38,7 @@ from planner.plan.tolerances import (
 )
 from planner.sim import Body, Sim
 from planner.specs.hands import HandSpec
+from planner.specs.up import DEFAULT_UP
 
 
 @dataclass(frozen=True)
@@ -153,12 +154,15 @@ class ReachScene:
         self.sim.set_base_pose(self.object_body, pose)
 
     def resting_pose(self, x: float, y: float, yaw: float, support: Support | None = None) -> np.ndarray:
-        """Object standing on the table (its own +z up; with ``support``, on
-        that table plane), turned by ``yaw``."""
+        """Object standing on the table (on its own up, ``PreparedObject.up``: its
+        lowest point along it on the table top; with ``support``, on that table
+        plane), turned by ``yaw``."""
         pose = np.eye(4)
         pose[:3, :3] = rotation_from_rotvec([0.0, 0.0, yaw])
         base = self.robot_base[:3, 3]
-        if support is None:
+        if support is None and self.obj.spec.up != DEFAULT_UP:
+            support = Support(self.obj.up, float((self.obj.mesh.vertices @ self.obj.up).min()))
+        if support is None:  # its file's +z up: the frame as it is
             pose[:3, 3] = (base[0] + x, base[1] + y, self.settings.table_height - self.obj.mesh.bounds[0][2])
             return pose
         pose[:3, :3] = pose[:3, :3] @ upright(support.normal)

@@ -173,7 +173,7 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report, obj: PreparedObject
         grasper = Grasper.for_object(sim, hand, obj, table=table)
         gripping = grip.GripSurface(obj.mesh)  # the exact surface, whatever proxy closing collides with
         local = LocalSurface(hand, obj.mesh if grasper.mesh is None else grasper.mesh)  # a large mesh's proxy
-        up = resting_up(settings.table_plane)  # on a table: the table's up (object frame)
+        up = resting_up(settings.table_plane, obj.up)  # the object's up; on a table, the table's (object frame)
         sweep = _antipodal if settings.sampler == "antipodal" else _rays
         for cand, closed, ray in sweep(spec, settings, obj, hand, shapes, rng, grasper, result, t0, budget,
                                     report):

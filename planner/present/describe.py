@@ -72,9 +72,10 @@ def frame_lines(f: Frames, hand: HandFrame) -> list[str]:
 
 
 def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
-             arm: Mapping[str, Mapping[str, float]] | None = None) -> list[str]:
+             arm: Mapping[str, Mapping[str, float]] | None = None, up: str = "+z") -> list[str]:
     """The lines ``grasp best`` prints for one grasp (with ``world`` and the
-    ``arm`` joint solutions by stage when it was reached at an object pose)."""
+    ``arm`` joint solutions by stage when it was reached at an object pose); ``up``: the object's
+    (:mod:`planner.specs.up`), said where it is not its frame's +z."""
     g, m = grasp, grasp.measures
     score = "n/a" if g.score is None else score_text(g.score)
     reach = "not computed" if g.reachability is None else f"{g.reachability:.2f} of table placements"
@@ -95,6 +96,9 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
         n = g.table_plane
         lines.append(f"    planned on a table: its top is n . x = {n[3]:.4f} m in the object frame, n = "
                      f"{_xyz(n[:3])} (the hand keeps off it)")
+    elif up != "+z":
+        lines.append(f"    the object's up is its frame's {up} (com_height, gravity_arm and the MuJoCo trial's weight "
+                     "read it; poses stay in the file's frame)")
     lines.append(f"    finger width {width}; epsilon {g.epsilon:.4f} (Ferrari-Canny L1, "
                  f"{'force closure' if g.force_closure else 'NOT force closure'}); GWS volume {volume}; "
                  f"{len(g.contacts)} contacts; reachability {reach}")
@@ -116,8 +120,9 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
             lines.append(f"    {name}: {verdict}{why}")
             held_by += [name] if trial.success else []
     if m is not None and "cannot_hold_weight" in m.reasons and held_by:
-        lines.append(f"    its weight: the {held_by[-1]} held it loaded along one direction (the object's -z, or the "
-                     f"table's down); cannot_hold_weight is the worst of {DIRECTIONS} "
+        down = "table's down" if g.table_plane is not None else f"object's down, {'-+'[up[0] == '-']}{up[1]}"
+        lines.append(f"    its weight: the {held_by[-1]} held it loaded along one direction (the {down}); "
+                     f"cannot_hold_weight is the worst of {DIRECTIONS} "
                      f"directions, where the fingers' force limits hold {m.resist_worst:.1f} times its weight: hold "
                      "it as it stands, do not turn it")
     for stage, joints in (arm or {}).items():

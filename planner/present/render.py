@@ -86,10 +86,15 @@ def grasp_views(hand: HandSpec, obj: PreparedObject, grasp: Grasp, size: tuple[i
             up = np.asarray(grasp.table_plane[:3], float)
             turn = rotation_onto([0.0, 0.0, 1.0], up)
             sim.add_visual_mesh(*table_slab(up, float(grasp.table_plane[3]), centre, radius), TABLE_RGBA)
+        elif obj.spec.up != "+z":  # the views turned with the object's own up (a Y-up file), standing as it stands
+            up = obj.up
+            turn = rotation_onto([0.0, 0.0, 1.0], up)
         views = []
         for view in VIEWS:
             if grasp.table_plane is not None:
                 view = turn @ np.array([view[0], view[1], abs(view[2])])
+            elif obj.spec.up != "+z":
+                view = turn @ view
             view = view / np.linalg.norm(view)
             distance = FRAME_MARGIN * framing_distance(corners - target, view, up, size, FOV)
             eye = target + view * distance

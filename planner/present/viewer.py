@@ -24,11 +24,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import viser
 
+from planner.geometry.frames import rotation_onto
 from planner.geometry.quaternion import canonical_xyzw, quaternion_xyzw
 from planner.present.describe import score_text
 from planner.present.scene import APPROACH_RGB, CONTACT_RADIUS, CONTACT_RGB, GraspScene, Part
 from planner.record.grasp import Grasp
 from planner.specs.hands import HandSpec
+from planner.specs.up import up_vector
 
 ALL = "all"
 LABELS = ("held", "dropped", "not validated")
@@ -134,7 +136,8 @@ def _check_address(host: str, port: int) -> None:
 class Viewer:
     """A running viewer: ``url`` to open; :meth:`stop` to end it.
 
-    ``nodes`` holds the names of the scene nodes on screen now (tests read it)."""
+    ``nodes`` holds the names of the scene nodes on screen now (tests read it); ``up``: the scene's up, an axis
+    (:mod:`planner.specs.up`: the object's own where the scene is its frame, a Y-up file's +y)."""
 
     entries: list[Entry]
     hands: dict[str, HandSpec]
@@ -143,6 +146,7 @@ class Viewer:
     port: int = 8080
     nodes: dict[str, object] = field(default_factory=dict)
     selected: Entry | None = None
+    up: str = "+z"
 
     def __post_init__(self) -> None:
         if not self.entries:
@@ -152,7 +156,7 @@ class Viewer:
             self.server = viser.ViserServer(host=self.host, port=self.port, verbose=False)
         self._lock = threading.Lock()
         self._scenes: dict[int, GraspScene] = {}
-        self.server.scene.set_up_direction("+z")
+        self.server.scene.set_up_direction(self.up)  # type: ignore[arg-type]
         self._place_camera()
         self._add(self.object_part)
         self._build_gui()
@@ -264,8 +268,10 @@ class Viewer:
         centre, size = 0.5 * (lo + hi), float(np.linalg.norm(hi - lo))
         camera = self.server.initial_camera
         camera.look_at = tuple(centre)
-        camera.position = tuple(centre + np.array([1.0, -1.2, 0.8]) / np.linalg.norm([1.0, -1.2, 0.8])
-                                * (1.6 * size + 0.15))
-        camera.up = (0.0, 0.0, 1.0)
+        view = np.array([1.0, -1.2, 0.8]) / np.linalg.norm([1.0, -1.2, 0.8])
+        up = up_vector(self.up)
+        view = view if self.up == "+z" else rotation_onto([0.0, 0.0, 1.0], up) @ view  # from above its up
+        camera.position = tuple(centre + view * (1.6 * size + 0.15))
+        camera.up = tuple(up)
         camera.near = 0.005
 

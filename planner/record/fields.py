@@ -113,9 +113,9 @@ def _validation(group: str) -> list[Field]:
 
 
 def _objects() -> list[Field]:
-    def obj(column: str, kind: str, unit: str, doc: str, shape: tuple[int, ...] = ()) -> Field:
-        return declared("objects", column, "", kind, unit, 1, doc, name=f"object_{column}", key=column == "name",
-                        shape=shape)
+    def obj(column: str, kind: str, unit: str, doc: str, shape: tuple[int, ...] = (), version: int = 1) -> Field:
+        return declared("objects", column, "", kind, unit, version, doc, name=f"object_{column}",
+                        key=column == "name", shape=shape)
 
     return [obj("name", "text", "", "object name"), obj("source", "text", "", "the mesh file or `primitive:<kind>`"),
             obj("scale", "real", "", "what turns `source` into metres"),
@@ -125,7 +125,10 @@ def _objects() -> list[Field]:
             obj("com", "vector", "m", "centre of mass, object frame", (3,)),
             obj("inertia", "vector", "kg m^2", "inertia about the centre of mass, object axes", (3, 3)),
             obj("torque_scale", "real", "m", "torque scale of the wrenches"),
-            obj("extents", "vector", "m", "bounding box extents", (3,))]
+            obj("extents", "vector", "m", "bounding box extents", (3,)),
+            obj("up", "text", "", "the object's up as it stands, an axis of the object frame (`+z`, `+y`, ...): "
+                "`com_height`, `gravity_arm` and the MuJoCo trial's weight read it; `+z` for objects stored before",
+                version=12)]
 
 
 #: Every stored field of the record's tables, in record order.

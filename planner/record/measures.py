@@ -77,11 +77,13 @@ class Measures:
     com_lever: float | None = stored("real", "m", 6, "distance from the centre of mass to the line through the pad "
                                      "centres of the best-opposed touching fingers", required=False, default=None)
     com_height: float | None = stored("real", "m", 9, "height of the centre of mass above the midpoint of those pad "
-                                      "centres, along the object's up as it rests (its frame's +z; planned on a "
-                                      "table: the table's up) (< 0: the object hangs below the grip)",
+                                      "centres, along the object's up as it rests (`object_up`, its frame's +z "
+                                      "unless told; planned on a table: the table's up) (< 0: the object hangs "
+                                      "below the grip)",
                                       required=False, default=None)
-    gravity_arm: float | None = stored("real", "m", 9, "lever of the object's weight (along -z, or the table's "
-                                       "down) about the line through those pad centres", required=False, default=None)
+    gravity_arm: float | None = stored("real", "m", 9, "lever of the object's weight (along its down, -up, or the "
+                                       "table's down) about the line through those pad centres", required=False,
+                                       default=None)
     torque_per_mu: float | None = stored("real", "N m", 10, "the object's weight's torque about that line over its "
                                          "friction coefficient (mass x g x gravity_arm / mu)", required=False,
                                          default=None)

@@ -15,7 +15,9 @@ a manifest line's columns, ``grasp generate --mass/--density/--friction``
 its ``<lateral_friction>``: :meth:`~planner.specs.urdf_objects.UrdfObject.own`),
 the registry entry, else :data:`DEFAULT_MASS` and :data:`DEFAULT_FRICTION`.
 Mass and density are one property given two ways: a source gives one or
-the other, never both, and the first source that gives either decides.
+the other, never both, and the first source that gives either decides. Its
+``up`` (:mod:`planner.specs.up`) comes from the same sources, else
+:func:`~planner.specs.up.default_up` of its file (``+y`` for glTF, else ``+z``).
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ from planner import assets
 from planner.errors import ConfigError, InputError, UnknownNameError
 from planner.specs.physical import NO_PHYSICAL, Physical
 from planner.specs.toml import Fields, read_toml
+from planner.specs.up import DEFAULT_UP, default_up
 from planner.specs.urdf_objects import URDF_SUFFIX, read_urdf_object
 
 REGISTRY_FILE = "objects.toml"
@@ -149,6 +152,7 @@ class ObjectSpec:
     friction: float = DEFAULT_FRICTION
     description: str = ""
     density: float | None = None  # [kg/m^3] when the user gave a density, else None (from the mass)
+    up: str = DEFAULT_UP  # the axis of the object frame that is up as it stands (planner.specs.up)
 
     @property
     def user_file(self) -> bool:
@@ -220,13 +224,13 @@ def random_spec(index: int) -> ObjectSpec:
 
 def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = None,
                  friction: float | None = None, label: str | None = None, density: float | None = None,
-                 scale_from: str = "--scale") -> ObjectSpec:
+                 up: str | None = None, scale_from: str = "--scale") -> ObjectSpec:
     """A built-in name, ``random_NNN``, or a path to a mesh or URDF file;
     ``label`` renames it (two files of one run with the same stem). ``mass``
-    (or ``density``) and ``friction`` override the object's own, a file's
+    (or ``density``), ``friction`` and ``up`` override the object's own, a file's
     from its sidecar, a URDF's own (see the module docstring). ``scale_from``: what gave
     ``scale``, for the error of a primitive, which takes none."""
-    given = Physical.checked({"mass": mass, "density": density, "friction": friction}, f"object '{name}'")
+    given = Physical.checked({"mass": mass, "density": density, "friction": friction, "up": up}, f"object '{name}'")
     if scale is not None and not (math.isfinite(scale) and scale > 0):
         raise InputError(f"object '{name}': scale must be a positive number, got {scale:g} (0.001 for a mesh in "
                          "millimetres)")
@@ -249,7 +253,8 @@ def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = 
         # named as given and its sidecar beside it (a symlink's own name and folder; the target's sidecar where
         # the link has none); the source is the file itself, whatever path names it
         named, path = Path(name).expanduser(), Path(name).expanduser().resolve()
-        spec = ObjectSpec(name=named.stem, kind="mesh", source=str(path), scale=1.0 if scale is None else scale)
+        spec = ObjectSpec(name=named.stem, kind="mesh", source=str(path), scale=1.0 if scale is None else scale,
+                          up=default_up(path))
         found = mesh_sidecar(named)
         given = given.over(Physical.checked(read_toml(found), str(found)) if found is not None else NO_PHYSICAL)
     else:
@@ -280,13 +285,13 @@ def _urdf_spec(named: Path, scale: float | None, given: Physical) -> tuple[Objec
 
 def with_physical(spec: ObjectSpec, physical: Physical) -> ObjectSpec:
     """``spec`` with the properties ``physical`` gives (a mass clears a density)."""
-    overrides: dict[str, float | None] = dict(physical.given())
+    overrides: dict[str, float | str | None] = dict(physical.given())
     if physical.mass is not None:
         overrides["density"] = None
     return replace(spec, **overrides) if overrides else spec
 
 
-def file_values(named: str, spec: ObjectSpec) -> list[tuple[str, dict[str, float]]]:
+def file_values(named: str, spec: ObjectSpec) -> list[tuple[str, dict[str, float | str]]]:
     """The values the files of the user's file ``named`` (as the run names it; ``spec`` its object) give,
     first first, each with its file's name: its sidecar's, then a URDF's own
     (:meth:`~planner.specs.urdf_objects.UrdfObject.stated`, unchecked); [] for other objects."""

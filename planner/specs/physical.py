@@ -1,6 +1,7 @@
 """An object's physical properties as a user gives them: a mass [kg] or a
 uniform density [kg/m^3] (one property given two ways: never both) and a
-Coulomb friction coefficient, each checked with an error naming where it was
+Coulomb friction coefficient, and the axis of the file's frame that is up as the
+object stands (:mod:`planner.specs.up`), each checked with an error naming where it was
 given and the field. :mod:`planner.specs.objects` says which source wins.
 """
 
@@ -11,12 +12,13 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from planner.errors import InputError
+from planner.specs.up import up_axis
 
 #: Largest Coulomb friction coefficient accepted: rubber on rough surfaces
 #: reaches about 1-2, so a larger value is a typo (a percentage, a unit mix-up).
 MAX_FRICTION = 3.0
 #: The keys of a physical-properties sidecar (``banana.toml`` beside ``banana.obj``) and a manifest's columns.
-PHYSICAL_KEYS = ("mass", "density", "friction")
+PHYSICAL_KEYS = ("mass", "density", "friction", "up")
 _UNITS = {"mass": "kg", "density": "kg/m^3", "friction": "Coulomb coefficient"}
 
 
@@ -26,16 +28,20 @@ class Physical:
 
     ``mass`` [kg] or ``density`` [kg/m^3] (uniform over the closed mesh; the
     mass is then density x volume), never both; ``friction``: Coulomb
-    coefficient, 0 < mu <= :data:`MAX_FRICTION`. Build with :meth:`checked`
-    from user input for an error naming the source and field.
+    coefficient, 0 < mu <= :data:`MAX_FRICTION`; ``up``: the axis of the
+    object frame that is up as it stands (:data:`planner.specs.up.AXES`).
+    Build with :meth:`checked` from user input for an error naming the source and field.
     """
 
     mass: float | None = None
     density: float | None = None
     friction: float | None = None
+    up: str | None = None
 
     def __post_init__(self) -> None:
         check_physical(self.mass, self.density, self.friction, "", "")
+        if self.up is not None:
+            object.__setattr__(self, "up", up_axis(self.up))
 
     @classmethod
     def checked(cls, values: Mapping[str, object], where: str = "", prefix: str = "") -> Physical:
@@ -45,18 +51,20 @@ class Physical:
         if unknown:
             raise InputError(f"{_at(where)}unknown field '{prefix}{unknown[0]}'; use "
                              f"{', '.join(prefix + k for k in PHYSICAL_KEYS)}")
-        numbers = {k: _number(values[k], k, where, prefix) for k in PHYSICAL_KEYS if values.get(k) is not None}
+        numbers = {k: _number(values[k], k, where, prefix) for k in PHYSICAL_KEYS[:3] if values.get(k) is not None}
         check_physical(numbers.get("mass"), numbers.get("density"), numbers.get("friction"), where, prefix)
-        return cls(**numbers)
+        up = None if values.get("up") is None else up_axis(values["up"], where, f"{prefix}up")
+        return cls(**numbers, up=up)
 
     def over(self, base: Physical) -> Physical:
         """These properties, with ``base``'s where these give none (mass or
         density together: whichever gives either decides)."""
         heavy = self.mass is not None or self.density is not None
         return Physical(self.mass if heavy else base.mass, self.density if heavy else base.density,
-                        self.friction if self.friction is not None else base.friction)
+                        self.friction if self.friction is not None else base.friction,
+                        self.up if self.up is not None else base.up)
 
-    def given(self) -> dict[str, float]:
+    def given(self) -> dict[str, float | str]:
         return {k: v for k in PHYSICAL_KEYS if (v := getattr(self, k)) is not None}
 
 

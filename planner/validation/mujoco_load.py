@@ -52,9 +52,9 @@ def load_path(s: MujocoSettings, pose: np.ndarray, tcp: np.ndarray, approach: np
 def down_along(name: str, approach: np.ndarray, up: np.ndarray = UP) -> np.ndarray:
     """(3,) unit vector, world (= object) frame, of :data:`~planner.validation.mujoco_settings.DOWN`'s
     ``name``; ``approach``: the hand's approach in the world. "-z" (and "none": without gravity the hand
-    still lifts and shakes along it) is the object's down as it rests, -``up``: the object frame's -z
-    (-:data:`~planner.geometry.frames.UP`), or for a grasp planned on a table the table's down
-    (:func:`~planner.geometry.frames.resting_up`)."""
+    still lifts and shakes along it) is the object's down as it rests, -``up``: the object's own
+    (``PreparedObject.up``; the object frame's -z, -:data:`~planner.geometry.frames.UP`, unless told), or for a
+    grasp planned on a table the table's down (:func:`~planner.geometry.frames.resting_up`)."""
     if name == "approach":
         return approach / np.linalg.norm(approach)
     return np.array([0.0, -1.0, 0.0]) if name == "-y" else 0.0 - up  # not -up: no negative zeros

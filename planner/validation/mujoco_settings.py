@@ -20,10 +20,10 @@ DEFAULT_ENGINE = "mujoco"
 #: The reason (``Trial.reason``) of a MuJoCo trial whose state diverged: no verdict (neither held nor
 #: dropped), so ``grasp validate`` does not store it.
 DIVERGED = "diverged"
-#: Where the trial's gravity points: the object frame's -z (the object as it
-#: stands: the project's objects are z-up; a grasp planned on a table: the
-#: table's down, as the object rests on it) or -y (y-up meshes: ShapeNet's, FleX's
-#: world), along the hand's approach (a pick from above), or nowhere (the shake alone).
+#: Where the trial's gravity points: "-z", the object's down as it stands (-``PreparedObject.up``: the object
+#: frame's -z unless its up was given, :mod:`planner.specs.up`; a grasp planned on a table: the table's down, as
+#: the object rests on it), or the object frame's -y whatever the object's up (FleX's world for ACRONYM's meshes),
+#: along the hand's approach (a pick from above), or nowhere (the shake alone).
 DOWN = ("-z", "-y", "approach", "none")
 
 

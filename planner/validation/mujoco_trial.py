@@ -42,7 +42,8 @@ welded to a moving target, hand gravity-compensated as an arm would carry it):
    joint limits as stiff as the contacts (a servo as stiff as a brake is
    unstable at the trial's time step). Closing ends when every
    finger has stalled; the object then settles.
-3. Load and shake: gravity ramps on (the object frame's -z, or along the
+3. Load and shake: gravity ramps on (the object's down, -``obj.up``: the
+   object frame's -z unless told; on a table the table's; or along the
    approach); the hand lifts against it, rotates back and forth about the
    two axes across its approach through the tool centre point, and moves up
    and down along gravity; then holds still.
@@ -68,7 +69,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from planner.geometry.frames import resting_up
+from planner.geometry.frames import UP, resting_up
 from planner.geometry.solid import PreparedObject
 from planner.record.grasp import Grasp, Trial
 from planner.sim.mujoco_world import VERSION, World
@@ -135,7 +136,7 @@ def trials(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp], setting
     s = settings or MujocoSettings()
     world = world_for(hand, obj, s, obj.mass if mass is None else mass)
     mu = contact_friction(obj.friction if friction is None else friction, s)
-    return [_Run(world, hand, g, s, mu).run() for g in grasps]
+    return [_Run(world, hand, g, s, mu, obj.up).run() for g in grasps]
 
 
 def contact_friction(mu: float, s: MujocoSettings) -> float:
@@ -172,6 +173,7 @@ class _Run:
     grasp: Grasp
     s: MujocoSettings
     mu: float
+    up: np.ndarray = field(default_factory=lambda: UP)  # (3,) the object's up as it stands, object frame
     rates: dict[str, float] = field(init=False)
     fingers: tuple[frozenset[str], ...] = field(init=False)
     pose: np.ndarray = field(init=False)
@@ -315,7 +317,7 @@ class _Run:
     def _load(self, closed: np.ndarray) -> tuple[bool, tuple[float, float]]:
         """Gravity, lift, shake, hold; (held, (largest motion [m], rotation [rad]) relative to the hand)."""
         w, s, dt = self.world, self.s, self.s.timestep
-        down = down_along(s.down, self.pose[:3, :3] @ self.hand.approach, resting_up(self.grasp.table_plane))
+        down = down_along(s.down, self.pose[:3, :3] @ self.hand.approach, resting_up(self.grasp.table_plane, self.up))
         weight = 0.0 if s.down == "none" else GRAVITY
         worst = [0.0, 0.0]
         every = _steps(CHECK_EVERY, dt)

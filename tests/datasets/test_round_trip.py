@@ -38,6 +38,8 @@ PRESHAPES = {"panda": ("wide",), "barrett": ("wrap", "pinch"), "allegro": ("late
 TINY = dict(approaches=3, rolls=1, reach_placements=0)
 #: Not the box's registry values: an export that fell back on them would show.
 MASS, FRICTION = 0.37, 0.83
+#: The swept box's up: not its frame's +z, so that every format is seen to carry it.
+UP = "-y"
 #: Poses go through transforms @ inverse(export frame) or Euler angles and
 #: are stored to 7 decimals; everything else comes back exactly.
 POSE_TOL = 1e-6
@@ -80,11 +82,11 @@ def carried(fmt: str) -> set[str]:
 def swept(tmp_path_factory: pytest.TempPathFactory) -> Path:
     db = tmp_path_factory.mktemp("round_trip") / "g.db"
     for hand in hand_names():
-        summary = api.generate(["box"], hand, db_path=db, workers=1,
+        summary = api.generate(["box"], hand, db_path=db, workers=1, up=UP,
                                settings=SweepSettings(preshapes=PRESHAPES[hand], **TINY))
         assert not summary.failed and summary.grasps > 0, hand
     # grasps planned on a table carry its plane
-    summary = api.generate(["box"], "barrett", db_path=db, workers=1, on_table=1,
+    summary = api.generate(["box"], "barrett", db_path=db, workers=1, on_table=1, up=UP,
                            settings=SweepSettings(preshapes=PRESHAPES["barrett"], **TINY))
     assert not summary.failed and summary.grasps > 0
     with open_db(db) as handle:
@@ -143,13 +145,13 @@ def comparable(f: Field, value: object) -> object:
 
 
 def source(db: Path) -> tuple[dict, tuple]:
-    """{(hand, rank): {field: value}} of every stored grasp, and the object's (mass, friction, density)."""
+    """{(hand, rank): {field: value}} of every stored grasp, and the object's (mass, friction, density, up)."""
     with open_db(db, create=False, readonly=True) as handle:
         rows = {(g.hand, g.rank): {f.name: comparable(f, getter(f)(g)) for f in record_fields()}
                 for hand in hand_names() for batch in handle.grasp_batches("box", hand) for g in batch}
         row = handle.object_row("box")
     assert row is not None
-    return rows, (row.mass, row.friction, row.density)
+    return rows, (row.mass, row.friction, row.density, row.up)
 
 
 def read_acronym(out: Path, tmp_path: Path) -> tuple[dict, tuple]:
@@ -167,7 +169,7 @@ def read_graspgen(out: Path, tmp_path: Path) -> tuple[dict, tuple]:
         data = json.loads((out / graspgen.relative_path("box", hand)).read_text())
         lists = data["grasps"]
         names = data["gripper"]["joint_names"]
-        physics = tuple(data["object"][k] for k in ("mass", "friction", "density"))
+        physics = tuple(data["object"][k] for k in ("mass", "friction", "density", "up"))
         columns = {column: lists[key.rsplit("/", 1)[-1]] for key, column in ACRONYM_FILE.items()}
         for i in range(len(lists["transforms"])):
             row = {column: _joints(names, values[i]) if column.endswith("_joints") else values[i]
@@ -198,7 +200,7 @@ def read_table(out: Path, fmt: str) -> tuple[dict, tuple]:
                 row[name] = json.loads(r[column]) if f.kind in ("joints", "contacts") else r[column]  # type: ignore[union-attr]
         rows[(r["hand"], r["rank"])] = _fields(row)
     first = records[0]
-    return rows, (first["object_mass"], first["object_friction"], first["object_density"])
+    return rows, (first["object_mass"], first["object_friction"], first["object_density"], first["object_up"])
 
 
 def _csv_value(column: str, text: str) -> object:
@@ -246,7 +248,8 @@ def test_every_hand_comes_back_through_every_format(fmt: str, swept: Path, tmp_p
                "dexgraspnet": lambda: read_dexgraspnet(out)}
     back, back_physics = readers[fmt]()
     assert set(back) == set(expected)
-    assert np.allclose(back_physics, physics, rtol=1e-12, atol=0) and physics[:2] == (MASS, FRICTION)
+    assert np.allclose(back_physics[:3], physics[:3], rtol=1e-12, atol=0) and physics[:2] == (MASS, FRICTION)
+    assert back_physics[3] == physics[3] == UP  # the object's up, read back by import from ACRONYM's object/up
     names = carried(fmt)
     for key, row in expected.items():
         for name in names:

@@ -59,3 +59,14 @@ def test_obj_text_loads_back_as_the_same_single_mesh(tmp_path: Path) -> None:
     assert isinstance(loaded, trimesh.Trimesh)
     assert np.array_equal(loaded.vertices, mesh.vertices) and np.array_equal(loaded.faces, mesh.faces)
     assert "vn " not in path.read_text() and "usemtl" not in path.read_text()
+
+
+def test_the_stored_up_is_the_rebuilt_objects_and_another_up_differs(stored_db: Path) -> None:
+    from planner.db.objects import differs
+
+    box = row(stored_db, "box")
+    assert box.up == "+z"  # every object nobody gave another up
+    turned = stored_object(replace(box, up="+y"))
+    assert turned.spec.up == "+y" and turned.up.tolist() == [0.0, 1.0, 0.0]
+    assert differs(box, stored_object(box)) is None
+    assert differs(box, turned) == "with up +z (now +y)"

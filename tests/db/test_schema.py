@@ -188,3 +188,26 @@ def test_a_database_in_a_read_only_folder_is_read_and_writers_say_why_not(
     assert any("in a read-only folder: read as it is now" in r.getMessage() for r in caplog.records)
     code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(db), *FAST, "--quiet")
     one_line_error(code, err, 3, "its folder is read-only", "nothing was changed")
+
+
+def version_11_file(path: Path) -> None:
+    """A database as version 11 wrote it: one object, no ``up`` column."""
+    with sqlite3.connect(path) as conn:
+        for statement in filter(str.strip, ";".join([SCHEMA, *(MIGRATIONS[v] for v in range(1, 11))]).split(";")):
+            conn.execute(statement)
+        conn.execute("INSERT INTO meta VALUES ('schema_version', '11')")
+        conn.execute("INSERT INTO objects VALUES ('o', 's', 1, 'h', 1, 0.5, 1, 1, '[0,0,0]', '[0,0,0,0,0,0,0,0,0]', "
+                     "0.1, '[1,1,1]')")
+
+
+def test_objects_stored_before_version_12_are_z_up(tmp_path: Path) -> None:
+    """Every object had +z as its up before the column: read-only (not migrated) and migrated alike."""
+    old = tmp_path / "v11.db"
+    version_11_file(old)
+    with open_db(old, create=False, readonly=True) as db:
+        assert db.meta("schema_version") == "11" and db.object_row("o").up == "+z"  # type: ignore[union-attr]
+    with open_db(old) as db:
+        assert db.meta("schema_version") == str(SCHEMA_VERSION) and db.object_row("o").up == "+z"  # type: ignore[union-attr]
+    with sqlite3.connect(old) as conn:
+        assert conn.execute("SELECT up FROM objects").fetchall() == [("+z",)]
+    assert len(list(tmp_path.glob("v11.db.v11.*.bak"))) == 1

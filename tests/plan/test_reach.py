@@ -128,3 +128,21 @@ def test_hand_on_the_kuka_arm_through_its_mount() -> None:
         hand_pose = flange @ hand.arm.mount
         target = scene.object_pose @ top_down
         assert np.linalg.norm(hand_pose[:3, 3] - target[:3, 3]) <= POSITION_TOL
+
+
+@pytest.mark.parametrize("up", ["+y", "-x", "-z"])
+def test_an_object_stands_on_its_own_up_on_the_table(scene, up: str) -> None:  # type: ignore[no-untyped-def]
+    """The placements stand an object given another up (a Y-up file) on that up: it points along the world's +z
+    and the object's lowest point along it touches the table top."""
+    from dataclasses import replace
+
+    box = load_object("box")
+    turned = replace(box, spec=replace(box.spec, up=up))
+    scene.use_object(turned)
+    try:
+        pose = scene.resting_pose(0.5, 0.1, 0.7)
+        assert np.allclose(pose[:3, :3] @ turned.up, [0.0, 0.0, 1.0], atol=1e-12)
+        world = turned.mesh.vertices @ pose[:3, :3].T + pose[:3, 3]
+        assert world[:, 2].min() == pytest.approx(scene.settings.table_height, abs=1e-12)
+    finally:
+        scene.use_object(box)

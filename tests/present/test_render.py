@@ -150,3 +150,37 @@ def test_the_views_hold_the_whole_object_and_hand(tmp_path: Path) -> None:
             border = np.concatenate([view.image[0], view.image[-1], view.image[:, 0], view.image[:, -1]])[None]
             assert colour_share(border, OBJECT_RGBA) == 0.0 and colour_share(border, HAND_RGBA) == 0.0
             assert colour_share(view.image, OBJECT_RGBA) > 0.005 and colour_share(view.image, HAND_RGBA) > 0.005
+
+
+def test_an_object_given_another_up_is_drawn_standing(db: Path, tmp_path: Path) -> None:
+    """A Y-up copy of the box told its up, its grasp turned with it: the views are the upright box's (the cameras
+    turn with the object's up); untold, they show it on its side."""
+    from dataclasses import replace
+
+    from planner.db.store import open_db
+    from planner.geometry.solid import load_object
+    from planner.present.render import grasp_views
+    from planner.record.contacts import HandContacts
+    from planner.specs.hands import load_hand
+
+    turn = np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]])  # the box's +z to +y, exactly
+    hand, box = load_hand("panda"), load_object("box")
+    box.mesh.copy().apply_transform(np.block([[turn, np.zeros((3, 1))], [np.zeros(3), 1.0]])).export(
+        tmp_path / "box.obj")
+    with open_db(db, create=False, readonly=True) as store:
+        grasp = store.best("box", "panda", 1)[0]
+    c = grasp.contacts
+    pose = np.eye(4)
+    pose[:3, :3] = turn
+    turned = replace(grasp, pose=pose @ grasp.pose, contacts=HandContacts(c.points @ turn.T, c.normals @ turn.T,
+                                                                          c.links))
+    size = (160, 130)
+    upright = grasp_views(hand, box, grasp, size=size)
+    told = grasp_views(hand, load_object(str(tmp_path / "box.obj"), up="+y"), turned, size=size)
+    untold = grasp_views(hand, load_object(str(tmp_path / "box.obj")), turned, size=size)
+
+    def apart(a: list, b: list) -> float:
+        return max(float(np.mean(np.abs(x.image.astype(float) - y.image.astype(float)))) for x, y in zip(a, b))
+
+    assert apart(told, upright) < 0.2 * apart(untold, upright)  # the light stays the world's: shading differs
+    assert all(np.allclose(x.contacts, y.contacts, atol=1.0) for x, y in zip(told, upright))

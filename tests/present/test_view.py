@@ -167,3 +167,23 @@ def test_a_broken_away_distal_is_drawn_at_its_stored_angle() -> None:
     poses = [{p.name: p.pose for p in scenes.robot_parts(hand.urdf, joints, np.eye(4), "h", (0, 0, 0))}
              for joints in (coupled, broken)]
     assert [name for name in poses[0] if not np.allclose(poses[0][name], poses[1][name])] == ["h/bh_finger_13_link_4"]
+
+
+def test_the_viewer_stands_an_object_on_its_own_up(tmp_path: Path) -> None:
+    """A Y-up file's object (up +y) is shown with +y up, the camera above it; with --object-pose the world's z."""
+    import trimesh
+
+    mesh = trimesh.creation.box(extents=(0.05, 0.04, 0.08))
+    mesh.apply_transform(np.array([[1.0, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]]))
+    mesh.export(tmp_path / "crate.glb")
+    db = tmp_path / "g.db"
+    code, _, err = grasp("generate", str(tmp_path / "crate.glb"), "--hand", "panda", "--db", str(db), "--quiet",
+                         "--approaches", "6", "--rolls", "2", "--workers", "1", "--reach-placements", "0")
+    assert code == 0, err
+    shown = api.view("crate", db_path=db, top=2, port=_free_port())
+    try:
+        camera = shown.server.initial_camera
+        assert shown.up == "+y" and np.allclose(camera.up, [0.0, 1.0, 0.0])
+        assert np.subtract(camera.position, camera.look_at)[1] > 0  # seen from above its up
+    finally:
+        shown.stop()

@@ -432,3 +432,27 @@ def test_a_hand_that_closes_over_its_whole_travel_records_it() -> None:
     assert '"closing": "whole_travel"' in recorded(s, load_hand("allegro"))
     for name in ("panda", "barrett", "pr2"):
         assert "whole_travel" not in recorded(s, load_hand(name)), name
+
+
+@pytest.mark.parametrize("up, down", [("+y", [0.0, -1.0, 0.0]), ("-x", [1.0, 0.0, 0.0])])
+def test_an_object_is_pulled_along_its_own_down_and_a_table_wins(pinched, monkeypatch, up: str,  # type: ignore[no-untyped-def]
+                                                                  down: list[float]) -> None:
+    """An object given another up (a Y-up file): the trial's gravity points along its down, -up, not the object
+    frame's -z; a grasp planned on a table still reads the table's down."""
+    from planner.sim.mujoco_world import World
+
+    hand, obj, grasp = pinched
+    turned = replace(obj, spec=replace(obj.spec, up=up))
+    pulled: list[np.ndarray] = []
+    ramp = World.set_gravity
+
+    def record(world: World, g: np.ndarray) -> None:
+        pulled.append(np.array(g, float))
+        ramp(world, g)
+
+    monkeypatch.setattr(World, "set_gravity", record)
+    for plane, expected in ((None, down), (np.array([0.0, 0.0, 1.0, -0.02]), [0.0, 0.0, -1.0])):
+        pulled.clear()
+        trial(hand, turned, replace(grasp, table_plane=plane))
+        loaded = [g for g in pulled if np.linalg.norm(g) > 0]
+        assert loaded and all(np.allclose(g / np.linalg.norm(g), expected, atol=1e-12) for g in loaded)
