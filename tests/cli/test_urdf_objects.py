@@ -103,6 +103,22 @@ def test_a_flag_replacing_the_urdfs_value_is_said(tmp_path: Path) -> None:
     assert stored(db)[3:5] == (0.3, 0.7)
 
 
+def test_a_urdf_is_z_up_unless_its_sidecar_or_a_flag_says_otherwise(tmp_path: Path) -> None:
+    urdf = write_urdf(tmp_path)
+    db = tmp_path / "g.db"
+    code, _, err = generate(db, str(urdf))
+    assert code == 0, err
+    with sqlite3.connect(db) as conn:
+        assert conn.execute("SELECT up FROM objects").fetchone() == ("+z",)  # a URDF's frame: Z-up, as PyBullet's
+    urdf.with_suffix(".toml").write_text('up = "+y"\n')
+    db2 = tmp_path / "g2.db"
+    code, _, err = grasp("generate", str(urdf), "--hand", "panda", "--db", str(db2), "--up", "-x", *FAST)
+    assert code == 0, err
+    assert "object 'brick': up -x as given replaces brick.toml's up +y" in err
+    with sqlite3.connect(db2) as conn:
+        assert conn.execute("SELECT up FROM objects").fetchone() == ("-x",)
+
+
 @pytest.mark.parametrize("change, needle", [
     (lambda u: u.write_text(u.read_text().replace("</robot>", "")), "malformed URDF"),
     (lambda u: (u.parent / "meshes" / "brick.obj").unlink(), "mesh file not found: meshes/brick.obj"),
