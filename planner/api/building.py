@@ -213,10 +213,12 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
             def text(values: dict[str, float]) -> str:
                 return ", ".join(f"{k} {v:g}" if k != "up" else f"up {v}" for k, v in values.items())
 
+            keep = f", or give --up {row.up} to go on with it (a .glb/.gltf stored before schema v12 is +z)" \
+                if "up" in given else ""
             raise InputError(f"object '{name}' is stored in {db.path} with {text(stored)}, this run gives "
                              f"{text(given)}{_from_files(unit.object_name, spec, unit.physical)}; its grasps "
                              "were measured at the stored values: use another --db, or name the object apart (copy "
-                             "the mesh under another name)")
+                             f"the mesh under another name){keep}")
         if name not in running and spec.user_file and row.source == spec.source and row.scale == spec.scale \
                 and not edited_since(Path(spec.source), db.last_finished(name)):
             continue  # nothing of it runs, and it names the stored file, unchanged since, at the stored scale

@@ -77,7 +77,8 @@ def test_an_object_stored_with_another_up_is_refused(tmp_path: Path, brick: Path
     with sqlite3.connect(db) as conn:
         before = conn.execute("SELECT COUNT(*) FROM grasps").fetchone()
     code, _, err = generate(db, str(brick))
-    one_line_error(code, err, 2, "object 'brick' is stored", "up +y", "this run gives", "up +z")
+    one_line_error(code, err, 2, "object 'brick' is stored", "up +y", "this run gives", "up +z",
+                   "give --up +y to go on with it")
     with sqlite3.connect(db) as conn:
         assert conn.execute("SELECT COUNT(*) FROM grasps").fetchone() == before
     assert generate(db, str(brick), "--up", "y")[0] == 0  # the same up resumes
