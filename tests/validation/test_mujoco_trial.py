@@ -15,7 +15,7 @@ from planner.specs.hands import load_hand
 from planner.validation import fingers as fg
 from planner.validation.mujoco_settings import MujocoSettings
 from planner.validation.mujoco_trial import recorded, trial, trials
-from tests.validation.support import as_row_of, backed_off, box, box_of, pinch
+from tests.validation.support import allegro_pinch, as_row_of, backed_off, box, box_of, pinch
 
 #: The pinched box (0.2 kg) and the Panda's pad force (one 70 N motor: 35 N a pad): below
 #: this friction its weight alone pulls it through the pads (the shake adds more).
@@ -365,24 +365,6 @@ def test_a_grasp_planned_on_a_table_is_pulled_along_the_tables_down(pinched, mon
         assert loaded and all(np.allclose(g / np.linalg.norm(g), down, atol=1e-12) for g in loaded)
 
 
-#: The Allegro's pinch of a 5 x 4 x 8 cm box from the planner's own sweep (`grasp generate box --hand allegro`,
-#: 24 approaches x 2 rolls, its rank 3): the thumb touches 0.73 rad from its open preshape, the index curls to its
-#: stop. Object frame; open and closed joints not listed are 0.
-ALLEGRO_PINCH_POSE = [[0.0, -1.0, 0.0, 0.001862], [1.0, 0.0, 0.0, -0.0322], [0.0, 0.0, 1.0, -0.026198],
-                      [0.0, 0.0, 0.0, 1.0]]
-ALLEGRO_PINCH_OPEN = {"index_mcp": 0.3, "index_pip": 0.2, "thumb_rot": 1.396, "thumb_abd": 0.1, "thumb_mcp": 0.2}
-
-
-def _allegro_pinch(shift: float = 0.0):  # type: ignore[no-untyped-def]
-    hand = load_hand("allegro")
-    obj = box_of((0.05, 0.04, 0.08), 0.2)
-    pose = np.array(ALLEGRO_PINCH_POSE)
-    pose[:3, 3] += pose[:3, :3] @ np.array([0.0, 0.0, shift])  # along the fingers, away from the box
-    grasp = as_row_of("allegro", pose, {}, _no_contacts(), preshape="pinch",
-                      open_joints={j.name: ALLEGRO_PINCH_OPEN.get(j.name, 0.0) for j in hand.joints})
-    return hand, obj, grasp
-
-
 def test_a_slow_finger_closes_over_its_whole_travel() -> None:
     """The Allegro's flexion joints close at 0.5 rad/s over up to 1.9 rad (3.8 s): with nothing in the way
     and no free travel skipped, the index curls to its stop (the closing was cut at 1.5 s: 0.75 rad from
@@ -390,7 +372,7 @@ def test_a_slow_finger_closes_over_its_whole_travel() -> None:
     from planner.validation.mujoco_trial import _Run, contact_friction
     from planner.validation.mujoco_worlds import world_for
 
-    hand, obj, grasp = _allegro_pinch(shift=0.5)  # the box half a metre past the fingertips
+    hand, obj, grasp = allegro_pinch(shift=0.5)  # the box half a metre past the fingertips
     s = MujocoSettings(free_travel_gap=0.0)
     run = _Run(world_for(hand, obj, s, obj.mass), hand, grasp, s, contact_friction(obj.friction, s))
     start = fg.open_start(hand, grasp, run.rates)
@@ -401,7 +383,7 @@ def test_a_slow_finger_closes_over_its_whole_travel() -> None:
 
 
 def test_the_allegro_pinch_reaches_the_box_it_was_planned_on() -> None:
-    hand, obj, grasp = _allegro_pinch()
+    hand, obj, grasp = allegro_pinch()
     result = trial(hand, obj, grasp)
     assert result.reason != "no_contact" and result.fingers_in_contact >= 1
 
