@@ -62,8 +62,18 @@ def hand_files(name: str) -> dict[str, str]:
 #: reads, shows and validates as before (its sweep is still another: ``ALGORITHM_VERSION``; verdicts record the
 #: motors they were made with, so those made before are tried again); the file edited any further is an edit again.
 SAME_HAND: dict[str, tuple[str, dict[str, str]]] = {
-    "hands/allegro/hand.toml": ("6806297ce4d71df3", {
-        "5386eec9e1cb2ab7": "2026-12-06: settle = true (a force-closure grasp's settled epsilon, for ranking)"}),
+    "hands/allegro/hand.toml": ("f3604b80daac7acf", {
+        "5386eec9e1cb2ab7": "2026-12-06: settle = true (a force-closure grasp's settled epsilon, for ranking); "
+                            "and closing_speed 0.5 -> 7 rad/s (the settle's closing: its settled epsilons, "
+                            "scores and ranks stored before are of the slower hand; its verdicts made before are "
+                            "tried again; finger_force, never read, dropped)",
+        "6806297ce4d71df3": "2026-12-06: closing_speed 0.5 -> 7 rad/s, the joint velocity limit of Wonik's "
+                            "description (the settle's closing: its settled epsilons, scores and ranks stored "
+                            "before are of the slower hand; its verdicts made before are tried again; "
+                            "finger_force, never read, dropped)"}),
+    "hands/allegro/allegro.urdf": ("022b5a0a47b605ce", {
+        "4d5a553ee1ac0fac": "2026-12-06: the joints' velocity limit 6 -> 7 rad/s (Wonik's description; read by "
+                            "nothing: hand.toml's closing_speed is the trials')"}),
     "hands/pr2/hand.toml": ("9e884185902b2d8a", {
         "5f6f243e9fb20f0e": "2026-12-06: effort 30 -> 3.15 N m (30 N at the pads) and the fingers' own inertia "
                             "([dynamics.link_inertia]): its weight resistance stored before is of the stronger "

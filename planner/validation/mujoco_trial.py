@@ -112,8 +112,9 @@ def recorded(settings: MujocoSettings, hand: HandSpec) -> str:
     """What decides a hand's MuJoCo trials, as stored with each result (JSON)."""
     torsion = {link: m.torsion_radius for link, m in sorted(hand.contacts.items()) if m.model == "soft"}
     worm = {} if hand.actuators.backdrivable else {"worm_gear": {"motor_stalls_with_finger": True, "ratchet": RATCHET}}
-    # a hand whose fingers may need longer than max_close_time to close (the Allegro): its trials close over
-    # the whole travel now, unlike those stored before (the Panda's and the Barrett's record as before)
+    # a hand whose fingers may need longer than max_close_time to close (the Allegro at 0.5 rad/s, until
+    # 2026-12-06): its trials close over the whole travel, unlike those stored before (every shipped hand now
+    # closes within max_close_time and records as before)
     slow = {"closing": "whole_travel"} if closing_time(settings, [
         Target(j.lower, hand.actuators.closing_speed, j.upper, 0.0) for j in hand.driven]) > settings.max_close_time \
         else {}
@@ -149,9 +150,10 @@ def contact_friction(mu: float, s: MujocoSettings) -> float:
 def closing_time(s: MujocoSettings, targets: Iterable[Target]) -> float:
     """[s] how long closing may last on the closing clock: ``max_close_time``, or longer where a finger's
     whole travel at its closing speed takes longer (then that travel, the servo's lag and ``stall_time``).
-    The Allegro's flexion joints travel up to 1.9 rad at 0.5 rad/s, 3.8 s: cut at 1.5 s, a finger that
-    reaches the object in the last half of its travel never touched it (``no_contact``); the Panda's 4 cm at
-    5 cm/s (0.8 s) and the Barrett's 2.4 rad at 2.4 rad/s (1 s) end within 1.5 s as before."""
+    The Allegro's flexion joints travel up to 1.9 rad: at 0.5 rad/s (until 2026-12-06), 3.8 s, and cut at
+    1.5 s a finger that reaches the object in the last half of its travel never touched it (``no_contact``);
+    at its 7 rad/s 0.27 s. The Panda's 4 cm at 5 cm/s (0.8 s) and the Barrett's 2.4 rad at 2.4 rad/s (1 s)
+    end within 1.5 s as before."""
     travel = max([abs(t.end - t.start) / abs(t.speed) for t in targets if t.speed != 0.0] + [0.0])
     return max(s.max_close_time, travel + SETTLE_LAGS * SERVO_TIME + s.stall_time)
 

@@ -165,21 +165,24 @@ def test_the_projects_same_hand_changes_name_the_files_as_shipped_now() -> None:
         assert shipped not in earlier and earlier
 
 
-@pytest.mark.parametrize("hand, digest, before, after", [
-    ("allegro", "5386eec9e1cb2ab7", "settle = true", "settle = false"),
-    ("pr2", "5f6f243e9fb20f0e", "effort = 3.15", "effort = 3.2"),  # before its motors and inertias
-    ("pr2", "5782d429c3d41b3b", 'width_links = ["left_tip", "right_tip"]', 'width_links = ["right_tip", "left_tip"]'),
+@pytest.mark.parametrize("hand, file, digest, before, after", [
+    ("allegro", "hand.toml", "5386eec9e1cb2ab7", "settle = true", "settle = false"),  # before its settle
+    ("allegro", "hand.toml", "6806297ce4d71df3", "closing_speed = 7.0", "closing_speed = 6.0"),  # before 7 rad/s
+    ("allegro", "allegro.urdf", "4d5a553ee1ac0fac", 'velocity="7"', 'velocity="8"'),  # its URDF's 6 rad/s
+    ("pr2", "hand.toml", "5f6f243e9fb20f0e", "effort = 3.15", "effort = 3.2"),  # before its motors and inertias
+    ("pr2", "hand.toml", "5782d429c3d41b3b", 'width_links = ["left_tip", "right_tip"]',
+     'width_links = ["right_tip", "left_tip"]'),
 ])
 def test_a_database_made_before_a_declared_change_reads_shows_and_validates_as_before(
-        project: Path, tmp_path: Path, hand: str, digest: str, before: str, after: str) -> None:
+        project: Path, tmp_path: Path, hand: str, file: str, digest: str, before: str, after: str) -> None:
     """settle = true in the Allegro's hand.toml (2026-12-06) made every Allegro database made before it 'edited':
     show and validate refused it, telling the user to restore files they never changed; the PR2's motors and
-    finger inertias as they are (2026-12-06), then its width_links (2026-12-06), would have done the same. The
-    project's declared change is not an edit, whichever earlier file the database records; the same file edited
-    any further still is."""
+    finger inertias as they are (2026-12-06), then its width_links (2026-12-06), and the Allegro's closing at its
+    joints' 7 rad/s (hand.toml and its URDF, 2026-12-06) would have done the same. The project's declared change is
+    not an edit, whichever earlier file the database records; the same file edited any further still is."""
     from planner.specs.hand_files import SAME_HAND
 
-    label = f"hands/{hand}/hand.toml"
+    label = f"hands/{hand}/{file}"
     shipped, earlier = SAME_HAND[label]
     assert digest in earlier
     db_path = tmp_path / "g.db"
@@ -198,8 +201,31 @@ def test_a_database_made_before_a_declared_change_reads_shows_and_validates_as_b
     with open_for_writing(db_path) as db:
         refuse_edited(db, hand, "the picture")  # what show and best --object-pose ask
         assert changed_by_project(db, hand) == [f"{label}, {earlier[files[hand][label]]}"]  # best's note says it
-    edit(project / "hands" / hand / "hand.toml", before, after)
+    edit(project / "hands" / hand / file, before, after)
     forget_hands()
     assert changed(files[hand], hand_files(hand)) == [label]
     with pytest.raises(InputError, match="was edited since"), open_for_writing(db_path) as db:
         check_hand_files(db, [hand])
+
+
+def test_an_allegro_database_made_before_it_closed_at_7_rad_s_reads_and_best_notes_both_files(
+        project: Path, tmp_path: Path) -> None:
+    """A database of the Allegro made before 2026-12-06's closing speed records both its hand.toml and its URDF
+    (velocity 6) as they were: both are the project's declared changes, and `best` notes both."""
+    from planner.specs.hand_files import SAME_HAND
+
+    before = {"hands/allegro/hand.toml": "6806297ce4d71df3", "hands/allegro/allegro.urdf": "4d5a553ee1ac0fac"}
+    db_path = tmp_path / "g.db"
+    with open_for_writing(db_path) as db:
+        check_hand_files(db, ["allegro"])
+        db.write_unit(UnitRow("box", "allegro", "h" * 16, json.dumps({}), 5, 0, None, candidates=3),
+                      load_object("box"), [replace(made_up(i, 0.05), object="box", hand="allegro") for i in range(2)],
+                      RankingRule())
+        files = json.loads(db.meta(META_KEY))
+        files["allegro"].update(before)
+        db.set_meta(META_KEY, json.dumps(files, sort_keys=True))
+    with open_for_writing(db_path) as db:
+        check_hand_files(db, ["allegro"])
+        refuse_edited(db, "allegro", "the picture")
+        assert changed_by_project(db, "allegro") == [f"{label}, {SAME_HAND[label][1][digest]}"
+                                                     for label, digest in sorted(before.items())]

@@ -15,7 +15,7 @@ from planner.specs.hands import load_hand
 from planner.validation import fingers as fg
 from planner.validation.mujoco_settings import MujocoSettings
 from planner.validation.mujoco_trial import recorded, trial, trials
-from tests.validation.support import as_row_of, backed_off, box, box_of, pinch
+from tests.validation.support import allegro_pinch, as_row_of, backed_off, box, box_of, pinch
 
 #: The pinched box (0.2 kg) and the Panda's pad force (one 70 N motor: 35 N a pad): below
 #: this friction its weight alone pulls it through the pads (the shake adds more).
@@ -365,32 +365,20 @@ def test_a_grasp_planned_on_a_table_is_pulled_along_the_tables_down(pinched, mon
         assert loaded and all(np.allclose(g / np.linalg.norm(g), down, atol=1e-12) for g in loaded)
 
 
-#: The Allegro's pinch of a 5 x 4 x 8 cm box from the planner's own sweep (`grasp generate box --hand allegro`,
-#: 24 approaches x 2 rolls, its rank 3): the thumb touches 0.73 rad from its open preshape, the index curls to its
-#: stop. Object frame; open and closed joints not listed are 0.
-ALLEGRO_PINCH_POSE = [[0.0, -1.0, 0.0, 0.001862], [1.0, 0.0, 0.0, -0.0322], [0.0, 0.0, 1.0, -0.026198],
-                      [0.0, 0.0, 0.0, 1.0]]
-ALLEGRO_PINCH_OPEN = {"index_mcp": 0.3, "index_pip": 0.2, "thumb_rot": 1.396, "thumb_abd": 0.1, "thumb_mcp": 0.2}
-
-
-def _allegro_pinch(shift: float = 0.0):  # type: ignore[no-untyped-def]
-    hand = load_hand("allegro")
-    obj = box_of((0.05, 0.04, 0.08), 0.2)
-    pose = np.array(ALLEGRO_PINCH_POSE)
-    pose[:3, 3] += pose[:3, :3] @ np.array([0.0, 0.0, shift])  # along the fingers, away from the box
-    grasp = as_row_of("allegro", pose, {}, _no_contacts(), preshape="pinch",
-                      open_joints={j.name: ALLEGRO_PINCH_OPEN.get(j.name, 0.0) for j in hand.joints})
-    return hand, obj, grasp
+def _slow(hand):  # type: ignore[no-untyped-def]
+    """``hand`` closing at 0.5 rad/s (the default closing speed; the Allegro's until 2026-12-06)."""
+    return replace(hand, actuators=replace(hand.actuators, closing_speed=0.5))
 
 
 def test_a_slow_finger_closes_over_its_whole_travel() -> None:
-    """The Allegro's flexion joints close at 0.5 rad/s over up to 1.9 rad (3.8 s): with nothing in the way
+    """An Allegro whose flexion joints close at 0.5 rad/s over up to 1.9 rad (3.8 s): with nothing in the way
     and no free travel skipped, the index curls to its stop (the closing was cut at 1.5 s: 0.75 rad from
     where it started, short of any object it meets later)."""
     from planner.validation.mujoco_trial import _Run, contact_friction
     from planner.validation.mujoco_worlds import world_for
 
-    hand, obj, grasp = _allegro_pinch(shift=0.5)  # the box half a metre past the fingertips
+    hand, obj, grasp = allegro_pinch(shift=0.5)  # the box half a metre past the fingertips
+    hand = _slow(hand)
     s = MujocoSettings(free_travel_gap=0.0)
     run = _Run(world_for(hand, obj, s, obj.mass), hand, grasp, s, contact_friction(obj.friction, s))
     start = fg.open_start(hand, grasp, run.rates)
@@ -401,15 +389,15 @@ def test_a_slow_finger_closes_over_its_whole_travel() -> None:
 
 
 def test_the_allegro_pinch_reaches_the_box_it_was_planned_on() -> None:
-    hand, obj, grasp = _allegro_pinch()
+    hand, obj, grasp = allegro_pinch()
     result = trial(hand, obj, grasp)
     assert result.reason != "no_contact" and result.fingers_in_contact >= 1
 
 
-@pytest.mark.parametrize("name", ["panda", "barrett"])
-def test_the_parallel_jaw_and_the_barrett_close_within_the_set_time(name: str) -> None:
+@pytest.mark.parametrize("name", ["panda", "barrett", "allegro", "pr2"])
+def test_every_shipped_hand_closes_within_the_set_time(name: str) -> None:
     """Their whole travel at their closing speed ends well inside ``max_close_time``: the longer closing of
-    slow fingers does not reach them."""
+    slow fingers does not reach them (the Allegro's did, at 0.5 rad/s, until 2026-12-06)."""
     from planner.specs.preshapes import load_preshapes
     from planner.validation.mujoco_fingers import Target
     from planner.validation.mujoco_trial import closing_time
@@ -426,11 +414,12 @@ def test_the_parallel_jaw_and_the_barrett_close_within_the_set_time(name: str) -
 
 
 def test_a_hand_that_closes_over_its_whole_travel_records_it() -> None:
-    """Trials stored before the Allegro closed over its whole travel are not taken for today's; the Panda's,
-    the Barrett's and the PR2's close within max_close_time and record as before."""
+    """A slow hand's trials (the Allegro at 0.5 rad/s) record that they close over its whole travel, so trials
+    stored before it did are not taken for today's; every shipped hand closes within max_close_time and records
+    as before."""
     s = MujocoSettings()
-    assert '"closing": "whole_travel"' in recorded(s, load_hand("allegro"))
-    for name in ("panda", "barrett", "pr2"):
+    assert '"closing": "whole_travel"' in recorded(s, _slow(load_hand("allegro")))
+    for name in ("panda", "barrett", "allegro", "pr2"):
         assert "whole_travel" not in recorded(s, load_hand(name)), name
 
 
