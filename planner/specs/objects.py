@@ -247,12 +247,12 @@ def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = 
         spec = random_spec(_random_index(name))  # type: ignore[arg-type]
         if scale is not None:
             spec = replace(spec, scale=spec.scale * scale)
-    elif Path(name).suffix.lower() == URDF_SUFFIX:
+    elif (path := file_named(name)) is not None and path.suffix.lower() == URDF_SUFFIX:
         spec, given = _urdf_spec(Path(name).expanduser(), scale, given)
-    elif Path(name).suffix.lower() in MESH_SUFFIXES or Path(name).exists():
+    elif path is not None:
         # named as given and its sidecar beside it (a symlink's own name and folder; the target's sidecar where
         # the link has none); the source is the file itself, whatever path names it
-        named, path = Path(name).expanduser(), Path(name).expanduser().resolve()
+        named = Path(name).expanduser()
         spec = ObjectSpec(name=named.stem, kind="mesh", source=str(path), scale=1.0 if scale is None else scale,
                           up=default_up(path))
         found = mesh_sidecar(named)
@@ -263,6 +263,17 @@ def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = 
     if label:
         spec = replace(spec, name=label)
     return with_physical(spec, given)
+
+
+def file_named(name: str) -> Path | None:
+    """The file (resolved) of the user's mesh or URDF file the object ``name`` is, as :func:`resolve_spec` takes it
+    (its stem names the object); None for a built-in name or ``random_NNN``, which come first, or a name that is no
+    such path. Reads no file: a stored object is found by its file where the file's own values are refused now
+    (a URDF's mass 0, planned with ``--mass``)."""
+    if is_registered(name):
+        return None
+    named = Path(name).expanduser()
+    return named.resolve() if named.suffix.lower() in OBJECT_SUFFIXES or named.exists() else None
 
 
 def _urdf_spec(named: Path, scale: float | None, given: Physical) -> tuple[ObjectSpec, Physical]:
