@@ -181,6 +181,8 @@ def _read(path: Path, geometry: str, mtime_ns: int, ctime_ns: int, size: int) ->
 def _check_rigid(path: Path, model: yourdfpy.URDF) -> None:
     """Refuse links that are not one tree (PyBullet refuses them too), and joints that move."""
     robot = model.robot
+    if not robot.links:
+        return  # no tree, and nothing to grasp: said where the geometry is looked for
     children = [j.child for j in robot.joints]
     roots = [link.name for link in robot.links if link.name not in children]
     if len(roots) != 1 or len(set(children)) < len(children):

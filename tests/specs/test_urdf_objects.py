@@ -181,6 +181,7 @@ def test_the_visual_geometry_stands_in_for_a_missing_collision_one_with_a_note(
      + link("b", element("<box size='0.05 0.05 0.05'/>"), friction=0.8) + joint("a", "b"),
      "its links' <lateral_friction> differ (a 0.5, b 0.8; "),
     (link("a"), "no link has a <collision> or <visual> geometry"),
+    ("", "no link has a <collision> or <visual> geometry"),  # no link at all: not "its joints make a loop"
 ])
 def test_bad_urdfs_are_refused_in_one_line(tmp_path: Path, body: str, message: str) -> None:
     brick(tmp_path)
