@@ -158,7 +158,7 @@ def _stored_names(db: Database, units: Sequence[UnitSpec]) -> list[UnitSpec]:
     where this run names it otherwise: runs before 2026-12-05 prefixed the folders of every file of a run in which
     two files shared a stem, so a resume of such a run finds its objects, not new ones of the same files. Not where
     the stored name is another file's name in this run, nor another name than the file's (a symlink's to it)."""
-    from planner.specs.objects import OBJECT_SUFFIXES
+    from planner.specs.objects import OBJECT_SUFFIXES, file_named
 
     stored = db.names_by_source()
     if not stored:
@@ -170,7 +170,7 @@ def _stored_names(db: Database, units: Sequence[UnitSpec]) -> list[UnitSpec]:
         if label in renamed or Path(unit.object_name).suffix.lower() not in OBJECT_SUFFIXES:
             continue
         named = Path(unit.object_name).expanduser()
-        names = stored.get((str(named.resolve()), unit.scale or 1.0), [])
+        names = stored.get((str(file_named(unit.object_name)), unit.scale or 1.0), [])
         # the file's own name, folder-prefixed: not another link's name to the same file (a link is its own object)
         other = [n for n in names if n not in taken and n.rsplit("/", 1)[-1] in (named.stem, named.name)]
         if names and label not in names and other:

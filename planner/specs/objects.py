@@ -247,8 +247,8 @@ def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = 
         spec = random_spec(_random_index(name))  # type: ignore[arg-type]
         if scale is not None:
             spec = replace(spec, scale=spec.scale * scale)
-    elif (path := file_named(name)) is not None and path.suffix.lower() == URDF_SUFFIX:
-        spec, given = _urdf_spec(Path(name).expanduser(), scale, given)
+    elif (path := file_named(name)) is not None and Path(name).suffix.lower() == URDF_SUFFIX:
+        spec, given = _urdf_spec(Path(name).expanduser(), path, scale, given)
     elif path is not None:
         # named as given and its sidecar beside it (a symlink's own name and folder; the target's sidecar where
         # the link has none); the source is the file itself, whatever path names it
@@ -266,22 +266,25 @@ def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = 
 
 
 def file_named(name: str) -> Path | None:
-    """The file (resolved) of the user's mesh or URDF file the object ``name`` is, as :func:`resolve_spec` takes it
-    (its stem names the object); None for a built-in name or ``random_NNN``, which come first, or a name that is no
-    such path. Reads no file: a stored object is found by its file where the file's own values are refused now
-    (a URDF's mass 0, planned with ``--mass``)."""
+    """The source of the object a user's mesh or URDF file ``name`` is, as :func:`resolve_spec` takes it (its stem
+    names the object): a mesh file itself, whatever path names it (resolved); a URDF as named, absolute, links
+    kept: its meshes are found beside the path that names it, as PyBullet finds them (a link into a content store
+    whose files each sit alone in a folder). None for a built-in name or ``random_NNN``, which come first, or a
+    name that is no such path. Reads no file: a stored object is found by its file where the file's own values are
+    refused now (a URDF's mass 0, planned with ``--mass``)."""
     if is_registered(name):
         return None
     named = Path(name).expanduser()
-    return named.resolve() if named.suffix.lower() in OBJECT_SUFFIXES or named.exists() else None
+    if named.suffix.lower() == URDF_SUFFIX:
+        return Path(os.path.abspath(named))
+    return named.resolve() if named.suffix.lower() in MESH_SUFFIXES or named.exists() else None
 
 
-def _urdf_spec(named: Path, scale: float | None, given: Physical) -> tuple[ObjectSpec, Physical]:
-    """The spec of the URDF file ``named`` and the properties the run ``given``, over its sidecar's, over its
-    own; its mesh files checked to be of a type the planner reads."""
+def _urdf_spec(named: Path, path: Path, scale: float | None, given: Physical) -> tuple[ObjectSpec, Physical]:
+    """The spec of the URDF file ``named`` (``path``: :func:`file_named`) and the properties the run ``given``, over
+    its sidecar's, over its own; its mesh files checked to be of a type the planner reads."""
     if not named.is_file():
         raise InputError(f"{named}: file not found")
-    path = named.resolve()
     own = read_urdf_object(path)
     odd = next((p for p in own.parts if p.file is not None and p.file.suffix.lower() not in MESH_SUFFIXES), None)
     if odd is not None and odd.file is not None:

@@ -168,6 +168,32 @@ def test_a_urdf_planned_over_its_refused_value_is_found_by_its_file(tmp_path: Pa
                    f" {given} {value} ")
 
 
+def test_a_urdf_linked_from_a_content_store_finds_its_meshes_beside_the_link(tmp_path: Path) -> None:
+    """A folder of links into a content store (git-annex: each file alone in its own folder): the URDF's meshes
+    are beside the link that names it, as PyBullet finds them, not beside the file it leads to. It is stored
+    as that link, from which show and export rebuild it."""
+    store = write_urdf(tmp_path / "store")
+    key = tmp_path / "annex" / "SHA256E-s1--k.urdf"
+    key.parent.mkdir()
+    store.rename(key)
+    folder = tmp_path / "dataset"
+    (folder / "meshes").mkdir(parents=True)
+    (folder / "brick.urdf").symlink_to(key)
+    (folder / "meshes" / "brick.obj").symlink_to(tmp_path / "store" / "meshes" / "brick.obj")
+    db = tmp_path / "g.db"
+    code, _, err = generate(db, str(folder / "brick.urdf"))
+    assert code == 0, err
+    assert stored(db)[:2] == ("brick", str(folder / "brick.urdf"))
+    code, _, err = generate(db, str(folder))  # the folder's walk: the same object, done
+    assert code == 0, err
+    code, _, err = grasp("export", "--db", str(db), "--format", "acronym", "--out", str(tmp_path / "out"))
+    assert code == 0, err
+    exported = load_mesh_file(tmp_path / "out" / "meshes" / "brick.obj")
+    assert np.allclose(exported.bounds, PLACED, atol=EXPORT_TOL), exported.bounds
+    code, _, err = grasp("best", str(folder / "brick.urdf"), "--hand", "panda", "--db", str(db))
+    assert code == 0, err
+
+
 def test_a_urdf_without_inertial_gets_the_default_mass_as_a_mesh_does(tmp_path: Path) -> None:
     """Made 3 x 5 x 7 mm, at the default 0.2 kg: the density note a mesh of that size gets."""
     urdf = write_urdf(tmp_path, scale="0.1")
