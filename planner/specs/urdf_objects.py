@@ -228,7 +228,8 @@ def _mesh(path: Path, where: str, filename: str) -> Path:
     if not found.is_file():
         package = " (a package:// path is looked for from the URDF's folder and each folder above it)" \
             if filename.startswith("package://") else ""
-        raise ConfigError(f"{where}: mesh file not found: {filename} (looked at {found}){package}")
+        windows = " (a Windows path? write / between folders)" if "\\" in filename else ""
+        raise ConfigError(f"{where}: mesh file not found: {filename} (looked at {found}){package}{windows}")
     return found
 
 
