@@ -267,16 +267,16 @@ def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = 
 
 def file_named(name: str) -> Path | None:
     """The source of the object a user's mesh or URDF file ``name`` is, as :func:`resolve_spec` takes it (its stem
-    names the object): a mesh file itself, whatever path names it (resolved); a URDF as named, absolute, links
-    kept: its meshes are found beside the path that names it, as PyBullet finds them (a link into a content store
-    whose files each sit alone in a folder). None for a built-in name or ``random_NNN``, which come first, or a
-    name that is no such path. Reads no file: a stored object is found by its file where the file's own values are
-    refused now (a URDF's mass 0, planned with ``--mass``)."""
+    names the object): a mesh file itself, whatever path names it (resolved); a URDF where it is named, its folder
+    resolved but not the file (a link into a content store, whose files each sit alone in a folder): its meshes
+    are found beside the path that names it, as PyBullet finds them. None for a built-in name or ``random_NNN``,
+    which come first, or a name that is no such path. Reads no file: a stored object is found by its file where
+    the file's own values are refused now (a URDF's mass 0, planned with ``--mass``)."""
     if is_registered(name):
         return None
     named = Path(name).expanduser()
     if named.suffix.lower() == URDF_SUFFIX:
-        return Path(os.path.abspath(named))
+        return Path(os.path.abspath(named)).parent.resolve() / named.name
     return named.resolve() if named.suffix.lower() in MESH_SUFFIXES or named.exists() else None
 
 

@@ -183,15 +183,17 @@ def test_a_urdf_linked_from_a_content_store_finds_its_meshes_beside_the_link(tmp
     db = tmp_path / "g.db"
     code, _, err = generate(db, str(folder / "brick.urdf"))
     assert code == 0, err
-    assert stored(db)[:2] == ("brick", str(folder / "brick.urdf"))
+    assert stored(db)[:2] == ("brick", str(folder.resolve() / "brick.urdf"))
     code, _, err = generate(db, str(folder))  # the folder's walk: the same object, done
     assert code == 0, err
     code, _, err = grasp("export", "--db", str(db), "--format", "acronym", "--out", str(tmp_path / "out"))
     assert code == 0, err
     exported = load_mesh_file(tmp_path / "out" / "meshes" / "brick.obj")
     assert np.allclose(exported.bounds, PLACED, atol=EXPORT_TOL), exported.bounds
-    code, _, err = grasp("best", str(folder / "brick.urdf"), "--hand", "panda", "--db", str(db))
-    assert code == 0, err
+    (tmp_path / "linked").symlink_to(folder)  # the same link through a linked folder: the same object
+    for named in (folder / "brick.urdf", tmp_path / "linked" / "brick.urdf"):
+        code, _, err = grasp("best", str(named), "--hand", "panda", "--db", str(db))
+        assert code == 0, err
 
 
 def test_a_urdf_without_inertial_gets_the_default_mass_as_a_mesh_does(tmp_path: Path) -> None:
