@@ -63,6 +63,13 @@ def stated(urdf: Path) -> dict[str, float]:
         return {"error": str(exc)}  # type: ignore[dict-item]
 
 
+def relative(source: str, root: Path) -> str:
+    """A stored ``source`` relative to ``root`` (pybullet_data's folder: the rows read the same on every machine),
+    as stored where it lies outside."""
+    path = Path(source)
+    return path.relative_to(root).as_posix() if path.is_relative_to(root) else source
+
+
 def one(root: Path, name: str, extra: tuple[str, ...]) -> dict:
     """``name``'s row (a file of ``root``, pybullet_data), planned with ``extra`` arguments."""
     urdf = root / name
@@ -82,6 +89,7 @@ def one(root: Path, name: str, extra: tuple[str, ...]) -> dict:
         with sqlite3.connect(db) as conn:
             row["stored"] = dict(zip(("mass", "friction", "scale", "source"), conn.execute(
                 "SELECT mass, friction, scale, source FROM objects").fetchone()))
+        row["stored"]["source"] = relative(row["stored"]["source"], root)
         from planner.db.objects import stored_object
         from planner.db.store import open_db
 

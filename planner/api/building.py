@@ -158,7 +158,7 @@ def _stored_names(db: Database, units: Sequence[UnitSpec]) -> list[UnitSpec]:
     where this run names it otherwise: runs before 2026-12-05 prefixed the folders of every file of a run in which
     two files shared a stem, so a resume of such a run finds its objects, not new ones of the same files. Not where
     the stored name is another file's name in this run, nor another name than the file's (a symlink's to it)."""
-    from planner.specs.objects import OBJECT_SUFFIXES
+    from planner.specs.objects import OBJECT_SUFFIXES, file_named
 
     stored = db.names_by_source()
     if not stored:
@@ -170,7 +170,7 @@ def _stored_names(db: Database, units: Sequence[UnitSpec]) -> list[UnitSpec]:
         if label in renamed or Path(unit.object_name).suffix.lower() not in OBJECT_SUFFIXES:
             continue
         named = Path(unit.object_name).expanduser()
-        names = stored.get((str(named.resolve()), unit.scale or 1.0), [])
+        names = stored.get((str(file_named(unit.object_name)), unit.scale or 1.0), [])
         # the file's own name, folder-prefixed: not another link's name to the same file (a link is its own object)
         other = [n for n in names if n not in taken and n.rsplit("/", 1)[-1] in (named.stem, named.name)]
         if names and label not in names and other:
@@ -178,7 +178,7 @@ def _stored_names(db: Database, units: Sequence[UnitSpec]) -> list[UnitSpec]:
     return [replaced(u, label=renamed.get(u.label or u.object_name, u.label)) for u in units]
 
 
-def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSpec]) -> None:
+def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSpec], flags: Physical) -> None:
     """Refuse to add grasps of an object stored under the same name at
     another mass, density, friction or up, or from another mesh or with other
     mass properties (:func:`planner.db.objects.differs`) than its stored
@@ -188,7 +188,7 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
     only where those moved or the file was modified since its last unit
     finished (its mtime: a copy that keeps an older mtime is not seen). An
     object whose mesh no longer loads is left to its units (stored as
-    failed)."""
+    failed). ``flags``: the run's values (a manifest line's replace them)."""
     from planner.db.objects import differs
     from planner.errors import PlannerError
     from planner.geometry.solid import prepare
@@ -213,7 +213,8 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
             def text(values: dict[str, float]) -> str:
                 return ", ".join(f"{k} {v:g}" if k != "up" else f"up {v}" for k, v in values.items())
 
-            keep = f", or give --up {row.up} to go on with it (a .glb/.gltf stored before schema v12 is +z)" \
+            how = f"up={row.up} on its manifest line" if unit.physical.up not in (None, flags.up) else f"--up {row.up}"
+            keep = f", or give {how} to go on with it (a .glb/.gltf stored before schema v12 is +z)" \
                 if "up" in given else ""
             raise InputError(f"object '{name}' is stored in {db.path} with {text(stored)}, this run gives "
                              f"{text(given)}{_from_files(unit.object_name, spec, unit.physical)}; its grasps "
@@ -321,7 +322,7 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
         units = _stored_names(db, units)
         done = {d: db.units_done(hand, d, seed) for d in sorted({u.settings.digest for u in units})}
         todo = [u for u in units if (u.label, u.chunk) not in done[u.settings.digest]]
-        _check_stored(db, units, todo)
+        _check_stored(db, units, todo, physical)
         replacing = Replacement(db, hand_spec, seed, units, todo, replace)  # refuses a second sweep
         replacing.ready()
         rule = rule or db.rule()

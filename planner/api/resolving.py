@@ -16,7 +16,13 @@ import numpy as np
 
 from planner.db.store import Database, ObjectRow
 from planner.errors import InputError, UnknownNameError
-from planner.specs.objects import PROPERTY_RTOL, is_registered, resolve_spec  # noqa: F401 - PROPERTY_RTOL re-exported
+from planner.specs.objects import (  # noqa: F401 - PROPERTY_RTOL re-exported
+    PROPERTY_RTOL,
+    ObjectSpec,
+    file_named,
+    is_registered,
+    resolve_spec,
+)
 
 if TYPE_CHECKING:
     from planner.geometry.solid import PreparedObject
@@ -47,6 +53,9 @@ def resolve_object(db: Database, name: str) -> tuple[str, ObjectRow | None]:
     row = db.object_row(name)
     if row is not None:
         return name, row
+    file = file_named(name)
+    if file is not None:  # by its file alone: its own values may be refused now (a URDF's mass 0 given --mass)
+        return _from_file(db, name, Path(name).stem, str(file))
     try:
         spec = resolve_spec(name)
     except UnknownNameError:
@@ -55,8 +64,6 @@ def resolve_object(db: Database, name: str) -> tuple[str, ObjectRow | None]:
                                                      else "")
         raise InputError(f"unknown object '{name}': not stored in {db.path} (objects: {listed or 'none'}) and not "
                          f"a built-in name, random_NNN or mesh file (see `grasp objects`)") from None
-    if spec.user_file:
-        return _from_file(db, name, spec.name, spec.source)
     return spec.name, db.object_row(spec.name)
 
 
@@ -105,15 +112,19 @@ def generate_command(name: str, row: ObjectRow | None, hand: str, db_path: Path)
         up = "" if row is None or row.up == "+z" else f" --up {row.up}"
         return f"grasp generate {shlex.quote(name)} --hand {hand}{up}{db}"
     scale = None if row.scale == 1.0 else row.scale
-    own = resolve_spec(row.source, scale=scale)
+    try:
+        own: ObjectSpec | None = resolve_spec(row.source, scale=scale)
+    except InputError:  # the file alone is refused (a URDF's mass 0, its links' frictions apart): each stored value
+        own = None
     extra = "" if scale is None else f" --scale {scale!r}"
-    if not math.isclose(own.mass, row.mass, rel_tol=PROPERTY_RTOL) and own.density is None:
+    if own is None or own.density is None and not math.isclose(own.mass, row.mass, rel_tol=PROPERTY_RTOL):
         extra += f" --mass {row.mass!r}"
-    if own.density is not None and not math.isclose(own.density, row.density, rel_tol=PROPERTY_RTOL):
+    if own is not None and own.density is not None and not math.isclose(own.density, row.density,
+                                                                        rel_tol=PROPERTY_RTOL):
         extra += f" --density {row.density!r}"
-    if not math.isclose(own.friction, row.friction, rel_tol=PROPERTY_RTOL):
+    if own is None or not math.isclose(own.friction, row.friction, rel_tol=PROPERTY_RTOL):
         extra += f" --friction {row.friction!r}"
-    if own.up != row.up:
+    if own is None or own.up != row.up:
         extra += f" --up {row.up}"
     return f"grasp generate {shlex.quote(row.source)} --hand {hand}{extra}{db}"
 

@@ -16,7 +16,7 @@ from planner.record.grasp import RobustEpsilon, Trial
 class ObjectRow:
     """An ``objects`` row: the stored object's file and physical properties.
 
-    ``scale`` turns ``source`` (the mesh file) into metres; ``com`` (3,) [m]
+    ``scale`` turns ``source`` (the mesh or URDF file) into metres; ``com`` (3,) [m]
     and ``inertia`` (3, 3) [kg m^2] about the COM are in the scaled mesh frame;
     ``mesh_sha256``: :func:`~planner.geometry.mesh.mesh_hash` of the checked mesh;
     ``up``: the axis of that frame that is up as the object stands (:data:`planner.specs.up.AXES`).

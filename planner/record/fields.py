@@ -117,7 +117,8 @@ def _objects() -> list[Field]:
         return declared("objects", column, "", kind, unit, version, doc, name=f"object_{column}",
                         key=column == "name", shape=shape)
 
-    return [obj("name", "text", "", "object name"), obj("source", "text", "", "the mesh file or `primitive:<kind>`"),
+    return [obj("name", "text", "", "object name"),
+            obj("source", "text", "", "the mesh or URDF file, or `primitive:<kind>`"),
             obj("scale", "real", "", "what turns `source` into metres"),
             obj("mesh_sha256", "text", "", "hash of the checked mesh the grasps were planned on"),
             obj("mass", "real", "kg", "mass"), obj("friction", "real", "", "friction coefficient used for the quality"),

@@ -247,12 +247,12 @@ def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = 
         spec = random_spec(_random_index(name))  # type: ignore[arg-type]
         if scale is not None:
             spec = replace(spec, scale=spec.scale * scale)
-    elif Path(name).suffix.lower() == URDF_SUFFIX:
-        spec, given = _urdf_spec(Path(name).expanduser(), scale, given)
-    elif Path(name).suffix.lower() in MESH_SUFFIXES or Path(name).exists():
+    elif (path := file_named(name)) is not None and Path(name).suffix.lower() == URDF_SUFFIX:
+        spec, given = _urdf_spec(Path(name).expanduser(), path, scale, given)
+    elif path is not None:
         # named as given and its sidecar beside it (a symlink's own name and folder; the target's sidecar where
         # the link has none); the source is the file itself, whatever path names it
-        named, path = Path(name).expanduser(), Path(name).expanduser().resolve()
+        named = Path(name).expanduser()
         spec = ObjectSpec(name=named.stem, kind="mesh", source=str(path), scale=1.0 if scale is None else scale,
                           up=default_up(path))
         found = mesh_sidecar(named)
@@ -265,12 +265,26 @@ def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = 
     return with_physical(spec, given)
 
 
-def _urdf_spec(named: Path, scale: float | None, given: Physical) -> tuple[ObjectSpec, Physical]:
-    """The spec of the URDF file ``named`` and the properties the run ``given``, over its sidecar's, over its
-    own; its mesh files checked to be of a type the planner reads."""
+def file_named(name: str) -> Path | None:
+    """The source of the object a user's mesh or URDF file ``name`` is, as :func:`resolve_spec` takes it (its stem
+    names the object): a mesh file itself, whatever path names it (resolved); a URDF where it is named, its folder
+    resolved but not the file (a link into a content store, whose files each sit alone in a folder): its meshes
+    are found beside the path that names it, as PyBullet finds them. None for a built-in name or ``random_NNN``,
+    which come first, or a name that is no such path. Reads no file: a stored object is found by its file where
+    the file's own values are refused now (a URDF's mass 0, planned with ``--mass``)."""
+    if is_registered(name):
+        return None
+    named = Path(name).expanduser()
+    if named.suffix.lower() == URDF_SUFFIX:
+        return Path(os.path.abspath(named)).parent.resolve() / named.name
+    return named.resolve() if named.suffix.lower() in MESH_SUFFIXES or named.exists() else None
+
+
+def _urdf_spec(named: Path, path: Path, scale: float | None, given: Physical) -> tuple[ObjectSpec, Physical]:
+    """The spec of the URDF file ``named`` (``path``: :func:`file_named`) and the properties the run ``given``, over
+    its sidecar's, over its own; its mesh files checked to be of a type the planner reads."""
     if not named.is_file():
         raise InputError(f"{named}: file not found")
-    path = named.resolve()
     own = read_urdf_object(path)
     odd = next((p for p in own.parts if p.file is not None and p.file.suffix.lower() not in MESH_SUFFIXES), None)
     if odd is not None and odd.file is not None:

@@ -181,6 +181,8 @@ def _read(path: Path, geometry: str, mtime_ns: int, ctime_ns: int, size: int) ->
 def _check_rigid(path: Path, model: yourdfpy.URDF) -> None:
     """Refuse links that are not one tree (PyBullet refuses them too), and joints that move."""
     robot = model.robot
+    if not robot.links:
+        return  # no tree, and nothing to grasp: said where the geometry is looked for
     children = [j.child for j in robot.joints]
     roots = [link.name for link in robot.links if link.name not in children]
     if len(roots) != 1 or len(set(children)) < len(children):
@@ -226,7 +228,8 @@ def _mesh(path: Path, where: str, filename: str) -> Path:
     if not found.is_file():
         package = " (a package:// path is looked for from the URDF's folder and each folder above it)" \
             if filename.startswith("package://") else ""
-        raise ConfigError(f"{where}: mesh file not found: {filename} (looked at {found}){package}")
+        windows = " (a Windows path? write / between folders)" if "\\" in filename else ""
+        raise ConfigError(f"{where}: mesh file not found: {filename} (looked at {found}){package}{windows}")
     return found
 
 

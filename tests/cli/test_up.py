@@ -84,6 +84,19 @@ def test_an_object_stored_with_another_up_is_refused(tmp_path: Path, brick: Path
     assert generate(db, str(brick), "--up", "y")[0] == 0  # the same up resumes
 
 
+def test_an_up_a_manifest_line_gives_is_told_to_change_there(tmp_path: Path, brick: Path) -> None:
+    """A manifest line's up= wins over --up: the refusal points at the line, whose up= then goes on."""
+    db = tmp_path / "g.db"
+    assert generate(db, str(brick))[0] == 0
+    listed = tmp_path / "list.txt"
+    listed.write_text("meshes/brick.obj up=+y\n")
+    code, _, err = generate(db, f"@{listed}", "--up", "+z")
+    one_line_error(code, err, 2, "up +y", "give up=+z on its manifest line to go on with it")
+    assert "--up +z" not in err
+    listed.write_text("meshes/brick.obj up=+z\n")
+    assert generate(db, f"@{listed}", "--up", "+x")[0] == 0
+
+
 def test_the_store_refuses_a_unit_of_another_up(tmp_path: Path) -> None:
     from dataclasses import replace
 

@@ -142,6 +142,60 @@ def test_a_bad_urdf_is_one_line_and_writes_nothing(tmp_path: Path, change: objec
     assert not db.exists()
 
 
+@pytest.mark.parametrize("own, given", [('value="0"', "--mass"), ("", "--friction")])
+def test_a_urdf_planned_over_its_refused_value_is_found_by_its_file(tmp_path: Path, own: str, given: str) -> None:
+    """A URDF whose own mass (0, PyBullet's fixed body) or links' frictions (two, apart) are refused, planned with
+    --mass or --friction: best and show find it by its file, and a hand without grasps of it is told the command
+    that plans it at the stored value, rather than the URDF's refusal."""
+    urdf = write_urdf(tmp_path)
+    if own:
+        urdf.write_text(urdf.read_text().replace('value="0.25"', own))
+    else:
+        urdf.write_text(urdf.read_text().replace("</robot>", '<link name="tag"><contact><lateral_friction value="0.4"/>'
+                                                 '</contact><collision><origin xyz="0 0 0.05"/><geometry><box size='
+                                                 '"0.01 0.01 0.01"/></geometry></collision></link><joint name="glued" '
+                                                 'type="fixed"><parent link="base"/><child link="tag"/></joint>'
+                                                 "</robot>"))
+    db = tmp_path / "g.db"
+    value = "0.5" if given == "--mass" else "0.7"
+    code, _, err = generate(db, str(urdf), given, value)
+    assert code == 0, err
+    for command in (("best", str(urdf)), ("show", str(urdf), "--out", str(tmp_path / "g.png"))):
+        code, out, err = grasp(*command, "--hand", "panda", "--db", str(db))
+        assert code == 0, (out, err)
+    code, _, err = grasp("best", str(urdf), "--hand", "barrett", "--db", str(db))
+    one_line_error(code, err, 2, "no grasps of 'brick' for hand 'barrett'", f"grasp generate {urdf} --hand barrett ",
+                   f" {given} {value} ")
+
+
+def test_a_urdf_linked_from_a_content_store_finds_its_meshes_beside_the_link(tmp_path: Path) -> None:
+    """A folder of links into a content store (git-annex: each file alone in its own folder): the URDF's meshes
+    are beside the link that names it, as PyBullet finds them, not beside the file it leads to. It is stored
+    as that link, from which show and export rebuild it."""
+    store = write_urdf(tmp_path / "store")
+    key = tmp_path / "annex" / "SHA256E-s1--k.urdf"
+    key.parent.mkdir()
+    store.rename(key)
+    folder = tmp_path / "dataset"
+    (folder / "meshes").mkdir(parents=True)
+    (folder / "brick.urdf").symlink_to(key)
+    (folder / "meshes" / "brick.obj").symlink_to(tmp_path / "store" / "meshes" / "brick.obj")
+    db = tmp_path / "g.db"
+    code, _, err = generate(db, str(folder / "brick.urdf"))
+    assert code == 0, err
+    assert stored(db)[:2] == ("brick", str(folder.resolve() / "brick.urdf"))
+    code, _, err = generate(db, str(folder))  # the folder's walk: the same object, done
+    assert code == 0, err
+    code, _, err = grasp("export", "--db", str(db), "--format", "acronym", "--out", str(tmp_path / "out"))
+    assert code == 0, err
+    exported = load_mesh_file(tmp_path / "out" / "meshes" / "brick.obj")
+    assert np.allclose(exported.bounds, PLACED, atol=EXPORT_TOL), exported.bounds
+    (tmp_path / "linked").symlink_to(folder)  # the same link through a linked folder: the same object
+    for named in (folder / "brick.urdf", tmp_path / "linked" / "brick.urdf"):
+        code, _, err = grasp("best", str(named), "--hand", "panda", "--db", str(db))
+        assert code == 0, err
+
+
 def test_a_urdf_without_inertial_gets_the_default_mass_as_a_mesh_does(tmp_path: Path) -> None:
     """Made 3 x 5 x 7 mm, at the default 0.2 kg: the density note a mesh of that size gets."""
     urdf = write_urdf(tmp_path, scale="0.1")

@@ -164,6 +164,7 @@ def test_the_visual_geometry_stands_in_for_a_missing_collision_one_with_a_note(
 @pytest.mark.parametrize("body, message", [
     ("<link name='a'><collision><geometry><box size='1 1 1'/></geometry></link>", "malformed URDF"),
     (link("a", element("<mesh filename='gone.obj'/>")), "link 'a': mesh file not found: gone.obj"),
+    (link("a", element("<mesh filename='meshes\\brick.obj'/>")), "(a Windows path? write / between folders)"),
     (link("a", element("<mesh filename='brick.dae'/>")), "link 'a': brick.dae: unsupported mesh type '.dae'"),
     (link("a", element("<capsule radius='0.1' length='0.2'/>")), "link 'a': <capsule> geometry is not supported"),
     (link("a", element("<box size='0.1 -1 0.1'/>")), "<box> needs positive lengths"),
@@ -181,6 +182,7 @@ def test_the_visual_geometry_stands_in_for_a_missing_collision_one_with_a_note(
      + link("b", element("<box size='0.05 0.05 0.05'/>"), friction=0.8) + joint("a", "b"),
      "its links' <lateral_friction> differ (a 0.5, b 0.8; "),
     (link("a"), "no link has a <collision> or <visual> geometry"),
+    ("", "no link has a <collision> or <visual> geometry"),  # no link at all: not "its joints make a loop"
 ])
 def test_bad_urdfs_are_refused_in_one_line(tmp_path: Path, body: str, message: str) -> None:
     brick(tmp_path)

@@ -344,12 +344,10 @@ def _no_contacts():  # type: ignore[no-untyped-def]
     return HandContacts(np.zeros((0, 3)), np.zeros((0, 3)), ())
 
 
-def test_a_grasp_planned_on_a_table_is_pulled_along_the_tables_down(pinched, monkeypatch) -> None:  # type: ignore[no-untyped-def]
-    """The object rests on the table in another pose: the trial's gravity points along the table's down
-    (object frame), not the object frame's -z."""
+def _weight_along(monkeypatch, hand, obj, grasp) -> list[np.ndarray]:  # type: ignore[no-untyped-def]
+    """The unit direction of every gravity but zero that ``grasp``'s trial sets (its weight), object frame."""
     from planner.sim.mujoco_world import World
 
-    hand, obj, grasp = pinched
     pulled: list[np.ndarray] = []
     ramp = World.set_gravity
 
@@ -357,12 +355,19 @@ def test_a_grasp_planned_on_a_table_is_pulled_along_the_tables_down(pinched, mon
         pulled.append(np.array(g, float))
         ramp(world, g)
 
-    monkeypatch.setattr(World, "set_gravity", record)
+    with monkeypatch.context() as patch:
+        patch.setattr(World, "set_gravity", record)
+        trial(hand, obj, grasp)
+    return [g / np.linalg.norm(g) for g in pulled if np.linalg.norm(g) > 0]
+
+
+def test_a_grasp_planned_on_a_table_is_pulled_along_the_tables_down(pinched, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """The object rests on the table in another pose: the trial's gravity points along the table's down
+    (object frame), not the object frame's -z."""
+    hand, obj, grasp = pinched
     for plane, down in ((None, [0.0, 0.0, -1.0]), (np.array([1.0, 0.0, 0.0, -0.02]), [-1.0, 0.0, 0.0])):
-        pulled.clear()
-        trial(hand, obj, replace(grasp, table_plane=plane))
-        loaded = [g for g in pulled if np.linalg.norm(g) > 0]
-        assert loaded and all(np.allclose(g / np.linalg.norm(g), down, atol=1e-12) for g in loaded)
+        loaded = _weight_along(monkeypatch, hand, obj, replace(grasp, table_plane=plane))
+        assert loaded and np.allclose(loaded, down, rtol=0, atol=1e-12)
 
 
 def _slow(hand):  # type: ignore[no-untyped-def]
@@ -428,20 +433,8 @@ def test_an_object_is_pulled_along_its_own_down_and_a_table_wins(pinched, monkey
                                                                   down: list[float]) -> None:
     """An object given another up (a Y-up file): the trial's gravity points along its down, -up, not the object
     frame's -z; a grasp planned on a table still reads the table's down."""
-    from planner.sim.mujoco_world import World
-
     hand, obj, grasp = pinched
     turned = replace(obj, spec=replace(obj.spec, up=up))
-    pulled: list[np.ndarray] = []
-    ramp = World.set_gravity
-
-    def record(world: World, g: np.ndarray) -> None:
-        pulled.append(np.array(g, float))
-        ramp(world, g)
-
-    monkeypatch.setattr(World, "set_gravity", record)
     for plane, expected in ((None, down), (np.array([0.0, 0.0, 1.0, -0.02]), [0.0, 0.0, -1.0])):
-        pulled.clear()
-        trial(hand, turned, replace(grasp, table_plane=plane))
-        loaded = [g for g in pulled if np.linalg.norm(g) > 0]
-        assert loaded and all(np.allclose(g / np.linalg.norm(g), expected, atol=1e-12) for g in loaded)
+        loaded = _weight_along(monkeypatch, hand, turned, replace(grasp, table_plane=plane))
+        assert loaded and np.allclose(loaded, expected, rtol=0, atol=1e-12)
