@@ -22,7 +22,7 @@ from dataclasses import replace as replaced
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from planner import prepare
+from planner.api.givers import from_files, note_overridden
 from planner.api.resolving import DEFAULT_DB, PROPERTY_RTOL
 from planner.api.sweeps import Replacement
 from planner.db.hand_files import check_hand_files
@@ -32,7 +32,7 @@ from planner.errors import InputError
 from planner.plan.sweep import SweepSettings, candidate_count, check_sampler
 from planner.specs.hands import load_hand
 from planner.specs.inputs import check_seed, expand
-from planner.specs.objects import ObjectSpec, resolve_spec
+from planner.specs.objects import resolve_spec
 from planner.specs.physical import NO_PHYSICAL, Physical
 from planner.specs.preshapes import load_preshapes, sweep_preshapes
 
@@ -125,7 +125,7 @@ def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: i
                                  "friction or up; give it once")
             continue
         seen[spec.name] = spec
-        _note_overridden(ref.source, spec, ref.physical)
+        note_overridden(ref.source, spec, ref.physical)
         planned = [settings]
         if on_table:
             obj = load_object(ref.source, scale=ref.scale, label=spec.name, **ref.physical.given())
@@ -217,7 +217,7 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
             keep = f", or give {how} to go on with it (a .glb/.gltf stored before schema v12 is +z)" \
                 if "up" in given else ""
             raise InputError(f"object '{name}' is stored in {db.path} with {text(stored)}, this run gives "
-                             f"{text(given)}{_from_files(unit.object_name, spec, unit.physical)}; its grasps "
+                             f"{text(given)}{from_files(unit.object_name, spec, unit.physical)}; its grasps "
                              "were measured at the stored values: use another --db, or name the object apart (copy "
                              f"the mesh under another name){keep}")
         if name not in running and spec.user_file and row.source == spec.source and row.scale == spec.scale \
@@ -230,53 +230,6 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
         if why:
             raise InputError(f"object '{name}' is stored in {db.path} {why}: its grasps were planned on the stored "
                              "one; use another --db, or name the object apart (copy the mesh under another name)")
-
-
-def _givers(named: str, spec: ObjectSpec, given: Physical) -> dict[str, list[tuple[str, dict[str, float | str]]]]:
-    """For the mass (or density), the friction and the up of the object ``named``: who gives it, first first, each as
-    (its file's name, '' for the run's ``given`` values: flags, a manifest's columns; its values of that property):
-    the run, the sidecar, a URDF's own (:func:`~planner.specs.objects.file_values`)."""
-    from planner.specs.objects import file_values
-
-    layers = [("", given.given()), *file_values(named, spec)]
-    props = {"mass": ("mass", "density"), "friction": ("friction",), "up": ("up",)}
-    return {prop: [(who, part) for who, values in layers if (part := {k: v for k, v in values.items() if k in keys})]
-            for prop, keys in props.items()}
-
-
-def _from_files(named: str, spec: ObjectSpec, given: Physical) -> str:
-    """`` (mass from banana.toml)`` where a file of the object ``named`` (its sidecar, a URDF) gave what the run
-    did not."""
-    used: dict[str, list[str]] = {}
-    for prop, givers in _givers(named, spec, given).items():
-        if givers and givers[0][0]:
-            used.setdefault(givers[0][0], []).append(prop)
-    said = [" and ".join(props) + f" from {who}" for who, props in used.items()]
-    return f" ({', '.join(said)})" if said else ""
-
-
-def _note_overridden(named: str, spec: ObjectSpec, given: Physical) -> None:
-    """Say (a line on stderr) where the run's values (flags, a manifest's columns) replace its files' (a sidecar's,
-    a URDF's), and where a sidecar's replace a URDF's."""
-    from planner.specs.objects import URDF_FILE
-
-    if not given.given() and spec.kind != URDF_FILE:  # nothing replaces anything: no sidecar read again
-        return
-    pairs: dict[tuple[str, str], tuple[dict[str, float | str], dict[str, float | str]]] = {}
-    for givers in _givers(named, spec, given).values():
-        if len(givers) > 1:
-            (winner, ours), (loser, theirs) = givers[:2]
-            both = pairs.setdefault((winner, loser), ({}, {}))
-            both[0].update(ours)
-            both[1].update(theirs)
-    for (winner, loser), (ours, theirs) in pairs.items():
-        verb = "replaces" if len(ours) == 1 else "replace"
-        prepare.noted(f"object '{spec.name}'", f"{_listed(ours)} {f'from {winner}' if winner else 'as given'} "
-                      f"{verb} {loser}'s {_listed(theirs)}")
-
-
-def _listed(values: dict[str, float | str]) -> str:
-    return ", ".join(f"{k} {v}" if isinstance(v, str) else f"{k} {v:g}" for k, v in values.items())
 
 
 def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, settings: SweepSettings | None = None,

@@ -446,7 +446,7 @@ def test_a_stopped_replace_is_named_as_such_and_finished_by_the_next(box_db: Pat
 def test_whose_verdicts_the_report_counts_and_which_sidecar_gave_a_value(tmp_path: Path) -> None:
     from dataclasses import replace
 
-    from planner.api.building import _from_files
+    from planner.api.givers import from_files
     from planner.present.report import engines
     from planner.record.grasp import Trial
     from planner.specs.objects import resolve_spec
@@ -460,4 +460,4 @@ def test_whose_verdicts_the_report_counts_and_which_sidecar_gave_a_value(tmp_pat
     mesh = tmp_path / "S.STL"
     trimesh.creation.box(extents=[0.03, 0.03, 0.03]).export(mesh)
     mesh.with_suffix(".TOML").write_text("mass = 0.07\n")
-    assert _from_files(str(mesh), resolve_spec(str(mesh)), NO_PHYSICAL) == " (mass from S.TOML)"
+    assert from_files(str(mesh), resolve_spec(str(mesh)), NO_PHYSICAL) == " (mass from S.TOML)"
