@@ -38,14 +38,12 @@ def note_overridden(named: str, spec: ObjectSpec, given: Physical) -> None:
         return
     pairs: dict[tuple[str, str], tuple[dict[str, float | str], dict[str, float | str]]] = {}
     for givers in _givers(named, spec, given).values():
-        if len(givers) > 1:
+        if len(givers) > 1 and givers[0][1] != givers[1][1]:  # the same value given twice replaces nothing
             (winner, ours), (loser, theirs) = givers[:2]
             both = pairs.setdefault((winner, loser), ({}, {}))
             both[0].update(ours)
             both[1].update(theirs)
     for (winner, loser), (ours, theirs) in pairs.items():
-        if ours == theirs:  # the same values: nothing is replaced
-            continue
         verb = "replaces" if len(ours) == 1 else "replace"
         prepare.noted(f"object '{spec.name}'", f"{_listed(ours)} {f'from {winner}' if winner else 'as given'} "
                       f"{verb} {loser}'s {_listed(theirs)}")

@@ -103,6 +103,15 @@ def test_a_flag_replacing_the_urdfs_value_is_said(tmp_path: Path) -> None:
     assert stored(db)[3:5] == (0.3, 0.7)
 
 
+def test_a_value_given_equal_to_the_urdfs_is_not_said_to_replace_it(tmp_path: Path) -> None:
+    urdf = write_urdf(tmp_path)
+    code, _, err = grasp("generate", str(urdf), "--hand", "panda", "--db", str(tmp_path / "g.db"), "--friction", "0.9",
+                         "--mass", "0.3", *FAST)
+    assert code == 0, err
+    assert "mass 0.3 as given replaces brick.urdf's mass 0.25" in err
+    assert "friction" not in err.split("replaces")[-1]  # 0.9 for 0.9: nothing replaced, nothing said
+
+
 def test_a_urdf_is_z_up_unless_its_sidecar_or_a_flag_says_otherwise(tmp_path: Path) -> None:
     urdf = write_urdf(tmp_path)
     db = tmp_path / "g.db"
