@@ -86,6 +86,8 @@ def test_sidecar_and_manifest_values_are_stored(tmp_path: Path, brick: Path) -> 
     (["--friction", "4"], "--friction must lie in (0, 3]"),
     (["--mass", "abc"], "Invalid value for '--mass'"),
     (["--mass", "0.2", "--density", "300"], "--mass and --density exclude each other"),
+    (["--up", "w"], "--up must be an axis of the object's file, one of +x -x +y -y +z -z"),
+    (["--up", "+yz"], "--up must be an axis"),
 ])
 def test_bad_flags_are_one_line_before_any_database(tmp_path: Path, args: list[str], needle: str) -> None:
     db = tmp_path / "g.db"

@@ -49,17 +49,6 @@ def test_the_flag_the_sidecar_and_the_manifest_give_the_stored_up(tmp_path: Path
     assert stored_up(flagged) == {"cup": "+z"}
 
 
-@pytest.mark.parametrize("args, needle", [
-    (["--up", "w"], "--up must be an axis of the object's file, one of +x -x +y -y +z -z"),
-    (["--up", "+yz"], "--up must be an axis"),
-])
-def test_a_bad_up_is_one_line_before_any_database(tmp_path: Path, args: list[str], needle: str) -> None:
-    db = tmp_path / "g.db"
-    code, out, err = generate(db, "box", *args)
-    one_line_error(code, err, 2, needle)
-    assert not db.exists() and out == ""
-
-
 def test_a_bad_up_in_a_sidecar_or_manifest_names_where(tmp_path: Path, brick: Path) -> None:
     brick.with_suffix(".toml").write_text('up = "north"\n')
     code, _, err = generate(tmp_path / "g.db", str(brick))
