@@ -61,12 +61,14 @@ def export(db_path: Path, fmt: str, out_dir: Path, objects: tuple[str, ...], han
 @click.option("--object", "object_name", metavar="NAME",
               help="Built-in object name or mesh path (default: the file's object/name or object/file).")
 @click.option("--rescore", is_flag=True, help="Re-close and re-score every pose even if the file has qualities.")
+@click.option("--up", help="The objects' up where a file gives none (object/up): +x -x +y -y +z -z; ACRONYM's own "
+              "meshes stand on +y [default: the mesh file's, +z for an OBJ].")
 @click.option("--workers", type=click.IntRange(min=1), default=api.default_workers(),
               show_default="all cores",
               help="Worker processes for re-scoring.")
 @click.option("--json", "as_json", is_flag=True, help="Print a machine-readable summary.")
 def import_files(paths: tuple[Path, ...], fmt: str, db_path: Path, hand: str | None, object_name: str | None,
-                 rescore: bool, workers: int, as_json: bool) -> None:
+                 rescore: bool, up: str | None, workers: int, as_json: bool) -> None:
     """Import grasp files into the database (one unit per file; a file
     imported before is skipped). Files without this project's qualities are
     re-scored by closing the hand at each pose."""
@@ -85,7 +87,7 @@ def import_files(paths: tuple[Path, ...], fmt: str, db_path: Path, hand: str | N
                    f"{dropped}")
 
     results = api.import_files(paths, db_path, fmt=fmt, hand=hand, object_name=object_name, rescore=rescore,
-                               workers=workers, progress=progress)
+                               workers=workers, progress=progress, up=up)
     if as_json:
         echo_json([r.to_json() for r in results])
     report_failures({str(r.path): r.error for r in results if r.error})

@@ -16,6 +16,7 @@ from planner.errors import InputError
 from planner.geometry.solid import prepare
 from planner.specs.hands import hand_names
 from planner.specs.objects import ObjectSpec, is_registered, resolve_spec
+from planner.specs.up import up_axis
 
 HAND_ALIASES = {"panda": "panda", "franka_panda": "panda"}
 #: What to do about a file whose object cannot be found, per command.
@@ -32,12 +33,18 @@ def hand_name(path: Path, gripper: str) -> str:
     return name
 
 
-def object_spec(h: AcronymHeader, object_name: str | None, command: str = "import") -> ObjectSpec:
+def object_spec(h: AcronymHeader, object_name: str | None, command: str = "import", up: str | None = None
+                ) -> ObjectSpec:
     """The object an ACRONYM header names (see :mod:`planner.datasets.importer`); ``command``: whose hint an
-    error gives (a key of :data:`HINTS`). A built-in ``object/name`` is taken where its mesh is the file's:
+    error gives (a key of :data:`HINTS`); ``up``: the object's up where the file gives none (``grasp import
+    --up``; a file's own ``object/up`` is what its grasps were measured about: another is refused).
+    A built-in ``object/name`` is taken where its mesh is the file's:
     ``object/mesh_sha256``, or without one the file's own ``object/file`` where it is found (a user's file
     naming its own mesh 'box' was fitted on the built-in box)."""
-    props = {"mass": h.mass, "friction": h.friction, "up": h.up}
+    if up is not None and h.up is not None and up_axis(up, "", "--up") != h.up:
+        raise InputError(f"{h.path}: its object/up is {h.up}, and --up gives {up_axis(up, '', '--up')}: its grasps "
+                         "were measured about the file's; leave --up out for this file")
+    props = {"mass": h.mass, "friction": h.friction, "up": h.up if h.up is not None else up}
     if object_name is not None:
         if is_registered(object_name):
             return resolve_spec(object_name, **props)

@@ -79,6 +79,7 @@ from planner.sim import Sim
 from planner.specs.hands import HandSpec, load_hand
 from planner.specs.objects import PROPERTY_RTOL, ObjectSpec
 from planner.specs.preshapes import sweep_preshapes
+from planner.specs.up import up_axis
 
 #: Every format with a reader (:mod:`planner.datasets.registry`).
 FORMATS = formats.IMPORT_FORMATS
@@ -141,13 +142,16 @@ class _Plan:
 
 def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", hand: str | None = None,
                  object_name: str | None = None, rescore: bool = False, workers: int = 1,
-                 progress: Callable[[ImportResult], None] | None = None) -> list[ImportResult]:
+                 progress: Callable[[ImportResult], None] | None = None, up: str | None = None
+                 ) -> list[ImportResult]:
     """Import grasp files into ``db_path`` (created if missing). Every file is
     checked before anything is written. Re-scoring runs in ``workers``
     processes; ``progress`` gets each file as it is written, the list
-    returned is in the order of ``paths``."""
+    returned is in the order of ``paths``. ``up``: the objects' up where a
+    file gives none (ACRONYM's own meshes are Y-up: ``"+y"``)."""
     reader = formats.reader(fmt)
-    plans = [_plan(Path(p), fmt, reader, hand, object_name, rescore) for p in paths]
+    up = None if up is None else up_axis(up, "", "--up")
+    plans = [_plan(Path(p), fmt, reader, hand, object_name, rescore, up=up) for p in paths]
     results: dict[int, ImportResult] = {}
 
     def finish(index: int, result: ImportResult) -> None:
@@ -274,10 +278,10 @@ def _restore_simulation(db: Database, plan: _Plan, unit_id: int, obj: str, rule:
 
 
 def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: str | None, rescore: bool,
-          command: str = "import") -> _Plan:
+          command: str = "import", up: str | None = None) -> _Plan:
     header = reader.header(path)
     spec = load_hand(hand or hand_name(path, header.gripper))
-    obj = object_spec(header, object_name, command)
+    obj = object_spec(header, object_name, command, up)
     lossless = not rescore and header.extras
     if lossless:  # its contacts, joints and measures are of the file's mesh and hand: stored as they are
         if header.mesh_sha256 and prepare(obj).mesh_hash != header.mesh_sha256:

@@ -136,3 +136,29 @@ def test_exports_carry_the_up_and_an_import_reads_it_back(tmp_path: Path, brick:
     code, _, err = grasp("import", str(h5), "--db", str(fresh))
     assert code == 0, err
     assert stored_up(fresh) == {"brick": "+x"}
+
+
+def test_import_up_applies_where_a_file_gives_none_and_refuses_another_than_the_files(tmp_path: Path,
+                                                                                       brick: Path) -> None:
+    db = tmp_path / "g.db"
+    assert generate(db, str(brick))[0] == 0
+    code, _, err = grasp("export", "--db", str(db), "--format", "acronym", "--out", str(tmp_path / "out"), "--quiet")
+    assert code == 0, err
+    h5 = tmp_path / "out" / "brick__panda.h5"
+    code, _, err = grasp("import", str(h5), "--db", str(tmp_path / "a.db"), "--up", "+y")
+    one_line_error(code, err, 2, "its object/up is +z, and --up gives +y")  # measured about +z: not another
+    assert not (tmp_path / "a.db").exists()
+    code, _, err = grasp("import", str(h5), "--db", str(tmp_path / "a.db"), "--up", "north")
+    one_line_error(code, err, 2, "--up must be an axis")
+    foreign = tmp_path / "out" / "foreign.h5"  # a file as ACRONYM's own: no object/up, no qualities of ours
+    with h5py.File(h5) as src, h5py.File(foreign, "w") as f:
+        for key in ("gripper/type", "gripper/configuration", "object/file", "object/scale", "object/mass",
+                    "object/friction"):
+            f[key] = src[key][()]
+        f["grasps/transforms"] = src["grasps/transforms"][:4]
+    code, _, err = grasp("import", str(foreign), "--db", str(tmp_path / "y.db"), "--up", "y", "--workers", "1")
+    assert code == 0, err
+    assert set(stored_up(tmp_path / "y.db").values()) == {"+y"}
+    code, _, err = grasp("import", str(foreign), "--db", str(tmp_path / "z.db"), "--workers", "1")
+    assert code == 0, err
+    assert set(stored_up(tmp_path / "z.db").values()) == {"+z"}  # its OBJ mesh's default
