@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import shutil
 import sqlite3
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -101,6 +102,22 @@ def hand_copy(tmp_path: Path) -> Path:
     folder = tmp_path / "panda"
     shutil.copytree(hands_dir() / "panda", folder)
     return folder
+
+
+def refused_hand_toml(tmp_path: Path, edit: Callable[[str], str], message: str) -> None:
+    """The Panda's folder copied, its hand.toml's text given to ``edit``: loading it must fail with a one-line
+    ConfigError matching ``message`` and naming hand.toml."""
+    import pytest
+
+    from planner.errors import ConfigError
+    from planner.specs.hands import load_folder
+
+    folder = hand_copy(tmp_path)
+    toml = folder / "hand.toml"
+    toml.write_text(edit(toml.read_text()))
+    with pytest.raises(ConfigError, match=message) as err:
+        load_folder(folder)
+    assert "hand.toml" in str(err.value) and "\n" not in str(err.value)
 
 
 def damaged(db: Path, out: Path) -> Path:

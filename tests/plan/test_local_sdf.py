@@ -12,18 +12,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-from helpers import hand_copy
+from helpers import refused_hand_toml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from planner import api
 from planner.db.store import open_db
-from planner.errors import ConfigError
 from planner.geometry.distance import MeshDistance
 from planner.plan.local_sdf import CLIP, DIGITS, LocalSurface, measure
 from planner.plan.sweep import SweepSettings
 from planner.specs.hand_spec import LOCAL_CELLS, LocalGrid
-from planner.specs.hands import load_folder, load_hand
+from planner.specs.hands import load_hand
 
 
 def test_the_panda_declares_a_grid_the_barrett_none() -> None:
@@ -43,13 +42,8 @@ def test_the_panda_declares_a_grid_the_barrett_none() -> None:
     ("low = [-0.03, -0.04]\nhigh = [0.03, 0.04, 0.13]\ncounts = [3, 5, 5]", r"field 'low'.*3 numbers"),
 ])
 def test_a_broken_grid_names_the_file_and_field(tmp_path: Path, table: str, message: str) -> None:
-    folder = hand_copy(tmp_path)
-    toml = folder / "hand.toml"
-    text = toml.read_text()
-    toml.write_text(text[:text.index("[local_sdf]")] + "[local_sdf]\n" + table + "\n")
-    with pytest.raises(ConfigError, match=message) as err:
-        load_folder(folder)
-    assert "hand.toml" in str(err.value) and "\n" not in str(err.value)
+    refused_hand_toml(tmp_path, lambda text: text[:text.index("[local_sdf]")] + "[local_sdf]\n" + table + "\n",
+                      message)
 
 
 def _box_distance(points: np.ndarray, half: np.ndarray) -> np.ndarray:
