@@ -130,7 +130,8 @@ __all__ = ["CHUNK_ROWS", "CONFIGURATION_DOC", "DATASETS", "EXTRAS", "FLEX", "IMP
            "relative_path", "write"]
 
 SUFFIX = ".h5"
-#: Rows per HDF5 chunk: 1,024 transforms are 128 kB.
+#: Rows per HDF5 chunk at most: 1,024 transforms are 128 kB. A file of fewer grasps (one batch) is one chunk of
+#: its own rows: a chunk is stored whole, so 10 grasps in 1,024-row chunks took ~1.6 MB over ~150 datasets.
 CHUNK_ROWS = 1024
 #: A transform's rotation rows may deviate from orthonormal by this much (float32 files pass).
 ROTATION_TOL = 1e-5
@@ -207,7 +208,8 @@ def _append(f: Any, key: str, values: Column, start: int) -> None:
         data = np.asarray(values)
         data = data.astype(np.int64 if data.dtype.kind in "iub" else np.float64, copy=False)
     if start == 0:  # one h5py call: creating empty and then resizing costs as much again
-        f.create_dataset(key, data=data, maxshape=(None, *data.shape[1:]), chunks=(CHUNK_ROWS, *data.shape[1:]))
+        rows = min(CHUNK_ROWS, max(1, len(data)))
+        f.create_dataset(key, data=data, maxshape=(None, *data.shape[1:]), chunks=(rows, *data.shape[1:]))
         return
     ds = f[key]
     ds.resize(start + len(data), axis=0)
