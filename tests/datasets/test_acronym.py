@@ -78,9 +78,10 @@ def test_a_small_file_is_not_padded_to_whole_chunks(db: Path, tmp_path: Path, mo
     capped = export(db, "acronym", tmp_path / "capped", "--object", "box", "--top", "5") / "box__panda.h5"
     for path, rows in ((small, 5), (capped, 4)):
         with h5py.File(path, "r") as f:
-            chunks = set()
-            f["grasps"].visititems(lambda _, o: chunks.add(o.chunks[0]) if isinstance(o, h5py.Dataset) and o.chunks
-                                   else None)
+            names: list[str] = []
+            f["grasps"].visit(names.append)
+            chunks = {f["grasps"][n].chunks[0] for n in names if isinstance(f["grasps"][n], h5py.Dataset)
+                      and f["grasps"][n].chunks}
             assert chunks == {rows} and f["grasps/transforms"].shape == (5, 4, 4)
     assert small.stat().st_size < 400_000
 
