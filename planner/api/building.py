@@ -189,10 +189,10 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
     finished (its mtime: a copy that keeps an older mtime is not seen). An
     object whose mesh no longer loads is left to its units (stored as
     failed). ``flags``: the run's values (a manifest line's replace them)."""
-    from planner.db.objects import differs
+    from planner.db.objects import COM_TOL, differs
     from planner.errors import PlannerError
     from planner.geometry.solid import prepare
-    from planner.specs.objects import edited_since
+    from planner.specs.object_files import edited_since
 
     running = {u.label or u.object_name for u in todo}
     checked: set[str] = set()
@@ -221,6 +221,7 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
                              "were measured at the stored values: use another --db, or name the object apart (copy "
                              f"the mesh under another name){keep}")
         if name not in running and spec.user_file and row.source == spec.source and row.scale == spec.scale \
+                and row.geometry == spec.geometry and (spec.com is None or math.dist(spec.com, row.com) <= COM_TOL) \
                 and not edited_since(Path(spec.source), db.last_finished(name)):
             continue  # nothing of it runs, and it names the stored file, unchanged since, at the stored scale
         try:

@@ -15,6 +15,8 @@ whose centre is elsewhere).
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import trimesh
 
@@ -42,7 +44,7 @@ def given_inertial(spec: ObjectSpec, mesh: trimesh.Trimesh, com: np.ndarray, ine
         why = implausible(tensor, spec.mass, rho)
         if why is None:
             return com, tensor
-        prepare.noted(f"object '{spec.name}'", f"{spec.source.rsplit('/', 1)[-1]}'s <inertia> is not a body's of {spec.mass:g} kg "
+        prepare.noted(f"object '{spec.name}'", f"{_file(spec)}'s <inertia> is not a body's of {spec.mass:g} kg "
                                                f"within its mesh ({why}): the mesh's at uniform density is used")
     return com, inertia
 
@@ -76,5 +78,9 @@ def _shown(values: np.ndarray) -> str:
     return "[" + ", ".join(f"{v:.4g}" for v in np.ravel(values)) + "]"
 
 
+def _file(spec: ObjectSpec) -> str:
+    return Path(spec.source).name if spec.source else spec.name
+
+
 def _stem(spec: ObjectSpec) -> str:
-    return spec.source.rsplit("/", 1)[-1].rsplit(".", 1)[0] if spec.source else spec.name
+    return Path(spec.source).stem if spec.source else spec.name

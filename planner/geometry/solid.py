@@ -24,12 +24,12 @@ from planner.geometry.inertial import given_inertial
 from planner.geometry.mass import radius_of_gyration, torque_scale_max_distance
 from planner.geometry.mesh import load_mesh_file, mesh_hash, union_of_bodies
 from planner.geometry.shapes import primitive_mesh, urdf_solid
+from planner.specs.object_files import object_files
 from planner.specs.objects import (
     PRIMITIVES,
     URDF_FILE,
     ObjectSpec,
     file_scale,
-    object_files,
     resolve_spec,
     source_path,
     urdf_mesh,
