@@ -4,6 +4,7 @@ trials and the exports; one outside the object refused; a URDF planned on its vi
 from __future__ import annotations
 
 import sqlite3
+from dataclasses import replace
 from pathlib import Path
 
 import h5py
@@ -70,6 +71,10 @@ def test_the_stored_com_reaches_the_trials_and_the_export(tmp_path: Path) -> Non
     assert_close(obj.com, [0.01, -0.02, 0.03])
     world = world_for(load_hand("panda"), obj, MujocoSettings(), obj.mass)
     assert_close(world.model.body_ipos[world.object_body], [0.01, -0.02, 0.03])
+    # the same mesh as another object (its centre elsewhere) in the same process: a world of its own
+    other = replace(obj, com=np.zeros(3))
+    world = world_for(load_hand("panda"), other, MujocoSettings(), obj.mass)
+    assert_close(world.model.body_ipos[world.object_body], np.zeros(3))
     code, _, err = grasp("export", "--db", str(db), "--format", "acronym", "--out", str(tmp_path / "out"))
     assert code == 0, err
     with h5py.File(tmp_path / "out" / "box__panda.h5") as f:
