@@ -25,6 +25,9 @@ from planner.errors import InputError
 from planner.geometry.tolerances import HULL_TOL, INERTIA_TOL
 from planner.specs.objects import ObjectSpec
 
+#: The notes said in this process.
+_SAID: set[tuple[str, str]] = set()
+
 
 def given_inertial(spec: ObjectSpec, mesh: trimesh.Trimesh, com: np.ndarray, inertia: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray]:
@@ -44,8 +47,11 @@ def given_inertial(spec: ObjectSpec, mesh: trimesh.Trimesh, com: np.ndarray, ine
         why = implausible(tensor, spec.mass, rho)
         if why is None:
             return com, tensor
-        prepare.noted(f"object '{spec.name}'", f"{_file(spec)}'s <inertia> is not a body's of {spec.mass:g} kg "
-                                               f"within its mesh ({why}): the mesh's at uniform density is used")
+        said = (f"object '{spec.name}'", f"{_file(spec)}'s <inertia> is not a body's of {spec.mass:g} kg within its "
+                                         f"mesh ({why}): the mesh's at uniform density is used")
+        if said not in _SAID:  # once per process: an object is prepared by the run's plan and again by its units
+            _SAID.add(said)
+            prepare.noted(*said)
     return com, inertia
 
 
