@@ -89,3 +89,23 @@ def test_the_visual_geometry_is_chosen_and_refused_where_it_cannot_be(tmp_path: 
         resolve_spec(str(box_urdf(tmp_path, name="plain")), geometry="visual")
     with pytest.raises(InputError, match="geometry visual chooses a URDF file's elements; mug is a registry"):
         resolve_spec("mug", geometry="visual")
+
+
+def test_a_template_origin_far_from_the_meshs_centre_is_said(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """mug.urdf's case: origins at the link origin, the shape 5 cm above it: the mesh's centre is planned on, and
+    one line says so (PyBullet would take the origin); a centred one is not said."""
+    from planner import prepare
+    from planner.geometry.shapes import urdf_solid
+    from planner.specs.urdf_objects import read_urdf_object
+
+    raised = tmp_path / "raised.urdf"
+    raised.write_text(f"""<robot name="raised"><link name="base">{inertial("0 0 0")}
+  <collision><origin xyz="0 0 0.05"/><geometry><box size="{' '.join(map(str, SIZE))}"/></geometry></collision>
+  </link></robot>""")
+    with caplog.at_level("INFO", logger=prepare.LOGGER):
+        urdf_solid(read_urdf_object(raised))
+        urdf_solid(read_urdf_object(box_urdf(tmp_path, inertial("0 0 0"))))
+    said = [r.getMessage() for r in caplog.records if "read as a template's" in r.getMessage()]
+    assert len(said) == 1 and said[0].startswith(f"{raised}: its <inertial> origins lie at their link origins "
+                                                 "([0, 0, 0] m), read as a template's, not a centre of mass: its "
+                                                 "mesh's, 50 mm away, is planned on")
