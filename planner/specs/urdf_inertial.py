@@ -12,7 +12,7 @@ template does (13 of 15 measured, the mug's at its base, 50 mm below its mesh's 
 another one (the duck, the teddy) lie 8-17 mm from their meshes' centres, inside them. So an origin off its link
 origin on some link with mass is a declaration, and every link's is then read as written (as PyBullet reads
 them); origins all at their link origins, written or not, declare nothing: the mesh's centre of mass is planned
-on (:mod:`planner.geometry.solid` says where they differ).
+on (:mod:`planner.geometry.shapes` says where they lie far apart).
 """
 
 from __future__ import annotations
