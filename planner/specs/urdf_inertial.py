@@ -7,9 +7,10 @@ The links make one body: the centre of mass is their mass-weighted mean, the ine
 the object's axes and moved to that centre by the parallel-axis theorem,
 ``I = sum_i R_i I_i R_i^T + m_i (|d_i|^2 E - d_i d_i^T)``, ``d_i`` from the body's centre to the link's.
 
-Whether the file *declares* a centre of mass: pybullet_data's object URDFs write ``<origin xyz="0 0 0">`` as a
-template does (13 of 15 measured, the mug's at its base, 50 mm below its mesh's centre); the two that write
-another one (the duck, the teddy) lie 8-17 mm from their meshes' centres, inside them. So an origin off its link
+Whether the file *declares* a centre of mass: of the 14 pybullet_data object URDFs bench/urdf_objects.py reads,
+11 write ``<origin xyz="0 0 0">`` as a template does (the mug's lies on its base, 50 mm below its mesh's centre);
+the three that write another (the duck, the teddy, xarm's link6) lie 5-17 mm from their meshes' centres, inside
+them. So an origin off its link
 origin on some link with mass is a declaration, and every link's is then read as written (as PyBullet reads
 them); origins all at their link origins, written or not, declare nothing: the mesh's centre of mass is planned
 on (:mod:`planner.geometry.shapes` says where they lie far apart).
