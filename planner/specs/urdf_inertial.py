@@ -10,10 +10,9 @@ the object's axes and moved to that centre by the parallel-axis theorem,
 Whether the file *declares* a centre of mass: of the 14 pybullet_data object URDFs bench/urdf_objects.py reads,
 11 write ``<origin xyz="0 0 0">`` as a template does (the mug's lies on its base, 50 mm below its mesh's centre);
 the three that write another (the duck, the teddy, xarm's link6) lie 5-17 mm from their meshes' centres, inside
-them. So an origin off its link
-origin on some link with mass is a declaration, and every link's is then read as written (as PyBullet reads
-them); origins all at their link origins, written or not, declare nothing: the mesh's centre of mass is planned
-on (:mod:`planner.geometry.shapes` says where they lie far apart).
+them. So an origin off its link origin on some link with mass is a declaration, and every link's is then read as
+written (as PyBullet reads them); origins all at their link origins, written or not, declare nothing: the mesh's
+centre of mass is planned on (:mod:`planner.geometry.shapes` says where they lie far apart).
 """
 
 from __future__ import annotations
