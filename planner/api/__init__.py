@@ -87,6 +87,7 @@ from planner.record.grasp import Grasp
 from planner.specs.hands import SAMPLERS
 from planner.specs.inputs import MANIFEST_LINE
 from planner.specs.objects import DEFAULT_FRICTION, DEFAULT_MASS, RANDOM_COUNT, RANDOM_MASS, RANDOM_PREFIX
+from planner.specs.physical import GEOMETRIES
 
 if TYPE_CHECKING:
     from planner.datasets.exporter import FORMATS as EXPORT_FORMATS
@@ -97,7 +98,7 @@ if TYPE_CHECKING:
     from planner.validation.run import ValidationSummary, validate
 
 __all__ = [
-    "DEFAULT_DB", "DEFAULT_FRICTION", "DEFAULT_MASS", "EXPORT_FORMATS", "IMPORT_FORMATS", "MANIFEST_LINE",
+    "DEFAULT_DB", "DEFAULT_FRICTION", "DEFAULT_MASS", "EXPORT_FORMATS", "GEOMETRIES", "IMPORT_FORMATS", "MANIFEST_LINE",
     "RANDOM_COUNT", "RANDOM_MASS", "RANDOM_PREFIX",
     "ExportSummary", "Grasp",
     "GenerateProgress", "ImportResult", "RankingRule", "ReachableGrasp", "SAMPLERS", "SAMPLER_DEFAULTS", "Summary",

@@ -189,10 +189,10 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
     finished (its mtime: a copy that keeps an older mtime is not seen). An
     object whose mesh no longer loads is left to its units (stored as
     failed). ``flags``: the run's values (a manifest line's replace them)."""
-    from planner.db.objects import differs
+    from planner.db.objects import COM_TOL, differs
     from planner.errors import PlannerError
     from planner.geometry.solid import prepare
-    from planner.specs.objects import edited_since
+    from planner.specs.object_files import edited_since
 
     running = {u.label or u.object_name for u in todo}
     checked: set[str] = set()
@@ -221,6 +221,7 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
                              "were measured at the stored values: use another --db, or name the object apart (copy "
                              f"the mesh under another name){keep}")
         if name not in running and spec.user_file and row.source == spec.source and row.scale == spec.scale \
+                and row.geometry == spec.geometry and (spec.com is None or math.dist(spec.com, row.com) <= COM_TOL) \
                 and not edited_since(Path(spec.source), db.last_finished(name)):
             continue  # nothing of it runs, and it names the stored file, unchanged since, at the stored scale
         try:
@@ -237,15 +238,16 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
              use_ray: bool = False, ray_address: str | None = None, unit_timeout: float | None = None,
              progress: Callable[[GenerateProgress], None] | None = None,
              mass: float | None = None, density: float | None = None, friction: float | None = None,
-             up: str | None = None, on_table: int = 0, replace: bool = False) -> Summary:
+             up: str | None = None, geometry: str | None = None, on_table: int = 0, replace: bool = False
+             ) -> Summary:
     """Build (or extend) a grasp database; finished units are skipped, so a
     run that was killed resumes when called again. Units run in this process
     (``workers`` 1), in a crash-safe pool of ``workers`` processes, or on Ray
     (:func:`planner.run.pool.execute`); a unit whose worker dies twice, or
     that fails, is stored as failed with its error and the batch goes on.
-    ``mass`` [kg] or ``density`` [kg/m^3], ``friction`` and ``up`` (an axis,
-    :mod:`planner.specs.up`) apply to every object except where a manifest line
-    gives its own (see :mod:`planner.specs.objects`); an object stored at other values is refused.
+    ``mass`` [kg] or ``density`` [kg/m^3], ``friction``, ``up`` (an axis,
+    :mod:`planner.specs.up`) and ``geometry`` (a URDF file's elements) apply to every object except where a
+    manifest line gives its own (see :mod:`planner.specs.objects`); an object stored at other values is refused.
     ``on_table`` > 0: plan on the table in each object's ``on_table`` most
     probable resting poses (the grasps keep the hand off the table and record
     its plane, ``table_plane``), not on the object alone.
@@ -263,7 +265,8 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
     if unit_timeout is not None and not (math.isfinite(unit_timeout) and unit_timeout > 0):
         raise InputError(f"--unit-timeout must be a positive number of seconds, got {unit_timeout}")
     check_seed(seed)
-    physical = Physical.checked({"mass": mass, "density": density, "friction": friction, "up": up}, prefix="--")
+    physical = Physical.checked({"mass": mass, "density": density, "friction": friction, "up": up,
+                                 "geometry": geometry}, prefix="--")
     hand_spec = load_hand(hand)
     settings = (settings or SweepSettings()).resolved(hand_spec.sampler, hand_spec.settle,
                                                         hand_spec.settle_dynamics)

@@ -1,4 +1,4 @@
-"""Who gives an object's mass (or density), friction and up, first first: the run (flags, a manifest's
+"""Who gives an object's mass (or density), friction, up and centre of mass, first first: the run (flags, a manifest's
 columns), then its files (a sidecar, a URDF's own; :func:`~planner.specs.objects.file_values`); and saying so
 where one replaces another's value (:func:`note_overridden`) or where a stored object's values came from a
 file (:func:`from_files`)."""
@@ -7,15 +7,15 @@ from __future__ import annotations
 
 from planner import prepare
 from planner.specs.objects import URDF_FILE, ObjectSpec, file_values
-from planner.specs.physical import Physical
+from planner.specs.physical import Physical, Value
 
 
-def _givers(named: str, spec: ObjectSpec, given: Physical) -> dict[str, list[tuple[str, dict[str, float | str]]]]:
-    """For the mass (or density), the friction and the up of the object ``named``: who gives it, first first, each as
-    (its file's name, '' for the run's ``given`` values: flags, a manifest's columns; its values of that property):
-    the run, the sidecar, a URDF's own (:func:`~planner.specs.objects.file_values`)."""
+def _givers(named: str, spec: ObjectSpec, given: Physical) -> dict[str, list[tuple[str, dict[str, Value]]]]:
+    """For the mass (or density), the friction, the up and the centre of mass of the object ``named``: who gives
+    it, first first, each as (its file's name, '' for the run's ``given`` values: flags, a manifest's columns; its
+    values of that property): the run, the sidecar, a URDF's own (:func:`~planner.specs.objects.file_values`)."""
     layers = [("", given.given()), *file_values(named, spec)]
-    props = {"mass": ("mass", "density"), "friction": ("friction",), "up": ("up",)}
+    props = {"mass": ("mass", "density"), "friction": ("friction",), "up": ("up",), "com": ("com",)}
     return {prop: [(who, part) for who, values in layers if (part := {k: v for k, v in values.items() if k in keys})]
             for prop, keys in props.items()}
 
@@ -27,7 +27,7 @@ def from_files(named: str, spec: ObjectSpec, given: Physical) -> str:
     for prop, givers in _givers(named, spec, given).items():
         if givers and givers[0][0]:
             used.setdefault(givers[0][0], []).append(prop)
-    said = [" and ".join(props) + f" from {who}" for who, props in used.items()]
+    said = [f"{_joined(props)} from {who}" for who, props in used.items()]
     return f" ({', '.join(said)})" if said else ""
 
 
@@ -36,7 +36,7 @@ def note_overridden(named: str, spec: ObjectSpec, given: Physical) -> None:
     a URDF's), and where a sidecar's replace a URDF's."""
     if not given.given() and spec.kind != URDF_FILE:  # nothing replaces anything: no sidecar read again
         return
-    pairs: dict[tuple[str, str], tuple[dict[str, float | str], dict[str, float | str]]] = {}
+    pairs: dict[tuple[str, str], tuple[dict[str, Value], dict[str, Value]]] = {}
     for givers in _givers(named, spec, given).values():
         if len(givers) > 1 and givers[0][1] != givers[1][1]:  # the same value given twice replaces nothing
             (winner, ours), (loser, theirs) = givers[:2]
@@ -49,5 +49,17 @@ def note_overridden(named: str, spec: ObjectSpec, given: Physical) -> None:
                       f"{verb} {loser}'s {_listed(theirs)}")
 
 
-def _listed(values: dict[str, float | str]) -> str:
-    return ", ".join(f"{k} {v}" if isinstance(v, str) else f"{k} {v:g}" for k, v in values.items())
+def _joined(words: list[str]) -> str:
+    """``a``, ``a and b``, ``a, b and c``."""
+    return words[0] if len(words) == 1 else f"{', '.join(words[:-1])} and {words[-1]}"
+
+
+def _listed(values: dict[str, Value]) -> str:
+    return ", ".join(f"{k} {_shown(v)}" for k, v in values.items())
+
+
+def _shown(value: Value) -> str:
+    """An axis as it is, a number or a point [m] in short."""
+    if isinstance(value, str):
+        return value
+    return f"[{', '.join(f'{v:g}' for v in value)}]" if isinstance(value, tuple) else f"{value:g}"

@@ -97,7 +97,7 @@ def object_up(name: str, *, db_path: Path = DEFAULT_DB) -> str:
 def mesh_modified(name: str, *, db_path: Path = DEFAULT_DB) -> str | None:
     """Where the stored object ``name``'s mesh file was modified after its last unit finished: the file (its grasps
     were planned on the mesh as it was, which ``best`` does not read); None: not modified, or not a file."""
-    from planner.specs.objects import edited_since
+    from planner.specs.object_files import edited_since
 
     with open_db(Path(db_path), create=False, readonly=True) as db:
         row = db.object_row(name)

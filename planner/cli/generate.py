@@ -20,8 +20,9 @@ PLAUSIBLE_DENSITY = (5.0, 23_000.0)
 
     OBJECT: a built-in name, random_NNN, a mesh or URDF file, a folder, a glob, @manifest.txt (one object per
     line: {api.MANIFEST_LINE}), builtin:all, builtin:random[:COUNT | :FIRST-LAST]. A mesh or URDF file's sidecar
-    (banana.obj + banana.toml) may give mass or density, friction and up; a URDF gives its own mass and friction
-    below it (its <inertial> mass, its <contact><lateral_friction>).
+    (banana.obj + banana.toml) may give mass or density, friction, up and com = [x, y, z] (its centre of mass [m],
+    object frame); a URDF gives its own below it (its <inertial> masses and origins, its
+    <contact><lateral_friction>); a URDF's sidecar may give geometry = "visual".
     """)
 @click.argument("names", metavar="OBJECT...", nargs=-1, required=True)
 @click.option("--hand", required=True, help="Hand name (see `grasp hands`).")
@@ -53,6 +54,10 @@ PLAUSIBLE_DENSITY = (5.0, 23_000.0)
 @click.option("--up", help="The axis of every object's file that is up as it stands: +x -x +y -y +z -z (x, y, z "
               "mean +); its grip measures and its MuJoCo trial's weight read it; the file's frame is kept "
               "[default: a mesh's or URDF's sidecar TOML, else +y for .glb/.gltf (glTF's own), else +z].")
+@click.option("--geometry", type=click.Choice(api.GEOMETRIES), help="Which elements of every URDF file given "
+              "make the object: collision (what PyBullet simulates) or visual (the drawn shape, where a collision "
+              "mesh is a rough stand-in); refused for other objects [default: a URDF's sidecar TOML, else "
+              "collision where the file has any].")
 @click.option("--workers", type=click.IntRange(min=1), default=api.default_workers(),
               show_default="all cores",
               help="Worker processes.")
@@ -94,7 +99,7 @@ PLAUSIBLE_DENSITY = (5.0, 23_000.0)
 def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approaches: int | None,
              sampler: str | None, box_delta: float, rolls: int | None, depths: str | None, fan_count: int,
              standoffs: str | None, preshape_names: str | None, scale: float | None, mass: float | None,
-             density: float | None, friction: float | None, up: str | None, workers: int,
+             density: float | None, friction: float | None, up: str | None, geometry: str | None, workers: int,
              ray_target: str | None, unit_timeout: float | None, chunk: int | None, reach_placements: int,
              reach_top: int, volume: bool, settle: bool | None, fc_budget: int, reach_weight: float | None,
              on_table: bool, stable_poses: int, replace: bool, quiet: bool, as_json: bool) -> None:
@@ -142,7 +147,7 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
                                scale=scale, rule=rule, progress=advance, use_ray=ray_target is not None,
                                ray_address=None if ray_target in (None, "local") else ray_target,
                                unit_timeout=unit_timeout, mass=mass, density=density, friction=friction, up=up,
-                               on_table=stable_poses if on_table else 0, replace=replace)
+                               geometry=geometry, on_table=stable_poses if on_table else 0, replace=replace)
     finally:
         if tasks:
             bar.stop()

@@ -16,8 +16,9 @@ object from the first of these that gives back that hash:
    renamed object).
 
 So the mesh is the one the grasps were planned on, in the object frame, or
-an :class:`~planner.errors.InputError` says why it cannot be had. Mass,
-friction and up are the stored ones.
+an :class:`~planner.errors.InputError` says why it cannot be had (a URDF file
+made of its stored ``geometry``). Mass, friction, up, centre of mass and
+inertia are the stored ones.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from planner import assets
 from planner.db.store import ObjectRow
 from planner.errors import InputError, PlannerError
 from planner.geometry.solid import PreparedObject, prepare
+from planner.record.field import INERTIA_DIGITS
 from planner.specs.objects import (
     PRIMITIVES,
     PROPERTY_RTOL,
@@ -49,8 +51,8 @@ PYBULLET_DATA = "pybullet_data"
 
 
 def stored_object(row: ObjectRow) -> PreparedObject:
-    """The object a database row describes, with the stored mass, friction and
-    up, rebuilt as the planner had it (see the module docstring)."""
+    """The object a database row describes, with the stored mass, friction,
+    up, centre of mass and inertia, rebuilt as the planner had it (see the module docstring)."""
     tried: list[str] = []
     for spec in _candidates(row):
         try:
@@ -59,7 +61,9 @@ def stored_object(row: ObjectRow) -> PreparedObject:
             tried.append(str(exc))
             continue
         if not row.mesh_sha256 or obj.mesh_hash == row.mesh_sha256:
-            return obj
+            return obj if same_inertial(row, obj) else prepare(replace(
+                obj.spec, com=tuple(float(v) for v in row.com), com_from="stored",
+                gyration=tuple(float(v) for v in np.ravel(row.inertia) / row.mass)))
         tried.append(f"{spec.source or spec.kind} gives another mesh than the database's")
     raise InputError(f"object '{row.name}': cannot rebuild the mesh its grasps were planned on "
                      f"({'; '.join(tried) or 'no source'})")
@@ -68,24 +72,39 @@ def stored_object(row: ObjectRow) -> PreparedObject:
 #: How far a prepared object's volume (relative) and centre of mass [m] may lie from its stored row's and still be
 #: the stored object (the row keeps the centre of mass to 0.1 um).
 VOLUME_RTOL, COM_TOL = 1e-6, 1e-6
+#: [kg m^2] How far a prepared object's inertia may lie from its stored row's (kept to INERTIA_DIGITS decimals),
+#: relative to its largest entry or absolute, and still be the stored one.
+INERTIA_RTOL, INERTIA_ATOL = 1e-6, 10.0 ** -INERTIA_DIGITS
+
+
+def same_inertial(row: ObjectRow, obj: PreparedObject) -> bool:
+    """Whether ``obj``'s centre of mass and inertia are ``row``'s, to what the store keeps."""
+    scale = float(np.abs(row.inertia).max())
+    return float(np.linalg.norm(np.asarray(obj.com) - row.com)) <= COM_TOL and \
+        float(np.abs(np.asarray(obj.inertia) - row.inertia).max()) <= max(INERTIA_RTOL * scale, INERTIA_ATOL)
 
 
 def differs(row: ObjectRow, obj: PreparedObject) -> str | None:
     """Why ``obj`` is not the object ``row`` stores under its name (None: it
     is): another mesh (another file of that name, the file edited since,
-    another scale), other mass properties from the same mesh (an earlier
-    planner's: overlapping bodies are counted once since 2026-12-05), or
-    another mass, friction or up. Grasps planned on one are not grasps of the
+    another scale, a URDF's other geometry), other mass properties from the same mesh (an earlier
+    planner's: overlapping bodies are counted once since 2026-12-05), another centre of mass or inertia
+    (given, or no more), or another mass, friction or up. Grasps planned on one are not grasps of the
     other."""
     if row.mesh_sha256 and obj.mesh_hash != row.mesh_sha256:
+        other = f"; stored of its <{row.geometry}> elements, now of its <{obj.spec.geometry}>" \
+            if obj.spec.kind == URDF_FILE and obj.spec.geometry != row.geometry else ""
         return (f"from another mesh than {obj.source_file} at scale {obj.file_scale:.10g} gives now (stored: "
                 f"{row.source} at scale {row.scale:.10g}; another file of that name, the file edited since, or another "
-                "scale)")
-    if not math.isclose(obj.volume, row.volume, rel_tol=VOLUME_RTOL) or \
-            float(np.linalg.norm(np.asarray(obj.com) - row.com)) > COM_TOL:
+                f"scale{other})")
+    if not math.isclose(obj.volume, row.volume, rel_tol=VOLUME_RTOL):
         return (f"with a volume of {row.volume * 1e6:.6g} cm^3 where this planner makes the same mesh "
                 f"{obj.volume * 1e6:.6g} cm^3 (an earlier planner's mass properties: overlapping bodies are counted "
                 "once since 2026-12-05)")
+    if not same_inertial(row, obj):
+        now = f"given by {obj.spec.com_from}" if obj.spec.com is not None else "the mesh's"
+        return (f"with its centre of mass at {_point(row.com)} m and principal moments {_point(_moments(row.inertia))} "
+                f"kg m^2 (now {_point(obj.com)}, {now}, and {_point(_moments(obj.inertia))})")
     if not (math.isclose(obj.mass, row.mass, rel_tol=PROPERTY_RTOL) and
             math.isclose(obj.friction, row.friction, rel_tol=PROPERTY_RTOL)):
         return f"with mass {row.mass:g}, friction {row.friction:g} (now {obj.mass:g}, {obj.friction:g})"
@@ -94,13 +113,22 @@ def differs(row: ObjectRow, obj: PreparedObject) -> str | None:
     return None
 
 
+def _point(values: np.ndarray) -> str:
+    return "[" + ", ".join(f"{v:.4g}" for v in np.ravel(values)) + "]"
+
+
+def _moments(inertia: np.ndarray) -> np.ndarray:
+    return np.linalg.eigvalsh(0.5 * (np.asarray(inertia) + np.asarray(inertia).T))
+
+
 def _candidates(row: ObjectRow) -> Iterator[ObjectSpec]:
     props = {"mass": row.mass, "friction": row.friction, "up": row.up}
     kind = row.source[len(PRIMITIVE_PREFIX):] if row.source.startswith(PRIMITIVE_PREFIX) else None
     if kind is None:
         source = local_file(Path(row.source))
-        yield ObjectSpec(name=row.name, kind=URDF_FILE if source.suffix.lower() == URDF_SUFFIX else "mesh",
-                         source=str(source), scale=row.scale, **props)
+        urdf = source.suffix.lower() == URDF_SUFFIX
+        yield ObjectSpec(name=row.name, kind=URDF_FILE if urdf else "mesh", source=str(source), scale=row.scale,
+                         geometry=row.geometry if urdf else "collision", **props)
     if is_registered(row.name):
         yield replace(resolve_spec(row.name), **props)
     if kind in PRIMITIVES:

@@ -19,7 +19,8 @@ class ObjectRow:
     ``scale`` turns ``source`` (the mesh or URDF file) into metres; ``com`` (3,) [m]
     and ``inertia`` (3, 3) [kg m^2] about the COM are in the scaled mesh frame;
     ``mesh_sha256``: :func:`~planner.geometry.mesh.mesh_hash` of the checked mesh;
-    ``up``: the axis of that frame that is up as the object stands (:data:`planner.specs.up.AXES`).
+    ``up``: the axis of that frame that is up as the object stands (:data:`planner.specs.up.AXES`);
+    ``geometry``: the elements of a URDF the object is made of, ``collision`` or ``visual``.
     """
 
     name: str
@@ -33,6 +34,7 @@ class ObjectRow:
     inertia: np.ndarray
     mesh_sha256: str = ""
     up: str = "+z"
+    geometry: str = "collision"
 
     def properties(self) -> dict[str, float]:
         """Density [kg/m^3], friction and mass [kg]: what a p_hold model's domain is checked on

@@ -4,7 +4,7 @@ Tables (the README lists every column):
 
 - ``meta``: key/value -- schema version, ranking rule (JSON), validation settings.
 - ``objects``: one row per object name: source, scale, mesh hash, mass
-  properties, friction, torque scale; (v12) its up.
+  properties, friction, torque scale; (v12) its up; (v13) its geometry.
 - ``units``: one row per unit of work (object, hand, settings hash, seed, chunk);
   a unit's grasps are written in the same transaction that marks it done, so
   an interrupted run leaves either all of a unit or none of it.
@@ -54,6 +54,11 @@ Tables (the README lists every column):
 - ``objects`` (v12) gains ``up`` (:mod:`planner.specs.up`: the axis of the
   object frame that is up as the object stands, ``+z``, ``+y``, ...);
   ``+z`` for objects stored before (the up every object had).
+- ``objects`` (v13) gains ``geometry``: the elements of a URDF file the
+  object is made of, ``collision`` or ``visual`` (``collision`` for objects
+  stored before, what a user's URDF file was made of where it had any); its
+  ``com`` and ``inertia`` are since the ones given (a sidecar's, a URDF's
+  ``<inertial>``: :mod:`planner.specs.objects`), else the mesh's as before.
 
 No pickle: arrays are JSON text. A new database runs :data:`SCHEMA` (version
 1) and then every migration; a newer schema is refused politely; an older one
@@ -75,7 +80,7 @@ from planner.errors import DatabaseError
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 12
+SCHEMA_VERSION = 13
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -186,6 +191,11 @@ ALTER TABLE grasps ADD COLUMN local_sdf TEXT
     # v12: the object's up (an axis of its frame; '+z' for objects stored before, the up every object had).
     11: """
 ALTER TABLE objects ADD COLUMN up TEXT NOT NULL DEFAULT '+z'
+""",
+    # v13: a URDF file's elements the object is made of ('collision' for objects stored before: a user's URDF
+    # file could not be planned on its visual ones while it had collision ones).
+    12: """
+ALTER TABLE objects ADD COLUMN geometry TEXT NOT NULL DEFAULT 'collision'
 """,
 }
 

@@ -328,7 +328,7 @@ class Writing:
 def _object_row(name: str, obj: PreparedObject) -> tuple:
     """The objects row of a prepared object (:data:`_OBJECT_COLUMNS`)."""
     given = {"name": name, "source": obj.source_file, "scale": obj.file_scale, "mesh_sha256": obj.mesh_hash,
-             "extents": obj.mesh.extents, "up": obj.spec.up}
+             "extents": obj.mesh.extents, "up": obj.spec.up, "geometry": obj.spec.geometry}
     return tuple(_sql(f, given[f.column] if f.column in given else getattr(obj, f.column)) for f in _OBJECTS)
 
 

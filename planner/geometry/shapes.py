@@ -16,6 +16,9 @@ from planner.specs.urdf_objects import UrdfObject
 #: Faces around a cylinder; subdivisions of a sphere (642 vertices: within 0.2% of its radius).
 CYLINDER_SECTIONS = 48
 SPHERE_SUBDIVISIONS = 3
+#: [m] A URDF's undeclared centre of mass (its link origins) farther than this from its mesh's is said: 1 mm is
+#: visible in a grip's lever, and pybullet_data's centred primitives and meshes lie within 1 mm of theirs.
+TEMPLATE_NOTED = 1e-3
 
 
 def primitive_mesh(kind: str, dims: Sequence[float]) -> trimesh.Trimesh:
@@ -47,5 +50,23 @@ def urdf_solid(urdf: UrdfObject, scale: float = 1.0) -> trimesh.Trimesh:
     if urdf.geometry != "collision":
         prepare.noted(str(urdf.path), "it has no <collision> element: its <visual> geometry is planned on (once: "
                                       "cached afterwards)")
-    return checked_solid(trimesh.Trimesh(np.concatenate(vertices), np.concatenate(faces), process=False),
-                         str(urdf.path))
+    solid = checked_solid(trimesh.Trimesh(np.concatenate(vertices), np.concatenate(faces), process=False),
+                          str(urdf.path))
+    _note_template_origin(urdf, solid, scale)
+    return solid
+
+
+def _note_template_origin(urdf: UrdfObject, solid: trimesh.Trimesh, scale: float) -> None:
+    """Say where a URDF's <inertial> origins, all at their link origins (a template's: no declared centre of
+    mass, :mod:`planner.specs.urdf_inertial`), put its centre farther than :data:`TEMPLATE_NOTED` from the mesh's,
+    which is planned on, where PyBullet would take the origins."""
+    if urdf.inertial is None or urdf.inertial.declared:
+        return
+    origins = urdf.inertial.com * scale
+    apart = float(np.linalg.norm(np.asarray(solid.center_mass) - origins))
+    if apart > TEMPLATE_NOTED:
+        shown = ", ".join(f"{v:.4g}" for v in origins)
+        prepare.noted(str(urdf.path), f"its <inertial> origins lie at their link origins ([{shown}] m), read as a "
+                                      f"template's, not a centre of mass: its mesh's, {apart * 1e3:.3g} mm away, is "
+                                      f"planned on (PyBullet takes the origins; com = [{shown}] in "
+                                      f"{urdf.path.stem}.toml plans on them) (once: cached afterwards)")

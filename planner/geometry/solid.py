@@ -1,9 +1,10 @@
 """The prepared object: a checked closed mesh with its mass properties, and
 the on-disk cache of checked meshes.
 
-The object frame is the frame of the (scaled) mesh file. Centre of mass,
-inertia and volume come from the closed mesh (the union of its bodies where
-they overlap) and the spec's mass (uniform density); the torque scale rho and the radius of gyration come from
+The object frame is the frame of the (scaled) mesh file. Volume, and the
+centre of mass and inertia where the spec gives none (:mod:`planner.geometry.inertial`),
+come from the closed mesh (the union of its bodies where they overlap) and the spec's mass
+(uniform density); the torque scale rho and the radius of gyration come from
 :mod:`planner.geometry.mass`.
 """
 
@@ -19,15 +20,16 @@ import trimesh
 
 from planner import assets
 from planner.errors import MeshError
+from planner.geometry.inertial import given_inertial
 from planner.geometry.mass import radius_of_gyration, torque_scale_max_distance
 from planner.geometry.mesh import load_mesh_file, mesh_hash, union_of_bodies
 from planner.geometry.shapes import primitive_mesh, urdf_solid
+from planner.specs.object_files import object_files
 from planner.specs.objects import (
     PRIMITIVES,
     URDF_FILE,
     ObjectSpec,
     file_scale,
-    object_files,
     resolve_spec,
     source_path,
     urdf_mesh,
@@ -102,8 +104,8 @@ def prepare(spec: ObjectSpec) -> PreparedObject:
         spec = replace(spec, mass=spec.density * volume)
     density = spec.mass / volume if spec.density is None else spec.density
     solid.density = density
-    com = np.asarray(solid.center_mass, float)
-    inertia = np.asarray(solid.moment_inertia, float)
+    com, inertia = given_inertial(spec, mesh, np.asarray(solid.center_mass, float),
+                                  np.asarray(solid.moment_inertia, float))
     return PreparedObject(
         spec=spec, mesh=mesh, source_file=source_file, file_scale=file_scale(spec), mesh_hash=mesh_hash(mesh),
         volume=volume, density=density, com=com, inertia=inertia,

@@ -123,13 +123,17 @@ def _objects() -> list[Field]:
             obj("mesh_sha256", "text", "", "hash of the checked mesh the grasps were planned on"),
             obj("mass", "real", "kg", "mass"), obj("friction", "real", "", "friction coefficient used for the quality"),
             obj("density", "real", "kg/m^3", "uniform density"), obj("volume", "real", "m^3", "volume of the mesh"),
-            obj("com", "vector", "m", "centre of mass, object frame", (3,)),
-            obj("inertia", "vector", "kg m^2", "inertia about the centre of mass, object axes", (3, 3)),
+            obj("com", "vector", "m", "centre of mass, object frame: the one given (a sidecar's `com`, a URDF's "
+                "`<inertial>`), else the mesh's at uniform density", (3,)),
+            obj("inertia", "vector", "kg m^2", "inertia about the centre of mass, object axes: a URDF's where "
+                "plausible, else the mesh's at uniform density", (3, 3)),
             obj("torque_scale", "real", "m", "torque scale of the wrenches"),
             obj("extents", "vector", "m", "bounding box extents", (3,)),
             obj("up", "text", "", "the object's up as it stands, an axis of the object frame (`+z`, `+y`, ...): "
                 "`com_height`, `gravity_arm` and the MuJoCo trial's weight read it; `+z` for objects stored before",
-                version=12)]
+                version=12),
+            obj("geometry", "text", "", "the elements of a URDF file the object is made of, `collision` or `visual` "
+                "(`collision` for objects stored before)", version=13)]
 
 
 #: Every stored field of the record's tables, in record order.

@@ -11,7 +11,8 @@ Accepted, in any mix:
   once, with its URDF's scale, placement, mass and friction;
 - ``@list.txt``: a manifest, one object per line, optionally followed by a
   scale and ``key=value`` columns (``scale=``, ``mass=`` [kg] or
-  ``density=`` [kg/m^3], ``friction=``, ``up=``: ``+y``, ``-z``, ...), e.g. ``banana.obj 1 mass=0.066
+  ``density=`` [kg/m^3], ``friction=``, ``up=``: ``+y``, ``-z``, ...; ``com=`` [m] x,y,z in the object
+  frame; a URDF's ``geometry=visual``), e.g. ``banana.obj 1 mass=0.066
   friction=0.8``; ``#`` starts a comment; a path with blanks or ``#`` goes in
   double quotes (``"my meshes/box #2.obj" mass=0.3``); relative paths are relative
   to the manifest. A line's values win over the run's (``--scale``, ``--mass`` ...).
@@ -46,7 +47,8 @@ from planner.specs.toml import decode_text
 from planner.specs.urdf_objects import URDF_SUFFIX, named_meshes
 
 #: What a manifest line holds.
-MANIFEST_LINE = "OBJECT [SCALE] [scale=S] [mass=KG | density=KG_M3] [friction=MU] [up=AXIS]"
+MANIFEST_LINE = ("OBJECT [SCALE] [scale=S] [mass=KG | density=KG_M3] [friction=MU] [up=AXIS] [com=X,Y,Z] "
+                 "[geometry=visual]")
 
 
 @dataclass(frozen=True)

@@ -18,22 +18,31 @@ Mass and density are one property given two ways: a source gives one or
 the other, never both, and the first source that gives either decides. Its
 ``up`` (:mod:`planner.specs.up`) comes from the same sources, else
 :func:`~planner.specs.up.default_up` of its file (``+y`` for glTF, else ``+z``).
+Its centre of mass ``com`` (object frame [m]) too: a manifest line's
+``com=x,y,z``, a sidecar's ``com = [x, y, z]``, a URDF's ``<inertial>``
+origins where they declare one (:mod:`planner.specs.urdf_inertial`: times
+``--scale``, which scales the whole object about its frame's origin), else
+the closed mesh's at uniform density; a URDF's inertia is its ``<inertial>``
+tensors' (times the mass given over the file's, times ``--scale`` squared)
+where :mod:`planner.geometry.inertial` finds it plausible. A URDF file is made
+of its ``<collision>`` elements unless ``geometry = "visual"`` is given (a
+manifest's ``geometry=visual``, ``--geometry visual``).
 """
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import stat
 from dataclasses import dataclass, replace
 from functools import lru_cache
 from pathlib import Path
-from urllib.parse import unquote
+
+import numpy as np
 
 from planner import assets
 from planner.errors import ConfigError, InputError, UnknownNameError
-from planner.specs.physical import NO_PHYSICAL, Physical
+from planner.specs.physical import GEOMETRIES, NO_PHYSICAL, Physical, Value, Vector
 from planner.specs.toml import Fields, read_toml
 from planner.specs.up import DEFAULT_UP, default_up
 from planner.specs.urdf_objects import URDF_SUFFIX, read_urdf_object
@@ -139,7 +148,10 @@ class ObjectSpec:
     ``kind`` is ``mesh`` (a mesh file), ``urdf`` (a registry entry: the mesh
     a URDF link declares, with the URDF's scale), :data:`URDF_FILE` (a user's
     URDF file, ``geometry`` the elements it is made of) or a primitive
-    (``box``, ``cylinder``, ``sphere`` with ``dims`` in metres).
+    (``box``, ``cylinder``, ``sphere`` with ``dims`` in metres). ``com`` (3,)
+    [m] a given centre of mass in the object frame (None: the mesh's),
+    ``com_from`` who gave it; ``gyration`` (9,) [m^2] a URDF's inertia per kilogram
+    about the centre of mass, object axes, row by row (None: the mesh's).
     """
 
     name: str
@@ -153,6 +165,9 @@ class ObjectSpec:
     description: str = ""
     density: float | None = None  # [kg/m^3] when the user gave a density, else None (from the mass)
     up: str = DEFAULT_UP  # the axis of the object frame that is up as it stands (planner.specs.up)
+    com: Vector | None = None
+    com_from: str = ""
+    gyration: tuple[float, ...] | None = None
 
     @property
     def user_file(self) -> bool:
@@ -224,13 +239,17 @@ def random_spec(index: int) -> ObjectSpec:
 
 def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = None,
                  friction: float | None = None, label: str | None = None, density: float | None = None,
-                 up: str | None = None, scale_from: str = "--scale") -> ObjectSpec:
+                 up: str | None = None, com: Vector | str | None = None, geometry: str | None = None,
+                 scale_from: str = "--scale") -> ObjectSpec:
     """A built-in name, ``random_NNN``, or a path to a mesh or URDF file;
     ``label`` renames it (two files of one run with the same stem). ``mass``
-    (or ``density``), ``friction`` and ``up`` override the object's own, a file's
-    from its sidecar, a URDF's own (see the module docstring). ``scale_from``: what gave
+    (or ``density``), ``friction``, ``up`` and ``com`` override the object's own, a file's
+    from its sidecar, a URDF's own (see the module docstring); ``geometry`` makes a URDF file of its
+    ``<visual>`` elements (another object's is refused). ``scale_from``: what gave
     ``scale``, for the error of a primitive, which takes none."""
-    given = Physical.checked({"mass": mass, "density": density, "friction": friction, "up": up}, f"object '{name}'")
+    given = Physical.checked({"mass": mass, "density": density, "friction": friction, "up": up, "com": com,
+                              "geometry": geometry}, f"object '{name}'")
+    com_from = "as given" if given.com is not None else ""
     if scale is not None and not (math.isfinite(scale) and scale > 0):
         raise InputError(f"object '{name}': scale must be a positive number, got {scale:g} (0.001 for a mesh in "
                          "millimetres)")
@@ -248,7 +267,7 @@ def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = 
         if scale is not None:
             spec = replace(spec, scale=spec.scale * scale)
     elif (path := file_named(name)) is not None and Path(name).suffix.lower() == URDF_SUFFIX:
-        spec, given = _urdf_spec(Path(name).expanduser(), path, scale, given)
+        spec, given, com_from = _urdf_spec(Path(name).expanduser(), path, scale, given, com_from)
     elif path is not None:
         # named as given and its sidecar beside it (a symlink's own name and folder; the target's sidecar where
         # the link has none); the source is the file itself, whatever path names it
@@ -256,13 +275,25 @@ def resolve_spec(name: str, *, scale: float | None = None, mass: float | None = 
         spec = ObjectSpec(name=named.stem, kind="mesh", source=str(path), scale=1.0 if scale is None else scale,
                           up=default_up(path))
         found = mesh_sidecar(named)
-        given = given.over(Physical.checked(read_toml(found), str(found)) if found is not None else NO_PHYSICAL)
+        given, com_from = _over_sidecar(given, com_from, found)
     else:
         raise UnknownNameError("object", name,
                                [*builtin, f"{RANDOM_PREFIX}000..{RANDOM_PREFIX}999", "or a mesh or URDF file path"])
+    if given.geometry is not None and spec.kind != URDF_FILE:
+        raise InputError(f"object '{name}': geometry {given.geometry} chooses a URDF file's elements; "
+                         f"{spec.name} is {'a mesh file' if spec.kind == 'mesh' else 'a registry object'}")
     if label:
         spec = replace(spec, name=label)
-    return with_physical(spec, given)
+    spec = with_physical(spec, given)
+    return replace(spec, com_from=com_from) if spec.com is not None else spec
+
+
+def _over_sidecar(given: Physical, com_from: str, found: Path | None) -> tuple[Physical, str]:
+    """``given`` over the sidecar ``found`` (None: none), and who gives the centre of mass."""
+    if found is None:
+        return given, com_from
+    side = Physical.checked(read_toml(found), str(found))
+    return given.over(side), com_from or (found.name if side.com is not None else "")
 
 
 def file_named(name: str) -> Path | None:
@@ -280,32 +311,41 @@ def file_named(name: str) -> Path | None:
     return named.resolve() if named.suffix.lower() in MESH_SUFFIXES or named.exists() else None
 
 
-def _urdf_spec(named: Path, path: Path, scale: float | None, given: Physical) -> tuple[ObjectSpec, Physical]:
-    """The spec of the URDF file ``named`` (``path``: :func:`file_named`) and the properties the run ``given``, over
-    its sidecar's, over its own; its mesh files checked to be of a type the planner reads."""
+def _urdf_spec(named: Path, path: Path, scale: float | None, given: Physical, com_from: str
+               ) -> tuple[ObjectSpec, Physical, str]:
+    """The spec of the URDF file ``named`` (``path``: :func:`file_named`), the properties the run ``given``, over
+    its sidecar's, over its own, and who gives its centre of mass; its mesh files checked to be of a type the
+    planner reads."""
     if not named.is_file():
         raise InputError(f"{named}: file not found")
-    own = read_urdf_object(path)
+    given, com_from = _over_sidecar(given, com_from, mesh_sidecar(named))
+    own = read_urdf_object(path, given.geometry or GEOMETRIES[0])
+    if given.geometry is not None and own.geometry != given.geometry:
+        raise InputError(f"{path}: geometry {given.geometry} is given and it has no <{given.geometry}> element")
     odd = next((p for p in own.parts if p.file is not None and p.file.suffix.lower() not in MESH_SUFFIXES), None)
     if odd is not None and odd.file is not None:
         raise InputError(f"{path}: link '{odd.link}': {odd.file.name}: unsupported mesh type '{odd.file.suffix}'; use "
                          f"one of {', '.join(MESH_SUFFIXES)} (convert it, e.g. in Blender or MeshLab)")
-    found = mesh_sidecar(named)
-    given = given.over(Physical.checked(read_toml(found), str(found)) if found is not None else NO_PHYSICAL)
-    spec = ObjectSpec(name=named.stem, kind=URDF_FILE, source=str(path), scale=1.0 if scale is None else scale,
-                      geometry=own.geometry)
-    return spec, given.over(own.own(given))
+    factor = 1.0 if scale is None else scale
+    spec = ObjectSpec(name=named.stem, kind=URDF_FILE, source=str(path), scale=factor, geometry=own.geometry)
+    if own.inertial is not None:  # the whole object scaled about its frame's origin: its inertia per kg as length^2
+        spec = replace(spec, gyration=tuple(float(v) for v in np.ravel(own.inertial.inertia) / own.inertial.mass
+                                            * factor ** 2))
+    if given.com is None and own.com is not None:
+        x, y, z = (v * factor for v in own.com)
+        given, com_from = replace(given, com=(x, y, z)), f"{path.name} <inertial><origin>"
+    return spec, given.over(own.own(given)), com_from
 
 
 def with_physical(spec: ObjectSpec, physical: Physical) -> ObjectSpec:
     """``spec`` with the properties ``physical`` gives (a mass clears a density)."""
-    overrides: dict[str, float | str | None] = dict(physical.given())
+    overrides: dict[str, object] = dict(physical.given())
     if physical.mass is not None:
         overrides["density"] = None
     return replace(spec, **overrides) if overrides else spec
 
 
-def file_values(named: str, spec: ObjectSpec) -> list[tuple[str, dict[str, float | str]]]:
+def file_values(named: str, spec: ObjectSpec) -> list[tuple[str, dict[str, Value]]]:
     """The values the files of the user's file ``named`` (as the run names it; ``spec`` its object) give,
     first first, each with its file's name: its sidecar's, then a URDF's own
     (:meth:`~planner.specs.urdf_objects.UrdfObject.stated`, unchecked); [] for other objects."""
@@ -341,42 +381,3 @@ def file_scale(spec: ObjectSpec) -> float:
     if spec.kind == "urdf":
         return urdf_mesh(spec)[1] * spec.scale
     return spec.scale
-
-
-def object_files(source: Path, geometry: str = "collision") -> list[Path]:
-    """The files whose bytes make the object of the file ``source``: itself, a URDF's mesh files (of its
-    ``geometry`` elements: :func:`~planner.specs.urdf_objects.read_urdf_object`), and the buffer files each
-    ``.gltf`` of these names (:func:`gltf_buffers`; they may not exist). A URDF that does not read is an
-    InputError."""
-    files = [source, *(read_urdf_object(source, geometry).files if source.suffix.lower() == URDF_SUFFIX else ())]
-    return [*files, *(b for f in files for b in gltf_buffers(f))]
-
-
-def edited_since(source: Path, finished: float | None) -> bool:
-    """Whether the object of the file ``source`` (:func:`object_files`: a ``.gltf``'s buffers, a URDF's meshes)
-    may have changed since ``finished`` (its object's last unit's end [s];
-    :meth:`~planner.db.store.Database.last_finished`): modified from that second on, no time known, or no file to
-    read. A copy that keeps an older modification time is not seen."""
-    try:
-        files = object_files(source)
-        buffers = {b for f in files for b in gltf_buffers(f)}  # each spelling of a buffer's name: one may be missing
-        return finished is None or any(f.stat().st_mtime >= finished for f in files if f not in buffers or f.exists())
-    except (OSError, InputError):
-        return True
-
-
-def gltf_buffers(path: Path) -> list[Path]:
-    """The files the buffers of a ``.gltf`` name, where its geometry is
-    (relative to it, each as written and URL-decoded: loaders differ; embedded
-    ``data:`` buffers are in the file itself); [] for any other file, or one
-    that is not glTF JSON (its loader says why)."""
-    if path.suffix.lower() != ".gltf":
-        return []
-    try:
-        data = json.loads(path.read_bytes())
-    except (OSError, ValueError):
-        return []
-    buffers = data.get("buffers", []) if isinstance(data, dict) else []
-    uris = [b.get("uri") for b in buffers if isinstance(b, dict)] if isinstance(buffers, list) else []
-    names = [u for u in uris if isinstance(u, str) and u and not u.startswith("data:")]
-    return [path.parent / n for n in dict.fromkeys(n for u in names for n in (u, unquote(u)))]

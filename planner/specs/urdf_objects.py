@@ -13,8 +13,10 @@ Mass and friction are read as PyBullet reads them: each link's
 ``<inertial><mass value>`` (summed: the links are one rigid body), and
 PyBullet's extension ``<contact><lateral_friction value>``, the first
 ``<contact>`` of a link (PyBullet's 0.5 for a link with geometry that gives
-none). The ``<inertial>`` origin and inertia are not read: the planner's
-centre of mass and inertia are the closed mesh's at uniform density.
+none). The ``<inertial>`` origins and inertias make the object's centre of
+mass and inertia (:mod:`planner.specs.urdf_inertial`, which says when a file
+declares a centre of mass); :mod:`planner.geometry.solid` checks them against
+the mesh.
 """
 
 from __future__ import annotations
@@ -33,13 +35,11 @@ if TYPE_CHECKING:
     import yourdfpy  # imports trimesh: loaded by load_model, where it is used
 
 from planner.errors import ConfigError, InputError, MeshError
-from planner.specs.physical import Physical
+from planner.specs.physical import GEOMETRIES, Physical, Value
 from planner.specs.urdf import descendants, link_chain, load_model, mesh_path, urdf_xml
+from planner.specs.urdf_inertial import UrdfInertial, combined, link_inertial
 
 URDF_SUFFIX = ".urdf"
-#: The geometry elements a URDF object is made of, the first preferred: the collision shape is the one PyBullet
-#: simulates; a file without one is planned on its visual shape.
-GEOMETRIES = ("collision", "visual")
 #: The shapes of a ``<geometry>`` element, each made as a mesh.
 SHAPES = ("mesh", "box", "cylinder", "sphere")
 #: A link's lateral friction in PyBullet where its URDF gives none (its URDF importer's default).
@@ -88,6 +88,8 @@ class UrdfObject:
             where no link gives one.
         frictions: (link, ``<lateral_friction>``) of each link with parts, PyBullet's 0.5 for one that gives
             none; () where no link gives one.
+        inertial: the links' ``<inertial>`` elements as one body's, in the object frame unscaled; None where no
+            link has a positive mass.
     """
 
     path: Path
@@ -95,17 +97,29 @@ class UrdfObject:
     parts: tuple[UrdfPart, ...]
     mass: float | None
     frictions: tuple[tuple[str, float], ...]
+    inertial: UrdfInertial | None = None
 
     @property
     def files(self) -> tuple[Path, ...]:
         """The mesh files of the parts, each once, in order."""
         return tuple(dict.fromkeys(p.file for p in self.parts if p.file is not None))
 
-    def stated(self) -> dict[str, float]:
-        """The mass and the one friction the file gives (unchecked; no friction where its links' differ)."""
+    @property
+    def com(self) -> tuple[float, float, float] | None:
+        """[m] The centre of mass the file declares (:mod:`planner.specs.urdf_inertial`), object frame unscaled;
+        None where it declares none."""
+        if self.inertial is None or not self.inertial.declared:
+            return None
+        x, y, z = (float(v) for v in self.inertial.com)
+        return (x, y, z)
+
+    def stated(self) -> dict[str, Value]:
+        """The mass, the one friction and the centre of mass the file gives (unchecked; no friction where its
+        links' differ)."""
         frictions = {v for _, v in self.frictions}
         return {**({} if self.mass is None else {"mass": self.mass}),
-                **({"friction": frictions.pop()} if len(frictions) == 1 else {})}
+                **({"friction": frictions.pop()} if len(frictions) == 1 else {}),
+                **({} if self.com is None else {"com": self.com})}
 
     def own(self, given: Physical) -> Physical:
         """The file's mass and friction where ``given`` (the sources that come first) gives none, checked: a
@@ -175,7 +189,10 @@ def _read(path: Path, geometry: str, mtime_ns: int, ctime_ns: int, size: int) ->
     mass = next((m for m in masses if not m >= 0), None)  # a negative or NaN one, for the check to refuse
     if mass is None and masses:
         mass = math.fsum(masses)
-    return UrdfObject(path, geometry, parts, mass, _frictions(path, root, {p.link for p in parts}))
+    inertial = combined([link_inertial(link.inertial.mass, link_chain(model, link.name).frame({}),
+                                       link.inertial.origin, link.inertial.inertia)
+                         for link in links if link.inertial is not None and link.inertial.mass is not None])
+    return UrdfObject(path, geometry, parts, mass, _frictions(path, root, {p.link for p in parts}), inertial)
 
 
 def _check_rigid(path: Path, model: yourdfpy.URDF) -> None:

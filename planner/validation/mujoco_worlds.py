@@ -1,7 +1,7 @@
 """The worlds the MuJoCo trial (:mod:`planner.validation.mujoco_trial`) runs
 in: the object as the trial collides it (:func:`solid`), the engine its
 settings ask for, and a per-process cache of built worlds, one per hand,
-object, mass and engine (building one costs a few ms, more with many parts;
+object (its mesh, centre of mass and inertia), mass and engine (building one costs a few ms, more with many parts;
 each trial then starts from a fresh state in it)."""
 
 from __future__ import annotations
@@ -38,8 +38,9 @@ def world_for(hand: HandSpec, obj: PreparedObject, s: MujocoSettings, mass: floa
     engine = Engine(s.timestep, s.iterations, s.impratio, s.contact_time, 1.0, s.contact_time, s.multiccd)
     soft = tuple(sorted(link for link, c in hand.contacts.items() if c.model == "soft" and c.torsion_radius > 0))
     inertia = tuple(sorted(hand.link_inertia.items()))
+    # its centre of mass and inertia too: one mesh may be two objects, each with its own (a URDF's, a sidecar's)
     key = (hand.name, str(hand.urdf), soft, inertia, obj.mesh_hash, obj.spec.kind, tuple(obj.spec.dims), mass,
-           s.part_tolerance, engine)
+           tuple(np.ravel(obj.com).tolist()), tuple(np.ravel(obj.inertia).tolist()), s.part_tolerance, engine)
     if key not in WORLDS:
         if len(WORLDS) >= KEPT:
             WORLDS.pop(next(iter(WORLDS)))

@@ -81,7 +81,7 @@ def test_an_edit_of_the_urdf_or_its_mesh_is_seen(tmp_path: Path, edited: str) ->
         write_urdf(tmp_path, mass="0.4")
         code, _, err = generate(db, str(urdf))
         one_line_error(code, err, 2, "object 'brick' is stored", "with mass 0.25, friction 0.9",
-                       "this run gives mass 0.4, friction 0.9 (mass and friction from brick.urdf)")
+                       "this run gives mass 0.4, friction 0.9 (mass, friction and com from brick.urdf)")
     else:
         mesh = tmp_path / "meshes" / "brick.obj"
         trimesh.creation.box(extents=(0.03, 0.05, 0.08)).export(mesh)

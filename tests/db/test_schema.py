@@ -211,3 +211,20 @@ def test_objects_stored_before_version_12_are_z_up(tmp_path: Path) -> None:
     with sqlite3.connect(old) as conn:
         assert conn.execute("SELECT up FROM objects").fetchall() == [("+z",)]
     assert len(list(tmp_path.glob("v11.db.v11.*.bak"))) == 1
+
+
+def test_objects_stored_before_version_13_are_of_their_collision_elements(tmp_path: Path) -> None:
+    """A user's URDF could only be planned on its collision elements (where it had any) before the column:
+    read-only and migrated alike."""
+    old = tmp_path / "v12.db"
+    version_11_file(old)
+    with sqlite3.connect(old) as conn:
+        conn.execute(MIGRATIONS[11])
+        conn.execute("UPDATE meta SET value = '12' WHERE key = 'schema_version'")
+    with open_db(old, create=False, readonly=True) as db:
+        assert db.meta("schema_version") == "12" and db.object_row("o").geometry == "collision"  # type: ignore[union-attr]
+    with open_db(old) as db:
+        assert db.meta("schema_version") == str(SCHEMA_VERSION) == "13"
+        assert db.object_row("o").geometry == "collision"  # type: ignore[union-attr]
+    with sqlite3.connect(old) as conn:
+        assert conn.execute("SELECT up, geometry FROM objects").fetchall() == [("+z", "collision")]

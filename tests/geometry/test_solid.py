@@ -134,7 +134,7 @@ def test_a_gltf_is_read_again_when_its_buffer_file_changes(tmp_path: Path) -> No
 def test_gltf_buffer_names_as_written_and_decoded_and_a_file_that_is_not_gltf(tmp_path: Path) -> None:
     """trimesh opens a buffer's URI as written (`lit%20name.bin`); the key read only the decoded name, so an
     edit of that file went unseen; `"buffers": 5` was an internal error."""
-    from planner.specs.objects import gltf_buffers
+    from planner.specs.object_files import gltf_buffers
 
     gltf = tmp_path / "m.gltf"
     gltf.write_text('{"buffers": [{"uri": "lit%20name.bin"}, {"uri": "data:application/octet-stream;base64,AA=="},'

@@ -18,7 +18,8 @@ from planner import assets, prepare
 from planner.errors import ConfigError, InputError, MeshError
 from planner.geometry.solid import load_object
 from planner.specs import inputs
-from planner.specs.objects import DEFAULT_FRICTION, DEFAULT_MASS, URDF_FILE, edited_since, file_scale, resolve_spec
+from planner.specs.object_files import edited_since
+from planner.specs.objects import DEFAULT_FRICTION, DEFAULT_MASS, URDF_FILE, file_scale, resolve_spec
 from planner.specs.physical import MAX_FRICTION
 from planner.specs.urdf_objects import read_urdf_object
 

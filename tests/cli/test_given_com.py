@@ -1,0 +1,125 @@
+"""``grasp generate`` of a URDF with its own centre of mass, end to end: stored, measured about, handed to the
+trials and the exports; one outside the object refused; a URDF planned on its visual elements, kept apart."""
+
+from __future__ import annotations
+
+import sqlite3
+from dataclasses import replace
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from helpers import FAST, assert_close, grasp, one_line_error
+
+from planner.db.objects import stored_object
+from planner.db.store import open_db
+
+SIZE = (0.04, 0.06, 0.1)  # [m] the box the URDFs are made of
+#: [m] the grip measures are stored to 0.1 um (vectors) and as REAL: a shift agrees to round-off of both.
+MEASURE_TOL = 1e-9
+
+
+def box_urdf(folder: Path, xyz: str, name: str = "box", visual: str = "") -> Path:
+    path = folder / f"{name}.urdf"
+    path.write_text(f"""<robot name="{name}"><link name="base">
+  <inertial><origin xyz="{xyz}"/><mass value="0.2"/>
+    <inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial>
+  <collision><geometry><box size="{' '.join(map(str, SIZE))}"/></geometry></collision>{visual}</link></robot>""")
+    return path
+
+
+def generate(db: Path, *args: str) -> tuple[int, str, str]:
+    return grasp("generate", *args, "--hand", "panda", "--db", str(db), "--quiet", "--reach-placements", "0",
+                 *FAST[:-2])
+
+
+def rows(db: Path, sql: str) -> list[tuple]:
+    with sqlite3.connect(db) as conn:
+        return conn.execute(sql).fetchall()
+
+
+def test_a_declared_com_is_stored_and_moves_com_height_by_its_offset(tmp_path: Path) -> None:
+    """The same box, its centre of mass at its middle and 3 cm up: the grasps that are the same pose in both
+    have their com_height 3 cm apart (the object's up +z), and the stored com is the URDF's."""
+    heights = {}
+    for name, xyz in (("mid", "0 0 0"), ("high", "0.01 0 0.03")):
+        db = tmp_path / f"{name}.db"
+        (tmp_path / name).mkdir()
+        code, _, err = generate(db, str(box_urdf(tmp_path / name, xyz)))  # one name: the same seeds
+        assert code == 0, err
+        (com,) = rows(db, "SELECT com FROM objects")[0]
+        assert_close(np.array(eval(com)), [float(v) for v in xyz.split()])
+        heights[name] = dict(rows(db, "SELECT pose, com_height FROM grasps WHERE com_height IS NOT NULL"))
+    same = set(heights["mid"]) & set(heights["high"])
+    assert same, "no grasp planned at one pose in both"
+    for pose in same:
+        assert heights["high"][pose] - heights["mid"][pose] == pytest.approx(0.03, abs=MEASURE_TOL)
+
+
+def test_the_stored_com_reaches_the_trials_and_the_export(tmp_path: Path) -> None:
+    from planner.specs.hands import load_hand
+    from planner.validation.mujoco_settings import MujocoSettings
+    from planner.validation.mujoco_worlds import world_for
+
+    db = tmp_path / "g.db"
+    assert generate(db, str(box_urdf(tmp_path, "0.01 -0.02 0.03")))[0] == 0
+    with open_db(db) as store:
+        row = store.object_row("box")
+    assert row is not None
+    obj = stored_object(row)
+    assert_close(obj.com, [0.01, -0.02, 0.03])
+    world = world_for(load_hand("panda"), obj, MujocoSettings(), obj.mass)
+    assert_close(world.model.body_ipos[world.object_body], [0.01, -0.02, 0.03])
+    # the same mesh as another object (its centre elsewhere) in the same process: a world of its own
+    other = replace(obj, com=np.zeros(3))
+    world = world_for(load_hand("panda"), other, MujocoSettings(), obj.mass)
+    assert_close(world.model.body_ipos[world.object_body], np.zeros(3))
+    code, _, err = grasp("export", "--db", str(db), "--format", "acronym", "--out", str(tmp_path / "out"))
+    assert code == 0, err
+    with h5py.File(tmp_path / "out" / "box__panda.h5") as f:
+        assert_close(f["object/com"][()], [0.01, -0.02, 0.03])
+    code, out, err = grasp("validate", "--db", str(db), "--object", "box", "--hand", "panda", "--top", "2")
+    assert code == 0 and "validated 2 grasps" in out, (out, err)
+
+
+def test_a_com_outside_the_object_is_refused_in_one_line_and_nothing_written(tmp_path: Path) -> None:
+    db = tmp_path / "g.db"
+    code, _, err = generate(db, str(box_urdf(tmp_path, "0 0 0.2")))
+    one_line_error(code, err, 2, "box.urdf: its centre of mass [0, 0, 0.2] m (box.urdf <inertial><origin>) lies "
+                                 "150 mm outside the object's convex hull")
+    assert not db.exists()
+
+
+def test_a_sidecar_com_replacing_the_urdfs_is_said_and_another_one_later_refused(tmp_path: Path) -> None:
+    urdf = box_urdf(tmp_path, "0 0 0.01")
+    urdf.with_suffix(".toml").write_text("com = [0, 0, 0.02]\n")
+    db = tmp_path / "g.db"
+    code, _, err = grasp("generate", str(urdf), "--hand", "panda", "--db", str(db), *FAST)
+    assert code == 0, err
+    assert "object 'box': com [0, 0, 0.02] from box.toml replaces box.urdf's com [0, 0, 0.01]" in err
+    urdf.with_suffix(".toml").unlink()
+    code, _, err = generate(db, str(urdf))
+    one_line_error(code, err, 2, "object 'box' is stored", "with its centre of mass at [0, 0, 0.02] m",
+                   "now [0, 0, 0.01], given by box.urdf <inertial><origin>")
+
+
+def test_the_visual_geometry_is_planned_stored_and_kept_apart(tmp_path: Path) -> None:
+    """A URDF whose collision box is a stand-in for a smaller visual one: --geometry visual plans on the visual
+    box; the other choice under the same name is refused, not mixed in; validate rebuilds the visual one."""
+    visual = '<visual><geometry><box size="0.03 0.05 0.08"/></geometry></visual>'
+    urdf = box_urdf(tmp_path, "0 0 0", visual=visual)
+    db = tmp_path / "g.db"
+    code, _, err = generate(db, str(urdf), "--geometry", "visual")
+    assert code == 0, err
+    ((geometry, volume),) = rows(db, "SELECT geometry, volume FROM objects")
+    assert geometry == "visual" and volume == pytest.approx(0.03 * 0.05 * 0.08)
+    code, out, err = grasp("generate", str(urdf), "--hand", "panda", "--db", str(db), "--json", "--geometry", "visual",
+                           "--reach-placements", "0", *FAST[:-2])
+    assert code == 0 and '"skipped": 1' in out, err
+    code, _, err = generate(db, str(urdf))
+    one_line_error(code, err, 2, "object 'box' is stored", "stored of its <visual> elements, now of its <collision>")
+    code, out, err = grasp("validate", "--db", str(db), "--object", "box", "--hand", "panda", "--top", "1")
+    assert code == 0 and "validated 1 grasps" in out, (out, err)
+    code, _, err = generate(tmp_path / "m.db", str(tmp_path / "missing.obj"), "--geometry", "visual")
+    assert code == 2
