@@ -225,7 +225,8 @@ class AcronymHeader:
     is not a positive number, an up that is no axis, is refused); ``mesh_sha256``: the hash of the mesh the grasps were
     planned on (this project's files since issue 12); ``extras``: the file
     carries this project's qualities, joints and contacts (it can be read
-    back losslessly).
+    back losslessly); ``com`` (3,) [m] and ``inertia`` (9,) [kg m^2, row by row] the object's as the file
+    gives them (None: absent or not finite).
     """
 
     path: Path
@@ -238,6 +239,8 @@ class AcronymHeader:
     extras: bool
     mesh_sha256: str | None = None
     up: str | None = None
+    com: tuple[float, float, float] | None = None
+    inertia: tuple[float, ...] | None = None
 
 
 def _open(path: Path) -> Any:
@@ -264,7 +267,18 @@ def read_header(path: Path) -> AcronymHeader:
             scale=_positive(f, "object/scale"), mass=_positive(f, "object/mass"),
             friction=_positive(f, "object/friction"), extras=all(f"grasps/{k}" in f for k in EXTRAS),
             mesh_sha256=as_text(f["object/mesh_sha256"][()]) or None if "object/mesh_sha256" in f else None,
-            up=up_axis(as_text(f["object/up"][()]), str(path), "object/up") if "object/up" in f else None)
+            up=up_axis(as_text(f["object/up"][()]), str(path), "object/up") if "object/up" in f else None,
+            com=_floats(f, "object/com", (3,)), inertia=_floats(f, "object/inertia", (3, 3)))
+
+
+def _floats(f: Any, key: str, shape: tuple[int, ...]) -> Any:
+    """The finite float dataset ``key`` of that shape as a flat tuple (None: absent or otherwise)."""
+    if key not in f:
+        return None
+    values = np.asarray(f[key][()])
+    if values.shape != shape or values.dtype.kind not in "fiu" or not np.isfinite(values).all():
+        return None
+    return tuple(float(v) for v in values.ravel())
 
 
 def read_poses(path: Path, hand: HandSpec) -> np.ndarray:

@@ -9,9 +9,13 @@ the command: ``import`` has ``--object``, ``calibrate`` has not (``HINTS``).
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+
 from planner.datasets.acronym import AcronymHeader
+from planner.db.objects import COM_TOL
 from planner.errors import InputError
 from planner.geometry.solid import prepare
 from planner.specs.hands import hand_names
@@ -44,6 +48,25 @@ def object_spec(h: AcronymHeader, object_name: str | None, command: str = "impor
     if up is not None and h.up is not None and up_axis(up, "", "--up") != h.up:
         raise InputError(f"{h.path}: its object/up is {h.up}, and --up gives {up_axis(up, '', '--up')}: its grasps "
                          "were measured about the file's; leave --up out for this file")
+    return _with_inertial(h, _object_spec(h, object_name, command, up))
+
+
+def _with_inertial(h: AcronymHeader, spec: ObjectSpec) -> ObjectSpec:
+    """``spec`` with the centre of mass and inertia this project's own file (one with ``object/mesh_sha256``)
+    gives where they are not its mesh's at uniform density (a URDF's or a sidecar's when it was planned): its
+    grasps' measures and trials were of those. Other ACRONYM files' (their mesh's) are not read."""
+    if h.mesh_sha256 is None or h.com is None:
+        return spec
+    mesh = prepare(spec)
+    if spec.com is not None or float(np.linalg.norm(np.asarray(h.com) - mesh.com)) <= COM_TOL:
+        return spec  # given here (a sidecar beside the mesh), or the mesh's own
+    gyration = None
+    if h.inertia is not None and h.mass is not None:
+        gyration = tuple(v / h.mass for v in h.inertia)
+    return replace(spec, com=h.com, com_from=f"{Path(h.path).name} object/com", gyration=gyration)
+
+
+def _object_spec(h: AcronymHeader, object_name: str | None, command: str, up: str | None) -> ObjectSpec:
     props = {"mass": h.mass, "friction": h.friction, "up": h.up if h.up is not None else up}
     if object_name is not None:
         if is_registered(object_name):

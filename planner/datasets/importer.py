@@ -24,6 +24,8 @@ same file again finds the unit done and skips it. Grasp ``candidate`` (and
   name, comes back as the mesh its grasps were planned on.
   The file's ``object/mass``, ``object/friction`` and ``object/up`` (this project's files) override the
   object's; a file without ``object/up`` leaves the object's own (its mesh file's: ``+z`` for an OBJ).
+  Its ``object/com`` and ``object/inertia`` too where they are not its mesh's at uniform density (a URDF's or
+  a sidecar's given when it was planned; only this project's files, those with ``object/mesh_sha256``).
 - Poses: ``grasps/transforms @ inverse(export_frame)``, the file's
   ``grasps/export_frame`` if present, else the hand's.
 - Files with this project's extras (qualities, joints, contacts) are

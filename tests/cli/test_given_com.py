@@ -83,6 +83,27 @@ def test_the_stored_com_reaches_the_trials_and_the_export(tmp_path: Path) -> Non
     assert code == 0 and "validated 2 grasps" in out, (out, err)
 
 
+def test_an_exported_com_and_inertia_come_back_with_grasp_import(tmp_path: Path) -> None:
+    """Our own ACRONYM file of an object whose centre of mass and inertia were given (not its mesh's) is imported
+    with them (its grasps' measures were of those), also from a moved copy; a file of the mesh's own com as
+    before."""
+    import shutil
+
+    db, urdf = tmp_path / "g.db", box_urdf(tmp_path, "0.01 -0.02 0.03")
+    urdf.write_text(urdf.read_text().replace('ixx="1" iyy="1" izz="1"', 'ixx="1e-4" iyy="1.2e-4" izz="0.8e-4"'))
+    assert generate(db, str(urdf))[0] == 0
+    assert grasp("export", "--db", str(db), "--format", "acronym", "--out", str(tmp_path / "out"), "--quiet")[0] == 0
+    shutil.copytree(tmp_path / "out", tmp_path / "moved")
+    code, _, err = grasp("import", "--format", "acronym", str(tmp_path / "moved" / "box__panda.h5"),
+                         "--db", str(tmp_path / "back.db"))
+    assert code == 0, err
+    (exported,) = rows(db, "SELECT com, inertia FROM objects")
+    (back,) = rows(tmp_path / "back.db", "SELECT com, inertia FROM objects")
+    assert_close(np.array(eval(back[0])), [0.01, -0.02, 0.03])
+    assert_close(np.ravel(eval(back[1])), np.ravel(eval(exported[1])))
+    assert_close(np.ravel(eval(back[1])), np.diag([1e-4, 1.2e-4, 0.8e-4]).ravel())  # the URDF's, not the mesh's
+
+
 def test_a_com_outside_the_object_is_refused_in_one_line_and_nothing_written(tmp_path: Path) -> None:
     db = tmp_path / "g.db"
     code, _, err = generate(db, str(box_urdf(tmp_path, "0 0 0.2")))
