@@ -34,7 +34,7 @@ from planner import assets
 from planner.db.store import ObjectRow
 from planner.errors import InputError, PlannerError
 from planner.geometry.solid import PreparedObject, prepare
-from planner.record.field import INERTIA_DIGITS
+from planner.record.field import COM_TOL, INERTIA_DIGITS
 from planner.specs.objects import (
     PRIMITIVES,
     PROPERTY_RTOL,
@@ -69,9 +69,9 @@ def stored_object(row: ObjectRow) -> PreparedObject:
                      f"({'; '.join(tried) or 'no source'})")
 
 
-#: How far a prepared object's volume (relative) and centre of mass [m] may lie from its stored row's and still be
-#: the stored object (the row keeps the centre of mass to 0.1 um).
-VOLUME_RTOL, COM_TOL = 1e-6, 1e-6
+#: How far a prepared object's volume (relative) may lie from its stored row's and still be the stored object's
+#: (its centre of mass: COM_TOL, kept to 0.1 um).
+VOLUME_RTOL = 1e-6
 #: [kg m^2] How far a prepared object's inertia may lie from its stored row's (kept to INERTIA_DIGITS decimals),
 #: relative to its largest entry or absolute, and still be the stored one.
 INERTIA_RTOL, INERTIA_ATOL = 1e-6, 10.0 ** -INERTIA_DIGITS

@@ -36,6 +36,8 @@ KINDS: dict[str, tuple[str, str, object]] = {
 #: [kg m^2] (the objects' ``inertia``). Contacts keep theirs in :data:`planner.record.contacts.STORED_DIGITS`.
 VECTOR_DIGITS = 7
 INERTIA_DIGITS = 10
+#: [m] How far a prepared object's centre of mass may lie from its stored row's and still be the stored one's.
+COM_TOL = 10.0 ** (1 - VECTOR_DIGITS)
 
 
 def stored_numbers(values: Any, digits: int = VECTOR_DIGITS) -> list[float]:

@@ -144,3 +144,22 @@ def test_the_visual_geometry_is_planned_stored_and_kept_apart(tmp_path: Path) ->
     assert code == 0 and "validated 1 grasps" in out, (out, err)
     code, _, err = generate(tmp_path / "m.db", str(tmp_path / "missing.obj"), "--geometry", "visual")
     assert code == 2
+
+
+def test_the_store_refuses_a_unit_of_another_com(tmp_path: Path) -> None:
+    """Two runs of one object with other centres of mass at once: the second's units are refused when written
+    (the check at a run's start cannot see the other run), nothing of them stored."""
+    from planner.db.rows import UnitRow
+    from planner.errors import InputError
+    from planner.geometry.solid import load_object
+
+    db = tmp_path / "g.db"
+    assert generate(db, "box")[0] == 0
+    box = load_object("box")
+    stored = rows(db, "SELECT count(*) FROM units")
+    with open_db(db) as store:
+        with pytest.raises(InputError, match="with another centre of mass than this unit's"):
+            store.write_unit(UnitRow("box", "panda", "x", "{}", 0, 99),
+                             replace(box, com=np.asarray(box.com) + [0, 0, 0.01]), [], store.rule())
+        assert_close(store.object_row("box").com, box.com)  # type: ignore[union-attr]
+    assert rows(db, "SELECT count(*) FROM units") == stored
