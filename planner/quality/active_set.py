@@ -15,8 +15,9 @@ both bounds meet and epsilon is exact (to FACET_TOL).
 Only the facets up to the nearest clean one decide a round, so h is taken
 facet by facet in order of distance, in chunks, up to the first clean one
 (:func:`nearest_dirty`): the same bound and dirty facets as h of every facet
-(:func:`nearest_dirty_reference`), at a fraction of the cost when the
-generators are many (the Barrett's ~140) and the hull has thousands of facets.
+(:func:`nearest_dirty_reference`), for less when the generators are many
+(the Barrett's mug sweep: 2.5 -> 2.35 ms an epsilon, one BLAS thread; the
+Panda's ~70 generators: the same time).
 """
 
 from __future__ import annotations
