@@ -1,17 +1,7 @@
-"""Hulls of the grasp wrench space: qhull behind one function, plus the
-active-set epsilon that only builds the part of the hull near the origin.
-
-A GWS K is described by its support function h(u) = max_{x in K} u.x and
-support points.  For unit u, the half-space u.x <= h(u) contains K, and
-epsilon(K) = min_{|u|=1} h(u) is attained at a facet normal of K.
-
-Active set (in the spirit of the expanding-polytope algorithm): keep a few
-support points S, take qhull of S.  conv(S) lies inside K, so its nearest
-facet distance is a lower bound on epsilon.  A facet of conv(S) whose
-normal u has h(u) <= its distance + tol supports K as well, so the nearest
-such "clean" facet is an upper bound.  Add the support points of dirty
-facets nearer than that bound and repeat; when the nearest facet is clean,
-both bounds meet and epsilon is exact (to FACET_TOL).
+"""Hulls of the grasp wrench space: qhull behind one function, the hull's
+epsilon, and the Minkowski-sum points of the L-infinity GWS (the active-set
+epsilon, which only builds the part of the hull near the origin, is in
+active_set.py).
 
 qhull itself sits behind ``qhull``: every hull is checked (no point beyond a
 facet) before use, rebuilt with other options when the check or qhull
@@ -24,7 +14,7 @@ whatever the number of points and facets.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 
 import numpy as np
 from scipy.sparse import coo_matrix
@@ -32,14 +22,8 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from planner.errors import DegenerateGraspError
-from planner.quality.closure import SIMPLEX
 from planner.quality.tolerances import CLUSTER_RADIUS, FACET_TOL, HULL_TOL, MERGE_RADIUS, RANK_TOL
 
-#: Seed directions: the coordinate axes both ways, then the simplex both ways.
-SEED_DIRECTIONS = np.vstack([np.eye(6), -np.eye(6), SIMPLEX, -SIMPLEX])
-#: Support points of at most this many dirty facets are added per round.
-ADD_PER_ROUND = 8
-MAX_ROUNDS = 200
 #: The clustering fallback of ``qhull`` tries radii of CLUSTER_RADIUS times
 #: 10^-CLUSTER_DECADES, ..., 10^-1, 1: from 1e-11, ten times DEDUP_TOL.
 CLUSTER_DECADES = 3
@@ -54,10 +38,6 @@ BLOCK_BYTES = 64 * 2**20
 
 class HullError(DegenerateGraspError):
     """qhull could not build a trustworthy hull of a full-dimensional set."""
-
-
-class _Stalled(Exception):
-    """The incremental active set hit round-off; rebuild with merging."""
 
 
 def blocks(rows: int, cols: int) -> Iterator[slice]:
@@ -249,112 +229,6 @@ def hull_epsilon(hull: ConvexHull) -> float:
     negative when the origin is outside).  qhull's normals are unit and
     normal.x + offset <= 0 inside, so the distance is -offset."""
     return float(-hull.equations[:, -1].max())
-
-
-class L1Support:
-    """Support function of conv(W) for wrenches W (k, 6)."""
-
-    def __init__(self, wrenches: np.ndarray) -> None:
-        self.wrenches = wrenches
-        self._gens = np.ascontiguousarray(wrenches.T)
-
-    def value(self, dirs: np.ndarray) -> np.ndarray:
-        """(f,) h(u) for directions (f, 6)."""
-        return self._by_block(self._value, dirs)
-
-    def point(self, dirs: np.ndarray) -> np.ndarray:
-        """(f, 6) a maximiser of u.x over the GWS for each direction."""
-        return self._by_block(self._point, dirs)
-
-    def _by_block(self, fn: Callable[[np.ndarray], np.ndarray], dirs: np.ndarray) -> np.ndarray:
-        dirs = np.ascontiguousarray(dirs)         # strided operands are 4x slower
-        parts = [fn(dirs[rows]) for rows in blocks(len(dirs), len(self.wrenches))]
-        return parts[0] if len(parts) == 1 else np.concatenate(parts)
-
-    def _value(self, dirs: np.ndarray) -> np.ndarray:
-        proj = dirs @ self._gens
-        return proj[np.arange(len(proj)), proj.argmax(axis=1)]   # a row's max, faster than max(axis=1)
-
-    def _point(self, dirs: np.ndarray) -> np.ndarray:
-        return self.wrenches[(dirs @ self._gens).argmax(axis=1)]
-
-
-class LinfSupport(L1Support):
-    """Support function of the Minkowski sum of conv({0} U W_i) over contacts i
-    (rows of ``wrenches`` grouped by ascending ``contact``): the sum over
-    contacts of max(0, max_j u.w_ij)."""
-
-    def __init__(self, wrenches: np.ndarray, contact: np.ndarray) -> None:
-        super().__init__(wrenches)
-        self._starts = np.flatnonzero(np.r_[True, contact[1:] != contact[:-1]])
-
-    def _value(self, dirs: np.ndarray) -> np.ndarray:
-        best = np.maximum.reduceat(dirs @ self._gens, self._starts, axis=1)
-        return np.maximum(best, 0.0).sum(axis=1)
-
-    def _point(self, dirs: np.ndarray) -> np.ndarray:
-        proj = dirs @ self._gens
-        total = np.zeros((len(dirs), 6))
-        for rows in np.split(np.arange(len(self.wrenches)), self._starts[1:]):
-            best = rows[proj[:, rows].argmax(axis=1)]
-            gain = proj[np.arange(len(dirs)), best]
-            total += np.where(gain[:, None] > 0, self.wrenches[best], 0.0)
-        return total
-
-
-def active_set_epsilon(support: L1Support, scale: float) -> float | None:
-    """Exact epsilon (signed, to FACET_TOL * scale) of the GWS behind
-    ``support`` (an L1Support or LinfSupport); None if the support points
-    are not full-dimensional.
-
-    First with one incremental 'Q0' qhull (new points are added to the
-    existing hull, 1.5-3x faster than rebuilding); if round-off interferes,
-    again with a merged hull rebuilt every round.
-    """
-    seed = unique_rows(support.point(SEED_DIRECTIONS))
-    tol = FACET_TOL * scale
-    try:
-        hull = ConvexHull(seed, incremental=True, qhull_options="Q0")
-        try:
-            return _grow(support, hull, tol, incremental=True)
-        finally:
-            hull.close()
-    except (QhullError, ValueError, _Stalled):
-        pass
-    try:
-        merged = qhull(seed)
-        return None if merged is None else _grow(support, merged, tol, incremental=False)
-    except (QhullError, ValueError, _Stalled, HullError):
-        return None
-
-
-def _grow(support: L1Support, hull: ConvexHull, tol: float, *, incremental: bool) -> float:
-    """Add support points of the nearest dirty facets until the nearest facet
-    is clean; return its distance.  Raises _Stalled on round-off trouble."""
-    known = {row.tobytes() for row in hull.points}
-    for _ in range(MAX_ROUNDS):
-        eqs = hull.equations
-        dist = -eqs[:, -1]
-        clean = support.value(eqs[:, :-1]) <= dist + tol
-        bound = dist[clean].min() if clean.any() else np.inf
-        dirty = np.flatnonzero(~clean & (dist < bound))
-        if len(dirty) == 0:
-            if max_outside(hull.points, eqs) > tol:
-                raise _Stalled
-            return float(bound)
-        dirty = dirty[np.argsort(dist[dirty])[:ADD_PER_ROUND]]
-        new = [row for row in unique_rows(support.point(eqs[dirty, :-1]))
-               if row.tobytes() not in known]
-        if not new:
-            raise _Stalled
-        known.update(row.tobytes() for row in new)
-        if incremental:
-            hull.add_points(np.array(new))
-        else:
-            hull = qhull(np.vstack([hull.points, new]))
-            if hull is None:
-                raise _Stalled
-    raise _Stalled
 
 
 def minkowski_points(wrenches: np.ndarray, contact: np.ndarray) -> np.ndarray:

@@ -31,17 +31,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial import ConvexHull
 
+from planner.quality.active_set import L1Support, LinfSupport, active_set_epsilon
 from planner.quality.closure import check_closure
 from planner.quality.contacts import ModelArg, as_center, as_contacts, as_norm, as_torque_scale
-from planner.quality.hull import (
-    HullError,
-    L1Support,
-    LinfSupport,
-    active_set_epsilon,
-    hull_epsilon,
-    minkowski_points,
-    qhull,
-)
+from planner.quality.hull import HullError, hull_epsilon, minkowski_points, qhull
 from planner.quality.tolerances import FORCE_CLOSURE_TOL
 from planner.quality.wrenches import PrimitiveWrenches, as_cone_edges, contact_wrenches, dedupe
 

@@ -16,13 +16,11 @@ from scipy.spatial import ConvexHull, QhullError
 
 from planner.quality import PrimitiveWrenches, epsilon, evaluate, force_closure, primitive_wrenches, volume
 from planner.quality import hull as hull_module
+from planner.quality.active_set import L1Support, LinfSupport, active_set_epsilon
 from planner.quality.closure import SIMPLEX, inscribed_radius
 from planner.quality.hull import (
     BLOCK_BYTES,
     HullError,
-    L1Support,
-    LinfSupport,
-    active_set_epsilon,
     blocks,
     clusters,
     hull_epsilon,

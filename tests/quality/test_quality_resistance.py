@@ -133,3 +133,16 @@ def test_weight_resistance_does_not_depend_on_round_off_along_the_pinch_axis() -
     base = weight_resistance(**pinch(), directions=SPHERE14).per_direction
     moved = weight_resistance(**pinch(rot, np.zeros(3)), directions=SPHERE14 @ rot.T).per_direction
     assert_close(moved, base, rel=1e-6, abs_=1e-6, what="a rotation of 1e-7 rad")
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 160), st.integers(0, 6))
+def test_the_row_space_is_the_full_svds(seed: int, cols: int, rank: int) -> None:
+    """The thin SVD's basis and the rest of R^6, at every rank (a deficient one included) and for fewer columns than
+    6, as the full SVD gives them."""
+    from planner.quality.resistance import row_space, row_space_reference
+
+    rng = np.random.default_rng(seed)
+    wrench = rng.normal(size=(6, rank)) @ rng.normal(size=(rank, cols))
+    for got, want in zip(row_space(wrench), row_space_reference(wrench)):
+        assert_close(got, want, what="the thin SVD's U")
