@@ -20,8 +20,13 @@ from planner.quality.tolerances import FACET_TOL
 CUBE = np.array(list(itertools.product([-1.0, 1.0], repeat=6)))       # 64 facets, all at distance 1
 
 
-def _same_round(support: L1Support, equations: np.ndarray, tol: float) -> None:
-    bound, dirty = nearest_dirty(support, equations, tol)
+def _same_round(support: L1Support, equations: np.ndarray, tol: float, first_chunk: int) -> None:
+    """A round taken with the first chunk ``first_chunk`` decides as the reference's."""
+    saved, active_set.FIRST_CHUNK = active_set.FIRST_CHUNK, first_chunk
+    try:
+        bound, dirty = nearest_dirty(support, equations, tol)
+    finally:
+        active_set.FIRST_CHUNK = saved
     want_bound, want_dirty = nearest_dirty_reference(support, equations, tol)
     assert bound == want_bound
     assert dirty.dtype.kind == "i" and np.array_equal(dirty, want_dirty)
@@ -39,11 +44,7 @@ def test_a_round_from_the_nearest_facets_is_a_round_from_all(seed: int, gens: in
         return
     support = L1Support(wrenches)
     for first in (chunk, active_set.FIRST_CHUNK):
-        active_set.FIRST_CHUNK, saved = first, active_set.FIRST_CHUNK
-        try:
-            _same_round(support, hull.equations, FACET_TOL)
-        finally:
-            active_set.FIRST_CHUNK = saved
+        _same_round(support, hull.equations, FACET_TOL, first)
 
 
 @settings(max_examples=20, deadline=None)
@@ -56,11 +57,7 @@ def test_ties_of_distance_decide_as_every_facet_does(seed: int, chunk: int) -> N
     beyond = rng.normal(size=(int(rng.integers(0, 4)), 6))
     beyond *= 1.5 / np.abs(beyond).max(axis=1, keepdims=True) if len(beyond) else 1.0
     support = L1Support(np.vstack([CUBE, beyond]))
-    saved, active_set.FIRST_CHUNK = active_set.FIRST_CHUNK, chunk
-    try:
-        _same_round(support, hull.equations, FACET_TOL)
-    finally:
-        active_set.FIRST_CHUNK = saved
+    _same_round(support, hull.equations, FACET_TOL, chunk)
 
 
 @settings(max_examples=30, deadline=None)
