@@ -62,7 +62,7 @@ from planner.geometry.proxy import collision_proxy
 from planner.geometry.solid import PreparedObject
 from planner.plan.closing_types import CONTACT_READINGS, Closed, CloseSettings, Rejected
 from planner.plan.contact_reading import ContactReading
-from planner.plan.finger_closing import FingerClosing
+from planner.plan.finger_closing import FingerClosing, DofMotion
 from planner.plan.patches import ObjectSurface
 from planner.plan.tolerances import CLOSING_SPEED_MIN, TABLE_LIFT, TABLE_SLAB
 from planner.sim import Body, Closest, Sim
@@ -133,6 +133,7 @@ class Grasper(FingerClosing, ContactReading):
         self._axes: dict[str, np.ndarray] = {j.name: self.sim.joint_axis_in_base(self.body, j.name)
                                              for j in self.hand.joints if j.kind == "prismatic"}
         self._bounds: dict[tuple, dict[str, float]] = {}
+        self._motions: dict[tuple, DofMotion] = {}
         self._relative: dict[tuple, list[np.ndarray]] = {}
         self.queries = 0
         self.contact_seconds = 0.0  # time spent reading contacts (benchmarks)

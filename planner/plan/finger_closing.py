@@ -13,7 +13,7 @@ step). A self-centring parallel jaw is re-centred afterwards.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -36,6 +36,29 @@ class _Dof:
     trigger: frozenset[str] = frozenset()  # links whose contact breaks the coupling away
 
 
+@dataclass(frozen=True)
+class DofMotion:
+    """A DOF's rates as closing reads them in every step (one per rates, per hand)."""
+
+    limits: tuple[tuple[str, float, float, float], ...]  # (joint, rate, upper, lower) per joint the rates move
+    prismatic: bool  # every joint prismatic: the cap is the whole remaining travel
+    revolute_cap: float  # otherwise the cap: ``coarse_angle`` over the fastest rate
+    translating: frozenset[str]  # moved links that only prismatic joints move (the directional bound)
+    _speeds: dict[str, float] = field(default_factory=dict, compare=False)
+
+    def room(self, q: dict[str, float]) -> float:
+        """Closing left (units of s) before the first joint reaches its limit (:meth:`FingerClosing._headroom`)."""
+        return min((upper - q[j]) / r if r > 0 else (q[j] - lower) / -r for j, r, upper, lower in self.limits)
+
+    def cap(self, room: float) -> float:
+        return max(room, JOINT_LIMIT_SLACK) if self.prismatic else self.revolute_cap
+
+    def speeds(self, closing: FingerClosing, dof: _Dof) -> dict[str, float]:
+        if not self._speeds:
+            self._speeds.update(closing._speeds(dof))
+        return self._speeds
+
+
 class FingerClosing:
     """Closes the fingers of :class:`~planner.plan.closing.Grasper` (which
     holds the attributes below and answers the obstacle queries)."""
@@ -48,6 +71,7 @@ class FingerClosing:
     reference: bool
     _axes: dict[str, np.ndarray]
     _bounds: dict[tuple, dict[str, float]]
+    _motions: dict[tuple, DofMotion]
 
     if TYPE_CHECKING:  # the queries of planner.plan.closing.Grasper
         def _obstacles(self, reach: float, link: str | None = None) -> Closest: ...
@@ -78,8 +102,10 @@ class FingerClosing:
             live = [d for d in dofs if d.active]
             if not live:
                 break
-            speed = {id(d): self._speeds(d) for d in live}
-            caps = {id(d): self._cap(d, q) for d in live}
+            motion = {id(d): self._motion(d.rates) for d in live}
+            speed = {id(d): self._speeds(d) if self.reference else motion[id(d)].speeds(self, d) for d in live}
+            room = {id(d): motion[id(d)].room(q) for d in live}
+            caps = {id(d): motion[id(d)].cap(room[id(d)]) for d in live}
             sharing = {}
             for d in live:
                 for link in d.links:
@@ -92,8 +118,9 @@ class FingerClosing:
             steps = {}
             for d in live:
                 touched, ds = set(), caps[id(d)]
+                translating = motion[id(d)].translating
                 for link in d.links:
-                    velocity = self._translation(d, link) if sharing[link] == 1 else None
+                    velocity = self._translation(d, link) if sharing[link] == 1 and link in translating else None
                     if velocity is not None:  # a translating link: directional bound
                         rate = float(np.linalg.norm(velocity))
                         hit, travel = self._translation_step(pairs[link], velocity / rate)
@@ -115,11 +142,10 @@ class FingerClosing:
                 if touched:
                     d.active = False
                     continue
-                room = min(self._headroom(j, q[j], r) for j, r in d.rates.items())
-                if room <= JOINT_LIMIT_SLACK:
+                if room[id(d)] <= JOINT_LIMIT_SLACK:
                     d.active = False
                     continue
-                steps[id(d)] = min(ds, room)
+                steps[id(d)] = min(ds, room[id(d)])
             moved = {}
             for d in live:
                 if d.active:
@@ -129,16 +155,29 @@ class FingerClosing:
             self.sim.set_joints(self.body, moved)
         return q
 
+    def _motion(self, rates: dict[str, float]) -> DofMotion:
+        """What closing reads of a DOF's ``rates`` in every step, looked up once per hand."""
+        key = tuple(rates.items())
+        found = self._motions.get(key)
+        if found is None:
+            specs = [self.hand.joint(j) for j in rates]
+            translating = frozenset(link for link in self._moved(rates)
+                                    if (movers := [j for j in specs if link in j.moves])
+                                    and all(j.kind == "prismatic" for j in movers))
+            found = self._motions[key] = DofMotion(
+                tuple((j.name, r, j.upper, j.lower) for j, r in zip(specs, rates.values())),
+                all(j.kind == "prismatic" for j in specs),
+                min(self.settings.coarse_angle / abs(r) for r in rates.values()), translating)
+        return found
+
     def _cap(self, dof: _Dof, q: dict[str, float]) -> float:
         """Largest closing step considered in one iteration (units of s).
 
         Prismatic-only DOFs look at their whole remaining travel at once (the
         directional bound makes that safe); revolute ones turn at most
         ``coarse_angle`` per step."""
-        room = min(self._headroom(j, q[j], r) for j, r in dof.rates.items())
-        if all(self.hand.joint(j).kind == "prismatic" for j in dof.rates):
-            return max(room, JOINT_LIMIT_SLACK)
-        return min(self.settings.coarse_angle / abs(r) for r in dof.rates.values())
+        motion = self._motion(dof.rates)
+        return motion.cap(motion.room(q))
 
     def _translation(self, dof: _Dof, link: str) -> np.ndarray | None:
         """World velocity of ``link`` per unit closing if only prismatic joints move it."""
