@@ -62,7 +62,7 @@ from planner.geometry.proxy import collision_proxy
 from planner.geometry.solid import PreparedObject
 from planner.plan.closing_types import CONTACT_READINGS, Closed, CloseSettings, Rejected
 from planner.plan.contact_reading import ContactReading
-from planner.plan.finger_closing import FingerClosing, DofMotion
+from planner.plan.finger_closing import DofMotion, FingerClosing
 from planner.plan.patches import ObjectSurface
 from planner.plan.tolerances import CLOSING_SPEED_MIN, TABLE_LIFT, TABLE_SLAB
 from planner.sim import Body, Closest, Sim
