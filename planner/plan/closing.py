@@ -189,6 +189,21 @@ class Grasper(FingerClosing, ContactReading):
                   ("links", "distance", "on_a", "on_b", "normal_b")]
         return Bounded(*joined, pairs.reach) if isinstance(pairs, Bounded) else Closest(*joined)
 
+    def _obstacle_gap(self, reach: float, link: str) -> float:
+        """:meth:`_gap` of :meth:`_obstacles` (``reach``, ``link``), the same value without making the pairs:
+        what closing a finger reads of a link that does not only translate."""
+        self.queries += 1
+        index, offset, s, bound = self.body.links[link], self.hand.distance_offset, self.settings, np.inf
+        uid, query = self.body.uid, self.sim.min_distance
+        distance = query(uid, self.far_body, reach - offset, index) if self.far_body is not None else np.nan
+        if not distance + offset > s.near:  # near the hulls (or none): the exact mesh, a long reach cut
+            if self.far_body is not None and reach > s.exact_reach:
+                bound = s.exact_reach
+            distance = query(uid, self.object_body, min(reach, bound) - offset, index)
+        if self.table_body is not None:
+            distance = min(distance, query(uid, self.table_body, reach - offset, index))
+        return min(distance + offset, bound)
+
     def on_table(self, within: float = 0.0) -> bool:
         """Is the hand, where it is now, within ``within`` [m] of the table or
         overlapping it (False without one)?"""

@@ -78,6 +78,8 @@ class FingerClosing:
 
         def _gap(self, closest: Closest) -> float: ...
 
+        def _obstacle_gap(self, reach: float, link: str) -> float: ...
+
         def _translation_step(self, pairs: Closest, velocity: np.ndarray) -> tuple[bool, float]: ...
 
     def _dofs(self, preshape: Preshape) -> list[_Dof]:
@@ -110,11 +112,14 @@ class FingerClosing:
             for d in live:
                 for link in d.links:
                     sharing[link] = sharing.get(link, 0) + 1
-            pairs = {}
+            pairs, gaps = {}, {}
             for link in sharing:
                 # several DOFs may move one link (a fingertip under three joints): their motions add up
                 reach = sum(speed[id(d)].get(link, 0.0) * caps[id(d)] for d in live) + s.contact_tol + s.gap
-                pairs[link] = self._obstacles(reach, link)
+                if sharing[link] == 1 and any(link in motion[id(d)].translating for d in live):
+                    pairs[link] = self._obstacles(reach, link)  # the directional bound reads the pairs
+                else:
+                    gaps[link] = self._obstacle_gap(reach, link)
             steps = {}
             for d in live:
                 touched, ds = set(), caps[id(d)]
@@ -128,7 +133,7 @@ class FingerClosing:
                             touched.add(link)
                         ds = min(ds, travel / rate)
                         continue
-                    gap = self._gap(pairs[link])
+                    gap = gaps[link] if link in gaps else self._gap(pairs[link])
                     if gap <= s.contact_tol:
                         touched.add(link)
                     v = speed[id(d)][link]
