@@ -13,6 +13,7 @@ step). A self-centring parallel jaw is re-centred afterwards.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -104,28 +105,27 @@ class FingerClosing:
             live = [d for d in dofs if d.active]
             if not live:
                 break
-            motion = {id(d): self._motion(d.rates) for d in live}
-            speed = {id(d): self._speeds(d) if self.reference else motion[id(d)].speeds(self, d) for d in live}
-            room = {id(d): motion[id(d)].room(q) for d in live}
-            caps = {id(d): motion[id(d)].cap(room[id(d)]) for d in live}
-            sharing = {}
+            motions = [self._motion(d.rates) for d in live]  # the lists below run along ``live``
+            speeds = [self._speeds(d) if self.reference else m.speeds(self, d) for d, m in zip(live, motions)]
+            rooms = [m.room(q) for m in motions]
+            caps = [m.cap(room) for m, room in zip(motions, rooms)]
+            sharing: dict[str, int] = {}
             for d in live:
                 for link in d.links:
                     sharing[link] = sharing.get(link, 0) + 1
             pairs, gaps = {}, {}
             for link in sharing:
                 # several DOFs may move one link (a fingertip under three joints): their motions add up
-                reach = sum(speed[id(d)].get(link, 0.0) * caps[id(d)] for d in live) + s.contact_tol + s.gap
-                if sharing[link] == 1 and any(link in motion[id(d)].translating for d in live):
+                reach = sum(speed.get(link, 0.0) * cap for speed, cap in zip(speeds, caps)) + s.contact_tol + s.gap
+                if sharing[link] == 1 and any(link in m.translating for m in motions):
                     pairs[link] = self._obstacles(reach, link)  # the directional bound reads the pairs
                 else:
                     gaps[link] = self._obstacle_gap(reach, link)
-            steps = {}
-            for d in live:
-                touched, ds = set(), caps[id(d)]
-                translating = motion[id(d)].translating
+            steps = [0.0] * len(live)
+            for k, (d, m, speed, ds, room) in enumerate(zip(live, motions, speeds, caps, rooms)):
+                touched = set()
                 for link in d.links:
-                    velocity = self._translation(d, link) if sharing[link] == 1 and link in translating else None
+                    velocity = self._translation(d, link) if sharing[link] == 1 and link in m.translating else None
                     if velocity is not None:  # a translating link: directional bound
                         rate = float(np.linalg.norm(velocity))
                         hit, travel = self._translation_step(pairs[link], velocity / rate)
@@ -136,26 +136,22 @@ class FingerClosing:
                     gap = gaps[link] if link in gaps else self._gap(pairs[link])
                     if gap <= s.contact_tol:
                         touched.add(link)
-                    v = speed[id(d)][link]
-                    if v > 0 and np.isfinite(gap):
+                    v = speed[link]
+                    if v > 0 and math.isfinite(gap):
                         ds = min(ds, (gap - s.gap) / (sharing[link] * v))
                 if touched and d.after is not None and touched <= d.trigger:
                     # breakaway: the touching links stop, the rest of the finger closes on
                     d.rates, d.links, d.after = d.after, self._moved(d.after), None
-                    steps[id(d)] = 0.0
                     continue
-                if touched:
+                if touched or room <= JOINT_LIMIT_SLACK:
                     d.active = False
                     continue
-                if room[id(d)] <= JOINT_LIMIT_SLACK:
-                    d.active = False
-                    continue
-                steps[id(d)] = min(ds, room[id(d)])
+                steps[k] = min(ds, room)
             moved = {}
-            for d in live:
+            for d, step in zip(live, steps):
                 if d.active:
                     for j, r in d.rates.items():
-                        q[j] += r * steps[id(d)]
+                        q[j] += r * step
                         moved[j] = q[j]
             self.sim.set_joints(self.body, moved)
         return q
