@@ -114,10 +114,11 @@ class FingerClosing:
                 for link in d.links:
                     sharing[link] = sharing.get(link, 0) + 1
             pairs, gaps = {}, {}
+            translating = frozenset().union(*(m.translating for m in motions))
             for link in sharing:
                 # several DOFs may move one link (a fingertip under three joints): their motions add up
                 reach = sum(speed.get(link, 0.0) * cap for speed, cap in zip(speeds, caps)) + s.contact_tol + s.gap
-                if sharing[link] == 1 and any(link in m.translating for m in motions):
+                if sharing[link] == 1 and link in translating:
                     pairs[link] = self._obstacles(reach, link)  # the directional bound reads the pairs
                 else:
                     gaps[link] = self._obstacle_gap(reach, link)

@@ -347,11 +347,12 @@ class HandSpec:
         joints that move a contact)."""
         v = np.zeros((len(points), 3))
         for name, rate in rates.items():
-            moved = np.array([link in self.joint(name).moves for link in links], bool)
+            joint = self.joint(name)
+            moved = np.array([link in joint.moves for link in links], bool)
             if not moved.any():
                 continue
             origin, axis = axes[name]
-            if self.joint(name).kind == "revolute":
+            if joint.kind == "revolute":
                 lin = np.cross(axis, points - origin)
             else:
                 lin = np.broadcast_to(axis, points.shape)
