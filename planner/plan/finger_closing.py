@@ -48,10 +48,13 @@ class DofMotion:
     _speeds: dict[str, float] = field(default_factory=dict, compare=False)
 
     def room(self, q: dict[str, float]) -> float:
-        """Closing left (units of s) before the first joint reaches its limit (:meth:`FingerClosing._headroom`)."""
+        """Closing left (units of s) before the first joint, at ``q``, reaches its limit."""
         return min((upper - q[j]) / r if r > 0 else (q[j] - lower) / -r for j, r, upper, lower in self.limits)
 
     def cap(self, room: float) -> float:
+        """Largest closing step considered in one iteration (units of s): prismatic-only DOFs look at their whole
+        remaining travel ``room`` at once (the directional bound makes that safe); revolute ones turn at most
+        ``coarse_angle`` per step."""
         return max(room, JOINT_LIMIT_SLACK) if self.prismatic else self.revolute_cap
 
     def speeds(self, closing: FingerClosing, dof: _Dof) -> dict[str, float]:
@@ -172,15 +175,6 @@ class FingerClosing:
                 min(self.settings.coarse_angle / abs(r) for r in rates.values()), translating)
         return found
 
-    def _cap(self, dof: _Dof, q: dict[str, float]) -> float:
-        """Largest closing step considered in one iteration (units of s).
-
-        Prismatic-only DOFs look at their whole remaining travel at once (the
-        directional bound makes that safe); revolute ones turn at most
-        ``coarse_angle`` per step."""
-        motion = self._motion(dof.rates)
-        return motion.cap(motion.room(q))
-
     def _translation(self, dof: _Dof, link: str) -> np.ndarray | None:
         """World velocity of ``link`` per unit closing if only prismatic joints move it."""
         movers = [self.hand.joint(j) for j in dof.rates if link in self.hand.joint(j).moves]
@@ -195,10 +189,6 @@ class FingerClosing:
         if joint not in self._axes:
             self._axes[joint] = self.sim.joint_axis_in_base(self.body, joint)
         return self._axes[joint]
-
-    def _headroom(self, joint: str, value: float, rate: float) -> float:
-        spec = self.hand.joint(joint)
-        return (spec.upper - value) / rate if rate > 0 else (value - spec.lower) / -rate
 
     def _speeds(self, dof: _Dof) -> dict[str, float]:
         """Upper bound of each moved link's point speed [m per unit s], valid
