@@ -62,7 +62,7 @@ from planner.geometry.proxy import collision_proxy
 from planner.geometry.solid import PreparedObject
 from planner.plan.closing_types import CONTACT_READINGS, Closed, CloseSettings, Rejected
 from planner.plan.contact_reading import ContactReading
-from planner.plan.finger_closing import FingerClosing
+from planner.plan.finger_closing import DofMotion, FingerClosing
 from planner.plan.patches import ObjectSurface
 from planner.plan.tolerances import CLOSING_SPEED_MIN, TABLE_LIFT, TABLE_SLAB
 from planner.sim import Body, Closest, Sim
@@ -133,6 +133,7 @@ class Grasper(FingerClosing, ContactReading):
         self._axes: dict[str, np.ndarray] = {j.name: self.sim.joint_axis_in_base(self.body, j.name)
                                              for j in self.hand.joints if j.kind == "prismatic"}
         self._bounds: dict[tuple, dict[str, float]] = {}
+        self._motions: dict[tuple, DofMotion] = {}
         self._relative: dict[tuple, list[np.ndarray]] = {}
         self.queries = 0
         self.contact_seconds = 0.0  # time spent reading contacts (benchmarks)
@@ -187,6 +188,21 @@ class Grasper(FingerClosing, ContactReading):
         joined = [np.concatenate([getattr(pairs, k), getattr(table, k)]) for k in
                   ("links", "distance", "on_a", "on_b", "normal_b")]
         return Bounded(*joined, pairs.reach) if isinstance(pairs, Bounded) else Closest(*joined)
+
+    def _obstacle_gap(self, reach: float, link: str) -> float:
+        """:meth:`_gap` of :meth:`_obstacles` (``reach``, ``link``), the same value without making the pairs:
+        what closing a finger reads of a link that does not only translate."""
+        self.queries += 1
+        index, offset, s, bound = self.body.links[link], self.hand.distance_offset, self.settings, np.inf
+        uid, query = self.body.uid, self.sim.min_distance
+        distance = query(uid, self.far_body, reach - offset, index) if self.far_body is not None else np.nan
+        if not distance + offset > s.near:  # near the hulls (or none): the exact mesh, a long reach cut
+            if self.far_body is not None and reach > s.exact_reach:
+                bound = s.exact_reach
+            distance = query(uid, self.object_body, min(reach, bound) - offset, index)
+        if self.table_body is not None:
+            distance = min(distance, query(uid, self.table_body, reach - offset, index))
+        return min(distance + offset, bound)
 
     def on_table(self, within: float = 0.0) -> bool:
         """Is the hand, where it is now, within ``within`` [m] of the table or

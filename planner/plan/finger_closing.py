@@ -13,7 +13,8 @@ step). A self-centring parallel jaw is re-centred afterwards.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -36,6 +37,32 @@ class _Dof:
     trigger: frozenset[str] = frozenset()  # links whose contact breaks the coupling away
 
 
+@dataclass(frozen=True)
+class DofMotion:
+    """A DOF's rates as closing reads them in every step (one per rates, per hand)."""
+
+    limits: tuple[tuple[str, float, float, float], ...]  # (joint, rate, upper, lower) per joint the rates move
+    prismatic: bool  # every joint prismatic: the cap is the whole remaining travel
+    revolute_cap: float  # otherwise the cap: ``coarse_angle`` over the fastest rate
+    translating: frozenset[str]  # moved links that only prismatic joints move (the directional bound)
+    _speeds: dict[str, float] = field(default_factory=dict, compare=False)
+
+    def room(self, q: dict[str, float]) -> float:
+        """Closing left (units of s) before the first joint, at ``q``, reaches its limit."""
+        return min((upper - q[j]) / r if r > 0 else (q[j] - lower) / -r for j, r, upper, lower in self.limits)
+
+    def cap(self, room: float) -> float:
+        """Largest closing step considered in one iteration (units of s): prismatic-only DOFs look at their whole
+        remaining travel ``room`` at once (the directional bound makes that safe); revolute ones turn at most
+        ``coarse_angle`` per step."""
+        return max(room, JOINT_LIMIT_SLACK) if self.prismatic else self.revolute_cap
+
+    def speeds(self, closing: FingerClosing, dof: _Dof) -> dict[str, float]:
+        if not self._speeds:
+            self._speeds.update(closing._speeds(dof))
+        return self._speeds
+
+
 class FingerClosing:
     """Closes the fingers of :class:`~planner.plan.closing.Grasper` (which
     holds the attributes below and answers the obstacle queries)."""
@@ -48,11 +75,14 @@ class FingerClosing:
     reference: bool
     _axes: dict[str, np.ndarray]
     _bounds: dict[tuple, dict[str, float]]
+    _motions: dict[tuple, DofMotion]
 
     if TYPE_CHECKING:  # the queries of planner.plan.closing.Grasper
         def _obstacles(self, reach: float, link: str | None = None) -> Closest: ...
 
         def _gap(self, closest: Closest) -> float: ...
+
+        def _obstacle_gap(self, reach: float, link: str) -> float: ...
 
         def _translation_step(self, pairs: Closest, velocity: np.ndarray) -> tuple[bool, float]: ...
 
@@ -78,22 +108,28 @@ class FingerClosing:
             live = [d for d in dofs if d.active]
             if not live:
                 break
-            speed = {id(d): self._speeds(d) for d in live}
-            caps = {id(d): self._cap(d, q) for d in live}
-            sharing = {}
+            motions = [self._motion(d.rates) for d in live]  # the lists below run along ``live``
+            speeds = [self._speeds(d) if self.reference else m.speeds(self, d) for d, m in zip(live, motions)]
+            rooms = [m.room(q) for m in motions]
+            caps = [m.cap(room) for m, room in zip(motions, rooms)]
+            sharing: dict[str, int] = {}
             for d in live:
                 for link in d.links:
                     sharing[link] = sharing.get(link, 0) + 1
-            pairs = {}
+            pairs, gaps = {}, {}
+            translating = frozenset().union(*(m.translating for m in motions))
             for link in sharing:
                 # several DOFs may move one link (a fingertip under three joints): their motions add up
-                reach = sum(speed[id(d)].get(link, 0.0) * caps[id(d)] for d in live) + s.contact_tol + s.gap
-                pairs[link] = self._obstacles(reach, link)
-            steps = {}
-            for d in live:
-                touched, ds = set(), caps[id(d)]
+                reach = sum(speed.get(link, 0.0) * cap for speed, cap in zip(speeds, caps)) + s.contact_tol + s.gap
+                if sharing[link] == 1 and link in translating:
+                    pairs[link] = self._obstacles(reach, link)  # the directional bound reads the pairs
+                else:
+                    gaps[link] = self._obstacle_gap(reach, link)
+            steps = [0.0] * len(live)
+            for k, (d, m, speed, ds, room) in enumerate(zip(live, motions, speeds, caps, rooms)):
+                touched = set()
                 for link in d.links:
-                    velocity = self._translation(d, link) if sharing[link] == 1 else None
+                    velocity = self._translation(d, link) if sharing[link] == 1 and link in m.translating else None
                     if velocity is not None:  # a translating link: directional bound
                         rate = float(np.linalg.norm(velocity))
                         hit, travel = self._translation_step(pairs[link], velocity / rate)
@@ -101,44 +137,43 @@ class FingerClosing:
                             touched.add(link)
                         ds = min(ds, travel / rate)
                         continue
-                    gap = self._gap(pairs[link])
+                    gap = gaps[link] if link in gaps else self._gap(pairs[link])
                     if gap <= s.contact_tol:
                         touched.add(link)
-                    v = speed[id(d)][link]
-                    if v > 0 and np.isfinite(gap):
+                    v = speed[link]
+                    if v > 0 and math.isfinite(gap):
                         ds = min(ds, (gap - s.gap) / (sharing[link] * v))
                 if touched and d.after is not None and touched <= d.trigger:
                     # breakaway: the touching links stop, the rest of the finger closes on
                     d.rates, d.links, d.after = d.after, self._moved(d.after), None
-                    steps[id(d)] = 0.0
                     continue
-                if touched:
+                if touched or room <= JOINT_LIMIT_SLACK:
                     d.active = False
                     continue
-                room = min(self._headroom(j, q[j], r) for j, r in d.rates.items())
-                if room <= JOINT_LIMIT_SLACK:
-                    d.active = False
-                    continue
-                steps[id(d)] = min(ds, room)
+                steps[k] = min(ds, room)
             moved = {}
-            for d in live:
+            for d, step in zip(live, steps):
                 if d.active:
                     for j, r in d.rates.items():
-                        q[j] += r * steps[id(d)]
+                        q[j] += r * step
                         moved[j] = q[j]
             self.sim.set_joints(self.body, moved)
         return q
 
-    def _cap(self, dof: _Dof, q: dict[str, float]) -> float:
-        """Largest closing step considered in one iteration (units of s).
-
-        Prismatic-only DOFs look at their whole remaining travel at once (the
-        directional bound makes that safe); revolute ones turn at most
-        ``coarse_angle`` per step."""
-        room = min(self._headroom(j, q[j], r) for j, r in dof.rates.items())
-        if all(self.hand.joint(j).kind == "prismatic" for j in dof.rates):
-            return max(room, JOINT_LIMIT_SLACK)
-        return min(self.settings.coarse_angle / abs(r) for r in dof.rates.values())
+    def _motion(self, rates: dict[str, float]) -> DofMotion:
+        """What closing reads of a DOF's ``rates`` in every step, looked up once per hand."""
+        key = tuple(rates.items())
+        found = self._motions.get(key)
+        if found is None:
+            specs = [self.hand.joint(j) for j in rates]
+            translating = frozenset(link for link in self._moved(rates)
+                                    if (movers := [j for j in specs if link in j.moves])
+                                    and all(j.kind == "prismatic" for j in movers))
+            found = self._motions[key] = DofMotion(
+                tuple((j.name, r, j.upper, j.lower) for j, r in zip(specs, rates.values())),
+                all(j.kind == "prismatic" for j in specs),
+                min(self.settings.coarse_angle / abs(r) for r in rates.values()), translating)
+        return found
 
     def _translation(self, dof: _Dof, link: str) -> np.ndarray | None:
         """World velocity of ``link`` per unit closing if only prismatic joints move it."""
@@ -154,10 +189,6 @@ class FingerClosing:
         if joint not in self._axes:
             self._axes[joint] = self.sim.joint_axis_in_base(self.body, joint)
         return self._axes[joint]
-
-    def _headroom(self, joint: str, value: float, rate: float) -> float:
-        spec = self.hand.joint(joint)
-        return (spec.upper - value) / rate if rate > 0 else (value - spec.lower) / -rate
 
     def _speeds(self, dof: _Dof) -> dict[str, float]:
         """Upper bound of each moved link's point speed [m per unit s], valid

@@ -52,17 +52,16 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from functools import cache
-from pathlib import Path
 
 import numpy as np
 import trimesh
 from scipy.spatial import ConvexHull, QhullError
 
 from planner.geometry.frames import UP
+from planner.plan.link_hulls import Hull, hulls
+from planner.plan.link_hulls import planes as _planes
 from planner.record.contacts import HandContacts
 from planner.specs.hands import HandSpec
-from planner.specs.urdf import load_model
 
 
 @dataclass(frozen=True)
@@ -92,29 +91,6 @@ class Grip:
     com_lever: float
     com_height: float
     gravity_arm: float
-
-
-@dataclass(frozen=True)
-class Hull:
-    """One link's convex collision hull, link frame.
-
-    vertices : (v, 3) [m]; normals : (f, 3) outward unit face normals;
-    offsets : (f,) [m], so that ``points @ normals.T - offsets`` is the
-    signed distance of points to each face's plane (the largest of them:
-    the signed distance to the hull inside it, a lower bound outside).
-    """
-
-    vertices: np.ndarray
-    normals: np.ndarray
-    offsets: np.ndarray
-
-    @property
-    def centre(self) -> np.ndarray:
-        return self.vertices.mean(axis=0)
-
-    @property
-    def radius(self) -> float:
-        return float(np.linalg.norm(self.vertices - self.centre, axis=1).max())
 
 
 class GripSurface:
@@ -156,48 +132,6 @@ class GripSurface:
         a, b = np.searchsorted(points[:, 0], [lo[0], hi[0]], side="left")
         sub = points[a:b, 1:]
         return a + np.flatnonzero(np.all((sub >= lo[1:]) & (sub <= hi[1:]), axis=1))
-
-
-def hulls(hand: HandSpec) -> dict[str, Hull]:
-    """Each contact link's convex collision hull (links with collision geometry)."""
-    return _hulls(str(hand.urdf), hand.contact_links)
-
-
-@cache
-def _hulls(urdf: str, links: tuple[str, ...]) -> dict[str, Hull]:
-    from planner.plan.patches import collision_mesh
-
-    model = load_model(Path(urdf))
-    out = {}
-    for link in links:
-        mesh = collision_mesh(model, link)
-        if mesh is None:
-            continue
-        hull = ConvexHull(np.asarray(mesh.vertices, float))
-        eq = _planes(hull.equations)  # outward normals and offsets: n . x + c <= 0 inside
-        out[link] = Hull(hull.points[hull.vertices], eq[:, :3].copy(), -eq[:, 3].copy())
-    return out
-
-
-def _planes(equations: np.ndarray) -> np.ndarray:
-    """Qhull's facet ``equations`` (f, 4) without exact repeats, in the order of their first occurrence.
-
-    Qhull triangulates a flat face into triangles that carry the face's very
-    plane (a meshed finger's hull: 252 triangles on 66 planes); a repeat
-    changes no largest plane distance and no inside test, and a tie resolves
-    to the first occurrence, which is kept.
-    """
-    order = np.lexsort(equations.T[::-1])  # stable: the first of equal rows leads them, as in np.unique
-    ranked = equations[order]
-    first = np.ones(len(ranked), bool)
-    np.any(ranked[1:] != ranked[:-1], axis=1, out=first[1:])
-    return equations[np.sort(order[first])]
-
-
-def _planes_reference(equations: np.ndarray) -> np.ndarray:
-    """:func:`_planes` by np.unique (its structured sort costs ~4x the lexsort on a hull's few dozen planes)."""
-    _, first = np.unique(equations, axis=0, return_index=True)
-    return equations[np.sort(first)]
 
 
 def measure(hand: HandSpec, surface: GripSurface, contacts: HandContacts,
@@ -340,7 +274,9 @@ def _inside(points: np.ndarray, surface: GripSurface) -> np.ndarray:
     Most samples in the hull's box are inside it and would need every face:
     an inner polytope (the hull of the vertices extreme along the 13 axes of
     :data:`_EXTREME_AXES`, a few dozen faces) settles those at least ``INNER_MARGIN`` inside
-    it first, which are inside the hull for sure; the others take every face.
+    it first, which are inside the hull for sure; those as far beyond the vertices' extent along
+    a diagonal axis are outside for sure; the rest take every face (the same samples, as the
+    margin is far above the round-off).
     """
     try:
         hull = ConvexHull(points)
@@ -355,8 +291,13 @@ def _inside(points: np.ndarray, surface: GripSurface) -> np.ndarray:
         inner = np.zeros((0, 4))
     if len(inner):
         samples = surface.coarse[idx]
-        inside = np.all(samples @ inner[:, :3].T + inner[:, 3] <= -INNER_MARGIN, axis=1)  # sure to be inside
-        inside[_within(np.flatnonzero(~inside), samples, _planes(hull.equations))] = True
+        values = inner[:, :3] @ samples.T  # planes by samples: all() then reduces whole rows at once
+        values += inner[:, 3:]
+        inside = np.all(values <= -INNER_MARGIN, axis=0)  # sure to be inside
+        rest = np.flatnonzero(~inside)
+        along, lo, hi = _EXTREME_AXES[3:] @ samples[rest].T, reach[:, 3:].min(axis=0), reach[:, 3:].max(axis=0)
+        out = np.any((along > hi[:, None] + INNER_MARGIN) | (along < lo[:, None] - INNER_MARGIN), axis=0)  # sure
+        inside[_within(rest[~out], samples, _planes(hull.equations))] = True
         return idx[inside]
     return _within(idx, surface.coarse, _planes(hull.equations))
 
@@ -371,8 +312,7 @@ def _within(idx: np.ndarray, points: np.ndarray, eq: np.ndarray) -> np.ndarray:
     return idx
 
 
-#: [m] a sample this far inside the inner polytope is inside the hull whatever the round-off (~1e-17 m).
-INNER_MARGIN = 1e-9
+INNER_MARGIN = 1e-9  #: [m] this far inside the inner polytope (outside the extents): sure, whatever the round-off
 #: 13 axes (rows, unit): the coordinate axes, the face and the body diagonals of a cube; the hull's vertices
 #: extreme along them (both ways) span the inner polytope of :func:`_inside`.
 _EXTREME_AXES = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0], [1, -1, 0], [1, 0, 1], [1, 0, -1], [0, 1, 1],

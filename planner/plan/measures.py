@@ -143,7 +143,8 @@ def _resistance(contacts: HandContacts, frames: JointFrames, hand: HandSpec, sha
     models, torsion = contact_models(contacts, hand, obj.friction)
     links = sorted(set(contacts.links))
     index = np.array([links.index(link) for link in contacts.links])
-    affects = np.array([[link in hand.joint(name).moves for name in frames.names] for link in contacts.links], bool)
+    moves = [hand.joint(name).moves for name in frames.names]
+    affects = np.array([[link in m for m in moves] for link in contacts.links], bool)
     return quality.weight_resistance(contacts.points, contacts.frames, mu=obj.friction, center=obj.com,
                                      mass=obj.mass, drive=hand_drive(hand, shape, closed, frames),
                                      contact_links=index, joint_affects=affects.reshape(len(contacts), -1),

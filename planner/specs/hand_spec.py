@@ -347,12 +347,15 @@ class HandSpec:
         joints that move a contact)."""
         v = np.zeros((len(points), 3))
         for name, rate in rates.items():
-            moved = np.array([link in self.joint(name).moves for link in links], bool)
+            joint = self.joint(name)
+            moved = np.array([link in joint.moves for link in links], bool)
             if not moved.any():
                 continue
             origin, axis = axes[name]
-            if self.joint(name).kind == "revolute":
-                lin = np.cross(axis, points - origin)
+            if joint.kind == "revolute":  # axis x (points - origin): np.cross's products, without its set-up
+                rel = points - origin
+                lin = np.column_stack([axis[1] * rel[:, 2] - axis[2] * rel[:, 1], axis[2] * rel[:, 0] -
+                                       axis[0] * rel[:, 2], axis[0] * rel[:, 1] - axis[1] * rel[:, 0]])
             else:
                 lin = np.broadcast_to(axis, points.shape)
             v += rate * lin * moved[:, None]

@@ -14,6 +14,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from planner.geometry.frames import rows_cross
 from planner.record.grasp import Grasp
 from planner.specs.hands import HandSpec
 from planner.specs.preshapes import load_preshapes
@@ -56,7 +57,8 @@ def levers(hand: HandSpec, grasp: Grasp, axes: Mapping[str, tuple[np.ndarray, np
         on = points[np.isin(links, j.moves)]
         if len(on):
             origin, axis = axes[j.name]
-            out[j.name] = float(np.max(np.linalg.norm(np.cross(on - origin, axis), axis=1)))
+            arm = rows_cross(on - origin, np.broadcast_to(axis, on.shape))  # np.cross's, to the bit
+            out[j.name] = float(np.max(np.linalg.norm(arm, axis=1)))
     return out
 
 

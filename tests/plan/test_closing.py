@@ -245,3 +245,36 @@ def test_a_scan_closes_through_its_proxy_like_a_coarse_mesh_with_contacts_on_the
     points = np.vstack([c.contacts.points for _, c in closings])
     assert distances(scan.mesh, points).max() < ON_SURFACE  # read on the proxy, placed on the scan
     assert distances(proxy.mesh, points).max() <= proxy.deviation + ON_SURFACE
+
+
+
+
+@pytest.mark.parametrize("table", [False, True])
+def test_a_links_gap_without_its_pairs_equals_the_gap_of_its_pairs(table: bool) -> None:
+    """What closing a revolute finger reads of a link (:meth:`Grasper._obstacle_gap`, no pairs made) is the gap of
+    the pairs the directional bound reads (far hulls, the exact mesh near them, a long reach cut, the table), to
+    the last bit, and counts one query as they do: every read of the Barrett's closings on the mug, seeded rays."""
+    hand, obj = load_hand("barrett"), load_object("mug")
+    shapes = load_preshapes(hand)
+    rays = sampling.sample(obj.mesh, sampler="surface", count=6, rng=np.random.default_rng(SEED))
+    top = np.eye(4)
+    top[2, 3] = obj.mesh.bounds.mean(axis=0)[2]  # a table through the mug: the fingers meet both
+    seen = set()
+    with Sim() as sim:
+        grasper = Grasper.for_object(sim, hand, obj, table=top if table else None)
+        s, read = grasper.settings, grasper._obstacle_gap
+
+        def checked(reach: float, link: str) -> float:
+            before = grasper.queries
+            want = grasper._gap(grasper._obstacles(reach, link))
+            middle = grasper.queries
+            got = read(reach, link)
+            assert got == want and grasper.queries - middle == middle - before
+            seen.add("none" if np.isinf(got) else "far" if got > s.near else "cut" if reach > s.exact_reach else "near")
+            return got
+
+        grasper._obstacle_gap = checked  # type: ignore[method-assign]
+        for i in range(len(rays)):
+            for shape in shapes:
+                grasper.close(rays.points[i], rays.directions[i], 0.0, 0.0, shape, obj.torque_scale)
+    assert {"none", "far", "cut"} <= seen  # nothing near, a hull gap, the exact mesh within the cut reach

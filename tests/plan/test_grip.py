@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from planner.geometry.frames import UP, resting_up
-from planner.plan import grip
+from planner.plan import grip, link_hulls
 from planner.plan.closing import Closed, Grasper
 from planner.sim import Sim
 from planner.specs.hands import load_hand
@@ -205,7 +205,7 @@ def test_planes_without_repeats_equal_the_reference(seed: int, faces: int, repea
     planes[rng.random((faces, 4)) < 0.1] = -0.0
     planes[:, 0] = np.where(rng.random(faces) < 0.5, planes[0, 0], planes[:, 0])
     equations = np.vstack([planes, planes[rng.integers(0, faces, repeats)]])[rng.permutation(faces + repeats)]
-    got, want = grip._planes(equations), grip._planes_reference(equations)
+    got, want = link_hulls.planes(equations), link_hulls.planes_reference(equations)
     assert got.tobytes() == want.tobytes()
 
 

@@ -387,3 +387,27 @@ def test_one_broken_hand_folder_leaves_the_others_listed(tmp_path: Path) -> None
     assert run.returncode == 2
     assert {line.split()[0] for line in run.stdout.splitlines()} == {"allegro", "barrett", "panda", "pr2"}
     assert run.stderr.startswith("grasp: error: hand 'mypanda': ") and "malformed TOML" in run.stderr
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_contact_velocity_is_the_plain_sum_to_the_bit(seed: int) -> None:
+    """Each contact's velocity under a DOF is the sum over its joints that move it of rate x (axis x (point -
+    origin)) (revolute) or rate x axis (prismatic), with np.cross's products to the bit: the Barrett's three
+    fingers and the Panda's jaw, seeded points and axes."""
+    rng = np.random.default_rng(seed)
+    for hand in (load_hand("barrett"), load_hand("panda")):
+        links = tuple(rng.choice(hand.contact_links, size=7))
+        points = rng.normal(size=(7, 3)) * 0.05
+        axes = {}
+        for j in hand.joints:
+            axis = rng.normal(size=3)
+            axes[j.name] = (rng.normal(size=3) * 0.05, axis / np.linalg.norm(axis))
+        for dof in hand.closing_dofs(dict.fromkeys((j.name for j in hand.driven), 1.0)):
+            want = np.zeros((7, 3))
+            for name, rate in dof.rates.items():
+                origin, axis = axes[name]
+                moved = np.array([link in hand.joint(name).moves for link in links], bool)
+                lin = np.cross(axis, points - origin) if hand.joint(name).kind == "revolute" else \
+                    np.broadcast_to(axis, points.shape)
+                want += rate * lin * moved[:, None]
+            assert hand.contact_velocity(dof.rates, points, links, axes).tobytes() == want.tobytes()
