@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from planner.datasets.acronym import AcronymHeader
-from planner.db.objects import COM_TOL
+from planner.db.objects import COM_TOL, INERTIA_ATOL, INERTIA_RTOL
 from planner.errors import InputError
 from planner.geometry.solid import prepare
 from planner.specs.hands import hand_names
@@ -57,13 +57,21 @@ def _with_inertial(h: AcronymHeader, spec: ObjectSpec) -> ObjectSpec:
     grasps' measures and trials were of those. Other ACRONYM files' (their mesh's) are not read."""
     if h.mesh_sha256 is None or h.com is None:
         return spec
+    if spec.com is not None:
+        return spec  # given here (a sidecar beside the mesh)
     mesh = prepare(spec)
-    if spec.com is not None or float(np.linalg.norm(np.asarray(h.com) - mesh.com)) <= COM_TOL:
-        return spec  # given here (a sidecar beside the mesh), or the mesh's own
+    moved = float(np.linalg.norm(np.asarray(h.com) - mesh.com)) > COM_TOL
     gyration = None
     if h.inertia is not None and h.mass is not None:
-        gyration = tuple(v / h.mass for v in h.inertia)
-    return replace(spec, com=h.com, com_from=f"{Path(h.path).name} object/com", gyration=gyration)
+        inertia = np.reshape(h.inertia, (3, 3))  # its own (a URDF's) also where its centre is the mesh's
+        size = float(np.abs(inertia).max())
+        if moved or float(np.abs(inertia * (mesh.mass / h.mass) - mesh.inertia).max()) > \
+                max(INERTIA_RTOL * size, INERTIA_ATOL):
+            gyration = tuple(v / h.mass for v in h.inertia)
+    if not moved and gyration is None:
+        return spec  # the mesh's own (or the spec's, a URDF's)
+    return replace(spec, gyration=gyration) if not moved else \
+        replace(spec, com=h.com, com_from=f"{Path(h.path).name} object/com", gyration=gyration)
 
 
 def _object_spec(h: AcronymHeader, object_name: str | None, command: str, up: str | None) -> ObjectSpec:

@@ -163,3 +163,19 @@ def test_the_store_refuses_a_unit_of_another_com(tmp_path: Path) -> None:
                              replace(box, com=np.asarray(box.com) + [0, 0, 0.01]), [], store.rule())
         assert_close(store.object_row("box").com, box.com)  # type: ignore[union-attr]
     assert rows(db, "SELECT count(*) FROM units") == stored
+
+
+def test_an_exported_inertia_about_the_meshs_com_comes_back_with_grasp_import(tmp_path: Path) -> None:
+    """A URDF whose <inertial> origin is its link origin (no declared centre: the mesh's, here the box's middle)
+    and whose plausible <inertia> is stored: our own exported file gives it back on import (its com is the mesh's,
+    its inertia not)."""
+    db, urdf = tmp_path / "g.db", box_urdf(tmp_path, "0 0 0")
+    urdf.write_text(urdf.read_text().replace('ixx="1" iyy="1" izz="1"', 'ixx="1e-4" iyy="1.2e-4" izz="0.8e-4"'))
+    assert generate(db, str(urdf))[0] == 0
+    assert grasp("export", "--db", str(db), "--format", "acronym", "--out", str(tmp_path / "out"), "--quiet")[0] == 0
+    code, _, err = grasp("import", "--format", "acronym", str(tmp_path / "out" / "box__panda.h5"),
+                         "--db", str(tmp_path / "back.db"))
+    assert code == 0, err
+    (back,) = rows(tmp_path / "back.db", "SELECT com, inertia FROM objects")
+    assert_close(np.array(eval(back[0])), np.zeros(3))
+    assert_close(np.ravel(eval(back[1])), np.diag([1e-4, 1.2e-4, 0.8e-4]).ravel())  # the URDF's, not the mesh's
