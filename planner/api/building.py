@@ -222,7 +222,7 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
                              f"the mesh under another name){keep}")
         if name not in running and spec.user_file and row.source == spec.source and row.scale == spec.scale \
                 and row.geometry == spec.geometry and (spec.com is None or math.dist(spec.com, row.com) <= COM_TOL) \
-                and not edited_since(Path(spec.source), db.last_finished(name)):
+                and not edited_since(Path(spec.source), db.last_finished(name), spec.geometry):
             continue  # nothing of it runs, and it names the stored file, unchanged since, at the stored scale
         try:
             why = differs(row, prepare(spec))

@@ -103,7 +103,7 @@ def mesh_modified(name: str, *, db_path: Path = DEFAULT_DB) -> str | None:
         row = db.object_row(name)
         if row is None or row.source.startswith("primitive:") or not Path(row.source).is_file():
             return None
-        return row.source if edited_since(Path(row.source), db.last_finished(name)) else None
+        return row.source if edited_since(Path(row.source), db.last_finished(name), row.geometry) else None
 
 
 def hand_edited(hand: str, *, db_path: Path = DEFAULT_DB) -> list[str]:

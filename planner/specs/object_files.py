@@ -20,13 +20,13 @@ def object_files(source: Path, geometry: str = "collision") -> list[Path]:
     return [*files, *(b for f in files for b in gltf_buffers(f))]
 
 
-def edited_since(source: Path, finished: float | None) -> bool:
-    """Whether the object of the file ``source`` (:func:`object_files`: a ``.gltf``'s buffers, a URDF's meshes)
-    may have changed since ``finished`` (its object's last unit's end [s];
+def edited_since(source: Path, finished: float | None, geometry: str = "collision") -> bool:
+    """Whether the object of the file ``source`` (:func:`object_files`: a ``.gltf``'s buffers, a URDF's meshes of
+    its ``geometry`` elements) may have changed since ``finished`` (its object's last unit's end [s];
     :meth:`~planner.db.store.Database.last_finished`): modified from that second on, no time known, or no file to
     read. A copy that keeps an older modification time is not seen."""
     try:
-        files = object_files(source)
+        files = object_files(source, geometry)
         buffers = {b for f in files for b in gltf_buffers(f)}  # each spelling of a buffer's name: one may be missing
         return finished is None or any(f.stat().st_mtime >= finished for f in files if f not in buffers or f.exists())
     except (OSError, InputError):

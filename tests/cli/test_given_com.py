@@ -179,3 +179,25 @@ def test_an_exported_inertia_about_the_meshs_com_comes_back_with_grasp_import(tm
     (back,) = rows(tmp_path / "back.db", "SELECT com, inertia FROM objects")
     assert_close(np.array(eval(back[0])), np.zeros(3))
     assert_close(np.ravel(eval(back[1])), np.diag([1e-4, 1.2e-4, 0.8e-4]).ravel())  # the URDF's, not the mesh's
+
+
+def test_an_edited_visual_mesh_is_seen_when_the_object_is_of_its_visual_elements(tmp_path: Path) -> None:
+    """A URDF planned on its <visual> mesh, that mesh edited since (its collision box not): a run whose units
+    are all done is refused (not skipped as unchanged), and ``best`` is told the mesh was modified."""
+    import os
+
+    import trimesh
+
+    from planner import api
+
+    trimesh.creation.box((0.03, 0.05, 0.08)).export(tmp_path / "shape.obj")
+    urdf = box_urdf(tmp_path, "0 0 0", visual='<visual><geometry><mesh filename="shape.obj"/></geometry></visual>')
+    db = tmp_path / "g.db"
+    assert generate(db, str(urdf), "--geometry", "visual")[0] == 0
+    assert api.mesh_modified("box", db_path=db) is None
+    trimesh.creation.box((0.03, 0.05, 0.07)).export(tmp_path / "shape.obj")
+    later = os.stat(urdf).st_mtime + 5  # after the last unit finished, whatever the clock's resolution
+    os.utime(tmp_path / "shape.obj", (later, later))
+    assert api.mesh_modified("box", db_path=db) == str(urdf)
+    code, _, err = generate(db, str(urdf), "--geometry", "visual")
+    one_line_error(code, err, 2, "object 'box' is stored", "from another mesh")
