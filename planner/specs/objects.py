@@ -333,6 +333,9 @@ def _urdf_spec(named: Path, path: Path, scale: float | None, given: Physical, co
                                             * factor ** 2))
     if given.com is None and own.com is not None:
         x, y, z = (v * factor for v in own.com)
+        if not all(math.isfinite(v) for v in (x, y, z)):
+            raise InputError(f"{path}: its <inertial> origins give no finite centre of mass ({x}, {y}, {z}); give "
+                             f"its own as com = [x, y, z] [m, object frame] in a sidecar ({path.stem}.toml)")
         given, com_from = replace(given, com=(x, y, z)), f"{path.name} <inertial><origin>"
     return spec, given.over(own.own(given)), com_from
 

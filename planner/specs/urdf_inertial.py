@@ -72,7 +72,7 @@ def link_inertial(mass: float, frame: np.ndarray, origin: np.ndarray | None, ine
     local = np.eye(4) if origin is None else np.asarray(origin, float)
     tensor = np.zeros((3, 3)) if inertia is None else np.asarray(inertia, float)
     return LinkInertial(float(mass), np.asarray(frame, float) @ local, tensor,
-                        bool(np.linalg.norm(local[:3, 3]) > DECLARED_TOL))
+                        not bool(np.linalg.norm(local[:3, 3]) <= DECLARED_TOL))  # nan: declared, refused
 
 
 def combined(links: Sequence[LinkInertial]) -> UrdfInertial | None:

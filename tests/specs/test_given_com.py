@@ -109,3 +109,15 @@ def test_a_template_origin_far_from_the_meshs_centre_is_said(tmp_path: Path, cap
     assert len(said) == 1 and said[0].startswith(f"{raised}: its <inertial> origins lie at their link origins "
                                                  "([0, 0, 0] m), read as a template's, not a centre of mass: its "
                                                  "mesh's, 50 mm away, is planned on")
+
+
+@pytest.mark.parametrize("xyz", ["nan 0 0", "0 0 inf"])
+def test_a_urdf_origin_that_is_no_number_is_refused_naming_the_file(tmp_path: Path, xyz: str) -> None:
+    """An <inertial><origin xyz> of nan or inf (alone: no template's zero either) is refused in one line naming the
+    file and its <inertial> (not a sidecar's form of a value the user never gave)."""
+    urdf = box_urdf(tmp_path, inertial(xyz, diag=(1e-4, 1e-4, 1e-4)))
+    with pytest.raises(InputError, match=r"box\.urdf: its <inertial> .*no finite centre of mass") as exc:
+        resolve_spec(str(urdf))
+    assert "\n" not in str(exc.value)
+    urdf.with_suffix(".toml").write_text("com = [0, 0, 0.01]\n")  # a sidecar's replaces it
+    assert_close(load_object(str(urdf)).com, [0, 0, 0.01])
