@@ -15,7 +15,7 @@ both bounds meet and epsilon is exact (to FACET_TOL).
 Only the facets up to the nearest clean one decide a round, so h is taken
 facet by facet in order of distance, in chunks, up to the first clean one
 (:func:`nearest_dirty`): the same bound and dirty facets as h of every facet
-(:func:`nearest_dirty_reference`), for less when the generators are many
+(:func:`nearest_dirty_reference`; h to a few ulp), for less when the generators are many
 (the Barrett's mug sweep: 2.5 -> 2.35 ms an epsilon, one BLAS thread; the
 Panda's ~70 generators: the same time).
 """
@@ -156,7 +156,10 @@ def nearest_dirty(support: L1Support, equations: np.ndarray, tol: float) -> tupl
     (ascending) of the dirty facets nearer than it.  h is taken in order of
     distance (stable), FIRST_CHUNK facets first, then twice as many each
     time, up to the first clean facet: facets beyond it cannot change either
-    answer.  The same as :func:`nearest_dirty_reference`."""
+    answer.  The same as :func:`nearest_dirty_reference` but where a facet's
+    h lies within a few ulp (~1e-15) of its distance + tol: BLAS sums a
+    chunk's products in another order than the whole matrix's (a 1-row
+    chunk takes its vector path), so h may differ in the last bits."""
     dist = -equations[:, -1]
     order = np.argsort(dist, kind="stable")
     seen, start, size = [], 0, FIRST_CHUNK
