@@ -92,11 +92,13 @@ def differs(row: ObjectRow, obj: PreparedObject) -> str | None:
     (given, or no more), or another mass, friction or up. Grasps planned on one are not grasps of the
     other."""
     if row.mesh_sha256 and obj.mesh_hash != row.mesh_sha256:
-        other = f"; stored of its <{row.geometry}> elements, now of its <{obj.spec.geometry}>" \
-            if obj.spec.kind == URDF_FILE and obj.spec.geometry != row.geometry else ""
+        if obj.spec.kind == URDF_FILE and obj.spec.geometry != row.geometry:
+            return (f"of its <{row.geometry}> elements, now of its <{obj.spec.geometry}> ({row.source}): give "
+                    f"--geometry {row.geometry} (or a sidecar's or manifest line's geometry={row.geometry}) to go on "
+                    "with it")
         return (f"from another mesh than {obj.source_file} at scale {obj.file_scale:.10g} gives now (stored: "
                 f"{row.source} at scale {row.scale:.10g}; another file of that name, the file edited since, or another "
-                f"scale{other})")
+                "scale)")
     if not math.isclose(obj.volume, row.volume, rel_tol=VOLUME_RTOL):
         return (f"with a volume of {row.volume * 1e6:.6g} cm^3 where this planner makes the same mesh "
                 f"{obj.volume * 1e6:.6g} cm^3 (an earlier planner's mass properties: overlapping bodies are counted "

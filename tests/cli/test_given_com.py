@@ -139,7 +139,8 @@ def test_the_visual_geometry_is_planned_stored_and_kept_apart(tmp_path: Path) ->
                            "--reach-placements", "0", *FAST[:-2])
     assert code == 0 and '"skipped": 1' in out, err
     code, _, err = generate(db, str(urdf))
-    one_line_error(code, err, 2, "object 'box' is stored", "stored of its <visual> elements, now of its <collision>")
+    one_line_error(code, err, 2, "object 'box' is stored", "of its <visual> elements, now of its <collision>",
+                   "give --geometry visual")
     code, out, err = grasp("validate", "--db", str(db), "--object", "box", "--hand", "panda", "--top", "1")
     assert code == 0 and "validated 1 grasps" in out, (out, err)
     code, _, err = generate(tmp_path / "m.db", str(tmp_path / "missing.obj"), "--geometry", "visual")
