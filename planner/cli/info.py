@@ -62,14 +62,17 @@ def db() -> None:
 @db_option
 def db_objects(db_path: Path) -> None:
     """List the database's objects as stored: what their grasps were planned
-    and measured at (file, scale, mass, density, friction, up, volume)."""
+    and measured at (file, scale, mass, density, friction, up, centre of mass, volume; a URDF planned on its
+    visual elements says so)."""
     rows = api.stored_objects(db_path)
     if not rows:
         click.echo(f"{db_path}: no objects")
     for row, hands_with in rows:
         click.echo(f"{row.name}: mass {row.mass:.4g} kg, density {row.density:.4g} kg/m^3, friction "
-                   f"{row.friction:.3g}, up {row.up}, volume {row.volume * 1e6:.4g} cm^3, scale {row.scale:g}, "
-                   f"grasps for {', '.join(hands_with) or 'no hand'}; {row.source}")
+                   f"{row.friction:.3g}, up {row.up}, centre of mass ({', '.join(f'{v * 1e3:.4g}' for v in row.com)}) "
+                   f"mm, volume {row.volume * 1e6:.4g} cm^3, scale {row.scale:g}, grasps for "
+                   f"{', '.join(hands_with) or 'no hand'}; {row.source}"
+                   f"{' (its <visual> elements)' if row.geometry == 'visual' else ''}")
 
 
 @db.command()

@@ -100,6 +100,8 @@ def test_an_exported_com_and_inertia_come_back_with_grasp_import(tmp_path: Path)
     (exported,) = rows(db, "SELECT com, inertia FROM objects")
     (back,) = rows(tmp_path / "back.db", "SELECT com, inertia FROM objects")
     assert_close(np.array(eval(back[0])), [0.01, -0.02, 0.03])
+    code, out, _ = grasp("db", "objects", "--db", str(tmp_path / "back.db"))
+    assert code == 0 and "centre of mass (10, -20, 30) mm" in out, out
     assert_close(np.ravel(eval(back[1])), np.ravel(eval(exported[1])))
     assert_close(np.ravel(eval(back[1])), np.diag([1e-4, 1.2e-4, 0.8e-4]).ravel())  # the URDF's, not the mesh's
 
@@ -135,6 +137,8 @@ def test_the_visual_geometry_is_planned_stored_and_kept_apart(tmp_path: Path) ->
     assert code == 0, err
     ((geometry, volume),) = rows(db, "SELECT geometry, volume FROM objects")
     assert geometry == "visual" and volume == pytest.approx(0.03 * 0.05 * 0.08)
+    code, out, _ = grasp("db", "objects", "--db", str(db))
+    assert code == 0 and out.rstrip().endswith("box.urdf (its <visual> elements)"), out
     code, out, err = grasp("generate", str(urdf), "--hand", "panda", "--db", str(db), "--json", "--geometry", "visual",
                            "--reach-placements", "0", *FAST[:-2])
     assert code == 0 and '"skipped": 1' in out, err
