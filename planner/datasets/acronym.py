@@ -95,7 +95,7 @@ from typing import Any
 import numpy as np
 
 from planner.datasets import registry
-from planner.datasets.acronym_checks import check_joints, contact_items, label_values
+from planner.datasets.acronym_checks import check_joints, contact_items, float_values, label_values, positive_value
 from planner.datasets.acronym_columns import (
     DATASETS,
     EXTRAS,
@@ -264,21 +264,11 @@ def read_header(path: Path) -> AcronymHeader:
             path=path, gripper=as_text(f["gripper/type"][()]),
             object_name=as_text(f["object/name"][()]) if "object/name" in f else None,
             object_file=as_text(f["object/file"][()]) if "object/file" in f else None,
-            scale=_positive(f, "object/scale"), mass=_positive(f, "object/mass"),
-            friction=_positive(f, "object/friction"), extras=all(f"grasps/{k}" in f for k in EXTRAS),
+            scale=positive_value(f, "object/scale"), mass=positive_value(f, "object/mass"),
+            friction=positive_value(f, "object/friction"), extras=all(f"grasps/{k}" in f for k in EXTRAS),
             mesh_sha256=as_text(f["object/mesh_sha256"][()]) or None if "object/mesh_sha256" in f else None,
             up=up_axis(as_text(f["object/up"][()]), str(path), "object/up") if "object/up" in f else None,
-            com=_floats(f, "object/com", (3,)), inertia=_floats(f, "object/inertia", (3, 3)))
-
-
-def _floats(f: Any, key: str, shape: tuple[int, ...]) -> Any:
-    """The finite float dataset ``key`` of that shape as a flat tuple (None: absent or otherwise)."""
-    if key not in f:
-        return None
-    values = np.asarray(f[key][()])
-    if values.shape != shape or values.dtype.kind not in "fiu" or not np.isfinite(values).all():
-        return None
-    return tuple(float(v) for v in values.ravel())
+            com=float_values(f, "object/com", (3,)), inertia=float_values(f, "object/inertia", (3, 3)))
 
 
 def read_poses(path: Path, hand: HandSpec) -> np.ndarray:
@@ -389,16 +379,6 @@ def _contacts(path: Path, items: list[dict], hand: HandSpec) -> HandContacts:
         raise InputError(f"{path}: contact on link {unknown} of hand '{hand.name}', "
                          f"which has contact links {', '.join(hand.contact_links)}")
     return HandContacts.from_items(items)
-
-
-def _positive(f: Any, key: str) -> float | None:
-    """A positive number the file gives (None: absent); a value that is not one is refused."""
-    if key not in f:
-        return None
-    value = float(np.asarray(f[key][()]).reshape(-1)[0])
-    if not (math.isfinite(value) and value > 0):
-        raise InputError(f"{Path(f.filename)}: {key} is {value:g}; it must be a positive number")
-    return value
 
 
 registry.register("acronym", registry.PairWriter(relative_path, write),

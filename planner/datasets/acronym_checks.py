@@ -1,12 +1,15 @@
 """What an ACRONYM file must hold before its grasps are read back losslessly (this project's extras): joints of
 the hand within its limits, contacts as JSON, one row per grasp. A file that fails is refused with a one-line
 error naming the dataset (a hand-edited or damaged file would otherwise store grasps that break ``show`` and
-exports later). Labels (``object_in_gripper``, read by ``grasp calibrate``) are checked alike."""
+exports later). Labels (``object_in_gripper``, read by ``grasp calibrate``) are checked alike, and the
+header's numbers."""
 
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -78,3 +81,23 @@ def label_values(path: Path, key: str, data: np.ndarray, n: int | None) -> np.nd
         shown = ", ".join(f"{v:g}" for v in np.unique(bad)[:3])
         raise InputError(f"{path}: {key} must hold 0/1 labels; {len(bad)} of {n} are not ({shown})")
     return labels
+
+
+def positive_value(f: Any, key: str) -> float | None:
+    """A positive number the file gives (None: absent); a value that is not one is refused."""
+    if key not in f:
+        return None
+    value = float(np.asarray(f[key][()]).reshape(-1)[0])
+    if not (math.isfinite(value) and value > 0):
+        raise InputError(f"{Path(f.filename)}: {key} is {value:g}; it must be a positive number")
+    return value
+
+
+def float_values(f: Any, key: str, shape: tuple[int, ...]) -> Any:
+    """The finite float dataset ``key`` of that shape as a flat tuple (None: absent or otherwise)."""
+    if key not in f:
+        return None
+    values = np.asarray(f[key][()])
+    if values.shape != shape or values.dtype.kind not in "fiu" or not np.isfinite(values).all():
+        return None
+    return tuple(float(v) for v in values.ravel())
