@@ -124,11 +124,17 @@ class Selection:
         if not self.every and self.sample is None:
             return [g for g in db.best(obj, hand, self.top) if g.score and (g.force_closure or not self.closure_only)]
         grasps = sorted((g for batch in db.grasp_batches(obj, hand) for g in batch
-                         if g.force_closure or not self.closure_only), key=lambda g: g.id or 0)
+                         if g.force_closure or not self.closure_only), key=_identity)
         if self.every or self.sample is None or self.sample >= len(grasps):
             return grasps
         rng = np.random.default_rng([seed, zlib.crc32(obj.encode()), zlib.crc32(hand.encode())])
         return [grasps[i] for i in sorted(rng.choice(len(grasps), size=self.sample, replace=False))]
+
+
+def _identity(g: Grasp) -> tuple[int, int, int]:
+    """A grasp's place in its sweep, for a sample that does not depend on the order units were stored in (ids
+    follow the order workers finished): its unit's seed and its candidate number (the id only between equals)."""
+    return g.seed, g.candidate, g.id or 0
 
 
 def _already(db: Database, obj: str, hand: str, seed: int, trial_settings: ShakeSettings | MujocoSettings,

@@ -107,6 +107,25 @@ def test_a_seeded_sample_is_uniform_and_replayable(validated_db: Path, tmp_path:
         validate(tmp_path / "a.db", sample=3, every=True)
     with pytest.raises(InputError, match="--sample must be at least 1"):
         validate(tmp_path / "a.db", sample=0)
+def test_a_sample_does_not_depend_on_the_order_units_were_stored(validated_db: Path, tmp_path: Path) -> None:
+    """Grasp ids follow the order units finished (workers race): the same sweep stored in another order is
+    sampled alike (by each grasp's seed and candidate number, not its id)."""
+    reordered = tmp_path / "r.db"
+    shutil.copy(validated_db, reordered)
+    with sqlite3.connect(reordered) as conn:  # the ids turned end to end (no foreign key checks: raw SQL)
+        top = conn.execute("SELECT max(id) FROM grasps").fetchone()[0]
+        for table in ("grasps", "validation", "robust", "mujoco"):
+            key = "id" if table == "grasps" else "grasp_id"
+            conn.execute(f"UPDATE {table} SET {key} = {key} + {2 * top}")
+            conn.execute(f"UPDATE {table} SET {key} = {3 * top + 1} - {key}")
+    picked = []
+    for path in (validated_db, reordered):
+        with open_db(path, create=False, readonly=True) as db:
+            picked.append([(g.seed, g.candidate) for o, h in db.pairs()
+                           for g in run.Selection(sample=3).pick(db, o, h, 7)])
+    assert picked[0] == picked[1] and len(picked[0]) == 6
+
+
 def test_a_diverged_trial_is_counted_and_not_stored(validated_db: Path, tmp_path: Path,
                                                     monkeypatch: pytest.MonkeyPatch) -> None:
     """A MuJoCo trial whose state diverged has no verdict: the grasp stays untried (label and rank neutral)."""
