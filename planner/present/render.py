@@ -2,7 +2,9 @@
 contacts and friction cones, from a few viewpoints, rendered headless by
 PyBullet's TinyRenderer. Contact sheets of several grasps are laid out with
 matplotlib, each contact circled in red over the picture (the fingers would
-hide most of them).
+hide most of them), and the object's centre of mass (the one its grasps were
+measured about: a URDF's or a sidecar's where given) marked by a black and
+white disc.
 
 A grasp planned on a table (``Grasp.table_plane``) is drawn with the table
 top (a slab under the object), the views turned so that the table is level
@@ -15,7 +17,7 @@ contact as a blue disc of its region's radius.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -44,6 +46,7 @@ FOV = 40.0  # [deg] vertical field of view
 #: The camera stands this many times as far as puts the box around the object and the hand just inside the view.
 FRAME_MARGIN = 1.08
 CONTACT_MARK = 7.0  # [pt] radius of a contact's mark drawn over the picture
+COM_MARK = 11.0  # [pt] diameter of the centre of mass's mark (a black disc, a white rim and centre)
 #: Viewing directions (from the target towards the eye), before scaling.
 VIEWS = (np.array([1.0, -1.2, 0.8]), np.array([-1.0, -0.4, 0.5]), np.array([0.3, 1.2, -0.25]))
 
@@ -52,10 +55,12 @@ VIEWS = (np.array([1.0, -1.2, 0.8]), np.array([-1.0, -0.4, 0.5]), np.array([0.3,
 class View:
     """One rendered viewpoint: ``image`` (h, w, 3) uint8 RGB and ``contacts``
     (k, 2) [px] where the grasp's contact points project (x right, y down),
-    drawn over the picture so no finger hides them."""
+    drawn over the picture so no finger hides them; ``com`` (1, 2) [px] where
+    the object's centre of mass projects (empty: not drawn)."""
 
     image: np.ndarray
     contacts: np.ndarray
+    com: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
 
 def grasp_views(hand: HandSpec, obj: PreparedObject, grasp: Grasp, size: tuple[int, int] = VIEW_SIZE
@@ -100,7 +105,8 @@ def grasp_views(hand: HandSpec, obj: PreparedObject, grasp: Grasp, size: tuple[i
             eye = target + view * distance
             far = distance + float(np.linalg.norm(hi - lo)) + 1.0  # behind the farthest corner, whatever the size
             views.append(View(sim.render(eye, target, up, size, fov=FOV, far=far),
-                              project(grasp.contacts.points, eye, target, up, size, FOV)))
+                              project(grasp.contacts.points, eye, target, up, size, FOV),
+                              project(np.asarray(obj.com, float)[None], eye, target, up, size, FOV)))
         return views
 
 
@@ -212,6 +218,10 @@ def save_sheet(panels: list[tuple[list[View], str]], out: Path) -> None:
                 px = views[c].contacts
                 ax.scatter(px[:, 0], px[:, 1], s=CONTACT_MARK ** 2, facecolors="none", edgecolors="red",
                            linewidths=1.5, zorder=3)
+                com = views[c].com
+                ax.scatter(com[:, 0], com[:, 1], s=COM_MARK ** 2, c="black", edgecolors="white", linewidths=1.5,
+                           zorder=4)
+                ax.scatter(com[:, 0], com[:, 1], s=(COM_MARK / 2.5) ** 2, c="white", zorder=5)
                 ax.set_xlim(0, views[c].image.shape[1])
                 ax.set_ylim(views[c].image.shape[0], 0)
         axes[r][0].set_title(title, loc="left", fontsize=11, pad=8)

@@ -184,3 +184,29 @@ def test_an_object_given_another_up_is_drawn_standing(db: Path, tmp_path: Path) 
 
     assert apart(told, upright) < 0.2 * apart(untold, upright)  # the light stays the world's: shading differs
     assert all(np.allclose(x.contacts, y.contacts, atol=1.0) for x, y in zip(told, upright))
+
+
+
+def test_the_centre_of_mass_is_marked_where_it_projects(db: Path, tmp_path: Path) -> None:
+    """A grasp's views carry where the object's own centre of mass (a given one too) projects, and the sheet draws
+    a black and white disc there: nothing black where a view has none."""
+    from dataclasses import replace
+
+    import matplotlib.image as mpimg
+
+    from planner.geometry.solid import load_object
+    from planner.present.render import View, grasp_views, save_sheet
+    from planner.specs.hands import load_hand
+
+    (grasp,) = api.best("box", "panda", db_path=db, top=1)
+    box = load_object("box")
+    views = grasp_views(load_hand("panda"), box, grasp)
+    moved = grasp_views(load_hand("panda"), replace(box, com=np.asarray(box.com) + [0.0, 0.0, 0.02]), grasp)
+    for view, other in zip(views, moved):
+        assert view.com.shape == (1, 2) and 0 < view.com[0, 0] < view.image.shape[1]
+        assert np.linalg.norm(view.com - other.com) > 5  # 2 cm up moves the mark by pixels
+    blank, dark = np.full((100, 120, 3), 255, np.uint8), []
+    for name, com in (("marked", np.array([[60.0, 50.0]])), ("none", np.zeros((0, 2)))):
+        save_sheet([([View(blank, np.zeros((0, 2)), com)], "")], tmp_path / f"{name}.png")
+        dark.append(int((mpimg.imread(tmp_path / f"{name}.png")[..., :3].max(axis=-1) < 0.2).sum()))
+    assert dark[0] > 50 and dark[1] == 0
