@@ -189,9 +189,10 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
     finished (its mtime: a copy that keeps an older mtime is not seen). An
     object whose mesh no longer loads is left to its units (stored as
     failed). ``flags``: the run's values (a manifest line's replace them)."""
-    from planner.db.objects import COM_TOL, differs
+    from planner.db.objects import differs
     from planner.errors import PlannerError
     from planner.geometry.solid import prepare
+    from planner.record.field import COM_TOL
     from planner.specs.object_files import edited_since
 
     running = {u.label or u.object_name for u in todo}

@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 
 from planner.datasets.acronym import AcronymHeader
-from planner.db.objects import COM_TOL, INERTIA_ATOL, INERTIA_RTOL
 from planner.errors import InputError
 from planner.geometry.solid import prepare
+from planner.record.field import COM_TOL, INERTIA_ATOL, INERTIA_RTOL
 from planner.specs.hands import hand_names
 from planner.specs.objects import ObjectSpec, is_registered, resolve_spec
 from planner.specs.up import up_axis

@@ -34,7 +34,7 @@ from planner import assets
 from planner.db.store import ObjectRow
 from planner.errors import InputError, PlannerError
 from planner.geometry.solid import PreparedObject, prepare
-from planner.record.field import COM_TOL, INERTIA_DIGITS
+from planner.record.field import same_inertial as same_inertial_values
 from planner.specs.objects import (
     PRIMITIVES,
     PROPERTY_RTOL,
@@ -72,16 +72,9 @@ def stored_object(row: ObjectRow) -> PreparedObject:
 #: How far a prepared object's volume (relative) may lie from its stored row's and still be the stored object's
 #: (its centre of mass: COM_TOL, kept to 0.1 um).
 VOLUME_RTOL = 1e-6
-#: [kg m^2] How far a prepared object's inertia may lie from its stored row's (kept to INERTIA_DIGITS decimals),
-#: relative to its largest entry or absolute, and still be the stored one.
-INERTIA_RTOL, INERTIA_ATOL = 1e-6, 10.0 ** -INERTIA_DIGITS
-
-
 def same_inertial(row: ObjectRow, obj: PreparedObject) -> bool:
     """Whether ``obj``'s centre of mass and inertia are ``row``'s, to what the store keeps."""
-    scale = float(np.abs(row.inertia).max())
-    return float(np.linalg.norm(np.asarray(obj.com) - row.com)) <= COM_TOL and \
-        float(np.abs(np.asarray(obj.inertia) - row.inertia).max()) <= max(INERTIA_RTOL * scale, INERTIA_ATOL)
+    return same_inertial_values(obj.com, obj.inertia, row.com, row.inertia)
 
 
 def differs(row: ObjectRow, obj: PreparedObject) -> str | None:

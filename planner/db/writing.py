@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import sqlite3
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -47,7 +46,7 @@ from planner.db.rows import UnitRow, Validated
 from planner.db.schema import transaction
 from planner.errors import DatabaseError, InputError
 from planner.record import fields
-from planner.record.field import COM_TOL
+from planner.record.field import same_inertial
 from planner.record.grasp import Grasp
 
 if TYPE_CHECKING:
@@ -168,7 +167,7 @@ class Writing:
                 sum(g.force_closure for g in grasps), _json(unit.rejected), unit.seconds,
                 now_text())).lastrowid
             if obj is not None:
-                stored = conn.execute("SELECT mesh_sha256, up, com FROM objects WHERE name = ?",
+                stored = conn.execute("SELECT mesh_sha256, up, com, inertia FROM objects WHERE name = ?",
                                       (unit.object,)).fetchone()
                 if stored is not None and stored[0] and stored[0] != obj.mesh_hash:
                     raise InputError(f"object '{unit.object}' is stored in {self.path} from another mesh than this "
@@ -177,10 +176,12 @@ class Writing:
                     raise InputError(f"object '{unit.object}' is stored in {self.path} with up {stored[1]}, this "
                                      f"unit's is {obj.spec.up}: its grasps were measured about the stored one; nothing "
                                      "of this unit written")
-                if stored is not None and math.dist(json.loads(stored[2]), obj.com) > COM_TOL:
-                    raise InputError(f"object '{unit.object}' is stored in {self.path} with another centre of mass "
-                                     f"than this unit's ({stored[2]} m; now {np.round(obj.com, 7).tolist()}): its "
-                                     "grasps were measured about the stored one; nothing of this unit written")
+                if stored is not None and not same_inertial(obj.com, obj.inertia, json.loads(stored[2]),
+                                                            json.loads(stored[3])):
+                    raise InputError(f"object '{unit.object}' is stored in {self.path} with another centre of mass or "
+                                     f"inertia than this unit's (centre {stored[2]} m; now "
+                                     f"{np.round(obj.com, 7).tolist()}): its grasps were measured about the stored "
+                                     "ones; nothing of this unit written")
                 if stored is None:  # a stored row stays as it is: its source is where its first grasps came from
                     conn.execute(_insert("objects", _OBJECT_COLUMNS), _object_row(unit.object, obj))
             conn.executemany(_insert("grasps", _GRASP_COLUMNS),

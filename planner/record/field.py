@@ -38,6 +38,19 @@ VECTOR_DIGITS = 7
 INERTIA_DIGITS = 10
 #: [m] How far a prepared object's centre of mass may lie from its stored row's and still be the stored one's.
 COM_TOL = 10.0 ** (1 - VECTOR_DIGITS)
+#: [kg m^2] How far a prepared object's inertia may lie from its stored row's (kept to INERTIA_DIGITS decimals),
+#: relative to its largest entry or absolute, and still be the stored one.
+INERTIA_RTOL, INERTIA_ATOL = 1e-6, 10.0 ** -INERTIA_DIGITS
+
+
+def same_inertial(com: Any, inertia: Any, stored_com: Any, stored_inertia: Any) -> bool:
+    """Whether a centre of mass (3,) [m] and inertia (3, 3) [kg m^2] are the stored ones, to what the store
+    keeps."""
+    stored = np.asarray(stored_inertia, float).reshape(3, 3)
+    scale = float(np.abs(stored).max())
+    moved = float(np.linalg.norm(np.asarray(com, float) - np.asarray(stored_com, float)))
+    turned = float(np.abs(np.asarray(inertia, float).reshape(3, 3) - stored).max())
+    return moved <= COM_TOL and turned <= max(INERTIA_RTOL * scale, INERTIA_ATOL)
 
 
 def stored_numbers(values: Any, digits: int = VECTOR_DIGITS) -> list[float]:

@@ -152,8 +152,8 @@ def test_the_visual_geometry_is_planned_stored_and_kept_apart(tmp_path: Path) ->
 
 
 def test_the_store_refuses_a_unit_of_another_com(tmp_path: Path) -> None:
-    """Two runs of one object with other centres of mass at once: the second's units are refused when written
-    (the check at a run's start cannot see the other run), nothing of them stored."""
+    """Two runs of one object with other centres of mass (or inertias) at once: the second's units are refused when
+    written (the check at a run's start cannot see the other run), nothing of them stored."""
     from planner.db.rows import UnitRow
     from planner.errors import InputError
     from planner.geometry.solid import load_object
@@ -163,9 +163,10 @@ def test_the_store_refuses_a_unit_of_another_com(tmp_path: Path) -> None:
     box = load_object("box")
     stored = rows(db, "SELECT count(*) FROM units")
     with open_db(db) as store:
-        with pytest.raises(InputError, match="with another centre of mass than this unit's"):
-            store.write_unit(UnitRow("box", "panda", "x", "{}", 0, 99),
-                             replace(box, com=np.asarray(box.com) + [0, 0, 0.01]), [], store.rule())
+        for other in (replace(box, com=np.asarray(box.com) + [0, 0, 0.01]),
+                      replace(box, inertia=np.asarray(box.inertia) * 1.1)):
+            with pytest.raises(InputError, match="with another centre of mass or inertia than this unit's"):
+                store.write_unit(UnitRow("box", "panda", "x", "{}", 0, 99), other, [], store.rule())
         assert_close(store.object_row("box").com, box.com)  # type: ignore[union-attr]
     assert rows(db, "SELECT count(*) FROM units") == stored
 
