@@ -72,7 +72,12 @@ def db_objects(db_path: Path) -> None:
                    f"{row.friction:.3g}, up {row.up}, centre of mass ({', '.join(f'{v * 1e3:.4g}' for v in row.com)}) "
                    f"mm, volume {row.volume * 1e6:.4g} cm^3, scale {row.scale:g}, grasps for "
                    f"{', '.join(hands_with) or 'no hand'}; {row.source}"
-                   f"{' (its <visual> elements)' if row.geometry == 'visual' else ''}")
+                   f"{' (its <visual> elements)' if row.geometry == 'visual' and _is_urdf(row.source) else ''}")
+
+
+def _is_urdf(source: str) -> bool:
+    """Whether a stored source is a URDF file (a built-in's is the mesh its URDF names: no elements to say)."""
+    return source.lower().endswith(".urdf")
 
 
 @db.command()

@@ -207,3 +207,12 @@ def test_an_edited_visual_mesh_is_seen_when_the_object_is_of_its_visual_elements
     assert api.mesh_modified("box", db_path=db) == str(urdf)
     code, _, err = generate(db, str(urdf), "--geometry", "visual")
     one_line_error(code, err, 2, "object 'box' is stored", "from another mesh")
+
+
+def test_db_objects_says_visual_elements_of_a_urdf_file_only(tmp_path: Path) -> None:
+    """The built-in mug is stored as the visual mesh its registry URDF names (geometry 'visual'): its line names
+    that mesh and nothing of elements."""
+    db = tmp_path / "m.db"
+    assert generate(db, "mug")[0] == 0
+    code, out, _ = grasp("db", "objects", "--db", str(db))
+    assert code == 0 and out.rstrip().endswith("mug.obj"), out
