@@ -17,7 +17,7 @@ import numpy as np
 from planner.datasets.acronym import AcronymHeader
 from planner.errors import InputError
 from planner.geometry.solid import prepare
-from planner.record.field import COM_TOL, INERTIA_ATOL, INERTIA_RTOL
+from planner.record.field import same_com, same_inertia
 from planner.specs.hands import hand_names
 from planner.specs.objects import ObjectSpec, is_registered, resolve_spec
 from planner.specs.up import up_axis
@@ -60,13 +60,10 @@ def _with_inertial(h: AcronymHeader, spec: ObjectSpec) -> ObjectSpec:
     if spec.com is not None:
         return spec  # given here (a sidecar beside the mesh)
     mesh = prepare(spec)
-    moved = float(np.linalg.norm(np.asarray(h.com) - mesh.com)) > COM_TOL
+    moved = not same_com(h.com, mesh.com)
     gyration = None
-    if h.inertia is not None and h.mass is not None:
-        inertia = np.reshape(h.inertia, (3, 3))  # its own (a URDF's) also where its centre is the mesh's
-        size = float(np.abs(inertia).max())
-        if moved or float(np.abs(inertia * (mesh.mass / h.mass) - mesh.inertia).max()) > \
-                max(INERTIA_RTOL * size, INERTIA_ATOL):
+    if h.inertia is not None and h.mass is not None:  # its own (a URDF's) also where its centre is the mesh's
+        if moved or not same_inertia(mesh.inertia, np.reshape(h.inertia, (3, 3)) * (mesh.mass / h.mass)):
             gyration = tuple(v / h.mass for v in h.inertia)
     if not moved and gyration is None:
         return spec  # the mesh's own (or the spec's, a URDF's)

@@ -43,14 +43,22 @@ COM_TOL = 10.0 ** (1 - VECTOR_DIGITS)
 INERTIA_RTOL, INERTIA_ATOL = 1e-6, 10.0 ** -INERTIA_DIGITS
 
 
+def same_com(com: Any, stored_com: Any) -> bool:
+    """Whether a centre of mass (3,) [m] is the stored one, to what the store keeps."""
+    return float(np.linalg.norm(np.asarray(com, float) - np.asarray(stored_com, float))) <= COM_TOL
+
+
+def same_inertia(inertia: Any, stored_inertia: Any) -> bool:
+    """Whether an inertia (3, 3) or (9,) [kg m^2] is the stored one, to what the store keeps."""
+    stored = np.asarray(stored_inertia, float).reshape(3, 3)
+    turned = float(np.abs(np.asarray(inertia, float).reshape(3, 3) - stored).max())
+    return turned <= max(INERTIA_RTOL * float(np.abs(stored).max()), INERTIA_ATOL)
+
+
 def same_inertial(com: Any, inertia: Any, stored_com: Any, stored_inertia: Any) -> bool:
     """Whether a centre of mass (3,) [m] and inertia (3, 3) [kg m^2] are the stored ones, to what the store
     keeps."""
-    stored = np.asarray(stored_inertia, float).reshape(3, 3)
-    scale = float(np.abs(stored).max())
-    moved = float(np.linalg.norm(np.asarray(com, float) - np.asarray(stored_com, float)))
-    turned = float(np.abs(np.asarray(inertia, float).reshape(3, 3) - stored).max())
-    return moved <= COM_TOL and turned <= max(INERTIA_RTOL * scale, INERTIA_ATOL)
+    return same_com(com, stored_com) and same_inertia(inertia, stored_inertia)
 
 
 def stored_numbers(values: Any, digits: int = VECTOR_DIGITS) -> list[float]:

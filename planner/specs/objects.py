@@ -334,7 +334,7 @@ def _urdf_spec(named: Path, path: Path, scale: float | None, given: Physical, co
     if given.com is None and own.com is not None:
         x, y, z = (v * factor for v in own.com)
         if not all(math.isfinite(v) for v in (x, y, z)):
-            raise InputError(f"{path}: its <inertial> origins give no finite centre of mass ({x}, {y}, {z}); give "
+            raise InputError(f"{path}: its <inertial> origins give no finite centre of mass (a nan or inf value); give "
                              f"its own as com = [x, y, z] [m, object frame] in a sidecar ({path.stem}.toml)")
         given, com_from = replace(given, com=(x, y, z)), f"{path.name} <inertial><origin>"
     return spec, given.over(own.own(given)), com_from
@@ -351,13 +351,17 @@ def with_physical(spec: ObjectSpec, physical: Physical) -> ObjectSpec:
 def file_values(named: str, spec: ObjectSpec) -> list[tuple[str, dict[str, Value]]]:
     """The values the files of the user's file ``named`` (as the run names it; ``spec`` its object) give,
     first first, each with its file's name: its sidecar's, then a URDF's own
-    (:meth:`~planner.specs.urdf_objects.UrdfObject.stated`, unchecked); [] for other objects."""
+    (:meth:`~planner.specs.urdf_objects.UrdfObject.stated`, unchecked; its centre of mass scaled by the run's
+    ``--scale``, as a sidecar's is given); [] for other objects."""
     if not spec.user_file or not spec.source:
         return []
     found = mesh_sidecar(Path(named))
     out = [] if found is None else [(found.name, Physical.checked(read_toml(found), str(found)).given())]
-    if spec.kind == URDF_FILE:
-        out.append((Path(spec.source).name, read_urdf_object(Path(spec.source), spec.geometry).stated()))
+    if spec.kind == URDF_FILE:  # its centre as the scaled object has it, as the sidecar's is given (--scale)
+        stated = read_urdf_object(Path(spec.source), spec.geometry).stated()
+        if "com" in stated:
+            stated["com"] = tuple(float(v) * spec.scale for v in stated["com"])  # type: ignore[union-attr]
+        out.append((Path(spec.source).name, stated))
     return out
 
 

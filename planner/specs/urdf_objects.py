@@ -175,7 +175,8 @@ def _read(path: Path, geometry: str, mtime_ns: int, ctime_ns: int, size: int) ->
     if odd is not None:
         raise ConfigError(f"{path}: link '{odd.getparent().getparent().getparent().get('name')}': "
                           f"<{odd.tag}> geometry is not supported; use <mesh>, <box>, <cylinder> or <sphere>")
-    model = load_model(path)
+    with np.errstate(invalid="ignore", over="ignore"):  # a nan/inf <origin>: refused below, not numpy's warnings
+        model = load_model(path)
     _check_rigid(path, model)
     links = model.robot.links
     if not any(getattr(link, f"{geometry}s") for link in links):

@@ -127,6 +127,22 @@ def test_a_sidecar_com_replacing_the_urdfs_is_said_and_another_one_later_refused
                    "now [0, 0, 0.01], given by box.urdf <inertial><origin>")
 
 
+def test_under_scale_a_sidecar_com_is_compared_with_the_urdfs_scaled(tmp_path: Path) -> None:
+    """A sidecar's centre is the scaled object's: at --scale 2 it equals a URDF's own at half its value (nothing
+    replaced, nothing said), and where it differs the URDF's is said as the scaled object has it."""
+    urdf = box_urdf(tmp_path, "0 0 0.01")
+    urdf.with_suffix(".toml").write_text("com = [0, 0, 0.02]\n")
+    code, _, err = grasp("generate", str(urdf), "--scale", "2", "--hand", "panda", "--db", str(tmp_path / "a.db"),
+                         *FAST)
+    assert code == 0, err
+    assert "replaces" not in err, err
+    urdf.with_suffix(".toml").write_text("com = [0, 0, 0.03]\n")
+    code, _, err = grasp("generate", str(urdf), "--scale", "2", "--hand", "panda", "--db", str(tmp_path / "b.db"),
+                         *FAST)
+    assert code == 0, err
+    assert "com [0, 0, 0.03] from box.toml replaces box.urdf's com [0, 0, 0.02]" in err, err
+
+
 def test_the_visual_geometry_is_planned_stored_and_kept_apart(tmp_path: Path) -> None:
     """A URDF whose collision box is a stand-in for a smaller visual one: --geometry visual plans on the visual
     box; the other choice under the same name is refused, not mixed in; validate rebuilds the visual one."""
