@@ -18,6 +18,10 @@ facet by facet in order of distance, in chunks, up to the first clean one
 (:func:`nearest_dirty_reference`; h to a few ulp), for less when the generators are many
 (the Barrett's mug sweep: 2.5 -> 2.35 ms an epsilon, one BLAS thread; the
 Panda's ~70 generators: the same time).
+
+The seed S is small (:data:`SEEDS`: the support points of 7 directions
+first): every point is a hull vertex that each later qhull round pays for,
+and the rounds bring in the points near the origin that matter.
 """
 
 from __future__ import annotations

@@ -13,7 +13,10 @@ for grasps that fail it, so ``force_closure(...) == (epsilon(...) > 0)``.
 
 Cost: the hull-free certificates of closure.py reject non-closure grasps in
 well under a millisecond; closure grasps then pay one hull (evaluate,
-volume) or an active-set hull of a few dozen wrenches (epsilon).  The
+volume) or an active-set hull of a few dozen wrenches (epsilon, which for
+more than FULL_HULL_MAX_POINTS L1 generators runs only the certificates'
+first tests before it: an active-set epsilon clear of the tolerance proves
+force closure by itself).  The
 L-infinity volume needs every vertex of the Minkowski sum, which grows
 quickly with the number of contacts (seconds to minutes from 4 contacts
 on); its epsilon does not, and ``evaluate`` takes it from the active set.
