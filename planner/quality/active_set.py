@@ -30,7 +30,11 @@ from collections.abc import Callable
 
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
-from scipy.spatial._qhull import _QhullUser
+
+try:  # scipy's private base of its hulls, for _Hull; without it the plain ConvexHull (the same facets)
+    from scipy.spatial._qhull import _QhullUser
+except ImportError:  # pragma: no cover
+    _QhullUser = None
 
 from planner.quality.closure import SIMPLEX
 from planner.quality.hull import HullError, blocks, max_outside, qhull, unique_rows
@@ -74,6 +78,10 @@ class _Hull(ConvexHull):
         self._vertices = None
         self.nsimplex = self.simplices.shape[0]
         _QhullUser._update(self, qhull)
+
+
+if _QhullUser is None:  # pragma: no cover
+    _Hull = ConvexHull  # type: ignore[misc]
 
 
 class L1Support:
