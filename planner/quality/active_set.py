@@ -18,6 +18,10 @@ facet by facet in order of distance, in chunks, up to the first clean one
 (:func:`nearest_dirty_reference`; h to a few ulp), for less when the generators are many
 (the Barrett's mug sweep: 2.5 -> 2.35 ms an epsilon, one BLAS thread; the
 Panda's ~70 generators: the same time).
+
+The seed S is small (:data:`SEEDS`: the support points of 7 directions
+first): every point is a hull vertex that each later qhull round pays for,
+and the rounds bring in the points near the origin that matter.
 """
 
 from __future__ import annotations
@@ -27,12 +31,26 @@ from collections.abc import Callable
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
+try:  # scipy's private base of its hulls, for _Hull; without it the plain ConvexHull (the same facets)
+    from scipy.spatial._qhull import _QhullUser
+except ImportError:  # pragma: no cover
+    _QhullUser = None
+
 from planner.quality.closure import SIMPLEX
 from planner.quality.hull import HullError, blocks, max_outside, qhull, unique_rows
 from planner.quality.tolerances import FACET_TOL
 
 #: Seed directions: the coordinate axes both ways, then the simplex both ways.
 SEED_DIRECTIONS = np.vstack([np.eye(6), -np.eye(6), SIMPLEX, -SIMPLEX])
+#: The seeds tried in turn: the support points of the simplex's 7 directions
+#: first, then of its 14 both ways, then of SEED_DIRECTIONS (the last also
+#: for the merged rebuild).  The answer is exact from any seed; a seed of
+#: fewer points gives a hull of fewer points and facets, whose qhull rounds
+#: cost less (the Panda's random_003 unit, 1,001 epsilons, one BLAS thread:
+#: 2.9 ms an epsilon from SEED_DIRECTIONS alone, 2.1 from the 14, 1.8 from
+#: the 7 first).  A seed of fewer than 7 distinct points cannot span 6-D, and
+#: one whose rounds stall is left for the next.
+SEEDS = (SIMPLEX, np.vstack([SIMPLEX, -SIMPLEX]), SEED_DIRECTIONS)
 #: Support points of at most this many dirty facets are added per round.
 ADD_PER_ROUND = 8
 MAX_ROUNDS = 200
@@ -44,6 +62,26 @@ FIRST_CHUNK = 32
 
 class _Stalled(Exception):
     """The incremental active set hit round-off; rebuild with merging."""
+
+
+class _Hull(ConvexHull):
+    """scipy's ConvexHull without its volume and area (None): ``_update``,
+    run after every ``add_points``, computes them for every facet (~0.1 ms
+    a round on the Panda's ~1,000-facet hulls), and the active set reads
+    only the points and facets, which are ConvexHull's bit for bit."""
+
+    def _update(self, qhull) -> None:  # type: ignore[no-untyped-def]
+        qhull.triangulate()
+        self.simplices, self.neighbors, self.equations, self.coplanar, good = qhull.get_simplex_facet_array()
+        self.good = good if b"QG" in qhull.options else None      # as ConvexHull: only asked for with 'QG'
+        self.volume, self.area = None, None
+        self._vertices = None
+        self.nsimplex = self.simplices.shape[0]
+        _QhullUser._update(self, qhull)
+
+
+if _QhullUser is None:  # pragma: no cover
+    _Hull = ConvexHull  # type: ignore[misc]
 
 
 class L1Support:
@@ -102,20 +140,24 @@ def active_set_epsilon(support: L1Support, scale: float) -> float | None:
     ``support`` (an L1Support or LinfSupport); None if the support points
     are not full-dimensional.
 
-    First with one incremental 'Q0' qhull (new points are added to the
-    existing hull, 1.5-3x faster than rebuilding); if round-off interferes,
-    again with a merged hull rebuilt every round.
+    From each seed of SEEDS in turn with one incremental 'Q0' qhull (new
+    points are added to the existing hull, 1.5-3x faster than rebuilding);
+    if round-off interferes on all of them, again from the last seed with a
+    merged hull rebuilt every round.
     """
-    seed = unique_rows(support.point(SEED_DIRECTIONS))
     tol = FACET_TOL * scale
-    try:
-        hull = ConvexHull(seed, incremental=True, qhull_options="Q0")
+    for dirs in SEEDS:
+        seed = unique_rows(support.point(dirs))
+        if len(seed) <= seed.shape[1]:
+            continue
         try:
-            return _grow(support, hull, tol, incremental=True)
-        finally:
-            hull.close()
-    except (QhullError, ValueError, _Stalled):
-        pass
+            hull = _Hull(seed, incremental=True, qhull_options="Q0")
+            try:
+                return _grow(support, hull, tol, incremental=True)
+            finally:
+                hull.close()
+        except (QhullError, ValueError, _Stalled):
+            pass
     try:
         merged = qhull(seed)
         return None if merged is None else _grow(support, merged, tol, incremental=False)

@@ -10,11 +10,11 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from quality_support import REFERENCE, assert_close
-from scipy.spatial import ConvexHull
+from scipy.spatial import ConvexHull, QhullError
 
 from planner.quality import active_set
 from planner.quality.active_set import L1Support, active_set_epsilon, nearest_dirty, nearest_dirty_reference
-from planner.quality.hull import hull_epsilon, qhull
+from planner.quality.hull import hull_epsilon, qhull, unique_rows
 from planner.quality.tolerances import FACET_TOL
 
 CUBE = np.array(list(itertools.product([-1.0, 1.0], repeat=6)))       # 64 facets, all at distance 1
@@ -68,4 +68,62 @@ def test_the_active_set_gives_the_full_hulls_epsilon(seed: int, gens: int) -> No
     hull = qhull(wrenches)
     eps = active_set_epsilon(L1Support(wrenches), float(np.abs(wrenches).max()))
     assert hull is not None and eps is not None
+    assert_close(eps, hull_epsilon(hull), rel=REFERENCE, abs_=REFERENCE)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(7, 30), st.integers(1, 12))
+def test_the_hull_without_volume_has_convexhulls_points_and_facets(seed: int, start: int, added: int) -> None:
+    """After the seed and after each add_points, bit for bit (volume and area are not computed)."""
+    rng = np.random.default_rng(seed)
+    points = rng.normal(size=(start + 2 * added, 6))
+    try:
+        plain = ConvexHull(points[:start], incremental=True, qhull_options="Q0")
+    except Exception:
+        return                                  # qhull's own trouble with the seed: the fast hull has it too
+    fast = active_set._Hull(points[:start], incremental=True, qhull_options="Q0")
+    try:
+        for batch in (None, points[start:start + added], points[start + added:]):
+            if batch is not None:
+                plain.add_points(batch)
+                fast.add_points(batch)
+            for name in ("points", "equations", "simplices", "neighbors", "coplanar", "vertices"):
+                assert np.array_equal(getattr(fast, name), getattr(plain, name)), name
+            assert fast.good is None and plain.good is None      # qhull's 'good' facets only with 'QG'
+            assert fast.volume is None and fast.area is None
+    finally:
+        plain.close()
+        fast.close()
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(25, 120))
+def test_every_seed_gives_the_full_hulls_epsilon(seed: int, gens: int) -> None:
+    """The rounds from each seed of SEEDS that qhull takes and that does not stall give the full hull's
+    epsilon, and so does the cascade when its first seeds cannot span 6-D (a few of the simplex's directions)."""
+    rng = np.random.default_rng(seed)
+    wrenches = rng.normal(size=(gens, 6)) + rng.normal(scale=0.2, size=6)
+    hull = qhull(wrenches)
+    assert hull is not None
+    support, scale = L1Support(wrenches), float(np.abs(wrenches).max())
+    for dirs in active_set.SEEDS:
+        start = unique_rows(support.point(dirs))
+        try:
+            grown = active_set._Hull(start, incremental=True, qhull_options="Q0")
+        except QhullError:
+            continue
+        try:
+            assert_close(active_set._grow(support, grown, FACET_TOL * scale, incremental=True), hull_epsilon(hull),
+                         rel=REFERENCE, abs_=REFERENCE)
+        except active_set._Stalled:
+            pass
+        finally:
+            grown.close()
+    saved = active_set.SEEDS
+    try:
+        active_set.SEEDS = (active_set.SIMPLEX[:3], active_set.SIMPLEX[:6], *saved)
+        eps = active_set_epsilon(support, scale)
+    finally:
+        active_set.SEEDS = saved
+    assert eps is not None
     assert_close(eps, hull_epsilon(hull), rel=REFERENCE, abs_=REFERENCE)

@@ -16,9 +16,10 @@ from quality_support import (
     sphere_grasp,
 )
 
-from planner.quality import FORCE_CLOSURE_TOL, epsilon, evaluate, force_closure, primitive_wrenches
-from planner.quality.closure import SIMPLEX, check_closure
+from planner.quality import FORCE_CLOSURE_TOL, epsilon, evaluate, force_closure, metrics, primitive_wrenches
+from planner.quality.closure import SIMPLEX, check_closure, quick_reject
 from planner.quality.reference import reference_epsilon
+from planner.quality.tolerances import FACET_TOL
 
 R = 0.05   # sphere radius and torque scale [m]
 
@@ -137,3 +138,34 @@ def test_a_gws_thinner_than_tol_is_rejected_without_a_hull() -> None:
     assert check_closure(wrenches).verdict is False
     assert reference_epsilon(wrenches) <= FORCE_CLOSURE_TOL
     assert epsilon(pts, frames, **args) == 0.0
+
+
+@given(grasp=grasps())
+@settings(max_examples=300, deadline=None)
+def test_a_quick_rejection_is_the_certificates_verdict(grasp: tuple[np.ndarray, np.ndarray, dict]) -> None:
+    pts, frames, args = grasp
+    wrenches, _ = primitive_wrenches(pts, frames, **args)
+    if quick_reject(wrenches):
+        assert check_closure(wrenches).verdict is False
+
+
+def _from_certificates(gws: metrics._Gws) -> float:
+    """``epsilon`` of an L1 GWS the way it was before the active set came first."""
+    lower = metrics._closure_lower(gws)
+    return 0.0 if lower <= 0.0 else max(metrics._l1_epsilon(gws), lower)
+
+
+@given(seed=seeds, n=st.integers(3, 9), mu=st.sampled_from([0.05, 0.3, 1.0]), box=st.booleans())
+@settings(max_examples=200, deadline=None)
+def test_the_active_set_first_gives_the_certificates_epsilon(seed: int, n: int, mu: float, box: bool) -> None:
+    """Where the active set answers alone (> FULL_HULL_MAX_POINTS generators, not rejected, epsilon clear of
+    the tolerance), its epsilon is the certificates' path's to its error, FACET_TOL * scale, and it
+    answers 0.0 only for a grasp that is not force closure."""
+    pts, frames = (box_grasp if box else sphere_grasp)(np.random.default_rng(seed), n)
+    gws = metrics._gws(pts, frames, mu, np.zeros(3), R, 8, "point", "L1", 0.0)
+    first, want = metrics._active_set_first(gws), _from_certificates(gws)
+    if first is None:
+        assert len(gws.union) <= metrics.FULL_HULL_MAX_POINTS or want <= FORCE_CLOSURE_TOL * 2
+        return
+    assert_close(first, want, rel=0.0, abs_=FACET_TOL * gws.scale)
+    assert (first > 0) == (want > 0)
