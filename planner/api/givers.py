@@ -6,6 +6,7 @@ file (:func:`from_files`)."""
 from __future__ import annotations
 
 from planner import prepare
+from planner.record.field import same_com
 from planner.specs.objects import URDF_FILE, ObjectSpec, file_values
 from planner.specs.physical import Physical, Value
 
@@ -38,7 +39,7 @@ def note_overridden(named: str, spec: ObjectSpec, given: Physical) -> None:
         return
     pairs: dict[tuple[str, str], tuple[dict[str, Value], dict[str, Value]]] = {}
     for givers in _givers(named, spec, given).values():
-        if len(givers) > 1 and givers[0][1] != givers[1][1]:  # the same value given twice replaces nothing
+        if len(givers) > 1 and not _same(givers[0][1], givers[1][1]):  # the same value given twice replaces nothing
             (winner, ours), (loser, theirs) = givers[:2]
             both = pairs.setdefault((winner, loser), ({}, {}))
             both[0].update(ours)
@@ -47,6 +48,14 @@ def note_overridden(named: str, spec: ObjectSpec, given: Physical) -> None:
         verb = "replaces" if len(ours) == 1 else "replace"
         prepare.noted(f"object '{spec.name}'", f"{_listed(ours)} {f'from {winner}' if winner else 'as given'} "
                       f"{verb} {loser}'s {_listed(theirs)}")
+
+
+def _same(ours: dict[str, Value], theirs: dict[str, Value]) -> bool:
+    """Whether two givers' values of one property are the same: a centre of mass to what the store keeps (a URDF's
+    own is scaled by the run's --scale, 0.1 * 3 is not 0.3), the others exactly."""
+    if ours.keys() != theirs.keys():
+        return False
+    return all(same_com(v, theirs[k]) if k == "com" else v == theirs[k] for k, v in ours.items())
 
 
 def _joined(words: list[str]) -> str:

@@ -122,3 +122,24 @@ def test_a_urdf_origin_that_is_no_number_is_refused_naming_the_file(tmp_path: Pa
     assert "\n" not in str(exc.value)
     urdf.with_suffix(".toml").write_text("com = [0, 0, 0.01]\n")  # a sidecar's replaces it
     assert_close(load_object(str(urdf)).com, [0, 0, 0.01])
+
+
+@pytest.mark.parametrize("scale, urdf_z, side_z", [(1.1, "0.01", 0.011), (0.1, "0.2", 0.02)])
+def test_under_scale_a_sidecar_com_equal_to_the_urdfs_scaled_replaces_nothing(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture, scale: float, urdf_z: str, side_z: float) -> None:
+    """0.01 * 1.1 is 0.011000000000000001: the URDF's own centre times --scale is the sidecar's to round-off, and
+    nothing is said to replace it (not "com [0, 0, 0.011] from box.toml replaces box.urdf's com [0, 0, 0.011]")."""
+    from planner import prepare
+    from planner.api.givers import note_overridden
+    from planner.specs.physical import NO_PHYSICAL
+
+    urdf = box_urdf(tmp_path, inertial(f"0 0 {urdf_z}"))
+    urdf.with_suffix(".toml").write_text(f"com = [0, 0, {side_z}]\n")
+    assert float(urdf_z) * scale != side_z  # the case: equal only to round-off
+    with caplog.at_level("INFO", logger=prepare.LOGGER):
+        note_overridden(str(urdf), resolve_spec(str(urdf), scale=scale), NO_PHYSICAL)
+    assert not [r.getMessage() for r in caplog.records if "replaces" in r.getMessage()]
+    urdf.with_suffix(".toml").write_text(f"com = [0, 0, {side_z * 1.5}]\n")  # a centre that is another one is said
+    with caplog.at_level("INFO", logger=prepare.LOGGER):
+        note_overridden(str(urdf), resolve_spec(str(urdf), scale=scale), NO_PHYSICAL)
+    assert [r.getMessage() for r in caplog.records if "from box.toml replaces box.urdf's com" in r.getMessage()]
