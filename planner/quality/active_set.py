@@ -73,9 +73,9 @@ class _Hull(ConvexHull):
     def _update(self, qhull) -> None:  # type: ignore[no-untyped-def]
         qhull.triangulate()
         self.simplices, self.neighbors, self.equations, self.coplanar, good = qhull.get_simplex_facet_array()
-        self.good = good if b"QG" in qhull.options else None      # as ConvexHull: only asked for with 'QG'
+        self.good = good.astype(bool) if b"QG" in qhull.options else None   # as ConvexHull: only with 'QG'
         self.volume, self.area = None, None
-        self._vertices = None
+        self._vertices = qhull.get_extremes_2d() if qhull.ndim == 2 else None  # as ConvexHull: 2-D in order
         self.nsimplex = self.simplices.shape[0]
         _QhullUser._update(self, qhull)
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from quality_support import REFERENCE, assert_close
@@ -127,3 +128,15 @@ def test_every_seed_gives_the_full_hulls_epsilon(seed: int, gens: int) -> None:
         active_set.SEEDS = saved
     assert eps is not None
     assert_close(eps, hull_epsilon(hull), rel=REFERENCE, abs_=REFERENCE)
+
+
+@pytest.mark.parametrize("dim, options", [(6, "Q0 QG0"), (6, "Q0 QG-1"), (3, "QG2"), (2, "Q0"), (2, "QG0")])
+def test_the_hull_without_volume_has_convexhulls_good_and_vertices(dim: int, options: str) -> None:
+    """The rest of what ConvexHull gives but its volume and area: 'good' (a bool per facet, with 'QG') and the
+    vertices (in 2-D counter-clockwise, as qhull orders them)."""
+    points = np.random.default_rng(dim).normal(size=(40, dim))
+    plain, fast = ConvexHull(points, qhull_options=options), active_set._Hull(points, qhull_options=options)
+    assert (fast.good is None) == (plain.good is None)
+    if plain.good is not None:
+        assert fast.good.dtype == plain.good.dtype and np.array_equal(fast.good, plain.good)
+    assert np.array_equal(fast.vertices, plain.vertices)
