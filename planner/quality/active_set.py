@@ -80,8 +80,31 @@ class _Hull(ConvexHull):
         _QhullUser._update(self, qhull)
 
 
-if _QhullUser is None:  # pragma: no cover
-    _Hull = ConvexHull  # type: ignore[misc]
+def _hull_class() -> type[ConvexHull]:
+    """_Hull where, on the installed scipy, it gives ConvexHull's points and facets after a seed and an
+    add_points (its base and the arrays its _update reads are scipy's private ones, which another version may
+    change), else the plain ConvexHull: never an error nor a silent fall to the merged rebuild of every epsilon."""
+    if _QhullUser is None:
+        return ConvexHull
+    points = np.vstack([np.eye(6), -np.eye(6), SIMPLEX, -SIMPLEX])
+    try:
+        hulls = [cls(points[:12], incremental=True, qhull_options="Q0") for cls in (_Hull, ConvexHull)]
+        try:
+            for hull in hulls:
+                hull.add_points(points[12:])
+            fast, plain = hulls
+            same = all(np.array_equal(getattr(fast, name), getattr(plain, name))
+                       for name in ("points", "equations", "simplices", "neighbors", "coplanar"))
+        finally:
+            for hull in hulls:
+                hull.close()
+    except Exception:  # noqa: BLE001 - whatever another scipy's private base does, the public hull serves
+        return ConvexHull
+    return _Hull if same else ConvexHull
+
+
+#: The hull class of the active set's rounds (:func:`_hull_class`).
+HULL = _hull_class()
 
 
 class L1Support:
@@ -151,7 +174,7 @@ def active_set_epsilon(support: L1Support, scale: float) -> float | None:
         if len(seed) <= seed.shape[1]:
             continue
         try:
-            hull = _Hull(seed, incremental=True, qhull_options="Q0")
+            hull = HULL(seed, incremental=True, qhull_options="Q0")
             try:
                 return _grow(support, hull, tol, incremental=True)
             finally:

@@ -140,3 +140,28 @@ def test_the_hull_without_volume_has_convexhulls_good_and_vertices(dim: int, opt
     if plain.good is not None:
         assert fast.good.dtype == plain.good.dtype and np.array_equal(fast.good, plain.good)
     assert np.array_equal(fast.vertices, plain.vertices)
+
+
+@pytest.mark.parametrize("error", [AttributeError, TypeError, ValueError])
+def test_a_scipy_whose_private_hull_base_differs_gets_the_plain_hull(monkeypatch: pytest.MonkeyPatch,
+                                                                      error: type[Exception]) -> None:
+    """_Hull leans on scipy's private _QhullUser._update: where another version's differs, the active set's
+    rounds take the plain ConvexHull (the same epsilon), not an error out of epsilon."""
+    class Changed:
+        @staticmethod
+        def _update(hull: object, qhull: object) -> None:
+            raise error("another scipy's private base")
+
+    monkeypatch.setattr(active_set, "_QhullUser", Changed)
+    monkeypatch.setattr(active_set, "HULL", getattr(active_set, "_hull_class", lambda: active_set._Hull)(),
+                        raising=False)
+    wrenches = np.random.default_rng(3).normal(size=(60, 6)) + 0.1
+    hull = qhull(wrenches)
+    eps = active_set_epsilon(L1Support(wrenches), float(np.abs(wrenches).max()))
+    assert hull is not None and eps is not None
+    assert_close(eps, hull_epsilon(hull), rel=REFERENCE, abs_=REFERENCE)
+    assert active_set.HULL is ConvexHull      # not _Hull failing in every round (ValueError: the merged rebuild)
+
+
+def test_this_scipy_gets_the_hull_without_volume() -> None:
+    assert active_set.HULL is active_set._Hull
