@@ -158,23 +158,27 @@ class LinfSupport(L1Support):
         return total
 
 
-def active_set_epsilon(support: L1Support, scale: float) -> float | None:
+def active_set_epsilon(support: L1Support, scale: float, *, seeds: tuple[np.ndarray, ...] = SEEDS,
+                       hull_class: type[ConvexHull] | None = None) -> float | None:
     """Exact epsilon (signed, to FACET_TOL * scale) of the GWS behind
     ``support`` (an L1Support or LinfSupport); None if the support points
     are not full-dimensional.
 
-    From each seed of SEEDS in turn with one incremental 'Q0' qhull (new
-    points are added to the existing hull, 1.5-3x faster than rebuilding);
-    if round-off interferes on all of them, again from the last seed with a
-    merged hull rebuilt every round.
+    From each seed of ``seeds`` (directions (k, 6) each) in turn with one
+    incremental 'Q0' qhull of ``hull_class`` (default HULL; new points are
+    added to the existing hull, 1.5-3x faster than rebuilding); if round-off
+    interferes on all of them, again from the last seed with a merged hull
+    rebuilt every round.  (``seeds=(SEED_DIRECTIONS,)``,
+    ``hull_class=ConvexHull``: the implementation before 2026-12-06, which
+    the tests compare with.)
     """
     tol = FACET_TOL * scale
-    for dirs in SEEDS:
+    for dirs in seeds:
         seed = unique_rows(support.point(dirs))
         if len(seed) <= seed.shape[1]:
             continue
         try:
-            hull = HULL(seed, incremental=True, qhull_options="Q0")
+            hull = (hull_class or HULL)(seed, incremental=True, qhull_options="Q0")
             try:
                 return _grow(support, hull, tol, incremental=True)
             finally:

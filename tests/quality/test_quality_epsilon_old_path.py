@@ -12,32 +12,18 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from quality_support import box_grasp, sphere_grasp
-from scipy.spatial import ConvexHull, QhullError
+from scipy.spatial import ConvexHull
 
 from planner.quality import metrics
-from planner.quality.active_set import SEED_DIRECTIONS, L1Support, LinfSupport, _grow, _Stalled
+from planner.quality.active_set import SEED_DIRECTIONS, L1Support, LinfSupport, active_set_epsilon
 from planner.quality.closure import check_closure
-from planner.quality.hull import HullError, qhull, unique_rows
+from planner.quality.hull import HullError, qhull
 from planner.quality.tolerances import FACET_TOL, FORCE_CLOSURE_TOL
 
 
 def _old_active_set_epsilon(support: L1Support, scale: float) -> float | None:
     """active_set_epsilon before the seeds of SEEDS: SEED_DIRECTIONS only, the plain ConvexHull."""
-    seed = unique_rows(support.point(SEED_DIRECTIONS))
-    tol = FACET_TOL * scale
-    try:
-        hull = ConvexHull(seed, incremental=True, qhull_options="Q0")
-        try:
-            return _grow(support, hull, tol, incremental=True)
-        finally:
-            hull.close()
-    except (QhullError, ValueError, _Stalled):
-        pass
-    try:
-        merged = qhull(seed)
-        return None if merged is None else _grow(support, merged, tol, incremental=False)
-    except (QhullError, ValueError, _Stalled, HullError):
-        return None
+    return active_set_epsilon(support, scale, seeds=(SEED_DIRECTIONS,), hull_class=ConvexHull)
 
 
 def _old_l1_epsilon(union: np.ndarray, scale: float) -> float:
