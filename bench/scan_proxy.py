@@ -1,11 +1,13 @@
 """Scanned meshes as published, and what the collision proxy costs and changes (issue 24, item 2).
 
-    python bench/scan_proxy.py [--before REV] [--faces 2000 100000] [--approaches 256] [--poses 200] [--json FILE]
+    python bench/scan_proxy.py [--before REV] [--faces 2000 100000] [--noise MM] [--approaches 256] [--poses 200]
+                               [--json FILE]
 
 Meshes (made in code, ``tests/scanlike.py``): one capsule, 4.4 cm across and 11.4 cm long, meshed with
 near-uniform triangles at each ``--faces`` count and written as an OBJ with texture coordinates whose
-vertices are split at the UV seam and the poles (as textured scans are published); also the largest one with
-small holes, and two bodies in one file. Each is loaded with the planner's loader (what it repairs is printed).
+vertices are split at the UV seam and the poles (as textured scans are published); with ``--noise MM`` the
+largest is a rough scan (each position moved along the normal by seeded noise of that deviation, the smaller
+ones stay on the shape); also the largest one with small holes, and two bodies in one file. Each is loaded with the planner's loader (what it repairs is printed).
 
 Cost: one unit of the Panda's default sweep (antipodal, ``--approaches`` points x 8 rolls x 2 depths, no
 reachability) per mesh, before (``--before``, default main's :data:`BEFORE`; ``none`` skips it) and after (this
@@ -85,14 +87,15 @@ def _side(tree: Path, cache: Path, path: Path, approaches: int, out: Path) -> di
 
 
 # -- the meshes ---------------------------------------------------------------------------------------------------
-def write_meshes(folder: Path, faces: list[int]) -> dict[str, Path]:
+def write_meshes(folder: Path, faces: list[int], noise: float = 0.0) -> dict[str, Path]:
+    """The capsules (``noise`` [m] on the largest), the holed one and two bodies."""
     import scanlike
     import trimesh
 
     out = {}
     for n in faces:
         out[f"capsule_{n}"] = folder / f"capsule_{n}.obj"
-        out[f"capsule_{n}"].write_text(scanlike.uv_obj(n))
+        out[f"capsule_{n}"].write_text(scanlike.uv_obj(n, noise=noise if n == max(faces) else 0.0))
     big = scanlike.capsule(max(faces))
     holed = scanlike.with_holes(big, 5, np.random.default_rng(0))
     out["holes"] = folder / "capsule_holes.obj"
@@ -194,6 +197,7 @@ def compare(rows: list[dict], a: str, b: str) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--faces", type=int, nargs="+", default=[2000, 100000])
+    parser.add_argument("--noise", type=float, default=0.0, help="[mm] a rough scan: noise on the largest mesh")
     parser.add_argument("--approaches", type=int, default=256)
     parser.add_argument("--poses", type=int, default=200)
     parser.add_argument("--before", default=BEFORE)
@@ -205,13 +209,13 @@ def main() -> None:
         child(args.child, args.approaches, args.json_out)
         return
     sys.path.insert(0, str(ROOT))
-    print(f"# scan_proxy: faces {args.faces}, {args.approaches} approaches, before {args.before}; "
+    print(f"# scan_proxy: faces {args.faces}, noise {args.noise} mm, {args.approaches} approaches, before {args.before}; "
           f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}")
     print(f"# {time.strftime('%Y-%m-%d %H:%M')} start: {uptime()}")
     figures: dict = {}
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        paths = write_meshes(folder, sorted(args.faces))
+        paths = write_meshes(folder, sorted(args.faces), args.noise * 1e-3)
         loading(paths)
         cache = Path(os.environ.get("GRASP_CACHE", tmp)) / "scan_proxy"
         sides = {"after": ROOT}

@@ -5,7 +5,8 @@ a scanner's software publishes it, at any face count.
   scan's tessellation, not a CAD primitive's long strips), ~``faces`` faces;
 - :func:`uv_obj`: its OBJ text with texture coordinates and the vertices
   split at the UV seam and the poles (the same positions written again,
-  unmerged, as exporters write a textured mesh);
+  unmerged, as exporters write a textured mesh), optionally rough (a
+  scanner's noise along the surface normal, the same at a seam's copies);
 - :func:`with_holes`: small holes punched in it;
 - :func:`bodies`: several separate bodies in one mesh.
 
@@ -45,17 +46,21 @@ def _profile(rows: int, radius: float, height: float) -> tuple[np.ndarray, np.nd
     return rho, z
 
 
-def uv_grid(faces: int, radius: float = RADIUS, height: float = HEIGHT
+def uv_grid(faces: int, radius: float = RADIUS, height: float = HEIGHT, noise: float = 0.0, seed: int = 0
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(vertices (v, 3) [m], uv (v, 2), faces (f, 3)) of the capsule as a UV
     exporter writes it: columns 0 and ``cols`` are the same positions
-    (the seam), and every column has its own pole vertex."""
+    (the seam), and every column has its own pole vertex. ``noise`` [m]:
+    the standard deviation of a seeded normal displacement of each distinct
+    position along the capsule's normal (a rough scan; 0: on the shape)."""
     cols, rows = _grid(faces, radius, height)
     rho, z = _profile(rows, radius, height)
     angle = np.linspace(0.0, 2 * np.pi, cols + 1)
     angle[-1] = 0.0  # the seam column: exactly the first column's positions
     a, r = np.meshgrid(angle, np.arange(rows + 1))  # (rows + 1, cols + 1)
     vertices = np.stack([rho[r] * np.cos(a), rho[r] * np.sin(a), z[r]], axis=-1).reshape(-1, 3)
+    if noise > 0:
+        vertices = _roughened(vertices, noise, height, np.random.default_rng(seed))
     u, v = np.meshgrid(np.linspace(0.0, 1.0, cols + 1), np.linspace(0.0, 1.0, rows + 1))
     uv = np.stack([u, v], axis=-1).reshape(-1, 2)
     index = np.arange((rows + 1) * (cols + 1)).reshape(rows + 1, cols + 1)
@@ -70,6 +75,19 @@ def uv_grid(faces: int, radius: float = RADIUS, height: float = HEIGHT
     return vertices, uv, np.vstack(tris)
 
 
+def _roughened(vertices: np.ndarray, noise: float, height: float, rng: np.random.Generator) -> np.ndarray:
+    """``vertices`` (v, 3) moved along the capsule's outward normal (from
+    its axis segment) by seeded normal noise of deviation ``noise`` [m], one
+    draw per distinct position (a seam's copies move together)."""
+    _, first, inverse = np.unique(np.round(vertices, 12), axis=0, return_index=True, return_inverse=True)
+    axis = np.zeros_like(vertices)
+    axis[:, 2] = np.clip(vertices[:, 2], -0.5 * height, 0.5 * height)
+    normal = vertices - axis
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    shift = rng.normal(0.0, noise, len(first))[np.asarray(inverse).reshape(-1)]
+    return vertices + normal * shift[:, None]
+
+
 def capsule(faces: int, radius: float = RADIUS, height: float = HEIGHT) -> trimesh.Trimesh:
     """The capsule with about ``faces`` faces, vertices merged (closed)."""
     vertices, _, tris = uv_grid(faces, radius, height)
@@ -80,9 +98,10 @@ def capsule(faces: int, radius: float = RADIUS, height: float = HEIGHT) -> trime
     return mesh
 
 
-def uv_obj(faces: int, radius: float = RADIUS, height: float = HEIGHT) -> str:
-    """OBJ text of the capsule with texture coordinates, vertices split at the seam and poles."""
-    vertices, uv, tris = uv_grid(faces, radius, height)
+def uv_obj(faces: int, radius: float = RADIUS, height: float = HEIGHT, noise: float = 0.0, seed: int = 0) -> str:
+    """OBJ text of the capsule with texture coordinates, vertices split at
+    the seam and poles; ``noise`` [m]: rough, as :func:`uv_grid`."""
+    vertices, uv, tris = uv_grid(faces, radius, height, noise, seed)
     lines = ["# scan-like capsule, UV-split vertices"]
     lines += [f"v {x:.9f} {y:.9f} {z:.9f}" for x, y, z in vertices]
     lines += [f"vt {u:.6f} {v:.6f}" for u, v in uv]

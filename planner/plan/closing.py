@@ -26,9 +26,9 @@ The object frame is the world frame here (the object sits at the origin).
 
 A finely meshed object (a scan) is closed against its collision proxy
 (:mod:`planner.geometry.proxy`, :meth:`Grasper.for_object`): a decimation
-within a measured 0.25 mm of the exact mesh, so the cost of a closing does
-not grow with the face count; the contact points are then moved onto the
-exact mesh.
+within a measured 0.5 mm of the exact mesh, so the cost of a closing does
+not grow with the face count; the contacts are then read on the exact mesh
+(points moved onto it, its normals at a contact's scale).
 
 A table (optional, ``Grasper(..., table=frame)``: a frame on its top, object
 frame, z up) is an obstacle like the object, GraspIt's way: the approach

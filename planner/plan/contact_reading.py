@@ -100,12 +100,18 @@ class ContactReading:
     def _onto_exact(self, contacts: HandContacts) -> HandContacts:
         """The contacts read on the proxy with their points moved to the
         nearest point found on the exact surface (at most the proxy's
-        deviation away); normals stay the proxy's (a scan's own facets are
-        noisier than its proxy's)."""
+        deviation away) and their normals the exact surface's averaged over
+        ``patches.normal_radius`` (:mod:`planner.geometry.normals`): a
+        scan's triangles and its proxy's facets are tilted by its noise, and
+        a contact's normal taken from one of them made force closure a
+        matter of which proxy (a rough capsule: 300 of 362 grasps force
+        closure on one, 233 on another, from the same poses)."""
         if len(contacts) == 0:
             return contacts
-        points = self.exact_surface.nearest(contacts.points)[0]  # type: ignore[union-attr]
-        return HandContacts(points, contacts.normals, contacts.links, contacts.radius, contacts.region)
+        exact = self.exact_surface
+        points, _, face = exact.nearest(contacts.points)  # type: ignore[union-attr]
+        normals = -exact.scale_normals.at(points, face, self.settings.patches.normal_radius)  # type: ignore[union-attr]
+        return HandContacts(points, normals, contacts.links, contacts.radius, contacts.region)
 
     def _points(self, pairs: Closest, names: list[str]) -> HandContacts:
         """The legacy reading: closest points, at most MAX_PER_LINK per link spread over it."""

@@ -23,6 +23,7 @@ from scipy.spatial import cKDTree
 
 from planner.geometry.cones import nearest_in_cone, nearest_in_wedge
 from planner.geometry.distance import DistanceBounds, MeshDistance
+from planner.geometry.normals import ScaleNormals
 from planner.specs.hands import HandSpec
 from planner.specs.urdf import load_model
 
@@ -69,6 +70,9 @@ class PatchSettings:
     small: float = 0.004  # a region narrower than this stays one soft-finger contact
     max_points: int = 4  # extreme points per larger region
     sharp_angle: float = float(np.radians(25.0))  # object edges with faces farther apart are sharp
+    # a contact read on a collision proxy takes the exact surface's normal averaged over this radius
+    # (planner.geometry.normals: a scan's triangles and its proxy's facets carry its noise)
+    normal_radius: float = 0.002
     seed: int = 0
 
 
@@ -224,6 +228,11 @@ class ObjectSurface:
     def _distance(self) -> MeshDistance:
         """The mesh's AABB tree: exact closest points."""
         return MeshDistance(self.mesh.vertices, self.mesh.faces)
+
+    @cached_property
+    def scale_normals(self) -> ScaleNormals:
+        """The mesh's normals at a contact's scale (``settings.normal_radius``)."""
+        return ScaleNormals(self.mesh)
 
     @cached_property
     def _bounds(self) -> DistanceBounds:

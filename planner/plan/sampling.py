@@ -46,6 +46,7 @@ All vectors in the object frame, lengths in metres, angles in radians.
 from __future__ import annotations
 
 import itertools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -283,7 +284,8 @@ def cone_directions(axes: np.ndarray, spread: float, rng: np.random.Generator) -
 
 
 def antipodal(mesh: trimesh.Trimesh, count: int, rng: np.random.Generator, *, max_width: float, mu: float,
-              min_width: float = MIN_CHORD, spread: float | None = None, tries: int = CONE_TRIES) -> Pairs:
+              min_width: float = MIN_CHORD, spread: float | None = None, tries: int = CONE_TRIES,
+              normals_at: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> Pairs:
     """``count`` area-weighted surface points of ``mesh`` and their antipodal
     partners (see module docstring). ``max_width`` [m]: the widest chord the
     hand can take; ``mu``: friction coefficient of the cone test (both
@@ -296,28 +298,33 @@ def antipodal(mesh: trimesh.Trimesh, count: int, rng: np.random.Generator, *, ma
     normal only) and keeps the first usable pair, else the last refusal.
     The random numbers are drawn in a fixed order and amount (points,
     phases, then ``tries`` directions for every point, used or not), so
-    point i is replayable."""
+    point i is replayable. ``normals_at(points (n, 3), faces (n,))``: the
+    outward unit normals at surface points (default: their faces'; a scan's
+    at a contact's scale, :mod:`planner.geometry.normals`)."""
     if count < 1:
         raise InputError(f"--approaches must be at least 1, got {count}")
     points, faces = trimesh.sample.sample_surface(mesh, count, seed=rng)
     phases = rng.uniform(0.0, 2 * np.pi, count)  # drawn for every point: point i is replayable
-    normals = np.asarray(mesh.face_normals[faces], float)
     points = np.asarray(points, float)
+    normals_at = normals_at or (lambda _, f: mesh.face_normals[f])
+    normals = np.asarray(normals_at(points, faces), float)
     spread = mu if spread is None else spread
     drawn = [cone_directions(-normals, spread, rng) for _ in range(tries)]
-    opposite, axes, widths, reasons = _chords(mesh, points, normals, -normals, max_width, mu, min_width)
+    opposite, axes, widths, reasons = _chords(mesh, points, normals, -normals, max_width, mu, min_width, normals_at)
     for directions in drawn:
         retry = np.flatnonzero(reasons != "")
         if len(retry) == 0:
             break
-        found = _chords(mesh, points[retry], normals[retry], directions[retry], max_width, mu, min_width)
+        found = _chords(mesh, points[retry], normals[retry], directions[retry], max_width, mu, min_width,
+                        normals_at)
         for whole, part in zip((opposite, axes, widths, reasons), found):
             whole[retry] = part
     return Pairs(points, normals, opposite, axes, widths, phases, tuple(str(r) for r in reasons))
 
 
 def _chords(mesh: trimesh.Trimesh, points: np.ndarray, normals: np.ndarray, directions: np.ndarray, max_width: float,
-            mu: float, min_width: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+            mu: float, min_width: float, normals_at: Callable[[np.ndarray, np.ndarray], np.ndarray]
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(opposite (n, 3), axes (n, 3), widths (n,), reasons (n,)) of rays from
     ``points`` (n, 3) along unit ``directions`` (n, 3) into the object (see
     :class:`Pairs`); a chord is usable (reason "") when both normals lie
@@ -326,7 +333,8 @@ def _chords(mesh: trimesh.Trimesh, points: np.ndarray, normals: np.ndarray, dire
     hits, rays, tris = mesh.ray.intersects_location(points - normals * RAY_START, directions, multiple_hits=False)
     opposite = np.full((n, 3), np.nan)
     exit_normals = np.full((n, 3), np.nan)
-    opposite[rays], exit_normals[rays] = hits, mesh.face_normals[tris]
+    if len(rays):
+        opposite[rays], exit_normals[rays] = hits, normals_at(hits, tris)
     chord = opposite - points
     widths = np.linalg.norm(chord, axis=1)
     axes = chord / np.where(widths > 0, widths, 1.0)[:, None]

@@ -92,10 +92,11 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: fingers' inertia from their collision shapes, not the URDF's 1 kg m^2 placeholder): its weight resistance,
 #: feasibility, scores and ranks (its grasps, epsilons and contacts the same), and its trials; and the PR2 stores
 #: its width (the gap between its fingertip pads at the closed joints, hand.toml width_links; null before).
-#: 21: the Allegro closes at 7 rad/s, its joints' limit in Wonik's description (the default 0.5 rad/s before), in
-#: its settle as in its trials: the same grasps, epsilons and contacts, other settled epsilons, scores and ranks of
-#: the Allegro's (15 objects of bench/mujoco_protocols.py: ranks of 1,300 of 4,482 grasps, another top-1 on 11).
-ALGORITHM_VERSION = 21
+#: 21: the Allegro closes at 7 rad/s (Wonik's limit, not 0.5) in its settle and trials: other settled epsilons,
+#: scores and ranks of the Allegro's (15 objects of bench/mujoco_protocols.py: another top-1 on 11).
+#: 22: a mesh of more than 5,000 faces (a scan) is closed on a proxy within 0.5 mm (not 0.25), its contacts take
+#: the exact surface's normals averaged over 2 mm (not the proxy's facets'); smaller meshes: the same grasps.
+ALGORITHM_VERSION = 22
 
 #: Named in the digest of sweeps on a table only (those of the object alone stay
 #: as they were), bumped when a change alters only which grasps they produce.

@@ -25,6 +25,7 @@ import traceback
 from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 
@@ -284,8 +285,11 @@ def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, han
     the object, else closed where it is."""
     t1 = time.perf_counter()
     openings = {s.name: hand.opening(s.joints) for s in shapes}
+    normals_at = None  # a scan's (closed on a proxy): at a contact's scale, as its contacts read them
+    if grasper.exact_surface is not None:
+        normals_at = partial(grasper.exact_surface.scale_normals.at, radius=grasper.settings.patches.normal_radius)
     pairs = sampling.antipodal(obj.mesh, settings.approaches or 0, rng, mu=obj.friction,
-                               max_width=max(openings.values()) - 2 * MIN_CLEARANCE)
+                               max_width=max(openings.values()) - 2 * MIN_CLEARANCE, normals_at=normals_at)
     todo = antipodal_candidates(pairs, shapes, openings, settings, MIN_CLEARANCE,
                                 settings.ray_range(spec.chunk, len(pairs)))
     check_sampler(settings, hand)

@@ -109,10 +109,10 @@ def test_a_proxy_that_does_not_fit_is_said(caplog: pytest.LogCaptureFixture) -> 
 def test_a_rough_scan_gets_a_proxy_within_the_tolerance_nearly_everywhere(caplog: pytest.LogCaptureFixture) -> None:
     """A scan's noise, not its shape, keeps every decimation from the tolerance somewhere: it was closed on
     its exact mesh, at ~7x the cost; it gets the first proxy within the tolerance at 99.9% of the samples and
-    within the spike bound everywhere, and says so. (A capsule of 15k faces, 0.1 mm of noise along its
-    normals: its 4,000-face proxy, the only one tried, is 0.28 mm away at most, 0.20 mm at 99.9%.)"""
+    within the spike bound everywhere, and says so. (A capsule of 15k faces, 0.2 mm of noise along its
+    normals: its 4,000-face proxy, the only one tried, is 0.56 mm away at most, 0.38 mm at 99.9%.)"""
     mesh = capsule(15_000)
-    noise = np.random.default_rng(0).normal(0.0, 0.0001, (len(mesh.vertices), 1))
+    noise = np.random.default_rng(0).normal(0.0, 0.0002, (len(mesh.vertices), 1))
     rough = trimesh.Trimesh(mesh.vertices + mesh.vertex_normals * noise, mesh.faces, process=False)
     s = ProxySettings()
     with caplog.at_level(logging.INFO, logger=prepare.LOGGER):

@@ -278,3 +278,26 @@ def test_a_links_gap_without_its_pairs_equals_the_gap_of_its_pairs(table: bool) 
             for shape in shapes:
                 grasper.close(rays.points[i], rays.directions[i], 0.0, 0.0, shape, obj.torque_scale)
     assert {"none", "far", "cut"} <= seen  # nothing near, a hull gap, the exact mesh within the cut reach
+
+def _capsule_normal(points: np.ndarray) -> np.ndarray:
+    """(n, 3) the true capsule's inward unit normals at ``points`` (n, 3) near it (scanlike's capsule)."""
+    axis = np.zeros_like(points)
+    axis[:, 2] = np.clip(points[:, 2], -0.5 * scanlike.HEIGHT, 0.5 * scanlike.HEIGHT)
+    out = axis - points
+    return out / np.linalg.norm(out, axis=1, keepdims=True)
+
+
+def test_a_rough_scans_contacts_take_the_surfaces_normal_not_a_noisy_facets(panda, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """A rough scan (0.1 mm of noise on the capsule's 20k faces) is closed through its proxy; a contact's normal
+    is the scan's averaged over a contact's scale, near the true shape's: it was the proxy facet's, tilted by
+    the noise (up to tens of degrees), which decided force closure by which proxy a scan got."""
+    hand, shapes = panda
+    path = tmp_path / "rough.obj"
+    path.write_text(scanlike.uv_obj(20_000, noise=1e-4))
+    scan = load_object(str(path))
+    assert not collision_proxy(scan.mesh, scan.mesh_hash).exact
+    closings = _capsule_closings(hand, shapes["wide"], scan)
+    contacts = [c.contacts for _, c in closings]
+    points, normals = np.vstack([c.points for c in contacts]), np.vstack([c.normals for c in contacts])
+    angle = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", normals, _capsule_normal(points)), -1.0, 1.0)))
+    assert angle.max() < 5.0, np.round(np.sort(angle)[-5:], 1)

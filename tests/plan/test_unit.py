@@ -161,3 +161,36 @@ def test_random_convex_solids_narrower_than_the_opening_get_force_closure(seed, 
         r = run_unit(UnitSpec(str(path), "panda", FIRST, seed=0))
     assert r.error is None
     assert r.force_closure > 0, f"no force closure: {dict(r.rejected)}"
+
+
+
+def test_a_rough_scans_force_closure_is_its_shapes(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """A rough scan (the capsule of 100k faces with 0.1 mm of noise along its normals, closed on its proxy): its
+    grasps closed again from the same poses on the smooth capsule (2k faces, no proxy) are force closure or not
+    alike. The sampler and the contacts read the scan's normals at a contact's scale; with its proxy's facets'
+    (tilted by the noise) 271 of 362 grasps of a 64-point unit agreed, force closure on 300 against 219."""
+    import scanlike
+
+    from planner.geometry.solid import load_object
+    from planner.plan.closing import Closed, Grasper
+    from planner.plan.contacts import grasp_quality
+    from planner.sim import Sim
+    from planner.specs.hands import load_hand
+    from planner.specs.preshapes import load_preshapes
+
+    rough, smooth = tmp_path / "rough.obj", tmp_path / "smooth.obj"
+    rough.write_text(scanlike.uv_obj(100_000, noise=1e-4))
+    smooth.write_text(scanlike.uv_obj(2_000))
+    r = run_unit(UnitSpec(str(rough), "panda", SweepSettings(approaches=12, chunk=0, reach_placements=0), 0))
+    assert r.error is None and len(r.grasps) >= 40, (r.error, len(r.grasps))
+    hand = load_hand("panda")
+    shapes = {s.name: s for s in load_preshapes(hand)}
+    obj = load_object(str(smooth))
+    same = 0
+    with Sim() as sim:
+        grasper = Grasper.for_object(sim, hand, obj)
+        for g in r.grasps:
+            closed = grasper.close_from(np.asarray(g.pose), shapes[g.preshape], hand.full_configuration(g.open_joints))
+            assert isinstance(closed, Closed), closed
+            same += grasp_quality(closed.contacts, hand, obj, 8, False).force_closure == g.force_closure
+    assert same >= 0.95 * len(r.grasps), (same, len(r.grasps), r.force_closure)

@@ -1,0 +1,59 @@
+"""A surface's normal at the scale of a contact, not of one triangle.
+
+A scan's triangles carry its noise: 0.1 mm of noise on triangles 0.5 mm
+across tilts their normals by 10-20 degrees, and a decimation of it (a
+collision proxy, :mod:`planner.geometry.proxy`) has facets tilted by as
+much at a larger scale. A finger pad pressed on such a surface meets it over
+millimetres, not over one triangle, so the contact's normal is the
+surface's mean over that scale: the area-weighted mean of the outward
+normals of the faces whose centres lie within ``radius`` of the point (those
+facing the same side: a thin wall's far side is not averaged in).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+import trimesh
+from scipy.spatial import cKDTree
+
+#: Faces whose normal is farther than this [rad] from the point's own face's
+#: (then from the first mean) are left out: a wall's far side, an edge's
+#: other face; a scan's noise tilts its triangles by less.
+SAME_SIDE = np.radians(60.0)
+
+
+@dataclass
+class ScaleNormals:
+    """Normals of ``mesh`` (object frame [m]) averaged over a disc."""
+
+    mesh: trimesh.Trimesh
+
+    @cached_property
+    def _centres(self) -> cKDTree:
+        return cKDTree(self.mesh.triangles_center)
+
+    def at(self, points: np.ndarray, face: np.ndarray, radius: float) -> np.ndarray:
+        """(n, 3) outward unit normals at ``points`` (n, 3) on faces ``face``
+        (n,): the area-weighted mean of the normals of the faces centred
+        within ``radius`` [m] (the point's own face always in), twice: first
+        of those within ``SAME_SIDE`` of the point's own face's normal (a
+        box's other face at an edge is left out: the mean is the face's own
+        normal), then of those within ``SAME_SIDE`` of that first mean."""
+        normals, area = self.mesh.face_normals, self.mesh.area_faces
+        out = np.array(normals[face], float).reshape(-1, 3)
+        for i, near in enumerate(self._centres.query_ball_point(np.asarray(points, float).reshape(-1, 3), radius)):
+            near = np.union1d(np.asarray(near, np.int64), [face[i]])
+            n, w = normals[near], area[near]
+            mean = out[i]
+            for _ in range(2):
+                keep = n @ mean > np.cos(SAME_SIDE)
+                total = (n[keep] * w[keep, None]).sum(axis=0)
+                length = np.linalg.norm(total)
+                if length <= 0:
+                    break
+                mean = total / length
+            out[i] = mean
+        return out

@@ -1,0 +1,61 @@
+"""A surface's normal at a contact's scale (planner.geometry.normals)."""
+
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
+
+from planner.geometry.normals import ScaleNormals
+
+
+def _rough_plane(noise: float, seed: int = 0) -> trimesh.Trimesh:
+    """A 2 cm square in z = 0 of ~0.5 mm triangles, its vertices moved along z by noise [m]."""
+    n = 41
+    x, y = np.meshgrid(np.linspace(-0.01, 0.01, n), np.linspace(-0.01, 0.01, n))
+    z = np.random.default_rng(seed).normal(0.0, noise, x.shape)
+    index = np.arange(n * n).reshape(n, n)
+    a, b, c, d = index[:-1, :-1].ravel(), index[:-1, 1:].ravel(), index[1:, :-1].ravel(), index[1:, 1:].ravel()
+    faces = np.vstack([np.column_stack([a, b, d]), np.column_stack([a, d, c])])
+    return trimesh.Trimesh(np.column_stack([x.ravel(), y.ravel(), z.ravel()]), faces, process=False)
+
+
+def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", a, b), -1.0, 1.0)))
+
+
+def test_a_rough_surfaces_normal_at_a_contacts_scale_is_its_shapes() -> None:
+    """0.1 mm of noise tilts single triangles by up to tens of degrees; over a 2 mm disc the mean is within a few
+    degrees of the plane's normal."""
+    mesh = _rough_plane(1e-4)
+    face = np.arange(0, len(mesh.faces), 97)
+    face = face[np.abs(mesh.triangles_center[face, :2]).max(axis=1) < 0.007]  # the disc inside the square
+    up = np.tile([0.0, 0.0, 1.0], (len(face), 1))
+    assert _angle(mesh.face_normals[face], up).max() > 15.0  # one triangle's
+    assert _angle(ScaleNormals(mesh).at(mesh.triangles_center[face], face, 0.002), up).max() < 4.0
+
+
+def test_near_a_sharp_edge_a_face_keeps_its_own_normal() -> None:
+    """A box's other face within the radius is not averaged in: a point 1 mm from an edge has its face's normal."""
+    box = trimesh.creation.box(extents=(0.04, 0.04, 0.04)).subdivide().subdivide()
+    points = np.array([[0.019, 0.0, 0.02], [0.0, -0.019, 0.02], [0.019, 0.005, -0.01]])
+    _, _, face = trimesh.proximity.closest_point(box, points)
+    got = ScaleNormals(box).at(points, face, 0.002)
+    assert np.allclose(got, box.face_normals[face], atol=1e-12)
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(0, 2**31 - 1), st.floats(0.0005, 0.003))
+def test_the_normals_turn_with_the_surface(seed: int, radius: float) -> None:
+    """Rotating the mesh and its points rotates their normals (the disc is a ball: no frame is preferred)."""
+    mesh = trimesh.creation.icosphere(4, 0.02)
+    rng = np.random.default_rng(seed)
+    mesh.vertices += mesh.vertex_normals * rng.normal(0.0, 1e-4, (len(mesh.vertices), 1))
+    face = rng.choice(len(mesh.faces), 8, replace=False)
+    points = mesh.triangles_center[face]
+    turn = Rotation.random(random_state=seed).as_matrix()
+    turned = trimesh.Trimesh(mesh.vertices @ turn.T, mesh.faces, process=False)
+    expected = ScaleNormals(mesh).at(points, face, radius) @ turn.T
+    assert np.allclose(ScaleNormals(turned).at(points @ turn.T, face, radius), expected, atol=1e-9)
