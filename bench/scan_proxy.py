@@ -7,7 +7,8 @@ Meshes (made in code, ``tests/scanlike.py``): one capsule, 4.4 cm across and 11.
 near-uniform triangles at each ``--faces`` count and written as an OBJ with texture coordinates whose
 vertices are split at the UV seam and the poles (as textured scans are published); with ``--noise MM`` the
 largest is a rough scan (each position moved along the normal by seeded noise of that deviation, the smaller
-ones stay on the shape); also the largest one with small holes, and two bodies in one file. Each is loaded with the planner's loader (what it repairs is printed).
+ones stay on the shape); also the largest one with small holes, and two bodies in one file. Each is loaded with
+the planner's loader (what it repairs is printed).
 
 Cost: one unit of the Panda's default sweep (antipodal, ``--approaches`` points x 8 rolls x 2 depths, no
 reachability) per mesh, before (``--before``, default main's :data:`BEFORE`; ``none`` skips it) and after (this
@@ -209,8 +210,8 @@ def main() -> None:
         child(args.child, args.approaches, args.json_out)
         return
     sys.path.insert(0, str(ROOT))
-    print(f"# scan_proxy: faces {args.faces}, noise {args.noise} mm, {args.approaches} approaches, before {args.before}; "
-          f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}")
+    print(f"# scan_proxy: faces {args.faces}, noise {args.noise} mm, {args.approaches} approaches, "
+          f"before {args.before}; {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}")
     print(f"# {time.strftime('%Y-%m-%d %H:%M')} start: {uptime()}")
     figures: dict = {}
     with tempfile.TemporaryDirectory() as tmp:
