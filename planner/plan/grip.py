@@ -57,7 +57,7 @@ import numpy as np
 import trimesh
 from scipy.spatial import ConvexHull, QhullError
 
-from planner.geometry.frames import UP
+from planner.geometry.frames import UP, rows_cross
 from planner.plan.link_hulls import Hull, hulls
 from planner.plan.link_hulls import planes as _planes
 from planner.record.contacts import HandContacts
@@ -178,7 +178,7 @@ def _gravity(com: np.ndarray, a: np.ndarray, b: np.ndarray, up: np.ndarray = UP)
     a weight along -up at ``com`` about the line through ``a`` and ``b``: |((com - mid) x up) . axis|; about the
     vertical through ``a`` if they coincide: the horizontal distance)."""
     rel = com - 0.5 * (a + b)
-    across = np.cross(rel, up)
+    across = rows_cross(rel[None], up[None])[0]  # np.cross's products to the bit, without its set-up
     axis = b - a
     length = float(np.linalg.norm(axis))
     arm = float(np.linalg.norm(across)) if length < 1e-9 else abs(float(across @ axis)) / length
@@ -192,7 +192,7 @@ def _lever(com: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     rel = com - a
     if length < 1e-9:
         return float(np.linalg.norm(rel))
-    return float(np.linalg.norm(np.cross(rel, axis / length)))
+    return float(np.linalg.norm(rows_cross(rel[None], (axis / length)[None])[0]))
 
 
 def _near(hull: Hull, pose: np.ndarray, points: np.ndarray, idx: np.ndarray, band: float

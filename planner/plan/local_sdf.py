@@ -58,15 +58,22 @@ class LocalSurface:
 
         self.grid = hand.local_grid
         self.surface = None if self.grid is None else MeshDistance(mesh.vertices, mesh.faces)
+        self.points = None if self.grid is None else self.grid.points()  # once, not per grasp
+        if self.points is not None:
+            self.points.flags.writeable = False
 
     def of(self, pose: np.ndarray) -> np.ndarray | None:
         """:func:`measure` at ``pose``, or None for a hand without a grid."""
-        return None if self.grid is None or self.surface is None else measure(self.grid, self.surface, pose)
+        if self.grid is None or self.surface is None:
+            return None
+        return measure(self.grid, self.surface, pose, self.points)
 
 
-def measure(grid: LocalGrid, surface: MeshDistance, pose: np.ndarray) -> np.ndarray:
+def measure(grid: LocalGrid, surface: MeshDistance, pose: np.ndarray, points: np.ndarray | None = None
+            ) -> np.ndarray:
     """(LOCAL_CELLS,) the clipped, rounded signed distance [m] of the object
     (``surface``, object frame) at the ``grid``'s points for the hand at
-    ``pose`` (4, 4), hand frame in the object frame."""
-    points = grid.points() @ pose[:3, :3].T + pose[:3, 3]
+    ``pose`` (4, 4), hand frame in the object frame; ``points``: the grid's
+    :meth:`~planner.specs.hand_spec.LocalGrid.points`, when already made."""
+    points = (grid.points() if points is None else points) @ pose[:3, :3].T + pose[:3, 3]
     return np.round(np.clip(surface.signed(points), -CLIP, CLIP), DIGITS)

@@ -38,12 +38,17 @@ unchanged.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
+
+try:  # scipy's own loop behind connected_components, without its graph checks and transpose (see _components)
+    from scipy.sparse.csgraph._traversal import _connected_components_undirected
+except ImportError:  # pragma: no cover
+    _connected_components_undirected = None
 
 from planner.geometry.frames import tangent_bases
 from planner.plan.patch_surfaces import (
@@ -74,7 +79,10 @@ class Region:
 
     points : (k, 3) closest points on the object [m]; normals : (k, 3) contact
     normals into the object; area [m^2]; diameter [m], its largest width in
-    the tangent plane; normal : (3,) mean contact normal.
+    the tangent plane; normal : (3,) mean contact normal; plane : (k, 2) [m]
+    the points' coordinates in the tangent plane (:func:`_plane`), which its
+    diameter was measured from (None: not kept); :func:`extreme_points` reads
+    them instead of projecting the points a second time.
     """
 
     link: str
@@ -83,6 +91,7 @@ class Region:
     area: float
     diameter: float
     normal: np.ndarray
+    plane: np.ndarray | None = field(default=None, compare=False, repr=False)
 
 
 # -- regions ----------------------------------------------------------------------
@@ -119,8 +128,10 @@ def link_regions(link: str, surface: LinkSurface, pose: np.ndarray, obj: ObjectS
             continue  # the fringe around a nearby feature, not touching
         mean = normals[sel].mean(axis=0)
         mean /= np.linalg.norm(mean)
-        out.append(Region(link, closest[sel], normals[sel], weight * float(surface.area[idx[sel]].sum()),
-                          _diameter(closest[sel], mean), mean))
+        points_in = closest[sel]
+        uv = _plane(points_in, mean) if len(points_in) >= 2 else None
+        out.append(Region(link, points_in, normals[sel], weight * float(surface.area[idx[sel]].sum()),
+                          _width(uv), mean, uv))
     return out
 
 
@@ -182,7 +193,27 @@ def _cluster(points: np.ndarray, normals: np.ndarray, radius: float, split_angle
         pairs = pairs.compress(similar, axis=0)
     if not known:  # the graph's rows; their order within a row changes no label (numbered by smallest member)
         pairs = pairs[np.argsort(pairs[:, 0])]
-    n = len(points)
+    return _components(len(points), pairs)
+
+
+def _components(n: int, pairs: np.ndarray) -> np.ndarray:
+    """(n,) int32 labels of the connected components of the undirected graph on n nodes with edges ``pairs``
+    (p, 2), ascending by their first node, numbered by their smallest node: ``connected_components`` of their
+    CSR graph (:func:`_components_reference`), by the loop it runs, given both directions' rows at once (its
+    graph checks and transpose cost more than the search on a patch's few hundred samples)."""
+    if _connected_components_undirected is None:  # pragma: no cover
+        return _components_reference(n, pairs)
+    first, second = pairs[:, 0].astype(np.int32), pairs[:, 1].astype(np.int32)
+    back = np.argsort(second)  # the other direction's rows; their order within a row changes no label
+    nodes = np.arange(n + 1)
+    labels = np.full(n, -1, np.int32)
+    _connected_components_undirected(second, np.searchsorted(first, nodes).astype(np.int32), first[back],
+                                     np.searchsorted(second[back], nodes).astype(np.int32), labels)
+    return labels
+
+
+def _components_reference(n: int, pairs: np.ndarray) -> np.ndarray:
+    """:func:`_components` through scipy's public ``connected_components``."""
     graph = csr_matrix((np.ones(len(pairs)), pairs[:, 1], np.searchsorted(pairs[:, 0], np.arange(n + 1))), shape=(n, n))
     return connected_components(graph, directed=False)[1]
 
@@ -200,31 +231,40 @@ def _plane(points: np.ndarray, normal: np.ndarray) -> np.ndarray:
 _DIRS = np.stack([np.cos(np.arange(32) * np.pi / 32), np.sin(np.arange(32) * np.pi / 32)], axis=1)
 
 
-def _diameter(points: np.ndarray, normal: np.ndarray) -> float:
-    """Largest width [m] of the region in its tangent plane."""
-    if len(points) < 2:
+def _width(uv: np.ndarray | None) -> float:
+    """Largest width [m] of points given by their tangent-plane coordinates ``uv`` (k, 2) (None: fewer than
+    two points, 0)."""
+    if uv is None:
         return 0.0
-    proj = _plane(points, normal) @ _DIRS.T
+    proj = uv @ _DIRS.T
     return float(np.max(proj.max(axis=0) - proj.min(axis=0)))
 
 
-def extreme_points(points: np.ndarray, normal: np.ndarray, limit: int) -> np.ndarray:
+def extreme_points(points: np.ndarray, normal: np.ndarray, limit: int, plane: np.ndarray | None = None
+                   ) -> np.ndarray:
     """Indices of up to ``limit`` extreme points of a region in its tangent
     plane, in farthest-point order from the one farthest from the centroid
-    (a rectangle gives its corners)."""
-    uv = _plane(points, normal)
+    (a rectangle gives its corners); ``plane`` (k, 2): the points'
+    :func:`_plane` coordinates, when already known (:attr:`Region.plane`)."""
+    uv = _plane(points, normal) if plane is None else plane
     proj = uv @ _DIRS.T
     hull = np.unique(np.r_[np.argmax(proj, axis=0), np.argmin(proj, axis=0)])
     v = uv[hull]
-    chosen = [int(np.argmax(np.linalg.norm(v, axis=1)))]
-    dist = np.linalg.norm(v - v[chosen[0]], axis=1)
+    chosen = [int(np.argmax(_norms(v)))]
+    dist = _norms(v - v[chosen[0]])
     while len(chosen) < min(limit, len(v)):
         k = int(np.argmax(dist))
         if dist[k] <= 1e-9:
             break
         chosen.append(k)
-        dist = np.minimum(dist, np.linalg.norm(v - v[k], axis=1))
+        dist = np.minimum(dist, _norms(v - v[k]))
     return hull[chosen]
+
+
+def _norms(v: np.ndarray) -> np.ndarray:
+    """(h,) lengths of the rows of ``v`` (h, 2): ``np.linalg.norm(v, axis=1)`` to the bit (the same two squares
+    and one sum), without its set-up."""
+    return np.sqrt(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1])
 
 
 def regions(hand: HandSpec, obj: ObjectSurface, link_poses: dict[str, np.ndarray],
@@ -250,7 +290,7 @@ def discretise(found: list[Region], settings: PatchSettings) -> HandContacts:
             links.append(r.link)
             owner.append(r_i)
             continue
-        for k in extreme_points(r.points, r.normal, settings.max_points):
+        for k in extreme_points(r.points, r.normal, settings.max_points, r.plane):
             points.append(r.points[k])
             normals.append(r.normals[k] / np.linalg.norm(r.normals[k]))
             radius.append(0.0)

@@ -259,11 +259,12 @@ def solve(prog: ResistanceProgram, directions: np.ndarray) -> np.ndarray:
     solver = _solver()
     solver.passModel(lp)
     out = np.zeros(len(directions))
+    bounded = outside.shape[1] > 0  # a full-rank wrench matrix balances every load: nothing to test
     for r, d in enumerate(directions):
         load = basis[:3].T @ (prog.weight * d)
-        for row in range(rank):
-            solver.changeCoeff(row, k, float(load[row]))
-        if np.abs(outside.T @ d).max(initial=0.0) > RANK_TOL:  # a load the contacts cannot balance at all
+        for row, value in enumerate(load.tolist()):
+            solver.changeCoeff(row, k, value)
+        if bounded and np.abs(outside.T @ d).max() > RANK_TOL:  # a load the contacts cannot balance at all
             continue
         solver.run()
         if solver.getModelStatus() == highspy.HighsModelStatus.kOptimal:

@@ -151,3 +151,22 @@ def test_the_half_turn_of_the_panda_maps_its_grid_onto_itself() -> None:
     assert np.allclose(points[list(turn)], points * [-1.0, -1.0, 1.0])  # half a turn about the approach, z
     lopsided = LocalGrid((-0.02, -0.04, 0.05), (0.03, 0.04, 0.13), (3, 5, 5))
     assert replace(hand, local_grid=lopsided).cell_turns == ()  # a grid the turn does not map onto itself
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_a_surface_keeps_its_grid_points_and_measures_as_the_grid_does(seed: int) -> None:
+    """LocalSurface makes the grid's points once (not per grasp): the same cells, to the bit, as measuring with
+    the grid's own points at any pose."""
+    from scipy.spatial.transform import Rotation
+
+    from planner.geometry.solid import load_object
+
+    hand, mug = load_hand("panda"), load_object("mug").mesh
+    local = LocalSurface(hand, mug)
+    assert local.grid is not None and local.surface is not None
+    pose = np.eye(4)
+    pose[:3, :3] = Rotation.random(random_state=seed).as_matrix()
+    pose[:3, 3] = np.random.default_rng(seed).uniform(-0.05, 0.05, 3)
+    assert np.array_equal(local.of(pose), measure(local.grid, local.surface, pose))
+    assert np.array_equal(local.points, local.grid.points()) and not local.points.flags.writeable

@@ -24,10 +24,15 @@ from planner.plan.patches import (
     _band,
     _band_reference,
     _cluster,
+    _components_reference,
+    _norms,
+    _plane,
     discretise,
     extreme_points,
     hand_surfaces,
+    link_regions,
 )
+from planner.plan.patches import _components as patch_components
 from planner.plan.unit import grasp_quality
 from planner.sim import Sim
 from planner.specs.hands import load_hand
@@ -238,3 +243,70 @@ def test_contact_normals_at_the_boxs_edges_are_normals_the_box_has_there(hand: s
     assert len(edges) > 100
     assert max(angle for angle, soft in edges if not soft) < np.radians(0.5)
     assert max(angle for angle, _ in edges) < np.radians(15)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 300), st.floats(0.0, 8.0))
+def test_the_components_are_scipys_connected_components(seed: int, n: int, degree: float) -> None:
+    """Any graph, isolated nodes and none of its edges included: the same labels (numbered by their smallest
+    node) and dtype as scipy's public connected_components of its CSR graph."""
+    rng = np.random.default_rng(seed)
+    pairs = np.sort(rng.integers(0, n, size=(int(degree * n / 2), 2)), axis=1)
+    pairs = np.unique(pairs[pairs[:, 0] < pairs[:, 1]], axis=0).reshape(-1, 2)  # ascending by the first node
+    got, want = patch_components(n, pairs), _components_reference(n, pairs)
+    assert got.dtype == want.dtype and np.array_equal(got, want)
+
+
+def _extreme_points_reference(points: np.ndarray, normal: np.ndarray, limit: int) -> np.ndarray:
+    """extreme_points as it was before a region kept its plane coordinates (2026-12-06)."""
+    from planner.plan.patches import _DIRS
+
+    uv = _plane(points, normal)
+    proj = uv @ _DIRS.T
+    hull = np.unique(np.r_[np.argmax(proj, axis=0), np.argmin(proj, axis=0)])
+    v = uv[hull]
+    chosen = [int(np.argmax(np.linalg.norm(v, axis=1)))]
+    dist = np.linalg.norm(v - v[chosen[0]], axis=1)
+    while len(chosen) < min(limit, len(v)):
+        k = int(np.argmax(dist))
+        if dist[k] <= 1e-9:
+            break
+        chosen.append(k)
+        dist = np.minimum(dist, np.linalg.norm(v - v[k], axis=1))
+    return hull[chosen]
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 400), st.integers(1, 6))
+def test_extreme_points_from_a_regions_plane_are_those_from_its_points(seed: int, k: int, limit: int) -> None:
+    """The extreme points read from the plane coordinates a region keeps are those of projecting its points
+    again, as the code before did (np.linalg.norm's lengths to the bit)."""
+    rng = np.random.default_rng(seed)
+    points = rng.normal(size=(k, 3)) * rng.uniform(1e-4, 1e-2, size=3)
+    normal = rng.normal(size=3)
+    normal /= np.linalg.norm(normal)
+    want = _extreme_points_reference(points, normal, limit)
+    assert np.array_equal(extreme_points(points, normal, limit), want)
+    assert np.array_equal(extreme_points(points, normal, limit, _plane(points, normal)), want)
+    v = rng.normal(size=(k, 2)) * 10.0 ** rng.uniform(-6, 2)
+    assert np.array_equal(_norms(v), np.linalg.norm(v, axis=1))
+
+
+def test_a_regions_plane_and_diameter_are_its_points_in_its_tangent_plane(box_pinch) -> None:  # type: ignore[no-untyped-def]
+    """A region's plane coordinates are its points' (None for a single point) and its diameter their widest
+    extent along the 32 directions, as measured before the region kept them."""
+    from planner.plan.patches import _DIRS
+
+    hand, obj = load_hand("panda"), load_object("box")
+    surfaces, surface = hand_surfaces(hand, PatchSettings()), ObjectSurface(obj.mesh)
+    patch, _ = box_pinch
+    found = [r for link, pose in patch.link_poses.items() if link in surfaces
+             for r in link_regions(link, surfaces[link], pose, surface)]
+    assert found
+    for r in found:
+        if len(r.points) < 2:
+            assert r.plane is None and r.diameter == 0.0
+            continue
+        assert np.array_equal(r.plane, _plane(r.points, r.normal))
+        proj = _plane(r.points, r.normal) @ _DIRS.T
+        assert r.diameter == float(np.max(proj.max(axis=0) - proj.min(axis=0)))
