@@ -228,6 +228,20 @@ def test_a_resume_with_another_chunk_is_refused_not_stored_twice(box_db: Path, t
     assert code == 0, err
 
 
+@pytest.mark.parametrize("option, value, least", [
+    ("--approaches", "-3", 1), ("--rolls", "0", 1), ("--fan", "-1", 0), ("--chunk", "-1", 0),
+    ("--reach-placements", "-1", 0), ("--reach-top", "-2", 0), ("--fc-budget", "-1", 0),
+])
+def test_a_count_out_of_range_names_its_option_and_value(tmp_path: Path, option: str, value: str,
+                                                         least: int) -> None:
+    """One message named five options ("chunk, reach placements, reach top, pre-grasp distance and the
+    force-closure budget must be >= 0") and none of the values; now the option given and its value."""
+    db = tmp_path / "g.db"
+    code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(db), option, value)
+    one_line_error(code, err, 2, f"{option} must be at least {least}, got {value}")
+    assert not db.exists()
+
+
 @pytest.mark.parametrize("args, differs", [
     (["--fc-budget", "0"], "fc_budget 0 (stored 1000)"),
     (["--reach-top", "0"], "reach_top 0 (stored 8)"),
