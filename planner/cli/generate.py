@@ -171,7 +171,7 @@ def _print_summary(summary: api.Summary, db_path: Path) -> None:
         table.add_row(row["object"], "" if row["mass"] is None else f"{row['mass']:.4g}",
                       "" if row["friction"] is None else f"{row['friction']:.3g}", row["up"] or "", str(row["units"]),
                       str(row["candidates"]), str(row["grasps"]), str(row["force_closure"]), f"{row['seconds']:.1f}",
-                      row["error"] or "")
+                      "yes" if row["error"] else "")  # the error whole, once, on its own line below the table
     console = Console()
     console.print(table)
     console.print(f"candidates tried: {summary.candidates}, grasps with contacts: {summary.grasps}, "

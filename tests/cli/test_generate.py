@@ -95,6 +95,17 @@ def test_millimetres_passed_as_metres(tmp_path: Path) -> None:
     assert code == 0, err
 
 
+def test_an_object_that_fails_among_others_is_said_once_whole(tmp_path: Path) -> None:
+    """The summary table printed a failed object's error in its narrow last column, one word a line (20 lines
+    for a 0.13 mm object in an 80-column terminal), and then again whole on stderr: now 'yes' in the table."""
+    tiny = tmp_path / "tiny.stl"
+    trimesh.creation.box(extents=[5e-4, 5e-4, 5e-4]).export(tiny)
+    code, out, err = grasp("generate", str(tiny), "box", "--hand", "panda", "--db", str(tmp_path / "x.db"), *FAST)
+    row = next(line for line in out.splitlines() if line.startswith("│ tiny"))
+    assert code == 2 and row.split("│")[-2].strip() == "yes" and "millimetre" not in out, out
+    one_line_error(code, err, 2, "tiny", "smaller than a millimetre")
+
+
 def test_smaller_than_a_millimetre(tmp_path: Path) -> None:
     path = tmp_path / "tiny.stl"
     trimesh.creation.box(extents=[5e-4, 5e-4, 5e-4]).export(path)
