@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 from planner.api.resolving import DEFAULT_DB
 from planner.db.store import open_for_writing
 from planner.errors import InputError
-from planner.specs.inputs import check_seed
+from planner.specs.inputs import check_output, check_seed, writing
 
 if TYPE_CHECKING:
     from planner.calibration.fitting import Calibration
@@ -26,7 +26,9 @@ def report(db_path: Path, out: Path) -> Path:
     among them); returns the file written."""
     from planner.present import report as reporting
 
-    return reporting.write(Path(db_path), Path(out))
+    out = check_output(Path(out), "--out", folder=Path(out).suffix.lower() != ".html")
+    with writing(out, "--out"):
+        return reporting.write(Path(db_path), out)
 
 
 def calibration_errors(db_path: Path) -> list[str]:
@@ -53,7 +55,7 @@ def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB,
     ``pybullet``), and the model gets how that trial's verdict updates
     p_hold (:mod:`planner.calibration.update`)."""
     from planner.calibration.fitting import calibrate as fit_calibration
-    from planner.calibration.labels import label_names, labelled
+    from planner.calibration.labels import check_labelled, label_names, labelled
     from planner.calibration.model import DEFAULT_TREES
 
     if plot is not None and Path(plot).suffix.lower() != ".png":
@@ -64,6 +66,10 @@ def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB,
     if workers < 1:
         raise InputError(f"--workers must be at least 1, got {workers}")
     paths = [Path(p) for p in label_files]
+    for path, option in ((model_out, "--model-out"), (plot, "--plot")):
+        if path is not None:
+            check_output(Path(path), option)
+    check_labelled(paths, poses=poses, hand=hand, trial=trial, engine=engine)
     # the database is opened (and locked) first: one that cannot take the model says so before the fit, not after
     with open_for_writing(Path(db_path)) if db_path is not None else contextlib.nullcontext() as db:
         data = labelled(paths, poses=poses, seed=seed, hand=hand, workers=workers, progress=progress, trial=trial,
@@ -76,10 +82,13 @@ def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB,
         if db is not None:
             db.write_model(result.model, source, db.rule())
     if model_out is not None:
-        Path(model_out).write_text(result.model.to_toml(), encoding="utf-8")
+        with writing(Path(model_out), "--model-out"):
+            Path(model_out).write_text(result.model.to_toml(), encoding="utf-8")
     if plot is not None:
         from planner.calibration.plot import reliability_png
 
-        Path(plot).write_bytes(reliability_png([("held out (grouped CV)", result.reliability)],
-                                               f"p_hold, {result.model.hand}: {len(data.labels)} labelled grasps"))
+        png = reliability_png([("held out (grouped CV)", result.reliability)],
+                              f"p_hold, {result.model.hand}: {len(data.labels)} labelled grasps")
+        with writing(Path(plot), "--plot"):
+            Path(plot).write_bytes(png)
     return result

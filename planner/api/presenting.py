@@ -17,6 +17,7 @@ from planner.db.store import open_db
 from planner.errors import InputError
 from planner.record.grasp import Grasp
 from planner.specs.hands import load_hand
+from planner.specs.inputs import check_output, writing
 
 if TYPE_CHECKING:
     from planner.db.diverse import Spacing
@@ -42,6 +43,7 @@ def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: i
     spec = load_hand(hand)
     if Path(out).suffix.lower() != ".png":
         raise InputError(f"{out}: the picture is written as PNG; give a .png path")
+    check_output(Path(out), "--out")
     with open_db(Path(db_path), create=False, readonly=True) as db:
         key, obj = _stored(db, name, hand, "the picture")
         grasps = db.best(key, hand, count, first - 1) if spacing is None else \
@@ -50,7 +52,9 @@ def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: i
         best(key, hand, db_path=db_path)  # raises, saying why the object has none
     if not grasps:
         raise InputError(f"no grasp of rank {first} for '{key}' and hand '{hand}' in {db_path}")
-    render.save_sheet([(render.grasp_views(spec, obj, g), render.title(g)) for g in grasps], Path(out))
+    views = [(render.grasp_views(spec, obj, g), render.title(g)) for g in grasps]
+    with writing(Path(out), "--out"):
+        render.save_sheet(views, Path(out))
     return grasps
 
 

@@ -94,19 +94,11 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
     """Re-score a sample of each file's poses and pair the closed ones with
     their labels; ``trial`` > 0: that many closed grasps per file tried in
     ``engine`` (module docstring)."""
-    if not paths:
-        raise InputError("no label files given")
-    if poses is not None and poses < 1:
-        raise InputError(f"--poses must be at least 1, got {poses}")
-    if trial < 0:
-        raise InputError(f"--trial must be >= 0, got {trial}")
-    if engine not in TRIAL_GROUPS:
-        raise InputError(f"--engine must be one of {', '.join(TRIAL_GROUPS)}; got '{engine}'")
+    hand_name = check_labelled(paths, poses=poses, hand=hand, trial=trial, engine=engine)
     tables, labels, groups, files, verdicts = [], [], [], [], []
     sampled: dict[str, int] = {}
     objects: dict[str, dict[str, float]] = {}
     rejected: Counter = Counter()
-    hand_name = file_hand(list(map(Path, paths)), hand)
     for path, name in zip(map(Path, paths), label_names(paths)):
         spec_hand, spec, all_poses = importer.read_for_rescoring(path, hand_name)
         y = acronym.read_labels(path)
@@ -183,6 +175,20 @@ def _digest(path: Path) -> str:
         return digest.hexdigest()
     except OSError:
         return f"unreadable:{path}"
+
+
+def check_labelled(paths: Sequence[Path], *, poses: int | None, hand: str | None, trial: int, engine: str) -> str:
+    """The files' one hand, or a one-line error before any work (and before ``grasp calibrate`` opens its
+    database: a refused run leaves no database behind): no files, a file missing or not ACRONYM's, bad counts."""
+    if not paths:
+        raise InputError("no label files given")
+    if poses is not None and poses < 1:
+        raise InputError(f"--poses must be at least 1 (0: every pose), got {poses}")
+    if trial < 0:
+        raise InputError(f"--trial must be >= 0, got {trial}")
+    if engine not in TRIAL_GROUPS:
+        raise InputError(f"--engine must be one of {', '.join(TRIAL_GROUPS)}; got '{engine}'")
+    return file_hand(list(map(Path, paths)), hand)
 
 
 def file_hand(paths: Sequence[Path], hand: str | None) -> str:

@@ -191,14 +191,14 @@ def spacing(diverse: bool, min_translation: float, min_rotation: float):  # type
     return Spacing(min_translation, math.radians(min_rotation))
 
 
-def floats(text: str | None) -> tuple[float, ...] | None:
-    """A comma-separated list of numbers (None stays None)."""
+def floats(text: str | None, option: str | None = None) -> tuple[float, ...] | None:
+    """A comma-separated list of numbers (None stays None); ``option`` names the option in the error."""
     if text is None:
         return None
     try:
         return tuple(float(v) for v in text.split(","))
     except ValueError:
-        raise click.BadParameter(f"'{text}' is not a comma-separated list of numbers") from None
+        raise click.BadParameter(f"'{text}' is not a comma-separated list of numbers", param_hint=option) from None
 
 
 def report_failures(failed: dict[str, str]) -> None:

@@ -49,7 +49,7 @@ def calibrate(labels: tuple[Path, ...], db_path: Path, poses: int, seed: int, fo
     click.echo(f"p_hold for {result.model.hand}: {int(f['grasps'])} closed labelled grasps of {int(f['objects'])} "
                f"objects, success rate {f['success_rate']:.3f}")
     click.echo(f"held out ({int(f['folds'])} folds grouped by object): mean per-object AUC {f['auc_mean']:.3f} "
-               f"{_interval(f, 'auc_mean', 3)} (width baseline {f['auc_width']:.3f}), pooled AUC "
+               f"{_interval(f, 'auc_mean', 3)} (width baseline {_value(f['auc_width'], 3)}), pooled AUC "
                f"{f['auc_pooled']:.3f}, top-10 hold {f['top10']:.3f} {_interval(f, 'top10', 3)}, ECE {f['ece']:.4f} "
                f"{_interval(f, 'ece', 4)}, p_hold >= 0.5 agrees {f['agreement']:.3f} {_interval(f, 'agreement', 3)}, "
                f"log-loss {f['log_loss']:.4f}")
@@ -59,7 +59,7 @@ def calibrate(labels: tuple[Path, ...], db_path: Path, poses: int, seed: int, fo
     if "trialled" in f:
         click.echo(f"{int(f['trialled'])} grasps tried in {engine}: agreement with the labels: the verdict "
                    f"{f['trial_agreement']:.3f}, p_hold >= 0.5 {f['p_hold_agreement']:.3f}, p_hold given the "
-                   f"verdict >= 0.5 {f.get('p_hold_trial_agreement', math.nan):.3f} "
+                   f"verdict >= 0.5 {_value(f.get('p_hold_trial_agreement', math.nan), 3)} "
                    f"{_interval(f, 'p_hold_trial_agreement', 3)} (held out)")
     for o in result.per_object:
         auc = "n/a" if math.isnan(o["auc_p_hold"]) else f"{o['auc_p_hold']:.3f}"
@@ -73,3 +73,8 @@ def calibrate(labels: tuple[Path, ...], db_path: Path, poses: int, seed: int, fo
 def _interval(figures: dict[str, float], name: str, digits: int) -> str:
     lo, hi = figures.get(f"{name}_lo", math.nan), figures.get(f"{name}_hi", math.nan)
     return "[n/a]" if not (math.isfinite(lo) and math.isfinite(hi)) else f"[{lo:.{digits}f}, {hi:.{digits}f}]"
+
+
+def _value(x: float, digits: int) -> str:
+    """``x`` to ``digits`` decimals, or n/a where it is not a number (a hand without a width: not a parallel jaw)."""
+    return f"{x:.{digits}f}" if math.isfinite(x) else "n/a"

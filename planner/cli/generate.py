@@ -108,8 +108,9 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
     if not on_table:
         unused(["stable_poses"], "used with --on-table only")
     settings = api.SweepSettings(approaches=approaches, sampler=sampler, box_delta=box_delta, rolls=rolls,
-                                 depths=floats(depths) or DEFAULTS.depths, fan_count=fan_count,
-                                 standoffs=floats(standoffs), chunk=chunk, reach_placements=reach_placements,
+                                 depths=floats(depths, "--depths") or DEFAULTS.depths, fan_count=fan_count,
+                                 standoffs=floats(standoffs, "--standoffs"), chunk=chunk,
+                                 reach_placements=reach_placements,
                                  reach_top=reach_top, volume=volume, settle=settle, fc_budget=fc_budget,
                                  preshapes=tuple(preshape_names.split(",")) if preshape_names is not None else None)
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
@@ -170,7 +171,7 @@ def _print_summary(summary: api.Summary, db_path: Path) -> None:
         table.add_row(row["object"], "" if row["mass"] is None else f"{row['mass']:.4g}",
                       "" if row["friction"] is None else f"{row['friction']:.3g}", row["up"] or "", str(row["units"]),
                       str(row["candidates"]), str(row["grasps"]), str(row["force_closure"]), f"{row['seconds']:.1f}",
-                      row["error"] or "")
+                      "yes" if row["error"] else "")  # the error whole, once, on its own line below the table
     console = Console()
     console.print(table)
     console.print(f"candidates tried: {summary.candidates}, grasps with contacts: {summary.grasps}, "

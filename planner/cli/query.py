@@ -74,15 +74,16 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
     if apart is not None:
         raise click.BadParameter("--diverse is not yet available with --object-pose")
     misses: list[tuple[int, str]] = []
-    found = api.best_at(object_name, hand, floats(object_pose) or (), db_path=db_path, top=top,
-                        robot_base=floats(robot_base), max_candidates=max_candidates, misses=misses, plan=plan,
-                        seed=seed)
-    world = api.object_pose_matrix(floats(object_pose) or ())
+    pose = floats(object_pose, "--object-pose") or ()
+    base = floats(robot_base, "--robot-base")
+    found = api.best_at(object_name, hand, pose, db_path=db_path, top=top, robot_base=base,
+                        max_candidates=max_candidates, misses=misses, plan=plan, seed=seed)
+    world = api.object_pose_matrix(pose)
     if as_json:
         echo_json([{**r.to_json(), "frames": _frames_json(r.grasp, world, rule, model)} for r in found])
         return
     if not found:
-        table = "" if api.planned_on_table(object_name, hand, floats(object_pose) or (), db_path=db_path) else (
+        table = "" if api.planned_on_table(object_name, hand, pose, db_path=db_path) else (
             ", grasps planned on the table in this resting pose (none is stored; "
             f"`{api.table_command(object_name, hand, db_path)}` plans the most probable ones)")
         spot = "" if plan else ", planning on the spot (leave out --no-plan)"
@@ -187,8 +188,9 @@ def _misses(misses: list[tuple[int, str]]) -> str:
 
 def _on_table(name: str, hand: str, db_path: Path, top: int, table_at: str, poses: int, robot_base: str | None,
               max_candidates: int, as_json: bool, plan: bool, seed: int, rule: object, model: object) -> None:
-    tables = api.best_on_table(name, hand, db_path=db_path, top=top, at=floats(table_at) or (), poses=poses,
-                               robot_base=floats(robot_base), max_candidates=max_candidates, plan=plan, seed=seed)
+    tables = api.best_on_table(name, hand, db_path=db_path, top=top, at=floats(table_at, "--table-at") or (),
+                               poses=poses, robot_base=floats(robot_base, "--robot-base"),
+                               max_candidates=max_candidates, plan=plan, seed=seed)
     if as_json:
         outside = api.p_hold_outside(name, hand, db_path=db_path)
         echo_json([{**t.to_json(), "grasps": [{**r.to_json(), "frames": _frames_json(r.grasp, t.object_pose, rule,

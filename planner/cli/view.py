@@ -30,7 +30,7 @@ def view(object_name: str, hands: tuple[str, ...], db_path: Path, top: int, host
     if robot_base is not None and object_pose is None:
         raise click.BadParameter("--robot-base needs --object-pose")
     viewer = api.view(object_name, hands or None, db_path=db_path, top=top, host=host, port=port,
-                      object_pose=floats(object_pose), robot_base=floats(robot_base),
+                      object_pose=floats(object_pose, "--object-pose"), robot_base=floats(robot_base, "--robot-base"),
                       spacing=spacing(diverse, min_translation, min_rotation))
     click.echo(f"grasp viewer: {viewer.url} ({len(viewer.entries)} grasps; Ctrl-C to stop)")
     try:

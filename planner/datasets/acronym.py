@@ -246,6 +246,8 @@ class AcronymHeader:
 def _open(path: Path) -> Any:
     import h5py
 
+    if path.is_dir():
+        raise InputError(f"{path}: is a folder; give its .h5 files (e.g. {path / '*.h5'})")
     if not path.is_file():
         raise InputError(f"{path}: file not found")
     try:

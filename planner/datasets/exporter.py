@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING
 
 from planner.datasets import formats
 from planner.datasets.columns import Stream
-from planner.datasets.labels import BEST, FORCE_CLOSURE, check, has_label
+from planner.datasets.labels import BEST, FORCE_CLOSURE, P_HOLD, P_HOLD_TRIAL, TRIAL, check, has_label
 from planner.datasets.meshes import ExportedObject, mesh_stem, write_meshes
 from planner.datasets.registry import PairWriter, TableWriter
 from planner.db.store import Database, open_db
@@ -202,7 +202,7 @@ def _export(db_path: Path, fmt: str, out_dir: Path, objects: Sequence[str], hand
             summary.notes += writer.notes(pairs)
         if not any(_has_one(sel.batches(db, o, h)) for o, h in pairs):
             raise InputError(f"{db_path}: no grasp of the {len(pairs)} (object, hand) pairs selected passes the "
-                             "filters (--top, --min-epsilon, --label): nothing written")
+                             f"filters (--top, --min-epsilon, --label): nothing written{_why_none(sel, models)}")
         out_dir = _out_dir(Path(out_dir))
         copies = writer.mesh_copies if isinstance(writer, PairWriter) else ()
         exported = {name: replace(o, label=sel.label)  # a mesh another database put there is refused first
@@ -237,6 +237,17 @@ def _export(db_path: Path, fmt: str, out_dir: Path, objects: Sequence[str], hand
     summary.seconds = time.perf_counter() - start
     log.info("exported %d grasps as %s to %s in %.1f s", summary.grasps, fmt, out_dir, summary.seconds)
     return summary
+
+
+def _why_none(sel: Selection, models: dict[str, LogisticModel | None]) -> str:
+    """What a label that only some grasps have needs (a Barrett's --label p_hold said only 'the filters')."""
+    lacking = sorted(h for h, m in models.items() if m is None)
+    if sel.label in (P_HOLD, P_HOLD_TRIAL) and lacking:
+        return (f"; --label {sel.label} takes grasps with a p_hold, and hand {', '.join(lacking)} has no p_hold "
+                "model (`grasp calibrate` fits one)")
+    if sel.label in (TRIAL, P_HOLD_TRIAL):
+        return f"; --label {sel.label} takes only grasps a trial tried (`grasp validate`)"
+    return ""
 
 
 def _for_hand(model: LogisticModel | None, obj: ExportedObject) -> ExportedObject:

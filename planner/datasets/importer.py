@@ -154,6 +154,9 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
     reader = formats.reader(fmt)
     up = None if up is None else up_axis(up, "", "--up")
     plans = [_plan(Path(p), fmt, reader, hand, object_name, rescore, up=up) for p in paths]
+    # every file's poses read and checked before the database is opened: a refused import (a NaN or a wrong
+    # shape in grasps/transforms) left an empty database and its lock file at --db
+    poses = [plan.reader.poses(plan.path, plan.hand) for plan in plans]
     results: dict[int, ImportResult] = {}
 
     def finish(index: int, result: ImportResult) -> None:
@@ -173,7 +176,7 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
             elif plan.lossless:
                 finish(i, _import_lossless(db, plan, rule))
             else:
-                rescoring[i] = _Rescoring(plan, time.perf_counter(), plan.reader.poses(plan.path, plan.hand))
+                rescoring[i] = _Rescoring(plan, time.perf_counter(), poses[i])
         units = [unit for i, r in rescoring.items() for unit in r.units(i)]
         for i, r in rescoring.items():
             if r.complete:  # a file without poses

@@ -224,7 +224,13 @@ def schema_version(conn: sqlite3.Connection, path: Path) -> int:
             raise DatabaseError(f"{path}: an SQLite file, but not a grasp database; pick another --db path")
         return 0
     row = conn.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
-    return int(row["value"]) if row else 0
+    if row is None:
+        return 0
+    try:
+        return int(row["value"])
+    except (TypeError, ValueError):
+        raise DatabaseError(f"{path}: its schema version {row['value']!r} is not a number: not a grasp database "
+                            "this planner wrote; pick another --db path") from None
 
 
 def table_names(conn: sqlite3.Connection) -> set[str]:

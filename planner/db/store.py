@@ -74,6 +74,7 @@ _FROZEN_SAID: set[Path] = set()
 
 #: How long a connection waits for another one's write lock [s].
 BUSY_TIMEOUT_S = 60.0
+SQL_MAX_INT = 2**63 - 1  # a count past SQLite's integers (--top 1e20) means "all", not an OverflowError
 
 
 def _aliased(group: tuple[Field, ...]) -> str:
@@ -218,7 +219,8 @@ class Database(Writing, UnitReads):
             where = " AND (g.table_plane IS NULL OR g.table_plane != ?)" if other_planes else " AND g.table_plane = ?"
             params.append(_sql(_TABLE_PLANE, table_plane))
         cur = self._conn.execute(self._select("LEFT JOIN") + " WHERE g.object = ? AND g.hand = ? AND g.rank IS NOT NULL"
-                                 f"{where} ORDER BY g.rank LIMIT ? OFFSET ?", (*params, top, offset))
+                                 f"{where} ORDER BY g.rank LIMIT ? OFFSET ?",
+                                 (*params, min(top, SQL_MAX_INT), min(offset, SQL_MAX_INT)))
         return _grasps(cur.fetchall())
 
     @_reads
@@ -243,7 +245,7 @@ class Database(Writing, UnitReads):
             params.append(min_epsilon)
         if top is not None:
             where += " AND g.rank <= ?"
-            params.append(top)
+            params.append(min(top, SQL_MAX_INT))
         cur = self._conn.cursor()
         cur.execute(self._select("LEFT JOIN") + f" WHERE g.object = ? AND g.hand = ? {where} ORDER BY g.rank, g.id",
                     params)

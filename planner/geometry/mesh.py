@@ -61,7 +61,9 @@ def read_mesh_file(path: Path, scale: float | np.ndarray = 1.0) -> trimesh.Trime
     try:
         loaded = trimesh.load(str(path), force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for broken files
-        raise MeshError(f"{path}: cannot parse mesh: {exc}") from exc
+        # a KeyError's text alone ("cannot parse mesh: 'y'": a PLY without a y property) says nothing
+        reason = f"{exc.args[0]!r} is missing" if isinstance(exc, KeyError) and exc.args else str(exc)
+        raise MeshError(f"{path}: cannot parse mesh: {reason} (re-export it as OBJ/STL/PLY/GLB)") from exc
     if not isinstance(loaded, trimesh.Trimesh):
         raise MeshError(f"{path}: holds no triangles")
     if len(loaded.faces) == 0:

@@ -120,6 +120,11 @@ SAMPLER_DEFAULTS = {
 }
 
 
+AT_LEAST = (("approaches", "--approaches", 1), ("rolls", "--rolls", 1), ("cone_edges", "cone_edges", 3),  # counts,
+            ("fan_count", "--fan", 0), ("chunk", "--chunk", 0), ("reach_placements", "--reach-placements", 0),
+            ("reach_top", "--reach-top", 0), ("fc_budget", "--fc-budget", 0))  # the option of each, its least
+
+
 @dataclass(frozen=True)
 class SweepSettings:
     """What to try. Angles in radians, lengths in metres. ``None``: the
@@ -150,14 +155,9 @@ class SweepSettings:
     def __post_init__(self) -> None:
         if self.sampler is not None and self.sampler not in SAMPLERS:
             raise InputError(f"unknown sampler '{self.sampler}'; use {', '.join(SAMPLERS)}")
-        if (self.approaches is not None and self.approaches < 1) or (self.rolls is not None and self.rolls < 1):
-            raise InputError("approaches and rolls must be >= 1")
-        if self.cone_edges < 3 or self.fan_count < 0:
-            raise InputError("cone edges must be >= 3, fan count >= 0")
-        if (self.chunk is not None and self.chunk < 0) or self.reach_placements < 0 or self.reach_top < 0 \
-                or self.pregrasp_distance < 0 or self.fc_budget < 0:
-            raise InputError("chunk, reach placements, reach top, pre-grasp distance and the force-closure budget "
-                             "must be >= 0")
+        for field, option, low in AT_LEAST:  # each named with its value (one message named five options)
+            if (value := getattr(self, field)) is not None and value < low:
+                raise InputError(f"{option} must be at least {low}, got {value}")
         if self.standoffs is not None and not _distances(self.standoffs):
             raise InputError(f"--standoffs must be non-negative distances in metres, got {list(self.standoffs)}")
         if not _distances(self.depths):

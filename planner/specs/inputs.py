@@ -28,7 +28,8 @@ import glob
 import math
 import os
 import shlex
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -291,3 +292,31 @@ def check_seed(seed: int) -> int:
     if not 0 <= seed <= MAX_SEED:
         raise InputError(f"--seed must be an integer from 0 to {MAX_SEED}, got {seed}")
     return seed
+
+
+def check_output(path: Path, option: str, *, folder: bool = False) -> Path:
+    """``path``, or a one-line error before any work where it cannot be written: a file's path that is a folder,
+    a folder's that is a file, a folder above it that is a file or not writable. Nothing is created (a command
+    refused later leaves nothing behind); a write that fails all the same is caught by :func:`writing`."""
+    path = Path(path)
+    if folder and path.exists() and not path.is_dir():
+        raise InputError(f"{path}: {option} must be a folder, but it is a file")
+    if not folder and path.is_dir():
+        raise InputError(f"{path}: {option} is a folder; give a file path")
+    above = path if folder else path.parent
+    while not above.exists() and above != above.parent:
+        above = above.parent
+    if not above.is_dir():
+        raise InputError(f"{path}: {option} cannot be written: {above} is a file, not a folder")
+    if not os.access(above, os.W_OK | os.X_OK):
+        raise InputError(f"{path}: {option} cannot be written: {above} is not writable")
+    return path
+
+
+@contextmanager
+def writing(path: Path, option: str) -> Iterator[None]:
+    """A write to ``path`` whose OSError (a read-only or full disk, a path the system refuses) is one line."""
+    try:
+        yield
+    except OSError as exc:
+        raise InputError(f"{path}: {option} cannot be written ({exc.strerror or exc})") from exc

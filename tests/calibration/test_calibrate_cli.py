@@ -216,3 +216,60 @@ def test_a_database_that_cannot_take_the_model_is_refused_before_the_fit(validat
     assert code == 3 and "poses closed on the object" not in err and len(err.strip().splitlines()) == 1, err
     code, _, err = grasp("calibrate", str(file), "--db", str(tmp_path / "g.db"), "--workers", "0")
     assert code == 2 and "--workers must be at least 1" in err, err
+
+
+@pytest.mark.parametrize("args, message", [
+    (["{missing}"], "file not found"),
+    (["{folder}"], "is a folder; give its .h5 files"),
+    (["{file}", "--trial", "-1"], "--trial must be >= 0"),
+    (["{file}", "--poses", "-1"], "--poses must be at least 1 (0: every pose)"),
+])
+def test_a_refused_calibrate_leaves_no_database_behind(args: list[str], message: str, validated_db: Path,
+                                                       tmp_path: Path) -> None:
+    """A missing label file, a folder, a bad --trial or --poses were refused only once the database had been
+    created (an empty grasp database and its lock file left at --db); a folder was said to be 'not found'."""
+    file = labelled_files(validated_db, tmp_path)[0]
+    (tmp_path / "labels_folder").mkdir()
+    named = {"{missing}": str(tmp_path / "nowhere.h5"), "{folder}": str(tmp_path / "labels_folder"),
+             "{file}": str(file)}
+    db = tmp_path / "new.db"
+    code, _, err = grasp("calibrate", *[named.get(a, a) for a in args], "--db", str(db))
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err
+    assert not db.exists() and not Path(f"{db}.lock").exists()
+
+
+@pytest.mark.parametrize("option", ["--plot", "--model-out"])
+def test_an_output_that_cannot_be_written_is_refused_before_the_fit(option: str, validated_db: Path,
+                                                                    tmp_path: Path) -> None:
+    """--plot or --model-out under a file (or naming a folder) failed after the whole fit, as an internal error
+    (exit 1), the model already stored; now one line, exit 2, before any pose is re-scored or the db opened."""
+    file = labelled_files(validated_db, tmp_path)[0]
+    blocker = tmp_path / "a_file"
+    blocker.write_text("x")
+    folder = tmp_path / "a_folder.png"
+    folder.mkdir()
+    db = tmp_path / "new.db"
+    for out in (blocker / "out.png", folder):
+        code, _, err = grasp("calibrate", str(file), "--db", str(db), "--poses", "12", "--folds", "2", option,
+                             str(out))
+        assert code == 2 and option in err and "poses closed" not in err, err
+        assert len(err.strip().splitlines()) == 1 and not db.exists(), err
+
+
+def test_a_hand_without_a_width_prints_its_width_baseline_as_n_a(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A Barrett's or Allegro's files have no closed width: the summary printed 'width baseline nan' (the
+    per-object lines already said n/a)."""
+    from types import SimpleNamespace
+
+    from planner import api
+
+    figures = {"grasps": 80, "objects": 2, "success_rate": 0.26, "folds": 2, "auc_mean": 0.52,
+               "auc_width": float("nan"), "auc_pooled": 0.5, "top10": 0.2, "ece": 0.05, "agreement": 0.74,
+               "log_loss": 0.59}
+    result = SimpleNamespace(figures=figures, model=SimpleNamespace(hand="barrett"),
+                             per_object=[{"object": "box.h5", "grasps": 40, "success_rate": 0.23,
+                                          "auc_p_hold": 0.52, "auc_width": float("nan")}])
+    monkeypatch.setattr(api, "calibrate", lambda *a, **kw: result)
+    code, out, err = grasp("calibrate", "x.h5", "--no-store")
+    assert code == 0, err
+    assert "(width baseline n/a)" in out and "nan" not in out, out

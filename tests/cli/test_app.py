@@ -57,6 +57,36 @@ def test_unknown_names_list_the_valid_ones(tmp_path: Path, monkeypatch: pytest.M
     assert not (tmp_path / "grasps.db").exists()
 
 
+@pytest.mark.parametrize("args, option", [
+    (["generate", "box", "--hand", "panda", "--depths", "a,b"], "--depths"),
+    (["generate", "box", "--hand", "panda", "--standoffs", "0.1,q"], "--standoffs"),
+    (["best", "box", "--hand", "panda", "--object-pose", "1,2,x"], "--object-pose"),
+    (["best", "box", "--hand", "panda", "--object-pose", "0.5,0,0.04,0,0,0,1", "--robot-base", "1,z"], "--robot-base"),
+    (["best", "box", "--hand", "panda", "--on-table", "--table-at", "1,y"], "--table-at"),
+    (["view", "box", "--hand", "panda", "--object-pose", "1,x"], "--object-pose"),
+])
+def test_a_list_of_numbers_that_is_not_names_its_option(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                        args: list[str], option: str) -> None:
+    """'Invalid value: '1,2,x' is not a comma-separated list of numbers' named no option."""
+    monkeypatch.chdir(tmp_path)
+    code, _, err = grasp(*args)
+    one_line_error(code, err, 2, f"Invalid value for {option}: ", "is not a comma-separated list of numbers")
+
+
+@pytest.mark.parametrize("args, code", [
+    (["best", "box", "--hand", "panda", "--top", "99999999999999999999"], 0),
+    (["show", "box", "--hand", "panda", "--rank", "99999999999999999999"], 2),
+    (["export", "--format", "csv", "--out", "x", "--top", "99999999999999999999", "--quiet"], 0),
+])
+def test_a_count_past_sqlites_integers_is_all_not_an_internal_error(box_db: Path, tmp_path: Path,
+                                                                     monkeypatch: pytest.MonkeyPatch,
+                                                                     args: list[str], code: int) -> None:
+    """--top or --rank 1e20 (a typo's zeros) was an OverflowError from SQLite: exit 1, 'internal error'."""
+    monkeypatch.chdir(tmp_path)
+    got, _, err = grasp(*args, "--db", str(box_db))
+    assert got == code and "internal error" not in err, err
+
+
 def test_debug_shows_the_traceback_and_keeps_the_exit_code(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
     plain, _, _ = grasp("generate", "teapot", "--hand", "panda")

@@ -95,6 +95,17 @@ def test_millimetres_passed_as_metres(tmp_path: Path) -> None:
     assert code == 0, err
 
 
+def test_an_object_that_fails_among_others_is_said_once_whole(tmp_path: Path) -> None:
+    """The summary table printed a failed object's error in its narrow last column, one word a line (20 lines
+    for a 0.13 mm object in an 80-column terminal), and then again whole on stderr: now 'yes' in the table."""
+    tiny = tmp_path / "tiny.stl"
+    trimesh.creation.box(extents=[5e-4, 5e-4, 5e-4]).export(tiny)
+    code, out, err = grasp("generate", str(tiny), "box", "--hand", "panda", "--db", str(tmp_path / "x.db"), *FAST)
+    row = next(line for line in out.splitlines() if line.startswith("│ tiny"))
+    assert code == 2 and row.split("│")[-2].strip() == "yes" and "millimetre" not in out, out
+    one_line_error(code, err, 2, "tiny", "smaller than a millimetre")
+
+
 def test_smaller_than_a_millimetre(tmp_path: Path) -> None:
     path = tmp_path / "tiny.stl"
     trimesh.creation.box(extents=[5e-4, 5e-4, 5e-4]).export(path)
@@ -226,6 +237,20 @@ def test_a_resume_with_another_chunk_is_refused_not_stored_twice(box_db: Path, t
     code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(db), *FAST, "--quiet", "--seed", "3",
                          "--chunk", "2")  # another seed is another sweep: its own candidates
     assert code == 0, err
+
+
+@pytest.mark.parametrize("option, value, least", [
+    ("--approaches", "-3", 1), ("--rolls", "0", 1), ("--fan", "-1", 0), ("--chunk", "-1", 0),
+    ("--reach-placements", "-1", 0), ("--reach-top", "-2", 0), ("--fc-budget", "-1", 0),
+])
+def test_a_count_out_of_range_names_its_option_and_value(tmp_path: Path, option: str, value: str,
+                                                         least: int) -> None:
+    """One message named five options ("chunk, reach placements, reach top, pre-grasp distance and the
+    force-closure budget must be >= 0") and none of the values; now the option given and its value."""
+    db = tmp_path / "g.db"
+    code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(db), option, value)
+    one_line_error(code, err, 2, f"{option} must be at least {least}, got {value}")
+    assert not db.exists()
 
 
 @pytest.mark.parametrize("args, differs", [

@@ -155,6 +155,18 @@ def test_filters_that_leave_no_grasp_write_nothing(db: Path, tmp_path: Path, fmt
     assert not out.exists()
 
 
+def test_a_label_no_grasp_has_says_what_it_needs(db: Path, tmp_path: Path) -> None:
+    """--label trial on grasps no trial tried, --label p_hold for a hand without a model (a Barrett's database)
+    said only that nothing passed 'the filters (--top, --min-epsilon, --label)'."""
+    out = tmp_path / "out"
+    code, _, err = grasp("export", "--db", str(db), "--format", "csv", "--out", str(out), "--object", "sphere",
+                         "--label", "trial")
+    assert code == 2 and "--label trial takes only grasps a trial tried (`grasp validate`)" in err, err
+    assert not out.exists()
+    sel = exporter.Selection(label="p_hold")
+    assert "hand barrett has no p_hold model (`grasp calibrate` fits one)" in exporter._why_none(sel, {"barrett": None})
+
+
 @pytest.mark.parametrize("fmt", ["csv", "moveit", "acronym"])
 @pytest.mark.parametrize("stop, code, needle", [
     (OSError(errno.ENOSPC, "No space left on device"), 2, "cannot write the export (No space left on device)"),

@@ -280,6 +280,30 @@ def test_a_damaged_file_is_refused_naming_the_dataset(db: Path, tmp_path: Path, 
     assert not fresh.exists() or not sqlite3.connect(fresh).execute("SELECT COUNT(*) FROM grasps").fetchone()[0]
 
 
+@pytest.mark.parametrize("rescore", [False, True])
+@pytest.mark.parametrize("transforms, message", [
+    (lambda t: np.where(np.arange(t.size).reshape(t.shape) == 3, np.nan, t), "row 0 is not a rigid transform"),
+    (lambda t: t[:, :3, :3], "expected (N, 4, 4)"),
+])
+def test_a_file_with_bad_poses_is_refused_before_the_database_is_made(db: Path, tmp_path: Path, transforms,
+                                                                      message: str, rescore: bool) -> None:
+    """A NaN or a wrong shape in grasps/transforms was refused only after the database had been created: an
+    empty grasp database and its lock file were left at --db."""
+    files = sorted(export(db, "acronym", tmp_path / "h5").glob("box__*.h5"))
+
+    def change(f: h5py.File) -> None:
+        new = transforms(f["grasps/transforms"][:])
+        del f["grasps/transforms"]
+        f["grasps/transforms"] = new
+
+    bad = _copy_with(files[0], tmp_path / "bad.h5", change)
+    fresh = tmp_path / "fresh.db"
+    code, _, err = grasp("import", "--format", "acronym", str(bad), "--db", str(fresh),
+                         *(["--rescore"] if rescore else []))
+    one_line_error(code, err, 2, message)
+    assert not fresh.exists() and not Path(f"{fresh}.lock").exists()
+
+
 def test_our_file_is_refused_on_another_mesh_or_hand_and_back_into_its_own_database(db: Path, tmp_path: Path) -> None:
     files = sorted(export(db, "acronym", tmp_path / "h5").glob("box__*.h5"))
     fresh = tmp_path / "fresh.db"

@@ -64,6 +64,20 @@ def test_newer_schema_refuses_politely(tmp_path: Path) -> None:
         open_db(path)
 
 
+def test_a_schema_version_that_is_no_number_is_refused_in_one_line(box_db: Path, tmp_path: Path) -> None:
+    """A meta table whose schema_version is not an integer (another program's, or edited) was an internal error
+    (ValueError, exit 1) in every command; now a DatabaseError (exit 3), the file untouched."""
+    path = tmp_path / "odd.db"
+    shutil.copy(box_db, path)
+    with sqlite3.connect(path) as conn:
+        conn.execute("UPDATE meta SET value = 'abc' WHERE key = 'schema_version'")
+    before = path.read_bytes()
+    for command in (["best", "box", "--hand", "panda"], ["generate", "box", "--hand", "panda", *FAST, "--quiet"]):
+        code, _, err = grasp(*command, "--db", str(path))
+        one_line_error(code, err, 3, "schema version 'abc' is not a number")
+    assert path.read_bytes() == before
+
+
 def test_not_sqlite_newer_schema_and_read_only(box_db: Path, tmp_path: Path) -> None:
     junk = tmp_path / "junk.db"
     junk.write_bytes(b"\x00not a database at all" * 100)

@@ -83,6 +83,14 @@ def test_missing_and_empty_files(tmp_path: Path) -> None:
         meshes.load_mesh_file(tmp_path / "junk.stl")
 
 
+def test_a_ply_without_a_coordinate_says_which_is_missing(tmp_path: Path) -> None:
+    """A PLY header without its y property said only "cannot parse mesh: 'y'" (trimesh's KeyError)."""
+    path = tmp_path / "bad.ply"
+    path.write_text("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nend_header\n1\n2\n3\n")
+    with pytest.raises(MeshError, match=r"cannot parse mesh: 'y' is missing \(re-export it"):
+        meshes.load_mesh_file(path)
+
+
 def test_a_point_cloud_and_a_urdf_are_refused_saying_what_to_give(tmp_path: Path) -> None:
     """A scanner's PLY of points alone said 'mesh has no triangles', as a text file did; a URDF given as the
     object said its type is unsupported, without what to give instead."""

@@ -36,6 +36,23 @@ def test_show_draws_hand_and_object(db: Path, tmp_path: Path) -> None:
     assert colour_share(image, HAND_RGBA) > 0.01
 
 
+def test_a_picture_that_cannot_be_written_is_a_one_line_error(db: Path, tmp_path: Path) -> None:
+    """--out under a file was an internal error (FileExistsError, exit 1) after the rendering; now refused
+    before, exit 2; a folder in its path that does not exist yet is still made."""
+    from click.testing import CliRunner
+
+    from planner.cli import main
+
+    blocker = tmp_path / "a_file"
+    blocker.write_text("x")
+    result = CliRunner().invoke(main, ["show", "box", "--hand", "panda", "--db", str(db), "--out",
+                                       str(blocker / "g.png")])
+    assert result.exit_code == 2 and "a_file is a file, not a folder" in result.stderr, result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+    api.show("box", "panda", tmp_path / "new" / "folder" / "g.png", db_path=db, rank=1)
+    assert (tmp_path / "new" / "folder" / "g.png").stat().st_size > 1000
+
+
 def test_contact_sheet_has_one_row_per_grasp(db: Path, tmp_path: Path) -> None:
     import matplotlib.image as mpimg
 

@@ -22,6 +22,19 @@ def test_report_html_and_markdown(validated_db: Path, tmp_path: Path) -> None:
     assert (tmp_path / "r" / "deciles_panda.png").stat().st_size > 1000
 
 
+def test_a_report_that_cannot_be_written_is_a_one_line_error(validated_db: Path, tmp_path: Path) -> None:
+    """--out under a file, or a folder's --out (no .html) naming a file, was an internal error (exit 1)."""
+    blocker = tmp_path / "a_file"
+    blocker.write_text("x")
+    for out, said in ((blocker / "r.html", "a_file is a file, not a folder"),
+                      (blocker / "r", "a_file is a file, not a folder"),
+                      (blocker, "must be a folder, but it is a file")):
+        result = CliRunner().invoke(main, ["report", "--db", str(validated_db), "--out", str(out)])
+        assert result.exit_code == 2 and said in result.stderr, result.stderr
+        assert len(result.stderr.strip().splitlines()) == 1
+    assert blocker.read_text() == "x"
+
+
 def test_deciles_and_spearman_known_answers() -> None:
     eps = np.arange(100, dtype=float)
     ok = (eps >= 50).astype(float)
