@@ -17,6 +17,7 @@ open) nothing touches.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,6 +32,9 @@ from planner.plan.tolerances import (
     JOINT_LIMIT_SLACK,
     MAX_PENETRATION,
     PARKING_DEPTH,
+    PATH_ANGLE,
+    PATH_STEPS,
+    PATH_TOL,
     POSITION_TOL,
     PREGRASP_DISTANCE,
     TABLE_HALF,
@@ -57,7 +61,8 @@ class ReachSettings:
 #: Why a grasp is not reachable, in the order they are checked.
 MISSES = ("the hand at the grasp would hit the table", "the open hand at the pre-grasp would hit the table",
           "no collision-free arm solution within the joint limits at the grasp",
-          "no collision-free arm solution at the pre-grasp (backed off along the approach)")
+          "no collision-free arm solution at the pre-grasp (backed off along the approach)",
+          "the arm cannot back off along the approach: its pre-grasp solutions turn its joints another way")
 
 
 @dataclass(frozen=True)
@@ -194,12 +199,22 @@ class ReachScene:
         grasp = self.solve(world, closed, rng, grasp=True)
         if grasp is None:
             return Reach(None, None, MISSES[2])
-        pregrasp = self.solve(pre, open_, rng, grasp=False, seed=grasp)
-        return Reach(grasp, pregrasp, "" if pregrasp is not None else MISSES[3])
+        found: list[ArmSolution] = []  # pre-grasp solutions, straight or not
+
+        def straight(solution: ArmSolution) -> bool:
+            found.append(solution)
+            return self._straight(grasp, solution, world, pre)  # type: ignore[arg-type]
+
+        pregrasp = self.solve(pre, open_, rng, grasp=False, seed=grasp, accept=straight)
+        if pregrasp is None:
+            return Reach(grasp, None, MISSES[4] if found else MISSES[3])
+        return Reach(grasp, pregrasp)
 
     def solve(self, hand_pose: np.ndarray, fingers: dict[str, float], rng: np.random.Generator, *, grasp: bool,
-              seed: ArmSolution | None = None) -> ArmSolution | None:
-        """A verified, collision-free arm configuration putting the hand at ``hand_pose``."""
+              seed: ArmSolution | None = None,
+              accept: Callable[[ArmSolution], bool] | None = None) -> ArmSolution | None:
+        """A verified, collision-free arm configuration putting the hand at
+        ``hand_pose`` (and that ``accept`` takes, when given)."""
         target = hand_pose @ self.mount_inv
         for attempt in range(self.settings.restarts):
             if attempt == 0 and seed is not None:
@@ -210,9 +225,30 @@ class ReachScene:
                 start = list(rng.uniform(self.lower, self.upper))
             config = self._ik(start, target)
             solution = self._verify(config, fingers, target, grasp)
-            if solution is not None:
+            if solution is not None and (accept is None or accept(solution)):
                 return solution
         return None
+
+    def _straight(self, grasp: ArmSolution, pregrasp: ArmSolution, grasp_pose: np.ndarray,
+                  pre_pose: np.ndarray) -> bool:
+        """Whether interpolating the arm's joints from ``grasp`` to
+        ``pregrasp`` keeps the hand within PATH_TOL x the back-off distance
+        of the straight line between the two hand poses (world) and within
+        PATH_ANGLE of their orientation (:data:`~planner.plan.tolerances.
+        PATH_STEPS` points)."""
+        a, b = (grasp_pose @ self.mount_inv), (pre_pose @ self.mount_inv)
+        start = np.array([grasp.joints[j] for j in self.arm_joints])
+        end = np.array([pregrasp.joints[j] for j in self.arm_joints])
+        for t in np.linspace(0.0, 1.0, PATH_STEPS + 1)[1:-1]:
+            self.sim.set_joints(self.arm, dict(zip(self.arm_joints, (1 - t) * start + t * end)))
+            ee = self.sim.link_pose(self.arm, self.ee_link)
+            off = ee[:3, 3] - a[:3, 3]
+            line = b[:3, 3] - a[:3, 3]
+            along = np.clip(off @ line / max(line @ line, 1e-18), 0.0, 1.0)
+            if (np.linalg.norm(off - along * line) > PATH_TOL * self.settings.pregrasp_distance
+                    or angle_between(ee[:3, :3], a[:3, :3]) > PATH_ANGLE):
+                return False
+        return True
 
     def _ik(self, start: list[float], target: np.ndarray) -> dict[str, float]:
         """PyBullet's IK, re-run from its own answer until FK is within tolerance

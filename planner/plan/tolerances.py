@@ -50,6 +50,16 @@ ANGLE_TOL = float(np.radians(0.5))
 #: tolerances (so the verified solution has margin), at most IK_REFINEMENTS times.
 IK_CONVERGED = 0.25
 IK_REFINEMENTS = 6
+#: The arm backs off from the grasp to the pre-grasp by interpolating its
+#: joints: at each of PATH_STEPS - 1 points between, the hand stays within
+#: PATH_TOL times the back-off distance of the straight approach line and
+#: within PATH_ANGLE [rad] of the grasp's orientation. Measured (the PR2's
+#: arm, the mug at 4 poses, 10 cm): 3.1 mm median, 4.2 at most, 1.3 degrees;
+#: a pre-grasp on another IK branch (the elbow flipped) swings the hand 1.2 m
+#: off the line.
+PATH_STEPS = 8
+PATH_TOL = 0.2
+PATH_ANGLE = float(np.radians(10.0))
 #: The table: a box with these half extents (x, y, thickness), its far edge
 #: reaching 0.9 of its length in front of the robot base (the base at its edge).
 TABLE_HALF = (1.0, 1.0, 0.05)

@@ -1,5 +1,6 @@
 import json
 import sqlite3
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -10,7 +11,7 @@ from planner import api
 from planner.cli import main
 from planner.geometry.frames import angle_between, pose_from_xyzquat
 from planner.geometry.solid import load_object
-from planner.plan.reach import ReachScene, ReachSettings
+from planner.plan.reach import MISSES, ReachScene, ReachSettings
 from planner.plan.sweep import SweepSettings
 from planner.plan.tolerances import ANGLE_TOL, POSITION_TOL
 from planner.plan.unit import UnitSpec, add_reachability, run_unit
@@ -146,3 +147,37 @@ def test_an_object_stands_on_its_own_up_on_the_table(scene, up: str) -> None:  #
         assert world[:, 2].min() == pytest.approx(scene.settings.table_height, abs=1e-12)
     finally:
         scene.use_object(box)
+
+
+
+def test_a_pregrasp_on_another_ik_branch_is_not_a_way_to_the_grasp(scene, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """The PR2's arm reached a mug grasp, but backing off 10 cm on that branch took a joint just past its limit
+    and the pre-grasp's IK answered with the elbow flipped: 5.74 rad between pre-grasp and grasp, reported as
+    reachable. Here the pre-grasp's IK is made to answer on another branch (the base joint half a turn on): not
+    a way to the grasp, and said so."""
+    scene.place_object(scene.resting_pose(0.5, 0.0, 0.0))
+    solve = scene.solve
+
+    def other_branch(hand_pose, fingers, rng, *, grasp, seed=None, accept=None):  # type: ignore[no-untyped-def]
+        found = solve(hand_pose, fingers, rng, grasp=grasp, seed=seed)
+        if grasp or found is None:
+            return found
+        turned = replace(found, joints={**found.joints, "panda_joint1": found.joints["panda_joint1"] + np.pi})
+        return turned if accept is None or accept(turned) else None
+
+    monkeypatch.setattr(scene, "solve", other_branch)
+    r = scene.check(TOP_DOWN, fingers(0.02), fingers(0.04), np.random.default_rng(0))
+    assert r.grasp is not None and not r.reachable and r.why == MISSES[4]
+
+def test_a_joint_path_that_leaves_the_approach_line_is_not_straight(scene) -> None:  # type: ignore[no-untyped-def]
+    """The back-off's joint path is checked by forward kinematics: the real pre-grasp's is straight; the same
+    with one joint turned half a turn is not."""
+    scene.place_object(scene.resting_pose(0.5, 0.0, 0.0))
+    r = scene.check(TOP_DOWN, fingers(0.02), fingers(0.04), np.random.default_rng(0))
+    world = scene.object_pose @ TOP_DOWN
+    pre = world.copy()
+    pre[2, 3] += 0.10
+    assert r.reachable and scene._straight(r.grasp, r.pregrasp, world, pre)
+    turned = dict(r.pregrasp.joints)
+    turned["panda_joint1"] += np.pi
+    assert not scene._straight(r.grasp, replace(r.pregrasp, joints=turned), world, pre)
