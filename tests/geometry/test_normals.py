@@ -39,9 +39,11 @@ def test_a_rough_surfaces_normal_at_a_contacts_scale_is_its_shapes() -> None:
 
 def test_near_a_sharp_edge_a_face_keeps_its_own_normal() -> None:
     """A box's other face within the radius is not averaged in: a point 1 mm from an edge has its face's normal."""
-    box = trimesh.creation.box(extents=(0.04, 0.04, 0.04)).subdivide().subdivide()
-    points = np.array([[0.019, 0.0, 0.02], [0.0, -0.019, 0.02], [0.019, 0.005, -0.01]])
+    box = trimesh.creation.box(extents=(0.04, 0.04, 0.04)).subdivide_to_size(0.001)
+    points = np.array([[0.019, 0.0, 0.02], [0.0, -0.019, 0.02], [0.02, 0.005, -0.019]])
     _, _, face = trimesh.proximity.closest_point(box, points)
+    near = ScaleNormals(box)._centres.query_ball_point(points, 0.002)
+    assert all((box.face_normals[n] @ box.face_normals[f] < 0.5).any() for n, f in zip(near, face))  # the other face's
     got = ScaleNormals(box).at(points, face, 0.002)
     assert np.allclose(got, box.face_normals[face], atol=1e-12)
 
