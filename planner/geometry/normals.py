@@ -35,15 +35,24 @@ class ScaleNormals:
     def _centres(self) -> cKDTree:
         return cKDTree(self.mesh.triangles_center)
 
-    def at(self, points: np.ndarray, face: np.ndarray, radius: float) -> np.ndarray:
+    def at(self, points: np.ndarray, face: np.ndarray, radius: float,
+           toward: np.ndarray | None = None) -> np.ndarray:
         """(n, 3) outward unit normals at ``points`` (n, 3) on faces ``face``
         (n,): the area-weighted mean of the normals of the faces centred
         within ``radius`` [m] (the point's own face always in), twice: first
-        of those within ``SAME_SIDE`` of the point's own face's normal (a
-        box's other face at an edge is left out: the mean is the face's own
-        normal), then of those within ``SAME_SIDE`` of that first mean."""
+        of those within ``SAME_SIDE`` of ``toward`` (n, 3), the outward
+        normals the points are known to have at a coarser scale (a contact's
+        on a collision proxy, its sharp edges' normal cones included), else
+        of the point's own face's normal (a box's other face at an edge is
+        left out: the mean is the face's own normal), then of those within
+        ``SAME_SIDE`` of that first mean. Where nothing is kept: ``toward``,
+        else the own face's normal. (A point on an edge lies on both its
+        faces, and which one a closest-point query names is a tie: a
+        contact on a box's edge, its proxy's normal the diagonal between the
+        faces, took one face's normal or the other's, 45 degrees off.)"""
         normals, area = self.mesh.face_normals, self.mesh.area_faces
-        out = np.array(normals[face], float).reshape(-1, 3)
+        seed = normals[face] if toward is None else toward
+        out = np.array(seed, float).reshape(-1, 3)
         for i, near in enumerate(self._centres.query_ball_point(np.asarray(points, float).reshape(-1, 3), radius)):
             near = np.union1d(np.asarray(near, np.int64), [face[i]])
             n, w = normals[near], area[near]

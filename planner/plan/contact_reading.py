@@ -101,7 +101,9 @@ class ContactReading:
         """The contacts read on the proxy with their points moved to the
         nearest point found on the exact surface (at most the proxy's
         deviation away) and their normals the exact surface's averaged over
-        ``patches.normal_radius`` (:mod:`planner.geometry.normals`): a
+        ``patches.normal_radius`` (:mod:`planner.geometry.normals`), of the
+        faces on the side of the proxy's normal (at a sharp edge, the
+        proxy's reading chose a normal in the edge's cone): a
         scan's triangles and its proxy's facets are tilted by its noise, and
         a contact's normal taken from one of them made force closure a
         matter of which proxy (a rough capsule: 300 of 362 grasps force
@@ -110,7 +112,8 @@ class ContactReading:
             return contacts
         exact = self.exact_surface
         points, _, face = exact.nearest(contacts.points)  # type: ignore[union-attr]
-        normals = -exact.scale_normals.at(points, face, self.settings.patches.normal_radius)  # type: ignore[union-attr]
+        radius = self.settings.patches.normal_radius
+        normals = -exact.scale_normals.at(points, face, radius, toward=-contacts.normals)  # type: ignore[union-attr]
         return HandContacts(points, normals, contacts.links, contacts.radius, contacts.region)
 
     def _points(self, pairs: Closest, names: list[str]) -> HandContacts:

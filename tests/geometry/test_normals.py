@@ -39,9 +39,11 @@ def test_a_rough_surfaces_normal_at_a_contacts_scale_is_its_shapes() -> None:
 
 def test_near_a_sharp_edge_a_face_keeps_its_own_normal() -> None:
     """A box's other face within the radius is not averaged in: a point 1 mm from an edge has its face's normal."""
-    box = trimesh.creation.box(extents=(0.04, 0.04, 0.04)).subdivide().subdivide()
-    points = np.array([[0.019, 0.0, 0.02], [0.0, -0.019, 0.02], [0.019, 0.005, -0.01]])
+    box = trimesh.creation.box(extents=(0.04, 0.04, 0.04)).subdivide_to_size(0.001)
+    points = np.array([[0.019, 0.0, 0.02], [0.0, -0.019, 0.02], [0.02, 0.005, -0.019]])
     _, _, face = trimesh.proximity.closest_point(box, points)
+    near = ScaleNormals(box)._centres.query_ball_point(points, 0.002)
+    assert all((box.face_normals[n] @ box.face_normals[f] < 0.5).any() for n, f in zip(near, face))  # the other face's
     got = ScaleNormals(box).at(points, face, 0.002)
     assert np.allclose(got, box.face_normals[face], atol=1e-12)
 
@@ -59,3 +61,18 @@ def test_the_normals_turn_with_the_surface(seed: int, radius: float) -> None:
     turned = trimesh.Trimesh(mesh.vertices @ turn.T, mesh.faces, process=False)
     expected = ScaleNormals(mesh).at(points, face, radius) @ turn.T
     assert np.allclose(ScaleNormals(turned).at(points @ turn.T, face, radius), expected, atol=1e-9)
+
+
+def test_on_a_sharp_edge_the_normal_is_on_the_known_side() -> None:
+    """A point on a box's edge lies on both its faces; given the normal it has at a coarser scale (a proxy's
+    contact: the diagonal of the edge's cone), it is the mean of both faces', not the face a closest-point query
+    happened to name."""
+    box = trimesh.creation.box(extents=(0.04, 0.04, 0.04)).subdivide_to_size(0.001)
+    points = np.array([[0.02, 0.02, 0.0], [0.02, 0.02, 0.005]])
+    _, _, face = trimesh.proximity.closest_point(box, points)
+    diagonal = np.tile([np.sqrt(0.5), np.sqrt(0.5), 0.0], (2, 1))
+    got = ScaleNormals(box).at(points, face, 0.002, toward=diagonal)
+    assert _angle(got, diagonal).max() < 10.0
+    assert np.allclose(ScaleNormals(box).at(points, face, 0.002), box.face_normals[face])  # the face's own
+    flat = ScaleNormals(box).at(points - [0.001, 0.0, 0.0], face, 0.002, toward=np.tile([0.0, 1.0, 0.0], (2, 1)))
+    assert np.allclose(flat, [0.0, 1.0, 0.0], atol=1e-12)  # a pad lying on the face 1 mm from the edge

@@ -301,3 +301,46 @@ def test_a_rough_scans_contacts_take_the_surfaces_normal_not_a_noisy_facets(pand
     points, normals = np.vstack([c.points for c in contacts]), np.vstack([c.normals for c in contacts])
     angle = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", normals, _capsule_normal(points)), -1.0, 1.0)))
     assert angle.max() < 5.0, np.round(np.sort(angle)[-5:], 1)
+
+
+def test_a_fine_boxs_edge_contacts_keep_the_edges_normal_through_a_proxy(panda) -> None:  # type: ignore[no-untyped-def]
+    """A finely meshed box (49k faces, closed on a proxy: here the 12-face box itself) gripped across two of its
+    vertical edges: the contacts on an edge read on the proxy have a normal in the edge's cone (the diagonal,
+    toward the pad), and moved onto the exact mesh they keep it, as the exact mesh's own reading has it. The
+    exact mesh's closest face at an edge is a tie between its two faces: the contact took that face's normal,
+    45 degrees off (90 degrees between the two fingers' contacts), or the top face's."""
+    hand, shapes = panda
+    coarse = trimesh.creation.box(extents=(0.04, 0.04, 0.04))
+    fine = coarse.subdivide_to_size(0.0012)
+    assert len(fine.faces) > 5000
+    across = np.array([1.0, 1.0, 0.0]) / np.sqrt(2.0)
+    with Sim() as sim:
+        exact = Grasper.for_mesh(sim, hand, fine)
+        proxy = Grasper(sim, hand, sim.add_static_mesh(coarse.vertices, coarse.faces), mesh=coarse, exact=fine)
+        for height in (0.0, 0.01):
+            pose = _grasp_pose(hand, np.array([0.0, 0.0, height]), DOWN, across)
+            want, got = exact.close_at(pose, shapes["wide"]), proxy.close_at(pose, shapes["wide"])
+            assert isinstance(want, Closed) and isinstance(got, Closed)
+            assert want.contacts.links == got.contacts.links
+            assert np.abs(np.abs(want.contacts.normals[:, :2]).max(axis=1) - 0.71).min() < 0.05  # some on an edge
+            cos = np.einsum("ij,ij->i", want.contacts.normals, got.contacts.normals)
+            assert np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))).max() < 10.0
+
+
+def test_a_contact_on_a_thin_wall_keeps_its_side_through_a_proxy(panda) -> None:  # type: ignore[no-untyped-def]
+    """A plate 0.8 mm thick, finely meshed; its proxy's top lies 0.5 mm below the plate's (within the spike
+    bound of 1 mm): a finger pressing down on it touches the proxy 0.1 mm under the plate's mid-plane, whose
+    nearest exact face is the underside. Moved onto the exact mesh the contact keeps pushing down (the faces on
+    its proxy normal's side averaged): it took the underside's normal, pushing up, out of the object."""
+    from planner.record.contacts import HandContacts
+
+    hand, _ = panda
+    plate = trimesh.creation.box(extents=(0.03, 0.03, 0.0008)).subdivide_to_size(0.001)
+    proxy = trimesh.creation.box(extents=(0.03, 0.03, 0.0008))
+    proxy.apply_translation([0.0, 0.0, -0.0005])
+    touched = np.array([[0.001, 0.002, -0.0001], [-0.003, 0.0, -0.0001]])
+    down = np.tile([0.0, 0.0, -1.0], (2, 1))
+    with Sim() as sim:
+        grasper = Grasper(sim, hand, sim.add_static_mesh(proxy.vertices, proxy.faces), mesh=proxy, exact=plate)
+        got = grasper._onto_exact(HandContacts(touched, down, ("panda_leftfinger",) * 2))
+    assert np.allclose(got.normals, down, atol=1e-9), got.normals
