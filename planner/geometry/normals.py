@@ -12,6 +12,7 @@ facing the same side: a thin wall's far side is not averaged in).
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -51,18 +52,26 @@ class ScaleNormals:
         contact on a box's edge, its proxy's normal the diagonal between the
         faces, took one face's normal or the other's, 45 degrees off.)"""
         normals, area = self.mesh.face_normals, self.mesh.area_faces
+        points = np.asarray(points, float).reshape(-1, 3)
+        face = np.asarray(face, np.int64).reshape(-1)
         seed = normals[face] if toward is None else toward
-        out = np.array(seed, float).reshape(-1, 3)
-        for i, near in enumerate(self._centres.query_ball_point(np.asarray(points, float).reshape(-1, 3), radius)):
-            near = np.union1d(np.asarray(near, np.int64), [face[i]])
-            n, w = normals[near], area[near]
-            mean = out[i]
-            for _ in range(2):
-                keep = n @ mean > np.cos(SAME_SIDE)
-                total = (n[keep] * w[keep, None]).sum(axis=0)
-                length = np.linalg.norm(total)
-                if length <= 0:
-                    break
-                mean = total / length
-            out[i] = mean
-        return out
+        mean = np.array(seed, float).reshape(-1, 3)
+        count = len(points)
+        if count == 0:
+            return mean
+        near = self._centres.query_ball_point(points, radius)
+        sizes = np.fromiter(map(len, near), np.int64, count)
+        owner = np.repeat(np.arange(count), sizes)  # each point's faces, then its own face where not among them
+        faces = np.fromiter(itertools.chain.from_iterable(near), np.int64, int(sizes.sum()))
+        among = np.zeros(count, bool)
+        among[owner[faces == face[owner]]] = True
+        owner, faces = np.r_[owner, np.flatnonzero(~among)], np.r_[faces, face[~among]]
+        n, w = normals[faces], area[faces]
+        going = np.ones(count, bool)  # a point whose pass keeps nothing stops at its last mean
+        for _ in range(2):
+            keep = going[owner] & (np.einsum("ij,ij->i", n, mean[owner]) > np.cos(SAME_SIDE))
+            total = np.column_stack([np.bincount(owner[keep], n[keep, k] * w[keep], count) for k in range(3)])
+            length = np.linalg.norm(total, axis=1)
+            going &= length > 0
+            mean[going] = total[going] / length[going, None]
+        return mean

@@ -6,6 +6,7 @@ import numpy as np
 import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from planner.geometry.normals import ScaleNormals
@@ -76,3 +77,40 @@ def test_on_a_sharp_edge_the_normal_is_on_the_known_side() -> None:
     assert np.allclose(ScaleNormals(box).at(points, face, 0.002), box.face_normals[face])  # the face's own
     flat = ScaleNormals(box).at(points - [0.001, 0.0, 0.0], face, 0.002, toward=np.tile([0.0, 1.0, 0.0], (2, 1)))
     assert np.allclose(flat, [0.0, 1.0, 0.0], atol=1e-12)  # a pad lying on the face 1 mm from the edge
+
+
+def _reference(mesh: trimesh.Trimesh, points: np.ndarray, face: np.ndarray, radius: float,
+               toward: np.ndarray | None) -> np.ndarray:
+    """ScaleNormals.at written point by point."""
+    from planner.geometry.normals import SAME_SIDE
+
+    tree = cKDTree(mesh.triangles_center)
+    out = np.array(mesh.face_normals[face] if toward is None else toward, float)
+    for i, near in enumerate(tree.query_ball_point(points, radius)):
+        near = np.union1d(np.asarray(near, np.int64), [face[i]])
+        n, w = mesh.face_normals[near], mesh.area_faces[near]
+        mean = out[i]
+        for _ in range(2):
+            keep = n @ mean > np.cos(SAME_SIDE)
+            total = (n[keep] * w[keep, None]).sum(axis=0)
+            if np.linalg.norm(total) <= 0:
+                break
+            mean = total / np.linalg.norm(total)
+        out[i] = mean
+    return out
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(0, 2**31 - 1), st.floats(0.0005, 0.004), st.booleans())
+def test_the_normals_at_once_are_the_normals_point_by_point(seed: int, radius: float, steer: bool) -> None:
+    rng = np.random.default_rng(seed)
+    mesh = trimesh.creation.box(extents=(0.03, 0.02, 0.01)).subdivide().subdivide().subdivide()
+    mesh.vertices += rng.normal(0.0, 2e-4, mesh.vertices.shape)
+    face = rng.choice(len(mesh.faces), 30)
+    points = mesh.triangles_center[face] + rng.normal(0.0, 1e-4, (30, 3))
+    toward = None
+    if steer:
+        toward = mesh.face_normals[face] + rng.normal(0.0, 0.5, (30, 3))
+        toward /= np.linalg.norm(toward, axis=1, keepdims=True)
+    assert np.allclose(ScaleNormals(mesh).at(points, face, radius, toward),
+                       _reference(mesh, points, face, radius, toward), atol=1e-12)
