@@ -233,10 +233,12 @@ class ReachScene:
                   pre_pose: np.ndarray) -> bool:
         """Whether interpolating the arm's joints from ``grasp`` to
         ``pregrasp`` keeps the hand within PATH_TOL x the back-off distance
-        of the straight line between the two hand poses (world) and within
-        PATH_ANGLE of their orientation (:data:`~planner.plan.tolerances.
+        (at least POSITION_TOL) of the straight line between the two hand
+        poses (world) and within PATH_ANGLE of their orientation (:data:`~planner.plan.tolerances.
         PATH_STEPS` points)."""
         a, b = (grasp_pose @ self.mount_inv), (pre_pose @ self.mount_inv)
+        # each end is verified only within POSITION_TOL: no tighter than that (a back-off of 0: no line at all)
+        tolerance = max(PATH_TOL * self.settings.pregrasp_distance, POSITION_TOL)
         start = np.array([grasp.joints[j] for j in self.arm_joints])
         end = np.array([pregrasp.joints[j] for j in self.arm_joints])
         for t in np.linspace(0.0, 1.0, PATH_STEPS + 1)[1:-1]:
@@ -245,7 +247,7 @@ class ReachScene:
             off = ee[:3, 3] - a[:3, 3]
             line = b[:3, 3] - a[:3, 3]
             along = np.clip(off @ line / max(line @ line, 1e-18), 0.0, 1.0)
-            if (np.linalg.norm(off - along * line) > PATH_TOL * self.settings.pregrasp_distance
+            if (np.linalg.norm(off - along * line) > tolerance
                     or angle_between(ee[:3, :3], a[:3, :3]) > PATH_ANGLE):
                 return False
         return True

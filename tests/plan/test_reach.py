@@ -181,3 +181,20 @@ def test_a_joint_path_that_leaves_the_approach_line_is_not_straight(scene) -> No
     turned = dict(r.pregrasp.joints)
     turned["panda_joint1"] += np.pi
     assert not scene._straight(r.grasp, replace(r.pregrasp, joints=turned), world, pre)
+
+
+def test_a_pregrasp_distance_of_0_still_reaches_the_grasp() -> None:
+    """A back-off of 0 (a distance the settings accept) is no line at all: the pre-grasp is the grasp with the
+    fingers open. The path check allowed 0 mm off it, and the solutions' own FK error (up to POSITION_TOL) made
+    every grasp "cannot back off along the approach"; it now allows POSITION_TOL, and still refuses another
+    branch."""
+    with Sim() as sim:
+        scene = ReachScene(sim, load_hand("panda"), load_object("box"), ReachSettings(pregrasp_distance=0.0))
+        for x in (0.4, 0.5, 0.6):
+            scene.place_object(scene.resting_pose(x, 0.0, 0.0))
+            r = scene.check(TOP_DOWN, fingers(0.02), fingers(0.04), np.random.default_rng(0))
+            assert r.reachable, r.why
+        turned = dict(r.pregrasp.joints)
+        turned["panda_joint1"] += np.pi
+        world = scene.object_pose @ TOP_DOWN
+        assert not scene._straight(r.grasp, replace(r.pregrasp, joints=turned), world, world)
