@@ -52,7 +52,8 @@ IK_CONVERGED = 0.25
 IK_REFINEMENTS = 6
 #: The arm backs off from the grasp to the pre-grasp by interpolating its
 #: joints: at each of PATH_STEPS - 1 points between, the hand stays within
-#: PATH_TOL times the back-off distance of the straight approach line and
+#: PATH_TOL times the back-off distance (at least POSITION_TOL: a back-off
+#: of 0 has no line) of the straight approach line and
 #: within PATH_ANGLE [rad] of the grasp's orientation. Measured (the PR2's
 #: arm, the mug at 4 poses, 10 cm): 3.1 mm median, 4.2 at most, 1.3 degrees;
 #: a pre-grasp on another IK branch (the elbow flipped) swings the hand 1.2 m
