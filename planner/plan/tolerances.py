@@ -56,7 +56,8 @@ IK_REFINEMENTS = 6
 #: of 0 has no line) of the straight approach line and
 #: within PATH_ANGLE [rad] of the grasp's orientation. Measured (the PR2's
 #: arm, the mug at 4 poses, 10 cm): 3.1 mm median, 4.2 at most, 1.3 degrees;
-#: a pre-grasp on another IK branch (the elbow flipped) swings the hand 1.2 m
+#: the Panda's, 3.0 mm, 7.0 at most, 1.0 degree (bench/RESULTS.md); a
+#: pre-grasp on another IK branch (the elbow flipped) swings the hand 1.2 m
 #: off the line.
 PATH_STEPS = 8
 PATH_TOL = 0.2
