@@ -74,6 +74,13 @@ def test_show_and_best_at_use_the_stored_mesh(stored_db: Path, tmp_path: Path, m
         api.best_at("random_007", "panda", [0.5, 0, 0, 0, 0, 0, 1], db_path=stored_db)
 
 
+@pytest.mark.parametrize("distance", [-0.1, float("nan"), float("inf")])
+def test_a_pregrasp_distance_that_is_no_distance_is_an_input_error(box_db: Path, distance: float) -> None:
+    """best_at took a negative or nan back-off (the pre-grasp then in front of the grasp, or nowhere)."""
+    with pytest.raises(InputError, match="pregrasp_distance must be a finite distance"):
+        api.best_at("box", "panda", [0.5, 0, 0.04, 0, 0, 0, 1], db_path=box_db, pregrasp_distance=distance)
+
+
 @pytest.mark.parametrize("pose", [np.eye(4), "abc", [0.5, 0, 0.04, 0, 0, 0, "w"]])
 def test_a_pose_of_the_wrong_kind_is_an_input_error(box_db: Path, pose: object) -> None:
     with pytest.raises(InputError, match="needs 7 finite numbers"):

@@ -8,6 +8,7 @@ the object (:data:`PLAN_NOW`) when too few are reached; each found one is a
 from __future__ import annotations
 
 import itertools
+import math
 import logging
 import time
 from collections.abc import Iterable, Iterator, Sequence
@@ -80,6 +81,8 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
 
     if top < 1 or max_candidates < 0:
         raise InputError(f"--top must be at least 1 and --max-candidates at least 0, got {top} and {max_candidates}")
+    if not (math.isfinite(pregrasp_distance) and pregrasp_distance >= 0):
+        raise InputError(f"pregrasp_distance must be a finite distance >= 0 [m], got {pregrasp_distance}")
     obj_pose = _pose7(object_pose, "--object-pose")
     base = _pose7(robot_base, "--robot-base") if robot_base is not None else np.eye(4)
     spec = load_hand(hand)
