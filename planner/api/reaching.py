@@ -8,8 +8,8 @@ the object (:data:`PLAN_NOW`) when too few are reached; each found one is a
 from __future__ import annotations
 
 import itertools
-import math
 import logging
+import math
 import time
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
