@@ -35,9 +35,17 @@ def _project_root() -> Path:
 PROJECT_ROOT = _project_root()
 
 
+#: The asset folders a ``$GRASP_HOME`` must hold.
+ASSET_FOLDERS = ("hands", "preshapes", "objects")
+
+
 def project_dir(name: str) -> Path:
     """One of the project's asset folders: ``hands``, ``preshapes``, ``objects``."""
-    return PROJECT_ROOT / name
+    path = PROJECT_ROOT / name
+    if name in ASSET_FOLDERS and not path.is_dir() and os.environ.get("GRASP_HOME"):
+        raise ConfigError(f"GRASP_HOME={os.environ['GRASP_HOME']}: no {name}/ folder there (GRASP_HOME names the "
+                          f"folder holding {', '.join(f + '/' for f in ASSET_FOLDERS)}: a checkout of this project)")
+    return path
 
 
 def pybullet_data_root() -> Path:

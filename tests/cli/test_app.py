@@ -197,3 +197,17 @@ def test_a_sigterm_inside_a_destructor_is_sent_again(monkeypatch: pytest.MonkeyP
     assert timers == [(app.TERM_RETRY, app.os.kill, (app.os.getpid(), signal.SIGTERM))]
     with pytest.raises(KeyboardInterrupt):
         app._terminated(signal.SIGTERM, inspect.currentframe())
+
+
+def test_a_grasp_home_without_the_projects_folders_is_said_in_one_line(tmp_path: Path,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """GRASP_HOME names the folder holding hands/, preshapes/ and objects/; one without them was an internal
+    error (FileNotFoundError: .../hands)."""
+    from planner import assets
+    from planner.errors import ConfigError
+
+    monkeypatch.setenv("GRASP_HOME", str(tmp_path))
+    monkeypatch.setattr(assets, "PROJECT_ROOT", tmp_path)
+    code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(tmp_path / "g.db"), "--approaches", "4")
+    one_line_error(code, err, ConfigError.exit_code, f"GRASP_HOME={tmp_path}: no hands/ folder there")
+    assert not (tmp_path / "g.db").exists()
