@@ -43,8 +43,10 @@ def project_dir(name: str) -> Path:
     """One of the project's asset folders: ``hands``, ``preshapes``, ``objects``."""
     path = PROJECT_ROOT / name
     if name in ASSET_FOLDERS and not path.is_dir() and os.environ.get("GRASP_HOME"):
-        raise ConfigError(f"GRASP_HOME={os.environ['GRASP_HOME']}: no {name}/ folder there (GRASP_HOME names the "
-                          f"folder holding {', '.join(f + '/' for f in ASSET_FOLDERS)}: a checkout of this project)")
+        missing = [f + "/" for f in ASSET_FOLDERS if not (PROJECT_ROOT / f).is_dir()]
+        raise ConfigError(f"GRASP_HOME={os.environ['GRASP_HOME']}: no {', '.join(missing)} folder there (GRASP_HOME "
+                          f"names the folder holding {', '.join(f + '/' for f in ASSET_FOLDERS)}: a checkout of this "
+                          "project)")
     return path
 
 

@@ -209,5 +209,5 @@ def test_a_grasp_home_without_the_projects_folders_is_said_in_one_line(tmp_path:
     monkeypatch.setenv("GRASP_HOME", str(tmp_path))
     monkeypatch.setattr(assets, "PROJECT_ROOT", tmp_path)
     code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(tmp_path / "g.db"), "--approaches", "4")
-    one_line_error(code, err, ConfigError.exit_code, f"GRASP_HOME={tmp_path}: no hands/ folder there")
+    one_line_error(code, err, ConfigError.exit_code, f"GRASP_HOME={tmp_path}: no hands/, preshapes/, objects/ folder")
     assert not (tmp_path / "g.db").exists()
