@@ -60,6 +60,7 @@ from planner.api.querying import (  # noqa: F401 - re-exported
     p_hold_outside,
     ranking_rule,
     ranks_stale,
+    stored_names,
 )
 from planner.api.reaching import (  # noqa: F401 - re-exported
     CANDIDATE_BATCH,
@@ -104,8 +105,8 @@ __all__ = [
     "GenerateProgress", "ImportResult", "RankingRule", "ReachableGrasp", "SAMPLERS", "SAMPLER_DEFAULTS", "Summary",
     "SweepSettings", "UnitResult", "ValidationSummary",
     "best", "best_at", "calibrate", "calibration_errors", "check_db", "default_workers", "export", "generate",
-    "hand", "hands", "import_files", "objects", "plan_units", "report", "resolve_object", "show", "stored_objects",
-    "validate",
+    "hand", "hands", "import_files", "objects", "plan_units", "report", "resolve_object", "show", "stored_names",
+    "stored_objects", "validate",
 ]
 
 #: Names of this module loaded from their modules on first use: name -> (module, attribute).

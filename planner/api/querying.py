@@ -4,6 +4,7 @@ ones with a spacing), and the ranking rule and p_hold model a database applies.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from contextlib import closing
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -67,6 +68,17 @@ def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1, spac
             raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}; objects with grasps: "
                              f"{', '.join(known) or '(none)'}; run `{generate_command(name, row, hand, db_path)}`")
     return grasps
+
+
+def stored_names(names: Sequence[str], *, db_path: Path = DEFAULT_DB) -> tuple[str, ...]:
+    """Each of ``names`` as ``db_path`` stores it: a mesh file's path becomes
+    the object stored from it (as ``best`` and ``show`` take it); any other
+    name is kept as given (the command says if no object of that name has
+    grasps)."""
+    if not any(Path(n).is_file() for n in names):
+        return tuple(names)
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        return tuple(resolve_object(db, n)[0] if Path(n).is_file() else n for n in names)
 
 
 def ranking_rule(db_path: Path = DEFAULT_DB) -> RankingRule:

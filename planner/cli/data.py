@@ -40,6 +40,7 @@ def export(db_path: Path, fmt: str, out_dir: Path, objects: tuple[str, ...], han
         if not quiet and not as_json:
             click.echo(f"{path}: {count} grasps")
 
+    objects = api.stored_names(objects, db_path=db_path)  # a mesh file's path: the object stored from it
     summary = api.export(db_path, fmt, out_dir, objects=objects, hands=hands, min_epsilon=min_epsilon, top=top,
                          spacing=spacing(diverse, min_translation, min_rotation), label=label, progress=progress)
     if as_json:

@@ -42,6 +42,7 @@ def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], to
     if sample is not None or every:
         unused(["top"], "--sample and --all choose the grasps instead")
     show_preparation(not as_json)
+    objects = api.stored_names(objects, db_path=db_path)  # a mesh file's path: the object stored from it
     summary = api.validate(db_path, objects=list(objects) or None, hands=list(hands) or None, top=top,
                            sample=sample, every=every, robust_samples=robust_samples, seed=seed, workers=workers,
                            closure_only=closure_only, engine=engine)

@@ -36,3 +36,24 @@ def test_an_export_says_where_labels_are_the_force_closure_flag(box_db: Path, tm
     monkeypatch.setenv(SHIPPED_ENV, "1")
     code, out, err = grasp("export", "--db", str(box_db), "--format", "csv", "--out", str(tmp_path / "c"), "--json")
     assert code == 0 and json.loads(out)["notes"] == [], err
+
+
+def test_export_and_validate_take_an_objects_mesh_file_as_best_does(tmp_path: Path) -> None:
+    """`--object mine/brick.stl` was refused by export and validate ("no grasps of object 'mine/brick.stl'")
+    while best and show took the file's path."""
+    import trimesh
+
+    mesh = tmp_path / "mine" / "brick.stl"
+    mesh.parent.mkdir()
+    trimesh.creation.box(extents=(0.05, 0.04, 0.03)).export(mesh)
+    db = str(tmp_path / "g.db")
+    code, _, err = grasp("generate", str(mesh), "--hand", "panda", "--db", db, "--approaches", "4", "--workers", "1")
+    assert code == 0, err
+    code, out, err = grasp("export", "--db", db, "--format", "csv", "--out", str(tmp_path / "out"), "--object",
+                           str(mesh), "--json")
+    assert code == 0, err
+    assert json.loads(out)["grasps"] > 0
+    code, out, err = grasp("validate", "--db", db, "--object", str(mesh), "--top", "1", "--robust", "0", "--json",
+                           "--workers", "1")
+    assert code == 0, err
+    assert json.loads(out)["grasps"] == 1
