@@ -118,15 +118,19 @@ class Approaches:
 
 
 def sample(mesh: trimesh.Trimesh, *, sampler: str, count: int, rng: np.random.Generator,
-           delta: float = 0.02, fan_count: int = 0, fan_angle: float = 0.3) -> Approaches:
-    """Sample approach rays on ``mesh`` (see module docstring)."""
+           delta: float = 0.02, fan_count: int = 0, fan_angle: float = 0.3,
+           normals_at: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> Approaches:
+    """Sample approach rays on ``mesh`` (see module docstring); ``normals_at``
+    as :func:`antipodal`'s (default: the faces' own normals)."""
+    normals_at = normals_at or (lambda _, f: mesh.face_normals[f])
     if sampler == "surface":
         if count < 1:
             raise InputError(f"--approaches must be at least 1, got {count}")
         points, faces = trimesh.sample.sample_surface(mesh, count, seed=rng)
-        normals = mesh.face_normals[faces]
+        normals = normals_at(points, faces)
     elif sampler == "box":
-        points, normals = _box_rays(mesh, delta)
+        points, faces = _box_rays(mesh, delta)
+        normals = normals_at(points, faces) if len(faces) else np.zeros((0, 3))
     elif sampler == "antipodal":
         raise InputError("the antipodal sampler makes point pairs: use sampling.antipodal")
     else:
@@ -211,7 +215,7 @@ def _box_rays(mesh: trimesh.Trimesh, delta: float) -> tuple[np.ndarray, np.ndarr
     o, d = np.vstack(origins), np.vstack(dirs)
     hits, rays, tris = mesh.ray.intersects_location(o, d, multiple_hits=False)
     order = np.argsort(rays, kind="stable")
-    return hits[order], mesh.face_normals[tris[order]]
+    return hits[order], tris[order]
 
 
 def fan(base: Approaches, count: int, angle: float) -> Approaches:

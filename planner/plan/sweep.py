@@ -94,9 +94,9 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: its width (the gap between its fingertip pads at the closed joints, hand.toml width_links; null before).
 #: 21: the Allegro closes at 7 rad/s (Wonik's limit, not 0.5) in its settle and trials: other settled epsilons,
 #: scores and ranks of the Allegro's (15 objects of bench/mujoco_protocols.py: another top-1 on 11).
-#: 22: a mesh of over 5,000 faces: a proxy within 0.5 mm, the contacts and the antipodal sampler take the exact
-#: surface's normals averaged over 2 mm (not facets'); a pre-grasp on another IK branch than its grasp: unreachable.
-ALGORITHM_VERSION = 22
+#: 22: over 5,000 faces: a proxy within 0.5 mm, contacts and antipodal sampler on normals averaged over 2 mm; a
+#: pre-grasp on another IK branch than its grasp: unreachable. 23: the ray samplers on those normals too.
+ALGORITHM_VERSION = 23
 
 #: Named in the digest of sweeps on a table only (those of the object alone stay
 #: as they were), bumped when a change alters only which grasps they produce.

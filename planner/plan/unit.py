@@ -249,7 +249,8 @@ def _rays(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, hand: Ha
     """OpenRAVE-style: approach along each ray until contact, back off, close."""
     t1 = time.perf_counter()
     rays = sampling.sample(obj.mesh, sampler=settings.sampler or "surface", count=settings.approaches or 0, rng=rng,
-                           delta=settings.box_delta, fan_count=settings.fan_count, fan_angle=settings.fan_angle)
+                           delta=settings.box_delta, fan_count=settings.fan_count, fan_angle=settings.fan_angle,
+                           normals_at=_scale_normals(grasper))
     keep: range | list[int] = settings.ray_range(spec.chunk, len(rays))
     support = settings.support()
     if support is not None:  # straight down onto the top first (the first unit), then the sampled rays, steepened
@@ -277,6 +278,12 @@ def _rays(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, hand: Ha
         yield cand, closed, (rays.points[cand.ray], rays.directions[cand.ray], cand.roll, cand.standoff)
 
 
+def _scale_normals(grasper: Grasper) -> Callable[[np.ndarray, np.ndarray], np.ndarray] | None:
+    """A scan's normals (closed on a proxy) at a contact's scale, as its contacts read them; else None (faces')."""
+    exact = grasper.exact_surface
+    return None if exact is None else partial(exact.scale_normals.at, radius=grasper.settings.patches.normal_radius)
+
+
 def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, hand: HandSpec,
                shapes: tuple[Preshape, ...], rng: np.random.Generator, grasper: Grasper, result: UnitResult,
                t0: float, budget: Budget, report: Report) -> Swept:
@@ -285,11 +292,8 @@ def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, han
     the object, else closed where it is."""
     t1 = time.perf_counter()
     openings = {s.name: hand.opening(s.joints) for s in shapes}
-    normals_at = None  # a scan's (closed on a proxy): at a contact's scale, as its contacts read them
-    if grasper.exact_surface is not None:
-        normals_at = partial(grasper.exact_surface.scale_normals.at, radius=grasper.settings.patches.normal_radius)
     pairs = sampling.antipodal(obj.mesh, settings.approaches or 0, rng, mu=obj.friction,
-                               max_width=max(openings.values()) - 2 * MIN_CLEARANCE, normals_at=normals_at)
+                               max_width=max(openings.values()) - 2 * MIN_CLEARANCE, normals_at=_scale_normals(grasper))
     todo = antipodal_candidates(pairs, shapes, openings, settings, MIN_CLEARANCE,
                                 settings.ray_range(spec.chunk, len(pairs)))
     check_sampler(settings, hand)
