@@ -346,7 +346,7 @@ def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: C
     out = []
     with Sim() as sim:
         grasper = Grasper.for_object(sim, hand, obj)
-        gripping = grip.GripSurface(obj.mesh)  # the exact surface, whatever proxy closing collides with
+        gripping = grip.GripSurface(obj.mesh, normals_at=grasper.normals_at())  # the exact surface
         local = LocalSurface(hand, obj.mesh if grasper.mesh is None else grasper.mesh)  # a large mesh's proxy
         for i, pose in enumerate(poses, start=first):
             closed = grasper.close_at(pose, shape, MAX_BACK_OFF)

@@ -51,7 +51,9 @@ at every step; the simulator adapter converts poses in closed form.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 import trimesh
@@ -203,6 +205,13 @@ class Grasper(FingerClosing, ContactReading):
         if self.table_body is not None:
             distance = min(distance, query(uid, self.table_body, reach - offset, index))
         return min(distance + offset, bound)
+
+    def normals_at(self) -> Callable[[np.ndarray, np.ndarray], np.ndarray] | None:
+        """A proxied mesh's outward normals at (points (n, 3), faces (n,)) of its exact surface, averaged at a
+        contact's scale as its contacts read them (:mod:`planner.geometry.normals`); None when closing collides
+        with the exact mesh (then the faces' own normals)."""
+        exact = self.exact_surface
+        return None if exact is None else partial(exact.scale_normals.at, radius=self.settings.patches.normal_radius)
 
     def on_table(self, within: float = 0.0) -> bool:
         """Is the hand, where it is now, within ``within`` [m] of the table or

@@ -50,7 +50,7 @@ the link frame and moved by the link poses closing reports.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -99,7 +99,10 @@ class GripSurface:
     [m^2]; kept sorted by x so that a box query is a binary search and a
     mask."""
 
-    def __init__(self, mesh: trimesh.Trimesh, settings: GripSettings | None = None) -> None:
+    def __init__(self, mesh: trimesh.Trimesh, settings: GripSettings | None = None,
+                 normals_at: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> None:
+        """``normals_at(points, faces)``: the normals at the samples (default:
+        their faces'; a scan's at a contact's scale, as its contacts read them)."""
         self.settings = settings or GripSettings()
         s = self.settings
         count = int(min(max(np.ceil(mesh.area / s.spacing**2), 1), s.max_samples))
@@ -107,7 +110,8 @@ class GripSurface:
         points = np.asarray(points, float)
         order = np.argsort(points[:, 0], kind="stable")
         self.points = points[order]
-        self.normals = np.asarray(mesh.face_normals[faces], float)[order]
+        normals = mesh.face_normals[faces] if normals_at is None else normals_at(points, faces)
+        self.normals = np.asarray(normals, float)[order]
         self.area = float(mesh.area) / len(self.points)
         coarse = points[::s.coarse]  # every coarse-th draw: a uniform subsample, the same whatever the frame
         self.coarse = coarse[np.argsort(coarse[:, 0], kind="stable")]

@@ -95,7 +95,7 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: 21: the Allegro closes at 7 rad/s (Wonik's limit, not 0.5) in its settle and trials: other settled epsilons,
 #: scores and ranks of the Allegro's (15 objects of bench/mujoco_protocols.py: another top-1 on 11).
 #: 22: over 5,000 faces: a proxy within 0.5 mm, contacts and antipodal sampler on normals averaged over 2 mm; a
-#: pre-grasp on another IK branch than its grasp: unreachable. 23: the ray samplers on those normals too.
+#: pre-grasp on another IK branch than its grasp: unreachable. 23: the ray samplers and grip measures too.
 ALGORITHM_VERSION = 23
 
 #: Named in the digest of sweeps on a table only (those of the object alone stay

@@ -25,7 +25,6 @@ import traceback
 from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
-from functools import partial
 
 import numpy as np
 
@@ -172,7 +171,7 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report, obj: PreparedObject
     table = None if support is None else support.raised(TABLE_CLEARANCE).frame()
     with Sim() as sim:
         grasper = Grasper.for_object(sim, hand, obj, table=table)
-        gripping = grip.GripSurface(obj.mesh)  # the exact surface, whatever proxy closing collides with
+        gripping = grip.GripSurface(obj.mesh, normals_at=grasper.normals_at())  # the exact surface
         local = LocalSurface(hand, obj.mesh if grasper.mesh is None else grasper.mesh)  # a large mesh's proxy
         up = resting_up(settings.table_plane, obj.up)  # the object's up; on a table, the table's (object frame)
         sweep = _antipodal if settings.sampler == "antipodal" else _rays
@@ -250,7 +249,7 @@ def _rays(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, hand: Ha
     t1 = time.perf_counter()
     rays = sampling.sample(obj.mesh, sampler=settings.sampler or "surface", count=settings.approaches or 0, rng=rng,
                            delta=settings.box_delta, fan_count=settings.fan_count, fan_angle=settings.fan_angle,
-                           normals_at=_scale_normals(grasper))
+                           normals_at=grasper.normals_at())
     keep: range | list[int] = settings.ray_range(spec.chunk, len(rays))
     support = settings.support()
     if support is not None:  # straight down onto the top first (the first unit), then the sampled rays, steepened
@@ -278,12 +277,6 @@ def _rays(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, hand: Ha
         yield cand, closed, (rays.points[cand.ray], rays.directions[cand.ray], cand.roll, cand.standoff)
 
 
-def _scale_normals(grasper: Grasper) -> Callable[[np.ndarray, np.ndarray], np.ndarray] | None:
-    """A scan's normals (closed on a proxy) at a contact's scale, as its contacts read them; else None (faces')."""
-    exact = grasper.exact_surface
-    return None if exact is None else partial(exact.scale_normals.at, radius=grasper.settings.patches.normal_radius)
-
-
 def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, hand: HandSpec,
                shapes: tuple[Preshape, ...], rng: np.random.Generator, grasper: Grasper, result: UnitResult,
                t0: float, budget: Budget, report: Report) -> Swept:
@@ -293,7 +286,7 @@ def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, han
     t1 = time.perf_counter()
     openings = {s.name: hand.opening(s.joints) for s in shapes}
     pairs = sampling.antipodal(obj.mesh, settings.approaches or 0, rng, mu=obj.friction,
-                               max_width=max(openings.values()) - 2 * MIN_CLEARANCE, normals_at=_scale_normals(grasper))
+                               max_width=max(openings.values()) - 2 * MIN_CLEARANCE, normals_at=grasper.normals_at())
     todo = antipodal_candidates(pairs, shapes, openings, settings, MIN_CLEARANCE,
                                 settings.ray_range(spec.chunk, len(pairs)))
     check_sampler(settings, hand)
