@@ -136,3 +136,31 @@ def test_a_point_whose_own_face_is_centred_beyond_the_radius_keeps_it(seed: int,
     assert any(f not in n for f, n in zip(face, near))  # the case this test is for
     assert np.allclose(ScaleNormals(mesh).at(points, face, radius, toward),
                        _reference(mesh, points, face, radius, toward), atol=1e-12)
+
+
+def test_many_points_are_gathered_a_block_at_a_time_to_the_same_normals(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """The grip measures' 200,000 samples of a large scan gathered at once held every face of every sample's disc
+    at once (2 GB more on a 1M-face capsule): at most ``BLOCK`` points' discs are gathered at a time, and the
+    normals are those of one gather, to the bit, with ``toward`` and without."""
+    from planner.geometry import normals
+
+    rng = np.random.default_rng(3)
+    mesh = _rough_plane(1e-4)
+    points, face = trimesh.sample.sample_surface(mesh, 1000, seed=rng)
+    toward = mesh.face_normals[face] + rng.normal(0.0, 0.3, (1000, 3))
+    whole = ScaleNormals(mesh)
+    expected = [whole.at(points, face, 0.002), whole.at(points, face, 0.002, toward)]
+    monkeypatch.setattr(normals, "BLOCK", 64, raising=False)
+    blocked = ScaleNormals(mesh)
+    sizes: list[int] = []
+    tree = blocked._centres
+
+    class Counted:
+        def query_ball_point(self, x, r):  # type: ignore[no-untyped-def]
+            sizes.append(len(x))
+            return tree.query_ball_point(x, r)
+
+    blocked.__dict__["_centres"] = Counted()
+    assert np.array_equal(blocked.at(points, face, 0.002), expected[0])
+    assert np.array_equal(blocked.at(points, face, 0.002, toward), expected[1])
+    assert max(sizes) <= 64 and sum(sizes) == 2000, (max(sizes), sum(sizes))
