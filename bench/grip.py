@@ -52,13 +52,13 @@ def main() -> int:
                 with open_db(db, create=False, readonly=True) as d:
                     grasps = d.best(name, hand_name, 100_000)
                 obj = load_object(name)
-                t0 = time.process_time()
-                surface = grip.GripSurface(obj.mesh)
-                prepare = time.process_time() - t0
                 closing = measuring = 0.0
                 n = 0
                 with Sim() as sim:
                     grasper = Grasper.for_object(sim, hand, obj)
+                    t0 = time.process_time()
+                    surface = grip.GripSurface(obj.mesh, normals_at=grasper.normals_at())  # as a unit makes it
+                    prepare = time.process_time() - t0
                     for g in grasps:
                         t0 = time.process_time()
                         closed = grasper.close_at(np.asarray(g.pose, float), shapes[g.preshape])
