@@ -4,6 +4,7 @@ the contact model of each link in the score."""
 from __future__ import annotations
 
 import tempfile
+from collections import Counter
 from dataclasses import replace
 from pathlib import Path
 
@@ -15,6 +16,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from planner import quality
+from planner.datasets import importer
 from planner.geometry.solid import load_object
 from planner.plan import grip, unit
 from planner.plan.sweep import SweepSettings
@@ -249,5 +251,9 @@ def test_a_rough_scans_grip_measures_read_its_shapes_normals(tmp_path, monkeypat
     rough = tmp_path / "rough.obj"
     rough.write_text(scanlike.uv_obj(100_000, noise=1e-4))
     assert "sampled" in (run_unit(UnitSpec(str(rough), "panda", SETTINGS, 0)).error or "")
-    tilt = _capsule_tilt(seen[0].points, seen[0].normals)
-    assert len(tilt) > 10_000 and np.percentile(tilt, 99.9) < 6.0, (len(tilt), np.percentile(tilt, 99.9))
+    with pytest.raises(RuntimeError, match="sampled"):  # an imported file's grasps are measured the same way
+        importer._rescore(np.eye(4)[None], load_hand("panda"), load_object(str(rough)), Counter())
+    for surface in seen:
+        tilt = _capsule_tilt(surface.points, surface.normals)
+        assert len(tilt) > 10_000 and np.percentile(tilt, 99.9) < 6.0, (len(tilt), np.percentile(tilt, 99.9))
+    assert len(seen) == 2
