@@ -208,15 +208,15 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
     grasps were planned and measured on: one name, one object. The mesh is
     prepared and compared for the objects with units ``todo``; an object
     whose units are all done is compared by its file and scale, and prepared
-    only where those moved or the file was modified since its last unit
-    finished (its mtime: a copy that keeps an older mtime is not seen). An
+    only where those moved or the file (or its sidecar) was modified since its last unit
+    finished (its mtime: a copy that keeps an older mtime is not seen; a sidecar removed: its folder's). An
     object whose mesh no longer loads is left to its units (stored as
     failed). ``flags``: the run's values (a manifest line's replace them)."""
     from planner.db.objects import differs
     from planner.errors import PlannerError
     from planner.geometry.solid import prepare
     from planner.record.field import COM_TOL
-    from planner.specs.object_files import edited_since
+    from planner.specs.object_files import edited_since, sidecar_changed
 
     running = {u.label or u.object_name for u in todo}
     checked: set[str] = set()
@@ -246,8 +246,9 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
                              f"the mesh under another name){keep}")
         if name not in running and spec.user_file and row.source == spec.source and row.scale == spec.scale \
                 and row.geometry == spec.geometry and (spec.com is None or math.dist(spec.com, row.com) <= COM_TOL) \
-                and not edited_since(Path(spec.source), db.last_finished(name), spec.geometry):
-            continue  # nothing of it runs, and it names the stored file, unchanged since, at the stored scale
+                and not edited_since(Path(spec.source), db.last_finished(name), spec.geometry) \
+                and not sidecar_changed(Path(spec.source), db.last_finished(name)):
+            continue  # nothing of it runs, and it names the stored file and sidecar, unchanged since, at its scale
         try:
             why = differs(row, prepare(spec))
         except PlannerError:
