@@ -46,6 +46,11 @@ if TYPE_CHECKING:
 #: checks its own time between candidates and ends cleanly; the pool's kill is
 #: for a simulator call that never returns.
 UNIT_TIMEOUT_GRACE = 10.0
+#: [s] the longest --unit-timeout: a unit of work is seconds to minutes; 1e300 overflowed the pool's wait.
+MAX_UNIT_TIMEOUT = 7 * 24 * 3600.0
+#: Candidates of one unit of work: a worker lists them all (an antipodal one with their poses) in memory, measured
+#: 0.21 kB a candidate and 0.33 kB a pose: 1,000,000 is ~0.5 GB per worker (--rolls 10**9 ran out of memory).
+MAX_UNIT_CANDIDATES = 1_000_000
 
 
 @dataclass
@@ -141,7 +146,25 @@ def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: i
             from planner.plan.sampling import check_box_rays
 
             check_box_rays(obj.mesh, settings.box_delta)
+    _check_unit_sizes(units, hand_spec)
     return units
+
+
+def _check_unit_sizes(units: Sequence[UnitSpec], hand: Any) -> None:
+    """Refuse a sweep whose first unit of work (the largest: full, with a table's rays from above) would hold more
+    than :data:`MAX_UNIT_CANDIDATES` candidates, before any work, naming the options whose product it is."""
+    for settings in {u.settings.digest: u.settings for u in units if u.chunk == 0}.values():
+        names = list(settings.preshapes) if settings.preshapes else None
+        count = candidate_count(settings, shapes := sweep_preshapes(hand, names, settings.support() is not None))
+        if count is None or count <= MAX_UNIT_CANDIDATES:
+            continue
+        rays = len(settings.ray_range(0, settings.rays_known or 0)) + settings.above_rays(0)
+        per = (f"{len(settings.depths)} --depths" if settings.sampler == "antipodal" else
+               f"{sum(len(settings.standoffs or s.standoffs) for s in shapes)} standoffs over the preshapes")
+        raise InputError(f"a unit of work would hold {count:,} candidates ({rays:,} "
+                         f"{'points' if settings.sampler == 'antipodal' else 'rays'} (--approaches, or --chunk of "
+                         f"them) x --rolls {settings.rolls} x {per}): at most {MAX_UNIT_CANDIDATES:,}, each held in a "
+                         "worker's memory; use a smaller --chunk or fewer --rolls")
 
 
 def table_supports(obj: PreparedObject, poses: int) -> list[Support]:
@@ -185,15 +208,15 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
     grasps were planned and measured on: one name, one object. The mesh is
     prepared and compared for the objects with units ``todo``; an object
     whose units are all done is compared by its file and scale, and prepared
-    only where those moved or the file was modified since its last unit
-    finished (its mtime: a copy that keeps an older mtime is not seen). An
+    only where those moved or the file (or its sidecar) was modified since its last unit
+    finished (its mtime: a copy that keeps an older mtime is not seen; a sidecar removed: its folder's). An
     object whose mesh no longer loads is left to its units (stored as
     failed). ``flags``: the run's values (a manifest line's replace them)."""
     from planner.db.objects import differs
     from planner.errors import PlannerError
     from planner.geometry.solid import prepare
     from planner.record.field import COM_TOL
-    from planner.specs.object_files import edited_since
+    from planner.specs.object_files import edited_since, sidecar_changed
 
     running = {u.label or u.object_name for u in todo}
     checked: set[str] = set()
@@ -223,8 +246,9 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
                              f"the mesh under another name){keep}")
         if name not in running and spec.user_file and row.source == spec.source and row.scale == spec.scale \
                 and row.geometry == spec.geometry and (spec.com is None or math.dist(spec.com, row.com) <= COM_TOL) \
-                and not edited_since(Path(spec.source), db.last_finished(name), spec.geometry):
-            continue  # nothing of it runs, and it names the stored file, unchanged since, at the stored scale
+                and not edited_since(Path(spec.source), db.last_finished(name), spec.geometry) \
+                and not sidecar_changed(Path(spec.source), db.last_finished(name)):
+            continue  # nothing of it runs, and it names the stored file and sidecar, unchanged since, at its scale
         try:
             why = differs(row, prepare(spec))
         except PlannerError:
@@ -263,8 +287,9 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
 
     if workers < 1:
         raise InputError(f"--workers must be at least 1, got {workers}")
-    if unit_timeout is not None and not (math.isfinite(unit_timeout) and unit_timeout > 0):
-        raise InputError(f"--unit-timeout must be a positive number of seconds, got {unit_timeout}")
+    if unit_timeout is not None and not (math.isfinite(unit_timeout) and 0 < unit_timeout <= MAX_UNIT_TIMEOUT):
+        raise InputError(f"--unit-timeout must be a positive number of seconds, at most {MAX_UNIT_TIMEOUT:,.0f} (a "
+                         f"week), got {unit_timeout}")
     check_seed(seed)
     physical = Physical.checked({"mass": mass, "density": density, "friction": friction, "up": up,
                                  "geometry": geometry}, prefix="--")

@@ -5,18 +5,52 @@ Errors become one line on stderr and an exit code (2 bad input, 3 database,
 Commands, one module per group of them: ``generate``; ``best``, ``show``
 (query); ``view`` (the browser viewer); ``validate``, ``report``; ``calibrate``; ``export``, ``import``
 (data); ``hands``, ``objects``, ``db check`` (info).
+
+Importing this package imports nothing: :func:`run`, the console script's entry point (and ``python -m
+planner.cli``'s), imports the commands (click, numpy, the specs: ~0.25 s) inside it, so a Ctrl-C while they load
+ends as one during a command does (exit 130, one line), not with a traceback. ``main``, the click group with
+every command, is loaded on first use.
 """
 
-from planner.cli.app import main
-from planner.cli.calibrate import calibrate
-from planner.cli.data import export, import_files
-from planner.cli.generate import generate
-from planner.cli.info import db, hands, objects
-from planner.cli.query import best, show
-from planner.cli.validate import report, validate
-from planner.cli.view import view
+from __future__ import annotations
 
-for _command in (generate, best, show, view, validate, report, calibrate, export, import_files, hands, objects, db):
-    main.add_command(_command)
+import sys
+from collections.abc import Callable  # not typing: its import (~10 ms) is a window for a traceback
 
-__all__ = ["main"]
+#: 128 + SIGINT, as shells report a command ended by Ctrl-C.
+EXIT_INTERRUPTED = 130
+
+
+def run() -> None:
+    """The ``grasp`` command as the console script starts it."""
+    try:
+        command = _main()
+    except KeyboardInterrupt:
+        print("grasp: interrupted; nothing was changed", file=sys.stderr)
+        sys.exit(EXIT_INTERRUPTED)
+    command()
+
+
+def _main() -> Callable[[], object]:
+    """The click group with every command (imported here: the heavy part of starting)."""
+    from planner.cli.app import main
+    from planner.cli.calibrate import calibrate
+    from planner.cli.data import export, import_files
+    from planner.cli.generate import generate
+    from planner.cli.info import db, hands, objects
+    from planner.cli.query import best, show
+    from planner.cli.validate import report, validate
+    from planner.cli.view import view
+
+    for command in (generate, best, show, view, validate, report, calibrate, export, import_files, hands, objects, db):
+        main.add_command(command)
+    return main
+
+
+def __getattr__(name: str) -> object:
+    if name == "main":
+        return _main()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+__all__ = ["main", "run"]

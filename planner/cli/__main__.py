@@ -1,5 +1,5 @@
 """``python -m planner.cli``: the ``grasp`` command."""
 
-from planner.cli import main
+from planner.cli import run
 
-main()
+run()

@@ -18,12 +18,12 @@ from typing import Any
 import click
 
 from planner import api
+from planner.cli import EXIT_INTERRUPTED
 from planner.errors import DatabaseError, InputError, PlannerError
 
 #: Exit codes besides the errors' own (``PlannerError.exit_code``: 2 bad
 #: input, 3 database, 4 simulator).
 EXIT_OTHER = 1  # anything else: an internal error, or nothing found
-EXIT_INTERRUPTED = 130
 EXIT_PIPE = 141  # the reader of the output went away (`grasp best | head`): 128 + SIGPIPE, as shell tools exit
 
 

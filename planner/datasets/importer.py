@@ -154,9 +154,14 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
     reader = formats.reader(fmt)
     up = None if up is None else up_axis(up, "", "--up")
     plans = [_plan(Path(p), fmt, reader, hand, object_name, rescore, up=up) for p in paths]
-    # every file's poses read and checked before the database is opened: a refused import (a NaN or a wrong
-    # shape in grasps/transforms) left an empty database and its lock file at --db
+    # every file's poses (and a lossless file's joints and contacts) read and checked before the
+    # database is opened: a refused import (a NaN in grasps/transforms, a joint outside its limits, contacts that
+    # are not JSON) left an empty database and its lock file at --db. A lossless file is read twice (here and when
+    # written) rather than held: an export of many objects would be held whole
     poses = [plan.reader.poses(plan.path, plan.hand) for plan in plans]
+    for plan, file_poses in zip(plans, poses):
+        if plan.lossless:
+            plan.reader.grasps(plan.path, plan.hand, plan.spec.name, file_poses)
     results: dict[int, ImportResult] = {}
 
     def finish(index: int, result: ImportResult) -> None:

@@ -216,7 +216,8 @@ V2_VALIDATION = "(SELECT *, '' AS reason FROM validation)"
 
 
 def schema_version(conn: sqlite3.Connection, path: Path) -> int:
-    """The file's schema version; 0 for an empty file; a foreign database is refused."""
+    """The file's schema version; 0 for an empty file; a foreign database is refused, and so is one that lacks
+    a column of its version (:func:`check_columns`)."""
     has_meta = conn.execute("SELECT name FROM sqlite_master WHERE type = 'table' AND name = 'meta'").fetchone()
     if not has_meta:
         tables = conn.execute("SELECT COUNT(*) AS n FROM sqlite_master WHERE type = 'table'").fetchone()["n"]
@@ -227,10 +228,29 @@ def schema_version(conn: sqlite3.Connection, path: Path) -> int:
     if row is None:
         return 0
     try:
-        return int(row["value"])
+        version = int(row["value"])
     except (TypeError, ValueError):
         raise DatabaseError(f"{path}: its schema version {row['value']!r} is not a number: not a grasp database "
                             "this planner wrote; pick another --db path") from None
+    if 0 < version <= SCHEMA_VERSION:  # a newer one is refused as newer by its reader
+        check_columns(conn, path, version)
+    return version
+
+
+def check_columns(conn: sqlite3.Connection, path: Path, version: int) -> None:
+    """Refuse a file at schema ``version`` whose tables lack a column that version has (an ``ALTER TABLE ...
+    DROP COLUMN``, a file edited or damaged): read, it failed on its first grasp as an internal error (a
+    KeyError, a TypeError in a print). A table the file lacks is left to the readers (older files have none)."""
+    from planner.record import fields
+
+    tables = table_names(conn)
+    missing = [f"{name}.{column}" for name in fields.TABLES if name in tables
+               for column in sorted({f.column for f in fields.table(name) if f.version <= version}
+                                    - column_names(conn, name))]
+    if missing:
+        raise DatabaseError(f"{path}: damaged: it lacks column{'s' * (len(missing) > 1)} {', '.join(missing)} of "
+                            f"its schema v{version} (dropped, or edited by another program); restore it from a "
+                            "backup, or build it again with `grasp generate`")
 
 
 def table_names(conn: sqlite3.Connection) -> set[str]:

@@ -127,8 +127,7 @@ class Database(Writing, UnitReads):
     # -- calibration -------------------------------------------------------------
     @_reads
     def model(self, hand: str) -> LogisticModel | None:
-        """The hand's p_hold model: the one stored by ``grasp calibrate``, else
-        the project's shipped one, else None."""
+        """The hand's p_hold model: the one stored by ``grasp calibrate``, else the project's shipped one, else None."""
         if "calibration" in table_names(self._conn):
             row = self._conn.execute("SELECT model FROM calibration WHERE hand = ?", (hand,)).fetchone()
             if row is not None:
@@ -154,15 +153,20 @@ class Database(Writing, UnitReads):
                 return str(row["source"])
         return "shipped" if default_model(hand) is not None else "none"
 
+    @_reads
+    def calibrated_hands(self) -> list[str]:
+        """The hands with a model stored by ``grasp calibrate``, sorted."""
+        has = "calibration" in table_names(self._conn)
+        return [r["hand"] for r in self._conn.execute("SELECT hand FROM calibration ORDER BY hand")] if has else []
+
     def _models(self, hands: Iterable[str]) -> dict[str, LogisticModel | None]:
         return {h: self.model(h) for h in sorted(set(hands))}
 
     # -- reading ----------------------------------------------------------------
     @contextmanager
     def snapshot(self) -> Iterator[None]:
-        """Reads inside see one committed state however many statements they
-        take (one read transaction; in WAL mode the writer goes on meanwhile),
-        so rank batches read while ``generate`` commits neither skip nor repeat."""
+        """Reads inside see one committed state however many statements they take (one read transaction; in WAL
+        mode the writer goes on meanwhile), so rank batches read while ``generate`` commits neither skip nor repeat."""
         if self._conn.in_transaction:
             yield
             return

@@ -34,31 +34,20 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 
 #: Bumped whenever a change alters which grasps a sweep produces, so stale
 #: units are recomputed rather than mixed with new ones.
-#: 2: soft contacts resist mu x torsion_radius (issue 15); antipodal sampler for parallel
-#: jaws, cheap rejection, faster closing (issue 16); contact patches, breakaway (issue 15).
-#: 3: the open-limit feasibility flag at 2 mm (was 3) and the ranking rule's
-#: second calibration round (eps_weight 1, min_open_margin 2 mm; issue 15).
-#: 4: the settled epsilon (a dynamic closing per grasp, hands with ``settle``) and
-#: its term in the ranking rule (issue 15, third round).
-#: 5: a dynamic world's inputs rounded to 1e-10 and the principal frame of equal
-#: moments chosen from the object axes (planner.sim.dynamics): settled epsilons
-#: and trials no longer depend on which BLAS kernel numpy runs (issue 16).
-#: 6: every force-closure grasp ranks above every other (issue 26); the same
-#: grasps and scores, other ranks.
-#: 7: antipodal points whose pair along the normal is refused try rays drawn inside
-#: the friction cone, both normals checked against the axis; closing's far-field surface hulls at most
-#: 127 (PyBullet kept only 127 of a body's hulls: meshes of more than ~1,000
-#: triangles lost the rest of their surface) (issue 26).
-#: 8: only force-closure grasps settle (hands with ``settle``: the others rank below them
-#: whatever their settled epsilon; theirs is now None), and meshes of more than 5,000 faces are
+#: 2: soft contacts resist mu x torsion_radius; antipodal sampler, cheap rejection, faster closing; contact patches,
+#: breakaway (issues 15, 16). 3: the open-limit flag at 2 mm, eps_weight 1, min_open_margin 2 mm (issue 15).
+#: 4: the settled epsilon and its term in the ranking rule (issue 15). 5: a dynamic world's inputs rounded to 1e-10,
+#: equal moments' frame from the object axes: settles and trials independent of numpy's BLAS kernel (issue 16).
+#: 6: every force-closure grasp ranks above every other (issue 26); the same grasps and scores, other ranks.
+#: 7: antipodal pairs refused along the normal try rays inside the friction cone; closing's far-field hulls at most
+#: 127 (PyBullet kept 127 of a body's hulls: meshes of more than ~1,000 triangles lost the rest) (issue 26).
+#: 8: only force-closure grasps settle (the others' settled epsilon None), and meshes of more than 5,000 faces are
 #: closed against a collision proxy within 0.25 mm (planner.geometry.proxy) (issue 24).
-#: 9: the ranking rule's eps_weight 0.1 and settled_weight 3 (were 3 and 100: issue 26, chosen on random
-#: objects against the MuJoCo trial and FleX's labels); the same grasps, other scores and ranks.
-#: 10: the grip measures com_height and gravity_arm, read by a p_hold model with 600 trees (issue 26); the
-#: same grasps with two more measures, other p_hold, scores and ranks of the Panda's.
-#: 11: contact patches read with exact closest points (libigl's AABB tree, planner.geometry.distance)
-#: instead of the faces of the 12 nearest of dense surface samples, with trimesh's closest point, which
-#: misses on slivers (issue 24: faster; the same poses, other contacts on some grasps).
+#: 9: eps_weight 0.1 and settled_weight 3 (were 3 and 100: issue 26, chosen on random objects against the MuJoCo
+#: trial and FleX's labels); the same grasps, other scores and ranks. 10: the grip measures com_height and
+#: gravity_arm, read by a p_hold model with 600 trees (issue 26): other p_hold, scores and ranks of the Panda's.
+#: 11: contact patches read with exact closest points (libigl's AABB tree, planner.geometry.distance), not the
+#: faces of the nearest dense samples (trimesh's closest point misses on slivers) (issue 24: other contacts on some).
 #: 12: a grasp settles as the database stores it (planner.record.grasp.Grasp.as_stored: pose to 0.1 um,
 #: contacts to 1 um), so the stored settled epsilon is what the stored grasp settles into (issue 26: the
 #: settle turned the rounding into another settled epsilon on most grasps); the same grasps, other settled
@@ -123,6 +112,12 @@ SAMPLER_DEFAULTS = {
 AT_LEAST = (("approaches", "--approaches", 1), ("rolls", "--rolls", 1), ("cone_edges", "cone_edges", 3),  # counts,
             ("fan_count", "--fan", 0), ("chunk", "--chunk", 0), ("reach_placements", "--reach-placements", 0),
             ("reach_top", "--reach-top", 0), ("fc_budget", "--fc-budget", 0))  # the option of each, its least
+#: Rays (or antipodal points) per object, fan included: every unit of work samples the object's whole set and holds
+#: it (points, normals, directions, the cone's tries: ~0.3 kB a ray); 10**9 ran out of memory.
+MAX_RAYS = 1_000_000
+#: Table placements of the reachability score: it is the fraction of them an arm reaches (1,000 resolve it to 0.1%),
+#: each two IK solves per grasp checked; 10**9 ran out of memory.
+MAX_REACH_PLACEMENTS = 1_000
 
 
 @dataclass(frozen=True)
@@ -158,6 +153,13 @@ class SweepSettings:
         for field, option, low in AT_LEAST:  # each named with its value (one message named five options)
             if (value := getattr(self, field)) is not None and value < low:
                 raise InputError(f"{option} must be at least {low}, got {value}")
+        if (rays := (self.approaches or 0) * (1 + self.fan_count)) > MAX_RAYS:
+            fan = f" x (1 + --fan {self.fan_count})" if self.fan_count else ""
+            raise InputError(f"--approaches {self.approaches}{fan} is {rays:,} rays per object: at most {MAX_RAYS:,} "
+                             "(every unit of work holds them all in memory)")
+        if self.reach_placements > MAX_REACH_PLACEMENTS:
+            raise InputError(f"--reach-placements must be at most {MAX_REACH_PLACEMENTS:,} (the score is the fraction "
+                             f"of them reached, each costs IK solves per grasp), got {self.reach_placements}")
         if self.standoffs is not None and not _distances(self.standoffs):
             raise InputError(f"--standoffs must be non-negative distances in metres, got {list(self.standoffs)}")
         if not _distances(self.depths):
@@ -305,16 +307,12 @@ def candidates(approaches: Approaches, shapes: tuple[Preshape, ...], settings: S
     spread over the turn after which the hand and that preshape's grasp
     repeat (2 pi / (``symmetry`` x its ``roll_symmetry``)), from the ray's
     phase (:meth:`~planner.plan.sampling.Approaches.phase`)."""
-    out, index = [], 0
-    keep = range(len(approaches)) if rays is None else rays
     rolls = {shape.name: settings.roll_angles(symmetry * shape.roll_symmetry) for shape in shapes}
-    for ray, shape in product(range(len(approaches)), shapes):
-        phase = approaches.phase(ray)
-        for roll, standoff in product(rolls[shape.name], settings.standoffs or shape.standoffs):
-            if ray in keep:
-                out.append(Candidate(index, ray, shape, float(phase + roll), float(standoff)))
-            index += 1
-    return out
+    per_ray = [(shape, roll, standoff) for shape in shapes  # each ray's candidates, numbered ray by ray: only the
+               for roll, standoff in product(rolls[shape.name], settings.standoffs or shape.standoffs)]  # unit's made
+    keep = range(len(approaches)) if rays is None else sorted({r for r in rays if 0 <= r < len(approaches)})
+    return [Candidate(ray * len(per_ray) + k, ray, shape, float(approaches.phase(ray) + roll), float(standoff))
+            for ray in keep for k, (shape, roll, standoff) in enumerate(per_ray)]
 
 
 def antipodal_candidates(pairs: Pairs, shapes: tuple[Preshape, ...], openings: dict[str, float],

@@ -173,10 +173,11 @@ class HandCalibration:
 
 
 def calibration(db_path: Path) -> list[HandCalibration]:
-    """Every hand of the database that has a p_hold model."""
+    """Every hand of the database that has a p_hold model: a hand with grasps (its stored or shipped model), or
+    one ``grasp calibrate`` stored a model for (a database with no grasps yet: its held-out figures)."""
     with open_db(Path(db_path), create=False, readonly=True) as db:
         out = []
-        for hand in sorted({h for _, h in db.pairs()}):
+        for hand in sorted({h for _, h in db.pairs()} | set(db.calibrated_hands())):
             model = db.model(hand)
             if model is None:
                 continue
@@ -231,7 +232,8 @@ def collect(db_path: Path, allow_empty: bool = False) -> list[HandReport]:
         grasps = db.validated()
         rule = db.rule()
         if not grasps and not allow_empty:
-            raise InputError(f"{db_path}: no validated grasps; run `grasp validate --db {db_path}` first")
+            first = "" if db.pairs() else f"no grasps; run `grasp generate OBJECT --hand H --db {db_path}`, then "
+            raise InputError(f"{db_path}: {first or 'no validated grasps; run '}`grasp validate --db {db_path}` first")
         reports: dict[str, HandReport] = {}
         for g in grasps:
             reports.setdefault(g.hand, HandReport(g.hand, rule=rule)).grasps.append(g)
@@ -323,6 +325,10 @@ def _per_object(report: HandReport) -> list[tuple[str, ...]]:
     return out
 
 
+#: Said where the database has no trials, only a p_hold model's held-out figures (`grasp calibrate` into it).
+NO_TRIALS = "No validated grasps: the p_hold model's held-out figures only; `grasp validate --db {db}` tries grasps."
+
+
 def write(db_path: Path, out: Path) -> Path:
     cals = [c for c in calibration(db_path) if c.curves()]
     reports = collect(db_path, allow_empty=bool(cals))
@@ -334,6 +340,7 @@ def write(db_path: Path, out: Path) -> Path:
 def _write_html(reports: list[HandReport], cals: list[HandCalibration], out: Path, db_path: Path) -> Path:
     parts = [f"<html><head><meta charset='utf-8'><title>grasp report</title></head><body>"
              f"<h1>Simulated success vs scores</h1><p>database: {html.escape(str(db_path))}</p>"]
+    parts += [f"<p>{html.escape(NO_TRIALS.format(db=db_path))}</p>"] if not reports else []
     for rep in reports:
         parts.append(f"<h2>hand {html.escape(rep.hand)}</h2><table border=1 cellpadding=3>")
         parts += [f"<tr><td>{html.escape(k)}</td><td>{html.escape(v)}</td></tr>" for k, v in _summary_rows(rep)]
@@ -356,6 +363,7 @@ def _write_html(reports: list[HandReport], cals: list[HandCalibration], out: Pat
 def _write_markdown(reports: list[HandReport], cals: list[HandCalibration], out: Path, db_path: Path) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     lines = ["# Simulated success vs scores", "", f"database: `{db_path}`", ""]
+    lines += [NO_TRIALS.format(db=db_path), ""] if not reports else []
     for rep in reports:
         png = out / f"deciles_{rep.hand}.png"
         png.write_bytes(_plot(rep))

@@ -33,6 +33,21 @@ def edited_since(source: Path, finished: float | None, geometry: str = "collisio
         return True
 
 
+def sidecar_changed(source: Path, finished: float | None) -> bool:
+    """Whether the sidecar of the file ``source`` (``banana.toml`` beside ``banana.obj``) may have changed since
+    ``finished`` [s]: modified from that second on, or, where there is none now, its folder changed since (a
+    sidecar removed: its values, a centre of mass among them, no more). Its folder also changes when any other
+    file there is made or removed (a database's journal beside it): then the object is compared, at some cost."""
+    from planner.specs.objects import mesh_sidecar
+
+    try:
+        found = mesh_sidecar(source)
+        paths = [found] if found is not None else list(dict.fromkeys((source.parent, source.resolve().parent)))
+        return finished is None or any(p.stat().st_mtime >= finished for p in paths)
+    except (OSError, InputError):
+        return True
+
+
 def gltf_buffers(path: Path) -> list[Path]:
     """The files the buffers of a ``.gltf`` name, where its geometry is
     (relative to it, each as written and URL-decoded: loaders differ; embedded

@@ -44,6 +44,9 @@ def test_bad_input_is_one_line_and_exit_code(tmp_path: Path, monkeypatch: pytest
     (["generate", "box", "--hand", "barrett", "--preshapes", ""], "unknown preshape ''"),
     (["generate", "box", "--hand", "panda", "--standoffs", "inf"], "--standoffs"),
     (["generate", "box", "--hand", "panda", "--unit-timeout", "-1"], "--unit-timeout"),
+    (["generate", "box", "--hand", "panda", "--unit-timeout", "1e300"], "at most 604,800 (a week)"),  # was an
+    # internal error (OverflowError) in the pool's wait, with more than one worker
+    (["generate", "box", "--hand", "panda", "--approaches", "1000000000"], "at most 1,000,000"),
     (["generate", "box", "--hand", "panda", "--sampler", "box", "--box-delta", "-1"], "--box-delta"),
     (["generate", "box", "--hand", "barrett", "--sampler", "box", "--box-delta", "1e-5"],
      "--box-delta 1e-05 m casts"),  # was a failed unit in the database, found in the worker

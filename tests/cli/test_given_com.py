@@ -127,6 +127,27 @@ def test_a_sidecar_com_replacing_the_urdfs_is_said_and_another_one_later_refused
                    "now [0, 0, 0.01], given by box.urdf <inertial><origin>")
 
 
+@pytest.mark.parametrize("change", ["com taken out of the sidecar", "sidecar removed"])
+def test_a_sidecar_com_no_more_given_is_refused_once_every_unit_is_done(tmp_path: Path, change: str) -> None:
+    """A mesh's sidecar com taken out (or the sidecar, which gave only it, removed) after the whole sweep was
+    stored: the re-run added nothing and said nothing, the stored object keeping the sidecar's centre; a changed
+    one was refused. Now both are: the mesh's own centre is not the one its grasps were planned about."""
+    mesh = tmp_path / "banana.obj"
+    mesh.write_text("".join(f"v {x} {y} {z}\n" for x in (-0.02, 0.02) for y in (-0.03, 0.03) for z in (-0.05, 0.05))
+                    + "f 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n")
+    sidecar = mesh.with_suffix(".toml")
+    sidecar.write_text("friction = 0.5\ncom = [0, 0, 0.02]\n")
+    db = tmp_path / "g.db"
+    assert generate(db, str(mesh))[0] == 0
+    if change == "sidecar removed":
+        sidecar.unlink()
+    else:
+        sidecar.write_text("friction = 0.5\n")
+    code, _, err = generate(db, str(mesh))
+    one_line_error(code, err, 2, "object 'banana' is stored", "with its centre of mass at [0, 0, 0.02] m",
+                   "now [0, 0, 0], the mesh's")
+
+
 def test_under_scale_a_sidecar_com_is_compared_with_the_urdfs_scaled(tmp_path: Path) -> None:
     """A sidecar's centre is the scaled object's: at --scale 2 it equals a URDF's own at half its value (nothing
     replaced, nothing said), and where it differs the URDF's is said as the scaled object has it."""

@@ -9,6 +9,13 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
+
 #: Libraries that cost a start-up of 0.1-2 s each and that only some commands need.
 HEAVY = ("trimesh", "pybullet", "h5py", "pyarrow", "matplotlib", "scipy", "yourdfpy", "rich", "coacd",
          "planner.datasets.exporter", "planner.datasets.importer", "planner.plan.unit", "planner.sim")
@@ -55,3 +62,30 @@ def test_lazy_names_of_the_api_load_on_first_use() -> None:
                            "print(before, 'acronym' in api.EXPORT_FORMATS, callable(api.export))"],
                           capture_output=True, text=True, timeout=120, check=True)
     assert done.stdout.split() == ["False", "True", "True"]
+
+
+#: Ctrl-C while the command's modules load (click is the first of them): a finder that raises it on that import.
+INTERRUPTED_IMPORT = """
+import runpy, sys
+class Interrupt:
+    def find_spec(self, name, path=None, target=None):
+        if name == "click":
+            raise KeyboardInterrupt
+sys.meta_path.insert(0, Interrupt())
+sys.argv = ["grasp", "hands"]
+"""
+
+
+@pytest.mark.parametrize("start", ["console script", "python -m planner.cli"])
+def test_ctrl_c_while_the_command_loads_exits_130_in_one_line(start: str) -> None:
+    """The console script imported every command module before any handler: a Ctrl-C in those ~0.25 s printed
+    a traceback (and exited -2, 1)."""
+    if start == "console script":  # as pip's script does it: from MODULE import FUNCTION; sys.exit(FUNCTION())
+        entry = tomllib.loads((Path(__file__).parents[2] / "pyproject.toml").read_text())["project"]["scripts"]
+        module, function = entry["grasp"].split(":")
+        code = f"from {module} import {function}\nsys.exit({function}())"
+    else:
+        code = "runpy.run_module('planner.cli', run_name='__main__', alter_sys=True)"
+    done = subprocess.run([sys.executable, "-c", INTERRUPTED_IMPORT + code], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 130 and done.stderr == "grasp: interrupted; nothing was changed\n", done.stderr

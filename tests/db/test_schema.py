@@ -78,6 +78,25 @@ def test_a_schema_version_that_is_no_number_is_refused_in_one_line(box_db: Path,
     assert path.read_bytes() == before
 
 
+@pytest.mark.parametrize("column", ["resist_mean", "epsilon", "width"])
+def test_a_dropped_column_is_refused_in_one_line_naming_the_file_and_the_column(box_db: Path, tmp_path: Path,
+                                                                                column: str) -> None:
+    """A grasps column dropped (``ALTER TABLE ... DROP COLUMN``: a damaged or hand-edited file) was an internal
+    error when read (resist_mean: a TypeError in best's print; epsilon: a KeyError), or, where the column may be
+    NULL (width), read as never measured; now a DatabaseError (exit 3) naming both, before any lock file."""
+    path = tmp_path / "dropped.db"
+    shutil.copy(box_db, path)
+    with sqlite3.connect(path) as conn:
+        conn.execute(f"ALTER TABLE grasps DROP COLUMN {column}")
+    for command in (["best", "box", "--hand", "panda"], ["show", "box", "--hand", "panda", "--out", "x.png"],
+                    ["export", "--format", "csv", "--out", str(tmp_path / "csv")],
+                    ["report", "--out", str(tmp_path / "r.html")],
+                    ["generate", "box", "--hand", "panda", *FAST, "--quiet"]):
+        code, _, err = grasp(*command, "--db", str(path))
+        one_line_error(code, err, 3, f"{path}: damaged: it lacks column grasps.{column} of its schema v")
+    assert {p.name for p in tmp_path.iterdir()} <= {"dropped.db", "dropped.db-wal", "dropped.db-shm"}  # no lock
+
+
 def test_not_sqlite_newer_schema_and_read_only(box_db: Path, tmp_path: Path) -> None:
     junk = tmp_path / "junk.db"
     junk.write_bytes(b"\x00not a database at all" * 100)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import sqlite3
 from dataclasses import replace
 from pathlib import Path
@@ -13,7 +14,7 @@ import pytest
 from planner import api
 from planner.errors import InputError
 from planner.plan.sampling import Approaches
-from planner.plan.sweep import ALGORITHM_VERSION, SweepSettings, candidates, unit_rng
+from planner.plan.sweep import ALGORITHM_VERSION, MAX_RAYS, MAX_REACH_PLACEMENTS, SweepSettings, candidates, unit_rng
 from planner.specs.hands import load_hand
 from planner.specs.preshapes import load_preshapes
 from planner.validation.shake import ShakeSettings
@@ -146,3 +147,29 @@ def test_the_force_closure_budget_is_shared_evenly_by_an_objects_units() -> None
 def test_bad_settings_are_refused(bad: dict) -> None:
     with pytest.raises(InputError):
         SweepSettings(**bad)
+
+
+@pytest.mark.parametrize("bad, message", [
+    (dict(approaches=10**9), "--approaches 1000000000 is 1,000,000,000 rays per object: at most 1,000,000"),
+    (dict(approaches=48, fan_count=10**5), "--approaches 48 x (1 + --fan 100000) is 4,800,048 rays per object"),
+    (dict(reach_placements=10**9), "--reach-placements must be at most 1,000"),
+])
+def test_counts_past_what_a_sweep_holds_are_refused_naming_the_option_and_the_limit(bad: dict, message: str) -> None:
+    """10**9 approaches (or a fan's rays, or placements) were taken and ran out of memory in the workers."""
+    with pytest.raises(InputError, match=re.escape(message)):
+        SweepSettings(**bad)
+    SweepSettings(approaches=MAX_RAYS // 2, fan_count=1, reach_placements=MAX_REACH_PLACEMENTS)  # the limits pass
+
+
+@pytest.mark.parametrize("settings, message", [
+    (SweepSettings(rolls=10**9), "would hold 512,000,000,000 candidates (256 points (--approaches, or --chunk of them)"
+                                 " x --rolls 1000000000 x 2 --depths): at most 1,000,000"),
+    (SweepSettings(approaches=10**6, chunk=0), "would hold 16,000,000 candidates (1,000,000 points"),
+    (SweepSettings(sampler="surface", rolls=10**5), "would hold 12,800,000 candidates (32 rays (--approaches, or "
+                                                    "--chunk of them) x --rolls 100000 x 4 standoffs over the"),
+])
+def test_a_unit_of_work_past_its_candidates_is_refused_before_any_work(settings: SweepSettings, message: str) -> None:
+    """--rolls 10**9 ran out of memory in the worker (its roll angles, then its list of candidates)."""
+    with pytest.raises(InputError, match=re.escape(message)):
+        api.plan_units(["box"], "panda", settings, 0)
+    assert api.plan_units(["box"], "panda", SweepSettings(approaches=10**6 // 16, chunk=0), 0)  # 1,000,000 pass

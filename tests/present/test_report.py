@@ -7,7 +7,9 @@ from click.testing import CliRunner
 from helpers import made_up
 
 from planner import api
+from planner.calibration.logistic import SHIPPED_ENV, default_model
 from planner.cli import main
+from planner.db.store import open_db
 from planner.plan.sweep import SweepSettings
 from planner.present import report
 
@@ -48,7 +50,29 @@ def test_report_without_validation_is_a_clear_error(tmp_path: Path) -> None:
     db = tmp_path / "plain.db"
     api.generate(["box"], "panda", db_path=db, settings=SweepSettings(approaches=2, rolls=1, reach_placements=0))
     result = CliRunner().invoke(main, ["report", "--db", str(db), "--out", str(tmp_path / "x.html")])
-    assert result.exit_code == 2 and "run `grasp validate" in result.stderr
+    assert result.exit_code == 2 and "no validated grasps; run `grasp validate" in result.stderr
+    open_db(tmp_path / "empty.db").close()  # no grasps: validate alone would not help
+    result = CliRunner().invoke(main, ["report", "--db", str(tmp_path / "empty.db"), "--out", str(tmp_path / "e")])
+    assert result.exit_code == 2 and "no grasps; run `grasp generate OBJECT --hand H --db" in result.stderr
+
+
+def test_a_database_with_only_a_calibrated_model_reports_its_held_out_figures(tmp_path: Path,
+                                                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    """`grasp calibrate LABELS --db new.db` stores a model in a database without grasps: its report said "no
+    validated grasps; run `grasp validate`" though the model's held-out reliability was there to draw."""
+    monkeypatch.setenv(SHIPPED_ENV, "1")
+    model = default_model("panda")
+    assert model is not None and model.held_out
+    monkeypatch.setenv(SHIPPED_ENV, "0")
+    db = tmp_path / "calibrated.db"
+    with open_db(db) as handle:
+        handle.write_model(model, '{"command": "grasp calibrate"}', handle.rule())
+    result = CliRunner().invoke(main, ["report", "--db", str(db), "--out", str(tmp_path / "r")])
+    assert result.exit_code == 0, result.stderr
+    text = (tmp_path / "r" / "report.md").read_text()
+    assert "## p_hold of hand panda" in text and "No validated grasps: the p_hold model's held-out figures" in text
+    assert (tmp_path / "r" / "reliability_panda.png").read_bytes()[:4] == b"\x89PNG"
+    assert "panda: ECE of p_hold (held out on its labels" in result.stdout
 
 
 def test_roc_auc_and_top_k_known_answers() -> None:
