@@ -152,7 +152,7 @@ class Grasper(FingerClosing, ContactReading):
             self.object_bvh = overlap.object_bvh(*known)
             self.far_body = self.sim.add_static_hulls(surface_hulls(self.mesh))
             self._far_box = tuple(map(tuple, self.sim.body_box(self.far_body)))
-            self._indices = tuple(self.body.links[n] for n in self.geometry)
+            self._indices = tuple(self.body.links[n] for n in reversed(self.geometry))  # the tips first: nearest
         self.surface = None if self.mesh is None else ObjectSurface(self.mesh, self.settings.patches)
         self.exact_surface = None if self.exact is None else ObjectSurface(self.exact, self.settings.patches)
         self.table_body: int | None = None
