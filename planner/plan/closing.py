@@ -77,6 +77,11 @@ __all__ = ["CONTACT_READINGS", "RELATIVE_CACHE", "Bounded", "CloseSettings", "Cl
 #: Joint configurations whose hand shapes (relative to the palm) are kept for
 #: overlap tests: the candidates of one antipodal pair share one.
 RELATIVE_CACHE = 64
+#: [m] The broadphase (:meth:`Grasper._beyond`) skips a query of the surface hulls when a link's box is
+#: farther than the query's range plus this from theirs. PyBullet's boxes hold its shapes with their
+#: margins, so no pair can be nearer than the boxes' gap; the slack covers its round-off many times.
+BROADPHASE_SLACK = 0.001
+_NONE = Closest(np.zeros(0, int), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)))
 
 
 @dataclass(frozen=True)
@@ -148,6 +153,8 @@ class Grasper(FingerClosing, ContactReading):
             self.shapes = overlap.LinkShapes(self.sim, self.body, self.hand.urdf, self.geometry)
             self.object_bvh = overlap.object_bvh(*known)
             self.far_body = self.sim.add_static_hulls(surface_hulls(self.mesh))
+            self._far_box = tuple(map(tuple, self.sim.body_box(self.far_body)))
+            self._indices = tuple(self.body.links[n] for n in reversed(self.geometry))  # the tips first: nearest
         self.surface = None if self.mesh is None else ObjectSurface(self.mesh, self.settings.patches)
         self.exact_surface = None if self.exact is None else ObjectSurface(self.exact, self.settings.patches)
         self.table_body: int | None = None
@@ -169,6 +176,8 @@ class Grasper(FingerClosing, ContactReading):
         index = None if link is None else self.body.links[link]
         offset, s = self.hand.distance_offset, self.settings
         if self.far_body is not None:
+            if all(self._beyond(i, reach - offset) for i in ((index,) if link else self._indices)):
+                return _NONE  # what the query below would give: no pair within its range
             far = self.sim.closest(self.body.uid, self.far_body, reach - offset, index)
             if len(far) == 0 or far.min_distance + offset > s.near:
                 return far
@@ -197,7 +206,10 @@ class Grasper(FingerClosing, ContactReading):
         self.queries += 1
         index, offset, s, bound = self.body.links[link], self.hand.distance_offset, self.settings, np.inf
         uid, query = self.body.uid, self.sim.min_distance
-        distance = query(uid, self.far_body, reach - offset, index) if self.far_body is not None else np.nan
+        distance = np.nan
+        if self.far_body is not None:  # no pair within the range: inf, and nothing near the hulls
+            distance = np.inf if self._beyond(index, reach - offset) else query(uid, self.far_body, reach - offset,
+                                                                                 index)
         if not distance + offset > s.near:  # near the hulls (or none): the exact mesh, a long reach cut
             if self.far_body is not None and reach > s.exact_reach:
                 bound = s.exact_reach
@@ -212,6 +224,13 @@ class Grasper(FingerClosing, ContactReading):
         with the exact mesh (then the faces' own normals)."""
         exact = self.exact_surface
         return None if exact is None else partial(exact.scale_normals.at, radius=self.settings.patches.normal_radius)
+
+    def _beyond(self, index: int, distance: float) -> bool:
+        """Is link ``index`` of the hand, as placed, farther than ``distance`` [m] from the surface hulls by
+        the two boxes (then PyBullet finds no pair within ``distance``: its query costs 2-6x this test)?"""
+        (ax, ay, az), (bx, by, bz) = self.sim.link_box(self.body.uid, index)
+        (lx, ly, lz), (hx, hy, hz) = self._far_box
+        return max(lx - bx, ax - hx, ly - by, ay - hy, lz - bz, az - hz) > distance + BROADPHASE_SLACK
 
     def on_table(self, within: float = 0.0) -> bool:
         """Is the hand, where it is now, within ``within`` [m] of the table or

@@ -279,6 +279,69 @@ def test_a_links_gap_without_its_pairs_equals_the_gap_of_its_pairs(table: bool) 
                 grasper.close(rays.points[i], rays.directions[i], 0.0, 0.0, shape, obj.torque_scale)
     assert {"none", "far", "cut"} <= seen  # nothing near, a hull gap, the exact mesh within the cut reach
 
+
+def test_the_broadphase_changes_no_read_and_skips_queries() -> None:
+    """The box test before a query of the surface hulls (:meth:`Grasper._beyond`) gives every read of the
+    Barrett's closings on the mug (seeded rays) as the query itself would, to the last bit: each gap of a
+    finger link and each set of pairs of the whole hand; and it skips some of those queries, not all."""
+    hand, obj = load_hand("barrett"), load_object("mug")
+    shapes = load_preshapes(hand)
+    rays = sampling.sample(obj.mesh, sampler="surface", count=4, rng=np.random.default_rng(SEED))
+    skipped = asked = 0
+    with Sim() as sim:
+        grasper = Grasper.for_object(sim, hand, obj)
+        gap, closest, beyond = grasper._obstacle_gap, grasper._closest, grasper._beyond
+
+        def without(read, *args):  # type: ignore[no-untyped-def]
+            kept, grasper._beyond = grasper._beyond, lambda index, distance: False  # type: ignore[method-assign]
+            try:
+                return read(*args)
+            finally:
+                grasper._beyond = kept  # type: ignore[method-assign]
+
+        def counted(index: int, distance: float) -> bool:
+            nonlocal skipped, asked
+            out = beyond(index, distance)
+            skipped, asked = skipped + int(out), asked + int(not out)
+            return out
+
+        def checked_gap(reach: float, link: str) -> float:
+            got = gap(reach, link)
+            assert got == without(gap, reach, link)
+            return got
+
+        def checked_closest(reach: float, link: str | None = None):  # type: ignore[no-untyped-def]
+            got, want = closest(reach, link), without(closest, reach, link)
+            for key in ("links", "distance", "on_a", "on_b", "normal_b"):
+                assert np.array_equal(getattr(got, key), getattr(want, key))
+            assert type(got) is type(want)
+            return got
+
+        grasper._obstacle_gap, grasper._closest = checked_gap, checked_closest  # type: ignore[method-assign]
+        grasper._beyond = counted  # type: ignore[method-assign]
+        for i in range(len(rays)):
+            for shape in shapes:
+                grasper.close(rays.points[i], rays.directions[i], 0.0, 0.0, shape, obj.torque_scale)
+    assert skipped > 0 and asked > 0
+
+
+def test_a_link_far_from_the_object_is_not_queried() -> None:
+    """A finger link a metre from the object reads no pairs, and PyBullet is not asked."""
+    hand, obj = load_hand("barrett"), load_object("mug")
+    with Sim() as sim:
+        grasper = Grasper.for_object(sim, hand, obj)
+        far = np.eye(4)
+        far[0, 3] = 1.0
+        grasper._place(far, {})
+        calls = []
+        for name in ("min_distance", "closest"):
+            real = getattr(sim, name)
+            setattr(sim, name, lambda *a, real=real, **k: calls.append(a) or real(*a, **k))
+        link = hand.contact_links[-1]
+        assert grasper._obstacle_gap(0.01, link) == np.inf
+        assert len(grasper._closest(0.01, link)) == 0 and len(grasper._closest(0.01)) == 0
+        assert calls == []
+
 def _capsule_normal(points: np.ndarray) -> np.ndarray:
     """(n, 3) the true capsule's inward unit normals at ``points`` (n, 3) near it (scanlike's capsule)."""
     axis = np.zeros_like(points)
