@@ -40,16 +40,14 @@ SLACK = 1e-9
 #: centroids within a cell's radius more; speed only: points beyond get looser
 #: bounds from the border's nodes).
 GRID_MARGIN = 0.006
-#: Largest number of nodes of an object's grid of distance bounds (8 bytes
-#: each; a large object's nodes are spaced wider than ``CELL``; speed only).
+#: Largest number of nodes of an object's grid of distance bounds (8 bytes each; wider on a large object; speed only).
 GRID_NODES = 2**21
 #: [m] spacing of the grid's nodes (speed only).
 GRID_SPACING = 0.002
 #: Grids of distance bounds a process keeps, by mesh (the most recently used).
 KEPT_GRIDS = 4
 _GRIDS: dict[str, DistanceBounds] = {}
-#: Vertices with at most this many faces have their sharpness computed all
-#: at once (speed only: the others one by one, the same result).
+#: Vertices with at most this many faces have their sharpness computed all at once (speed only: the same result).
 FEW_FACES = 12
 
 
@@ -217,6 +215,20 @@ def _surfaces(urdf: str, links: tuple[str, ...], root: str, settings: PatchSetti
 
 # -- the object side --------------------------------------------------------------
 
+@dataclass(frozen=True)
+class Feature:
+    """Where n closest points lie on their faces: ``count`` (n,) 3 inside the face, 2 on an edge, 1 on a vertex;
+    ``first``, ``last`` (n,) the feature's first and last vertex (on a vertex: the one vertex). A row depends on
+    its own point and face alone: ``take(rows)`` (indices or a mask) is those rows' features, as found anew."""
+
+    count: np.ndarray
+    first: np.ndarray
+    last: np.ndarray
+
+    def take(self, rows: np.ndarray) -> Feature:
+        return Feature(self.count[rows], self.first[rows], self.last[rows])
+
+
 @dataclass
 class ObjectSurface:
     """The object's triangle mesh, its exact closest points and its sharp edges and vertices."""
@@ -281,18 +293,23 @@ class ObjectSurface:
         return self._bounds.bounds(points)
 
     def closest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(closest (n, 3), signed gap (n,) [m], outward face normal (n, 3),
-        smooth (n,) bool): each point's closest point on the surface, its
-        gap (negative inside: the side the closest face's normal says), the
-        face's normal and whether the surface is smooth there."""
+        """(closest (n, 3), signed gap (n,) [m], outward face normal (n, 3), smooth (n,) bool): each point's closest
+        point on the surface, its gap (negative inside: the side the closest face's normal says), the face's normal
+        and whether the surface is smooth there."""
         return self.signed(points, *self.nearest(points))
 
     def signed(self, points: np.ndarray, closest: np.ndarray, distance: np.ndarray,
                face: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`closest` of ``points`` (n, 3) from their :meth:`nearest`."""
+        return self.signed_features(points, closest, distance, face)[:4]  # type: ignore[return-value]
+
+    def signed_features(self, points: np.ndarray, closest: np.ndarray, distance: np.ndarray, face: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, Feature]:
+        """:meth:`signed` and the closest points' :class:`Feature` (for :meth:`contact_normals`)."""
         normal = self.mesh.face_normals[face]
         sign = np.where(np.einsum("ij,ij->i", points - closest, normal) < 0, -1.0, 1.0)
-        return closest, sign * distance, normal, self._smooth(closest, face)
+        feature = self._feature(closest, face)
+        return closest, sign * distance, normal, self._smooth(feature), feature
 
     def nearest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(closest (n, 3) [m], distance (n,) [m], face (n,)): the exact
@@ -301,7 +318,7 @@ class ObjectSurface:
         return found.points, found.distance, found.face
 
     def contact_normals(self, closest: np.ndarray, face: np.ndarray, smooth: np.ndarray,
-                        toward: np.ndarray) -> np.ndarray:
+                        toward: np.ndarray, feature: Feature | None = None) -> np.ndarray:
         """(n, 3) unit contact normals into the object at ``closest`` (n, 3)
         on faces ``face``: the face's where the surface is smooth there
         (``smooth``, from :meth:`signed`); at a sharp edge or vertex, the
@@ -311,12 +328,13 @@ class ObjectSurface:
         on an edge keeps its normal, a link's side or rim touching an edge
         gets the nearest normal the object can have there (the side's normal
         pushed the object out through a face no finger touched). Where the
-        edge or vertex has no cone (an open border), ``toward``."""
+        edge or vertex has no cone (an open border), ``toward``. ``feature``: the points' :class:`Feature`, if known."""
         normals = np.where(smooth[:, None], -self.mesh.face_normals[face], toward)
         sharp = np.flatnonzero(~smooth)
         if not len(sharp):
             return normals
-        count, first, last = self._feature(closest[sharp], face[sharp])
+        found = self._feature(closest[sharp], face[sharp]) if feature is None else feature.take(sharp)
+        count, first, last = found.count, found.first, found.last
         edge = count == 2
         if edge.any():
             at, known = self._edge_faces(first[edge], last[edge])
@@ -330,18 +348,17 @@ class ObjectSurface:
             normals[row] = cone if np.isfinite(cone).all() else toward[row]
         return normals
 
-    def _feature(self, closest: np.ndarray, tri: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(count (n,): 3 inside face ``tri``, 2 on an edge, 1 on a vertex; the
-        feature's first and last vertex (on a vertex: the one vertex))."""
+    def _feature(self, closest: np.ndarray, tri: np.ndarray) -> Feature:
+        """The :class:`Feature` of points ``closest`` (n, 3) on faces ``tri`` (n,)."""
         bary = trimesh.triangles.points_to_barycentric(self.mesh.triangles[tri], closest)
         on = bary >= 1e-6  # the face's vertices the point is not opposite to
         first = self.mesh.faces[tri, np.argmax(on, axis=1)]
         last = self.mesh.faces[tri, 2 - np.argmax(on[:, ::-1], axis=1)]
-        return on.sum(axis=1), first, last
+        return Feature(on.sum(axis=1), first, last)
 
-    def _smooth(self, closest: np.ndarray, tri: np.ndarray) -> np.ndarray:
-        count, first, last = self._feature(closest, tri)
-        smooth = np.ones(len(closest), bool)
+    def _smooth(self, feature: Feature) -> np.ndarray:
+        count, first, last = feature.count, feature.first, feature.last
+        smooth = np.ones(len(count), bool)
         vertex, edge = count == 1, count == 2
         smooth[vertex] = ~self.sharp_vertex[first[vertex]]
         smooth[edge] = ~self._sharp_edges(first[edge], last[edge])

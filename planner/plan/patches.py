@@ -113,11 +113,11 @@ def link_regions(link: str, surface: LinkSurface, pose: np.ndarray, obj: ObjectS
         weight = len(idx) / s.max_exact
         at = np.searchsorted(idx, np.sort(np.random.default_rng(s.seed).choice(idx, s.max_exact, replace=False)))
         idx, nearest = idx[at], tuple(a[at] for a in nearest)
-    closest, gap, _, smooth = obj.signed(points[idx], *nearest)
+    closest, gap, _, smooth, feature = obj.signed_features(points[idx], *nearest)
     floor = max(float(gap.min()), 0.0)
     keep = gap <= floor + s.depth
     idx, closest, gap, smooth, face = idx[keep], closest[keep], gap[keep], smooth[keep], nearest[2][keep]
-    normals = obj.contact_normals(closest, face, smooth, surface.normals[idx] @ pose[:3, :3].T)
+    normals = obj.contact_normals(closest, face, smooth, surface.normals[idx] @ pose[:3, :3].T, feature.take(keep))
     # the whole band: its neighbours from the link's own pairs; a subsample: its own, farther apart
     pairs = surface.pairs_among(idx, s.link_radius) if weight == 1.0 else None
     labels = _cluster(points[idx], normals, s.link_radius * np.sqrt(weight), s.split_angle, pairs)

@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from planner.errors import DegenerateGraspError
-from planner.quality.contacts import ModelArg, as_array, as_contacts
+from planner.quality.contacts import Contacts, ModelArg, as_array, as_contacts
 from planner.quality.grasp_matrix import selection_lengths, skew
 from planner.quality.tolerances import FRAME_TOL
 
@@ -80,7 +80,14 @@ def hand_jacobian(points: ArrayLike, frames: ArrayLike, contact_links: ArrayLike
     link; model : one name or n_c names.  Rows per contact: l_i (1, 3 or 4),
     in units of m/s (linear) and rad/s (soft-finger spin) per unit qdot.
     """
-    contacts = as_contacts(points, frames, model=model)
+    return contacts_jacobian(as_contacts(points, frames, model=model), contact_links, joint_origins, joint_axes,
+                             joint_types, joint_affects)
+
+
+def contacts_jacobian(contacts: Contacts, contact_links: ArrayLike, joint_origins: ArrayLike, joint_axes: ArrayLike,
+                      joint_types: Sequence[str], joint_affects: ArrayLike) -> np.ndarray:
+    """:func:`hand_jacobian` of contacts already validated (``as_contacts``: what the resistance's program holds),
+    without validating them again."""
     origins, axes, revolute = _joints(joint_origins, joint_axes, joint_types)
     n_c, n_q = len(contacts.points), len(origins)
     affects = _affects(contact_links, joint_affects, n_c, n_q)

@@ -41,7 +41,7 @@ from planner.errors import DegenerateGraspError
 from planner.geometry.gravity import AXES, DIAGONALS, SPHERE14  # noqa: F401 (the directions, named here too)
 from planner.quality.contacts import FRICTIONLESS, SOFT, Contacts, ModelArg, as_array, as_center, as_contacts
 from planner.quality.grasp_matrix import partial_grasp_matrices, selection_lengths
-from planner.quality.jacobian import hand_jacobian
+from planner.quality.jacobian import contacts_jacobian
 from planner.quality.tolerances import GRAVITY, RANK_TOL, RESISTANCE_CAP
 from planner.quality.wrenches import _cone_table, as_cone_edges
 
@@ -150,9 +150,8 @@ def program(points: ArrayLike, frames: ArrayLike, *, mu: ArrayLike, center: Arra
     tilde = partial_grasp_matrices(contacts, as_center(center))
     grasp = np.concatenate([g[:, :k] for g, k in zip(tilde, lengths)], axis=1)  # G (6, l), eq 2.28
     lam = generators(contacts, m)  # L (l, k)
-    model_names = [("frictionless", "point", "soft")[c] for c in contacts.model]
-    jac = hand_jacobian(contacts.points, contacts.frames, contact_links, drive.joint_origins, drive.joint_axes,
-                        drive.joint_types, joint_affects, model_names)  # J (l, n_q), eq 2.29
+    jac = contacts_jacobian(contacts, contact_links, drive.joint_origins, drive.joint_axes, drive.joint_types,
+                            joint_affects)  # J (l, n_q), eq 2.29
     motor = np.asarray(drive.transmission, float) @ jac.T @ lam  # (n_a, k): (T J^T L)
     sense, limit = np.asarray(drive.sense, float), np.asarray(drive.limit, float)
     push = sense != 0

@@ -310,3 +310,27 @@ def test_a_regions_plane_and_diameter_are_its_points_in_its_tangent_plane(box_pi
         assert np.array_equal(r.plane, _plane(r.points, r.normal))
         proj = _plane(r.points, r.normal) @ _DIRS.T
         assert r.diameter == float(np.max(proj.max(axis=0) - proj.min(axis=0)))
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.sampled_from(["box", "mug"]))
+def test_features_found_once_are_those_found_again_for_any_rows(seed: int, name: str) -> None:
+    """A patch's contact normals read the features (face, edge or vertex) that its signed gaps found, not found
+    again for the band's sharp points: a subset's features are the whole set's rows bit for bit, and so are the
+    normals (points on faces, edges and vertices of the box and the mug; a random subset kept, as the band)."""
+    surface = ObjectSurface(load_object(name).mesh)
+    mesh, rng = surface.mesh, np.random.default_rng(seed)
+    near, _ = trimesh.sample.sample_surface(mesh, 150, seed=seed)
+    corners = rng.choice(np.flatnonzero(surface.sharp_vertex), 40)  # sharp: the normals read their features
+    points = np.vstack([near + rng.normal(scale=0.001, size=near.shape), mesh.vertices[corners],
+                        mesh.vertices[mesh.edges[rng.integers(len(mesh.edges), size=40)]].mean(axis=1)])
+    closest, gap, normal, smooth, feature = surface.signed_features(points, *surface.nearest(points))
+    assert all(np.array_equal(a, b) for a, b in zip((closest, gap, normal, smooth), surface.closest(points)))
+    keep = rng.random(len(points)) < 0.6
+    again = surface._feature(closest[keep], surface.nearest(points)[2][keep])
+    assert all(np.array_equal(getattr(feature.take(keep), k), getattr(again, k)) for k in ("count", "first", "last"))
+    assert (~smooth[keep]).sum() > 3  # sharp points, whose features the normals read
+    face = surface.nearest(points)[2][keep]
+    toward = -normal[keep]
+    assert np.array_equal(surface.contact_normals(closest[keep], face, smooth[keep], toward, feature.take(keep)),
+                          surface.contact_normals(closest[keep], face, smooth[keep], toward))

@@ -99,3 +99,26 @@ def test_inconsistent_link_rows_and_bad_joints_raise(rng: np.random.Generator) -
     with pytest.raises(DegenerateGraspError, match="unit"):
         hand_jacobian(pts, frames, [0, 1], origins, 2 * axes, ["revolute"] * 2,
                       np.ones((2, 2), dtype=bool))
+
+
+def test_the_jacobian_of_validated_contacts_is_the_hand_jacobian_bit_for_bit() -> None:
+    """The resistance's program hands its validated contacts to ``contacts_jacobian`` (not validated again):
+    the same J as ``hand_jacobian`` from the raw arrays, every bit, over point and soft contacts, revolute and
+    prismatic joints."""
+    from planner.quality.contacts import as_contacts
+    from planner.quality.jacobian import contacts_jacobian
+
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        n, n_q = int(rng.integers(1, 9)), int(rng.integers(1, 4))
+        pts = rng.normal(scale=0.05, size=(n, 3))
+        frames = np.array([random_rotation(rng) for _ in range(n)])
+        models = [str(m) for m in rng.choice(["point", "soft", "frictionless"], size=n)]
+        links = rng.integers(0, 3, size=n)
+        affects = rng.random((3, n_q)) < 0.7
+        axes = rng.normal(size=(n_q, 3))
+        axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+        args = (links, rng.normal(scale=0.05, size=(n_q, 3)), axes,
+                [str(t) for t in rng.choice(["revolute", "prismatic"], size=n_q)], affects[links])
+        want = hand_jacobian(pts, frames, *args, model=models)
+        assert np.array_equal(contacts_jacobian(as_contacts(pts, frames, model=models), *args), want)
