@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 import time
 from pathlib import Path
 
@@ -172,7 +173,9 @@ def _print_summary(summary: api.Summary, db_path: Path) -> None:
                       "" if row["friction"] is None else f"{row['friction']:.3g}", row["up"] or "", str(row["units"]),
                       str(row["candidates"]), str(row["grasps"]), str(row["force_closure"]), f"{row['seconds']:.1f}",
                       "yes" if row["error"] else "")  # the error whole, once, on its own line below the table
-    console = Console()
+    # a terminal's width; written to a file or a pipe (a log), as wide as the table needs (Rich's 80 columns
+    # cut its headings to "obje…", "fric…")
+    console = Console() if sys.stdout.isatty() else Console(width=400)
     console.print(table)
     console.print(f"candidates tried: {summary.candidates}, grasps with contacts: {summary.grasps}, "
                   f"force-closure: {summary.force_closure}, skipped (already done): {summary.skipped}, "

@@ -103,6 +103,10 @@ def test_an_object_that_fails_among_others_is_said_once_whole(tmp_path: Path) ->
     code, out, err = grasp("generate", str(tiny), "box", "--hand", "panda", "--db", str(tmp_path / "x.db"), *FAST)
     row = next(line for line in out.splitlines() if line.startswith("│ tiny"))
     assert code == 2 and row.split("│")[-2].strip() == "yes" and "millimetre" not in out, out
+    heading = next(line for line in out.splitlines() if line.startswith("┃ object"))  # not cut to 80 columns in a log
+    assert [c.strip() for c in heading.strip("┃").split("┃")] == ["object", "mass kg", "friction", "up", "units",
+                                                                   "candidates", "grasps", "force-closure",
+                                                                   "worker s", "error"], out
     one_line_error(code, err, 2, "tiny", "smaller than a millimetre")
 
 
