@@ -72,15 +72,24 @@ def picked(result: ae.FileResult, n: int, seed: int) -> list[int]:
     return [int(closed[i]) for i in ae.sample(len(closed), n, seed, result.path.stem)] if len(closed) else []
 
 
+#: What ``run(..., full=True)`` adds after [held, reason, cpu seconds]: the Trial's continuous record.
+FULL = ("closing_linear", "closing_angular", "shaking_linear", "shaking_angular", "fingers_in_contact")
+
+
 def run(result: ae.FileResult, positions: list[int], engine: str, settings, cache: Path,  # type: ignore[no-untyped-def]
-        pose: str = "original") -> dict:
+        pose: str = "original", full: bool = False, cached_only: bool = False) -> dict:
     """{position: [held, reason, cpu seconds]} for the sampled poses of one file (cached); ``pose``:
-    the file's own pose (``original``, what FleX simulated) or the planner's re-centred one (``planned``)."""
-    tag = hashlib.sha256((engine + pose + settings.to_json() + trial_code()).encode()).hexdigest()[:12]
+    the file's own pose (``original``, what FleX simulated) or the planner's re-centred one (``planned``).
+    ``full``: each list goes on with the Trial's fields named in FULL (metres, radians, fingers; cached apart).
+    ``cached_only``: {} where nothing is cached (nothing run)."""
+    tag = hashlib.sha256((engine + pose + settings.to_json() + trial_code() + ("full" if full else ""))
+                         .encode()).hexdigest()[:12]
     key = cache / f"{result.path.stem}.{engine}.{len(result.rows)}.{'-'.join(map(str, positions))[:60]}." \
                   f"{hashlib.sha256(str(positions).encode()).hexdigest()[:8]}.{tag}.json"
     if key.exists():
         return {int(k): v for k, v in json.loads(key.read_text()).items()}
+    if cached_only:
+        return {}
     hand, obj, poses = _prepared(result.path)
     by_pos = {g.candidate: g if pose == "planned" else replace(g, pose=poses[result.rows[g.candidate]])
               for g in result.grasps}
@@ -90,7 +99,8 @@ def run(result: ae.FileResult, positions: list[int], engine: str, settings, cach
     for p in positions:
         start = time.process_time()
         t = run_trials(hand, obj, [by_pos[p]], settings)[0]
-        out[p] = [bool(t.success), t.reason, time.process_time() - start]
+        out[p] = [bool(t.success), t.reason, time.process_time() - start] + \
+            ([float(getattr(t, f)) for f in FULL] if full else [])
     key.write_text(json.dumps(out))
     return out
 

@@ -39,7 +39,7 @@ import acronym_mujoco as am  # noqa: E402
 
 from planner.calibration import features  # noqa: E402
 from planner.calibration.fitting import trial_figures  # noqa: E402
-from planner.calibration.labels import TRIAL_GROUPS  # noqa: E402
+from planner.calibration.labels import TRIAL_GROUPS, LabelledSet  # noqa: E402
 from planner.calibration.logistic import FOLDER, load_model  # noqa: E402
 from planner.calibration.metrics import INTERVAL_SEED, object_figures, roc_auc  # noqa: E402
 from planner.calibration.model import cross_validate  # noqa: E402
@@ -65,16 +65,9 @@ def main() -> int:
     ap.add_argument("--held-out", action="store_true", help="the shipped model and update on the held-out objects")
     a = ap.parse_args()
     code = a.code or ae.source_hash()
-    results = [ae.rescore_file(p, a.poses, 0, 1, ae.CACHE, code) for p in ae.dev_files(a.dev, a.held_out, None)]
-    data = ae.labelled_set(results)
-    settings = MujocoSettings() if a.engine == "mujoco" else ShakeSettings()
-    verdicts = []
-    for r in results:
-        v = am.run(r, am.picked(r, a.per_file, a.sample_seed), a.engine, settings, ae.CACHE, "original")
-        verdicts += [float(v[int(p)][0]) if int(p) in v else np.nan for p in np.flatnonzero(r.closed)]
+    results, data, _ = tried_set(a.dev, a.held_out, a.poses, a.per_file, a.sample_seed, a.engine, code)
     path = ROOT / FOLDER / f"{a.hand}.toml"
     shipped = load_model(path)
-    data = replace(data, verdicts=np.array(verdicts), engine=TRIAL_GROUPS[a.engine])
     if a.held_out:
         p = shipped.predict(data.table)
         q = shipped.given_trial(p, {data.engine: data.verdicts})
@@ -109,6 +102,35 @@ def main() -> int:
     return 0
 
 
+def tried_set(dev: Path, held_out: bool, poses: int, per_file: int, sample_seed: int, engine: str,
+              code: str, cached_only: bool = False) -> tuple[list, LabelledSet, list]:
+    """(re-scored files, their closed poses as a LabelledSet with the trial's verdicts (nan: not tried), and per
+    closed pose the trial's cached record [held, reason, cpu s, *acronym_mujoco.FULL] or None): the files of one
+    side of the split, ``poses`` re-scored per file (seed 0, code ``code``), ``per_file`` closed ones tried in
+    ``engine`` at the file's pose (drawn with ``sample_seed``; every trial's whole record cached; ``cached_only``: no
+    trial run, a file whose trials are not cached is untried)."""
+    results = [ae.rescore_file(p, poses, 0, 1, ae.CACHE, code) for p in ae.dev_files(dev, held_out, None)]
+    settings = MujocoSettings() if engine == "mujoco" else ShakeSettings()
+    records: list = []
+    for r in results:
+        v = am.run(r, am.picked(r, per_file, sample_seed), engine, settings, ae.CACHE, "original", full=True,
+                   cached_only=cached_only)
+        records += [v.get(int(p)) for p in np.flatnonzero(r.closed)]
+    verdicts = np.array([np.nan if t is None else float(t[0]) for t in records])
+    return results, replace(ae.labelled_set(results), verdicts=verdicts, engine=TRIAL_GROUPS[engine]), records
+
+
+def score_figures(data: LabelledSet, s: np.ndarray) -> tuple[float, float, float]:
+    """(mean per-object ROC AUC against the labels, mean over files of the share of the 10 best-ranked poses
+    that hold (force closure first), label agreement of s >= 0.5) of scores ``s`` (n,) of every pose."""
+    y, groups, files = data.labels, np.array(data.groups), np.array(data.files)
+    fc = features.design(data.table, ("force_closure",))[:, 0]
+    aucs = [roc_auc(y[groups == g], s[groups == g]) for g in np.unique(groups)]
+    tops = [float(np.mean(y[i][rank_order(s[i], fc[i])[:10]])) for i in
+            (np.flatnonzero(files == f) for f in np.unique(files))]
+    return float(np.nanmean(aucs)), float(np.mean(tops)), float(np.mean((s >= 0.5) == (y == 1)))
+
+
 def ranking(data, p: np.ndarray, q: np.ndarray, results) -> None:  # type: ignore[no-untyped-def]
     """Every closed pose tried: AUC per object, top-10 per file and label agreement of each score."""
     y, v = data.labels, data.verdicts
@@ -117,11 +139,8 @@ def ranking(data, p: np.ndarray, q: np.ndarray, results) -> None:  # type: ignor
     print(f"every closed pose tried ({int(np.sum(~np.isnan(v)))} of {len(v)}):")
     for name, s in (("p_hold", p), ("p_hold_trial", q), ("p_hold x verdict", p * np.nan_to_num(v, nan=1.0)),
                     ("verdict", np.nan_to_num(v, nan=0.5))):
-        aucs = [roc_auc(y[groups == g], s[groups == g]) for g in np.unique(groups)]
-        tops = [float(np.mean(y[i][rank_order(s[i], fc[i])[:10]])) for i in
-                (np.flatnonzero(files == f) for f in np.unique(files))]
-        print(f"  {name:18s} mean per-object AUC {np.nanmean(aucs):.4f}  top-10 {np.mean(tops):.4f}  "
-              f"label agreement {np.mean((s >= 0.5) == (y == 1)):.4f}")
+        auc, top, agree = score_figures(data, s)
+        print(f"  {name:18s} mean per-object AUC {auc:.4f}  top-10 {top:.4f}  label agreement {agree:.4f}")
         if name in ("p_hold", "p_hold_trial"):
             iv = object_figures(y, s, groups, files, fc, 10, np.random.default_rng(INTERVAL_SEED))
             print(f"  {'':18s} 95% over objects: AUC [{iv['auc_mean_lo']:.3f}, {iv['auc_mean_hi']:.3f}]  top-10 "
