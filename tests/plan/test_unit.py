@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 from planner import quality
 from planner.datasets import importer
 from planner.geometry.solid import load_object
-from planner.plan import grip, unit
+from planner.plan import unit
 from planner.plan.sweep import SweepSettings
 from planner.plan.unit import QUALITY_FAILED, UnitSpec, grasp_quality, run_unit
 from planner.quality.hull import HullError
@@ -203,23 +203,36 @@ def test_a_rough_scans_rays_come_in_along_its_shapes_normals(tmp_path, monkeypat
     """The ray samplers (the Barrett's, the Allegro's, the PR2's) approach a scan closed on a proxy along its
     normals at a contact's scale, as the antipodal sampler and the contacts read them: 0.1 mm of noise tilts
     its own triangles by up to tens of degrees."""
-    import scanlike
-
-    seen: list[object] = []
-    sample = unit.sampling.sample
-
-    def spy(*args, **kwargs):  # type: ignore[no-untyped-def]
-        seen.append(sample(*args, **kwargs))
-        raise RuntimeError("sampled")
-
-    monkeypatch.setattr(unit.sampling, "sample", spy)
-    rough = tmp_path / "rough.obj"
-    rough.write_text(scanlike.uv_obj(100_000, noise=1e-4))
+    seen = _stop_after(monkeypatch, unit.sampling, "sample")
+    rough = _rough_capsule(tmp_path)
     settings = SweepSettings(approaches=200, sampler=sampler, box_delta=0.01, chunk=0, reach_placements=0)
     assert "sampled" in (run_unit(UnitSpec(str(rough), "barrett", settings, 0)).error or "")
     (rays,) = seen
     tilt = _capsule_tilt(rays.points, rays.normals)  # type: ignore[attr-defined]
     assert len(tilt) >= 100 and tilt.max() < 6.0, (len(tilt), tilt.max())
+
+
+def _stop_after(monkeypatch, module: object, name: str) -> list:  # type: ignore[no-untyped-def]
+    """Replace ``module.name`` by a call of it that keeps its result in the list returned, then stops the caller
+    (RuntimeError "sampled")."""
+    seen: list = []
+    real = getattr(module, name)
+
+    def spy(*args, **kwargs):  # type: ignore[no-untyped-def]
+        seen.append(real(*args, **kwargs))
+        raise RuntimeError("sampled")
+
+    monkeypatch.setattr(module, name, spy)
+    return seen
+
+
+def _rough_capsule(folder: Path) -> Path:
+    """The scan-like capsule of ~100k faces with 0.1 mm of noise, as an OBJ file in ``folder``."""
+    import scanlike
+
+    path = folder / "rough.obj"
+    path.write_text(scanlike.uv_obj(100_000, noise=1e-4))
+    return path
 
 
 def _capsule_tilt(points: np.ndarray, normals: np.ndarray) -> np.ndarray:
@@ -236,20 +249,10 @@ def _capsule_tilt(points: np.ndarray, normals: np.ndarray) -> np.ndarray:
 
 def test_a_rough_scans_grip_measures_read_its_shapes_normals(tmp_path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
     """The grip measures' surface samples of a scan closed on a proxy take its normals at a contact's scale: with
-    its triangles' (0.1 mm of noise), a Panda unit's pads read 0.045 less aligned than on the noise-free capsule at
-    the same contacts (0.904 against 0.948; averaged 0.949)."""
-    import scanlike
-
-    seen: list[grip.GripSurface] = []
-    surface = unit.grip.GripSurface
-
-    def spy(*args, **kwargs):  # type: ignore[no-untyped-def]
-        seen.append(surface(*args, **kwargs))
-        raise RuntimeError("sampled")
-
-    monkeypatch.setattr(unit.grip, "GripSurface", spy)
-    rough = tmp_path / "rough.obj"
-    rough.write_text(scanlike.uv_obj(100_000, noise=1e-4))
+    its triangles' (0.1 mm of noise), the pads of the Panda's first default unit read 0.911 aligned on average where the
+    noise-free capsule at the same contacts reads 0.954 (averaged: 0.953)."""
+    seen = _stop_after(monkeypatch, unit.grip, "GripSurface")
+    rough = _rough_capsule(tmp_path)
     assert "sampled" in (run_unit(UnitSpec(str(rough), "panda", SETTINGS, 0)).error or "")
     with pytest.raises(RuntimeError, match="sampled"):  # an imported file's grasps are measured the same way
         importer._rescore(np.eye(4)[None], load_hand("panda"), load_object(str(rough)), Counter())
