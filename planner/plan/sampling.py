@@ -122,7 +122,7 @@ def sample(mesh: trimesh.Trimesh, *, sampler: str, count: int, rng: np.random.Ge
            normals_at: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> Approaches:
     """Sample approach rays on ``mesh`` (see module docstring); ``normals_at``
     as :func:`antipodal`'s (default: the faces' own normals)."""
-    normals_at = normals_at or (lambda _, f: mesh.face_normals[f])
+    normals_at = normals_at or _face_normals(mesh)
     if sampler == "surface":
         if count < 1:
             raise InputError(f"--approaches must be at least 1, got {count}")
@@ -218,6 +218,11 @@ def _box_rays(mesh: trimesh.Trimesh, delta: float) -> tuple[np.ndarray, np.ndarr
     return hits[order], tris[order]
 
 
+def _face_normals(mesh: trimesh.Trimesh) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """The samplers' default ``normals_at``: each point's face's own outward normal."""
+    return lambda _, faces: mesh.face_normals[faces]
+
+
 def fan(base: Approaches, count: int, angle: float) -> Approaches:
     """Add ``count`` directions tilted by ``angle`` [rad] around each normal."""
     points, normals, dirs = [base.points], [base.normals], [base.directions]
@@ -310,7 +315,7 @@ def antipodal(mesh: trimesh.Trimesh, count: int, rng: np.random.Generator, *, ma
     points, faces = trimesh.sample.sample_surface(mesh, count, seed=rng)
     phases = rng.uniform(0.0, 2 * np.pi, count)  # drawn for every point: point i is replayable
     points = np.asarray(points, float)
-    normals_at = normals_at or (lambda _, f: mesh.face_normals[f])
+    normals_at = normals_at or _face_normals(mesh)
     normals = np.asarray(normals_at(points, faces), float)
     spread = mu if spread is None else spread
     drawn = [cone_directions(-normals, spread, rng) for _ in range(tries)]
