@@ -11,11 +11,16 @@ VHACD-made duck, teddy and random objects of pybullet_data) skip CoACD: their
 bodies are the parts.
 
 CoACD has no time limit of its own, so it runs in a child process that is
-killed after ``GRASP_COACD_TIME_LIMIT`` seconds (:data:`TIME_LIMIT` unless
-set; ``0``: none): a mesh it cannot finish fails with a one-line reason
-instead of holding a batch's worker for hours, and the failure is recorded
-beside the cache, so the object's other trials fail at once rather than each
-running CoACD again (a larger limit tries again).
+stopped after ``GRASP_COACD_TIME_LIMIT`` seconds of its own CPU
+(:data:`TIME_LIMIT` unless set; ``0``: none; where POSIX resource limits are
+missing, Windows, seconds of wall clock): a mesh it cannot finish fails with
+a one-line reason instead of holding a batch's worker for hours, and the
+failure is recorded beside the cache, so the object's other trials fail at
+once rather than each running CoACD again (a larger limit tries again). CPU,
+not wall clock: whether a mesh finishes must not depend on what else the
+machine runs (a loaded host once failed a bowl that takes 153 s of CPU). A
+child that has not finished after :data:`WALL_FACTOR` times that (and its
+start) of wall clock is stopped too (a starved or stuck child), and that is not recorded.
 """
 
 from __future__ import annotations
@@ -23,7 +28,9 @@ from __future__ import annotations
 import io
 import json
 import logging
+import math
 import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -44,6 +51,11 @@ CONVEX_TOL = 0.02
 #: slowest of the dev set's 30 tuning meshes, a bowl, took 153 s of CPU; their median 10.8 s).
 TIME_LIMIT = 900.0
 TIME_LIMIT_ENV = "GRASP_COACD_TIME_LIMIT"
+#: The child is stopped after this many times (its CPU limit + :data:`STARTUP`) of wall clock (not recorded:
+#: the load's doing).
+WALL_FACTOR = 10.0
+#: [s] of CPU the child takes to start (its imports, ~1 s here), which its limit does not count.
+STARTUP = 5.0
 
 
 @dataclass(frozen=True)
@@ -94,8 +106,8 @@ class Parts:
 def convex_parts(mesh: trimesh.Trimesh, mesh_hash: str, settings: CoacdSettings | None = None,
                  limit: float | None = None) -> Parts:
     """The object's convex parts: its bodies if each is convex, else CoACD's
-    (cached), run within ``limit`` seconds (None: :func:`time_limit`; 0: no
-    limit). A mesh CoACD did not finish within a limit at least this large
+    (cached), run within ``limit`` seconds of CPU (None: :func:`time_limit`;
+    0: no limit). A mesh CoACD did not finish within a limit at least this large
     before is refused at once (:class:`~planner.errors.MeshError`)."""
     settings = settings or DEFAULT_SETTINGS
     parts = ready_parts(mesh, mesh_hash, settings)
@@ -177,29 +189,40 @@ def refuse_known_timeout(mesh_hash: str, settings: CoacdSettings | None = None, 
     limit = time_limit() if limit is None else limit
     try:
         known = json.loads(_timeout_path(_cache_path(mesh_hash, settings or DEFAULT_SETTINGS)).read_text())
-        tried, reason = float(known["limit"]), str(known["reason"])
-    except (OSError, ValueError, KeyError, TypeError):
+        tried, reason, clock = float(known["limit"]), str(known["reason"]), known.get("clock", "wall")
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return
+    if clock != _CLOCK:  # recorded under the other clock (before the limit counted CPU): tried again
         return
     if limit and tried >= limit:
         raise MeshError(f"{reason} (recorded earlier; set {TIME_LIMIT_ENV} above {tried:g} to try again)")
 
 
 def _run_limited(mesh: trimesh.Trimesh, settings: CoacdSettings, limit: float, path: Path) -> Parts:
-    """:func:`_run_coacd` in a child process (``python -m planner.geometry.decompose``), killed after ``limit``
-    seconds; a timeout is recorded beside ``path`` (the cache file the parts would have gone to)."""
+    """:func:`_run_coacd` in a child process (``python -m planner.geometry.decompose``) stopped after ``limit``
+    seconds of its CPU (:func:`_limit_cpu`); a timeout is recorded beside ``path`` (the cache file the parts would
+    have gone to). Where the child cannot limit its CPU, the wall clock's ``limit`` stops it (recorded too)."""
+    cpu = _CLOCK == "cpu" and _limit_cpu(None) is not None
     with tempfile.TemporaryDirectory(prefix="grasp-coacd-") as folder:
         given, made = Path(folder) / "mesh.npz", Path(folder) / "parts.npz"
         np.savez(given, vertices=np.asarray(mesh.vertices, float), faces=np.asarray(mesh.faces, np.int64),
                  settings=np.array(json.dumps(asdict(settings))))
-        log.info("running CoACD (%d faces, at most %g s); cached afterwards", len(mesh.faces), limit)
+        log.info("running CoACD (%d faces, at most %g s of CPU); cached afterwards", len(mesh.faces), limit)
+        wall = (limit + STARTUP) * WALL_FACTOR if cpu else limit
+        reason = (f"CoACD did not finish the convex decomposition of this mesh ({len(mesh.faces)} faces) within "
+                  f"{limit:g} s" + (" of CPU" if cpu else ""))
         try:
-            done = subprocess.run([sys.executable, "-m", __name__, str(given), str(made)], capture_output=True,
-                                  text=True, timeout=limit)
+            done = subprocess.run([sys.executable, "-m", __name__, str(given), str(made), repr(limit)],
+                                  capture_output=True, text=True, timeout=wall)
         except subprocess.TimeoutExpired:
-            reason = (f"CoACD did not finish the convex decomposition of this mesh ({len(mesh.faces)} faces) within "
-                      f"{limit:g} s")
-            assets.atomic_write(_timeout_path(path), json.dumps({"limit": limit, "reason": reason}).encode())
+            if cpu:  # starved or stuck: the load's doing, not the mesh's; not recorded, the next run tries again
+                raise MeshError(f"CoACD's child did not finish within {wall:g} s of wall clock ({limit:g} s of CPU "
+                                f"allowed): the machine is too busy, run again") from None
+            _record(path, limit, reason)
             raise MeshError(f"{reason}: simplify the mesh, or set {TIME_LIMIT_ENV} (seconds, 0: none)") from None
+        if cpu and done.returncode == -_SIGXCPU:
+            _record(path, limit, reason)
+            raise MeshError(f"{reason}: simplify the mesh, or set {TIME_LIMIT_ENV} (seconds, 0: none)")
         if done.returncode or not made.is_file():
             last = (done.stderr.strip().splitlines() or [f"exit {done.returncode}"])[-1]
             raise MeshError(last if last.startswith(("CoACD failed", "CoACD returned")) else f"CoACD failed on this "
@@ -207,9 +230,39 @@ def _run_limited(mesh: trimesh.Trimesh, settings: CoacdSettings, limit: float, p
         return _read(made)
 
 
-def _child(given: str, made: str) -> int:
-    """The child of :func:`_run_limited`: CoACD on the mesh in ``given``, its parts written to ``made``. It
-    stops when its parent is gone (a worker killed by a unit's timeout or kill -9), not running on orphaned."""
+_SIGXCPU = int(getattr(signal, "SIGXCPU", 24))  # absent on Windows, where the wall clock limits
+#: What this machine's limits count: "cpu", or "wall" where there are no resource limits.
+_CLOCK = "cpu" if hasattr(signal, "SIGXCPU") else "wall"
+
+
+def _record(path: Path, limit: float, reason: str) -> None:
+    """Record beside ``path`` that CoACD ran out of ``limit`` seconds (of :data:`_CLOCK`)."""
+    assets.atomic_write(_timeout_path(path), json.dumps({"limit": limit, "reason": reason, "clock": _CLOCK}).encode())
+
+
+def _limit_cpu(seconds: float | None) -> float | None:
+    """Limit this process to ``seconds`` more of CPU (POSIX ``RLIMIT_CPU``: the kernel sends SIGXCPU, whose
+    default action ends the process; no core file). Returns the limit set [s of the process's CPU], None where
+    there are no resource limits (Windows). ``seconds`` None: only whether it can."""
+    try:
+        import resource
+    except ImportError:
+        return None
+    if seconds is None:
+        return 0.0
+    used = resource.getrusage(resource.RUSAGE_SELF)
+    at = math.ceil(used.ru_utime + used.ru_stime + seconds)
+    hard = resource.getrlimit(resource.RLIMIT_CPU)[1]
+    resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+    top = at + 2 if hard == resource.RLIM_INFINITY else min(at + 2, hard)
+    resource.setrlimit(resource.RLIMIT_CPU, (min(at, top), top))
+    return float(at)
+
+
+def _child(given: str, made: str, limit: str = "0") -> int:
+    """The child of :func:`_run_limited`: CoACD on the mesh in ``given`` within ``limit`` seconds of CPU (0:
+    none), its parts written to ``made``. It stops when its parent is gone (a worker killed by a unit's timeout
+    or kill -9), not running on orphaned."""
     import threading
     import time
 
@@ -221,6 +274,8 @@ def _child(given: str, made: str) -> int:
         os._exit(1)
 
     threading.Thread(target=watch, daemon=True).start()
+    if float(limit) > 0:
+        _limit_cpu(float(limit))
     with np.load(given, allow_pickle=False) as data:
         mesh = trimesh.Trimesh(data["vertices"], data["faces"], process=False)
         settings = CoacdSettings(**json.loads(str(data["settings"])))
@@ -250,4 +305,4 @@ def _read(path) -> Parts:  # type: ignore[no-untyped-def]
 
 
 if __name__ == "__main__":
-    sys.exit(_child(*sys.argv[1:3]))
+    sys.exit(_child(*sys.argv[1:4]))
