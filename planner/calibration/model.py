@@ -171,7 +171,7 @@ def choose_l2(table: Mapping[str, np.ndarray], labels: np.ndarray, groups: Seque
               splines: Sequence[str] = DEFAULT_SPLINES) -> float:
     """The penalty of ``grid`` with the least grouped-CV log-loss (ties: the larger)."""
     k = min(folds, len(set(groups)))
-    if k < 2:
+    if k < 2 or len(set(grid)) == 1:  # nothing to choose between: no inner CV (it cost 5 fits a penalty)
         return float(max(grid))
     tests = grouped_folds(groups, k)
     best, best_loss = float(max(grid)), math.inf

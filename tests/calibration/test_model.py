@@ -171,3 +171,23 @@ def test_grouped_cross_validation_predicts_out_of_fold_and_close_to_the_truth() 
         assert len({groups[i] for i in np.flatnonzero(cv.fold == f)} &
                    {groups[i] for i in np.flatnonzero(cv.fold != f)}) == 0
     assert roc_auc(y, cv.p) > 0.75 and expected_calibration_error(y, cv.p) < 0.05
+
+
+def test_one_penalty_given_is_not_chosen_by_an_inner_cross_validation(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """With one penalty there is nothing to choose: the inner grouped CV still fitted it once per fold (5 fits
+    of each outer fold's training set, for the same answer)."""
+    from planner.calibration import model as model_module
+
+    table, y, groups = synthetic(400)
+    calls = []
+    real_fit = model_module.fit
+
+    def counting_fit(*args, **kwargs):  # type: ignore[no-untyped-def]
+        calls.append(kwargs.get("l2"))
+        return real_fit(*args, **kwargs)
+
+    monkeypatch.setattr(model_module, "fit", counting_fit)
+    assert model_module.choose_l2(table, y, groups, "panda", grid=(0.3,)) == 0.3
+    assert calls == []
+    assert model_module.choose_l2(table, y, groups, "panda", grid=(0.3, 3.0), splines=()) in (0.3, 3.0)
+    assert len(calls) == 2 * 5  # two penalties, five folds each
