@@ -70,13 +70,44 @@ def _terminated(signum: int, frame: Any) -> None:
     raise KeyboardInterrupt
 
 
+def _interrupted(subcommand: str | None) -> None:
+    click.echo(f"grasp: interrupted; {INTERRUPTED.get(subcommand or '', 'nothing was changed')}", err=True)
+
+
 class Group(click.Group):
     """Maps every error to a one-line message and an exit code."""
 
-    def invoke(self, ctx: click.Context) -> object:
+    def main(self, args: Sequence[str] | None = None, prog_name: str | None = None,  # type: ignore[override]
+             complete_var: str | None = None, standalone_mode: bool = True, **extra: Any) -> Any:
+        """Click's standalone mode answers a Ctrl-C outside :meth:`invoke` (while it parses the group's options,
+        prints --help, or closes the context) with "Aborted!" and exit 1: here it is run without it, and every
+        interruption ends as one during a command does (one line, exit 130)."""
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, False, **extra)
+        try:
+            code = super().main(args, prog_name, complete_var, False, **extra)  # an Exit's code, or None
+        except (KeyboardInterrupt, click.exceptions.Abort):  # Abort: click's non-standalone KeyboardInterrupt
+            _interrupted(None)
+            code = EXIT_INTERRUPTED
+        except click.ClickException as exc:  # the group's own bad option: as standalone mode shows it
+            exc.show()
+            code = exc.exit_code
+        except BrokenPipeError:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            code = EXIT_PIPE
+        sys.exit(code or 0)
+
+    def make_context(self, info_name: str | None, args: list[str], parent: click.Context | None = None,
+                     **extra: Any) -> click.Context:
+        try:
+            return super().make_context(info_name, args, parent, **extra)
+        except KeyboardInterrupt:  # not past click's handler, which writes a blank line first
+            raise click.exceptions.Abort from None
+
+    def invoke(self, ctx: click.Context) -> None:
         debug = "--debug" in sys.argv[1:] or (ctx.params or {}).get("debug", False)
         try:
-            return super().invoke(ctx)
+            super().invoke(ctx)  # its value (None) would read as an exit code in main
         except click.UsageError as exc:  # a subcommand's bad option value: one line too, with where to look
             where = exc.ctx.command_path if exc.ctx is not None else ctx.command_path
             click.echo(f"grasp: error: {exc.format_message()} (see `{where} --help`)", err=True)
@@ -95,8 +126,7 @@ class Group(click.Group):
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             ctx.exit(EXIT_PIPE)
         except KeyboardInterrupt:  # Ctrl-C, or SIGTERM (``main``)
-            click.echo(f"grasp: interrupted; {INTERRUPTED.get(ctx.invoked_subcommand or '', 'nothing was changed')}",
-                       err=True)
+            _interrupted(ctx.invoked_subcommand)
             ctx.exit(EXIT_INTERRUPTED)
         except Exception as exc:
             _traceback(debug)

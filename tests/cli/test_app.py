@@ -214,3 +214,38 @@ def test_a_grasp_home_without_the_projects_folders_is_said_in_one_line(tmp_path:
     code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(tmp_path / "g.db"), "--approaches", "4")
     one_line_error(code, err, ConfigError.exit_code, f"GRASP_HOME={tmp_path}: no hands/, preshapes/, objects/ folder")
     assert not (tmp_path / "g.db").exists()
+
+
+#: The console script's start (pyproject's ``planner.cli:run``) with click's argument parsing held: the group's
+#: parse says so on stderr and waits for the signal.
+HELD_PARSE = """
+import sys, time, click
+parse = click.Command.parse_args
+def held(self, ctx, args):
+    if isinstance(self, click.Group):
+        print("parsing", file=sys.stderr, flush=True)
+        time.sleep(60)
+    return parse(self, ctx, args)
+click.Command.parse_args = held
+sys.argv = ["grasp", *sys.argv[1:]]
+from planner.cli import run
+sys.exit(run())
+"""
+
+
+@pytest.mark.parametrize("args", [["hands"], ["--help"]])
+def test_ctrl_c_while_click_parses_exits_130_in_one_line(args: list[str]) -> None:
+    """Click's standalone mode answered it with a blank line, "Aborted!" and exit 1."""
+    import signal
+    import subprocess
+
+    from processes import STARTUP, env
+
+    run = subprocess.Popen([sys.executable, "-c", HELD_PARSE, *args], env=env(), stderr=subprocess.PIPE, text=True)
+    try:
+        assert run.stderr is not None and run.stderr.readline() == "parsing\n"
+        run.send_signal(signal.SIGINT)
+        _, err = run.communicate(timeout=STARTUP)
+    finally:
+        run.kill()
+    assert (run.returncode, err) == (130, "grasp: interrupted; nothing was changed\n")
