@@ -95,7 +95,14 @@ from typing import Any
 import numpy as np
 
 from planner.datasets import registry
-from planner.datasets.acronym_checks import check_columns, check_joints, contact_items, float_values, label_values, positive_value
+from planner.datasets.acronym_checks import (
+    check_columns,
+    check_joints,
+    contact_items,
+    float_values,
+    label_values,
+    positive_value,
+)
 from planner.datasets.acronym_columns import (
     DATASETS,
     EXTRAS,
