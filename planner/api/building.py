@@ -135,7 +135,8 @@ def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: i
         if on_table:
             obj = load_object(ref.source, scale=ref.scale, label=spec.name, **ref.physical.given())
             planned = [settings.on(support) for support in table_supports(obj, on_table)]
-        units += [unit_spec(ref.source, hand, plan, seed, ref.scale, chunk, label=spec.name, physical=ref.physical)
+        units += [unit_spec(ref.source, hand, plan, seed, ref.scale, chunk, label=spec.name, physical=ref.physical,
+                           manifest=ref.manifest)
                   for plan in planned for chunk in range(plan.chunks())]
     if len(refs) == 1:
         # One object: a broken mesh (or a box-sampler grid too fine for it) is
@@ -208,8 +209,9 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
     grasps were planned and measured on: one name, one object. The mesh is
     prepared and compared for the objects with units ``todo``; an object
     whose units are all done is compared by its file and scale, and prepared
-    only where those moved or the file (or its sidecar) was modified since its last unit
-    finished (its mtime: a copy that keeps an older mtime is not seen; a sidecar removed: its folder's). An
+    only where those moved or the file (or its sidecar, or the manifest whose line gave it: a ``com=`` taken
+    out) was modified since its last unit finished (its mtime: a copy that keeps an older mtime is not seen; a
+    sidecar removed: its folder's). An
     object whose mesh no longer loads is left to its units (stored as
     failed). ``flags``: the run's values (a manifest line's replace them)."""
     from planner.db.objects import differs
@@ -247,8 +249,9 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
         if name not in running and spec.user_file and row.source == spec.source and row.scale == spec.scale \
                 and row.geometry == spec.geometry and (spec.com is None or math.dist(spec.com, row.com) <= COM_TOL) \
                 and not edited_since(Path(spec.source), db.last_finished(name), spec.geometry) \
-                and not sidecar_changed(Path(spec.source), db.last_finished(name)):
-            continue  # nothing of it runs, and it names the stored file and sidecar, unchanged since, at its scale
+                and not sidecar_changed(Path(spec.source), db.last_finished(name)) \
+                and not (unit.manifest and edited_since(Path(unit.manifest), db.last_finished(name))):
+            continue  # nothing of it runs; it names the stored file and sidecar (and manifest), unchanged since
         try:
             why = differs(row, prepare(spec))
         except PlannerError:

@@ -96,6 +96,7 @@ class UnitSpec:
     label: str | None = None  # database name of the object (None: its default name)
     timeout: float | None = None  # [s] give up on the unit after this long (checked between candidates)
     physical: Physical = NO_PHYSICAL  # the user's mass or density and friction (None: the object's own)
+    manifest: str | None = None  # the @manifest whose line gave the object (see ObjectRef)
 
 
 @dataclass
