@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from planner import api
-from planner.cli.app import db_option, echo_json, floats, report_failures, show_preparation, unused
+from planner.cli.app import db_option, echo_json, floats, per_second, report_failures, show_preparation, unused
 
 DEFAULTS = api.SweepSettings()
 #: [kg/m^3] from a foam (expanded polystyrene ~10) to osmium (22,590): an object's mass over its volume outside
@@ -132,11 +132,11 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
         if p.result is not None:
             counts["grasps"] += len(p.result.grasps)
             counts["fc"] += p.result.force_closure
-        rate = p.candidates_done / max(time.perf_counter() - started, 1e-9)
+        rate = per_second(p.candidates_done, time.perf_counter() - started)
         total = "?" if p.candidates_total is None else str(p.candidates_total)
         shown = dict(total=p.candidates_total, completed=p.candidates_done, candidates=f"{p.candidates_done}/{total}",
                      units=f"{p.units_done}/{p.units_total}", grasps=counts["grasps"], fc=counts["fc"],
-                     rate=f"{rate:.0f} cand/s")
+                     rate=f"{rate} cand/s")
         if tasks:
             bar.update(tasks[0], **shown)
         else:

@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 from helpers import grasp, one_line_error
 
+from planner.cli.app import RATE_MIN_COUNT, per_second, rate_text, share
 from planner.errors import InputError
 
 
@@ -249,3 +250,27 @@ def test_ctrl_c_while_click_parses_exits_130_in_one_line(args: list[str]) -> Non
     finally:
         run.kill()
     assert (run.returncode, err) == (130, "grasp: interrupted; nothing was changed\n")
+
+
+def test_a_small_exports_line_says_its_time_without_a_rate(box_db: Path, tmp_path: Path) -> None:
+    """5 grasps exported in 3.9 s read "(3.9 s, 1 grasps/s)": the rate of the start-up's seconds, rounded."""
+    import re
+
+    code, out, _ = grasp("export", "--db", str(box_db), "--format", "csv", "--out", str(tmp_path / "few"),
+                         "--top", "5")
+    assert code == 0 and re.search(r"exported 5 grasps as csv to 1 file\(s\) in .* \(\d+\.\d s\)$", out.strip()), out
+    assert rate_text(RATE_MIN_COUNT, 0.66, "grasps") == "0.7 s, 152 grasps/s"
+
+
+@pytest.mark.parametrize("count, seconds, text", [(2.4, 1.0, "2.40"), (28_176, 580.7, "48.5"), (307, 0.66, "465"),
+                                                  (12_345, 1.0, "12,345"), (1, 3_000.0, "0.000333"), (0, 1.0, "0")])
+def test_a_rate_keeps_three_significant_figures(count: float, seconds: float, text: str) -> None:
+    """`:.0f` made the Barrett's 2.4 candidates/s "2" in generate's bar."""
+    assert per_second(count, seconds) == text
+
+
+@pytest.mark.parametrize("part, whole, text", [(997, 1_000, "99.7%"), (1_999, 2_000, "99.95%"), (5, 5, "100%"),
+                                               (1, 1_000, "0.1%"), (2, 3, "67%"), (0, 0, "0%"), (0, 7, "0%")])
+def test_a_share_is_not_rounded_to_all_or_none(part: int, whole: int, text: str) -> None:
+    """validate said "997 held (100%)" (`:.0%`): of a hand whose grasps hold 99.7-99.85%, the one figure read."""
+    assert share(part, whole) == text
