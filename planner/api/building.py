@@ -29,7 +29,7 @@ from planner.db.hand_files import check_hand_files
 from planner.db.ranking import RankingRule
 from planner.db.store import Database, UnitRow, open_for_writing
 from planner.errors import InputError
-from planner.plan.sweep import SweepSettings, candidate_count, check_sampler
+from planner.plan.sweep import SweepSettings, candidate_count, check_sampler, check_unit_size
 from planner.specs.hands import load_hand
 from planner.specs.inputs import check_seed, expand
 from planner.specs.objects import resolve_spec
@@ -48,9 +48,6 @@ if TYPE_CHECKING:
 UNIT_TIMEOUT_GRACE = 10.0
 #: [s] the longest --unit-timeout: a unit of work is seconds to minutes; 1e300 overflowed the pool's wait.
 MAX_UNIT_TIMEOUT = 7 * 24 * 3600.0
-#: Candidates of one unit of work: a worker lists them all (an antipodal one with their poses) in memory, measured
-#: 0.21 kB a candidate and 0.33 kB a pose: 1,000,000 is ~0.5 GB per worker (--rolls 10**9 ran out of memory).
-MAX_UNIT_CANDIDATES = 1_000_000
 
 
 @dataclass
@@ -119,7 +116,7 @@ def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: i
     settings = settings.resolved(hand_spec.sampler, hand_spec.settle, hand_spec.settle_dynamics)
     check_sampler(settings, hand_spec)
     load_preshapes(hand_spec, list(settings.preshapes) if settings.preshapes else None)
-    units, seen = [], {}
+    units, seen, box_rays = [], {}, None
     for ref in refs:
         spec = resolve_spec(ref.source, scale=ref.scale, label=ref.label, **ref.physical.given())
         if spec.kind == "mesh" and not spec.source.startswith("pybullet_data:") and not Path(spec.source).exists():
@@ -144,28 +141,20 @@ def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: i
         # batch it is recorded and the rest go on.
         obj = load_object(refs[0].source, scale=refs[0].scale, **refs[0].physical.given())
         if settings.sampler == "box":
-            from planner.plan.sampling import check_box_rays
+            from planner.plan.sampling import box_ray_count
 
-            check_box_rays(obj.mesh, settings.box_delta)
-    _check_unit_sizes(units, hand_spec)
+            box_rays = box_ray_count(obj.mesh, settings.box_delta)
+    _check_unit_sizes(units, hand_spec, box_rays)
     return units
 
 
-def _check_unit_sizes(units: Sequence[UnitSpec], hand: Any) -> None:
-    """Refuse a sweep whose first unit of work (the largest: full, with a table's rays from above) would hold more
-    than :data:`MAX_UNIT_CANDIDATES` candidates, before any work, naming the options whose product it is."""
+def _check_unit_sizes(units: Sequence[UnitSpec], hand: Any, box_rays: int | None = None) -> None:
+    """Refuse a sweep whose first unit of work would hold more than
+    :data:`~planner.plan.sweep.MAX_UNIT_CANDIDATES` candidates (:func:`~planner.plan.sweep.check_unit_size`);
+    ``box_rays``: the box sampler's on the one object of the run (a batch's units check their own)."""
     for settings in {u.settings.digest: u.settings for u in units if u.chunk == 0}.values():
         names = list(settings.preshapes) if settings.preshapes else None
-        count = candidate_count(settings, shapes := sweep_preshapes(hand, names, settings.support() is not None))
-        if count is None or count <= MAX_UNIT_CANDIDATES:
-            continue
-        rays = len(settings.ray_range(0, settings.rays_known or 0)) + settings.above_rays(0)
-        per = (f"{len(settings.depths)} --depths" if settings.sampler == "antipodal" else
-               f"{sum(len(settings.standoffs or s.standoffs) for s in shapes)} standoffs over the preshapes")
-        raise InputError(f"a unit of work would hold {count:,} candidates ({rays:,} "
-                         f"{'points' if settings.sampler == 'antipodal' else 'rays'} (--approaches, or --chunk of "
-                         f"them) x --rolls {settings.rolls} x {per}): at most {MAX_UNIT_CANDIDATES:,}, each held in a "
-                         "worker's memory; use a smaller --chunk or fewer --rolls")
+        check_unit_size(settings, sweep_preshapes(hand, names, settings.support() is not None), box_rays)
 
 
 def table_supports(obj: PreparedObject, poses: int) -> list[Support]:

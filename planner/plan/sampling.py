@@ -183,10 +183,9 @@ def from_above(mesh: trimesh.Trimesh, up: np.ndarray, com: np.ndarray, approach_
 MAX_BOX_RAYS = 1_000_000
 
 
-def check_box_rays(mesh: trimesh.Trimesh, delta: float) -> None:
-    """Refuse a box-sampler spacing ``delta`` [m] that casts more than
-    :data:`MAX_BOX_RAYS` rays on ``mesh``'s box, before the grid is made
-    (1e-9 m took 24 GB and the machine's memory killer)."""
+def box_ray_count(mesh: trimesh.Trimesh, delta: float) -> int:
+    """The rays a box-sampler spacing ``delta`` [m] casts on ``mesh``'s box; more than :data:`MAX_BOX_RAYS` are
+    refused, before the grid is made (1e-9 m took 24 GB and the machine's memory killer)."""
     if delta <= 0:
         raise InputError(f"box sampler spacing must be positive, got {delta}")
     steps = np.floor((mesh.bounds[1] - mesh.bounds[0] + 2 * BOX_MARGIN) / delta) + 1
@@ -194,10 +193,11 @@ def check_box_rays(mesh: trimesh.Trimesh, delta: float) -> None:
     if rays > MAX_BOX_RAYS:
         raise InputError(f"--box-delta {delta:g} m casts {rays:.3g} rays on this object's box (at most "
                          f"{MAX_BOX_RAYS:,}): use a larger spacing")
+    return int(rays)
 
 
 def _box_rays(mesh: trimesh.Trimesh, delta: float) -> tuple[np.ndarray, np.ndarray]:
-    check_box_rays(mesh, delta)
+    box_ray_count(mesh, delta)
     lo, hi = mesh.bounds[0] - BOX_MARGIN, mesh.bounds[1] + BOX_MARGIN
     origins, dirs = [], []
     for axis in range(3):

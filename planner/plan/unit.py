@@ -47,6 +47,7 @@ from planner.plan.sweep import (
     antipodal_candidates,
     candidates,
     check_sampler,
+    check_unit_size,
     unit_rng,
 )
 from planner.plan.tolerances import FINGER_CLEARANCE, MIN_CLEARANCE, TABLE_CLEARANCE, TABLE_ELEVATION
@@ -248,6 +249,8 @@ def _rays(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, hand: Ha
           report: Report) -> Swept:
     """OpenRAVE-style: approach along each ray until contact, back off, close."""
     t1 = time.perf_counter()
+    if settings.sampler == "box":  # its rays known once its mesh is: the unit's candidates bounded before they are made
+        check_unit_size(settings, shapes, sampling.box_ray_count(obj.mesh, settings.box_delta))
     rays = sampling.sample(obj.mesh, sampler=settings.sampler or "surface", count=settings.approaches or 0, rng=rng,
                            delta=settings.box_delta, fan_count=settings.fan_count, fan_angle=settings.fan_angle,
                            normals_at=grasper.normals_at())

@@ -260,3 +260,13 @@ def test_a_rough_scans_grip_measures_read_its_shapes_normals(tmp_path, monkeypat
         tilt = _capsule_tilt(surface.points, surface.normals)
         assert len(tilt) > 10_000 and np.percentile(tilt, 99.9) < 6.0, (len(tilt), np.percentile(tilt, 99.9))
     assert len(seen) == 2
+
+
+def test_a_box_sampler_unit_past_its_candidates_fails_before_its_rays_are_cast(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """A batch's unit (its mesh unknown before it runs): --box-delta 0.002 --rolls 16 on the box listed 1,450,560
+    candidates of a Barrett unit (a finer grid or more rolls: the worker's memory); now it fails in one line."""
+    _stop_after(monkeypatch, unit.sampling, "sample")
+    settings = SweepSettings(sampler="box", box_delta=0.002, rolls=16, reach_placements=0)
+    error = run_unit(UnitSpec("box", "barrett", settings, 0)).error or ""
+    assert "would hold up to 1,450,560 candidates (9,066 rays (--box-delta on its box) x --rolls 16 x 10 " \
+           "standoffs over the preshapes): at most 1,000,000" in error, error
