@@ -331,6 +331,27 @@ def antipodal(mesh: trimesh.Trimesh, count: int, rng: np.random.Generator, *, ma
     return Pairs(points, normals, opposite, axes, widths, phases, tuple(str(r) for r in reasons))
 
 
+#: The pairs of the last object sampled in this process (:func:`antipodal_once`).
+_SAMPLED: dict[tuple, Pairs] = {}
+
+
+def antipodal_once(key: tuple, mesh: trimesh.Trimesh, count: int, rng: np.random.Generator, **kwargs: object
+                   ) -> Pairs:
+    """:func:`antipodal` sampled once per ``key`` in this process (the last key's pairs kept, read-only): every unit
+    of an object samples its whole surface from the same generator (the object's, not the unit's) and keeps its
+    chunk of the points, so a worker running several units of an object samples it once (a 100k-face scan: ~0.5 s
+    a unit). ``key`` names the object and mesh; the generator's state and the arguments join it (``normals_at``, a
+    new callable each unit, by its keywords); ``rng`` is not advanced where the pairs are reused."""
+    key = (*key, count, repr(rng.bit_generator.state),
+           *((k, getattr(v, "keywords", None) if callable(v) else v) for k, v in sorted(kwargs.items())))
+    if key not in _SAMPLED:
+        _SAMPLED.clear()
+        _SAMPLED[key] = pairs = antipodal(mesh, count, rng, **kwargs)  # type: ignore[arg-type]
+        for value in (v for v in vars(pairs).values() if isinstance(v, np.ndarray)):
+            value.flags.writeable = False
+    return _SAMPLED[key]
+
+
 def _chords(mesh: trimesh.Trimesh, points: np.ndarray, normals: np.ndarray, directions: np.ndarray, max_width: float,
             mu: float, min_width: float, normals_at: Callable[[np.ndarray, np.ndarray], np.ndarray]
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

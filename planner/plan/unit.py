@@ -289,8 +289,9 @@ def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, han
     the object, else closed where it is."""
     t1 = time.perf_counter()
     openings = {s.name: hand.opening(s.joints) for s in shapes}
-    pairs = sampling.antipodal(obj.mesh, settings.approaches or 0, rng, mu=obj.friction,
-                               max_width=max(openings.values()) - 2 * MIN_CLEARANCE, normals_at=grasper.normals_at())
+    pairs = sampling.antipodal_once((obj.name, obj.mesh_hash, hand.name), obj.mesh, settings.approaches or 0, rng,
+                                    mu=obj.friction, max_width=max(openings.values()) - 2 * MIN_CLEARANCE,
+                                    normals_at=grasper.normals_at())
     todo = antipodal_candidates(pairs, shapes, openings, settings, MIN_CLEARANCE,
                                 settings.ray_range(spec.chunk, len(pairs)))
     check_sampler(settings, hand)
