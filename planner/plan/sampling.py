@@ -343,7 +343,7 @@ def antipodal_once(key: tuple, mesh: trimesh.Trimesh, count: int, rng: np.random
     a unit). ``key`` names the object and mesh; the generator's state and the arguments join it (``normals_at``, a
     new callable each unit, by its keywords); ``rng`` is not advanced where the pairs are reused."""
     key = (*key, count, repr(rng.bit_generator.state),
-           *((k, getattr(v, "keywords", None) if callable(v) else v) for k, v in sorted(kwargs.items())))
+           *((k, repr(getattr(v, "keywords", None)) if callable(v) else v) for k, v in sorted(kwargs.items())))
     if key not in _SAMPLED:
         _SAMPLED.clear()
         _SAMPLED[key] = pairs = antipodal(mesh, count, rng, **kwargs)  # type: ignore[arg-type]

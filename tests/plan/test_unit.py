@@ -272,12 +272,20 @@ def test_a_box_sampler_unit_past_its_candidates_fails_before_its_rays_are_cast(m
            "standoffs over the preshapes): at most 1,000,000" in error, error
 
 
-def test_a_workers_units_of_one_object_sample_its_surface_once(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+@pytest.mark.parametrize("scan", [False, True])
+def test_a_workers_units_of_one_object_sample_its_surface_once(monkeypatch, tmp_path: Path, scan: bool) -> None:  # type: ignore[no-untyped-def]
     """Every unit sampled the object's whole surface (its antipodal pairs) to keep its chunk of the points: a
     worker running an object's units sampled it once per unit (a 100k-face scan: ~0.5 s each). Now once per
-    object, the same grasps as units that each sample it anew."""
-    settings = SweepSettings(approaches=48, chunk=16, reach_placements=0)
-    specs = [UnitSpec("box", "panda", settings, 0, chunk=c) for c in range(3)]
+    object, the same grasps as units that each sample it anew; a scan (over 5,000 faces: its normals averaged
+    at a contact's scale) too."""
+    import scanlike
+
+    name = "box"
+    if scan:
+        name = str(tmp_path / "capsule.obj")
+        Path(name).write_text(scanlike.uv_obj(8_000))
+    settings = SweepSettings(approaches=32, chunk=16, reach_placements=0)
+    specs = [UnitSpec(name, "panda", settings, 0, chunk=c) for c in range(2)]
     monkeypatch.setattr(unit.sampling, "_SAMPLED", {})
     fresh = []
     for spec in specs:
