@@ -217,6 +217,22 @@ def test_a_grasp_home_without_the_projects_folders_is_said_in_one_line(tmp_path:
     assert not (tmp_path / "g.db").exists()
 
 
+def test_an_install_without_the_projects_folders_is_said_in_one_line(tmp_path: Path,
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """`pip install .` (not -e) copies the package alone: run outside the checkout, every command that reads a
+    hand was an internal error (FileNotFoundError: ./hands) and `grasp objects` printed an error with exit 0."""
+    from planner import assets
+    from planner.errors import ConfigError
+
+    monkeypatch.delenv("GRASP_HOME", raising=False)
+    monkeypatch.setattr(assets, "PROJECT_ROOT", tmp_path)
+    for args in (["generate", "box", "--hand", "panda", "--db", str(tmp_path / "g.db")], ["hands"], ["objects"]):
+        code, _, err = grasp(*args)
+        one_line_error(code, err, ConfigError.exit_code, "no hands/, preshapes/, objects/ folder beside the installed "
+                       f"package or in the current folder {tmp_path}: install from a checkout with `pip install -e .`")
+    assert not (tmp_path / "g.db").exists()
+
+
 #: The console script's start (pyproject's ``planner.cli:run``) with click's argument parsing held: the group's
 #: parse says so on stderr and waits for the signal.
 HELD_PARSE = """
