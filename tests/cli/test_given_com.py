@@ -165,6 +165,9 @@ def test_a_manifest_com_no_more_given_is_refused_once_every_unit_is_done(tmp_pat
     code, _, err = generate(db, f"@{manifest}")
     one_line_error(code, err, 2, "object 'banana' is stored", "with its centre of mass at [0, 0, 0.02] m",
                    "now [0, 0, 0], the mesh's")
+    manifest.write_text("m/banana.obj com=0,0,0.03\n")  # another one: said as given (it read "given by as given")
+    code, _, err = generate(db, f"@{manifest}")
+    one_line_error(code, err, 2, "with its centre of mass at [0, 0, 0.02] m", "(now [0, 0, 0.03], as given, and")
 
 
 def test_under_scale_a_sidecar_com_is_compared_with_the_urdfs_scaled(tmp_path: Path) -> None:
