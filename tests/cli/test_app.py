@@ -217,19 +217,25 @@ def test_a_grasp_home_without_the_projects_folders_is_said_in_one_line(tmp_path:
     assert not (tmp_path / "g.db").exists()
 
 
-def test_an_install_without_the_projects_folders_is_said_in_one_line(tmp_path: Path,
-                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+def test_an_install_without_the_projects_folders_is_said_in_one_line(tmp_path: Path) -> None:
     """`pip install .` (not -e) copies the package alone: run outside the checkout, every command that reads a
-    hand was an internal error (FileNotFoundError: ./hands) and `grasp objects` printed an error with exit 0."""
-    from planner import assets
+    hand was an internal error (FileNotFoundError: ./hands) and `grasp objects` printed an error with exit 0.
+    The package copied as pip installs it, run from a folder without the project's."""
+    import os
+    import shutil
+    import subprocess
+
     from planner.errors import ConfigError
 
-    monkeypatch.delenv("GRASP_HOME", raising=False)
-    monkeypatch.setattr(assets, "PROJECT_ROOT", tmp_path)
-    for args in (["generate", "box", "--hand", "panda", "--db", str(tmp_path / "g.db")], ["hands"], ["objects"]):
-        code, _, err = grasp(*args)
-        one_line_error(code, err, ConfigError.exit_code, "no hands/, preshapes/, objects/ folder beside the installed "
-                       f"package or in the current folder {tmp_path}: install from a checkout with `pip install -e .`")
+    shutil.copytree(Path(__file__).parents[2] / "planner", tmp_path / "site" / "planner",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    env = {k: v for k, v in os.environ.items() if k != "GRASP_HOME"} | {"PYTHONPATH": str(tmp_path / "site")}
+    for args in (["generate", "box", "--hand", "panda", "--db", "g.db"], ["hands"], ["objects"]):
+        done = subprocess.run([sys.executable, "-c", "from planner.cli import run; run()", *args], cwd=tmp_path,
+                              env=env, capture_output=True, text=True, timeout=120)
+        one_line_error(done.returncode, done.stderr, ConfigError.exit_code, "no hands/, preshapes/, objects/ folder "
+                       f"beside the installed package or in the current folder {tmp_path}: install from a checkout "
+                       "with `pip install -e .`")
     assert not (tmp_path / "g.db").exists()
 
 
