@@ -42,11 +42,16 @@ ASSET_FOLDERS = ("hands", "preshapes", "objects")
 def project_dir(name: str) -> Path:
     """One of the project's asset folders: ``hands``, ``preshapes``, ``objects``."""
     path = PROJECT_ROOT / name
-    if name in ASSET_FOLDERS and not path.is_dir() and os.environ.get("GRASP_HOME"):
-        missing = [f + "/" for f in ASSET_FOLDERS if not (PROJECT_ROOT / f).is_dir()]
-        raise ConfigError(f"GRASP_HOME={os.environ['GRASP_HOME']}: no {', '.join(missing)} folder there (GRASP_HOME "
-                          f"names the folder holding {', '.join(f + '/' for f in ASSET_FOLDERS)}: a checkout of this "
-                          "project)")
+    if name in ASSET_FOLDERS and not path.is_dir():
+        missing = ", ".join(f + "/" for f in ASSET_FOLDERS if not (PROJECT_ROOT / f).is_dir())
+        if os.environ.get("GRASP_HOME"):
+            raise ConfigError(f"GRASP_HOME={os.environ['GRASP_HOME']}: no {missing} folder there (GRASP_HOME names "
+                              f"the folder holding {', '.join(f + '/' for f in ASSET_FOLDERS)}: a checkout of this "
+                              "project)")
+        # a `pip install .` copies the package only: run from elsewhere, it read the current folder's (a traceback)
+        raise ConfigError(f"no {missing} folder beside the installed package or in the current folder {PROJECT_ROOT}: "
+                          "install from a checkout with `pip install -e .`, run grasp in the checkout, or set "
+                          "GRASP_HOME to it")
     return path
 
 

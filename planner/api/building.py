@@ -29,7 +29,7 @@ from planner.db.hand_files import check_hand_files
 from planner.db.ranking import RankingRule
 from planner.db.store import Database, UnitRow, open_for_writing
 from planner.errors import InputError
-from planner.plan.sweep import SweepSettings, candidate_count, check_sampler
+from planner.plan.sweep import SweepSettings, candidate_count, check_sampler, check_unit_size
 from planner.specs.hands import load_hand
 from planner.specs.inputs import check_seed, expand
 from planner.specs.objects import resolve_spec
@@ -48,9 +48,6 @@ if TYPE_CHECKING:
 UNIT_TIMEOUT_GRACE = 10.0
 #: [s] the longest --unit-timeout: a unit of work is seconds to minutes; 1e300 overflowed the pool's wait.
 MAX_UNIT_TIMEOUT = 7 * 24 * 3600.0
-#: Candidates of one unit of work: a worker lists them all (an antipodal one with their poses) in memory, measured
-#: 0.21 kB a candidate and 0.33 kB a pose: 1,000,000 is ~0.5 GB per worker (--rolls 10**9 ran out of memory).
-MAX_UNIT_CANDIDATES = 1_000_000
 
 
 @dataclass
@@ -119,7 +116,7 @@ def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: i
     settings = settings.resolved(hand_spec.sampler, hand_spec.settle, hand_spec.settle_dynamics)
     check_sampler(settings, hand_spec)
     load_preshapes(hand_spec, list(settings.preshapes) if settings.preshapes else None)
-    units, seen = [], {}
+    units, seen, box_rays = [], {}, None
     for ref in refs:
         spec = resolve_spec(ref.source, scale=ref.scale, label=ref.label, **ref.physical.given())
         if spec.kind == "mesh" and not spec.source.startswith("pybullet_data:") and not Path(spec.source).exists():
@@ -135,7 +132,8 @@ def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: i
         if on_table:
             obj = load_object(ref.source, scale=ref.scale, label=spec.name, **ref.physical.given())
             planned = [settings.on(support) for support in table_supports(obj, on_table)]
-        units += [unit_spec(ref.source, hand, plan, seed, ref.scale, chunk, label=spec.name, physical=ref.physical)
+        units += [unit_spec(ref.source, hand, plan, seed, ref.scale, chunk, label=spec.name, physical=ref.physical,
+                           manifest=ref.manifest)
                   for plan in planned for chunk in range(plan.chunks())]
     if len(refs) == 1:
         # One object: a broken mesh (or a box-sampler grid too fine for it) is
@@ -143,28 +141,20 @@ def plan_units(names: Sequence[str], hand: str, settings: SweepSettings, seed: i
         # batch it is recorded and the rest go on.
         obj = load_object(refs[0].source, scale=refs[0].scale, **refs[0].physical.given())
         if settings.sampler == "box":
-            from planner.plan.sampling import check_box_rays
+            from planner.plan.sampling import box_ray_count
 
-            check_box_rays(obj.mesh, settings.box_delta)
-    _check_unit_sizes(units, hand_spec)
+            box_rays = box_ray_count(obj.mesh, settings.box_delta)
+    _check_unit_sizes(units, hand_spec, box_rays)
     return units
 
 
-def _check_unit_sizes(units: Sequence[UnitSpec], hand: Any) -> None:
-    """Refuse a sweep whose first unit of work (the largest: full, with a table's rays from above) would hold more
-    than :data:`MAX_UNIT_CANDIDATES` candidates, before any work, naming the options whose product it is."""
+def _check_unit_sizes(units: Sequence[UnitSpec], hand: Any, box_rays: int | None = None) -> None:
+    """Refuse a sweep whose first unit of work would hold more than
+    :data:`~planner.plan.sweep.MAX_UNIT_CANDIDATES` candidates (:func:`~planner.plan.sweep.check_unit_size`);
+    ``box_rays``: the box sampler's on the one object of the run (a batch's units check their own)."""
     for settings in {u.settings.digest: u.settings for u in units if u.chunk == 0}.values():
         names = list(settings.preshapes) if settings.preshapes else None
-        count = candidate_count(settings, shapes := sweep_preshapes(hand, names, settings.support() is not None))
-        if count is None or count <= MAX_UNIT_CANDIDATES:
-            continue
-        rays = len(settings.ray_range(0, settings.rays_known or 0)) + settings.above_rays(0)
-        per = (f"{len(settings.depths)} --depths" if settings.sampler == "antipodal" else
-               f"{sum(len(settings.standoffs or s.standoffs) for s in shapes)} standoffs over the preshapes")
-        raise InputError(f"a unit of work would hold {count:,} candidates ({rays:,} "
-                         f"{'points' if settings.sampler == 'antipodal' else 'rays'} (--approaches, or --chunk of "
-                         f"them) x --rolls {settings.rolls} x {per}): at most {MAX_UNIT_CANDIDATES:,}, each held in a "
-                         "worker's memory; use a smaller --chunk or fewer --rolls")
+        check_unit_size(settings, sweep_preshapes(hand, names, settings.support() is not None), box_rays)
 
 
 def table_supports(obj: PreparedObject, poses: int) -> list[Support]:
@@ -208,8 +198,9 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
     grasps were planned and measured on: one name, one object. The mesh is
     prepared and compared for the objects with units ``todo``; an object
     whose units are all done is compared by its file and scale, and prepared
-    only where those moved or the file (or its sidecar) was modified since its last unit
-    finished (its mtime: a copy that keeps an older mtime is not seen; a sidecar removed: its folder's). An
+    only where those moved or the file (or its sidecar, or the manifest whose line gave it: a ``com=`` taken
+    out) was modified since its last unit finished (its mtime: a copy that keeps an older mtime is not seen; a
+    sidecar removed: its folder's). An
     object whose mesh no longer loads is left to its units (stored as
     failed). ``flags``: the run's values (a manifest line's replace them)."""
     from planner.db.objects import differs
@@ -247,8 +238,9 @@ def _check_stored(db: Database, units: Sequence[UnitSpec], todo: Sequence[UnitSp
         if name not in running and spec.user_file and row.source == spec.source and row.scale == spec.scale \
                 and row.geometry == spec.geometry and (spec.com is None or math.dist(spec.com, row.com) <= COM_TOL) \
                 and not edited_since(Path(spec.source), db.last_finished(name), spec.geometry) \
-                and not sidecar_changed(Path(spec.source), db.last_finished(name)):
-            continue  # nothing of it runs, and it names the stored file and sidecar, unchanged since, at its scale
+                and not sidecar_changed(Path(spec.source), db.last_finished(name)) \
+                and not (unit.manifest and edited_since(Path(unit.manifest), db.last_finished(name))):
+            continue  # nothing of it runs; it names the stored file and sidecar (and manifest), unchanged since
         try:
             why = differs(row, prepare(spec))
         except PlannerError:

@@ -25,10 +25,10 @@ def run() -> None:
     """The ``grasp`` command as the console script starts it."""
     try:
         command = _main()
+        command()  # always exits: every error and interruption past the imports is the group's (``app.Group``)
     except KeyboardInterrupt:
         print("grasp: interrupted; nothing was changed", file=sys.stderr)
         sys.exit(EXIT_INTERRUPTED)
-    command()
 
 
 def _main() -> Callable[[], object]:

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from planner import api
-from planner.cli.app import LazyHelp, db_option, diverse_options, echo_json, report_failures, spacing
+from planner.cli.app import LazyHelp, db_option, diverse_options, echo_json, rate_text, report_failures, spacing
 
 
 @click.command(name="export")
@@ -46,9 +46,8 @@ def export(db_path: Path, fmt: str, out_dir: Path, objects: tuple[str, ...], han
     if as_json:
         echo_json(summary.to_json())
     elif not quiet:
-        rate = summary.grasps / max(summary.seconds, 1e-9)
         click.echo(f"exported {summary.grasps} grasps as {fmt} to {len(summary.files)} file(s) in {out_dir} "
-                   f"({summary.seconds:.1f} s, {rate:.0f} grasps/s)")
+                   f"({rate_text(summary.grasps, summary.seconds, 'grasps')})")
         for note in summary.notes:
             click.echo(f"note: {note}", err=True)
 

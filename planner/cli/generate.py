@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from planner import api
-from planner.cli.app import db_option, echo_json, floats, report_failures, show_preparation, unused
+from planner.cli.app import db_option, echo_json, floats, per_second, report_failures, show_preparation, unused
 
 DEFAULTS = api.SweepSettings()
 #: [kg/m^3] from a foam (expanded polystyrene ~10) to osmium (22,590): an object's mass over its volume outside
@@ -123,7 +123,8 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
     bar = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[candidates]} candidates"),
                    TextColumn("{task.fields[units]} units"),
                    TextColumn("{task.fields[grasps]} grasps, {task.fields[fc]} force-closure, {task.fields[rate]}"),
-                   TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), disable=not show)
+                   TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), disable=not show,
+                   console=_console())  # in a log, its last line whole (it read "generat… 32768/32768 candida…")
     counts = {"grasps": 0, "fc": 0}
     started = time.perf_counter()
     tasks: list = []
@@ -132,11 +133,11 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
         if p.result is not None:
             counts["grasps"] += len(p.result.grasps)
             counts["fc"] += p.result.force_closure
-        rate = p.candidates_done / max(time.perf_counter() - started, 1e-9)
+        rate = per_second(p.candidates_done, time.perf_counter() - started)
         total = "?" if p.candidates_total is None else str(p.candidates_total)
         shown = dict(total=p.candidates_total, completed=p.candidates_done, candidates=f"{p.candidates_done}/{total}",
                      units=f"{p.units_done}/{p.units_total}", grasps=counts["grasps"], fc=counts["fc"],
-                     rate=f"{rate:.0f} cand/s")
+                     rate=f"{rate} cand/s")
         if tasks:
             bar.update(tasks[0], **shown)
         else:
@@ -160,8 +161,15 @@ def generate(names: tuple[str, ...], hand: str, db_path: Path, seed: int, approa
     report_failures(summary.failed)
 
 
-def _print_summary(summary: api.Summary, db_path: Path) -> None:
+def _console():  # type: ignore[no-untyped-def]
+    """Rich's console: a terminal's width; written to a file or a pipe (a log), as wide as a line needs (Rich's
+    80 columns cut the summary's headings to "obje…", "fric…" and the bar's last line)."""
     from rich.console import Console
+
+    return Console() if sys.stdout.isatty() else Console(width=400)
+
+
+def _print_summary(summary: api.Summary, db_path: Path) -> None:
     from rich.table import Table
 
     table = Table(title=f"grasp generate -> {db_path}")
@@ -173,9 +181,7 @@ def _print_summary(summary: api.Summary, db_path: Path) -> None:
                       "" if row["friction"] is None else f"{row['friction']:.3g}", row["up"] or "", str(row["units"]),
                       str(row["candidates"]), str(row["grasps"]), str(row["force_closure"]), f"{row['seconds']:.1f}",
                       "yes" if row["error"] else "")  # the error whole, once, on its own line below the table
-    # a terminal's width; written to a file or a pipe (a log), as wide as the table needs (Rich's 80 columns
-    # cut its headings to "obje…", "fric…")
-    console = Console() if sys.stdout.isatty() else Console(width=400)
+    console = _console()
     console.print(table)
     console.print(f"candidates tried: {summary.candidates}, grasps with contacts: {summary.grasps}, "
                   f"force-closure: {summary.force_closure}, skipped (already done): {summary.skipped}, "

@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from planner import api
-from planner.cli.app import db_option, echo_json, report_failures, show_preparation, unused
+from planner.cli.app import db_option, echo_json, report_failures, share, show_preparation, unused
 from planner.validation.mujoco_settings import DEFAULT_ENGINE, ENGINES
 
 
@@ -50,7 +50,7 @@ def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], to
         echo_json(summary.to_json())
     else:
         click.echo(f"validated {summary.grasps} grasps in {engine}: {summary.successes} held "
-                   f"({summary.successes / max(summary.grasps, 1):.0%})"
+                   f"({share(summary.successes, summary.grasps)})"
                    + (f"; {summary.diverged} diverged (MuJoCo's state; no verdict, not stored)"
                       if summary.diverged else "")
                    + (f"; {summary.kept} already tried with these settings and seed, kept "

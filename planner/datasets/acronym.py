@@ -95,7 +95,14 @@ from typing import Any
 import numpy as np
 
 from planner.datasets import registry
-from planner.datasets.acronym_checks import check_joints, contact_items, float_values, label_values, positive_value
+from planner.datasets.acronym_checks import (
+    check_columns,
+    check_joints,
+    contact_items,
+    float_values,
+    label_values,
+    positive_value,
+)
 from planner.datasets.acronym_columns import (
     DATASETS,
     EXTRAS,
@@ -307,6 +314,7 @@ def read_grasps(path: Path, hand: HandSpec, obj: str, poses: np.ndarray) -> list
         closed, opened = g["joints_closed"][()], g["joints_open"][()]
         col = {k: (q[k][()] if k in q else np.full(n, np.nan))  # whole columns: h5py indexing per row is slow
                for k in ("epsilon", "volume", "force_closure", "reachability", "manipulability")}
+        check_columns(path, g, n, ("measures",))
         measures = measures_of(q, n)
         width = g["width"][()] if "width" in g else np.full(n, np.nan)
         preshape = g["preshape"].asstr()[()] if "preshape" in g else ["imported"] * n
@@ -357,6 +365,8 @@ def read_simulation(path: Path) -> list[tuple[Trial | None, RobustEpsilon | None
         if "qualities/simulated_success" not in g:
             return []
         n = len(g["qualities/simulated_success"])
+        check_columns(path, g, len(f["grasps/transforms"]) if "transforms" in g else n,
+                      ("validation", "mujoco", "robust"))
         trial, mujoco, robust = trials_of(g, "validation", n), trials_of(g, "mujoco", n), trial_columns(g, "robust", n)
     out: list[tuple[Trial | None, RobustEpsilon | None, Trial | None]] = []
     for i in range(n):

@@ -13,7 +13,9 @@ from typing import Any
 
 import numpy as np
 
+from planner.datasets.acronym_columns import location
 from planner.errors import InputError
+from planner.record import fields
 from planner.specs.hands import HandSpec
 
 #: [rad or m] How far past a joint's limit a stored value may lie (the simulator's own overshoot).
@@ -101,3 +103,30 @@ def float_values(f: Any, key: str, shape: tuple[int, ...]) -> Any:
     if values.shape != shape or values.dtype.kind not in "fiu" or not np.isfinite(values).all():
         return None
     return tuple(float(v) for v in values.ravel())
+
+
+def check_columns(path: Path, g: Any, n: int, groups: tuple[str, ...]) -> None:
+    """The columns below ``grasps/`` (``g``) of the record ``groups`` (``validation``, ``mujoco``, ``robust``,
+    ``measures``) a file holds, as their declaration says: one row per grasp (``n``), text or numbers, a
+    trial's verdict -1/0/1 and a count a whole number (a NaN there was an internal error after the database
+    was opened, a 2 a verdict stored as held)."""
+    for f in (f for group in groups for f in fields.group(group)):
+        key = location(f.name)
+        if key not in g:
+            continue
+        data = np.asarray(g[key][()])
+        where = f"{path}: grasps/{key}"
+        shape = (n, *f.shape) if f.kind == "vector" else (n,)
+        if data.shape != shape:
+            raise InputError(f"{where} has shape {data.shape}; expected {shape}, one row per grasp")
+        if (f.dtype == "string") != (data.dtype.kind in "SUO"):
+            raise InputError(f"{where} holds {'text' if data.dtype.kind in 'SUO' else 'numbers'}; expected "
+                             f"{'text' if f.dtype == 'string' else 'numbers'}")
+        if f.dtype != "int64":
+            continue
+        values = data.astype(float)
+        allowed = np.isin(values, (-1.0, 0.0, 1.0)) if f.kind == "bool" else np.isfinite(values) & (values % 1 == 0)
+        if not allowed.all():
+            row = int(np.flatnonzero(~allowed)[0])
+            expected = "-1 (not simulated), 0 or 1" if f.kind == "bool" else "a whole number"
+            raise InputError(f"{where} row {row} is {values[row]:g}; expected {expected}")

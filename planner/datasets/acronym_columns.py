@@ -93,7 +93,7 @@ MISSING = {"validation_fingers_in_contact": -1, "validation_reason": "", "robust
            "mujoco_success": -1, "mujoco_fingers_in_contact": -1, "mujoco_reason": ""}
 
 
-def _location(name: str) -> str:
+def location(name: str) -> str:
     """Where under ``grasps/`` a column of :func:`grasp_columns` is written."""
     return next(key for key, column in DATASETS.items() if column == name)
 
@@ -127,7 +127,7 @@ def trial_columns(g: Any, group: str, n: int) -> dict[str, list]:
     """The record's values of a trial or robust group, attribute -> n values."""
     out = {}
     for f in fields.group(group):
-        key = _location(f.name)
+        key = location(f.name)
         values = _file_values(f, g[key][()] if key in g else None, n)
         if key not in g and f.name in MISSING:
             values = [MISSING[f.name]] * n

@@ -160,8 +160,9 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
     # written) rather than held: an export of many objects would be held whole
     poses = [plan.reader.poses(plan.path, plan.hand) for plan in plans]
     for plan, file_poses in zip(plans, poses):
-        if plan.lossless:
+        if plan.lossless:  # and its trials' columns
             plan.reader.grasps(plan.path, plan.hand, plan.spec.name, file_poses)
+            plan.reader.simulation(plan.path)
     results: dict[int, ImportResult] = {}
 
     def finish(index: int, result: ImportResult) -> None:

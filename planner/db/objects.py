@@ -97,7 +97,8 @@ def differs(row: ObjectRow, obj: PreparedObject) -> str | None:
                 f"{obj.volume * 1e6:.6g} cm^3 (an earlier planner's mass properties: overlapping bodies are counted "
                 "once since 2026-12-05)")
     if not same_inertial(row, obj):
-        now = f"given by {obj.spec.com_from}" if obj.spec.com is not None else "the mesh's"
+        now = ("the mesh's" if obj.spec.com is None else "as given" if obj.spec.com_from == "as given" else
+               f"given by {obj.spec.com_from}")  # a flag's or a manifest line's: "given by as given" read
         return (f"with its centre of mass at {_point(row.com)} m and principal moments {_point(_moments(row.inertia))} "
                 f"kg m^2 (now {_point(obj.com)}, {now}, and {_point(_moments(obj.inertia))})")
     if not (math.isclose(obj.mass, row.mass, rel_tol=PROPERTY_RTOL) and

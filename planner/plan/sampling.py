@@ -183,10 +183,9 @@ def from_above(mesh: trimesh.Trimesh, up: np.ndarray, com: np.ndarray, approach_
 MAX_BOX_RAYS = 1_000_000
 
 
-def check_box_rays(mesh: trimesh.Trimesh, delta: float) -> None:
-    """Refuse a box-sampler spacing ``delta`` [m] that casts more than
-    :data:`MAX_BOX_RAYS` rays on ``mesh``'s box, before the grid is made
-    (1e-9 m took 24 GB and the machine's memory killer)."""
+def box_ray_count(mesh: trimesh.Trimesh, delta: float) -> int:
+    """The rays a box-sampler spacing ``delta`` [m] casts on ``mesh``'s box; more than :data:`MAX_BOX_RAYS` are
+    refused, before the grid is made (1e-9 m took 24 GB and the machine's memory killer)."""
     if delta <= 0:
         raise InputError(f"box sampler spacing must be positive, got {delta}")
     steps = np.floor((mesh.bounds[1] - mesh.bounds[0] + 2 * BOX_MARGIN) / delta) + 1
@@ -194,10 +193,11 @@ def check_box_rays(mesh: trimesh.Trimesh, delta: float) -> None:
     if rays > MAX_BOX_RAYS:
         raise InputError(f"--box-delta {delta:g} m casts {rays:.3g} rays on this object's box (at most "
                          f"{MAX_BOX_RAYS:,}): use a larger spacing")
+    return int(rays)
 
 
 def _box_rays(mesh: trimesh.Trimesh, delta: float) -> tuple[np.ndarray, np.ndarray]:
-    check_box_rays(mesh, delta)
+    box_ray_count(mesh, delta)
     lo, hi = mesh.bounds[0] - BOX_MARGIN, mesh.bounds[1] + BOX_MARGIN
     origins, dirs = [], []
     for axis in range(3):
@@ -329,6 +329,27 @@ def antipodal(mesh: trimesh.Trimesh, count: int, rng: np.random.Generator, *, ma
         for whole, part in zip((opposite, axes, widths, reasons), found):
             whole[retry] = part
     return Pairs(points, normals, opposite, axes, widths, phases, tuple(str(r) for r in reasons))
+
+
+#: The pairs of the last object sampled in this process (:func:`antipodal_once`).
+_SAMPLED: dict[tuple, Pairs] = {}
+
+
+def antipodal_once(key: tuple, mesh: trimesh.Trimesh, count: int, rng: np.random.Generator, **kwargs: object
+                   ) -> Pairs:
+    """:func:`antipodal` sampled once per ``key`` in this process (the last key's pairs kept, read-only): every unit
+    of an object samples its whole surface from the same generator (the object's, not the unit's) and keeps its
+    chunk of the points, so a worker running several units of an object samples it once (a 100k-face scan: ~0.5 s
+    a unit). ``key`` names the object and mesh; the generator's state and the arguments join it (``normals_at``, a
+    new callable each unit, by its keywords); ``rng`` is not advanced where the pairs are reused."""
+    key = (*key, count, repr(rng.bit_generator.state),
+           *((k, repr(getattr(v, "keywords", None)) if callable(v) else v) for k, v in sorted(kwargs.items())))
+    if key not in _SAMPLED:
+        _SAMPLED.clear()
+        _SAMPLED[key] = pairs = antipodal(mesh, count, rng, **kwargs)  # type: ignore[arg-type]
+        for value in (v for v in vars(pairs).values() if isinstance(v, np.ndarray)):
+            value.flags.writeable = False
+    return _SAMPLED[key]
 
 
 def _chords(mesh: trimesh.Trimesh, points: np.ndarray, normals: np.ndarray, directions: np.ndarray, max_width: float,

@@ -48,41 +48,14 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: gravity_arm, read by a p_hold model with 600 trees (issue 26): other p_hold, scores and ranks of the Panda's.
 #: 11: contact patches read with exact closest points (libigl's AABB tree, planner.geometry.distance), not the
 #: faces of the nearest dense samples (trimesh's closest point misses on slivers) (issue 24: other contacts on some).
-#: 12: a grasp settles as the database stores it (planner.record.grasp.Grasp.as_stored: pose to 0.1 um,
-#: contacts to 1 um), so the stored settled epsilon is what the stored grasp settles into (issue 26: the
-#: settle turned the rounding into another settled epsilon on most grasps); the same grasps, other settled
-#: epsilons, scores and ranks of the Barrett's.
-#: 13: a hand's own settle dynamics (hand.toml [settle_dynamics]; the Barrett's: 240 steps per second, 0.12 s
-#: of closing, 0.05 s at rest, half the cost of the shake trial's) (issue 24); the same grasps, other settled
-#: epsilons, scores and ranks of the Barrett's.
-#: 14: the measure torque_per_mu (the weight's torque about the grip over the friction coefficient), read by a
-#: p_hold model that learns from it how the weight of an object twists it out of the grip (issue 26); the same
-#: grasps with one more measure, other p_hold, scores and ranks of the Panda's.
-#: 15: the measure local_sdf (the object's signed distance at a grid fixed in the hand frame), read by the
-#: p_hold model's trees (issue 26); the same grasps with one more measure, other p_hold, scores and ranks of the
-#: Panda's.
-#: 16: local_sdf sided by the winding number where pseudonormals can fail: an open mesh, and on several bodies
-#: (the duck, the mug, the teddy, the random objects) the points whose nearest face's box meets another body's (a
-#: cell inside one body, nearest to another's face buried in it, read outside); one closed body as before (issue
-#: 26); other cells, p_hold, scores and ranks of the Panda's on those objects.
-#: 17: the prismatic finger axes read once with the hand at the origin, not at a unit's first closing's pose, so a
-#: unit's grasps no longer depend on the candidates closed before them (the chunking: closed joints ~5e-10 m
-#: apart, and where a patch's split is that close, other contacts); objects whose bodies overlap get their union's
-#: mass properties, touching convex pieces load (issue 24).
-#: 18: a contact on a sharp edge or corner of the object gets the normal of the object's normal cone there nearest
-#: the link's (a link's side or rim gave its own normal, up to 90 degrees outside the cone: epsilon and force closure
-#: of grasps on edges; issue 26); the table is a convex hull in PyBullet and the hands' collision boxes and spheres
-#: are meshes, so every gap is read with the same 2 mm of margins (the table's gaps read 1 mm large; the PR2's box
-#: fingertips 0.15-0.73 mm small: its closing, contacts and grasps on every object).
-#: 19: the settle's object has every convex part: PyBullet kept the first 16 of an object of more (the mug's 32:
-#: the fingers closed on air where the others were; planner.sim.dynamics.MAX_SHAPE_ARRAY); the same grasps, other
-#: settled epsilons, scores and ranks of the Barrett's on such objects.
-#: 20: the PR2's motors and fingers as they are (effort 3.15 N m at its hinges, 30 N at the pads, not 30 N m; its
-#: fingers' inertia from their collision shapes, not the URDF's 1 kg m^2 placeholder): its weight resistance,
-#: feasibility, scores and ranks (its grasps, epsilons and contacts the same), and its trials; and the PR2 stores
-#: its width (the gap between its fingertip pads at the closed joints, hand.toml width_links; null before).
-#: 21: the Allegro closes at 7 rad/s (Wonik's limit, not 0.5) in its settle and trials: other settled epsilons,
-#: scores and ranks of the Allegro's (15 objects of bench/mujoco_protocols.py: another top-1 on 11).
+#: 12: a grasp settles as stored (pose to 0.1 um, contacts to 1 um): other settled epsilons of the Barrett's.
+#: 13: a hand's own settle dynamics (hand.toml [settle_dynamics]) (issue 24). 14: the measure torque_per_mu; 15: the
+#: measure local_sdf; 16: local_sdf sided by the winding number where pseudonormals can fail (open meshes, bodies
+#: that overlap) (issue 26). 17: the prismatic finger axes read once at the origin (a unit's grasps independent of
+#: its chunking); overlapping bodies' union mass properties (issue 24). 18: a contact on an edge or corner gets the
+#: normal of the object's cone there nearest the link's; the table a convex hull, the hands' boxes and spheres
+#: meshes (every gap read with 2 mm of margins). 19: the settle's object has every convex part (PyBullet kept 16).
+#: 20: the PR2's motors and fingers as they are, and its width. 21: the Allegro closes at 7 rad/s in settle and trials.
 #: 22: over 5,000 faces: a proxy within 0.5 mm, contacts and antipodal sampler on normals averaged over 2 mm; a
 #: pre-grasp on another IK branch than its grasp: unreachable. 23: the ray samplers and grip measures too.
 ALGORITHM_VERSION = 23
@@ -118,6 +91,9 @@ MAX_RAYS = 1_000_000
 #: Table placements of the reachability score: it is the fraction of them an arm reaches (1,000 resolve it to 0.1%),
 #: each two IK solves per grasp checked; 10**9 ran out of memory.
 MAX_REACH_PLACEMENTS = 1_000
+#: Candidates of one unit of work: a worker lists them all (an antipodal one with their poses) in memory, measured
+#: 0.21 kB a candidate and 0.33 kB a pose: 1,000,000 is ~0.5 GB per worker (--rolls 10**9 ran out of memory).
+MAX_UNIT_CANDIDATES = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -337,11 +313,12 @@ def antipodal_candidates(pairs: Pairs, shapes: tuple[Preshape, ...], openings: d
     return out
 
 
-def candidate_count(settings: SweepSettings, shapes: tuple[Preshape, ...], chunk: int = 0) -> int | None:
+def candidate_count(settings: SweepSettings, shapes: tuple[Preshape, ...], chunk: int = 0,
+                    rays: int | None = None) -> int | None:
     """Candidates of unit ``chunk`` as :func:`candidates` or
     :func:`antipodal_candidates` will list them, known before sampling (for
-    progress); None for the box sampler, whose rays depend on the mesh."""
-    rays = settings.rays_known
+    progress); None for the box sampler, whose rays depend on the mesh, unless given (``rays``: its grid's)."""
+    rays = settings.rays_known if rays is None else rays
     if rays is None:
         return None
     points = len(settings.ray_range(chunk, rays))
@@ -350,6 +327,23 @@ def candidate_count(settings: SweepSettings, shapes: tuple[Preshape, ...], chunk
     points += settings.above_rays(chunk)
     per_ray = sum(len(settings.standoffs or shape.standoffs) for shape in shapes)
     return points * settings._resolved_field("rolls") * per_ray
+
+
+def check_unit_size(settings: SweepSettings, shapes: tuple[Preshape, ...], rays: int | None = None) -> None:
+    """Refuse a sweep whose first unit of work (the largest: full, with a table's rays from above) would hold more
+    than :data:`MAX_UNIT_CANDIDATES` candidates, before any work, naming the options whose product it is; ``rays``:
+    the box sampler's, known once its mesh is (:func:`planner.plan.sampling.box_ray_count`)."""
+    count = candidate_count(settings, shapes, 0, rays)
+    if count is None or count <= MAX_UNIT_CANDIDATES:
+        return
+    cast = len(settings.ray_range(0, settings.rays_known or rays or 0)) + settings.above_rays(0)
+    per = (f"{len(settings.depths)} --depths" if settings.sampler == "antipodal" else
+           f"{sum(len(settings.standoffs or s.standoffs) for s in shapes)} standoffs over the preshapes")
+    given = {"antipodal": "points (--approaches, or --chunk of them)", "box": "rays (--box-delta on its box)"}
+    raise InputError(f"a unit of work would hold {'up to ' if rays else ''}{count:,} candidates ({cast:,} "
+                     f"{given.get(settings.sampler or '', 'rays (--approaches, or --chunk of them)')} x --rolls "
+                     f"{settings.rolls} x {per}): at most {MAX_UNIT_CANDIDATES:,}, each held in a worker's memory; use "
+                     f"{'a larger --box-delta' if settings.sampler == 'box' else 'a smaller --chunk'} or fewer --rolls")
 
 
 def _distances(values: Sequence[float]) -> bool:

@@ -47,6 +47,7 @@ from planner.plan.sweep import (
     antipodal_candidates,
     candidates,
     check_sampler,
+    check_unit_size,
     unit_rng,
 )
 from planner.plan.tolerances import FINGER_CLEARANCE, MIN_CLEARANCE, TABLE_CLEARANCE, TABLE_ELEVATION
@@ -96,6 +97,7 @@ class UnitSpec:
     label: str | None = None  # database name of the object (None: its default name)
     timeout: float | None = None  # [s] give up on the unit after this long (checked between candidates)
     physical: Physical = NO_PHYSICAL  # the user's mass or density and friction (None: the object's own)
+    manifest: str | None = None  # the @manifest whose line gave the object (see ObjectRef)
 
 
 @dataclass
@@ -247,6 +249,8 @@ def _rays(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, hand: Ha
           report: Report) -> Swept:
     """OpenRAVE-style: approach along each ray until contact, back off, close."""
     t1 = time.perf_counter()
+    if settings.sampler == "box":  # its rays known once its mesh is: the unit's candidates bounded before they are made
+        check_unit_size(settings, shapes, sampling.box_ray_count(obj.mesh, settings.box_delta))
     rays = sampling.sample(obj.mesh, sampler=settings.sampler or "surface", count=settings.approaches or 0, rng=rng,
                            delta=settings.box_delta, fan_count=settings.fan_count, fan_angle=settings.fan_angle,
                            normals_at=grasper.normals_at())
@@ -285,8 +289,9 @@ def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, han
     the object, else closed where it is."""
     t1 = time.perf_counter()
     openings = {s.name: hand.opening(s.joints) for s in shapes}
-    pairs = sampling.antipodal(obj.mesh, settings.approaches or 0, rng, mu=obj.friction,
-                               max_width=max(openings.values()) - 2 * MIN_CLEARANCE, normals_at=grasper.normals_at())
+    pairs = sampling.antipodal_once((obj.name, obj.mesh_hash, hand.name), obj.mesh, settings.approaches or 0, rng,
+                                    mu=obj.friction, max_width=max(openings.values()) - 2 * MIN_CLEARANCE,
+                                    normals_at=grasper.normals_at())
     todo = antipodal_candidates(pairs, shapes, openings, settings, MIN_CLEARANCE,
                                 settings.ray_range(spec.chunk, len(pairs)))
     check_sampler(settings, hand)

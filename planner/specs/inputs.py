@@ -60,6 +60,7 @@ class ObjectRef:
     scale: float | None = None
     label: str | None = None  # database name (None: the default one)
     physical: Physical = NO_PHYSICAL  # the user's mass or density, friction and up (None: the object's own)
+    manifest: str | None = None  # the @manifest whose line gave it (its mtime: the line's values edited since)
 
     @property
     def name(self) -> str:
@@ -157,7 +158,8 @@ def _manifest(path: Path, scale: float | None, physical: Physical) -> list[Objec
         where = f"{path}:{number}"
         tokens = _tokens(raw, where)
         if tokens:
-            refs.append(_manifest_line(tokens, where, path.parent, scale, physical))
+            refs.append(replace(_manifest_line(tokens, where, path.parent, scale, physical),
+                                manifest=str(_absolute(str(path)))))
     if not refs:
         raise InputError(f"{path}: manifest lists no objects")
     return refs

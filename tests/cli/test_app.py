@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 from helpers import grasp, one_line_error
 
+from planner.cli.app import RATE_MIN_COUNT, per_second, rate_text, share
 from planner.errors import InputError
 
 
@@ -214,3 +215,84 @@ def test_a_grasp_home_without_the_projects_folders_is_said_in_one_line(tmp_path:
     code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(tmp_path / "g.db"), "--approaches", "4")
     one_line_error(code, err, ConfigError.exit_code, f"GRASP_HOME={tmp_path}: no hands/, preshapes/, objects/ folder")
     assert not (tmp_path / "g.db").exists()
+
+
+def test_an_install_without_the_projects_folders_is_said_in_one_line(tmp_path: Path) -> None:
+    """`pip install .` (not -e) copies the package alone: run outside the checkout, every command that reads a
+    hand was an internal error (FileNotFoundError: ./hands) and `grasp objects` printed an error with exit 0.
+    The package copied as pip installs it, run from a folder without the project's."""
+    import os
+    import shutil
+    import subprocess
+
+    from planner.errors import ConfigError
+
+    shutil.copytree(Path(__file__).parents[2] / "planner", tmp_path / "site" / "planner",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    env = {k: v for k, v in os.environ.items() if k != "GRASP_HOME"} | {"PYTHONPATH": str(tmp_path / "site")}
+    for args in (["generate", "box", "--hand", "panda", "--db", "g.db"], ["hands"], ["objects"]):
+        done = subprocess.run([sys.executable, "-c", "from planner.cli import run; run()", *args], cwd=tmp_path,
+                              env=env, capture_output=True, text=True, timeout=120)
+        one_line_error(done.returncode, done.stderr, ConfigError.exit_code, "no hands/, preshapes/, objects/ folder "
+                       f"beside the installed package or in the current folder {tmp_path}: install from a checkout "
+                       "with `pip install -e .`")
+    assert not (tmp_path / "g.db").exists()
+
+
+#: The console script's start (pyproject's ``planner.cli:run``) with click's argument parsing held: the group's
+#: parse says so on stderr and waits for the signal.
+HELD_PARSE = """
+import sys, time, click
+parse = click.Command.parse_args
+def held(self, ctx, args):
+    if isinstance(self, click.Group):
+        print("parsing", file=sys.stderr, flush=True)
+        time.sleep(60)
+    return parse(self, ctx, args)
+click.Command.parse_args = held
+sys.argv = ["grasp", *sys.argv[1:]]
+from planner.cli import run
+sys.exit(run())
+"""
+
+
+@pytest.mark.parametrize("args", [["hands"], ["--help"]])
+def test_ctrl_c_while_click_parses_exits_130_in_one_line(args: list[str]) -> None:
+    """Click's standalone mode answered it with a blank line, "Aborted!" and exit 1."""
+    import signal
+    import subprocess
+
+    from processes import STARTUP, env
+
+    run = subprocess.Popen([sys.executable, "-c", HELD_PARSE, *args], env=env(), stderr=subprocess.PIPE, text=True)
+    try:
+        assert run.stderr is not None and run.stderr.readline() == "parsing\n"
+        run.send_signal(signal.SIGINT)
+        _, err = run.communicate(timeout=STARTUP)
+    finally:
+        run.kill()
+    assert (run.returncode, err) == (130, "grasp: interrupted; nothing was changed\n")
+
+
+def test_a_small_exports_line_says_its_time_without_a_rate(box_db: Path, tmp_path: Path) -> None:
+    """5 grasps exported in 3.9 s read "(3.9 s, 1 grasps/s)": the rate of the start-up's seconds, rounded."""
+    import re
+
+    code, out, _ = grasp("export", "--db", str(box_db), "--format", "csv", "--out", str(tmp_path / "few"),
+                         "--top", "5")
+    assert code == 0 and re.search(r"exported 5 grasps as csv to 1 file\(s\) in .* \(\d+\.\d s\)$", out.strip()), out
+    assert rate_text(RATE_MIN_COUNT, 0.66, "grasps") == "0.7 s, 152 grasps/s"
+
+
+@pytest.mark.parametrize("count, seconds, text", [(2.4, 1.0, "2.40"), (28_176, 580.7, "48.5"), (307, 0.66, "465"),
+                                                  (12_345, 1.0, "12,345"), (1, 3_000.0, "0.000333"), (0, 1.0, "0")])
+def test_a_rate_keeps_three_significant_figures(count: float, seconds: float, text: str) -> None:
+    """`:.0f` made the Barrett's 2.4 candidates/s "2" in generate's bar."""
+    assert per_second(count, seconds) == text
+
+
+@pytest.mark.parametrize("part, whole, text", [(997, 1_000, "99.7%"), (1_999, 2_000, "99.95%"), (5, 5, "100%"),
+                                               (1, 1_000, "0.1%"), (2, 3, "67%"), (0, 0, "0%"), (0, 7, "0%")])
+def test_a_share_is_not_rounded_to_all_or_none(part: int, whole: int, text: str) -> None:
+    """validate said "997 held (100%)" (`:.0%`): of a hand whose grasps hold 99.7-99.85%, the one figure read."""
+    assert share(part, whole) == text

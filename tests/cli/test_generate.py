@@ -490,3 +490,18 @@ def test_whose_verdicts_the_report_counts_and_which_sidecar_gave_a_value(tmp_pat
     trimesh.creation.box(extents=[0.03, 0.03, 0.03]).export(mesh)
     mesh.with_suffix(".TOML").write_text("mass = 0.07\n")
     assert from_files(str(mesh), resolve_spec(str(mesh)), NO_PHYSICAL) == " (mass from S.TOML)"
+
+
+def test_the_bars_last_line_is_whole_in_a_log(tmp_path: Path) -> None:
+    """Written to a file or a pipe, Rich cut the bar to 80 columns: "generati… 256/256 candidates 2/2 uni… 67
+    grasps, 67 force-closure, 48 cand/s E…" (as it cut the summary's headings)."""
+    import subprocess
+    import sys
+
+    from processes import env
+
+    done = subprocess.run([sys.executable, "-m", "planner.cli", "generate", "box", "--hand", "panda", "--db",
+                           str(tmp_path / "g.db"), *FAST], env=env(), capture_output=True, text=True, timeout=300)
+    bar = done.stdout.splitlines()[0]
+    assert done.returncode == 0 and bar.startswith("generating ") and " units " in bar and bar.endswith(
+        "ETA 0:00:00"), done.stdout

@@ -148,6 +148,28 @@ def test_a_sidecar_com_no_more_given_is_refused_once_every_unit_is_done(tmp_path
                    "now [0, 0, 0], the mesh's")
 
 
+def test_a_manifest_com_no_more_given_is_refused_once_every_unit_is_done(tmp_path: Path) -> None:
+    """The same for a manifest line's ``com=`` taken out: the manifest's time was not read, so the re-run added
+    nothing and said nothing (the stored object keeping the line's centre). The mesh in a folder of its own: the
+    database's files beside it would make its folder's time new (read where it has no sidecar)."""
+    (tmp_path / "m").mkdir()
+    mesh = tmp_path / "m" / "banana.obj"
+    mesh.write_text("".join(f"v {x} {y} {z}\n" for x in (-0.02, 0.02) for y in (-0.03, 0.03) for z in (-0.05, 0.05))
+                    + "f 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n")
+    manifest = tmp_path / "list.txt"
+    manifest.write_text("m/banana.obj com=0,0,0.02\n")
+    db = tmp_path / "g.db"
+    assert generate(db, f"@{manifest}")[0] == 0
+    assert generate(db, f"@{manifest}")[0] == 0  # unchanged: nothing to do
+    manifest.write_text("m/banana.obj\n")
+    code, _, err = generate(db, f"@{manifest}")
+    one_line_error(code, err, 2, "object 'banana' is stored", "with its centre of mass at [0, 0, 0.02] m",
+                   "now [0, 0, 0], the mesh's")
+    manifest.write_text("m/banana.obj com=0,0,0.03\n")  # another one: said as given (it read "given by as given")
+    code, _, err = generate(db, f"@{manifest}")
+    one_line_error(code, err, 2, "with its centre of mass at [0, 0, 0.02] m", "(now [0, 0, 0.03], as given, and")
+
+
 def test_under_scale_a_sidecar_com_is_compared_with_the_urdfs_scaled(tmp_path: Path) -> None:
     """A sidecar's centre is the scaled object's: at --scale 2 it equals a URDF's own at half its value (nothing
     replaced, nothing said), and where it differs the URDF's is said as the scaled object has it."""

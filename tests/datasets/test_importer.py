@@ -263,12 +263,26 @@ def _joint(f, row: int, col: int, value: float) -> None:  # type: ignore[no-unty
     _set("grasps/joints_closed", data)(f)
 
 
+def _trial(f, name: str, change) -> None:  # type: ignore[no-untyped-def]
+    key = f"grasps/qualities/{name}"
+    _set(key, change(f[key][()].astype(float) if f[key].dtype.kind in "iuf" else f[key][()]))(f)
+
+
 @pytest.mark.parametrize("change, message", [
     (_set("grasps/joint_names", np.array(["x", "y", "z"], dtype=h5py.string_dtype())), "are not joints of hand"),
     (lambda f: _joint(f, 0, 0, 50.0), "lies outside its limits"),
     (lambda f: _joint(f, 1, 0, np.inf), "holds an infinite value"),
     (_set("object/mass", -1.0), "object/mass is -1; it must be a positive number"),
     (lambda f: f["grasps/contacts"].__setitem__(0, "not json"), "grasps/contacts row 0 is not a JSON list"),
+    # a trial's columns: read after the database was opened (an internal error, an empty database left)
+    (lambda f: _trial(f, "simulated_success", lambda v: np.where(np.arange(len(v)) == 1, np.nan, v)),
+     "grasps/qualities/simulated_success row 1 is nan; expected -1 (not simulated), 0 or 1"),
+    (lambda f: _trial(f, "mujoco_success", lambda v: np.where(np.arange(len(v)) == 0, 2, v)),
+     "grasps/qualities/mujoco_success row 0 is 2; expected -1"),  # was stored as held
+    (lambda f: _trial(f, "simulated_success", lambda v: v[:1]), "simulated_success has shape (1,); expected"),
+    (lambda f: _trial(f, "robust_samples", lambda v: np.full(len(v), 0.5)), "robust_samples row 0 is 0.5"),
+    (lambda f: _trial(f, "validation_reason", lambda v: np.zeros(len(v))), "validation_reason holds numbers"),
+    (lambda f: _trial(f, "mujoco_success", lambda v: np.array([b"held"] * len(v))), "holds text; expected numbers"),
 ])
 def test_a_damaged_file_is_refused_naming_the_dataset(db: Path, tmp_path: Path, change, message: str) -> None:
     """Hand-edited or damaged files were stored and broke `show` later (a joint 'x': KeyError)."""

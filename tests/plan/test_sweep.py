@@ -173,3 +173,13 @@ def test_a_unit_of_work_past_its_candidates_is_refused_before_any_work(settings:
     with pytest.raises(InputError, match=re.escape(message)):
         api.plan_units(["box"], "panda", settings, 0)
     assert api.plan_units(["box"], "panda", SweepSettings(approaches=10**6 // 16, chunk=0), 0)  # 1,000,000 pass
+
+
+def test_a_box_sampler_unit_past_its_candidates_is_refused_before_any_work() -> None:
+    """Its rays depend on the mesh, so it was not counted: --box-delta 0.002 --rolls 16 listed 1,450,560 Barrett
+    candidates on the box (a finer grid or more rolls: the worker's memory). One object: its mesh is loaded."""
+    settings = SweepSettings(sampler="box", box_delta=0.002, rolls=16)
+    with pytest.raises(InputError, match=re.escape("would hold up to 1,450,560 candidates (9,066 rays (--box-delta on "
+                                                   "its box) x --rolls 16 x 10 standoffs over the preshapes)")):
+        api.plan_units(["box"], "barrett", settings, 0)
+    assert api.plan_units(["box"], "barrett", replace(settings, rolls=11), 0)  # 997,260 pass

@@ -260,3 +260,40 @@ def test_a_rough_scans_grip_measures_read_its_shapes_normals(tmp_path, monkeypat
         tilt = _capsule_tilt(surface.points, surface.normals)
         assert len(tilt) > 10_000 and np.percentile(tilt, 99.9) < 6.0, (len(tilt), np.percentile(tilt, 99.9))
     assert len(seen) == 2
+
+
+def test_a_box_sampler_unit_past_its_candidates_fails_before_its_rays_are_cast(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """A batch's unit (its mesh unknown before it runs): --box-delta 0.002 --rolls 16 on the box listed 1,450,560
+    candidates of a Barrett unit (a finer grid or more rolls: the worker's memory); now it fails in one line."""
+    _stop_after(monkeypatch, unit.sampling, "sample")
+    settings = SweepSettings(sampler="box", box_delta=0.002, rolls=16, reach_placements=0)
+    error = run_unit(UnitSpec("box", "barrett", settings, 0)).error or ""
+    assert "would hold up to 1,450,560 candidates (9,066 rays (--box-delta on its box) x --rolls 16 x 10 " \
+           "standoffs over the preshapes): at most 1,000,000" in error, error
+
+
+@pytest.mark.parametrize("scan", [False, True])
+def test_a_workers_units_of_one_object_sample_its_surface_once(monkeypatch, tmp_path: Path, scan: bool) -> None:  # type: ignore[no-untyped-def]
+    """Every unit sampled the object's whole surface (its antipodal pairs) to keep its chunk of the points: a
+    worker running an object's units sampled it once per unit (a 100k-face scan: ~0.5 s each). Now once per
+    object, the same grasps as units that each sample it anew; a scan (over 5,000 faces: its normals averaged
+    at a contact's scale) too."""
+    import scanlike
+
+    name = "box"
+    if scan:
+        name = str(tmp_path / "capsule.obj")
+        Path(name).write_text(scanlike.uv_obj(8_000))
+    settings = SweepSettings(approaches=32, chunk=16, reach_placements=0)
+    specs = [UnitSpec(name, "panda", settings, 0, chunk=c) for c in range(2)]
+    monkeypatch.setattr(unit.sampling, "_SAMPLED", {})
+    fresh = []
+    for spec in specs:
+        unit.sampling._SAMPLED.clear()
+        fresh.append([(g.candidate, g.pose.tobytes()) for g in run_unit(spec).grasps])
+    unit.sampling._SAMPLED.clear()
+    seen = []
+    real = unit.sampling.antipodal
+    monkeypatch.setattr(unit.sampling, "antipodal", lambda *a, **k: seen.append(1) or real(*a, **k))
+    once = [[(g.candidate, g.pose.tobytes()) for g in run_unit(spec).grasps] for spec in specs]
+    assert len(seen) == 1 and once == fresh and sum(map(len, once)) > 0
