@@ -183,9 +183,8 @@ def from_above(mesh: trimesh.Trimesh, up: np.ndarray, com: np.ndarray, approach_
 MAX_BOX_RAYS = 1_000_000
 
 
-def box_ray_count(mesh: trimesh.Trimesh, delta: float) -> int:
-    """The rays a box-sampler spacing ``delta`` [m] casts on ``mesh``'s box; more than :data:`MAX_BOX_RAYS` are
-    refused, before the grid is made (1e-9 m took 24 GB and the machine's memory killer)."""
+def _check_grid(mesh: trimesh.Trimesh, delta: float) -> None:
+    """Refuse a spacing ``delta`` [m] casting over :data:`MAX_BOX_RAYS` rays on ``mesh``'s box (1e-9 m took 24 GB)."""
     if delta <= 0:
         raise InputError(f"box sampler spacing must be positive, got {delta}")
     steps = np.floor((mesh.bounds[1] - mesh.bounds[0] + 2 * BOX_MARGIN) / delta) + 1
@@ -193,11 +192,15 @@ def box_ray_count(mesh: trimesh.Trimesh, delta: float) -> int:
     if rays > MAX_BOX_RAYS:
         raise InputError(f"--box-delta {delta:g} m casts {rays:.3g} rays on this object's box (at most "
                          f"{MAX_BOX_RAYS:,}): use a larger spacing")
-    return int(rays)
+
+
+def box_ray_count(mesh: trimesh.Trimesh, delta: float) -> int:
+    """The box sampler's approach rays on ``mesh`` at spacing ``delta`` [m] before ``--fan``: its grid's that hit."""
+    return len(_box_rays(mesh, delta)[0])
 
 
 def _box_rays(mesh: trimesh.Trimesh, delta: float) -> tuple[np.ndarray, np.ndarray]:
-    box_ray_count(mesh, delta)
+    _check_grid(mesh, delta)
     lo, hi = mesh.bounds[0] - BOX_MARGIN, mesh.bounds[1] + BOX_MARGIN
     origins, dirs = [], []
     for axis in range(3):
@@ -337,11 +340,9 @@ _SAMPLED: dict[tuple, Pairs] = {}
 
 def antipodal_once(key: tuple, mesh: trimesh.Trimesh, count: int, rng: np.random.Generator, **kwargs: object
                    ) -> Pairs:
-    """:func:`antipodal` sampled once per ``key`` in this process (the last key's pairs kept, read-only): every unit
-    of an object samples its whole surface from the same generator (the object's, not the unit's) and keeps its
-    chunk of the points, so a worker running several units of an object samples it once (a 100k-face scan: ~0.5 s
-    a unit). ``key`` names the object and mesh; the generator's state and the arguments join it (``normals_at``, a
-    new callable each unit, by its keywords); ``rng`` is not advanced where the pairs are reused."""
+    """:func:`antipodal` once per ``key`` in this process (the last key's pairs kept, read-only): an object's units all
+    sample its whole surface from the object's generator (a 100k-face scan: ~0.5 s a unit). ``key``: object and mesh;
+    the generator's state and the arguments join it (``normals_at`` by its keywords); ``rng`` left where reused."""
     key = (*key, count, repr(rng.bit_generator.state),
            *((k, repr(getattr(v, "keywords", None)) if callable(v) else v) for k, v in sorted(kwargs.items())))
     if key not in _SAMPLED:

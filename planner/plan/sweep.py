@@ -317,8 +317,9 @@ def candidate_count(settings: SweepSettings, shapes: tuple[Preshape, ...], chunk
                     rays: int | None = None) -> int | None:
     """Candidates of unit ``chunk`` as :func:`candidates` or
     :func:`antipodal_candidates` will list them, known before sampling (for
-    progress); None for the box sampler, whose rays depend on the mesh, unless given (``rays``: its grid's)."""
-    rays = settings.rays_known if rays is None else rays
+    progress); None for the box sampler, whose rays depend on the mesh, unless given (``rays``: its grid's that hit
+    it, :func:`~planner.plan.sampling.box_ray_count`; their ``--fan`` tilted ones added here)."""
+    rays = settings.rays_known if rays is None else rays * (1 + settings.fan_count)
     if rays is None:
         return None
     points = len(settings.ray_range(chunk, rays))
@@ -336,11 +337,14 @@ def check_unit_size(settings: SweepSettings, shapes: tuple[Preshape, ...], rays:
     count = candidate_count(settings, shapes, 0, rays)
     if count is None or count <= MAX_UNIT_CANDIDATES:
         return
-    cast = len(settings.ray_range(0, settings.rays_known or rays or 0)) + settings.above_rays(0)
+    cast = len(settings.ray_range(0, settings.rays_known or (rays or 0) * (1 + settings.fan_count)))
+    cast += settings.above_rays(0)
     per = (f"{len(settings.depths)} --depths" if settings.sampler == "antipodal" else
            f"{sum(len(settings.standoffs or s.standoffs) for s in shapes)} standoffs over the preshapes")
-    given = {"antipodal": "points (--approaches, or --chunk of them)", "box": "rays (--box-delta on its box)"}
-    raise InputError(f"a unit of work would hold {'up to ' if rays else ''}{count:,} candidates ({cast:,} "
+    fan = f", with --fan {settings.fan_count} tilted ones each" if settings.fan_count else ""
+    given = {"antipodal": "points (--approaches, or --chunk of them)",
+             "box": f"rays (the --box-delta grid's that meet it{fan})"}
+    raise InputError(f"a unit of work would hold {count:,} candidates ({cast:,} "
                      f"{given.get(settings.sampler or '', 'rays (--approaches, or --chunk of them)')} x --rolls "
                      f"{settings.rolls} x {per}): at most {MAX_UNIT_CANDIDATES:,}, each held in a worker's memory; use "
                      f"{'a larger --box-delta' if settings.sampler == 'box' else 'a smaller --chunk'} or fewer --rolls")

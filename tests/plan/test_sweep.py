@@ -176,10 +176,27 @@ def test_a_unit_of_work_past_its_candidates_is_refused_before_any_work(settings:
 
 
 def test_a_box_sampler_unit_past_its_candidates_is_refused_before_any_work() -> None:
-    """Its rays depend on the mesh, so it was not counted: --box-delta 0.002 --rolls 16 listed 1,450,560 Barrett
+    """Its rays depend on the mesh, so it was not counted: --box-delta 0.002 --rolls 32 lists 1,582,720 Barrett
     candidates on the box (a finer grid or more rolls: the worker's memory). One object: its mesh is loaded."""
-    settings = SweepSettings(sampler="box", box_delta=0.002, rolls=16)
-    with pytest.raises(InputError, match=re.escape("would hold up to 1,450,560 candidates (9,066 rays (--box-delta on "
-                                                   "its box) x --rolls 16 x 10 standoffs over the preshapes)")):
+    settings = SweepSettings(sampler="box", box_delta=0.002, rolls=32)
+    with pytest.raises(InputError, match=re.escape("would hold 1,582,720 candidates (4,946 rays (the --box-delta "
+                                                   "grid's that meet it) x --rolls 32 x 10 standoffs over the ")):
         api.plan_units(["box"], "barrett", settings, 0)
-    assert api.plan_units(["box"], "barrett", replace(settings, rolls=11), 0)  # 997,260 pass
+    assert api.plan_units(["box"], "barrett", replace(settings, rolls=20), 0)  # 989,200 pass
+
+
+def test_a_box_sampler_unit_is_counted_by_the_rays_that_meet_the_object() -> None:
+    """Its bound counted every ray of the grid, 1.8-2.8 times those that meet the object (the only ones with
+    candidates): --box-delta 0.002 --rolls 16 on the box, 791,360 Barrett candidates, was refused as "up to
+    1,450,560"; the mug's at --rolls 8, 912,480, as 1,791,200."""
+    for name, rolls in (("box", 16), ("mug", 8)):
+        assert api.plan_units([name], "barrett", SweepSettings(sampler="box", box_delta=0.002, rolls=rolls), 0)
+
+
+def test_a_box_sampler_units_fan_is_counted() -> None:
+    """Each ray's --fan tilted ones were left out of its count: --box-delta 0.002 --rolls 8 --fan 3 on the box
+    passed as 725,280 candidates (grid rays), and listed 1,582,720."""
+    settings = SweepSettings(sampler="box", box_delta=0.002, rolls=8, fan_count=3)
+    with pytest.raises(InputError, match=re.escape("would hold 1,582,720 candidates (19,784 rays (the --box-delta "
+                                                   "grid's that meet it, with --fan 3 tilted ones each) x --rolls 8")):
+        api.plan_units(["box"], "barrett", settings, 0)

@@ -18,6 +18,7 @@ from scipy.spatial.transform import Rotation
 from planner import quality
 from planner.datasets import importer
 from planner.geometry.solid import load_object
+from planner.plan import sweep as unit_sweep
 from planner.plan import unit
 from planner.plan.sweep import SweepSettings
 from planner.plan.unit import QUALITY_FAILED, UnitSpec, grasp_quality, run_unit
@@ -263,13 +264,26 @@ def test_a_rough_scans_grip_measures_read_its_shapes_normals(tmp_path, monkeypat
 
 
 def test_a_box_sampler_unit_past_its_candidates_fails_before_its_rays_are_cast(monkeypatch) -> None:  # type: ignore[no-untyped-def]
-    """A batch's unit (its mesh unknown before it runs): --box-delta 0.002 --rolls 16 on the box listed 1,450,560
+    """A batch's unit (its mesh unknown before it runs): --box-delta 0.002 --rolls 32 on the box lists 1,582,720
     candidates of a Barrett unit (a finer grid or more rolls: the worker's memory); now it fails in one line."""
     _stop_after(monkeypatch, unit.sampling, "sample")
-    settings = SweepSettings(sampler="box", box_delta=0.002, rolls=16, reach_placements=0)
+    settings = SweepSettings(sampler="box", box_delta=0.002, rolls=32, reach_placements=0)
     error = run_unit(UnitSpec("box", "barrett", settings, 0)).error or ""
-    assert "would hold up to 1,450,560 candidates (9,066 rays (--box-delta on its box) x --rolls 16 x 10 " \
+    assert "would hold 1,582,720 candidates (4,946 rays (the --box-delta grid's that meet it) x --rolls 32 x 10 " \
            "standoffs over the preshapes): at most 1,000,000" in error, error
+
+
+@pytest.mark.parametrize("fan, limit, refused", [(0, 20_000, False), (2, 40_000, True)])
+def test_a_box_sampler_units_bound_is_the_candidates_it_lists(monkeypatch, fan: int, limit: int,  # type: ignore[no-untyped-def]
+                                                               refused: bool) -> None:
+    """--box-delta 0.005 --rolls 2 on the box: 878 of the grid's 1,566 rays meet it, 17,560 Barrett candidates;
+    counted by the grid (31,320) a unit under the limit was refused, and with --fan 2 (52,680) one over it passed."""
+    monkeypatch.setattr(unit_sweep, "MAX_UNIT_CANDIDATES", limit)
+    listed = _stop_after(monkeypatch, unit, "candidates")
+    settings = SweepSettings(sampler="box", box_delta=0.005, rolls=2, fan_count=fan, reach_placements=0)
+    error = run_unit(UnitSpec("box", "barrett", settings, 0)).error or ""
+    assert ("would hold 52,680 candidates" in error) if refused else (error == "RuntimeError: sampled"), error
+    assert [len(c) for c in listed] == ([] if refused else [17_560])
 
 
 @pytest.mark.parametrize("scan", [False, True])
