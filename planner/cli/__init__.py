@@ -7,7 +7,7 @@ Commands, one module per group of them: ``generate``; ``best``, ``show``
 (data); ``hands``, ``objects``, ``db check`` (info).
 
 Importing this package imports nothing: :func:`run`, the console script's entry point (and ``python -m
-planner.cli``'s), imports the commands (click, numpy, the specs: ~0.25 s) inside it, so a Ctrl-C while they load
+planner.cli``'s), imports the commands (click, numpy, the specs: ~0.25 s) inside it, so a Ctrl-C (or a SIGTERM) while they load
 ends as one during a command does (exit 130, one line), not with a traceback. ``main``, the click group with
 every command, is loaded on first use.
 """
@@ -22,13 +22,22 @@ EXIT_INTERRUPTED = 130
 
 
 def run() -> None:
-    """The ``grasp`` command as the console script starts it."""
+    """The ``grasp`` command as the console script starts it. SIGTERM ends it as Ctrl-C does from the start (the
+    group's own handler, :mod:`planner.cli.app`, takes over once the options are read): before, while the commands
+    loaded and click read the arguments, it killed the process without a word (exit -15)."""
+    import signal
+
+    signal.signal(signal.SIGTERM, _terminated)
     try:
         command = _main()
         command()  # always exits: every error and interruption past the imports is the group's (``app.Group``)
     except KeyboardInterrupt:
         print("grasp: interrupted; nothing was changed", file=sys.stderr)
         sys.exit(EXIT_INTERRUPTED)
+
+
+def _terminated(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
 
 
 def _main() -> Callable[[], object]:

@@ -238,8 +238,9 @@ RATE_MIN_COUNT = 100
 
 def per_second(count: float, seconds: float) -> str:
     """``count / seconds`` to three significant figures, never in exponent form (``462``, ``12.8``, ``0.641``;
-    ``:.0f`` made 2.4 candidates/s "2")."""
+    ``:.0f`` made 2.4 candidates/s "2"); rounded before its decimals are counted (9.996 read "10.00")."""
     rate = count / max(seconds, 1e-9)
+    rate = float(f"{rate:.3g}") if rate < 1_000 else rate  # a large one keeps its whole units (12,345)
     return f"{rate:,.{max(0, 2 - math.floor(math.log10(rate)))}f}" if rate > 0 else "0"
 
 

@@ -1,25 +1,19 @@
 """Approach sampling: where and from which direction the hand comes in.
 
-Two OpenRAVE-style ray samplers (for multi-finger hands): the hand comes in
-along a ray onto the surface, then closes.
+Two OpenRAVE-style ray samplers (for multi-finger hands): the hand comes in along a ray onto the surface, then closes.
 
-- ``surface``: area-weighted random surface points with their outward
-  normals (needs the seeded generator);
-- ``box``: the bounding box grown by 1 cm, each face gridded every ``delta``
-  metres, rays cast inward; each first hit gives a point and its normal.
+- ``surface``: area-weighted random surface points with their outward normals (needs the seeded generator);
+- ``box``: the bounding box grown by 1 cm, each face gridded every ``delta`` metres, rays cast inward; each first hit
+  gives a point and its normal.
 
-An optional *fan* adds directions tilted by ``fan_angle`` around each normal.
-The hand approaches along ``direction`` (into the object); the approach ray
-passes through ``point``.
+An optional *fan* adds directions tilted by ``fan_angle`` around each normal. The hand approaches along ``direction``
+(into the object); the approach ray passes through ``point``.
 
-On a table, the ray samplers' rays are joined by :data:`ABOVE_RAYS` rays
-straight down onto the object's top (:func:`from_above`): through the
-centre of mass and along the long axis of the object's footprint, each
-with a roll phase that puts the hand's axes along the footprint's axes.
-A random surface point lands a table pinch's fingertips on the object's
-top more often than beside it: on a flat blob 3 cm thick (random_000
-lying down) the Allegro's sweep of 352 candidates per resting pose found
-0-1 force-closure grasps, 48 centred candidates straight down 5-7.
+On a table, the ray samplers' rays are joined by :data:`ABOVE_RAYS` rays straight down onto the object's top
+(:func:`from_above`): through the centre of mass and along the long axis of the object's footprint, each with a roll
+phase that puts the hand's axes along the footprint's axes. A random surface point lands a table pinch's fingertips
+on the object's top more often than beside it: on a flat blob 3 cm thick (random_000 lying down) the Allegro's sweep
+of 352 candidates per resting pose found 0-1 force-closure grasps, 48 centred candidates straight down 5-7.
 
 One sampler for parallel jaws, as the large parallel-jaw datasets are made
 (:func:`antipodal`, after Dex-Net's and ACRONYM's antipodal samplers): an
@@ -351,6 +345,11 @@ def antipodal_once(key: tuple, mesh: trimesh.Trimesh, count: int, rng: np.random
         for value in (v for v in vars(pairs).values() if isinstance(v, np.ndarray)):
             value.flags.writeable = False
     return _SAMPLED[key]
+
+
+def forget() -> None:
+    """Drop the pairs :func:`antipodal_once` keeps (1,000,000 points: ~120 MB) once their object's units are done."""
+    _SAMPLED.clear()
 
 
 def _chords(mesh: trimesh.Trimesh, points: np.ndarray, normals: np.ndarray, directions: np.ndarray, max_width: float,

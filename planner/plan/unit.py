@@ -3,15 +3,11 @@ quality -> settled epsilon (hands with ``settle``) -> reachability,
 returning :class:`~planner.record.grasp.Grasp` records for the single database
 writer.
 
-On a table (``SweepSettings.table_plane``, ``grasp generate --on-table``):
-the table is closing's obstacle, raised by
-:data:`~planner.plan.tolerances.TABLE_CLEARANCE`; approach rays shallower
-than :data:`~planner.plan.tolerances.TABLE_ELEVATION` are turned down to it;
-candidates whose approach comes from under the table top's level are not
-tried (:data:`FROM_BELOW`),
-grasps whose open hand at the pre-grasp would touch the table are rejected
-(:data:`PREGRASP_TABLE`), and the reachability placements put the object in
-that resting pose.
+On a table (``SweepSettings.table_plane``, ``grasp generate --on-table``): the table is closing's obstacle, raised by
+:data:`~planner.plan.tolerances.TABLE_CLEARANCE`; approach rays shallower than
+:data:`~planner.plan.tolerances.TABLE_ELEVATION` are turned down to it; candidates whose approach comes from under the
+table top's level are not tried (:data:`FROM_BELOW`), grasps whose open hand at the pre-grasp would touch the table are
+rejected (:data:`PREGRASP_TABLE`), and the reachability placements put the object in that resting pose.
 
 This runs inside worker processes: it reads descriptions and simulates, but
 never touches the database.
@@ -152,8 +148,11 @@ def plan_object(obj: PreparedObject, hand: str, settings: SweepSettings, seed: i
     ``grasp best`` plans on the spot. Errors are raised, not recorded."""
     spec = UnitSpec(obj.name, hand, settings, seed, label=obj.name)
     result = UnitResult(spec)
-    with one_blas_thread():
-        _run(spec, result, _silent, obj)
+    try:
+        with one_blas_thread():
+            _run(spec, result, _silent, obj)
+    finally:
+        sampling.forget()  # a unit of every point: its pairs (~120 MB at 1,000,000 points) are not asked for again
     return result
 
 

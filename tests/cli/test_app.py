@@ -285,7 +285,8 @@ def test_a_small_exports_line_says_its_time_without_a_rate(box_db: Path, tmp_pat
 
 
 @pytest.mark.parametrize("count, seconds, text", [(2.4, 1.0, "2.40"), (28_176, 580.7, "48.5"), (307, 0.66, "465"),
-                                                  (12_345, 1.0, "12,345"), (1, 3_000.0, "0.000333"), (0, 1.0, "0")])
+                                                  (12_345, 1.0, "12,345"), (1, 3_000.0, "0.000333"), (0, 1.0, "0"),
+                                                  (9.996, 1.0, "10.0"), (999.6, 1.0, "1,000"), (0.9996, 1.0, "1.00")])
 def test_a_rate_keeps_three_significant_figures(count: float, seconds: float, text: str) -> None:
     """`:.0f` made the Barrett's 2.4 candidates/s "2" in generate's bar."""
     assert per_second(count, seconds) == text

@@ -89,3 +89,25 @@ def test_ctrl_c_while_the_command_loads_exits_130_in_one_line(start: str) -> Non
     done = subprocess.run([sys.executable, "-c", INTERRUPTED_IMPORT + code], capture_output=True, text=True,
                           timeout=120)
     assert done.returncode == 130 and done.stderr == "grasp: interrupted; nothing was changed\n", done.stderr
+
+
+#: SIGTERM (``timeout``, a scheduler) while click reads the arguments: sent as the group starts parsing them.
+TERMINATED_PARSING = """
+import os, signal, sys
+import click
+parse = click.Group.parse_args
+def terminated(self, ctx, args):
+    os.kill(os.getpid(), signal.SIGTERM)
+    return parse(self, ctx, args)
+click.Group.parse_args = terminated
+sys.argv = ["grasp", "hands"]
+from planner.cli import run
+run()
+"""
+
+
+def test_sigterm_while_click_reads_the_arguments_exits_130_in_one_line() -> None:
+    """SIGTERM's handler was set by the group's callback, after the arguments were read: a SIGTERM before it
+    killed the process without a word (exit -15), where a Ctrl-C there printed one line and exited 130."""
+    done = subprocess.run([sys.executable, "-c", TERMINATED_PARSING], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 130 and done.stderr == "grasp: interrupted; nothing was changed\n", done

@@ -311,3 +311,16 @@ def test_a_workers_units_of_one_object_sample_its_surface_once(monkeypatch, tmp_
     monkeypatch.setattr(unit.sampling, "antipodal", lambda *a, **k: seen.append(1) or real(*a, **k))
     once = [[(g.candidate, g.pose.tobytes()) for g in run_unit(spec).grasps] for spec in specs]
     assert len(seen) == 1 and once == fresh and sum(map(len, once)) > 0
+
+
+def test_the_sampled_pairs_are_let_go_once_their_units_are_done(monkeypatch, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """``api.generate`` running its units in this process (workers 1) kept the last object's antipodal pairs for
+    as long as the caller lived (~120 MB at 1,000,000 points), and so did planning on the spot (``best_at``)."""
+    from planner import api
+
+    monkeypatch.setattr(unit.sampling, "_SAMPLED", {})
+    settings = SweepSettings(approaches=16, reach_placements=0)
+    summary = api.generate(["box"], "panda", db_path=tmp_path / "g.db", settings=settings, workers=1)
+    assert summary.candidates > 0 and unit.sampling._SAMPLED == {}
+    planned = unit.plan_object(load_object("box"), "panda", settings, 0)
+    assert planned.candidates > 0 and unit.sampling._SAMPLED == {}

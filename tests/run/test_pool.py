@@ -182,7 +182,7 @@ def test_closing_early_stops_the_workers(tmp_path: Path) -> None:
     assert next(results)[1] == 9
     wait_until(lambda: any(progress.iterdir()), STARTUP, "the blocking unit started")
     workers = pool_workers()
-    assert len(workers) == 2
+    assert len(workers) == 1  # the blocked one: the other, idle with no unit left, exited at once
     results.close()
     assert not running(workers)
 
@@ -259,3 +259,15 @@ def test_units_that_kill_their_workers_are_recorded_failed_and_retried_by_a_reru
     again = api.generate(REFERENCE_OBJECTS, "panda", db_path=db, settings=SMALL, seed=11, workers=2)
     assert again.skipped == SMALL.chunks() and not again.failed
     assert content(db) == content(reference_db)
+
+
+def test_a_worker_left_without_units_exits_before_the_run_ends(tmp_path: Path) -> None:
+    """A worker with no unit left waited for the run's end, holding its last unit's memory (an object's antipodal
+    pairs: ~120 MB at 1,000,000 points) while another worker ran on."""
+    go = tmp_path / "go"
+    slow, fast = (str(tmp_path / "slow"), str(go), 0), (str(tmp_path / "fast"), str(tmp_path), 1)
+    results = run(units.wait_for, [slow, fast], 2)
+    assert next(results)[1] == 1
+    assert len(pool_workers()) == 1  # the slow unit's
+    go.touch()
+    assert [r for _, r, _ in results] == [0]
