@@ -7,9 +7,9 @@ Commands, one module per group of them: ``generate``; ``best``, ``show``
 (data); ``hands``, ``objects``, ``db check`` (info).
 
 Importing this package imports nothing: :func:`run`, the console script's entry point (and ``python -m
-planner.cli``'s), imports the commands (click, numpy, the specs: ~0.25 s) inside it, so a Ctrl-C (or a SIGTERM) while they load
-ends as one during a command does (exit 130, one line), not with a traceback. ``main``, the click group with
-every command, is loaded on first use.
+planner.cli``'s), imports the commands (click, numpy, the specs: ~0.25 s) inside it, so a Ctrl-C (or a SIGTERM)
+while they load ends as one during a command does (exit 130, one line), not with a traceback. ``main``, the click
+group with every command, is loaded on first use.
 """
 
 from __future__ import annotations
