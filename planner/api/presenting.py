@@ -6,6 +6,7 @@ grasps touch.
 
 from __future__ import annotations
 
+import shlex
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -78,7 +79,8 @@ def view(name: str, hands: Sequence[str] | None = None, *, db_path: Path = DEFAU
         key, row = resolve_object(db, name)
         stored = sorted(h for o, h in db.pairs() if o == key)
         if row is None or not stored:
-            raise InputError(f"no grasps of '{key}' in {db_path}; run `grasp generate {name} --hand panda`")
+            raise InputError(f"no grasps of '{key}' in {db_path}; run `grasp generate {shlex.quote(name)} --hand H "
+                             f"--db {shlex.quote(str(db_path))}`")
         obj = stored_object(row)
     chosen = list(hands) if hands else stored
     with open_db(Path(db_path), create=False, readonly=True) as db:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import itertools
 import logging
 import math
+import shlex
 import time
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
@@ -95,7 +96,8 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
             raise InputError(f"--object-pose puts {key} through the table: its lowest point at z = {lowest:.4f} m, "
                              f"{(settings.table_height - lowest) * 1000:.1f} mm below the table top z = "
                              f"{settings.table_height:g} (the pose is of the object frame, the mesh's; `grasp best "
-                             f"{key} --hand {hand} --db {db_path} --on-table` gives its resting poses on the table)")
+                             f"{shlex.quote(key)} --hand {hand} --db {shlex.quote(str(db_path))} --on-table` gives "
+                             "its resting poses on the table)")
         scene = ReachScene(sim, spec, obj, settings, base)
         rng = np.random.default_rng(seed)
         found = _reachable(db, scene, key, hand, obj_pose, top, max_candidates, rng, missed)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shlex
 from pathlib import Path
 
 import click
@@ -103,7 +104,7 @@ def _extrapolated(name: str, hand: str, db_path: Path, outside: list[str]) -> No
     if api.ranks_stale(name, hand, db_path=db_path):
         click.echo(f"note: the ranks of {name}'s {hand} grasps predate trial verdicts stored by a `grasp validate` "
                    f"that was killed before it re-ranked them: grasps it saw drop may still rank first; any `grasp "
-                   f"validate --db {db_path}` re-ranks them first", err=True)
+                   f"validate --db {shlex.quote(str(db_path))}` re-ranks them first", err=True)
     files = api.hand_edited(hand, db_path=db_path)
     if files:
         click.echo(f"note: hand '{hand}' was edited since {db_path} stored its grasps ({', '.join(files)} changed): "
@@ -119,8 +120,8 @@ def _extrapolated(name: str, hand: str, db_path: Path, outside: list[str]) -> No
     if outside:
         click.echo(f"note: p_hold is extrapolated for {name}, outside the labelled objects the {hand}'s model was "
                    f"fitted on: {'; '.join(outside)}. Trials at the object's own mass and friction check its grasps "
-                   f"(`grasp validate --db {db_path} --object {name} --hand {hand} --top 10`: held ones rank first; "
-                   "p_hold_trial's values come from the same labels).")
+                   f"(`grasp validate --db {shlex.quote(str(db_path))} --object {shlex.quote(name)} --hand {hand} "
+                   "--top 10`: held ones rank first; p_hold_trial's values come from the same labels).")
 
 
 def _print_grasp(g: api.Grasp, world: object = None, arm: dict | None = None, rule: object = None,

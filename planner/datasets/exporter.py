@@ -29,6 +29,7 @@ import json
 import logging
 import math
 import os
+import shlex
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import closing
@@ -190,7 +191,7 @@ def _export(db_path: Path, fmt: str, out_dir: Path, objects: Sequence[str], hand
         pairs = sel.pairs(db)
         if not pairs:  # nothing to filter: every sweep kept none (a named object or hand without grasps: above)
             raise InputError(f"{db_path}: no grasps stored: nothing written; `grasp best OBJECT --hand HAND --db "
-                             f"{db_path}` says why an object has none")
+                             f"{shlex.quote(str(db_path))}` says why an object has none")
         specs = {h: load_hand(h) for h in sorted({h for _, h in pairs})}  # unknown hands fail up front
         models = {h: db.model(h) for h in specs}  # read once: a model with trees is ~0.3 MB of JSON
         if sel.label == BEST:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import inspect
+import shlex
 import sqlite3
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -41,7 +42,12 @@ def write_failed(path: Path, exc: sqlite3.Error, kept: int | None) -> str:
 
 def read_failed(path: Path, exc: sqlite3.Error) -> str:
     """The one line for a read SQLite refused (a damaged file, an I/O error)."""
-    return f"{path}: cannot read the database ({exc}); check it with `grasp db check --db {path}`"
+    return f"{path}: cannot read the database ({exc}); check it with `grasp db check --db {shlex.quote(str(path))}`"
+
+
+def missing(path: Path) -> str:
+    """The one line for a database that is not there."""
+    return f"{path}: no such database; run `grasp generate ... --db {shlex.quote(str(path))}` first"
 
 
 F = TypeVar("F", bound=Callable[..., Any])

@@ -45,7 +45,7 @@ from planner.db.columns import (  # noqa: F401 - VECTOR_DIGITS, INERTIA_DIGITS, 
     _vectors,
     json_list,
 )
-from planner.db.failures import _reads, read_failed, write_failed  # noqa: F401 - the failures re-exported
+from planner.db.failures import _reads, missing, read_failed, write_failed  # noqa: F401 - the failures re-exported
 from planner.db.lock import writer_lock
 from planner.db.ranking import RankingRule
 from planner.db.rows import ObjectRow, UnitRow, Validated  # noqa: F401 - re-exported
@@ -314,7 +314,7 @@ def open_for_writing(path: Path, *, create: bool = True) -> Iterator[Database]:
         raise DatabaseError(f"{path}: its folder is read-only: a run writes beside the database (its lock and "
                             "SQLite's journal); nothing was changed: copy it to a writable folder")
     if not create and not path.exists():
-        raise DatabaseError(_missing(path))
+        raise DatabaseError(missing(path))
     if path.is_file() and path.stat().st_nlink > 1:  # the lock is by name: a second name would let a second writer in
         raise DatabaseError(f"{path}: the file has {path.stat().st_nlink} names (hard links, e.g. a `cp -al` "
                             "snapshot): a writer through one would not see a writer through another, and a write "
@@ -343,10 +343,6 @@ def _frozen(path: Path) -> bool:
             and not (wal.exists() and wal.stat().st_size > 0))
 
 
-def _missing(path: Path) -> str:
-    return f"{path}: no such database; run `grasp generate ... --db {path}` first"
-
-
 def _check_header(path: Path) -> None:
     with path.open("rb") as fh:
         if fh.read(16) != b"SQLite format 3\x00":
@@ -358,7 +354,7 @@ def open_db(path: Path, *, create: bool = True, readonly: bool = False) -> Datab
     path = Path(path)
     exists = path.exists()
     if not exists and not create:
-        raise DatabaseError(_missing(path))
+        raise DatabaseError(missing(path))
     if exists and path.is_dir():
         raise DatabaseError(f"{path}: is a folder, not a database file")
     if exists and path.stat().st_size > 0:

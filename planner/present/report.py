@@ -27,6 +27,7 @@ import base64
 import html
 import io
 import math
+import shlex
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -232,8 +233,9 @@ def collect(db_path: Path, allow_empty: bool = False) -> list[HandReport]:
         grasps = db.validated()
         rule = db.rule()
         if not grasps and not allow_empty:
-            first = "" if db.pairs() else f"no grasps; run `grasp generate OBJECT --hand H --db {db_path}`, then "
-            raise InputError(f"{db_path}: {first or 'no validated grasps; run '}`grasp validate --db {db_path}` first")
+            db_arg = shlex.quote(str(db_path))
+            first = "" if db.pairs() else f"no grasps; run `grasp generate OBJECT --hand H --db {db_arg}`, then "
+            raise InputError(f"{db_path}: {first or 'no validated grasps; run '}`grasp validate --db {db_arg}` first")
         reports: dict[str, HandReport] = {}
         for g in grasps:
             reports.setdefault(g.hand, HandReport(g.hand, rule=rule)).grasps.append(g)
@@ -340,7 +342,7 @@ def write(db_path: Path, out: Path) -> Path:
 def _write_html(reports: list[HandReport], cals: list[HandCalibration], out: Path, db_path: Path) -> Path:
     parts = [f"<html><head><meta charset='utf-8'><title>grasp report</title></head><body>"
              f"<h1>Simulated success vs scores</h1><p>database: {html.escape(str(db_path))}</p>"]
-    parts += [f"<p>{html.escape(NO_TRIALS.format(db=db_path))}</p>"] if not reports else []
+    parts += [f"<p>{html.escape(NO_TRIALS.format(db=shlex.quote(str(db_path))))}</p>"] if not reports else []
     for rep in reports:
         parts.append(f"<h2>hand {html.escape(rep.hand)}</h2><table border=1 cellpadding=3>")
         parts += [f"<tr><td>{html.escape(k)}</td><td>{html.escape(v)}</td></tr>" for k, v in _summary_rows(rep)]
@@ -363,7 +365,7 @@ def _write_html(reports: list[HandReport], cals: list[HandCalibration], out: Pat
 def _write_markdown(reports: list[HandReport], cals: list[HandCalibration], out: Path, db_path: Path) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     lines = ["# Simulated success vs scores", "", f"database: `{db_path}`", ""]
-    lines += [NO_TRIALS.format(db=db_path), ""] if not reports else []
+    lines += [NO_TRIALS.format(db=shlex.quote(str(db_path))), ""] if not reports else []
     for rep in reports:
         png = out / f"deciles_{rep.hand}.png"
         png.write_bytes(_plot(rep))

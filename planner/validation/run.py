@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import logging
+import shlex
 import zlib
 from collections import Counter
 from collections.abc import Callable, Iterator
@@ -169,7 +170,7 @@ def plan(db: Database, objects: list[str] | None, hands: list[str] | None, selec
     pairs = {pair: row for pair, row in stored.items() if row is not None}
     known = sorted({obj for obj, _ in pairs})
     if not known:
-        raise InputError(f"no grasps in {db.path}; run `grasp generate ... --db {db.path}` first")
+        raise InputError(f"no grasps in {db.path}; run `grasp generate ... --db {shlex.quote(str(db.path))}` first")
     for name in objects or []:
         if name not in known:
             raise InputError(f"no grasps of object '{name}' in {db.path}; objects: {', '.join(known) or '(none)'}")

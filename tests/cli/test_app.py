@@ -297,3 +297,34 @@ def test_a_rate_keeps_three_significant_figures(count: float, seconds: float, te
 def test_a_share_is_not_rounded_to_all_or_none(part: int, whole: int, text: str) -> None:
     """validate said "997 held (100%)" (`:.0%`): of a hand whose grasps hold 99.7-99.85%, the one figure read."""
     assert share(part, whole) == text
+
+
+def _db_of_commands(text: str) -> list[str]:
+    """The ``--db`` argument of each `grasp ...` command a message gives, as a shell would split it."""
+    import re
+    import shlex
+
+    found = []
+    for command in re.findall(r"`(grasp [^`]*)`", text):
+        words = shlex.split(command)
+        found += [words[i + 1] for i, w in enumerate(words) if w == "--db"]
+    return found
+
+
+def test_commands_a_message_gives_run_as_pasted_with_blanks_in_paths(box_db: Path, tmp_path: Path,
+                                                                    shipped_models: None) -> None:
+    """`grasp validate --db my dbs/g.db --object ...` (a database or an object with a blank in its name): pasted
+    into a shell, the command a note or an error gave was another one."""
+    import shutil
+
+    db = tmp_path / "my dbs" / "g é.db"
+    db.parent.mkdir()
+    shutil.copy(box_db, db)
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(db), "--top", "1")
+    assert code == 0 and _db_of_commands(out + err) == [str(db)], out + err  # p_hold's note: grasp validate ...
+    code, _, err = grasp("report", "--db", str(db), "--out", str(tmp_path / "report"))
+    text = (tmp_path / "report" / "report.md").read_text()
+    assert code == 0 and _db_of_commands(text) == [str(db)], text  # no trials: grasp validate ...
+    gone = tmp_path / "no such" / "g.db"
+    code, _, err = grasp("best", "box", "--hand", "panda", "--db", str(gone))
+    assert code == 3 and _db_of_commands(err) == [str(gone)], err
