@@ -20,13 +20,21 @@ if TYPE_CHECKING:
     from planner.calibration.fitting import Calibration
 
 
+#: Suffixes of files ``grasp report --out`` does not write (``--out report.png`` made a folder of that name).
+NOT_A_REPORT = (".png", ".jpg", ".jpeg", ".svg", ".pdf", ".md", ".txt", ".htm", ".json", ".csv")
+
+
 def report(db_path: Path, out: Path) -> Path:
     """The calibration report of ``db_path``: ``out.html``, or a folder with
     ``report.md`` and PNGs (the reliability diagram of each hand's p_hold
     among them); returns the file written."""
     from planner.present import report as reporting
 
-    out = check_output(Path(out), "--out", folder=Path(out).suffix.lower() != ".html")
+    suffix = Path(out).suffix.lower()
+    if suffix in NOT_A_REPORT and not Path(out).is_dir():
+        raise InputError(f"--out {out}: the report is an .html file or a folder (report.md and its PNGs in it), "
+                         f"not a {suffix} file: give {Path(out).with_suffix('.html')} or a folder")
+    out = check_output(Path(out), "--out", folder=suffix != ".html")
     with writing(out, "--out"):
         return reporting.write(Path(db_path), out)
 

@@ -69,10 +69,15 @@ def db_objects(db_path: Path) -> None:
         click.echo(f"{db_path}: no objects")
     for row, hands_with in rows:
         click.echo(f"{row.name}: mass {row.mass:.4g} kg, density {row.density:.4g} kg/m^3, friction "
-                   f"{row.friction:.3g}, up {row.up}, centre of mass ({', '.join(f'{v * 1e3:.4g}' for v in row.com)}) "
+                   f"{row.friction:.3g}, up {row.up}, centre of mass ({', '.join(f'{_mm(v):.4g}' for v in row.com)}) "
                    f"mm, volume {row.volume * 1e6:.4g} cm^3, scale {row.scale:g}, grasps for "
                    f"{', '.join(hands_with) or 'no hand'}; {row.source}"
                    f"{' (its <visual> elements)' if row.geometry == 'visual' and _is_urdf(row.source) else ''}")
+
+
+def _mm(metres: float) -> float:
+    """[mm] of a coordinate, 0 for rounding's leftovers under a nanometre (a centred cylinder's read "(-0, 0, -0)")."""
+    return metres * 1e3 if abs(metres) >= 1e-9 else 0.0
 
 
 def _is_urdf(source: str) -> bool:

@@ -300,3 +300,12 @@ def test_a_flag_replacing_a_sidecars_value_is_said(tmp_path: Path, brick: Path) 
                          "0.9", "--density", "500", *FAST)
     assert code == 0, err
     assert "object 'brick': density 500, friction 0.9 as given replace brick.toml's mass 0.066, friction 0.8" in err
+
+
+def test_db_objects_says_a_centred_object_is_at_0_not_minus_0(tmp_path: Path) -> None:
+    """The cylinder's centre of mass read "(-0, 0, -0) mm"."""
+    db = tmp_path / "g.db"
+    code, _, err = grasp("generate", "cylinder", "--hand", "panda", "--db", str(db), "--quiet", *FAST)
+    assert code == 0, err
+    code, out, err = grasp("db", "objects", "--db", str(db))
+    assert code == 0 and "centre of mass (0, 0, 0) mm" in out, out + err

@@ -37,6 +37,14 @@ def test_a_report_that_cannot_be_written_is_a_one_line_error(validated_db: Path,
     assert blocker.read_text() == "x"
 
 
+@pytest.mark.parametrize("name", ["report.png", "report.md", "Report.PDF"])
+def test_a_report_named_as_another_kind_of_file_is_refused(validated_db: Path, tmp_path: Path, name: str) -> None:
+    """``--out report.png`` wrote a folder named report.png holding report.md."""
+    result = CliRunner().invoke(main, ["report", "--db", str(validated_db), "--out", str(tmp_path / name)])
+    assert result.exit_code == 2 and "the report is an .html file or a folder" in result.stderr, result.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_deciles_and_spearman_known_answers() -> None:
     eps = np.arange(100, dtype=float)
     ok = (eps >= 50).astype(float)

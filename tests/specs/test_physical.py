@@ -122,11 +122,14 @@ def test_manifest_columns(tmp_path: Path, brick: Path) -> None:
     ("brick.obj mass=1 density=2", "objects.txt:1: mass and density exclude each other"),
     ("brick.obj friction=9", "objects.txt:1: friction must lie in"),
     ("brick.obj 0", "objects.txt:1: scale must be a positive number, got 0"),
-    ("brick.obj 1 2", "expected 'OBJECT [SCALE]"),
-    ("brick.obj weight=2", "expected 'OBJECT [SCALE]"),
-    ("brick.obj mass=1 mass=2", "expected 'OBJECT [SCALE]"),
+    ("brick.obj 1 2", "objects.txt:1: a second value without a name, '2' (only the scale"),
+    ("brick.obj weight=2", "objects.txt:1: unknown column 'weight' (columns: scale, mass, density, friction"),
+    ("brick.obj mass=1 mass=2", "objects.txt:1: mass given twice; expected 'OBJECT [SCALE]"),
+    ("brick.obj 0.5 scale=2", "objects.txt:1: scale given twice"),
 ])
 def test_bad_manifest_columns(tmp_path: Path, brick: Path, line: str, needle: str) -> None:
+    """A line's bad column said only "expected '...', got LINE", with the line re-quoted (a non-ASCII name in
+    quotes the user did not write): now what is wrong in it."""
     (tmp_path / "objects.txt").write_text(line + "\n")
     with pytest.raises(InputError) as info:
         inputs.expand([f"@{tmp_path / 'objects.txt'}"])
