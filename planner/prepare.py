@@ -12,7 +12,9 @@ The library only logs; the CLI shows these lines on stderr
 
 from __future__ import annotations
 
+import contextlib
 import logging
+from collections.abc import Iterator
 
 LOGGER = "planner.prepare"
 log = logging.getLogger(LOGGER)
@@ -31,3 +33,39 @@ def ended(what: str, subject: str, seconds: float) -> None:
 
 def noted(subject: str, what: str) -> None:
     log.info("%s: %s", subject, what)
+
+
+class _Kept(logging.Handler):
+    def __init__(self, lines: list[str]) -> None:
+        super().__init__(logging.INFO)
+        self.lines = lines
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.lines.append(record.getMessage())
+
+
+@contextlib.contextmanager
+def kept(lines: list[str]) -> Iterator[None]:
+    """The lines logged inside, appended to ``lines`` where nothing in this process shows them (a worker process:
+    the driver says them, :func:`said`); else left to what shows them. A batch's objects are prepared in the
+    workers: their notes (a mesh repaired, bodies standing apart), said once and then cached, were lost."""
+    if log.hasHandlers():
+        yield
+        return
+    handler, level = _Kept(lines), log.level
+    log.addHandler(handler)
+    log.setLevel(logging.INFO)
+    try:
+        yield
+    finally:
+        log.removeHandler(handler)
+        log.setLevel(level)
+
+
+def said(lines: list[str], before: set[str]) -> None:
+    """Log ``lines`` (a worker's, :func:`kept`) here, each not in ``before`` (which gets them): two workers may
+    both prepare an object the first time."""
+    for line in lines:
+        if line not in before:
+            before.add(line)
+            log.info("%s", line)

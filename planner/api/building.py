@@ -23,6 +23,7 @@ from dataclasses import replace as replaced
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from planner import prepare
 from planner.api.givers import from_files, note_overridden
 from planner.api.resolving import DEFAULT_DB, PROPERTY_RTOL
 from planner.api.sweeps import Replacement
@@ -322,11 +323,12 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
         hard_timeout = unit_timeout + UNIT_TIMEOUT_GRACE if unit_timeout else None
         ray = (ray_address or "local") if use_ray else None
         unit_result = _lazy("UnitResult")
-        index = {_unit_key(u): i for i, u in enumerate(todo)}
+        index, notes = {_unit_key(u): i for i, u in enumerate(todo)}, set[str]()
         with closing(pool.execute(_lazy("run_unit"), todo, workers, timeout=hard_timeout, ray=ray,
                                   progress=reported if progress else None)) as outcomes, _letting_go():
             for unit, outcome, seconds in outcomes:
                 result = outcome if isinstance(outcome, unit_result) else unit_result(unit, error=str(outcome))
+                prepare.said(result.notes, notes)
                 db.write_unit(unit_row(result, seconds), result.obj, result.grasps, rule)
                 replacing.stored(unit, bool(result.error))
                 _tally(summary, result, seconds)

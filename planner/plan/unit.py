@@ -24,7 +24,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from planner import quality
+from planner import prepare, quality
 from planner.errors import DegenerateGraspError, PlannerError
 from planner.geometry.frames import approach_of, resting_up
 from planner.geometry.solid import PreparedObject, load_object
@@ -106,6 +106,7 @@ class UnitResult:
     timing: dict[str, float] = field(default_factory=lambda: dict.fromkeys(
         ("prepare", "sampling", "rejection", "closing", "contacts", "quality", "settle", "reachability"), 0.0))
     error: str | None = None
+    notes: list[str] = field(default_factory=list)  # what preparing the object noted, where nothing showed it
 
     @property
     def object_name(self) -> str:
@@ -132,7 +133,7 @@ def run_unit(spec: UnitSpec, report: Report | None = None) -> UnitResult:
     (settle and reachability come after); it never changes the result."""
     result = UnitResult(spec)
     try:
-        with one_blas_thread():
+        with one_blas_thread(), prepare.kept(result.notes):
             _run(spec, result, report or _silent)
     except PlannerError as exc:
         result.error = str(exc)

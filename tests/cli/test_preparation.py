@@ -63,3 +63,21 @@ def test_generate_says_once_that_it_closed_an_open_mesh(tmp_path: Path) -> None:
         assert code == 0, err
         lines = [line for line in err.splitlines() if "closing it into a solid" in line]
         assert len(lines) == expected and all(line.startswith(f"{path}: capped") for line in lines), err
+
+
+def test_a_batch_on_worker_processes_says_what_preparing_its_objects_did(tmp_path: Path) -> None:
+    """A batch's objects are prepared in the worker processes, where nothing showed the lines: with --workers 2
+    (the default on two cores) an open mesh was closed without a word, and, cached, never said later."""
+    paths = []
+    for height in (0.0801, 0.0701):
+        cup = trimesh.creation.cylinder(radius=0.03, height=height)
+        top = cup.triangles_center[:, 2] > height / 2 - 1e-9
+        paths.append(tmp_path / f"cup{height}.obj")
+        trimesh.Trimesh(cup.vertices, cup.faces[~top]).export(paths[-1])
+    fast = [*FAST[:FAST.index("--workers")], *FAST[FAST.index("--workers") + 2:]]
+    code, _, err = grasp("generate", *map(str, paths), "--hand", "panda", "--db", str(tmp_path / "cups.db"),
+                         "--workers", "2", *fast)
+    assert code == 0, err
+    lines = [line for line in err.splitlines() if "closing it into a solid" in line]
+    assert sorted(lines) == [f"{p}: capped the mesh's open boundary loops, closing it into a solid (once: cached "
+                             "afterwards)" for p in sorted(paths)], err
