@@ -91,6 +91,7 @@ def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB,
             db.write_model(result.model, source, db.rule())
     if model_out is not None:
         with writing(Path(model_out), "--model-out"):
+            Path(model_out).parent.mkdir(parents=True, exist_ok=True)  # check_output let a new folder through
             Path(model_out).write_text(result.model.to_toml(), encoding="utf-8")
     if plot is not None:
         from planner.calibration.plot import reliability_png
@@ -98,5 +99,6 @@ def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB,
         png = reliability_png([("held out (grouped CV)", result.reliability)],
                               f"p_hold, {result.model.hand}: {len(data.labels)} labelled grasps")
         with writing(Path(plot), "--plot"):
+            Path(plot).parent.mkdir(parents=True, exist_ok=True)
             Path(plot).write_bytes(png)
     return result

@@ -273,3 +273,14 @@ def test_a_hand_without_a_width_prints_its_width_baseline_as_n_a(monkeypatch: py
     code, out, err = grasp("calibrate", "x.h5", "--no-store")
     assert code == 0, err
     assert "(width baseline n/a)" in out and "nan" not in out, out
+
+
+def test_outputs_in_folders_not_made_yet_are_written(validated_db: Path, tmp_path: Path) -> None:
+    """--plot "new dir/p.png" passed the check before the fit (its folder may be made, as `grasp show` makes
+    one), then failed after the whole fit: "No such file or directory", exit 2."""
+    files = labelled_files(validated_db, tmp_path)
+    png, model = tmp_path / "new dir" / "p.png", tmp_path / "other" / "m.toml"
+    code, _, err = grasp("calibrate", *map(str, files), "--no-store", "--poses", "12", "--folds", "2",
+                         "--plot", str(png), "--model-out", str(model))
+    assert code == 0, err
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and model.read_text().startswith("# p_hold")
