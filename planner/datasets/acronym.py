@@ -264,13 +264,13 @@ def _open(path: Path) -> Any:
 
 
 def read_header(path: Path) -> AcronymHeader:
-    """The file's gripper and object; a file without ACRONYM's grasps is refused."""
+    """The file's gripper ("" where it has no ``gripper/type``: a user's own labels, ``--hand`` names it) and
+    object; a file without ACRONYM's grasps is refused."""
     with _open(path) as f:
-        for key in ("grasps/transforms", "gripper/type"):
-            if key not in f:
-                raise InputError(f"{path}: no '{key}' dataset; not an ACRONYM grasp file")
+        if "grasps/transforms" not in f:
+            raise InputError(f"{path}: no 'grasps/transforms' dataset; not an ACRONYM grasp file")
         return AcronymHeader(
-            path=path, gripper=as_text(f["gripper/type"][()]),
+            path=path, gripper=as_text(f["gripper/type"][()]) if "gripper/type" in f else "",
             object_name=as_text(f["object/name"][()]) if "object/name" in f else None,
             object_file=as_text(f["object/file"][()]) if "object/file" in f else None,
             scale=positive_value(f, "object/scale"), mass=positive_value(f, "object/mass"),

@@ -31,6 +31,9 @@ HINTS = {"import": "pass --object NAME or a mesh path",
 def hand_name(path: Path, gripper: str) -> str:
     """The hand ``gripper/type`` names ("panda" and "franka_panda" mean ``panda``)."""
     name = HAND_ALIASES.get(gripper.lower(), gripper)
+    if not gripper:
+        raise InputError(f"{path}: no 'gripper/type' dataset says which hand made its grasps; pass --hand "
+                         f"(available hands: {', '.join(hand_names())})")
     if name not in hand_names():
         raise InputError(f"{path}: gripper type '{gripper}' is not a known hand; pass --hand "
                          f"(available hands: {', '.join(hand_names())})")

@@ -299,7 +299,8 @@ def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: s
             raise InputError(f"{path}: {obj.source or obj.name} is not the mesh this file's grasps were planned on "
                              "(object/mesh_sha256): their contacts and measures would be stored on another mesh; "
                              "give that mesh, or pass --rescore to re-score the poses on this one")
-        if hand is not None and HAND_ALIASES.get(header.gripper.lower(), header.gripper) != spec.name:
+        named = HAND_ALIASES.get(header.gripper.lower(), header.gripper)
+        if hand is not None and header.gripper and named != spec.name:
             raise InputError(f"{path}: its grasps are the {header.gripper}'s (joints, contacts); pass --rescore to "
                              f"re-score the poses with hand '{spec.name}'")
     digest = hashlib.sha256()

@@ -284,3 +284,18 @@ def test_outputs_in_folders_not_made_yet_are_written(validated_db: Path, tmp_pat
                          "--plot", str(png), "--model-out", str(model))
     assert code == 0, err
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and model.read_text().startswith("# p_hold")
+
+
+def test_a_users_own_labels_without_gripper_type_calibrate_with_hand(validated_db: Path, tmp_path: Path) -> None:
+    """Real-robot outcomes written as the README says (transforms, labels, the object's file and scale) were
+    refused even with --hand: "no 'gripper/type' dataset; not an ACRONYM grasp file"."""
+    files = labelled_files(validated_db, tmp_path)
+    for path in files:
+        with h5py.File(path, "r+") as f:
+            del f["gripper/type"]
+    code, _, err = grasp("calibrate", *map(str, files), "--no-store", "--poses", "12", "--folds", "2")
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "no 'gripper/type' dataset says which hand made its grasps; pass --hand" in err, err
+    code, out, err = grasp("calibrate", *map(str, files), "--no-store", "--poses", "12", "--folds", "2",
+                           "--hand", "panda")
+    assert code == 0 and "p_hold for panda" in out, err
