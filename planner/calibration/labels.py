@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from planner import prepare
 from planner.calibration import features
 from planner.datasets import acronym, importer
 from planner.errors import InputError
@@ -99,6 +100,7 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
     sampled: dict[str, int] = {}
     objects: dict[str, dict[str, float]] = {}
     rejected: Counter = Counter()
+    said = set[str]()
     for path, name in zip(map(Path, paths), label_names(paths)):
         spec_hand, spec, all_poses = importer.read_for_rescoring(path, hand_name)
         y = acronym.read_labels(path)
@@ -112,6 +114,7 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
             for _unit, outcome, _ in outcomes:
                 if isinstance(outcome, pool.Failure):
                     raise InputError(f"{path}: re-scoring failed ({outcome})")
+                prepare.said(outcome.notes, said)  # a mesh closed, bodies standing apart: in a worker, said here
                 rejected.update(outcome.rejected)
                 grasps.update({g.candidate: g for g in outcome.grasps})  # candidate = position in rows
         order = sorted(grasps)

@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from planner import api
-from planner.cli.app import db_option
+from planner.cli.app import db_option, show_preparation
 
 #: Below this many objects the bootstrap's intervals (drawn from the objects at hand) are said to be too narrow.
 FEW_OBJECTS = 10
@@ -42,6 +42,7 @@ def calibrate(labels: tuple[Path, ...], db_path: Path, poses: int, seed: int, fo
     def progress(path: Path, closed: int, sampled: int) -> None:
         click.echo(f"{path}: {closed} of {sampled} poses closed on the object", err=True)
 
+    show_preparation()  # a labelled file's mesh repaired: one line each, the first time only
     result = api.calibrate(list(labels), db_path=None if no_store else db_path, poses=poses or None, seed=seed,
                            folds=folds, hand=hand, workers=workers, model_out=model_out, plot=plot,
                            progress=progress, trees=trees, trial=trial, engine=engine)

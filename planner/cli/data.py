@@ -7,7 +7,16 @@ from pathlib import Path
 import click
 
 from planner import api
-from planner.cli.app import LazyHelp, db_option, diverse_options, echo_json, rate_text, report_failures, spacing
+from planner.cli.app import (
+    LazyHelp,
+    db_option,
+    diverse_options,
+    echo_json,
+    rate_text,
+    report_failures,
+    show_preparation,
+    spacing,
+)
 
 
 @click.command(name="export")
@@ -86,6 +95,7 @@ def import_files(paths: tuple[Path, ...], fmt: str, db_path: Path, hand: str | N
         click.echo(f"{r.path}: {how} {r.grasps} grasps ({r.force_closure} force-closure) as {r.object}/{r.hand}"
                    f"{dropped}")
 
+    show_preparation(not as_json)  # a mesh repaired (ACRONYM's are often open): one line each, the first time only
     results = api.import_files(paths, db_path, fmt=fmt, hand=hand, object_name=object_name, rescore=rescore,
                                workers=workers, progress=progress, up=up)
     if as_json:

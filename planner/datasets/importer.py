@@ -60,6 +60,7 @@ from pathlib import Path
 
 import numpy as np
 
+from planner import prepare as preparing
 from planner.datasets import formats
 from planner.datasets.file_objects import HAND_ALIASES, hand_name, object_spec
 from planner.datasets.registry import Reader
@@ -187,8 +188,10 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
         for i, r in rescoring.items():
             if r.complete:  # a file without poses
                 finish(i, r.write(db, rule))
+        said = set[str]()
         with closing(pool.execute(rescore_poses, units, workers)) as outcomes:
             for unit, outcome, _ in outcomes:
+                preparing.said(outcome.notes if isinstance(outcome, Rescored) else [], said)
                 r = rescoring[unit.file]
                 r.add(unit, outcome)
                 if r.complete:
@@ -213,13 +216,15 @@ class RescoreUnit:
 class Rescored:
     grasps: list[Grasp]
     rejected: Counter
+    notes: list[str] = field(default_factory=list)  # what preparing the object noted where nothing showed it
 
 
 def rescore_poses(unit: RescoreUnit) -> Rescored:
     """Close the hand at each pose of ``unit`` and score it (runs in workers)."""
-    rejected: Counter = Counter()
-    grasps = _rescore(unit.poses, unit.hand, prepare(unit.spec), rejected, unit.first)
-    return Rescored(grasps, rejected)
+    rejected, notes = Counter[str](), list[str]()
+    with preparing.kept(notes):  # in a worker: said by the driver (preparing.said)
+        grasps = _rescore(unit.poses, unit.hand, prepare(unit.spec), rejected, unit.first)
+    return Rescored(grasps, rejected, notes)
 
 
 @dataclass

@@ -81,3 +81,27 @@ def test_a_batch_on_worker_processes_says_what_preparing_its_objects_did(tmp_pat
     lines = [line for line in err.splitlines() if "closing it into a solid" in line]
     assert sorted(lines) == [f"{p}: capped the mesh's open boundary loops, closing it into a solid (once: cached "
                              "afterwards)" for p in sorted(paths)], err
+
+
+@pytest.mark.parametrize(("workers", "height"), [("1", 0.0802), ("2", 0.0702)])
+def test_import_says_what_preparing_a_files_mesh_did(tmp_path: Path, workers: str, height: float) -> None:
+    """`grasp import --rescore` closed an open mesh (ACRONYM's often are) without a word: no command showed the
+    lines, and in worker processes nothing would have."""
+    import h5py
+    import numpy as np
+
+    cup = trimesh.creation.cylinder(radius=0.03, height=height)
+    top = cup.triangles_center[:, 2] > height / 2 - 1e-9
+    (tmp_path / "meshes").mkdir()
+    trimesh.Trimesh(cup.vertices, cup.faces[~top]).export(tmp_path / "meshes" / "cup.obj")
+    poses = np.tile(np.eye(4), (40, 1, 1))
+    poses[:, 0, 3] = np.linspace(-0.2, 0.2, 40)
+    with h5py.File(tmp_path / "cup.h5", "w") as f:
+        f["grasps/transforms"], f["gripper/type"] = poses, "panda"
+        f["object/file"], f["object/scale"] = "meshes/cup.obj", 1.0
+    code, _, err = grasp("import", "--format", "acronym", str(tmp_path / "cup.h5"), "--db", str(tmp_path / "i.db"),
+                         "--rescore", "--workers", workers)
+    assert code == 0, err
+    lines = [line for line in err.splitlines() if "closing it into a solid" in line]
+    assert lines == [f"{tmp_path / 'meshes' / 'cup.obj'}: capped the mesh's open boundary loops, closing it into a "
+                     "solid (once: cached afterwards)"], err
