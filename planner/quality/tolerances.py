@@ -99,3 +99,9 @@ GRAVITY = 9.81
 #: no joint moves (the palm) are pushed by the arm and bound nothing, and a
 #: grasp that holds 50 g holds any load a shake test or a robot arm applies.
 RESISTANCE_CAP = 50.0
+
+#: The batched dual simplex of the weight resistance (:mod:`planner.quality.resistance_batch`): a basic value
+#: above -LP_TOL x (1 + the largest), a reduced cost above -LP_TOL and a pivot above LP_TOL x the largest of its
+#: row count as feasible, optimal and nonzero. HiGHS's own feasibility tolerances are 1e-7; a basis that passes
+#: at 1e-9 gives the optimum its answers agree with to ~1e-10 g.
+LP_TOL = 1e-9
