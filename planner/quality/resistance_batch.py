@@ -108,7 +108,10 @@ def solve_many(programs: Sequence[ResistanceProgram], directions: np.ndarray) ->
         value = np.full(len(rhs), np.nan)
         for lo in range(0, len(rhs), CHUNK):
             part = slice(lo, lo + CHUNK)
-            status, basis = _dual_simplex(matrix[part], rhs[part], start[part].copy(), tau[part])
+            try:
+                status, basis = _dual_simplex(matrix[part], rhs[part], start[part].copy(), tau[part])
+            except np.linalg.LinAlgError:  # a starting basis singular to round-off: HiGHS solves the chunk
+                continue
             value[part] = _checked(matrix[part], rhs[part], status, basis, tau[part], caps[part])
         at = 0
         for (g, f), size in zip(members, sizes):

@@ -113,6 +113,16 @@ def test_programs_without_generators_or_loads_they_can_balance_resist_nothing() 
     assert solve_many([], SPHERE14) == []
 
 
+def test_a_palm_contact_alone_is_pushed_by_the_arm_up_to_the_cap() -> None:
+    """No motor bounds it (no row of the program): the cap where its cone balances the load, 0 elsewhere."""
+    none = HandDrive(np.zeros((0, 3)), np.zeros((0, 3)), (), np.zeros((0, 0)), np.zeros(0), np.zeros(0))
+    palm = program(np.array([[0.0, 0.0, -0.03]]), frames_from_normals(np.array([[0.0, 0.0, 1.0]])), mu=0.5,
+                   center=np.zeros(3), mass=0.2, drive=none, contact_links=np.array([0]),
+                   joint_affects=np.zeros((1, 0), bool))
+    assert palm.rows.shape == (0, palm.wrench.shape[1])
+    assert_close(solve_many([palm], AXES)[0], [0, 0, 0, 0, 0, RESISTANCE_CAP], abs_=1e-9)
+
+
 def test_programs_the_simplex_leaves_unfinished_are_solved_by_highs(rng: np.random.Generator,
                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
     programs = [random_program(rng) for _ in range(6)]
