@@ -21,7 +21,7 @@ the right-hand side only, so a basis of r independent columns of W~ and the
 slacks (cost 0 on every basic column: all reduced costs >= 0) is dual
 feasible for every direction at once: the dual simplex starts there, the
 leaving row the most negative basic value, the entering column by the
-ratio test (ties: the largest pivot).
+ratio test (ties: the largest pivot; no pivot below ``LP_PIVOT_TOL`` of its row).
 
 Every answer is checked from the original data before it is used: an optimum
 by its basis recomputed (basic values >= 0, reduced costs >= 0, both to
@@ -42,7 +42,7 @@ import numpy as np
 import scipy.linalg
 
 from planner.quality.resistance import ResistanceProgram, row_space, solve
-from planner.quality.tolerances import LP_TOL, RANK_TOL
+from planner.quality.tolerances import LP_PIVOT_TOL, LP_TOL, RANK_TOL
 
 #: Pivots of one stack before its programs still running go to HiGHS (the Panda's: ~10, at most ~35).
 MAX_PIVOTS = 100
@@ -142,14 +142,15 @@ def _dual_simplex(matrix: np.ndarray, rhs: np.ndarray, basis: np.ndarray, tau: n
         leave = np.argmin(x, axis=1)
         done = x[r, leave] >= -LP_TOL * (1.0 + np.abs(x).max(axis=1))
         alpha = table[r, leave, :c]
-        enter = alpha < -LP_TOL * np.abs(alpha).max(axis=1, keepdims=True)
+        enter = alpha < -LP_PIVOT_TOL * np.abs(alpha).max(axis=1, keepdims=True)
         ratio = np.divide(cost, -alpha, out=np.full_like(cost, np.inf), where=enter)
         best = ratio.min(axis=1)
         dead = ~done & np.isinf(best)
+        lost = ~done & np.isnan(best)  # round-off ran away: left unfinished, for HiGHS
         status[live[done]], status[live[dead]] = 1, 2
-        if (done | dead).any():
+        if (done | dead | lost).any():
             basis[live[done | dead]] = rows[done | dead]
-            go = ~(done | dead)
+            go = ~(done | dead | lost)
             live, table, rows, cost = live[go], table[go], rows[go], cost[go]
             leave, alpha, ratio, best = leave[go], alpha[go], ratio[go], best[go]
             r = np.arange(len(live))
