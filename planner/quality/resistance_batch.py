@@ -148,20 +148,20 @@ def _dual_simplex(matrix: np.ndarray, rhs: np.ndarray, basis: np.ndarray, tau: n
         enter = alpha < -LP_PIVOT_TOL * np.abs(alpha).max(axis=1, keepdims=True)
         ratio = np.divide(cost, -alpha, out=np.full_like(cost, np.inf), where=enter)
         best = ratio.min(axis=1)
+        tie = enter & (ratio <= best[:, None] + 1e-12 * np.abs(best[:, None]) + 1e-15)
+        q = np.argmin(np.where(tie, alpha, 0.0), axis=1)  # the largest pivot among the least ratios
+        pivot = alpha[r, q]
         dead = ~done & np.isinf(best)
-        lost = ~done & np.isnan(best)  # round-off ran away: left unfinished, for HiGHS
+        lost = ~done & ~dead & (~(pivot < 0) | np.isnan(best))  # round-off ran away: unfinished, for HiGHS
         status[live[done]], status[live[dead]] = 1, 2
         if (done | dead | lost).any():
             basis[live[done | dead]] = rows[done | dead]
             go = ~(done | dead | lost)
             live, table, rows, cost = live[go], table[go], rows[go], cost[go]
-            leave, alpha, ratio, best = leave[go], alpha[go], ratio[go], best[go]
+            leave, alpha, q, pivot = leave[go], alpha[go], q[go], pivot[go]
             r = np.arange(len(live))
             if not len(live):
                 break
-        tie = ratio <= best[:, None] * (1.0 + 1e-12) + 1e-15
-        q = np.argmin(np.where(tie, alpha, 0.0), axis=1)  # the largest pivot among the least ratios
-        pivot = alpha[r, q]
         cost -= (cost[r, q] / pivot)[:, None] * alpha
         cost[r, q] = 0.0
         row = table[r, leave] / pivot[:, None]
