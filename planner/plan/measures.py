@@ -40,8 +40,10 @@ the closing sense (the grip a worm gear can build is the motor's).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import asdict
+import time
+from collections.abc import Callable, Iterator, Mapping, MutableMapping, Sequence
+from contextlib import contextmanager
+from dataclasses import asdict, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -58,7 +60,8 @@ if TYPE_CHECKING:  # the quality stage imports scipy.optimize, the object trimes
     from planner import quality
     from planner.geometry.solid import PreparedObject
     from planner.plan.grip import Grip
-    from planner.quality.resistance import HandDrive
+    from planner.quality.resistance import HandDrive, ResistanceProgram
+    from planner.record.grasp import Grasp
 
 #: cos 72.5 deg: contact normal and closing motion further apart than this is
 #: the back or side of a finger.
@@ -97,15 +100,19 @@ def _axes(frames: JointFrames) -> dict[str, tuple[np.ndarray, np.ndarray]]:
 def measure(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: Preshape,
             closed: Mapping[str, float], obj: PreparedObject, width: float | None = None,
             directions: np.ndarray | None = None, grip: Grip | None = None,
-            local_sdf: np.ndarray | None = None) -> Measures:
+            local_sdf: np.ndarray | None = None, resist: quality.Resistance | None = None) -> Measures:
     """Weight resistance and feasibility of a closed grasp (object frame);
     ``directions`` (k, 3) of the weight (None: the 14 of :data:`planner.geometry.gravity.SPHERE14`);
     ``grip``: its grip measures (:mod:`planner.plan.grip`), stored with the rest (None: not measured);
-    ``local_sdf``: the object around it (:mod:`planner.plan.local_sdf`; None: not measured)."""
+    ``local_sdf``: the object around it (:mod:`planner.plan.local_sdf`; None: not measured);
+    ``resist``: its weight resistance when already solved, with other grasps' (:func:`resistances` of its
+    :func:`resistance_program`; None: solved here, by HiGHS)."""
     from planner.geometry.gravity import SPHERE14
+    from planner.quality.resistance import solve, summarise
 
     directions = SPHERE14 if directions is None else directions
-    resist = _resistance(contacts, frames, hand, shape, closed, obj, directions)
+    if resist is None:
+        resist = summarise(solve(resistance_program(contacts, frames, hand, shape, closed, obj), directions))
     push, open_margin, close_margin, both_open = _fingers(contacts, frames, hand, shape, closed)
     reasons = []
     if open_margin < MIN_OPEN_MARGIN:
@@ -125,6 +132,23 @@ def measure(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: 
                     local_sdf=local_sdf)
 
 
+@contextmanager
+def measured_later(grasps: list[Grasp], timing: MutableMapping[str, float]
+                   ) -> Iterator[list[tuple[int, ResistanceProgram, Callable[..., Measures]]]]:
+    """A list for the sweep's closed grasps to wait in: (index in ``grasps``, its :func:`resistance_program`,
+    its :func:`measure` but ``resist``). On leaving, also on an error (a failed unit stores the grasps it has),
+    ``grasps[index]`` gets those measures, the weight resistances of all solved together (:func:`resistances`),
+    their time added to ``timing["quality"]`` [s]."""
+    pending: list[tuple[int, ResistanceProgram, Callable[..., Measures]]] = []
+    try:
+        yield pending
+    finally:
+        start = time.perf_counter()
+        for (i, _, later), resist in zip(pending, resistances([prog for _, prog, _ in pending])):
+            grasps[i] = replace(grasps[i], measures=later(resist=resist))
+        timing["quality"] += time.perf_counter() - start
+
+
 def torque_per_mu(mass: float, friction: float, gravity_arm: float) -> float:
     """[N m] the weight's torque about the grip axis over the friction coefficient: ``mass`` [kg] x g x
     ``gravity_arm`` [m] / ``friction``."""
@@ -133,22 +157,35 @@ def torque_per_mu(mass: float, friction: float, gravity_arm: float) -> float:
     return float(mass * GRAVITY * gravity_arm / friction)
 
 
-def _resistance(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: Preshape,
-                closed: Mapping[str, float], obj: PreparedObject, directions: np.ndarray) -> quality.Resistance:
-    from planner import quality
-    from planner.quality.resistance import summarise
+def resistance_program(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: Preshape,
+                       closed: Mapping[str, float], obj: PreparedObject) -> ResistanceProgram:
+    """The weight-resistance program of a closed grasp (object frame; :func:`planner.quality.resistance.program`
+    with the hand's motors and the object's friction, mass and centre of mass)."""
+    from planner.quality.resistance import ResistanceProgram, program
+    from planner.quality.tolerances import GRAVITY, RESISTANCE_CAP
 
     if len(contacts) == 0:
-        return summarise(np.zeros(len(directions)))
+        return ResistanceProgram(np.zeros((6, 0)), np.zeros((0, 0)), np.zeros(0), obj.mass * GRAVITY, RESISTANCE_CAP)
     models, torsion = contact_models(contacts, hand, obj.friction)
     links = sorted(set(contacts.links))
     index = np.array([links.index(link) for link in contacts.links])
     moves = [hand.joint(name).moves for name in frames.names]
     affects = np.array([[link in m for m in moves] for link in contacts.links], bool)
-    return quality.weight_resistance(contacts.points, contacts.frames, mu=obj.friction, center=obj.com,
-                                     mass=obj.mass, drive=hand_drive(hand, shape, closed, frames),
-                                     contact_links=index, joint_affects=affects.reshape(len(contacts), -1),
-                                     directions=directions, model=models, torsion=torsion)
+    return program(contacts.points, contacts.frames, mu=obj.friction, center=obj.com, mass=obj.mass,
+                   drive=hand_drive(hand, shape, closed, frames), contact_links=index,
+                   joint_affects=affects.reshape(len(contacts), -1), model=models, torsion=torsion)
+
+
+def resistances(programs: Sequence[ResistanceProgram], directions: np.ndarray | None = None
+                ) -> list[quality.Resistance]:
+    """The weight resistance of each of ``programs`` along ``directions`` (k, 3) (None: the 14 of
+    :data:`planner.geometry.gravity.SPHERE14`), all solved together (:mod:`planner.quality.resistance_batch`:
+    the answers of HiGHS one grasp at a time, to ~1e-10 g, at less than half its cost on a unit's grasps)."""
+    from planner.geometry.gravity import SPHERE14
+    from planner.quality.resistance import summarise
+    from planner.quality.resistance_batch import solve_many
+
+    return [summarise(r) for r in solve_many(programs, SPHERE14 if directions is None else directions)]
 
 
 def _fingers(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: Preshape,

@@ -21,6 +21,7 @@ import traceback
 from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 
@@ -32,7 +33,7 @@ from planner.plan import grip, sampling
 from planner.plan.closing import Closed, Grasper
 from planner.plan.contacts import HandContacts, grasp_quality
 from planner.plan.local_sdf import LocalSurface
-from planner.plan.measures import MIN_RESISTANCE, measure
+from planner.plan.measures import MIN_RESISTANCE, measure, measured_later, resistance_program
 from planner.plan.reach import ReachSettings, reach_scene
 from planner.plan.settle import with_settled
 from planner.plan.sweep import (
@@ -171,7 +172,7 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report, obj: PreparedObject
     budget = Budget(settings.budget_share())
     support = settings.support()
     table = None if support is None else support.raised(TABLE_CLEARANCE).frame()
-    with Sim() as sim:
+    with Sim() as sim, measured_later(result.grasps, result.timing) as later:  # measures: once the loop ends
         grasper = Grasper.for_object(sim, hand, obj, table=table)
         gripping = grip.GripSurface(obj.mesh, normals_at=grasper.normals_at())  # the exact surface
         local = LocalSurface(hand, obj.mesh if grasper.mesh is None else grasper.mesh)  # a large mesh's proxy
@@ -190,9 +191,10 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report, obj: PreparedObject
                 result.timing["quality"] += time.perf_counter() - tb
                 continue
             width = closed_width(hand, closed.closed_joints)
-            m = measure(closed.contacts, closed.frames, hand, cand.preshape, closed.closed_joints, obj, width,  # type: ignore[arg-type]
-                        grip=grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}, obj.com, up),
-                        local_sdf=local.of(closed.pose))
+            at = (closed.contacts, closed.frames, hand, cand.preshape, closed.closed_joints, obj)
+            gripped = grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}, obj.com, up)
+            later.append((len(result.grasps), resistance_program(*at),  # type: ignore[arg-type]
+                          partial(measure, *at, width, grip=gripped, local_sdf=local.of(closed.pose))))
             result.timing["quality"] += time.perf_counter() - tb
             point, direction, roll, standoff = ray
             result.grasps.append(Grasp(
@@ -200,7 +202,7 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report, obj: PreparedObject
                 approach_point=point, approach_dir=direction, roll=roll, standoff=standoff, pose=closed.pose,
                 open_joints=closed.open_joints, closed_joints=closed.closed_joints, width=width,
                 contacts=closed.contacts, epsilon=q.epsilon, volume=q.volume, force_closure=q.force_closure,
-                measures=m, table_plane=None if support is None else np.array(settings.table_plane, float)))
+                measures=None, table_plane=None if support is None else np.array(settings.table_plane, float)))
             budget.force_closure += int(q.force_closure)
         # contact reading happens inside closing; report it as its own stage
         result.timing["contacts"] = grasper.contact_seconds

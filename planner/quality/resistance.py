@@ -24,7 +24,9 @@ r tau_m to its driver's motor). Gravity acts at the centre of mass, so only
 Units: forces [N], torques [N m], s in g (1 = the object's weight).
 The fast path builds one HiGHS model per grasp and changes only the load
 column between directions; ``planner.quality.reference.reference_resistance``
-is the same program through ``scipy.optimize.linprog``.
+is the same program through ``scipy.optimize.linprog``. A sweep solves all its
+grasps' programs together (:mod:`planner.quality.resistance_batch`, the same
+optima at less than half the cost), HiGHS only where that cannot.
 """
 
 from __future__ import annotations

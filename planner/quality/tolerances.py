@@ -99,3 +99,11 @@ GRAVITY = 9.81
 #: no joint moves (the palm) are pushed by the arm and bound nothing, and a
 #: grasp that holds 50 g holds any load a shake test or a robot arm applies.
 RESISTANCE_CAP = 50.0
+
+#: The batched dual simplex of the weight resistance (:mod:`planner.quality.resistance_batch`): a basic value
+#: above -LP_TOL x (1 + the largest) and a reduced cost above -LP_TOL count as feasible and optimal. HiGHS's own
+#: feasibility tolerances are 1e-7; a basis that passes at 1e-9 gives the optimum to ~1e-10 g.
+LP_TOL = 1e-9
+#: ... and a pivot smaller than LP_PIVOT_TOL x the largest entry of its row is not taken: a smaller one blew a
+#: Barrett program's tableau up to inf (its answer then came from HiGHS, but after a detour).
+LP_PIVOT_TOL = 1e-7

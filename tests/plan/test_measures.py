@@ -91,3 +91,33 @@ def test_the_weight_torque_per_friction_scales_with_mass_and_inverse_friction(tm
     assert common and any(found["plain"][c] > 1e-4 for c in common)
     for c in common:  # the same poses: the same arms
         assert found["heavy"][c] == pytest.approx(4 * found["plain"][c], rel=1e-6, abs=1e-9)
+
+
+def test_measures_waiting_for_the_batched_resistance_are_the_measures_of_one_grasp() -> None:
+    """The sweep's grasps wait in ``measured_later`` for their weight resistances, solved together: the same
+    Measures as ``measure`` of each alone (HiGHS), filled in even when the sweep stops on an error."""
+    from dataclasses import dataclass
+    from functools import partial
+
+    from planner.plan.measures import measured_later, resistance_program
+
+    @dataclass(frozen=True)
+    class Record:
+        measures: object = None
+
+    found = [close("panda", "box", "wide", [0, 0, 0.04], DOWN), close("panda", "box", "wide", [0.02, 0, 0.04], DOWN),
+             close("barrett", "box", "wrap", [0, 0, 0.04], DOWN)]
+    records, timing = [Record() for _ in found], {"quality": 0.0}
+    with pytest.raises(RuntimeError), measured_later(records, timing) as later:  # type: ignore[arg-type]
+        for i, (closed, hand, pre, obj) in enumerate(found):
+            at = (closed.contacts, closed.frames, hand, pre, closed.closed_joints, obj)
+            later.append((i, resistance_program(*at), partial(measure, *at, 0.05)))  # type: ignore[arg-type]
+        raise RuntimeError("the sweep stopped")
+    assert timing["quality"] > 0
+    for record, (closed, hand, pre, obj) in zip(records, found):
+        alone = measure(closed.contacts, closed.frames, hand, pre, closed.closed_joints, obj, 0.05)  # type: ignore[arg-type]
+        got = record.measures
+        assert got.resist_worst == pytest.approx(alone.resist_worst, rel=1e-7, abs=1e-7)
+        assert got.resist_mean == pytest.approx(alone.resist_mean, rel=1e-7, abs=1e-7)
+        assert got.reasons == alone.reasons and got.push == alone.push and got.open_margin == alone.open_margin
+    assert records[0].measures.resist_worst > 1.0  # a real pinch, not two zeros compared
