@@ -216,7 +216,8 @@ def _manifest_line(tokens: list[str], where: str, folder: Path, scale: float | N
     target = _absolute(str(folder / Path(source).expanduser()))  # an absolute path stays itself
     if not is_registered(source) and (target.is_dir() or (any(c in source for c in "*?[") and not target.is_file())):
         raise InputError(f"{where}: {source} is a {'folder' if target.is_dir() else 'glob'}: a manifest's line names "
-                         f"one object; give it on the command line (grasp generate '{target}'), or list its files")
+                         f"one object; give it on the command line (`grasp generate {shlex.quote(str(target))}`), "
+                         "or list its files")
     suffix = Path(source).suffix.lower()
     given = Physical.checked(columns, where).over(physical)
     if suffix in OBJECT_SUFFIXES:
