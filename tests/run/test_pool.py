@@ -287,7 +287,8 @@ def test_a_units_preparation_lines_reach_the_driver_while_it_runs(tmp_path: Path
             heard.touch()
 
     logger, handler = logging.getLogger(prepare.LOGGER), Heard()
-    level, logger.level = logger.level, logging.INFO
+    level = logger.level
+    logger.setLevel(logging.INFO)
     logger.addHandler(handler)
     try:
         out = list(run(units.note_then_wait, [("cup.obj", str(heard))] * 2, 2))
