@@ -46,8 +46,9 @@ class _Kept(logging.Handler):
 
 @contextlib.contextmanager
 def kept(lines: list[str]) -> Iterator[None]:
-    """The lines logged inside, appended to ``lines`` where nothing in this process shows them (a worker process:
-    the driver says them, :func:`said`); else left to what shows them. A batch's objects are prepared in the
+    """The lines logged inside, appended to ``lines`` where nothing in this process shows them (a Ray worker: the
+    driver says them, :func:`said`); else left to what shows them (a local pool's worker sends each to the driver
+    as it is logged, :mod:`planner.run.worker`). A batch's objects are prepared in the
     workers: their notes (a mesh repaired, bodies standing apart), said once and then cached, were lost."""
     if log.hasHandlers():
         yield

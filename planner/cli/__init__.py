@@ -16,18 +16,19 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable  # not typing: its import (~10 ms) is a window for a traceback
+from types import FrameType  # loaded already, by the site module
 
 #: 128 + SIGINT, as shells report a command ended by Ctrl-C.
 EXIT_INTERRUPTED = 130
 
 
 def run() -> None:
-    """The ``grasp`` command as the console script starts it. SIGTERM ends it as Ctrl-C does from the start (the
-    group's own handler, :mod:`planner.cli.app`, takes over once the options are read): before, while the commands
-    loaded and click read the arguments, it killed the process without a word (exit -15)."""
+    """The ``grasp`` command as the console script starts it. SIGTERM ends it as Ctrl-C does from the start
+    (:func:`terminated`; the group sets it too, for callers of ``main``): before, while the commands loaded and
+    click read the arguments, it killed the process without a word (exit -15)."""
     import signal
 
-    signal.signal(signal.SIGTERM, _terminated)
+    signal.signal(signal.SIGTERM, terminated)
     try:
         command = _main()
         command()  # always exits: every error and interruption past the imports is the group's (``app.Group``)
@@ -36,7 +37,22 @@ def run() -> None:
         sys.exit(EXIT_INTERRUPTED)
 
 
-def _terminated(signum: int, frame: object) -> None:
+#: [s] how soon a SIGTERM that arrived inside a destructor is delivered again.
+TERM_RETRY = 0.05
+
+
+def terminated(signum: int, frame: FrameType | None) -> None:
+    """SIGTERM (``timeout``, a scheduler, systemd) ends a run as Ctrl-C does: cleanly, with its one line. Python
+    drops an exception raised inside a destructor ("Exception ignored in ... __del__": the run went on to its
+    end, exit 0, a fresh-clone CI run saw it): there the signal is sent again a moment later."""
+    while frame is not None:
+        if frame.f_code.co_name == "__del__":
+            import os
+            import threading
+
+            threading.Timer(TERM_RETRY, os.kill, (os.getpid(), signum)).start()
+            return
+        frame = frame.f_back
     raise KeyboardInterrupt
 
 

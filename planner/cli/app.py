@@ -18,7 +18,8 @@ from typing import Any
 import click
 
 from planner import api
-from planner.cli import EXIT_INTERRUPTED
+from planner.cli import EXIT_INTERRUPTED, TERM_RETRY  # noqa: F401 - TERM_RETRY re-exported
+from planner.cli import terminated as _terminated
 from planner.errors import DatabaseError, InputError, PlannerError
 
 #: Exit codes besides the errors' own (``PlannerError.exit_code``: 2 bad
@@ -52,22 +53,6 @@ INTERRUPTED = {
     "export": "no file under its final name is partial, unfinished ones were removed; run the export again",
     "calibrate": "nothing was stored",
 }
-
-
-#: [s] how soon a SIGTERM that arrived inside a destructor is delivered again.
-TERM_RETRY = 0.05
-
-
-def _terminated(signum: int, frame: Any) -> None:
-    """SIGTERM (``timeout``, a scheduler, systemd) ends a run as Ctrl-C does: cleanly, with its one line. Python
-    drops an exception raised inside a destructor ("Exception ignored in ... __del__": the run went on to its
-    end, exit 0, a fresh-clone CI run saw it): there the signal is sent again a moment later."""
-    while frame is not None:
-        if frame.f_code.co_name == "__del__":
-            threading.Timer(TERM_RETRY, os.kill, (os.getpid(), signal.SIGTERM)).start()
-            return
-        frame = frame.f_back
-    raise KeyboardInterrupt
 
 
 def _interrupted(subcommand: str | None) -> None:

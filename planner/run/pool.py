@@ -23,7 +23,11 @@ total)`` calls reach ``progress(index, done, total)`` in the driver, ``index``
 the unit's position in ``units``: directly in process, as a message on the
 worker's pipe in the local pool (the driver calls ``progress`` while it waits
 for results). A retried unit reports again from zero. On Ray units report
-nothing: ``progress`` is not called.
+nothing: ``progress`` is not called. The lines a unit logs to
+:mod:`planner.prepare` (a mesh closed, cached afterwards) reach the driver's
+logger as the worker logs them, each once a run: a run stopped before the
+unit's end has said them (on Ray they come with the result,
+:func:`planner.prepare.kept`).
 
 Workers die with the driver, even by SIGKILL (see :mod:`planner.run.worker`),
 and never hold the database's writer lock: they start by ``forkserver``
@@ -55,6 +59,7 @@ from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 from typing import Any, TypeVar
 
+from planner import prepare
 from planner.errors import PlannerError
 from planner.run import worker
 from planner.run.failure import MAX_CRASHES, Failure
@@ -178,6 +183,7 @@ class _Pool:
         self.lifeline_r, self.lifeline_w = ctx.Pipe(duplex=False)
         self.workers: list[_Worker] = []
         self.start_failures = 0
+        self.notes: set[str] = set()  # the lines said: two workers may prepare an object the first time
         _live.add(self)
 
     # -- the loop ---------------------------------------------------------------
@@ -242,6 +248,9 @@ class _Pool:
             return self._died(w, todo)
         if message[0] == "ready":
             w.ready, self.start_failures = True, 0
+            return []
+        if message[0] == "note":
+            prepare.said([message[1]], self.notes)
             return []
         if message[0] == "progress":
             _, index, done, total = message

@@ -5,7 +5,10 @@ Protocol (driver -> worker): ``(index, unit)`` to run, ``None`` to stop.
 ``("ok", index, result, seconds)`` or ``("error", index, message, seconds)``,
 after any number of ``("progress", index, done, total)`` when the pool asked
 for progress (``fn`` is then called as ``fn(unit, report)``, the report
-throttled by :class:`planner.run.progress.Throttled`).
+throttled by :class:`planner.run.progress.Throttled`), and of ``("note",
+line)``: a line :mod:`planner.prepare` logged (a mesh closed, once: cached
+afterwards), sent as it is logged, so a run stopped before the unit's end
+has said it.
 
 A worker never outlives its driver: a watcher thread exits it when the
 *lifeline* -- a pipe whose only write end the driver holds and never writes --
@@ -15,6 +18,7 @@ reads EOF, however the driver died; on Linux the kernel also SIGKILLs it
 
 from __future__ import annotations
 
+import logging
 import os
 import signal
 import threading
@@ -23,6 +27,7 @@ from collections.abc import Callable
 from multiprocessing.connection import Connection
 from typing import Any
 
+from planner import prepare
 from planner.run import procs
 from planner.run.progress import Throttled
 
@@ -35,6 +40,24 @@ NAME = "grasp-worker"
 def describe(exc: BaseException) -> str:
     """One line for a unit's exception (the same in and out of process)."""
     return f"{type(exc).__name__}: {'; '.join(str(exc).splitlines())}"
+
+
+class _Notes(logging.Handler):
+    """:mod:`planner.prepare`'s lines, each sent to the driver as it is logged."""
+
+    def __init__(self, conn: Connection) -> None:
+        super().__init__(logging.INFO)
+        self.conn = conn
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.conn.send(("note", record.getMessage()))
+
+
+def _send_notes(conn: Connection) -> None:
+    log = logging.getLogger(prepare.LOGGER)
+    log.addHandler(_Notes(conn))
+    log.setLevel(logging.INFO)
+    log.propagate = False  # said by the driver, not here too
 
 
 def _exit_when_driver_dies(lifeline: Connection) -> None:
@@ -59,6 +82,7 @@ def main(fn: Callable[..., Any], conn: Connection, lifeline: Connection, pdeaths
     # Ctrl-C reaches the whole foreground process group; only the driver acts
     # on it (it stops the workers), so a unit is never cut short half-written.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _send_notes(conn)
     conn.send(("ready", os.getpid()))
     while True:
         try:

@@ -199,9 +199,9 @@ def _manifest_line(tokens: list[str], where: str, folder: Path, scale: float | N
         if not sep and i == 0:
             key, value = "scale", token
         elif not sep or key not in ("scale", *PHYSICAL_KEYS) or key in columns:
-            why = (f"a second value without a name, '{token}' (only the scale, right after the object, goes "
-                   "without one: give KEY=VALUE)" if not sep else f"{key} given twice" if key in columns else
-                   f"unknown column '{key}' (columns: {', '.join(('scale', *PHYSICAL_KEYS))})")
+            why = (f"a value without a name, '{token}', after '{rest[i - 1]}' (only the scale, right after the "
+                   "object, goes without one: give KEY=VALUE)" if not sep else f"{key} given twice"
+                   if key in columns else f"unknown column '{key}' (columns: {', '.join(('scale', *PHYSICAL_KEYS))})")
             raise InputError(f"{where}: {why}; expected '{MANIFEST_LINE}'")
         columns[key] = value
     item_scale, row_scale = scale, "scale" in columns
@@ -216,7 +216,8 @@ def _manifest_line(tokens: list[str], where: str, folder: Path, scale: float | N
     target = _absolute(str(folder / Path(source).expanduser()))  # an absolute path stays itself
     if not is_registered(source) and (target.is_dir() or (any(c in source for c in "*?[") and not target.is_file())):
         raise InputError(f"{where}: {source} is a {'folder' if target.is_dir() else 'glob'}: a manifest's line names "
-                         f"one object; give it on the command line (grasp generate '{target}'), or list its files")
+                         f"one object; give it on the command line (`grasp generate {shlex.quote(str(target))}`), "
+                         "or list its files")
     suffix = Path(source).suffix.lower()
     given = Physical.checked(columns, where).over(physical)
     if suffix in OBJECT_SUFFIXES:

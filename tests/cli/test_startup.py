@@ -111,3 +111,42 @@ def test_sigterm_while_click_reads_the_arguments_exits_130_in_one_line() -> None
     killed the process without a word (exit -15), where a Ctrl-C there printed one line and exited 130."""
     done = subprocess.run([sys.executable, "-c", TERMINATED_PARSING], capture_output=True, text=True, timeout=120)
     assert done.returncode == 130 and done.stderr == "grasp: interrupted; nothing was changed\n", done
+
+
+def test_a_sigterm_in_a_destructor_while_the_command_starts_is_sent_again(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The handler set before the commands load raised KeyboardInterrupt inside a destructor too, where Python
+    drops it ("Exception ignored in ... __del__"): that SIGTERM was lost and the command ran to its end."""
+    import inspect
+    import os
+    import signal
+    import threading
+
+    import planner.cli as cli
+
+    timers: list[tuple] = []
+
+    class Timer:
+        def __init__(self, delay: float, fn: object, args: tuple) -> None:
+            timers.append((fn, args))
+
+        def start(self) -> None:
+            pass
+
+    def command() -> None:
+        handler = signal.getsignal(signal.SIGTERM)
+
+        def __del__() -> None:  # what a destructor's frame is named
+            handler(signal.SIGTERM, inspect.currentframe())  # type: ignore[operator]
+
+        __del__()
+        sys.exit(0)
+
+    monkeypatch.setattr(threading, "Timer", Timer)
+    monkeypatch.setattr(cli, "_main", lambda: command)
+    before = signal.getsignal(signal.SIGTERM)
+    try:
+        with pytest.raises(SystemExit) as ended:
+            cli.run()
+    finally:
+        signal.signal(signal.SIGTERM, before)
+    assert ended.value.code == 0 and timers == [(os.kill, (os.getpid(), signal.SIGTERM))]

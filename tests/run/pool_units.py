@@ -100,3 +100,20 @@ def in_flight(args: tuple[str, str]) -> tuple[int, int]:
     mine.unlink()
     return seen, os.getpid()
 
+
+
+#: [s] how long :func:`note_then_wait` waits for its note to be heard (only a failing run waits it out).
+NOTE_WAIT = 30.0
+
+
+def note_then_wait(args: tuple[str, str]) -> bool:
+    """(subject, heard): log a preparation line of ``subject``, then wait until ``heard`` exists; whether it came
+    within :data:`NOTE_WAIT` (the driver's handler creates it when the line reaches it)."""
+    from planner import prepare
+
+    subject, heard = args
+    prepare.noted(subject, "capped the mesh's open boundary loops (once: cached afterwards)")
+    deadline = time.monotonic() + NOTE_WAIT
+    while not Path(heard).exists() and time.monotonic() < deadline:
+        time.sleep(POLL)
+    return Path(heard).exists()

@@ -271,3 +271,29 @@ def test_a_worker_left_without_units_exits_before_the_run_ends(tmp_path: Path) -
     assert len(pool_workers()) == 1  # the slow unit's
     go.touch()
     assert [r for _, r, _ in results] == [0]
+
+
+def test_a_units_preparation_lines_reach_the_driver_while_it_runs(tmp_path: Path) -> None:
+    """Lines a worker's unit logged (a mesh closed, cached afterwards) came back with its result only: a run
+    interrupted before (Ctrl-C, kill -9 during a long first unit) lost them, and the cache then kept the object
+    from ever saying them. Two workers that note the same line: said once."""
+    from planner import prepare
+
+    heard, lines = tmp_path / "heard", []
+
+    class Heard(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            lines.append(record.getMessage())
+            heard.touch()
+
+    logger, handler = logging.getLogger(prepare.LOGGER), Heard()
+    level = logger.level
+    logger.setLevel(logging.INFO)
+    logger.addHandler(handler)
+    try:
+        out = list(run(units.note_then_wait, [("cup.obj", str(heard))] * 2, 2))
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(level)
+    assert [r for _, r, _ in out] == [True, True]
+    assert lines == ["cup.obj: capped the mesh's open boundary loops (once: cached afterwards)"]

@@ -176,7 +176,23 @@ def test_a_manifest_line_naming_a_folder_or_a_glob_says_so(tmp_path: Path) -> No
     for line, what in (("sub", "folder"), ("sub/*.stl", "glob")):
         (tmp_path / "m.txt").write_text(f"mug\n{line} mass=0.1\n")
         with pytest.raises(InputError, match=rf"m.txt:2: sub.* is a {what}: a manifest's line names one object; give "
-                                             rf"it on the command line \(grasp generate '{tmp_path}/sub"):
+                                             rf"it on the command line \(`grasp generate '?{tmp_path}/sub"):
             inputs.expand([f"@{tmp_path / 'm.txt'}"])
     (tmp_path / "m.txt").write_text('mug\n"box [2].stl"\n')
     assert [r.name for r in inputs.expand([f"@{tmp_path / 'm.txt'}"])] == ["mug", "box [2]"]
+
+
+@pytest.mark.parametrize("folder", ["cups", "bob's cups"])
+def test_the_command_a_manifests_folder_line_gives_runs_as_pasted(tmp_path: Path, folder: str) -> None:
+    """"(grasp generate '/x/bob's cups')": the folder in quotes of its own, an apostrophe in it ended them (and
+    a folder that needs none was quoted all the same)."""
+    import re
+    import shlex
+
+    (tmp_path / folder).mkdir()
+    (tmp_path / "m.txt").write_text(f'"{folder}"\n')
+    with pytest.raises(InputError) as info:
+        inputs.expand([f"@{tmp_path / 'm.txt'}"])
+    [command] = re.findall(r"`(grasp [^`]*)`", str(info.value))
+    assert shlex.split(command) == ["grasp", "generate", str(tmp_path / folder)], command
+    assert ("'" in command) == (" " in folder), command
