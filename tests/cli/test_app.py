@@ -242,7 +242,8 @@ def test_an_install_without_the_projects_folders_is_said_in_one_line(tmp_path: P
 #: The console script's start (pyproject's ``planner.cli:run``) with click's argument parsing held: the group's
 #: parse says so on stderr and waits for the signal.
 HELD_PARSE = """
-import sys, time, click
+import signal, sys, time, click
+signal.signal(signal.SIGINT, signal.default_int_handler)  # as in a terminal: a background job ignores SIGINT
 parse = click.Command.parse_args
 def held(self, ctx, args):
     if isinstance(self, click.Group):
