@@ -101,25 +101,26 @@ def solve_many(programs: Sequence[ResistanceProgram], directions: np.ndarray) ->
         form = standard(prog, directions)
         if form is not None:
             stacks[form.matrix.shape].append((g, form))
-    for members in stacks.values():
-        sizes = [len(f.kept) for _, f in members]
-        matrix = np.concatenate([np.broadcast_to(f.matrix, (len(f.kept), *f.matrix.shape)) for _, f in members])
-        rhs = np.concatenate([f.rhs for _, f in members])
-        start = np.concatenate([np.broadcast_to(f.start, (len(f.kept), len(f.start))) for _, f in members])
-        tau = np.repeat([f.tau for _, f in members], sizes)
-        caps = np.repeat([programs[g].cap for g, _ in members], sizes)
+    for members in stacks.values():  # a stack's tableaux built a chunk at a time: memory of CHUNK, not of the unit
+        forms = [f for _, f in members]
+        owner = np.repeat(np.arange(len(forms)), [len(f.kept) for f in forms])
+        rhs = np.concatenate([f.rhs for f in forms])
+        start = np.stack([f.start for f in forms])
+        tau = np.array([f.tau for f in forms])
+        caps = np.array([programs[g].cap for g, _ in members], float)
         value = np.full(len(rhs), np.nan)
         for lo in range(0, len(rhs), CHUNK):
-            part = slice(lo, lo + CHUNK)
+            part, who = slice(lo, lo + CHUNK), owner[lo:lo + CHUNK]
+            matrix = np.stack([forms[i].matrix for i in who])
             try:
-                status, basis = _dual_simplex(matrix[part], rhs[part], start[part].copy(), tau[part])
+                status, basis = _dual_simplex(matrix, rhs[part], start[who], tau[who])
             except np.linalg.LinAlgError:  # a starting basis singular to round-off: HiGHS solves the chunk
                 continue
-            value[part] = _checked(matrix[part], rhs[part], status, basis, tau[part], caps[part])
+            value[part] = _checked(matrix, rhs[part], status, basis, tau[who], caps[who])
         at = 0
-        for (g, f), size in zip(members, sizes):
-            got = value[at:at + size]
-            at += size
+        for g, f in members:
+            got = value[at:at + len(f.kept)]
+            at += len(f.kept)
             redo = np.isnan(got)
             if redo.any():
                 got[redo] = solve(programs[g], directions[f.kept[redo]])
