@@ -24,10 +24,11 @@ leaving row the most negative basic value, the entering column by the
 ratio test (ties: the largest pivot; no pivot below ``LP_PIVOT_TOL`` of its row).
 
 Every answer is checked from the original data before it is used: an optimum
-by its basis recomputed (basic values >= 0, reduced costs >= 0, both to
-``LP_TOL``: the basis is optimal, so its objective is the program's optimum);
-an infeasible program by the leaving row of B^-1 A (>= 0 on every column,
-negative on the right-hand side: a Farkas certificate). A program whose check
+by its basis recomputed (each basic value and reduced cost >= -``LP_TOL``, not
+relative to the largest: the basis is optimal, so its objective is the
+program's optimum); an infeasible program by the leaving row of B^-1 A (>= 0 on
+every column to ``FARKAS_TOL`` of that column's own scale, negative on the
+right-hand side: a Farkas certificate). A program whose check
 fails, or that did not finish in ``MAX_PIVOTS``, is solved by HiGHS. The same
 optima as ``solve``: to 8e-11 g on the 22,218 (grasp, direction) programs of the Panda's mug and
 random_003 units and the Barrett's mug unit; where the two differ more (HiGHS
@@ -45,7 +46,7 @@ import numpy as np
 import scipy.linalg
 
 from planner.quality.resistance import ResistanceProgram, row_space, solve
-from planner.quality.tolerances import LP_PIVOT_TOL, LP_TOL, RANK_TOL
+from planner.quality.tolerances import FARKAS_TOL, LP_PIVOT_TOL, LP_TOL, RANK_TOL
 
 #: Pivots of one stack before its programs still running go to HiGHS (the Panda's: ~10, at most ~35).
 MAX_PIVOTS = 100
@@ -144,7 +145,7 @@ def _dual_simplex(matrix: np.ndarray, rhs: np.ndarray, basis: np.ndarray, tau: n
         r = np.arange(len(live))
         x = table[:, :, c]
         leave = np.argmin(x, axis=1)
-        done = x[r, leave] >= -LP_TOL * (1.0 + np.abs(x).max(axis=1))
+        done = x[r, leave] >= -LP_TOL
         alpha = table[r, leave, :c]
         enter = alpha < -LP_PIVOT_TOL * np.abs(alpha).max(axis=1, keepdims=True)
         ratio = np.divide(cost, -alpha, out=np.full_like(cost, np.inf), where=enter)
@@ -190,15 +191,18 @@ def _checked(matrix: np.ndarray, rhs: np.ndarray, status: np.ndarray, basis: np.
     reduced = -np.einsum("mij,mi->mj", matrix, y)
     reduced[np.arange(m), tau] += 1.0
     scale = 1.0 + np.abs(x).max(axis=1)
-    optimal = (status == 1) & (x.min(axis=1) >= -LP_TOL * scale) & (reduced.min(axis=1) >= -LP_TOL)
+    # each basic value >= -LP_TOL on its own: one of the largest's round-off would let a small one be negative
+    # enough to be another vertex (a program of slack ~4e3 took x = -1.8e-6 for 0: s 17.21, not 13.77 g)
+    optimal = (status == 1) & (x.min(axis=1) >= -LP_TOL) & (reduced.min(axis=1) >= -LP_TOL)
     t = np.where(on_tau, x, 0.0).sum(axis=1) + 1.0 / cap
     out[optimal] = np.minimum(1.0 / t[optimal], cap[optimal])
     # infeasible: the row of B^-1 whose basic value is most negative, >= 0 on every column of A
     leave = np.argmin(x, axis=1)
     farkas = lu[np.arange(m), leave]  # (m, n)
     row = np.einsum("mi,mij->mj", farkas, matrix)
-    size = np.abs(farkas).max(axis=1) * np.abs(matrix).max(axis=(1, 2))
-    proven = ((status == 2) & (row.min(axis=1) >= -LP_TOL * size)
+    # each column's own scale (round-off of the certificate x the column), not the table's largest entry
+    size = np.abs(farkas).max(axis=1)[:, None] * np.abs(matrix).sum(axis=1)
+    proven = ((status == 2) & (row >= -FARKAS_TOL * size).all(axis=1)
               & (x[np.arange(m), leave] < -LP_TOL * scale))
     out[proven] = 0.0
     return out
