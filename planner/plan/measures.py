@@ -138,15 +138,23 @@ def measured_later(grasps: list[Grasp], timing: MutableMapping[str, float]
     """A list for the sweep's closed grasps to wait in: (index in ``grasps``, its :func:`resistance_program`,
     its :func:`measure` but ``resist``). On leaving, also on an error (a failed unit stores the grasps it has),
     ``grasps[index]`` gets those measures, the weight resistances of all solved together (:func:`resistances`),
-    their time added to ``timing["quality"]`` [s]."""
+    their time added to ``timing["quality"]`` [s]. Should one fail, the grasps from the first left without
+    measures on are dropped (measured one at a time, the sweep stopped at it) and the error raised."""
     pending: list[tuple[int, ResistanceProgram, Callable[..., Measures]]] = []
+    filled = 0
     try:
         yield pending
     finally:
         start = time.perf_counter()
-        for (i, _, later), resist in zip(pending, resistances([prog for _, prog, _ in pending])):
-            grasps[i] = replace(grasps[i], measures=later(resist=resist))
-        timing["quality"] += time.perf_counter() - start
+        try:
+            for (i, _, later), resist in zip(pending, resistances([prog for _, prog, _ in pending])):
+                grasps[i] = replace(grasps[i], measures=later(resist=resist))
+                filled += 1
+        except BaseException:
+            del grasps[pending[filled][0]:]
+            raise
+        finally:
+            timing["quality"] += time.perf_counter() - start
 
 
 def torque_per_mu(mass: float, friction: float, gravity_arm: float) -> float:

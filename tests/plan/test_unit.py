@@ -311,3 +311,21 @@ def test_a_workers_units_of_one_object_sample_its_surface_once(monkeypatch, tmp_
     monkeypatch.setattr(unit.sampling, "antipodal", lambda *a, **k: seen.append(1) or real(*a, **k))
     once = [[(g.candidate, g.pose.tobytes()) for g in run_unit(spec).grasps] for spec in specs]
     assert len(seen) == 1 and once == fresh and sum(map(len, once)) > 0
+
+
+def test_a_record_that_cannot_be_made_fails_its_unit_with_its_own_error(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The grasps wait for their measures (``measured_later``) from the moment they are recorded: a record whose
+    construction fails leaves nothing waiting for it (an index past the list, an IndexError raised in its
+    place), and the grasps recorded before it are stored with their measures."""
+    made: list[int] = []
+
+    def second_fails(**fields: object) -> Grasp:
+        made.append(1)
+        if len(made) == 2:
+            raise ValueError("no such record")
+        return Grasp(**fields)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(unit, "Grasp", second_fails)
+    r = run_unit(UnitSpec("box", "panda", SETTINGS, seed=1))
+    assert r.error == "ValueError: no such record"
+    assert len(r.grasps) == 1 and r.grasps[0].measures is not None
