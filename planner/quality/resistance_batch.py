@@ -27,8 +27,8 @@ Every answer is checked from the original data before it is used: an optimum
 by its basis recomputed (each basic value and reduced cost >= -``LP_TOL``, not
 relative to the largest: the basis is optimal, so its objective is the
 program's optimum); an infeasible program by the leaving row of B^-1 A (>= 0 on
-every column to ``FARKAS_TOL`` of that column's own scale, negative on the
-right-hand side: a Farkas certificate). A program whose check
+every column to ``FARKAS_TOL`` of that column's own scale, tau's to s <= ``LP_TOL``,
+negative on the right-hand side: a Farkas certificate). A program whose check
 fails, or that did not finish in ``MAX_PIVOTS``, is solved by HiGHS. The same
 optima as ``solve``: to 8e-11 g on the 22,218 (grasp, direction) programs of the Panda's mug and
 random_003 units and the Barrett's mug unit; where the two differ more (HiGHS
@@ -210,7 +210,11 @@ def _checked(matrix: np.ndarray, rhs: np.ndarray, status: np.ndarray, basis: np.
     row = np.einsum("mi,mij->mj", farkas, matrix)
     # each column's own scale (round-off of the certificate x the column), not the table's largest entry
     size = np.abs(farkas).max(axis=1)[:, None] * np.abs(matrix).sum(axis=1)
-    proven = ((status == 2) & (row >= -FARKAS_TOL * size).all(axis=1)
-              & (x[np.arange(m), leave] < -LP_TOL * scale))
+    # but tau's, of -bounds (up to ~1e8 there): any y A_tau < 0 bounds s instead, tau >= (y b) / (y A_tau) so
+    # s <= (y A_tau) / (y b), which must be below LP_TOL g (a bound of 1.7e8 N let 0 stand for 2e-6 g)
+    r, yb = np.arange(m), x[np.arange(m), leave]
+    clean = (row >= -FARKAS_TOL * size) | (np.arange(c) == tau[:, None])
+    bounded = -row[r, tau] <= LP_TOL * -yb  # s <= LP_TOL, without dividing
+    proven = (status == 2) & clean.all(axis=1) & (yb < -LP_TOL * scale) & bounded
     out[proven] = 0.0
     return out
