@@ -132,21 +132,53 @@ def measure(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: 
                     local_sdf=local_sdf)
 
 
+#: Grasps waiting in :func:`measured_later` are solved together once this many wait (and at the end): 14 x
+#: 4,096 programs keep the batch's per-call cost thin, and bound the queue (a Barrett grasp's program and standard
+#: form are ~28 KB, 6 times its record: a unit of 1,000,000 candidates, ~1,000,000 grasps, would queue ~28 GB).
+WAITING = 4096
+
+
+class _Waiting(list):  # type: ignore[type-arg]
+    """The grasps waiting for their measures: ``fill`` called whenever :data:`WAITING` of them wait."""
+
+    def __init__(self, fill: Callable[[], None]) -> None:
+        super().__init__()
+        self._fill = fill
+
+    def append(self, item: tuple[int, ResistanceProgram, Callable[..., Measures]]) -> None:
+        super().append(item)
+        if len(self) >= WAITING:
+            self._fill()
+
+
 @contextmanager
 def measured_later(grasps: list[Grasp], timing: MutableMapping[str, float]
                    ) -> Iterator[list[tuple[int, ResistanceProgram, Callable[..., Measures]]]]:
     """A list for the sweep's closed grasps to wait in: (index in ``grasps``, its :func:`resistance_program`,
-    its :func:`measure` but ``resist``). On leaving, also on an error (a failed unit stores the grasps it has),
-    ``grasps[index]`` gets those measures, the weight resistances of all solved together (:func:`resistances`),
-    their time added to ``timing["quality"]`` [s]."""
-    pending: list[tuple[int, ResistanceProgram, Callable[..., Measures]]] = []
+    its :func:`measure` but ``resist``). Once :data:`WAITING` wait, and on leaving, also on an error (a failed
+    unit stores the grasps it has), ``grasps[index]`` gets those measures, the weight resistances of all waiting
+    solved together (:func:`resistances`), their time added to ``timing["quality"]`` [s]. Should one fail, the
+    grasps from the first left without measures on are dropped (measured one at a time, the sweep stopped at it)
+    and the error raised."""
+
+    def fill() -> None:
+        start, filled = time.perf_counter(), 0
+        try:
+            for (i, _, later), resist in zip(pending, resistances([prog for _, prog, _ in pending])):
+                grasps[i] = replace(grasps[i], measures=later(resist=resist))
+                filled += 1
+        except BaseException:
+            del grasps[pending[filled][0]:]
+            raise
+        finally:
+            del pending[:]
+            timing["quality"] += time.perf_counter() - start
+
+    pending = _Waiting(fill)
     try:
         yield pending
     finally:
-        start = time.perf_counter()
-        for (i, _, later), resist in zip(pending, resistances([prog for _, prog, _ in pending])):
-            grasps[i] = replace(grasps[i], measures=later(resist=resist))
-        timing["quality"] += time.perf_counter() - start
+        fill()
 
 
 def torque_per_mu(mass: float, friction: float, gravity_arm: float) -> float:

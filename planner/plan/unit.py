@@ -1,7 +1,5 @@
-"""One unit of work end to end: object -> rays -> closing -> contacts ->
-quality -> settled epsilon (hands with ``settle``) -> reachability,
-returning :class:`~planner.record.grasp.Grasp` records for the single database
-writer.
+"""One unit of work end to end: object -> rays -> closing -> contacts -> quality -> settled epsilon (hands with
+``settle``) -> reachability, returning :class:`~planner.record.grasp.Grasp` records for the single database writer.
 
 On a table (``SweepSettings.table_plane``, ``grasp generate --on-table``): the table is closing's obstacle, raised by
 :data:`~planner.plan.tolerances.TABLE_CLEARANCE`; approach rays shallower than
@@ -193,8 +191,8 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report, obj: PreparedObject
             width = closed_width(hand, closed.closed_joints)
             at = (closed.contacts, closed.frames, hand, cand.preshape, closed.closed_joints, obj)
             gripped = grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}, obj.com, up)
-            later.append((len(result.grasps), resistance_program(*at),  # type: ignore[arg-type]
-                          partial(measure, *at, width, grip=gripped, local_sdf=local.of(closed.pose))))
+            waiting = (resistance_program(*at), partial(measure, *at, width, grip=gripped,  # type: ignore[arg-type]
+                                                        local_sdf=local.of(closed.pose)))
             result.timing["quality"] += time.perf_counter() - tb
             point, direction, roll, standoff = ray
             result.grasps.append(Grasp(
@@ -203,6 +201,7 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report, obj: PreparedObject
                 open_joints=closed.open_joints, closed_joints=closed.closed_joints, width=width,
                 contacts=closed.contacts, epsilon=q.epsilon, volume=q.volume, force_closure=q.force_closure,
                 measures=None, table_plane=None if support is None else np.array(settings.table_plane, float)))
+            later.append((len(result.grasps) - 1, *waiting))  # once recorded: a record that fails leaves none
             budget.force_closure += int(q.force_closure)
         # contact reading happens inside closing; report it as its own stage
         result.timing["contacts"] = grasper.contact_seconds

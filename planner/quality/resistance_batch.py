@@ -24,9 +24,10 @@ leaving row the most negative basic value, the entering column by the
 ratio test (ties: the largest pivot; no pivot below ``LP_PIVOT_TOL`` of its row).
 
 Every answer is checked from the original data before it is used: an optimum
-by its basis recomputed (basic values >= 0, reduced costs >= 0, both to
-``LP_TOL``: the basis is optimal, so its objective is the program's optimum);
-an infeasible program by the leaving row of B^-1 A (>= 0 on every column,
+by its basis recomputed (each basic value and reduced cost >= -``LP_TOL``, not
+relative to the largest: the basis is optimal, so its objective is the
+program's optimum); an infeasible program by the leaving row of B^-1 A (>= 0 on
+every column to ``FARKAS_TOL`` of that column's own scale, tau's to s <= ``LP_TOL``,
 negative on the right-hand side: a Farkas certificate). A program whose check
 fails, or that did not finish in ``MAX_PIVOTS``, is solved by HiGHS. The same
 optima as ``solve``: to 8e-11 g on the 22,218 (grasp, direction) programs of the Panda's mug and
@@ -45,12 +46,17 @@ import numpy as np
 import scipy.linalg
 
 from planner.quality.resistance import ResistanceProgram, row_space, solve
-from planner.quality.tolerances import LP_PIVOT_TOL, LP_TOL, RANK_TOL
+from planner.quality.tolerances import FARKAS_TOL, LP_PIVOT_TOL, LP_TOL, RANK_TOL
 
 #: Pivots of one stack before its programs still running go to HiGHS (the Panda's: ~10, at most ~35).
 MAX_PIVOTS = 100
 #: Tableaux pivoted together: large enough that numpy's per-call cost is spread thin, small enough to stay in cache.
 CHUNK = 512
+#: Tableaux of more rows (equilibrium and motor rows) go to HiGHS: a pivot costs rows x columns, HiGHS about the
+#: same whatever the size. Measured (all of a mug unit's programs, both ways in one process): the Allegro's 38
+#: rows (32 motor rows) 2.2 s batched against 0.95 s by HiGHS; the Barrett's 12 rows 1.1 against 1.4 s, the
+#: PR2's 10 0.16 against 0.36 s.
+MAX_ROWS = 16
 
 
 @dataclass(frozen=True)
@@ -98,28 +104,32 @@ def solve_many(programs: Sequence[ResistanceProgram], directions: np.ndarray) ->
     out = [np.zeros(len(directions)) for _ in programs]
     stacks: dict[tuple[int, int], list[tuple[int, _Standard]]] = defaultdict(list)
     for g, prog in enumerate(programs):
+        if 6 + len(prog.rows) > MAX_ROWS:  # up to 6 equilibrium rows
+            out[g] = solve(prog, directions)
+            continue
         form = standard(prog, directions)
         if form is not None:
             stacks[form.matrix.shape].append((g, form))
-    for members in stacks.values():
-        sizes = [len(f.kept) for _, f in members]
-        matrix = np.concatenate([np.broadcast_to(f.matrix, (len(f.kept), *f.matrix.shape)) for _, f in members])
-        rhs = np.concatenate([f.rhs for _, f in members])
-        start = np.concatenate([np.broadcast_to(f.start, (len(f.kept), len(f.start))) for _, f in members])
-        tau = np.repeat([f.tau for _, f in members], sizes)
-        caps = np.repeat([programs[g].cap for g, _ in members], sizes)
+    for members in stacks.values():  # a stack's tableaux built a chunk at a time: memory of CHUNK, not of the unit
+        forms = [f for _, f in members]
+        owner = np.repeat(np.arange(len(forms)), [len(f.kept) for f in forms])
+        rhs = np.concatenate([f.rhs for f in forms])
+        start = np.stack([f.start for f in forms])
+        tau = np.array([f.tau for f in forms])
+        caps = np.array([programs[g].cap for g, _ in members], float)
         value = np.full(len(rhs), np.nan)
         for lo in range(0, len(rhs), CHUNK):
-            part = slice(lo, lo + CHUNK)
+            part, who = slice(lo, lo + CHUNK), owner[lo:lo + CHUNK]
+            matrix = np.stack([forms[i].matrix for i in who])
             try:
-                status, basis = _dual_simplex(matrix[part], rhs[part], start[part].copy(), tau[part])
+                status, basis = _dual_simplex(matrix, rhs[part], start[who], tau[who])
             except np.linalg.LinAlgError:  # a starting basis singular to round-off: HiGHS solves the chunk
                 continue
-            value[part] = _checked(matrix[part], rhs[part], status, basis, tau[part], caps[part])
+            value[part] = _checked(matrix, rhs[part], status, basis, tau[who], caps[who])
         at = 0
-        for (g, f), size in zip(members, sizes):
-            got = value[at:at + size]
-            at += size
+        for g, f in members:
+            got = value[at:at + len(f.kept)]
+            at += len(f.kept)
             redo = np.isnan(got)
             if redo.any():
                 got[redo] = solve(programs[g], directions[f.kept[redo]])
@@ -143,7 +153,7 @@ def _dual_simplex(matrix: np.ndarray, rhs: np.ndarray, basis: np.ndarray, tau: n
         r = np.arange(len(live))
         x = table[:, :, c]
         leave = np.argmin(x, axis=1)
-        done = x[r, leave] >= -LP_TOL * (1.0 + np.abs(x).max(axis=1))
+        done = x[r, leave] >= -LP_TOL
         alpha = table[r, leave, :c]
         enter = alpha < -LP_PIVOT_TOL * np.abs(alpha).max(axis=1, keepdims=True)
         ratio = np.divide(cost, -alpha, out=np.full_like(cost, np.inf), where=enter)
@@ -189,15 +199,22 @@ def _checked(matrix: np.ndarray, rhs: np.ndarray, status: np.ndarray, basis: np.
     reduced = -np.einsum("mij,mi->mj", matrix, y)
     reduced[np.arange(m), tau] += 1.0
     scale = 1.0 + np.abs(x).max(axis=1)
-    optimal = (status == 1) & (x.min(axis=1) >= -LP_TOL * scale) & (reduced.min(axis=1) >= -LP_TOL)
+    # each basic value >= -LP_TOL on its own: one of the largest's round-off would let a small one be negative
+    # enough to be another vertex (a program of slack ~4e3 took x = -1.8e-6 for 0: s 17.21, not 13.77 g)
+    optimal = (status == 1) & (x.min(axis=1) >= -LP_TOL) & (reduced.min(axis=1) >= -LP_TOL)
     t = np.where(on_tau, x, 0.0).sum(axis=1) + 1.0 / cap
     out[optimal] = np.minimum(1.0 / t[optimal], cap[optimal])
     # infeasible: the row of B^-1 whose basic value is most negative, >= 0 on every column of A
     leave = np.argmin(x, axis=1)
     farkas = lu[np.arange(m), leave]  # (m, n)
     row = np.einsum("mi,mij->mj", farkas, matrix)
-    size = np.abs(farkas).max(axis=1) * np.abs(matrix).max(axis=(1, 2))
-    proven = ((status == 2) & (row.min(axis=1) >= -LP_TOL * size)
-              & (x[np.arange(m), leave] < -LP_TOL * scale))
+    # each column's own scale (round-off of the certificate x the column), not the table's largest entry
+    size = np.abs(farkas).max(axis=1)[:, None] * np.abs(matrix).sum(axis=1)
+    # but tau's, of -bounds (up to ~1e8 there): any y A_tau < 0 bounds s instead, tau >= (y b) / (y A_tau) so
+    # s <= (y A_tau) / (y b), which must be below LP_TOL g (a bound of 1.7e8 N let 0 stand for 2e-6 g)
+    r, yb = np.arange(m), x[np.arange(m), leave]
+    clean = (row >= -FARKAS_TOL * size) | (np.arange(c) == tau[:, None])
+    bounded = -row[r, tau] <= LP_TOL * -yb  # s <= LP_TOL, without dividing
+    proven = (status == 2) & clean.all(axis=1) & (yb < -LP_TOL * scale) & bounded
     out[proven] = 0.0
     return out

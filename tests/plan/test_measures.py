@@ -121,3 +121,55 @@ def test_measures_waiting_for_the_batched_resistance_are_the_measures_of_one_gra
         assert got.resist_mean == pytest.approx(alone.resist_mean, rel=1e-7, abs=1e-7)
         assert got.reasons == alone.reasons and got.push == alone.push and got.open_margin == alone.open_margin
     assert records[0].measures.resist_worst > 1.0  # a real pinch, not two zeros compared
+
+
+def test_a_grasp_whose_measures_fail_ends_the_sweep_there_as_when_measured_one_at_a_time() -> None:
+    """A grasp measure() cannot measure (an error while ``measured_later`` fills them in) is not kept, nor are
+    those after it (before the batch the sweep stopped at it, and no grasp is ever stored without measures); the
+    grasps before it keep theirs, and the error is raised."""
+    from dataclasses import dataclass
+    from functools import partial
+
+    from planner.plan.measures import measured_later, resistance_program
+
+    @dataclass(frozen=True)
+    class Record:
+        measures: object = None
+
+    def fails(**_: object) -> None:
+        raise ValueError("not measurable")
+
+    found = [close("panda", "box", "wide", [0, 0, 0.04], DOWN), close("panda", "box", "wide", [0.02, 0, 0.04], DOWN)]
+    records, timing = [Record() for _ in range(3)], {"quality": 0.0}
+    with pytest.raises(ValueError, match="not measurable"), measured_later(records, timing) as later:  # type: ignore[arg-type]
+        for i, (closed, hand, pre, obj) in enumerate([found[0], found[1], found[0]]):
+            at = (closed.contacts, closed.frames, hand, pre, closed.closed_joints, obj)
+            later.append((i, resistance_program(*at), fails if i == 1 else partial(measure, *at, 0.05)))  # type: ignore[arg-type]
+    assert len(records) == 1 and records[0].measures is not None
+
+
+def test_grasps_are_measured_whenever_enough_wait_not_all_at_the_end(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A unit of 1,000,000 candidates would queue every grasp's program (~28 KB a Barrett grasp): once WAITING
+    wait they are solved and filled in, the queue emptied."""
+    from dataclasses import dataclass
+    from functools import partial
+
+    from planner.plan import measures as measures_module
+    from planner.plan.measures import measured_later, resistance_program
+
+    @dataclass(frozen=True)
+    class Record:
+        measures: object = None
+
+    monkeypatch.setattr(measures_module, "WAITING", 2)
+    closed, hand, pre, obj = close("panda", "box", "wide", [0, 0, 0.04], DOWN)
+    at = (closed.contacts, closed.frames, hand, pre, closed.closed_joints, obj)
+    records, timing = [Record() for _ in range(3)], {"quality": 0.0}
+    with measured_later(records, timing) as later:  # type: ignore[arg-type]
+        for i in range(3):
+            later.append((i, resistance_program(*at), partial(measure, *at, 0.05)))  # type: ignore[arg-type]
+            if i == 1:
+                assert records[0].measures is not None and records[1].measures is not None and not later
+        assert records[2].measures is None and len(later) == 1
+    assert all(r.measures is not None for r in records)
+    assert records[2].measures == records[0].measures

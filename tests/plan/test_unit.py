@@ -324,3 +324,21 @@ def test_the_sampled_pairs_are_let_go_once_their_units_are_done(monkeypatch, tmp
     assert summary.candidates > 0 and unit.sampling._SAMPLED == {}
     planned = unit.plan_object(load_object("box"), "panda", settings, 0)
     assert planned.candidates > 0 and unit.sampling._SAMPLED == {}
+
+
+def test_a_record_that_cannot_be_made_fails_its_unit_with_its_own_error(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The grasps wait for their measures (``measured_later``) from the moment they are recorded: a record whose
+    construction fails leaves nothing waiting for it (an index past the list, an IndexError raised in its
+    place), and the grasps recorded before it are stored with their measures."""
+    made: list[int] = []
+
+    def second_fails(**fields: object) -> Grasp:
+        made.append(1)
+        if len(made) == 2:
+            raise ValueError("no such record")
+        return Grasp(**fields)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(unit, "Grasp", second_fails)
+    r = run_unit(UnitSpec("box", "panda", SETTINGS, seed=1))
+    assert r.error == "ValueError: no such record"
+    assert len(r.grasps) == 1 and r.grasps[0].measures is not None

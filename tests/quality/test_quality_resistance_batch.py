@@ -148,3 +148,107 @@ def test_the_first_basis_is_dual_feasible_for_every_direction(rng: np.random.Gen
     for form in filter(None, forms):
         basis = form.matrix[:, form.start]
         assert np.linalg.matrix_rank(basis) == len(form.start) and form.tau not in form.start
+
+
+def test_the_memory_of_a_unit_grows_with_its_grasps_not_with_their_directions() -> None:
+    """A unit of 1,000,000 candidates queues its grasps' programs: the tableaux are built a chunk at a time (the
+    whole stack of (grasp, direction) tableaux at once was 14 of each program's matrices a grasp: ~17 against ~2
+    measured here), so each further grasp costs about its standard form and program, not one a direction."""
+    import tracemalloc
+
+    rng = np.random.default_rng(3)
+    prog = next(p for p in (random_program(rng) for _ in range(50))
+                if (f := resistance_batch.standard(p, SPHERE14)) is not None and len(f.kept) == len(SPHERE14))
+    per = resistance_batch.standard(prog, SPHERE14).matrix.nbytes  # type: ignore[union-attr]
+    peaks = []
+    for n in (200, 800):
+        tracemalloc.start()
+        solve_many([prog] * n, SPHERE14)
+        peaks.append(tracemalloc.get_traced_memory()[1])
+        tracemalloc.stop()
+    assert (peaks[1] - peaks[0]) / 600 < 4 * per
+
+
+def adversarial(rng: np.random.Generator, prog: ResistanceProgram) -> ResistanceProgram:
+    """``prog`` made harder one way: generators duplicated, near-parallel (1e-9) or the wrench scaled by up to
+    1e5 either way; motor bounds, motor rows or the weight scaled by up to 1e6; one motor bound 1e7."""
+    w, rows, bounds, weight = prog.wrench.copy(), prog.rows.copy(), prog.bounds.copy(), prog.weight
+    kind = rng.integers(0, 7)
+    if kind == 0:
+        twice = rng.integers(0, w.shape[1], size=max(1, w.shape[1] // 2))
+        w, rows = np.c_[w, w[:, twice]], np.c_[rows, rows[:, twice]]
+    elif kind == 1:
+        w *= 10.0 ** rng.uniform(-5, 5)
+    elif kind == 2:
+        bounds = bounds * 10.0 ** rng.uniform(-5, 6, size=bounds.shape)
+    elif kind == 3:
+        weight *= 10.0 ** rng.uniform(-4, 4)
+    elif kind == 4:
+        near = rng.integers(0, w.shape[1], size=3)
+        w[:, near] = w[:, near[:1]] + 1e-9 * rng.normal(size=(6, 3))
+        rows[:, near] = rows[:, near[:1]]
+    elif kind == 5 and len(bounds):
+        bounds[rng.integers(len(bounds))] = 1e7
+    elif kind == 6:
+        rows = rows * 10.0 ** rng.uniform(-4, 4, size=(len(rows), 1))
+    return ResistanceProgram(w, rows, bounds, weight, prog.cap)
+
+
+def adversarial_programs(rng: np.random.Generator) -> list[ResistanceProgram]:
+    """Up to 4 random programs (:func:`random_program`, with a palm contact or not), each made harder once or
+    twice (:func:`adversarial`)."""
+    out = []
+    for _ in range(4):
+        prog = random_program(rng, palm=bool(rng.integers(2)))
+        if prog.wrench.shape[1] == 0:
+            continue
+        for _ in range(rng.integers(1, 3)):
+            prog = adversarial(rng, prog)
+        out.append(prog)
+    return out
+
+
+def test_a_basis_a_little_infeasible_beside_a_large_value_is_not_taken_for_the_optimum() -> None:
+    """Adversarial programs the batch got wrong, its checks passed: a basic value of -1.8e-6 within LP_TOL of the
+    largest (a slack ~4e3 of a scaled motor row) was another vertex (17.21 g, the optimum 13.77; seed 143), and
+    a certificate negative by less than LP_TOL of the table's largest entry (a motor bound of 1e7) 'proved'
+    0 where 0.099 g holds (seed 13); others gave 50 g for 0 (seeds 15, 64), and 0 for 50 g (seed 1107: a
+    certificate entry -1.8e-8, a generator 1e-9 from parallel to another), and 0 for 2e-6 g (seed 1110: a motor
+    bound of 1.7e8 N, the certificate's tolerance on tau's column ~1e-4). Now HiGHS solves them."""
+    for seed in (1, 13, 15, 20, 24, 64, 98, 107, 143, 1107, 1110):
+        programs = adversarial_programs(np.random.default_rng(seed))
+        for prog, got in zip(programs, solve_many(programs, SPHERE14)):
+            assert_close(got, tight_reference(prog, SPHERE14), rel=1e-6, abs_=1e-6, what=f"seed {seed}")
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_the_batch_gives_the_optima_of_adversarial_programs_or_leaves_them_to_highs(seed: int) -> None:
+    """Where a tight linprog and HiGHS agree, the batch agrees with them (where they do not, an ill-conditioned
+    program, the batch's answer is HiGHS's)."""
+    programs = adversarial_programs(np.random.default_rng(seed))
+    for prog, got in zip(programs, solve_many(programs, SPHERE14)):
+        tight, highs = tight_reference(prog, SPHERE14), solve(prog, SPHERE14)
+        agreed = np.abs(tight - highs) <= 1e-6 * np.maximum(1.0, np.abs(tight))
+        assert_close(got[agreed], tight[agreed], rel=1e-6, abs_=1e-6, what="batch vs tight linprog")
+
+
+def test_programs_of_many_motor_rows_are_left_to_highs(rng: np.random.Generator,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """The Allegro's 32 motor rows make tableaux whose pivots cost more than HiGHS's runs (2.2 against 0.95 s on
+    a mug unit's programs): HiGHS solves them, the same answers; programs of few rows stay batched."""
+    from dataclasses import replace
+
+    programs = [p for p in (random_program(rng) for _ in range(30)) if p.wrench.shape[1] and len(p.rows) >= 3][:4]
+    many = [replace(p, rows=np.tile(p.rows, (4, 1)), bounds=np.tile(p.bounds, 4)) for p in programs]
+    assert all(6 + len(p.rows) > resistance_batch.MAX_ROWS >= 6 + len(q.rows) for p, q in zip(many, programs))
+    calls: list[int] = []
+
+    def counted(prog: ResistanceProgram, directions: np.ndarray) -> np.ndarray:
+        calls.append(len(prog.rows))
+        return solve(prog, directions)
+
+    monkeypatch.setattr(resistance_batch, "solve", counted)
+    for prog, got in zip(many + programs, solve_many(many + programs, SPHERE14)):
+        assert_close(got, tight_reference(prog, SPHERE14), rel=TIGHT, abs_=TIGHT, what="many rows and few")
+    assert sorted(calls) == sorted(len(p.rows) for p in many)
