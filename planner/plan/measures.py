@@ -212,7 +212,8 @@ def resistances(programs: Sequence[ResistanceProgram], directions: np.ndarray | 
                 ) -> list[quality.Resistance]:
     """The weight resistance of each of ``programs`` along ``directions`` (k, 3) (None: the 14 of
     :data:`planner.geometry.gravity.SPHERE14`), all solved together (:mod:`planner.quality.resistance_batch`:
-    the answers of HiGHS one grasp at a time, to ~1e-10 g, at less than half its cost on a unit's grasps)."""
+    the answers of HiGHS one grasp at a time, to ~1e-10 g; less than half its cost on a Panda or PR2 unit, a
+    little less on a Barrett one)."""
     from planner.geometry.gravity import SPHERE14
     from planner.quality.resistance import summarise
     from planner.quality.resistance_batch import solve_many
