@@ -56,7 +56,7 @@ from planner.calibration.metrics import (
     group_interval,
     roc_auc,
 )
-from planner.calibration.model import DEFAULT_TREES, default_model, load_model
+from planner.calibration.model import DEFAULT_FEATURES, DEFAULT_TREES, default_model, load_model
 from planner.datasets import importer
 from planner.datasets.acronym import read_labels
 from planner.db.ranking import RankingRule, rank_order
@@ -220,16 +220,18 @@ def trial_source() -> str:
 
 def scores(result: FileResult, model, rule: RankingRule, p_hold: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """(m,) per sampled pose: the rule's formula, -width, p_hold (``p_hold`` given:
-    (closed,) out-of-fold predictions), force closure; rejected poses -inf (fc 0)."""
+    (closed,) out-of-fold predictions), force closure as planned (``fc``) and planned or squeezed
+    (``fc_squeezed``, :mod:`planner.plan.squeeze`); rejected poses -inf (fc 0)."""
     m = len(result.rows)
     out = {name: np.full(m, -np.inf) for name in ("formula", "width", "p_hold")}
-    out["fc"] = np.zeros(m)
+    out["fc"], out["fc_squeezed"] = np.zeros(m), np.zeros(m)
     closed = np.flatnonzero(result.closed)
     if len(closed):
         table = features.of_grasps(result.grasps)
         out["formula"][closed] = rule.scores(_rule_measures(table))
         out["width"][closed] = -np.nan_to_num(table["width"], nan=np.inf)
         out["fc"][closed] = table["force_closure"]
+        out["fc_squeezed"][closed] = np.fmax(table["force_closure"], table["squeezed_force_closure"])
         if p_hold is not None:
             out["p_hold"][closed] = p_hold
         else:
@@ -259,10 +261,12 @@ def evaluate(results: list[FileResult], model, rule: RankingRule, oof: dict[str,
                "poses": len(r.rows), "closed": int(closed.sum()), "success_rate": float(r.labels.mean()),
                "auc_formula": roc_auc(r.labels, s["formula"]), "auc_width": roc_auc(r.labels, s["width"]),
                "top10_formula": top_hold(s["formula"], s["fc"], r.labels),
+               "top10_formula_squeezed": top_hold(s["formula"], s["fc_squeezed"], r.labels),
                "rejected": r.rejected}
         if model is not None:
             row["auc_p_hold"] = roc_auc(r.labels, s["p_hold"])
             row["top10_p_hold"] = top_hold(s["p_hold"], s["fc"], r.labels)
+            row["top10_p_hold_squeezed"] = top_hold(s["p_hold"], s["fc_squeezed"], r.labels)  # squeezed FC first
             top_trial = getattr(r, "top_trial", {})  # a result pickled before --trial-top has none
             if top_trial:  # as the database ranks once the trial tried them (success_weight 1)
                 factor = np.ones(len(r.rows))
@@ -311,6 +315,7 @@ def evaluate(results: list[FileResult], model, rule: RankingRule, oof: dict[str,
         pooled["trial_drops_flex_holds"] = sum(f["trial_drops_flex_holds"] for f in trial_rows)
         pooled["trial_holds_flex_drops"] = sum(f["trial_holds_flex_drops"] for f in trial_rows)
         pooled["trial_reasons"] = dict(sum((Counter(f["trial_reasons"]) for f in trial_rows), Counter()))
+    pooled["squeeze"] = squeeze_figures(results)
     pooled["rejected"] = dict(sum((Counter(f["rejected"]) for f in per_file), Counter()))
     pooled["poses"] = sum(f["poses"] for f in per_file)
     objects = _by(per_file, "object")
@@ -321,13 +326,32 @@ def evaluate(results: list[FileResult], model, rule: RankingRule, oof: dict[str,
             "mean": _mean(objects), "intervals": intervals(objects, closed), **pooled}
 
 
+def squeeze_figures(results: list[FileResult]) -> dict[str, dict[str, float]]:
+    """Per category and ``all``, over the closed poses: the share force closure as planned and as squeezed
+    (:mod:`planner.plan.squeeze`), and FleX's hold rate of the squeezed force-closure poses and of the others."""
+    rows: dict[str, list[tuple[float, float, int]]] = defaultdict(list)
+    for r in results:
+        for g, label in zip(r.grasps, r.labels[r.closed]):
+            squeezed = g.measures.squeezed_force_closure if g.measures is not None else None
+            item = (float(g.force_closure), np.nan if squeezed is None else float(squeezed), int(label))
+            rows[object_key(r.path)[0]].append(item)
+            rows["all"].append(item)
+    out = {}
+    for name, items in sorted(rows.items()):
+        planned, squeezed, held = (np.array(c, float) for c in zip(*items))
+        out[name] = {"closed": len(items), "fc_planned": float(planned.mean()), "fc_squeezed": float(np.nanmean(
+            squeezed)), "hold_squeezed_fc": float(held[squeezed == 1].mean()) if (squeezed == 1).any() else np.nan,
+            "hold_not_squeezed_fc": float(held[squeezed == 0].mean()) if (squeezed == 0).any() else np.nan}
+    return out
+
+
 def intervals(objects: list[dict], closed: list[tuple[str, np.ndarray, np.ndarray]]) -> dict[str, tuple[float, float]]:
     """95% intervals over objects (planner.calibration.metrics.group_interval, a bootstrap drawing objects) of
     the MEAN row's figures (means over objects) and of the pooled ECE and label agreement of p_hold;
     ``closed``: (object, labels, p_hold) of each file's closed poses."""
     rng = np.random.default_rng(INTERVAL_SEED)
     out = {}
-    for m in ("auc_p_hold", "auc_width", "auc_formula", "top10_p_hold", "top10_formula"):
+    for m in ("auc_p_hold", "auc_width", "auc_formula", "top10_p_hold", "top10_formula", "top10_p_hold_squeezed"):
         values = np.array([o.get(m, np.nan) for o in objects], float)
         if np.isfinite(values).any():
             out[m] = group_interval(lambda picked, v=values: float(np.nanmean(v[picked])), len(values), rng)
@@ -344,7 +368,8 @@ def intervals(objects: list[dict], closed: list[tuple[str, np.ndarray, np.ndarra
     return out
 
 
-METRICS = ("auc_formula", "auc_width", "auc_p_hold", "top10_formula", "top10_p_hold", "top10_validated",
+METRICS = ("auc_formula", "auc_width", "auc_p_hold", "top10_formula", "top10_p_hold", "top10_formula_squeezed",
+           "top10_p_hold_squeezed", "top10_validated",
            "top10_validated_multiplied", "trial_agree",
            "success_rate")
 
@@ -460,6 +485,8 @@ def main() -> int:
     parser.add_argument("--no-cv", action="store_true", help="p_hold of --model (or the shipped one), no CV")
     parser.add_argument("--no-trees", action="store_true", help="fit the additive model alone (no interaction trees)")
     parser.add_argument("--write-model", type=Path, help="write the model fitted on every selected file (TOML)")
+    parser.add_argument("--extra-features", nargs="*", default=[],
+                        help="fit p_hold on the default features and these (planner.calibration.features.FEATURES)")
     args = parser.parse_args()
     files = dev_files(args.dev, args.held_out, args.objects)
     if args.held_out and (args.write_model or not args.no_cv):
@@ -485,9 +512,11 @@ def main() -> int:
                   f"'tuning' objects of bench/acronym_split.toml ({len(files)} files of "
                   f"../shared/labelled/acronym_dev, ACRONYM FleX object_in_gripper labels, Panda), "
                   f"{len(data.labels)} closed poses; {'no trees' if args.no_trees else DEFAULT_TREES}; "
+                  f"{' + '.join(args.extra_features) + '; ' if args.extra_features else ''}"
                   f"penalty chosen by nested grouped CV; figures: held out by {args.cv}-fold CV grouped by object; "
                   f"code {code}")
-        cal = calibrate(data, folds=args.cv, source=source, trees=None if args.no_trees else DEFAULT_TREES)
+        cal = calibrate(data, folds=args.cv, source=source, trees=None if args.no_trees else DEFAULT_TREES,
+                        features=(*DEFAULT_FEATURES, *args.extra_features))
         start_row = 0
         oof = {}
         for r in results:  # data's rows are the closed poses of results, in order
@@ -509,7 +538,7 @@ def main() -> int:
     report["settings"] = {"poses": args.poses, "seed": args.seed, "side": "held_out" if args.held_out else "tuning",
                           "files": len(files), "code": code, "trial": args.trial, "trial_set": args.trial_set,
                           "engine": args.engine, "trial_pose": trial_pose,
-                          "trial_top": args.trial_top}
+                          "trial_top": args.trial_top, "extra_features": args.extra_features}
     if args.json:
         print(json.dumps(report, indent=1, default=float))
     else:

@@ -27,11 +27,13 @@ if TYPE_CHECKING:
 #: The raw measures read per grasp (units: epsilon, volume dimensionless; resist_* [g]; margins, width [m];
 #: counts; force_closure 0/1; settled_epsilon dimensionless; depth [m], see :func:`contact_depth`; the grip
 #: measures of :mod:`planner.plan.grip`: pad_area, jaw_fill [m^2], pad_alignment, opposition (cosines),
-#: palm_gap, com_lever, com_height, gravity_arm [m]; torque_per_mu [N m], :mod:`planner.plan.measures`);
+#: palm_gap, com_lever, com_height, gravity_arm [m]; torque_per_mu [N m], :mod:`planner.plan.measures`; the
+#: squeeze's, :mod:`planner.plan.squeeze`: squeezed_force_closure 0/1, squeezed_epsilon, squeeze_turn [rad]);
 #: the cells of ``local_sdf`` are :data:`LOCAL`.
 MEASURES = ("epsilon", "volume", "force_closure", "resist_worst", "resist_mean", "open_margin", "close_margin",
             "push", "width", "n_contacts", "links_touching", "settled_epsilon", "depth", "pad_area", "pad_alignment",
-            "opposition", "jaw_fill", "palm_gap", "com_lever", "com_height", "gravity_arm", "torque_per_mu")
+            "opposition", "jaw_fill", "palm_gap", "com_lever", "com_height", "gravity_arm", "torque_per_mu",
+            "squeezed_force_closure", "squeezed_epsilon", "squeeze_turn")
 
 #: The cells of the measure ``local_sdf`` [m] (:mod:`planner.plan.local_sdf`), one table entry each (the
 #: trees read them, :attr:`planner.calibration.logistic.LogisticModel.tree_features`); NaN: not measured.
@@ -74,6 +76,9 @@ FEATURES: dict[str, tuple[str, str]] = {
     "com_height": ("com_height", "identity"),
     "gravity_arm": ("gravity_arm", "identity"),
     "torque_per_mu": ("torque_per_mu", "identity"),
+    "squeezed_force_closure": ("squeezed_force_closure", "identity"),
+    "squeezed_epsilon": ("squeezed_epsilon", "identity"),
+    "squeeze_turn": ("squeeze_turn", "identity"),
     **{name: (name, "identity") for name in LOCAL},
 }
 
@@ -91,6 +96,7 @@ FILL = {"epsilon": 0.0, "force_closure": 0.0, "log_resist_worst": 0.0, "log_resi
         "links_touching": 0.0, "settled_epsilon": 0.0, "depth": 0.0, "log_pad_area": 0.0, "pad_alignment": 0.0,
         "opposition": 0.0, "log_jaw_fill": 0.0, "palm_gap": 0.05, "com_lever": 0.0,
         "com_height": 0.0, "gravity_arm": 0.0, "torque_per_mu": 0.0,
+        "squeezed_force_closure": 0.0, "squeezed_epsilon": 0.0, "squeeze_turn": 0.0,  # a hand that does not squeeze
         **dict.fromkeys(LOCAL, LOCAL_CLIP)}  # a cell not measured: nothing of the object near
 
 

@@ -74,6 +74,7 @@ from planner.plan import grip
 from planner.plan.closing import Closed, Grasper
 from planner.plan.local_sdf import LocalSurface
 from planner.plan.measures import measure
+from planner.plan.squeeze import squeezed
 from planner.plan.unit import scored
 from planner.plan.width import closed_width
 from planner.record.grasp import Grasp
@@ -369,10 +370,11 @@ def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: C
             if q is None:
                 continue
             width = closed_width(hand, closed.closed_joints)
+            squeeze = squeezed(grasper, closed, shape, q, lambda c: scored(c, hand, obj, CONE_EDGES, Counter(), False))
             m = measure(closed.contacts, closed.frames, hand, shape, closed.closed_joints, obj, width,  # type: ignore[arg-type]
                         grip=grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}, obj.com,
                                           obj.up),
-                        local_sdf=local.of(closed.pose))
+                        local_sdf=local.of(closed.pose), squeeze=squeeze)
             point, direction, roll = approach_of(closed.pose, hand.approach, shape.tcp)
             out.append(Grasp(
                 object=obj.name, hand=hand.name, preshape=shape.name, candidate=i, seed=0,

@@ -59,6 +59,10 @@ Tables (the README lists every column):
   stored before, what a user's URDF file was made of where it had any); its
   ``com`` and ``inertia`` are since the ones given (a sidecar's, a URDF's
   ``<inertial>``: :mod:`planner.specs.objects`), else the mesh's as before.
+- ``grasps`` (v14) gains ``squeezed_force_closure``, ``squeezed_epsilon`` and
+  ``squeeze_turn`` (:mod:`planner.plan.squeeze`: what a self-centring
+  parallel jaw's squeeze ends in, beside the grasp as planned); NULL for
+  grasps stored before and for hands that do not squeeze.
 
 No pickle: arrays are JSON text. A new database runs :data:`SCHEMA` (version
 1) and then every migration; a newer schema is refused politely; an older one
@@ -80,7 +84,7 @@ from planner.errors import DatabaseError
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 13
+SCHEMA_VERSION = 14
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -196,6 +200,12 @@ ALTER TABLE objects ADD COLUMN up TEXT NOT NULL DEFAULT '+z'
     # file could not be planned on its visual ones while it had collision ones).
     12: """
 ALTER TABLE objects ADD COLUMN geometry TEXT NOT NULL DEFAULT 'collision'
+""",
+    # v14: what a parallel jaw's squeeze ends in, beside the planned grasp (issue 26; NULL: not squeezed).
+    13: """
+ALTER TABLE grasps ADD COLUMN squeezed_force_closure INTEGER;
+ALTER TABLE grasps ADD COLUMN squeezed_epsilon REAL;
+ALTER TABLE grasps ADD COLUMN squeeze_turn REAL
 """,
 }
 

@@ -60,6 +60,7 @@ if TYPE_CHECKING:  # the quality stage imports scipy.optimize, the object trimes
     from planner import quality
     from planner.geometry.solid import PreparedObject
     from planner.plan.grip import Grip
+    from planner.plan.squeeze import Squeeze
     from planner.quality.resistance import HandDrive, ResistanceProgram
     from planner.record.grasp import Grasp
 
@@ -100,13 +101,15 @@ def _axes(frames: JointFrames) -> dict[str, tuple[np.ndarray, np.ndarray]]:
 def measure(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: Preshape,
             closed: Mapping[str, float], obj: PreparedObject, width: float | None = None,
             directions: np.ndarray | None = None, grip: Grip | None = None,
-            local_sdf: np.ndarray | None = None, resist: quality.Resistance | None = None) -> Measures:
+            local_sdf: np.ndarray | None = None, resist: quality.Resistance | None = None,
+            squeeze: Squeeze | None = None) -> Measures:
     """Weight resistance and feasibility of a closed grasp (object frame);
     ``directions`` (k, 3) of the weight (None: the 14 of :data:`planner.geometry.gravity.SPHERE14`);
     ``grip``: its grip measures (:mod:`planner.plan.grip`), stored with the rest (None: not measured);
     ``local_sdf``: the object around it (:mod:`planner.plan.local_sdf`; None: not measured);
     ``resist``: its weight resistance when already solved, with other grasps' (:func:`resistances` of its
-    :func:`resistance_program`; None: solved here, by HiGHS)."""
+    :func:`resistance_program`; None: solved here, by HiGHS); ``squeeze``: what its squeeze ends in
+    (:mod:`planner.plan.squeeze`; None: the hand does not squeeze)."""
     from planner.geometry.gravity import SPHERE14
     from planner.quality.resistance import solve, summarise
 
@@ -128,8 +131,10 @@ def measure(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: 
     grips = {} if grip is None else {k: float(v) for k, v in asdict(grip).items()}
     if grip is not None:
         grips["torque_per_mu"] = torque_per_mu(obj.mass, obj.friction, grip.gravity_arm)
+    squeezes = {} if squeeze is None else {"squeezed_force_closure": squeeze.force_closure,
+                                           "squeezed_epsilon": squeeze.epsilon, "squeeze_turn": squeeze.turn}
     return Measures(resist.worst, resist.mean, open_margin, close_margin, push, tuple(reasons), **grips,
-                    local_sdf=local_sdf)
+                    local_sdf=local_sdf, **squeezes)
 
 
 #: Grasps waiting in :func:`measured_later` are solved together once this many wait (and at the end): 14 x

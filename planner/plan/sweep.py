@@ -34,31 +34,15 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 
 #: Bumped whenever a change alters which grasps a sweep produces, so stale
 #: units are recomputed rather than mixed with new ones.
-#: 2: soft contacts resist mu x torsion_radius; antipodal sampler, cheap rejection, faster closing; contact patches,
-#: breakaway (issues 15, 16). 3: the open-limit flag at 2 mm, eps_weight 1, min_open_margin 2 mm (issue 15).
-#: 4: the settled epsilon and its term in the ranking rule (issue 15). 5: a dynamic world's inputs rounded to 1e-10,
-#: equal moments' frame from the object axes: settles and trials independent of numpy's BLAS kernel (issue 16).
-#: 6: every force-closure grasp ranks above every other (issue 26); the same grasps and scores, other ranks.
-#: 7: antipodal pairs refused along the normal try rays inside the friction cone; closing's far-field hulls at most
-#: 127 (PyBullet kept 127 of a body's hulls: meshes of more than ~1,000 triangles lost the rest) (issue 26).
-#: 8: only force-closure grasps settle (the others' settled epsilon None), and meshes of more than 5,000 faces are
-#: closed against a collision proxy within 0.25 mm (planner.geometry.proxy) (issue 24).
-#: 9: eps_weight 0.1 and settled_weight 3 (were 3 and 100: issue 26, chosen on random objects against the MuJoCo
-#: trial and FleX's labels); the same grasps, other scores and ranks. 10: the grip measures com_height and
-#: gravity_arm, read by a p_hold model with 600 trees (issue 26): other p_hold, scores and ranks of the Panda's.
-#: 11: contact patches read with exact closest points (libigl's AABB tree, planner.geometry.distance), not the
-#: faces of the nearest dense samples (trimesh's closest point misses on slivers) (issue 24: other contacts on some).
-#: 12: a grasp settles as stored (pose to 0.1 um, contacts to 1 um): other settled epsilons of the Barrett's.
-#: 13: a hand's own settle dynamics (hand.toml [settle_dynamics]) (issue 24). 14: the measure torque_per_mu; 15: the
-#: measure local_sdf; 16: local_sdf sided by the winding number where pseudonormals can fail (open meshes, bodies
-#: that overlap) (issue 26). 17: the prismatic finger axes read once at the origin (a unit's grasps independent of
-#: its chunking); overlapping bodies' union mass properties (issue 24). 18: a contact on an edge or corner gets the
-#: normal of the object's cone there nearest the link's; the table a convex hull, the hands' boxes and spheres
-#: meshes (every gap read with 2 mm of margins). 19: the settle's object has every convex part (PyBullet kept 16).
-#: 20: the PR2's motors and fingers as they are, and its width. 21: the Allegro closes at 7 rad/s in settle and trials.
-#: 22: over 5,000 faces: a proxy within 0.5 mm, contacts and antipodal sampler on normals averaged over 2 mm; a
-#: pre-grasp on another IK branch than its grasp: unreachable. 23: the ray samplers and grip measures too.
-ALGORITHM_VERSION = 23
+#: 2-5 (issues 15, 16): soft contacts, antipodal sampler, patches, breakaway; open-limit flag; settled epsilon;
+#: BLAS-independent settles. 6-10 (issue 26): force closure ranks first; cone rays, 127 hulls; only FC settles,
+#: proxies over 5,000 faces; eps/settled weights; grip measures for p_hold. 11-13: exact-closest-point patches;
+#: settle as stored; a hand's settle dynamics. 14-16: torque_per_mu, local_sdf (sided by winding number). 17: finger
+#: axes read at the origin; union mass. 18: edge normals from the object's cone; mesh tables and hand primitives.
+#: 19: the settle's every convex part. 20-21: the PR2's and Allegro's dynamics. 22: 0.5 mm proxies, normals averaged
+#: over 2 mm; pre-grasp IK branch. 23: the ray samplers and grip measures too. 24: the measures of a parallel jaw's
+#: squeeze beside the planned grasp (planner.plan.squeeze, issue 26): the same grasps, three more measures.
+ALGORITHM_VERSION = 24
 
 #: Named in the digest of sweeps on a table only (those of the object alone stay
 #: as they were), bumped when a change alters only which grasps they produce.

@@ -1,5 +1,6 @@
-"""One unit of work end to end: object -> rays -> closing -> contacts -> quality -> settled epsilon (hands with
-``settle``) -> reachability, returning :class:`~planner.record.grasp.Grasp` records for the single database writer.
+"""One unit of work end to end: object -> rays -> closing -> contacts -> quality (a parallel jaw's squeeze beside it,
+:mod:`planner.plan.squeeze`) -> settled epsilon (hands with ``settle``) -> reachability, returning
+:class:`~planner.record.grasp.Grasp` records for the single database writer.
 
 On a table (``SweepSettings.table_plane``, ``grasp generate --on-table``): the table is closing's obstacle, raised by
 :data:`~planner.plan.tolerances.TABLE_CLEARANCE`; approach rays shallower than
@@ -7,8 +8,7 @@ On a table (``SweepSettings.table_plane``, ``grasp generate --on-table``): the t
 table top's level are not tried (:data:`FROM_BELOW`), grasps whose open hand at the pre-grasp would touch the table are
 rejected (:data:`PREGRASP_TABLE`), and the reachability placements put the object in that resting pose.
 
-This runs inside worker processes: it reads descriptions and simulates, but
-never touches the database.
+This runs inside worker processes: it reads descriptions and simulates, but never touches the database.
 """
 
 from __future__ import annotations
@@ -34,6 +34,7 @@ from planner.plan.local_sdf import LocalSurface
 from planner.plan.measures import MIN_RESISTANCE, measure, measured_later, resistance_program
 from planner.plan.reach import ReachSettings, reach_scene
 from planner.plan.settle import with_settled
+from planner.plan.squeeze import squeezed
 from planner.plan.sweep import (
     IK_STREAM,
     PLACEMENT_STREAM,
@@ -58,11 +59,11 @@ log = logging.getLogger(__name__)
 
 #: Rejection reason of a grasp whose quality :mod:`planner.quality` cannot compute.
 QUALITY_FAILED = "quality_failed"
-#: Counted among a unit's ``rejected``: candidates left untried once the unit
-#: had its share of the force-closure budget (SweepSettings.budget_share).
+#: Counted among a unit's ``rejected``: candidates left untried once the unit had its share of the force-closure
+#: budget (SweepSettings.budget_share).
 BUDGET = "budget"
-#: Rejection reasons on a table: the approach comes from under the table top's
-#: level; the open hand backed off to the pre-grasp would touch the table.
+#: Rejection reasons on a table: the approach comes from under the table top's level; the open hand backed off to
+#: the pre-grasp would touch the table.
 FROM_BELOW = "from_below"
 PREGRASP_TABLE = "pregrasp_table"
 
@@ -126,10 +127,9 @@ def _silent(done: int, total: int) -> None:
 
 
 def run_unit(spec: UnitSpec, report: Report | None = None) -> UnitResult:
-    """Run a unit; a failure is recorded in the result, never raised.
-    ``report`` hears of the candidates as they finish: (0, total) when the
-    first begins, (total, total) when the last ends or the budget is spent
-    (settle and reachability come after); it never changes the result."""
+    """Run a unit; a failure is recorded in the result, never raised. ``report`` hears of the candidates as they
+    finish: (0, total) when the first begins, (total, total) when the last ends or the budget is spent (settle and
+    reachability come after); it never changes the result."""
     result = UnitResult(spec)
     try:
         with one_blas_thread(), prepare.kept(result.notes):
@@ -191,8 +191,10 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report, obj: PreparedObject
             width = closed_width(hand, closed.closed_joints)
             at = (closed.contacts, closed.frames, hand, cand.preshape, closed.closed_joints, obj)
             gripped = grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}, obj.com, up)
+            squeeze = squeezed(grasper, closed, cand.preshape, q, lambda c: scored(
+                c, hand, obj, settings.cone_edges, Counter(), False))
             waiting = (resistance_program(*at), partial(measure, *at, width, grip=gripped,  # type: ignore[arg-type]
-                                                        local_sdf=local.of(closed.pose)))
+                                                        local_sdf=local.of(closed.pose), squeeze=squeeze))
             result.timing["quality"] += time.perf_counter() - tb
             point, direction, roll, standoff = ray
             result.grasps.append(Grasp(
@@ -229,9 +231,8 @@ def _check_time(spec: UnitSpec, t0: float) -> float:
 
 
 def _tried(todo: list[Candidate], budget: Budget, result: UnitResult, report: Report) -> Iterator[Candidate]:
-    """The candidates in order, counted in ``result.candidates``, until the
-    budget is spent when a new ray or point would begin; the rest are
-    counted as :data:`BUDGET` in ``result.rejected``. ``report`` gets the
+    """The candidates in order, counted in ``result.candidates``, until the budget is spent when a new ray or
+    point would begin; the rest are counted as :data:`BUDGET` in ``result.rejected``. ``report`` gets the
     candidates finished before each one, then all of them."""
     previous = None
     for i, cand in enumerate(todo):
@@ -285,9 +286,8 @@ def _rays(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, hand: Ha
 def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, hand: HandSpec,
                shapes: tuple[Preshape, ...], rng: np.random.Generator, grasper: Grasper, result: UnitResult,
                t0: float, budget: Budget, report: Report) -> Swept:
-    """Parallel jaws: the hand put straight on each antipodal pair, refused
-    before simulation when the pair is unusable or the open hand overlaps
-    the object, else closed where it is."""
+    """Parallel jaws: the hand put straight on each antipodal pair, refused before simulation when the pair is
+    unusable or the open hand overlaps the object, else closed where it is."""
     t1 = time.perf_counter()
     openings = {s.name: hand.opening(s.joints) for s in shapes}
     pairs = sampling.antipodal_once((obj.name, obj.mesh_hash, hand.name), obj.mesh, settings.approaches or 0, rng,

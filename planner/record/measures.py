@@ -43,6 +43,11 @@ class Measures:
     local_sdf (LOCAL_CELLS,) [m]: the object's clipped signed distance at
     the hand's grid (:mod:`planner.plan.local_sdf`; None: the hand declares
     no grid, or a grasp stored before schema version 11).
+
+    The squeeze (:mod:`planner.plan.squeeze`; None: the hand does not squeeze, or a grasp stored before schema
+    version 14), beside the grasp as planned: squeezed_force_closure, squeezed_epsilon: the force closure and
+    epsilon of the contacts a self-centring parallel jaw ends in when its squeeze turns the free object flush
+    (the planned ones where those are force closure); squeeze_turn [rad]: how far the hand turned.
     """
 
     resist_worst: float = stored("real", "g", 3,
@@ -91,6 +96,17 @@ class Measures:
                                           "(< 0 inside; clipped to +-2 cm, 0.1 mm) at the hand's [local_sdf] grid "
                                           f"of {LOCAL_CELLS} points, hand frame, x slowest", required=False,
                                           default=None, shape=(LOCAL_CELLS,))
+    squeezed_force_closure: bool | None = stored("bool", "", 14, "1 if the contacts a self-centring parallel jaw's "
+                                                 "squeeze ends in (planner.plan.squeeze: the hand turned about "
+                                                 "the contacts until the jaw lies along the wall's normal, closed "
+                                                 "again, at most 3 times) are force closure, else 0; the planned "
+                                                 "force closure where that is 1; NULL: the hand does not squeeze",
+                                                 required=False, default=None)
+    squeezed_epsilon: float | None = stored("real", "", 14, "Ferrari-Canny epsilon of those squeezed contacts (the "
+                                            "planned epsilon where the planned contacts are force closure or the "
+                                            "squeeze could not turn)", required=False, default=None)
+    squeeze_turn: float | None = stored("real", "rad", 14, "angle the squeeze turned the hand by, planned pose to "
+                                        "squeezed pose (0: not turned)", required=False, default=None)
 
     @property
     def feasible(self) -> bool:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import shutil
 import sqlite3
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -257,7 +258,31 @@ def test_objects_stored_before_version_13_are_of_their_collision_elements(tmp_pa
     with open_db(old, create=False, readonly=True) as db:
         assert db.meta("schema_version") == "12" and db.object_row("o").geometry == "collision"  # type: ignore[union-attr]
     with open_db(old) as db:
-        assert db.meta("schema_version") == str(SCHEMA_VERSION) == "13"
+        assert db.meta("schema_version") == str(SCHEMA_VERSION)
         assert db.object_row("o").geometry == "collision"  # type: ignore[union-attr]
     with sqlite3.connect(old) as conn:
         assert conn.execute("SELECT up, geometry FROM objects").fetchall() == [("+z", "collision")]
+
+
+def test_grasps_stored_before_version_14_read_back_without_the_squeeze(box_db: Path, tmp_path: Path) -> None:
+    """A version-13 file (the Panda's grasps, without the squeeze's columns): read-only and migrated, every
+    grasp as stored, its squeeze's measures None (not measured)."""
+    squeeze = ("squeezed_force_closure", "squeezed_epsilon", "squeeze_turn")
+    def stored(db) -> list[dict]:  # type: ignore[no-untyped-def]
+        return [g.to_json() for batch in db.grasp_batches("box", "panda") for g in batch]
+
+    with open_db(box_db, create=False, readonly=True) as db:
+        new = [g for batch in db.grasp_batches("box", "panda") for g in batch]
+    assert any(g.measures.squeezed_force_closure is not None for g in new)  # type: ignore[union-attr]
+    old = tmp_path / "v13.db"
+    shutil.copy(box_db, old)
+    with sqlite3.connect(old) as conn:
+        for column in squeeze:
+            conn.execute(f"ALTER TABLE grasps DROP COLUMN {column}")
+        conn.execute("UPDATE meta SET value = '13' WHERE key = 'schema_version'")
+    expected = [replace(g, measures=replace(g.measures, **dict.fromkeys(squeeze))).to_json()  # type: ignore[arg-type]
+                for g in new]
+    with open_db(old, create=False, readonly=True) as db:
+        assert db.meta("schema_version") == "13" and stored(db) == expected
+    with open_db(old) as db:
+        assert db.meta("schema_version") == str(SCHEMA_VERSION) and stored(db) == expected

@@ -1,0 +1,138 @@
+"""The squeeze of a self-centring parallel jaw on a free object (issue 26): where the wall would turn flush.
+
+Closing (:mod:`planner.plan.closing`) holds the object still, so two rigid flat pads closing on a wall that is
+tilted to them (a bowl's or a mug's wall, a knife's blade, a hat's brim, pinched at a slant) each touch it at one
+of their EDGES, the two edges on opposite sides of the wall: the points do not face each other, the squeeze
+makes a couple that friction resists only over the wall's thickness, and the planned contacts are not force
+closure (a 9.7 mm pinch of a bowl's wall: epsilon 0 with 8 well-opposed contacts). The real gripper holds no
+object still: a squeeze the contacts cannot resist turns the free object between the pads until the wall lies
+flat against both (Goldberg's squeeze grasp, "Orienting polygonal parts without sensors", 1993: a parallel jaw
+turns a part to a local minimum of its width). ACRONYM's FleX records how far: its held Panda grasps turn the
+object by a median 0.2-0.4 rad while closing, on every category of the dev set.
+
+So where the planned contacts are not force closure, the hand (the object's frame stays the world frame) turns
+about the contacts' centre by the rotation that brings the jaw's closing axis onto the wall's normal (the
+difference of the two fingers' mean contact normals), the jaw a little more open than it closed
+(:data:`REOPEN`), and closes again; at most :data:`TURNS` times, until the contacts are force closure. Where
+that jaw would overlap the object at the whole turn, the object turns part of the way (:data:`SHARES`); a turn
+it cannot make at all or a closing that fails there ends the squeeze where it is.
+
+The grasp stays as planned: the squeeze's outcome is stored beside it as measures (:class:`Squeeze`: its force
+closure, epsilon and turn; replacing the planned pose by the squeezed one lost what the slanted pose says about
+holding, bench/RESULTS.md 2026-12-07). Only a self-centring parallel jaw squeezes (:func:`squeezes`: the Panda):
+its two fingers close together about the hand's centre, so the object, pressed from both sides, may turn freely
+between them. The PR2's jaw is declared not self-centring (its pads are not mirror images; a finger stops where
+it touches), the Barrett and the Allegro are no parallel jaws (the Barrett settles dynamically:
+:mod:`planner.plan.settle`): they get None.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from planner.plan.closing import Grasper
+from planner.plan.closing_types import Closed
+from planner.quality import Quality
+from planner.record.contacts import HandContacts
+from planner.specs.hand_spec import HandSpec
+from planner.specs.preshapes import Preshape
+
+__all__ = ["REOPEN", "TURNS", "Squeeze", "squeezed", "squeezes", "turn"]
+
+#: Turns of the squeeze at most: one brings the wall flush where the pads touched a flat wall; a curved one
+#: may take a second or third (the pads then touch it elsewhere).
+TURNS = 3
+#: [m] the jaw's fingers back off this far each (an opening of twice as much beyond the closed one) before they
+#: close again at the turned pose: the object turns in a jaw that presses on it, not in the open hand.
+REOPEN = 0.001
+#: Shares of the whole turn tried in turn: where the jaw cannot turn all the way (a finger would enter the object
+#: elsewhere: a mug's wall curves across the pads), the object turns part of the way.
+SHARES = (1.0, 0.5, 0.25)
+#: [rad] a smaller turn is no turn (the wall already lies along the closing axis).
+MIN_TURN = 1e-4
+
+#: contacts -> their quality (epsilon and force closure; None: not computable).
+Score = Callable[[HandContacts], "Quality | None"]
+
+
+@dataclass(frozen=True)
+class Squeeze:
+    """What the squeeze of a planned grasp ends in.
+
+    force_closure: whether its contacts are force closure (the planned ones' where they already were);
+    epsilon: their Ferrari-Canny epsilon (L1, dimensionless; the planned one where they already were force
+    closure, or where the squeeze could not turn); turn [rad] >= 0: the angle of the hand's rotation from the
+    planned pose to the squeezed one (0: not turned).
+    """
+
+    force_closure: bool
+    epsilon: float
+    turn: float
+
+
+def squeezes(hand: HandSpec) -> bool:
+    """Whether ``hand`` squeezes (the module docstring): a self-centring parallel jaw."""
+    return bool(hand.centering) and hand.jaw is not None
+
+
+def turn(contacts: HandContacts, sides: tuple[frozenset[str], frozenset[str]], pose: np.ndarray,
+         axis: np.ndarray, share: float = 1.0) -> np.ndarray | None:
+    """(4, 4) the hand ``pose`` (object frame) turned about its contacts' centre so that the closing ``axis``
+    (3,) (hand frame, unit) lies along the wall's normal: the difference of the mean contact normals of the
+    two fingers' links ``sides`` (``share`` < 1: that share of the way); None when a finger has no contact or the
+    axis already lies along it."""
+    on = [np.array([link in side for link in contacts.links]) for side in sides]
+    if not all(s.any() for s in on):
+        return None
+    wall = contacts.normals[on[1]].mean(axis=0) - contacts.normals[on[0]].mean(axis=0)
+    along = pose[:3, :3] @ axis
+    if np.linalg.norm(wall) == 0.0:
+        return None
+    wall = wall / np.linalg.norm(wall) * np.sign(wall @ along or 1.0)
+    cross = np.cross(along, wall)
+    angle = float(np.arctan2(np.linalg.norm(cross), along @ wall))
+    if angle < MIN_TURN:
+        return None
+    rotation = Rotation.from_rotvec(cross / np.linalg.norm(cross) * angle * share).as_matrix()
+    centre = contacts.points[on[0] | on[1]].mean(axis=0)
+    out = np.eye(4)
+    out[:3, :3] = rotation @ pose[:3, :3]
+    out[:3, 3] = rotation @ (pose[:3, 3] - centre) + centre
+    return out
+
+
+def squeezed(grasper: Grasper, closed: Closed, preshape: Preshape, planned: Quality, score: Score
+             ) -> Squeeze | None:
+    """The squeeze of the grasp ``closed`` whose contacts' quality is ``planned`` (the module docstring), each
+    turned closing scored by ``score``; None for a hand that does not squeeze (:func:`squeezes`). The grasper's
+    world is left as it was (closing places the hand anew for every grasp), ``closed`` is not changed."""
+    hand = grasper.hand
+    if not squeezes(hand):
+        return None
+    if planned.force_closure:
+        return Squeeze(True, float(planned.epsilon), 0.0)
+    master, slave = hand.jaw  # type: ignore[misc]
+    sides = (frozenset(master.moves) - frozenset(slave.moves), frozenset(slave.moves))
+    axis = grasper.axis_in_root(master.name)
+    axis = axis / np.linalg.norm(axis)
+    quality, start = planned, closed.pose[:3, :3]
+    for _ in range(TURNS):
+        joints = dict(closed.closed_joints)
+        joints[master.name] += -np.sign(master.close) * REOPEN
+        joints = hand.full_configuration({j.name: joints[j.name] for j in hand.driven})
+        turned = (turn(closed.contacts, sides, closed.pose, axis, share) for share in SHARES)
+        pose = next((p for p in turned if p is None or not grasper.overlaps_at(p, joints)), None)
+        if pose is None:
+            break
+        again = grasper.close_from(pose, preshape, joints)
+        if not isinstance(again, Closed) or (better := score(again.contacts)) is None:
+            break
+        closed, quality = again, better
+        if quality.force_closure:
+            break
+    turned_by = Rotation.from_matrix(closed.pose[:3, :3] @ start.T).magnitude()
+    return Squeeze(bool(quality.force_closure), float(quality.epsilon), float(turned_by))

@@ -1,0 +1,117 @@
+"""A parallel jaw's squeeze (planner.plan.squeeze), stored beside the grasp as planned.
+
+A thin slab tilted by TILT about the pads' width direction, pinched by the Panda at its middle: held still, each
+flat pad touches it at one edge, the two edges on opposite sides of the wall (not force closure as planned);
+squeezed, the hand turns by about the tilt and the pads lie flat on both faces (force closure). The grasp keeps
+its planned pose and measures; the squeeze's outcome is three measures beside them."""
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from planner.datasets.importer import RescoreUnit, rescore_poses
+from planner.geometry.solid import load_object
+from planner.plan import unit
+from planner.plan.squeeze import squeezes, turn
+from planner.plan.sweep import SweepSettings
+from planner.record.contacts import HandContacts
+from planner.specs.hands import load_hand
+
+#: [rad] the slab's tilt: more than the friction angle (atan 0.5 = 26.6 deg) lies between the edges' line and the
+#: faces' normal, less than a turn the open jaw could not make.
+TILT = np.radians(20.0)
+#: [m] the slab's thickness, width (across the pads) and height (along the approach).
+THICK, WIDE, TALL = 0.004, 0.06, 0.1
+#: [rad] how closely the squeeze's turn matches the tilt: held still, one finger touches the slab's top edge too
+#: (a contact with the pad's own normal there), so the one turn is ~2 degrees short.
+TURN_TOL = np.radians(3.0)
+#: [m] the Panda's tool centre point in its hand frame.
+TCP = np.array([0.0, 0.0, 0.1034])
+#: The squeeze's measures (planner.record.measures.Measures).
+SQUEEZE = ("squeezed_force_closure", "squeezed_epsilon", "squeeze_turn")
+
+
+def slab(tmp_path: Path, tilt: float):  # type: ignore[no-untyped-def]
+    """The slab as an object spec (its faces' normals along +-y turned by ``tilt`` about x), its top 3 cm above
+    the origin."""
+    box = trimesh.creation.box([WIDE, THICK, TALL])
+    box.apply_translation([0.0, 0.0, 0.03 - TALL / 2])
+    box.apply_transform(trimesh.transformations.rotation_matrix(tilt, [1.0, 0.0, 0.0]))
+    path = tmp_path / f"slab{tilt:.3f}.obj"
+    box.export(path)
+    return load_object(str(path)).spec
+
+
+def pinch() -> np.ndarray:
+    """(4, 4) the Panda from above, its fingers opening along y, its tool centre point at the origin."""
+    pose = np.eye(4)
+    pose[:3, :3] = np.diag([-1.0, 1.0, -1.0])  # approach (hand z) down
+    pose[:3, 3] = -pose[:3, :3] @ TCP
+    return pose
+
+
+@pytest.mark.parametrize("tilt", [TILT, -TILT])
+def test_a_slanted_wall_is_kept_as_planned_and_squeezes_to_force_closure(tmp_path: Path, tilt: float) -> None:
+    (grasp,) = rescore_poses(RescoreUnit(0, 0, pinch()[None], load_hand("panda"), slab(tmp_path, tilt))).grasps
+    assert not grasp.force_closure and grasp.epsilon == 0.0  # as planned: the pads' edges make a couple
+    np.testing.assert_allclose(np.asarray(grasp.pose)[:3, :3], pinch()[:3, :3], atol=1e-12)  # not turned
+    m = grasp.measures
+    assert m is not None and m.squeezed_force_closure is True and m.squeezed_epsilon > 0.0
+    assert abs(m.squeeze_turn - abs(tilt)) < TURN_TOL
+
+
+def test_an_upright_wall_is_force_closure_as_planned_and_not_turned(tmp_path: Path) -> None:
+    (grasp,) = rescore_poses(RescoreUnit(0, 0, pinch()[None], load_hand("panda"), slab(tmp_path, 0.0))).grasps
+    m = grasp.measures
+    assert grasp.force_closure and m is not None
+    assert (m.squeezed_force_closure, m.squeezed_epsilon, m.squeeze_turn) == (True, grasp.epsilon, 0.0)
+
+
+def test_only_a_self_centring_parallel_jaw_squeezes() -> None:
+    assert [squeezes(load_hand(h)) for h in ("panda", "pr2", "barrett", "allegro")] == [True, False, False, False]
+
+
+def test_hands_that_do_not_squeeze_store_none(tmp_path: Path) -> None:
+    hand = load_hand("panda")
+    pr2 = replace(hand, centering=False)  # the Panda's jaw, declared not self-centring (as the PR2's)
+    (grasp,) = rescore_poses(RescoreUnit(0, 0, pinch()[None], pr2, slab(tmp_path, TILT))).grasps
+    assert grasp.measures is not None
+    assert [getattr(grasp.measures, name) for name in SQUEEZE] == [None, None, None]
+
+
+def test_the_squeeze_leaves_the_sweep_as_it_was(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A unit's grasps are those it plans without the squeeze, field for field, but for the squeeze's measures:
+    the squeeze's closings leave the grasper's world as they found it (later grasps unchanged)."""
+    obj = load_object("mug")
+    settings = SweepSettings(approaches=60, rolls=2, reach_placements=0)
+    squeezed = unit.plan_object(obj, "panda", settings, 3).grasps
+    monkeypatch.setattr(unit, "squeezed", lambda *args: None)
+    plain = unit.plan_object(obj, "panda", settings, 3).grasps
+    assert len(squeezed) == len(plain) > 10
+    turned = [g for g in squeezed if g.measures.squeeze_turn > 0.0]  # type: ignore[union-attr]
+    assert turned and any(not g.force_closure for g in squeezed)
+    for a, b in zip(squeezed, plain):
+        assert a.measures is not None and b.measures is not None
+        assert a.measures.squeezed_force_closure >= a.force_closure  # type: ignore[operator]
+        assert b.measures.squeezed_force_closure is None
+        bare = replace(a, measures=replace(a.measures, **dict.fromkeys(SQUEEZE)))
+        assert bare.to_json() == b.to_json()
+
+
+def test_turn_brings_the_closing_axis_onto_the_walls_normal_about_the_contacts_centre() -> None:
+    """Known answer: contacts whose normals say the wall's normal is y turned by TILT about x; the pose turns by
+    TILT about the contacts' centre (which stays where it is in the hand's frame)."""
+    wall = np.array([0.0, np.cos(TILT), np.sin(TILT)])
+    points = np.array([[0.0, 0.005, 0.01], [0.0, -0.005, -0.01]])
+    contacts = HandContacts(points, np.array([-wall, wall]), ("a", "b"))
+    pose = np.eye(4)
+    turned = turn(contacts, (frozenset({"a"}), frozenset({"b"})), pose, np.array([0.0, 1.0, 0.0]))
+    assert turned is not None
+    np.testing.assert_allclose(turned[:3, :3] @ [0.0, 1.0, 0.0], wall, atol=1e-12)
+    np.testing.assert_allclose(turned[:3, :3] @ [1.0, 0.0, 0.0], [1.0, 0.0, 0.0], atol=1e-12)
+    centre = points.mean(axis=0)
+    np.testing.assert_allclose(turned[:3, :3].T @ (centre - turned[:3, 3]), centre - pose[:3, 3], atol=1e-12)
+    assert turn(contacts, (frozenset({"a"}), frozenset({"c"})), pose, np.array([0.0, 1.0, 0.0])) is None
