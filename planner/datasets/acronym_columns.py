@@ -118,8 +118,8 @@ def _file_values(f: Field, data: np.ndarray | None, n: int) -> list:
     values = np.full(n, np.nan) if data is None else np.asarray(data, float)
     if f.kind == "margin":
         return [math.inf if math.isnan(v) else v for v in values.tolist()]
-    if f.dtype == "int64":
-        return [int(v) for v in values.tolist()]
+    if f.dtype == "int64":  # a nullable one's neutral -1 or a column the file lacks: not measured
+        return [None if math.isnan(v) or (f.nullable and v == f.neutral) else int(v) for v in values.tolist()]
     return [None if math.isnan(v) else v for v in values.tolist()]
 
 
