@@ -59,7 +59,7 @@ from planner.calibration.metrics import (
 from planner.calibration.model import DEFAULT_FEATURES, DEFAULT_TREES, default_model, load_model
 from planner.datasets import importer
 from planner.datasets.acronym import read_labels
-from planner.db.ranking import RankingRule, rank_order
+from planner.db.ranking import RankingRule, first_measures, rank_order, ranks_first
 from planner.geometry.solid import prepare
 from planner.run import pool
 from planner.validation import mujoco_trial
@@ -175,7 +175,7 @@ def run_top_trials(result: FileResult, p_hold: np.ndarray, k: int, settings: Sha
     """``--trial-top``: trial the file's ``k`` best closed poses in rank order (``p_hold`` (m,) per sampled
     pose, -inf where rejected; force closure first) into ``result.top_trial``."""
     fc = np.zeros(len(result.rows))
-    fc[np.flatnonzero(result.closed)] = [g.force_closure for g in result.grasps]
+    fc[np.flatnonzero(result.closed)] = ranks_first(first_measures(result.grasps))
     picked = [int(i) for i in rank_order(p_hold, fc)[:k] if result.closed[i]]
     if picked:
         digest = hashlib.sha256(json.dumps(picked).encode()).hexdigest()[:8]
@@ -220,18 +220,19 @@ def trial_source() -> str:
 
 def scores(result: FileResult, model, rule: RankingRule, p_hold: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """(m,) per sampled pose: the rule's formula, -width, p_hold (``p_hold`` given:
-    (closed,) out-of-fold predictions), force closure as planned (``fc``) and planned or squeezed
-    (``fc_squeezed``, :mod:`planner.plan.squeeze`); rejected poses -inf (fc 0)."""
+    (closed,) out-of-fold predictions), what ranks first (``fc``: force closure as planned or squeezed,
+    :func:`planner.db.ranking.ranks_first`) and force closure as planned (``fc_planned``); rejected poses -inf (fc
+    0)."""
     m = len(result.rows)
     out = {name: np.full(m, -np.inf) for name in ("formula", "width", "p_hold")}
-    out["fc"], out["fc_squeezed"] = np.zeros(m), np.zeros(m)
+    out["fc"], out["fc_planned"] = np.zeros(m), np.zeros(m)
     closed = np.flatnonzero(result.closed)
     if len(closed):
         table = features.of_grasps(result.grasps)
         out["formula"][closed] = rule.scores(_rule_measures(table))
         out["width"][closed] = -np.nan_to_num(table["width"], nan=np.inf)
-        out["fc"][closed] = table["force_closure"]
-        out["fc_squeezed"][closed] = np.fmax(table["force_closure"], table["squeezed_force_closure"])
+        out["fc"][closed] = ranks_first(table)  # as the database ranks: force closure planned or squeezed
+        out["fc_planned"][closed] = table["force_closure"]  # the order before 2026-12-07
         if p_hold is not None:
             out["p_hold"][closed] = p_hold
         else:
@@ -245,7 +246,7 @@ def _rule_measures(table: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
 
 
 def top_hold(order_score: np.ndarray, fc: np.ndarray, labels: np.ndarray, k: int = TOP_K) -> float:
-    """Share of the k first poses in the database's rank order (force closure first, then score) that hold."""
+    """Share of the k first poses in the database's rank order (``fc`` first, then score) that hold."""
     return float(np.mean(labels[rank_order(order_score, fc)[:k]]))
 
 
@@ -261,12 +262,12 @@ def evaluate(results: list[FileResult], model, rule: RankingRule, oof: dict[str,
                "poses": len(r.rows), "closed": int(closed.sum()), "success_rate": float(r.labels.mean()),
                "auc_formula": roc_auc(r.labels, s["formula"]), "auc_width": roc_auc(r.labels, s["width"]),
                "top10_formula": top_hold(s["formula"], s["fc"], r.labels),
-               "top10_formula_squeezed": top_hold(s["formula"], s["fc_squeezed"], r.labels),
+               "top10_formula_planned_fc": top_hold(s["formula"], s["fc_planned"], r.labels),
                "rejected": r.rejected}
         if model is not None:
             row["auc_p_hold"] = roc_auc(r.labels, s["p_hold"])
             row["top10_p_hold"] = top_hold(s["p_hold"], s["fc"], r.labels)
-            row["top10_p_hold_squeezed"] = top_hold(s["p_hold"], s["fc_squeezed"], r.labels)  # squeezed FC first
+            row["top10_p_hold_planned_fc"] = top_hold(s["p_hold"], s["fc_planned"], r.labels)  # planned FC first
             top_trial = getattr(r, "top_trial", {})  # a result pickled before --trial-top has none
             if top_trial:  # as the database ranks once the trial tried them (success_weight 1)
                 factor = np.ones(len(r.rows))
@@ -351,7 +352,7 @@ def intervals(objects: list[dict], closed: list[tuple[str, np.ndarray, np.ndarra
     ``closed``: (object, labels, p_hold) of each file's closed poses."""
     rng = np.random.default_rng(INTERVAL_SEED)
     out = {}
-    for m in ("auc_p_hold", "auc_width", "auc_formula", "top10_p_hold", "top10_formula", "top10_p_hold_squeezed"):
+    for m in ("auc_p_hold", "auc_width", "auc_formula", "top10_p_hold", "top10_formula", "top10_p_hold_planned_fc"):
         values = np.array([o.get(m, np.nan) for o in objects], float)
         if np.isfinite(values).any():
             out[m] = group_interval(lambda picked, v=values: float(np.nanmean(v[picked])), len(values), rng)
@@ -368,8 +369,8 @@ def intervals(objects: list[dict], closed: list[tuple[str, np.ndarray, np.ndarra
     return out
 
 
-METRICS = ("auc_formula", "auc_width", "auc_p_hold", "top10_formula", "top10_p_hold", "top10_formula_squeezed",
-           "top10_p_hold_squeezed", "top10_validated",
+METRICS = ("auc_formula", "auc_width", "auc_p_hold", "top10_formula", "top10_p_hold", "top10_formula_planned_fc",
+           "top10_p_hold_planned_fc", "top10_validated",
            "top10_validated_multiplied", "trial_agree",
            "success_rate")
 

@@ -57,7 +57,7 @@ from planner.calibration.model import (
 )
 from planner.calibration.trees import TreeSettings
 from planner.calibration.update import fit_update
-from planner.db.ranking import rank_order
+from planner.db.ranking import rank_order, ranks_first
 from planner.errors import InputError
 
 #: The k of "the k best-ranked grasps hold".
@@ -157,10 +157,10 @@ def held_out_figures(data: LabelledSet, p: np.ndarray) -> dict[str, float]:
     objects = per_object(data, p)
     auc = [o["auc_p_hold"] for o in objects if math.isfinite(o["auc_p_hold"])]
     width = [o["auc_width"] for o in objects if math.isfinite(o["auc_width"])]
-    tops = []
+    tops, first = [], ranks_first(data.table)
     for stem in sorted(set(data.files)):
         idx = np.flatnonzero(np.array(data.files) == stem)
-        order = rank_order(p[idx], data.table["force_closure"][idx])
+        order = rank_order(p[idx], first[idx])
         tops.append(float(np.mean(data.labels[idx][order[:TOP_K]])))
     return {"grasps": float(len(p)), "objects": float(len(objects)),
             "auc_mean": float(np.mean(auc)) if auc else math.nan,
@@ -169,5 +169,5 @@ def held_out_figures(data: LabelledSet, p: np.ndarray) -> dict[str, float]:
             "ece": reliability(data.labels, p).ece, "log_loss": log_loss(data.labels, p),
             "agreement": agreement(data.labels, p),
             "success_rate": float(np.mean(data.labels)),
-            **object_figures(data.labels, p, data.groups, data.files, data.table["force_closure"], TOP_K,
+            **object_figures(data.labels, p, data.groups, data.files, first, TOP_K,
                              np.random.default_rng(INTERVAL_SEED))}

@@ -40,7 +40,8 @@ grasp of an (object, hand). Every grasp whose planned contacts are force
 closure ranks above every grasp whose contacts are not, whatever their
 scores (issue 26: a score that rewards what one simulator's closing happens to
 do must not lift a grasp that is not force closure as planned); within each
-of the two, by score; ties are broken by epsilon, then GWS volume, then by
+of the two, by score (force closure as planned, or as a parallel jaw's squeeze ends in: :data:`FIRST`); ties
+are broken by epsilon, then GWS volume, then by
 the unit seed and candidate number (never by insertion order).
 """
 
@@ -61,8 +62,15 @@ from planner.record.tolerances import MIN_CLOSE_MARGIN, MIN_OPEN_MARGIN
 if TYPE_CHECKING:
     from planner.record.grasp import Grasp
 
-#: The rank order: force closure first, then score, then the tie-breaks (columns of ``grasps``).
-ORDER_BY = "force_closure DESC, score DESC, epsilon DESC, volume DESC, seed, candidate, unit_id"
+#: The measures (0/1, NULL: not measured) of which a 1 ranks a grasp above every grasp without one, whatever the
+#: scores (issue 26): force closure as planned, or as a parallel jaw's squeeze ends in (planner.plan.squeeze: where
+#: the planned contacts are not force closure, the free object would turn between the pads; on the 46 tuning files
+#: FleX held 68.5% of the closed poses that are force closure after the squeeze and 62.5% of the others, against
+#: 52.9% of those force closure as planned and 75.1% of the others, bench/RESULTS.md 2026-12-07).
+FIRST = ("force_closure", "squeezed_force_closure")
+#: The rank order: a 1 in :data:`FIRST` first, then score, then the tie-breaks (columns of ``grasps``).
+ORDER_BY = (f"MAX({', '.join(f'COALESCE({c}, 0)' for c in FIRST)}) DESC, score DESC, epsilon DESC, volume DESC, "
+            "seed, candidate, unit_id")
 
 #: The measures the rule reads (each an (n,) array; NaN or None = not computed), by
 #: the names the declaration gives them (:func:`planner.record.fields.ranked_fields`).
@@ -91,7 +99,7 @@ FORMULA = ("analytic = p_hold_trial where the hand's calibrated model updates p_
            " a measure not computed counts as neutral (reachability, success 1; robust quantile = epsilon);"
            " grasps stored without the analytic measures (before schema v3): gate 1, press 1,"
            " hold = force_closure;"
-           " rank: force-closure grasps first, then by score")
+           " rank: grasps force closure as planned or after a parallel jaw's squeeze first, then by score")
 
 
 @dataclass(frozen=True)
@@ -206,11 +214,22 @@ def _column(measures: Mapping[str, ArrayLike | None], name: str, instead: np.nda
     return array if instead is None else np.where(np.isnan(array), instead, array)
 
 
-def rank_order(scores: np.ndarray, force_closure: np.ndarray) -> np.ndarray:
-    """(n,) indices best first, as :data:`ORDER_BY` ranks (before its
-    tie-breaks, which are left to a stable sort: the given order): force
-    closure first, then by score."""
-    s, fc = np.asarray(scores, float), np.asarray(force_closure, float) > 0
+def ranks_first(measures: Mapping[str, ArrayLike | None]) -> np.ndarray:
+    """(n,) bool: the grasps a 1 in one of :data:`FIRST` ranks first (``measures`` by those names; NaN or None
+    or a measure not given: 0)."""
+    n = len(_column(measures, "force_closure"))
+    return np.any([_column(measures, name, np.zeros(n)) > 0 for name in FIRST], axis=0)
+
+
+def first_measures(grasps: Sequence[Grasp]) -> dict[str, list]:
+    """The measures of :data:`FIRST` of grasp records, by name (None: not measured)."""
+    return {name: fields.values(fields.by_name(name), grasps) for name in FIRST}
+
+
+def rank_order(scores: np.ndarray, first: np.ndarray) -> np.ndarray:
+    """(n,) indices best first, as :data:`ORDER_BY` ranks (before its tie-breaks, which are left to a stable
+    sort: the given order): the grasps ``first`` (n,) (:func:`ranks_first`; > 0: first) first, then by score."""
+    s, fc = np.asarray(scores, float), np.asarray(first, float) > 0
     return np.lexsort((np.arange(len(s)), -s, ~fc))
 
 

@@ -41,7 +41,7 @@ from planner.db.columns import (
     _sql,
 )
 from planner.db.failures import write_failed
-from planner.db.ranking import ORDER_BY, RankingRule, rank_order, rule_measures
+from planner.db.ranking import ORDER_BY, RankingRule, first_measures, rank_order, ranks_first, rule_measures
 from planner.db.rows import UnitRow, Validated
 from planner.db.schema import transaction
 from planner.errors import DatabaseError, InputError
@@ -233,7 +233,7 @@ class Writing:
         scores, p_hold, p_trial = self._scores(grasps, hand, self.rule())
         out = [replace(g, score=float(s), p_hold=p, p_hold_trial=q)
                for g, s, p, q in zip(grasps, scores.tolist(), p_hold, p_trial)]
-        return [out[i] for i in rank_order(scores, np.array([g.force_closure for g in grasps], float))]
+        return [out[i] for i in rank_order(scores, ranks_first(first_measures(grasps)))]
 
     # -- ranking ---------------------------------------------------------------
     def apply_rule(self, rule: RankingRule, force: bool = False) -> bool:

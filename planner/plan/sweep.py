@@ -41,7 +41,8 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: axes read at the origin; union mass. 18: edge normals from the object's cone; mesh tables and hand primitives.
 #: 19: the settle's every convex part. 20-21: the PR2's and Allegro's dynamics. 22: 0.5 mm proxies, normals averaged
 #: over 2 mm; pre-grasp IK branch. 23: the ray samplers and grip measures too. 24: the measures of a parallel jaw's
-#: squeeze beside the planned grasp (planner.plan.squeeze, issue 26): the same grasps, three more measures.
+#: squeeze beside the planned grasp (planner.plan.squeeze, issue 26), which rank first where force closure: the same
+#: grasps, three more measures, other ranks.
 ALGORITHM_VERSION = 24
 
 #: Named in the digest of sweeps on a table only (those of the object alone stay

@@ -176,3 +176,15 @@ def test_p_hold_replaces_the_formula_where_given_and_nowhere_else() -> None:
     m = {"epsilon": [0.1, 0.1], "force_closure": [1, 1], "p_hold": [0.3, np.nan]}
     got = rule.analytic(m)
     assert got[0] == 0.3 and got[1] == rule.analytic({"epsilon": [0.1], "force_closure": [1]})[0]
+
+
+def test_a_grasp_force_closure_after_the_squeeze_ranks_with_the_force_closure_ones() -> None:
+    """Force closure as planned or as squeezed (planner.plan.squeeze) ranks first; a squeeze not measured (None,
+    NaN: a hand that does not squeeze, a grasp stored before) counts as not force closure."""
+    from planner.db.ranking import rank_order, ranks_first
+
+    m = {"force_closure": [0, 1, 0, 0, 0], "squeezed_force_closure": [1, 1, 0, None, np.nan]}
+    first = ranks_first(m)
+    assert first.tolist() == [True, True, False, False, False]
+    assert rank_order(np.array([0.1, 0.2, 0.9, 0.8, 0.7]), first).tolist() == [1, 0, 2, 3, 4]
+    assert ranks_first({"force_closure": [1, 0]}).tolist() == [True, False]  # the squeeze not given at all

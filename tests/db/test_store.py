@@ -280,3 +280,19 @@ def test_a_stored_model_gives_p_hold_to_records_and_ranks_by_it(tmp_path: Path) 
         assert db.best("thing", "panda", 1)[0].candidate == 0
         assert [g.candidate for g in db.best("thing", "panda", 10)][:2] == [0, 4]
         assert_close([g.p_hold for g in db.best("thing", "panda", 2)][1], 1 / (1 + np.exp(1.5)))
+
+
+def test_a_grasp_force_closure_after_the_squeeze_ranks_among_the_force_closure_ones(tmp_path: Path) -> None:
+    """The database ranks as :func:`planner.db.ranking.rank_order` does: force closure as planned or squeezed
+    first, whatever the scores; a squeeze not measured counts as not force closure."""
+    measures = Measures(3.0, 4.0, 0.01, 0.01, 1.0, ())
+    grasps = [replace(made_up(0, 0.0, fc=False), measures=replace(measures, settled_epsilon=0.4,
+                                                                  squeezed_force_closure=False)),  # the top score
+              replace(made_up(1, 0.0, fc=False), measures=replace(measures, squeezed_force_closure=True)),
+              replace(made_up(2, 0.0, fc=False), measures=replace(measures, settled_epsilon=0.2)),  # not measured
+              replace(made_up(3, 0.01), measures=replace(measures, squeezed_force_closure=True))]
+    with open_db(tmp_path / "g.db") as db:
+        db.write_unit(unit(), None, grasps, RankingRule())
+        back = db.best("thing", "panda", 10)
+        assert [g.candidate for g in back] == [3, 1, 0, 2]
+        assert [g.candidate for g in db.scored(grasps, "panda")] == [3, 1, 0, 2]
