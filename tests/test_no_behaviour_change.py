@@ -61,7 +61,7 @@ edges; the table and the hands' primitives as meshes in PyBullet); 19 (the settl
 convex part, PyBullet kept 16 of more: the box and cylinder are primitives, the digest is 18's); 24 (issue 26:
 a parallel jaw's squeeze stored as three measures beside the grasp as planned, digested apart, ``squeeze``; a grasp
 force closure after the squeeze ranks with the force-closure ones: the digest of COLUMNS, made without the shipped
-models, is 23's; with the Panda's shipped p_hold model 5 of its 51 ranks differ, nothing else).
+models, is 23's; with the Panda's shipped p_hold model 5 of its 19 ranks differ, nothing else).
 """
 
 from __future__ import annotations
