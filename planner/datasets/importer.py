@@ -56,6 +56,7 @@ from collections import Counter
 from collections.abc import Callable, Sequence
 from contextlib import closing
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -73,7 +74,7 @@ from planner.geometry.solid import PreparedObject, prepare
 from planner.plan import grip
 from planner.plan.closing import Closed, Grasper
 from planner.plan.local_sdf import LocalSurface
-from planner.plan.measures import measure
+from planner.plan.measures import measure, measured_later, resistance_program
 from planner.plan.squeeze import squeezed
 from planner.plan.unit import scored
 from planner.plan.width import closed_width
@@ -354,10 +355,11 @@ def _check_not_stored(db: Database, plan: _Plan) -> None:
 def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: Counter, first: int = 0
              ) -> list[Grasp]:
     """Grasps of the poses where the hand closes on the object; candidate =
-    ``first`` + the pose's row in ``poses``."""
+    ``first`` + the pose's row in ``poses``. Their weight resistances are solved together once the poses are
+    closed (:func:`~planner.plan.measures.measured_later`, as a sweep's)."""
     shape = hand.widest(sweep_preshapes(hand))
-    out = []
-    with Sim() as sim:
+    out: list[Grasp] = []
+    with Sim() as sim, measured_later(out, {"quality": 0.0}) as later:
         grasper = Grasper.for_object(sim, hand, obj)
         gripping = grip.GripSurface(obj.mesh, normals_at=grasper.normals_at())  # the exact surface
         local = LocalSurface(hand, obj.mesh if grasper.mesh is None else grasper.mesh)  # a large mesh's proxy
@@ -371,17 +373,18 @@ def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: C
                 continue
             width = closed_width(hand, closed.closed_joints)
             squeeze = squeezed(grasper, closed, shape, q, lambda c: scored(c, hand, obj, CONE_EDGES, Counter(), False))
-            m = measure(closed.contacts, closed.frames, hand, shape, closed.closed_joints, obj, width,  # type: ignore[arg-type]
-                        grip=grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}, obj.com,
-                                          obj.up),
-                        local_sdf=local.of(closed.pose), squeeze=squeeze)
+            at = (closed.contacts, closed.frames, hand, shape, closed.closed_joints, obj)
+            gripped = grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}, obj.com, obj.up)
+            waiting = (resistance_program(*at), partial(measure, *at, width, grip=gripped,  # type: ignore[arg-type]
+                                                        local_sdf=local.of(closed.pose), squeeze=squeeze))
             point, direction, roll = approach_of(closed.pose, hand.approach, shape.tcp)
             out.append(Grasp(
                 object=obj.name, hand=hand.name, preshape=shape.name, candidate=i, seed=0,
                 approach_point=point, approach_dir=direction, roll=roll, standoff=0.0, pose=closed.pose,
                 open_joints=closed.open_joints, closed_joints=closed.closed_joints,
                 width=width, contacts=closed.contacts, epsilon=q.epsilon, volume=q.volume,
-                force_closure=q.force_closure, measures=m))
+                force_closure=q.force_closure, measures=None))
+            later.append((len(out) - 1, *waiting))
     return out
 
 

@@ -22,6 +22,8 @@ a cheaper routine: see :func:`planner.sim.pose_to_pb`.)
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy.spatial import cKDTree
@@ -102,11 +104,22 @@ def hand_rotation(approach_hand: ArrayLike, direction: ArrayLike, roll: float) -
     a = np.asarray(approach_hand, float)
     d = np.asarray(direction, float)
     a, d = a / np.linalg.norm(a), d / np.linalg.norm(d)
-    base = contact_frames(d)[0] @ contact_frames(a)[0].T
+    base = contact_frames(d)[0] @ _frame(a.tobytes()).T
+    if roll == 0.0:  # the spin is the identity, whose product is base with its -0.0 made 0.0: so is this, bit for bit
+        return base + 0.0
     c, s = np.cos(roll), np.sin(roll)
     k = np.array([[0, -d[2], d[1]], [d[2], 0, -d[0]], [-d[1], d[0], 0]])
     spin = np.eye(3) + s * k + (1 - c) * (k @ k)
     return spin @ base
+
+
+@lru_cache(maxsize=16)
+def _frame(unit: bytes) -> np.ndarray:
+    """(3, 3) :func:`contact_frames` of one unit vector given by its bytes (a hand's approach axis: the same for
+    every grasp of the hand, made once)."""
+    frame = contact_frames(np.frombuffer(unit))[0]
+    frame.flags.writeable = False
+    return frame
 
 
 def roll_about(rotation: np.ndarray, approach_hand: ArrayLike, direction: ArrayLike) -> float:

@@ -50,9 +50,10 @@ class ContactReading:
         names = [self.names[i] for i in pairs.links]
         if any(n not in self.hand.contact_links for n in names):
             return Rejected("bad_link", self.queries)
-        contacts = self._points(pairs, names)
         if s.contacts == "patch" and self.surface is not None:
-            contacts = self._patches(contacts)
+            contacts = self._patches(pairs, names)
+        else:
+            contacts = self._points(pairs, names)
         if self.exact_surface is not None:
             contacts = self._onto_exact(contacts)
         return Closed(pose.copy(), dict(open_joints), {k: float(v) for k, v in closed.items()}, contacts, self.queries,
@@ -81,16 +82,18 @@ class ContactReading:
             origins[i], axes[i] = frame[:3, 3], axis / np.linalg.norm(axis)
         return JointFrames(names, origins, axes)
 
-    def _patches(self, points: HandContacts) -> HandContacts:
-        """Contact patches of the links PyBullet finds touching; a link whose
-        patch comes out empty (a sliver below the sampling) keeps its points."""
-        touching = tuple(sorted(set(points.links)))
+    def _patches(self, pairs: Closest, names: list[str]) -> HandContacts:
+        """Contact patches of the links PyBullet finds touching (``names``: the link of each of ``pairs``); a link
+        whose patch comes out empty (a sliver below the sampling) keeps its points (:meth:`_points`, read only
+        then: every link has a patch on nearly every grasp)."""
+        touching = tuple(sorted(set(names)))
         poses = {link: self.sim.link_pose(self.body, link) for link in touching}
         found = regions(self.hand, self.surface, poses, touching)  # type: ignore[arg-type]
         patch = discretise(found, self.settings.patches)
-        missing = [i for i, link in enumerate(points.links) if link not in set(patch.links)]
-        if not missing:
+        if set(touching) <= set(patch.links):
             return patch
+        points = self._points(pairs, names)
+        missing = [i for i, link in enumerate(points.links) if link not in set(patch.links)]
         keep = np.array(missing, int)
         return HandContacts(np.vstack([patch.points, points.points[keep]]),
                             np.vstack([patch.normals, points.normals[keep]]),

@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import shutil
 import sqlite3
+from collections import Counter
+from dataclasses import fields, is_dataclass, replace
 from pathlib import Path
 
 import h5py
@@ -16,6 +18,7 @@ from planner.datasets import importer
 from planner.datasets.importer import import_files
 from planner.db.store import open_db
 from planner.geometry.solid import load_object
+from planner.record.contacts import HandContacts
 from planner.specs.hands import load_hand
 from tests import crash_units
 from tests.datasets.support import SAME_ORDER_RULE, export, pose, source_rows
@@ -158,6 +161,56 @@ def test_a_file_whose_rescoring_kills_its_workers_is_recorded_failed_and_retried
     code, out, err = grasp("import", *map(str, two_foreign_files), "--db", str(db), "--workers", "2")
     assert code == 0, err
     assert "crate.h5: re-scored" in out and "ball.h5: already imported" in out
+
+
+def test_rescoring_solves_the_weight_resistances_together_as_highs_does_one_at_a_time(
+        db: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Re-scored poses wait for their weight resistances and are solved in one batch (as a sweep's,
+    ``measured_later``), not one grasp at a time by HiGHS; every measure as HiGHS's one at a time gives it (the
+    resistances to its tolerance, the rest the same)."""
+    from planner.quality import resistance, resistance_batch
+
+    poses, obj = np.array([pose(r) for r in source_rows(db, "box")]), load_object("box")
+    batches, solve_many = [], resistance_batch.solve_many
+
+    def counted(programs, directions):  # type: ignore[no-untyped-def]
+        batches.append(len(programs))
+        return solve_many(programs, directions)
+
+    def one_at_a_time(*args, **kwargs):  # type: ignore[no-untyped-def]
+        raise AssertionError("a re-scored grasp's resistance solved alone")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(resistance_batch, "solve_many", counted)
+        patch.setattr(resistance, "solve", one_at_a_time)
+        together = importer._rescore(poses, PANDA, obj, Counter())
+    assert batches == [len(together)] and len(together) >= 5
+    with monkeypatch.context() as patch:  # the path before: HiGHS, one grasp after the other
+        patch.setattr(resistance_batch, "solve_many", lambda programs, directions: [
+            resistance.solve(p, directions) for p in programs])
+        alone = importer._rescore(poses, PANDA, obj, Counter())
+    assert [g.candidate for g in together] == [g.candidate for g in alone]
+    assert any(g.measures.resist_worst > 1.0 for g in alone)  # real pinches, not zeros compared
+    for a, b in zip(together, alone):
+        assert a.measures.resist_worst == pytest.approx(b.measures.resist_worst, rel=1e-7, abs=1e-7)
+        assert a.measures.resist_mean == pytest.approx(b.measures.resist_mean, rel=1e-7, abs=1e-7)
+        assert _same(replace(a, measures=replace(a.measures, resist_worst=0.0, resist_mean=0.0)),
+                     replace(b, measures=replace(b.measures, resist_worst=0.0, resist_mean=0.0)))
+
+
+def _same(a: object, b: object) -> bool:
+    """Records (dataclasses of arrays, mappings, sequences, numbers) equal to the bit, NaN equal to NaN."""
+    if is_dataclass(a):
+        return type(a) is type(b) and all(_same(getattr(a, f.name), getattr(b, f.name)) for f in fields(a))
+    if isinstance(a, HandContacts):
+        return all(_same(getattr(a, k), getattr(b, k)) for k in ("points", "normals", "links", "radius", "region"))
+    if isinstance(a, np.ndarray | float | np.floating):
+        return np.array_equal(a, b, equal_nan=True)  # type: ignore[arg-type]
+    if isinstance(a, dict):
+        return isinstance(b, dict) and a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, tuple | list):
+        return type(a) is type(b) and len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))  # type: ignore[arg-type]
+    return a == b
 
 
 def test_unknown_gripper_needs_hand(db: Path, tmp_path: Path) -> None:

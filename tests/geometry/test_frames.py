@@ -36,6 +36,25 @@ def test_hand_rotation_is_the_scipy_composition_and_roll_about_inverts_it(a: np.
     assert_close(frames.roll_about(rotation, a, d), roll, 1e-9)
 
 
+def _hand_rotation_reference(approach: np.ndarray, direction: np.ndarray, roll: float) -> np.ndarray:
+    """hand_rotation as written before 2026-12-07: both frames made anew and the spin multiplied in at any roll."""
+    a, d = approach / np.linalg.norm(approach), direction / np.linalg.norm(direction)
+    base = frames.contact_frames(d)[0] @ frames.contact_frames(a)[0].T
+    c, s = np.cos(roll), np.sin(roll)
+    k = np.array([[0, -d[2], d[1]], [d[2], 0, -d[0]], [-d[1], d[0], 0]])
+    return (np.eye(3) + s * k + (1 - c) * (k @ k)) @ base
+
+
+@settings(max_examples=300, deadline=None)
+@given(a=unit, d=unit | st.sampled_from([np.eye(3)[i] * sign for i in range(3) for sign in (1.0, -1.0)]),
+       roll=st.sampled_from([0.0, -0.0]) | st.floats(-3, 3))
+def test_hand_rotation_is_the_full_formulas_to_the_bit(a: np.ndarray, d: np.ndarray, roll: float) -> None:
+    """The approach's frame made once and no spin at roll 0: every entry (the sign of a zero too) as the full
+    formula gives it, so every pose and roll stored before comes out the same."""
+    got, want = frames.hand_rotation(a, d, roll), _hand_rotation_reference(a, d, roll)
+    assert np.array_equal(got, want) and np.array_equal(np.signbit(got), np.signbit(want))
+
+
 @settings(max_examples=100, deadline=None)
 @given(normals=st.lists(unit, min_size=1, max_size=8))
 def test_contact_frames_are_right_handed_with_the_normal_first(normals: list) -> None:

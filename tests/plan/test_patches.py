@@ -82,6 +82,34 @@ def test_the_legacy_point_reading_is_kept(box_pinch) -> None:  # type: ignore[no
     assert np.allclose(restored.radius, patch.contacts.radius) and (restored.region == patch.contacts.region).all()
 
 
+def test_a_links_legacy_points_are_read_only_where_its_patch_comes_out_empty(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """Every touching link with a patch: no legacy point reading at all; a link whose patch comes out empty
+    keeps the very points the legacy reading gives it, the other its patch."""
+    import planner.plan.contact_reading as reading
+
+    hand, obj = load_hand("panda"), load_object("box")
+    wide = {s.name: s for s in load_preshapes(hand)}["wide"]
+    calls, legacy, regions = [], reading.ContactReading._points, reading.regions
+    monkeypatch.setattr(reading.ContactReading, "_points", lambda self, *a: calls.append(1) or legacy(self, *a))
+
+    def closed(contacts: str) -> Closed:
+        with Sim() as sim:
+            g = Grasper.for_mesh(sim, hand, obj.mesh, CloseSettings(contacts=contacts))
+            out = g.close(np.array([0, 0, 0.04]), DOWN, 0.0, 0.02, wide, obj.torque_scale)
+        assert isinstance(out, Closed)
+        return out
+
+    assert len(closed("patch").contacts) > 2 and calls == []
+    monkeypatch.setattr(reading, "regions", lambda *args: [r for r in regions(*args) if r.link != "panda_rightfinger"])
+    kept, points = closed("patch").contacts, closed("points").contacts
+    assert calls == [1, 1]  # the empty patch's fallback, then the legacy reading itself
+    right, legacy_right = (np.array(c.links) == "panda_rightfinger" for c in (kept, points))
+    assert right.sum() == legacy_right.sum() > 0
+    assert np.array_equal(kept.points[right], points.points[legacy_right])
+    assert np.array_equal(kept.normals[right], points.normals[legacy_right])
+    assert (kept.radius[~right] == 0).all() and (kept.region[~right] >= 0).all() and np.isnan(kept.radius[right]).all()
+
+
 def test_extreme_points_of_a_rectangle_are_its_corners() -> None:
     x, y = np.meshgrid(np.linspace(-0.01, 0.01, 21), np.linspace(-0.005, 0.005, 11))
     pts = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])

@@ -146,3 +146,22 @@ def test_the_row_space_is_the_full_svds(seed: int, cols: int, rank: int) -> None
     wrench = rng.normal(size=(6, rank)) @ rng.normal(size=(rank, cols))
     for got, want in zip(row_space(wrench), row_space_reference(wrench)):
         assert_close(got, want, what="the thin SVD's U")
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.sampled_from(["point", "soft", "frictionless"]), min_size=1, max_size=12),
+       st.integers(min_value=3, max_value=12), st.integers(min_value=0, max_value=2**32 - 1))
+def test_the_generators_are_those_of_one_contact_at_a_time_to_the_bit(models: list[str], edges: int,
+                                                                      seed: int) -> None:
+    """L written at once: the reference's matrix block by block, every entry the same, for any mix of models,
+    friction, torsion and cone edges."""
+    from planner.quality.contacts import as_contacts
+    from planner.quality.resistance import generators, generators_reference
+
+    rng = np.random.default_rng(seed)
+    n = len(models)
+    contacts = as_contacts(rng.normal(size=(n, 3)), frames_from_normals(rng.normal(size=(n, 3))),
+                           mu=rng.uniform(0.0, 1.5, n), model=models, torsion=rng.uniform(0.0, 0.01, n))
+    got, want = generators(contacts, edges), generators_reference(contacts, edges)
+    assert got.shape == want.shape and np.array_equal(got, want)
+    assert (got != 0).sum() >= n + 2 * edges * models.count("point")  # the cones, not a matrix of zeros
