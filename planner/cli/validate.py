@@ -49,8 +49,10 @@ def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], to
     if as_json:
         echo_json(summary.to_json())
     else:
-        click.echo(f"validated {summary.grasps} grasps in {engine}: {summary.successes} held "
-                   f"({share(summary.successes, summary.grasps)})"
+        tried = (f"nothing new to try in {engine}" if summary.kept and not summary.grasps else  # "validated 0: 0 held"
+                 f"validated {summary.grasps} grasps in {engine}: {summary.successes} held "
+                 f"({share(summary.successes, summary.grasps)})")
+        click.echo(tried
                    + (f"; {summary.diverged} diverged (MuJoCo's state; no verdict, not stored)"
                       if summary.diverged else "")
                    + (f"; {summary.kept} already tried with these settings and seed, kept "

@@ -343,6 +343,14 @@ def _frozen(path: Path) -> bool:
             and not (wal.exists() and wal.stat().st_size > 0))
 
 
+def _tidy_reader(path: Path) -> bool:
+    """A reader of a file it could write, in a folder it could write in: opened read-write, it writes nothing
+    (``PRAGMA query_only``), and as the last connection to close it removes the -wal and -shm files SQLite made
+    beside it, which a read-only connection leaves (they stayed beside the database after every ``grasp best``)."""
+    real = path.resolve()
+    return real.is_file() and os.access(real, os.W_OK) and os.access(real.parent, os.W_OK)
+
+
 def _check_header(path: Path) -> None:
     with path.open("rb") as fh:
         if fh.read(16) != b"SQLite format 3\x00":
@@ -362,7 +370,8 @@ def open_db(path: Path, *, create: bool = True, readonly: bool = False) -> Datab
     if not exists and not path.parent.exists():
         raise DatabaseError(f"{path}: folder {path.parent} does not exist")
     try:
-        uri = f"file:{path}?mode=ro" if readonly else f"file:{path}"
+        tidy = readonly and _tidy_reader(path)
+        uri = f"file:{path}?mode={'rw' if tidy else 'ro'}" if readonly else f"file:{path}"
         if readonly and _frozen(path):  # SQLite cannot make its -shm beside it: read it as the file that it is
             uri = f"file:{path.resolve()}?mode=ro&immutable=1"
             if path not in _FROZEN_SAID:  # once: a command opens its database several times
@@ -371,6 +380,8 @@ def open_db(path: Path, *, create: bool = True, readonly: bool = False) -> Datab
                             "would not be seen)", path)
         conn = sqlite3.connect(uri, uri=True, timeout=BUSY_TIMEOUT_S, isolation_level=None)
         conn.row_factory = sqlite3.Row
+        if tidy:
+            conn.execute("PRAGMA query_only = ON")
         version = schema_version(conn, path)  # before anything is set: another application's file stays as it is
         if not readonly:
             conn.execute("PRAGMA journal_mode = WAL")

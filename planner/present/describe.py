@@ -49,8 +49,9 @@ class Frames:
     approach: np.ndarray
 
     def to_json(self) -> dict:
-        return {"frame": self.frame, "hand_base_m": self.base.tolist(), "tcp_m": self.tcp.tolist(),
-                "quaternion_xyzw": self.quaternion.tolist(), "approach": self.approach.tolist()}
+        # + 0.0: a negative zero is written 0.0, as the text lines say it (:func:`_fixed`)
+        return {"frame": self.frame, "hand_base_m": (self.base + 0.0).tolist(), "tcp_m": (self.tcp + 0.0).tolist(),
+                "quaternion_xyzw": (self.quaternion + 0.0).tolist(), "approach": (self.approach + 0.0).tolist()}
 
 
 def frames(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None) -> Frames:
@@ -62,8 +63,15 @@ def frames(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None) -> Fr
                   canonical_xyzw(rotation), rotation @ hand.approach)
 
 
+def _fixed(x: float, digits: int) -> str:
+    """``x`` with ``digits`` decimals, a value that rounds to zero without the sign of a tiny negative
+    ("-0.000" read as a coordinate a hair below zero, or a sign bug, beside the "0.000" of the same axis)."""
+    text = f"{x:.{digits}f}"
+    return text[1:] if text.startswith("-") and float(text) == 0.0 else text
+
+
 def _xyz(v: np.ndarray, digits: int = 3) -> str:
-    return "(" + ", ".join(f"{x:.{digits}f}" for x in v) + ")"
+    return "(" + ", ".join(_fixed(x, digits) for x in v) + ")"
 
 
 def frame_lines(f: Frames, hand: HandFrame) -> list[str]:
@@ -126,7 +134,7 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
                      f"directions, where the fingers' force limits hold {m.resist_worst:.1f} times its weight: hold "
                      "it as it stands, do not turn it")
     for stage, joints in (arm or {}).items():
-        lines.append(f"    arm at {stage} [rad]: " + ", ".join(f"{k} {v:.4f}" for k, v in joints.items()))
+        lines.append(f"    arm at {stage} [rad]: " + ", ".join(f"{k} {_fixed(v, 4)}" for k, v in joints.items()))
     return lines
 
 
