@@ -10,7 +10,6 @@ import numpy as np
 
 from planner.calibration.metrics import Reliability
 
-
 #: Room about [0, 1] on the success axis: a bin every grasp of which held (or dropped) was drawn on the frame's
 #: edge, its marker cut in half.
 MARGIN = 0.03

@@ -21,6 +21,7 @@ import numpy as np
 
 from planner.geometry.gravity import DIRECTIONS
 from planner.geometry.quaternion import canonical_xyzw
+from planner.quality.tolerances import RESISTANCE_CAP
 from planner.record import fields
 from planner.record.grasp import Grasp
 from planner.specs.hands import HandFrame
@@ -70,6 +71,12 @@ def _fixed(x: float, digits: int) -> str:
     return text[1:] if text.startswith("-") and float(text) == 0.0 else text
 
 
+def times_weight(resist: float) -> str:
+    """A weight resistance [multiples of the weight] as said: one at the measure's cap is a bound, not a value
+    (a Barrett grasp "holds 50.0 times its weight", worst and mean, read as measured)."""
+    return f"at least {RESISTANCE_CAP:.0f}" if resist >= RESISTANCE_CAP else f"{resist:.1f}"
+
+
 def _xyz(v: np.ndarray, digits: int = 3) -> str:
     return "(" + ", ".join(_fixed(x, digits) for x in v) + ")"
 
@@ -112,8 +119,9 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
                  f"{len(g.contacts)} contacts; reachability {reach}")
     if m is not None:
         settled = "" if m.settled_epsilon is None else f"; settled epsilon {m.settled_epsilon:.4f}"
-        lines.append(f"    holds {m.resist_worst:.1f} times its weight in the worst of {DIRECTIONS} directions (mean "
-                     f"{m.resist_mean:.1f}); push {m.push:.2f} (1 = pads square on); feasibility "
+        capped = " (the measure's cap)" if m.resist_worst >= RESISTANCE_CAP else ""
+        lines.append(f"    holds {times_weight(m.resist_worst)} times its weight{capped} in the worst of {DIRECTIONS} "
+                     f"directions (mean {times_weight(m.resist_mean)}); push {m.push:.2f} (1 = pads square on); feasibility "
                      f"{','.join(m.reasons) or 'ok'}{settled}")
     if not g.force_closure:
         lines.append("    not force closure as planned: it ranks after every force-closure grasp of the object (so it "

@@ -370,3 +370,22 @@ def test_a_coordinate_that_rounds_to_zero_is_printed_without_a_sign(box_db: Path
     arm = {"the grasp": {"j1": -1e-6, "j2": -0.25}}
     said = [x for x in describe(replace(top), hand_frame("panda"), arm=arm) if "arm at" in x]
     assert said == ["    arm at the grasp [rad]: j1 0.0000, j2 -0.2500"]
+
+
+def test_a_weight_resistance_at_the_measures_cap_is_said_as_a_bound(box_db: Path) -> None:
+    """A Barrett grasp "holds 50.0 times its weight ... (mean 50.0)": 50 is where the measure stops."""
+    from dataclasses import replace
+
+    from planner import api
+    from planner.present.describe import describe
+    from planner.quality.tolerances import RESISTANCE_CAP
+    from planner.specs.hands import hand_frame
+
+    top = api.best("box", "panda", db_path=box_db, top=1)[0]
+    capped = replace(top, measures=replace(top.measures, resist_worst=RESISTANCE_CAP, resist_mean=RESISTANCE_CAP))
+    line = next(x for x in describe(capped, hand_frame("panda")) if " holds " in x)
+    assert line.startswith("    holds at least 50 times its weight (the measure's cap) in the worst of 14 directions "
+                           "(mean at least 50); "), line
+    below = replace(top, measures=replace(top.measures, resist_worst=12.34, resist_mean=20.0))
+    assert "    holds 12.3 times its weight in the worst of 14 directions (mean 20.0); " in describe(
+        below, hand_frame("panda"))[3]
