@@ -121,8 +121,8 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
         settled = "" if m.settled_epsilon is None else f"; settled epsilon {m.settled_epsilon:.4f}"
         capped = " (the measure's cap)" if m.resist_worst >= RESISTANCE_CAP else ""
         lines.append(f"    holds {times_weight(m.resist_worst)} times its weight{capped} in the worst of {DIRECTIONS} "
-                     f"directions (mean {times_weight(m.resist_mean)}); push {m.push:.2f} (1 = pads square on); feasibility "
-                     f"{','.join(m.reasons) or 'ok'}{settled}")
+                     f"directions (mean {times_weight(m.resist_mean)}); push {m.push:.2f} (1 = pads square on); "
+                     f"feasibility {','.join(m.reasons) or 'ok'}{settled}")
     if not g.force_closure:
         lines.append("    not force closure as planned: it ranks after every force-closure grasp of the object (so it "
                      "shows only where the object has fewer than asked for); its p_hold is how often labelled grasps "
