@@ -29,3 +29,20 @@ def test_no_legend_lies_over_a_curve_and_a_bin_that_all_held_is_drawn_whole() ->
     assert low < 0.0 and high > 1.0
     plt.close(fig)
     assert plot.reliability_png([("held out", held_out)], "p_hold").startswith(b"\x89PNG")
+
+
+def test_the_counts_of_a_few_trials_beside_many_labels_are_drawn() -> None:
+    """890 trials in a bin beside 21,000 held-out labels: on a linear axis their bar was a line of no height."""
+    import matplotlib.pyplot as plt
+
+    rng = np.random.default_rng(1)
+    many, few = rng.random(21000), rng.random(30)
+    fig = plot.figure([("labels", reliability((rng.random(21000) < many).astype(float), many)),
+                       ("trials", reliability(np.ones(30), few))], "p_hold")
+    fig.tight_layout()
+    fig.canvas.draw()
+    counts = fig.axes[1]
+    bars = [b for b in counts.patches if b.get_height() > 0]
+    smallest = min(bars, key=lambda b: b.get_height()).get_window_extent()
+    assert smallest.height > 0.05 * counts.get_window_extent().height
+    plt.close(fig)
