@@ -21,9 +21,9 @@ import numpy as np
 
 from planner.geometry.gravity import DIRECTIONS
 from planner.geometry.quaternion import canonical_xyzw
-from planner.quality.tolerances import RESISTANCE_CAP
 from planner.record import fields
 from planner.record.grasp import Grasp
+from planner.record.tolerances import RESISTANCE_CAP
 from planner.specs.hands import HandFrame
 
 if TYPE_CHECKING:
