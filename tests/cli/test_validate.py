@@ -131,3 +131,11 @@ def test_a_run_with_nothing_new_to_try_says_so(validated_db: Path, tmp_path: Pat
     assert code == 0, err
     assert out.startswith("nothing new to try in pybullet; 3 already tried with these settings and seed, kept ("), out
     assert "0%" not in out and "validated 0" not in out
+    import sqlite3
+
+    with sqlite3.connect(copy) as conn:
+        conn.execute("UPDATE grasps SET force_closure = 0 WHERE object = 'sphere'")
+    code, out, err = grasp("validate", "--db", str(copy), "--object", "sphere", "--force-closure", "--robust", "0",
+                           "--workers", "1", "--engine", "pybullet")
+    assert code == 0, err
+    assert out == "nothing new to try in pybullet: no stored grasp is selected (none is force closure)\n", out
