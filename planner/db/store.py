@@ -343,14 +343,6 @@ def _frozen(path: Path) -> bool:
             and not (wal.exists() and wal.stat().st_size > 0))
 
 
-def _tidy_reader(path: Path) -> bool:
-    """A reader of a file it could write, in a folder it could write in: opened read-write, it writes nothing
-    (``PRAGMA query_only``), and as the last connection to close it removes the -wal and -shm files SQLite made
-    beside it, which a read-only connection leaves (they stayed beside the database after every ``grasp best``)."""
-    real = path.resolve()
-    return real.is_file() and os.access(real, os.W_OK) and os.access(real.parent, os.W_OK)
-
-
 def _check_header(path: Path) -> None:
     with path.open("rb") as fh:
         if fh.read(16) != b"SQLite format 3\x00":
@@ -370,7 +362,8 @@ def open_db(path: Path, *, create: bool = True, readonly: bool = False) -> Datab
     if not exists and not path.parent.exists():
         raise DatabaseError(f"{path}: folder {path.parent} does not exist")
     try:
-        tidy = readonly and _tidy_reader(path)
+        # a reader of a writable file: read-write, writing nothing (query_only); unlike mode=ro, it cleans up:
+        tidy = readonly and os.access(path.resolve(), os.W_OK) and os.access(path.resolve().parent, os.W_OK)
         uri = f"file:{path}?mode={'rw' if tidy else 'ro'}" if readonly else f"file:{path}"
         if readonly and _frozen(path):  # SQLite cannot make its -shm beside it: read it as the file that it is
             uri = f"file:{path.resolve()}?mode=ro&immutable=1"
@@ -380,8 +373,7 @@ def open_db(path: Path, *, create: bool = True, readonly: bool = False) -> Datab
                             "would not be seen)", path)
         conn = sqlite3.connect(uri, uri=True, timeout=BUSY_TIMEOUT_S, isolation_level=None)
         conn.row_factory = sqlite3.Row
-        if tidy:
-            conn.execute("PRAGMA query_only = ON")
+        conn.execute(f"PRAGMA query_only = {int(tidy)}")  # `grasp best` left both files beside the database
         version = schema_version(conn, path)  # before anything is set: another application's file stays as it is
         if not readonly:
             conn.execute("PRAGMA journal_mode = WAL")
