@@ -66,9 +66,12 @@ class Summary:
     seconds: float = 0.0
     per_object: list[dict] = field(default_factory=list)
     replaced: int = 0  # grasps of earlier sweeps removed by ``replace``
+    #: Objects every unit of which an earlier run finished: not in ``per_object``, which holds this run's work.
+    finished_before: list[str] = field(default_factory=list)
 
     def to_json(self) -> dict:
-        return {"units": self.units, "skipped": self.skipped, "failed": self.failed, "candidates": self.candidates,
+        return {"units": self.units, "skipped": self.skipped, "finished_before": self.finished_before,
+                "failed": self.failed, "candidates": self.candidates,
                 "grasps": self.grasps, "force_closure": self.force_closure, "rejected": dict(self.rejected),
                 "seconds": round(self.seconds, 3), "objects": self.per_object, "replaced": self.replaced}
 
@@ -304,6 +307,9 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
         rule = rule or db.rule()
         db.apply_rule(rule)
         summary.skipped = len(units) - len(todo)
+        working = {u.label or u.object_name for u in todo}
+        summary.finished_before = list(dict.fromkeys(n for n in (u.label or u.object_name for u in units)
+                                                     if n not in working))
         names = list(settings.preshapes) if settings.preshapes else None
         tally = Tally([candidate_count(u.settings, sweep_preshapes(hand_spec, names, u.settings.support() is not None),
                                        u.chunk) for u in todo])

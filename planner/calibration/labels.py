@@ -186,7 +186,7 @@ def check_labelled(paths: Sequence[Path], *, poses: int | None, hand: str | None
     if not paths:
         raise InputError("no label files given")
     if poses is not None and poses < 1:
-        raise InputError(f"--poses must be at least 1 (0: every pose), got {poses}")
+        raise InputError(f"--poses must be 0 (every pose) or a count of at least 1, got {poses}")
     if trial < 0:
         raise InputError(f"--trial must be >= 0, got {trial}")
     if engine not in TRIAL_GROUPS:

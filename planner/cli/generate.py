@@ -172,7 +172,7 @@ def _console():  # type: ignore[no-untyped-def]
 def _print_summary(summary: api.Summary, db_path: Path) -> None:
     from rich.table import Table
 
-    table = Table(title=f"grasp generate -> {db_path}")
+    table = Table(title=f"grasp generate -> {db_path}" + (" (this run's work)" if summary.skipped else ""))
     for col in ("object", "mass kg", "friction", "up", "units", "candidates", "grasps", "force-closure", "worker s",
                 "error"):
         table.add_column(col)
@@ -186,6 +186,8 @@ def _print_summary(summary: api.Summary, db_path: Path) -> None:
     console.print(f"candidates tried: {summary.candidates}, grasps with contacts: {summary.grasps}, "
                   f"force-closure: {summary.force_closure}, skipped (already done): {summary.skipped}, "
                   f"time: {summary.seconds:.1f} s")
+    if summary.finished_before:  # a resumed run's table lists only the objects it worked on
+        console.print(f"finished by an earlier run, not in the table: {', '.join(summary.finished_before)}")
     if summary.rejected:
         console.print("rejected: " + ", ".join(f"{k} {v}" for k, v in sorted(summary.rejected.items())))
     if summary.replaced:

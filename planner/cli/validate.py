@@ -49,8 +49,12 @@ def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], to
     if as_json:
         echo_json(summary.to_json())
     else:
-        click.echo(f"validated {summary.grasps} grasps in {engine}: {summary.successes} held "
-                   f"({share(summary.successes, summary.grasps)})"
+        tried = (f"validated {summary.grasps} grasps in {engine}: {summary.successes} held "
+                 f"({share(summary.successes, summary.grasps)})" if summary.grasps or summary.diverged else
+                 f"nothing new to try in {engine}" + ("" if summary.kept else  # not "validated 0: 0 held (0%)"
+                                                      ": no stored grasp is selected"
+                                                      + (" (none is force closure)" if closure_only else "")))
+        click.echo(tried
                    + (f"; {summary.diverged} diverged (MuJoCo's state; no verdict, not stored)"
                       if summary.diverged else "")
                    + (f"; {summary.kept} already tried with these settings and seed, kept "

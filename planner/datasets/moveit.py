@@ -65,7 +65,9 @@ def end_effector_pose(grasp_pose: np.ndarray, hand: HandSpec) -> np.ndarray:
 
 
 def _vector(v: np.ndarray) -> dict:
-    return {"x": float(v[0]), "y": float(v[1]), "z": float(v[2])}
+    """x, y, z of ``v`` (3,); a negative zero (the retreat, ``-approach``, of an axis-aligned approach) written
+    as 0.0: "-0.0" reads as a sign bug to whoever opens the file."""
+    return {"x": float(v[0]) + 0.0, "y": float(v[1]) + 0.0, "z": float(v[2]) + 0.0}
 
 
 def _posture(names: list[str], joints: dict[str, float]) -> dict:
@@ -94,8 +96,7 @@ def message(g: Grasp, hand: HandSpec) -> dict:
             "grasp_posture": _posture(names, hand.posture(g.closed_joints)),
             "grasp_pose": {"header": {"frame_id": g.object},
                            "pose": {"position": _vector(ee[:3, 3]),
-                                    "orientation": {"x": float(q[0]), "y": float(q[1]), "z": float(q[2]),
-                                                    "w": float(q[3])}}},
+                                    "orientation": {**_vector(q), "w": float(q[3]) + 0.0}}},
             "grasp_quality": float(g.score or 0.0),
             "pre_grasp_approach": _translation(ee_link, approach),
             "post_grasp_retreat": _translation(ee_link, -approach),

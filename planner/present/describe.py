@@ -23,6 +23,7 @@ from planner.geometry.gravity import DIRECTIONS
 from planner.geometry.quaternion import canonical_xyzw
 from planner.record import fields
 from planner.record.grasp import Grasp
+from planner.record.tolerances import RESISTANCE_CAP
 from planner.specs.hands import HandFrame
 
 if TYPE_CHECKING:
@@ -49,8 +50,9 @@ class Frames:
     approach: np.ndarray
 
     def to_json(self) -> dict:
-        return {"frame": self.frame, "hand_base_m": self.base.tolist(), "tcp_m": self.tcp.tolist(),
-                "quaternion_xyzw": self.quaternion.tolist(), "approach": self.approach.tolist()}
+        # + 0.0: a negative zero is written 0.0, as the text lines say it (:func:`_fixed`)
+        return {"frame": self.frame, "hand_base_m": (self.base + 0.0).tolist(), "tcp_m": (self.tcp + 0.0).tolist(),
+                "quaternion_xyzw": (self.quaternion + 0.0).tolist(), "approach": (self.approach + 0.0).tolist()}
 
 
 def frames(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None) -> Frames:
@@ -62,8 +64,21 @@ def frames(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None) -> Fr
                   canonical_xyzw(rotation), rotation @ hand.approach)
 
 
+def _fixed(x: float, digits: int) -> str:
+    """``x`` with ``digits`` decimals, a value that rounds to zero without the sign of a tiny negative
+    ("-0.000" read as a coordinate a hair below zero, or a sign bug, beside the "0.000" of the same axis)."""
+    text = f"{x:.{digits}f}"
+    return text[1:] if text.startswith("-") and float(text) == 0.0 else text
+
+
+def times_weight(resist: float) -> str:
+    """A weight resistance [multiples of the weight] as said: one at the measure's cap is a bound, not a value
+    (a Barrett grasp "holds 50.0 times its weight", worst and mean, read as measured)."""
+    return f"at least {RESISTANCE_CAP:.0f}" if resist >= RESISTANCE_CAP else f"{resist:.1f}"
+
+
 def _xyz(v: np.ndarray, digits: int = 3) -> str:
-    return "(" + ", ".join(f"{x:.{digits}f}" for x in v) + ")"
+    return "(" + ", ".join(_fixed(x, digits) for x in v) + ")"
 
 
 def frame_lines(f: Frames, hand: HandFrame) -> list[str]:
@@ -104,9 +119,10 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
                  f"{len(g.contacts)} contacts; reachability {reach}")
     if m is not None:
         settled = "" if m.settled_epsilon is None else f"; settled epsilon {m.settled_epsilon:.4f}"
-        lines.append(f"    holds {m.resist_worst:.1f} times its weight in the worst of {DIRECTIONS} directions (mean "
-                     f"{m.resist_mean:.1f}); push {m.push:.2f} (1 = pads square on); feasibility "
-                     f"{','.join(m.reasons) or 'ok'}{settled}")
+        capped = " (the measure's cap)" if m.resist_worst >= RESISTANCE_CAP else ""
+        lines.append(f"    holds {times_weight(m.resist_worst)} times its weight{capped} in the worst of {DIRECTIONS} "
+                     f"directions (mean {times_weight(m.resist_mean)}); push {m.push:.2f} (1 = pads square on); "
+                     f"feasibility {','.join(m.reasons) or 'ok'}{settled}")
     if not g.force_closure:
         lines.append("    not force closure as planned: it ranks after every force-closure grasp of the object (so it "
                      "shows only where the object has fewer than asked for); its p_hold is how often labelled grasps "
@@ -126,7 +142,7 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
                      f"directions, where the fingers' force limits hold {m.resist_worst:.1f} times its weight: hold "
                      "it as it stands, do not turn it")
     for stage, joints in (arm or {}).items():
-        lines.append(f"    arm at {stage} [rad]: " + ", ".join(f"{k} {v:.4f}" for k, v in joints.items()))
+        lines.append(f"    arm at {stage} [rad]: " + ", ".join(f"{k} {_fixed(v, 4)}" for k, v in joints.items()))
     return lines
 
 

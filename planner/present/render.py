@@ -25,7 +25,7 @@ import trimesh
 
 from planner.geometry.frames import rotation_onto, tangent_bases
 from planner.geometry.solid import PreparedObject
-from planner.present.describe import score_text
+from planner.present.describe import score_text, times_weight
 from planner.record.contacts import HandContacts
 from planner.record.grasp import Grasp
 from planner.sim import Sim
@@ -234,7 +234,7 @@ def save_sheet(panels: list[tuple[list[View], str]], out: Path) -> None:
 def title(grasp: Grasp) -> str:
     reach = "n/a" if grasp.reachability is None else f"{grasp.reachability:.2f}"
     m = grasp.measures
-    extra = "" if m is None else (f", holds {m.resist_worst:.1f}x its weight, push {m.push:.2f}"
+    extra = "" if m is None else (f", holds {times_weight(m.resist_worst)}x its weight, push {m.push:.2f}"
                                   + (f", {'/'.join(m.reasons)}" if m.reasons else ""))
     return (f"#{grasp.rank} {grasp.object}/{grasp.hand} {grasp.preshape}: score {score_text(grasp.score)}, "
             f"epsilon {grasp.epsilon:.4f}, reach {reach}, {len(grasp.contacts)} contacts{extra}")

@@ -304,7 +304,12 @@ def _summary_rows(report: HandReport) -> list[tuple[str, str]]:
         ("Spearman(reachability, success)", spearman(report.measure("reachability"), ok)),
         ("Spearman(rank, success) (negative is good)", spearman(report.measure("rank"), ok)),
     ]
-    if small:
+    if not min(held, slipped):  # "AUCs ... are uncertain; validate more": there was none, and more trials of
+        # grasps that all held (every stored one, maybe) give none
+        rows.insert(1, ("note", f"{held} held and {slipped} slipped: no AUC or Spearman correlation without both "
+                                "outcomes; they need grasps that drop (a heavier or more slippery object, or "
+                                "grasps further down the ranking: --sample N)"))
+    elif small:
         rows.insert(1, ("note", f"{held} held and {slipped} slipped: AUCs from fewer than {AUC_MIN_CLASS} grasps "
                                 "of a class are uncertain by 0.05 or more; validate more (--sample N)"))
     return [(k, v if isinstance(v, str) else f"{v:.3f}") for k, v in rows

@@ -26,7 +26,7 @@ import viser
 
 from planner.geometry.frames import rotation_onto
 from planner.geometry.quaternion import canonical_xyzw, quaternion_xyzw
-from planner.present.describe import score_text
+from planner.present.describe import score_text, times_weight
 from planner.present.scene import APPROACH_RGB, CONTACT_RADIUS, CONTACT_RGB, GraspScene, Part
 from planner.record.grasp import Grasp
 from planner.specs.hands import HandSpec
@@ -96,7 +96,7 @@ def measures_text(entry: Entry) -> str:
             ("contacts", f"{len(g.contacts)}"), ("reachability", _num(g.reachability, ".2f")),
             ("label", entry.label)]
     if m is not None:
-        rows += [("holds (worst direction)", f"{m.resist_worst:.1f} x its weight"),
+        rows += [("holds (worst direction)", f"{times_weight(m.resist_worst)} x its weight"),
                  ("open margin", f"{m.open_margin * 1000:.1f} mm"), ("push", f"{m.push:.2f}")]
     tcp = np.asarray(g.pose, float)
     quat = canonical_xyzw(tcp[:3, :3])  # as `grasp best` prints it

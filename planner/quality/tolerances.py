@@ -8,6 +8,10 @@ therefore dimensionless multiples of the normal force.
 
 from __future__ import annotations
 
+#: Weight resistance above this many g counts as this many: on the record floor (what is said of a stored value
+#: reads it there without loading this package's scipy).
+from planner.record.tolerances import RESISTANCE_CAP  # noqa: F401 - re-exported
+
 #: A grasp is force closure iff its L1 epsilon exceeds this (wrench units).
 #: ``force_closure`` and ``epsilon`` decide with this single number, so
 #: ``force_closure(...) == (epsilon(...) > 0)`` always.  1e-9 is OpenRAVE's
@@ -94,11 +98,6 @@ INERTIA_TOL = 1e-9
 
 #: [m/s^2] standard gravity: weight resistance is in units of the object's weight m g.
 GRAVITY = 9.81
-
-#: Weight resistance above this many g counts as this many: contacts on links
-#: no joint moves (the palm) are pushed by the arm and bound nothing, and a
-#: grasp that holds 50 g holds any load a shake test or a robot arm applies.
-RESISTANCE_CAP = 50.0
 
 #: The batched dual simplex of the weight resistance (:mod:`planner.quality.resistance_batch`): a basic value
 #: above -LP_TOL x (1 + the largest) and a reduced cost above -LP_TOL count as feasible and optimal. HiGHS's own

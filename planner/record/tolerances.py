@@ -14,3 +14,9 @@ from __future__ import annotations
 MIN_OPEN_MARGIN = 0.002
 #: [m] a finger this close to its closing stop cannot squeeze.
 MIN_CLOSE_MARGIN = 1e-4
+
+#: Weight resistance above this many g counts as this many (:mod:`planner.quality.resistance`): contacts on
+#: links no joint moves (the palm) are pushed by the arm and bound nothing, and a grasp that holds 50 g holds
+#: any load a shake test or a robot arm applies. Here, below the quality library, since a stored value at it
+#: is a bound, not a measurement, and what shows one says so (:mod:`planner.present.describe`).
+RESISTANCE_CAP = 50.0

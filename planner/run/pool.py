@@ -210,8 +210,7 @@ class _Pool:
         while len(self.workers) < min(self.size, len(todo) + self._busy()):
             self._start()
         if not todo:
-            for w in [w for w in self.workers if w.ready and w.job is None]:
-                self._stop(w)
+            self._stop([w for w in self.workers if w.ready and w.job is None])
         done = []
         for w in self.workers:
             if not todo:
@@ -323,16 +322,21 @@ class _Pool:
             return False
         return self.ctx.get_start_method() == "forkserver" or threading.current_thread() is threading.main_thread()
 
-    def _stop(self, w: _Worker) -> None:
-        """Tell idle ``w`` to exit, and retire it (killed if it has not exited within :data:`STOP_GRACE`)."""
-        try:
-            w.conn.send(None)
-        except OSError:  # already dead
-            pass
-        w.process.join(STOP_GRACE)
-        if w.process.is_alive():
-            w.process.kill()
-        self._retire(w)
+    def _stop(self, idle: list[_Worker]) -> None:
+        """Tell every worker of ``idle`` to exit, then retire them (each killed if it has not exited within
+        :data:`STOP_GRACE` of the telling): told one at a time, each after the one before had exited, a run's end
+        waited for their exits in turn (up to ``STOP_GRACE`` each)."""
+        for w in idle:
+            try:
+                w.conn.send(None)
+            except OSError:  # already dead
+                pass
+        deadline = time.monotonic() + STOP_GRACE
+        for w in idle:
+            w.process.join(max(0.0, deadline - time.monotonic()))
+            if w.process.is_alive():
+                w.process.kill()
+            self._retire(w)
 
     def _retire(self, w: _Worker) -> None:
         w.process.join()

@@ -222,7 +222,7 @@ def test_a_database_that_cannot_take_the_model_is_refused_before_the_fit(validat
     (["{missing}"], "file not found"),
     (["{folder}"], "is a folder; give its .h5 files"),
     (["{file}", "--trial", "-1"], "--trial must be >= 0"),
-    (["{file}", "--poses", "-1"], "--poses must be at least 1 (0: every pose)"),
+    (["{file}", "--poses", "-1"], "--poses must be 0 (every pose) or a count of at least 1, got -1"),
 ])
 def test_a_refused_calibrate_leaves_no_database_behind(args: list[str], message: str, validated_db: Path,
                                                        tmp_path: Path) -> None:

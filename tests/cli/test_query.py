@@ -351,3 +351,41 @@ def test_a_held_grasp_that_cannot_hold_its_weight_in_every_direction_says_why_bo
                for line in lines)
     lines = describe(replace(made_up(1, 0.01), measures=weak, mujoco=dropped), load_hand("panda"))
     assert "    MuJoCo trial: dropped (slipped)" in lines and not any("its weight:" in line for line in lines)
+
+
+def test_a_coordinate_that_rounds_to_zero_is_printed_without_a_sign(box_db: Path) -> None:
+    """`grasp best` printed "(0.021, -0.000, 0.109)" and its JSON -0.0 where a value lay a hair below zero."""
+    from dataclasses import replace
+
+    from planner import api
+    from planner.present.describe import Frames, describe, frame_lines
+    from planner.specs.hands import hand_frame
+
+    tiny = np.array([-1e-9, -0.0, 0.5])
+    f = Frames("object", tiny, tiny, np.array([-0.0, -1e-7, -0.0, 1.0]), tiny)
+    line = frame_lines(f, hand_frame("panda"))[0]
+    assert "-0.0" not in line and "(0.000, 0.000, 0.500)" in line, line
+    assert "-0.0" not in json.dumps(f.to_json())
+    top = api.best("box", "panda", db_path=box_db, top=1)[0]
+    arm = {"the grasp": {"j1": -1e-6, "j2": -0.25}}
+    said = [x for x in describe(replace(top), hand_frame("panda"), arm=arm) if "arm at" in x]
+    assert said == ["    arm at the grasp [rad]: j1 0.0000, j2 -0.2500"]
+
+
+def test_a_weight_resistance_at_the_measures_cap_is_said_as_a_bound(box_db: Path) -> None:
+    """A Barrett grasp "holds 50.0 times its weight ... (mean 50.0)": 50 is where the measure stops."""
+    from dataclasses import replace
+
+    from planner import api
+    from planner.present.describe import describe
+    from planner.quality.tolerances import RESISTANCE_CAP
+    from planner.specs.hands import hand_frame
+
+    top = api.best("box", "panda", db_path=box_db, top=1)[0]
+    capped = replace(top, measures=replace(top.measures, resist_worst=RESISTANCE_CAP, resist_mean=RESISTANCE_CAP))
+    line = next(x for x in describe(capped, hand_frame("panda")) if " holds " in x)
+    assert line.startswith("    holds at least 50 times its weight (the measure's cap) in the worst of 14 directions "
+                           "(mean at least 50); "), line
+    below = replace(top, measures=replace(top.measures, resist_worst=12.34, resist_mean=20.0))
+    assert "    holds 12.3 times its weight in the worst of 14 directions (mean 20.0); " in describe(
+        below, hand_frame("panda"))[3]

@@ -120,3 +120,22 @@ def test_validate_shakes_an_imported_object_with_its_stored_mass_and_friction(tm
                            "--engine", engine)
     assert code == 0, err
     assert json.loads(out)["grasps"] == 1 and shaken == [("crate", 0.05, 1.0)]
+
+
+def test_a_run_with_nothing_new_to_try_says_so(validated_db: Path, tmp_path: Path) -> None:
+    """It said "validated 0 grasps in pybullet: 0 held (0%); 3 already tried ...": 0% of nothing."""
+    copy = tmp_path / "v.db"
+    shutil.copy(validated_db, copy)
+    code, out, err = grasp("validate", "--db", str(copy), "--object", "box", "--top", "3", "--robust", "2",
+                           "--workers", "1", "--engine", "pybullet")
+    assert code == 0, err
+    assert out.startswith("nothing new to try in pybullet; 3 already tried with these settings and seed, kept ("), out
+    assert "0%" not in out and "validated 0" not in out
+    import sqlite3
+
+    with sqlite3.connect(copy) as conn:
+        conn.execute("UPDATE grasps SET force_closure = 0 WHERE object = 'sphere'")
+    code, out, err = grasp("validate", "--db", str(copy), "--object", "sphere", "--force-closure", "--robust", "0",
+                           "--workers", "1", "--engine", "pybullet")
+    assert code == 0, err
+    assert out == "nothing new to try in pybullet: no stored grasp is selected (none is force closure)\n", out

@@ -25,3 +25,13 @@ def test_a_pair_written_in_several_batches_loads_with_safe_load(db: Path, tmp_pa
     assert [m["id"] for m in messages] == [f"box/panda/{rank}" for rank in range(1, total + 1)]
     assert "&id" not in text and "*id" not in text  # every value written in full: no anchors, no aliases
     assert all(m["grasp_posture"]["joint_names"] == m["pre_grasp_posture"]["joint_names"] for m in messages)
+
+
+def test_no_vector_is_written_with_a_negative_zero(db: Path, tmp_path: Path) -> None:
+    """The retreat, -approach of the Panda's (0, 0, 1), was written {x: -0.0, y: -0.0, z: -1.0}."""
+    api.export(db, "moveit", tmp_path, objects=["box"], top=3)
+    text = (tmp_path / moveit.relative_path("box", "panda")).read_text()
+    messages = yaml.safe_load(text)
+    retreat = messages[0]["post_grasp_retreat"]["direction"]["vector"]
+    assert retreat == {"x": 0.0, "y": 0.0, "z": -1.0}
+    assert "-0.0," not in text and "-0.0}" not in text

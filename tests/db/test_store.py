@@ -296,3 +296,17 @@ def test_a_grasp_force_closure_after_the_squeeze_ranks_among_the_force_closure_o
         back = db.best("thing", "panda", 10)
         assert [g.candidate for g in back] == [3, 1, 0, 2]
         assert [g.candidate for g in db.scored(grasps, "panda")] == [3, 1, 0, 2]
+
+
+def test_a_reader_leaves_no_wal_or_shm_files_and_writes_nothing(tmp_path: Path) -> None:
+    path = tmp_path / "g.db"
+    with open_db(path) as db:
+        db.write_unit(unit(), None, [made_up(0, 0.05)], RankingRule())
+    beside = [tmp_path / "g.db-wal", tmp_path / "g.db-shm"]
+    assert not any(p.exists() for p in beside)  # the writer's clean close removed them
+    with open_db(path, create=False, readonly=True) as db:
+        assert [g.candidate for g in db.best("thing", "panda", 10)] == [0]
+        with pytest.raises(sqlite3.OperationalError, match="readonly|query_only|read-only"):
+            db._conn.execute("DELETE FROM grasps")
+    assert not any(p.exists() for p in beside)  # `grasp best` left both until 2026-12-07
+    assert [r[2] for r in rows(path)] == [0]

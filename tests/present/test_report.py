@@ -107,7 +107,7 @@ def test_no_nan_rows_and_small_samples_are_marked(validated_db: Path) -> None:
     for rep in report.collect(validated_db):
         rows = dict(report._summary_rows(rep))
         assert not any("nan" in v for v in rows.values()), rows
-        assert "held" in rows["validated grasps"] and "validate more" in rows["note"]
+        assert "held" in rows["validated grasps"] and "--sample N" in rows["note"]
         aucs = {k: v for k, v in rows.items() if k.startswith("ROC AUC")}
         assert all("small sample" in v for v in aucs.values())
         assert all(cells[-1] != "nan" for cells in report._per_object(rep))
@@ -152,3 +152,16 @@ def test_the_analytic_score_is_read_without_the_trials_it_is_scored_against() ->
     assert np.allclose(rep.measure("analytic"), [0.9, 0.8, 0.3, 0.2])
     assert np.allclose(report.untried_analytic(RankingRule(), grasps), [0.9, 0.8, 0.3, 0.2])
     assert dict(report._summary_rows(rep))["verdicts from"] == "MuJoCo 4, PyBullet 0"  # the report says whose
+
+
+def test_a_trial_with_one_outcome_only_says_no_auc_can_be_made() -> None:
+    """1,035 grasps, every stored one, all held: the note said AUCs "are uncertain ...; validate more"."""
+    from planner.record.grasp import Trial
+
+    rep = report.HandReport("toy")
+    for i in range(80):
+        g = made_up(i, epsilon=0.01 * (i % 7), fc=True)
+        rep.grasps.append(replace(g, id=i, rank=i + 1, validation=Trial(True, 2, 0.0, 0.0, 0.0, 0.0)))
+    rows = dict(report._summary_rows(rep))
+    assert rows["note"].startswith("80 held and 0 slipped: no AUC or Spearman correlation without both outcomes")
+    assert "uncertain" not in rows["note"] and not any(k.startswith(("ROC AUC", "Spearman")) for k in rows)

@@ -297,3 +297,38 @@ def test_a_units_preparation_lines_reach_the_driver_while_it_runs(tmp_path: Path
         logger.setLevel(level)
     assert [r for _, r, _ in out] == [True, True]
     assert lines == ["cup.obj: capped the mesh's open boundary loops (once: cached afterwards)"]
+
+
+def test_idle_workers_are_all_told_to_stop_before_any_is_waited_for() -> None:
+    """At a run's end each idle worker was told to exit only once the one before had exited (up to STOP_GRACE,
+    5 s, each): the run's end waited for their exits in turn."""
+    from collections import deque
+
+    events: list[tuple[str, int]] = []
+
+    class Conn:
+        def __init__(self, i: int) -> None:
+            self.i = i
+
+        def send(self, message: object) -> None:
+            events.append(("told", self.i))
+
+        def close(self) -> None:
+            pass
+
+    class Process:
+        def __init__(self, i: int) -> None:
+            self.i = i
+
+        def join(self, timeout: float | None = None) -> None:
+            events.append(("waited", self.i))
+
+        def is_alive(self) -> bool:
+            return False
+
+    idle = pool._Pool.__new__(pool._Pool)
+    idle.size, idle.workers = 3, [pool._Worker(Process(i), Conn(i), ready=True) for i in range(3)]  # type: ignore[arg-type]
+    assert idle._fill(deque()) == []
+    assert idle.workers == []
+    told = [i for kind, i in events if kind == "told"]
+    assert told == [0, 1, 2] and events[:3] == [("told", 0), ("told", 1), ("told", 2)], events

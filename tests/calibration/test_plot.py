@@ -1,0 +1,48 @@
+"""The reliability diagram's picture: every curve visible, every legend line whole."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planner.calibration import plot
+from planner.calibration.metrics import reliability
+
+
+def test_no_legend_lies_over_a_curve_and_a_bin_that_all_held_is_drawn_whole() -> None:
+    """`grasp report` drew the legend ("best") over a curve of trials that all held, which ran along the frame's
+    top edge, its markers cut in half; the trials' long legend line ran off the figure."""
+    import matplotlib.pyplot as plt
+
+    rng = np.random.default_rng(0)
+    p = rng.random(500)
+    held_out = reliability((rng.random(500) < p).astype(float), p)
+    trials = reliability(np.ones(300), rng.random(300))  # every grasp tried held
+    label = "trials: MuJoCo 1035, PyBullet 0 (MuJoCo's verdict where both tried a grasp)"
+    fig = plot.figure([("held out on its labels: the model's source", held_out), (label, trials)], "p_hold")
+    fig.tight_layout()
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    legend = ax.get_legend()
+    assert not legend.get_window_extent().overlaps(ax.get_window_extent())
+    assert all(t.get_window_extent().x1 <= fig.bbox.x1 for t in legend.get_texts())
+    low, high = ax.get_ylim()
+    assert low < 0.0 and high > 1.0
+    plt.close(fig)
+    assert plot.reliability_png([("held out", held_out)], "p_hold").startswith(b"\x89PNG")
+
+
+def test_the_counts_of_a_few_trials_beside_many_labels_are_drawn() -> None:
+    """890 trials in a bin beside 21,000 held-out labels: on a linear axis their bar was a line of no height."""
+    import matplotlib.pyplot as plt
+
+    rng = np.random.default_rng(1)
+    many, few = rng.random(21000), rng.random(30)
+    fig = plot.figure([("labels", reliability((rng.random(21000) < many).astype(float), many)),
+                       ("trials", reliability(np.ones(30), few))], "p_hold")
+    fig.tight_layout()
+    fig.canvas.draw()
+    counts = fig.axes[1]
+    bars = [b for b in counts.patches if b.get_height() > 0]
+    smallest = min(bars, key=lambda b: b.get_height()).get_window_extent()
+    assert smallest.height > 0.05 * counts.get_window_extent().height
+    plt.close(fig)
