@@ -102,8 +102,8 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
     squeezed = m is not None and bool(m.squeezed_force_closure) and not g.force_closure
     closure = "force closure" if g.force_closure else "NOT force closure as planned, force closure once squeezed" \
         if squeezed else "NOT force closure"
-    lines.append(f"    finger width {width}; epsilon {g.epsilon:.4f} (Ferrari-Canny L1, {closure}); GWS volume {volume}; "
-                 f"{len(g.contacts)} contacts; reachability {reach}")
+    lines.append(f"    finger width {width}; epsilon {g.epsilon:.4f} (Ferrari-Canny L1, {closure}); GWS volume "
+                 f"{volume}; {len(g.contacts)} contacts; reachability {reach}")
     if m is not None:
         settled = "" if m.settled_epsilon is None else f"; settled epsilon {m.settled_epsilon:.4f}"
         lines.append(f"    holds {m.resist_worst:.1f} times its weight in the worst of {DIRECTIONS} directions (mean "
