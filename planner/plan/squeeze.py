@@ -132,12 +132,24 @@ def squeezed(grasper: Grasper, closed: Closed, preshape: Preshape, planned: Qual
              ) -> Squeeze | None:
     """The squeeze of the grasp ``closed`` whose contacts' quality is ``planned`` (the module docstring), each
     turned closing scored by ``score``; None for a hand that does not squeeze (:func:`squeezes`). The grasper's
-    world is left as it was (closing places the hand anew for every grasp), ``closed`` is not changed."""
+    world is left as it was (closing places the hand anew for every grasp), and its count of the seconds spent
+    reading contacts (the sweep's ``contacts`` stage, taken out of ``closing``: the squeeze's time is the caller's
+    to count); ``closed`` is not changed."""
     hand = grasper.hand
     if not squeezes(hand):
         return None
     if planned.force_closure:
         return Squeeze(True, float(planned.epsilon), 0.0)
+    seconds = grasper.contact_seconds
+    try:
+        return _squeezed(grasper, closed, preshape, planned, score)
+    finally:
+        grasper.contact_seconds = seconds
+
+
+def _squeezed(grasper: Grasper, closed: Closed, preshape: Preshape, planned: Quality, score: Score) -> Squeeze:
+    """:func:`squeezed` of a grasp that squeezes, not force closure as planned."""
+    hand = grasper.hand
     master, slave = hand.jaw  # type: ignore[misc]
     sides = (frozenset(master.moves) - frozenset(slave.moves), frozenset(slave.moves))
     axis = grasper.axis_in_root(master.name)

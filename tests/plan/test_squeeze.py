@@ -87,12 +87,14 @@ def test_the_squeeze_leaves_the_sweep_as_it_was(monkeypatch: pytest.MonkeyPatch)
     the squeeze's closings leave the grasper's world as they found it (later grasps unchanged)."""
     obj = load_object("mug")
     settings = SweepSettings(approaches=60, rolls=2, reach_placements=0)
-    squeezed = unit.plan_object(obj, "panda", settings, 3).grasps
+    result = unit.plan_object(obj, "panda", settings, 3)
+    squeezed = result.grasps
     monkeypatch.setattr(unit, "squeezed", lambda *args: None)
     plain = unit.plan_object(obj, "panda", settings, 3).grasps
     assert len(squeezed) == len(plain) > 10
     turned = [g for g in squeezed if g.measures.squeeze_turn > 0.0]  # type: ignore[union-attr]
     assert turned and any(not g.force_closure for g in squeezed)
+    assert all(t >= 0.0 for t in result.timing.values()), result.timing  # the squeeze's contacts not in closing's
     for a, b in zip(squeezed, plain):
         assert a.measures is not None and b.measures is not None
         assert a.measures.squeezed_force_closure >= a.force_closure  # type: ignore[operator]
