@@ -74,7 +74,7 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
     in this resting pose first, then better-ranked others); if fewer than
     ``top`` of them are force closure and ``plan``, grasps are also planned
     on the spot with the table under the object (:func:`_plan_now`, from
-    ``seed``), and the force-closure ones come first (:func:`_preferred`). ``misses``, if
+    ``seed``), and the ones that rank first come first (:func:`_preferred`). ``misses``, if
     given, receives (rank, why) of each one tried and not reachable (rank 0:
     planned on the spot)."""
     from planner.plan.reach import ReachScene, ReachSettings
@@ -106,15 +106,25 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
         return found
 
 
+def _first(found: Sequence[ReachableGrasp]) -> list[bool]:
+    """Which of ``found`` rank first (:func:`planner.db.ranking.ranks_first`: force closure as planned or once a
+    parallel jaw's squeeze turns the object), as the database ranks them."""
+    from planner.db.ranking import first_measures, ranks_first
+
+    return ranks_first(first_measures([r.grasp for r in found])).tolist() if found else []
+
+
 def _closures(found: Sequence[ReachableGrasp]) -> int:
-    return sum(bool(r.grasp.force_closure) for r in found)
+    return sum(_first(found))
 
 
 def _preferred(stored: list[ReachableGrasp], planned: list[ReachableGrasp], top: int) -> list[ReachableGrasp]:
     """The ``top`` to return of reachable stored grasps (rank order) and grasps
-    planned on the spot (best first): force closure first, stored before
+    planned on the spot (best first): those that rank first (:func:`_first`) first, stored before
     planned."""
-    return sorted([*stored, *planned], key=lambda r: not r.grasp.force_closure)[:top]  # stable: keeps each order
+    both = [*stored, *planned]
+    first = _first(both)
+    return [both[i] for i in sorted(range(len(both)), key=lambda i: not first[i])][:top]  # stable: keeps each order
 
 
 def _reachable(db: Database, scene: ReachScene, key: str, hand: str, obj_pose: np.ndarray, top: int,

@@ -36,13 +36,13 @@ success only refines the order. Simulated success is the verdict of the
 dynamic trial that agrees best with external labels among those that tried
 the grasp (:data:`planner.record.fields.TRIAL_PRECEDENCE`: MuJoCo's, then
 PyBullet's shake trial), neutral if none tried it. Rank 1 is the best
-grasp of an (object, hand). Every grasp whose planned contacts are force
-closure ranks above every grasp whose contacts are not, whatever their
-scores (issue 26: a score that rewards what one simulator's closing happens to
-do must not lift a grasp that is not force closure as planned); within each
-of the two, by score (force closure as planned, or as a parallel jaw's squeeze ends in: :data:`FIRST`); ties
-are broken by epsilon, then GWS volume, then by
-the unit seed and candidate number (never by insertion order).
+grasp of an (object, hand). Every grasp whose contacts are force closure, as
+planned or as a self-centring parallel jaw's squeeze ends in (:data:`FIRST`;
+only the Panda squeezes), ranks above every grasp whose contacts are neither,
+whatever their scores (issue 26: a score that rewards what one simulator's
+closing happens to do must not lift a grasp that is not force closure);
+within each of the two, by score; ties are broken by epsilon, then GWS
+volume, then by the unit seed and candidate number (never by insertion order).
 """
 
 from __future__ import annotations

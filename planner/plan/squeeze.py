@@ -15,7 +15,9 @@ about the contacts' centre by the rotation that brings the jaw's closing axis on
 difference of the two fingers' mean contact normals), the jaw a little more open than it closed
 (:data:`REOPEN`), and closes again; at most :data:`TURNS` times, until the contacts are force closure. Where
 that jaw would overlap the object at the whole turn, the object turns part of the way (:data:`SHARES`); a turn
-it cannot make at all or a closing that fails there ends the squeeze where it is.
+it cannot make at all or a closing that fails there ends the squeeze where it is. On a table (the grasper's), it is
+the object that turns, not the hand: a turn that would take the object resting there through the table top
+(deeper than :data:`SINK`) is one it cannot make (:func:`through_table`).
 
 The grasp stays as planned: the squeeze's outcome is stored beside it as measures (:class:`Squeeze`: its force
 closure, epsilon and turn; replacing the planned pose by the squeezed one lost what the slanted pose says about
@@ -36,12 +38,13 @@ from scipy.spatial.transform import Rotation
 
 from planner.plan.closing import Grasper
 from planner.plan.closing_types import Closed
+from planner.plan.tolerances import TABLE_CLEARANCE
 from planner.quality import Quality
 from planner.record.contacts import HandContacts
 from planner.specs.hand_spec import HandSpec
 from planner.specs.preshapes import Preshape
 
-__all__ = ["REOPEN", "TURNS", "Squeeze", "squeezed", "squeezes", "turn"]
+__all__ = ["REOPEN", "SINK", "TURNS", "Squeeze", "squeezed", "squeezes", "through_table", "turn"]
 
 #: Turns of the squeeze at most: one brings the wall flush where the pads touched a flat wall; a curved one
 #: may take a second or third (the pads then touch it elsewhere).
@@ -54,6 +57,10 @@ REOPEN = 0.001
 SHARES = (1.0, 0.5, 0.25)
 #: [rad] a smaller turn is no turn (the wall already lies along the closing axis).
 MIN_TURN = 1e-4
+
+#: [m] how far below the table top it rests on the object turned by the squeeze may reach (a turn that takes it
+#: deeper goes through the table: the table stops it).
+SINK = 1e-4
 
 #: contacts -> their quality (epsilon and force closure; None: not computable).
 Score = Callable[[HandContacts], "Quality | None"]
@@ -83,14 +90,14 @@ def turn(contacts: HandContacts, sides: tuple[frozenset[str], frozenset[str]], p
          axis: np.ndarray, share: float = 1.0) -> np.ndarray | None:
     """(4, 4) the hand ``pose`` (object frame) turned about its contacts' centre so that the closing ``axis``
     (3,) (hand frame, unit) lies along the wall's normal: the difference of the mean contact normals of the
-    two fingers' links ``sides`` (``share`` < 1: that share of the way); None when a finger has no contact or the
-    axis already lies along it."""
+    two fingers' links ``sides`` (``share`` < 1: that share of the way); None when a finger has no contact, the
+    axis already lies along it, or the normals give no wall's normal (opposite means cancelling, or not finite)."""
     on = [np.array([link in side for link in contacts.links]) for side in sides]
     if not all(s.any() for s in on):
         return None
     wall = contacts.normals[on[1]].mean(axis=0) - contacts.normals[on[0]].mean(axis=0)
     along = pose[:3, :3] @ axis
-    if np.linalg.norm(wall) == 0.0:
+    if not np.all(np.isfinite(wall)) or np.linalg.norm(wall) == 0.0:  # a NaN normal turned the hand to NaN
         return None
     wall = wall / np.linalg.norm(wall) * np.sign(wall @ along or 1.0)
     cross = np.cross(along, wall)
@@ -105,27 +112,56 @@ def turn(contacts: HandContacts, sides: tuple[frozenset[str], frozenset[str]], p
     return out
 
 
+def through_table(grasper: Grasper, planned: np.ndarray, pose: np.ndarray) -> bool:
+    """Would the squeeze that turns the hand from ``planned`` (4, 4) to ``pose`` (4, 4) (object frame) take the
+    object through the grasper's table? The hand and the table stay where they are, the object turns by the
+    inverse (object frame -> planned @ pose^-1); its vertices may reach :data:`SINK` below the table top (closing's
+    raised one less :data:`~planner.plan.tolerances.TABLE_CLEARANCE`) or below its own lowest point at rest, the
+    lower of the two. False without a table."""
+    if grasper.table is None or grasper.mesh is None:
+        return False
+    normal = grasper.table[:3, 2]
+    at_rest = np.asarray(grasper.mesh.vertices, float) @ normal
+    top = float(normal @ grasper.table[:3, 3]) - TABLE_CLEARANCE
+    moved = planned @ np.linalg.inv(pose)
+    heights = (np.asarray(grasper.mesh.vertices, float) @ moved[:3, :3].T + moved[:3, 3]) @ normal
+    return bool(heights.min() < min(top, float(at_rest.min())) - SINK)
+
+
 def squeezed(grasper: Grasper, closed: Closed, preshape: Preshape, planned: Quality, score: Score
              ) -> Squeeze | None:
     """The squeeze of the grasp ``closed`` whose contacts' quality is ``planned`` (the module docstring), each
     turned closing scored by ``score``; None for a hand that does not squeeze (:func:`squeezes`). The grasper's
-    world is left as it was (closing places the hand anew for every grasp), ``closed`` is not changed."""
+    world is left as it was (closing places the hand anew for every grasp), and its count of the seconds spent
+    reading contacts (the sweep's ``contacts`` stage, taken out of ``closing``: the squeeze's time is the caller's
+    to count); ``closed`` is not changed."""
     hand = grasper.hand
     if not squeezes(hand):
         return None
     if planned.force_closure:
         return Squeeze(True, float(planned.epsilon), 0.0)
+    seconds = grasper.contact_seconds
+    try:
+        return _squeezed(grasper, closed, preshape, planned, score)
+    finally:
+        grasper.contact_seconds = seconds
+
+
+def _squeezed(grasper: Grasper, closed: Closed, preshape: Preshape, planned: Quality, score: Score) -> Squeeze:
+    """:func:`squeezed` of a grasp that squeezes, not force closure as planned."""
+    hand = grasper.hand
     master, slave = hand.jaw  # type: ignore[misc]
     sides = (frozenset(master.moves) - frozenset(slave.moves), frozenset(slave.moves))
     axis = grasper.axis_in_root(master.name)
     axis = axis / np.linalg.norm(axis)
-    quality, start = planned, closed.pose[:3, :3]
+    quality, start = planned, closed.pose
     for _ in range(TURNS):
         joints = dict(closed.closed_joints)
         joints[master.name] += -np.sign(master.close) * REOPEN
         joints = hand.full_configuration({j.name: joints[j.name] for j in hand.driven})
         turned = (turn(closed.contacts, sides, closed.pose, axis, share) for share in SHARES)
-        pose = next((p for p in turned if p is None or not grasper.overlaps_at(p, joints)), None)
+        pose = next((p for p in turned if p is None or not (grasper.overlaps_at(p, joints)
+                                                             or through_table(grasper, start, p))), None)
         if pose is None:
             break
         again = grasper.close_from(pose, preshape, joints)
@@ -134,5 +170,5 @@ def squeezed(grasper: Grasper, closed: Closed, preshape: Preshape, planned: Qual
         closed, quality = again, better
         if quality.force_closure:
             break
-    turned_by = Rotation.from_matrix(closed.pose[:3, :3] @ start.T).magnitude()
+    turned_by = Rotation.from_matrix(closed.pose[:3, :3] @ start[:3, :3].T).magnitude()
     return Squeeze(bool(quality.force_closure), float(quality.epsilon), float(turned_by))

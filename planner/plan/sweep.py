@@ -51,8 +51,9 @@ ALGORITHM_VERSION = 24
 #: 3: the Allegro's ``table_spread``, and a preshape's ``roll_symmetry`` spreading its rolls (issue 25).
 #: 4: ray samplers also come straight down onto the object's top (planner.plan.sampling.from_above) (issue 25).
 #: 5: com_height and gravity_arm about the table's up (the object rests there in another pose), and so p_hold
-#: (issue 26); the same grasps.
-TABLE_VERSION = 5
+#: (issue 26); the same grasps. 6: the squeeze's turns do not take the object through the table (the object turns,
+#: not the hand: planner.plan.squeeze.through_table); the same grasps, other squeeze measures and ranks.
+TABLE_VERSION = 6
 
 #: Decimals kept of a table plane in the settings (1e-7: 0.1 um, 1e-7 rad).
 PLANE_DIGITS = 7

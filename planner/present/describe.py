@@ -114,18 +114,26 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
     elif up != "+z":
         lines.append(f"    the object's up is its frame's {up} (com_height, gravity_arm and the MuJoCo trial's weight "
                      "read it; poses stay in the file's frame)")
-    lines.append(f"    finger width {width}; epsilon {g.epsilon:.4f} (Ferrari-Canny L1, "
-                 f"{'force closure' if g.force_closure else 'NOT force closure'}); GWS volume {volume}; "
-                 f"{len(g.contacts)} contacts; reachability {reach}")
+    squeezed = m is not None and bool(m.squeezed_force_closure) and not g.force_closure
+    closure = "force closure" if g.force_closure else "NOT force closure as planned, force closure once squeezed" \
+        if squeezed else "NOT force closure"
+    lines.append(f"    finger width {width}; epsilon {g.epsilon:.4f} (Ferrari-Canny L1, {closure}); GWS volume "
+                 f"{volume}; {len(g.contacts)} contacts; reachability {reach}")
     if m is not None:
         settled = "" if m.settled_epsilon is None else f"; settled epsilon {m.settled_epsilon:.4f}"
         capped = " (the measure's cap)" if m.resist_worst >= RESISTANCE_CAP else ""
         lines.append(f"    holds {times_weight(m.resist_worst)} times its weight{capped} in the worst of {DIRECTIONS} "
                      f"directions (mean {times_weight(m.resist_mean)}); push {m.push:.2f} (1 = pads square on); "
                      f"feasibility {','.join(m.reasons) or 'ok'}{settled}")
-    if not g.force_closure:
-        lines.append("    not force closure as planned: it ranks after every force-closure grasp of the object (so it "
-                     "shows only where the object has fewer than asked for); its p_hold is how often labelled grasps "
+    if squeezed and m is not None:  # ranks first (planner.db.ranking.FIRST): say why, where it says NOT force closure
+        lines.append(f"    not force closure as planned, but force closure once the jaw's squeeze turns the object "
+                     f"{math.degrees(m.squeeze_turn or 0.0):.1f} deg between the pads, flush against them (squeezed "
+                     f"epsilon {m.squeezed_epsilon or 0.0:.4f}; the pose above is the planned one, the one to send): "
+                     "it ranks with the force-closure grasps, above every grasp that is neither")
+    elif not g.force_closure:
+        lines.append("    not force closure as planned: it ranks after every force-closure grasp of the object (and "
+                     "every one force closure once a parallel jaw's squeeze turns the object; so it shows only where "
+                     "the object has fewer than asked for); its p_hold is how often labelled grasps "
                      "with these measures held (a thin pinch often turns the object into line as it closes); "
                      "`grasp validate` tries it")
     held_by = []

@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from planner.calibration.metrics import Reliability, reliability, roc_auc
-from planner.db.ranking import RankingRule, rule_measures
+from planner.db.ranking import RankingRule, first_measures, ranks_first, rule_measures
 from planner.db.store import open_db
 from planner.errors import InputError
 from planner.record import fields
@@ -100,6 +100,15 @@ def untried_analytic(rule: RankingRule, grasps: Sequence[Grasp]) -> np.ndarray:
     measures = rule_measures(grasps)
     measures["p_hold_trial"] = np.full(len(grasps), np.nan)
     return rule.analytic(measures)
+
+
+def analytic_order(rule: RankingRule, sweep: Sequence[Grasp]) -> list[int]:
+    """The ids of an object's ``sweep`` best first by :func:`untried_analytic`, those that rank first as the
+    database ranks them (:func:`planner.db.ranking.ranks_first`: force closure as planned or once squeezed) first,
+    ties by candidate."""
+    score, first = untried_analytic(rule, sweep), ranks_first(first_measures(sweep))
+    order = np.lexsort((np.array([g.candidate for g in sweep]), -score, ~first))
+    return [sweep[i].id for i in order]  # type: ignore[misc]
 
 
 #: The analytic measures the report reads: every numeric field of the measures record.
@@ -242,10 +251,7 @@ def collect(db_path: Path, allow_empty: bool = False) -> list[HandReport]:
         for rep in reports.values():
             for name in rep.objects:
                 sweep = [g for batch in db.grasp_batches(name, rep.hand) for g in batch]
-                score = untried_analytic(rule, sweep)
-                fc = np.array([g.force_closure for g in sweep], bool)
-                order = np.lexsort((np.array([g.candidate for g in sweep]), -score, ~fc))
-                rep.analytic_orders[name] = [sweep[i].id for i in order]  # type: ignore[misc]
+                rep.analytic_orders[name] = analytic_order(rule, sweep)
     return list(reports.values())
 
 

@@ -76,8 +76,27 @@ def test_a_grasp_that_is_not_force_closure_says_what_that_means(box_db: Path) ->
     top = api.best("box", "panda", db_path=box_db, top=1)[0]
     said = "    not force closure as planned: it ranks after every force-closure grasp"
     assert top.force_closure and not any(x.startswith(said) for x in describe(top, hand_frame("panda")))
-    lines = describe(replace(top, force_closure=False, epsilon=0.0), hand_frame("panda"))
-    assert any("NOT force closure" in x for x in lines) and any(x.startswith(said) for x in lines), lines
+    unsqueezed = replace(top.measures, squeezed_force_closure=False, squeezed_epsilon=0.0, squeeze_turn=0.2)
+    lines = describe(replace(top, force_closure=False, epsilon=0.0, measures=unsqueezed), hand_frame("panda"))
+    assert any("NOT force closure)" in x for x in lines) and any(x.startswith(said) for x in lines), lines
+
+
+def test_a_grasp_that_ranks_first_only_once_squeezed_says_why(box_db: Path) -> None:
+    """A Panda grasp not force closure as planned but force closure after the squeeze ranks with the force-closure
+    grasps (planner.db.ranking.FIRST): `grasp best` says so, not that it ranks after them."""
+    from dataclasses import replace
+
+    from planner import api
+    from planner.present.describe import describe
+    from planner.specs.hands import hand_frame
+
+    top = api.best("box", "panda", db_path=box_db, top=1)[0]
+    squeezed = replace(top.measures, squeezed_force_closure=True, squeezed_epsilon=0.0123, squeeze_turn=0.35)
+    lines = describe(replace(top, force_closure=False, epsilon=0.0, measures=squeezed), hand_frame("panda"))
+    assert not any("ranks after every force-closure grasp" in x for x in lines), lines
+    assert any("NOT force closure as planned, force closure once squeezed" in x for x in lines), lines
+    (why,) = [x for x in lines if "once the jaw's squeeze turns the object 20.1 deg" in x]
+    assert "squeezed epsilon 0.0123" in why and "ranks with the force-closure grasps" in why
 
 
 def test_every_query_takes_the_database_name_of_a_stored_object(stored_db: Path, tmp_path: Path) -> None:

@@ -95,6 +95,9 @@ def swept(tmp_path_factory: pytest.TempPathFactory) -> Path:
         volume = conn.execute("SELECT volume FROM objects WHERE name = 'box'").fetchone()[0]
         conn.execute("UPDATE objects SET mass = ?, friction = ?, density = ? WHERE name = 'box'",
                      (MASS, FRICTION, MASS / volume))
+        # the squeeze's force closure 0 comes back too (the Panda's box grasps are force closure as planned: 1)
+        conn.execute("UPDATE grasps SET squeezed_force_closure = 0, squeeze_turn = 0.25 WHERE id = (SELECT MAX(id) "
+                     "FROM grasps WHERE hand = 'panda')")
     code, _, err = grasp("validate", "--db", str(db), "--top", "1", "--robust", "2", "--workers", "1",
                          "--engine", "pybullet")
     assert code == 0, err
@@ -266,6 +269,9 @@ def test_every_hand_comes_back_through_every_format(fmt: str, swept: Path, tmp_p
                if hand == "barrett" and row["force_closure"]]  # only force-closure grasps settle
     assert settled and all(settled)
     assert all((row["p_hold"] is not None) == (hand == "panda") for (hand, _), row in expected.items())
+    # the squeeze's force closure: 1 and 0 of the Panda's, NULL of the hands that do not squeeze
+    squeezed = {(hand, row["squeezed_force_closure"]) for (hand, _), row in expected.items()}
+    assert {("panda", True), ("panda", False), ("barrett", None), ("allegro", None)} <= squeezed, squeezed
 
 
 def read_moveit(out: Path) -> dict:

@@ -87,12 +87,14 @@ def test_the_squeeze_leaves_the_sweep_as_it_was(monkeypatch: pytest.MonkeyPatch)
     the squeeze's closings leave the grasper's world as they found it (later grasps unchanged)."""
     obj = load_object("mug")
     settings = SweepSettings(approaches=60, rolls=2, reach_placements=0)
-    squeezed = unit.plan_object(obj, "panda", settings, 3).grasps
+    result = unit.plan_object(obj, "panda", settings, 3)
+    squeezed = result.grasps
     monkeypatch.setattr(unit, "squeezed", lambda *args: None)
     plain = unit.plan_object(obj, "panda", settings, 3).grasps
     assert len(squeezed) == len(plain) > 10
     turned = [g for g in squeezed if g.measures.squeeze_turn > 0.0]  # type: ignore[union-attr]
     assert turned and any(not g.force_closure for g in squeezed)
+    assert all(t >= 0.0 for t in result.timing.values()), result.timing  # the squeeze's contacts not in closing's
     for a, b in zip(squeezed, plain):
         assert a.measures is not None and b.measures is not None
         assert a.measures.squeezed_force_closure >= a.force_closure  # type: ignore[operator]
@@ -115,3 +117,52 @@ def test_turn_brings_the_closing_axis_onto_the_walls_normal_about_the_contacts_c
     centre = points.mean(axis=0)
     np.testing.assert_allclose(turned[:3, :3].T @ (centre - turned[:3, 3]), centre - pose[:3, 3], atol=1e-12)
     assert turn(contacts, (frozenset({"a"}), frozenset({"c"})), pose, np.array([0.0, 1.0, 0.0])) is None
+
+
+def squeeze_on(obj_spec, table_below: float | None):  # type: ignore[no-untyped-def]
+    """The squeeze of the pinch of the slab ``obj_spec`` on a table whose top lies ``table_below`` [m] under the
+    slab's lowest point (None: no table), and the planned grasp's force closure."""
+    from collections import Counter
+
+    from planner.datasets.importer import CONE_EDGES, MAX_BACK_OFF
+    from planner.geometry.solid import prepare
+    from planner.geometry.support import Support
+    from planner.plan.closing import Closed, Grasper
+    from planner.plan.squeeze import squeezed
+    from planner.plan.tolerances import TABLE_CLEARANCE
+    from planner.sim import Sim
+    from planner.specs.preshapes import sweep_preshapes
+
+    hand, obj = load_hand("panda"), prepare(obj_spec)
+    table = None if table_below is None else Support(np.array([0.0, 0.0, 1.0]), float(
+        obj.mesh.vertices[:, 2].min()) - table_below).raised(TABLE_CLEARANCE).frame()
+    shape = hand.widest(sweep_preshapes(hand))
+    with Sim() as sim:
+        grasper = Grasper.for_object(sim, hand, obj, table=table)
+        closed = grasper.close_at(pinch(), shape, MAX_BACK_OFF)
+        assert isinstance(closed, Closed)
+        q = unit.scored(closed.contacts, hand, obj, CONE_EDGES, Counter())
+        assert q is not None
+        score = lambda c: unit.scored(c, hand, obj, CONE_EDGES, Counter(), False)  # noqa: E731
+        return squeezed(grasper, closed, shape, q, score), q.force_closure
+
+
+def test_on_a_table_the_squeeze_does_not_take_the_object_through_it(tmp_path: Path) -> None:
+    """On a table it is the object that turns between the pads (the hand and the table stay): turned upright about
+    the pinch near its top, the slanted slab's lower end swings down by ~4 mm, through the table it rests on. The
+    table stops that turn (and each part of it); 5 cm under the slab, it does not."""
+    spec = slab(tmp_path, TILT)
+    resting, planned_fc = squeeze_on(spec, 0.0)
+    assert not planned_fc and resting is not None
+    assert (resting.force_closure, resting.turn) == (False, 0.0)
+    free, _ = squeeze_on(spec, 0.05)
+    assert free is not None and free.force_closure and abs(free.turn - TILT) < TURN_TOL
+
+
+def test_no_turn_where_the_normals_give_no_walls_normal() -> None:
+    """A contact normal that is not finite, or two fingers' normals that cancel: no turn (was a NaN pose, closed
+    again)."""
+    points = np.array([[0.0, 0.005, 0.01], [0.0, -0.005, -0.01]])
+    sides, axis = (frozenset({"a"}), frozenset({"b"})), np.array([0.0, 1.0, 0.0])
+    for normals in ([[np.nan, 0.0, 0.0], [0.0, 1.0, 0.0]], [[0.0, 0.0, 1.0], [0.0, 0.0, 1.0]]):
+        assert turn(HandContacts(points, np.array(normals), ("a", "b")), sides, np.eye(4), axis) is None

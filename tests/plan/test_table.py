@@ -11,6 +11,7 @@ import trimesh
 from helpers import grasp, made_up, one_line_error
 
 from planner import api
+from planner.api import reaching as api_reaching
 from planner.geometry.solid import load_object
 from planner.geometry.support import Support
 from planner.plan.patch_surfaces import collision_mesh
@@ -240,3 +241,21 @@ def test_force_closure_grasps_come_first_stored_before_planned() -> None:
     stored_fc, stored_not, planned_fc = reached(1, True), reached(2, False), reached(3, True, planned=True)
     assert api._preferred([stored_not], [planned_fc], 1) == [planned_fc]
     assert api._preferred([stored_fc, stored_not], [planned_fc], 3) == [stored_fc, planned_fc, stored_not]
+
+
+def test_grasps_force_closure_once_squeezed_come_first_as_the_database_ranks_them() -> None:
+    """A stored Panda grasp force closure only after the squeeze ranks first in the database
+    (planner.db.ranking.FIRST): reaching keeps it before a planned grasp that is neither, and counts it."""
+    from dataclasses import replace
+
+    from planner.record.measures import Measures
+
+    def reached(candidate: int, squeezed: bool | None, planned: bool = False) -> api.ReachableGrasp:
+        g = made_up(candidate, 0.1, False)
+        measures = replace(g.measures or Measures(5.0, 5.0, 0.01, 0.01, 1.0, ()), squeezed_force_closure=squeezed)
+        return api.ReachableGrasp(replace(g, measures=measures), {}, {}, 0.0, [], planned)
+
+    stored_squeezed, planned_not = reached(1, True), reached(2, False, planned=True)
+    assert api._preferred([planned_not], [stored_squeezed], 1) == [stored_squeezed]
+    assert api._preferred([stored_squeezed], [planned_not], 2) == [stored_squeezed, planned_not]
+    assert api_reaching._closures([stored_squeezed, planned_not, reached(3, None)]) == 1

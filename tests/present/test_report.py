@@ -12,6 +12,7 @@ from planner.cli import main
 from planner.db.store import open_db
 from planner.plan.sweep import SweepSettings
 from planner.present import report
+from planner.record.grasp import Grasp
 
 
 def test_report_html_and_markdown(validated_db: Path, tmp_path: Path) -> None:
@@ -165,3 +166,18 @@ def test_a_trial_with_one_outcome_only_says_no_auc_can_be_made() -> None:
     rows = dict(report._summary_rows(rep))
     assert rows["note"].startswith("80 held and 0 slipped: no AUC or Spearman correlation without both outcomes")
     assert "uncertain" not in rows["note"] and not any(k.startswith(("ROC AUC", "Spearman")) for k in rows)
+
+
+def test_the_analytic_order_puts_first_the_grasps_the_database_ranks_first() -> None:
+    """The report's analytic top-k ranks as the database does: a Panda grasp force closure only once squeezed
+    (planner.db.ranking.FIRST) before one that is neither, whatever their p_hold."""
+    from planner.db.ranking import RankingRule
+    from planner.record.measures import Measures
+
+    def one(i: int, p: float, squeezed: bool | None) -> Grasp:
+        g = made_up(i, 0.0, False)
+        return replace(g, id=100 + i, p_hold=p, measures=Measures(5.0, 5.0, 0.01, 0.01, 1.0, (),
+                                                                  squeezed_force_closure=squeezed))
+
+    sweep = [one(0, 0.9, False), one(1, 0.2, True), one(2, 0.8, None), replace(made_up(3, 0.05), id=103, p_hold=0.1)]
+    assert report.analytic_order(RankingRule(), sweep) == [101, 103, 100, 102]
