@@ -389,11 +389,11 @@ def open_db(path: Path, *, create: bool = True, readonly: bool = False) -> Datab
         conn.close()
         raise DatabaseError(f"{path}: schema version {version} is newer than this planner's ({SCHEMA_VERSION}); "
                             "upgrade the planner (pip install -U) to read it")
-    if readonly:
-        if version == 0:
-            conn.close()
-            raise DatabaseError(f"{path}: not a grasp database (no schema)")
+    if readonly and version == 0:
+        conn.close()
+        raise DatabaseError(f"{path}: not a grasp database (no schema)")
+    if readonly or version == SCHEMA_VERSION:
         return Database(path, conn)
-    if version < SCHEMA_VERSION:
-        migrate(conn, path, version)
-    return Database(path, conn)
+    migrate(conn, path, version)  # reopened: the backup's copy dropped this process's locks on the file (migrate)
+    conn.close()
+    return open_db(path, create=create)
