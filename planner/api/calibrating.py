@@ -52,7 +52,7 @@ def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB,
               plot: Path | None = None, progress: Callable[[Path, int, int], None] | None = None,
               trees: bool = True, trial: int = 0, engine: str = "mujoco") -> Calibration:
     """Fit p_hold (and so the ranking, by p_hold) to labelled grasp files in
-    ACRONYM layout: a seeded sample of ``poses`` poses per file re-scored as
+    ACRONYM layout: a seeded sample of ``poses`` poses per file (0 or None: every pose) re-scored as
     ``import --rescore`` does, cross-validated over ``folds`` folds grouped by
     object. The model and its source are stored in ``db_path`` (None: not
     stored), where ``best``, exports and reports use it for its hand;
@@ -77,6 +77,7 @@ def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB,
     for path, option in ((model_out, "--model-out"), (plot, "--plot")):
         if path is not None:
             check_output(Path(path), option)
+    poses = poses or None  # 0: every pose, as `--poses 0` and the error for a negative count say
     check_labelled(paths, poses=poses, hand=hand, trial=trial, engine=engine)
     # the database is opened (and locked) first: one that cannot take the model says so before the fit, not after
     with open_for_writing(Path(db_path)) if db_path is not None else contextlib.nullcontext() as db:

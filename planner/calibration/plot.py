@@ -18,6 +18,12 @@ MARGIN = 0.03
 #: [characters] a legend line's longest: the figure is 5 inches wide, and a longer one ran off its edge.
 LABEL_WIDTH = 64
 
+#: [grasps] the log count axis's bottom, below one: autoscaled, it sat just under the smallest count, and a bin of
+#: one grasp beside a bin of two was a sliver (with no count at all matplotlib warned it could not log-scale).
+COUNT_FLOOR = 0.5
+#: The count axis's top, this factor above the largest count (room for the bar's top on a log axis).
+COUNT_HEADROOM = 2.0
+
 
 def reliability_png(curves: Sequence[tuple[str, Reliability]], title: str) -> bytes:
     """A PNG of one or more reliability tables (label, table): observed success
@@ -56,6 +62,8 @@ def figure(curves: Sequence[tuple[str, Reliability]], title: str):  # type: igno
     # above the plot: inside it ("best") it lay over a curve of trials that all held, drawn along the top
     ax.legend(fontsize=7, loc="lower left", bbox_to_anchor=(0.0, 1.01, 1.0, 0.1), mode="expand", borderaxespad=0.0)
     counts.set_xlabel("predicted p_hold (bins of 0.1)")
+    most = max((float(r.count.max()) for _, r in curves), default=0.0)
+    counts.set_ylim(COUNT_FLOOR, max(most, 1.0) * COUNT_HEADROOM)  # first: no autoscaling on the log axis
     counts.set_yscale("log")  # on a linear axis 890 trials in a bin beside 21,000 held-out labels drew no bar
     counts.set_ylabel("grasps (log)")
     counts.set_xticks(np.linspace(0, 1, 11))

@@ -49,12 +49,7 @@ def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], to
     if as_json:
         echo_json(summary.to_json())
     else:
-        tried = (f"validated {summary.grasps} grasps in {engine}: {summary.successes} held "
-                 f"({share(summary.successes, summary.grasps)})" if summary.grasps or summary.diverged else
-                 f"nothing new to try in {engine}" + ("" if summary.kept else  # not "validated 0: 0 held (0%)"
-                                                      ": no stored grasp is selected"
-                                                      + (" (none is force closure)" if closure_only else "")))
-        click.echo(tried
+        click.echo(_tried(summary, engine, closure_only)
                    + (f"; {summary.diverged} diverged (MuJoCo's state; no verdict, not stored)"
                       if summary.diverged else "")
                    + (f"; {summary.kept} already tried with these settings and seed, kept "
@@ -64,6 +59,18 @@ def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], to
                    + (f"; stopped at {summary.cap} tried of {', '.join(summary.capped)}: its best {top} are not "
                       "all tried (run again to go on)" if summary.capped else ""))
     report_failures(summary.failed_tasks)
+
+
+def _tried(summary: api.ValidationSummary, engine: str, closure_only: bool) -> str:
+    """The summary line's start: the verdicts given, or why none was (never "validated 0 grasps: 0 held (0%)")."""
+    if summary.grasps:
+        return (f"validated {summary.grasps} grasps in {engine}: {summary.successes} held "
+                f"({share(summary.successes, summary.grasps)})")
+    if summary.diverged or summary.failed_tasks:  # grasps were selected and tried: none came back with a verdict
+        return f"no grasp given a verdict in {engine}" + (": its trials failed (below)" if summary.failed_tasks
+                                                         else "")
+    return f"nothing new to try in {engine}" + ("" if summary.kept else ": no stored grasp is selected"
+                                                + (" (none is force closure)" if closure_only else ""))
 
 
 @click.command()

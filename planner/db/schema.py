@@ -293,7 +293,10 @@ def transaction(conn: sqlite3.Connection, path: Path) -> Iterator[sqlite3.Connec
 
 def migrate(conn: sqlite3.Connection, path: Path, version: int) -> None:
     """Bring a version-``version`` file (0: empty) to :data:`SCHEMA_VERSION`
-    in one transaction, after a backup copy of an existing database."""
+    in one transaction, after a backup copy of an existing database. The copy opens and closes the file, and
+    closing any descriptor of it drops the process's POSIX locks on it, SQLite's too: ``conn`` is to be closed
+    after (:func:`~planner.db.store.open_db` opens the file again), or a reader's close in another process
+    takes the file for the last connection's and deletes the -wal and -shm under the running writer."""
     if version > 0 and path.exists():
         backup = path.with_name(f"{path.name}.v{version}.{int(time.time())}.bak")
         conn.execute("PRAGMA wal_checkpoint(TRUNCATE)")

@@ -362,8 +362,8 @@ def open_db(path: Path, *, create: bool = True, readonly: bool = False) -> Datab
     if not exists and not path.parent.exists():
         raise DatabaseError(f"{path}: folder {path.parent} does not exist")
     try:
-        # a reader of a writable file: read-write, writing nothing (query_only); unlike mode=ro, it cleans up:
-        tidy = readonly and os.access(path.resolve(), os.W_OK) and os.access(path.resolve().parent, os.W_OK)
+        real = path.resolve()  # a reader of a writable file (a write bit too: root's access() ignores a chmod 444)
+        tidy = readonly and all(os.access(p, os.W_OK) for p in (real, real.parent)) and real.stat().st_mode & 0o222 > 0
         uri = f"file:{path}?mode={'rw' if tidy else 'ro'}" if readonly else f"file:{path}"
         if readonly and _frozen(path):  # SQLite cannot make its -shm beside it: read it as the file that it is
             uri = f"file:{path.resolve()}?mode=ro&immutable=1"
@@ -373,7 +373,7 @@ def open_db(path: Path, *, create: bool = True, readonly: bool = False) -> Datab
                             "would not be seen)", path)
         conn = sqlite3.connect(uri, uri=True, timeout=BUSY_TIMEOUT_S, isolation_level=None)
         conn.row_factory = sqlite3.Row
-        conn.execute(f"PRAGMA query_only = {int(tidy)}")  # `grasp best` left both files beside the database
+        conn.execute(f"PRAGMA query_only = {int(tidy)}")  # unlike mode=ro, its close removes -wal/-shm (best left both)
         version = schema_version(conn, path)  # before anything is set: another application's file stays as it is
         if not readonly:
             conn.execute("PRAGMA journal_mode = WAL")
@@ -389,11 +389,11 @@ def open_db(path: Path, *, create: bool = True, readonly: bool = False) -> Datab
         conn.close()
         raise DatabaseError(f"{path}: schema version {version} is newer than this planner's ({SCHEMA_VERSION}); "
                             "upgrade the planner (pip install -U) to read it")
-    if readonly:
-        if version == 0:
-            conn.close()
-            raise DatabaseError(f"{path}: not a grasp database (no schema)")
+    if readonly and version == 0:
+        conn.close()
+        raise DatabaseError(f"{path}: not a grasp database (no schema)")
+    if readonly or version == SCHEMA_VERSION:
         return Database(path, conn)
-    if version < SCHEMA_VERSION:
-        migrate(conn, path, version)
-    return Database(path, conn)
+    migrate(conn, path, version)  # reopened: the backup's copy dropped this process's locks on the file (migrate)
+    conn.close()
+    return open_db(path, create=create)

@@ -77,13 +77,14 @@ def times_weight(resist: float) -> str:
     return f"at least {RESISTANCE_CAP:.0f}" if resist >= RESISTANCE_CAP else f"{resist:.1f}"
 
 
-def _xyz(v: np.ndarray, digits: int = 3) -> str:
+def xyz(v: np.ndarray, digits: int = 3) -> str:
+    """``v`` (n,) as "(x, y, z)" with ``digits`` decimals, no sign on a value that rounds to zero."""
     return "(" + ", ".join(_fixed(x, digits) for x in v) + ")"
 
 
 def frame_lines(f: Frames, hand: HandFrame) -> list[str]:
-    return [f"{f.frame} frame: hand base ({hand.root_link}) at {_xyz(f.base)} m, tool centre point at "
-            f"{_xyz(f.tcp)} m, orientation xyzw {_xyz(f.quaternion, 4)}, approach direction {_xyz(f.approach)}"]
+    return [f"{f.frame} frame: hand base ({hand.root_link}) at {xyz(f.base)} m, tool centre point at "
+            f"{xyz(f.tcp)} m, orientation xyzw {xyz(f.quaternion, 4)}, approach direction {xyz(f.approach)}"]
 
 
 def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
@@ -110,7 +111,7 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
     if g.table_plane is not None:
         n = g.table_plane
         lines.append(f"    planned on a table: its top is n . x = {n[3]:.4f} m in the object frame, n = "
-                     f"{_xyz(n[:3])} (the hand keeps off it)")
+                     f"{xyz(n[:3])} (the hand keeps off it)")
     elif up != "+z":
         lines.append(f"    the object's up is its frame's {up} (com_height, gravity_arm and the MuJoCo trial's weight "
                      "read it; poses stay in the file's frame)")

@@ -26,7 +26,7 @@ import viser
 
 from planner.geometry.frames import rotation_onto
 from planner.geometry.quaternion import canonical_xyzw, quaternion_xyzw
-from planner.present.describe import score_text, times_weight
+from planner.present.describe import score_text, times_weight, xyz
 from planner.present.scene import APPROACH_RGB, CONTACT_RADIUS, CONTACT_RGB, GraspScene, Part
 from planner.record.grasp import Grasp
 from planner.specs.hands import HandSpec
@@ -100,8 +100,7 @@ def measures_text(entry: Entry) -> str:
                  ("open margin", f"{m.open_margin * 1000:.1f} mm"), ("push", f"{m.push:.2f}")]
     tcp = np.asarray(g.pose, float)
     quat = canonical_xyzw(tcp[:3, :3])  # as `grasp best` prints it
-    rows += [("hand base, object frame", "(" + ", ".join(f"{v:.3f}" for v in tcp[:3, 3]) + ") m"),
-             ("orientation (xyzw)", "(" + ", ".join(f"{v:.3f}" for v in quat) + ")")]
+    rows += [("hand base, object frame", f"{xyz(tcp[:3, 3])} m"), ("orientation (xyzw)", xyz(quat))]
     body = "\n".join(f"| {k} | {v} |" for k, v in rows)
     extra = "\n\n" + "\n\n".join(entry.extra) if entry.extra else ""
     return f"**{entry.title()}**\n\n| measure | value |\n| --- | --- |\n{body}{extra}"

@@ -174,3 +174,16 @@ def test_copies_are_told_apart_without_pythons_3_11_file_digest(tmp_path: Path,
     assert label_names([one, other]) == ["one.h5", "other.h5"]
     with pytest.raises(InputError, match=r"copy.h5: the same bytes as .*one.h5 \(a copy\)"):
         label_names([one, other, copy])
+
+
+def test_the_api_takes_poses_0_as_every_pose_as_the_command_line_does(tmp_path: Path) -> None:
+    """``api.calibrate(..., poses=0)`` was refused with "--poses must be 0 (every pose) or a count of at least
+    1, got 0": the CLI turns 0 into None (every pose), the API did not."""
+    from planner import api
+    from planner.errors import InputError
+
+    with pytest.raises(InputError) as refused:
+        api.calibrate([tmp_path / "none.h5"], db_path=None, poses=0)
+    assert "--poses" not in str(refused.value) and "none.h5" in str(refused.value), refused.value
+    with pytest.raises(InputError, match="--poses must be 0 .every pose. or a count of at least 1, got -1"):
+        api.calibrate([tmp_path / "none.h5"], db_path=None, poses=-1)

@@ -46,3 +46,23 @@ def test_the_counts_of_a_few_trials_beside_many_labels_are_drawn() -> None:
     smallest = min(bars, key=lambda b: b.get_height()).get_window_extent()
     assert smallest.height > 0.05 * counts.get_window_extent().height
     plt.close(fig)
+
+
+def test_a_bin_of_one_grasp_is_drawn_beside_a_bin_of_two_and_no_count_draws_no_warning() -> None:
+    """On the log axis the counts' lower limit came from the smallest count: a bin of one grasp beside one of two
+    was a sliver along the bottom edge; with every bin empty matplotlib warned that nothing could be log-scaled."""
+    import warnings
+
+    import matplotlib.pyplot as plt
+
+    fig = plot.figure([("trials", reliability(np.ones(3), np.array([0.95, 0.5, 0.52])))], "p_hold")
+    fig.tight_layout()
+    fig.canvas.draw()
+    counts = fig.axes[1]
+    frame = counts.get_window_extent()
+    one = next(b for b in counts.patches if b.get_height() == 1).get_window_extent()
+    assert min(one.y1, frame.y1) - max(one.y0, frame.y0) > 0.25 * frame.height
+    plt.close(fig)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert plot.reliability_png([("none", reliability(np.zeros(0), np.zeros(0)))], "p_hold").startswith(b"\x89PNG")

@@ -139,3 +139,31 @@ def test_a_run_with_nothing_new_to_try_says_so(validated_db: Path, tmp_path: Pat
                            "--workers", "1", "--engine", "pybullet")
     assert code == 0, err
     assert out == "nothing new to try in pybullet: no stored grasp is selected (none is force closure)\n", out
+
+
+@pytest.mark.parametrize("outcome", ["failed", "diverged"])
+def test_a_run_whose_trials_all_failed_or_diverged_does_not_say_nothing_was_selected(
+        outcome: str, validated_db: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every task failing read "nothing new to try in mujoco: no stored grasp is selected" (three were, and
+    tried), and every trial diverging "validated 0 grasps in mujoco: 0 held (0%)": 0% of nothing."""
+    from planner.record.grasp import Trial
+    from planner.validation import run
+    from planner.validation.mujoco_settings import DIVERGED
+
+    def ends(task: run.Task) -> run.TaskResult:
+        if outcome == "failed":
+            return run.TaskResult(task, error="boom")
+        return run.TaskResult(task, [Trial(False, 1, 0.0, 0.0, 0.0, 0.0, DIVERGED) for _ in task.grasps],
+                              [None] * len(task.grasps))
+
+    copy = tmp_path / "v.db"
+    shutil.copy(validated_db, copy)
+    monkeypatch.setattr(run, "run_task", ends)
+    code, out, err = grasp("validate", "--db", str(copy), "--object", "box", "--top", "3", "--robust", "0",
+                           "--workers", "1", "--engine", "mujoco")
+    assert "no stored grasp is selected" not in out and "0%" not in out and "validated 0" not in out, out
+    if outcome == "failed":
+        assert code == 2 and out.startswith("no grasp given a verdict in mujoco: its trials failed"), out
+        assert "grasp: error: box/panda: boom" in err
+    else:
+        assert code == 0 and out.startswith("no grasp given a verdict in mujoco; 3 diverged"), out

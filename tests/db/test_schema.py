@@ -286,3 +286,28 @@ def test_grasps_stored_before_version_14_read_back_without_the_squeeze(box_db: P
         assert db.meta("schema_version") == "13" and stored(db) == expected
     with open_db(old) as db:
         assert db.meta("schema_version") == str(SCHEMA_VERSION) and stored(db) == expected
+
+
+def test_a_reader_leaves_the_write_ahead_log_of_a_writer_that_migrated_the_file(tmp_path: Path) -> None:
+    """The backup's copy opened and closed the file beside the migrating connection, and closing any descriptor
+    drops the process's POSIX locks on the file: for the rest of the run SQLite's lock on it was gone, and a
+    reader in another process (read-write since readers tidy up) took the file for its own at its close and
+    deleted the -wal and -shm under the running `grasp generate`; its later commits went to the deleted log."""
+    import subprocess
+    import sys
+
+    from processes import env
+
+    old = tmp_path / "old.db"
+    version_2_file(old)
+    read = ("import sys\nfrom planner.db.store import open_db\n"
+            "with open_db(sys.argv[1], create=False, readonly=True) as db:\n    print(db.meta('note'))")
+    with open_db(old) as db:  # migrated after a backup copy; the writer goes on
+        db.set_meta("note", "first")
+        assert subprocess.run([sys.executable, "-c", read, str(old)], env=env(), capture_output=True, text=True,
+                              check=True).stdout == "first\n"
+        assert Path(f"{old}-wal").exists()
+        db.set_meta("note", "second")
+        assert subprocess.run([sys.executable, "-c", read, str(old)], env=env(), capture_output=True, text=True,
+                              check=True).stdout == "second\n"
+    assert len(list(tmp_path.glob("old.db.v2.*.bak"))) == 1

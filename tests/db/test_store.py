@@ -310,3 +310,27 @@ def test_a_reader_leaves_no_wal_or_shm_files_and_writes_nothing(tmp_path: Path) 
             db._conn.execute("DELETE FROM grasps")
     assert not any(p.exists() for p in beside)  # `grasp best` left both until 2026-12-07
     assert [r[2] for r in rows(path)] == [0]
+
+
+def test_a_reader_leaves_a_file_made_read_only_as_it_is_with_its_write_ahead_log(tmp_path: Path) -> None:
+    """A reader opens a writable file read-write (its close removes the -wal/-shm, checkpointing a log a killed
+    writer left); as root, access() said a file chmod 444 was writable too, and the reader wrote into it."""
+    import os
+    import shutil
+
+    path = tmp_path / "g.db"
+    with open_db(path) as db:
+        db.write_unit(unit(), None, [made_up(0, 0.05)], RankingRule())
+    writer = sqlite3.connect(path, isolation_level=None)  # a writer killed with its last commit in the log:
+    writer.execute("PRAGMA wal_autocheckpoint = 0")
+    writer.execute("INSERT INTO meta (key, value) VALUES ('note', 'in the log')")
+    kept = tmp_path / "kept.db"  # its files as the kill left them
+    for suffix in ("", "-wal"):
+        shutil.copy(f"{path}{suffix}", f"{kept}{suffix}")
+    writer.close()
+    kept.chmod(0o444)
+    before = (kept.read_bytes(), os.stat(kept).st_mtime_ns)
+    with open_db(kept, create=False, readonly=True) as db:
+        assert db.meta("note") == "in the log"
+    assert (kept.read_bytes(), os.stat(kept).st_mtime_ns) == before
+    assert Path(f"{kept}-wal").stat().st_size > 0  # the log stays for a writer to take in

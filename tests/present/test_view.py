@@ -187,3 +187,19 @@ def test_the_viewer_stands_an_object_on_its_own_up(tmp_path: Path) -> None:
         assert np.subtract(camera.position, camera.look_at)[1] > 0  # seen from above its up
     finally:
         shown.stop()
+
+
+def test_the_measures_panel_prints_a_coordinate_that_rounds_to_zero_as_best_does() -> None:
+    """The panel said "(-0.035, -0.000, 0.107) m" for the hand base `grasp best` gives as "(-0.035, 0.000, 0.107)"."""
+    from dataclasses import replace
+
+    from helpers import made_up
+
+    from planner.present.viewer import Entry, measures_text
+
+    pose = np.eye(4)
+    pose[:3, 3] = [-0.035, -1e-17, 0.107]
+    pose[:3, :3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 1e-12], [0.0, -1e-12, 1.0]]  # a hair's turn: x of xyzw -5e-13
+    text = measures_text(Entry(replace(made_up(0, 0.05), pose=pose), lambda: None))  # type: ignore[arg-type,return-value]
+    assert "| hand base, object frame | (-0.035, 0.000, 0.107) m |" in text, text
+    assert "-0.000" not in text, text
