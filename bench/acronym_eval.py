@@ -173,7 +173,7 @@ def run_trials(result: FileResult, n: int, seed: int, settings: ShakeSettings | 
 def run_top_trials(result: FileResult, p_hold: np.ndarray, k: int, settings: ShakeSettings | MujocoSettings,
                    cache: Path, code: str, pose: str) -> None:
     """``--trial-top``: trial the file's ``k`` best closed poses in rank order (``p_hold`` (m,) per sampled
-    pose, -inf where rejected; force closure first) into ``result.top_trial``."""
+    pose, -inf where rejected; force closure as planned or once squeezed first) into ``result.top_trial``."""
     fc = np.zeros(len(result.rows))
     fc[np.flatnonzero(result.closed)] = ranks_first(first_measures(result.grasps))
     picked = [int(i) for i in rank_order(p_hold, fc)[:k] if result.closed[i]]

@@ -1,6 +1,6 @@
 """Batch generation at scale: what a 1,000-object database costs with the
-default sweep and a simulated label on every force-closure grasp, and how
-the backends scale.
+default sweep and a simulated label on every grasp that ranks first (force
+closure as planned or once squeezed), and how the backends scale.
 
     python bench/batch.py [--objects 50] [--scaling-objects 8] [--hand panda] [--workers 2] [--no-scaling]
                           [--tree REV]
@@ -9,7 +9,8 @@ the backends scale.
    the hand's default sweep exactly as ``grasp generate`` runs it: its
    sampler, the force-closure budget, reachability): ``grasp generate`` with
    ``--workers`` processes, then ``grasp validate --all --force-closure
-   --robust 0`` (one shake trial per force-closure grasp) with as many.
+   --robust 0`` (one trial per grasp force closure as planned or once
+   squeezed) with as many.
    Printed: wall seconds of each, objects, grasps and force-closure grasps,
    the units' own seconds (CPU of the workers), trials per second, and the
    wall time 1,000 such objects would take (the per-object wall time times
@@ -80,7 +81,8 @@ def extrapolation(names: list[str], count: int, hand: str, workers: int, folder:
     print(f"sweep: {sweep:.1f} s wall, units' own time {unit_seconds(db):.1f} s; {summary.candidates} candidates, "
           f"{summary.grasps} grasps with contacts, {summary.force_closure} force-closure "
           f"({summary.force_closure / count:.0f} per object), rejected {dict(summary.rejected)}")
-    print(f"validation of every force-closure grasp: {trials:.1f} s wall, {checked.grasps} trials "
+    print(f"validation of every grasp force closure as planned or once squeezed: {trials:.1f} s wall, "
+          f"{checked.grasps} trials "
           f"({checked.grasps / trials:.1f} per s on {workers} processes), {checked.successes} held, "
           f"failed tasks {len(checked.failed_tasks)}")
     print(f"per object: sweep {sweep / count:.1f} s + validation {trials / count:.1f} s wall")

@@ -2,13 +2,14 @@
 
     python bench/settle_rank.py [--objects duck teddy ...] [--rays 8] [--top 10] [--variant NAME ...] [--json FILE]
 
-Per object (default: objects not looked at while choosing the settle, :data:`OBJECTS`), one unit of the
-Barrett's default sweep without its settle (``--rays`` rays x 4 rolls x the preshapes, no reachability); then each
-settle variant fills in the settled epsilons of those same grasps (CPU time measured), the grasps are ranked
-by the ranking rule (force closure first, then score), and the union of every variant's top ``--top`` is
-shake-tested once each with the default trial (``grasp validate``'s, one world per grasp: a grasp gets the same
-verdict whichever variant ranked it). Printed per variant: settle CPU ms per candidate, the share of the top-1
-and of the top-10 that held (over objects), and how many of its top-10 are the reference variant's.
+Per object (default: objects not looked at while choosing the settle, :data:`OBJECTS`), one unit of the Barrett's
+default sweep without its settle (``--rays`` rays x 4 rolls x the preshapes, no reachability); then each settle
+variant fills in the settled epsilons of those same grasps (CPU time measured), the grasps are ranked by the
+ranking rule (:func:`ranked`: force closure as planned or once squeezed first, then score), and the union of every
+variant's top ``--top`` is shake-tested once each with the default trial (``grasp validate``'s, one world per
+grasp: a grasp gets the same verdict whichever variant ranked it). Printed per variant: settle CPU ms per
+candidate, the share of the top-1 and of the top-10 that held (over objects), and how many of its top-10 are the
+reference variant's.
 
 Variants (:data:`VARIANTS`): ``all`` settles every grasp with the default trial's timing (main before issue
 24); ``fc`` settles only the force-closure grasps (this branch's sweep: a grasp that is not force closure ranks
@@ -45,8 +46,15 @@ def variants() -> dict:
             "fc_short": (True, replace(base, dt=1 / 240, close_time=0.12, settle_time=0.05))}
 
 
+def ranked(grasps: list) -> list[int]:
+    """Indices of ``grasps`` (Grasp records) best first, as the database ranks them: the grasps force closure as
+    planned or once squeezed first (planner.db.ranking.FIRST), then by the default rule's score."""
+    from planner.db.ranking import RankingRule, first_of, rank_order, rule_measures
+
+    return [int(i) for i in rank_order(RankingRule().scores(rule_measures(grasps)), np.array(first_of(grasps)))]
+
+
 def one_object(name: str, rays: int, top: int, chosen: list[str]) -> dict:
-    from planner.db.ranking import RankingRule, rank_order, rule_measures
     from planner.geometry.solid import load_object
     from planner.plan.settle import with_settled
     from planner.plan.sweep import SweepSettings
@@ -68,9 +76,7 @@ def one_object(name: str, rays: int, top: int, chosen: list[str]) -> dict:
         t = time.process_time()
         settled = with_settled(hand, obj, grasps, 8, settings, only_force_closure=only_fc)
         cpu = time.process_time() - t
-        m = rule_measures(settled)
-        order = rank_order(RankingRule().scores(m), m["force_closure"])
-        tops[v] = [int(i) for i in order[:top]]
+        tops[v] = ranked(settled)[:top]
         out["variants"][v] = {"settle_cpu": cpu, "top": [grasps[i].candidate for i in tops[v]]}
     union = sorted({i for t in tops.values() for i in t})
     verdicts = dict(zip(union, trials(hand, obj, [grasps[i] for i in union], ShakeSettings())))

@@ -12,9 +12,9 @@ fitted without the grasp's fold: planner.calibration.fitting.trial_figures), and
 The ranking when every pose is tried (``grasp validate --all``): with ``--per-file`` at least the closed poses
 per file, every closed pose of the sample is tried; printed then, for p_hold, p_hold_trial, p_hold times the
 verdict (the rule before p_hold_trial) and the verdict alone: the mean per-object ROC AUC against FleX, the mean
-over files of the share of the 10 best-ranked poses that hold (force closure first), and the label agreement; for
-p_hold and p_hold_trial also their 95% intervals over objects (planner.calibration.metrics.object_figures: a
-bootstrap drawing objects).
+over files of the share of the 10 best-ranked poses that hold (force closure as planned or once squeezed first,
+as the database ranks), and the label agreement; for p_hold and p_hold_trial also their 95% intervals over
+objects (planner.calibration.metrics.object_figures: a bootstrap drawing objects).
 ``--held-out``: the same on the held-out objects with the shipped model and its update, nothing fitted (run
 once; bench/acronym_eval.py --held-out --trial N --engine mujoco reports the label agreement of a sample).
 
@@ -37,14 +37,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import acronym_eval as ae  # noqa: E402
 import acronym_mujoco as am  # noqa: E402
 
-from planner.calibration import features  # noqa: E402
 from planner.calibration.fitting import trial_figures  # noqa: E402
 from planner.calibration.labels import TRIAL_GROUPS, LabelledSet  # noqa: E402
 from planner.calibration.logistic import FOLDER, load_model  # noqa: E402
 from planner.calibration.metrics import INTERVAL_SEED, object_figures, roc_auc  # noqa: E402
 from planner.calibration.model import cross_validate  # noqa: E402
 from planner.calibration.update import fit_update  # noqa: E402
-from planner.db.ranking import rank_order  # noqa: E402
+from planner.db.ranking import rank_order, ranks_first  # noqa: E402
 from planner.validation.mujoco_settings import MujocoSettings  # noqa: E402
 from planner.validation.settings import ShakeSettings  # noqa: E402
 
@@ -122,9 +121,10 @@ def tried_set(dev: Path, held_out: bool, poses: int, per_file: int, sample_seed:
 
 def score_figures(data: LabelledSet, s: np.ndarray) -> tuple[float, float, float]:
     """(mean per-object ROC AUC against the labels, mean over files of the share of the 10 best-ranked poses
-    that hold (force closure first), label agreement of s >= 0.5) of scores ``s`` (n,) of every pose."""
+    that hold (force closure as planned or once squeezed first: planner.db.ranking.ranks_first), label agreement
+    of s >= 0.5) of scores ``s`` (n,) of every pose."""
     y, groups, files = data.labels, np.array(data.groups), np.array(data.files)
-    fc = features.design(data.table, ("force_closure",))[:, 0]
+    fc = ranks_first(data.table)
     aucs = [roc_auc(y[groups == g], s[groups == g]) for g in np.unique(groups)]
     tops = [float(np.mean(y[i][rank_order(s[i], fc[i])[:10]])) for i in
             (np.flatnonzero(files == f) for f in np.unique(files))]
@@ -135,7 +135,7 @@ def ranking(data, p: np.ndarray, q: np.ndarray, results) -> None:  # type: ignor
     """Every closed pose tried: AUC per object, top-10 per file and label agreement of each score."""
     y, v = data.labels, data.verdicts
     groups, files = np.array(data.groups), np.array(data.files)
-    fc = features.design(data.table, ("force_closure",))[:, 0]
+    fc = ranks_first(data.table)
     print(f"every closed pose tried ({int(np.sum(~np.isnan(v)))} of {len(v)}):")
     for name, s in (("p_hold", p), ("p_hold_trial", q), ("p_hold x verdict", p * np.nan_to_num(v, nan=1.0)),
                     ("verdict", np.nan_to_num(v, nan=0.5))):

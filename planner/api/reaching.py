@@ -72,7 +72,7 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
     origin): the ``top`` best-ranked stored grasps it reaches, of at most
     ``max_candidates`` tried (:func:`_reachable`: those planned on the table
     in this resting pose first, then better-ranked others); if fewer than
-    ``top`` of them are force closure and ``plan``, grasps are also planned
+    ``top`` of them rank first (force closure as planned or once squeezed) and ``plan``, grasps are also planned
     on the spot with the table under the object (:func:`_plan_now`, from
     ``seed``), and the ones that rank first come first (:func:`_preferred`). ``misses``, if
     given, receives (rank, why) of each one tried and not reachable (rank 0:
@@ -109,9 +109,9 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
 def _first(found: Sequence[ReachableGrasp]) -> list[bool]:
     """Which of ``found`` rank first (:func:`planner.db.ranking.ranks_first`: force closure as planned or once a
     parallel jaw's squeeze turns the object), as the database ranks them."""
-    from planner.db.ranking import first_measures, ranks_first
+    from planner.db.ranking import first_of
 
-    return ranks_first(first_measures([r.grasp for r in found])).tolist() if found else []
+    return first_of([r.grasp for r in found])
 
 
 def _closures(found: Sequence[ReachableGrasp]) -> int:

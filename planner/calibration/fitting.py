@@ -4,7 +4,7 @@
 (nested choice of the penalty; :func:`planner.calibration.model.cross_validate`),
 computes the held-out figures from the out-of-fold predictions, and fits the
 final model on every grasp. Figures (over closed grasps; the ranking order is
-the database's: force closure first, then p_hold):
+the database's: force closure as planned or once squeezed first, then p_hold):
 
 - ``auc_mean``: mean over objects of the per-object ROC AUC of p_hold (an
   object's files pooled); ``auc_width``: the same for "smaller closed width is

@@ -124,10 +124,11 @@ def group_interval(statistic: Callable[[np.ndarray], float], groups: int, rng: n
 
 
 def object_figures(labels: np.ndarray, p: np.ndarray, groups: Sequence[str], files: Sequence[str],
-                   force_closure: np.ndarray, top_k: int, rng: np.random.Generator) -> dict[str, float]:
+                   first: np.ndarray, top_k: int, rng: np.random.Generator) -> dict[str, float]:
     """Intervals over objects (:func:`group_interval`) of the held-out figures of ``p`` (n,) for ``labels``
     (n,), grasps of objects ``groups`` (n,) in files ``files`` (n,): ``auc_mean`` (mean per-object ROC AUC),
-    ``top10`` (mean over files of the share of the ``top_k`` best-ranked that hold, force closure first), ``ece``
+    ``top10`` (mean over files of the share of the ``top_k`` best-ranked that hold, ``first`` (n,)
+    first: :func:`planner.db.ranking.ranks_first`, force closure as planned or once squeezed), ``ece``
     and ``agreement`` (p >= 0.5 against the label, over grasps); each as ``<name>_lo`` and ``<name>_hi``. A NaN
     in ``p`` (a grasp not scored) ranks last and counts in neither ECE nor agreement."""
     y, q = np.asarray(labels, float), np.asarray(p, float)
@@ -138,7 +139,7 @@ def object_figures(labels: np.ndarray, p: np.ndarray, groups: Sequence[str], fil
     tops: list[list[float]] = [[] for _ in names]
     for stem in np.unique(stems):
         idx = np.flatnonzero(stems == stem)
-        order = rank_order(q[idx], np.asarray(force_closure)[idx])
+        order = rank_order(q[idx], np.asarray(first)[idx])
         tops[owner[idx[0]]].append(float(np.mean(y[idx][order[:top_k]])))
 
     def pooled(picked: np.ndarray) -> np.ndarray:

@@ -17,12 +17,13 @@ from planner.validation.mujoco_settings import DEFAULT_ENGINE, ENGINES
 @click.option("--object", "objects", multiple=True, help="Only these objects (repeat).")
 @click.option("--hand", "hands", multiple=True, help="Only these hands (repeat).")
 @click.option("--top", type=int, default=10, show_default=True,
-              help="Validate each object's K best grasps (force-closure grasps rank first).")
+              help="Validate each object's K best grasps (grasps force closure as planned or once squeezed "
+                   "rank first).")
 @click.option("--sample", type=int, default=None,
               help="Instead: a uniform sample of N of each object's grasps, drawn with --seed.")
 @click.option("--all", "every", is_flag=True, help="Instead: every stored grasp.")
 @click.option("--force-closure", "closure_only", is_flag=True,
-              help="Of the force-closure grasps only.")
+              help="Of the grasps force closure as planned or once squeezed (those that rank first) only.")
 @click.option("--robust", "robust_samples", type=click.IntRange(min=0), default=10, show_default=True,
               help="Noise samples for robust epsilon (0: skip).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of --sample and of the robust noise.")
@@ -70,7 +71,8 @@ def _tried(summary: api.ValidationSummary, engine: str, closure_only: bool) -> s
         return f"no grasp given a verdict in {engine}" + (": its trials failed (below)" if summary.failed_tasks
                                                          else "")
     return f"nothing new to try in {engine}" + ("" if summary.kept else ": no stored grasp is selected"
-                                                + (" (none is force closure)" if closure_only else ""))
+                                                + (" (none is force closure as planned or once squeezed)"
+                                                   if closure_only else ""))
 
 
 @click.command()

@@ -68,9 +68,10 @@ if TYPE_CHECKING:
 #: FleX held 68.5% of the closed poses that are force closure after the squeeze and 62.5% of the others, against
 #: 52.9% of those force closure as planned and 75.1% of the others, bench/RESULTS.md 2026-12-07).
 FIRST = ("force_closure", "squeezed_force_closure")
+#: :data:`FIRST` as SQL over the columns of ``grasps``: 1 for a grasp that ranks first, else 0 (NULL: 0).
+FIRST_SQL = f"MAX({', '.join(f'COALESCE({c}, 0)' for c in FIRST)})"
 #: The rank order: a 1 in :data:`FIRST` first, then score, then the tie-breaks (columns of ``grasps``).
-ORDER_BY = (f"MAX({', '.join(f'COALESCE({c}, 0)' for c in FIRST)}) DESC, score DESC, epsilon DESC, volume DESC, "
-            "seed, candidate, unit_id")
+ORDER_BY = f"{FIRST_SQL} DESC, score DESC, epsilon DESC, volume DESC, seed, candidate, unit_id"
 
 #: The measures the rule reads (each an (n,) array; NaN or None = not computed), by
 #: the names the declaration gives them (:func:`planner.record.fields.ranked_fields`).
@@ -224,6 +225,12 @@ def ranks_first(measures: Mapping[str, ArrayLike | None]) -> np.ndarray:
 def first_measures(grasps: Sequence[Grasp]) -> dict[str, list]:
     """The measures of :data:`FIRST` of grasp records, by name (None: not measured)."""
     return {name: fields.values(fields.by_name(name), grasps) for name in FIRST}
+
+
+def first_of(grasps: Sequence[Grasp]) -> list[bool]:
+    """Which grasp records rank first (:func:`ranks_first`: force closure as planned or once squeezed); what a
+    selection of "the grasps that rank first" keeps (``grasp validate --force-closure``, the viewer's filter)."""
+    return ranks_first(first_measures(grasps)).tolist() if grasps else []
 
 
 def rank_order(scores: np.ndarray, first: np.ndarray) -> np.ndarray:

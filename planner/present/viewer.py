@@ -4,7 +4,8 @@ The only module importing viser. It serves the object, the hand of the
 selected grasp closed (as stored) and open (translucent, same pose), its
 contacts with friction cones, the approach, and the arm when the grasps were
 reached at an object pose; a panel lists the grasps in rank order with a
-slider and a list, filters by hand, preshape, force closure and label, and
+slider and a list, filters by hand, preshape, force closure (as planned or
+once squeezed: the grasps that rank first) and label, and
 shows the selected grasp's measures. Scenes are built by
 :mod:`planner.present.scene`; this module only puts them on screen.
 
@@ -24,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import viser
 
+from planner.db.ranking import first_of
 from planner.geometry.frames import rotation_onto
 from planner.geometry.quaternion import canonical_xyzw, quaternion_xyzw
 from planner.present.describe import score_text, times_weight, xyz
@@ -70,19 +72,26 @@ class Filters:
 
     hand: str = ALL
     preshape: str = ALL
-    force_closure: str = ALL  # all | yes | no
+    force_closure: str = ALL  # all | yes | no: force closure as planned or once squeezed (ranks first) or not
     label: str = ALL  # all | held | dropped | not validated
 
-    def keep(self, entry: Entry) -> bool:
+    def keep(self, entry: Entry, first: bool) -> bool:
+        """Whether ``entry`` passes; ``first``: its grasp ranks first (:func:`planner.db.ranking.first_of`)."""
         g = entry.grasp
         return ((self.hand in (ALL, g.hand)) and (self.preshape in (ALL, g.preshape))
-                and (self.force_closure == ALL or (self.force_closure == "yes") == bool(g.force_closure))
+                and (self.force_closure == ALL or (self.force_closure == "yes") == first)
                 and (self.label in (ALL, entry.label)))
 
 
 def filtered(entries: Sequence[Entry], filters: Filters) -> list[Entry]:
     """The entries the filters let through, in their order (rank order per hand)."""
-    return [e for e in entries if filters.keep(e)]
+    return [e for e, first in zip(entries, first_of([e.grasp for e in entries])) if filters.keep(e, first)]
+
+
+def closure_text(g: Grasp) -> str:
+    """The grasp's force closure as the viewer lists it: as planned, once squeezed (it ranks first too) or not."""
+    squeezed = g.measures is not None and bool(g.measures.squeezed_force_closure)
+    return "yes" if g.force_closure else "once squeezed (not as planned)" if squeezed else "no"
 
 
 def measures_text(entry: Entry) -> str:
@@ -91,7 +100,7 @@ def measures_text(entry: Entry) -> str:
     m = g.measures
     rows = [("rank", "planned now with the table, not stored" if g.rank is None else f"{g.rank}"),
             ("score (ranking rule, higher is better)", "n/a" if g.score is None else score_text(g.score)),
-            ("epsilon (Ferrari-Canny L1)", f"{g.epsilon:.4f}"), ("force closure", "yes" if g.force_closure else "no"),
+            ("epsilon (Ferrari-Canny L1)", f"{g.epsilon:.4f}"), ("force closure", closure_text(g)),
             ("finger width", "n/a" if g.width is None else f"{g.width * 1000:.1f} mm"),
             ("contacts", f"{len(g.contacts)}"), ("reachability", _num(g.reachability, ".2f")),
             ("label", entry.label)]
@@ -175,7 +184,8 @@ class Viewer:
         preshapes = sorted({e.grasp.preshape for e in self.entries})
         self.hand = gui.add_dropdown("hand", [ALL, *hands], initial_value=hands[0] if len(hands) == 1 else ALL)
         self.preshape = gui.add_dropdown("preshape", [ALL, *preshapes], initial_value=ALL)
-        self.force_closure = gui.add_dropdown("force closure", [ALL, "yes", "no"], initial_value=ALL)
+        self.force_closure = gui.add_dropdown("force closure (as planned or once squeezed)", [ALL, "yes", "no"],
+                                              initial_value=ALL)
         self.label = gui.add_dropdown("label", [ALL, *LABELS], initial_value=ALL)
         self.show_open = gui.add_checkbox("open hand", initial_value=True)
         self.show_cones = gui.add_checkbox("contacts and cones", initial_value=True)

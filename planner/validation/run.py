@@ -24,7 +24,7 @@ import numpy as np
 from planner import prepare
 from planner.db.hand_files import check_hand_files
 from planner.db.objects import stored_object
-from planner.db.ranking import RankingRule
+from planner.db.ranking import RankingRule, first_of
 from planner.db.store import Database, ObjectRow, Validated, open_for_writing
 from planner.errors import InputError, PlannerError
 from planner.plan.closing import Grasper
@@ -116,9 +116,10 @@ def _run_task(task: Task, out: TaskResult) -> None:
 
 @dataclass(frozen=True)
 class Selection:
-    """Which grasps of each object and hand: the ``top`` best (default; force-closure grasps rank first, so
-    they are force closure where the object has ``top`` of them), a seeded uniform ``sample`` of that many, or
-    ``every`` one; ``closure_only``: of the force-closure grasps only."""
+    """Which grasps of each object and hand: the ``top`` best (default; the grasps force closure as planned or
+    once squeezed rank first, :data:`planner.db.ranking.FIRST`, so they are such where the object has ``top`` of
+    them), a seeded uniform ``sample`` of that many, or ``every`` one; ``closure_only``: of those that rank first
+    only (:func:`planner.db.ranking.first_of`)."""
 
     top: int = 10
     sample: int | None = None
@@ -127,13 +128,17 @@ class Selection:
 
     def pick(self, db: Database, obj: str, hand: str, seed: int) -> list[Grasp]:
         if not self.every and self.sample is None:
-            return [g for g in db.best(obj, hand, self.top) if g.score and (g.force_closure or not self.closure_only)]
-        grasps = sorted((g for batch in db.grasp_batches(obj, hand) for g in batch
-                         if g.force_closure or not self.closure_only), key=_identity)
+            return self._first([g for g in db.best(obj, hand, self.top) if g.score])
+        grasps = sorted(self._first([g for batch in db.grasp_batches(obj, hand) for g in batch]), key=_identity)
         if self.every or self.sample is None or self.sample >= len(grasps):
             return grasps
         rng = np.random.default_rng([seed, zlib.crc32(obj.encode()), zlib.crc32(hand.encode())])
         return [grasps[i] for i in sorted(rng.choice(len(grasps), size=self.sample, replace=False))]
+
+
+    def _first(self, grasps: list[Grasp]) -> list[Grasp]:
+        """``grasps``, or with ``closure_only`` those of them that rank first."""
+        return [g for g, first in zip(grasps, first_of(grasps)) if first] if self.closure_only else grasps
 
 
 def _identity(g: Grasp) -> tuple[int, int, int]:
@@ -330,10 +335,10 @@ def validate(db_path: Path, *, objects: list[str] | None = None, hands: list[str
              sample: int | None = None, every: bool = False, robust_samples: int = 10, seed: int = 0,
              workers: int = 1, settings: ShakeSettings | MujocoSettings | None = None, closure_only: bool = False,
              progress: Callable[[int, int], None] | None = None, engine: str | None = None) -> ValidationSummary:
-    """Shake-test (and robust-epsilon) each object's ``top`` best force-closure
-    grasps, or a uniform ``sample`` of its grasps drawn with ``seed``, or
-    ``every`` grasp (``closure_only``: sample and every among the
-    force-closure grasps only), in ``engine`` (see :data:`ENGINES`; None:
+    """Shake-test (and robust-epsilon) each object's ``top`` best grasps, or
+    a uniform ``sample`` of its grasps drawn with ``seed``, or ``every``
+    grasp (``closure_only``: only grasps force closure as planned or once
+    squeezed, those that rank first), in ``engine`` (see :data:`ENGINES`; None:
     the engine of ``settings`` if given, else :data:`DEFAULT_ENGINE`; its
     verdicts are stored apart from the other's); store the results and re-rank."""
     if engine is None:  # the settings' engine, else the default

@@ -53,22 +53,28 @@ def test_report_prints_the_file_it_wrote(validated_db: Path, tmp_path: Path) -> 
     assert all(line.startswith("coverage ") for line in out.splitlines()[1:])
 
 
-def test_validate_all_force_closure_tests_exactly_the_force_closure_grasps(tmp_path: Path) -> None:
+def test_validate_all_force_closure_tests_exactly_the_grasps_that_rank_first(tmp_path: Path) -> None:
+    """--force-closure: the grasps force closure as planned or once squeezed (planner.db.ranking.FIRST)."""
     import sqlite3
+
+    from planner.db.ranking import FIRST_SQL
 
     copy = tmp_path / "v.db"
     code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(copy), "--sampler", "surface", "--quiet",
                          *FAST)
     assert code == 0, err
-    with sqlite3.connect(copy) as conn:
-        total, closure = conn.execute("SELECT COUNT(*), SUM(force_closure) FROM grasps").fetchone()
-    assert 0 < closure < total, "the box database should hold grasps of both kinds"
+    with sqlite3.connect(copy) as conn:  # one not force closure as planned, force closure once squeezed
+        conn.execute("UPDATE grasps SET squeezed_force_closure = 1 WHERE id = (SELECT MIN(id) FROM grasps WHERE "
+                     "force_closure = 0)")
+        total, closure, planned = conn.execute(f"SELECT COUNT(*), SUM({FIRST_SQL}), SUM(force_closure) "
+                                               "FROM grasps").fetchone()
+    assert 0 < planned < closure < total, "the box database should hold grasps of the three kinds"
     code, out, err = grasp("validate", "--db", str(copy), "--all", "--force-closure", "--robust", "0",
                            "--workers", "1", "--json")  # the default engine: MuJoCo's trial
     assert code == 0, err
     assert json.loads(out)["grasps"] == closure
     with sqlite3.connect(copy) as conn:
-        tested = conn.execute("SELECT g.force_closure FROM mujoco v JOIN grasps g ON g.id = v.grasp_id").fetchall()
+        tested = conn.execute(f"SELECT {FIRST_SQL} FROM mujoco v JOIN grasps g ON g.id = v.grasp_id").fetchall()
         assert conn.execute("SELECT COUNT(*) FROM validation").fetchone() == (0,)
     assert len(tested) == closure and all(fc == 1 for (fc,) in tested)
 
@@ -134,11 +140,13 @@ def test_a_run_with_nothing_new_to_try_says_so(validated_db: Path, tmp_path: Pat
     import sqlite3
 
     with sqlite3.connect(copy) as conn:
-        conn.execute("UPDATE grasps SET force_closure = 0 WHERE object = 'sphere'")
+        conn.execute("UPDATE grasps SET force_closure = 0, squeezed_force_closure = MIN(squeezed_force_closure, 0) "
+                     "WHERE object = 'sphere'")
     code, out, err = grasp("validate", "--db", str(copy), "--object", "sphere", "--force-closure", "--robust", "0",
                            "--workers", "1", "--engine", "pybullet")
     assert code == 0, err
-    assert out == "nothing new to try in pybullet: no stored grasp is selected (none is force closure)\n", out
+    assert out == ("nothing new to try in pybullet: no stored grasp is selected (none is force closure as planned "
+                   "or once squeezed)\n"), out
 
 
 @pytest.mark.parametrize("outcome", ["failed", "diverged"])
@@ -167,3 +175,12 @@ def test_a_run_whose_trials_all_failed_or_diverged_does_not_say_nothing_was_sele
         assert "grasp: error: box/panda: boom" in err
     else:
         assert code == 0 and out.startswith("no grasp given a verdict in mujoco; 3 diverged"), out
+
+
+def test_the_help_says_which_grasps_force_closure_selects() -> None:
+    """--force-closure and --top select what ranks first (planner.db.ranking.FIRST): the help says so."""
+    code, out, err = grasp("validate", "--help")
+    assert code == 0, err
+    said = " ".join(out.split())
+    assert "Of the grasps force closure as planned or once squeezed (those that rank first) only." in said
+    assert "grasps force closure as planned or once squeezed rank first" in said

@@ -100,6 +100,25 @@ def test_filters_select_by_field(box_db: Path) -> None:
     assert sorted(id(e) for e in fc) == sorted(id(e) for e in entries)
 
 
+def test_the_force_closure_filter_keeps_what_ranks_first() -> None:
+    """The force-closure filter keeps the grasps force closure as planned or once squeezed
+    (planner.db.ranking.FIRST), and the measures say which of the two."""
+    from dataclasses import replace
+
+    from planner.present.viewer import Entry, measures_text
+    from planner.record.measures import Measures
+    from tests.helpers import made_up
+
+    squeeze = Measures(3.0, 4.0, 0.01, 0.01, 1.0, ())
+    grasps = [made_up(0, 0.1), *(replace(made_up(i, 0.0, fc=False), measures=replace(squeeze, squeezed_force_closure=s))
+                                 for i, s in ((1, True), (2, False))), made_up(3, 0.0, fc=False)]
+    entries = [Entry(g, lambda: None) for g in grasps]  # type: ignore[arg-type,return-value]
+    assert filtered(entries, Filters(force_closure="yes")) == entries[:2]
+    assert filtered(entries, Filters(force_closure="no")) == entries[2:]
+    assert "| force closure | once squeezed (not as planned) |" in measures_text(entries[1])
+    assert "| force closure | no |" in measures_text(entries[2])
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

@@ -355,16 +355,26 @@ def test_an_empty_database_or_an_unknown_hand_is_an_error(box_db: Path, tmp_path
         validate(db, robust_samples=0)
 
 
-def test_top_with_force_closure_takes_only_force_closure_grasps() -> None:
-    """Force-closure grasps rank first, so --top takes others only where an object has fewer than K of them;
-    --force-closure leaves those out."""
+def test_top_with_force_closure_takes_only_the_grasps_that_rank_first() -> None:
+    """Grasps force closure as planned or once squeezed rank first (planner.db.ranking.FIRST), so --top takes
+    others only where an object has fewer than K of them; --force-closure leaves those out, and keeps a grasp
+    force closure only once squeezed, with --top, --sample and --all alike."""
+    from dataclasses import replace
     from types import SimpleNamespace
 
-    ranked = [SimpleNamespace(score=0.9, force_closure=True), SimpleNamespace(score=0.8, force_closure=False),
-              SimpleNamespace(score=0.0, force_closure=False)]
-    db = SimpleNamespace(best=lambda obj, hand, top: ranked[:top])
-    assert run.Selection(top=3).pick(db, "o", "h", 0) == ranked[:2]  # type: ignore[arg-type]
-    assert run.Selection(top=3, closure_only=True).pick(db, "o", "h", 0) == ranked[:1]  # type: ignore[arg-type]
+    from planner.record.measures import Measures
+    from tests.helpers import made_up
+
+    squeeze = Measures(3.0, 4.0, 0.01, 0.01, 1.0, ())
+    ranked = [replace(made_up(0, 0.1), score=0.9), replace(made_up(1, 0.0, fc=False), score=0.85,
+                                                           measures=replace(squeeze, squeezed_force_closure=True)),
+              replace(made_up(2, 0.0, fc=False), score=0.8, measures=replace(squeeze, squeezed_force_closure=False)),
+              replace(made_up(3, 0.0, fc=False), score=0.0)]
+    db = SimpleNamespace(best=lambda obj, hand, top: ranked[:top], grasp_batches=lambda obj, hand: [ranked])
+    assert run.Selection(top=4).pick(db, "o", "h", 0) == ranked[:3]  # type: ignore[arg-type]
+    for selection in (run.Selection(top=4, closure_only=True), run.Selection(every=True, closure_only=True),
+                      run.Selection(sample=2, closure_only=True)):
+        assert selection.pick(db, "o", "h", 0) == ranked[:2]  # type: ignore[arg-type]
 
 
 @pytest.mark.parametrize("engine", ["mujoco", "pybullet"])
