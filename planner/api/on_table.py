@@ -56,10 +56,12 @@ class TableGrasps:
     misses: list[tuple[int, str]]
 
     def object_pose7(self) -> list[float]:
-        """x, y, z, qx, qy, qz, qw, as ``--object-pose`` takes it."""
+        """x, y, z, qx, qy, qz, qw, as ``--object-pose`` takes it (no ``-0.0``: + 0.0 makes it 0.0, changing no other
+        value, so the printed ``--object-pose`` reads as typed)."""
         from planner.geometry.quaternion import canonical_xyzw
 
-        return [*self.object_pose[:3, 3].tolist(), *canonical_xyzw(self.object_pose[:3, :3]).tolist()]
+        seven = [*self.object_pose[:3, 3].tolist(), *canonical_xyzw(self.object_pose[:3, :3]).tolist()]
+        return [v + 0.0 for v in seven]
 
     def to_json(self) -> dict:
         return {"resting_probability": self.resting.probability, "object_pose": self.object_pose7(),

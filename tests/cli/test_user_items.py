@@ -1,0 +1,47 @@
+"""Items a new user met (session of stop 65): what `grasp best --on-table` prints to repeat a pose, what `grasp view`
+says when its port is taken."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from helpers import grasp
+
+from planner.api.on_table import TableGrasps
+from planner.geometry.stable import RestingPose
+
+
+def test_an_on_table_pose_to_repeat_has_no_negative_zero() -> None:
+    """`grasp best mug --on-table` printed `--object-pose 0.49...,-0.0024,0.0,-0.0,0.0,-0.0,1.0`: a sign on a zero
+    the user retypes."""
+    pose = np.eye(4)
+    pose[:3, 3] = [0.5, -0.0, 0.02]
+    pose[:3, :3] = np.diag([1.0, -1.0, -1.0]) @ np.diag([1.0, -1.0, -1.0])  # the identity with signed zeros off it
+    pose[0, 1] = pose[1, 0] = -0.0
+    t = TableGrasps(RestingPose(pose.copy(), 0.5), pose, [], [])
+    seven = t.object_pose7()
+    assert ",".join(repr(v) for v in seven) == "0.5,0.0,0.02,0.0,0.0,0.0,1.0"
+
+
+def test_view_says_when_its_port_is_taken(box_db: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`grasp view box --port 8080` with 8080 taken served on 8081 and said only the new address: a user with the
+    old one bookmarked saw another program."""
+    import socket
+
+    from planner.cli import view
+
+    def interrupted(seconds: float) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(view.time, "sleep", interrupted)
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        code, out, err = grasp("view", "box", "--hand", "panda", "--db", str(box_db), "--top", "2", "--port",
+                               str(port))
+    assert code == 130
+    assert f"port {port} is in use: serving on port" in err
+    assert "grasp viewer: http://127.0.0.1:" in out and f":{port} " not in out
