@@ -135,10 +135,38 @@ class ExportSummary:
 #: The export's manifest in DIR, one per format: removed before the export writes anything and written (atomically)
 #: after its last file, so that a folder holding it holds that export whole (a killed or failed export leaves none):
 #: what was exported, from which database, with which selection and labels, and each file with its grasps and bytes.
+#: Its ``earlier`` lists the earlier exports of the format into DIR whose files are still there and this one did not
+#: write again (each such export as its own record, with those files only; none: []).
 MANIFEST = "export-{format}.json"
 
 
-def _manifest(summary: ExportSummary, out_dir: Path, db_path: Path, sel: Selection) -> Path:
+def _earlier(out_dir: Path, fmt: str) -> list[dict]:
+    """The records of the exports of ``fmt`` the manifest in ``out_dir`` describes (itself and its ``earlier``), read
+    before a new export removes it (``grasp export --object box`` then ``--object mug`` into one folder: the second
+    manifest described only the mug, beside the box's file)."""
+    try:
+        old = json.loads((out_dir / MANIFEST.format(format=fmt)).read_text(encoding="utf-8"))
+    except (OSError, ValueError):  # none, or not one this planner wrote whole: nothing to carry over
+        return []
+    if not isinstance(old, dict) or not isinstance(old.get("files"), list):
+        return []
+    earlier = [r for r in old.pop("earlier", []) if isinstance(r, dict) and isinstance(r.get("files"), list)]
+    return [*earlier, old]
+
+
+def _still_there(records: list[dict], out_dir: Path, written: set[str]) -> list[dict]:
+    """``records`` with only the files still in ``out_dir`` as they were and not written again (``written``)."""
+    kept = []
+    for r in records:
+        files = [f for f in r["files"] if isinstance(f, dict) and f.get("path") not in written
+                 and (out_dir / str(f.get("path"))).is_file()
+                 and (out_dir / str(f.get("path"))).stat().st_size == f.get("bytes")]
+        if files:
+            kept.append({**r, "files": files, "grasps": sum(int(f.get("grasps", 0)) for f in files)})
+    return kept
+
+
+def _manifest(summary: ExportSummary, out_dir: Path, db_path: Path, sel: Selection, earlier: list[dict]) -> Path:
     from planner import assets
     from planner.db.writing import now_text
 
@@ -152,6 +180,7 @@ def _manifest(summary: ExportSummary, out_dir: Path, db_path: Path, sel: Selecti
               "files": [{"path": rel(p), "grasps": n, "bytes": p.stat().st_size}
                         for p, n in zip(summary.files, summary.counts)],
               "meshes": [rel(p) for p in summary.meshes], "notes": summary.notes}
+    record["earlier"] = _still_there(earlier, out_dir, {f["path"] for f in record["files"]})
     path = out_dir / MANIFEST.format(format=summary.format)
     assets.atomic_write(path, (json.dumps(record, indent=2) + "\n").encode())
     return path
@@ -208,6 +237,7 @@ def _export(db_path: Path, fmt: str, out_dir: Path, objects: Sequence[str], hand
         copies = writer.mesh_copies if isinstance(writer, PairWriter) else ()
         exported = {name: replace(o, label=sel.label)  # a mesh another database put there is refused first
                     for name, o in write_meshes(db, sorted({o for o, _ in pairs}), out_dir, copies).items()}
+        earlier = _earlier(out_dir, fmt)
         (out_dir / MANIFEST.format(format=fmt)).unlink(missing_ok=True)  # no stale "complete" over new files
         summary.meshes = [out_dir / o.file for o in exported.values()]
         if isinstance(writer, TableWriter):
@@ -234,7 +264,7 @@ def _export(db_path: Path, fmt: str, out_dir: Path, objects: Sequence[str], hand
                         progress(path, count)
             if writer.finish is not None:
                 writer.finish(out_dir, sorted(specs))
-        summary.manifest = _manifest(summary, out_dir, Path(db_path), sel)
+        summary.manifest = _manifest(summary, out_dir, Path(db_path), sel, earlier)
     summary.seconds = time.perf_counter() - start
     log.info("exported %d grasps as %s to %s in %.1f s", summary.grasps, fmt, out_dir, summary.seconds)
     return summary

@@ -214,3 +214,21 @@ def test_an_export_refused_before_writing_leaves_no_folder_it_made(tmp_path: Pat
         code, _, err = grasp("export", "--db", str(db), "--format", "acronym", "--out", str(out))
         assert code == 2 and "objects 'a/cube' and 'a__cube' would share the mesh file a__cube.obj" in err, err
     assert not (tmp_path / "new").exists() and kept.is_dir() and not any(kept.iterdir())
+
+
+def test_exports_into_one_folder_are_each_listed_by_its_manifest(db: Path, tmp_path: Path) -> None:
+    """`grasp export --object box` then `--object sphere` into one folder: the manifest described only the sphere's
+    export, beside the box's file it did not mention. Now each earlier export whose files are still there is listed
+    in `earlier`, with those files only; a file written again is the new export's alone."""
+    import json
+
+    out = export(db, "acronym", tmp_path / "a", "--object", "box", "--top", "3")
+    export(db, "acronym", out, "--object", "sphere", "--top", "2")
+    manifest = json.loads((out / "export-acronym.json").read_text())
+    assert [f["path"] for f in manifest["files"]] == ["sphere__panda.h5"] and manifest["selection"]["top"] == 2
+    [box] = manifest["earlier"]
+    assert [f["path"] for f in box["files"]] == ["box__panda.h5"] and box["selection"]["objects"] == ["box"]
+    assert box["grasps"] == 3 and box["files"][0]["bytes"] == (out / "box__panda.h5").stat().st_size
+    export(db, "acronym", out, "--top", "1")  # both files again: nothing earlier is left
+    again = json.loads((out / "export-acronym.json").read_text())
+    assert again["earlier"] == [] and again["grasps"] == 2
