@@ -35,6 +35,19 @@ def run() -> None:
     except KeyboardInterrupt:
         print("grasp: interrupted; nothing was changed", file=sys.stderr)
         sys.exit(EXIT_INTERRUPTED)
+    except SystemExit as done:
+        if done.code == EXIT_INTERRUPTED:
+            _settled()
+        raise
+
+
+def _settled() -> None:
+    """An interrupted run has said so and chosen its exit code: a second Ctrl-C while the interpreter shuts down
+    (worker processes joined, the database closed) is ignored. It ended the process by SIGINT (exit -2, no line)
+    once Python had put back the default handler, where a batch script checks for 130."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 #: [s] how soon a SIGTERM that arrived inside a destructor is delivered again.

@@ -329,3 +329,27 @@ def test_commands_a_message_gives_run_as_pasted_with_blanks_in_paths(box_db: Pat
     gone = tmp_path / "no such" / "g.db"
     code, _, err = grasp("best", "box", "--hand", "panda", "--db", str(gone))
     assert code == 3 and _db_of_commands(err) == [str(gone)], err
+
+
+def test_a_second_ctrl_c_while_an_interrupted_run_shuts_down_keeps_exit_130() -> None:
+    """`grasp generate ... --workers 2`, Ctrl-C twice: the second, while the interpreter shut down after the one
+    line, ended the process by SIGINT (exit -2) or with an "Exception ignored" traceback, not exit 130."""
+    import signal
+    import subprocess
+
+    from processes import STARTUP, env
+
+    shutting = HELD_PARSE.replace("from planner.cli import run", "import atexit\natexit.register(lambda: (print("
+                                  "'shutting down', file=sys.stderr, flush=True), time.sleep(3)))\n"
+                                  "from planner.cli import run")
+    run = subprocess.Popen([sys.executable, "-c", shutting, "hands"], env=env(), stderr=subprocess.PIPE, text=True)
+    try:
+        assert run.stderr is not None and run.stderr.readline() == "parsing\n"
+        run.send_signal(signal.SIGINT)
+        assert run.stderr.readline() == "grasp: interrupted; nothing was changed\n"
+        assert run.stderr.readline() == "shutting down\n"
+        run.send_signal(signal.SIGINT)
+        _, err = run.communicate(timeout=STARTUP)
+    finally:
+        run.kill()
+    assert (run.returncode, err) == (130, "")
