@@ -46,6 +46,7 @@ from planner.db.columns import (  # noqa: F401 - VECTOR_DIGITS, INERTIA_DIGITS, 
     json_list,
 )
 from planner.db.failures import _reads, missing, read_failed, write_failed  # noqa: F401 - the failures re-exported
+from planner.db.header import cannot_open, check_header
 from planner.db.lock import writer_lock
 from planner.db.ranking import RankingRule
 from planner.db.rows import ObjectRow, UnitRow, Validated  # noqa: F401 - re-exported
@@ -320,13 +321,13 @@ def open_for_writing(path: Path, *, create: bool = True) -> Iterator[Database]:
                             "snapshot): a writer through one would not see a writer through another, and a write "
                             "changes every name; nothing was changed: write to a copy (cp)")
     if path.is_file() and path.stat().st_size > 0:
-        _check_header(path)
+        check_header(path)
         try:
             with closing(sqlite3.connect(f"file:{path}?mode=ro", uri=True, timeout=BUSY_TIMEOUT_S)) as conn:
                 conn.row_factory = sqlite3.Row
                 schema_version(conn, path)
         except sqlite3.DatabaseError as exc:
-            raise DatabaseError(f"{path}: cannot open database: {exc}") from exc
+            raise cannot_open(path, exc) from exc
     with writer_lock(path), open_db(path, create=create) as db:
         yield db
 
@@ -343,12 +344,6 @@ def _frozen(path: Path) -> bool:
             and not (wal.exists() and wal.stat().st_size > 0))
 
 
-def _check_header(path: Path) -> None:
-    with path.open("rb") as fh:
-        if fh.read(16) != b"SQLite format 3\x00":
-            raise DatabaseError(f"{path}: not an SQLite database; pick another --db path")
-
-
 def open_db(path: Path, *, create: bool = True, readonly: bool = False) -> Database:
     """Open (or create) a grasp database, checking what the file is first."""
     path = Path(path)
@@ -358,7 +353,7 @@ def open_db(path: Path, *, create: bool = True, readonly: bool = False) -> Datab
     if exists and path.is_dir():
         raise DatabaseError(f"{path}: is a folder, not a database file")
     if exists and path.stat().st_size > 0:
-        _check_header(path)
+        check_header(path)
     if not exists and not path.parent.exists():
         raise DatabaseError(f"{path}: folder {path.parent} does not exist")
     try:
@@ -380,11 +375,13 @@ def open_db(path: Path, *, create: bool = True, readonly: bool = False) -> Datab
             conn.execute("PRAGMA synchronous = NORMAL")
         conn.execute("PRAGMA foreign_keys = ON")
     except sqlite3.DatabaseError as exc:
+        if str(exc) == "file is not a database":
+            raise cannot_open(path, exc) from exc
         if readonly and not os.access(path.resolve().parent, os.W_OK):
             raise DatabaseError(f"{path}: cannot read it in a read-only folder while its file may be written "
                                 f"(SQLite needs a -shm file beside it; {exc}): copy it to a writable folder, or "
                                 "make the file read-only too") from exc
-        raise DatabaseError(f"{path}: cannot open database: {exc}") from exc
+        raise cannot_open(path, exc) from exc
     if version > SCHEMA_VERSION:
         conn.close()
         raise DatabaseError(f"{path}: schema version {version} is newer than this planner's ({SCHEMA_VERSION}); "

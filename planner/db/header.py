@@ -1,0 +1,34 @@
+"""What a file given as a database is, told before SQLite writes to it, without a descriptor of its own."""
+
+from __future__ import annotations
+
+import sqlite3
+from pathlib import Path
+
+from planner.errors import DatabaseError
+
+#: [bytes] SQLite's smallest page: a database with anything in it is at least this long.
+MIN_PAGE = 512
+
+
+def check_header(path: Path) -> None:
+    """Refuse a file too short to be a database whose first bytes are not SQLite's (SQLite reads a file of a few
+    bytes as an empty database, and a writer would write over it). A longer file is left to SQLite, which says
+    "file is not a database" (:func:`cannot_open`): opening and closing a descriptor of the file here dropped every
+    POSIX lock SQLite holds on it in this process (a reader beside a writer of the same process, the Python API),
+    and with them what keeps another process from checkpointing the WAL away under the writer."""
+    if path.stat().st_size >= MIN_PAGE:
+        return
+    with path.open("rb") as fh:
+        if fh.read(16) != b"SQLite format 3\x00":
+            raise DatabaseError(_NOT_SQLITE.format(path=path))
+
+
+_NOT_SQLITE = "{path}: not an SQLite database; pick another --db path"
+
+
+def cannot_open(path: Path, exc: sqlite3.DatabaseError) -> DatabaseError:
+    """SQLite's error at opening ``path`` as the project's: its "file is not a database" as :func:`check_header`'s."""
+    if str(exc) == "file is not a database":
+        return DatabaseError(_NOT_SQLITE.format(path=path))
+    return DatabaseError(f"{path}: cannot open database: {exc}")

@@ -1,0 +1,63 @@
+"""planner.db.header: a file given as a database, told apart without dropping this process's SQLite locks."""
+
+from __future__ import annotations
+
+import sqlite3
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from planner.db.store import open_db
+from planner.errors import DatabaseError
+
+#: SQLite's unix VFS: a SHARED lock is a read lock on these bytes of the database file (sqlite3.c, SHARED_FIRST).
+SHARED_FIRST, SHARED_SIZE = 0x40000000 + 2, 510
+
+#: Another process asks for a write lock over SQLite's SHARED range: refused while this one reads.
+PROBE = """
+import fcntl, sys
+with open(sys.argv[1], "rb+") as fh:
+    try:
+        fcntl.lockf(fh, fcntl.LOCK_EX | fcntl.LOCK_NB, %d, %d)
+    except OSError:
+        print("locked")
+    else:
+        print("free")
+""" % (SHARED_SIZE, SHARED_FIRST)
+
+
+def _probe(path: Path) -> str:
+    return subprocess.run([sys.executable, "-c", PROBE, str(path)], capture_output=True, text=True,
+                          check=True).stdout.strip()
+
+
+def test_a_reader_in_the_writers_process_keeps_the_writers_locks(box_db: Path, tmp_path: Path) -> None:
+    """The Python API's reader (open_db) read the file's first bytes through a descriptor of its own and closed
+    it: POSIX locks are the process's, so that close dropped the SQLite locks a writer in the same process held,
+    and another process could take the file (checkpoint and remove the WAL) under it."""
+    path = tmp_path / "g.db"
+    path.write_bytes(box_db.read_bytes())
+    writer = sqlite3.connect(path, isolation_level=None)
+    try:
+        writer.execute("BEGIN")
+        writer.execute("SELECT count(*) FROM grasps").fetchone()  # a read transaction: SHARED on the file
+        assert _probe(path) == "locked"
+        with open_db(path, create=False, readonly=True) as db:
+            assert db.integrity_check() == []
+        assert _probe(path) == "locked"
+    finally:
+        writer.close()
+
+
+@pytest.mark.parametrize("content", [b"x", b"my precious notes", b"\x00not a database at all" * 100])
+def test_a_file_that_is_not_sqlite_is_refused_in_one_line_and_untouched(tmp_path: Path, content: bytes) -> None:
+    """Short or long, read or written: SQLite's own "file is not a database" is said as before; a 1-byte file,
+    which SQLite reads as an empty database, is refused before SQLite could write over it."""
+    path = tmp_path / "notes.db"
+    path.write_bytes(content)
+    for readonly in (True, False):
+        with pytest.raises(DatabaseError, match=f"^{path}: not an SQLite database; pick another --db path$"):
+            open_db(path, readonly=readonly)
+    assert path.read_bytes() == content
