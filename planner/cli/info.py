@@ -93,5 +93,6 @@ def check(db_path: Path) -> None:
     if problems:
         for p in problems:
             click.echo(p)
-        raise DatabaseError(f"{db_path}: integrity check failed ({len(problems)} problems, listed on stdout)")
+        raise DatabaseError(f"{db_path}: integrity check failed ({len(problems)} problem{'s' * (len(problems) > 1)}, "
+                            "listed on stdout)")
     click.echo(f"{db_path}: ok")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shlex
 import sqlite3
 from pathlib import Path
 
@@ -31,4 +32,8 @@ def cannot_open(path: Path, exc: sqlite3.DatabaseError) -> DatabaseError:
     """SQLite's error at opening ``path`` as the project's: its "file is not a database" as :func:`check_header`'s."""
     if str(exc) == "file is not a database":
         return DatabaseError(_NOT_SQLITE.format(path=path))
+    if str(exc) == "database disk image is malformed":  # `grasp db check` of a truncated copy said only this
+        return DatabaseError(f"{path}: cannot open database: {exc} (the file is truncated or damaged: nothing was "
+                             f"changed; restore it from a copy, `sqlite3 {shlex.quote(str(path))} .recover` saves what "
+                             "it can)")
     return DatabaseError(f"{path}: cannot open database: {exc}")

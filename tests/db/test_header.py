@@ -16,16 +16,16 @@ from planner.errors import DatabaseError
 SHARED_FIRST, SHARED_SIZE = 0x40000000 + 2, 510
 
 #: Another process asks for a write lock over SQLite's SHARED range: refused while this one reads.
-PROBE = """
+PROBE = f"""
 import fcntl, sys
 with open(sys.argv[1], "rb+") as fh:
     try:
-        fcntl.lockf(fh, fcntl.LOCK_EX | fcntl.LOCK_NB, %d, %d)
+        fcntl.lockf(fh, fcntl.LOCK_EX | fcntl.LOCK_NB, {SHARED_SIZE}, {SHARED_FIRST})
     except OSError:
         print("locked")
     else:
         print("free")
-""" % (SHARED_SIZE, SHARED_FIRST)
+"""
 
 
 def _probe(path: Path) -> str:
@@ -61,3 +61,24 @@ def test_a_file_that_is_not_sqlite_is_refused_in_one_line_and_untouched(tmp_path
         with pytest.raises(DatabaseError, match=f"^{path}: not an SQLite database; pick another --db path$"):
             open_db(path, readonly=readonly)
     assert path.read_bytes() == content
+
+
+def test_db_check_of_a_truncated_or_damaged_file_says_what_to_do(box_db: Path, tmp_path: Path) -> None:
+    """`grasp db check` of a copy cut short said "cannot open database: database disk image is malformed" and no
+    more; of one with a damaged page "(1 problems, listed on stdout)"."""
+    from helpers import grasp, one_line_error
+
+    cut = tmp_path / "cut.db"
+    cut.write_bytes(box_db.read_bytes()[:3000])
+    code, _, err = grasp("db", "check", "--db", str(cut))
+    one_line_error(code, err, 3, f"{cut}: cannot open database: database disk image is malformed (the file is "
+                   f"truncated or damaged: nothing was changed; restore it from a copy, `sqlite3 {cut} .recover` "
+                   "saves what it can)")
+    assert cut.read_bytes() == box_db.read_bytes()[:3000]
+    damaged = tmp_path / "damaged.db"
+    data = bytearray(box_db.read_bytes())
+    data[-3 * 4096:-2 * 4096] = bytes(range(256)) * 16
+    damaged.write_bytes(bytes(data))
+    code, out, err = grasp("db", "check", "--db", str(damaged))
+    assert code == 3 and f"{damaged}: integrity check failed (1 problem, listed on stdout)" in err, err
+    assert out.strip()
