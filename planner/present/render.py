@@ -17,6 +17,7 @@ contact as a blue disc of its region's radius.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -25,7 +26,7 @@ import trimesh
 
 from planner.geometry.frames import rotation_onto, tangent_bases
 from planner.geometry.solid import PreparedObject
-from planner.present.describe import score_text, times_weight
+from planner.present.describe import probability, score_text, times_weight
 from planner.record.contacts import HandContacts
 from planner.record.grasp import Grasp
 from planner.sim import Sim
@@ -232,9 +233,15 @@ def save_sheet(panels: list[tuple[list[View], str]], out: Path) -> None:
 
 
 def title(grasp: Grasp) -> str:
-    reach = "n/a" if grasp.reachability is None else f"{grasp.reachability:.2f}"
+    """The picture's caption: what ``grasp best`` heads a grasp with, short. A grasp force closure only once
+    squeezed read "epsilon 0.0000" with a score near 1 and nothing saying why it ranks so high."""
+    reach = "not computed" if grasp.reachability is None else f"{grasp.reachability:.2f}"
     m = grasp.measures
     extra = "" if m is None else (f", holds {times_weight(m.resist_worst)}x its weight, push {m.push:.2f}"
                                   + (f", {'/'.join(m.reasons)}" if m.reasons else ""))
-    return (f"#{grasp.rank} {grasp.object}/{grasp.hand} {grasp.preshape}: score {score_text(grasp.score)}, "
-            f"epsilon {grasp.epsilon:.4f}, reach {reach}, {len(grasp.contacts)} contacts{extra}")
+    closure = "force closure" if grasp.force_closure else "NOT force closure"
+    if not grasp.force_closure and m is not None and m.squeezed_force_closure:
+        closure += f" as planned, force closure once squeezed ({math.degrees(m.squeeze_turn or 0.0):.1f} deg)"
+    p_hold = "" if grasp.p_hold is None else f"p_hold {probability(grasp.p_hold)}, "
+    return (f"#{grasp.rank} {grasp.object}/{grasp.hand} {grasp.preshape}: {p_hold}score {score_text(grasp.score)}, "
+            f"epsilon {grasp.epsilon:.4f} ({closure}), reach {reach}, {len(grasp.contacts)} contacts{extra}")

@@ -45,3 +45,24 @@ def test_view_says_when_its_port_is_taken(box_db: Path, monkeypatch: pytest.Monk
     assert code == 130
     assert f"port {port} is in use: serving on port" in err
     assert "grasp viewer: http://127.0.0.1:" in out and f":{port} " not in out
+
+
+def test_a_pictures_caption_says_force_closure_as_best_does(box_db: Path) -> None:
+    """`grasp show mug --rank 9`: "score 0.9974, epsilon 0.0000, reach n/a": a grasp force closure only once
+    squeezed looked like a zero-quality grasp scored near 1, with no p_hold, and "n/a" where `best` says "not
+    computed" (which the score counts as 1)."""
+    from dataclasses import replace
+
+    from planner import api
+    from planner.present.render import title
+
+    top = api.best("box", "panda", db_path=box_db, top=1)[0]
+    squeezed = replace(top.measures, squeezed_force_closure=True, squeezed_epsilon=0.0123, squeeze_turn=0.35)
+    text = title(replace(top, force_closure=False, epsilon=0.0, measures=squeezed, reachability=None, p_hold=0.9974))
+    assert "p_hold 0.997, score" in text
+    assert "epsilon 0.0000 (NOT force closure as planned, force closure once squeezed (20.1 deg))" in text
+    assert "reach not computed" in text
+    plain = title(replace(top, force_closure=False, epsilon=0.0, measures=replace(top.measures,
+                                                                                 squeezed_force_closure=False)))
+    assert "epsilon 0.0000 (NOT force closure)" in plain
+    assert f"epsilon {top.epsilon:.4f} (force closure)" in title(top)
