@@ -241,7 +241,7 @@ def title(grasp: Grasp) -> str:
                                   + (f", {'/'.join(m.reasons)}" if m.reasons else ""))
     closure = "force closure" if grasp.force_closure else "NOT force closure"
     if not grasp.force_closure and m is not None and m.squeezed_force_closure:
-        closure += f" as planned, force closure once squeezed ({math.degrees(m.squeeze_turn or 0.0):.1f} deg)"
+        closure += f" as planned, force closure once squeezed, turned {math.degrees(m.squeeze_turn or 0.0):.1f} deg"
     p_hold = "" if grasp.p_hold is None else f"p_hold {probability(grasp.p_hold)}, "
     return (f"#{grasp.rank} {grasp.object}/{grasp.hand} {grasp.preshape}: {p_hold}score {score_text(grasp.score)}, "
             f"epsilon {grasp.epsilon:.4f} ({closure}), reach {reach}, {len(grasp.contacts)} contacts{extra}")

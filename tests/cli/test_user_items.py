@@ -60,7 +60,7 @@ def test_a_pictures_caption_says_force_closure_as_best_does(box_db: Path) -> Non
     squeezed = replace(top.measures, squeezed_force_closure=True, squeezed_epsilon=0.0123, squeeze_turn=0.35)
     text = title(replace(top, force_closure=False, epsilon=0.0, measures=squeezed, reachability=None, p_hold=0.9974))
     assert "p_hold 0.997, score" in text
-    assert "epsilon 0.0000 (NOT force closure as planned, force closure once squeezed (20.1 deg))" in text
+    assert "epsilon 0.0000 (NOT force closure as planned, force closure once squeezed, turned 20.1 deg)" in text
     assert "reach not computed" in text
     plain = title(replace(top, force_closure=False, epsilon=0.0, measures=replace(top.measures,
                                                                                  squeezed_force_closure=False)))
