@@ -50,6 +50,16 @@ def missing(path: Path) -> str:
     return f"{path}: no such database; run `grasp generate ... --db {shlex.quote(str(path))}` first"
 
 
+def no_grasps(path: Path, objects: list[str]) -> str:
+    """The one line for a database without a grasp: generate first, or, where it holds ``objects`` whose sweeps
+    kept none (validate and report of such a database said "run `grasp generate` first"), where to read why."""
+    db = shlex.quote(str(path))
+    if not objects:
+        return f"no grasps in {path}; run `grasp generate ... --db {db}` first"
+    return (f"no grasps in {path}: the sweeps of its objects ({', '.join(objects)}) kept none; `grasp best "
+            f"{shlex.quote(objects[0])} --hand HAND --db {db}` says why")
+
+
 F = TypeVar("F", bound=Callable[..., Any])
 
 

@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from planner.calibration.metrics import Reliability, reliability, roc_auc
+from planner.db.failures import no_grasps
 from planner.db.ranking import RankingRule, first_measures, ranks_first, rule_measures
 from planner.db.store import open_db
 from planner.errors import InputError
@@ -242,9 +243,10 @@ def collect(db_path: Path, allow_empty: bool = False) -> list[HandReport]:
         grasps = db.validated()
         rule = db.rule()
         if not grasps and not allow_empty:
-            db_arg = shlex.quote(str(db_path))
-            first = "" if db.pairs() else f"no grasps; run `grasp generate OBJECT --hand H --db {db_arg}`, then "
-            raise InputError(f"{db_path}: {first or 'no validated grasps; run '}`grasp validate --db {db_arg}` first")
+            if not db.pairs():
+                raise InputError(no_grasps(Path(db_path), db.object_names()))
+            raise InputError(f"{db_path}: no validated grasps; run `grasp validate --db {shlex.quote(str(db_path))}` "
+                             "first")
         reports: dict[str, HandReport] = {}
         for g in grasps:
             reports.setdefault(g.hand, HandReport(g.hand, rule=rule)).grasps.append(g)

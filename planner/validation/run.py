@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import logging
-import shlex
 import zlib
 from collections import Counter
 from collections.abc import Callable, Iterator
@@ -22,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from planner import prepare
+from planner.db.failures import no_grasps
 from planner.db.hand_files import check_hand_files
 from planner.db.objects import stored_object
 from planner.db.ranking import RankingRule, first_of
@@ -175,7 +175,7 @@ def plan(db: Database, objects: list[str] | None, hands: list[str] | None, selec
     pairs = {pair: row for pair, row in stored.items() if row is not None}
     known = sorted({obj for obj, _ in pairs})
     if not known:
-        raise InputError(f"no grasps in {db.path}; run `grasp generate ... --db {shlex.quote(str(db.path))}` first")
+        raise InputError(no_grasps(db.path, db.object_names()))
     for name in objects or []:
         if name not in known:
             raise InputError(f"no grasps of object '{name}' in {db.path}; objects: {', '.join(known) or '(none)'}")

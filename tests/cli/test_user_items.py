@@ -66,3 +66,22 @@ def test_a_pictures_caption_says_force_closure_as_best_does(box_db: Path) -> Non
                                                                                  squeezed_force_closure=False)))
     assert "epsilon 0.0000 (NOT force closure)" in plain
     assert f"epsilon {top.epsilon:.4f} (force closure)" in title(top)
+
+
+def test_validate_and_report_of_a_database_whose_sweeps_kept_nothing_say_so(box_db: Path, tmp_path: Path) -> None:
+    """`grasp generate cyl.stl --scale 10` kept no grasp (too wide); `grasp validate` then said "run `grasp
+    generate ... --db z.db` first" and `grasp report` "no grasps; run `grasp generate ...`": the user had."""
+    import shutil
+    import sqlite3
+
+    from helpers import one_line_error
+
+    db = tmp_path / "z.db"
+    shutil.copy(box_db, db)
+    with sqlite3.connect(db) as conn:
+        conn.execute("DELETE FROM grasps")
+    kept_none = f"no grasps in {db}: the sweeps of its objects (box) kept none; `grasp best box --hand HAND --db {db}`"
+    for command in (["validate", "--db", str(db)], ["report", "--db", str(db), "--out", str(tmp_path / "r.html")]):
+        code, _, err = grasp(*command)
+        one_line_error(code, err, 2, kept_none)
+        assert "grasp generate" not in err

@@ -62,7 +62,8 @@ def test_report_without_validation_is_a_clear_error(tmp_path: Path) -> None:
     assert result.exit_code == 2 and "no validated grasps; run `grasp validate" in result.stderr
     open_db(tmp_path / "empty.db").close()  # no grasps: validate alone would not help
     result = CliRunner().invoke(main, ["report", "--db", str(tmp_path / "empty.db"), "--out", str(tmp_path / "e")])
-    assert result.exit_code == 2 and "no grasps; run `grasp generate OBJECT --hand H --db" in result.stderr
+    assert result.exit_code == 2 and "no grasps in" in result.stderr
+    assert "; run `grasp generate ... --db" in result.stderr
 
 
 def test_a_database_with_only_a_calibrated_model_reports_its_held_out_figures(tmp_path: Path,
