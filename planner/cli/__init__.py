@@ -42,12 +42,27 @@ def run() -> None:
 
 
 def _settled() -> None:
-    """An interrupted run has said so and chosen its exit code: a second Ctrl-C while the interpreter shuts down
-    (worker processes joined, the database closed) is ignored. It ended the process by SIGINT (exit -2, no line)
-    once Python had put back the default handler, where a batch script checks for 130."""
+    """An interrupted run has said so and chosen its exit code: a second Ctrl-C or SIGTERM while the interpreter
+    shuts down (worker processes joined, the database closed) ends it at once with that code (:func:`_now`). It
+    ended the process by SIGINT (exit -2, no line) once Python had put back the default handler, or with an
+    "Exception ignored" traceback, where a batch script checks for 130."""
     import signal
 
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, _now)
+
+
+def _now(signum: int, frame: FrameType | None) -> None:
+    """Exit 130 now: what was committed is in the database (SQLite's WAL survives any exit), the writer lock is
+    the kernel's to drop, and worker processes end with their parent (``planner.run.procs``)."""
+    import os
+
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # closed, or the reader went away
+            pass
+    os._exit(EXIT_INTERRUPTED)
 
 
 #: [s] how soon a SIGTERM that arrived inside a destructor is delivered again.

@@ -331,9 +331,11 @@ def test_commands_a_message_gives_run_as_pasted_with_blanks_in_paths(box_db: Pat
     assert code == 3 and _db_of_commands(err) == [str(gone)], err
 
 
-def test_a_second_ctrl_c_while_an_interrupted_run_shuts_down_keeps_exit_130() -> None:
+@pytest.mark.parametrize("second", ["SIGINT", "SIGTERM"])
+def test_a_second_ctrl_c_while_an_interrupted_run_shuts_down_keeps_exit_130(second: str) -> None:
     """`grasp generate ... --workers 2`, Ctrl-C twice: the second, while the interpreter shut down after the one
-    line, ended the process by SIGINT (exit -2) or with an "Exception ignored" traceback, not exit 130."""
+    line, ended the process by SIGINT (exit -2) or with an "Exception ignored" traceback, not exit 130; a second
+    SIGTERM left that traceback too. Now either ends it at once, with 130."""
     import signal
     import subprocess
 
@@ -348,7 +350,7 @@ def test_a_second_ctrl_c_while_an_interrupted_run_shuts_down_keeps_exit_130() ->
         run.send_signal(signal.SIGINT)
         assert run.stderr.readline() == "grasp: interrupted; nothing was changed\n"
         assert run.stderr.readline() == "shutting down\n"
-        run.send_signal(signal.SIGINT)
+        run.send_signal(getattr(signal, second))
         _, err = run.communicate(timeout=STARTUP)
     finally:
         run.kill()
