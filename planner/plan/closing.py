@@ -142,6 +142,7 @@ class Grasper(FingerClosing, ContactReading):
         self._bounds: dict[tuple, dict[str, float]] = {}
         self._motions: dict[tuple, DofMotion] = {}
         self._relative: dict[tuple, list[np.ndarray]] = {}
+        self._approached: tuple[tuple, Preshape, np.ndarray | Rejected] | None = None  # close()'s last approach
         self.queries = 0
         self.contact_seconds = 0.0  # time spent reading contacts (benchmarks)
         known = self.sim.meshes.get(self.object_body)
@@ -275,8 +276,28 @@ class Grasper(FingerClosing, ContactReading):
     # -- the stages ----------------------------------------------------------
     def close(self, point: np.ndarray, direction: np.ndarray, roll: float, standoff: float,
               preshape: Preshape, object_radius: float) -> Closed | Rejected:
-        s = self.settings
         self.queries = 0
+        key = (np.asarray(point, float).tobytes(), np.asarray(direction, float).tobytes(), float(roll),
+               float(object_radius))
+        if self._approached is None or self._approached[0] != key or self._approached[1] is not preshape:
+            self._approached = (key, preshape, self._approach(point, direction, roll, preshape, object_radius))
+        approached = self._approached[2]
+        if isinstance(approached, Rejected):
+            return approached
+        pose = approached.copy()
+        joints = dict(preshape.joints)
+        self._place(pose, joints)  # the hand as the approach left it (a standoff before may have closed its fingers)
+        pose[:3, 3] -= direction * standoff
+        self.sim.set_pose(self.body, pose)
+        return self._finish(pose, preshape, joints)
+
+    def _approach(self, point: np.ndarray, direction: np.ndarray, roll: float, preshape: Preshape,
+                  object_radius: float) -> np.ndarray | Rejected:
+        """Steps 1-2 of :mod:`planner.plan.closing` (and the table's lift): the (4, 4) pose at first contact,
+        or why there is none. It does not depend on the standoff: :meth:`close` keeps the last one, so the
+        standoffs of one (ray, roll, preshape), consecutive in a sweep, approach once (an exact saving: the
+        hand is put back where the approach left it before each closing)."""
+        s = self.settings
         rotation = hand_rotation(self.hand.approach, direction, roll)
         pose = np.eye(4)
         pose[:3, :3] = rotation
@@ -301,9 +322,7 @@ class Grasper(FingerClosing, ContactReading):
             self.sim.set_pose(self.body, pose)
         if self.on_table(s.contact_tol):  # stopped by the table: lift off it, or a finger resting on it cannot close
             pose[:3, 3] -= direction * TABLE_LIFT
-        pose[:3, 3] -= direction * standoff
-        self.sim.set_pose(self.body, pose)
-        return self._finish(pose, preshape, joints)
+        return pose
 
     def close_at(self, pose: np.ndarray, preshape: Preshape, max_back_off: float = 0.05) -> Closed | Rejected:
         """Close the fingers with the hand at ``pose`` (no approach): for
