@@ -2,50 +2,42 @@
 
 For one candidate (approach ray, roll, standoff, preshape):
 
-1. place the open hand on the ray, the tool centre point ``start`` metres in
-   front of the surface point; back off along the ray while it collides;
-2. move along the approach until first contact (large steps while far, then
-   conservative advancement: never farther than the measured clearance);
+1. place the open hand on the ray, the tool centre point ``start`` metres in front of the surface point; back
+   off along the ray while it collides;
+2. move along the approach until first contact (large steps while far, then conservative advancement: never
+   farther than the measured clearance);
 3. back off by the standoff;
-4. close the fingers along the preshape's synergy; every finger DOF stops
-   when a link it moves touches the object (the others keep closing) or at its
-   joint limit; mimic joints follow their master. A driven joint flagged
-   ``breakaway`` (the Barrett's TorqueSwitch) stops only its own links when
-   one of those touches: its mimics (the distal joint) close on alone until
-   their links touch or reach a limit, so the grasp is the configuration the
-   real hand settles in;
-5. a self-centring parallel jaw is re-centred (hand shifted along the finger
-   axis so both fingers are symmetric while staying where they touched);
-6. read the contacts: as contact patches (:mod:`planner.plan.patches`, the
-   default), or as PyBullet's closest points spread over each link
-   (``contacts="points"``, the legacy reading kept for comparisons).
-   Rejected: start in collision, no contact, touching with a link that may
-   not touch, or interpenetration.
+4. close the fingers along the preshape's synergy; every finger DOF stops when a link it moves touches the
+   object (the others keep closing) or at its joint limit; mimic joints follow their master. A driven joint
+   flagged ``breakaway`` (the Barrett's TorqueSwitch) stops only its own links when one of those touches: its
+   mimics (the distal joint) close on alone until their links touch or reach a limit, so the grasp is the
+   configuration the real hand settles in;
+5. a self-centring parallel jaw is re-centred (hand shifted along the finger axis so both fingers are
+   symmetric while staying where they touched);
+6. read the contacts: as contact patches (:mod:`planner.plan.patches`, the default), or as PyBullet's closest
+   points spread over each link (``contacts="points"``, the legacy reading kept for comparisons). Rejected:
+   start in collision, no contact, touching with a link that may not touch, or interpenetration.
 
 The object frame is the world frame here (the object sits at the origin).
 
-A finely meshed object (a scan) is closed against its collision proxy
-(:mod:`planner.geometry.proxy`, :meth:`Grasper.for_object`): a decimation
-within a measured 0.5 mm of the exact mesh, so the cost of a closing does
-not grow with the face count; the contacts are then read on the exact mesh
-(points moved onto it, its normals at a contact's scale).
+A finely meshed object (a scan) is closed against its collision proxy (:mod:`planner.geometry.proxy`,
+:meth:`Grasper.for_object`): a decimation within a measured 0.5 mm of the exact mesh, so the cost of a closing
+does not grow with the face count; the contacts are then read on the exact mesh (points moved onto it, its
+normals at a contact's scale).
 
-A table (optional, ``Grasper(..., table=frame)``: a frame on its top, object
-frame, z up) is an obstacle like the object, GraspIt's way: the approach
-stops when the hand touches it (and backs off
-:data:`~planner.plan.tolerances.TABLE_LIFT` along the approach, so that the
-fingers resting on it can close), a finger that touches it stops, and a hand
-that ends overlapping it is rejected (``table``); contacts are read on the
-object only. It is a slab (:data:`~planner.plan.tolerances.TABLE_SLAB`)
-whose top is the plane, so everything under the plane overlaps it.
+A table (optional, ``Grasper(..., table=frame)``: a frame on its top, object frame, z up) is an obstacle like
+the object, GraspIt's way: the approach stops when the hand touches it (and backs off
+:data:`~planner.plan.tolerances.TABLE_LIFT` along the approach, so that the fingers resting on it can close), a
+finger that touches it stops, and a hand that ends overlapping it is rejected (``table``); contacts are read on
+the object only. It is a slab (:data:`~planner.plan.tolerances.TABLE_SLAB`) whose top is the plane, so
+everything under the plane overlaps it.
 
-Speed (issue 16; the reference path, ``Grasper(..., reference=True)``, is
-the plain implementation the tests compare against): "does the open hand
-overlap the object?" is one python-fcl boolean per hand shape against the
-object's exact mesh (early exit) instead of every overlapping triangle pair
-from PyBullet; the speed bound of a link about a revolute joint is computed
-once per (DOF, link) for every configuration instead of from the link's box
-at every step; the simulator adapter converts poses in closed form.
+Speed (issue 16; the reference path, ``Grasper(..., reference=True)``, is the plain implementation the tests
+compare against): "does the open hand overlap the object?" is one python-fcl boolean per hand shape against the
+object's exact mesh (early exit) instead of every overlapping triangle pair from PyBullet; the speed bound of a
+link about a revolute joint is computed once per (DOF, link) for every configuration instead of from the link's
+box at every step; the simulator adapter converts poses in closed form; the standoffs of one (ray, roll,
+preshape) approach once (issue 24: :meth:`Grasper.close` keeps the last approach).
 """
 
 from __future__ import annotations
@@ -110,8 +102,7 @@ class Grasper(FingerClosing, ContactReading):
     @classmethod
     def for_mesh(cls, sim: Sim, hand: HandSpec, mesh: trimesh.Trimesh,
                  settings: CloseSettings | None = None, table: np.ndarray | None = None) -> Grasper:
-        """A grasper on ``mesh`` added to ``sim`` as a static body at the origin
-        (with a table whose top is at ``table``, if given)."""
+        """A grasper on ``mesh`` added to ``sim`` as a static body at the origin (and a table at ``table``)."""
         return cls(sim, hand, sim.add_static_mesh(mesh.vertices, mesh.faces), settings or CloseSettings(), mesh=mesh,
                    table=table)
 
@@ -142,6 +133,7 @@ class Grasper(FingerClosing, ContactReading):
         self._bounds: dict[tuple, dict[str, float]] = {}
         self._motions: dict[tuple, DofMotion] = {}
         self._relative: dict[tuple, list[np.ndarray]] = {}
+        self._approached: tuple[tuple, Preshape, np.ndarray | Rejected] | None = None  # close()'s last approach
         self.queries = 0
         self.contact_seconds = 0.0  # time spent reading contacts (benchmarks)
         known = self.sim.meshes.get(self.object_body)
@@ -187,8 +179,7 @@ class Grasper(FingerClosing, ContactReading):
         return self.sim.closest(self.body.uid, self.object_body, reach - offset, index)
 
     def _obstacles(self, reach: float, link: str | None = None) -> Closest:
-        """:meth:`_closest` with the table's pairs within ``reach`` added (what
-        stops the hand and the fingers)."""
+        """:meth:`_closest` with the table's pairs within ``reach`` added (what stops the hand and the fingers)."""
         pairs = self._closest(reach, link)
         if self.table_body is None:
             return pairs
@@ -233,8 +224,7 @@ class Grasper(FingerClosing, ContactReading):
         return max(lx - bx, ax - hx, ly - by, ay - hy, lz - bz, az - hz) > distance + BROADPHASE_SLACK
 
     def on_table(self, within: float = 0.0) -> bool:
-        """Is the hand, where it is now, within ``within`` [m] of the table or
-        overlapping it (False without one)?"""
+        """Is the hand, where it is now, within ``within`` [m] of the table or overlapping it (False without one)?"""
         if self.table_body is None:
             return False
         return len(self.sim.closest(self.body.uid, self.table_body, within - self.hand.distance_offset)) > 0
@@ -275,8 +265,26 @@ class Grasper(FingerClosing, ContactReading):
     # -- the stages ----------------------------------------------------------
     def close(self, point: np.ndarray, direction: np.ndarray, roll: float, standoff: float,
               preshape: Preshape, object_radius: float) -> Closed | Rejected:
-        s = self.settings
         self.queries = 0
+        key = (np.asarray(point, float).tobytes(), np.asarray(direction, float).tobytes(), float(roll),
+               float(object_radius))
+        if self._approached is None or self._approached[0] != key or self._approached[1] is not preshape:
+            self._approached = (key, preshape, self._approach(point, direction, roll, preshape, object_radius))
+        approached = self._approached[2]
+        if isinstance(approached, Rejected):
+            return approached
+        pose = approached.copy()
+        joints = dict(preshape.joints)
+        self._place(pose, joints)  # the hand as the approach left it (a standoff before may have closed its fingers)
+        pose[:3, 3] -= direction * standoff
+        self.sim.set_pose(self.body, pose)
+        return self._finish(pose, preshape, joints)
+
+    def _approach(self, point: np.ndarray, direction: np.ndarray, roll: float, preshape: Preshape,
+                  object_radius: float) -> np.ndarray | Rejected:
+        """Steps 1-2 (and the table's lift): the (4, 4) pose at first contact, or why there is none; the same
+        for every standoff, so :meth:`close` keeps the last (the hand put back there: every value the same)."""
+        s = self.settings
         rotation = hand_rotation(self.hand.approach, direction, roll)
         pose = np.eye(4)
         pose[:3, :3] = rotation
@@ -301,14 +309,11 @@ class Grasper(FingerClosing, ContactReading):
             self.sim.set_pose(self.body, pose)
         if self.on_table(s.contact_tol):  # stopped by the table: lift off it, or a finger resting on it cannot close
             pose[:3, 3] -= direction * TABLE_LIFT
-        pose[:3, 3] -= direction * standoff
-        self.sim.set_pose(self.body, pose)
-        return self._finish(pose, preshape, joints)
+        return pose
 
     def close_at(self, pose: np.ndarray, preshape: Preshape, max_back_off: float = 0.05) -> Closed | Rejected:
-        """Close the fingers with the hand at ``pose`` (no approach): for
-        re-scoring a given grasp pose (imports, noisy copies of a grasp). The
-        open hand is backed off along the approach only while it collides."""
+        """Close the fingers with the hand at ``pose`` (no approach): for re-scoring a given grasp pose (imports,
+        noisy copies of a grasp). The open hand is backed off along the approach only while it collides."""
         self.queries = 0
         pose = np.array(pose, float)
         joints = dict(preshape.joints)
@@ -318,8 +323,8 @@ class Grasper(FingerClosing, ContactReading):
         return self._finish(pose, preshape, joints)
 
     def overlaps_at(self, pose: np.ndarray, joints: dict[str, float]) -> bool:
-        """Would the hand at ``pose`` with ``joints`` overlap the object? (The
-        fast path asks the simulator only once per joint configuration.)"""
+        """Would the hand at ``pose`` with ``joints`` overlap the object? (The fast path asks the simulator only
+        once per joint configuration.)"""
         if self.shapes is None:
             self._place(pose, joints)
             return self.overlaps()
@@ -334,9 +339,8 @@ class Grasper(FingerClosing, ContactReading):
             self.table_shape is not None and self.shapes.collides_at(pose, relative, self.table_shape))
 
     def close_from(self, pose: np.ndarray, preshape: Preshape, joints: dict[str, float]) -> Closed | Rejected:
-        """Close the fingers from ``joints`` (every finger joint, open) with the
-        hand at ``pose``, no approach and no back-off: the antipodal sampler's
-        candidates, placed where they grasp (the caller has checked that the
+        """Close the fingers from ``joints`` (every finger joint, open) with the hand at ``pose``, no approach and
+        no back-off: the antipodal sampler's candidates, placed where they grasp (the caller has checked that the
         open hand is free). The grasp records ``joints`` as its open joints."""
         self.queries = 0
         pose = np.array(pose, float)
@@ -344,8 +348,8 @@ class Grasper(FingerClosing, ContactReading):
         return self._finish(pose, preshape, dict(joints), {j.name: joints[j.name] for j in self.hand.driven})
 
     def _back_off(self, pose: np.ndarray, direction: np.ndarray, limit: float) -> float | None:
-        """Move the hand back along ``direction`` in doubling jumps until it is
-        free; how far it went, or None past ``limit``. Moves ``pose`` in place."""
+        """Move the hand back along ``direction`` in doubling jumps until it is free; how far it went, or None
+        past ``limit``. Moves ``pose`` in place."""
         backed, jump = 0.0, self.settings.coarse_step
         while self.overlaps():
             if backed > limit:
