@@ -1,6 +1,7 @@
 """One unit of work end to end: object -> rays -> closing -> contacts -> quality (a parallel jaw's squeeze beside it,
-:mod:`planner.plan.squeeze`) -> settled epsilon (hands with ``settle``) -> reachability, returning
-:class:`~planner.record.grasp.Grasp` records for the single database writer.
+:mod:`planner.plan.squeeze`, and its end where force closure: :mod:`planner.plan.keeping`) -> settled epsilon
+(hands with ``settle``) -> reachability, returning :class:`~planner.record.grasp.Grasp` records for the single
+database writer.
 
 On a table (``SweepSettings.table_plane``, ``grasp generate --on-table``): the table is closing's obstacle, raised by
 :data:`~planner.plan.tolerances.TABLE_CLEARANCE`; approach rays shallower than
