@@ -61,7 +61,9 @@ edges; the table and the hands' primitives as meshes in PyBullet); 19 (the settl
 convex part, PyBullet kept 16 of more: the box and cylinder are primitives, the digest is 18's); 24 (issue 26:
 a parallel jaw's squeeze stored as three measures beside the grasp as planned, digested apart, ``squeeze``; a grasp
 force closure after the squeeze ranks with the force-closure ones: the digest of COLUMNS, made without the shipped
-models, is 23's; with the Panda's shipped p_hold model 5 of its 19 ranks differ, nothing else).
+models, is 23's; with the Panda's shipped p_hold model 5 of its 19 ranks differ, nothing else); 25 (issue 26: a
+squeeze's end kept as a grasp of its own where it ends force closure, its parent unchanged: COLUMNS and the squeeze
+of the grasps closed where planned are digested as before, the squeezes' ends apart, ``squeezed``).
 """
 
 from __future__ import annotations
@@ -89,6 +91,8 @@ COLUMNS = ("object", "hand", "preshape", "candidate", "seed", "approach_point", 
            "volume", "force_closure", "reachability", "manipulability", "score", "rank", "settled_epsilon")
 #: Digested apart from COLUMNS (version 24 on), so that the grasps as planned keep their digest.
 SQUEEZE_COLUMNS = ("object", "hand", "candidate", "squeezed_force_closure", "squeezed_epsilon", "squeeze_turn")
+#: The grasps closed where planned, and the squeezes' ends kept as grasps (version 25 on), digested apart.
+PLANNED, SQUEEZED = "squeezed_from_turn IS NULL", "squeezed_from_turn IS NOT NULL"
 
 
 def rounded(value: object) -> object:
@@ -102,11 +106,12 @@ def rounded(value: object) -> object:
     return value
 
 
-def canonical_rows(db: Path, columns: tuple[str, ...] = COLUMNS) -> list[str]:
-    """One canonical JSON text per grasp of its ``columns``, in a fixed order."""
+def canonical_rows(db: Path, columns: tuple[str, ...] = COLUMNS, where: str = PLANNED) -> list[str]:
+    """One canonical JSON text per grasp ``where`` of its ``columns``, in a fixed order."""
     conn = sqlite3.connect(db)
     conn.row_factory = sqlite3.Row
-    rows = conn.execute(f"SELECT {', '.join(columns)} FROM grasps ORDER BY hand, object, candidate").fetchall()
+    rows = conn.execute(f"SELECT {', '.join(columns)} FROM grasps WHERE {where} ORDER BY hand, object, candidate"
+                        ).fetchall()
     conn.close()
     out = []
     for row in rows:
@@ -131,6 +136,7 @@ def build(db: Path) -> list[str]:
 def test_the_same_seed_gives_the_recorded_grasps(tmp_path: Path) -> None:
     db = tmp_path / "golden.db"
     got = {**digest(build(db)), "squeeze": digest(canonical_rows(db, SQUEEZE_COLUMNS))["digest"]}
+    got["squeezed"] = digest(canonical_rows(db, (*COLUMNS, *SQUEEZE_COLUMNS[3:], "squeezed_from_turn"), SQUEEZED))
     if os.environ.get("GRASP_RECORD_GOLDEN"):  # recording a new algorithm version, on purpose
         recorded = json.loads(GOLDEN.read_text()) if GOLDEN.exists() else {}
         recorded[str(ALGORITHM_VERSION)] = got
@@ -142,3 +148,4 @@ def test_the_same_seed_gives_the_recorded_grasps(tmp_path: Path) -> None:
     assert got["grasps"] == golden["grasps"], f"{got['grasps']} grasps, recorded {golden['grasps']}"
     assert got["digest"] == golden["digest"], f"grasps that changed (row numbers): {changed}"
     assert got["squeeze"] == golden["squeeze"], "the squeeze's measures changed"
+    assert got["squeezed"] == golden["squeezed"], "the squeezes' ends kept as grasps changed"

@@ -71,7 +71,8 @@ when absent);
 link}]`` in the object frame; ``approach_point``, ``approach_dir`` (N, 3),
 ``roll`` [rad], ``standoff`` [m]; ``table_plane`` (N, 4) the table top the grasp
 was planned on, object frame, [nx, ny, nz, height] (NaN: planned on the object
-alone); ``poses_hand_frame`` (N, 4, 4) (the hand
+alone); ``squeezed_from_turn`` (N,) [rad] (NaN: closed where planned, not a squeeze's end); ``poses_hand_frame``
+(N, 4, 4) (the hand
 frame in the object frame) and ``export_frame`` (4, 4) with transforms =
 poses_hand_frame @ export_frame.
 
@@ -326,8 +327,10 @@ def read_grasps(path: Path, hand: HandSpec, obj: str, poses: np.ndarray) -> list
         standoff = g["standoff"][()] if "standoff" in g else np.zeros(n)
         planes = g["table_plane"][()] if "table_plane" in g else np.full((n, 4), np.nan)
         contacts = contact_items(path, list(g["contacts"].asstr()[()]), n)
+        turned = g["squeezed_from_turn"][()] if "squeezed_from_turn" in g else np.full(n, np.nan)
         kept = g["candidate"][()] if "candidate" in g else None  # the sweep's numbers, where they tell grasps apart
-        kept = kept if kept is not None and len(kept) == n and len(np.unique(kept)) == n else None
+        ends = np.isfinite(turned)  # a squeeze's end shares its parent's candidate
+        kept = kept if kept is not None and len(kept) == n and len({*zip(kept, ends)}) == n else None
         seeds = g["seed"][()] if kept is not None and "seed" in g else np.zeros(n, np.int64)
     check_joints(path, hand, names, n, joints_closed=closed, joints_open=opened)
     return [Grasp(object=obj, hand=hand.name, preshape=str(preshape[i]), candidate=i if kept is None else int(kept[i]),
@@ -340,7 +343,7 @@ def read_grasps(path: Path, hand: HandSpec, obj: str, poses: np.ndarray) -> list
                   force_closure=bool(col["force_closure"][i]), reachability=_maybe(col["reachability"][i]),
                   manipulability=_maybe(col["manipulability"][i]),
                   table_plane=None if np.isnan(planes[i]).any() else np.asarray(planes[i], float),
-                  measures=measures[i])
+                  squeezed_from_turn=_maybe(turned[i]), measures=measures[i])
             for i in range(n)]
 
 

@@ -50,7 +50,7 @@ QUALITIES = {
 #: (besides ``transforms``, ``object_in_gripper`` and the joint matrices).
 DATASETS = {**MOTIONS, **{f"qualities/{name}": column for name, column in QUALITIES.items()},
             **{name: name for name in ("width", "preshape", "candidate", "seed", "contacts", "approach_point",
-                                       "approach_dir", "roll", "standoff", "table_plane")},
+                                       "approach_dir", "roll", "standoff", "table_plane", "squeezed_from_turn")},
             "poses_hand_frame": "pose"}
 #: Datasets whose presence marks a file with this project's extras.
 EXTRAS = ("qualities/epsilon", "qualities/volume", "qualities/force_closure", "joint_names", "joints_closed",

@@ -276,16 +276,18 @@ def _import_lossless(db: Database, plan: _Plan, rule: RankingRule) -> ImportResu
     unit = UnitRow(obj.name, plan.hand.name, plan.settings.digest, plan.settings.to_json(), 0, 0,
                    candidates=len(poses), seconds=time.perf_counter() - start)
     unit_id = db.write_unit(unit, obj, grasps, rule)
-    _restore_simulation(db, plan, unit_id, obj.name, rule, [g.candidate for g in grasps])
+    _restore_simulation(db, plan, unit_id, obj.name, rule, [(g.candidate, g.squeezed_from_turn is not None)
+                                                            for g in grasps])
     return ImportResult(plan.path, obj.name, plan.hand.name, len(grasps), sum(g.force_closure for g in grasps),
                         False, False, {})
 
 
 def _restore_simulation(db: Database, plan: _Plan, unit_id: int, obj: str, rule: RankingRule,
-                        candidates: list[int]) -> None:
+                        candidates: list[tuple[int, bool]]) -> None:
     """Our own files carry shake-test results (PyBullet's and MuJoCo's) and
     robust epsilon per grasp: put them back into ``validation`` / ``mujoco``
-    / ``robust`` and re-score. ``candidates``: each file row's grasp."""
+    / ``robust`` and re-score. ``candidates``: each file row's grasp (its
+    candidate, whether it is a squeeze's end: :meth:`Database.grasp_ids`)."""
     results = plan.reader.simulation(plan.path)
     if not results:
         return

@@ -42,7 +42,8 @@ only the Panda squeezes), ranks above every grasp whose contacts are neither,
 whatever their scores (issue 26: a score that rewards what one simulator's
 closing happens to do must not lift a grasp that is not force closure);
 within each of the two, by score; ties are broken by epsilon, then GWS
-volume, then by the unit seed and candidate number (never by insertion order).
+volume, then by the unit seed and candidate number, a planned grasp before its squeeze's end (never by
+insertion order).
 """
 
 from __future__ import annotations
@@ -70,8 +71,11 @@ if TYPE_CHECKING:
 FIRST = ("force_closure", "squeezed_force_closure")
 #: :data:`FIRST` as SQL over the columns of ``grasps``: 1 for a grasp that ranks first, else 0 (NULL: 0).
 FIRST_SQL = f"MAX({', '.join(f'COALESCE({c}, 0)' for c in FIRST)})"
+#: The last tie-break: a planned grasp before its squeeze's end (:mod:`planner.plan.keeping`: the same unit and
+#: candidate; it ties only where both score and epsilon alike).
+SQUEEZED_LAST = "squeezed_from_turn IS NOT NULL"
 #: The rank order: a 1 in :data:`FIRST` first, then score, then the tie-breaks (columns of ``grasps``).
-ORDER_BY = f"{FIRST_SQL} DESC, score DESC, epsilon DESC, volume DESC, seed, candidate, unit_id"
+ORDER_BY = f"{FIRST_SQL} DESC, score DESC, epsilon DESC, volume DESC, seed, candidate, unit_id, {SQUEEZED_LAST}"
 
 #: The measures the rule reads (each an (n,) array; NaN or None = not computed), by
 #: the names the declaration gives them (:func:`planner.record.fields.ranked_fields`).

@@ -63,6 +63,12 @@ Tables (the README lists every column):
   ``squeeze_turn`` (:mod:`planner.plan.squeeze`: what a self-centring
   parallel jaw's squeeze ends in, beside the grasp as planned); NULL for
   grasps stored before and for hands that do not squeeze.
+- ``grasps`` (v15) gains ``squeezed_from_turn`` [rad]: a squeeze's end
+  stored as a grasp of its own (the sweep's, where the squeeze of a planned
+  grasp that is not force closure ends force closure), how far it turned from
+  its parent, which has the same unit and candidate; NULL for a grasp closed
+  where planned (every grasp stored before). A grasp's key is since
+  (unit, candidate, whether it is a squeeze's end): ``grasps_candidate``.
 
 No pickle: arrays are JSON text. A new database runs :data:`SCHEMA` (version
 1) and then every migration; a newer schema is refused politely; an older one
@@ -84,7 +90,7 @@ from planner.errors import DatabaseError
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 14
+SCHEMA_VERSION = 15
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -113,6 +119,22 @@ CREATE TABLE IF NOT EXISTS grasps (
 );
 CREATE INDEX IF NOT EXISTS grasps_rank ON grasps (object, hand, rank);
 """
+
+#: The ``grasps`` table's columns at v14 (:data:`SCHEMA`'s, then those migrations 2 .. 13 add), without its
+#: ``UNIQUE (unit_id, candidate)``, and their names: what migration 14 copies.
+_GRASPS_V14 = """
+    id INTEGER PRIMARY KEY, unit_id INTEGER NOT NULL REFERENCES units(id) ON DELETE CASCADE,
+    object TEXT NOT NULL, hand TEXT NOT NULL, preshape TEXT NOT NULL, candidate INTEGER NOT NULL,
+    approach_point TEXT NOT NULL, approach_dir TEXT NOT NULL, roll REAL NOT NULL, standoff REAL NOT NULL,
+    pose TEXT NOT NULL, open_joints TEXT NOT NULL, closed_joints TEXT NOT NULL, width REAL,
+    contacts TEXT NOT NULL, n_contacts INTEGER NOT NULL, links_touching INTEGER NOT NULL,
+    epsilon REAL NOT NULL, volume REAL NOT NULL, force_closure INTEGER NOT NULL,
+    reachability REAL, manipulability REAL, seed INTEGER NOT NULL, score REAL NOT NULL, rank INTEGER,
+    resist_worst REAL, resist_mean REAL, open_margin REAL, close_margin REAL, push REAL, feasibility TEXT,
+    settled_epsilon REAL, p_hold REAL, pad_area REAL, pad_alignment REAL, opposition REAL, jaw_fill REAL,
+    palm_gap REAL, com_lever REAL, table_plane TEXT, p_hold_trial REAL, com_height REAL, gravity_arm REAL,
+    torque_per_mu REAL, local_sdf TEXT, squeezed_force_closure INTEGER, squeezed_epsilon REAL, squeeze_turn REAL"""
+_COLUMNS_V14 = ", ".join(c.split()[0] for c in _GRASPS_V14.split(","))
 
 #: from version -> SQL bringing it to version + 1.
 MIGRATIONS: dict[int, str] = {
@@ -206,6 +228,19 @@ ALTER TABLE objects ADD COLUMN geometry TEXT NOT NULL DEFAULT 'collision'
 ALTER TABLE grasps ADD COLUMN squeezed_force_closure INTEGER;
 ALTER TABLE grasps ADD COLUMN squeezed_epsilon REAL;
 ALTER TABLE grasps ADD COLUMN squeeze_turn REAL
+""",
+    # v15: a squeeze's end stored as a grasp of its own beside its parent, the same unit and candidate (issue 26;
+    # NULL: closed where planned, every grasp stored before). (unit, candidate) no longer names one grasp: the
+    # table is built again (SQLite cannot drop a constraint) with ids kept (the trials' rows point at them),
+    # its key now (unit, candidate, whether it is a squeeze's end). Run with foreign keys off (:func:`migrate`):
+    # dropping the old table would delete every trial's row.
+    14: f"""
+CREATE TABLE grasps_v15 ({_GRASPS_V14}, squeezed_from_turn REAL);
+INSERT INTO grasps_v15 ({_COLUMNS_V14}) SELECT {_COLUMNS_V14} FROM grasps;
+DROP TABLE grasps;
+ALTER TABLE grasps_v15 RENAME TO grasps;
+CREATE INDEX IF NOT EXISTS grasps_rank ON grasps (object, hand, rank);
+CREATE UNIQUE INDEX IF NOT EXISTS grasps_candidate ON grasps (unit_id, candidate, squeezed_from_turn IS NOT NULL)
 """,
 }
 
@@ -311,6 +346,7 @@ def migrate(conn: sqlite3.Connection, path: Path, version: int) -> None:
                                 "disk space and run the command again") from exc
         log.warning("%s: migrating schema v%d -> v%d; backup at %s", path, version, SCHEMA_VERSION, backup)
     scripts = ([SCHEMA] if version == 0 else []) + [MIGRATIONS[v] for v in range(max(version, 1), SCHEMA_VERSION)]
+    conn.execute("PRAGMA foreign_keys = OFF")  # a table built again (v15) drops the old: no cascade to its trials
     with transaction(conn, path):
         for script in scripts:
             # not executescript(): it would COMMIT the open transaction first

@@ -207,10 +207,11 @@ class Database(Writing, UnitReads):
         return ObjectRow(**{f.column: next(iter(_decoded(f, [r[f.column]]))) for f in _OBJECTS if f.column in kept})
 
     @_reads
-    def grasp_ids(self, unit_id: int) -> dict[int, int]:
-        """Candidate number -> grasp id of one unit's grasps."""
-        rows = self._conn.execute("SELECT candidate, id FROM grasps WHERE unit_id = ?", (unit_id,))
-        return {r["candidate"]: r["id"] for r in rows}
+    def grasp_ids(self, unit_id: int) -> dict[tuple[int, bool], int]:
+        """(candidate number, whether a squeeze's end) -> grasp id of one unit's grasps (its key)."""
+        rows = self._conn.execute("SELECT candidate, squeezed_from_turn IS NOT NULL AS e, id FROM grasps WHERE "
+                                  "unit_id = ?", (unit_id,))
+        return {(r["candidate"], bool(r["e"])): r["id"] for r in rows}
 
     @_reads
     def best(self, obj: str, hand: str, top: int, offset: int = 0, *, table_plane: np.ndarray | None = None,

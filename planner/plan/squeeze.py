@@ -21,7 +21,9 @@ the object that turns, not the hand: a turn that would take the object resting t
 
 The grasp stays as planned: the squeeze's outcome is stored beside it as measures (:class:`Squeeze`: its force
 closure, epsilon and turn; replacing the planned pose by the squeezed one lost what the slanted pose says about
-holding, bench/RESULTS.md 2026-12-07). Only a self-centring parallel jaw squeezes (:func:`squeezes`: the Panda):
+holding, bench/RESULTS.md 2026-12-07). Where the squeeze ends force closure, the sweep also keeps its end (the
+turned hand and the contacts of its last closing, force closure as planned there) as a grasp of its own
+(:mod:`planner.plan.keeping`). Only a self-centring parallel jaw squeezes (:func:`squeezes`: the Panda):
 its two fingers close together about the hand's centre, so the object, pressed from both sides, may turn freely
 between them. The PR2's jaw is declared not self-centring (its pads are not mirror images; a finger stops where
 it touches), the Barrett and the Allegro are no parallel jaws (the Barrett settles dynamically:
@@ -73,12 +75,16 @@ class Squeeze:
     force_closure: whether its contacts are force closure (the planned ones' where they already were);
     epsilon: their Ferrari-Canny epsilon (L1, dimensionless; the planned one where they already were force
     closure, or where the squeeze could not turn); turn [rad] >= 0: the angle of the hand's rotation from the
-    planned pose to the squeezed one (0: not turned).
+    planned pose to the squeezed one (0: not turned); end: the last closing at a turned pose and its ``quality``
+    (None: not turned, or no closing at a turned pose was scored): where the squeeze ends force closure and the
+    planned contacts were not, the sweep keeps it as a grasp of its own (:mod:`planner.plan.keeping`).
     """
 
     force_closure: bool
     epsilon: float
     turn: float
+    end: Closed | None = None
+    quality: Quality | None = None
 
 
 def squeezes(hand: HandSpec) -> bool:
@@ -171,4 +177,6 @@ def _squeezed(grasper: Grasper, closed: Closed, preshape: Preshape, planned: Qua
         if quality.force_closure:
             break
     turned_by = Rotation.from_matrix(closed.pose[:3, :3] @ start[:3, :3].T).magnitude()
-    return Squeeze(bool(quality.force_closure), float(quality.epsilon), float(turned_by))
+    end = None if quality is planned else closed
+    return Squeeze(bool(quality.force_closure), float(quality.epsilon), float(turned_by), end,
+                   None if end is None else quality)

@@ -1,6 +1,7 @@
 """One unit of work end to end: object -> rays -> closing -> contacts -> quality (a parallel jaw's squeeze beside it,
-:mod:`planner.plan.squeeze`) -> settled epsilon (hands with ``settle``) -> reachability, returning
-:class:`~planner.record.grasp.Grasp` records for the single database writer.
+:mod:`planner.plan.squeeze`, and its end where force closure: :mod:`planner.plan.keeping`) -> settled epsilon
+(hands with ``settle``) -> reachability, returning :class:`~planner.record.grasp.Grasp` records for the single
+database writer.
 
 On a table (``SweepSettings.table_plane``, ``grasp generate --on-table``): the table is closing's obstacle, raised by
 :data:`~planner.plan.tolerances.TABLE_CLEARANCE`; approach rays shallower than
@@ -19,22 +20,21 @@ import traceback
 from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
-from functools import partial
 
 import numpy as np
 
-from planner import prepare, quality
-from planner.errors import DegenerateGraspError, PlannerError
+from planner import prepare
+from planner.errors import PlannerError
 from planner.geometry.frames import approach_of, resting_up
 from planner.geometry.solid import PreparedObject, load_object
 from planner.plan import grip, sampling
 from planner.plan.closing import Closed, Grasper
-from planner.plan.contacts import HandContacts, grasp_quality
+from planner.plan.contacts import grasp_quality  # noqa: F401 - re-exported (the importer's, the robust epsilon's)
+from planner.plan.keeping import QUALITY_FAILED, Keeper, pregrasp, scored  # noqa: F401 - QUALITY_FAILED re-exported
 from planner.plan.local_sdf import LocalSurface
-from planner.plan.measures import MIN_RESISTANCE, measure, measured_later, resistance_program
+from planner.plan.measures import MIN_RESISTANCE, measured_later
 from planner.plan.reach import ReachSettings, reach_scene
 from planner.plan.settle import with_settled
-from planner.plan.squeeze import squeezed
 from planner.plan.sweep import (
     IK_STREAM,
     PLACEMENT_STREAM,
@@ -47,7 +47,6 @@ from planner.plan.sweep import (
     unit_rng,
 )
 from planner.plan.tolerances import FINGER_CLEARANCE, MIN_CLEARANCE, TABLE_CLEARANCE, TABLE_ELEVATION
-from planner.plan.width import closed_width
 from planner.record.grasp import Grasp
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, load_hand
@@ -57,8 +56,6 @@ from planner.threads import one_blas_thread
 
 log = logging.getLogger(__name__)
 
-#: Rejection reason of a grasp whose quality :mod:`planner.quality` cannot compute.
-QUALITY_FAILED = "quality_failed"
 #: Counted among a unit's ``rejected``: candidates left untried once the unit had its share of the force-closure
 #: budget (SweepSettings.budget_share).
 BUDGET = "budget"
@@ -175,6 +172,7 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report, obj: PreparedObject
         gripping = grip.GripSurface(obj.mesh, normals_at=grasper.normals_at())  # the exact surface
         local = LocalSurface(hand, obj.mesh if grasper.mesh is None else grasper.mesh)  # a large mesh's proxy
         up = resting_up(settings.table_plane, obj.up)  # the object's up; on a table, the table's (object frame)
+        keeper = Keeper(hand, obj, settings, spec.seed, grasper, gripping, local, up, result.grasps, later)
         sweep = _antipodal if settings.sampler == "antipodal" else _rays
         for cand, closed, ray in sweep(spec, settings, obj, hand, shapes, rng, grasper, result, t0, budget,
                                     report):
@@ -185,26 +183,9 @@ def _run(spec: UnitSpec, result: UnitResult, report: Report, obj: PreparedObject
                 result.timing["closing"] += time.perf_counter() - tb
                 continue
             q = scored(closed.contacts, hand, obj, settings.cone_edges, result.rejected, settings.volume)
-            if q is None:
-                result.timing["quality"] += time.perf_counter() - tb
-                continue
-            width = closed_width(hand, closed.closed_joints)
-            at = (closed.contacts, closed.frames, hand, cand.preshape, closed.closed_joints, obj)
-            gripped = grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}, obj.com, up)
-            squeeze = squeezed(grasper, closed, cand.preshape, q, lambda c: scored(
-                c, hand, obj, settings.cone_edges, Counter(), False))
-            waiting = (resistance_program(*at), partial(measure, *at, width, grip=gripped,  # type: ignore[arg-type]
-                                                        local_sdf=local.of(closed.pose), squeeze=squeeze))
+            if q is not None:
+                budget.force_closure += keeper.keep(cand, closed, ray, q)  # and a squeeze's end where it is kept
             result.timing["quality"] += time.perf_counter() - tb
-            point, direction, roll, standoff = ray
-            result.grasps.append(Grasp(
-                object=obj.name, hand=hand.name, preshape=cand.preshape.name, candidate=cand.index, seed=spec.seed,
-                approach_point=point, approach_dir=direction, roll=roll, standoff=standoff, pose=closed.pose,
-                open_joints=closed.open_joints, closed_joints=closed.closed_joints, width=width,
-                contacts=closed.contacts, epsilon=q.epsilon, volume=q.volume, force_closure=q.force_closure,
-                measures=None, table_plane=None if support is None else np.array(settings.table_plane, float)))
-            later.append((len(result.grasps) - 1, *waiting))  # once recorded: a record that fails leaves none
-            budget.force_closure += int(q.force_closure)
         # contact reading happens inside closing; report it as its own stage
         result.timing["contacts"] = grasper.contact_seconds
         result.timing["closing"] -= grasper.contact_seconds
@@ -330,13 +311,6 @@ def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, han
         yield cand, closed, (*approach_of(pose, hand.approach, cand.preshape.tcp), 0.0)
 
 
-def pregrasp(pose: np.ndarray, hand: HandSpec, distance: float) -> np.ndarray:
-    """(4, 4) the hand backed off ``distance`` [m] along its approach from ``pose`` (4, 4)."""
-    out = np.array(pose, float)
-    out[:3, 3] -= (out[:3, :3] @ hand.approach) * distance
-    return out
-
-
 def fitted_opening(hand: HandSpec, shape: Preshape, master: str, width: float) -> dict[str, float]:
     """Every finger joint of ``shape`` with the fingers opened to ``width``
     [m] (mimics follow), or to the preshape's own opening if that is less."""
@@ -356,8 +330,8 @@ def add_reachability(grasps: list[Grasp], obj: PreparedObject, hand: HandSpec, s
     highest epsilon first, then highest weight resistance; the others keep
     ``None`` (not computed). The scene is built once per worker process."""
     ranked = sorted((g for g in grasps if g.force_closure or _holds_weight(g)),
-                    key=lambda g: (-g.epsilon, -(g.measures.resist_worst if g.measures else 0.0), g.candidate))
-    chosen = {g.candidate for g in (ranked[:settings.reach_top] if settings.reach_top else ranked)}
+                    key=lambda g: (-g.epsilon, -(g.measures.resist_worst if g.measures else 0.0), _key(g)))
+    chosen = {_key(g) for g in (ranked[:settings.reach_top] if settings.reach_top else ranked)}
     if not chosen:
         return grasps
     scene = reach_scene(hand, obj, ReachSettings(placements=settings.reach_placements,
@@ -365,10 +339,10 @@ def add_reachability(grasps: list[Grasp], obj: PreparedObject, hand: HandSpec, s
     placements = scene.placements(unit_rng(spec.seed, obj.name, hand.name, PLACEMENT_STREAM), settings.support())
     out = []
     for g in grasps:
-        if g.candidate not in chosen:
+        if _key(g) not in chosen:
             out.append(g)
             continue
-        rng = unit_rng(spec.seed, obj.name, hand.name, IK_STREAM, g.candidate)
+        rng = unit_rng(spec.seed, obj.name, hand.name, IK_STREAM, *_key(g)[:1 + (g.squeezed_from_turn is not None)])
         reached, manip = 0, 0.0
         for pose in placements:
             scene.place_object(pose)
@@ -384,16 +358,6 @@ def _holds_weight(g: Grasp) -> bool:
     return g.measures is not None and g.measures.resist_worst >= MIN_RESISTANCE
 
 
-def scored(contacts: HandContacts, hand: HandSpec, obj: PreparedObject, cone_edges: int, rejected: Counter,
-           volume: bool = True) -> quality.Quality | None:
-    """:func:`grasp_quality`, or None with :data:`QUALITY_FAILED` counted in
-    ``rejected`` when :mod:`planner.quality` cannot analyse these contacts
-    (a ``HullError`` or another ``DegenerateGraspError``): one grasp is
-    rejected, not its whole unit."""
-    try:
-        return grasp_quality(contacts, hand, obj, cone_edges, volume)
-    except DegenerateGraspError as exc:
-        rejected[QUALITY_FAILED] += 1
-        log.debug("%s/%s: grasp rejected, quality not computable: %s", obj.name, hand.name, exc)
-        return None
-
+def _key(g: Grasp) -> tuple[int, int]:
+    """What tells a unit's grasps apart: the candidate, and 1 for a squeeze's end (kept beside its parent, 0)."""
+    return g.candidate, int(g.squeezed_from_turn is not None)

@@ -115,6 +115,10 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
     elif up != "+z":
         lines.append(f"    the object's up is its frame's {up} (com_height, gravity_arm and the MuJoCo trial's weight "
                      "read it; poses stay in the file's frame)")
+    if g.squeezed_from_turn is not None:
+        lines.append(f"    the end of a parallel jaw's squeeze: candidate {g.candidate}'s planned grasp (not force "
+                     f"closure) with the hand turned {math.degrees(g.squeezed_from_turn):.1f} deg about its contacts "
+                     "until the pads lie flush, closed again here (force closure as planned at this pose)")
     squeezed = m is not None and bool(m.squeezed_force_closure) and not g.force_closure
     closure = "force closure" if g.force_closure else "NOT force closure as planned, force closure once squeezed" \
         if squeezed else "NOT force closure"

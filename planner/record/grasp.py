@@ -124,6 +124,10 @@ class Grasp:
         epsilon, volume: Ferrari-Canny L1 epsilon and GWS volume (0 unless force closure).
         reachability: fraction of sampled table placements an arm reaches (None: not computed).
         manipulability: the best arm manipulability over those placements.
+        squeezed_from_turn: [rad] where the grasp is where the squeeze (:mod:`planner.plan.squeeze`) of a planned
+            grasp that is not force closure ends force closure (the hand closed again at the turned pose, a grasp
+            of its own beside its parent, with the parent's candidate fields): how far the hand turned from the
+            parent's pose; None: the hand closed where it was planned (every grasp of another hand, of an import).
         table_plane: (4,) the table the grasp was planned on (:class:`planner.geometry.support.Support`):
             [nx, ny, nz] the unit normal out of the table and the height [m], object frame (the table top
             is ``n . x = height``); None: planned on the object alone.
@@ -174,6 +178,11 @@ class Grasp:
     table_plane: np.ndarray | None = stored("vector", "m", 6, "[nx, ny, nz, height]: the table top the grasp was "
                                             "planned on, object frame (`n . x = height`, n out of the table); null: "
                                             "planned on the object alone", required=False, shape=(4,), default=None)
+    squeezed_from_turn: float | None = stored("real", "rad", 15, "where the grasp is the end of a self-centring "
+                                              "parallel jaw's squeeze (`planner/plan/squeeze.py`) of the planned "
+                                              "grasp of the same unit and candidate, whose contacts are not force "
+                                              "closure: the angle the hand turned from that planned pose; null: "
+                                              "closed where it was planned", required=False, default=None)
     id: int | None = stored("int", "", 1, "`grasps.id` in the database", key=True, default=None)
     unit_id: int | None = stored("int", "", 1, "the unit of work that produced the grasp", default=None)
     score: float | None = stored("real", "", 1, "ranking score (`meta.ranking` says how)", default=None)

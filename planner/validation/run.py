@@ -110,7 +110,8 @@ def _run_task(task: Task, out: TaskResult) -> None:
     with Sim() as sim:  # one world and grasper for the object's grasps (a new one per grasp cost ~0.1 s on a scan)
         grasper = Grasper.for_object(sim, hand, obj)
         for g in task.grasps:
-            rng = np.random.default_rng([task.seed, zlib.crc32(task.object.encode()), g.candidate, g.seed])
+            end = [1] if g.squeezed_from_turn is not None else []  # a squeeze's end: its own noise, not its parent's
+            rng = np.random.default_rng([task.seed, zlib.crc32(task.object.encode()), g.candidate, g.seed, *end])
             out.robust.append(robust_epsilon(hand, obj, g, rng, task.noise, grasper))
 
 
@@ -141,10 +142,11 @@ class Selection:
         return [g for g, first in zip(grasps, first_of(grasps)) if first] if self.closure_only else grasps
 
 
-def _identity(g: Grasp) -> tuple[int, int, int]:
+def _identity(g: Grasp) -> tuple[int, int, bool, int]:
     """A grasp's place in its sweep, for a sample that does not depend on the order units were stored in (ids
-    follow the order workers finished): its unit's seed and its candidate number (the id only between equals)."""
-    return g.seed, g.candidate, g.id or 0
+    follow the order workers finished): its unit's seed, its candidate number, whether it is a squeeze's end
+    (beside its parent) (the id only between equals)."""
+    return g.seed, g.candidate, g.squeezed_from_turn is not None, g.id or 0
 
 
 def _already(db: Database, obj: str, hand: str, seed: int, trial_settings: ShakeSettings | MujocoSettings,

@@ -98,6 +98,9 @@ def swept(tmp_path_factory: pytest.TempPathFactory) -> Path:
         # the squeeze's force closure 0 comes back too (the Panda's box grasps are force closure as planned: 1)
         conn.execute("UPDATE grasps SET squeezed_force_closure = 0, squeeze_turn = 0.25 WHERE id = (SELECT MAX(id) "
                      "FROM grasps WHERE hand = 'panda')")
+        # a squeeze's end comes back as one (the field set), beside grasps closed where planned (NULL)
+        conn.execute("UPDATE grasps SET squeezed_from_turn = 0.375 WHERE id = (SELECT MIN(id) FROM grasps WHERE "
+                     "hand = 'panda')")
     code, _, err = grasp("validate", "--db", str(db), "--top", "1", "--robust", "2", "--workers", "1",
                          "--engine", "pybullet")
     assert code == 0, err
@@ -272,6 +275,8 @@ def test_every_hand_comes_back_through_every_format(fmt: str, swept: Path, tmp_p
     # the squeeze's force closure: 1 and 0 of the Panda's, NULL of the hands that do not squeeze
     squeezed = {(hand, row["squeezed_force_closure"]) for (hand, _), row in expected.items()}
     assert {("panda", True), ("panda", False), ("barrett", None), ("allegro", None)} <= squeezed, squeezed
+    ends = sorted((row["squeezed_from_turn"] is None, hand) for (hand, _), row in expected.items())
+    assert ends[0] == (False, "panda") and ends[1][0] and "squeezed_from_turn" in names, ends[:2]
 
 
 def read_moveit(out: Path) -> dict:

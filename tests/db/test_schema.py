@@ -311,3 +311,42 @@ def test_a_reader_leaves_the_write_ahead_log_of_a_writer_that_migrated_the_file(
         assert subprocess.run([sys.executable, "-c", read, str(old)], env=env(), capture_output=True, text=True,
                               check=True).stdout == "second\n"
     assert len(list(tmp_path.glob("old.db.v2.*.bak"))) == 1
+
+
+def test_a_version_14_file_migrates_its_grasps_and_trials_and_lets_a_squeezes_end_share_a_candidate(
+        validated_db: Path, tmp_path: Path) -> None:
+    """A v14 file (its grasps table keyed ``UNIQUE (unit_id, candidate)``, without ``squeezed_from_turn``) with
+    trials: migrated, every grasp and trial as stored (the table built again keeps the ids the trials point at),
+    ``squeezed_from_turn`` NULL; after it a squeeze's end may share its parent's unit and candidate, a second
+    grasp closed where planned may not."""
+    from planner.db.schema import _COLUMNS_V14, _GRASPS_V14
+
+    old = tmp_path / "v14.db"
+    shutil.copy(validated_db, old)
+    with sqlite3.connect(old) as conn:  # the v14 table, as migration 13 left it
+        conn.execute(f"CREATE TABLE v14 ({_GRASPS_V14}, UNIQUE (unit_id, candidate))")
+        conn.execute(f"INSERT INTO v14 SELECT {_COLUMNS_V14} FROM grasps")
+        conn.execute("PRAGMA foreign_keys = OFF")
+        conn.execute("DROP TABLE grasps")
+        conn.execute("ALTER TABLE v14 RENAME TO grasps")
+        conn.execute("CREATE INDEX grasps_rank ON grasps (object, hand, rank)")
+        conn.execute("UPDATE meta SET value = '14' WHERE key = 'schema_version'")
+
+    def stored(path: Path) -> list[dict]:
+        with open_db(path, create=False, readonly=True) as db:
+            return [g.to_json() for o, h in db.pairs() for batch in db.grasp_batches(o, h) for g in batch]
+
+    before = stored(old)
+    assert sum(g["validation_success"] is not None for g in before) >= 3
+    with open_db(old) as db:
+        assert db.meta("schema_version") == str(SCHEMA_VERSION) == "15"
+    assert stored(old) == before and all(g["squeezed_from_turn"] is None for g in before)
+    with sqlite3.connect(old) as conn:
+        assert conn.execute("PRAGMA foreign_key_check").fetchall() == []
+        columns = [r[1] for r in conn.execute("PRAGMA table_info(grasps)")]
+        row = conn.execute("SELECT * FROM grasps LIMIT 1").fetchone()
+        end = dict(zip(columns, row), id=None, squeezed_from_turn=0.3)
+        conn.execute(f"INSERT INTO grasps ({', '.join(end)}) VALUES ({', '.join('?' * len(end))})", list(end.values()))
+        with pytest.raises(sqlite3.IntegrityError):
+            conn.execute(f"INSERT INTO grasps ({', '.join(end)}) VALUES ({', '.join('?' * len(end))})",
+                         list({**end, "squeezed_from_turn": None}.values()))

@@ -103,7 +103,7 @@ def test_a_unit_is_written_whole_and_read_back_as_the_same_records(tmp_path: Pat
         unit_id = db.write_unit(unit(), None, grasps, rule)
         assert db.units_done("panda", "h" * 16, 5) == {("thing", 0)}
         back = db.best("thing", "panda", 10)
-        assert db.grasp_ids(unit_id) == {g.candidate: g.id for g in back}
+        assert db.grasp_ids(unit_id) == {(g.candidate, False): g.id for g in back}
     assert [g.candidate for g in back] == [1, 0, 2]  # by score
     assert [g.rank for g in back] == [1, 2, 3]
     expected = rule.scores({"epsilon": [0.08, 0.05, 0.0], "force_closure": [1, 1, 0],

@@ -11,10 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
+from scipy.spatial.transform import Rotation
 
 from planner.datasets.importer import RescoreUnit, rescore_poses
 from planner.geometry.solid import load_object
-from planner.plan import unit
+from planner.plan import keeping, unit
 from planner.plan.squeeze import squeezes, turn
 from planner.plan.sweep import SweepSettings
 from planner.record.contacts import HandContacts
@@ -83,15 +84,15 @@ def test_hands_that_do_not_squeeze_store_none(tmp_path: Path) -> None:
 
 
 def test_the_squeeze_leaves_the_sweep_as_it_was(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A unit's grasps are those it plans without the squeeze, field for field, but for the squeeze's measures:
-    the squeeze's closings leave the grasper's world as they found it (later grasps unchanged)."""
+    """A unit's grasps as planned are those it plans without the squeeze, field for field, but for the squeeze's
+    measures: the squeeze's closings leave the grasper's world as they found it (later grasps unchanged)."""
     obj = load_object("mug")
     settings = SweepSettings(approaches=60, rolls=2, reach_placements=0)
     result = unit.plan_object(obj, "panda", settings, 3)
-    squeezed = result.grasps
-    monkeypatch.setattr(unit, "squeezed", lambda *args: None)
+    squeezed = [g for g in result.grasps if g.squeezed_from_turn is None]
+    monkeypatch.setattr(keeping, "squeezed", lambda *args: None)
     plain = unit.plan_object(obj, "panda", settings, 3).grasps
-    assert len(squeezed) == len(plain) > 10
+    assert len(squeezed) == len(plain) > 10 and all(g.squeezed_from_turn is None for g in plain)
     turned = [g for g in squeezed if g.measures.squeeze_turn > 0.0]  # type: ignore[union-attr]
     assert turned and any(not g.force_closure for g in squeezed)
     assert all(t >= 0.0 for t in result.timing.values()), result.timing  # the squeeze's contacts not in closing's
@@ -101,6 +102,34 @@ def test_the_squeeze_leaves_the_sweep_as_it_was(monkeypatch: pytest.MonkeyPatch)
         assert b.measures.squeezed_force_closure is None
         bare = replace(a, measures=replace(a.measures, **dict.fromkeys(SQUEEZE)))
         assert bare.to_json() == b.to_json()
+
+
+#: The candidate fields a squeeze's end shares with its parent.
+CANDIDATE = ("object", "hand", "preshape", "candidate", "seed", "roll", "standoff", "table_plane")
+
+
+def test_a_squeeze_that_ends_force_closure_is_kept_as_a_grasp_of_its_own() -> None:
+    """Where the planned contacts are not force closure and the squeeze ends force closure, the sweep keeps the end
+    right after its parent: the turned pose, force closure as planned there (its own squeeze not turned), the
+    parent's candidate fields, ``squeezed_from_turn`` the parent's turn; a parent of each kind has one, no other."""
+    result = unit.plan_object(load_object("mug"), "panda", SweepSettings(approaches=60, rolls=2, reach_placements=0),
+                              3)
+    grasps = result.grasps
+    ends = [i for i, g in enumerate(grasps) if g.squeezed_from_turn is not None]
+    parents = [i for i, g in enumerate(grasps) if not g.force_closure and g.measures.squeezed_force_closure]  # type: ignore[union-attr]
+    assert ends and [i + 1 for i in parents] == ends
+    assert result.force_closure == sum(g.force_closure for g in grasps if g.squeezed_from_turn is None) + len(ends)
+    for i in ends:
+        parent, end = grasps[i - 1], grasps[i]
+        assert parent.squeezed_from_turn is None and not parent.force_closure and parent.epsilon == 0.0
+        assert end.force_closure and end.epsilon > 0.0
+        assert end.squeezed_from_turn == parent.measures.squeeze_turn > 0.0  # type: ignore[union-attr]
+        assert end.measures is not None and end.measures.squeezed_force_closure is True
+        assert (end.measures.squeezed_epsilon, end.measures.squeeze_turn) == (end.epsilon, 0.0)
+        assert [getattr(end, k) for k in CANDIDATE] == [getattr(parent, k) for k in CANDIDATE]
+        np.testing.assert_array_equal(end.approach_point, parent.approach_point)
+        turned = Rotation.from_matrix(end.pose[:3, :3] @ parent.pose[:3, :3].T).magnitude()
+        assert turned == pytest.approx(end.squeezed_from_turn, abs=1e-9)
 
 
 def test_turn_brings_the_closing_axis_onto_the_walls_normal_about_the_contacts_centre() -> None:
@@ -166,3 +195,69 @@ def test_no_turn_where_the_normals_give_no_walls_normal() -> None:
     sides, axis = (frozenset({"a"}), frozenset({"b"})), np.array([0.0, 1.0, 0.0])
     for normals in ([[np.nan, 0.0, 0.0], [0.0, 1.0, 0.0]], [[0.0, 0.0, 1.0], [0.0, 0.0, 1.0]]):
         assert turn(HandContacts(points, np.array(normals), ("a", "b")), sides, np.eye(4), axis) is None
+
+
+def test_an_import_rescored_keeps_each_pose_once_and_no_squeezes_end(tmp_path: Path) -> None:
+    """`grasp import --rescore` stores exactly the poses it is given, one record each: the tilted slab's pinch
+    (squeezed to force closure, the sweep would keep its end) and the upright one's, no squeeze's end."""
+    import h5py
+
+    from planner.datasets.importer import import_files
+    from planner.db.store import open_db
+
+    hand = load_hand("panda")
+    folder = tmp_path / "foreign"
+    (folder / "meshes").mkdir(parents=True)
+    slab(tmp_path, TILT)
+    trimesh.load(tmp_path / f"slab{TILT:.3f}.obj").export(folder / "meshes" / "slab.obj")
+    upright = pinch()
+    upright[:3, :3] = trimesh.transformations.rotation_matrix(-TILT, [1.0, 0.0, 0.0])[:3, :3] @ upright[:3, :3]
+    file = folder / "slab.h5"
+    with h5py.File(file, "w") as f:
+        f["gripper/type"], f["gripper/configuration"] = "franka_panda", [0.08]
+        f["object/file"], f["object/scale"] = "meshes/slab.obj", 1.0
+        f["grasps/transforms"] = np.stack([pinch(), upright]) @ hand.export_frame
+        f["grasps/qualities/flex/object_in_gripper"] = np.ones(2, np.int64)
+    (result,) = import_files([file], tmp_path / "imported.db", rescore=True)
+    assert result.error is None
+    with open_db(tmp_path / "imported.db", create=False, readonly=True) as db:
+        (stored,) = [[g for batch in db.grasp_batches(o, h) for g in batch] for o, h in db.pairs()]
+    assert sorted(g.candidate for g in stored) == [0, 1] and [g.squeezed_from_turn for g in stored] == [None, None]
+    tilted = next(g for g in stored if g.candidate == 0)
+    assert not tilted.force_closure and tilted.measures.squeezed_force_closure is True  # type: ignore[union-attr]
+
+
+def test_a_resumed_unit_stores_the_same_records_squeezes_ends_included(tmp_path: Path) -> None:
+    """The mug in units of 100 points, one unit's row deleted (its grasps with it: a run killed before it was
+    written) and the same command run again: every record as the uninterrupted run stored it, the squeezes' ends
+    beside their parents (the same unit and candidate) included."""
+    import shutil
+    import sqlite3
+
+    from helpers import grasp
+
+    from planner.db.store import open_db
+
+    args = ("generate", "mug", "--hand", "panda", "--approaches", "300", "--rolls", "2", "--chunk", "100",
+            "--reach-placements", "1", "--workers", "1", "--quiet")
+    whole, resumed = tmp_path / "whole.db", tmp_path / "resumed.db"
+    code, _, err = grasp(*args, "--db", str(whole))
+    assert code == 0, err
+
+    def records(path: Path) -> list[dict]:
+        with open_db(path, create=False, readonly=True) as db:
+            out = [g.to_json() for batch in db.grasp_batches("mug", "panda") for g in batch]
+        return sorted(({k: v for k, v in g.items() if k not in ("id", "unit_id")} for g in out),
+                      key=lambda g: (g["candidate"], g["squeezed_from_turn"] is not None))
+
+    shutil.copy(whole, resumed)
+    with sqlite3.connect(resumed) as conn:
+        conn.execute("PRAGMA foreign_keys = ON")
+        unit = conn.execute("SELECT unit_id FROM grasps WHERE squeezed_from_turn IS NOT NULL LIMIT 1").fetchone()[0]
+        conn.execute("DELETE FROM units WHERE id = ?", (unit,))
+        assert conn.execute("SELECT COUNT(*) FROM grasps WHERE unit_id = ?", (unit,)).fetchone()[0] == 0
+    code, _, err = grasp(*args, "--db", str(resumed))
+    assert code == 0, err
+    expected = records(whole)
+    assert any(g["squeezed_from_turn"] is not None for g in expected)
+    assert records(resumed) == expected

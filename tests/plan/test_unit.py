@@ -18,8 +18,8 @@ from scipy.spatial.transform import Rotation
 from planner import quality
 from planner.datasets import importer
 from planner.geometry.solid import load_object
+from planner.plan import keeping, unit
 from planner.plan import sweep as unit_sweep
-from planner.plan import unit
 from planner.plan.sweep import SweepSettings
 from planner.plan.unit import QUALITY_FAILED, UnitSpec, grasp_quality, run_unit
 from planner.quality.hull import HullError
@@ -116,8 +116,8 @@ def test_a_grasp_whose_quality_fails_is_rejected_with_a_counted_reason(box_unit,
         return wrapped
 
     # epsilon alone by default; evaluate (epsilon and volume) with --volume
-    monkeypatch.setattr(unit.quality, "epsilon", failing_third(quality.epsilon))
-    monkeypatch.setattr(unit.quality, "evaluate", failing_third(quality.evaluate))
+    monkeypatch.setattr(quality, "epsilon", failing_third(quality.epsilon))
+    monkeypatch.setattr(quality, "evaluate", failing_third(quality.evaluate))
     r = run_unit(UnitSpec("box", "panda", SETTINGS, seed=1))
     assert r.error is None and r.rejected[QUALITY_FAILED] == 1
     assert r.candidates == len(r.grasps) + sum(r.rejected.values())
@@ -338,7 +338,7 @@ def test_a_record_that_cannot_be_made_fails_its_unit_with_its_own_error(monkeypa
             raise ValueError("no such record")
         return Grasp(**fields)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(unit, "Grasp", second_fails)
+    monkeypatch.setattr(keeping, "Grasp", second_fails)
     r = run_unit(UnitSpec("box", "panda", SETTINGS, seed=1))
     assert r.error == "ValueError: no such record"
     assert len(r.grasps) == 1 and r.grasps[0].measures is not None
