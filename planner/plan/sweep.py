@@ -41,7 +41,8 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: axes read at the origin; union mass. 18: edge normals from the object's cone; mesh tables and hand primitives.
 #: 19: the settle's every convex part. 20-21: the PR2's and Allegro's dynamics. 22: 0.5 mm proxies, normals averaged
 #: over 2 mm; pre-grasp IK branch. 23: the ray samplers and grip measures too. 24: a parallel jaw's squeeze measured
-#: beside the planned grasp (planner.plan.squeeze). 25: where it ends force closure, its end a grasp of its own.
+#: beside the planned grasp (planner.plan.squeeze). 25: where it ends force closure, its end a grasp of its own;
+#: such a grasp reached by its squeeze's epsilon.
 ALGORITHM_VERSION = 25
 
 #: Named in the digest of sweeps on a table only (those of the object alone stay

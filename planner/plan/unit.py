@@ -326,11 +326,14 @@ def fitted_opening(hand: HandSpec, shape: Preshape, master: str, width: float) -
 def add_reachability(grasps: list[Grasp], obj: PreparedObject, hand: HandSpec, spec: UnitSpec,
                      settings: SweepSettings) -> list[Grasp]:
     """Reachability over the unit's sampled placements of its ``reach_top``
-    grasps (all if 0) that are force closure or hold their object's weight,
-    highest epsilon first, then highest weight resistance; the others keep
-    ``None`` (not computed). The scene is built once per worker process."""
-    ranked = sorted((g for g in grasps if g.force_closure or _holds_weight(g)),
-                    key=lambda g: (-g.epsilon, -(g.measures.resist_worst if g.measures else 0.0), _key(g)))
+    grasps (all if 0) that are force closure (as planned, or once a parallel
+    jaw's squeeze ends: the grasps that rank first) or hold their object's
+    weight, highest epsilon first (a squeeze's where only it is force closure:
+    until 2026-12-07 its planned 0 left such a grasp unreached, neutral, above
+    its reached end), then highest weight resistance; the others keep ``None``
+    (not computed). The scene is built once per worker process."""
+    ranked = sorted((g for g in grasps if g.force_closure or _squeezed_first(g) or _holds_weight(g)),
+                    key=lambda g: (-_first_epsilon(g), -(g.measures.resist_worst if g.measures else 0.0), _key(g)))
     chosen = {_key(g) for g in (ranked[:settings.reach_top] if settings.reach_top else ranked)}
     if not chosen:
         return grasps
@@ -352,6 +355,16 @@ def add_reachability(grasps: list[Grasp], obj: PreparedObject, hand: HandSpec, s
                 manip = max(manip, r.grasp.manipulability)  # type: ignore[union-attr]
         out.append(replace(g, reachability=reached / len(placements), manipulability=manip))
     return out
+
+
+def _squeezed_first(g: Grasp) -> bool:
+    """Whether ``g``'s contacts are force closure once a parallel jaw's squeeze ends (not as planned)."""
+    return not g.force_closure and g.measures is not None and bool(g.measures.squeezed_force_closure)
+
+
+def _first_epsilon(g: Grasp) -> float:
+    """The epsilon that ranks ``g`` first: the squeeze's where only it is force closure, else the planned one."""
+    return float(g.measures.squeezed_epsilon) if _squeezed_first(g) else g.epsilon  # type: ignore[union-attr]
 
 
 def _holds_weight(g: Grasp) -> bool:

@@ -198,3 +198,20 @@ def test_a_pregrasp_distance_of_0_still_reaches_the_grasp() -> None:
         turned["panda_joint1"] += np.pi
         world = scene.object_pose @ TOP_DOWN
         assert not scene._straight(r.grasp, replace(r.pregrasp, joints=turned), world, world)
+
+
+def test_a_grasp_force_closure_only_once_squeezed_is_reached_by_its_squeezes_epsilon() -> None:
+    # it ranks first (planner.db.ranking.FIRST): with its planned epsilon 0 it used to stay unreached (neutral, 1)
+    # while its reached end could score 0 (teddy's #2 of 2026-12-07)
+    settings = SweepSettings(approaches=16, rolls=2, preshapes=("wide",), reach_placements=1, reach_top=0)
+    spec = UnitSpec("box", "panda", settings, seed=5)
+    result = run_unit(spec)
+    fc = sorted((g for g in result.grasps if g.force_closure), key=lambda g: -g.epsilon)
+    assert len(fc) >= 3
+    squeezed = replace(fc[-1], force_closure=False, epsilon=0.0, reachability=None, manipulability=None,
+                       measures=replace(fc[-1].measures, squeezed_force_closure=True,  # type: ignore[arg-type]
+                                        squeezed_epsilon=2 * fc[0].epsilon, resist_worst=0.0))
+    others = [replace(g, reachability=None, manipulability=None) for g in fc[:2]]
+    again = add_reachability([*others, squeezed], result.obj, load_hand("panda"), spec,
+                             replace(settings.resolved("antipodal"), reach_top=1))
+    assert [g.reachability is None for g in again] == [True, True, False]
