@@ -160,7 +160,7 @@ class LinfSupport(L1Support):
 
 def active_set_epsilon(support: L1Support, scale: float, *, seeds: tuple[np.ndarray, ...] = SEEDS,
                        hull_class: type[ConvexHull] | None = None) -> float | None:
-    """Exact epsilon (signed, to FACET_TOL * scale) of the GWS behind
+    """Exact epsilon (to FACET_TOL * scale; where the origin is outside, some negative distance) of the GWS behind
     ``support`` (an L1Support or LinfSupport); None if the support points
     are not full-dimensional.
 
