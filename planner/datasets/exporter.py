@@ -35,7 +35,7 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import closing
 from dataclasses import dataclass, field, replace
 from itertools import chain
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import TYPE_CHECKING
 
 from planner.datasets import formats
@@ -150,19 +150,31 @@ def _earlier(out_dir: Path, fmt: str) -> list[dict]:
         return []
     if not isinstance(old, dict) or not isinstance(old.get("files"), list):
         return []
-    earlier = [r for r in old.pop("earlier", []) if isinstance(r, dict) and isinstance(r.get("files"), list)]
+    listed = old.pop("earlier", [])
+    earlier = [r for r in listed if isinstance(r, dict) and isinstance(r.get("files"), list)] \
+        if isinstance(listed, list) else []
     return [*earlier, old]
+
+
+def _listed(f: object) -> bool:
+    """A file entry as :func:`_manifest` writes it: a path inside the folder, its grasps and bytes (an edited or
+    damaged manifest's "earlier": null, "grasps": "many", a path outside the folder stopped the new export at
+    its end with an internal error, its files written and no manifest; or listed /etc/passwd as exported)."""
+    if not (isinstance(f, dict) and isinstance(f.get("path"), str) and type(f.get("grasps")) is int
+            and type(f.get("bytes")) is int):
+        return False
+    path = PurePosixPath(f["path"])
+    return not path.is_absolute() and ".." not in path.parts
 
 
 def _still_there(records: list[dict], out_dir: Path, written: set[str]) -> list[dict]:
     """``records`` with only the files still in ``out_dir`` as they were and not written again (``written``)."""
     kept = []
     for r in records:
-        files = [f for f in r["files"] if isinstance(f, dict) and f.get("path") not in written
-                 and (out_dir / str(f.get("path"))).is_file()
-                 and (out_dir / str(f.get("path"))).stat().st_size == f.get("bytes")]
+        files = [f for f in r["files"] if _listed(f) and f["path"] not in written
+                 and (out_dir / f["path"]).is_file() and (out_dir / f["path"]).stat().st_size == f["bytes"]]
         if files:
-            kept.append({**r, "files": files, "grasps": sum(int(f.get("grasps", 0)) for f in files)})
+            kept.append({**r, "files": files, "grasps": sum(f["grasps"] for f in files)})
     return kept
 
 
