@@ -14,6 +14,12 @@ from planner.errors import DatabaseError
 MIN_PAGE = 512
 
 
+def uri(path: Path, query: str = "") -> str:
+    """SQLite's URI of ``path``: its '?', '#' and '%' quoted (``--db "runs?1.db"`` was opened, and a writer
+    created and wrote, "runs"; a reader said "not a grasp database" of a good one and left an empty "runs")."""
+    return f"file:{quote(str(path))}" + (f"?{query}" if query else "")
+
+
 def check_header(path: Path) -> None:
     """Refuse a file too short to be a database whose first bytes are not SQLite's (SQLite reads a file of a few
     bytes as an empty database, and a writer would write over it). A longer file is read by SQLite as immutable
@@ -25,7 +31,7 @@ def check_header(path: Path) -> None:
     beside the file (a killed writer's, the file since replaced) into it before it looked at the first page."""
     if path.stat().st_size >= MIN_PAGE:
         try:
-            with closing(sqlite3.connect(f"file:{quote(str(path.resolve()))}?mode=ro&immutable=1", uri=True)) as conn:
+            with closing(sqlite3.connect(uri(path.resolve(), "mode=ro&immutable=1"), uri=True)) as conn:
                 conn.execute("PRAGMA schema_version").fetchone()
         except sqlite3.DatabaseError as exc:  # anything else (damaged, truncated) is the opening's to say
             if str(exc) == "file is not a database":

@@ -105,3 +105,18 @@ def test_a_wal_beside_a_file_that_is_not_sqlite_is_not_replayed_into_it(box_db: 
     assert path.read_bytes() == notes
     assert path.with_name("g.db-wal").read_bytes() == wal
     assert sorted(p.name for p in tmp_path.iterdir()) == ["g.db", "g.db-wal"]
+
+
+@pytest.mark.parametrize("name", ["runs?1.db", "a#b.db", "100%20.db"])
+def test_a_database_whose_name_has_uri_characters_is_that_file(box_db: Path, tmp_path: Path, name: str) -> None:
+    """SQLite's URI took "runs?1.db" for "runs" (and "100%20.db" for "100 .db"): a reader said "not a grasp
+    database (no schema)" of a good database and left an empty "runs" beside it; a writer wrote into "runs"."""
+    from planner.db.store import open_for_writing
+
+    path = tmp_path / name
+    path.write_bytes(box_db.read_bytes())
+    with open_db(path, create=False, readonly=True) as db:
+        assert db.object_names() == ["box"]
+    with open_for_writing(path, create=False) as db:
+        assert db.object_names() == ["box"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([name, f"{name}.lock"])
