@@ -264,3 +264,29 @@ def test_a_damaged_earlier_manifest_does_not_stop_the_next_export(db: Path, tmp_
     assert [f["path"] for f in again["files"]] == ["sphere__panda.h5"]
     kept = [f["path"] for r in again["earlier"] for f in r["files"]]
     assert kept == (["box__panda.h5"] if damage in ("earlier null", "earlier 5", "path outside") else []), kept
+
+
+def test_an_export_stopped_midway_keeps_the_earlier_exports_for_the_next(db: Path, tmp_path: Path,
+                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """The box exported, the sphere's export stopped (Ctrl-C, a full disk) and run again: the manifest, removed by
+    the stopped one, was the box's record's only copy, and the sphere's listed nothing earlier beside the box's
+    file. A stopped export still leaves no manifest."""
+    import json
+
+    out = export(db, "acronym", tmp_path / "a", "--object", "box", "--top", "3")
+    real = os.replace
+
+    def stop(src: object, dst: object) -> None:
+        if str(dst).endswith(".h5"):
+            raise KeyboardInterrupt
+        real(src, dst)  # type: ignore[arg-type]
+
+    with monkeypatch.context() as m:
+        m.setattr(exporter.os, "replace", stop)
+        code, _, _ = grasp("export", "--db", str(db), "--format", "acronym", "--out", str(out), "--quiet",
+                           "--object", "sphere")
+    assert code == 130 and not (out / "export-acronym.json").exists()
+    export(db, "acronym", out, "--object", "sphere", "--top", "2")
+    manifest = json.loads((out / "export-acronym.json").read_text())
+    assert [f["path"] for r in manifest["earlier"] for f in r["files"]] == ["box__panda.h5"]
+    assert [p.name for p in out.iterdir() if p.name.startswith(".")] == []
