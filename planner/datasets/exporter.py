@@ -35,7 +35,7 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import closing
 from dataclasses import dataclass, field, replace
 from itertools import chain
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import TYPE_CHECKING
 
 from planner.datasets import formats
@@ -132,37 +132,54 @@ class ExportSummary:
                 "notes": self.notes, "manifest": None if self.manifest is None else str(self.manifest)}
 
 
-#: The export's manifest in DIR, one per format: removed before the export writes anything and written (atomically)
+#: The export's manifest in DIR, one per format: moved aside before the export writes anything, written (atomically)
 #: after its last file, so that a folder holding it holds that export whole (a killed or failed export leaves none):
 #: what was exported, from which database, with which selection and labels, and each file with its grasps and bytes.
 #: Its ``earlier`` lists the earlier exports of the format into DIR whose files are still there and this one did not
 #: write again (each such export as its own record, with those files only; none: []).
 MANIFEST = "export-{format}.json"
+#: The manifest before, renamed out of the way while an export writes (removed once its own is written): a killed
+#: or failed export, then another, lost every earlier export from ``earlier`` (the box's file there, unlisted).
+PREVIOUS = ".export-{format}.previous.json"
 
 
 def _earlier(out_dir: Path, fmt: str) -> list[dict]:
-    """The records of the exports of ``fmt`` the manifest in ``out_dir`` describes (itself and its ``earlier``), read
-    before a new export removes it (``grasp export --object box`` then ``--object mug`` into one folder: the second
-    manifest described only the mug, beside the box's file)."""
+    """The records of the exports of ``fmt`` the manifest in ``out_dir`` describes (itself and its ``earlier``), or
+    the one a stopped export moved aside (:data:`PREVIOUS`), read before a new export moves it aside (``grasp
+    export --object box`` then ``--object mug`` into one folder: the second manifest described only the mug,
+    beside the box's file)."""
+    manifest, previous = out_dir / MANIFEST.format(format=fmt), out_dir / PREVIOUS.format(format=fmt)
     try:
-        old = json.loads((out_dir / MANIFEST.format(format=fmt)).read_text(encoding="utf-8"))
+        old = json.loads((manifest if manifest.is_file() else previous).read_text(encoding="utf-8"))
     except (OSError, ValueError):  # none, or not one this planner wrote whole: nothing to carry over
         return []
     if not isinstance(old, dict) or not isinstance(old.get("files"), list):
         return []
-    earlier = [r for r in old.pop("earlier", []) if isinstance(r, dict) and isinstance(r.get("files"), list)]
+    listed = old.pop("earlier", [])
+    earlier = [r for r in listed if isinstance(r, dict) and isinstance(r.get("files"), list)] \
+        if isinstance(listed, list) else []
     return [*earlier, old]
+
+
+def _listed(f: object) -> bool:
+    """A file entry as :func:`_manifest` writes it: a path inside the folder, its grasps and bytes (an edited or
+    damaged manifest's "earlier": null, "grasps": "many", a path outside the folder stopped the new export at
+    its end with an internal error, its files written and no manifest; or listed /etc/passwd as exported)."""
+    if not (isinstance(f, dict) and isinstance(f.get("path"), str) and type(f.get("grasps")) is int
+            and type(f.get("bytes")) is int):
+        return False
+    path = PurePosixPath(f["path"])
+    return not path.is_absolute() and ".." not in path.parts
 
 
 def _still_there(records: list[dict], out_dir: Path, written: set[str]) -> list[dict]:
     """``records`` with only the files still in ``out_dir`` as they were and not written again (``written``)."""
     kept = []
     for r in records:
-        files = [f for f in r["files"] if isinstance(f, dict) and f.get("path") not in written
-                 and (out_dir / str(f.get("path"))).is_file()
-                 and (out_dir / str(f.get("path"))).stat().st_size == f.get("bytes")]
+        files = [f for f in r["files"] if _listed(f) and f["path"] not in written
+                 and (out_dir / f["path"]).is_file() and (out_dir / f["path"]).stat().st_size == f["bytes"]]
         if files:
-            kept.append({**r, "files": files, "grasps": sum(int(f.get("grasps", 0)) for f in files)})
+            kept.append({**r, "files": files, "grasps": sum(f["grasps"] for f in files)})
     return kept
 
 
@@ -183,6 +200,7 @@ def _manifest(summary: ExportSummary, out_dir: Path, db_path: Path, sel: Selecti
     record["earlier"] = _still_there(earlier, out_dir, {f["path"] for f in record["files"]})
     path = out_dir / MANIFEST.format(format=summary.format)
     assets.atomic_write(path, (json.dumps(record, indent=2) + "\n").encode())
+    (out_dir / PREVIOUS.format(format=summary.format)).unlink(missing_ok=True)
     return path
 
 
@@ -238,7 +256,8 @@ def _export(db_path: Path, fmt: str, out_dir: Path, objects: Sequence[str], hand
         exported = {name: replace(o, label=sel.label)  # a mesh another database put there is refused first
                     for name, o in write_meshes(db, sorted({o for o, _ in pairs}), out_dir, copies).items()}
         earlier = _earlier(out_dir, fmt)
-        (out_dir / MANIFEST.format(format=fmt)).unlink(missing_ok=True)  # no stale "complete" over new files
+        if (out_dir / MANIFEST.format(format=fmt)).is_file():  # no stale "complete" over new files
+            os.replace(out_dir / MANIFEST.format(format=fmt), out_dir / PREVIOUS.format(format=fmt))
         summary.meshes = [out_dir / o.file for o in exported.values()]
         if isinstance(writer, TableWriter):
             path = out_dir / writer.file

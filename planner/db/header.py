@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import shlex
 import sqlite3
+from contextlib import closing
 from pathlib import Path
+from urllib.parse import quote
 
 from planner.errors import DatabaseError
 
@@ -12,13 +14,28 @@ from planner.errors import DatabaseError
 MIN_PAGE = 512
 
 
+def uri(path: Path, query: str = "") -> str:
+    """SQLite's URI of ``path``: its '?', '#' and '%' quoted (``--db "runs?1.db"`` was opened, and a writer
+    created and wrote, "runs"; a reader said "not a grasp database" of a good one and left an empty "runs")."""
+    return f"file:{quote(str(path))}" + (f"?{query}" if query else "")
+
+
 def check_header(path: Path) -> None:
     """Refuse a file too short to be a database whose first bytes are not SQLite's (SQLite reads a file of a few
-    bytes as an empty database, and a writer would write over it). A longer file is left to SQLite, which says
-    "file is not a database" (:func:`cannot_open`): opening and closing a descriptor of the file here dropped every
-    POSIX lock SQLite holds on it in this process (a reader beside a writer of the same process, the Python API),
-    and with them what keeps another process from checkpointing the WAL away under the writer."""
+    bytes as an empty database, and a writer would write over it). A longer file is read by SQLite as immutable
+    (its first page only: no lock, no -wal, -journal or -shm looked at or made), which says "file is not a
+    database": opening and closing a descriptor of the file here dropped every POSIX lock SQLite holds on it in
+    this process (a reader beside a writer of the same process, the Python API), and with them what keeps another
+    process from checkpointing the WAL away under the writer; SQLite's own descriptors of a file are closed only
+    once no connection of the process holds a lock on it. Left to the opening itself, SQLite replayed a -wal
+    beside the file (a killed writer's, the file since replaced) into it before it looked at the first page."""
     if path.stat().st_size >= MIN_PAGE:
+        try:
+            with closing(sqlite3.connect(uri(path.resolve(), "mode=ro&immutable=1"), uri=True)) as conn:
+                conn.execute("PRAGMA schema_version").fetchone()
+        except sqlite3.DatabaseError as exc:  # anything else (damaged, truncated) is the opening's to say
+            if str(exc) == "file is not a database":
+                raise DatabaseError(_NOT_SQLITE.format(path=path)) from exc
         return
     with path.open("rb") as fh:
         if fh.read(16) != b"SQLite format 3\x00":

@@ -46,7 +46,7 @@ from planner.db.columns import (  # noqa: F401 - VECTOR_DIGITS, INERTIA_DIGITS, 
     json_list,
 )
 from planner.db.failures import _reads, missing, read_failed, write_failed  # noqa: F401 - the failures re-exported
-from planner.db.header import cannot_open, check_header
+from planner.db.header import cannot_open, check_header, uri
 from planner.db.lock import writer_lock
 from planner.db.ranking import RankingRule
 from planner.db.rows import ObjectRow, UnitRow, Validated  # noqa: F401 - re-exported
@@ -324,7 +324,7 @@ def open_for_writing(path: Path, *, create: bool = True) -> Iterator[Database]:
     if path.is_file() and path.stat().st_size > 0:
         check_header(path)
         try:
-            with closing(sqlite3.connect(f"file:{path}?mode=ro", uri=True, timeout=BUSY_TIMEOUT_S)) as conn:
+            with closing(sqlite3.connect(uri(path, "mode=ro"), uri=True, timeout=BUSY_TIMEOUT_S)) as conn:
                 conn.row_factory = sqlite3.Row
                 schema_version(conn, path)
         except sqlite3.DatabaseError as exc:
@@ -360,14 +360,14 @@ def open_db(path: Path, *, create: bool = True, readonly: bool = False) -> Datab
     try:
         real = path.resolve()  # a reader of a writable file (a write bit too: root's access() ignores a chmod 444)
         tidy = readonly and all(os.access(p, os.W_OK) for p in (real, real.parent)) and real.stat().st_mode & 0o222 > 0
-        uri = f"file:{path}?mode={'rw' if tidy else 'ro'}" if readonly else f"file:{path}"
+        target = uri(path, f"mode={'rw' if tidy else 'ro'}" if readonly else "")
         if readonly and _frozen(path):  # SQLite cannot make its -shm beside it: read it as the file that it is
-            uri = f"file:{path.resolve()}?mode=ro&immutable=1"
+            target = uri(path.resolve(), "mode=ro&immutable=1")
             if path not in _FROZEN_SAID:  # once: a command opens its database several times
                 _FROZEN_SAID.add(path)
                 log.warning("%s: in a read-only folder: read as it is now (a writer through another mount of it "
                             "would not be seen)", path)
-        conn = sqlite3.connect(uri, uri=True, timeout=BUSY_TIMEOUT_S, isolation_level=None)
+        conn = sqlite3.connect(target, uri=True, timeout=BUSY_TIMEOUT_S, isolation_level=None)
         conn.row_factory = sqlite3.Row
         conn.execute(f"PRAGMA query_only = {int(tidy)}")  # unlike mode=ro, its close removes -wal/-shm (best left both)
         version = schema_version(conn, path)  # before anything is set: another application's file stays as it is

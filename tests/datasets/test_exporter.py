@@ -232,3 +232,61 @@ def test_exports_into_one_folder_are_each_listed_by_its_manifest(db: Path, tmp_p
     export(db, "acronym", out, "--top", "1")  # both files again: nothing earlier is left
     again = json.loads((out / "export-acronym.json").read_text())
     assert again["earlier"] == [] and again["grasps"] == 2
+
+
+@pytest.mark.parametrize("damage", ["earlier null", "earlier 5", "grasps text", "grasps null", "path a list",
+                                    "path outside"])
+def test_a_damaged_earlier_manifest_does_not_stop_the_next_export(db: Path, tmp_path: Path, damage: str) -> None:
+    """An edited or damaged manifest ("earlier": null, a file's "grasps": "many", its "path" a list) stopped the
+    next export into the folder at its end, with an internal error, its files written and no manifest; a path
+    outside the folder (/etc/passwd, at its size) was listed as an earlier export's file."""
+    import json
+
+    out = export(db, "acronym", tmp_path / "a", "--object", "box", "--top", "3")
+    manifest = out / "export-acronym.json"
+    record = json.loads(manifest.read_text())
+    [box] = record["files"]
+    outside = tmp_path / "outside.txt"
+    outside.write_text("not an export's")
+    record["earlier"] = {"earlier null": None, "earlier 5": 5}.get(damage, [])
+    if damage in ("grasps text", "grasps null"):
+        box["grasps"] = "many" if damage == "grasps text" else None
+    if damage == "path a list":
+        box["path"] = [box["path"]]
+    if damage == "path outside":
+        record["earlier"] = [{"files": [{"path": str(outside), "grasps": 1, "bytes": outside.stat().st_size}]},
+                             {"files": [{"path": "../outside.txt", "grasps": 1, "bytes": outside.stat().st_size}]}]
+    manifest.write_text(json.dumps(record))
+    code, _, err = grasp("export", "--db", str(db), "--format", "acronym", "--out", str(out), "--quiet",
+                         "--object", "sphere", "--top", "2")
+    assert code == 0, err
+    again = json.loads(manifest.read_text())
+    assert [f["path"] for f in again["files"]] == ["sphere__panda.h5"]
+    kept = [f["path"] for r in again["earlier"] for f in r["files"]]
+    assert kept == (["box__panda.h5"] if damage in ("earlier null", "earlier 5", "path outside") else []), kept
+
+
+def test_an_export_stopped_midway_keeps_the_earlier_exports_for_the_next(db: Path, tmp_path: Path,
+                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """The box exported, the sphere's export stopped (Ctrl-C, a full disk) and run again: the manifest, removed by
+    the stopped one, was the box's record's only copy, and the sphere's listed nothing earlier beside the box's
+    file. A stopped export still leaves no manifest."""
+    import json
+
+    out = export(db, "acronym", tmp_path / "a", "--object", "box", "--top", "3")
+    real = os.replace
+
+    def stop(src: object, dst: object) -> None:
+        if str(dst).endswith(".h5"):
+            raise KeyboardInterrupt
+        real(src, dst)  # type: ignore[arg-type]
+
+    with monkeypatch.context() as m:
+        m.setattr(exporter.os, "replace", stop)
+        code, _, _ = grasp("export", "--db", str(db), "--format", "acronym", "--out", str(out), "--quiet",
+                           "--object", "sphere")
+    assert code == 130 and not (out / "export-acronym.json").exists()
+    export(db, "acronym", out, "--object", "sphere", "--top", "2")
+    manifest = json.loads((out / "export-acronym.json").read_text())
+    assert [f["path"] for r in manifest["earlier"] for f in r["files"]] == ["box__panda.h5"]
+    assert [p.name for p in out.iterdir() if p.name.startswith(".")] == []

@@ -82,3 +82,41 @@ def test_db_check_of_a_truncated_or_damaged_file_says_what_to_do(box_db: Path, t
     code, out, err = grasp("db", "check", "--db", str(damaged))
     assert code == 3 and f"{damaged}: integrity check failed (1 problem, listed on stdout)" in err, err
     assert out.strip()
+
+
+def test_a_wal_beside_a_file_that_is_not_sqlite_is_not_replayed_into_it(box_db: Path, tmp_path: Path) -> None:
+    """A killed writer's -wal, the database since replaced by another file: SQLite, left to see what the file is
+    when it opened it, replayed the WAL into the file first (100 kB of notes cut to 76 kB, the WAL removed) and
+    `grasp best` said "database disk image is malformed ... nothing was changed"."""
+    path = tmp_path / "g.db"
+    path.write_bytes(box_db.read_bytes())
+    writer = sqlite3.connect(path, isolation_level=None)
+    writer.execute("PRAGMA journal_mode = WAL")
+    writer.execute("PRAGMA wal_autocheckpoint = 0")
+    writer.execute("CREATE TABLE extra (x)")  # the schema is on the first page: it is in the WAL
+    wal = path.with_name("g.db-wal").read_bytes()
+    writer.close()
+    path.with_name("g.db-wal").write_bytes(wal)
+    notes = b"my notes\n" * 12_000
+    path.write_bytes(notes)
+    for readonly in (True, False):
+        with pytest.raises(DatabaseError, match=f"^{path}: not an SQLite database; pick another --db path$"):
+            open_db(path, create=False, readonly=readonly)
+    assert path.read_bytes() == notes
+    assert path.with_name("g.db-wal").read_bytes() == wal
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.db", "g.db-wal"]
+
+
+@pytest.mark.parametrize("name", ["runs?1.db", "a#b.db", "100%20.db"])
+def test_a_database_whose_name_has_uri_characters_is_that_file(box_db: Path, tmp_path: Path, name: str) -> None:
+    """SQLite's URI took "runs?1.db" for "runs" (and "100%20.db" for "100 .db"): a reader said "not a grasp
+    database (no schema)" of a good database and left an empty "runs" beside it; a writer wrote into "runs"."""
+    from planner.db.store import open_for_writing
+
+    path = tmp_path / name
+    path.write_bytes(box_db.read_bytes())
+    with open_db(path, create=False, readonly=True) as db:
+        assert db.object_names() == ["box"]
+    with open_for_writing(path, create=False) as db:
+        assert db.object_names() == ["box"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([name, f"{name}.lock"])
