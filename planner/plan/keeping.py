@@ -8,9 +8,9 @@ The squeeze's end is where the closing of a real jaw on a free object ends (the 
 until the wall lies flat on both): the turned hand, closed there from its parent's opening (its open joints, a
 posture to approach in), whose contacts ARE force closure as planned. It is kept beside its parent, which stays as
 planned, with the parent's candidate fields (preshape, candidate, approach ray, roll, standoff; the two share the
-unit and the candidate number) and how far it turned (``squeezed_from_turn``); every measure is computed at it as at any grasp of the
-sweep (its own squeeze: force closure as planned, not turned). Only the sweep keeps it: the importer's re-scoring
-(:mod:`planner.datasets.importer`) keeps exactly the poses it is given.
+unit and the candidate number) and how far it turned (``squeezed_from_turn``); every measure is computed at it as
+at any grasp of the sweep (its own squeeze: force closure as planned, not turned). Only the sweep keeps it: the
+importer's re-scoring (:mod:`planner.datasets.importer`) keeps exactly the poses it is given.
 """
 
 from __future__ import annotations
