@@ -86,9 +86,9 @@ class Ledger:
 @contextmanager
 def instrumented(ledger: Ledger) -> Iterator[None]:
     """The unit module's candidate loop and pieces reporting to ``ledger`` while inside."""
-    from planner.plan import measures, unit
+    from planner.plan import keeping, measures, unit
 
-    saved = {"_tried": unit._tried, "squeezed": unit.squeezed, "measure": unit.measure}
+    saved = {"_tried": unit._tried, "squeezed": keeping.squeezed, "measure": keeping.measure}
     resistances = measures.resistances
 
     def tried(todo, budget, result, report):  # type: ignore[no-untyped-def]
@@ -98,13 +98,13 @@ def instrumented(ledger: Ledger) -> Iterator[None]:
         ledger.end(result)
 
     unit._tried = tried
-    unit.squeezed = ledger.timed("squeeze", saved["squeezed"])
-    unit.measure = ledger.timed("measure", saved["measure"])
+    keeping.squeezed = ledger.timed("squeeze", saved["squeezed"])  # the keeper squeezes and measures (a unit's
+    keeping.measure = ledger.timed("measure", saved["measure"])  # closed grasps and its squeezes' ends)
     measures.resistances = ledger.timed("resist", resistances)
     try:
         yield
     finally:
-        unit._tried, unit.squeezed, unit.measure = saved["_tried"], saved["squeezed"], saved["measure"]
+        unit._tried, keeping.squeezed, keeping.measure = saved["_tried"], saved["squeezed"], saved["measure"]
         measures.resistances = resistances
 
 

@@ -234,7 +234,8 @@ def save_sheet(panels: list[tuple[list[View], str]], out: Path) -> None:
 
 def title(grasp: Grasp) -> str:
     """The picture's caption: what ``grasp best`` heads a grasp with, short. A grasp force closure only once
-    squeezed read "epsilon 0.0000" with a score near 1 and nothing saying why it ranks so high."""
+    squeezed read "epsilon 0.0000" with a score near 1 and nothing saying why it ranks so high; a squeeze's end
+    (:mod:`planner.plan.keeping`) read as any grasp force closure, beside its parent's picture nearly the same."""
     reach = "not computed" if grasp.reachability is None else f"{grasp.reachability:.2f}"
     m = grasp.measures
     extra = "" if m is None else (f", holds {times_weight(m.resist_worst)}x its weight, push {m.push:.2f}"
@@ -242,6 +243,9 @@ def title(grasp: Grasp) -> str:
     closure = "force closure" if grasp.force_closure else "NOT force closure"
     if not grasp.force_closure and m is not None and m.squeezed_force_closure:
         closure += f" as planned, force closure once squeezed, turned {math.degrees(m.squeeze_turn or 0.0):.1f} deg"
+    if grasp.squeezed_from_turn is not None:  # read just "force closure", in a picture its parent's nearly is
+        closure += (f", a squeeze's end: turned {math.degrees(grasp.squeezed_from_turn):.1f} deg from candidate "
+                    f"{grasp.candidate}'s planned grasp")
     p_hold = "" if grasp.p_hold is None else f"p_hold {probability(grasp.p_hold)}, "
     return (f"#{grasp.rank} {grasp.object}/{grasp.hand} {grasp.preshape}: {p_hold}score {score_text(grasp.score)}, "
             f"epsilon {grasp.epsilon:.4f} ({closure}), reach {reach}, {len(grasp.contacts)} contacts{extra}")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import sqlite3
 import subprocess
 import sys
+from contextlib import closing
 from pathlib import Path
 
 import pytest
@@ -77,7 +78,10 @@ def test_db_check_of_a_truncated_or_damaged_file_says_what_to_do(box_db: Path, t
     assert cut.read_bytes() == box_db.read_bytes()[:3000]
     damaged = tmp_path / "damaged.db"
     data = bytearray(box_db.read_bytes())
-    data[-3 * 4096:-2 * 4096] = bytes(range(256)) * 16
+    with closing(sqlite3.connect(f"file:{box_db}?mode=ro", uri=True)) as conn:  # a page of grasps, not the schema's
+        page = conn.execute("SELECT MAX(pageno) FROM dbstat WHERE name = 'grasps' AND pagetype = 'leaf'").fetchone()[0]
+        size = conn.execute("PRAGMA page_size").fetchone()[0]
+    data[(page - 1) * size:page * size] = bytes(range(256)) * (size // 256)
     damaged.write_bytes(bytes(data))
     code, out, err = grasp("db", "check", "--db", str(damaged))
     assert code == 3 and f"{damaged}: integrity check failed (1 problem, listed on stdout)" in err, err

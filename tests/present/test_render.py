@@ -227,3 +227,18 @@ def test_the_centre_of_mass_is_marked_where_it_projects(db: Path, tmp_path: Path
         save_sheet([([View(blank, np.zeros((0, 2)), com)], "")], tmp_path / f"{name}.png")
         dark.append(int((mpimg.imread(tmp_path / f"{name}.png")[..., :3].max(axis=-1) < 0.2).sum()))
     assert dark[0] > 50 and dark[1] == 0
+
+
+def test_the_title_of_a_squeezes_end_says_so(db: Path) -> None:
+    """A squeeze's end (planner.plan.keeping) was captioned "epsilon ... (force closure)" as any grasp, beside its
+    parent's picture of nearly the same pose, which said it turned: the end's title names the turn and its parent."""
+    from dataclasses import replace
+
+    from planner.db.store import open_db
+    from planner.present.render import title
+
+    with open_db(db, readonly=True) as d:
+        planned = d.best("box", "panda", 1)[0]
+    end = replace(planned, squeezed_from_turn=np.radians(12.5))
+    assert "squeeze" not in title(planned)
+    assert f"a squeeze's end: turned 12.5 deg from candidate {planned.candidate}'s planned grasp" in title(end)
