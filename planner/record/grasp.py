@@ -181,8 +181,12 @@ class Grasp:
     squeezed_from_turn: float | None = stored("real", "rad", 15, "where the grasp is the end of a self-centring "
                                               "parallel jaw's squeeze (`planner/plan/squeeze.py`) of the planned "
                                               "grasp of the same unit and candidate, whose contacts are not force "
-                                              "closure: the angle the hand turned from that planned pose; null: "
-                                              "closed where it was planned", required=False, default=None)
+                                              "closure: the angle the hand turned from that planned pose (it "
+                                              "closes there from its parent's opening: its open joints are a "
+                                              "pre-grasp posture; it carries its parent's candidate fields, the ray "
+                                              "its parent was planned along: send its pose, never rebuild it from "
+                                              "the ray); null: closed where it was planned", required=False,
+                                              default=None)
     id: int | None = stored("int", "", 1, "`grasps.id` in the database", key=True, default=None)
     unit_id: int | None = stored("int", "", 1, "the unit of work that produced the grasp", default=None)
     score: float | None = stored("real", "", 1, "ranking score (`meta.ranking` says how)", default=None)
