@@ -337,47 +337,44 @@ def test_a_second_ctrl_c_while_an_interrupted_run_shuts_down_keeps_exit_130(seco
     line, ended the process by SIGINT (exit -2) or with an "Exception ignored" traceback, not exit 130; a second
     SIGTERM left that traceback too. Now either ends it at once, with 130."""
     import signal
-    import subprocess
 
-    from processes import STARTUP, env
 
     shutting = HELD_PARSE.replace("from planner.cli import run", "import atexit\natexit.register(lambda: (print("
                                   "'shutting down', file=sys.stderr, flush=True), time.sleep(3)))\n"
                                   "from planner.cli import run")
-    run = subprocess.Popen([sys.executable, "-c", shutting, "hands"], env=env(), stderr=subprocess.PIPE, text=True)
+    assert _signalled_twice(shutting, "shutting down\n", getattr(signal, second)) == (130, "")
+
+
+def _signalled_twice(script: str, marker: str, second: int) -> tuple[int, str]:
+    """`grasp hands` run by ``script``: SIGINT once it parses, ``second`` once it printed ``marker`` after the
+    interrupted line; its exit code and the rest of its stderr."""
+    import signal
+    import subprocess
+
+    from processes import STARTUP, env
+
+    run = subprocess.Popen([sys.executable, "-c", script, "hands"], env=env(), stderr=subprocess.PIPE, text=True)
     try:
         assert run.stderr is not None and run.stderr.readline() == "parsing\n"
         run.send_signal(signal.SIGINT)
         assert run.stderr.readline() == "grasp: interrupted; nothing was changed\n"
-        assert run.stderr.readline() == "shutting down\n"
-        run.send_signal(getattr(signal, second))
+        assert run.stderr.readline() == marker
+        run.send_signal(second)
         _, err = run.communicate(timeout=STARTUP)
     finally:
         run.kill()
-    assert (run.returncode, err) == (130, "")
+    return run.returncode, err
 
 
 def test_a_second_ctrl_c_while_python_tears_the_modules_down_keeps_exit_130() -> None:
     """Past the exit hooks Python put back the default action of SIGINT: a second Ctrl-C while it tore the modules
     down (0.05-0.2 s after the first, `grasp generate ... --workers 2`) ended the run by SIGINT, exit -2."""
     import signal
-    import subprocess
 
-    from processes import STARTUP, env
 
     late = HELD_PARSE.replace("from planner.cli import run", "import os\nclass Late:\n"
                               "    def __del__(self, write=os.write, sleep=time.sleep):\n"
                               "        write(2, b'tearing down\\n')\n        sleep(3)\n"
                               "late = Late()  # a global of __main__: deleted as the modules are torn down\n"
                               "from planner.cli import run")
-    run = subprocess.Popen([sys.executable, "-c", late, "hands"], env=env(), stderr=subprocess.PIPE, text=True)
-    try:
-        assert run.stderr is not None and run.stderr.readline() == "parsing\n"
-        run.send_signal(signal.SIGINT)
-        assert run.stderr.readline() == "grasp: interrupted; nothing was changed\n"
-        assert run.stderr.readline() == "tearing down\n"
-        run.send_signal(signal.SIGINT)
-        _, err = run.communicate(timeout=STARTUP)
-    finally:
-        run.kill()
-    assert (run.returncode, err) == (130, "")
+    assert _signalled_twice(late, "tearing down\n", signal.SIGINT) == (130, "")
