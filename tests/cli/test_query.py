@@ -97,6 +97,7 @@ def test_a_grasp_that_ranks_first_only_once_squeezed_says_why(box_db: Path) -> N
     assert any("NOT force closure as planned, force closure once squeezed" in x for x in lines), lines
     (why,) = [x for x in lines if "once the jaw's squeeze turns the object 20.1 deg" in x]
     assert "squeezed epsilon 0.0123" in why and "ranks with the force-closure grasps" in why
+    assert f"stored as a grasp of its own, candidate {top.candidate} too" in why  # where its end is (2026-12-07)
 
 
 def test_every_query_takes_the_database_name_of_a_stored_object(stored_db: Path, tmp_path: Path) -> None:
