@@ -40,8 +40,10 @@ grasp of an (object, hand). Every grasp whose contacts are force closure, as
 planned or as a self-centring parallel jaw's squeeze ends in (:data:`FIRST`;
 only the Panda squeezes), ranks above every grasp whose contacts are neither,
 whatever their scores (issue 26: a score that rewards what one simulator's
-closing happens to do must not lift a grasp that is not force closure);
-within each of the two, by score; ties are broken by epsilon, then GWS
+closing happens to do must not lift a grasp that is not force closure),
+but for a grasp force closure only once squeezed whose squeeze's end is
+stored as a grasp of its own: the end, force closure as planned, stands for
+it, and it ranks with the others; within each of the two, by score; ties are broken by epsilon, then GWS
 volume, then by the unit seed and candidate number, a planned grasp before its squeeze's end (never by
 insertion order).
 """
@@ -63,14 +65,42 @@ from planner.record.tolerances import MIN_CLOSE_MARGIN, MIN_OPEN_MARGIN
 if TYPE_CHECKING:
     from planner.record.grasp import Grasp
 
+#: The record attribute and measure name (1/0; NULL, None, absent: 0) of a grasp whose squeeze's end is stored as a
+#: grasp of its own beside it (the same unit and candidate, :mod:`planner.plan.keeping`: force closure as planned at the
+#: turned pose): :attr:`planner.record.grasp.Grasp.end_kept`, in SQL :func:`end_kept_sql`.
+END_KEPT = "end_kept"
 #: The measures (0/1, NULL: not measured) of which a 1 ranks a grasp above every grasp without one, whatever the
-#: scores (issue 26): force closure as planned, or as a parallel jaw's squeeze ends in (planner.plan.squeeze: where
-#: the planned contacts are not force closure, the free object would turn between the pads; on the 46 tuning files
-#: FleX held 68.5% of the closed poses that are force closure after the squeeze and 62.5% of the others, against
-#: 52.9% of those force closure as planned and 75.1% of the others, bench/RESULTS.md 2026-12-07).
-FIRST = ("force_closure", "squeezed_force_closure")
-#: :data:`FIRST` as SQL over the columns of ``grasps``: 1 for a grasp that ranks first, else 0 (NULL: 0).
-FIRST_SQL = f"MAX({', '.join(f'COALESCE({c}, 0)' for c in FIRST)})"
+#: scores (issue 26), each with the measure whose 1 takes that back ('' none): force closure as planned, or as a
+#: parallel jaw's squeeze ends in (planner.plan.squeeze: where the planned contacts are not force closure, the free
+#: object would turn between the pads; on the 46 tuning files FleX held 68.5% of the closed poses that are force
+#: closure after the squeeze and 62.5% of the others, against 52.9% of those force closure as planned and 75.1% of
+#: the others, bench/RESULTS.md 2026-12-07) unless that squeeze's end is stored (:data:`END_KEPT`): the end stands
+#: for it, and it ranks after every grasp that ranks first, by its score among the others (it ranked beside its end,
+#: p_hold within 0.0001-0.005: 9 of held_out_4's 470 top-10 Panda grasps were such parents, issue 26's "no top-10
+#: grasp whose planned contacts are not force closure"). A grasp force closure only once squeezed without a stored
+#: end (an import's: imports keep exactly the poses given) still ranks first. The SQL (:func:`first_sql`) and the
+#: records' order (:func:`ranks_first`) are both made from this.
+FIRST = {"force_closure": "", "squeezed_force_closure": END_KEPT}
+
+
+def end_kept_sql(table: str = "grasps") -> str:
+    """:data:`END_KEPT` of a row of ``table`` (``grasps`` or its alias) in SQL, 1 or 0: a squeeze's end of the same
+    unit and candidate is stored beside the grasp (the index ``grasps_candidate`` finds it; looked up only for a grasp
+    closed where planned and force closure once squeezed, the only kind whose end is kept)."""
+    return (f"CASE WHEN {table}.squeezed_from_turn IS NULL AND {table}.squeezed_force_closure = 1 THEN EXISTS (SELECT"
+            f" 1 FROM grasps e WHERE e.unit_id = {table}.unit_id AND e.candidate = {table}.candidate AND"
+            " e.squeezed_from_turn IS NOT NULL) ELSE 0 END")
+
+
+def first_sql(table: str = "grasps") -> str:
+    """:data:`FIRST` as SQL over a row of ``table`` (``grasps`` or its alias): 1 for a grasp that ranks first, else
+    0 (NULL: 0)."""
+    taken_back = {"": "", END_KEPT: f" * (1 - {end_kept_sql(table)})"}
+    return f"MAX({', '.join(f'COALESCE({table}.{c}, 0){taken_back[back]}' for c, back in FIRST.items())})"
+
+
+#: :func:`first_sql` of the ``grasps`` table itself.
+FIRST_SQL = first_sql()
 #: The last tie-break: a planned grasp before its squeeze's end (:mod:`planner.plan.keeping`: the same unit and
 #: candidate; it ties only where both score and epsilon alike).
 SQUEEZED_LAST = "squeezed_from_turn IS NOT NULL"
@@ -104,7 +134,8 @@ FORMULA = ("analytic = p_hold_trial where the hand's calibrated model updates p_
            " a measure not computed counts as neutral (reachability, success 1; robust quantile = epsilon);"
            " grasps stored without the analytic measures (before schema v3): gate 1, press 1,"
            " hold = force_closure;"
-           " rank: grasps force closure as planned or after a parallel jaw's squeeze first, then by score")
+           " rank: grasps force closure as planned or after a parallel jaw's squeeze first (but for one whose squeeze's"
+           " end is stored as a grasp of its own, which stands for it), then by score")
 
 
 @dataclass(frozen=True)
@@ -220,20 +251,23 @@ def _column(measures: Mapping[str, ArrayLike | None], name: str, instead: np.nda
 
 
 def ranks_first(measures: Mapping[str, ArrayLike | None]) -> np.ndarray:
-    """(n,) bool: the grasps a 1 in one of :data:`FIRST` ranks first (``measures`` by those names; NaN or None
-    or a measure not given: 0)."""
-    n = len(_column(measures, "force_closure"))
-    return np.any([_column(measures, name, np.zeros(n)) > 0 for name in FIRST], axis=0)
+    """(n,) bool: the grasps a 1 in one of :data:`FIRST` ranks first, unless its measure that takes it back is 1
+    (``measures`` by those names; NaN or None or a measure not given: 0)."""
+    zeros = np.zeros(len(_column(measures, "force_closure")))
+    return np.any([(_column(measures, name, zeros) > 0) & ~(_column(measures, back, zeros) > 0)
+                   for name, back in FIRST.items()], axis=0)
 
 
 def first_measures(grasps: Sequence[Grasp]) -> dict[str, list]:
-    """The measures of :data:`FIRST` of grasp records, by name (None: not measured)."""
-    return {name: fields.values(fields.by_name(name), grasps) for name in FIRST}
+    """The measures of :data:`FIRST` of grasp records, by name (None: not measured), and :data:`END_KEPT`."""
+    return {**{name: fields.values(fields.by_name(name), grasps) for name in FIRST},
+            END_KEPT: [g.end_kept for g in grasps]}
 
 
 def first_of(grasps: Sequence[Grasp]) -> list[bool]:
-    """Which grasp records rank first (:func:`ranks_first`: force closure as planned or once squeezed); what a
-    selection of "the grasps that rank first" keeps (``grasp validate --force-closure``, the viewer's filter)."""
+    """Which grasp records rank first (:func:`ranks_first`: force closure as planned, or once squeezed where that
+    squeeze's end is not stored beside it); what a selection of "the grasps that rank first" keeps (``grasp
+    validate --force-closure``, the viewer's filter)."""
     return ranks_first(first_measures(grasps)).tolist() if grasps else []
 
 

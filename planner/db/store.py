@@ -48,7 +48,7 @@ from planner.db.columns import (  # noqa: F401 - VECTOR_DIGITS, INERTIA_DIGITS, 
 from planner.db.failures import _reads, missing, read_failed, write_failed  # noqa: F401 - the failures re-exported
 from planner.db.header import cannot_open, check_header, uri
 from planner.db.lock import writer_lock
-from planner.db.ranking import RankingRule
+from planner.db.ranking import END_KEPT, RankingRule, end_kept_sql
 from planner.db.rows import ObjectRow, UnitRow, Validated  # noqa: F401 - re-exported
 from planner.db.schema import (
     EMPTY_V2_TABLES,
@@ -82,9 +82,10 @@ def _aliased(group: tuple[Field, ...]) -> str:
     return ", ".join(f"{_ALIAS[f.table]}.{f.column} AS {_ALIAS[f.table]}_{f.column}" for f in group)
 
 
-#: A grasp with its validation, MuJoCo trial and robust rows (``v_*``, ``mj_*``, ``r_*``).
+#: A grasp with its validation, MuJoCo trial and robust rows (``v_*``, ``mj_*``, ``r_*``) and whether its squeeze's
+#: end is stored beside it (``end_kept``: :func:`~planner.db.ranking.end_kept_sql`, 0 in a file before v15).
 _SELECT_GRASPS = f"""
-SELECT g.*, {_aliased(_TRIAL)}, {_aliased(_MUJOCO)}, {_aliased(_ROBUST)}
+SELECT g.*, {_aliased(_TRIAL)}, {_aliased(_MUJOCO)}, {_aliased(_ROBUST)}, {{end_kept}} AS {END_KEPT}
 FROM grasps g {{join}} {{validation}} v ON v.grasp_id = g.id LEFT JOIN {{mujoco}} mj ON mj.grasp_id = g.id
 LEFT JOIN {{robust}} r ON r.grasp_id = g.id
 """
@@ -275,7 +276,8 @@ class Database(Writing, UnitReads):
         names = {t: t if t in tables else empty for t, empty in {**EMPTY_V2_TABLES, **EMPTY_V7_TABLES}.items()}
         if "validation" in tables and "reason" not in column_names(self._conn, "validation"):
             names["validation"] = V2_VALIDATION
-        return _SELECT_GRASPS.format(join=join, **names)
+        ends = "squeezed_from_turn" in column_names(self._conn, "grasps")
+        return _SELECT_GRASPS.format(join=join, end_kept=end_kept_sql("g") if ends else "0", **names)
 
 
 def _grasps(rows: list[sqlite3.Row]) -> list[Grasp]:
@@ -288,6 +290,7 @@ def _grasps(rows: list[sqlite3.Row]) -> list[Grasp]:
     parts = {name: _parts(g.cls, fields.group(name), col, "" if g.table == "grasps" else f"{_ALIAS[g.table]}_", n)
              for name, g in fields.GROUPS.items()}
     own = {f.attr: f for f in _GRASPS if "." not in f.attr}
+    parts[END_KEPT] = [bool(v) for v in col[END_KEPT]]  # not a column: the record's all the same
     values = zip(*(parts[name] if name in parts else _own(own[name], col, n) for name in GRASP_FIELDS))
     return list(map(Grasp.restored, values))
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import logging
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 
 import numpy as np
@@ -75,6 +75,7 @@ class Keeper:
             return int(q.force_closure)
         again = squeezed(self.grasper, end[0], cand.preshape, end[1], self.score)  # force closure: not turned
         self._append(cand, end[0], ray, end[1], again, squeeze.turn)  # type: ignore[union-attr]
+        self.grasps[-2] = replace(self.grasps[-2], end_kept=True)  # the end stands for it in the rank
         return int(q.force_closure) + 1
 
     def score(self, contacts: HandContacts) -> quality.Quality | None:

@@ -137,6 +137,11 @@ class Grasp:
             protocol) and the robust epsilon.
         measures: weight resistance and feasibility (None: not measured, e.g.
             a grasp stored before schema version 3).
+        end_kept: True where the grasp's squeeze's end is kept as a grasp of its own beside it (the same unit and
+            candidate): the sweep's (:mod:`planner.plan.keeping`) and, read from a database, whether that end is
+            stored there (not a column: :func:`planner.db.ranking.end_kept_sql`); the end then stands for it in the
+            rank (:data:`planner.db.ranking.FIRST`). None: not known (an import's record before it is stored, one
+            made by hand): no end stands for it.
         p_hold: calibrated probability in [0, 1] that the grasp holds
             (:mod:`planner.calibration`), set by the database where it writes
             the scores (the hand's model applied to the record's measures);
@@ -203,6 +208,7 @@ class Grasp:
     mujoco: Trial | None = None
     robust: RobustEpsilon | None = None
     measures: Measures | None = None
+    end_kept: bool | None = None
 
     @property
     def trial(self) -> Trial | None:
