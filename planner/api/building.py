@@ -62,6 +62,7 @@ class Summary:
     candidates: int = 0
     grasps: int = 0
     force_closure: int = 0
+    ends: int = 0  # of force_closure, the squeezes' ends kept as grasps of their own (planner.plan.keeping)
     rejected: Counter = field(default_factory=Counter)
     seconds: float = 0.0
     per_object: list[dict] = field(default_factory=list)
@@ -71,8 +72,8 @@ class Summary:
 
     def to_json(self) -> dict:
         return {"units": self.units, "skipped": self.skipped, "finished_before": self.finished_before,
-                "failed": self.failed, "candidates": self.candidates,
-                "grasps": self.grasps, "force_closure": self.force_closure, "rejected": dict(self.rejected),
+                "failed": self.failed, "candidates": self.candidates, "grasps": self.grasps,
+                "force_closure": self.force_closure, "ends": self.ends, "rejected": dict(self.rejected),
                 "seconds": round(self.seconds, 3), "objects": self.per_object, "replaced": self.replaced}
 
 
@@ -378,11 +379,11 @@ def _tally(summary: Summary, result: UnitResult, seconds: float) -> None:
         summary.failed[name] = result.error
     summary.candidates += result.candidates
     summary.grasps += len(result.grasps)
-    summary.force_closure += result.force_closure
+    summary.force_closure, summary.ends = summary.force_closure + result.force_closure, summary.ends + result.ends
     summary.rejected.update(result.rejected)
     row = next((r for r in summary.per_object if r["object"] == name), None)
     if row is None:
-        row = {"object": name, "units": 0, "candidates": 0, "grasps": 0, "force_closure": 0, "seconds": 0.0,
+        row = {"object": name, "units": 0, "candidates": 0, "grasps": 0, "force_closure": 0, "ends": 0, "seconds": 0.0,
                "error": None, "mass": None, "friction": None, "density": None, "up": None}
         summary.per_object.append(row)
     if result.obj is not None:  # the values the grasps were measured at (flags, manifest, sidecar or defaults)
@@ -392,5 +393,6 @@ def _tally(summary: Summary, result: UnitResult, seconds: float) -> None:
     row["candidates"] += result.candidates
     row["grasps"] += len(result.grasps)
     row["force_closure"] += result.force_closure
+    row["ends"] += result.ends
     row["seconds"] = round(row["seconds"] + seconds, 3)
     row["error"] = row["error"] or result.error

@@ -169,6 +169,13 @@ def _console():  # type: ignore[no-untyped-def]
     return Console() if sys.stdout.isatty() else Console(width=400)
 
 
+def _closures(count: int, ends: int, long: bool = False) -> str:
+    """Force-closure grasps, saying how many of them are squeezes' ends kept beside their parents (not new
+    candidates: each is the turned pose of a planned grasp of the same candidate that is not force closure)."""
+    said = f"{ends} of them squeezes' ends, each beside its parent" if long else f"{ends} ends"
+    return f"{count} ({said})" if ends else str(count)
+
+
 def _print_summary(summary: api.Summary, db_path: Path) -> None:
     from rich.table import Table
 
@@ -179,12 +186,14 @@ def _print_summary(summary: api.Summary, db_path: Path) -> None:
     for row in summary.per_object:
         table.add_row(row["object"], "" if row["mass"] is None else f"{row['mass']:.4g}",
                       "" if row["friction"] is None else f"{row['friction']:.3g}", row["up"] or "", str(row["units"]),
-                      str(row["candidates"]), str(row["grasps"]), str(row["force_closure"]), f"{row['seconds']:.1f}",
+                      str(row["candidates"]), str(row["grasps"]), _closures(row["force_closure"], row["ends"]),
+                      f"{row['seconds']:.1f}",
                       "yes" if row["error"] else "")  # the error whole, once, on its own line below the table
     console = _console()
     console.print(table)
     console.print(f"candidates tried: {summary.candidates}, grasps with contacts: {summary.grasps}, "
-                  f"force-closure: {summary.force_closure}, skipped (already done): {summary.skipped}, "
+                  f"force-closure: {_closures(summary.force_closure, summary.ends, long=True)}, "
+                  f"skipped (already done): {summary.skipped}, "
                   f"time: {summary.seconds:.1f} s")
     if summary.finished_before:  # a resumed run's table lists only the objects it worked on
         console.print(f"finished by an earlier run, not in the table: {', '.join(summary.finished_before)}")

@@ -114,6 +114,11 @@ class UnitResult:
     def force_closure(self) -> int:
         return sum(g.force_closure for g in self.grasps)
 
+    @property
+    def ends(self) -> int:
+        """Of :attr:`force_closure`, the squeezes' ends kept as grasps of their own (:mod:`planner.plan.keeping`)."""
+        return sum(g.squeezed_from_turn is not None for g in self.grasps)
+
 
 #: report(done, total): ``done`` of the unit's ``total`` candidates are finished.
 Report = Callable[[int, int], None]
