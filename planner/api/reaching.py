@@ -108,7 +108,8 @@ def best_at(name: str, hand: str, object_pose: Sequence[float], *, db_path: Path
 
 def _first(found: Sequence[ReachableGrasp]) -> list[bool]:
     """Which of ``found`` rank first (:func:`planner.db.ranking.ranks_first`: force closure as planned or once a
-    parallel jaw's squeeze turns the object), as the database ranks them."""
+    parallel jaw's squeeze turns the object, unless that squeeze's end is kept beside it), as the database ranks
+    them."""
     from planner.db.ranking import first_of
 
     return first_of([r.grasp for r in found])

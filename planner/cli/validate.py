@@ -17,13 +17,14 @@ from planner.validation.mujoco_settings import DEFAULT_ENGINE, ENGINES
 @click.option("--object", "objects", multiple=True, help="Only these objects (repeat).")
 @click.option("--hand", "hands", multiple=True, help="Only these hands (repeat).")
 @click.option("--top", type=int, default=10, show_default=True,
-              help="Validate each object's K best grasps (grasps force closure as planned or once squeezed "
-                   "rank first).")
+              help="Validate each object's K best grasps (grasps force closure as planned, or once squeezed where "
+                   "that squeeze's end is not stored beside them, rank first).")
 @click.option("--sample", type=int, default=None,
               help="Instead: a uniform sample of N of each object's grasps, drawn with --seed.")
 @click.option("--all", "every", is_flag=True, help="Instead: every stored grasp.")
 @click.option("--force-closure", "closure_only", is_flag=True,
-              help="Of the grasps force closure as planned or once squeezed (those that rank first) only.")
+              help="Of the grasps that rank first only: force closure as planned, or once squeezed where that "
+                   "squeeze's end is not stored beside it (the end is tried for it).")
 @click.option("--robust", "robust_samples", type=click.IntRange(min=0), default=10, show_default=True,
               help="Noise samples for robust epsilon (0: skip).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of --sample and of the robust noise.")

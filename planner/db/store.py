@@ -276,7 +276,7 @@ class Database(Writing, UnitReads):
         names = {t: t if t in tables else empty for t, empty in {**EMPTY_V2_TABLES, **EMPTY_V7_TABLES}.items()}
         if "validation" in tables and "reason" not in column_names(self._conn, "validation"):
             names["validation"] = V2_VALIDATION
-        ends = "squeezed_from_turn" in column_names(self._conn, "grasps")
+        ends = {"squeezed_from_turn", "squeezed_force_closure"} <= column_names(self._conn, "grasps")
         return _SELECT_GRASPS.format(join=join, end_kept=end_kept_sql("g") if ends else "0", **names)
 
 

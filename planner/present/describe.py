@@ -130,13 +130,15 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
         lines.append(f"    holds {times_weight(m.resist_worst)} times its weight{capped} in the worst of {DIRECTIONS} "
                      f"directions (mean {times_weight(m.resist_mean)}); push {m.push:.2f} (1 = pads square on); "
                      f"feasibility {','.join(m.reasons) or 'ok'}{settled}")
-    if squeezed and m is not None:  # ranks first (planner.db.ranking.FIRST): say why, where it says NOT force closure
+    if squeezed and m is not None:  # where it ranks (planner.db.ranking.FIRST): say why, where it says NOT fc
         lines.append(f"    not force closure as planned, but force closure once the jaw's squeeze turns the object "
                      f"{math.degrees(m.squeeze_turn or 0.0):.1f} deg between the pads, flush against them (squeezed "
-                     f"epsilon {m.squeezed_epsilon or 0.0:.4f}; the pose above is the planned one): it ranks with the "
-                     "force-closure grasps, above every grasp that is neither; where the sweep kept that squeeze's "
-                     f"end, it is stored as a grasp of its own, candidate {g.candidate} too, force closure as planned "
-                     "at the turned pose (`grasp best` calls it the end of a parallel jaw's squeeze)")
+                     f"epsilon {m.squeezed_epsilon or 0.0:.4f}; the pose above is the planned one): "
+                     + (f"that squeeze's end is stored as a grasp of its own, candidate {g.candidate} too, force "
+                        "closure as planned at the turned pose (`grasp best` calls it the end of a parallel jaw's "
+                        "squeeze): it stands for this one, which ranks after every force-closure grasp" if g.end_kept
+                        else "it ranks with the force-closure grasps, above every grasp that is neither (no end of "
+                        "its squeeze is stored beside it)"))
     elif not g.force_closure:
         lines.append("    not force closure as planned: it ranks after every force-closure grasp of the object (and "
                      "every one force closure once a parallel jaw's squeeze turns the object; so it shows only where "

@@ -105,8 +105,8 @@ def untried_analytic(rule: RankingRule, grasps: Sequence[Grasp]) -> np.ndarray:
 
 def analytic_order(rule: RankingRule, sweep: Sequence[Grasp]) -> list[int]:
     """The ids of an object's ``sweep`` best first by :func:`untried_analytic`, those that rank first as the
-    database ranks them (:func:`planner.db.ranking.ranks_first`: force closure as planned or once squeezed) first,
-    ties by candidate, a planned grasp before its squeeze's end."""
+    database ranks them (:func:`planner.db.ranking.ranks_first`: force closure as planned, or once squeezed where no
+    end of that squeeze is stored) first, ties by candidate, a planned grasp before its squeeze's end."""
     score, first = untried_analytic(rule, sweep), ranks_first(first_measures(sweep))
     squeezed = np.array([g.squeezed_from_turn is not None for g in sweep])
     order = np.lexsort((squeezed, np.array([g.candidate for g in sweep]), -score, ~first))

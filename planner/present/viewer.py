@@ -72,7 +72,7 @@ class Filters:
 
     hand: str = ALL
     preshape: str = ALL
-    force_closure: str = ALL  # all | yes | no: force closure as planned or once squeezed (ranks first) or not
+    force_closure: str = ALL  # all | yes | no: ranks first (planner.db.ranking.FIRST) or not
     label: str = ALL  # all | held | dropped | not validated
 
     def keep(self, entry: Entry, first: bool) -> bool:
@@ -89,9 +89,11 @@ def filtered(entries: Sequence[Entry], filters: Filters) -> list[Entry]:
 
 
 def closure_text(g: Grasp) -> str:
-    """The grasp's force closure as the viewer lists it: as planned, once squeezed (it ranks first too) or not."""
+    """The grasp's force closure as the viewer lists it: as planned, once squeezed (it ranks first too, unless that
+    squeeze's end is stored beside it: planner.db.ranking.FIRST) or not."""
     squeezed = g.measures is not None and bool(g.measures.squeezed_force_closure)
-    return "yes" if g.force_closure else "once squeezed (not as planned)" if squeezed else "no"
+    end = ", its stored end ranks for it" if g.end_kept else ""
+    return "yes" if g.force_closure else f"once squeezed (not as planned{end})" if squeezed else "no"
 
 
 def measures_text(entry: Entry) -> str:

@@ -117,10 +117,10 @@ def _run_task(task: Task, out: TaskResult) -> None:
 
 @dataclass(frozen=True)
 class Selection:
-    """Which grasps of each object and hand: the ``top`` best (default; the grasps force closure as planned or
-    once squeezed rank first, :data:`planner.db.ranking.FIRST`, so they are such where the object has ``top`` of
-    them), a seeded uniform ``sample`` of that many, or ``every`` one; ``closure_only``: of those that rank first
-    only (:func:`planner.db.ranking.first_of`)."""
+    """Which grasps of each object and hand: the ``top`` best (default; the grasps force closure as planned, or
+    once squeezed where that squeeze's end is not stored beside them, rank first, :data:`planner.db.ranking.FIRST`,
+    so they are such where the object has ``top`` of them), a seeded uniform ``sample`` of that many, or ``every``
+    one; ``closure_only``: of those that rank first only (:func:`planner.db.ranking.first_of`)."""
 
     top: int = 10
     sample: int | None = None

@@ -28,6 +28,26 @@ def test_generate_json_summary(tmp_path: Path) -> None:
     assert summary["candidates"] == 6 * 2 * 2 and summary["units"] == 1
 
 
+def test_the_summary_says_how_many_force_closure_grasps_are_squeezes_ends(tmp_path: Path) -> None:
+    """The mug's force-closure grasps include the squeezes' ends kept beside their parents (planner.plan.keeping):
+    the table, the summary line and --json say how many, as the database holds them."""
+    db = tmp_path / "m.db"
+    mug = ("generate", "mug", "--hand", "panda", "--approaches", "60", "--rolls", "2", "--reach-placements", "0",
+           "--seed", "3", "--workers", "1")
+    code, out, err = grasp(*mug, "--db", str(db))
+    assert code == 0, err
+    with sqlite3.connect(db) as conn:
+        fc, ends = conn.execute("SELECT SUM(force_closure), SUM(squeezed_from_turn IS NOT NULL) FROM grasps").fetchone()
+    assert 0 < ends < fc
+    assert f"force-closure: {fc} ({ends} of them squeezes' ends, each beside its parent)" in " ".join(out.split())
+    assert f"{fc} ({ends} ends)" in out  # the object's row
+    code, out, err = grasp(*mug, "--db", str(tmp_path / "j.db"), "--json")
+    assert code == 0, err
+    summary = json.loads(out)
+    assert (summary["force_closure"], summary["ends"]) == (fc, ends) == (summary["objects"][0]["force_closure"],
+                                                                        summary["objects"][0]["ends"])
+
+
 def test_fc_budget_stops_an_object_early(tmp_path: Path) -> None:
     runs = {}
     for budget in ("0", "1"):

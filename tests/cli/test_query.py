@@ -83,7 +83,8 @@ def test_a_grasp_that_is_not_force_closure_says_what_that_means(box_db: Path) ->
 
 def test_a_grasp_that_ranks_first_only_once_squeezed_says_why(box_db: Path) -> None:
     """A Panda grasp not force closure as planned but force closure after the squeeze ranks with the force-closure
-    grasps (planner.db.ranking.FIRST): `grasp best` says so, not that it ranks after them."""
+    grasps (planner.db.ranking.FIRST): `grasp best` says so, not that it ranks after them; where that squeeze's end
+    is stored beside it, the end stands for it and it ranks after them: `grasp best` says that."""
     from dataclasses import replace
 
     from planner import api
@@ -97,7 +98,13 @@ def test_a_grasp_that_ranks_first_only_once_squeezed_says_why(box_db: Path) -> N
     assert any("NOT force closure as planned, force closure once squeezed" in x for x in lines), lines
     (why,) = [x for x in lines if "once the jaw's squeeze turns the object 20.1 deg" in x]
     assert "squeezed epsilon 0.0123" in why and "ranks with the force-closure grasps" in why
+    assert "no end of its squeeze is stored beside it" in why
+    lines = describe(replace(top, force_closure=False, epsilon=0.0, measures=squeezed, end_kept=True),
+                     hand_frame("panda"))
+    (why,) = [x for x in lines if "once the jaw's squeeze turns the object 20.1 deg" in x]
     assert f"stored as a grasp of its own, candidate {top.candidate} too" in why  # where its end is (2026-12-07)
+    assert "it stands for this one, which ranks after every force-closure grasp" in why  # and so it ranks
+    assert "ranks with the force-closure grasps" not in why
 
 
 def test_every_query_takes_the_database_name_of_a_stored_object(stored_db: Path, tmp_path: Path) -> None:

@@ -54,29 +54,38 @@ def test_report_prints_the_file_it_wrote(validated_db: Path, tmp_path: Path) -> 
 
 
 def test_validate_all_force_closure_tests_exactly_the_grasps_that_rank_first(tmp_path: Path) -> None:
-    """--force-closure: the grasps force closure as planned or once squeezed (planner.db.ranking.FIRST)."""
+    """--force-closure: the grasps force closure as planned or once squeezed (planner.db.ranking.FIRST), but not
+    one whose squeeze's end is stored beside it (the end is tried for it)."""
     import sqlite3
 
-    from planner.db.ranking import FIRST_SQL
+    from planner.db.ranking import FIRST_SQL, first_sql
 
     copy = tmp_path / "v.db"
     code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(copy), "--sampler", "surface", "--quiet",
                          *FAST)
     assert code == 0, err
-    with sqlite3.connect(copy) as conn:  # one not force closure as planned, force closure once squeezed
-        conn.execute("UPDATE grasps SET squeezed_force_closure = 1 WHERE id = (SELECT MIN(id) FROM grasps WHERE "
-                     "force_closure = 0)")
+    with sqlite3.connect(copy) as conn:  # two not force closure as planned, force closure once squeezed
+        squeezed = [i for (i,) in conn.execute("SELECT id FROM grasps WHERE force_closure = 0 ORDER BY id LIMIT 2")]
+        conn.execute(f"UPDATE grasps SET squeezed_force_closure = 1 WHERE id IN {tuple(squeezed)}")
+        columns = [c for (_, c, *_) in conn.execute("PRAGMA table_info(grasps)") if c != "id"]
+        copied = ", ".join("p.candidate" if c == "candidate" else "0.3" if c == "squeezed_from_turn" else f"e.{c}"
+                           for c in columns)  # the second's squeeze's end, stored: a force-closure grasp's copy
+        conn.execute(f"INSERT INTO grasps ({', '.join(columns)}) SELECT {copied} FROM grasps e, grasps p WHERE "
+                     "e.id = (SELECT MIN(id) FROM grasps WHERE force_closure = 1) AND p.id = ?", (squeezed[1],))
         total, closure, planned = conn.execute(f"SELECT COUNT(*), SUM({FIRST_SQL}), SUM(force_closure) "
                                                "FROM grasps").fetchone()
     assert 0 < planned < closure < total, "the box database should hold grasps of the three kinds"
+    assert closure == planned + 1, "one force closure once squeezed ranks first, the other's end stands for it"
     code, out, err = grasp("validate", "--db", str(copy), "--all", "--force-closure", "--robust", "0",
                            "--workers", "1", "--json")  # the default engine: MuJoCo's trial
     assert code == 0, err
     assert json.loads(out)["grasps"] == closure
     with sqlite3.connect(copy) as conn:
-        tested = conn.execute(f"SELECT {FIRST_SQL} FROM mujoco v JOIN grasps g ON g.id = v.grasp_id").fetchall()
+        tested = conn.execute(f"SELECT {first_sql('g')}, g.id FROM mujoco v JOIN grasps g ON g.id = v.grasp_id"
+                              ).fetchall()
         assert conn.execute("SELECT COUNT(*) FROM validation").fetchone() == (0,)
-    assert len(tested) == closure and all(fc == 1 for (fc,) in tested)
+    assert len(tested) == closure and all(fc == 1 for (fc, _) in tested)
+    assert squeezed[0] in {i for _, i in tested} and squeezed[1] not in {i for _, i in tested}
 
 
 @pytest.mark.parametrize("engine", ["mujoco", "pybullet"])
@@ -182,5 +191,7 @@ def test_the_help_says_which_grasps_force_closure_selects() -> None:
     code, out, err = grasp("validate", "--help")
     assert code == 0, err
     said = " ".join(out.split())
-    assert "Of the grasps force closure as planned or once squeezed (those that rank first) only." in said
-    assert "grasps force closure as planned or once squeezed rank first" in said
+    assert ("Of the grasps that rank first only: force closure as planned, or once squeezed where that squeeze's "
+            "end is not stored beside it (the end is tried for it)." in said)
+    assert ("grasps force closure as planned, or once squeezed where that squeeze's end is not stored beside them, "
+            "rank first" in said)

@@ -188,3 +188,78 @@ def test_a_grasp_force_closure_after_the_squeeze_ranks_with_the_force_closure_on
     assert first.tolist() == [True, True, False, False, False]
     assert rank_order(np.array([0.1, 0.2, 0.9, 0.8, 0.7]), first).tolist() == [1, 0, 2, 3, 4]
     assert ranks_first({"force_closure": [1, 0]}).tolist() == [True, False]  # the squeeze not given at all
+
+
+def test_a_grasp_whose_squeezes_end_is_kept_ranks_with_those_that_are_neither() -> None:
+    """Force closure only once squeezed ranks first unless that squeeze's end is kept as a grasp of its own
+    (planner.db.ranking.FIRST, END_KEPT): the end, force closure as planned, stands for it (issue 26). Not known
+    (None, NaN, not given): no end stands for it, as for an import's grasp."""
+    from planner.db.ranking import END_KEPT, rank_order, ranks_first
+
+    m = {"force_closure": [0, 0, 0, 1, 0], "squeezed_force_closure": [1, 1, 1, 1, 0],
+         END_KEPT: [True, None, np.nan, True, True]}
+    first = ranks_first(m)
+    assert first.tolist() == [False, True, True, True, False]
+    assert rank_order(np.array([0.9, 0.1, 0.2, 0.3, 0.8]), first).tolist() == [3, 2, 1, 0, 4]
+    assert ranks_first({"force_closure": [0], "squeezed_force_closure": [1]}).tolist() == [True]
+
+
+def _sweep(rows: list[tuple[bool, float, bool | None, bool]], first_candidate: int) -> list:
+    """Records as a sweep hands them over: per row (force closure as planned, epsilon, squeezed force closure or
+    None: not measured, whether its squeeze's end is kept: then the end follows, the same candidate, its parent
+    marked as the keeper marks it)."""
+    from dataclasses import replace
+
+    from helpers import made_up
+
+    from planner.plan.measures import Measures
+
+    out = []
+    for i, (fc, eps, squeezed, end) in enumerate(rows):
+        measures = Measures(3.0, 4.0, 0.01, 0.01, 1.0, (), squeezed_force_closure=squeezed)
+        g = replace(made_up(first_candidate + i, eps if fc else 0.0, fc=fc), measures=measures)
+        if end and squeezed and not fc:
+            out += [replace(g, end_kept=True),
+                    replace(g, epsilon=eps / 2, force_closure=True, squeezed_from_turn=0.3,
+                            measures=replace(measures, squeezed_force_closure=False))]
+        else:
+            out.append(g)
+    return out
+
+
+ROWS = st.lists(st.tuples(st.booleans(), st.floats(0.0, 0.2), st.sampled_from([None, False, True]), st.booleans()),
+                min_size=1, max_size=8)
+
+
+@given(ROWS, ROWS, st.integers(0, 3))
+@settings(max_examples=25, deadline=None)
+def test_the_database_and_the_records_rank_alike(tmp_path_factory: pytest.TempPathFactory, swept: list,
+                                                 imported: list, overlap: int) -> None:
+    """On random small databases (a sweep's unit with parents and their ends, an import's unit with the same
+    candidate numbers and no ends, squeezes not measured): the SQL order (grasps.rank, FIRST_SQL) and the records'
+    (Database.scored: rank_order of ranks_first) put the same (first, score) in the same places, and a record read
+    back knows whether its squeeze's end is stored."""
+    import dataclasses
+    import json
+    import sqlite3
+
+    from planner.db.ranking import FIRST_SQL, first_of
+    from planner.db.store import UnitRow, open_db
+
+    path = tmp_path_factory.mktemp("rank") / "g.db"
+    units = [_sweep(swept, 0), [dataclasses.replace(g, end_kept=None) for g in _sweep(imported, overlap)
+                                if g.squeezed_from_turn is None]]
+    with open_db(path) as db:
+        for chunk, grasps in enumerate(units):
+            db.write_unit(UnitRow("thing", "panda", "h" * 16, json.dumps({}), 5, chunk, None), None, grasps,
+                          RankingRule())
+        back = db.best("thing", "panda", 100)
+        ordered = db.scored([g for u in units for g in u], "panda")
+    python = [(f, g.score) for g, f in zip(ordered, first_of(ordered))]
+    with sqlite3.connect(path) as conn:
+        sql = [(bool(f), s) for f, s in conn.execute(f"SELECT {FIRST_SQL}, score FROM grasps ORDER BY rank")]
+    assert sql == python
+    kept = {(g.candidate, g.unit_id) for g in back if g.squeezed_from_turn is not None}
+    assert [g.end_kept for g in back] == [g.squeezed_from_turn is None and (g.candidate, g.unit_id) in kept
+                                          for g in back]
+    assert sum(g.end_kept for g in back) == sum(bool(g.end_kept) for g in units[0])

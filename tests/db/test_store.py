@@ -334,3 +334,27 @@ def test_a_reader_leaves_a_file_made_read_only_as_it_is_with_its_write_ahead_log
         assert db.meta("note") == "in the log"
     assert (kept.read_bytes(), os.stat(kept).st_mtime_ns) == before
     assert Path(f"{kept}-wal").stat().st_size > 0  # the log stays for a writer to take in
+
+
+def test_a_grasp_whose_squeezes_end_is_stored_ranks_after_every_force_closure_grasp(tmp_path: Path) -> None:
+    """A grasp force closure only once squeezed whose squeeze's end is stored beside it (the same unit and
+    candidate) ranks after every grasp that ranks first, its end standing for it, even where it scores above
+    them; it stays stored as it was. One without a stored end (an import's: another unit, the same candidate
+    number) still ranks with the force-closure grasps (issue 26)."""
+    squeezed = Measures(3.0, 4.0, 0.01, 0.01, 1.0, (), settled_epsilon=0.4, squeezed_force_closure=True)
+    parent = replace(made_up(0, 0.0, fc=False), measures=squeezed)  # the top score
+    end = replace(made_up(0, 0.02), squeezed_from_turn=0.3, measures=replace(squeezed, squeezed_force_closure=False,
+                                                                             settled_epsilon=0.0))
+    other = replace(made_up(1, 0.01), measures=replace(squeezed, settled_epsilon=0.0))  # force closure, lowest
+    neither = replace(made_up(2, 0.0, fc=False), measures=replace(squeezed, squeezed_force_closure=False))
+    with open_db(tmp_path / "g.db") as db:
+        db.write_unit(unit(), None, [parent, end, other, neither], RankingRule())
+        back = db.best("thing", "panda", 10)
+        assert [(g.candidate, g.squeezed_from_turn is not None) for g in back] == [(0, True), (1, False),
+                                                                                     (0, False), (2, False)]
+        assert back[2].score > back[0].score and back[2].measures == squeezed  # as stored, measures and all
+        db.write_unit(unit(chunk=1), None, [parent], RankingRule())  # the import's: no end beside it
+        back = db.best("thing", "panda", 10)
+        assert [(g.unit_id, g.candidate, g.squeezed_from_turn is not None) for g in back][:2] == [
+            (back[0].unit_id, 0, False), (back[1].unit_id, 0, True)] and back[0].unit_id != back[1].unit_id
+        assert [g.end_kept for g in back] == [False, False, False, True, False]

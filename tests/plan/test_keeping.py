@@ -28,3 +28,14 @@ def test_a_squeezes_end_opens_as_its_parent_does(mug_grasps: list) -> None:
         parent, end = mug_grasps[i - 1], mug_grasps[i]
         assert end.open_joints == parent.open_joints
         assert hand.opening(hand.full_configuration(end.open_joints)) - end.width >= FINGER_CLEARANCE
+
+
+def test_a_parent_knows_its_squeezes_end_is_kept(mug_grasps: list) -> None:
+    """The grasp planned before each kept end (its parent: the same candidate, not force closure, force closure once
+    squeezed) says so (``end_kept``, planner.db.ranking.FIRST: the end stands for it in the rank, also in a query's
+    grasps planned on the spot and never stored); no other grasp does."""
+    parents = {i - 1 for i, g in enumerate(mug_grasps) if g.squeezed_from_turn is not None}
+    assert parents and [i for i, g in enumerate(mug_grasps) if g.end_kept] == sorted(parents)
+    for i in parents:
+        parent, end = mug_grasps[i], mug_grasps[i + 1]
+        assert parent.candidate == end.candidate and not parent.force_closure and parent.measures.squeezed_force_closure

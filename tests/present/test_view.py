@@ -102,7 +102,8 @@ def test_filters_select_by_field(box_db: Path) -> None:
 
 def test_the_force_closure_filter_keeps_what_ranks_first() -> None:
     """The force-closure filter keeps the grasps force closure as planned or once squeezed
-    (planner.db.ranking.FIRST), and the measures say which of the two."""
+    (planner.db.ranking.FIRST), and the measures say which of the two; one whose squeeze's end is stored beside it
+    ranks with the others (the end stands for it)."""
     from dataclasses import replace
 
     from planner.present.viewer import Entry, measures_text
@@ -117,6 +118,10 @@ def test_the_force_closure_filter_keeps_what_ranks_first() -> None:
     assert filtered(entries, Filters(force_closure="no")) == entries[2:]
     assert "| force closure | once squeezed (not as planned) |" in measures_text(entries[1])
     assert "| force closure | no |" in measures_text(entries[2])
+    parent = [Entry(replace(grasps[1], end_kept=True), lambda: None)]  # type: ignore[arg-type,return-value]
+    assert filtered(parent, Filters(force_closure="yes")) == []  # its squeeze's end is stored: it stands for it
+    assert filtered(parent, Filters(force_closure="no")) == parent
+    assert "| force closure | once squeezed (not as planned, its stored end ranks for it) |" in measures_text(parent[0])
 
 
 def _free_port() -> int:
