@@ -358,3 +358,25 @@ def test_a_grasp_whose_squeezes_end_is_stored_ranks_after_every_force_closure_gr
         assert [(g.unit_id, g.candidate, g.squeezed_from_turn is not None) for g in back][:2] == [
             (back[0].unit_id, 0, False), (back[1].unit_id, 0, True)] and back[0].unit_id != back[1].unit_id
         assert [g.end_kept for g in back] == [False, False, False, True, False]
+
+
+def test_a_database_ranked_the_earlier_way_is_ranked_again_at_the_next_write(tmp_path: Path) -> None:
+    """A database whose grasps were ranked before a stored squeeze's end stood for its parent (its ``meta.ranking``
+    holds the earlier formula): the next ``generate`` or ``import`` (:meth:`Database.apply_rule`) re-ranks it."""
+    squeezed = Measures(3.0, 4.0, 0.01, 0.01, 1.0, (), settled_epsilon=0.4, squeezed_force_closure=True)
+    parent = replace(made_up(0, 0.0, fc=False), measures=squeezed)
+    end = replace(made_up(0, 0.02), squeezed_from_turn=0.3, measures=replace(squeezed, squeezed_force_closure=False))
+    path = tmp_path / "g.db"
+    with open_db(path) as db:  # as `grasp generate` writes: the rule, then the unit
+        db.apply_rule(RankingRule())
+        db.write_unit(unit(), None, [parent, end, made_up(1, 0.01)], RankingRule())
+    with sqlite3.connect(path) as conn:  # as the earlier version left it: its formula, the parent first
+        stored = json.loads(conn.execute("SELECT value FROM meta WHERE key = 'ranking'").fetchone()[0])
+        stored["formula"] = stored["formula"].replace(" (but for one whose squeeze's end is stored as a grasp of its "
+                                                      "own, which stands for it)", "")
+        conn.execute("UPDATE meta SET value = ? WHERE key = 'ranking'", (json.dumps(stored, sort_keys=True),))
+        conn.execute("UPDATE grasps SET rank = 1 + candidate + (squeezed_from_turn IS NOT NULL) + (candidate = 1)")
+    with open_db(path) as db:
+        assert [g.force_closure for g in db.best("thing", "panda", 10)] == [False, True, True]
+        assert db.apply_rule(RankingRule())
+        assert [(g.candidate, g.force_closure) for g in db.best("thing", "panda", 10)][2] == (0, False)

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from planner.db.ranking import END_KEPT
 from planner.db.schema import MIGRATIONS, SCHEMA, SCHEMA_VERSION
 from planner.record.field import KINDS, stored
 from planner.record.fields import (
@@ -68,9 +69,10 @@ def test_flat_names_are_unique_and_every_stored_attribute_is_declared() -> None:
     for cls, group in ((Grasp, ""), (Measures, "measures.")):
         attrs = {f.name for f in dataclasses.fields(cls) if "stored" in f.metadata}
         assert {group + a for a in attrs} <= {f.attr for f in record_fields()}
-    # the record's parts that are not stored fields themselves are the groups
-    assert {f.name for f in dataclasses.fields(Grasp) if "stored" not in f.metadata} == set(GROUPS) == {
-        "validation", "mujoco", "robust", "measures"}
+    # the record's parts that are not stored fields themselves are the groups, and whether its squeeze's end is
+    # stored beside it, which the store derives as it reads (planner.db.ranking.end_kept_sql), never a column
+    assert {f.name for f in dataclasses.fields(Grasp) if "stored" not in f.metadata} == {*GROUPS, END_KEPT}
+    assert set(GROUPS) == {"validation", "mujoco", "robust", "measures"}
 
 
 def test_each_trial_protocol_has_its_own_columns_and_ranked_name() -> None:
