@@ -63,7 +63,9 @@ a parallel jaw's squeeze stored as three measures beside the grasp as planned, d
 force closure after the squeeze ranks with the force-closure ones: the digest of COLUMNS, made without the shipped
 models, is 23's; with the Panda's shipped p_hold model 5 of its 19 ranks differ, nothing else); 25 (issue 26: a
 squeeze's end kept as a grasp of its own where it ends force closure, its parent unchanged: COLUMNS and the squeeze
-of the grasps closed where planned are digested as before, the squeezes' ends apart, ``squeezed``).
+of the grasps closed where planned are digested as before, the squeezes' ends apart, ``squeezed``); 26 (issue 24:
+a squeeze's end is its squeeze's last closing, opened as its parent, not closed once more from there: COLUMNS, the
+squeeze and the number of ends as in 25, only the ends' values differ).
 """
 
 from __future__ import annotations
