@@ -334,3 +334,23 @@ def test_a_reader_leaves_a_file_made_read_only_as_it_is_with_its_write_ahead_log
         assert db.meta("note") == "in the log"
     assert (kept.read_bytes(), os.stat(kept).st_mtime_ns) == before
     assert Path(f"{kept}-wal").stat().st_size > 0  # the log stays for a writer to take in
+
+
+def test_a_stored_p_hold_is_the_one_its_stored_grasp_gives(tmp_path: Path, shipped_models: None) -> None:
+    """p_hold was computed from the record before its pose and contacts were rounded as stored: up to 1e-5 off
+    what the stored grasp gives (the mug's 1,952: every one), so an import of its own ACRONYM export, or a
+    re-score, changed p_hold and swapped ranks. Stored as the stored grasp gives it, to the last bits."""
+    from helpers import FAST, grasp
+
+    from planner.calibration import features
+
+    db_path = tmp_path / "g.db"
+    code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(db_path), "--quiet", *FAST)
+    assert code == 0, err
+    with open_db(db_path, create=False, readonly=True) as db:
+        grasps = db.best("box", "panda", 100_000)
+        model = db.model("panda")
+    assert model is not None and len(grasps) >= 3
+    again = model.predict(features.of_grasps(grasps))
+    ulps = 1e-12  # a batch of other rows (the unit's, in its order) moves a BLAS product's last bits
+    np.testing.assert_allclose(again, [g.p_hold for g in grasps], rtol=0, atol=ulps)
