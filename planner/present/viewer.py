@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import math
 import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -89,8 +90,13 @@ def filtered(entries: Sequence[Entry], filters: Filters) -> list[Entry]:
 
 
 def closure_text(g: Grasp) -> str:
-    """The grasp's force closure as the viewer lists it: as planned, once squeezed (it ranks first too) or not."""
+    """The grasp's force closure as the viewer lists it: as planned, once squeezed (it ranks first too) or not; a
+    squeeze's end says whose end it is (it read "yes" alone, beside its parent of the same candidate number, as
+    `grasp best` and `grasp show` say)."""
     squeezed = g.measures is not None and bool(g.measures.squeezed_force_closure)
+    if g.squeezed_from_turn is not None:
+        return (f"yes, a squeeze's end: turned {math.degrees(g.squeezed_from_turn):.1f} deg from candidate "
+                f"{g.candidate}'s planned grasp")
     return "yes" if g.force_closure else "once squeezed (not as planned)" if squeezed else "no"
 
 
