@@ -169,3 +169,21 @@ def test_a_reader_of_a_file_being_created_says_so(tmp_path: Path) -> None:
         api.best("box", "panda", db_path=db)
     with pytest.raises(DatabaseError, match=r"new.db: not a grasp database \(no schema\)"):
         api.best("box", "panda", db_path=db)
+
+
+def test_best_while_a_run_writes_the_object_says_so(box_db: Path, tmp_path: Path) -> None:
+    """`grasp best duck` while `grasp generate duck` was writing the database, none of its units finished yet,
+    said "run `grasp generate duck --hand panda --db ...`": the very run that was going on. It says who writes."""
+    import shutil
+
+    from planner import api
+    from planner.db.lock import writer_lock
+    from planner.errors import InputError
+
+    db = tmp_path / "g.db"
+    shutil.copy(box_db, db)
+    with writer_lock(db), pytest.raises(InputError, match=r"no grasps of 'sphere' for hand 'panda' in .*g.db yet: "
+                                                          r"pid \d+.* is writing it; try again once a unit"):
+        api.best("sphere", "panda", db_path=db)
+    with pytest.raises(InputError, match=r"no grasps of 'sphere' .* run `grasp generate sphere"):
+        api.best("sphere", "panda", db_path=db)
