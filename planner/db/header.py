@@ -83,7 +83,6 @@ def no_schema(path: Path, conn: sqlite3.Connection | None = None) -> DatabaseErr
 
     if conn is not None:
         conn.close()
-
     owner = writer_of(path)
     if owner is not None:
         return DatabaseError(f"{path}: being created by {owner.describe()}; no grasp is in it yet: try again once "
