@@ -25,9 +25,38 @@ from planner.geometry.solid import load_object
 from planner.plan import grip
 from planner.plan.closing import Closed, Grasper
 from planner.plan.sweep import SweepSettings
+from planner.record.grasp import Grasp
 from planner.sim import Sim
-from planner.specs.hands import load_hand
-from planner.specs.preshapes import load_preshapes
+from planner.specs.hands import HandSpec, load_hand
+from planner.specs.preshapes import Preshape, load_preshapes
+from planner.threads import one_blas_thread
+
+
+def timed(hand: HandSpec, shapes: dict[str, Preshape], name: str, grasps: list[Grasp]) -> dict:
+    """CPU ms of object ``name``'s grip surface (once), and per grasp of closing at its pose and measuring its grip,
+    with one BLAS thread as a unit of work runs (:func:`planner.threads.one_blas_thread`: with the second
+    thread spinning on a loaded machine, the Barrett's grip measured more than it costs in a sweep)."""
+    obj = load_object(name)
+    closing = measuring = 0.0
+    n = 0
+    with one_blas_thread(), Sim() as sim:
+        grasper = Grasper.for_object(sim, hand, obj)
+        t0 = time.process_time()
+        surface = grip.GripSurface(obj.mesh, normals_at=grasper.normals_at())  # as a unit makes it
+        prepare = time.process_time() - t0
+        for g in grasps:
+            t0 = time.process_time()
+            closed = grasper.close_at(np.asarray(g.pose, float), shapes[g.preshape])
+            t1 = time.process_time()
+            if not isinstance(closed, Closed):
+                continue
+            grip.measure(hand, surface, closed.contacts, closed.link_poses or {}, obj.com)
+            t2 = time.process_time()
+            closing += t1 - t0
+            measuring += t2 - t1
+            n += 1
+    return {"hand": hand.name, "object": name, "grasps": n, "surface_ms": 1000 * prepare,
+            "close_ms": 1000 * closing / max(n, 1), "grip_ms": 1000 * measuring / max(n, 1)}
 
 
 def main() -> int:
@@ -51,27 +80,7 @@ def main() -> int:
             for name in args.objects:
                 with open_db(db, create=False, readonly=True) as d:
                     grasps = d.best(name, hand_name, 100_000)
-                obj = load_object(name)
-                closing = measuring = 0.0
-                n = 0
-                with Sim() as sim:
-                    grasper = Grasper.for_object(sim, hand, obj)
-                    t0 = time.process_time()
-                    surface = grip.GripSurface(obj.mesh, normals_at=grasper.normals_at())  # as a unit makes it
-                    prepare = time.process_time() - t0
-                    for g in grasps:
-                        t0 = time.process_time()
-                        closed = grasper.close_at(np.asarray(g.pose, float), shapes[g.preshape])
-                        t1 = time.process_time()
-                        if not isinstance(closed, Closed):
-                            continue
-                        grip.measure(hand, surface, closed.contacts, closed.link_poses or {}, obj.com)
-                        t2 = time.process_time()
-                        closing += t1 - t0
-                        measuring += t2 - t1
-                        n += 1
-                rows.append({"hand": hand_name, "object": name, "grasps": n, "surface_ms": 1000 * prepare,
-                             "close_ms": 1000 * closing / max(n, 1), "grip_ms": 1000 * measuring / max(n, 1)})
+                rows.append(timed(hand, shapes, name, grasps))
     if args.json:
         print(json.dumps(rows, indent=1))
     else:

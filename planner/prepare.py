@@ -39,6 +39,11 @@ def noted(subject: str, what: str) -> None:
     log.info("%s: %s", subject, what)
 
 
+def warned(line: str) -> None:
+    """A line the user must see even under ``--quiet``: logged as a warning (the CLI shows it bare on stderr)."""
+    log.warning("%s", line)
+
+
 class _Kept(logging.Handler):
     def __init__(self, lines: list[str]) -> None:
         super().__init__(logging.INFO)

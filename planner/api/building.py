@@ -35,7 +35,7 @@ from planner.plan.sweep import SweepSettings, candidate_count, check_sampler, ch
 from planner.specs.hands import load_hand
 from planner.specs.inputs import check_seed, expand
 from planner.specs.objects import resolve_spec
-from planner.specs.physical import NO_PHYSICAL, Physical
+from planner.specs.physical import NO_PHYSICAL, Physical, density_note
 from planner.specs.preshapes import load_preshapes, sweep_preshapes
 
 if TYPE_CHECKING:
@@ -343,6 +343,9 @@ def generate(names: Sequence[str], hand: str, *, db_path: Path = DEFAULT_DB, set
                 tally.finish(index[_unit_key(unit)])
                 tell(result)
         summary.replaced = replacing.removed
+    for row in summary.per_object:  # said by the library: under --quiet, --json and in the API it went unsaid
+        if row["density"] is not None and (note := density_note(row["object"], row["mass"], row["density"])):
+            prepare.warned(note)
     summary.seconds = time.perf_counter() - start
     return summary
 

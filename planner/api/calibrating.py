@@ -63,7 +63,7 @@ def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB,
     ``pybullet``), and the model gets how that trial's verdict updates
     p_hold (:mod:`planner.calibration.update`)."""
     from planner.calibration.fitting import calibrate as fit_calibration
-    from planner.calibration.labels import check_labelled, label_names, labelled
+    from planner.calibration.labels import check_labelled, check_objects, label_names, labelled
     from planner.calibration.model import DEFAULT_TREES
 
     if plot is not None and Path(plot).suffix.lower() != ".png":
@@ -78,7 +78,7 @@ def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB,
         if path is not None:
             check_output(Path(path), option)
     poses = poses or None  # 0: every pose, as `--poses 0` and the error for a negative count say
-    check_labelled(paths, poses=poses, hand=hand, trial=trial, engine=engine)
+    check_objects(paths, check_labelled(paths, poses=poses, hand=hand, trial=trial, engine=engine))
     # the database is opened (and locked) first: one that cannot take the model says so before the fit, not after
     with open_for_writing(Path(db_path)) if db_path is not None else contextlib.nullcontext() as db:
         data = labelled(paths, poses=poses, seed=seed, hand=hand, workers=workers, progress=progress, trial=trial,

@@ -49,10 +49,12 @@ def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: i
         key, obj = _stored(db, name, hand, "the picture")
         grasps = db.best(key, hand, count, first - 1) if spacing is None else \
             best(key, hand, db_path=db_path, top=first - 1 + count, spacing=spacing)[first - 1:]
+        stored = db.grasp_count(key, hand)
     if not grasps and first == 1:
         best(key, hand, db_path=db_path)  # raises, saying why the object has none
     if not grasps:
-        raise InputError(f"no grasp of rank {first} for '{key}' and hand '{hand}' in {db_path}")
+        raise InputError(f"no grasp of rank {first} for '{key}' and hand '{hand}' in {db_path}: it has {stored} "
+                         f"(--rank 1 to {stored})")
     views = [(render.grasp_views(spec, obj, g), render.title(g)) for g in grasps]
     with writing(Path(out), "--out"):
         render.save_sheet(views, Path(out))

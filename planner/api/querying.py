@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from planner.api.resolving import DEFAULT_DB, generate_command, resolve_object
+from planner.db.lock import writer_of
 from planner.db.ranking import RankingRule
 from planner.db.store import open_db
 from planner.errors import InputError
@@ -65,6 +66,10 @@ def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1, spac
                                  f"({candidates:,} candidates) kept none (rejected: {why or 'none'}{meaning}); try "
                                  "another hand or other sweep settings, or, if its sweep was cut short, "
                                  f"`{generate_command(name, row, hand, db_path)}` finishes it")
+            writer = writer_of(Path(db_path))
+            if writer is not None:  # it said "run `grasp generate ...`" of the very run that was writing it
+                raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path} yet: {writer.describe()} is "
+                                 "writing it; try again once a unit of it has finished")
             raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}; objects with grasps: "
                              f"{', '.join(known) or '(none)'}; run `{generate_command(name, row, hand, db_path)}`")
     return grasps

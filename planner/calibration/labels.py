@@ -124,7 +124,7 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
             objects[name] = object_properties(spec)
             tables.append(features.of_grasps([grasps[i] for i in order]))
             labels.append(y[rows[order]])
-            groups += [spec.source if spec.user_file else spec.name] * len(order)
+            groups += [group(spec)] * len(order)
             files += [name] * len(order)
         if progress:
             progress(path, len(order), len(rows))
@@ -192,6 +192,23 @@ def check_labelled(paths: Sequence[Path], *, poses: int | None, hand: str | None
     if engine not in TRIAL_GROUPS:
         raise InputError(f"--engine must be one of {', '.join(TRIAL_GROUPS)}; got '{engine}'")
     return file_hand(list(map(Path, paths)), hand)
+
+
+def check_objects(paths: Sequence[Path], hand: str) -> None:
+    """Refuse files of ``hand`` (:func:`check_labelled`'s) that are all of one object before any pose is closed
+    (calibration's folds are grouped by object: refused after every pose was closed, minutes on real files); a
+    file whose labels cannot be read is said first."""
+    objects = {group(importer.read_for_rescoring(Path(p), hand)[1]) for p in paths
+               if acronym.read_labels(Path(p)) is not None}
+    if len(objects) < 2:
+        raise InputError(f"calibration needs labelled grasps of at least 2 objects (folds grouped by object); "
+                         f"the {len(paths)} file(s) given are all of {objects.pop()}: add another object's files")
+
+
+def group(spec: ObjectSpec) -> str:
+    """A labelled grasp's group, for folds grouped by object: its mesh file (two scales of one file are one
+    object), or the built-in object's name."""
+    return spec.source if spec.user_file else spec.name
 
 
 def file_hand(paths: Sequence[Path], hand: str | None) -> str:

@@ -68,7 +68,8 @@ def export(db_path: Path, fmt: str, out_dir: Path, objects: tuple[str, ...], han
 @db_option
 @click.option("--hand", help="Hand name, when the file's gripper/type is not one (see `grasp hands`).")
 @click.option("--object", "object_name", metavar="NAME",
-              help="Built-in object name or mesh path (default: the file's object/name or object/file).")
+              help="Built-in object name or mesh path (default: the built-in its object/name names where that is its "
+                   "mesh, else its object/file, named by its object/name or else by the file's name without .h5).")
 @click.option("--rescore", is_flag=True, help="Re-close and re-score every pose even if the file has qualities.")
 @click.option("--up", help="The objects' up where a file gives none (object/up): +x -x +y -y +z -z; ACRONYM's own "
               "meshes stand on +y [default: the mesh file's, +z for an OBJ].")

@@ -12,9 +12,6 @@ from planner import api
 from planner.cli.app import db_option, echo_json, floats, per_second, report_failures, show_preparation, unused
 
 DEFAULTS = api.SweepSettings()
-#: [kg/m^3] from a foam (expanded polystyrene ~10) to osmium (22,590): an object's mass over its volume outside
-#: these is noted (a 5 mm bead at the default 0.2 kg: 3e6).
-PLAUSIBLE_DENSITY = (5.0, 23_000.0)
 
 
 @click.command(help=f"""Sweep preshapes x approaches x rolls x standoffs and store the grasps.
@@ -201,11 +198,3 @@ def _print_summary(summary: api.Summary, db_path: Path) -> None:
         console.print("rejected: " + ", ".join(f"{k} {v}" for k, v in sorted(summary.rejected.items())))
     if summary.replaced:
         console.print(f"replaced: {summary.replaced} grasps of the earlier sweeps removed (--replace)")
-    for row in summary.per_object:
-        if row.get("density") is not None and not PLAUSIBLE_DENSITY[0] <= row["density"] <= PLAUSIBLE_DENSITY[1]:
-            click.echo(f"note: {row['object']} weighs {row['mass']:.3g} kg in its volume: {row['density']:.3g} kg/m^3, "
-                       f"outside any solid's {PLAUSIBLE_DENSITY[0]:g}-{PLAUSIBLE_DENSITY[1]:,.0f} (the default is "
-                       f"{api.DEFAULT_MASS:g} kg); if that is not its weight, give --mass or --density (or a "
-                       "sidecar) and another --db" + ("; if its mesh is not in metres (a model scaled to 1 unit "
-                                                      "across), --scale" if row["density"] < PLAUSIBLE_DENSITY[0]
-                                                     else ""), err=True)

@@ -134,7 +134,8 @@ class ExportSummary:
 
 #: The export's manifest in DIR, one per format: moved aside before the export writes anything, written (atomically)
 #: after its last file, so that a folder holding it holds that export whole (a killed or failed export leaves none):
-#: what was exported, from which database, with which selection and labels, and each file with its grasps and bytes.
+#: what was exported, from which database, with which selection and labels, and each file with its grasps, bytes and
+#: sha256 (hex: an earlier export's file is still its own only where its content is).
 #: Its ``earlier`` lists the earlier exports of the format into DIR whose files are still there and this one did not
 #: write again (each such export as its own record, with those files only; none: []).
 MANIFEST = "export-{format}.json"
@@ -172,12 +173,32 @@ def _listed(f: object) -> bool:
     return not path.is_absolute() and ".." not in path.parts
 
 
+def _sha256(path: Path) -> str:
+    """The sha256 of a file's bytes, hex."""
+    import hashlib
+
+    digest = hashlib.sha256()
+    with path.open("rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _as_it_was(f: dict, out_dir: Path) -> bool:
+    """Whether a listed file is in ``out_dir`` as its export wrote it: its ``sha256`` (a file of the same size
+    written over it, another object's export of the same length, matched by size alone); a manifest written
+    before the hash was stored: its ``bytes``."""
+    path = out_dir / f["path"]
+    if not path.is_file() or path.stat().st_size != f["bytes"]:
+        return False
+    return "sha256" not in f or f["sha256"] == _sha256(path)
+
+
 def _still_there(records: list[dict], out_dir: Path, written: set[str]) -> list[dict]:
     """``records`` with only the files still in ``out_dir`` as they were and not written again (``written``)."""
     kept = []
     for r in records:
-        files = [f for f in r["files"] if _listed(f) and f["path"] not in written
-                 and (out_dir / f["path"]).is_file() and (out_dir / f["path"]).stat().st_size == f["bytes"]]
+        files = [f for f in r["files"] if _listed(f) and f["path"] not in written and _as_it_was(f, out_dir)]
         if files:
             kept.append({**r, "files": files, "grasps": sum(f["grasps"] for f in files)})
     return kept
@@ -194,7 +215,7 @@ def _manifest(summary: ExportSummary, out_dir: Path, db_path: Path, sel: Selecti
                             "min_epsilon": sel.min_epsilon, "label": sel.label,
                             "diverse": None if sel.spacing is None else {"translation": sel.spacing.translation,
                                                                          "rotation": sel.spacing.rotation}},
-              "files": [{"path": rel(p), "grasps": n, "bytes": p.stat().st_size}
+              "files": [{"path": rel(p), "grasps": n, "bytes": p.stat().st_size, "sha256": _sha256(p)}
                         for p, n in zip(summary.files, summary.counts)],
               "meshes": [rel(p) for p in summary.meshes], "notes": summary.notes}
     record["earlier"] = _still_there(earlier, out_dir, {f["path"] for f in record["files"]})

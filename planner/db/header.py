@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import shlex
 import sqlite3
-from contextlib import closing
+from collections.abc import Iterator
+from contextlib import closing, contextmanager
 from pathlib import Path
 from urllib.parse import quote
 
@@ -54,3 +55,36 @@ def cannot_open(path: Path, exc: sqlite3.DatabaseError) -> DatabaseError:
                              f"changed; restore it from a copy, `sqlite3 {shlex.quote(str(path))} .recover` saves what "
                              "it can)")
     return DatabaseError(f"{path}: cannot open database: {exc}")
+
+
+@contextmanager
+def nothing_left_if_refused(path: Path) -> Iterator[None]:
+    """A look at ``path`` that, refused (a :class:`DatabaseError`: a truncated or damaged file), leaves no ``-wal``
+    and ``-shm`` beside it that were not there before: SQLite's read-only opening of a WAL database makes both,
+    and cannot remove them when it closes (`generate` or `validate` of a truncated copy left an empty -wal and a
+    -shm; the file itself was unchanged). A -wal with something in it is kept: it may be someone's data."""
+    real = Path(path).resolve()
+    wal, shm = (real.with_name(real.name + side) for side in ("-wal", "-shm"))
+    there = wal.exists() or shm.exists()
+    try:
+        yield
+    except DatabaseError:
+        if not there and (not wal.exists() or wal.stat().st_size == 0):
+            wal.unlink(missing_ok=True)
+            shm.unlink(missing_ok=True)
+        raise
+
+
+def no_schema(path: Path, conn: sqlite3.Connection | None = None) -> DatabaseError:
+    """The error for a file without a grasp database's schema (an empty file among them), or, while a `grasp
+    generate` creates it, for a file whose schema is not written yet (a reader said "not a grasp database");
+    ``conn``, the reader's connection to it, is closed."""
+    from planner.db.lock import writer_of
+
+    if conn is not None:
+        conn.close()
+    owner = writer_of(path)
+    if owner is not None:
+        return DatabaseError(f"{path}: being created by {owner.describe()}; no grasp is in it yet: try again once "
+                             "its first unit is written")
+    return DatabaseError(f"{path}: not a grasp database (no schema); nothing was changed")

@@ -150,6 +150,18 @@ def writer_lock(db_path: Path) -> Iterator[Owner | None]:
         os.close(fd)
 
 
+def writer_of(db_path: Path) -> Owner | None:
+    """The live process writing ``db_path`` as its lock file names it (None: none, or no lock file to read). Read
+    without taking the lock: a reader must not make a starting writer refuse."""
+    real = Path(db_path).resolve()
+    try:
+        text = real.with_name(real.name + ".lock").read_text(errors="replace").strip()
+    except OSError:
+        return None
+    owner = Owner.parse(text) if text else None
+    return owner if owner is not None and owner.alive() else None
+
+
 def _lock(fd: int, db_path: Path) -> None:
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)

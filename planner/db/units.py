@@ -75,6 +75,12 @@ class UnitReads:
         return len(rows), sum(int(r["candidates"] or 0) for r in rows), rejected
 
     @_reads
+    def grasp_count(self, obj: str, hand: str) -> int:
+        """How many grasps of ``obj`` for ``hand`` are stored (the ranks there are: 1 to this)."""
+        return int(self._conn.execute("SELECT COUNT(*) FROM grasps WHERE object = ? AND hand = ?",
+                                      (obj, hand)).fetchone()[0])
+
+    @_reads
     def names_by_source(self) -> dict[tuple[str, float], list[str]]:
         """(source, scale) -> the names of the objects stored from that file at that scale."""
         out: dict[tuple[str, float], list[str]] = {}

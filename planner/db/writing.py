@@ -217,7 +217,9 @@ class Writing:
         p_trial: list = [None] * len(grasps)
         measures["p_hold"] = measures["p_hold_trial"] = np.full(len(grasps), np.nan)  # the model's, not the record's
         if model is not None and grasps:  # the hand's model, on the records' measures; the rule reads it
-            measures["p_hold"] = model.predict(features.of_grasps(grasps))
+            # as stored (pose and contacts rounded): from the unrounded record, p_hold was up to 1e-5 off what the
+            # stored grasp gives, so a re-score (`grasp calibrate`, an import of its export) changed it and its rank
+            measures["p_hold"] = model.predict(features.of_grasps([g.as_stored() for g in grasps]))
             measures["p_hold_trial"] = model.given_trial(measures["p_hold"], verdicts(measures))
             p_hold = measures["p_hold"].tolist()
             p_trial = [None if v != v else v for v in measures["p_hold_trial"].tolist()]

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import math
 import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -90,8 +91,12 @@ def filtered(entries: Sequence[Entry], filters: Filters) -> list[Entry]:
 
 def closure_text(g: Grasp) -> str:
     """The grasp's force closure as the viewer lists it: as planned, once squeezed (it ranks first too, unless that
-    squeeze's end is stored beside it: planner.db.ranking.FIRST) or not."""
+    squeeze's end is stored beside it: planner.db.ranking.FIRST) or not; a squeeze's end says whose end it is (it
+    read "yes" alone, beside its parent of the same candidate number, as `grasp best` and `grasp show` say)."""
     squeezed = g.measures is not None and bool(g.measures.squeezed_force_closure)
+    if g.squeezed_from_turn is not None:
+        return (f"yes, a squeeze's end: turned {math.degrees(g.squeezed_from_turn):.1f} deg from candidate "
+                f"{g.candidate}'s planned grasp")
     end = ", its stored end ranks for it" if g.end_kept else ""
     return "yes" if g.force_closure else f"once squeezed (not as planned{end})" if squeezed else "no"
 

@@ -210,7 +210,8 @@ def _manifest_line(tokens: list[str], where: str, folder: Path, scale: float | N
         try:
             item_scale = float(text)
         except ValueError:
-            raise InputError(f"{where}: scale '{text}' is not a number") from None
+            raise InputError(f"{where}: scale '{text}' is not a number (a path with blanks goes in double quotes: "
+                             f"\"{source.removesuffix(chr(92))} {text}\"; a backslash is kept as it is)") from None
         if not (math.isfinite(item_scale) and item_scale > 0):
             raise InputError(f"{where}: scale must be a positive number, got {item_scale:g}")
     target = _absolute(str(folder / Path(source).expanduser()))  # an absolute path stays itself

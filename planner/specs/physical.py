@@ -29,6 +29,9 @@ Vector = tuple[float, float, float]
 #: A property's value: a number, an axis or a geometry, a point.
 Value = float | str | Vector
 _UNITS = {"mass": "kg", "density": "kg/m^3", "friction": "Coulomb coefficient"}
+#: [kg/m^3] from a foam (expanded polystyrene ~10) to osmium (22,590): an object's mass over its volume outside
+#: these is noted (a 5 mm bead at the default 0.2 kg: 3e6; a mesh scaled x10 at the default: ~1).
+PLAUSIBLE_DENSITY = (5.0, 23_000.0)
 
 
 @dataclass(frozen=True)
@@ -134,6 +137,20 @@ def check_physical(mass: float | None, density: float | None, friction: float | 
     if friction is not None and friction > MAX_FRICTION:
         raise InputError(f"{_at(where)}{prefix}friction must lie in (0, {MAX_FRICTION:g}] (a Coulomb coefficient), "
                          f"got {friction}")
+
+
+def density_note(name: str, mass: float, density: float) -> str | None:
+    """The line that says an object's mass [kg] over its volume, ``density`` [kg/m^3], is no solid's (None: it is
+    plausible, :data:`PLAUSIBLE_DENSITY`), and where to give its mass or its scale."""
+    from planner.specs.objects import DEFAULT_MASS  # which imports this module
+
+    low, high = PLAUSIBLE_DENSITY
+    if low <= density <= high:
+        return None
+    scale = "; if its mesh is not in metres (a model scaled to 1 unit across), --scale" if density < low else ""
+    return (f"note: {name} weighs {mass:.3g} kg in its volume: {density:.3g} kg/m^3, outside any solid's {low:g}-"
+            f"{high:,.0f} (the default is {DEFAULT_MASS:g} kg); if that is not its weight, give --mass or --density "
+            f"(or a sidecar) and another --db{scale}")
 
 
 #: No property given: each object keeps its own.

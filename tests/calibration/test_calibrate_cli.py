@@ -11,7 +11,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from helpers import FAST, grasp
+from helpers import FAST, grasp, one_line_error
 
 from planner.calibration.model import default_model
 from planner.db.ranking import rule_measures
@@ -209,12 +209,12 @@ def test_calibrate_with_trials_fits_the_update_that_labels_and_ranks_validated_g
 def test_a_database_that_cannot_take_the_model_is_refused_before_the_fit(validated_db: Path, tmp_path: Path) -> None:
     """A --db that is a folder (or locked by a writer, or of a newer schema) failed only after the whole fit
     (23 s on a helper's run), the model thrown away; now before any pose is re-scored."""
-    file = labelled_files(validated_db, tmp_path)[0]
+    files = labelled_files(validated_db, tmp_path)  # two objects: one alone is refused before the database is
     folder = tmp_path / "folder.db"
     folder.mkdir()
-    code, _, err = grasp("calibrate", str(file), "--db", str(folder), "--poses", "12", "--folds", "2")
+    code, _, err = grasp("calibrate", *map(str, files), "--db", str(folder), "--poses", "12", "--folds", "2")
     assert code == 3 and "poses closed on the object" not in err and len(err.strip().splitlines()) == 1, err
-    code, _, err = grasp("calibrate", str(file), "--db", str(tmp_path / "g.db"), "--workers", "0")
+    code, _, err = grasp("calibrate", str(files[0]), "--db", str(tmp_path / "g.db"), "--workers", "0")
     assert code == 2 and "--workers must be at least 1" in err, err
 
 
@@ -299,3 +299,21 @@ def test_a_users_own_labels_without_gripper_type_calibrate_with_hand(validated_d
     code, out, err = grasp("calibrate", *map(str, files), "--no-store", "--poses", "12", "--folds", "2",
                            "--hand", "panda")
     assert code == 0 and "p_hold for panda" in out, err
+
+
+def test_files_of_one_object_are_refused_before_any_pose_is_closed(validated_db: Path, tmp_path: Path,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two label files of one object: every sampled pose of both was closed again (minutes on real files), then
+    refused for having one object. Refused first, in one line, nothing closed and no database made."""
+    from planner.datasets import importer
+
+    first = labelled_files(validated_db, tmp_path)[0]
+    second = tmp_path / "again.h5"
+    shutil.copy(first, second)
+    with h5py.File(second, "r+") as f:  # other labels, the same object: not a copy
+        f[LABEL][...] = 1 - f[LABEL][...]
+    closed: list[object] = []
+    monkeypatch.setattr(importer, "rescore_poses", lambda *a, **k: closed.append(a))
+    code, _, err = grasp("calibrate", str(first), str(second), "--poses", "5", "--db", str(tmp_path / "g.db"))
+    one_line_error(code, err, 2, "at least 2 objects", "the 2 file(s) given are all of")
+    assert closed == [] and not (tmp_path / "g.db").exists()

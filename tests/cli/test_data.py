@@ -57,3 +57,19 @@ def test_export_and_validate_take_an_objects_mesh_file_as_best_does(tmp_path: Pa
                            "--workers", "1")
     assert code == 0, err
     assert json.loads(out)["grasps"] == 1
+
+
+def test_an_imported_objects_name_is_where_the_help_says(box_db: Path, tmp_path: Path) -> None:
+    """`grasp import --help` said the object's name defaults to "the file's object/name or object/file"; a file
+    without object/name is named after the .h5 file (scan7), not its object/file (box.obj). The help says so."""
+    import h5py
+
+    code, _, err = grasp("export", "--db", str(box_db), "--format", "acronym", "--out", str(tmp_path), "--quiet")
+    assert code == 0, err
+    scan = (tmp_path / "box__panda.h5").rename(tmp_path / "scan7.h5")
+    with h5py.File(scan, "r+") as f:
+        del f["object/name"]
+    code, out, err = grasp("import", str(scan), "--db", str(tmp_path / "i.db"), "--json")
+    assert code == 0 and json.loads(out)[0]["object"] == "scan7", err
+    code, out, _ = grasp("import", "--help")
+    assert "else by the file's name without .h5" in " ".join(out.split())

@@ -525,3 +525,17 @@ def test_the_bars_last_line_is_whole_in_a_log(tmp_path: Path) -> None:
     bar = done.stdout.splitlines()[0]
     assert done.returncode == 0 and bar.startswith("generating ") and " units " in bar and bar.endswith(
         "ETA 0:00:00"), done.stdout
+
+
+@pytest.mark.parametrize("mode", ["--quiet", "--json"])
+def test_a_weight_no_solid_has_is_noted_under_quiet_and_json(tmp_path: Path, mode: str) -> None:
+    """A mesh scaled x10 at the default 0.2 kg is ~1 kg/m^3: the note came with the summary table only, so
+    `--quiet`, `--json` (and the Python API) ran it without a word. Said by the library, on stderr."""
+    import trimesh
+
+    box = tmp_path / "crate.stl"
+    trimesh.creation.box(extents=[0.06, 0.06, 0.06]).export(box)  # x10: 0.6 m across, 0.216 m^3
+    code, out, err = grasp("generate", str(box), "--hand", "panda", "--db", str(tmp_path / "a.db"), *FAST,
+                           "--scale", "10", mode)
+    assert code == 0 and "note: crate weighs 0.2 kg in its volume: 0.926 kg/m^3, outside any solid's" in err, err
+    assert "give --mass or --density" in err and "--scale" in err and "note:" not in out

@@ -416,3 +416,12 @@ def test_a_weight_resistance_at_the_measures_cap_is_said_as_a_bound(box_db: Path
     below = replace(top, measures=replace(top.measures, resist_worst=12.34, resist_mean=20.0))
     assert "    holds 12.3 times its weight in the worst of 14 directions (mean 20.0); " in describe(
         below, hand_frame("panda"))[3]
+
+
+def test_show_of_a_rank_past_the_last_says_how_many_there_are(box_db: Path, tmp_path: Path) -> None:
+    """`grasp show --rank 5000` on a database with fewer grasps said "no grasp of rank 5000", not how many."""
+    stored = len(api.best("box", "panda", db_path=box_db, top=100_000))
+    code, _, err = grasp("show", "box", "--hand", "panda", "--db", str(box_db), "--rank", "5000",
+                         "--out", str(tmp_path / "s.png"))
+    one_line_error(code, err, 2, "no grasp of rank 5000", f"it has {stored} (--rank 1 to {stored})")
+    assert not (tmp_path / "s.png").exists()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import errno
+import hashlib
 import os
 import sqlite3
 from pathlib import Path
@@ -74,8 +75,9 @@ def files(folder: Path) -> dict[str, object]:
     out = {str(p.relative_to(folder)): read_all(p) for p in sorted(folder.rglob("*")) if p.is_file()}
     for name in [n for n in out if n.startswith("export-") and n.endswith(".json")]:
         manifest = json.loads(folder.joinpath(name).read_text())
-        out[name] = {**{k: v for k, v in manifest.items() if k not in ("finished_at", "files")},  # when; bytes: the
-                     "files": [{k: v for k, v in f.items() if k != "bytes"} for f in manifest["files"]]}  # batches
+        out[name] = {**{k: v for k, v in manifest.items() if k not in ("finished_at", "files")},  # when; bytes, hash:
+                     "files": [{k: v for k, v in f.items() if k not in ("bytes", "sha256")}  # the batches
+                               for f in manifest["files"]]}
     return out
 
 
@@ -290,3 +292,20 @@ def test_an_export_stopped_midway_keeps_the_earlier_exports_for_the_next(db: Pat
     manifest = json.loads((out / "export-acronym.json").read_text())
     assert [f["path"] for r in manifest["earlier"] for f in r["files"]] == ["box__panda.h5"]
     assert [p.name for p in out.iterdir() if p.name.startswith(".")] == []
+
+
+def test_an_earlier_export_file_written_over_at_its_size_is_not_listed(db: Path, tmp_path: Path) -> None:
+    """An earlier export's files were matched by their size only: the box's file replaced by other bytes of the
+    same length (another export's, an edit) was still listed under `earlier` as the box's export. Each file's
+    sha256 is in the manifest and has to match."""
+    import json
+
+    out = export(db, "acronym", tmp_path / "a", "--object", "box", "--top", "3")
+    box = out / "box__panda.h5"
+    [entry] = json.loads((out / "export-acronym.json").read_text())["files"]
+    assert entry["sha256"] == hashlib.sha256(box.read_bytes()).hexdigest()
+    data = bytearray(box.read_bytes())
+    data[-1] ^= 0xFF  # the same length, other content
+    box.write_bytes(bytes(data))
+    export(db, "acronym", out, "--object", "sphere", "--top", "2")
+    assert json.loads((out / "export-acronym.json").read_text())["earlier"] == []

@@ -124,3 +124,66 @@ def test_a_database_whose_name_has_uri_characters_is_that_file(box_db: Path, tmp
     with open_for_writing(path, create=False) as db:
         assert db.object_names() == ["box"]
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([name, f"{name}.lock"])
+
+
+def test_validate_of_an_empty_file_refuses_and_leaves_it_as_it_was(tmp_path: Path) -> None:
+    """`grasp validate --db empty.db` on a 0-byte file made it a database and left a .lock beside it; the readers
+    refused it. Now validate refuses it too, changing nothing (`generate` into a 0-byte file still makes one)."""
+    from helpers import FAST, grasp, one_line_error
+
+    db = tmp_path / "empty.db"
+    db.write_bytes(b"")
+    code, _, err = grasp("validate", "--db", str(db))
+    one_line_error(code, err, 3, "empty.db: not a grasp database (no schema)", "nothing was changed")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["empty.db"] and db.stat().st_size == 0
+    code, _, err = grasp("generate", "sphere", "--hand", "panda", "--db", str(db), *FAST, "--quiet")
+    assert code == 0 and db.stat().st_size > 0, err
+
+
+@pytest.mark.parametrize("command", ["generate", "validate"])
+def test_a_truncated_database_refused_by_a_writer_leaves_no_wal_or_shm(box_db: Path, tmp_path: Path,
+                                                                       command: str) -> None:
+    """`generate` or `validate` on a truncated copy refused it (the file unchanged) and left an empty -wal and a
+    -shm beside it: SQLite's read-only look at a WAL database makes both and cannot remove them."""
+    from helpers import FAST, grasp, one_line_error
+
+    db = tmp_path / "cut.db"
+    db.write_bytes(box_db.read_bytes()[:40_000])
+    before = db.read_bytes()
+    args = ("generate", "box", "--hand", "panda", *FAST, "--quiet") if command == "generate" else ("validate",)
+    code, _, err = grasp(*args, "--db", str(db))
+    one_line_error(code, err, 3, "cut.db: cannot open database", "nothing was changed")
+    assert db.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name != "cut.db.lock") == ["cut.db"]
+
+
+def test_a_reader_of_a_file_being_created_says_so(tmp_path: Path) -> None:
+    """While `grasp generate` creates a new file, `api.best` from another process said "not a grasp database (no
+    schema)" of it. The writer's lock names who is creating it: said, and when to try again."""
+    from planner import api
+    from planner.db.lock import writer_lock
+
+    db = tmp_path / "new.db"
+    db.write_bytes(b"")  # as SQLite leaves it between creating the file and writing its schema
+    with writer_lock(db), pytest.raises(DatabaseError, match=r"new.db: being created by pid \d+.*try again once"):
+        api.best("box", "panda", db_path=db)
+    with pytest.raises(DatabaseError, match=r"new.db: not a grasp database \(no schema\)"):
+        api.best("box", "panda", db_path=db)
+
+
+def test_best_while_a_run_writes_the_object_says_so(box_db: Path, tmp_path: Path) -> None:
+    """`grasp best duck` while `grasp generate duck` was writing the database, none of its units finished yet,
+    said "run `grasp generate duck --hand panda --db ...`": the very run that was going on. It says who writes."""
+    import shutil
+
+    from planner import api
+    from planner.db.lock import writer_lock
+    from planner.errors import InputError
+
+    db = tmp_path / "g.db"
+    shutil.copy(box_db, db)
+    with writer_lock(db), pytest.raises(InputError, match=r"no grasps of 'sphere' for hand 'panda' in .*g.db yet: "
+                                                          r"pid \d+.* is writing it; try again once a unit"):
+        api.best("sphere", "panda", db_path=db)
+    with pytest.raises(InputError, match=r"no grasps of 'sphere' .* run `grasp generate sphere"):
+        api.best("sphere", "panda", db_path=db)

@@ -380,3 +380,23 @@ def test_a_database_ranked_the_earlier_way_is_ranked_again_at_the_next_write(tmp
         assert [g.force_closure for g in db.best("thing", "panda", 10)] == [False, True, True]
         assert db.apply_rule(RankingRule())
         assert [(g.candidate, g.force_closure) for g in db.best("thing", "panda", 10)][2] == (0, False)
+
+
+def test_a_stored_p_hold_is_the_one_its_stored_grasp_gives(tmp_path: Path, shipped_models: None) -> None:
+    """p_hold was computed from the record before its pose and contacts were rounded as stored: up to 1e-5 off
+    what the stored grasp gives (the mug's 1,952: every one), so an import of its own ACRONYM export, or a
+    re-score, changed p_hold and swapped ranks. Stored as the stored grasp gives it, to the last bits."""
+    from helpers import FAST, grasp
+
+    from planner.calibration import features
+
+    db_path = tmp_path / "g.db"
+    code, _, err = grasp("generate", "box", "--hand", "panda", "--db", str(db_path), "--quiet", *FAST)
+    assert code == 0, err
+    with open_db(db_path, create=False, readonly=True) as db:
+        grasps = db.best("box", "panda", 100_000)
+        model = db.model("panda")
+    assert model is not None and len(grasps) >= 3
+    again = model.predict(features.of_grasps(grasps))
+    ulps = 1e-12  # a batch of other rows (the unit's, in its order) moves a BLAS product's last bits
+    np.testing.assert_allclose(again, [g.p_hold for g in grasps], rtol=0, atol=ulps)

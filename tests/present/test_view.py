@@ -124,6 +124,21 @@ def test_the_force_closure_filter_keeps_what_ranks_first() -> None:
     assert "| force closure | once squeezed (not as planned, its stored end ranks for it) |" in measures_text(parent[0])
 
 
+def test_a_squeezes_end_says_whose_end_it_is() -> None:
+    """An end (`squeezed_from_turn` set, its parent's candidate number) read "force closure | yes" alone in the
+    viewer, beside its parent of the same number; `grasp best` and `grasp show` say whose end it is."""
+    import math
+    from dataclasses import replace
+
+    from planner.present.viewer import Entry, measures_text
+    from tests.helpers import made_up
+
+    end = replace(made_up(7, 0.05), squeezed_from_turn=math.radians(5.7))
+    text = measures_text(Entry(end, lambda: None))  # type: ignore[arg-type,return-value]
+    assert f"| force closure | yes, a squeeze's end: turned 5.7 deg from candidate {end.candidate}'s planned grasp |" \
+        in text
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

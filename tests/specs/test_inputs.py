@@ -73,6 +73,15 @@ def test_manifest_paths_with_blanks_and_hashes_go_in_quotes(tmp_path: Path) -> N
         inputs.expand([f"@{manifest}"])
 
 
+def test_a_path_with_an_unquoted_blank_is_told_to_go_in_quotes(tmp_path: Path) -> None:
+    """`my\\ objs/rod.stl density=800` (a shell's escape) said only "scale 'objs/rod.stl' is not a number"."""
+    manifest = tmp_path / "list.txt"
+    manifest.write_text("my\\ objs/rod.stl density=800\n")
+    with pytest.raises(InputError, match=r"list.txt:1: scale 'objs/rod.stl' is not a number \(a path with blanks "
+                                         r"goes in double quotes: \"my objs/rod.stl\"; a backslash is kept"):
+        inputs.expand([f"@{manifest}"])
+
+
 def test_one_file_given_two_ways_is_one_object(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     box = trimesh.creation.box(extents=[0.03, 0.03, 0.03])
     (tmp_path / "m" / "sub").mkdir(parents=True)
