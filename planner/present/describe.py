@@ -138,7 +138,8 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
                         "closure as planned at the turned pose (`grasp best` calls it the end of a parallel jaw's "
                         "squeeze): it stands for this one, which ranks after every force-closure grasp" if g.end_kept
                         else "it ranks with the force-closure grasps, above every grasp that is neither (no end of "
-                        "its squeeze is stored beside it)"))
+                        "its squeeze stands for it: none is stored beside it, or the database was ranked before one "
+                        "did; its next write ranks it again)"))
     elif not g.force_closure:
         lines.append("    not force closure as planned: it ranks after every force-closure grasp of the object (and "
                      "every one force closure once a parallel jaw's squeeze turns the object; so it shows only where "
