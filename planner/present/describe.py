@@ -142,8 +142,9 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
                         "did; its next write ranks it again)"))
     elif not g.force_closure:
         lines.append("    not force closure as planned: it ranks after every force-closure grasp of the object (and "
-                     "every one force closure once a parallel jaw's squeeze turns the object; so it shows only where "
-                     "the object has fewer than asked for); its p_hold is how often labelled grasps "
+                     "every one force closure once a parallel jaw's squeeze turns the object, but for those whose "
+                     "squeeze's end stands for them: with them, by score; so it shows only where the object has fewer "
+                     "that rank first than asked for); its p_hold is how often labelled grasps "
                      "with these measures held (a thin pinch often turns the object into line as it closes); "
                      "`grasp validate` tries it")
     held_by = []
