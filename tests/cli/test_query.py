@@ -107,6 +107,10 @@ def test_a_grasp_that_ranks_first_only_once_squeezed_says_why(box_db: Path) -> N
     assert f"stored as a grasp of its own, candidate {top.candidate} too" in why  # where its end is (2026-12-07)
     assert "it stands for this one, which ranks after every force-closure grasp" in why  # and so it ranks
     assert "ranks with the force-closure grasps" not in why
+    lines = describe(replace(top, force_closure=False, epsilon=0.0, measures=squeezed, end_kept=True, rank=None),
+                     hand_frame("panda"))  # planned on the spot (`best --on-table`): neither it nor its end is stored
+    (why,) = [x for x in lines if "once the jaw's squeeze turns the object 20.1 deg" in x]
+    assert "end is planned now too as a grasp of its own" in why and "stored" not in why
 
 
 def test_every_query_takes_the_database_name_of_a_stored_object(stored_db: Path, tmp_path: Path) -> None:
