@@ -90,3 +90,23 @@ def test_every_exports_rank_follows_the_order(mug_db: Path, tmp_path: Path) -> N
     code, _, err = grasp("import", str(h5), "--db", str(imported))
     assert code == 0, err
     assert stood_for(imported) == (first, parents)
+
+
+def test_an_import_of_two_seeds_sweeps_keeps_each_end_beside_its_parent(tmp_path: Path) -> None:
+    """Two sweeps of one object (seeds 3 and 4) number their candidates alike: the file's candidates do not tell
+    its grasps apart, the import numbers them by row, and each end still takes its parent's number (its seed and
+    candidate find it), so its lossless import ranks as its source (before: every parent ranked first again)."""
+    db = tmp_path / "two.db"
+    for seed in (3, 4):
+        assert not api.generate(["mug"], "panda", db_path=db, settings=MUG, seed=seed, workers=1).failed
+    with sqlite3.connect(db) as conn:
+        (shared,) = conn.execute("SELECT COUNT(*) FROM grasps a JOIN grasps b ON a.candidate = b.candidate AND "
+                                 "a.seed < b.seed").fetchone()
+    first, parents = stood_for(db)
+    assert shared and parents
+    code, _, err = grasp("export", "--db", str(db), "--format", "acronym", "--out", str(tmp_path / "out"), "--quiet")
+    assert code == 0, err
+    imported = tmp_path / "imported.db"
+    code, _, err = grasp("import", str(tmp_path / "out" / "mug__panda.h5"), "--db", str(imported))
+    assert code == 0, err
+    assert stood_for(imported) == (first, parents)

@@ -114,6 +114,7 @@ from planner.datasets.acronym_columns import (
     QUALITIES,
     ROBUST_EPSILON,
     as_text,
+    candidate_numbers,
     carried,
     joint_names,
     measures_of,
@@ -306,7 +307,7 @@ def _rigid(path: Path, transforms: np.ndarray) -> np.ndarray:
 def read_grasps(path: Path, hand: HandSpec, obj: str, poses: np.ndarray) -> list[Grasp]:
     """This project's grasps back from a file with its extras, the object named ``obj``: candidate and seed as
     the file gives them (``grasps/candidate``, ``grasps/seed``) where its candidates are distinct, else the row
-    number and 0."""
+    number (a squeeze's end its parent's) and 0 (:func:`candidate_numbers`)."""
     n = len(poses)
     with _open(path) as f:
         g = f["grasps"]
@@ -328,13 +329,11 @@ def read_grasps(path: Path, hand: HandSpec, obj: str, poses: np.ndarray) -> list
         planes = g["table_plane"][()] if "table_plane" in g else np.full((n, 4), np.nan)
         contacts = contact_items(path, list(g["contacts"].asstr()[()]), n)
         turned = g["squeezed_from_turn"][()] if "squeezed_from_turn" in g else np.full(n, np.nan)
-        kept = g["candidate"][()] if "candidate" in g else None  # the sweep's numbers, where they tell grasps apart
         ends = np.isfinite(turned)  # a squeeze's end shares its parent's candidate
-        kept = kept if kept is not None and len(kept) == n and len({*zip(kept, ends)}) == n else None
-        seeds = g["seed"][()] if kept is not None and "seed" in g else np.zeros(n, np.int64)
+        kept, seeds = candidate_numbers(g["candidate"][()] if "candidate" in g else None,
+                                        g["seed"][()] if "seed" in g else np.zeros(n, np.int64), planes, ends)
     check_joints(path, hand, names, n, joints_closed=closed, joints_open=opened)
-    return [Grasp(object=obj, hand=hand.name, preshape=str(preshape[i]), candidate=i if kept is None else int(kept[i]),
-                  seed=int(seeds[i]),
+    return [Grasp(object=obj, hand=hand.name, preshape=str(preshape[i]), candidate=kept[i], seed=seeds[i],
                   approach_point=np.asarray(approach_point[i], float), approach_dir=np.asarray(approach_dir[i], float),
                   roll=float(roll[i]), standoff=float(standoff[i]), pose=poses[i],
                   open_joints=_joints(names, opened[i]), closed_joints=_joints(names, closed[i]),

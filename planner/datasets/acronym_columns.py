@@ -147,3 +147,27 @@ def trials_of(g: Any, group: str, n: int) -> list[Trial | None]:
 
 def as_text(value: object) -> str:
     return value.decode() if isinstance(value, bytes) else str(value)
+
+
+def candidate_numbers(given: np.ndarray | None, seeds: np.ndarray, planes: np.ndarray, ends: np.ndarray
+                      ) -> tuple[list[int], list[int]]:
+    """The n grasps' candidate numbers and seeds in the unit an import stores them in, from a file's (``given``
+    (n,) or None, ``seeds`` (n,)) and where a squeeze's end is (``ends`` (n,) bool; ``planes`` (n, 4), NaN: no
+    table): the file's where they tell its grasps apart (one sweep's), else the row numbers and seed 0 (several
+    sweeps': another seed or table numbers its candidates alike), an end taking its parent's row number where
+    its seed, table and candidate find that parent alone, so that it stands for it in the rank as it did
+    (:data:`planner.db.ranking.FIRST`)."""
+    n = len(ends)
+    if given is not None and len(given) == n and len({*zip(given.tolist(), ends.tolist())}) == n:
+        return [int(c) for c in given], [int(s) for s in seeds]
+    numbers = list(range(n))
+    if given is None or len(given) != n:
+        return numbers, [0] * n
+    keys = [(int(s), None if np.isnan(p).any() else tuple(p.tolist()), int(c)) for s, p, c in zip(seeds, planes, given)]
+    rows: dict[tuple, list[list[int]]] = {}
+    for i, key in enumerate(keys):
+        rows.setdefault(key, [[], []])[bool(ends[i])].append(i)
+    for parents, found in rows.values():
+        if len(parents) == 1 and len(found) == 1:
+            numbers[found[0]] = parents[0]
+    return numbers, [0] * n

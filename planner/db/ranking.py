@@ -118,6 +118,8 @@ def _short(value: float) -> str:
     return f"{mantissa.rstrip('0').rstrip('.')}e{int(exponent)}"
 
 
+#: The words of :data:`FORMULA` on :data:`END_KEPT` (:func:`ranked_with_ends` looks for them).
+ENDS_RANKED = "(but for one whose squeeze's end is stored as a grasp of its own, which stands for it)"
 #: The rule of :meth:`RankingRule.scores` in words, as ``meta.ranking`` stores it.
 FORMULA = ("analytic = p_hold_trial where the hand's calibrated model updates p_hold by the verdict of the trial"
            " that tried the grasp (then simulated_success counts as neutral: the verdict is in p_hold_trial),"
@@ -134,8 +136,16 @@ FORMULA = ("analytic = p_hold_trial where the hand's calibrated model updates p_
            " a measure not computed counts as neutral (reachability, success 1; robust quantile = epsilon);"
            " grasps stored without the analytic measures (before schema v3): gate 1, press 1,"
            " hold = force_closure;"
-           " rank: grasps force closure as planned or after a parallel jaw's squeeze first (but for one whose squeeze's"
-           " end is stored as a grasp of its own, which stands for it), then by score")
+           f" rank: grasps force closure as planned or after a parallel jaw's squeeze first {ENDS_RANKED}, then by"
+           " score")
+
+
+def ranked_with_ends(ranking: str | None) -> bool:
+    """Whether a database whose ``meta.ranking`` is ``ranking`` (JSON; None: none stored yet, a new database
+    ranked by :data:`ORDER_BY`) was ranked with stored squeezes' ends standing for their parents: an earlier
+    version's ranks keep each such parent among the grasps that rank first until the next write ranks them
+    again, and its records read back say so (:attr:`planner.record.grasp.Grasp.end_kept` False), as they rank."""
+    return ranking is None or ENDS_RANKED in str(json.loads(ranking).get("formula", ""))
 
 
 @dataclass(frozen=True)

@@ -48,7 +48,7 @@ from planner.db.columns import (  # noqa: F401 - VECTOR_DIGITS, INERTIA_DIGITS, 
 from planner.db.failures import _reads, missing, read_failed, write_failed  # noqa: F401 - the failures re-exported
 from planner.db.header import cannot_open, check_header, no_schema, nothing_left_if_refused, uri
 from planner.db.lock import writer_lock, writer_of
-from planner.db.ranking import END_KEPT, RankingRule, end_kept_sql
+from planner.db.ranking import END_KEPT, RankingRule, end_kept_sql, ranked_with_ends
 from planner.db.rows import ObjectRow, UnitRow, Validated  # noqa: F401 - re-exported
 from planner.db.schema import (
     EMPTY_V2_TABLES,
@@ -83,7 +83,8 @@ def _aliased(group: tuple[Field, ...]) -> str:
 
 
 #: A grasp with its validation, MuJoCo trial and robust rows (``v_*``, ``mj_*``, ``r_*``) and whether its squeeze's
-#: end is stored beside it (``end_kept``: :func:`~planner.db.ranking.end_kept_sql`, 0 in a file before v15).
+#: end is stored beside it (``end_kept``: :func:`~planner.db.ranking.end_kept_sql`, 0 in a file before v15 and in one
+#: ranked before such an end stood for its parent, :func:`~planner.db.ranking.ranked_with_ends`).
 _SELECT_GRASPS = f"""
 SELECT g.*, {_aliased(_TRIAL)}, {_aliased(_MUJOCO)}, {_aliased(_ROBUST)}, {{end_kept}} AS {END_KEPT}
 FROM grasps g {{join}} {{validation}} v ON v.grasp_id = g.id LEFT JOIN {{mujoco}} mj ON mj.grasp_id = g.id
@@ -208,13 +209,6 @@ class Database(Writing, UnitReads):
         return ObjectRow(**{f.column: next(iter(_decoded(f, [r[f.column]]))) for f in _OBJECTS if f.column in kept})
 
     @_reads
-    def grasp_ids(self, unit_id: int) -> dict[tuple[int, bool], int]:
-        """(candidate number, whether a squeeze's end) -> grasp id of one unit's grasps (its key)."""
-        rows = self._conn.execute("SELECT candidate, squeezed_from_turn IS NOT NULL AS e, id FROM grasps WHERE "
-                                  "unit_id = ?", (unit_id,))
-        return {(r["candidate"], bool(r["e"])): r["id"] for r in rows}
-
-    @_reads
     def best(self, obj: str, hand: str, top: int, offset: int = 0, *, table_plane: np.ndarray | None = None,
              other_planes: bool = False) -> list[Grasp]:
         """The grasps of rank ``offset + 1`` .. ``offset + top``, in rank order.
@@ -276,7 +270,8 @@ class Database(Writing, UnitReads):
         names = {t: t if t in tables else empty for t, empty in {**EMPTY_V2_TABLES, **EMPTY_V7_TABLES}.items()}
         if "validation" in tables and "reason" not in column_names(self._conn, "validation"):
             names["validation"] = V2_VALIDATION
-        ends = {"squeezed_from_turn", "squeezed_force_closure"} <= column_names(self._conn, "grasps")
+        ends = {"squeezed_from_turn", "squeezed_force_closure"} <= column_names(self._conn, "grasps") and \
+            ranked_with_ends(self.meta("ranking"))  # an earlier version's ranks: as they rank (the next write re-ranks)
         return _SELECT_GRASPS.format(join=join, end_kept=end_kept_sql("g") if ends else "0", **names)
 
 
@@ -308,7 +303,8 @@ def _own(f: Field, col: dict, n: int) -> Iterable:
 
 @contextmanager
 def open_for_writing(path: Path, *, create: bool = True) -> Iterator[Database]:
-    """The database under its writer lock (:func:`~planner.db.lock.writer_lock`). A file that is not a grasp
+    """The database under its writer lock (:func:`~planner.db.lock.writer_lock`), re-ranked where an earlier
+    version ranked it (:meth:`~planner.db.writing.Writing.rank_anew`). A file that is not a grasp
     database is refused before the lock is taken and before anything is set in it: no lock file beside
     another application's SQLite file, and its journal mode as it was."""
     path = Path(path)
@@ -336,6 +332,7 @@ def open_for_writing(path: Path, *, create: bool = True) -> Iterator[Database]:
             except sqlite3.DatabaseError as exc:
                 raise cannot_open(path, exc) from exc
     with writer_lock(path), open_db(path, create=create) as db:
+        db.rank_anew()
         yield db
 
 

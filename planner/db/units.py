@@ -1,6 +1,6 @@
 """The database's reads of its units of work and of where objects came from (a part of
 :class:`planner.db.store.Database`): which units are done, which grasps hold a run's results, when an object was
-last swept, which names a file is stored under."""
+last swept, which names a file is stored under, a unit's grasps' ids."""
 
 from __future__ import annotations
 
@@ -24,6 +24,13 @@ class UnitReads:
             "SELECT object, chunk FROM units WHERE hand = ? AND settings_hash = ? AND seed = ? AND status = 'done'",
             (hand, settings_hash, seed))
         return {(r["object"], r["chunk"]) for r in rows}
+
+    @_reads
+    def grasp_ids(self, unit_id: int) -> dict[tuple[int, bool], int]:
+        """(candidate number, whether a squeeze's end) -> grasp id of one unit's grasps (its key)."""
+        rows = self._conn.execute("SELECT candidate, squeezed_from_turn IS NOT NULL AS e, id FROM grasps WHERE "
+                                  "unit_id = ?", (unit_id,))
+        return {(r["candidate"], bool(r["e"])): r["id"] for r in rows}
 
     @_reads
     def hand_swept(self, hand: str) -> bool:

@@ -41,7 +41,7 @@ from planner.db.columns import (
     _sql,
 )
 from planner.db.failures import write_failed
-from planner.db.ranking import ORDER_BY, RankingRule, first_measures, rank_order, ranks_first, rule_measures
+from planner.db.ranking import FORMULA, ORDER_BY, RankingRule, first_measures, rank_order, ranks_first, rule_measures
 from planner.db.rows import UnitRow, Validated
 from planner.db.schema import transaction
 from planner.errors import DatabaseError, InputError
@@ -250,6 +250,14 @@ class Writing:
             self._set_meta(conn, "p_hold_models", models)
             self._rescore(conn, rule)
         return True
+
+    def rank_anew(self) -> bool:
+        """Re-score and re-rank every grasp by the stored rule's weights where the stored ranks predate this
+        version's rank order (``meta.ranking``'s formula is another): what each write does first
+        (:func:`~planner.db.store.open_for_writing`), so that the pairs it re-ranks and those it leaves follow one
+        order, the one the records read back tell (:func:`~planner.db.ranking.ranked_with_ends`)."""
+        stored = self.meta("ranking")
+        return stored is not None and json.loads(stored).get("formula") != FORMULA and self.apply_rule(self.rule())
 
     def _models_key(self) -> str:
         """Which p_hold model scores each stored hand (JSON, hashes of the

@@ -134,15 +134,18 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
         lines.append(f"    not force closure as planned, but force closure once the jaw's squeeze turns the object "
                      f"{math.degrees(m.squeeze_turn or 0.0):.1f} deg between the pads, flush against them (squeezed "
                      f"epsilon {m.squeezed_epsilon or 0.0:.4f}; the pose above is the planned one): "
-                     + (f"that squeeze's end is stored as a grasp of its own, candidate {g.candidate} too, force "
+                     + (f"that squeeze's end is {'stored' if g.rank is not None else 'planned now too'} as a grasp "
+                        f"of its own, candidate {g.candidate} too, force "
                         "closure as planned at the turned pose (`grasp best` calls it the end of a parallel jaw's "
                         "squeeze): it stands for this one, which ranks after every force-closure grasp" if g.end_kept
                         else "it ranks with the force-closure grasps, above every grasp that is neither (no end of "
-                        "its squeeze is stored beside it)"))
+                        "its squeeze stands for it: none is stored beside it, or the database was ranked before one "
+                        "did; its next write ranks it again)"))
     elif not g.force_closure:
         lines.append("    not force closure as planned: it ranks after every force-closure grasp of the object (and "
-                     "every one force closure once a parallel jaw's squeeze turns the object; so it shows only where "
-                     "the object has fewer than asked for); its p_hold is how often labelled grasps "
+                     "every one force closure once a parallel jaw's squeeze turns the object, but for those whose "
+                     "squeeze's end stands for them: with them, by score; so it shows only where the object has fewer "
+                     "that rank first than asked for); its p_hold is how often labelled grasps "
                      "with these measures held (a thin pinch often turns the object into line as it closes); "
                      "`grasp validate` tries it")
     held_by = []

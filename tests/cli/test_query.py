@@ -79,6 +79,8 @@ def test_a_grasp_that_is_not_force_closure_says_what_that_means(box_db: Path) ->
     unsqueezed = replace(top.measures, squeezed_force_closure=False, squeezed_epsilon=0.0, squeeze_turn=0.2)
     lines = describe(replace(top, force_closure=False, epsilon=0.0, measures=unsqueezed), hand_frame("panda"))
     assert any("NOT force closure)" in x for x in lines) and any(x.startswith(said) for x in lines), lines
+    (where,) = [x for x in lines if x.startswith(said)]  # a parent its stored end stands for may rank after it
+    assert "but for those whose squeeze's end stands for them: with them, by score" in where
 
 
 def test_a_grasp_that_ranks_first_only_once_squeezed_says_why(box_db: Path) -> None:
@@ -98,13 +100,17 @@ def test_a_grasp_that_ranks_first_only_once_squeezed_says_why(box_db: Path) -> N
     assert any("NOT force closure as planned, force closure once squeezed" in x for x in lines), lines
     (why,) = [x for x in lines if "once the jaw's squeeze turns the object 20.1 deg" in x]
     assert "squeezed epsilon 0.0123" in why and "ranks with the force-closure grasps" in why
-    assert "no end of its squeeze is stored beside it" in why
+    assert "no end of its squeeze stands for it: none is stored beside it, or the database was ranked before" in why
     lines = describe(replace(top, force_closure=False, epsilon=0.0, measures=squeezed, end_kept=True),
                      hand_frame("panda"))
     (why,) = [x for x in lines if "once the jaw's squeeze turns the object 20.1 deg" in x]
     assert f"stored as a grasp of its own, candidate {top.candidate} too" in why  # where its end is (2026-12-07)
     assert "it stands for this one, which ranks after every force-closure grasp" in why  # and so it ranks
     assert "ranks with the force-closure grasps" not in why
+    lines = describe(replace(top, force_closure=False, epsilon=0.0, measures=squeezed, end_kept=True, rank=None),
+                     hand_frame("panda"))  # planned on the spot (`best --on-table`): neither it nor its end is stored
+    (why,) = [x for x in lines if "once the jaw's squeeze turns the object 20.1 deg" in x]
+    assert "end is planned now too as a grasp of its own" in why and "stored" not in why
 
 
 def test_every_query_takes_the_database_name_of_a_stored_object(stored_db: Path, tmp_path: Path) -> None:
