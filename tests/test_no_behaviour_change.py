@@ -65,7 +65,8 @@ models, is 23's; with the Panda's shipped p_hold model 5 of its 19 ranks differ,
 squeeze's end kept as a grasp of its own where it ends force closure, its parent unchanged: COLUMNS and the squeeze
 of the grasps closed where planned are digested as before, the squeezes' ends apart, ``squeezed``); 26 (issue 24:
 a squeeze's end is its squeeze's last closing, opened as its parent, not closed once more from there: COLUMNS, the
-squeeze and the number of ends as in 25, only the ends' values differ).
+squeeze and the number of ends as in 25, only the ends' values differ); 27 (issue 26: a parent whose end is kept
+takes no reach slot, its end ranking for it: three of the grasps as planned change reachability, score or rank).
 """
 
 from __future__ import annotations

@@ -363,8 +363,11 @@ def add_reachability(grasps: list[Grasp], obj: PreparedObject, hand: HandSpec, s
 
 
 def _squeezed_first(g: Grasp) -> bool:
-    """Whether ``g``'s contacts are force closure once a parallel jaw's squeeze ends (not as planned)."""
-    return not g.force_closure and g.measures is not None and bool(g.measures.squeezed_force_closure)
+    """Whether ``g`` ranks first by its squeeze alone (:data:`planner.db.ranking.FIRST`): force closure once a
+    parallel jaw's squeeze ends, not as planned, and that squeeze's end not kept beside it (a kept end stands for
+    it and gets the reach; until ALGORITHM_VERSION 27 the parent took a reach slot too)."""
+    return (not g.force_closure and not g.end_kept and g.measures is not None
+            and bool(g.measures.squeezed_force_closure))
 
 
 def _first_epsilon(g: Grasp) -> float:

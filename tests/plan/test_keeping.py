@@ -1,5 +1,7 @@
 """The keeper (:mod:`planner.plan.keeping`): a squeeze's end kept as a grasp of its own is one the hand can approach."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -65,3 +67,15 @@ def test_a_squeezes_end_is_the_closing_its_squeeze_ended_in(monkeypatch: pytest.
         assert end.closed_joints == closing.closed_joints
         np.testing.assert_array_equal(end.contacts.points, closing.contacts.points)
         np.testing.assert_array_equal(end.contacts.normals, closing.contacts.normals)
+
+
+def test_a_parent_whose_end_is_kept_takes_no_reach_slot(mug_grasps: list) -> None:
+    """The sweep's reach goes to the grasps that rank first (planner.plan.unit.add_reachability): a parent whose end
+    is kept does not (its end ranks for it), so it is ordered by its planned epsilon, not its squeeze's; a grasp force
+    closure only once squeezed whose end was not kept still ranks first by its squeeze's epsilon."""
+    parents = [g for g in mug_grasps if g.end_kept]
+    assert parents
+    for g in parents:
+        assert not unit._squeezed_first(g) and unit._first_epsilon(g) == g.epsilon
+        alone = replace(g, end_kept=False)
+        assert unit._squeezed_first(alone) and unit._first_epsilon(alone) == g.measures.squeezed_epsilon
