@@ -4,8 +4,8 @@ The only module importing viser. It serves the object, the hand of the
 selected grasp closed (as stored) and open (translucent, same pose), its
 contacts with friction cones, the approach, and the arm when the grasps were
 reached at an object pose; a panel lists the grasps in rank order with a
-slider and a list, filters by hand, preshape, force closure (as planned or
-once squeezed: the grasps that rank first) and label, and
+slider and a list, filters by hand, preshape, force closure (as planned, or
+once squeezed where no end of that squeeze is kept: the grasps that rank first) and label, and
 shows the selected grasp's measures. Scenes are built by
 :mod:`planner.present.scene`; this module only puts them on screen.
 
