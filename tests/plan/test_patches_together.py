@@ -1,16 +1,21 @@
 """A grasp's links read together (:func:`planner.plan.patches.regions`): the regions of one link at a time
 (:func:`planner.plan.patches.link_regions`), bit for bit, at the poses sweeps close at and at poses moved a
-little from them, with one object query of each kind per grasp instead of one per link."""
+little from them, with one object query of each kind per grasp instead of one per link; and a closed hand's
+link poses asked of the simulator once per reading."""
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from planner.geometry.solid import load_object
 from planner.plan import contact_reading
+from planner.plan.closing import Closed, CloseSettings, Grasper
 from planner.plan.patches import ObjectSurface, Region, hand_surfaces, link_regions, regions
 from planner.plan.sweep import SweepSettings
 from planner.plan.unit import UnitSpec, run_unit
+from planner.sim import Sim
 from planner.specs.hands import load_hand
+from planner.specs.preshapes import load_preshapes
 
 #: [m], [rad] how far the poses of a sweep's grasps are moved (a band's samples change, its shape stays).
 SHIFT, TURN = 0.0005, 0.02
@@ -88,3 +93,26 @@ def test_a_grasps_links_ask_the_object_once(read, monkeypatch) -> None:  # type:
         found = regions(load_hand(hand), obj, poses, links)
         assert len(asked["nearest"]) <= 1 and len(asked["bounds"]) <= 1 and len(asked["_feature"]) <= 1
         assert sum(asked["_feature"]) >= sum(len(r.points) for r in found)
+
+
+def test_a_reading_asks_each_links_pose_once(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """The Panda closed on the box, read again: each contact link's pose asked once (the patches, the joint frames
+    and the record read them; they were asked for the touching links, each joint's child and every contact link
+    apart), and the same reading."""
+    hand, obj = load_hand("panda"), load_object("box")
+    wide = {s.name: s for s in load_preshapes(hand)}["wide"]
+    with Sim() as sim:
+        g = Grasper.for_mesh(sim, hand, obj.mesh, CloseSettings())
+        closed = g.close(np.array([0, 0, 0.04]), np.array([0.0, 0.0, -1.0]), 0.0, 0.02, wide, obj.torque_scale)
+        assert isinstance(closed, Closed) and len(set(closed.contacts.links)) == 2
+        asked: list[str] = []
+        link_pose = type(sim).link_pose
+        monkeypatch.setattr(type(sim), "link_pose", lambda self, body, link: asked.append(link) or link_pose(
+            self, body, link))
+        again = g.read(closed.pose, closed.open_joints, closed.closed_joints)
+    assert isinstance(again, Closed)
+    assert sorted(asked) == sorted(hand.contact_links)
+    assert np.array_equal(again.contacts.points, closed.contacts.points)
+    assert all(np.array_equal(again.link_poses[k], v) for k, v in closed.link_poses.items())
+    assert np.array_equal(again.frames.origins, closed.frames.origins)  # type: ignore[union-attr]
+    assert np.array_equal(again.frames.axes, closed.frames.axes)  # type: ignore[union-attr]
