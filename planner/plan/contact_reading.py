@@ -50,14 +50,15 @@ class ContactReading:
         names = [self.names[i] for i in pairs.links]
         if any(n not in self.hand.contact_links for n in names):
             return Rejected("bad_link", self.queries)
+        link_poses = self._link_poses()  # read once: the patches, the joint frames and the grasp's record
         if s.contacts == "patch" and self.surface is not None:
-            contacts = self._patches(pairs, names)
+            contacts = self._patches(pairs, names, link_poses)
         else:
             contacts = self._points(pairs, names)
         if self.exact_surface is not None:
             contacts = self._onto_exact(contacts)
         return Closed(pose.copy(), dict(open_joints), {k: float(v) for k, v in closed.items()}, contacts, self.queries,
-                      self._joint_frames(), self._link_poses())
+                      self._joint_frames(link_poses), link_poses)
 
     def read(self, pose: np.ndarray, open_joints: dict[str, float], closed: dict[str, float]) -> Closed | Rejected:
         """The hand placed at ``pose`` with ``closed`` joints (a stored grasp),
@@ -71,24 +72,25 @@ class ContactReading:
         """(4, 4) pose of every contact link as placed, object frame."""
         return {link: self.sim.link_pose(self.body, link) for link in self.hand.contact_links}
 
-    def _joint_frames(self) -> JointFrames:
+    def _joint_frames(self, link_poses: dict[str, np.ndarray]) -> JointFrames:
         """Origins and unit axes of the finger joints as placed, object frame
-        (a URDF joint frame is its child link's frame)."""
+        (a URDF joint frame is its child link's frame; ``link_poses``: the
+        :meth:`_link_poses` as placed, the child's read from them where there)."""
         names = tuple(j.name for j in self.hand.joints)
         origins, axes = np.zeros((len(names), 3)), np.zeros((len(names), 3))
         for i, joint in enumerate(self.hand.joints):
-            frame = self.sim.link_pose(self.body, joint.child)
+            frame = link_poses[joint.child] if joint.child in link_poses else self.sim.link_pose(self.body, joint.child)
             axis = frame[:3, :3] @ self.body.joint_axes[joint.name]
             origins[i], axes[i] = frame[:3, 3], axis / np.linalg.norm(axis)
         return JointFrames(names, origins, axes)
 
-    def _patches(self, pairs: Closest, names: list[str]) -> HandContacts:
-        """Contact patches of the links PyBullet finds touching (``names``: the link of each of ``pairs``); a link
-        whose patch comes out empty (a sliver below the sampling) keeps its points (:meth:`_points`, read only
-        then: every link has a patch on nearly every grasp)."""
+    def _patches(self, pairs: Closest, names: list[str], link_poses: dict[str, np.ndarray]) -> HandContacts:
+        """Contact patches of the links PyBullet finds touching (``names``: the link of each of ``pairs``; every
+        one a contact link, whose pose ``link_poses`` holds); a link whose patch comes out empty (a sliver below
+        the sampling) keeps its points (:meth:`_points`, read only then: every link has a patch on nearly every
+        grasp)."""
         touching = tuple(sorted(set(names)))
-        poses = {link: self.sim.link_pose(self.body, link) for link in touching}
-        found = regions(self.hand, self.surface, poses, touching)  # type: ignore[arg-type]
+        found = regions(self.hand, self.surface, link_poses, touching)  # type: ignore[arg-type]
         patch = discretise(found, self.settings.patches)
         if set(touching) <= set(patch.links):
             return patch

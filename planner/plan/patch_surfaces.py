@@ -1,13 +1,11 @@
-"""The two surfaces a contact patch lies between (steps 1 and 2 of
-:mod:`planner.plan.patches`), and the patches' settings.
+"""The two surfaces a contact patch lies between (steps 1 and 2 of :mod:`planner.plan.patches`), and the
+patches' settings.
 
-The hand side: each contact link's collision surface, sampled once per hand
-in its link frame (:class:`LinkSurface`, meshes replaced by their convex
-hull as PyBullet collides them), its samples grouped in cells that bound
-them together (:class:`Cells`). The object side: the object's triangle
-mesh with an AABB tree that gives a point's exact distance and closest
-point (:mod:`planner.geometry.distance`), and which edges and vertices are
-sharp (:class:`ObjectSurface`).
+The hand side: each contact link's collision surface, sampled once per hand in its link frame
+(:class:`LinkSurface`, meshes replaced by their convex hull as PyBullet collides them), its samples grouped in
+cells that bound them together (:class:`Cells`). The object side: the object's triangle mesh with an AABB tree
+that gives a point's exact distance and closest point (:mod:`planner.geometry.distance`), and which edges and
+vertices are sharp (:class:`ObjectSurface`).
 """
 
 from __future__ import annotations
@@ -27,17 +25,14 @@ from planner.geometry.normals import ScaleNormals
 from planner.specs.hands import HandSpec
 from planner.specs.urdf import load_model
 
-#: [m] a link sample farther than this from the object is out of reach
-#: (ObjectSurface.distance's default search radius).
+#: [m] a link sample farther than this from the object is out of reach (ObjectSurface.distance's default radius).
 BOUND = 0.02
-#: [m] side of the cells that group a link's samples to bound them together
-#: (speed only: any side gives the same samples).
+#: [m] side of the cells that group a link's samples to bound them together (speed only: the same samples).
 CELL = 0.002
 #: [m] round-off allowance of the cells' triangle-inequality bounds.
 SLACK = 1e-9
-#: [m] how far beyond the object's bounding box the grid of distance bounds
-#: reaches (the cells a band looks at lie within BOX_MARGIN of the box, their
-#: centroids within a cell's radius more; speed only: points beyond get looser
+#: [m] how far beyond the object's bounding box the grid of distance bounds reaches (the cells a band looks at lie
+#: within BOX_MARGIN of the box, their centroids within a cell's radius more; speed only: points beyond get looser
 #: bounds from the border's nodes).
 GRID_MARGIN = 0.006
 #: Largest number of nodes of an object's grid of distance bounds (8 bytes each; wider on a large object; speed only).
@@ -78,8 +73,7 @@ class PatchSettings:
 class LinkSurface:
     """Samples of one link's collision surface, link frame.
 
-    points : (k, 3) [m]; normals : (k, 3) outward unit normals; area : (k,)
-    [m^2] the surface each sample stands for.
+    points : (k, 3) [m]; normals : (k, 3) outward unit normals; area : (k,) [m^2] the surface each sample stands for.
     """
 
     points: np.ndarray
@@ -89,10 +83,9 @@ class LinkSurface:
                                                               hash=False)
 
     def pairs_among(self, idx: np.ndarray, radius: float) -> np.ndarray:
-        """(p, 2) positions in ``idx`` (ascending sample indices) of the pairs
-        of those samples at most ``radius`` [m] apart, first < second: the
-        pairs of the whole surface, found once per radius in the link frame
-        (a pose moves no distance), kept where both ends are in ``idx``."""
+        """(p, 2) positions in ``idx`` (ascending sample indices) of the pairs of those samples at most ``radius``
+        [m] apart, first < second: the pairs of the whole surface, found once per radius in the link frame (a pose
+        moves no distance), kept where both ends are in ``idx``."""
         if radius not in self._near:
             pairs = cKDTree(self.points).query_pairs(radius, output_type="ndarray")
             pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
@@ -118,9 +111,8 @@ class LinkSurface:
 class Cells:
     """A grouping of link samples, link frame.
 
-    cell : (k,) the cell of each sample; centres : (c, 3) [m] the cells'
-    centroids; radius : (c,) [m] the largest distance of a cell's sample to
-    its centroid.
+    cell : (k,) the cell of each sample; centres : (c, 3) [m] the cells' centroids; radius : (c,) [m] the largest
+    distance of a cell's sample to its centroid.
     """
 
     cell: np.ndarray
@@ -139,20 +131,24 @@ class Cells:
         return cls(cell, centres, radius)
 
     def reach(self, chosen: np.ndarray, pose: np.ndarray, obj: ObjectSurface) -> tuple[np.ndarray, np.ndarray]:
-        """(lower (n,), upper (n,)) [m] bounds of the ``chosen`` cells' samples'
-        distances to the object at ``pose``: the bounds of each centroid's
-        (:meth:`ObjectSurface.bounds`) widened by the cell's radius (triangle
-        inequality); both inf for cells whose samples are all farther than
-        ``BOUND``."""
+        """(lower (n,), upper (n,)) [m] bounds of the ``chosen`` cells' samples' distances to the object at ``pose``:
+        the bounds of each centroid's (:meth:`ObjectSurface.bounds`) widened by the cell's radius (triangle
+        inequality); both inf for cells whose samples are all farther than ``BOUND``."""
+        return self.widen(chosen, *obj.bounds(self.placed(chosen, pose)))
+
+    def placed(self, chosen: np.ndarray, pose: np.ndarray) -> np.ndarray:
+        """(n, 3) [m] the ``chosen`` cells' centroids at ``pose`` (4, 4), object frame."""
+        return self.centres[chosen] @ pose[:3, :3].T + pose[:3, 3]
+
+    def widen(self, chosen: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`reach` from the bounds ``lower``, ``upper`` (n,) [m] of the centroids' distances."""
         radius = self.radius[chosen]
-        lower, upper = obj.bounds(self.centres[chosen] @ pose[:3, :3].T + pose[:3, 3])
         lower, upper = lower - radius - SLACK, upper + radius + SLACK
         far = lower > BOUND
         return np.where(far, np.inf, lower), np.where(far, np.inf, upper)
 
     def members(self, chosen: np.ndarray, among: np.ndarray) -> np.ndarray:
-        """(n,) ascending indices of the samples in ``among`` (k,) bool that
-        lie in the ``chosen`` cells."""
+        """(n,) ascending indices of the samples in ``among`` (k,) bool that lie in the ``chosen`` cells."""
         mask = np.zeros(len(self.centres), bool)
         mask[chosen] = True
         return np.flatnonzero(among & mask[self.cell])
@@ -248,9 +244,8 @@ class ObjectSurface:
 
     @cached_property
     def _bounds(self) -> DistanceBounds:
-        """Bounds of distances near the object, from a grid of exact ones,
-        shared by every ObjectSurface of the same mesh in this process (a
-        sweep's units of one object fill one grid)."""
+        """Bounds of distances near the object, from a grid of exact ones, shared by every ObjectSurface of the
+        same mesh in this process (a sweep's units of one object fill one grid)."""
         m = self.mesh
         key = hashlib.sha256(np.ascontiguousarray(m.vertices, float).tobytes()
                              + np.ascontiguousarray(m.faces, np.int64).tobytes()).hexdigest()
@@ -288,8 +283,8 @@ class ObjectSurface:
         return np.where(dist <= within, dist, np.inf)
 
     def bounds(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(lower (k,), upper (k,)) [m] bounds of each point's distance to the
-        surface, without a tree search (:class:`DistanceBounds`)."""
+        """(lower (k,), upper (k,)) [m] bounds of each point's distance to the surface, no tree search
+        (:class:`DistanceBounds`)."""
         return self._bounds.bounds(points)
 
     def closest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -306,29 +301,33 @@ class ObjectSurface:
     def signed_features(self, points: np.ndarray, closest: np.ndarray, distance: np.ndarray, face: np.ndarray
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, Feature]:
         """:meth:`signed` and the closest points' :class:`Feature` (for :meth:`contact_normals`)."""
-        normal = self.mesh.face_normals[face]
-        sign = np.where(np.einsum("ij,ij->i", points - closest, normal) < 0, -1.0, 1.0)
+        feature, smooth = self.features(closest, face)
+        return closest, self.gaps(points, closest, distance, face), self.mesh.face_normals[face], smooth, feature
+
+    def gaps(self, points: np.ndarray, closest: np.ndarray, distance: np.ndarray, face: np.ndarray) -> np.ndarray:
+        """(n,) :meth:`signed`'s gaps [m] alone (each row from its own point, closest point, distance and face)."""
+        sign = np.where(np.einsum("ij,ij->i", points - closest, self.mesh.face_normals[face]) < 0, -1.0, 1.0)
+        return sign * distance
+
+    def features(self, closest: np.ndarray, face: np.ndarray) -> tuple[Feature, np.ndarray]:
+        """(:class:`Feature`, smooth (n,) bool) of :meth:`signed_features` alone, row by row."""
         feature = self._feature(closest, face)
-        return closest, sign * distance, normal, self._smooth(feature), feature
+        return feature, self._smooth(feature)
 
     def nearest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(closest (n, 3) [m], distance (n,) [m], face (n,)): the exact
-        closest point of each point on the mesh."""
+        """(closest (n, 3) [m], distance (n,) [m], face (n,)): the exact closest point of each point on the mesh."""
         found = self._distance.nearest(points)
         return found.points, found.distance, found.face
 
     def contact_normals(self, closest: np.ndarray, face: np.ndarray, smooth: np.ndarray,
                         toward: np.ndarray, feature: Feature | None = None) -> np.ndarray:
-        """(n, 3) unit contact normals into the object at ``closest`` (n, 3)
-        on faces ``face``: the face's where the surface is smooth there
-        (``smooth``, from :meth:`signed`); at a sharp edge or vertex, the
-        direction of its normal cone (the outward normals of the faces that
-        meet there, and their non-negative combinations) nearest the other
-        body's ``toward`` (n, 3), its own normal into the object: a pad laid
-        on an edge keeps its normal, a link's side or rim touching an edge
-        gets the nearest normal the object can have there (the side's normal
-        pushed the object out through a face no finger touched). Where the
-        edge or vertex has no cone (an open border), ``toward``. ``feature``: the points' :class:`Feature`, if known."""
+        """(n, 3) unit contact normals into the object at ``closest`` (n, 3) on faces ``face``: the face's where the
+        surface is smooth there (``smooth``, from :meth:`signed`); at a sharp edge or vertex, the direction of its
+        normal cone (the outward normals of the faces that meet there, and their non-negative combinations) nearest
+        the other body's ``toward`` (n, 3), its own normal into the object: a pad laid on an edge keeps its normal,
+        a link's side or rim touching an edge gets the nearest normal the object can have there (the side's normal
+        pushed the object out through a face no finger touched). Where the edge or vertex has no cone (an open
+        border), ``toward``. ``feature``: the points' :class:`Feature`, if known. Row by row."""
         normals = np.where(smooth[:, None], -self.mesh.face_normals[face], toward)
         sharp = np.flatnonzero(~smooth)
         if not len(sharp):
