@@ -1,8 +1,6 @@
-"""Building a grasp database: :func:`generate` plans the units of work
-(:func:`plan_units`; on the table in the object's resting poses,
-:func:`table_supports`), runs them (in this process, a process pool or Ray)
-and stores each finished unit (:func:`unit_row`), reporting
-:class:`GenerateProgress` and returning a :class:`Summary`.
+"""Building a grasp database: :func:`generate` plans the units of work (:func:`plan_units`; on the table in the
+object's resting poses, :func:`table_supports`), runs them (in this process, a process pool or Ray) and stores
+each finished unit (:func:`unit_row`), reporting :class:`GenerateProgress` and returning a :class:`Summary`.
 
 ``UnitSpec``, ``UnitResult`` and ``run_unit`` (PyBullet's world) are read
 from the facade :mod:`planner.api`, where they load on first use and where a
