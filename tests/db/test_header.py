@@ -187,3 +187,50 @@ def test_best_while_a_run_writes_the_object_says_so(box_db: Path, tmp_path: Path
         api.best("sphere", "panda", db_path=db)
     with pytest.raises(InputError, match=r"no grasps of 'sphere' .* run `grasp generate sphere"):
         api.best("sphere", "panda", db_path=db)
+
+
+#: Another application opens its WAL database (SQLite makes an empty -wal and a -shm), waits for a line, then commits
+#: a row and dies without closing (the row only in its -wal, as a killed writer's units are).
+APP = """
+import os, sqlite3, sys
+conn = sqlite3.connect(sys.argv[1], isolation_level=None)
+conn.execute("SELECT COUNT(*) FROM t").fetchone()
+print("open", flush=True)
+sys.stdin.readline()
+conn.execute("INSERT INTO t VALUES (1)")
+print("committed", flush=True)
+os._exit(0)
+"""
+
+
+def test_a_refused_look_keeps_the_wal_of_a_writer_that_opened_meanwhile(tmp_path: Path,
+                                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The look at a file before its writer's lock removed an empty -wal and a -shm that were not there when it
+    began: another process that opened the file in the meantime (not yet written: its -wal is empty) lost both, and
+    its next commit went into a -wal no one else could see (its row gone once it died). The look makes none."""
+    from planner.db import store
+    from planner.db.store import open_for_writing
+
+    db = tmp_path / "app.db"
+    with closing(sqlite3.connect(db)) as conn:  # another application's WAL database, closed: no -wal, no -shm
+        conn.execute("PRAGMA journal_mode = WAL")
+        conn.execute("CREATE TABLE t (x)")
+        conn.commit()
+    app = subprocess.Popen([sys.executable, "-c", APP, str(db)], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                           text=True)
+    look = store.schema_version
+
+    def meanwhile(conn: sqlite3.Connection, path: Path) -> int:  # the application opens while the look reads
+        assert app.stdout is not None and app.stdout.readline() == "open\n"
+        return look(conn, path)
+
+    monkeypatch.setattr(store, "schema_version", meanwhile)
+    try:
+        with pytest.raises(DatabaseError, match="an SQLite file, but not a grasp database"), \
+                open_for_writing(db, create=False):
+            pass
+    finally:
+        out, _ = app.communicate("\n", timeout=30)
+    assert out == "committed\n"
+    with closing(sqlite3.connect(db)) as conn:
+        assert conn.execute("SELECT COUNT(*) FROM t").fetchone()[0] == 1
