@@ -171,7 +171,8 @@ def test_a_reader_of_a_file_being_created_says_so(tmp_path: Path) -> None:
         api.best("box", "panda", db_path=db)
 
 
-def test_best_while_a_run_writes_the_object_says_so(box_db: Path, tmp_path: Path) -> None:
+def test_best_while_a_run_writes_the_object_says_so(box_db: Path, tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
     """`grasp best duck` while `grasp generate duck` was writing the database, none of its units finished yet,
     said "run `grasp generate duck --hand panda --db ...`": the very run that was going on. It says who writes."""
     import shutil
@@ -182,6 +183,7 @@ def test_best_while_a_run_writes_the_object_says_so(box_db: Path, tmp_path: Path
 
     db = tmp_path / "g.db"
     shutil.copy(box_db, db)
+    monkeypatch.setattr(sys, "argv", ["grasp", "generate", "sphere", "--hand", "panda", "--db", str(db)])
     with writer_lock(db), pytest.raises(InputError, match=r"no grasps of 'sphere' for hand 'panda' in .*g.db yet: "
                                                           r"pid \d+.* is writing it; try again once a unit"):
         api.best("sphere", "panda", db_path=db)
@@ -234,3 +236,27 @@ def test_a_refused_look_keeps_the_wal_of_a_writer_that_opened_meanwhile(tmp_path
     assert out == "committed\n"
     with closing(sqlite3.connect(db)) as conn:
         assert conn.execute("SELECT COUNT(*) FROM t").fetchone()[0] == 1
+
+
+def test_best_of_an_object_no_running_sweep_writes_says_to_generate_it(box_db: Path, tmp_path: Path,
+                                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """Any writer of the database (a `grasp validate`, a generate of another object or hand) made `best sphere` say
+    "pid N, `grasp validate ...` is writing it; try again once a unit of it has finished": waiting never gives a
+    grasp. Only a run that sweeps the object for the hand is said to write it; else: run `grasp generate ...`."""
+    import shutil
+
+    from planner import api
+    from planner.db.lock import writer_lock
+    from planner.errors import InputError
+
+    db = tmp_path / "g.db"
+    shutil.copy(box_db, db)
+    for argv in (["grasp", "validate", "--db", str(db)], ["grasp", "generate", "sphere", "--hand", "barrett"],
+                 ["grasp", "generate", "box", "--hand", "panda", "--db", str(db)]):
+        monkeypatch.setattr(sys, "argv", argv)
+        with writer_lock(db), pytest.raises(InputError) as refused:
+            api.best("sphere", "panda", db_path=db)
+        assert "is writing it" not in str(refused.value) and "run `grasp generate sphere" in str(refused.value)
+    monkeypatch.setattr(sys, "argv", ["grasp", "generate", "box", "sphere", "--hand", "panda", "--db", str(db)])
+    with writer_lock(db), pytest.raises(InputError, match=r"yet: pid \d+, `grasp generate box sphere .* is writing it"):
+        api.best("sphere", "panda", db_path=db)
