@@ -47,14 +47,16 @@ def show(name: str, hand: str, out: Path, *, db_path: Path = DEFAULT_DB, rank: i
     check_output(Path(out), "--out")
     with open_db(Path(db_path), create=False, readonly=True) as db:
         key, obj = _stored(db, name, hand, "the picture")
-        grasps = db.best(key, hand, count, first - 1) if spacing is None else \
-            best(key, hand, db_path=db_path, top=first - 1 + count, spacing=spacing)[first - 1:]
-        stored = db.grasp_count(key, hand)
-    if not grasps and first == 1:
+        if spacing is None:
+            grasps, stored = db.best(key, hand, count, first - 1), db.grasp_count(key, hand)
+        else:  # fewer than asked for: every diverse one (their count, not every stored grasp's, is the last rank)
+            diverse = best(key, hand, db_path=db_path, top=first - 1 + count, spacing=spacing)
+            grasps, stored = diverse[first - 1:], len(diverse)
+    if not grasps and (first == 1 or stored == 0):
         best(key, hand, db_path=db_path)  # raises, saying why the object has none
     if not grasps:
-        raise InputError(f"no grasp of rank {first} for '{key}' and hand '{hand}' in {db_path}: it has {stored} "
-                         f"(--rank 1 to {stored})")
+        raise InputError(f"no grasp of rank {first} for '{key}' and hand '{hand}' in {db_path}: it has {stored}"
+                         f"{'' if spacing is None else ' diverse ones'} (--rank 1 to {stored})")
     views = [(render.grasp_views(spec, obj, g), render.title(g)) for g in grasps]
     with writing(Path(out), "--out"):
         render.save_sheet(views, Path(out))

@@ -67,7 +67,7 @@ def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1, spac
                                  "another hand or other sweep settings, or, if its sweep was cut short, "
                                  f"`{generate_command(name, row, hand, db_path)}` finishes it")
             writer = writer_of(Path(db_path))
-            if writer is not None:  # it said "run `grasp generate ...`" of the very run that was writing it
+            if writer is not None and _sweeps(writer.command, {name, key}, hand):  # not "run" the very run going on
                 raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path} yet: {writer.describe()} is "
                                  "writing it; try again once a unit of it has finished")
             raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}; objects with grasps: "
@@ -153,3 +153,16 @@ def p_hold_model(hand: str, *, db_path: Path = DEFAULT_DB) -> LogisticModel | No
     ``grasp calibrate``, else the shipped one; None: none)."""
     with open_db(Path(db_path), create=False, readonly=True) as db:
         return db.model(hand)
+
+
+def _sweeps(command: str, names: set[str], hand: str) -> bool:
+    """Whether a writer's recorded ``command`` is a `grasp generate` of one of ``names`` for ``hand`` (any other
+    writer, a `validate` or another object's sweep, never stores it: waiting for it gives no grasp)."""
+    import shlex
+
+    try:
+        words = shlex.split(command)
+    except ValueError:  # cut at the lock's COMMAND_CHARS inside a quote
+        words = command.split()
+    hands = {b for a, b in zip(words, words[1:]) if a == "--hand"} | {w[7:] for w in words if w.startswith("--hand=")}
+    return "generate" in words and hand in hands and not names.isdisjoint(words)

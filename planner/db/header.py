@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import shlex
 import sqlite3
-from collections.abc import Iterator
-from contextlib import closing, contextmanager
+from contextlib import closing
 from pathlib import Path
 from urllib.parse import quote
 
@@ -57,22 +56,16 @@ def cannot_open(path: Path, exc: sqlite3.DatabaseError) -> DatabaseError:
     return DatabaseError(f"{path}: cannot open database: {exc}")
 
 
-@contextmanager
-def nothing_left_if_refused(path: Path) -> Iterator[None]:
-    """A look at ``path`` that, refused (a :class:`DatabaseError`: a truncated or damaged file), leaves no ``-wal``
-    and ``-shm`` beside it that were not there before: SQLite's read-only opening of a WAL database makes both,
-    and cannot remove them when it closes (`generate` or `validate` of a truncated copy left an empty -wal and a
-    -shm; the file itself was unchanged). A -wal with something in it is kept: it may be someone's data."""
+def look(path: Path) -> str:
+    """SQLite's URI of a read-only look at ``path`` that makes nothing beside it. Without a -wal or -shm beside the
+    file: the file as it is (immutable; a mode=ro opening of a WAL database makes both and cannot remove them when it
+    closes: `generate` or `validate` of a truncated copy left them). Removing them afterwards removed those of a
+    process that opened the file in the meantime (its next commit then lost). With either there: through them (a
+    live writer's, or the committed units of a killed one), and both left as they are."""
     real = Path(path).resolve()
-    wal, shm = (real.with_name(real.name + side) for side in ("-wal", "-shm"))
-    there = wal.exists() or shm.exists()
-    try:
-        yield
-    except DatabaseError:
-        if not there and (not wal.exists() or wal.stat().st_size == 0):
-            wal.unlink(missing_ok=True)
-            shm.unlink(missing_ok=True)
-        raise
+    if any(real.with_name(real.name + side).exists() for side in ("-wal", "-shm")):
+        return uri(path, "mode=ro")
+    return uri(real, "mode=ro&immutable=1")
 
 
 def no_schema(path: Path, conn: sqlite3.Connection | None = None) -> DatabaseError:

@@ -94,8 +94,10 @@ class Owner:
     def parse(text: str) -> Owner | None:
         try:
             d = json.loads(text)
-            return Owner(int(d["pid"]), d.get("start"), str(d["host"]), str(d["command"]), float(d["since"]))
-        except (ValueError, KeyError, TypeError):
+            owner = Owner(int(d["pid"]), d.get("start"), str(d["host"]), str(d["command"]), float(d["since"]))
+            time.localtime(owner.since)  # NaN, 1e300: no owner wrote that (describe() died on it, a traceback)
+            return owner
+        except (ValueError, KeyError, TypeError, OverflowError, OSError):
             return None
 
     def alive(self) -> bool:

@@ -46,8 +46,8 @@ from planner.db.columns import (  # noqa: F401 - VECTOR_DIGITS, INERTIA_DIGITS, 
     json_list,
 )
 from planner.db.failures import _reads, missing, read_failed, write_failed  # noqa: F401 - the failures re-exported
-from planner.db.header import cannot_open, check_header, no_schema, nothing_left_if_refused, uri
-from planner.db.lock import writer_lock, writer_of
+from planner.db.header import cannot_open, check_header, look, no_schema, uri
+from planner.db.lock import writer_lock
 from planner.db.ranking import END_KEPT, RankingRule, end_kept_sql, ranked_with_ends
 from planner.db.rows import ObjectRow, UnitRow, Validated  # noqa: F401 - re-exported
 from planner.db.schema import (
@@ -316,21 +316,20 @@ def open_for_writing(path: Path, *, create: bool = True) -> Iterator[Database]:
                             "SQLite's journal); nothing was changed: copy it to a writable folder")
     if not create and not path.exists():
         raise DatabaseError(missing(path))
-    if not create and path.is_file() and path.stat().st_size == 0 and writer_of(path) is None:
-        raise no_schema(path)  # validate made it a database, and left a .lock beside it
+    if not create and path.is_file() and path.stat().st_size == 0:  # validate made it a database (a stale lock's
+        raise no_schema(path)  # owner on another host taken over too), and left a .lock beside it
     if path.is_file() and path.stat().st_nlink > 1:  # the lock is by name: a second name would let a second writer in
         raise DatabaseError(f"{path}: the file has {path.stat().st_nlink} names (hard links, e.g. a `cp -al` "
                             "snapshot): a writer through one would not see a writer through another, and a write "
                             "changes every name; nothing was changed: write to a copy (cp)")
     if path.is_file() and path.stat().st_size > 0:
         check_header(path)
-        with nothing_left_if_refused(path):
-            try:
-                with closing(sqlite3.connect(uri(path, "mode=ro"), uri=True, timeout=BUSY_TIMEOUT_S)) as conn:
-                    conn.row_factory = sqlite3.Row
-                    schema_version(conn, path)
-            except sqlite3.DatabaseError as exc:
-                raise cannot_open(path, exc) from exc
+        try:
+            with closing(sqlite3.connect(look(path), uri=True, timeout=BUSY_TIMEOUT_S)) as conn:
+                conn.row_factory = sqlite3.Row
+                schema_version(conn, path)
+        except sqlite3.DatabaseError as exc:
+            raise cannot_open(path, exc) from exc
     with writer_lock(path), open_db(path, create=create) as db:
         db.rank_anew()
         yield db

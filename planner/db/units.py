@@ -84,7 +84,7 @@ class UnitReads:
     @_reads
     def grasp_count(self, obj: str, hand: str) -> int:
         """How many grasps of ``obj`` for ``hand`` are stored (the ranks there are: 1 to this)."""
-        return int(self._conn.execute("SELECT COUNT(*) FROM grasps WHERE object = ? AND hand = ?",
+        return int(self._conn.execute("SELECT COUNT(*) FROM grasps WHERE object = ? AND hand = ? AND rank IS NOT NULL",
                                       (obj, hand)).fetchone()[0])
 
     @_reads

@@ -431,3 +431,16 @@ def test_show_of_a_rank_past_the_last_says_how_many_there_are(box_db: Path, tmp_
                          "--out", str(tmp_path / "s.png"))
     one_line_error(code, err, 2, "no grasp of rank 5000", f"it has {stored} (--rank 1 to {stored})")
     assert not (tmp_path / "s.png").exists()
+
+
+def test_show_of_a_diverse_rank_past_the_last_says_how_many_diverse_there_are(box_db: Path, tmp_path: Path) -> None:
+    """`grasp show --diverse --rank K` past the last diverse grasp said "it has N (--rank 1 to N)" with N every
+    stored grasp: --rank N failed the same way. It says how many diverse ones there are."""
+    from planner.db.diverse import Spacing
+
+    diverse = len(api.best("box", "panda", db_path=box_db, top=100_000, spacing=Spacing()))
+    assert diverse < len(api.best("box", "panda", db_path=box_db, top=100_000))
+    code, _, err = grasp("show", "box", "--hand", "panda", "--db", str(box_db), "--diverse", "--rank",
+                         str(diverse + 1), "--out", str(tmp_path / "s.png"))
+    one_line_error(code, err, 2, f"no grasp of rank {diverse + 1}", f"it has {diverse} diverse ones (--rank 1 to "
+                   f"{diverse})")

@@ -171,7 +171,8 @@ def test_a_reader_of_a_file_being_created_says_so(tmp_path: Path) -> None:
         api.best("box", "panda", db_path=db)
 
 
-def test_best_while_a_run_writes_the_object_says_so(box_db: Path, tmp_path: Path) -> None:
+def test_best_while_a_run_writes_the_object_says_so(box_db: Path, tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
     """`grasp best duck` while `grasp generate duck` was writing the database, none of its units finished yet,
     said "run `grasp generate duck --hand panda --db ...`": the very run that was going on. It says who writes."""
     import shutil
@@ -182,8 +183,80 @@ def test_best_while_a_run_writes_the_object_says_so(box_db: Path, tmp_path: Path
 
     db = tmp_path / "g.db"
     shutil.copy(box_db, db)
+    monkeypatch.setattr(sys, "argv", ["grasp", "generate", "sphere", "--hand", "panda", "--db", str(db)])
     with writer_lock(db), pytest.raises(InputError, match=r"no grasps of 'sphere' for hand 'panda' in .*g.db yet: "
                                                           r"pid \d+.* is writing it; try again once a unit"):
         api.best("sphere", "panda", db_path=db)
     with pytest.raises(InputError, match=r"no grasps of 'sphere' .* run `grasp generate sphere"):
+        api.best("sphere", "panda", db_path=db)
+
+
+#: Another application opens its WAL database (SQLite makes an empty -wal and a -shm), waits for a line, then commits
+#: a row and dies without closing (the row only in its -wal, as a killed writer's units are).
+APP = """
+import os, sqlite3, sys
+conn = sqlite3.connect(sys.argv[1], isolation_level=None)
+conn.execute("SELECT COUNT(*) FROM t").fetchone()
+print("open", flush=True)
+sys.stdin.readline()
+conn.execute("INSERT INTO t VALUES (1)")
+print("committed", flush=True)
+os._exit(0)
+"""
+
+
+def test_a_refused_look_keeps_the_wal_of_a_writer_that_opened_meanwhile(tmp_path: Path,
+                                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The look at a file before its writer's lock removed an empty -wal and a -shm that were not there when it
+    began: another process that opened the file in the meantime (not yet written: its -wal is empty) lost both, and
+    its next commit went into a -wal no one else could see (its row gone once it died). The look makes none."""
+    from planner.db import store
+    from planner.db.store import open_for_writing
+
+    db = tmp_path / "app.db"
+    with closing(sqlite3.connect(db)) as conn:  # another application's WAL database, closed: no -wal, no -shm
+        conn.execute("PRAGMA journal_mode = WAL")
+        conn.execute("CREATE TABLE t (x)")
+        conn.commit()
+    app = subprocess.Popen([sys.executable, "-c", APP, str(db)], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                           text=True)
+    look = store.schema_version
+
+    def meanwhile(conn: sqlite3.Connection, path: Path) -> int:  # the application opens while the look reads
+        assert app.stdout is not None and app.stdout.readline() == "open\n"
+        return look(conn, path)
+
+    monkeypatch.setattr(store, "schema_version", meanwhile)
+    try:
+        with pytest.raises(DatabaseError, match="an SQLite file, but not a grasp database"), \
+                open_for_writing(db, create=False):
+            pass
+    finally:
+        out, _ = app.communicate("\n", timeout=30)
+    assert out == "committed\n"
+    with closing(sqlite3.connect(db)) as conn:
+        assert conn.execute("SELECT COUNT(*) FROM t").fetchone()[0] == 1
+
+
+def test_best_of_an_object_no_running_sweep_writes_says_to_generate_it(box_db: Path, tmp_path: Path,
+                                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """Any writer of the database (a `grasp validate`, a generate of another object or hand) made `best sphere` say
+    "pid N, `grasp validate ...` is writing it; try again once a unit of it has finished": waiting never gives a
+    grasp. Only a run that sweeps the object for the hand is said to write it; else: run `grasp generate ...`."""
+    import shutil
+
+    from planner import api
+    from planner.db.lock import writer_lock
+    from planner.errors import InputError
+
+    db = tmp_path / "g.db"
+    shutil.copy(box_db, db)
+    for argv in (["grasp", "validate", "--db", str(db)], ["grasp", "generate", "sphere", "--hand", "barrett"],
+                 ["grasp", "generate", "box", "--hand", "panda", "--db", str(db)]):
+        monkeypatch.setattr(sys, "argv", argv)
+        with writer_lock(db), pytest.raises(InputError) as refused:
+            api.best("sphere", "panda", db_path=db)
+        assert "is writing it" not in str(refused.value) and "run `grasp generate sphere" in str(refused.value)
+    monkeypatch.setattr(sys, "argv", ["grasp", "generate", "box", "sphere", "--hand", "panda", "--db", str(db)])
+    with writer_lock(db), pytest.raises(InputError, match=r"yet: pid \d+, `grasp generate box sphere .* is writing it"):
         api.best("sphere", "panda", db_path=db)

@@ -192,3 +192,32 @@ def test_a_database_with_a_second_name_is_not_written(box_db: Path, tmp_path: Pa
     code, _, err = grasp("generate", "sphere", "--hand", "panda", "--db", str(tmp_path / "b.db"), *FAST, "--quiet")
     one_line_error(code, err, 3, "the file has 2 names (hard links", "nothing was changed")
     assert db.read_bytes() == before
+
+
+@pytest.mark.parametrize("since", ["1e300", "NaN"])
+def test_an_owner_record_with_a_time_no_clock_gives_is_no_owner(box_db: Path, tmp_path: Path, since: str) -> None:
+    """A lock file naming an owner "since" 1e300 or NaN (garbage, another tool's file) passed as an owner: `grasp best`
+    of an object not stored, `validate` (its takeover's warning) died with "internal error: OverflowError" or
+    "ValueError: Invalid value NaN". It is no owner: one line each, as for any unreadable record."""
+    import shutil
+
+    db = tmp_path / "g.db"
+    shutil.copy(box_db, db)
+    (tmp_path / "g.db.lock").write_text(f'{{"pid": 5, "start": null, "host": "elsewhere", "command": "grasp x", '
+                                        f'"since": {since}}}')
+    code, _, err = grasp("best", "sphere", "--hand", "panda", "--db", str(db))
+    one_line_error(code, err, 2, "no grasps of 'sphere'", "run `grasp generate sphere")
+    assert "internal error" not in err
+
+
+def test_validate_of_an_empty_file_with_a_lock_of_another_host_leaves_it_empty(tmp_path: Path) -> None:
+    """A 0-byte file whose lock file names a writer on another host (a container killed while creating it, the
+    folder shared): validate took the stale lock over and made the file a database (73,728 bytes) before saying
+    "no grasps"; refused in one line, the file left empty, as without the lock file."""
+    db = tmp_path / "e.db"
+    db.write_bytes(b"")
+    (tmp_path / "e.db.lock").write_text('{"pid": 5, "start": null, "host": "elsewhere", "command": "grasp generate '
+                                        'box --db e.db", "since": 1}')
+    code, _, err = grasp("validate", "--db", str(db))
+    one_line_error(code, err, 3, "e.db: ")
+    assert db.stat().st_size == 0
