@@ -257,12 +257,14 @@ class Grasp:
     def to_json(self) -> dict:
         """The grasp as ``grasp best --json`` prints it: every field of
         :func:`planner.record.fields.record_fields` by its flat name (null
-        when absent), and ``joints``, the closed joints again (its name
-        before the declaration)."""
+        when absent), ``joints``, the closed joints again (its name
+        before the declaration), and ``end_kept``: whether the squeeze's end
+        of this grasp is stored beside it and ranks for it (the derived
+        attribute that ranks it after every force-closure grasp)."""
         from planner.record.fields import getter, json_value, record_fields
 
         out = {f.name: json_value(f, getter(f)(self)) for f in record_fields()}
-        return {**out, "joints": out["closed_joints"]}
+        return {**out, "joints": out["closed_joints"], "end_kept": bool(self.end_kept)}
 
 
 #: The record's field names, in order.
