@@ -66,7 +66,9 @@ squeeze's end kept as a grasp of its own where it ends force closure, its parent
 of the grasps closed where planned are digested as before, the squeezes' ends apart, ``squeezed``); 26 (issue 24:
 a squeeze's end is its squeeze's last closing, opened as its parent, not closed once more from there: COLUMNS, the
 squeeze and the number of ends as in 25, only the ends' values differ); 27 (issue 26: a parent whose end is kept
-takes no reach slot, its end ranking for it: three of the grasps as planned change reachability, score or rank).
+takes no reach slot, its end ranking for it: three of the grasps as planned change reachability, score or rank); 28
+(issues 24, 26: a squeeze that turns back bisects its last turn: none of these runs' squeezes turns back, the digest
+is 27's, the squeezes and their ends included; the mug's change).
 """
 
 from __future__ import annotations

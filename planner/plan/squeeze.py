@@ -15,7 +15,12 @@ about the contacts' centre by the rotation that brings the jaw's closing axis on
 difference of the two fingers' mean contact normals), the jaw a little more open than it closed
 (:data:`REOPEN`), and closes again; at most :data:`TURNS` times, until the contacts are force closure. Where
 that jaw would overlap the object at the whole turn, the object turns part of the way (:data:`SHARES`); a turn
-it cannot make at all or a closing that fails there ends the squeeze where it is. On a table (the grasper's), it is
+it cannot make at all or a closing that fails there ends the squeeze where it is. A pad on a concave face (a mug's
+inner wall or handle, curved across the pad) touches it at one of its two edges, where the face's normal leans
+further than the wall's: the turn overshoots, the pad touches at its other edge, and the next turn points back the
+way it came (until ALGORITHM_VERSION 28 the mug's failing squeezes flipped so three times, 76 of 81). Where a turn
+turns back (:data:`REVERSED`), the flush pose lies between the last two closings: the squeeze bisects that bracket
+(:func:`bracketed`, :func:`midway`) instead, with no more closings. On a table (the grasper's), it is
 the object that turns, not the hand: a turn that would take the object resting there through the table top
 (deeper than :data:`SINK`) is one it cannot make (:func:`through_table`).
 
@@ -32,6 +37,7 @@ it touches), the Barrett and the Allegro are no parallel jaws (the Barrett settl
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -46,7 +52,8 @@ from planner.record.contacts import HandContacts
 from planner.specs.hand_spec import HandSpec
 from planner.specs.preshapes import Preshape
 
-__all__ = ["REOPEN", "SINK", "TURNS", "Squeeze", "squeezed", "squeezes", "through_table", "turn"]
+__all__ = ["REOPEN", "REVERSED", "SINK", "TURNS", "Squeeze", "bracketed", "midway", "squeezed", "squeezes",
+           "through_table", "turn"]
 
 #: Turns of the squeeze at most: one brings the wall flush where the pads touched a flat wall; a curved one
 #: may take a second or third (the pads then touch it elsewhere).
@@ -57,12 +64,19 @@ REOPEN = 0.001
 #: Shares of the whole turn tried in turn: where the jaw cannot turn all the way (a finger would enter the object
 #: elsewhere: a mug's wall curves across the pads), the object turns part of the way.
 SHARES = (1.0, 0.5, 0.25)
+#: A turn whose cosine with the way back to the pose of the closing before is above this turns back: the flush pose
+#: lies between the two (a turn about another axis, below it, is taken as a turn: the wall curves the other way).
+REVERSED = 0.7
 #: [rad] a smaller turn is no turn (the wall already lies along the closing axis).
 MIN_TURN = 1e-4
 
 #: [m] how far below the table top it rests on the object turned by the squeeze may reach (a turn that takes it
 #: deeper goes through the table: the table stops it).
 SINK = 1e-4
+
+#: (4, 4), (4, 4): two poses of the hand (object frame), the whole turn at the first towards the second, at the
+#: second towards the first: the flush pose lies between them (:func:`bracketed`).
+Bracket = tuple[np.ndarray, np.ndarray]
 
 #: contacts -> their quality (epsilon and force closure; None: not computable).
 Score = Callable[[HandContacts], "Quality | None"]
@@ -161,22 +175,65 @@ def _squeezed(grasper: Grasper, closed: Closed, preshape: Preshape, planned: Qua
     axis = grasper.axis_in_root(master.name)
     axis = axis / np.linalg.norm(axis)
     quality, start = planned, closed.pose
+    before: np.ndarray | None = None  # (4, 4) the pose of the closing before this one
+    bracket: Bracket | None = None
     for _ in range(TURNS):
         joints = dict(closed.closed_joints)
         joints[master.name] += -np.sign(master.close) * REOPEN
         joints = hand.full_configuration({j.name: joints[j.name] for j in hand.driven})
-        turned = (turn(closed.contacts, sides, closed.pose, axis, share) for share in SHARES)
+        whole = turn(closed.contacts, sides, closed.pose, axis)
+        if whole is None:
+            break
+        bracket = bracketed(bracket, before, closed.pose, whole)
+        middle = [] if bracket is None else [midway(*bracket)]  # where that overlaps, or no bracket: the turn's shares
+        turned = itertools.chain(middle, (turn(closed.contacts, sides, closed.pose, axis, share) for share in SHARES))
         pose = next((p for p in turned if p is None or not (grasper.overlaps_at(p, joints)
                                                              or through_table(grasper, start, p))), None)
         if pose is None:
             break
+        if not any(pose is m for m in middle):
+            bracket = None  # turned as far as it could along the turn: no bisection (yet)
         again = grasper.close_from(pose, preshape, joints)
         if not isinstance(again, Closed) or (better := score(again.contacts)) is None:
             break
-        closed, quality = again, better
+        before, closed, quality = closed.pose, again, better
         if quality.force_closure:
             break
     turned_by = Rotation.from_matrix(closed.pose[:3, :3] @ start[:3, :3].T).magnitude()
     end = None if quality is planned else closed
     return Squeeze(bool(quality.force_closure), float(quality.epsilon), float(turned_by), end,
                    None if end is None else quality)
+
+
+def bracketed(bracket: Bracket | None, before: np.ndarray | None, pose: np.ndarray, whole: np.ndarray
+              ) -> Bracket | None:
+    """The bracket of the flush pose once the squeeze has closed at ``pose`` (4, 4), where the whole turn would take
+    the hand to ``whole`` (4, 4): ``bracket`` (None: none yet) halved where ``pose`` is its middle (the flush pose
+    lies on the side ``whole`` turns to), or a new one from ``before`` (4, 4; None: the first closing) to ``pose``
+    where ``whole`` turns back the way it came (cosine above :data:`REVERSED`), else None."""
+    if bracket is not None:
+        return (pose, bracket[1]) if cosine(pose, whole, bracket[1]) > 0.0 else (bracket[0], pose)
+    if before is not None and cosine(pose, whole, before) > REVERSED:
+        return before, pose
+    return None
+
+
+def rotvec(source: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """(3,) [rad] the rotation vector (object frame) that turns the pose ``source`` (4, 4) onto ``target`` (4, 4)."""
+    return Rotation.from_matrix(target[:3, :3] @ source[:3, :3].T).as_rotvec()
+
+
+def cosine(pose: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """The cosine between the turns from ``pose`` to ``a`` and from ``pose`` to ``b`` (all (4, 4)); 0 where either
+    does not turn."""
+    u, v = rotvec(pose, a), rotvec(pose, b)
+    norms = float(np.linalg.norm(u) * np.linalg.norm(v))
+    return float(u @ v) / norms if norms > 0.0 else 0.0
+
+
+def midway(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(4, 4) the pose half way from ``a`` (4, 4) to ``b`` (4, 4): half the rotation, the mean position."""
+    out = np.eye(4)
+    out[:3, :3] = Rotation.from_rotvec(rotvec(a, b) / 2.0).as_matrix() @ a[:3, :3]
+    out[:3, 3] = (a[:3, 3] + b[:3, 3]) / 2.0
+    return out

@@ -16,7 +16,7 @@ from scipy.spatial.transform import Rotation
 from planner.datasets.importer import RescoreUnit, rescore_poses
 from planner.geometry.solid import load_object
 from planner.plan import keeping, unit
-from planner.plan.squeeze import squeezes, turn
+from planner.plan.squeeze import bracketed, midway, squeezes, turn
 from planner.plan.sweep import SweepSettings
 from planner.record.contacts import HandContacts
 from planner.specs.hands import load_hand
@@ -148,9 +148,9 @@ def test_turn_brings_the_closing_axis_onto_the_walls_normal_about_the_contacts_c
     assert turn(contacts, (frozenset({"a"}), frozenset({"c"})), pose, np.array([0.0, 1.0, 0.0])) is None
 
 
-def squeeze_on(obj_spec, table_below: float | None):  # type: ignore[no-untyped-def]
-    """The squeeze of the pinch of the slab ``obj_spec`` on a table whose top lies ``table_below`` [m] under the
-    slab's lowest point (None: no table), and the planned grasp's force closure."""
+def squeeze_on(obj_spec, table_below: float | None, pose: np.ndarray | None = None):  # type: ignore[no-untyped-def]
+    """The squeeze of the pinch (or the hand at ``pose`` (4, 4)) of the slab ``obj_spec`` on a table whose top lies
+    ``table_below`` [m] under the slab's lowest point (None: no table), and the planned grasp's force closure."""
     from collections import Counter
 
     from planner.datasets.importer import CONE_EDGES, MAX_BACK_OFF
@@ -168,7 +168,7 @@ def squeeze_on(obj_spec, table_below: float | None):  # type: ignore[no-untyped-
     shape = hand.widest(sweep_preshapes(hand))
     with Sim() as sim:
         grasper = Grasper.for_object(sim, hand, obj, table=table)
-        closed = grasper.close_at(pinch(), shape, MAX_BACK_OFF)
+        closed = grasper.close_at(pinch() if pose is None else pose, shape, MAX_BACK_OFF)
         assert isinstance(closed, Closed)
         q = unit.scored(closed.contacts, hand, obj, CONE_EDGES, Counter())
         assert q is not None
@@ -261,3 +261,57 @@ def test_a_resumed_unit_stores_the_same_records_squeezes_ends_included(tmp_path:
     expected = records(whole)
     assert any(g["squeezed_from_turn"] is not None for g in expected)
     assert records(resumed) == expected
+
+
+#: [rad] the slope of the grooved slab's two facets under the pad: more than the friction angle's half, so a pad
+#: touching one edge of the groove turns past the flush pose to its other edge.
+GROOVE = np.radians(20.0)
+
+
+def grooved(tmp_path: Path):  # type: ignore[no-untyped-def]
+    """A slab extruded along z: its -y face flat, its +y face a shallow V groove along z (facets sloped GROOVE either
+    way, 6 cm wide), centred so a pad 2 cm wide pressed flush touches the groove at both its edges, 6 mm either side
+    of the origin."""
+    from shapely.geometry import Polygon
+
+    half, a, t = 0.01, 0.006, np.tan(GROOVE)
+    section = [(-0.03, -a), (0.03, -a), (0.03, a - half * t + 0.03 * t), (0.0, a - half * t),
+               (-0.03, a - half * t + 0.03 * t)]
+    mesh = trimesh.creation.extrude_polygon(Polygon(section), TALL)
+    mesh.apply_translation([0.0, 0.0, 0.03 - TALL])
+    mesh.export(tmp_path / "groove.obj")
+    return load_object(str(tmp_path / "groove.obj")).spec
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_a_pad_on_a_concave_face_turns_back_half_way_to_force_closure(tmp_path: Path, sign: float) -> None:
+    """The jaw turned by half the groove's slope about its approach: one pad flat on the slab's flat face touches it
+    at one edge, the other pad the groove at its opposite edge (a couple: not force closure). The whole turn takes
+    the closing axis onto that facet's normal and the flat face's, past the flush pose to its mirror image, where the
+    pad touches the groove at its other edge and the turn points back (until ALGORITHM_VERSION 28 the squeeze flipped
+    so three times and ended not force closure); bisected, the hand ends flush, turned by half the slope."""
+    rolled = np.eye(4)
+    rolled[:3, :3] = Rotation.from_rotvec([0.0, 0.0, sign * GROOVE / 2.0]).as_matrix()
+    squeeze, planned_fc = squeeze_on(grooved(tmp_path), None, rolled @ pinch())
+    assert not planned_fc and squeeze is not None
+    assert squeeze.force_closure and squeeze.epsilon > 0.0
+    assert squeeze.turn == pytest.approx(GROOVE / 2.0, abs=TURN_TOL)
+
+
+def test_bracketed_halves_a_bracket_towards_the_turn_and_opens_one_where_the_turn_turns_back() -> None:
+    """Known answers about z: from 0 to 0.2 rad, a turn back to -0.1 opens the bracket (0, 0.2) (a turn about x
+    does not); at its middle a turn towards 0.2 keeps the upper half, towards 0 the lower; midway between 0 and 0.2
+    lies 0.1."""
+    def about(axis: str, angle: float) -> np.ndarray:
+        out = np.eye(4)
+        out[:3, :3] = Rotation.from_euler(axis, angle).as_matrix()
+        return out
+
+    low, high = about("z", 0.0), about("z", 0.2)
+    assert bracketed(None, low, high, about("z", -0.1)) == (low, high)
+    assert bracketed(None, low, high, about("x", 0.3) @ high) is None
+    assert bracketed(None, None, high, about("z", -0.1)) is None
+    middle = midway(low, high)
+    np.testing.assert_allclose(middle, about("z", 0.1), atol=1e-12)
+    assert bracketed((low, high), None, middle, about("z", 0.15)) == (middle, high)
+    assert bracketed((low, high), None, middle, about("z", 0.05)) == (low, middle)
