@@ -119,7 +119,7 @@ class ExportSummary:
 
     format: str
     files: list[Path] = field(default_factory=list)  # grasp files
-    meshes: list[Path] = field(default_factory=list)  # DIR/meshes/<object>.obj
+    meshes: list[Path] = field(default_factory=list)  # DIR/meshes/<object>.obj, each followed by the format's copies
     grasps: int = 0
     seconds: float = 0.0
     notes: list[str] = field(default_factory=list)  # what a reader of the labels should know
@@ -279,7 +279,8 @@ def _export(db_path: Path, fmt: str, out_dir: Path, objects: Sequence[str], hand
         earlier = _earlier(out_dir, fmt)
         if (out_dir / MANIFEST.format(format=fmt)).is_file():  # no stale "complete" over new files
             os.replace(out_dir / MANIFEST.format(format=fmt), out_dir / PREVIOUS.format(format=fmt))
-        summary.meshes = [out_dir / o.file for o in exported.values()]
+        summary.meshes = [out_dir / path for name, o in exported.items()  # the copies a format reads too
+                          for path in (o.file, *(c.format(stem=mesh_stem(name)) for c in copies))]
         if isinstance(writer, TableWriter):
             path = out_dir / writer.file
             writing.append(path)
