@@ -50,4 +50,4 @@ def test_libyaml_writes_the_text_the_pure_python_dumper_writes(db: Path, tmp_pat
     api.export(db, "moveit", tmp_path / "p", objects=["box"])
     path = moveit.relative_path("box", "panda")
     text = (tmp_path / "c" / path).read_bytes()
-    assert text == (tmp_path / "p" / path).read_bytes() and len(yaml.safe_load(text)) >= 10
+    assert text == (tmp_path / "p" / path).read_bytes() and len(yaml.safe_load(text)) > 1
