@@ -213,7 +213,7 @@ def save_sheet(panels: list[tuple[list[View], str]], out: Path) -> None:
 
     rows, cols = len(panels), max(len(views) for views, _ in panels)
     fig, axes = plt.subplots(rows, cols, figsize=(6.4 * cols, 5.4 * rows), squeeze=False)
-    for r, (views, title) in enumerate(panels):
+    for r, (views, _) in enumerate(panels):
         for c in range(cols):
             ax = axes[r][c]
             ax.axis("off")
