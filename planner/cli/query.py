@@ -98,6 +98,8 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
     for r in found:
         _print_grasp(r.grasp, world, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp}, rule,
                      model, up)
+    if any(rank for rank, _ in misses):  # the ranks left out between those shown (#2 and #3 shown, #1 not: why?)
+        click.echo(f"note: stored grasps the arm does not reach with the object at {object_pose}: {_misses(misses)}")
     name = found[0].grasp.object  # the notes plain `best` gives (a p_hold extrapolated, ...) hold here too
     _extrapolated(name, hand, db_path, api.p_hold_outside(name, hand, db_path=db_path))
 
