@@ -68,8 +68,8 @@ def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1, spac
                                  f"`{generate_command(name, row, hand, db_path)}` finishes it")
             writer = writer_of(Path(db_path))
             if writer is not None and _sweeps(writer.command, {name, key}, hand):  # not "run" the very run going on
-                raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path} yet: {writer.describe()} is "
-                                 "writing it; try again once a unit of it has finished")
+                raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path} yet: "
+                                 f"{writer.doing('writing it')}; try again once a unit of it has finished")
             raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}; objects with grasps: "
                              f"{', '.join(known) or '(none)'}; run `{generate_command(name, row, hand, db_path)}`")
     return grasps

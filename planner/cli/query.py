@@ -81,7 +81,9 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
                         max_candidates=max_candidates, misses=misses, plan=plan, seed=seed)
     world = api.object_pose_matrix(pose)
     if as_json:
-        echo_json([{**r.to_json(), "frames": _frames_json(r.grasp, world, rule, model)} for r in found])
+        outside = api.p_hold_outside(found[0].grasp.object, hand, db_path=db_path) if found else []
+        echo_json([{**r.to_json(), "frames": _frames_json(r.grasp, world, rule, model), "p_hold_outside": outside}
+                   for r in found])
         return
     if not found:
         table = "" if api.planned_on_table(object_name, hand, pose, db_path=db_path) else (
@@ -96,6 +98,10 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
     for r in found:
         _print_grasp(r.grasp, world, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp}, rule,
                      model, up)
+    if any(rank for rank, _ in misses):  # the ranks left out between those shown (#2 and #3 shown, #1 not: why?)
+        click.echo(f"note: stored grasps the arm does not reach with the object at {object_pose}: {_misses(misses)}")
+    name = found[0].grasp.object  # the notes plain `best` gives (a p_hold extrapolated, ...) hold here too
+    _extrapolated(name, hand, db_path, api.p_hold_outside(name, hand, db_path=db_path))
 
 
 def _extrapolated(name: str, hand: str, db_path: Path, outside: list[str]) -> None:
@@ -206,6 +212,9 @@ def _on_table(name: str, hand: str, db_path: Path, top: int, table_at: str, pose
         for r in t.grasps:
             _print_grasp(r.grasp, t.object_pose, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp}, rule,
                          model, api.object_up(r.grasp.object, db_path=db_path))
+    shown = [r.grasp.object for t in tables for r in t.grasps]
+    if shown and not as_json:
+        _extrapolated(shown[0], hand, db_path, api.p_hold_outside(shown[0], hand, db_path=db_path))
     if not any(t.grasps for t in tables):
         planned = any(api.planned_on_table(name, hand, t.object_pose7(), db_path=db_path) for t in tables)
         table = "" if planned else f", or grasps planned on the table (`{api.table_command(name, hand, db_path)}`)"

@@ -119,7 +119,7 @@ class ExportSummary:
 
     format: str
     files: list[Path] = field(default_factory=list)  # grasp files
-    meshes: list[Path] = field(default_factory=list)  # DIR/meshes/<object>.obj
+    meshes: list[Path] = field(default_factory=list)  # DIR/meshes/<object>.obj, each followed by the format's copies
     grasps: int = 0
     seconds: float = 0.0
     notes: list[str] = field(default_factory=list)  # what a reader of the labels should know
@@ -186,19 +186,24 @@ def _sha256(path: Path) -> str:
 
 def _as_it_was(f: dict, out_dir: Path) -> bool:
     """Whether a listed file is in ``out_dir`` as its export wrote it: its ``sha256`` (a file of the same size
-    written over it, another object's export of the same length, matched by size alone); a manifest written
-    before the hash was stored: its ``bytes``."""
+    written over it, another object's export of the same length, matched by size alone), read again only where
+    its modification time is not the one recorded (``mtime_ns``, as ``git status`` and ``make`` trust it: each
+    export hashed every earlier export's files again, gigabytes of a dataset built object by object); a
+    manifest written before the hash was stored: its ``bytes``."""
     path = out_dir / f["path"]
     if not path.is_file() or path.stat().st_size != f["bytes"]:
         return False
-    return "sha256" not in f or f["sha256"] == _sha256(path)
+    if "sha256" not in f or f.get("mtime_ns") == path.stat().st_mtime_ns:
+        return True
+    return f["sha256"] == _sha256(path)
 
 
 def _still_there(records: list[dict], out_dir: Path, written: set[str]) -> list[dict]:
     """``records`` with only the files still in ``out_dir`` as they were and not written again (``written``)."""
     kept = []
     for r in records:
-        files = [f for f in r["files"] if _listed(f) and f["path"] not in written and _as_it_was(f, out_dir)]
+        files = [{**f, "mtime_ns": (out_dir / f["path"]).stat().st_mtime_ns} if "sha256" in f else f  # hashed once
+                 for f in r["files"] if _listed(f) and f["path"] not in written and _as_it_was(f, out_dir)]
         if files:
             kept.append({**r, "files": files, "grasps": sum(f["grasps"] for f in files)})
     return kept
@@ -215,8 +220,8 @@ def _manifest(summary: ExportSummary, out_dir: Path, db_path: Path, sel: Selecti
                             "min_epsilon": sel.min_epsilon, "label": sel.label,
                             "diverse": None if sel.spacing is None else {"translation": sel.spacing.translation,
                                                                          "rotation": sel.spacing.rotation}},
-              "files": [{"path": rel(p), "grasps": n, "bytes": p.stat().st_size, "sha256": _sha256(p)}
-                        for p, n in zip(summary.files, summary.counts)],
+              "files": [{"path": rel(p), "grasps": n, "bytes": p.stat().st_size, "sha256": _sha256(p),
+                         "mtime_ns": p.stat().st_mtime_ns} for p, n in zip(summary.files, summary.counts)],
               "meshes": [rel(p) for p in summary.meshes], "notes": summary.notes}
     record["earlier"] = _still_there(earlier, out_dir, {f["path"] for f in record["files"]})
     path = out_dir / MANIFEST.format(format=summary.format)
@@ -279,7 +284,8 @@ def _export(db_path: Path, fmt: str, out_dir: Path, objects: Sequence[str], hand
         earlier = _earlier(out_dir, fmt)
         if (out_dir / MANIFEST.format(format=fmt)).is_file():  # no stale "complete" over new files
             os.replace(out_dir / MANIFEST.format(format=fmt), out_dir / PREVIOUS.format(format=fmt))
-        summary.meshes = [out_dir / o.file for o in exported.values()]
+        summary.meshes = [out_dir / path for name, o in exported.items()  # the copies a format reads too
+                          for path in (o.file, *(c.format(stem=mesh_stem(name)) for c in copies))]
         if isinstance(writer, TableWriter):
             path = out_dir / writer.file
             writing.append(path)

@@ -78,6 +78,6 @@ def no_schema(path: Path, conn: sqlite3.Connection | None = None) -> DatabaseErr
         conn.close()
     owner = writer_of(path)
     if owner is not None:
-        return DatabaseError(f"{path}: being created by {owner.describe()}; no grasp is in it yet: try again once "
-                             "its first unit is written")
+        return DatabaseError(f"{path}: no grasp is in it yet: {owner.doing('creating it')}; try again once its "
+                             "first unit is written")
     return DatabaseError(f"{path}: not a grasp database (no schema); nothing was changed")

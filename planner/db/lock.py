@@ -81,10 +81,24 @@ class Owner:
     command: str
     since: float  # time.time() when the lock was taken
 
+    @property
+    def elsewhere(self) -> bool:
+        """Whether it ran on another host, where this one cannot check whether it still runs."""
+        return self.host != socket.gethostname()
+
     def describe(self) -> str:
         when = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(self.since))
-        where = "" if self.host == socket.gethostname() else f" on {self.host}"
-        return f"pid {self.pid}{where}, `{self.command}`, since {when}"
+        where = f" on host {self.host}" if self.elsewhere else ""
+        return f"pid {self.pid}{where}, `{self.command}`, since {when} ({_ago(time.time() - self.since)})"
+
+    def doing(self, what: str) -> str:
+        """``what`` said of it (``writing it``): as a fact where it runs on this host (:meth:`alive` checked it);
+        for another host's, what its lock file records and that nothing here can tell whether it still runs (a
+        container or machine that died leaves that record behind, which read as a writer at work)."""
+        if not self.elsewhere:
+            return f"{self.describe()} is {what}"
+        return (f"its lock file records {self.describe()} as {what}, a process of another host, which this one "
+                "cannot check: if it has ended, the next writer takes its lock over")
 
     @staticmethod
     def me() -> Owner:
@@ -103,6 +117,16 @@ class Owner:
     def alive(self) -> bool:
         """False only if it certainly is not running (another host: unknown)."""
         return self.host != socket.gethostname() or procs.alive(self.pid, self.start)
+
+
+def _ago(seconds: float) -> str:
+    """A lapse of time as people say it: ``40 s ago``, ``12 min ago``, ``3.5 h ago``, ``2.0 days ago``."""
+    if seconds < 0:
+        return "in the future by this host's clock"
+    for unit, size in (("days", 86400.0), ("h", 3600.0)):
+        if seconds >= 2 * size:
+            return f"{seconds / size:.1f} {unit} ago"
+    return f"{seconds / 60:.0f} min ago" if seconds >= 120 else f"{seconds:.0f} s ago"
 
 
 #: Characters of a command kept in the lock (what a refused second writer is told).
@@ -139,8 +163,10 @@ def writer_lock(db_path: Path) -> Iterator[Owner | None]:
         _held.add(fd)
         previous = _read(fd)
         if previous is not None:
-            log.warning("%s: taking over the writer lock of %s, which ended without releasing it; "
-                        "its unfinished work is done again", db_path, previous.describe())
+            ended = "which holds it no longer (a process of another host, which this one cannot check: ended, or " \
+                "that host's lock is not seen here)" if previous.elsewhere else "which ended without releasing it"
+            log.warning("%s: taking over the writer lock of %s, %s; its unfinished work is done again", db_path,
+                        previous.describe(), ended)
         _write(fd, json.dumps(asdict(Owner.me())))
         try:
             yield previous

@@ -47,6 +47,7 @@ from planner.plan.sweep import (
     unit_rng,
 )
 from planner.plan.tolerances import FINGER_CLEARANCE, MIN_CLEARANCE, TABLE_CLEARANCE, TABLE_ELEVATION
+from planner.record.first import first_of
 from planner.record.grasp import Grasp
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, load_hand
@@ -337,8 +338,10 @@ def add_reachability(grasps: list[Grasp], obj: PreparedObject, hand: HandSpec, s
     until 2026-12-07 its planned 0 left such a grasp unreached, neutral, above
     its reached end), then highest weight resistance; the others keep ``None``
     (not computed). The scene is built once per worker process."""
-    ranked = sorted((g for g in grasps if g.force_closure or _squeezed_first(g) or _holds_weight(g)),
-                    key=lambda g: (-_first_epsilon(g), -(g.measures.resist_worst if g.measures else 0.0), _key(g)))
+    first = {_key(g) for g, f in zip(grasps, first_of(grasps)) if f}
+    ranked = sorted((g for g in grasps if _key(g) in first or _holds_weight(g)),
+                    key=lambda g: (-_first_epsilon(g, _key(g) in first),
+                                   -(g.measures.resist_worst if g.measures else 0.0), _key(g)))
     chosen = {_key(g) for g in (ranked[:settings.reach_top] if settings.reach_top else ranked)}
     if not chosen:
         return grasps
@@ -362,17 +365,11 @@ def add_reachability(grasps: list[Grasp], obj: PreparedObject, hand: HandSpec, s
     return out
 
 
-def _squeezed_first(g: Grasp) -> bool:
-    """Whether ``g`` ranks first by its squeeze alone (:data:`planner.db.ranking.FIRST`): force closure once a
-    parallel jaw's squeeze ends, not as planned, and that squeeze's end not kept beside it (a kept end stands for
-    it and gets the reach; until ALGORITHM_VERSION 27 the parent took a reach slot too)."""
-    return (not g.force_closure and not g.end_kept and g.measures is not None
-            and bool(g.measures.squeezed_force_closure))
-
-
-def _first_epsilon(g: Grasp) -> float:
-    """The epsilon that ranks ``g`` first: the squeeze's where only it is force closure, else the planned one."""
-    return float(g.measures.squeezed_epsilon) if _squeezed_first(g) else g.epsilon  # type: ignore[union-attr]
+def _first_epsilon(g: Grasp, first: bool) -> float:
+    """The epsilon that ranks ``g`` first: the squeeze's where it ranks first (:func:`planner.record.first.first_of`;
+    a kept end stands for its parent and gets the reach: until ALGORITHM_VERSION 27 the parent took a reach slot
+    too) but is not force closure as planned, else the planned one."""
+    return float(g.measures.squeezed_epsilon) if first and not g.force_closure else g.epsilon  # type: ignore[union-attr]
 
 
 def _holds_weight(g: Grasp) -> bool:

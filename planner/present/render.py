@@ -18,6 +18,7 @@ contact as a blue disc of its region's radius.
 from __future__ import annotations
 
 import math
+import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -43,6 +44,8 @@ PATCH_LIFT = 0.0005  # [m] patches are drawn this far outside the object surface
 MIN_DISC = 0.0015  # [m] smallest drawn disc radius (visible at these scales)
 CONE_LENGTH = 0.015  # [m] drawn height of a friction cone
 VIEW_SIZE = (640, 520)  # [px] width, height of one view
+TITLE_CHARS = 70  # characters of a title line per view: 11 pt DejaVu Sans, ~8.5 px a character, in 640 px
+TITLE_ROOM = 4.0  # [font sizes] between rows of a contact sheet: a title of up to three lines
 FOV = 40.0  # [deg] vertical field of view
 #: The camera stands this many times as far as puts the box around the object and the hand just inside the view.
 FRAME_MARGIN = 1.08
@@ -210,7 +213,7 @@ def save_sheet(panels: list[tuple[list[View], str]], out: Path) -> None:
 
     rows, cols = len(panels), max(len(views) for views, _ in panels)
     fig, axes = plt.subplots(rows, cols, figsize=(6.4 * cols, 5.4 * rows), squeeze=False)
-    for r, (views, title) in enumerate(panels):
+    for r, (views, _) in enumerate(panels):
         for c in range(cols):
             ax = axes[r][c]
             ax.axis("off")
@@ -225,8 +228,13 @@ def save_sheet(panels: list[tuple[list[View], str]], out: Path) -> None:
                 ax.scatter(com[:, 0], com[:, 1], s=(COM_MARK / 2.5) ** 2, c="white", zorder=5)
                 ax.set_xlim(0, views[c].image.shape[1])
                 ax.set_ylim(views[c].image.shape[0], 0)
-        axes[r][0].set_title(title, loc="left", fontsize=11, pad=8)
-    fig.tight_layout(pad=1.2)
+    # each title over its whole row, wrapped to its width, as figure text placed once the views are: an axes
+    # title wider than its first view (a squeeze's end's, ~250 characters) made tight_layout shrink the views
+    fig.tight_layout(pad=1.2, h_pad=TITLE_ROOM)
+    for r, (_, title) in enumerate(panels):
+        box = axes[r][0].get_position()
+        fig.text(box.x0, box.y1 + 0.08 / fig.get_figheight(), textwrap.fill(title, TITLE_CHARS * cols),
+                 fontsize=11, ha="left", va="bottom")
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=100, bbox_inches="tight", pad_inches=0.15)  # the titles' tops inside the picture
     plt.close(fig)

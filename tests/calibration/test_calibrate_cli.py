@@ -153,6 +153,24 @@ def test_best_and_report_say_where_the_shipped_p_hold_is_extrapolated(box_db: Pa
     assert code == 0 and json.loads(out)[0]["p_hold_outside"] == []
 
 
+def test_best_at_a_pose_or_on_the_table_says_where_p_hold_is_extrapolated(box_db: Path, tmp_path: Path,
+                                                                          shipped_models: None) -> None:
+    """`best --object-pose` and `--on-table` print the same grasps with arm joints: their p_hold is as
+    extrapolated as plain `best`'s, which said so while they (and `--object-pose --json`'s `p_hold_outside`, which
+    the README lists for every `best --json`) said nothing."""
+    db = tmp_path / "g.db"
+    shutil.copy(box_db, db)  # the box: 0.2 kg, friction 0.5
+    at = ["--object-pose", "0.5,0,0.05,0,0,0,1", "--max-candidates", "20"]
+    for how in (at, ["--on-table", "--stable-poses", "1", "--max-candidates", "20"]):
+        code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(db), *how)
+        assert code == 0, err
+        note = [line for line in out.splitlines() if line.startswith("note: p_hold is extrapolated for box")]
+        assert len(note) == 1 and "friction 0.5 (labels: 1)" in note[0], out
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(db), *at, "--json")
+    assert code == 0, err
+    assert any(w.startswith("friction 0.5") for w in json.loads(out)[0]["p_hold_outside"])
+
+
 def test_calibrate_with_trials_fits_the_update_that_labels_and_ranks_validated_grasps(validated_db: Path,
                                                                                       tmp_path: Path) -> None:
     files = labelled_files(validated_db, tmp_path)

@@ -444,3 +444,23 @@ def test_show_of_a_diverse_rank_past_the_last_says_how_many_diverse_there_are(bo
                          str(diverse + 1), "--out", str(tmp_path / "s.png"))
     one_line_error(code, err, 2, f"no grasp of rank {diverse + 1}", f"it has {diverse} diverse ones (--rank 1 to "
                    f"{diverse})")
+
+
+def test_best_at_a_pose_says_which_better_ranks_it_left_out(box_db: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`grasp best mug --object-pose ... --top 2` printed #2 and #3 and nothing about #1: the ranks tried and not
+    reached are said under the grasps, as a miss says them."""
+    from planner import api
+
+    real = api.best_at
+
+    def best_at(*args, misses, **kwargs):  # type: ignore[no-untyped-def]
+        found = real(*args, misses=misses, **kwargs)
+        misses.insert(0, (1, "no IK solution for the grasp"))  # as if the best one were out of the arm's reach
+        return found
+
+    monkeypatch.setattr(api, "best_at", best_at)
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--object-pose",
+                           "0.5,0,0.05,0,0,0,1", "--max-candidates", "20")
+    assert code == 0, err
+    [note] = [line for line in out.splitlines() if line.startswith("note: stored grasps the arm does not reach")]
+    assert "#1: no IK solution for the grasp" in note

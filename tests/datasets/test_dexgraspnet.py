@@ -35,6 +35,15 @@ def test_dexgraspnet_npy_loads_into_documented_dicts(db: Path, tmp_path: Path) -
         assert opened["panda_finger_joint1"] > qpos["panda_finger_joint1"]
 
 
+def test_the_manifest_lists_the_meshdata_copy_of_each_mesh(db: Path, tmp_path: Path) -> None:
+    """DexGraspNet's ObjectModel reads ``meshdata/<object>/coacd/decomposed.obj``: the export writes it, and its
+    manifest listed only ``meshes/box.obj`` (a copier going by the manifest left ObjectModel's file behind)."""
+    export(db, "dexgraspnet", tmp_path, "--object", "box")
+    meshes = json.loads((tmp_path / "export-dexgraspnet.json").read_text())["meshes"]
+    assert meshes == ["meshes/box.obj", "meshdata/box/coacd/decomposed.obj"]
+    assert all((tmp_path / m).is_file() for m in meshes)
+
+
 def test_qpos_gives_back_the_pose() -> None:
     from scipy.spatial.transform import Rotation
 

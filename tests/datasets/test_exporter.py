@@ -76,7 +76,7 @@ def files(folder: Path) -> dict[str, object]:
     for name in [n for n in out if n.startswith("export-") and n.endswith(".json")]:
         manifest = json.loads(folder.joinpath(name).read_text())
         out[name] = {**{k: v for k, v in manifest.items() if k not in ("finished_at", "files")},  # when; bytes, hash:
-                     "files": [{k: v for k, v in f.items() if k not in ("bytes", "sha256")}  # the batches
+                     "files": [{k: v for k, v in f.items() if k not in ("bytes", "sha256", "mtime_ns")}  # the batches
                                for f in manifest["files"]]}
     return out
 
@@ -309,3 +309,32 @@ def test_an_earlier_export_file_written_over_at_its_size_is_not_listed(db: Path,
     box.write_bytes(bytes(data))
     export(db, "acronym", out, "--object", "sphere", "--top", "2")
     assert json.loads((out / "export-acronym.json").read_text())["earlier"] == []
+
+
+def test_an_earlier_export_file_left_as_it_was_is_not_hashed_again(db: Path, tmp_path: Path,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each export read every earlier export's files in the folder again for their sha256 (a dataset exported
+    object by object hashed its first files once per later export). A file whose size and modification time are
+    those recorded is the one written; one touched since is hashed, and kept where its bytes are the same."""
+    import json
+
+    from planner.datasets import exporter
+
+    out = export(db, "acronym", tmp_path / "a", "--object", "box", "--top", "3")
+    box = out / "box__panda.h5"
+    hashed: list[str] = []
+    real = exporter._sha256
+    monkeypatch.setattr(exporter, "_sha256", lambda path: hashed.append(path.name) or real(path))
+    export(db, "acronym", out, "--object", "sphere", "--top", "2")
+    assert hashed == ["sphere__panda.h5"]
+    [earlier] = json.loads((out / "export-acronym.json").read_text())["earlier"]
+    assert [f["path"] for f in earlier["files"]] == ["box__panda.h5"]
+    os.utime(box, ns=(box.stat().st_atime_ns, box.stat().st_mtime_ns + 10**9))  # touched, the same bytes
+    hashed.clear()
+    export(db, "acronym", out, "--object", "sphere", "--top", "1")
+    assert hashed == ["sphere__panda.h5", "box__panda.h5"]
+    [earlier] = json.loads((out / "export-acronym.json").read_text())["earlier"]
+    assert [f["path"] for f in earlier["files"]] == ["box__panda.h5"]
+    hashed.clear()  # its new time recorded: not hashed again
+    export(db, "acronym", out, "--object", "sphere", "--top", "2")
+    assert hashed == ["sphere__panda.h5"]

@@ -165,7 +165,8 @@ def test_a_reader_of_a_file_being_created_says_so(tmp_path: Path) -> None:
 
     db = tmp_path / "new.db"
     db.write_bytes(b"")  # as SQLite leaves it between creating the file and writing its schema
-    with writer_lock(db), pytest.raises(DatabaseError, match=r"new.db: being created by pid \d+.*try again once"):
+    creating = r"new.db: no grasp is in it yet: pid \d+.* is creating it; try again once"
+    with writer_lock(db), pytest.raises(DatabaseError, match=creating):
         api.best("box", "panda", db_path=db)
     with pytest.raises(DatabaseError, match=r"new.db: not a grasp database \(no schema\)"):
         api.best("box", "panda", db_path=db)

@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import threading
+import time
 from pathlib import Path
 
 import pytest
@@ -221,3 +222,32 @@ def test_validate_of_an_empty_file_with_a_lock_of_another_host_leaves_it_empty(t
     code, _, err = grasp("validate", "--db", str(db))
     one_line_error(code, err, 3, "e.db: ")
     assert db.stat().st_size == 0
+
+
+def test_a_lock_file_of_another_host_is_not_said_to_be_a_writer_at_work(box_db: Path, tmp_path: Path,
+                                                                        caplog) -> None:  # type: ignore[no-untyped-def]
+    """A lock file naming a writer on another host (a container or machine that died, the folder shared) read as a
+    writer at work: "pid 5 on elsewhere, `grasp generate ...`, since ... is writing it", whatever its age. Said as
+    what it is: whose record, since when and how long ago, that this host cannot check it, and what happens if it
+    ended; the writer that takes it over does not claim it ended either."""
+    import shutil
+
+    db = tmp_path / "g.db"
+    shutil.copy(box_db, db)
+    record = ('{"pid": 5, "start": null, "host": "elsewhere", "command": "grasp generate box sphere --hand panda", '
+              '"since": %r}' % (time.time() - 3 * 86400))
+    (tmp_path / "g.db.lock").write_text(record)
+    code, _, err = grasp("best", "sphere", "--hand", "panda", "--db", str(db))
+    one_line_error(code, err, 2, "no grasps of 'sphere'", "its lock file records pid 5 on host elsewhere",
+                   "(3.0 days ago) as writing it, a process of another host", "the next writer takes its lock over")
+    empty = tmp_path / "e.db"
+    empty.write_bytes(b"")
+    (tmp_path / "e.db.lock").write_text(record)
+    code, _, err = grasp("best", "box", "--hand", "panda", "--db", str(empty))
+    one_line_error(code, err, 3, "e.db: no grasp is in it yet: its lock file records pid 5 on host elsewhere",
+                   "as creating it, a process of another host")
+    with caplog.at_level(logging.WARNING), writer_lock(db) as previous:
+        assert previous is not None and previous.host == "elsewhere"
+    [warning] = caplog.records
+    assert "which holds it no longer (a process of another host" in warning.getMessage()
+    assert "ended without releasing it" not in warning.getMessage()

@@ -9,6 +9,7 @@ from planner.geometry.solid import load_object
 from planner.plan import keeping, unit
 from planner.plan.sweep import SweepSettings
 from planner.plan.tolerances import FINGER_CLEARANCE
+from planner.record.first import first_of
 from planner.specs.hands import load_hand
 
 
@@ -76,6 +77,6 @@ def test_a_parent_whose_end_is_kept_takes_no_reach_slot(mug_grasps: list) -> Non
     parents = [g for g in mug_grasps if g.end_kept]
     assert parents
     for g in parents:
-        assert not unit._squeezed_first(g) and unit._first_epsilon(g) == g.epsilon
+        assert first_of([g]) == [False] and unit._first_epsilon(g, False) == g.epsilon
         alone = replace(g, end_kept=False)
-        assert unit._squeezed_first(alone) and unit._first_epsilon(alone) == g.measures.squeezed_epsilon
+        assert first_of([alone]) == [True] and unit._first_epsilon(alone, True) == g.measures.squeezed_epsilon

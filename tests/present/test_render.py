@@ -242,3 +242,21 @@ def test_the_title_of_a_squeezes_end_says_so(db: Path) -> None:
     end = replace(planned, squeezed_from_turn=np.radians(12.5))
     assert "squeeze" not in title(planned)
     assert f"a squeeze's end: turned 12.5 deg from candidate {planned.candidate}'s planned grasp" in title(end)
+
+
+def test_a_long_title_does_not_shrink_the_views(tmp_path: Path) -> None:
+    """`grasp show mug --rank 3 --diverse` of a squeeze's end, whose title runs ~250 characters (its squeeze, the
+    feasibility reasons), gave a 1918 x 279 px picture: the three 640 x 520 px views shrunk to a third to fit the
+    title's one line. The title wraps; the views keep their size."""
+    from matplotlib import image
+
+    from planner.present.render import VIEW_SIZE, View, save_sheet
+
+    width, height = VIEW_SIZE
+    blank = View(np.full((height, width, 3), 255, np.uint8), np.zeros((0, 2)))
+    title = "#4 mug/panda half: " + ", ".join(f"a measure of the grasp number {i} = 0.{i:04d}" for i in range(7))
+    assert len(title) > 250
+    out = tmp_path / "long.png"
+    save_sheet([([blank] * 3, title)], out)
+    h, w = image.imread(out).shape[:2]
+    assert w >= 3 * width * 0.95 and h >= height * 0.95, (w, h)
