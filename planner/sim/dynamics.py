@@ -284,6 +284,13 @@ class Dynamics:
         """Back to the record ``state`` of :meth:`save` (made with the same bodies in the world)."""
         pb.restoreState(state, physicsClientId=self.c)
 
+    def park(self, uid: int, pose: np.ndarray) -> None:
+        """Move body ``uid`` to ``pose`` (4, 4), at rest, where it touches nothing, and forget its contacts there:
+        the collision pass drops its pairs and their contact points, which :meth:`restore` keeps (a body that
+        stays in the world from one trial to the next would start the next with the last one's contacts)."""
+        self.set_object_pose(uid, pose)
+        pb.performCollisionDetection(physicsClientId=self.c)
+
     def undo_fingers(self) -> None:
         """Remove the gears :meth:`gear` made that are still there and put
         back the joint limits :meth:`set_limits` changed: with the motors

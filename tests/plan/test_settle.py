@@ -178,3 +178,22 @@ def test_grasps_tried_one_after_another_in_one_world_end_as_each_in_a_fresh_worl
     assert {"held", "slipped", "squeezed_out"} <= {t.reason for t in tried}
     for order in (slice(None), slice(None, None, -1)):
         assert shake.trials(hand, obj, grasps[order], friction=0.1)[order] == tried
+
+
+def test_grasps_tried_in_turn_share_one_object_body(barrett_units, monkeypatch: pytest.MonkeyPatch) -> None:  # type: ignore[no-untyped-def]
+    """The settle and the PyBullet trial make the object once per world (~1 ms each time), not once per grasp:
+    it waits parked between grasps (the results stay those of a fresh world: the test above)."""
+    from planner.sim.dynamics import Dynamics
+    from planner.validation import shake
+    from planner.validation.settings import settle_settings
+
+    settled, planned = barrett_units
+    hand, obj = load_hand("barrett"), settled.obj
+    grasps = [g.as_stored() for g in planned.grasps[:4]]
+    made = []
+    add_object = Dynamics.add_object
+    monkeypatch.setattr(Dynamics, "add_object", lambda self, *a, **k: made.append(1) or add_object(self, *a, **k))
+    contacts = shake.settled_contacts(hand, obj, grasps, settle_settings(hand.settle_dynamics))
+    assert sum(len(c) > 0 for c in contacts) == 4 and len(made) == 1
+    shake.trials(hand, obj, grasps)
+    assert len(made) == 2
