@@ -60,7 +60,8 @@ the trial's other fields (``validation_fingers_in_contact``, ``validation_reason
 or -1 when absent);
 ``grasps/joint_names`` (J,), ``joints_closed`` / ``joints_open`` (N, J) [rad or m] (every joint: the mimics a
 record leaves out at their coupling; ``joints_open`` and ``preshape``: the opening ``import --rescore`` closes
-each pose from) and ``joints_closed_given`` / ``joints_open_given`` (N, J) int (1: the record names the joint); ``width`` (N,) [m] (NaN: a hand with none); ``preshape``, ``candidate``, ``seed``; ``contacts``
+each pose from) and ``joints_closed_given`` / ``joints_open_given`` (N, J) int (1: the record names the joint, an
+import names those); ``width`` (N,) [m] (NaN: a hand with none); ``preshape``, ``candidate``, ``seed``; ``contacts``
 (N,) JSON text ``[{point, normal, link}]`` in the object frame; ``approach_point``, ``approach_dir`` (N, 3),
 ``roll`` [rad], ``standoff`` [m]; ``table_plane`` (N, 4) the table top the grasp was planned on, object frame, [nx,
 ny, nz, height] (NaN: planned on the object alone); ``squeezed_from_turn`` (N,) [rad] (NaN: closed where planned,

@@ -74,7 +74,7 @@ def test_a_pose_without_a_free_opening_in_limits_closes_from_the_widest(db: Path
     closed = importer._rescore(poses, PANDA, load_object("box"), Counter(), openings=given)  # 0: inside the box
     assert [g.candidate for g in closed] == [0, 1, 2, 3]
     assert [g.open_joints for g in closed] == [{"panda_finger_joint1": planned[0]}] + \
-        [{"panda_finger_joint1": 0.04}] * 3
+        [PANDA.full_configuration({"panda_finger_joint1": 0.04})] * 3  # the widest preshape's, as a foreign file's
 
 
 def test_an_opening_is_given_only_whole_and_within_limits() -> None:

@@ -326,6 +326,7 @@ def _trial(f, name: str, change) -> None:  # type: ignore[no-untyped-def]
     (lambda f: _joint(f, 1, 0, np.inf), "holds an infinite value"),
     (_set("object/mass", -1.0), "object/mass is -1; it must be a positive number"),
     (lambda f: f["grasps/contacts"].__setitem__(0, "not json"), "grasps/contacts row 0 is not a JSON list"),
+    (_set("grasps/joints_open_given", np.ones((1, 2), np.int64)), "grasps/joints_open_given has shape (1, 2)"),
     # a trial's columns: read after the database was opened (an internal error, an empty database left)
     (lambda f: _trial(f, "simulated_success", lambda v: np.where(np.arange(len(v)) == 1, np.nan, v)),
      "grasps/qualities/simulated_success row 1 is nan; expected -1 (not simulated), 0 or 1"),
