@@ -70,7 +70,10 @@ def export(db_path: Path, fmt: str, out_dir: Path, objects: tuple[str, ...], han
 @click.option("--object", "object_name", metavar="NAME",
               help="Built-in object name or mesh path (default: the built-in its object/name names where that is its "
                    "mesh, else its object/file, named by its object/name or else by the file's name without .h5).")
-@click.option("--rescore", is_flag=True, help="Re-close and re-score every pose even if the file has qualities.")
+@click.option("--rescore", is_flag=True, help="Re-close and re-score every pose even if the file has qualities: "
+              "from the opening the file planned it with (this project's files: its joints_open and preshape) where "
+              "that open hand is within its limits and free at the pose, else from the widest preshape (ACRONYM's "
+              "own files), backed off while it collides.")
 @click.option("--up", help="The objects' up where a file gives none (object/up): +x -x +y -y +z -z; ACRONYM's own "
               "meshes stand on +y [default: the mesh file's, +z for an OBJ].")
 @click.option("--workers", type=click.IntRange(min=1), default=api.default_workers(),
@@ -81,7 +84,7 @@ def import_files(paths: tuple[Path, ...], fmt: str, db_path: Path, hand: str | N
                  rescore: bool, up: str | None, workers: int, as_json: bool) -> None:
     """Import grasp files into the database (one unit per file; a file
     imported before is skipped). Files without this project's qualities are
-    re-scored by closing the hand at each pose."""
+    re-scored by closing the hand at each pose (see --rescore for the opening it closes from)."""
 
     def progress(r: api.ImportResult) -> None:
         if as_json:

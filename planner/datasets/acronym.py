@@ -27,14 +27,12 @@ trimesh and applies ``object/scale``: with ``mesh_root_dir=DIR`` that is the
 planner's checked mesh in the object frame, wherever DIR was copied (see
 :mod:`planner.datasets.meshes`).
 
-``gripper/configuration`` follows ACRONYM's Panda files, which store
-``[0.04]``: the Panda's one driven finger joint (``panda_finger_joint1``; the
-other finger mimics it) fully open, i.e. one finger's travel from the centre
-line, half the 0.08 m opening. For every hand it is the open hand in the same
-terms: the driven (non-mimic) finger joints, in the hand's joint order (named
-by the extra ``gripper/configuration_joints``), at their values in the hand's
-widest preshape (:meth:`~planner.specs.hands.HandSpec.widest`, the one ``grasp import`` closes
-foreign poses from), in joint units:
+``gripper/configuration`` follows ACRONYM's Panda files, which store ``[0.04]``: the Panda's one driven finger
+joint (``panda_finger_joint1``; the other finger mimics it) fully open, i.e. one finger's travel from the centre
+line, half the 0.08 m opening. For every hand it is the open hand in the same terms: the driven (non-mimic) finger
+joints, in the hand's joint order (named by the extra ``gripper/configuration_joints``), at their values in the
+hand's widest preshape (:meth:`~planner.specs.hands.HandSpec.widest`, the one ``grasp import --rescore`` closes a
+pose from where the file gives no opening of its own), in joint units:
 
 | hand | `gripper/configuration_joints` | `gripper/configuration` | meaning |
 | --- | --- | --- | --- |
@@ -43,45 +41,38 @@ foreign poses from), in joint units:
 | barrett | `bh_j11_joint`, `bh_j12_joint`, `bh_j22_joint`, `bh_j32_joint` | `[0.0, 0.0, 0.0, 0.0]` | [rad] spread 0 (fingers 1 and 2 side by side, facing finger 3) and the three proximal flexions straight (preshape `wrap`); finger 2's spread and the distal joints mimic these |
 | allegro | `index_abd`, `index_mcp`, `index_pip`, `index_dip`, `middle_abd`, `middle_mcp`, `middle_pip`, `middle_dip`, `ring_abd`, `ring_mcp`, `ring_pip`, `ring_dip`, `thumb_rot`, `thumb_abd`, `thumb_mcp`, `thumb_ip` | `[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.396, 0.3, 0.0, 0.0]` | [rad] every finger straight, the thumb rotated 1.396 rad to face them and abducted 0.3 rad (preshape `power_wrap`) |
 
-Files written before issue 12 stored the Panda's full opening ``[0.08]``
-(0 for the other hands); nothing reads the value back, so they import alike.
+Files written before issue 12 stored the Panda's full opening ``[0.08]`` (0 for the other hands); nothing reads
+the value back, so they import alike.
 
 This project's extras (a foreign reader ignores them): ``object/name``,
 ``object/source`` and ``object/source_scale`` (the database's mesh file and
 scale), ``object/mesh_sha256`` (:func:`planner.geometry.mesh.mesh_hash` of
-the mesh), ``object/p_hold_outside`` (str: where the object lies outside
-the labelled objects the hand's p_hold model was fitted on, e.g. ``density
-1,322 kg/m^3 (labels: 150-157 kg/m^3); friction 0.5 (labels: 1)``; '' inside:
-there p_hold, and a label taken from it, is an extrapolation);
-``gripper/configuration_joints``;
-``grasps/qualities/{epsilon, volume, force_closure, reachability,
-manipulability, score, p_hold, p_hold_trial, rank}`` (``p_hold``: the calibrated
-probability of holding, NaN where no model applies; ``p_hold_trial``: p_hold
-updated by the trial's verdict, NaN where none), every analytic measure under its declared
-name (``resist_worst``, ..., ``settled_epsilon``; ``feasibility``: reasons,
-comma-separated), ``simulated_success`` (-1: not simulated), the trial's
-other fields (``validation_fingers_in_contact``, ``validation_reason``), the
-MuJoCo trial's (``mujoco_success``, -1: not simulated, ``mujoco_reason``,
-its motions, ...) and ``robust_epsilon_mean``, ``robust_epsilon_quantile``, ``robust_samples``
-(:data:`QUALITIES`, derived from :mod:`planner.record.fields`; NaN or -1
-when absent);
-``grasps/joint_names`` (J,), ``joints_closed`` / ``joints_open`` (N, J)
-[rad or m]; ``width`` (N,) [m] (NaN: a hand with none); ``preshape``,
-``candidate``, ``seed``; ``contacts`` (N,) JSON text ``[{point, normal,
-link}]`` in the object frame; ``approach_point``, ``approach_dir`` (N, 3),
-``roll`` [rad], ``standoff`` [m]; ``table_plane`` (N, 4) the table top the grasp
-was planned on, object frame, [nx, ny, nz, height] (NaN: planned on the object
-alone); ``squeezed_from_turn`` (N,) [rad] (NaN: closed where planned, not a squeeze's end); ``poses_hand_frame``
-(N, 4, 4) (the hand
-frame in the object frame) and ``export_frame`` (4, 4) with transforms =
-poses_hand_frame @ export_frame.
+the mesh), ``object/p_hold_outside`` (str: where the object lies outside the labelled objects the hand's p_hold
+model was fitted on, e.g. ``density 1,322 kg/m^3 (labels: 150-157 kg/m^3); friction 0.5 (labels: 1)``; '' inside:
+there p_hold, and a label taken from it, is an extrapolation); ``gripper/configuration_joints``;
+``grasps/qualities/{epsilon, volume, force_closure, reachability, manipulability, score, p_hold, p_hold_trial,
+rank}`` (``p_hold``: the calibrated probability of holding, NaN where no model applies; ``p_hold_trial``: p_hold
+updated by the trial's verdict, NaN where none), every analytic measure under its declared name (``resist_worst``,
+..., ``settled_epsilon``; ``feasibility``: reasons, comma-separated), ``simulated_success`` (-1: not simulated),
+the trial's other fields (``validation_fingers_in_contact``, ``validation_reason``), the MuJoCo trial's
+(``mujoco_success``, -1: not simulated, ``mujoco_reason``, its motions, ...) and ``robust_epsilon_mean``,
+``robust_epsilon_quantile``, ``robust_samples`` (:data:`QUALITIES`, derived from :mod:`planner.record.fields`; NaN
+or -1 when absent);
+``grasps/joint_names`` (J,), ``joints_closed`` / ``joints_open`` (N, J) [rad or m] (every joint: the mimics a
+record leaves out at their coupling; ``joints_open`` and ``preshape``: the opening ``import --rescore`` closes
+each pose from) and ``joints_closed_given`` / ``joints_open_given`` (N, J) int (1: the record names the joint, an
+import names those); ``width`` (N,) [m] (NaN: a hand with none); ``preshape``, ``candidate``, ``seed``; ``contacts``
+(N,) JSON text ``[{point, normal, link}]`` in the object frame; ``approach_point``, ``approach_dir`` (N, 3),
+``roll`` [rad], ``standoff`` [m]; ``table_plane`` (N, 4) the table top the grasp was planned on, object frame, [nx,
+ny, nz, height] (NaN: planned on the object alone); ``squeezed_from_turn`` (N,) [rad] (NaN: closed where planned,
+not a squeeze's end); ``poses_hand_frame`` (N, 4, 4) (the hand frame in the object frame) and ``export_frame`` (4,
+4) with transforms = poses_hand_frame @ export_frame.
 
-The per-grasp content (:func:`per_grasp`; where each column goes and how it
-reads back: :mod:`planner.datasets.acronym_columns`) is shared with the
-GraspGen JSON writer. Datasets are chunked and resizable; each batch of rows
-is appended. Reading (:func:`read_header`, :func:`read_poses`,
-:func:`read_grasps`, :func:`read_simulation`) serves ``grasp import``: our
-own files come back losslessly, foreign ones give poses to re-score.
+The per-grasp content (:func:`per_grasp`; where each column goes and how it reads back:
+:mod:`planner.datasets.acronym_columns`) is shared with the GraspGen JSON writer. Datasets are chunked and
+resizable; each batch of rows is appended. Reading (:func:`read_header`, :func:`read_poses`, :func:`read_grasps`,
+:func:`read_simulation`, :func:`read_openings`) serves ``grasp import``: our own files come back losslessly,
+foreign ones give poses to re-score.
 """
 
 from __future__ import annotations
@@ -117,7 +108,9 @@ from planner.datasets.acronym_columns import (
     candidate_numbers,
     carried,
     joint_names,
+    joints_of,
     measures_of,
+    openings_of,
     per_grasp,
     trial_columns,
     trials_of,
@@ -135,8 +128,8 @@ from planner.specs.up import up_axis
 
 __all__ = ["CHUNK_ROWS", "CONFIGURATION_DOC", "DATASETS", "EXTRAS", "FLEX", "IMPLIED", "MISSING", "MOTIONS",
            "QUALITIES", "ROBUST_EPSILON", "ROTATION_TOL", "SUFFIX", "AcronymHeader", "carried", "gripper_configuration",
-           "joint_names", "per_grasp", "read_grasps", "read_header", "read_labels", "read_poses", "read_simulation",
-           "relative_path", "write"]
+           "joint_names", "per_grasp", "read_grasps", "read_header", "read_labels", "read_openings", "read_poses",
+           "read_simulation", "relative_path", "write"]
 
 SUFFIX = ".h5"
 #: Rows per HDF5 chunk at most: 1,024 transforms are 128 kB. A file of fewer grasps (one batch) is one chunk of
@@ -313,7 +306,7 @@ def read_grasps(path: Path, hand: HandSpec, obj: str, poses: np.ndarray) -> list
         g = f["grasps"]
         q = g["qualities"]
         names = list(g["joint_names"].asstr()[()])
-        closed, opened = g["joints_closed"][()], g["joints_open"][()]
+        closed, opened = joints_of(path, g, "joints_closed"), joints_of(path, g, "joints_open")
         col = {k: (q[k][()] if k in q else np.full(n, np.nan))  # whole columns: h5py indexing per row is slow
                for k in ("epsilon", "volume", "force_closure", "reachability", "manipulability")}
         check_columns(path, g, n, ("measures",))
@@ -344,6 +337,12 @@ def read_grasps(path: Path, hand: HandSpec, obj: str, poses: np.ndarray) -> list
                   table_plane=None if np.isnan(planes[i]).any() else np.asarray(planes[i], float),
                   squeezed_from_turn=_maybe(turned[i]), measures=measures[i])
             for i in range(n)]
+
+
+def read_openings(path: Path, hand: HandSpec) -> registry.Openings:
+    """Each pose's opening where the file gives it (:func:`openings_of`; ACRONYM's own files give none)."""
+    with _open(path) as f:
+        return openings_of(path, f["grasps"], hand, len(f["grasps/transforms"]))
 
 
 def read_labels(path: Path) -> np.ndarray:
@@ -396,4 +395,4 @@ def _contacts(path: Path, items: list[dict], hand: HandSpec) -> HandContacts:
 
 
 registry.register("acronym", registry.PairWriter(relative_path, write),
-                  registry.Reader(read_header, read_poses, read_grasps, read_simulation))
+                  registry.Reader(read_header, read_poses, read_grasps, read_simulation, read_openings))

@@ -11,13 +11,16 @@ HDF5 file itself is written and read in :mod:`planner.datasets.acronym`.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from planner.datasets.columns import Column, grasp_columns, joint_matrix
+from planner.datasets.columns import Column, given_matrix, grasp_columns, joint_matrix
 from planner.datasets.labels import BEST
 from planner.datasets.labels import labels as dataset_labels
+from planner.datasets.registry import Openings
+from planner.errors import InputError
 from planner.record import fields
 from planner.record.field import Field
 from planner.record.grasp import Grasp, Trial
@@ -85,6 +88,8 @@ def per_grasp(grasps: list[Grasp], hand: HandSpec, label: str = BEST) -> dict[st
         **{key: c[column] for key, column in DATASETS.items()},
         "joints_closed": joint_matrix(c["closed_joints"], names, hand),
         "joints_open": joint_matrix(c["open_joints"], names, hand),
+        "joints_closed_given": given_matrix(c["closed_joints"], names),  # which joints each record names
+        "joints_open_given": given_matrix(c["open_joints"], names),
     }
 
 
@@ -143,6 +148,36 @@ def trials_of(g: Any, group: str, n: int) -> list[Trial | None]:
         columns[k] = [-1.0 if v is None else v for v in columns[k]]
     return [None if ok < 0 else Trial(bool(ok), **{k: v[i] for k, v in columns.items()})
             for i, ok in enumerate(success)]
+
+
+def openings_of(path: Path, g: Any, hand: HandSpec, n: int) -> Openings:
+    """The opening each of the n poses of group ``grasps/`` was planned with, where it says:
+    ``joints_open`` of ``hand``'s driven joints, ``preshape`` (this project's files). ACRONYM's own files give
+    none (their ``gripper/configuration`` is the gripper's full opening, not a pose's): NaN and ''."""
+    joints = np.full((n, len(hand.driven)), np.nan)
+    if "joints_open" in g and "joint_names" in g:
+        names = list(g["joint_names"].asstr()[()])
+        opened = np.asarray(g["joints_open"][()], float)
+        if opened.shape != (n, len(names)):
+            raise InputError(f"{path}: grasps/joints_open has shape {opened.shape}; expected ({n}, {len(names)})")
+        for k, joint in enumerate(hand.driven):
+            if joint.name in names:
+                joints[:, k] = opened[:, names.index(joint.name)]
+    given = "preshape" in g and len(g["preshape"]) == n
+    return Openings(joints, tuple(g["preshape"].asstr()[()]) if given else ("",) * n)
+
+
+def joints_of(path: Path, g: Any, key: str) -> np.ndarray:
+    """(N, J) ``grasps/<key>`` (``joints_open``, ``joints_closed``) as its records gave them: NaN where
+    ``<key>_given`` says a record left the joint out (a mimic the export filled in at its coupling; files without
+    it, before issue 26: every joint)."""
+    values = np.asarray(g[key][()], float)
+    if f"{key}_given" not in g:
+        return values
+    given = np.asarray(g[f"{key}_given"][()])
+    if given.shape != values.shape:
+        raise InputError(f"{path}: grasps/{key}_given has shape {given.shape}; expected {values.shape}")
+    return np.where(given != 0, values, np.nan)
 
 
 def as_text(value: object) -> str:

@@ -110,6 +110,13 @@ def joint_matrix(texts: Sequence[str], names: Sequence[str], hand: HandSpec | No
     return np.array([[row.get(k, math.nan) for k in names] for row in rows], float).reshape(len(rows), len(names))
 
 
+def given_matrix(texts: Sequence[str], names: Sequence[str]) -> np.ndarray:
+    """(n, J) 1 where each of n JSON texts ``{joint: value}`` gives joint ``names[j]``, 0 where it does not (a
+    mimic :func:`joint_matrix` fills in with ``hand``)."""
+    rows = json_list(texts)
+    return np.array([[k in row for k in names] for row in rows], np.int64).reshape(len(rows), len(names))
+
+
 @dataclass(frozen=True)
 class Stream:
     """The selected grasps of one (object, hand), as batches read on demand."""

@@ -1,49 +1,43 @@
 """Import ACRONYM HDF5 grasp files (this project's exports or foreign ones).
 
-Each file becomes one unit of work in the database (object, hand, settings
-= the import source and the file's sha256, seed 0, chunk 0); importing the
-same file again finds the unit done and skips it. Grasp ``candidate`` (and
+Each file becomes one unit of work in the database (object, hand, settings = the import source and the file's
+sha256, seed 0, chunk 0); importing the same file again finds the unit done and skips it. Grasp ``candidate`` (and
 ``seed``) as an own file gives them, else the row index in the file. Reading the file is the format's reader's
 (:mod:`planner.datasets.registry`; ACRONYM's is :mod:`planner.datasets.acronym`).
 
-- Hand: ``gripper/type`` ("panda" and "franka_panda" mean ``panda``; any
-  other value must be a hand name) or ``--hand``.
-- Object: ``--object`` (a built-in name or a mesh path; a mesh path gets the
-  file's ``object/scale``), else ``object/name`` when it is a built-in name
-  whose mesh is the file's (``object/mesh_sha256``, in this project's files
-  since issue 12; without it, when the file's own ``object/file``, where
-  found, is the built-in's mesh or none is found),
-  else ``object/file`` with ``object/scale`` under the name
-  ``object/name``, or the .h5 file's stem (ACRONYM names each file by
-  category, mesh and scale: two scales of one mesh are two objects), relative
-  paths looked up next to the .h5 file (this project's export folders:
-  ``meshes/`` beside the .h5 files), then one folder up (ACRONYM keeps
-  ``grasps/`` beside ``meshes/``), from the .h5 file's absolute path
-  (:mod:`planner.datasets.file_objects`, which ``grasp calibrate`` shares).
-  So a built-in object exported at another ``--scale``, or under a copied
-  name, comes back as the mesh its grasps were planned on.
+- Hand: ``gripper/type`` ("panda" and "franka_panda" mean ``panda``; any other value must be a hand name) or
+  ``--hand``.
+- Object: ``--object`` (a built-in name or a mesh path; a mesh path gets the file's ``object/scale``), else
+  ``object/name`` when it is a built-in name whose mesh is the file's (``object/mesh_sha256``, in this project's
+  files since issue 12; without it, when the file's own ``object/file``, where found, is the built-in's mesh or
+  none is found), else ``object/file`` with ``object/scale`` under the name ``object/name``, or the .h5 file's
+  stem (ACRONYM names each file by category, mesh and scale: two scales of one mesh are two objects), relative
+  paths looked up next to the .h5 file (this project's export folders: ``meshes/`` beside the .h5 files), then one
+  folder up (ACRONYM keeps ``grasps/`` beside ``meshes/``), from the .h5 file's absolute path
+  (:mod:`planner.datasets.file_objects`, which ``grasp calibrate`` shares). So a built-in object exported at
+  another ``--scale``, or under a copied name, comes back as the mesh its grasps were planned on.
   The file's ``object/mass``, ``object/friction`` and ``object/up`` (this project's files) override the
   object's; a file without ``object/up`` leaves the object's own (its mesh file's: ``+z`` for an OBJ).
   Its ``object/com`` and ``object/inertia`` too where they are not its mesh's at uniform density (a URDF's or
   a sidecar's given when it was planned; only this project's files, those with ``object/mesh_sha256``).
-- Poses: ``grasps/transforms @ inverse(export_frame)``, the file's
-  ``grasps/export_frame`` if present, else the hand's.
-- Files with this project's extras (qualities, joints, contacts) are
-  imported losslessly, with their shake-test and robust-epsilon results.
-  Foreign files, or any file with ``rescore``, are re-scored: the hand is put
-  at each pose with its widest preshape open, backed off along the approach
-  while it collides (doubling 1 cm steps while under ``MAX_BACK_OFF``),
-  closed and centred (:meth:`Grasper.close_at`), its contacts read as
-  patches, and evaluated by :func:`planner.plan.unit.grasp_quality` and
-  :func:`planner.plan.measures.measure` (the same analytic measures and rule
-  as a sweep); poses where the hand does not close on the object are counted
-  by reason and dropped. The stored pose is
-  the closed hand's (after back-off and centring); reachability is None.
+- Poses: ``grasps/transforms @ inverse(export_frame)``, the file's ``grasps/export_frame`` if present, else the
+  hand's.
+- Files with this project's extras (qualities, joints, contacts) are imported losslessly, with their shake-test
+  and robust-epsilon results.
+  Foreign files, or any file with ``rescore``, are re-scored: the hand is put at each pose open as the file
+  planned it where it says (this project's files: the row's ``joints_open`` of the hand's driven joints, inside
+  their limits, with its ``preshape``'s closing) and that open hand is free of the object there, and closed from
+  it (:meth:`Grasper.close_from`, as a sweep closes); else (ACRONYM's own files, whose ``gripper/configuration``
+  is the full opening of every pose) with its widest preshape open, backed off along the approach while it
+  collides (doubling 1 cm steps while under ``MAX_BACK_OFF``), and closed (:meth:`Grasper.close_at`); centred, its
+  contacts read as patches, and evaluated by :func:`planner.plan.unit.grasp_quality` and
+  :func:`planner.plan.measures.measure` (the same analytic measures and rule as a sweep); poses where the hand
+  does not close on the object are counted by reason and dropped. The stored pose is the closed hand's (after
+  back-off and centring), its open joints those it closed from; reachability is None.
   Re-scoring runs in the crash-safe worker pool (:mod:`planner.run.pool`, ``workers`` processes) in units of
-  :data:`RESCORE_CHUNK` poses; a file is written once all its poses are
-  back, its grasps in file order. A file whose re-scoring fails (a worker
-  died twice) is stored as a failed unit with its error, and the next import
-  of it tries again.
+  :data:`RESCORE_CHUNK` poses; a file is written once all its poses are back, its grasps in file order. A file
+  whose re-scoring fails (a worker died twice) is stored as a failed unit with its error, and the next import of
+  it tries again.
 """
 
 from __future__ import annotations
@@ -64,7 +58,7 @@ import numpy as np
 from planner import prepare as preparing
 from planner.datasets import formats
 from planner.datasets.file_objects import HAND_ALIASES, hand_name, object_spec
-from planner.datasets.registry import Reader
+from planner.datasets.registry import Openings, Reader
 from planner.db.hand_files import check_hand_files
 from planner.db.ranking import RankingRule
 from planner.db.store import Database, UnitRow, Validated, open_for_writing
@@ -83,7 +77,7 @@ from planner.run import pool
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, load_hand
 from planner.specs.objects import PROPERTY_RTOL, ObjectSpec
-from planner.specs.preshapes import sweep_preshapes
+from planner.specs.preshapes import load_preshapes, sweep_preshapes
 from planner.specs.up import up_axis
 
 #: Every format with a reader (:mod:`planner.datasets.registry`).
@@ -149,19 +143,19 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
                  object_name: str | None = None, rescore: bool = False, workers: int = 1,
                  progress: Callable[[ImportResult], None] | None = None, up: str | None = None
                  ) -> list[ImportResult]:
-    """Import grasp files into ``db_path`` (created if missing). Every file is
-    checked before anything is written. Re-scoring runs in ``workers``
-    processes; ``progress`` gets each file as it is written, the list
-    returned is in the order of ``paths``. ``up``: the objects' up where a
-    file gives none (ACRONYM's own meshes are Y-up: ``"+y"``)."""
+    """Import grasp files into ``db_path`` (created if missing). Every file is checked before anything is written.
+    Re-scoring runs in ``workers`` processes; ``progress`` gets each file as it is written, the list returned is
+    in the order of ``paths``. ``up``: the objects' up where a file gives none (ACRONYM's own meshes: ``"+y"``)."""
     reader = formats.reader(fmt)
     up = None if up is None else up_axis(up, "", "--up")
     plans = [_plan(Path(p), fmt, reader, hand, object_name, rescore, up=up) for p in paths]
-    # every file's poses (and a lossless file's joints and contacts) read and checked before the
-    # database is opened: a refused import (a NaN in grasps/transforms, a joint outside its limits, contacts that
-    # are not JSON) left an empty database and its lock file at --db. A lossless file is read twice (here and when
-    # written) rather than held: an export of many objects would be held whole
+    # every file's poses (and a lossless file's joints and contacts) read and checked before the database is opened:
+    # a refused import (a NaN in grasps/transforms, a joint outside its limits, contacts that are not JSON) left an
+    # empty database and its lock file at --db. A lossless file is read twice (here and when written) rather than
+    # held: an export of many objects would be held whole
     poses = [plan.reader.poses(plan.path, plan.hand) for plan in plans]
+    openings = [None if plan.lossless or plan.reader.openings is None else plan.reader.openings(plan.path, plan.hand)
+                for plan in plans]
     for plan, file_poses in zip(plans, poses):
         if plan.lossless:  # and its trials' columns
             plan.reader.grasps(plan.path, plan.hand, plan.spec.name, file_poses)
@@ -185,7 +179,7 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
             elif plan.lossless:
                 finish(i, _import_lossless(db, plan, rule))
             else:
-                rescoring[i] = _Rescoring(plan, time.perf_counter(), poses[i])
+                rescoring[i] = _Rescoring(plan, time.perf_counter(), poses[i], openings[i])
         units = [unit for i, r in rescoring.items() for unit in r.units(i)]
         for i, r in rescoring.items():
             if r.complete:  # a file without poses
@@ -205,13 +199,14 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
 class RescoreUnit:
     """A slice of one file's poses for a worker: ``poses`` (n, 4, 4) hand
     poses in the object frame [m], rows ``first .. first + n - 1`` of file
-    number ``file`` of the import."""
+    number ``file`` of the import; ``openings``: theirs where the file gives them."""
 
     file: int
     first: int
     poses: np.ndarray
     hand: HandSpec
     spec: ObjectSpec
+    openings: Openings | None = None
 
 
 @dataclass
@@ -225,7 +220,7 @@ def rescore_poses(unit: RescoreUnit) -> Rescored:
     """Close the hand at each pose of ``unit`` and score it (runs in workers)."""
     rejected, notes = Counter[str](), list[str]()
     with preparing.kept(notes):  # in a worker: said by the driver (preparing.said)
-        grasps = _rescore(unit.poses, unit.hand, prepare(unit.spec), rejected, unit.first)
+        grasps = _rescore(unit.poses, unit.hand, prepare(unit.spec), rejected, unit.first, unit.openings)
     return Rescored(grasps, rejected, notes)
 
 
@@ -236,6 +231,7 @@ class _Rescoring:
     plan: _Plan
     start: float  # perf_counter() when the file was read
     poses: np.ndarray
+    openings: Openings | None
     parts: dict[int, Rescored] = field(default_factory=dict)
     pending: int = 0
     error: str | None = None
@@ -243,7 +239,8 @@ class _Rescoring:
     def units(self, index: int) -> list[RescoreUnit]:
         firsts = range(0, len(self.poses), RESCORE_CHUNK)
         self.pending = len(firsts)
-        return [RescoreUnit(index, i, self.poses[i:i + RESCORE_CHUNK], self.plan.hand, self.plan.spec) for i in firsts]
+        return [RescoreUnit(index, i, self.poses[i:i + RESCORE_CHUNK], self.plan.hand, self.plan.spec,
+                            self.openings.rows(i, i + RESCORE_CHUNK) if self.openings else None) for i in firsts]
 
     @property
     def complete(self) -> bool:
@@ -284,9 +281,8 @@ def _import_lossless(db: Database, plan: _Plan, rule: RankingRule) -> ImportResu
 
 def _restore_simulation(db: Database, plan: _Plan, unit_id: int, obj: str, rule: RankingRule,
                         candidates: list[tuple[int, bool]]) -> None:
-    """Our own files carry shake-test results (PyBullet's and MuJoCo's) and
-    robust epsilon per grasp: put them back into ``validation`` / ``mujoco``
-    / ``robust`` and re-score. ``candidates``: each file row's grasp (its
+    """Our own files carry shake-test results (PyBullet's and MuJoCo's) and robust epsilon per grasp: put them
+    back into ``validation`` / ``mujoco`` / ``robust`` and re-score. ``candidates``: each file row's grasp (its
     candidate, whether it is a squeeze's end: :meth:`Database.grasp_ids`)."""
     results = plan.reader.simulation(plan.path)
     if not results:
@@ -320,10 +316,9 @@ def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: s
 
 
 def _check_objects(db: Database, plans: Sequence[_Plan]) -> None:
-    """One name, one object, before anything is written: a file's object
-    against the one the database stores under its name (mesh, mass
-    properties, mass and friction; :func:`planner.db.objects.differs`) and
-    against the other files' of this import that name it."""
+    """One name, one object, before anything is written: a file's object against the one the database stores under
+    its name (mesh, mass properties, mass and friction; :func:`planner.db.objects.differs`) and against the other
+    files' of this import that name it."""
     from planner.db.objects import differs
 
     named: dict[str, tuple[Path, PreparedObject]] = {}
@@ -354,19 +349,25 @@ def _check_not_stored(db: Database, plan: _Plan) -> None:
                          "another --db")
 
 
-def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: Counter, first: int = 0
-             ) -> list[Grasp]:
-    """Grasps of the poses where the hand closes on the object; candidate =
-    ``first`` + the pose's row in ``poses``. Their weight resistances are solved together once the poses are
-    closed (:func:`~planner.plan.measures.measured_later`, as a sweep's)."""
-    shape = hand.widest(sweep_preshapes(hand))
+def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: Counter, first: int = 0,
+             openings: Openings | None = None) -> list[Grasp]:
+    """Grasps of the poses where the hand closes on the object, from ``openings`` where given (module docstring);
+    candidate = ``first`` + the pose's row in ``poses``. Their weight resistances are solved together once the
+    poses are closed (:func:`~planner.plan.measures.measured_later`, as a sweep's)."""
+    widest = hand.widest(sweep_preshapes(hand))
+    shapes = {s.name: s for s in load_preshapes(hand)}
     out: list[Grasp] = []
     with Sim() as sim, measured_later(out, {"quality": 0.0}) as later:
         grasper = Grasper.for_object(sim, hand, obj)
         gripping = grip.GripSurface(obj.mesh, normals_at=grasper.normals_at())  # the exact surface
         local = LocalSurface(hand, obj.mesh if grasper.mesh is None else grasper.mesh)  # a large mesh's proxy
         for i, pose in enumerate(poses, start=first):
-            closed = grasper.close_at(pose, shape, MAX_BACK_OFF)
+            given = None if openings is None else openings.at(hand, i - first)
+            if given is not None and not grasper.overlaps_at(pose, given[1]):
+                shape = shapes.get(given[0], widest)
+                closed = grasper.close_from(pose, shape, given[1])
+            else:
+                shape, closed = widest, grasper.close_at(pose, widest, MAX_BACK_OFF)
             if not isinstance(closed, Closed):
                 rejected[closed.reason] += 1
                 continue

@@ -23,7 +23,9 @@ Kinds of writers:
 
 A :class:`Reader` reads one grasp file back for ``grasp import``:
 ``header(path)``, ``poses(path, hand)``, ``grasps(path, hand, object,
-poses)`` and ``simulation(path)`` (see :mod:`planner.datasets.acronym`).
+poses)`` and ``simulation(path)`` (see :mod:`planner.datasets.acronym`);
+``openings(path, hand)`` (optional): the :class:`Openings` each pose was
+planned with, where the file gives them (``--rescore`` closes from them).
 """
 
 from __future__ import annotations
@@ -32,8 +34,14 @@ import inspect
 import re
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
 
 from planner.errors import PlannerError, UnknownNameError
+
+if TYPE_CHECKING:
+    from planner.specs.hands import HandSpec
 
 #: A format's name: what ``--format`` takes.
 NAME = re.compile(r"[a-z][a-z0-9_]*")
@@ -97,9 +105,37 @@ class Reader:
     poses: Callable
     grasps: Callable
     simulation: Callable
+    openings: Callable | None = None
 
     def __post_init__(self) -> None:
-        _check_hooks(self, {"header": 1, "poses": 2, "grasps": 4, "simulation": 1})
+        _check_hooks(self, {"header": 1, "poses": 2, "grasps": 4, "simulation": 1, "openings": 2},
+                     optional=("openings",))
+
+
+@dataclass(frozen=True)
+class Openings:
+    """The open hand each of a file's N poses was planned with, as far as the file gives it.
+
+    ``joints`` (N, D) [rad or m]: the hand's driven joints (:attr:`HandSpec.driven` order), NaN where not given;
+    ``preshapes`` (N,): each pose's preshape name ('' where not given)."""
+
+    joints: np.ndarray
+    preshapes: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        if self.joints.ndim != 2 or len(self.joints) != len(self.preshapes):
+            raise ValueError(f"Openings: joints {self.joints.shape} for {len(self.preshapes)} preshapes")
+
+    def rows(self, first: int, stop: int) -> Openings:
+        return Openings(self.joints[first:stop], self.preshapes[first:stop])
+
+    def at(self, hand: HandSpec, row: int) -> tuple[str, dict[str, float]] | None:
+        """Row ``row``'s preshape name and every finger joint [rad or m] of ``hand`` open as it gives them
+        (mimics follow); None unless the row gives every driven joint within its limits."""
+        driven = self.joints[row].tolist()
+        if len(driven) != len(hand.driven) or not all(j.lower <= v <= j.upper for j, v in zip(hand.driven, driven)):
+            return None  # NaN: not given
+        return self.preshapes[row], hand.full_configuration({j.name: v for j, v in zip(hand.driven, driven)})
 
 
 @dataclass(frozen=True)
