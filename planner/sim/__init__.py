@@ -375,8 +375,9 @@ class Sim:
         return np.min([lo for lo, _ in boxes], axis=0), np.max([hi for _, hi in boxes], axis=0)
 
     def _rows(self, a: int, b: int, max_distance: float, link_a: int | tuple[int, ...] | None) -> Sequence[tuple]:
-        if isinstance(link_a, tuple):  # several links of ``a``: each one's rows, in that order
-            return [row for index in link_a for row in self._rows(a, b, max_distance, index)]
+        if isinstance(link_a, tuple):  # several links of ``a``: their rows in the order the whole body's query gives
+            return [row for m in self.groups.get(a, [a]) for n in self.groups.get(b, [b]) for index in link_a
+                    for row in pb.getClosestPoints(m, n, max_distance, linkIndexA=index, physicsClientId=self.client)]
         kwargs = {} if link_a is None else {"linkIndexA": link_a}
         if a in self.groups or b in self.groups:
             return [row for member_a in self.groups.get(a, [a]) for member_b in self.groups.get(b, [b])

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 import scanlike
 
+from planner import sim as sim_module
 from planner.geometry.solid import load_object
 from planner.plan import sampling
 from planner.plan.closing import Closed, Grasper
@@ -27,10 +28,10 @@ def _checked_reads(grasper: Grasper, sim: Sim, rays, shapes, obj) -> dict[str, i
     def counted(a, b, distance, link):  # type: ignore[no-untyped-def]
         if b == grasper.object_body and link is None:
             seen["hand"] += 1
-        elif b == grasper.object_body and isinstance(link, tuple):
-            seen["skipped"] += len(grasper._indices) - len(link)
         elif b == grasper.object_body:
-            seen["link"] += 1
+            asked = link if isinstance(link, tuple) else (link,)
+            seen["link"] += len(asked)
+            seen["skipped"] += len(grasper._indices) - len(asked)
         return rows(a, b, distance, link)
 
     def checked(reach: float):  # type: ignore[no-untyped-def]
@@ -55,12 +56,15 @@ def _checked_reads(grasper: Grasper, sim: Sim, rays, shapes, obj) -> dict[str, i
     return seen
 
 
-@pytest.mark.parametrize("hand_name", ["panda", "barrett"])
-def test_the_touching_pairs_are_the_whole_hands_asked_only_of_the_links_near_the_hulls(hand_name: str,
-                                                                                         tmp_path) -> None:  # type: ignore[no-untyped-def]
-    """Seeded closings on the mug (and, for the Panda, on a 20k-face scan closed through its proxy): every
-    read's pairs are the whole hand's, and the exact mesh is asked link by link, some links skipped, never
-    for the whole hand."""
+@pytest.mark.parametrize("hand_name, pieces", [("panda", False), ("barrett", False), ("barrett", True)])
+def test_the_touching_pairs_are_the_whole_hands_asked_only_of_the_links_near_the_hulls(
+        hand_name: str, pieces: bool, tmp_path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """Seeded closings on the mug (and, for the Panda, on a 20k-face scan closed through its proxy; with
+    ``pieces``, the mug's mesh added to PyBullet in pieces of 300 faces, as a mesh of more than
+    :data:`~planner.sim.MESH_FACES` is): every read's pairs are the whole hand's, in its order, and the exact
+    mesh is asked link by link, some links skipped, never for the whole hand."""
+    if pieces:
+        monkeypatch.setattr(sim_module, "MESH_FACES", 300)
     hand = load_hand(hand_name)
     shapes = load_preshapes(hand)
     path = tmp_path / "scan.obj"
@@ -68,7 +72,9 @@ def test_the_touching_pairs_are_the_whole_hands_asked_only_of_the_links_near_the
     for obj in [load_object("mug")] + ([load_object(str(path))] if hand_name == "panda" else []):
         rays = sampling.sample(obj.mesh, sampler="surface", count=6, rng=np.random.default_rng(SEED))
         with Sim() as sim:
-            seen = _checked_reads(Grasper.for_object(sim, hand, obj), sim, rays, shapes, obj)
+            grasper = Grasper.for_object(sim, hand, obj)
+            assert (grasper.object_body in sim.groups) == pieces
+            seen = _checked_reads(grasper, sim, rays, shapes, obj)
         assert seen["reads"] > 0 and seen["pairs"] > 0 and seen["closed"] > 0
         assert seen["link"] > 0 and seen["skipped"] > 0  # the palm, off the hulls, not asked
         assert seen["hand"] == 0
