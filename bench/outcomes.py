@@ -118,14 +118,12 @@ class Ledger:
 
     def queried(self, fn: Callable) -> Callable:
         def rows(sim, a, b, distance, link):  # type: ignore[no-untyped-def]
-            if isinstance(link, tuple):  # several links: counted link by link as it asks each
-                return fn(sim, a, b, distance, link)
             t = clock()
             found = fn(sim, a, b, distance, link)
             target = "mesh" if b in sim.meshes else "hulls/table"
             kind = f"{self._within[-1] if self._within else 'other'}: {target}, {'hand' if link is None else 'link'}"
-            entry = self.queries[kind]
-            entry[0], entry[1], entry[2] = entry[0] + 1, entry[1] + len(found), entry[2] + clock() - t
+            entry, asked = self.queries[kind], len(link) if isinstance(link, tuple) else 1  # several links: each
+            entry[0], entry[1], entry[2] = entry[0] + asked, entry[1] + len(found), entry[2] + clock() - t
             return found
         return rows
 
