@@ -5,6 +5,8 @@ from collections import Counter
 from pathlib import Path
 from types import SimpleNamespace
 
+import trimesh
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 
 from outcomes import outcome, profile_unit  # noqa: E402
@@ -36,3 +38,21 @@ def test_every_candidate_counted_once_and_the_sweep_unchanged() -> None:
     assert {k[4:]: v for k, v in row["count"].items() if k.startswith("rej:")} == row["rejected"]
     plain = run_unit(UnitSpec("box", "panda", SweepSettings(approaches=4, chunk=0, reach_placements=0), 0))
     assert (plain.candidates, len(plain.grasps), plain.force_closure) == (row["candidates"], row["grasps"], row["fc"])
+
+
+def test_stages_and_query_kinds_of_a_mesh_file_at_a_given_mass(tmp_path: Path) -> None:
+    """A mesh file (the peer's object is one) at a given mass and friction: every stage timed, every query of
+    the object's mesh counted by the stage that asked, and the instrumentation gone afterwards."""
+    from planner.plan.contact_reading import ContactReading
+    from planner.sim import Sim
+
+    path = tmp_path / "brick.obj"
+    trimesh.creation.box((0.05, 0.03, 0.08)).export(path)
+    touching, rows = ContactReading._touching, Sim._rows
+    row = profile_unit(str(path), "panda", 4, tmp_path / "stats", mass=0.5, friction=0.5)
+    assert ContactReading._touching is touching and Sim._rows is rows
+    assert row["fc"] > 0 and (tmp_path / "stats" / "brick_panda.prof").is_file()
+    assert {"closing", "contact query", "patches", "epsilon", "grip", "local_sdf", "resistance"} <= set(row["stages"])
+    kinds = {kind.split(":")[0] for kind in row["queries"] if ": mesh" in kind}
+    assert kinds == {"closing", "contact query"}
+    assert all(n > 0 and cpu >= 0.0 for n, _, cpu in row["queries"].values())

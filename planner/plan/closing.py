@@ -55,7 +55,7 @@ from planner.geometry.hulls import surface_hulls
 from planner.geometry.proxy import collision_proxy
 from planner.geometry.solid import PreparedObject
 from planner.plan.closing_types import CONTACT_READINGS, Closed, CloseSettings, Rejected
-from planner.plan.contact_reading import ContactReading
+from planner.plan.contact_reading import NO_PAIRS, ContactReading
 from planner.plan.finger_closing import DofMotion, FingerClosing
 from planner.plan.patches import ObjectSurface
 from planner.plan.tolerances import CLOSING_SPEED_MIN, TABLE_LIFT, TABLE_SLAB
@@ -73,7 +73,6 @@ RELATIVE_CACHE = 64
 #: farther than the query's range plus this from theirs. PyBullet's boxes hold its shapes with their
 #: margins, so no pair can be nearer than the boxes' gap; the slack covers its round-off many times.
 BROADPHASE_SLACK = 0.001
-_NONE = Closest(np.zeros(0, int), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)))
 
 
 @dataclass(frozen=True)
@@ -169,7 +168,7 @@ class Grasper(FingerClosing, ContactReading):
         offset, s = self.hand.distance_offset, self.settings
         if self.far_body is not None:
             if all(self._beyond(i, reach - offset) for i in ((index,) if link else self._indices)):
-                return _NONE  # what the query below would give: no pair within its range
+                return NO_PAIRS  # what the query below would give: no pair within its range
             far = self.sim.closest(self.body.uid, self.far_body, reach - offset, index)
             if len(far) == 0 or far.min_distance + offset > s.near:
                 return far

@@ -374,7 +374,10 @@ class Sim:
                  for i in range(-1, pb.getNumJoints(m, physicsClientId=self.client))]
         return np.min([lo for lo, _ in boxes], axis=0), np.max([hi for _, hi in boxes], axis=0)
 
-    def _rows(self, a: int, b: int, max_distance: float, link_a: int | None) -> Sequence[tuple]:
+    def _rows(self, a: int, b: int, max_distance: float, link_a: int | tuple[int, ...] | None) -> Sequence[tuple]:
+        if isinstance(link_a, tuple):  # several links of ``a``: their rows in the order the whole body's query gives
+            return [row for m in self.groups.get(a, [a]) for n in self.groups.get(b, [b]) for index in link_a
+                    for row in pb.getClosestPoints(m, n, max_distance, linkIndexA=index, physicsClientId=self.client)]
         kwargs = {} if link_a is None else {"linkIndexA": link_a}
         if a in self.groups or b in self.groups:
             return [row for member_a in self.groups.get(a, [a]) for member_b in self.groups.get(b, [b])
@@ -386,8 +389,8 @@ class Sim:
         """[m] :meth:`closest`'s ``min_distance`` (inf without pairs), without making the pairs' arrays."""
         return min((row[8] for row in self._rows(a, b, max_distance, link_a)), default=np.inf)
 
-    def closest(self, a: int, b: int, max_distance: float, link_a: int | None = None) -> Closest:
-        """Closest-point pairs between bodies ``a`` and ``b`` within ``max_distance`` [m]."""
+    def closest(self, a: int, b: int, max_distance: float, link_a: int | tuple[int, ...] | None = None) -> Closest:
+        """Closest-point pairs between bodies ``a`` and ``b`` within ``max_distance`` [m] (of link(s) ``link_a``)."""
         rows = self._rows(a, b, max_distance, link_a)
         if not rows:
             return _EMPTY
