@@ -68,7 +68,8 @@ a squeeze's end is its squeeze's last closing, opened as its parent, not closed 
 squeeze and the number of ends as in 25, only the ends' values differ); 27 (issue 26: a parent whose end is kept
 takes no reach slot, its end ranking for it: three of the grasps as planned change reachability, score or rank); 28
 (issues 24, 26: a squeeze that turns back bisects its last turn: none of these runs' squeezes turns back, the digest
-is 27's, the squeezes and their ends included; the mug's change).
+is 27's, the squeezes and their ends included; the mug's change); 29 (a turn about another axis at a bracket's
+middle is a turn, not a half of the bracket: none of these runs' squeezes turns back, the digest is 28's).
 """
 
 from __future__ import annotations

@@ -210,9 +210,13 @@ def bracketed(bracket: Bracket | None, before: np.ndarray | None, pose: np.ndarr
     """The bracket of the flush pose once the squeeze has closed at ``pose`` (4, 4), where the whole turn would take
     the hand to ``whole`` (4, 4): ``bracket`` (None: none yet) halved where ``pose`` is its middle (the flush pose
     lies on the side ``whole`` turns to), or a new one from ``before`` (4, 4; None: the first closing) to ``pose``
-    where ``whole`` turns back the way it came (cosine above :data:`REVERSED`), else None."""
+    where ``whole`` turns back the way it came (cosine above :data:`REVERSED`), else None. At a bracket's middle
+    too, a turn about another axis (the cosine with either end's not above :data:`REVERSED`: on the quick start's
+    mug 11 of 327 until ALGORITHM_VERSION 29, which halved the bracket by that cosine's sign) is taken as a turn."""
     if bracket is not None:
-        return (pose, bracket[1]) if cosine(pose, whole, bracket[1]) > 0.0 else (bracket[0], pose)
+        toward = cosine(pose, whole, bracket[1])
+        if abs(toward) > REVERSED:
+            return (pose, bracket[1]) if toward > 0.0 else (bracket[0], pose)
     if before is not None and cosine(pose, whole, before) > REVERSED:
         return before, pose
     return None

@@ -44,8 +44,9 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: beside the planned grasp (planner.plan.squeeze). 25: where it ends force closure, its end a grasp of its own;
 #: such a grasp reached by its squeeze's epsilon. 26: that end is its squeeze's last closing, not closed again.
 #: 27: a parent whose end is kept takes no reach slot (the end ranks for it: planner.db.ranking). 28: a squeeze
-#: that turns back bisects its last turn (planner.plan.squeeze.bracketed).
-ALGORITHM_VERSION = 28
+#: that turns back bisects its last turn (planner.plan.squeeze.bracketed). 29: at a bracket's middle, a turn about
+#: another axis is a turn, not a half of the bracket.
+ALGORITHM_VERSION = 29
 
 #: Named in the digest of sweeps on a table only (those of the object alone stay
 #: as they were), bumped when a change alters only which grasps they produce.

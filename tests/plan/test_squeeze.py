@@ -315,3 +315,16 @@ def test_bracketed_halves_a_bracket_towards_the_turn_and_opens_one_where_the_tur
     np.testing.assert_allclose(middle, about("z", 0.1), atol=1e-12)
     assert bracketed((low, high), None, middle, about("z", 0.15)) == (middle, high)
     assert bracketed((low, high), None, middle, about("z", 0.05)) == (low, middle)
+
+
+@pytest.mark.parametrize("lean", [0.1, -0.1, 0.5, -0.5])
+def test_at_a_brackets_middle_a_turn_about_another_axis_is_a_turn_not_a_half(lean: float) -> None:
+    """At the middle of the bracket (0, 0.2) about z, a turn mostly about x (leaning ``lean`` rad about z: its
+    cosine with either end at most 0.7) is the wall curving the other way: no half of the bracket, as at its first
+    closing (until ALGORITHM_VERSION 29 the sign of that cosine picked a half)."""
+    low, high = np.eye(4), np.eye(4)
+    high[:3, :3] = Rotation.from_euler("z", 0.2).as_matrix()
+    middle = midway(low, high)
+    whole = np.eye(4)
+    whole[:3, :3] = Rotation.from_rotvec([0.3, 0.0, 0.3 * lean]).as_matrix() @ middle[:3, :3]
+    assert bracketed((low, high), high, middle, whole) is None
