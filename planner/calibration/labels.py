@@ -2,8 +2,9 @@
 
 Each file's poses are read and re-scored as ``grasp import --rescore`` does
 (:func:`planner.datasets.importer.rescore_poses`: the hand closed at each
-pose, contacts, epsilon and the analytic measures, with the file's mass and
-friction); a seeded uniform sample of ``poses`` per file keeps the work
+pose, from the opening the file planned it with where it gives one, else from
+the widest preshape (ACRONYM's own files); contacts, epsilon and the analytic
+measures, with the file's mass and friction); a seeded uniform sample of ``poses`` per file keeps the work
 bounded. Poses where the hand does not close on the object are counted by
 reason: they are never stored, so p_hold is not fitted on them.
 
@@ -106,9 +107,9 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
         y = acronym.read_labels(path)
         rows = sample_rows(len(all_poses), poses, seed, path.stem)
         sampled[name] = len(rows)
-        chunk = importer.RESCORE_CHUNK
-        units = [importer.RescoreUnit(0, i, all_poses[rows[i:i + chunk]], spec_hand, spec)
-                 for i in range(0, len(rows), chunk)]
+        chunk, openings = importer.RESCORE_CHUNK, acronym.read_openings(path, spec_hand)  # own files': as import's
+        units = [importer.RescoreUnit(0, i, all_poses[rows[i:i + chunk]], spec_hand, spec,
+                                      openings.take(rows[i:i + chunk])) for i in range(0, len(rows), chunk)]
         grasps = {}
         with closing(pool.execute(importer.rescore_poses, units, workers)) as outcomes:
             for _unit, outcome, _ in outcomes:

@@ -152,12 +152,13 @@ def trials_of(g: Any, group: str, n: int) -> list[Trial | None]:
 
 def openings_of(path: Path, g: Any, hand: HandSpec, n: int) -> Openings:
     """The opening each of the n poses of group ``grasps/`` was planned with, where it says:
-    ``joints_open`` of ``hand``'s driven joints, ``preshape`` (this project's files). ACRONYM's own files give
-    none (their ``gripper/configuration`` is the gripper's full opening, not a pose's): NaN and ''."""
+    ``joints_open`` of ``hand``'s driven joints as the records gave them (:func:`joints_of`: not a joint the export
+    filled in, at its lower limit), ``preshape`` (this project's files). ACRONYM's own files give none (their
+    ``gripper/configuration`` is the gripper's full opening, not a pose's): NaN and ''."""
     joints = np.full((n, len(hand.driven)), np.nan)
     if "joints_open" in g and "joint_names" in g:
         names = list(g["joint_names"].asstr()[()])
-        opened = np.asarray(g["joints_open"][()], float)
+        opened = joints_of(path, g, "joints_open")
         if opened.shape != (n, len(names)):
             raise InputError(f"{path}: grasps/joints_open has shape {opened.shape}; expected ({n}, {len(names)})")
         for k, joint in enumerate(hand.driven):

@@ -129,6 +129,10 @@ class Openings:
     def rows(self, first: int, stop: int) -> Openings:
         return Openings(self.joints[first:stop], self.preshapes[first:stop])
 
+    def take(self, rows: np.ndarray) -> Openings:
+        """The openings of ``rows`` (k,) int, in that order (a sample of a file's poses)."""
+        return Openings(self.joints[rows], tuple(self.preshapes[int(i)] for i in rows))
+
     def at(self, hand: HandSpec, row: int) -> tuple[str, dict[str, float]] | None:
         """Row ``row``'s preshape name and every finger joint [rad or m] of ``hand`` open as it gives them
         (mimics follow); None unless the row gives every driven joint within its limits."""

@@ -187,3 +187,30 @@ def test_the_api_takes_poses_0_as_every_pose_as_the_command_line_does(tmp_path: 
     assert "--poses" not in str(refused.value) and "none.h5" in str(refused.value), refused.value
     with pytest.raises(InputError, match="--poses must be 0 .every pose. or a count of at least 1, got -1"):
         api.calibrate([tmp_path / "none.h5"], db_path=None, poses=-1)
+
+
+def test_an_own_files_poses_close_from_its_openings_as_import_rescore_closes_them(tmp_path: Path) -> None:
+    """Issue 26: ``import --rescore`` closes an own export's pose from the opening the file planned it with; calibrate
+    closed it from the widest preshape still (a Barrett pinch as a spread-0 wrap), so a p_hold fitted on an own
+    labelled export read other grasps than the import stores."""
+    import json
+    import sqlite3
+
+    from planner import api
+    from planner.calibration import labels
+    from planner.plan.sweep import SweepSettings
+    from tests.datasets.support import export
+
+    db = tmp_path / "b.db"
+    api.generate(["box"], "barrett", db_path=db, workers=1,
+                 settings=SweepSettings(approaches=2, rolls=1, standoffs=(0.04,), preshapes=("pinch",)))
+    path = export(db, "acronym", tmp_path / "out") / "box__barrett.h5"
+    code, _, err = grasp("import", str(path), "--rescore", "--db", str(tmp_path / "re.db"), "--workers", "1")
+    assert code == 0, err
+    conn = sqlite3.connect(tmp_path / "re.db")
+    query = "SELECT candidate, preshape, open_joints, epsilon FROM grasps ORDER BY candidate"
+    imported = conn.execute(query).fetchall()
+    assert imported and {r[1] for r in imported} == {"pinch"}
+    assert all(json.loads(r[2])["bh_j11_joint"] == pytest.approx(1.5708) for r in imported)  # not the wrap's 0
+    got = labels.labelled([path], poses=None, workers=1)
+    assert got.table["epsilon"].tolist() == [r[3] for r in imported]

@@ -15,7 +15,7 @@ import pytest
 from helpers import grasp
 
 from planner import api
-from planner.datasets import importer, registry
+from planner.datasets import acronym, importer, registry
 from planner.geometry.solid import load_object
 from planner.plan.sweep import SweepSettings
 from planner.specs.hands import load_hand
@@ -83,4 +83,20 @@ def test_an_opening_is_given_only_whole_and_within_limits() -> None:
     assert openings.at(PANDA, 1) is None and openings.at(PANDA, 2) is None
     assert openings.at(PANDA, 3) == ("nothing", {"panda_finger_joint1": 0.04, "panda_finger_joint2": 0.04})
     assert openings.rows(1, 3).preshapes == ("", "wide")
+    taken = openings.take(np.array([3, 0]))  # a sample of the rows (calibrate's)
+    assert taken.preshapes == ("nothing", "half") and taken.joints.tolist() == [[0.04], [0.02]]
     assert openings.at(load_hand("barrett"), 0) is None  # another hand's joints: not this file's opening
+
+
+def test_a_driven_joint_the_record_did_not_name_is_no_opening(db: Path, tmp_path: Path) -> None:
+    """The export fills a driven joint a record leaves out at its lower limit (0: the Panda closed) and marks it
+    not given; the opening read it as planned, so re-scoring closed that pose from closed fingers and dropped it
+    rather than close it from the widest preshape."""
+    path = export(db, "acronym", tmp_path / "out") / "box__panda.h5"
+    with h5py.File(path, "r+") as f:
+        col = list(f["grasps/joint_names"].asstr()[()]).index("panda_finger_joint1")
+        f["grasps/joints_open"][0, col] = 0.0
+        f["grasps/joints_open_given"][0, col] = 0
+    openings = acronym.read_openings(path, PANDA)
+    assert np.isnan(openings.joints[0, 0]) and openings.at(PANDA, 0) is None
+    assert np.isfinite(openings.joints[1:]).all()
