@@ -22,7 +22,8 @@ FEW_OBJECTS = 10
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--folds", type=int, default=5, show_default=True, help="Cross-validation folds, grouped by object.")
 @click.option("--hand", help="The hand, if the files' gripper/type does not say it.")
-@click.option("--workers", type=int, default=1, show_default=True)
+@click.option("--workers", type=int, default=api.default_workers(), show_default="all cores",
+              help="Worker processes for re-scoring the sampled poses.")
 @click.option("--model-out", type=click.Path(path_type=Path), help="Also write the model as TOML.")
 @click.option("--plot", type=click.Path(path_type=Path), help="Write the held-out reliability diagram (PNG).")
 @click.option("--no-store", is_flag=True, help="Fit and report only; leave the database alone.")

@@ -214,3 +214,32 @@ def test_an_own_files_poses_close_from_its_openings_as_import_rescore_closes_the
     assert all(json.loads(r[2])["bh_j11_joint"] == pytest.approx(1.5708) for r in imported)  # not the wrap's 0
     got = labels.labelled([path], poses=None, workers=1)
     assert got.table["epsilon"].tolist() == [r[3] for r in imported]
+
+
+def test_re_scoring_on_two_workers_pairs_the_same_labels_as_on_one(tmp_path):
+    """`grasp calibrate` re-scores on every core by default (as `import`, `generate` and `validate` do): the
+    table it fits on must not depend on how many workers closed the poses."""
+    from planner import api
+    from planner.calibration import labels
+    from planner.plan.sweep import SweepSettings
+    from tests.datasets.support import export
+
+    db = tmp_path / "b.db"
+    api.generate(["box"], "panda", db_path=db, workers=1,
+                 settings=SweepSettings(approaches=4, rolls=2, standoffs=(0.0,)))
+    path = export(db, "acronym", tmp_path / "out") / "box__panda.h5"
+    one = labels.labelled([path], poses=None, workers=1).table
+    two = labels.labelled([path], poses=None, workers=2).table
+    assert len(one["epsilon"]) > 4 and one.keys() == two.keys()
+    for key in one:
+        a, b = np.asarray(one[key]), np.asarray(two[key])
+        same = np.array_equal(a, b, equal_nan=a.dtype.kind == "f")
+        assert same, key
+
+
+def test_calibrate_uses_every_core_by_default():
+    from planner import api
+    from planner.cli.calibrate import calibrate
+
+    option = next(p for p in calibrate.params if p.name == "workers")
+    assert option.default == api.default_workers()
