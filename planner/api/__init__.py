@@ -39,7 +39,7 @@ from planner.api.building import (  # noqa: F401 - re-exported
     table_supports,
     unit_row,
 )
-from planner.api.calibrating import calibrate, calibration_errors, report
+from planner.api.calibrating import calibrate, calibration_errors, report, shipped_figures
 from planner.api.describing import check_db, default_workers, hand, hands, objects, stored_objects
 from planner.api.on_table import (  # noqa: F401 - re-exported
     TABLE_AT,
@@ -105,7 +105,8 @@ __all__ = [
     "GenerateProgress", "ImportResult", "RankingRule", "ReachableGrasp", "SAMPLERS", "SAMPLER_DEFAULTS", "Summary",
     "SweepSettings", "UnitResult", "ValidationSummary",
     "best", "best_at", "calibrate", "calibration_errors", "check_db", "default_workers", "export", "generate",
-    "hand", "hands", "import_files", "objects", "plan_units", "report", "resolve_object", "show", "stored_names",
+    "hand", "hands", "import_files", "objects", "plan_units", "report", "resolve_object", "shipped_figures", "show",
+    "stored_names",
     "stored_objects", "validate",
 ]
 

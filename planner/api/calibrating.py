@@ -103,3 +103,14 @@ def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB,
             Path(plot).parent.mkdir(parents=True, exist_ok=True)
             Path(plot).write_bytes(png)
     return result
+
+
+def shipped_figures(hand: str) -> dict[str, float]:
+    """The held-out figures of the model shipped for ``hand`` (``calibration/<hand>.toml``, fitted on ACRONYM's dev
+    set): what a model ``calibrate`` stores replaces for that database's grasps; {} where none is shipped (or
+    ``$GRASP_SHIPPED_MODELS`` is "0")."""
+    from planner.calibration.logistic import default_model
+
+    model = default_model(hand)
+    return {} if model is None else dict(model.figures)
+

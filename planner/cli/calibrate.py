@@ -70,6 +70,12 @@ def calibrate(labels: tuple[Path, ...], db_path: Path, poses: int, seed: int, fo
                    f"AUC {auc} (width {width})")
     if not no_store:
         click.echo(f"stored in {db_path}: best, exports and reports of {result.model.hand} grasps use it")
+        shipped = api.shipped_figures(result.model.hand)
+        if shipped:
+            click.echo(f"note: it replaces, for this database's {result.model.hand} grasps, the shipped model "
+                       f"(calibration/{result.model.hand}.toml, ACRONYM's dev set: {int(shipped.get('objects', 0))} "
+                       f"objects, held-out AUC {shipped.get('auc_mean', math.nan):.3f}, ECE "
+                       f"{shipped.get('ece', math.nan):.4f}); --no-store compares without storing", err=True)
 
 
 def _interval(figures: dict[str, float], name: str, digits: int) -> str:
