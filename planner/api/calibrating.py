@@ -113,4 +113,3 @@ def shipped_figures(hand: str) -> dict[str, float]:
 
     model = default_model(hand)
     return {} if model is None else dict(model.figures)
-
