@@ -103,7 +103,7 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
     rejected: Counter = Counter()
     said = set[str]()
     for path, name in zip(map(Path, paths), label_names(paths)):
-        spec_hand, spec, all_poses = importer.read_for_rescoring(path, hand_name)
+        spec_hand, spec, all_poses = importer.read_for_rescoring(path, hand_name, note=True)
         y = acronym.read_labels(path)
         rows = sample_rows(len(all_poses), poses, seed, path.stem)
         sampled[name] = len(rows)

@@ -76,12 +76,17 @@ def export(db_path: Path, fmt: str, out_dir: Path, objects: tuple[str, ...], han
               "own files), backed off while it collides.")
 @click.option("--up", help="The objects' up where a file gives none (object/up): +x -x +y -y +z -z; ACRONYM's own "
               "meshes stand on +y [default: the mesh file's, +z for an OBJ].")
+@click.option("--mass", type=float, help="The objects' mass [kg] where a file gives none (object/mass) [default: "
+              "a mesh's sidecar TOML, the registry's, else 0.2, said on stderr].")
+@click.option("--friction", type=float, help="The objects' Coulomb friction coefficient where a file gives none "
+              "(object/friction), 0 < mu <= 3 [default: a mesh's sidecar TOML, the registry's, else 0.5, said].")
 @click.option("--workers", type=click.IntRange(min=1), default=api.default_workers(),
               show_default="all cores",
               help="Worker processes for re-scoring.")
 @click.option("--json", "as_json", is_flag=True, help="Print a machine-readable summary.")
 def import_files(paths: tuple[Path, ...], fmt: str, db_path: Path, hand: str | None, object_name: str | None,
-                 rescore: bool, up: str | None, workers: int, as_json: bool) -> None:
+                 rescore: bool, up: str | None, mass: float | None, friction: float | None, workers: int,
+                 as_json: bool) -> None:
     """Import grasp files into the database (one unit per file; a file
     imported before is skipped). Files without this project's qualities are
     re-scored by closing the hand at each pose (see --rescore for the opening it closes from)."""
@@ -101,7 +106,7 @@ def import_files(paths: tuple[Path, ...], fmt: str, db_path: Path, hand: str | N
 
     show_preparation(not as_json)  # a mesh repaired (ACRONYM's are often open): one line each, the first time only
     results = api.import_files(paths, db_path, fmt=fmt, hand=hand, object_name=object_name, rescore=rescore,
-                               workers=workers, progress=progress, up=up)
+                               workers=workers, progress=progress, up=up, mass=mass, friction=friction)
     if as_json:
         echo_json([r.to_json() for r in results])
     report_failures({str(r.path): r.error for r in results if r.error})

@@ -9,6 +9,7 @@ the command: ``import`` has ``--object``, ``calibrate`` has not (``HINTS``).
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -19,7 +20,14 @@ from planner.errors import InputError
 from planner.geometry.solid import prepare
 from planner.record.field import same_com, same_inertia
 from planner.specs.hands import hand_names
-from planner.specs.objects import ObjectSpec, is_registered, resolve_spec
+from planner.specs.objects import (
+    DEFAULT_FRICTION,
+    DEFAULT_MASS,
+    PROPERTY_RTOL,
+    ObjectSpec,
+    is_registered,
+    resolve_spec,
+)
 from planner.specs.up import up_axis
 
 HAND_ALIASES = {"panda": "panda", "franka_panda": "panda"}
@@ -40,18 +48,45 @@ def hand_name(path: Path, gripper: str) -> str:
     return name
 
 
-def object_spec(h: AcronymHeader, object_name: str | None, command: str = "import", up: str | None = None
-                ) -> ObjectSpec:
+def object_spec(h: AcronymHeader, object_name: str | None, command: str = "import", up: str | None = None,
+                mass: float | None = None, friction: float | None = None) -> ObjectSpec:
     """The object an ACRONYM header names (see :mod:`planner.datasets.importer`); ``command``: whose hint an
-    error gives (a key of :data:`HINTS`); ``up``: the object's up where the file gives none (``grasp import
-    --up``; a file's own ``object/up`` is what its grasps were measured about: another is refused).
+    error gives (a key of :data:`HINTS`); ``up``, ``mass`` [kg], ``friction``: the object's where the file gives
+    none (``grasp import --up``, ``--mass``, ``--friction``; a file's own ``object/up``, ``object/mass``,
+    ``object/friction`` are what its grasps were measured with: another is refused).
     A built-in ``object/name`` is taken where its mesh is the file's:
     ``object/mesh_sha256``, or without one the file's own ``object/file`` where it is found (a user's file
     naming its own mesh 'box' was fitted on the built-in box)."""
     if up is not None and h.up is not None and up_axis(up, "", "--up") != h.up:
         raise InputError(f"{h.path}: its object/up is {h.up}, and --up gives {up_axis(up, '', '--up')}: its grasps "
                          "were measured about the file's; leave --up out for this file")
-    return _with_inertial(h, _object_spec(h, object_name, command, up))
+    for key, given, own in (("mass", mass, h.mass), ("friction", friction, h.friction)):
+        if given is not None and own is not None and not math.isclose(given, own, rel_tol=PROPERTY_RTOL):
+            raise InputError(f"{h.path}: its object/{key} is {own:g}, and --{key} gives {given:g}: its grasps were "
+                             f"measured with the file's; leave --{key} out for this file")
+    props = {"mass": h.mass if h.mass is not None else mass,
+             "friction": h.friction if h.friction is not None else friction, "up": h.up if h.up is not None else up}
+    return _with_inertial(h, _object_spec(h, object_name, command, props))
+
+
+def unstated(h: AcronymHeader, spec: ObjectSpec, command: str = "import",
+             given: tuple[float | None, float | None] = (None, None)) -> str | None:
+    """The line said where the file gives no ``object/mass`` or ``object/friction`` and the run (``given``: its
+    mass and friction) none either: the values the object ``spec`` is taken at (its file's sidecar's, the
+    registry's, else the defaults), which every measure and trial of its grasps reads; None where nothing is
+    missing."""
+    missing = [key for key, run in zip(("mass", "friction"), given) if getattr(h, key) is None and run is None]
+    if not missing:
+        return None
+    obj = prepare(spec)
+    used = {"mass": f"mass {obj.mass:g} kg", "friction": f"friction {obj.friction:g}"}
+    defaults = {"mass": DEFAULT_MASS, "friction": DEFAULT_FRICTION}
+    default = all(math.isclose(getattr(obj, key), defaults[key]) for key in missing)
+    how = ("pass " + " and ".join(f"--{key}" for key in missing)) if command == "import" else \
+        "set " + " and ".join(f"object/{key}" for key in missing) + " in the file"
+    return (f"{h.path}: no {' or '.join(f'object/{key}' for key in missing)}: object '{spec.name}' is taken at "
+            f"{', '.join(used[key] for key in missing)}{' (the default)' if default else ''}; if it is not the "
+            f"object's own, {how}")
 
 
 def _with_inertial(h: AcronymHeader, spec: ObjectSpec) -> ObjectSpec:
@@ -74,8 +109,7 @@ def _with_inertial(h: AcronymHeader, spec: ObjectSpec) -> ObjectSpec:
         replace(spec, com=h.com, com_from=f"{Path(h.path).name} object/com", gyration=gyration)
 
 
-def _object_spec(h: AcronymHeader, object_name: str | None, command: str, up: str | None) -> ObjectSpec:
-    props = {"mass": h.mass, "friction": h.friction, "up": h.up if h.up is not None else up}
+def _object_spec(h: AcronymHeader, object_name: str | None, command: str, props: dict) -> ObjectSpec:
     if object_name is not None:
         if is_registered(object_name):
             return resolve_spec(object_name, **props)

@@ -44,7 +44,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import time
 from collections import Counter
 from collections.abc import Callable, Sequence
@@ -57,13 +56,14 @@ import numpy as np
 
 from planner import prepare as preparing
 from planner.datasets import formats
-from planner.datasets.file_objects import HAND_ALIASES, hand_name, object_spec
+from planner.datasets.file_objects import HAND_ALIASES, hand_name, object_spec, unstated
+from planner.datasets.import_checks import check_objects
 from planner.datasets.registry import Openings, Reader
 from planner.db.hand_files import check_hand_files
 from planner.db.ranking import RankingRule
 from planner.db.store import Database, UnitRow, Validated, open_for_writing
 from planner.errors import InputError
-from planner.geometry.frames import approach_of, same_poses
+from planner.geometry.frames import approach_of
 from planner.geometry.solid import PreparedObject, prepare
 from planner.plan import grip
 from planner.plan.closing import Closed, Grasper
@@ -76,7 +76,7 @@ from planner.record.grasp import Grasp
 from planner.run import pool
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, load_hand
-from planner.specs.objects import PROPERTY_RTOL, ObjectSpec
+from planner.specs.objects import ObjectSpec
 from planner.specs.preshapes import load_preshapes, sweep_preshapes
 from planner.specs.up import up_axis
 
@@ -141,14 +141,15 @@ class _Plan:
 
 def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", hand: str | None = None,
                  object_name: str | None = None, rescore: bool = False, workers: int = 1,
-                 progress: Callable[[ImportResult], None] | None = None, up: str | None = None
-                 ) -> list[ImportResult]:
+                 progress: Callable[[ImportResult], None] | None = None, up: str | None = None,
+                 mass: float | None = None, friction: float | None = None) -> list[ImportResult]:
     """Import grasp files into ``db_path`` (created if missing). Every file is checked before anything is written.
     Re-scoring runs in ``workers`` processes; ``progress`` gets each file as it is written, the list returned is
-    in the order of ``paths``. ``up``: the objects' up where a file gives none (ACRONYM's own meshes: ``"+y"``)."""
+    in the order of ``paths``. ``up``, ``mass`` [kg], ``friction``: the objects' where a file gives none (ACRONYM's
+    own meshes stand on ``"+y"``); a file that gives neither mass nor friction is said with the values taken."""
     reader = formats.reader(fmt)
     up = None if up is None else up_axis(up, "", "--up")
-    plans = [_plan(Path(p), fmt, reader, hand, object_name, rescore, up=up) for p in paths]
+    plans = [_plan(Path(p), fmt, reader, hand, object_name, rescore, up=up, given=(mass, friction)) for p in paths]
     # every file's poses (and a lossless file's joints and contacts) read and checked before the database is opened:
     # a refused import (a NaN in grasps/transforms, a joint outside its limits, contacts that are not JSON) left an
     # empty database and its lock file at --db. A lossless file is read twice (here and when written) rather than
@@ -168,7 +169,7 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
             progress(result)
 
     with open_for_writing(Path(db_path)) as db:
-        _check_objects(db, plans)
+        check_objects(db, plans)
         check_hand_files(db, {p.hand.name for p in plans})
         rule = db.rule()
         db.apply_rule(rule)
@@ -294,10 +295,13 @@ def _restore_simulation(db: Database, plan: _Plan, unit_id: int, obj: str, rule:
 
 
 def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: str | None, rescore: bool,
-          command: str = "import", up: str | None = None) -> _Plan:
+          command: str = "import", up: str | None = None, given: tuple[float | None, float | None] = (None, None),
+          note: bool = True) -> _Plan:
     header = reader.header(path)
     spec = load_hand(hand or hand_name(path, header.gripper))
-    obj = object_spec(header, object_name, command, up)
+    obj = object_spec(header, object_name, command, up, *given)
+    if note and (line := unstated(header, obj, command, given)):  # every measure and trial reads them: said, not assumed
+        preparing.warned(line)
     lossless = not rescore and header.extras
     if lossless:  # its contacts, joints and measures are of the file's mesh and hand: stored as they are
         if header.mesh_sha256 and prepare(obj).mesh_hash != header.mesh_sha256:
@@ -313,40 +317,6 @@ def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: s
         for block in iter(lambda: fh.read(1 << 20), b""):
             digest.update(block)
     return _Plan(path, spec, obj, lossless, ImportSettings(fmt, str(path), digest.hexdigest(), not lossless), reader)
-
-
-def _check_objects(db: Database, plans: Sequence[_Plan]) -> None:
-    """One name, one object, before anything is written: a file's object against the one the database stores under
-    its name (mesh, mass properties, mass and friction; :func:`planner.db.objects.differs`) and against the other
-    files' of this import that name it."""
-    from planner.db.objects import differs
-
-    named: dict[str, tuple[Path, PreparedObject]] = {}
-    for plan in plans:
-        name = plan.spec.name
-        obj = prepare(plan.spec)
-        row = db.object_row(name)
-        why = differs(row, obj) if row is not None else None
-        if why:
-            raise InputError(f"{plan.path}: object '{name}' is stored in {db.path} {why}: import into another --db")
-        done = (name, 0) in db.units_done(plan.hand.name, plan.settings.digest, 0)  # imported before: skipped
-        if row is not None and plan.lossless and not done:
-            _check_not_stored(db, plan)
-        first = named.setdefault(name, (plan.path, obj))
-        if first[1].mesh_hash != obj.mesh_hash or not math.isclose(first[1].mass, obj.mass, rel_tol=PROPERTY_RTOL):
-            raise InputError(f"{plan.path} and {first[0]} name one object '{name}' with other meshes, scales or "
-                             "masses: import them into different --db")
-
-
-def _check_not_stored(db: Database, plan: _Plan) -> None:
-    """Refuse a file whose grasps the database holds already (an export of it, imported back: each one twice)."""
-    stored = [g.pose for batch in db.grasp_batches(plan.spec.name, plan.hand.name) for g in batch]
-    poses = plan.reader.poses(plan.path, plan.hand)
-    again = int(same_poses(poses, np.reshape(stored, (-1, 4, 4))).sum())
-    if again:
-        raise InputError(f"{plan.path}: {again} of its {len(poses)} grasps are stored in {db.path} already "
-                         f"('{plan.spec.name}', {plan.hand.name}): an export of this database? Import it into "
-                         "another --db")
 
 
 def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: Counter, first: int = 0,
@@ -391,10 +361,11 @@ def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: C
     return out
 
 
-def read_for_rescoring(path: Path, hand: str | None = None, fmt: str = "acronym"
+def read_for_rescoring(path: Path, hand: str | None = None, fmt: str = "acronym", note: bool = False
                        ) -> tuple[HandSpec, ObjectSpec, np.ndarray]:
     """The hand, the object (with the file's mass and friction) and the
-    (n, 4, 4) hand poses of a grasp file, as ``--rescore`` reads them."""
+    (n, 4, 4) hand poses of a grasp file, as ``--rescore`` reads them; ``note``: say the mass and friction taken
+    where the file gives none."""
     reader = formats.reader(fmt)
-    plan = _plan(Path(path), fmt, reader, hand, None, True, "calibrate")
+    plan = _plan(Path(path), fmt, reader, hand, None, True, "calibrate", note=note)
     return plan.hand, plan.spec, reader.poses(plan.path, plan.hand)

@@ -1,0 +1,52 @@
+"""Import of a file that gives no object/mass or object/friction: the values taken are said, or a user's given."""
+
+from __future__ import annotations
+
+import sqlite3
+from pathlib import Path
+
+import h5py
+from helpers import grasp, one_line_error
+
+from tests.datasets.test_importer import foreign_file
+
+
+def _without(path: Path, *keys: str) -> Path:
+    with h5py.File(path, "r+") as f:
+        for key in keys:
+            del f[f"object/{key}"]
+    return path
+
+
+def _stored(db: Path) -> tuple[float, float]:
+    with sqlite3.connect(db) as conn:
+        return conn.execute("SELECT mass, friction FROM objects").fetchone()
+
+
+def test_a_file_without_mass_says_the_mass_taken_or_takes_the_users(db: Path, tmp_path: Path) -> None:
+    """A file without object/mass was taken at 0.2 kg without a word."""
+    foreign, _ = foreign_file(db, tmp_path, "box", "crate")
+    friction = h5py.File(foreign, "r")["object/friction"][()]
+    _without(foreign, "mass")
+    code, _, err = grasp("import", str(foreign), "--db", str(tmp_path / "a.db"))
+    assert code == 0, err
+    said = [line for line in err.splitlines() if "object/mass" in line]
+    assert len(said) == 1 and "crate.h5: no object/mass" in said[0] and "0.2 kg (the default)" in said[0] \
+        and "--mass" in said[0], err
+    assert _stored(tmp_path / "a.db") == (0.2, friction)
+    code, _, err = grasp("import", str(foreign), "--db", str(tmp_path / "b.db"), "--mass", "0.05")
+    assert code == 0 and "object/mass" not in err, err
+    assert _stored(tmp_path / "b.db") == (0.05, friction)
+
+
+def test_a_file_without_friction_says_it_and_a_files_own_mass_is_not_replaced(db: Path, tmp_path: Path) -> None:
+    foreign, _ = foreign_file(db, tmp_path, "box", "crate")
+    mass = float(h5py.File(foreign, "r")["object/mass"][()])
+    code, _, err = grasp("import", str(foreign), "--db", str(tmp_path / "a.db"), "--mass", str(mass * 2))
+    one_line_error(code, err, 2, f"its object/mass is {mass:g}, and --mass gives {mass * 2:g}",
+                   "leave --mass out for this file")
+    assert not (tmp_path / "a.db").exists()
+    _without(foreign, "friction")
+    code, _, err = grasp("import", str(foreign), "--db", str(tmp_path / "b.db"), "--friction", "0.8")
+    assert code == 0 and "object/friction" not in err, err
+    assert _stored(tmp_path / "b.db") == (mass, 0.8)
