@@ -84,9 +84,9 @@ def unstated(h: AcronymHeader, spec: ObjectSpec, command: str = "import",
     default = all(math.isclose(getattr(obj, key), defaults[key]) for key in missing)
     how = ("pass " + " and ".join(f"--{key}" for key in missing)) if command == "import" else \
         "set " + " and ".join(f"object/{key}" for key in missing) + " in the file"
+    said = ", ".join(used[key] for key in missing) + (f" (the default{'s' * (len(missing) > 1)})" if default else "")
     return (f"{h.path}: no {' or '.join(f'object/{key}' for key in missing)}: object '{spec.name}' is taken at "
-            f"{', '.join(used[key] for key in missing)}{' (the default)' if default else ''}; if it is not the "
-            f"object's own, {how}")
+            f"{said}; if it is not the object's own, {how}")
 
 
 def _with_inertial(h: AcronymHeader, spec: ObjectSpec) -> ObjectSpec:
