@@ -31,11 +31,11 @@ from planner.cli.app import (
 @click.option("--top", type=int, help="Only the K best-ranked grasps per (object, hand).")
 @click.option("--quiet", is_flag=True, help="Print nothing on success.")
 @click.option("--json", "as_json", is_flag=True, help="Print a machine-readable summary.")
-@click.option("--label", default="best", show_default=True, type=click.Choice(["best", "p_hold_trial", "trial",
-              "p_hold", "force_closure"]),
-              help="The success label written: per grasp p_hold updated by its trial's verdict >= 0.5, else the "
-              "trial's verdict, else p_hold >= 0.5, else the force-closure flag (best); or one of them (all but "
-              "force_closure export only grasps that have one).")
+@click.option("--label", default="best", show_default=True, type=click.Choice(["best", "file_label",
+              "p_hold_trial", "trial", "p_hold", "force_closure"]),
+              help="The success label written: per grasp the label of the file it was imported from, else p_hold "
+              "updated by its trial's verdict >= 0.5, else the trial's verdict, else p_hold >= 0.5, else the "
+              "force-closure flag (best); or one of them (all but force_closure export only grasps that have one).")
 @diverse_options
 def export(db_path: Path, fmt: str, out_dir: Path, objects: tuple[str, ...], hands: tuple[str, ...],
            min_epsilon: float | None, top: int | None, quiet: bool, as_json: bool, label: str, diverse: bool,

@@ -93,6 +93,7 @@ from planner.datasets.acronym_checks import (
     contact_items,
     float_values,
     label_values,
+    open_file,
     positive_value,
 )
 from planner.datasets.acronym_columns import (
@@ -107,6 +108,7 @@ from planner.datasets.acronym_columns import (
     as_text,
     candidate_numbers,
     carried,
+    file_labels_of,
     joint_names,
     joints_of,
     measures_of,
@@ -121,7 +123,7 @@ from planner.datasets.meshes import ExportedObject
 from planner.errors import InputError
 from planner.geometry.frames import approach_of
 from planner.record.contacts import HandContacts
-from planner.record.grasp import Grasp, RobustEpsilon, Trial
+from planner.record.grasp import FileLabel, Grasp, RobustEpsilon, Trial
 from planner.specs.hands import HandSpec
 from planner.specs.preshapes import load_preshapes, sweep_preshapes
 from planner.specs.up import up_axis
@@ -245,23 +247,10 @@ class AcronymHeader:
     inertia: tuple[float, ...] | None = None
 
 
-def _open(path: Path) -> Any:
-    import h5py
-
-    if path.is_dir():
-        raise InputError(f"{path}: is a folder; give its .h5 files (e.g. {path / '*.h5'})")
-    if not path.is_file():
-        raise InputError(f"{path}: file not found")
-    try:
-        return h5py.File(path, "r")
-    except OSError as exc:
-        raise InputError(f"{path}: not an HDF5 file ({exc})") from None
-
-
 def read_header(path: Path) -> AcronymHeader:
     """The file's gripper ("" where it has no ``gripper/type``: a user's own labels, ``--hand`` names it) and
     object; a file without ACRONYM's grasps is refused."""
-    with _open(path) as f:
+    with open_file(path) as f:
         if "grasps/transforms" not in f:
             raise InputError(f"{path}: no 'grasps/transforms' dataset; not an ACRONYM grasp file")
         return AcronymHeader(
@@ -278,7 +267,7 @@ def read_header(path: Path) -> AcronymHeader:
 def read_poses(path: Path, hand: HandSpec) -> np.ndarray:
     """(N, 4, 4) grasp poses (hand frame in the object frame): the checked
     transforms times the inverse of the file's export frame (else the hand's)."""
-    with _open(path) as f:
+    with open_file(path) as f:
         g = f["grasps"]
         frame = np.asarray(g["export_frame"][()], float) if "export_frame" in g else hand.export_frame
         return _rigid(path, np.asarray(g["transforms"][()], float)) @ np.linalg.inv(frame)
@@ -302,15 +291,15 @@ def read_grasps(path: Path, hand: HandSpec, obj: str, poses: np.ndarray) -> list
     the file gives them (``grasps/candidate``, ``grasps/seed``) where its candidates are distinct, else the row
     number (a squeeze's end its parent's) and 0 (:func:`candidate_numbers`)."""
     n = len(poses)
-    with _open(path) as f:
+    with open_file(path) as f:
         g = f["grasps"]
         q = g["qualities"]
         names = list(g["joint_names"].asstr()[()])
         closed, opened = joints_of(path, g, "joints_closed"), joints_of(path, g, "joints_open")
         col = {k: (q[k][()] if k in q else np.full(n, np.nan))  # whole columns: h5py indexing per row is slow
                for k in ("epsilon", "volume", "force_closure", "reachability", "manipulability")}
-        check_columns(path, g, n, ("measures",))
-        measures = measures_of(q, n)
+        check_columns(path, g, n, ("measures", "file_label"))
+        measures, labels = measures_of(q, n), file_labels_of(g, n)
         width = g["width"][()] if "width" in g else np.full(n, np.nan)
         preshape = g["preshape"].asstr()[()] if "preshape" in g else ["imported"] * n
         tcps = {shape.name: shape.tcp for shape in load_preshapes(hand)}  # files before the approach rays
@@ -335,20 +324,20 @@ def read_grasps(path: Path, hand: HandSpec, obj: str, poses: np.ndarray) -> list
                   force_closure=bool(col["force_closure"][i]), reachability=_maybe(col["reachability"][i]),
                   manipulability=_maybe(col["manipulability"][i]),
                   table_plane=None if np.isnan(planes[i]).any() else np.asarray(planes[i], float),
-                  squeezed_from_turn=_maybe(turned[i]), measures=measures[i])
+                  squeezed_from_turn=_maybe(turned[i]), measures=measures[i], file_label=labels[i])
             for i in range(n)]
 
 
 def read_openings(path: Path, hand: HandSpec) -> registry.Openings:
     """Each pose's opening where the file gives it (:func:`openings_of`; ACRONYM's own files give none)."""
-    with _open(path) as f:
+    with open_file(path) as f:
         return openings_of(path, f["grasps"], hand, len(f["grasps/transforms"]))
 
 
 def read_labels(path: Path) -> np.ndarray:
     """(N,) 0/1 ``grasps/qualities/flex/object_in_gripper`` of a grasp file (a
     label set: FleX's, a real robot's outcomes); a column (N, 1) is read as N labels."""
-    with _open(path) as f:
+    with open_file(path) as f:
         key = f"grasps/{FLEX}object_in_gripper"
         if key not in f:
             raise InputError(f"{path}: no {key}: not a labelled grasp file")
@@ -356,12 +345,23 @@ def read_labels(path: Path) -> np.ndarray:
         return label_values(path, key, f[key][()], n)
 
 
+def read_file_labels(path: Path) -> list[FileLabel | None]:
+    """Per pose, the success label a foreign file gives it (``flex/object_in_gripper``: FleX's, a user's outcomes),
+    kept on import; None in files without it and in this project's, whose own label it is (``label_from``)."""
+    with open_file(path) as f:
+        n = len(f["grasps/transforms"])
+        if f"grasps/{FLEX}object_in_gripper" not in f or "grasps/qualities/label_from" in f:
+            return [None] * n
+    source = f"{path.name} grasps/{FLEX}object_in_gripper"
+    return [FileLabel(bool(v), source) for v in read_labels(path).tolist()]
+
+
 def read_simulation(path: Path) -> list[tuple[Trial | None, RobustEpsilon | None, Trial | None]]:
     """Per row, the PyBullet shake-test result, the robust epsilon and the
     MuJoCo trial's result our own files carry (None where the row was not
     simulated; an empty list for other files). What a file does not store
     reads as :data:`MISSING` says; a motion that is not stored as -1."""
-    with _open(path) as f:
+    with open_file(path) as f:
         g = f["grasps"]
         if "qualities/simulated_success" not in g:
             return []
@@ -395,4 +395,5 @@ def _contacts(path: Path, items: list[dict], hand: HandSpec) -> HandContacts:
 
 
 registry.register("acronym", registry.PairWriter(relative_path, write),
-                  registry.Reader(read_header, read_poses, read_grasps, read_simulation, read_openings))
+                  registry.Reader(read_header, read_poses, read_grasps, read_simulation, read_openings,
+                                  read_file_labels))

@@ -18,6 +18,21 @@ from planner.errors import InputError
 from planner.record import fields
 from planner.specs.hands import HandSpec
 
+
+def open_file(path: Path) -> Any:
+    """An HDF5 file open for reading; a folder, a missing file or another format refused."""
+    import h5py
+
+    if path.is_dir():
+        raise InputError(f"{path}: is a folder; give its .h5 files (e.g. {path / '*.h5'})")
+    if not path.is_file():
+        raise InputError(f"{path}: file not found")
+    try:
+        return h5py.File(path, "r")
+    except OSError as exc:
+        raise InputError(f"{path}: not an HDF5 file ({exc})") from None
+
+
 #: [rad or m] How far past a joint's limit a stored value may lie (the simulator's own overshoot).
 LIMIT_SLACK = 1e-3
 

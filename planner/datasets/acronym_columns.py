@@ -23,7 +23,7 @@ from planner.datasets.registry import Openings
 from planner.errors import InputError
 from planner.record import fields
 from planner.record.field import Field
-from planner.record.grasp import Grasp, Trial
+from planner.record.grasp import FileLabel, Grasp, Trial
 from planner.record.measures import Measures
 from planner.specs.hands import HandSpec
 
@@ -48,6 +48,7 @@ QUALITIES = {
     **{f.name: f.name for f in fields.group("mujoco")},
     **{f.name.replace("robust_", "robust_epsilon_") if f.name in ROBUST_EPSILON else f.name: f.name
        for f in fields.group("robust")},
+    **{f.name: f.name for f in fields.group("file_label")},
 }
 #: Per-grasp datasets below ``grasps/`` -> the column of :func:`grasp_columns` each holds
 #: (besides ``transforms``, ``object_in_gripper`` and the joint matrices).
@@ -138,6 +139,14 @@ def trial_columns(g: Any, group: str, n: int) -> dict[str, list]:
             values = [MISSING[f.name]] * n
         out[f.attr.partition(".")[2]] = values
     return out
+
+
+def file_labels_of(g: Any, n: int) -> list[FileLabel | None]:
+    """The n rows' labels of the files they were imported from, as this project's files keep them
+    (``qualities/file_label_success``, -1: none; ``file_label_source``)."""
+    columns = trial_columns(g, "file_label", n)
+    return [None if ok is None or ok < 0 else FileLabel(bool(ok), source)
+            for ok, source in zip(columns["success"], columns["source"])]
 
 
 def trials_of(g: Any, group: str, n: int) -> list[Trial | None]:

@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING
 
 from planner.datasets import formats
 from planner.datasets.columns import Stream
-from planner.datasets.labels import BEST, FORCE_CLOSURE, P_HOLD, P_HOLD_TRIAL, TRIAL, check, has_label
+from planner.datasets.labels import BEST, FILE_LABEL, FORCE_CLOSURE, P_HOLD, P_HOLD_TRIAL, TRIAL, check, has_label
 from planner.datasets.meshes import ExportedObject, mesh_stem, write_meshes
 from planner.datasets.registry import PairWriter, TableWriter
 from planner.db.store import Database, open_db
@@ -324,6 +324,8 @@ def _why_none(sel: Selection, models: dict[str, LogisticModel | None]) -> str:
                 "model (`grasp calibrate` fits one)")
     if sel.label in (TRIAL, P_HOLD_TRIAL):
         return f"; --label {sel.label} takes only grasps a trial tried (`grasp validate`)"
+    if sel.label == FILE_LABEL:
+        return f"; --label {sel.label} takes only grasps imported from a labelled file (`grasp import`)"
     return ""
 
 

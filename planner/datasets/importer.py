@@ -33,7 +33,8 @@ sha256, seed 0, chunk 0); importing the same file again finds the unit done and 
   contacts read as patches, and evaluated by :func:`planner.plan.unit.grasp_quality` and
   :func:`planner.plan.measures.measure` (the same analytic measures and rule as a sweep); poses where the hand
   does not close on the object are counted by reason and dropped. The stored pose is the closed hand's (after
-  back-off and centring), its open joints those it closed from; reachability is None.
+  back-off and centring), its open joints those it closed from; reachability is None. The file's own success
+  labels (``flex/object_in_gripper``: FleX's, a user's outcomes) are kept with them (``file_labels``).
   Re-scoring runs in the crash-safe worker pool (:mod:`planner.run.pool`, ``workers`` processes) in units of
   :data:`RESCORE_CHUNK` poses; a file is written once all its poses are back, its grasps in file order. A file
   whose re-scoring fails (a worker died twice) is stored as a failed unit with its error, and the next import of
@@ -48,7 +49,7 @@ import time
 from collections import Counter
 from collections.abc import Callable, Sequence
 from contextlib import closing
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
 from pathlib import Path
 
@@ -258,6 +259,8 @@ class _Rescoring:
         plan = self.plan
         obj = prepare(plan.spec)
         grasps = [g for first in sorted(self.parts) for g in self.parts[first].grasps] if not self.error else []
+        labels = plan.reader.labels(plan.path) if plan.reader.labels else []  # kept beside the re-scored grasps
+        grasps = [replace(g, file_label=labels[g.candidate]) for g in grasps] if any(labels) else grasps
         rejected: Counter = sum((p.rejected for p in self.parts.values()), Counter()) if not self.error else Counter()
         unit = UnitRow(obj.name, plan.hand.name, plan.settings.digest, plan.settings.to_json(), 0, 0, self.error,
                        len(self.poses), dict(rejected), time.perf_counter() - self.start)
@@ -300,7 +303,7 @@ def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: s
     header = reader.header(path)
     spec = load_hand(hand or hand_name(path, header.gripper))
     obj = object_spec(header, object_name, command, up, *given)
-    if note and (line := unstated(header, obj, command, given)):  # every measure and trial reads them: said, not assumed
+    if note and (line := unstated(header, obj, command, given)):  # every measure and trial reads them: said
         preparing.warned(line)
     lossless = not rescore and header.extras
     if lossless:  # its contacts, joints and measures are of the file's mesh and hand: stored as they are

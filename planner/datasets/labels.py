@@ -2,8 +2,11 @@
 ``object_in_gripper``, the tables' ``label``), and where each row's label
 came from.
 
-A label is one of four things, each named per grasp in ``label_source``:
+A label is one of five things, each named per grasp in ``label_source``:
 
+- ``file_label``: the label the file the grasp was imported from gives it
+  (``grasp import`` of a labelled file: ACRONYM's FleX labels, a user's
+  real-robot outcomes), exported as the file gave it;
 - ``p_hold_trial``: p_hold updated by the verdict of the grasp's dynamic
   trial (the hand's model's update for that trial's engine,
   :mod:`planner.calibration.update`) thresholded at :data:`P_HOLD_SUCCESS`:
@@ -20,7 +23,7 @@ A label is one of four things, each named per grasp in ``label_source``:
   that are not force closure as planned held in the shake trial.
 
 ``--label best`` (the default) takes, per grasp, the best one available in
-that order; ``--label p_hold_trial``, ``--label trial`` or ``--label
+that order; ``--label file_label``, ``--label p_hold_trial``, ``--label trial`` or ``--label
 p_hold`` export only the grasps that have it; ``--label force_closure``
 writes the flag for every grasp.
 """
@@ -36,9 +39,10 @@ from planner.record import fields
 from planner.record.grasp import Grasp
 
 P_HOLD_TRIAL, TRIAL, P_HOLD, FORCE_CLOSURE, MIXED = "p_hold_trial", "trial", "p_hold", "force_closure", "mixed"
+FILE_LABEL = "file_label"
 BEST = "best"
 #: What ``grasp export --label`` takes.
-CHOICES = (BEST, P_HOLD_TRIAL, TRIAL, P_HOLD, FORCE_CLOSURE)
+CHOICES = (BEST, FILE_LABEL, P_HOLD_TRIAL, TRIAL, P_HOLD, FORCE_CLOSURE)
 #: p_hold at or above this is a success label (the probability's own midpoint:
 #: a calibrated p_hold of 0.5 is a coin toss).
 P_HOLD_SUCCESS = 0.5
@@ -51,7 +55,10 @@ def check(choice: str) -> str:
 
 
 def has_label(choice: str, grasp: Grasp) -> bool:
-    """Whether ``grasp`` is exported under ``choice`` (p_hold_trial, trial, p_hold: only grasps that have one)."""
+    """Whether ``grasp`` is exported under ``choice`` (file_label, p_hold_trial, trial, p_hold: only grasps that
+    have one)."""
+    if choice == FILE_LABEL:
+        return grasp.file_label is not None
     if choice == P_HOLD_TRIAL:
         return grasp.p_hold_trial is not None
     if choice == TRIAL:
@@ -63,7 +70,8 @@ def has_label(choice: str, grasp: Grasp) -> bool:
 
 def labels(columns: Mapping[str, np.ndarray], choice: str) -> tuple[np.ndarray, list[str]]:
     """((n,) int64 0/1 labels, n sources) of a batch's columns
-    (``validation_success`` and ``mujoco_success`` -1 where not validated,
+    (``file_label_success`` -1 where no file gave one,
+    ``validation_success`` and ``mujoco_success`` -1 where not validated,
     ``p_hold`` and ``p_hold_trial`` NaN where absent); a trial label is the
     verdict of the first trial in :data:`~planner.record.fields.TRIAL_PRECEDENCE`
     that tried the grasp (MuJoCo's, then PyBullet's)."""
@@ -74,14 +82,15 @@ def labels(columns: Mapping[str, np.ndarray], choice: str) -> tuple[np.ndarray, 
     p_hold = np.asarray(columns["p_hold"], float)
     p_trial = np.asarray(columns["p_hold_trial"], float)
     closure = np.asarray(columns["force_closure"])
+    given = np.asarray(columns["file_label_success"])
     if choice == BEST:
-        source = np.where(~np.isnan(p_trial), P_HOLD_TRIAL, np.where(
-            success >= 0, TRIAL, np.where(np.isnan(p_hold), FORCE_CLOSURE, P_HOLD)))
+        source = np.where(given >= 0, FILE_LABEL, np.where(~np.isnan(p_trial), P_HOLD_TRIAL, np.where(
+            success >= 0, TRIAL, np.where(np.isnan(p_hold), FORCE_CLOSURE, P_HOLD))))
     else:
         source = np.full(len(closure), choice)
-    value = np.select([source == P_HOLD_TRIAL, source == TRIAL, source == P_HOLD],
-                      [np.nan_to_num(p_trial) >= P_HOLD_SUCCESS, success, np.nan_to_num(p_hold) >= P_HOLD_SUCCESS],
-                      closure)
+    value = np.select([source == FILE_LABEL, source == P_HOLD_TRIAL, source == TRIAL, source == P_HOLD],
+                      [given, np.nan_to_num(p_trial) >= P_HOLD_SUCCESS, success,
+                       np.nan_to_num(p_hold) >= P_HOLD_SUCCESS], closure)
     return value.astype(np.int64), source.tolist()
 
 

@@ -106,10 +106,11 @@ class Reader:
     grasps: Callable
     simulation: Callable
     openings: Callable | None = None
+    labels: Callable | None = None  # path -> the (N,) FileLabel or None per pose a foreign file gives
 
     def __post_init__(self) -> None:
-        _check_hooks(self, {"header": 1, "poses": 2, "grasps": 4, "simulation": 1, "openings": 2},
-                     optional=("openings",))
+        _check_hooks(self, {"header": 1, "poses": 2, "grasps": 4, "simulation": 1, "openings": 2, "labels": 1},
+                     optional=("openings", "labels"))
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,7 @@ import numpy as np
 from planner.datasets import registry
 from planner.datasets.columns import Stream, grasp_columns
 from planner.datasets.labels import labels as dataset_labels
-from planner.record.fields import Field, by_name, record_fields
+from planner.record.fields import GROUPS, Field, by_name, record_fields
 from planner.record.grasp import Grasp
 
 _AXES = ("x", "y", "z")
@@ -75,7 +75,7 @@ COLUMNS = [name for name, *_ in _SPEC]
 #: Columns that may be null: NaN (floats) or -1 (integers) in the grasp columns.
 NULLABLE = {name for name, _, _, _, f in _SPEC
             if f is not None and f.dtype != "string"
-            and (f.nullable or f.attr.partition(".")[0] in ("measures", "validation", "mujoco", "robust"))}
+            and (f.nullable or f.attr.partition(".")[0] in GROUPS)}
 
 
 def _doc_rows() -> list[str]:

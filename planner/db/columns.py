@@ -25,6 +25,8 @@ _GRASP_COLUMNS = tuple(f.column for f in _GRASPS if f.column not in ("id", "rank
 _VALIDATION_COLUMNS = tuple(f.column for f in fields.table("validation"))
 _MUJOCO_COLUMNS = tuple(f.column for f in fields.table("mujoco"))
 _ROBUST_COLUMNS = tuple(f.column for f in fields.table("robust"))
+_FILE_LABEL = fields.group("file_label")
+_FILE_LABEL_COLUMNS = tuple(f.column for f in fields.table("file_labels"))
 _OBJECTS = fields.table("objects")
 _TABLE_PLANE = fields.by_name("table_plane")
 _OBJECT_COLUMNS = tuple(f.column for f in _OBJECTS)
@@ -33,7 +35,7 @@ _UNIT_COLUMNS = ("object", "hand", "settings_hash", "seed", "chunk", "settings",
 
 
 #: Table -> its alias in the grasps query.
-_ALIAS = {"grasps": "g", "validation": "v", "mujoco": "mj", "robust": "r"}
+_ALIAS = {"grasps": "g", "validation": "v", "mujoco": "mj", "robust": "r", "file_labels": "fl"}
 
 
 def _sql(f: Field, value: object) -> object:

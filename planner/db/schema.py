@@ -69,6 +69,9 @@ Tables (the README lists every column):
   its parent, which has the same unit and candidate; NULL for a grasp closed
   where planned (every grasp stored before). A grasp's key is since
   (unit, candidate, whether it is a squeeze's end): ``grasps_candidate``.
+- ``file_labels`` (v16): the success label the file a grasp was imported
+  from gives it (ACRONYM's ``flex/object_in_gripper``: FleX's, a user's
+  outcomes) and where it was read; no row: none given.
 
 No pickle: arrays are JSON text. A new database runs :data:`SCHEMA` (version
 1) and then every migration; a newer schema is refused politely; an older one
@@ -90,7 +93,7 @@ from planner.errors import DatabaseError
 
 log = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 15
+SCHEMA_VERSION = 16
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -242,6 +245,13 @@ ALTER TABLE grasps_v15 RENAME TO grasps;
 CREATE INDEX IF NOT EXISTS grasps_rank ON grasps (object, hand, rank);
 CREATE UNIQUE INDEX IF NOT EXISTS grasps_candidate ON grasps (unit_id, candidate, squeezed_from_turn IS NOT NULL)
 """,
+    # v16: an imported file's own success labels, kept beside this project's measures (ACRONYM's FleX labels).
+    15: """
+CREATE TABLE IF NOT EXISTS file_labels (
+    grasp_id INTEGER PRIMARY KEY REFERENCES grasps(id) ON DELETE CASCADE,
+    success INTEGER NOT NULL, source TEXT NOT NULL, seed INTEGER NOT NULL, settings TEXT NOT NULL
+)
+""",
 }
 
 #: Stand-ins for the version-2 tables when a version-1 file is read (opened
@@ -256,6 +266,10 @@ EMPTY_V7_TABLES = {
     "mujoco": "(SELECT NULL AS grasp_id, NULL AS success, NULL AS fingers_in_contact, NULL AS closing_linear,"
               " NULL AS closing_angular, NULL AS shaking_linear, NULL AS shaking_angular, NULL AS reason WHERE 0)",
 }
+#: Stand-in for the version-16 ``file_labels`` table when an older file is read read-only.
+EMPTY_V16_TABLES = {"file_labels": "(SELECT NULL AS grasp_id, NULL AS success, NULL AS source WHERE 0)"}
+#: Every stand-in, by the table it stands in for.
+EMPTY_TABLES = {**EMPTY_V2_TABLES, **EMPTY_V7_TABLES, **EMPTY_V16_TABLES}
 #: A version-2 ``validation`` table read read-only (not migrated): its rows, reason unknown.
 V2_VALIDATION = "(SELECT *, '' AS reason FROM validation)"
 

@@ -31,6 +31,7 @@ from planner.calibration.logistic import default_domain
 from planner.calibration.model import LogisticModel, default_model
 from planner.db.columns import (  # noqa: F401 - VECTOR_DIGITS, INERTIA_DIGITS, json_list re-exported
     _ALIAS,
+    _FILE_LABEL,
     _GRASPS,
     _MUJOCO,
     _OBJECTS,
@@ -51,8 +52,7 @@ from planner.db.lock import writer_lock
 from planner.db.ranking import END_KEPT, RankingRule, end_kept_sql, ranked_with_ends
 from planner.db.rows import ObjectRow, UnitRow, Validated  # noqa: F401 - re-exported
 from planner.db.schema import (
-    EMPTY_V2_TABLES,
-    EMPTY_V7_TABLES,
+    EMPTY_TABLES,
     SCHEMA_VERSION,
     V2_VALIDATION,
     column_names,
@@ -82,13 +82,15 @@ def _aliased(group: tuple[Field, ...]) -> str:
     return ", ".join(f"{_ALIAS[f.table]}.{f.column} AS {_ALIAS[f.table]}_{f.column}" for f in group)
 
 
-#: A grasp with its validation, MuJoCo trial and robust rows (``v_*``, ``mj_*``, ``r_*``) and whether its squeeze's
+#: A grasp with its validation, MuJoCo trial, robust and file label rows (``v_*``, ``mj_*``, ``r_*``, ``fl_*``) and
+#: whether its squeeze's
 #: end is stored beside it (``end_kept``: :func:`~planner.db.ranking.end_kept_sql`, 0 in a file before v15 and in one
 #: ranked before such an end stood for its parent, :func:`~planner.db.ranking.ranked_with_ends`).
 _SELECT_GRASPS = f"""
-SELECT g.*, {_aliased(_TRIAL)}, {_aliased(_MUJOCO)}, {_aliased(_ROBUST)}, {{end_kept}} AS {END_KEPT}
+SELECT g.*, {_aliased(_TRIAL)}, {_aliased(_MUJOCO)}, {_aliased(_ROBUST)}, {_aliased(_FILE_LABEL)},
+{{end_kept}} AS {END_KEPT}
 FROM grasps g {{join}} {{validation}} v ON v.grasp_id = g.id LEFT JOIN {{mujoco}} mj ON mj.grasp_id = g.id
-LEFT JOIN {{robust}} r ON r.grasp_id = g.id
+LEFT JOIN {{robust}} r ON r.grasp_id = g.id LEFT JOIN {{file_labels}} fl ON fl.grasp_id = g.id
 """
 
 
@@ -265,9 +267,9 @@ class Database(Writing, UnitReads):
     def _select(self, join: str) -> str:
         """The grasps query; an older file read read-only is not migrated: a
         version-1 file has no v2 tables, a file before version 7 no MuJoCo
-        trials (empty stand-ins), a version-2 file's trials have no reason (empty)."""
+        trials, one before 16 no file labels (empty stand-ins), a version-2 file's trials have no reason (empty)."""
         tables = table_names(self._conn)
-        names = {t: t if t in tables else empty for t, empty in {**EMPTY_V2_TABLES, **EMPTY_V7_TABLES}.items()}
+        names = {t: t if t in tables else empty for t, empty in EMPTY_TABLES.items()}
         if "validation" in tables and "reason" not in column_names(self._conn, "validation"):
             names["validation"] = V2_VALIDATION
         ends = {"squeezed_from_turn", "squeezed_force_closure"} <= column_names(self._conn, "grasps") and \

@@ -24,6 +24,8 @@ from planner.calibration import features
 from planner.calibration.model import LogisticModel
 from planner.db.columns import (
     _ALIAS,
+    _FILE_LABEL,
+    _FILE_LABEL_COLUMNS,
     _GRASP_COLUMNS,
     _GRASPS,
     _MUJOCO,
@@ -187,6 +189,13 @@ class Writing:
             conn.executemany(_insert("grasps", _GRASP_COLUMNS),
                              [_grasp_row(g, unit_id, score, p, q)
                               for g, score, p, q in zip(grasps, scores.tolist(), p_hold, p_trial)])
+            labelled = [g for g in grasps if g.file_label is not None]  # an import's: its file's labels
+            if labelled:
+                ids = {(c, bool(end)): i for i, c, end in conn.execute(
+                    "SELECT id, candidate, squeezed_from_turn IS NOT NULL FROM grasps WHERE unit_id = ?", (unit_id,))}
+                conn.executemany(_insert("file_labels", _FILE_LABEL_COLUMNS), [
+                    (ids[g.candidate, g.squeezed_from_turn is not None], *_row(_FILE_LABEL, g.file_label), 0,
+                     _json({"imported": unit.settings})) for g in labelled])
             conn.execute(_RERANK, (unit.object, unit.hand))
             known = json.loads(self.meta("p_hold_models") or "{}")
             if grasps and unit.hand not in known:  # a hand's first grasps, scored just now by its model

@@ -155,6 +155,9 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
             why = "" if trial.reason == verdict else f" ({trial.reason or 'no reason stored'})"
             lines.append(f"    {name}: {verdict}{why}")
             held_by += [name] if trial.success else []
+    if g.file_label is not None:  # an imported file's own label (FleX's, a user's outcomes)
+        lines.append(f"    label of the file it was imported from ({g.file_label.source}): "
+                     f"{'held' if g.file_label.success else 'dropped'}")
     if m is not None and "cannot_hold_weight" in m.reasons and held_by:
         down = "table's down" if g.table_plane is not None else f"object's down, {'-+'[up[0] == '-']}{up[1]}"
         lines.append(f"    its weight: the {held_by[-1]} held it loaded along one direction (the {down}); "

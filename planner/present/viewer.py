@@ -111,6 +111,9 @@ def measures_text(entry: Entry) -> str:
             ("finger width", "n/a" if g.width is None else f"{g.width * 1000:.1f} mm"),
             ("contacts", f"{len(g.contacts)}"), ("reachability", _num(g.reachability, ".2f")),
             ("label", entry.label)]
+    if g.file_label is not None:  # an imported file's own (FleX's, a user's outcomes): not a trial of this project's
+        rows.append(("label of the file it was imported from",
+                     f"{'held' if g.file_label.success else 'dropped'} ({g.file_label.source})"))
     if m is not None:
         rows += [("holds (worst direction)", f"{times_weight(m.resist_worst)} x its weight"),
                  ("open margin", f"{m.open_margin * 1000:.1f} mm"), ("push", f"{m.push:.2f}")]

@@ -2,7 +2,8 @@
 
 The record types declare their stored attributes (:func:`~planner.record.field.stored`
 on :class:`~planner.record.grasp.Grasp`, :class:`~planner.record.grasp.Trial`,
-:class:`~planner.record.grasp.RobustEpsilon`, :class:`~planner.record.measures.Measures`);
+:class:`~planner.record.grasp.RobustEpsilon`, :class:`~planner.record.grasp.FileLabel`,
+:class:`~planner.record.measures.Measures`);
 this module collects them, in record order, with the columns that are stored
 but are not record attributes (``n_contacts``, the trial's ``seed``, the
 objects' mass properties ...), as :data:`FIELDS`. Derived from it: the
@@ -26,7 +27,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from planner.record.field import Field, declared
-from planner.record.grasp import Grasp, RobustEpsilon, Trial
+from planner.record.grasp import FileLabel, Grasp, RobustEpsilon, Trial
 from planner.record.measures import Measures
 
 
@@ -56,6 +57,7 @@ GROUPS: dict[str, Group] = {
     "validation": Group(Trial, "validation", "validation_", 2, "PyBullet"),
     "mujoco": Group(Trial, "mujoco", "mujoco_", 7, "MuJoCo", "mujoco_"),
     "robust": Group(RobustEpsilon, "robust", "robust_", 2),
+    "file_label": Group(FileLabel, "file_labels", "file_label_", 16),
     "measures": Group(Measures, "grasps", ""),
 }
 #: The groups that hold a dynamic trial's verdict (a :class:`~planner.record.grasp.Trial`).
@@ -108,7 +110,7 @@ def _validation(group: str) -> list[Field]:
     return [declared(table, "grasp_id", "id", "int", "", v, "the grasp (`grasps.id`; the primary key)",
                      name=f"{prefix}grasp_id", key=True),
             *_from_record(g.cls, table, prefix, group, g.engine, g.ranked, v),
-            declared(table, "seed", "", "int", "", v, "seed of the noise", name=f"{prefix}seed"),
+            declared(table, "seed", "", "int", "", v, "seed of the noise (0 for a file's label)", name=f"{prefix}seed"),
             declared(table, "settings", "", "text", "", v, "JSON settings that made it", name=f"{prefix}settings")]
 
 
@@ -138,9 +140,9 @@ def _objects() -> list[Field]:
 
 #: Every stored field of the record's tables, in record order.
 FIELDS: tuple[Field, ...] = (*_grasps(), *_validation("validation"), *_validation("mujoco"), *_validation("robust"),
-                             *_objects())
+                             *_validation("file_label"), *_objects())
 #: The tables these fields fill (``units`` and ``meta`` are the run's bookkeeping, not the record's).
-TABLES = ("grasps", "validation", "mujoco", "robust", "objects")
+TABLES = ("grasps", "validation", "mujoco", "robust", "file_labels", "objects")
 
 
 def table(name: str) -> tuple[Field, ...]:
@@ -149,7 +151,8 @@ def table(name: str) -> tuple[Field, ...]:
 
 
 def group(name: str) -> tuple[Field, ...]:
-    """The fields of one record group (``measures``, ``validation``, ``mujoco``, ``robust``) the record holds."""
+    """The fields of one record group (``measures``, ``validation``, ``mujoco``, ``robust``, ``file_label``) the
+    record holds."""
     return tuple(f for f in FIELDS if f.attr.startswith(name + "."))
 
 

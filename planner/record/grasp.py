@@ -107,6 +107,18 @@ class RobustEpsilon:
 
 
 @dataclass(frozen=True)
+class FileLabel:
+    """A success label the file a grasp was imported from gives its pose (ACRONYM's
+    ``grasps/qualities/flex/object_in_gripper``: FleX's verdict in ACRONYM's own files, a real robot's outcomes
+    in a user's): kept as the file says it, beside what this project measures, and exported again."""
+
+    success: bool = stored("bool", "", 16, "1 if the file the grasp was imported from labels it held (its "
+                           "`grasps/qualities/flex/object_in_gripper`: FleX's verdict in ACRONYM's files, a user's "
+                           "outcomes), 0 dropped")
+    source: str = stored("text", "", 16, "the file and dataset the label was read from")
+
+
+@dataclass(frozen=True)
 class Grasp:
     """One grasp: the hand closed on the object, its contacts and measures.
 
@@ -135,6 +147,8 @@ class Grasp:
         validation, mujoco, robust: physical validation results, where they
             exist: the PyBullet trial, the MuJoCo trial (another engine and
             protocol) and the robust epsilon.
+        file_label: the success label of the file the grasp was imported from (``grasp import``), where it gave
+            one; None: none given.
         measures: weight resistance and feasibility (None: not measured, e.g.
             a grasp stored before schema version 3).
         end_kept: True where the grasp's squeeze's end is kept as a grasp of its own beside it (the same unit and
@@ -207,6 +221,7 @@ class Grasp:
     validation: Trial | None = None
     mujoco: Trial | None = None
     robust: RobustEpsilon | None = None
+    file_label: FileLabel | None = None
     measures: Measures | None = None
     end_kept: bool | None = None
 

@@ -178,11 +178,19 @@ def test_labels_pick_the_best_source_per_grasp() -> None:
                "mujoco_success": np.array([-1, -1, -1, -1, -1, 0, 1, -1, 0]),
                "p_hold": np.array([0.1, 0.9, 0.7, 0.2, np.nan, 0.9, 0.1, 0.4, 0.95]),
                "p_hold_trial": np.array([np.nan] * 7 + [0.3, 0.8]),
-               "force_closure": np.array([0, 1, 0, 1, 1, 1, 0, 1, 1])}
+               "force_closure": np.array([0, 1, 0, 1, 1, 1, 0, 1, 1]),
+               "file_label_success": np.full(9, -1)}
     value, source = labels(columns, "best")
     assert source == ["trial", "trial", "p_hold", "p_hold", "force_closure", "trial", "trial", "p_hold_trial",
                       "p_hold_trial"]
     assert list(value) == [1, 0, int(0.7 >= P_HOLD_SUCCESS), int(0.2 >= P_HOLD_SUCCESS), 1, 0, 1, 0, 1]
+    # an imported file's own label comes first where a file gave one (FleX's, a user's outcomes)
+    given = {**columns, "file_label_success": np.array([0, -1, 1, -1, -1, -1, -1, 1, -1])}
+    value, source = labels(given, "best")
+    assert source[0] == source[2] == source[7] == "file_label" and source[1] == "trial"
+    assert list(value[[0, 2, 7]]) == [0, 1, 1]
+    value, source = labels(given, "file_label")
+    assert list(value[[0, 2, 7]]) == [0, 1, 1] and set(source) == {"file_label"}
     value, source = labels(columns, "trial")
     assert list(value[-2:]) == [1, 0] and set(source) == {"trial"}
     value, source = labels(columns, "force_closure")

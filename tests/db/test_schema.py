@@ -339,7 +339,7 @@ def test_a_version_14_file_migrates_its_grasps_and_trials_and_lets_a_squeezes_en
     before = stored(old)
     assert sum(g["validation_success"] is not None for g in before) >= 3
     with open_db(old) as db:
-        assert db.meta("schema_version") == str(SCHEMA_VERSION) == "15"
+        assert db.meta("schema_version") == str(SCHEMA_VERSION) == "16"
     assert stored(old) == before and all(g["squeezed_from_turn"] is None for g in before)
     with sqlite3.connect(old) as conn:
         assert conn.execute("PRAGMA foreign_key_check").fetchall() == []

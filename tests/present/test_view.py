@@ -139,6 +139,21 @@ def test_a_squeezes_end_says_whose_end_it_is() -> None:
         in text
 
 
+def test_an_imported_files_label_is_listed_with_the_measures() -> None:
+    """A grasp imported with its file's label (ACRONYM's flex/object_in_gripper) listed none of it."""
+    from dataclasses import replace
+
+    from planner.present.viewer import Entry, measures_text
+    from planner.record.grasp import FileLabel
+    from tests.helpers import made_up
+
+    label = FileLabel(False, "crate.h5 grasps/qualities/flex/object_in_gripper")
+    text = measures_text(Entry(replace(made_up(3, 0.05), file_label=label), lambda: None))  # type: ignore[arg-type,return-value]
+    assert "| label of the file it was imported from | dropped (crate.h5 grasps/qualities/flex/object_in_gripper) |" \
+        in text
+    assert "imported from" not in measures_text(Entry(made_up(3, 0.05), lambda: None))  # type: ignore[arg-type,return-value]
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

@@ -72,7 +72,7 @@ def test_flat_names_are_unique_and_every_stored_attribute_is_declared() -> None:
     # the record's parts that are not stored fields themselves are the groups, and whether its squeeze's end is
     # stored beside it, which the store derives as it reads (planner.db.ranking.end_kept_sql), never a column
     assert {f.name for f in dataclasses.fields(Grasp) if "stored" not in f.metadata} == {*GROUPS, END_KEPT}
-    assert set(GROUPS) == {"validation", "mujoco", "robust", "measures"}
+    assert set(GROUPS) == {"validation", "mujoco", "robust", "file_label", "measures"}
 
 
 def test_each_trial_protocol_has_its_own_columns_and_ranked_name() -> None:

@@ -1,0 +1,64 @@
+"""A foreign labelled file's labels (ACRONYM's ``flex/object_in_gripper``) are kept on import: stored beside the
+re-scored grasps, shown by ``grasp best``, exported again (as the label and as ``file_label_*``) and read back."""
+
+from __future__ import annotations
+
+import sqlite3
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pandas as pd
+from helpers import grasp
+
+from tests.datasets.test_importer import foreign_file
+
+
+def _labelled(db: Path, tmp_path: Path) -> tuple[Path, np.ndarray]:
+    """A foreign file of the box's force-closure grasps, labelled held and dropped in turn."""
+    foreign, _ = foreign_file(db, tmp_path, "box", "crate")
+    with h5py.File(foreign, "r+") as f:
+        key = "grasps/qualities/flex/object_in_gripper"
+        labels = np.arange(len(f[key])) % 2
+        f[key][...] = labels
+    return foreign, labels
+
+
+def _stored(db: Path) -> dict[int, tuple[int, str]]:
+    with sqlite3.connect(db) as conn:
+        return {c: (s, src) for c, s, src in conn.execute(
+            "SELECT g.candidate, l.success, l.source FROM grasps g JOIN file_labels l ON l.grasp_id = g.id")}
+
+
+def test_an_imported_files_labels_are_stored_shown_exported_and_read_back(db: Path, tmp_path: Path) -> None:
+    """They were dropped: the grasps came back re-scored, the file's labels nowhere."""
+    foreign, labels = _labelled(db, tmp_path)
+    first = tmp_path / "first.db"
+    code, _, err = grasp("import", str(foreign), "--db", str(first))
+    assert code == 0, err
+    stored = _stored(first)
+    with sqlite3.connect(first) as conn:
+        kept = [c for (c,) in conn.execute("SELECT candidate FROM grasps")]
+    assert kept and sorted(stored) == sorted(kept)  # every re-scored pose with its own row's label
+    assert all(s == labels[c] and src == "crate.h5 grasps/qualities/flex/object_in_gripper"
+               for c, (s, src) in stored.items())
+    code, out, err = grasp("best", "crate", "--hand", "panda", "--db", str(first), "--top", "2")
+    assert code == 0, err
+    said = [line for line in out.splitlines() if "label of the file it was imported from" in line]
+    assert len(said) == 2 and all("crate.h5 grasps/qualities/flex/object_in_gripper" in s for s in said), out
+    code, _, err = grasp("export", "--db", str(first), "--format", "acronym", "--out", str(tmp_path / "out"))
+    assert code == 0, err
+    path = tmp_path / "out" / "crate__panda.h5"
+    with h5py.File(path, "r") as f:
+        q = f["grasps/qualities"]
+        candidates, flex = f["grasps/candidate"][()], q["flex/object_in_gripper"][()]
+        assert set(q["label_from"].asstr()[()]) == {"file_label"}
+        assert flex.tolist() == [labels[c] for c in candidates] == q["file_label_success"][()].tolist()
+    code, _, err = grasp("export", "--db", str(first), "--format", "parquet", "--out", str(tmp_path / "pq"))
+    assert code == 0, err
+    table = pd.read_parquet(tmp_path / "pq" / "grasps.parquet")
+    assert (table["file_label_success"] == table["label"]).all() and set(table["label_from"]) == {"file_label"}
+    again = tmp_path / "again.db"  # the export read back losslessly: the labels with it
+    code, _, err = grasp("import", str(path), "--db", str(again))
+    assert code == 0, err
+    assert _stored(again) == stored
