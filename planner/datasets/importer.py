@@ -158,6 +158,7 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
     poses = [plan.reader.poses(plan.path, plan.hand) for plan in plans]
     openings = [None if plan.lossless or plan.reader.openings is None else plan.reader.openings(plan.path, plan.hand)
                 for plan in plans]
+    labels = [[] if plan.lossless or plan.reader.labels is None else plan.reader.labels(plan.path) for plan in plans]
     for plan, file_poses in zip(plans, poses):
         if plan.lossless:  # and its trials' columns
             plan.reader.grasps(plan.path, plan.hand, plan.spec.name, file_poses)
@@ -181,7 +182,7 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
             elif plan.lossless:
                 finish(i, _import_lossless(db, plan, rule))
             else:
-                rescoring[i] = _Rescoring(plan, time.perf_counter(), poses[i], openings[i])
+                rescoring[i] = _Rescoring(plan, time.perf_counter(), poses[i], openings[i], labels[i])
         units = [unit for i, r in rescoring.items() for unit in r.units(i)]
         for i, r in rescoring.items():
             if r.complete:  # a file without poses
@@ -234,6 +235,7 @@ class _Rescoring:
     start: float  # perf_counter() when the file was read
     poses: np.ndarray
     openings: Openings | None
+    labels: list  # the file's own label of each pose (FileLabel or None), kept beside its re-scored grasp
     parts: dict[int, Rescored] = field(default_factory=dict)
     pending: int = 0
     error: str | None = None
@@ -259,8 +261,7 @@ class _Rescoring:
         plan = self.plan
         obj = prepare(plan.spec)
         grasps = [g for first in sorted(self.parts) for g in self.parts[first].grasps] if not self.error else []
-        labels = plan.reader.labels(plan.path) if plan.reader.labels else []  # kept beside the re-scored grasps
-        grasps = [replace(g, file_label=labels[g.candidate]) for g in grasps] if any(labels) else grasps
+        grasps = [replace(g, file_label=self.labels[g.candidate]) for g in grasps] if any(self.labels) else grasps
         rejected: Counter = sum((p.rejected for p in self.parts.values()), Counter()) if not self.error else Counter()
         unit = UnitRow(obj.name, plan.hand.name, plan.settings.digest, plan.settings.to_json(), 0, 0, self.error,
                        len(self.poses), dict(rejected), time.perf_counter() - self.start)

@@ -9,7 +9,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pandas as pd
-from helpers import grasp
+from helpers import grasp, one_line_error
 
 from tests.datasets.test_importer import foreign_file
 
@@ -62,3 +62,14 @@ def test_an_imported_files_labels_are_stored_shown_exported_and_read_back(db: Pa
     code, _, err = grasp("import", str(path), "--db", str(again))
     assert code == 0, err
     assert _stored(again) == stored
+
+
+def test_a_file_whose_labels_are_not_0_or_1_is_refused_before_the_database_is_made(db: Path, tmp_path: Path) -> None:
+    """Labels are stored since they are kept: one that is no label is refused as calibrate refuses it, before the
+    poses are closed and the database opened (it was imported without a word, its labels dropped)."""
+    foreign, _ = _labelled(db, tmp_path)
+    with h5py.File(foreign, "r+") as f:
+        f["grasps/qualities/flex/object_in_gripper"][1] = 2
+    code, _, err = grasp("import", str(foreign), "--db", str(tmp_path / "bad.db"))
+    one_line_error(code, err, 2, "crate.h5: grasps/qualities/flex/object_in_gripper", "0/1")
+    assert not (tmp_path / "bad.db").exists()
