@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import logging
 import sqlite3
 from pathlib import Path
 
 import h5py
+import pytest
 from helpers import grasp, one_line_error
 
 from tests.datasets.test_importer import foreign_file
@@ -50,3 +52,17 @@ def test_a_file_without_friction_says_it_and_a_files_own_mass_is_not_replaced(db
     code, _, err = grasp("import", str(foreign), "--db", str(tmp_path / "b.db"), "--friction", "0.8")
     assert code == 0 and "object/friction" not in err, err
     assert _stored(tmp_path / "b.db") == (mass, 0.8)
+
+
+def test_calibrate_says_the_mass_it_takes_for_a_file_without_one(db: Path, tmp_path: Path,
+                                                                 caplog: pytest.LogCaptureFixture) -> None:
+    """`grasp calibrate` reads each file as `import --rescore` does (importer.read_for_rescoring): once, with its
+    note (it has no --mass: the file is to say it); read again to check the objects, without."""
+    from planner.datasets.importer import read_for_rescoring
+
+    foreign = _without(foreign_file(db, tmp_path, "box", "crate")[0], "mass")
+    with caplog.at_level(logging.INFO, logger="planner.prepare"):
+        read_for_rescoring(foreign, note=True)
+        read_for_rescoring(foreign)
+    said = [r.getMessage() for r in caplog.records if "object/mass" in r.getMessage()]
+    assert len(said) == 1 and "0.2 kg (the default)" in said[0] and "set object/mass in the file" in said[0], said
