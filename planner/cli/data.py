@@ -101,8 +101,9 @@ def import_files(paths: tuple[Path, ...], fmt: str, db_path: Path, hand: str | N
             return  # one error line each at the end
         how = "re-scored" if r.rescored else "imported"
         dropped = f"; dropped: {', '.join(f'{k} {v}' for k, v in sorted(r.rejected.items()))}" if r.rejected else ""
+        kept = f"; the file's labels kept: {r.labels[0]} held, {r.labels[1]} dropped" if sum(r.labels) else ""
         click.echo(f"{r.path}: {how} {r.grasps} grasps ({r.force_closure} force-closure) as {r.object}/{r.hand}"
-                   f"{dropped}")
+                   f"{dropped}{kept}")
 
     show_preparation(not as_json)  # a mesh repaired (ACRONYM's are often open): one line each, the first time only
     results = api.import_files(paths, db_path, fmt=fmt, hand=hand, object_name=object_name, rescore=rescore,

@@ -125,6 +125,7 @@ class ImportResult:
     skipped: bool  # already imported: nothing written
     rejected: dict[str, int]
     error: str | None = None  # re-scoring failed: stored as a failed unit, retried by the next import
+    labels: tuple[int, int] = (0, 0)  # the grasps stored with their file's label: (held, dropped)
 
     def to_json(self) -> dict:
         return {**self.__dict__, "path": str(self.path)}
@@ -267,7 +268,7 @@ class _Rescoring:
                        len(self.poses), dict(rejected), time.perf_counter() - self.start)
         db.write_unit(unit, obj, grasps, rule)
         return ImportResult(plan.path, obj.name, plan.hand.name, len(grasps), sum(g.force_closure for g in grasps),
-                            True, False, dict(rejected), self.error)
+                            True, False, dict(rejected), self.error, _labels(grasps))
 
 
 def _import_lossless(db: Database, plan: _Plan, rule: RankingRule) -> ImportResult:
@@ -281,7 +282,13 @@ def _import_lossless(db: Database, plan: _Plan, rule: RankingRule) -> ImportResu
     _restore_simulation(db, plan, unit_id, obj.name, rule, [(g.candidate, g.squeezed_from_turn is not None)
                                                             for g in grasps])
     return ImportResult(plan.path, obj.name, plan.hand.name, len(grasps), sum(g.force_closure for g in grasps),
-                        False, False, {})
+                        False, False, {}, labels=_labels(grasps))
+
+
+def _labels(grasps: list[Grasp]) -> tuple[int, int]:
+    """(held, dropped): the grasps stored with their file's label."""
+    given = [g.file_label.success for g in grasps if g.file_label is not None]
+    return sum(given), len(given) - sum(given)
 
 
 def _restore_simulation(db: Database, plan: _Plan, unit_id: int, obj: str, rule: RankingRule,

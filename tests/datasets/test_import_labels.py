@@ -34,9 +34,11 @@ def test_an_imported_files_labels_are_stored_shown_exported_and_read_back(db: Pa
     """They were dropped: the grasps came back re-scored, the file's labels nowhere."""
     foreign, labels = _labelled(db, tmp_path)
     first = tmp_path / "first.db"
-    code, _, err = grasp("import", str(foreign), "--db", str(first))
+    code, out, err = grasp("import", str(foreign), "--db", str(first))
     assert code == 0, err
     stored = _stored(first)
+    held = sum(s for s, _ in stored.values())
+    assert f"the file's labels kept: {held} held, {len(stored) - held} dropped" in out, out
     with sqlite3.connect(first) as conn:
         kept = [c for (c,) in conn.execute("SELECT candidate FROM grasps")]
     assert kept and sorted(stored) == sorted(kept)  # every re-scored pose with its own row's label
@@ -59,8 +61,8 @@ def test_an_imported_files_labels_are_stored_shown_exported_and_read_back(db: Pa
     table = pd.read_parquet(tmp_path / "pq" / "grasps.parquet")
     assert (table["file_label_success"] == table["label"]).all() and set(table["label_from"]) == {"file_label"}
     again = tmp_path / "again.db"  # the export read back losslessly: the labels with it
-    code, _, err = grasp("import", str(path), "--db", str(again))
-    assert code == 0, err
+    code, out, err = grasp("import", str(path), "--db", str(again))
+    assert code == 0 and f"the file's labels kept: {held} held" in out, err
     assert _stored(again) == stored
 
 
