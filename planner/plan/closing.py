@@ -265,14 +265,17 @@ class Grasper(FingerClosing, ContactReading, ObstacleQueries):
         return self.shapes.collides_at(pose, relative, self.object_bvh) or (
             self.table_shape is not None and self.shapes.collides_at(pose, relative, self.table_shape))
 
-    def close_from(self, pose: np.ndarray, preshape: Preshape, joints: dict[str, float]) -> Closed | Rejected:
+    def close_from(self, pose: np.ndarray, preshape: Preshape, joints: dict[str, float], near: bool = False
+                   ) -> Closed | Rejected:
         """Close the fingers from ``joints`` (every finger joint, open) with the hand at ``pose``, no approach and
         no back-off: the antipodal sampler's candidates, placed where they grasp (the caller has checked that the
-        open hand is free). The grasp records ``joints`` as its open joints."""
+        open hand is free). The grasp records ``joints`` as its open joints. ``near``: the fingers are expected
+        near the object from the start (a squeeze's closing, opened a millimetre: they ask the exact mesh first,
+        :meth:`~planner.plan.obstacle_queries.ObstacleQueries._closest_near`; the same closing)."""
         self.queries = 0
         pose = np.array(pose, float)
         self._place(pose, joints)
-        return self._finish(pose, preshape, dict(joints), {j.name: joints[j.name] for j in self.hand.driven})
+        return self._finish(pose, preshape, dict(joints), {j.name: joints[j.name] for j in self.hand.driven}, near)
 
     def _back_off(self, pose: np.ndarray, direction: np.ndarray, limit: float) -> float | None:
         """Move the hand back along ``direction`` in doubling jumps until it is free; how far it went, or None
@@ -288,8 +291,8 @@ class Grasper(FingerClosing, ContactReading, ObstacleQueries):
         return backed
 
     def _finish(self, pose: np.ndarray, preshape: Preshape, joints: dict[str, float],
-                open_joints: dict[str, float] | None = None) -> Closed | Rejected:
-        closed = self._close_fingers(preshape, joints)
+                open_joints: dict[str, float] | None = None, near: bool = False) -> Closed | Rejected:
+        closed = self._close_fingers(preshape, joints, near)
         if self.hand.centering:
             pose, closed = self._centre(pose, closed)
             self._place(pose, closed)

@@ -100,12 +100,15 @@ class FingerClosing:
         moved = {link for name in rates for link in self.hand.joint(name).moves}
         return tuple(n for n in self.geometry if n in moved)
 
-    def _close_fingers(self, preshape: Preshape, joints: dict[str, float]) -> dict[str, float]:
+    def _close_fingers(self, preshape: Preshape, joints: dict[str, float], near_first: bool = False
+                       ) -> dict[str, float]:
+        """The closed joints (``near_first``: every finger expected near the object from the start)."""
         s = self.settings
         q = dict(joints)
         dofs = self._dofs(preshape)
         velocities: dict[tuple, np.ndarray | None] = {}  # the hand stays put while its fingers close: read once
-        near: set[str] = set()  # translating links expected near the surface hulls at this step (_closest_near)
+        # translating links expected near the surface hulls at this step (ObstacleQueries._closest_near)
+        near = {link for d in dofs for link in d.links} if near_first else set()
         for _ in range(s.max_iterations):
             live = [d for d in dofs if d.active]
             if not live:
