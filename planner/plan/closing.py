@@ -55,11 +55,12 @@ from planner.geometry.hulls import surface_hulls
 from planner.geometry.proxy import collision_proxy
 from planner.geometry.solid import PreparedObject
 from planner.plan.closing_types import CONTACT_READINGS, Closed, CloseSettings, Rejected
-from planner.plan.contact_reading import NO_PAIRS, ContactReading
+from planner.plan.contact_reading import ContactReading
 from planner.plan.finger_closing import DofMotion, FingerClosing
+from planner.plan.obstacle_queries import Bounded, ObstacleQueries
 from planner.plan.patches import ObjectSurface
-from planner.plan.tolerances import CLOSING_SPEED_MIN, TABLE_LIFT, TABLE_SLAB
-from planner.sim import Body, Closest, Sim
+from planner.plan.tolerances import TABLE_LIFT, TABLE_SLAB
+from planner.sim import Body, Sim
 from planner.sim import fcl as overlap
 from planner.specs.hands import HandSpec
 from planner.specs.preshapes import Preshape
@@ -69,25 +70,14 @@ __all__ = ["CONTACT_READINGS", "RELATIVE_CACHE", "Bounded", "CloseSettings", "Cl
 #: Joint configurations whose hand shapes (relative to the palm) are kept for
 #: overlap tests: the candidates of one antipodal pair share one.
 RELATIVE_CACHE = 64
-#: [m] The broadphase (:meth:`Grasper._beyond`) skips a query of the surface hulls when a link's box is
-#: farther than the query's range plus this from theirs. PyBullet's boxes hold its shapes with their
-#: margins, so no pair can be nearer than the boxes' gap; the slack covers its round-off many times.
-BROADPHASE_SLACK = 0.001
-
-
-@dataclass(frozen=True)
-class Bounded(Closest):
-    """Closest pairs complete only up to a true gap ``reach`` [m]: any pair
-    not listed is at least that far."""
-
-    reach: float = np.inf
 
 
 @dataclass
-class Grasper(FingerClosing, ContactReading):
+class Grasper(FingerClosing, ContactReading, ObstacleQueries):
     """Closes one hand on one static object inside one :class:`Sim` (closing
     the fingers: :mod:`planner.plan.finger_closing`; reading the contacts:
-    :mod:`planner.plan.contact_reading`)."""
+    :mod:`planner.plan.contact_reading`; asking the simulator what is near:
+    :mod:`planner.plan.obstacle_queries`)."""
 
     sim: Sim
     hand: HandSpec
@@ -156,71 +146,13 @@ class Grasper(FingerClosing, ContactReading):
             self.table_body = self.sim.add_box(TABLE_SLAB, slab)
             self.table_shape = None if self.shapes is None else overlap.box(TABLE_SLAB, slab)
 
-    # -- queries -------------------------------------------------------------
-    def _closest(self, reach: float, link: str | None = None) -> Closest:
-        """Pairs whose *true* gap is below ``reach`` [m]: with the exact mesh,
-        or, while the hand is farther than ``near`` from the surface hulls
-        (:mod:`planner.geometry.hulls`), with the hulls (lower bounds of the
-        true gaps, as they contain the surface). Near the hulls, a long reach
-        is cut to ``exact_reach`` (:class:`Bounded`)."""
-        self.queries += 1
-        index = None if link is None else self.body.links[link]
-        offset, s = self.hand.distance_offset, self.settings
-        if self.far_body is not None:
-            if all(self._beyond(i, reach - offset) for i in ((index,) if link else self._indices)):
-                return NO_PAIRS  # what the query below would give: no pair within its range
-            far = self.sim.closest(self.body.uid, self.far_body, reach - offset, index)
-            if len(far) == 0 or far.min_distance + offset > s.near:
-                return far
-            if reach > s.exact_reach:
-                pairs = self.sim.closest(self.body.uid, self.object_body, s.exact_reach - offset, index)
-                return Bounded(pairs.links, pairs.distance, pairs.on_a, pairs.on_b, pairs.normal_b, s.exact_reach)
-        return self.sim.closest(self.body.uid, self.object_body, reach - offset, index)
-
-    def _obstacles(self, reach: float, link: str | None = None) -> Closest:
-        """:meth:`_closest` with the table's pairs within ``reach`` added (what stops the hand and the fingers)."""
-        pairs = self._closest(reach, link)
-        if self.table_body is None:
-            return pairs
-        index = None if link is None else self.body.links[link]
-        table = self.sim.closest(self.body.uid, self.table_body, reach - self.hand.distance_offset, index)
-        if len(table) == 0:
-            return pairs
-        joined = [np.concatenate([getattr(pairs, k), getattr(table, k)]) for k in
-                  ("links", "distance", "on_a", "on_b", "normal_b")]
-        return Bounded(*joined, pairs.reach) if isinstance(pairs, Bounded) else Closest(*joined)
-
-    def _obstacle_gap(self, reach: float, link: str) -> float:
-        """:meth:`_gap` of :meth:`_obstacles` (``reach``, ``link``), the same value without making the pairs:
-        what closing a finger reads of a link that does not only translate."""
-        self.queries += 1
-        index, offset, s, bound = self.body.links[link], self.hand.distance_offset, self.settings, np.inf
-        uid, query = self.body.uid, self.sim.min_distance
-        distance = np.nan
-        if self.far_body is not None:  # no pair within the range: inf, and nothing near the hulls
-            distance = np.inf if self._beyond(index, reach - offset) else query(uid, self.far_body, reach - offset,
-                                                                                 index)
-        if not distance + offset > s.near:  # near the hulls (or none): the exact mesh, a long reach cut
-            if self.far_body is not None and reach > s.exact_reach:
-                bound = s.exact_reach
-            distance = query(uid, self.object_body, min(reach, bound) - offset, index)
-        if self.table_body is not None:
-            distance = min(distance, query(uid, self.table_body, reach - offset, index))
-        return min(distance + offset, bound)
-
+    # -- queries: planner.plan.obstacle_queries ------------------------------
     def normals_at(self) -> Callable[[np.ndarray, np.ndarray], np.ndarray] | None:
         """A proxied mesh's outward normals at (points (n, 3), faces (n,)) of its exact surface, averaged at a
         contact's scale as its contacts read them (:mod:`planner.geometry.normals`); None when closing collides
         with the exact mesh (then the faces' own normals)."""
         exact = self.exact_surface
         return None if exact is None else partial(exact.scale_normals.at, radius=self.settings.patches.normal_radius)
-
-    def _beyond(self, index: int, distance: float) -> bool:
-        """Is link ``index`` of the hand, as placed, farther than ``distance`` [m] from the surface hulls by
-        the two boxes (then PyBullet finds no pair within ``distance``: its query costs 2-6x this test)?"""
-        (ax, ay, az), (bx, by, bz) = self.sim.link_box(self.body.uid, index)
-        (lx, ly, lz), (hx, hy, hz) = self._far_box
-        return max(lx - bx, ax - hx, ly - by, ay - hy, lz - bz, az - hz) > distance + BROADPHASE_SLACK
 
     def on_table(self, within: float = 0.0) -> bool:
         """Is the hand, where it is now, within ``within`` [m] of the table or overlapping it (False without one)?"""
@@ -232,10 +164,6 @@ class Grasper(FingerClosing, ContactReading):
         """Would the hand at ``pose`` with ``joints`` touch the table? (Moves the hand there.)"""
         self._place(np.asarray(pose, float), joints)
         return self.on_table()
-
-    def _gap(self, closest: Closest) -> float:
-        gap = closest.min_distance + self.hand.distance_offset
-        return min(gap, closest.reach) if isinstance(closest, Bounded) else gap
 
     def overlaps(self) -> bool:
         """Does the hand, where it is now, overlap the object (touching counts)?"""
@@ -337,14 +265,17 @@ class Grasper(FingerClosing, ContactReading):
         return self.shapes.collides_at(pose, relative, self.object_bvh) or (
             self.table_shape is not None and self.shapes.collides_at(pose, relative, self.table_shape))
 
-    def close_from(self, pose: np.ndarray, preshape: Preshape, joints: dict[str, float]) -> Closed | Rejected:
+    def close_from(self, pose: np.ndarray, preshape: Preshape, joints: dict[str, float], near: bool = False
+                   ) -> Closed | Rejected:
         """Close the fingers from ``joints`` (every finger joint, open) with the hand at ``pose``, no approach and
         no back-off: the antipodal sampler's candidates, placed where they grasp (the caller has checked that the
-        open hand is free). The grasp records ``joints`` as its open joints."""
+        open hand is free). The grasp records ``joints`` as its open joints. ``near``: the fingers are expected
+        near the object from the start (a squeeze's closing, opened a millimetre: they ask the exact mesh first,
+        :meth:`~planner.plan.obstacle_queries.ObstacleQueries._closest_near`; the same closing)."""
         self.queries = 0
         pose = np.array(pose, float)
         self._place(pose, joints)
-        return self._finish(pose, preshape, dict(joints), {j.name: joints[j.name] for j in self.hand.driven})
+        return self._finish(pose, preshape, dict(joints), {j.name: joints[j.name] for j in self.hand.driven}, near)
 
     def _back_off(self, pose: np.ndarray, direction: np.ndarray, limit: float) -> float | None:
         """Move the hand back along ``direction`` in doubling jumps until it is free; how far it went, or None
@@ -360,8 +291,8 @@ class Grasper(FingerClosing, ContactReading):
         return backed
 
     def _finish(self, pose: np.ndarray, preshape: Preshape, joints: dict[str, float],
-                open_joints: dict[str, float] | None = None) -> Closed | Rejected:
-        closed = self._close_fingers(preshape, joints)
+                open_joints: dict[str, float] | None = None, near: bool = False) -> Closed | Rejected:
+        closed = self._close_fingers(preshape, joints, near)
         if self.hand.centering:
             pose, closed = self._centre(pose, closed)
             self._place(pose, closed)
@@ -371,27 +302,3 @@ class Grasper(FingerClosing, ContactReading):
         out = self._read(pose, preshape.joints if open_joints is None else open_joints, closed)
         self.contact_seconds += time.perf_counter() - t
         return out
-
-    def _translation_step(self, pairs: Closest, velocity: np.ndarray) -> tuple[bool, float]:
-        """(touching, safe travel [m]) for links translating along unit ``velocity``.
-
-        Each closest-point pair is a convex link piece and a convex object piece
-        (a triangle); their distance is a convex function of the travel, so it
-        cannot reach zero before ``gap / closing speed`` along the pair's
-        normal, and a pair that is not closing in never collides. Pairs beyond
-        the query range are at least ``coarse_step`` away.
-        """
-        s = self.settings
-        longest = s.coarse_step if not isinstance(pairs, Bounded) else min(s.coarse_step,
-                                                                             max(pairs.reach - s.gap, 0.0))
-        if len(pairs) == 0:
-            return False, longest
-        gaps = pairs.distance + self.hand.distance_offset
-        speed = -(pairs.normal_b @ velocity)
-        closing = speed > CLOSING_SPEED_MIN
-        if np.any(closing & (gaps <= s.contact_tol)):
-            return True, 0.0
-        if not np.any(closing):
-            return False, longest
-        step = float(np.min((gaps[closing] - s.gap) / speed[closing]))
-        return False, min(max(step, 0.0), longest)

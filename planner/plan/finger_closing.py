@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planner.plan.tolerances import JOINT_LIMIT_SLACK
+from planner.plan.tolerances import JOINT_LIMIT_SLACK, NEAR_SLACK
 from planner.sim import Body, Closest, Sim
 from planner.specs.hands import HandSpec
 from planner.specs.preshapes import Preshape
@@ -78,7 +78,7 @@ class FingerClosing:
     _motions: dict[tuple, DofMotion]
 
     if TYPE_CHECKING:  # the queries of planner.plan.closing.Grasper
-        def _obstacles(self, reach: float, link: str | None = None) -> Closest: ...
+        def _obstacles(self, reach: float, link: str | None = None, near: bool = False) -> Closest: ...
 
         def _gap(self, closest: Closest) -> float: ...
 
@@ -100,10 +100,15 @@ class FingerClosing:
         moved = {link for name in rates for link in self.hand.joint(name).moves}
         return tuple(n for n in self.geometry if n in moved)
 
-    def _close_fingers(self, preshape: Preshape, joints: dict[str, float]) -> dict[str, float]:
+    def _close_fingers(self, preshape: Preshape, joints: dict[str, float], near_first: bool = False
+                       ) -> dict[str, float]:
+        """The closed joints (``near_first``: every finger expected near the object from the start)."""
         s = self.settings
         q = dict(joints)
         dofs = self._dofs(preshape)
+        velocities: dict[tuple, np.ndarray | None] = {}  # the hand stays put while its fingers close: read once
+        # translating links expected near the surface hulls at this step (ObstacleQueries._closest_near)
+        near = {link for d in dofs for link in d.links} if near_first else set()
         for _ in range(s.max_iterations):
             live = [d for d in dofs if d.active]
             if not live:
@@ -122,20 +127,27 @@ class FingerClosing:
                 # several DOFs may move one link (a fingertip under three joints): their motions add up
                 reach = sum(speed.get(link, 0.0) * cap for speed, cap in zip(speeds, caps)) + s.contact_tol + s.gap
                 if sharing[link] == 1 and link in translating:
-                    pairs[link] = self._obstacles(reach, link)  # the directional bound reads the pairs
+                    pairs[link] = self._obstacles(reach, link, link in near)  # the directional bound reads the pairs
                 else:
                     gaps[link] = self._obstacle_gap(reach, link)
             steps = [0.0] * len(live)
+            moving: list[tuple[int, str, np.ndarray]] = []  # (DOF along ``live``, link, velocity): directional bounds
             for k, (d, m, speed, ds, room) in enumerate(zip(live, motions, speeds, caps, rooms)):
                 touched = set()
                 for link in d.links:
-                    velocity = self._translation(d, link) if sharing[link] == 1 and link in m.translating else None
+                    velocity = None
+                    if sharing[link] == 1 and link in m.translating:
+                        key = (link, *d.rates.items())
+                        if key not in velocities:
+                            velocities[key] = self._translation(d, link)
+                        velocity = velocities[key]
                     if velocity is not None:  # a translating link: directional bound
                         rate = float(np.linalg.norm(velocity))
                         hit, travel = self._translation_step(pairs[link], velocity / rate)
                         if hit:
                             touched.add(link)
                         ds = min(ds, travel / rate)
+                        moving.append((k, link, velocity))
                         continue
                     gap = gaps[link] if link in gaps else self._gap(pairs[link])
                     if gap <= s.contact_tol:
@@ -151,6 +163,8 @@ class FingerClosing:
                     d.active = False
                     continue
                 steps[k] = min(ds, room)
+            near = {link for k, link, velocity in moving
+                    if live[k].active and self._near_after(pairs[link], velocity * steps[k])}
             moved = {}
             for d, step in zip(live, steps):
                 if d.active:
@@ -159,6 +173,15 @@ class FingerClosing:
                         moved[j] = q[j]
             self.sim.set_joints(self.body, moved)
         return q
+
+    def _near_after(self, pairs: Closest, moved: np.ndarray) -> bool:
+        """Will a link whose ``pairs`` these were be near the surface hulls once it has moved by ``moved`` (3,) [m]?
+        Each pair's gap then, to first order, is its gap less its approach along its normal: a guess (which of
+        :meth:`~planner.plan.closing.Grasper._obstacles`' two ways to ask is the cheaper), never the answer."""
+        if len(pairs) == 0:
+            return False
+        guess = float(np.min(pairs.distance + pairs.normal_b @ moved)) + self.hand.distance_offset
+        return guess <= self.settings.near - NEAR_SLACK
 
     def _motion(self, rates: dict[str, float]) -> DofMotion:
         """What closing reads of a DOF's ``rates`` in every step, looked up once per hand."""

@@ -193,7 +193,7 @@ def _squeezed(grasper: Grasper, closed: Closed, preshape: Preshape, planned: Qua
             break
         if not any(pose is m for m in middle):
             bracket = None  # turned as far as it could along the turn: no bisection (yet)
-        again = grasper.close_from(pose, preshape, joints)
+        again = grasper.close_from(pose, preshape, joints, near=True)  # the jaw opened a millimetre
         if not isinstance(again, Closed) or (better := score(again.contacts)) is None:
             break
         before, closed, quality = closed.pose, again, better

@@ -25,6 +25,11 @@ CLOSING_SPEED_MIN = 0.05
 #: A joint this close to its limit (in joint units) has no room left; also the
 #: slack of limit checks, so values on a limit pass after round-off.
 JOINT_LIMIT_SLACK = 1e-9
+#: [m] A link whose gap to the exact mesh is below closing's ``near`` by this much is near the surface hulls
+#: (:meth:`planner.plan.obstacle_queries.ObstacleQueries._closest_near`): the hulls contain the surface, so
+#: their gap is the smaller; PyBullet's margins and round-off put a hull's gap at most ~0.02 mm above the
+#: mesh's where both touch a finger (the peer's scan), this many times over.
+NEAR_SLACK = 0.0005
 #: The OpenRAVE box sampler grows the object's bounding box by this much.
 BOX_MARGIN = 0.01
 #: Antipodal sampler: a chord thinner than this is a sliver or a skin, not

@@ -293,6 +293,7 @@ def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, han
     pose_of = {c.index: pose for c, pose in zip(usable, poses)}
     support = settings.support()
     result.timing["sampling"] += time.perf_counter() - t1
+    opened: tuple[tuple[int, str], dict[str, float]] | None = None  # a pair's candidates (its rolls, depths) open alike
     for cand in _tried(todo, budget, result, report):
         if pairs.reasons[cand.ray]:
             result.rejected[pairs.reasons[cand.ray]] += 1
@@ -302,7 +303,10 @@ def _antipodal(spec: UnitSpec, settings: SweepSettings, obj: PreparedObject, han
             result.rejected[FROM_BELOW] += 1
             continue
         ta = _check_time(spec, t0)
-        fitted = fitted_opening(hand, cand.preshape, master.name, pairs.widths[cand.ray] + 2 * FINGER_CLEARANCE)
+        if opened is None or opened[0] != (cand.ray, cand.preshape.name):
+            opened = (cand.ray, cand.preshape.name), fitted_opening(hand, cand.preshape, master.name,
+                                                                     pairs.widths[cand.ray] + 2 * FINGER_CLEARANCE)
+        fitted = opened[1]
         free = not grasper.overlaps_at(pose, fitted)
         tb = time.perf_counter()
         result.timing["rejection"] += tb - ta
