@@ -50,6 +50,7 @@ STAGES = (("closing", "planner.plan.finger_closing", "FingerClosing", "_close_fi
           ("epsilon", "planner.plan.keeping", None, "grasp_quality"),
           ("grip", "planner.plan.grip", None, "measure"),
           ("local_sdf", "planner.plan.local_sdf", "LocalSurface", "of"),
+          ("local_sdf", "planner.plan.local_sdf", None, "measured_together"),
           ("resistance", "planner.plan.keeping", None, "resistance_program"),
           ("resistance", "planner.plan.measures", None, "resistances"))
 

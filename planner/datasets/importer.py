@@ -360,7 +360,7 @@ def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: C
             at = (closed.contacts, closed.frames, hand, shape, closed.closed_joints, obj)
             gripped = grip.measure(hand, gripping, closed.contacts, closed.link_poses or {}, obj.com, obj.up)
             waiting = (resistance_program(*at), partial(measure, *at, width, grip=gripped,  # type: ignore[arg-type]
-                                                        local_sdf=local.of(closed.pose), squeeze=squeeze))
+                                                        squeeze=squeeze), (local, closed.pose))
             point, direction, roll = approach_of(closed.pose, hand.approach, shape.tcp)
             out.append(Grasp(
                 object=obj.name, hand=hand.name, preshape=shape.name, candidate=i, seed=0,

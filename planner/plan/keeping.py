@@ -1,8 +1,8 @@
 """A unit's closed grasps kept as records (:class:`Keeper`): each one's quality, squeeze and grip measured now, its
-weight resistance left waiting to be solved with others' (:func:`~planner.plan.measures.measured_later`), its
-:class:`~planner.record.grasp.Grasp` appended; and where a self-centring parallel jaw's squeeze
-(:mod:`planner.plan.squeeze`) of a grasp whose planned contacts are not force closure ends force closure, that end
-too, as a grasp of its own.
+weight resistance and ``local_sdf`` left waiting to be found with others'
+(:func:`~planner.plan.measures.measured_later`), its :class:`~planner.record.grasp.Grasp` appended; and where a
+self-centring parallel jaw's squeeze (:mod:`planner.plan.squeeze`) of a grasp whose planned contacts are not force
+closure ends force closure, that end too, as a grasp of its own.
 
 The squeeze's end is where the closing of a real jaw on a free object ends (the object turned between the pads until
 the wall lies flat on both): the turned hand and its squeeze's last closing there, opened as its parent was (its
@@ -115,8 +115,7 @@ class Keeper:
         width = closed_width(hand, closed.closed_joints)
         at = (closed.contacts, closed.frames, hand, cand.preshape, closed.closed_joints, obj)
         gripped = grip.measure(hand, self.gripping, closed.contacts, closed.link_poses or {}, obj.com, self.up)
-        later = partial(measure, *at, width, grip=gripped, local_sdf=self.local.of(closed.pose),  # type: ignore[arg-type]
-                        squeeze=squeeze)
+        later = partial(measure, *at, width, grip=gripped, squeeze=squeeze)  # type: ignore[arg-type]
         waiting = resistance_program(*at)  # type: ignore[arg-type]
         point, direction, roll, standoff = ray
         table = self.settings.table_plane
@@ -126,7 +125,8 @@ class Keeper:
             open_joints=closed.open_joints, closed_joints=closed.closed_joints, width=width,
             contacts=closed.contacts, epsilon=q.epsilon, volume=q.volume, force_closure=q.force_closure,
             measures=None, table_plane=None if table is None else np.array(table, float), squeezed_from_turn=turned))
-        self.waiting.append((len(self.grasps) - 1, waiting, later))  # once recorded: a record that fails leaves none
+        # once recorded: a record that fails leaves none; its local_sdf read with the others' (measured_later)
+        self.waiting.append((len(self.grasps) - 1, waiting, later, (self.local, closed.pose)))
 
 
 def pregrasp(pose: np.ndarray, hand: HandSpec, distance: float) -> np.ndarray:

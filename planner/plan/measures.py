@@ -143,6 +143,13 @@ def measure(contacts: HandContacts, frames: JointFrames, hand: HandSpec, shape: 
 WAITING = 4096
 
 
+#: One grasp waiting in :func:`measured_later`: (its index in the grasps, its :func:`resistance_program`, its
+#: :func:`measure` but ``resist``) and optionally where its ``local_sdf`` is to be read, (the unit's
+#: :class:`~planner.plan.local_sdf.LocalSurface`, the grasp's pose (4, 4)): then its :func:`measure` but ``resist``
+#: and ``local_sdf``.
+Waiting = tuple
+
+
 class _Waiting(list):  # type: ignore[type-arg]
     """The grasps waiting for their measures: ``fill`` called whenever :data:`WAITING` of them wait."""
 
@@ -150,27 +157,35 @@ class _Waiting(list):  # type: ignore[type-arg]
         super().__init__()
         self._fill = fill
 
-    def append(self, item: tuple[int, ResistanceProgram, Callable[..., Measures]]) -> None:
+    def append(self, item: Waiting) -> None:
         super().append(item)
         if len(self) >= WAITING:
             self._fill()
 
 
 @contextmanager
-def measured_later(grasps: list[Grasp], timing: MutableMapping[str, float]
-                   ) -> Iterator[list[tuple[int, ResistanceProgram, Callable[..., Measures]]]]:
-    """A list for the sweep's closed grasps to wait in: (index in ``grasps``, its :func:`resistance_program`,
-    its :func:`measure` but ``resist``). Once :data:`WAITING` wait, and on leaving, also on an error (a failed
-    unit stores the grasps it has), ``grasps[index]`` gets those measures, the weight resistances of all waiting
-    solved together (:func:`resistances`), their time added to ``timing["quality"]`` [s]. Should one fail, the
-    grasps from the first left without measures on are dropped (measured one at a time, the sweep stopped at it)
-    and the error raised."""
+def measured_later(grasps: list[Grasp], timing: MutableMapping[str, float]) -> Iterator[list[Waiting]]:
+    """A list for the sweep's closed grasps to wait in (:data:`Waiting`). Once :data:`WAITING` wait, and on
+    leaving, also on an error (a failed unit stores the grasps it has), ``grasps[index]`` gets those measures, the
+    weight resistances of all waiting solved together (:func:`resistances`) and their ``local_sdf`` read together
+    (:func:`~planner.plan.local_sdf.measured_together`; one at a time, in order, should that fail), their time
+    added to ``timing["quality"]`` [s]. Should one fail, the grasps from the first left without measures on are
+    dropped (measured one at a time, the sweep stopped at it) and the error raised."""
+    from planner.plan.local_sdf import measured_together
 
     def fill() -> None:
         start, filled = time.perf_counter(), 0
         try:
-            for (i, _, later), resist in zip(pending, resistances([prog for _, prog, _ in pending])):
-                grasps[i] = replace(grasps[i], measures=later(resist=resist))
+            found = resistances([item[1] for item in pending])
+            asked = [item[3] if len(item) > 3 else None for item in pending]
+            try:
+                sdf = measured_together(asked)
+            except Exception:  # noqa: BLE001 - read again one at a time below, where the failing grasp raises
+                sdf = None
+            for k, (item, resist) in enumerate(zip(pending, found)):
+                given = {} if len(item) < 4 else {"local_sdf": measured_together([asked[k]])[0] if sdf is None
+                                                  else sdf[k]}
+                grasps[item[0]] = replace(grasps[item[0]], measures=item[2](resist=resist, **given))
                 filled += 1
         except BaseException:
             del grasps[pending[filled][0]:]

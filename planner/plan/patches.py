@@ -206,8 +206,15 @@ def _cluster(points: np.ndarray, normals: np.ndarray, radius: float, split_angle
         similar = np.einsum("ij,ij->i", normals.take(first, axis=0), normals.take(second, axis=0)) > np.cos(split_angle)
         pairs = pairs.compress(similar, axis=0)
     if not known:  # the graph's rows; their order within a row changes no label (numbered by smallest member)
-        pairs = pairs[np.argsort(pairs[:, 0])]
+        pairs = pairs[_by_node(pairs[:, 0], len(points))]
     return _components(len(points), pairs)
+
+
+def _by_node(nodes: np.ndarray, n: int) -> np.ndarray:
+    """The order that sorts ``nodes`` (p,) (ints in 0..n-1) ascending: a stable sort, numpy's radix sort where
+    they fit 16 bits (every patch: a few hundred samples), half the cost of a comparison sort of its thousands of
+    pairs; ties in any order give the same components (:func:`_components`)."""
+    return np.argsort(nodes.astype(np.int16) if n <= np.iinfo(np.int16).max else nodes, kind="stable")
 
 
 def _components(n: int, pairs: np.ndarray) -> np.ndarray:
@@ -218,7 +225,7 @@ def _components(n: int, pairs: np.ndarray) -> np.ndarray:
     if _connected_components_undirected is None:  # pragma: no cover
         return _components_reference(n, pairs)
     first, second = pairs[:, 0].astype(np.int32), pairs[:, 1].astype(np.int32)
-    back = np.argsort(second)  # the other direction's rows; their order within a row changes no label
+    back = _by_node(second, n)  # the other direction's rows; their order within a row changes no label
     nodes = np.arange(n + 1)
     labels = np.full(n, -1, np.int32)
     _connected_components_undirected(second, np.searchsorted(first, nodes).astype(np.int32), first[back],

@@ -37,7 +37,7 @@ class HandContacts:
         region: (n,) index of the patch region of each contact, -1 if none.
     """
 
-    __slots__ = ("_arrays", "_text", "_count", "_touching")
+    __slots__ = ("_arrays", "_text", "_count", "_touching", "_frames")
 
     def __init__(self, points: np.ndarray, normals: np.ndarray, links: tuple[str, ...],
                  radius: np.ndarray | None = None, region: np.ndarray | None = None) -> None:
@@ -54,13 +54,20 @@ class HandContacts:
         self._text: str | None = None
         self._count = n
         self._touching = len(set(links))
+        self._frames: np.ndarray | None = None
 
     @classmethod
     def stored(cls, text: str, count: int, touching: int) -> HandContacts:
         """Contacts as the database holds them: the JSON text and its two counts."""
         out = cls.__new__(cls)
-        out._arrays, out._text, out._count, out._touching = None, text, count, touching
+        out._arrays, out._text, out._count, out._touching, out._frames = None, text, count, touching, None
         return out
+
+    def __getstate__(self) -> tuple[None, dict]:
+        """Pickled without the frames (:attr:`frames` makes them again where asked): a worker's grasps travel
+        to the writer without (n, 3, 3) floats each."""
+        return None, {"_arrays": self._arrays, "_text": self._text, "_count": self._count,
+                      "_touching": self._touching, "_frames": None}
 
     @classmethod
     def from_items(cls, items: list[dict]) -> HandContacts:
@@ -108,10 +115,15 @@ class HandContacts:
 
     @property
     def frames(self) -> np.ndarray:
-        """(n, 3, 3) contact frames R_i with columns (n_i, l_i, o_i)."""
-        from planner.geometry.frames import contact_frames  # scipy: not needed to read stored contacts
+        """(n, 3, 3) contact frames R_i with columns (n_i, l_i, o_i), read-only: made once, on first use (a
+        sweep's grasp reads them for its epsilon, its weight resistance and its squeeze)."""
+        if self._frames is None:
+            from planner.geometry.frames import contact_frames  # scipy: not needed to read stored contacts
 
-        return contact_frames(self.normals)
+            frames = contact_frames(self.normals)
+            frames.flags.writeable = False
+            self._frames = frames
+        return self._frames
 
     def to_json(self) -> list[dict]:
         """``[{point, normal, link[, radius, region]}]``, rounded as stored."""

@@ -268,3 +268,24 @@ def test_inside_and_palm_gap_equal_the_plain_tests_on_a_meshed_hand(seed: int, s
         local = (surface.coarse[chosen] - palm[:3, 3]) @ palm[:3, :3]
         assert plain == pytest.approx(np.clip((local @ every[:, :3].T + every[:, 3]).max(axis=1).min(), 0.0, 0.05),
                                       abs=1e-12)
+
+
+def test_the_pandas_fingers_take_every_plane_without_an_inner_polytope(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two Panda fingers' hull has few planes (at most INNER_PLANES): one qhull (the fingers' hull), no inner
+    polytope's, and the samples every plane keeps, bit for bit."""
+    from scipy.spatial import ConvexHull
+
+    hand = load_hand("panda")
+    shapes = grip.hulls(hand)
+    apart = np.eye(4)
+    apart[1, 3] = 0.03
+    corners = np.vstack([shapes["panda_leftfinger"].vertices,
+                         shapes["panda_rightfinger"].vertices @ apart[:3, :3].T + apart[:3, 3]])
+    surface = grip.GripSurface(trimesh.creation.icosphere(subdivisions=3, radius=0.03))
+    outer = ConvexHull(corners).equations
+    assert len(link_hulls.planes(outer)) <= grip.INNER_PLANES
+    built = []
+    monkeypatch.setattr(grip, "ConvexHull", lambda points: built.append(len(points)) or ConvexHull(points))
+    inside = grip._inside(corners, surface)
+    everything = np.flatnonzero(np.all(surface.coarse @ outer[:, :3].T + outer[:, 3] <= 0.0, axis=1))
+    assert built == [len(corners)] and len(everything) > 0 and np.array_equal(inside, everything)

@@ -170,3 +170,30 @@ def test_a_surface_keeps_its_grid_points_and_measures_as_the_grid_does(seed: int
     pose[:3, 3] = np.random.default_rng(seed).uniform(-0.05, 0.05, 3)
     assert np.array_equal(local.of(pose), measure(local.grid, local.surface, pose))
     assert np.array_equal(local.points, local.grid.points()) and not local.points.flags.writeable
+
+
+@settings(max_examples=10, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 6))
+def test_cells_read_together_are_each_poses_own_to_the_bit(seed: int, count: int) -> None:
+    """``measured_together`` (the sweep's waiting grasps, one query of the object): each pose's cells as
+    ``LocalSurface.of`` reads them alone, bit for bit, in order; None where nothing was asked or the hand has no
+    grid."""
+    from scipy.spatial.transform import Rotation
+
+    from planner.geometry.solid import load_object
+    from planner.plan.local_sdf import measured_together
+
+    mug = load_object("mug").mesh
+    local, barrett = LocalSurface(load_hand("panda"), mug), LocalSurface(load_hand("barrett"), mug)
+    rng = np.random.default_rng(seed)
+    poses = []
+    for _ in range(count):
+        pose = np.eye(4)
+        pose[:3, :3] = Rotation.random(random_state=rng).as_matrix()
+        pose[:3, 3] = rng.uniform(-0.08, 0.08, 3)
+        poses.append(pose)
+    asked = [(local, p) for p in poses] + [None, (barrett, poses[0])]
+    got = measured_together(asked)
+    assert got[-2:] == [None, None]
+    for pose, cells in zip(poses, got):
+        assert cells is not None and cells.tobytes() == local.of(pose).tobytes()  # type: ignore[union-attr]

@@ -173,3 +173,32 @@ def test_grasps_are_measured_whenever_enough_wait_not_all_at_the_end(monkeypatch
         assert records[2].measures is None and len(later) == 1
     assert all(r.measures is not None for r in records)
     assert records[2].measures == records[0].measures
+
+
+def test_a_waiting_grasp_gets_its_local_sdf_as_read_alone() -> None:
+    """A grasp that waits with where its ``local_sdf`` is to be read (the unit's LocalSurface and its pose) is
+    measured with the cells ``LocalSurface.of`` reads at that pose, to the bit; one that waits without it keeps
+    the measure it was given."""
+    from dataclasses import dataclass
+    from functools import partial
+
+    from planner.plan.local_sdf import LocalSurface
+    from planner.plan.measures import measured_later, resistance_program
+
+    @dataclass(frozen=True)
+    class Record:
+        measures: object = None
+
+    found = [close("panda", "box", "wide", [0, 0, 0.04], DOWN), close("panda", "box", "wide", [0.02, 0, 0.04], DOWN)]
+    local = LocalSurface(found[0][1], found[0][3].mesh)
+    records = [Record() for _ in found]
+    with measured_later(records, {"quality": 0.0}) as later:  # type: ignore[arg-type]
+        for i, (closed, hand, pre, obj) in enumerate(found):
+            at = (closed.contacts, closed.frames, hand, pre, closed.closed_joints, obj)
+            if i == 0:
+                later.append((i, resistance_program(*at), partial(measure, *at, 0.05), (local, closed.pose)))
+            else:
+                later.append((i, resistance_program(*at), partial(measure, *at, 0.05)))  # type: ignore[arg-type]
+    first, second = (r.measures for r in records)
+    assert first.local_sdf.tobytes() == local.of(found[0][0].pose).tobytes()  # type: ignore[union-attr]
+    assert second.local_sdf is None  # type: ignore[union-attr]

@@ -362,3 +362,18 @@ def test_features_found_once_are_those_found_again_for_any_rows(seed: int, name:
     toward = -normal[keep]
     assert np.array_equal(surface.contact_normals(closest[keep], face, smooth[keep], toward, feature.take(keep)),
                           surface.contact_normals(closest[keep], face, smooth[keep], toward))
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 400), st.integers(0, 3000))
+def test_pairs_ordered_by_node_give_the_components_of_any_order(seed: int, n: int, count: int) -> None:
+    """``_by_node``: a stable ascending order of small node indices (a radix sort where they fit 16 bits); the
+    components of pairs so ordered are those of scipy's connected_components (numbered by their smallest node)."""
+    from planner.plan import patches
+
+    rng = np.random.default_rng(seed)
+    first = rng.integers(0, n, count)
+    order = patches._by_node(first, n)
+    assert order.tobytes() == np.argsort(first, kind="stable").tobytes()
+    pairs = np.column_stack([first, rng.integers(0, n, count)])[order]
+    assert np.array_equal(patches._components(n, pairs), patches._components_reference(n, pairs))
