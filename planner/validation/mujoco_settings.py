@@ -186,6 +186,9 @@ class MujocoSettings:
         if self.free_travel_gap < 0 or not (self.drop_factor == 0 or self.drop_factor >= 1):
             raise ConfigError(f"free_travel_gap must be >= 0 and drop_factor 0 (off) or >= 1, got "
                               f"{self.free_travel_gap}, {self.drop_factor}")
+        if not (self.ramp_time > 0 and self.lift_time > 0 and self.settle_time >= 0 and self.hold_time >= 0):
+            raise ConfigError(f"ramp_time and lift_time must be > 0, settle_time and hold_time >= 0 (0: none), got "
+                              f"{self.ramp_time}, {self.lift_time}, {self.settle_time}, {self.hold_time}")
         if self.contact_time < 2 * self.timestep:
             raise ConfigError(f"contact_time {self.contact_time} must be at least twice the timestep {self.timestep}")
 

@@ -72,3 +72,11 @@ def test_a_shake_together_is_one_cycle_of_both_turns_and_the_push_at_once() -> N
     axis = np.array([relative[2, 1] - relative[1, 2], relative[0, 2] - relative[2, 0], relative[1, 0] - relative[0, 1]])
     approach = top[:3, :3] @ np.array([0.0, 0.0, 1.0])
     assert abs(axis @ approach) / np.linalg.norm(axis) < s.shake_angle  # across it, to second order
+
+
+def test_a_hold_of_no_time_adds_no_step() -> None:
+    s = MujocoSettings(hold_time=0.0)
+    _, _, path = _path(s)
+    assert len(path) == round(s.ramp_time / s.timestep) + round(s.lift_time / s.timestep) + \
+        round(1 / s.shake_frequency / s.timestep)
+
