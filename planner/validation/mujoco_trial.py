@@ -41,12 +41,14 @@ welded to a moving target, hand gravity-compensated as an arm would carry it):
    geared speed; a worm-gear finger cannot be opened once closed. Holds are
    joint limits as stiff as the contacts (a servo as stiff as a brake is
    unstable at the trial's time step). Closing ends when every
-   finger has stalled; the object then settles.
+   finger has stalled (for ``stall_time``: the object at rest in the
+   fingers; ``settle_time`` more, none by default).
 3. Load and shake: gravity ramps on (the object's down, -``obj.up``: the
    object frame's -z unless told; on a table the table's; or along the
    approach); the hand lifts against it, rotates back and forth about the
    two axes across its approach through the tool centre point, and moves up
-   and down along gravity; then holds still.
+   and down along gravity (then holds still for ``hold_time``, none by
+   default: the verdict is read as the shake ends).
 4. Verdict: ``held`` if the object still touches a finger and moved less
    than ``max_translation`` and ``max_rotation`` relative to the hand since
    the fingers closed; ``slipped`` if not (a trial stops as soon as no

@@ -22,7 +22,7 @@ def _path(s: MujocoSettings):  # type: ignore[no-untyped-def]
 
 
 def test_the_path_starts_at_the_grasp_lifts_and_ends_still_at_the_top() -> None:
-    s = MujocoSettings(shake_together=False)
+    s = MujocoSettings(shake_together=False, hold_time=0.03)
     pose, _, path = _path(s)
     steps = round(s.ramp_time / s.timestep)
     assert_close(path[:steps], np.repeat(pose[None], steps, axis=0), TOL)
@@ -37,7 +37,7 @@ def test_the_path_starts_at_the_grasp_lifts_and_ends_still_at_the_top() -> None:
 def test_the_turns_keep_the_tool_centre_point_and_reach_the_named_peak_acceleration() -> None:
     s = MujocoSettings(shake_together=False)  # one turn after another
     pose, tcp, path = _path(s)
-    start = round((s.ramp_time + s.lift_time) / s.timestep)
+    start = round(s.ramp_time / s.timestep) + round(s.lift_time / s.timestep)
     n = round(1 / s.shake_frequency / s.timestep)
     turns = path[start:start + 2 * n]
     centres = turns[:, :3, :3] @ tcp + turns[:, :3, 3]
@@ -80,3 +80,15 @@ def test_a_hold_of_no_time_adds_no_step() -> None:
     assert len(path) == round(s.ramp_time / s.timestep) + round(s.lift_time / s.timestep) + \
         round(1 / s.shake_frequency / s.timestep)
 
+
+def test_the_default_load_is_140_steps_at_the_peak_accelerations_it_was_chosen_with() -> None:
+    """Gravity on over 0.03 s, the lift (5 cm in 0.15 s: 11 m/s^2 at the peak) and one 10 Hz shake cycle
+    (+-0.008 rad and +-0.8 mm: 31.6 rad/s^2, 3.2 m/s^2), no hold: 140 steps of 2 ms (until 2026-12-07 with
+    a 0.03 s hold: 155)."""
+    s = MujocoSettings()
+    _, _, path = _path(s)
+    assert len(path) == 15 + 75 + 50
+    assert_close(s.lift / 2 * (np.pi / s.lift_time) ** 2, 10.97, 0.01)  # [m/s^2] the peak of a cosine's half cycle
+    omega = 2 * np.pi * s.shake_frequency
+    assert_close(s.shake_angle * omega ** 2, 31.6, 0.5)
+    assert_close(s.shake_distance * omega ** 2, 3.16, 0.05)
