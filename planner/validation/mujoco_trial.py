@@ -47,8 +47,7 @@ welded to a moving target, hand gravity-compensated as an arm would carry it):
    object frame's -z unless told; on a table the table's; or along the
    approach); the hand lifts against it, rotates back and forth about the
    two axes across its approach through the tool centre point, and moves up
-   and down along gravity (then holds still for ``hold_time``, none by
-   default: the verdict is read as the shake ends).
+   and down along gravity; then holds still.
 4. Verdict: ``held`` if the object still touches a finger and moved less
    than ``max_translation`` and ``max_rotation`` relative to the hand since
    the fingers closed; ``slipped`` if not (a trial stops as soon as no

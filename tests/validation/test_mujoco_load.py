@@ -80,15 +80,3 @@ def test_a_hold_of_no_time_adds_no_step() -> None:
     assert len(path) == round(s.ramp_time / s.timestep) + round(s.lift_time / s.timestep) + \
         round(1 / s.shake_frequency / s.timestep)
 
-
-def test_the_default_load_is_140_steps_at_the_peak_accelerations_it_was_chosen_with() -> None:
-    """Gravity on over 0.03 s, the lift (5 cm in 0.15 s: 11 m/s^2 at the peak) and one 10 Hz shake cycle
-    (+-0.008 rad and +-0.8 mm: 31.6 rad/s^2, 3.2 m/s^2), no hold: 140 steps of 2 ms (until 2026-12-07 with
-    a 0.03 s hold: 155)."""
-    s = MujocoSettings()
-    _, _, path = _path(s)
-    assert len(path) == 15 + 75 + 50
-    assert_close(s.lift / 2 * (np.pi / s.lift_time) ** 2, 10.97, 0.01)  # [m/s^2] the peak of a cosine's half cycle
-    omega = 2 * np.pi * s.shake_frequency
-    assert_close(s.shake_angle * omega ** 2, 31.6, 0.5)
-    assert_close(s.shake_distance * omega ** 2, 3.16, 0.05)
