@@ -142,17 +142,17 @@ class MujocoSettings:
     friction: 0.5) as it was; scaling every friction by 0.6 instead agreed
     the same on these files but dropped two of 15 Barrett top-1 grasps on
     the planner's own objects at 0.5 (squeezed out at 0.3). A seventh (issue
-    24, 2026-12-07, bench/RESULTS.md "The MuJoCo trial's settle"): no settle
-    after closing (the fingers' 0.03 s stall already has the object at rest
-    in them), 15 of a Panda trial's ~250 steps. Every other cut tried lets
-    slowly slipping grasps pass: no hold after the shake (1 of 1,600 tuning
-    poses slipped -> held, FleX drops it: 1.88 cm at the shake's end, 2.1 cm
-    after the hold), a 0.01 s ramp (a box held at 1.85 times the friction its
-    weight needs slid 2.2 cm under gravity come on that fast), a 20 Hz shake,
-    a lift of 3.5 cm in 0.125 s (the same peak accelerations, less time to
-    slip), closing from 1 mm instead of 3 mm (each 1-8 of 800 ACRONYM bottle
-    poses; all five together 37 of 2,000 tuning poses, 24 of them away from
-    FleX, and 23 of 2,323 of the planner's own grasps, all dropped -> held).
+    24, 2026-12-07, bench/RESULTS.md), every closed pose of the tuning files
+    tried: no settle after closing changed 1 of 4,000 verdicts (a knife pose
+    FleX holds, held -> slipped), no hold after the shake too 6 of 3,400 (4
+    away from FleX: slow slips read before they pass 2 cm), a 0.01 s ramp on
+    top 2 of 1,000 (and a box held at 1.85 times the friction its weight
+    needs slid 2.2 cm under gravity come on that fast), a 20 Hz shake 1 of
+    1,000, a lift of 3.5 cm in 0.125 s (the same peak accelerations, less
+    time to slip) 7 of 800, closing from 1 mm instead of 3 mm 8 of 800; all
+    five together 41 of 2,600 (25 away from FleX) and 23 of 2,323 of the
+    planner's own grasps (all dropped -> held). None adopted: each is 6-42%
+    fewer steps and agrees with FleX less on the poses it changes.
     """
 
     timestep: float = Engine.timestep  # the engine's defaults (Engine, above)
@@ -168,7 +168,7 @@ class MujocoSettings:
     stall_speed: float = 0.002
     stall_time: float = 0.03
     max_close_time: float = 1.5
-    settle_time: float = 0.0  # none: closing ends once every finger has stalled for stall_time
+    settle_time: float = 0.03
     max_start_overlap: float = 0.005
     down: str = "-z"
     ramp_time: float = 0.03  # 0.01 s: a box held at 1.85 times the friction its weight needs slid 2.2 cm
@@ -179,7 +179,7 @@ class MujocoSettings:
     shake_angle: float = 0.008  # peak accelerations as +-0.2 rad, +-2 cm at 2 Hz: 31.6 rad/s^2, 3.2 m/s^2
     shake_distance: float = 0.0008
     shake_together: bool = True
-    hold_time: float = 0.03  # none: slow slips pass (1 of 1,600 tuning poses slipped -> held, away from FleX)
+    hold_time: float = 0.03
     max_translation: float = 0.02
     max_rotation: float = 0.5
     free_travel_gap: float = 0.003

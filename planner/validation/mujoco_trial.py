@@ -41,8 +41,7 @@ welded to a moving target, hand gravity-compensated as an arm would carry it):
    geared speed; a worm-gear finger cannot be opened once closed. Holds are
    joint limits as stiff as the contacts (a servo as stiff as a brake is
    unstable at the trial's time step). Closing ends when every
-   finger has stalled (for ``stall_time``: the object at rest in the
-   fingers; ``settle_time`` more, none by default).
+   finger has stalled; the object then settles.
 3. Load and shake: gravity ramps on (the object's down, -``obj.up``: the
    object frame's -z unless told; on a table the table's; or along the
    approach); the hand lifts against it, rotates back and forth about the

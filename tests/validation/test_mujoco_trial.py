@@ -458,12 +458,3 @@ def test_a_settle_of_no_time_takes_no_step(pinched, monkeypatch) -> None:  # typ
     assert settled.reason == at_once.reason == "held"
     assert with_settle - steps.count == 5  # 0.01 s of 2 ms steps, and nothing for none
 
-
-def test_the_default_trial_of_a_pinched_box_takes_232_steps(pinched, monkeypatch) -> None:  # type: ignore[no-untyped-def]
-    """The protocol of 2026-12-07: closing (77 steps here) ends once both fingers have stalled for 0.03 s, no
-    settle after it, then the load's 155 steps (ramp 15, lift 75, shake 50, hold 15): 232 (247 until then,
-    with a 0.03 s settle)."""
-    hand, obj, grasp = pinched
-    steps = _Steps(monkeypatch)
-    result = trial(hand, obj, grasp)
-    assert result.reason == "held" and steps.count == 232
