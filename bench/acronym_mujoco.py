@@ -147,6 +147,24 @@ def summarise(results: list[ae.FileResult], verdicts: dict[str, dict]) -> dict:
     }
 
 
+def changes(results: list[ae.FileResult], first: dict[str, dict], other: dict[str, dict]) -> dict:
+    """How ``other``'s verdicts differ from ``first``'s, pose by pose: the poses both have a verdict of (neither
+    diverged), those with the same verdict, and each change named (file stem, sampled position, FleX's label,
+    the reasons)."""
+    same, changed = 0, []
+    for r in results:
+        a, b = first.get(r.path.stem, {}), other.get(r.path.stem, {})
+        for p in sorted(set(a) & set(b)):
+            if "diverged" in (a[p][1], b[p][1]):
+                continue
+            if bool(a[p][0]) == bool(b[p][0]):
+                same += 1
+            else:
+                changed.append(f"{r.path.stem[:20]}@{p} FleX {'holds' if r.labels[p] else 'drops'}: "
+                               f"{a[p][1]} -> {b[p][1]}")
+    return {"poses": same + len(changed), "same": same, "changed": changed}
+
+
 def show(name: str, s: dict) -> None:
     if not s:
         print(f"{name}: no trials")
@@ -232,9 +250,11 @@ def main() -> int:
     for extra, v in zip(grid, verdicts):
         s = summarise(results, v)
         s["settings"] = {**base, **extra}
+        s["against_first"] = changes(results, verdicts[0], v)
         report["runs"].append(s)
         if not args.json:
             show(f"mujoco {json.dumps({**base, **extra})}", s)
+            print(f"    against the first configuration, pose by pose: {s['against_first']}")
     report["cpu_seconds"] = time.process_time() - start
     if args.render:
         render(results, verdicts[0], args.render, args.per_outcome, args.sample_seed)

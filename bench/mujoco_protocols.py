@@ -18,6 +18,13 @@ and of the top-10 grasps. None of these objects was used to choose the MuJoCo tr
 ``--split NAME`` takes the objects of that list of bench/calibration_split.toml instead of ``--objects``
 (``held_out_3``: 50 random objects fixed on 2026-11-23 and never tuned on since; ``held_out_4``: 50 more, drawn
 on 2026-12-05 before any of them was swept).
+
+``--grid FILE.json`` (a list of MujocoSettings overrides, dicts; ``{}`` is today's defaults) runs the MuJoCo trial
+alone, every configuration on every grasp one after the other (so the machine's load falls on each alike), and
+prints per configuration its CPU ms per trial and its verdicts against the first configuration's, grasp by
+grasp (how many agree, held -> dropped, dropped -> held, and which):
+
+    python bench/mujoco_protocols.py --split tuning --hands panda --grid grid.json --top 20
 """
 
 from __future__ import annotations
@@ -31,6 +38,8 @@ from pathlib import Path
 
 import numpy as np
 
+#: A MuJoCo trial's reason when it has no verdict (planner.validation.mujoco_settings.DIVERGED).
+DIVERGED = "diverged"
 OBJECTS = ("box", "cylinder", "mug", "duck", "sphere", "teddy", "bunny", "random_100", "random_101", "random_102",
            "random_103", "random_104", "random_105", "random_106", "random_107")
 #: A small sweep per hand (the default sweep costs minutes per object on the shared machine).
@@ -110,6 +119,42 @@ def trialled(db: Path, hand_name: str, objects: tuple[str, ...], top: int) -> li
     return rows
 
 
+def compared(db: Path, hand_name: str, objects: tuple[str, ...], top: int, grid: list[dict]) -> list[dict]:
+    """``--grid``: one row per grasp, the MuJoCo trial's (held, reason, CPU s) under each configuration."""
+    from planner.specs.hands import load_hand
+    from planner.validation import mujoco_trial
+    from planner.validation.mujoco_settings import MujocoSettings
+
+    hand = load_hand(hand_name)
+    configs = [MujocoSettings(**extra) for extra in grid]
+    rows = []
+    for name, obj, grasps in top_grasps(db, hand_name, objects, top):
+        for s in configs:  # build the world, load the parts
+            mujoco_trial.trials(hand, obj, grasps[:1], s)
+        for g in grasps:
+            runs = []
+            for s in configs:
+                start = time.process_time()
+                t = mujoco_trial.trials(hand, obj, [g], s)[0]
+                runs.append([bool(t.success), t.reason, time.process_time() - start])
+            rows.append({"object": name, "rank": g.rank, "candidate": g.candidate, "runs": runs})
+        print(f"{hand_name}/{name}: {len(grasps)} grasps", file=sys.stderr, flush=True)
+    return rows
+
+
+def show_compared(hand: str, grid: list[dict], rows: list[dict]) -> None:
+    for k, extra in enumerate(grid):
+        base = [r["runs"][0] for r in rows]
+        now = [r["runs"][k] for r in rows]
+        both = [(a, b, r) for a, b, r in zip(base, now, rows) if DIVERGED not in (a[1], b[1])]
+        lost = [f"{r['object']}#{r['rank']} {a[1]}->{b[1]}" for a, b, r in both if a[0] and not b[0]]
+        gained = [f"{r['object']}#{r['rank']} {a[1]}->{b[1]}" for a, b, r in both if b[0] and not a[0]]
+        print(f"{hand} {json.dumps(extra)}: CPU {1000 * np.mean([b[2] for b in now]):.2f} ms/trial; verdicts as the "
+              f"first's {len(both) - len(lost) - len(gained)} of {len(both)} "
+              f"({(len(both) - len(lost) - len(gained)) / max(1, len(both)):.4f}); held {sum(b[0] for b in now)}; "
+              f"held -> dropped {lost}; dropped -> held {gained}; diverged {len(rows) - len(both)}", flush=True)
+
+
 def summary(rows: list[dict]) -> dict:
     """The figures of one hand's rows; a MuJoCo trial that diverged (no verdict) is counted apart and left
     out of every other figure (an object's top-1 is then its best grasp with a verdict)."""
@@ -151,6 +196,7 @@ def main() -> int:
     parser.add_argument("--top", type=int, default=10)
     parser.add_argument("--db-dir", type=Path, default=Path("out"))
     parser.add_argument("--json", type=Path, help="also write every row and the summaries here")
+    parser.add_argument("--grid", type=Path, help="JSON list of MujocoSettings overrides: the MuJoCo trial alone")
     args = parser.parse_args()
     if args.split:
         args.objects = split_objects(args.split)
@@ -158,6 +204,11 @@ def main() -> int:
     report = {}
     for hand in args.hands:
         db = database(hand, tuple(args.objects), args.db_dir)
+        if args.grid:
+            grid = json.loads(args.grid.read_text())
+            report[hand] = {"grid": grid, "rows": compared(db, hand, tuple(args.objects), args.top, grid)}
+            show_compared(hand, grid, report[hand]["rows"])
+            continue
         rows = trialled(db, hand, tuple(args.objects), args.top)
         report[hand] = {"summary": summary(rows), "rows": rows}
         s = report[hand]["summary"]

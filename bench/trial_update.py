@@ -36,6 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import acronym_eval as ae  # noqa: E402
 import acronym_mujoco as am  # noqa: E402
+from _settings import parse  # noqa: E402
 
 from planner.calibration.fitting import trial_figures  # noqa: E402
 from planner.calibration.labels import TRIAL_GROUPS, LabelledSet  # noqa: E402
@@ -62,9 +63,12 @@ def main() -> int:
     ap.add_argument("--write", action="store_true", help="add the update to calibration/<hand>.toml")
     ap.add_argument("--json", type=Path)
     ap.add_argument("--held-out", action="store_true", help="the shipped model and update on the held-out objects")
+    ap.add_argument("--set", dest="overrides", nargs="*", default=[],
+                    help="MujocoSettings key=value: the trial's settings other than this tree's defaults")
     a = ap.parse_args()
     code = a.code or ae.source_hash()
-    results, data, _ = tried_set(a.dev, a.held_out, a.poses, a.per_file, a.sample_seed, a.engine, code)
+    results, data, _ = tried_set(a.dev, a.held_out, a.poses, a.per_file, a.sample_seed, a.engine, code,
+                                 overrides=parse(a.overrides, MujocoSettings, "trial_update"))
     path = ROOT / FOLDER / f"{a.hand}.toml"
     shipped = load_model(path)
     if a.held_out:
@@ -102,14 +106,14 @@ def main() -> int:
 
 
 def tried_set(dev: Path, held_out: bool, poses: int, per_file: int, sample_seed: int, engine: str,
-              code: str, cached_only: bool = False) -> tuple[list, LabelledSet, list]:
+              code: str, cached_only: bool = False, overrides: dict | None = None) -> tuple[list, LabelledSet, list]:
     """(re-scored files, their closed poses as a LabelledSet with the trial's verdicts (nan: not tried), and per
     closed pose the trial's cached record [held, reason, cpu s, *acronym_mujoco.FULL] or None): the files of one
     side of the split, ``poses`` re-scored per file (seed 0, code ``code``), ``per_file`` closed ones tried in
     ``engine`` at the file's pose (drawn with ``sample_seed``; every trial's whole record cached; ``cached_only``: no
-    trial run, a file whose trials are not cached is untried)."""
+    trial run, a file whose trials are not cached is untried; ``overrides``: MujocoSettings fields)."""
     results = [ae.rescore_file(p, poses, 0, 1, ae.CACHE, code) for p in ae.dev_files(dev, held_out, None)]
-    settings = MujocoSettings() if engine == "mujoco" else ShakeSettings()
+    settings = MujocoSettings(**(overrides or {})) if engine == "mujoco" else ShakeSettings()
     records: list = []
     for r in results:
         v = am.run(r, am.picked(r, per_file, sample_seed), engine, settings, ae.CACHE, "original", full=True,

@@ -200,9 +200,9 @@ class World:
         try:
             m.geom_margin[list(moving)] = reach
             mujoco.mj_collision(m, d)
-            gaps = [float(d.contact[i].dist) for i in range(d.ncon)
-                    if (int(d.contact[i].geom1) in moving and int(d.contact[i].geom2) in self.object_geoms)
-                    or (int(d.contact[i].geom2) in moving and int(d.contact[i].geom1) in self.object_geoms)]
+            con, obj = d.contact, self.object_geoms  # read as arrays: no Python object per contact
+            gaps = [dist for g1, g2, dist in zip(con.geom1.tolist(), con.geom2.tolist(), con.dist.tolist())
+                    if (g1 in moving and g2 in obj) or (g2 in moving and g1 in obj)]
         finally:
             m.geom_margin[:] = self._margins
         return min([reach, *gaps]), max(moving.values())

@@ -14,8 +14,10 @@ from planner.geometry.frames import UP
 from planner.validation.mujoco_settings import MujocoSettings
 
 
-def _steps(seconds: float, dt: float) -> int:
-    return max(1, int(round(seconds / dt)))
+def steps(seconds: float, dt: float) -> int:
+    """Time steps of ``dt`` [s] in a phase of ``seconds`` [s]: the nearest whole number, at least 1; none in a
+    phase of no time (the trial's settle or hold switched off)."""
+    return 0 if seconds == 0 else max(1, int(round(seconds / dt)))
 
 
 def load_path(s: MujocoSettings, pose: np.ndarray, tcp: np.ndarray, approach: np.ndarray,
@@ -25,13 +27,13 @@ def load_path(s: MujocoSettings, pose: np.ndarray, tcp: np.ndarray, approach: np
     ``approach`` (hand frame) through the tool centre point ``tcp`` (hand frame), translation along
     ``down`` (one after another, or all at once if ``shake_together``), hold (still)."""
     dt = s.timestep
-    still = np.repeat(pose[None], _steps(s.ramp_time, dt), axis=0)
-    n = _steps(s.lift_time, dt)
+    still = np.repeat(pose[None], steps(s.ramp_time, dt), axis=0)
+    n = steps(s.lift_time, dt)
     lift = np.repeat(pose[None], n, axis=0)
     lift[:, :3, 3] -= np.outer(s.lift * 0.5 * (1.0 - np.cos(np.pi * np.arange(1, n + 1) / n)), down)
     top = lift[-1]
     centre = top[:3, :3] @ tcp + top[:3, 3]
-    n = _steps(s.shake_cycles / s.shake_frequency, dt) if s.shake_cycles else 0
+    n = steps(s.shake_cycles / s.shake_frequency, dt) if s.shake_cycles else 0
     wave = np.sin(2 * np.pi * s.shake_frequency * dt * np.arange(1, n + 1))
     turns = [_rotations(top[:3, :3] @ axis, s.shake_angle * wave) for axis in _across(approach)]
     if s.shake_together:  # one cycle of both turns and the push at once
@@ -45,7 +47,7 @@ def load_path(s: MujocoSettings, pose: np.ndarray, tcp: np.ndarray, approach: np
     shift = shakes.pop() if s.shake_together else np.repeat(top[None], n, axis=0)  # the push, on the turn or alone
     shift[:, :3, 3] += np.outer(s.shake_distance * wave, down)
     shakes.append(shift)
-    hold = np.repeat(top[None], _steps(s.hold_time, dt), axis=0)
+    hold = np.repeat(top[None], steps(s.hold_time, dt), axis=0)
     return np.concatenate([still, lift, *shakes, hold])
 
 

@@ -85,7 +85,7 @@ from planner.validation.mujoco_fingers import (
     hold_closed,
     worm_target,
 )
-from planner.validation.mujoco_load import down_along, load_path, motion
+from planner.validation.mujoco_load import down_along, load_path, motion, steps
 from planner.validation.mujoco_settings import DIVERGED, MujocoSettings
 from planner.validation.mujoco_worlds import world_for
 from planner.validation.tolerances import DEFAULT_LEVER, GRAVITY
@@ -162,10 +162,6 @@ class _Diverged(Exception):
     """MuJoCo's state diverged: the trial ends without a verdict."""
 
 
-def _steps(seconds: float, dt: float) -> int:
-    return max(1, int(round(seconds / dt)))
-
-
 @dataclass
 class _Run:
     """One grasp's trial in a world."""
@@ -204,7 +200,7 @@ class _Run:
         w, s = self.world, self.s
         before = self._relative()
         self._close(start)
-        w.step(_steps(s.settle_time, s.timestep))
+        w.step(steps(s.settle_time, s.timestep))
         self._check()
         closed = self._relative()
         closing = motion(before, closed)
@@ -241,7 +237,7 @@ class _Run:
                 rest = frozenset(link for m in mimics for link in hand.joint(m).moves)
                 clutches.append(Clutch(j.name, mimics, frozenset(j.moves) - rest, rest))
         dt = s.timestep
-        every = _steps(CHECK_EVERY, dt)
+        every = steps(CHECK_EVERY, dt)
         lever = {j.name: 1.0 if j.kind == "prismatic" else DEFAULT_LEVER for j in hand.joints}
         # Worm-gear fingers (not backdrivable): the motor turns the finger, so it cannot run ahead of a finger
         # the object holds back (its target leads the joint by at most the servo's lag, where the servo pushes
@@ -252,7 +248,7 @@ class _Run:
         floor: dict[str, float] = {}
         still = 0.0
         first = self._skip_free_travel(moving) if s.free_travel_gap > 0 else 0
-        for i in range(first, _steps(closing_time(s, moving.values()), dt)):
+        for i in range(first, steps(closing_time(s, moving.values()), dt)):
             t = (i + 1) * dt
             done = True
             for name, target in moving.items():
@@ -322,9 +318,9 @@ class _Run:
         down = down_along(s.down, self.pose[:3, :3] @ self.hand.approach, resting_up(self.grasp.table_plane, self.up))
         weight = 0.0 if s.down == "none" else GRAVITY
         worst = [0.0, 0.0]
-        every = _steps(CHECK_EVERY, dt)
+        every = steps(CHECK_EVERY, dt)
         path = w.targets(load_path(s, self.pose, self.hand.tcp, self.hand.approach, down))
-        ramp = _steps(s.ramp_time, dt)
+        ramp = steps(s.ramp_time, dt)
         gone = (s.drop_factor * s.max_translation, s.drop_factor * s.max_rotation) if s.drop_factor else None
         for begin in range(0, len(path), every):  # a check after each `every` steps and after the last
             end = min(begin + every, len(path))

@@ -22,7 +22,7 @@ def _path(s: MujocoSettings):  # type: ignore[no-untyped-def]
 
 
 def test_the_path_starts_at_the_grasp_lifts_and_ends_still_at_the_top() -> None:
-    s = MujocoSettings(shake_together=False)
+    s = MujocoSettings(shake_together=False, hold_time=0.03)
     pose, _, path = _path(s)
     steps = round(s.ramp_time / s.timestep)
     assert_close(path[:steps], np.repeat(pose[None], steps, axis=0), TOL)
@@ -37,7 +37,7 @@ def test_the_path_starts_at_the_grasp_lifts_and_ends_still_at_the_top() -> None:
 def test_the_turns_keep_the_tool_centre_point_and_reach_the_named_peak_acceleration() -> None:
     s = MujocoSettings(shake_together=False)  # one turn after another
     pose, tcp, path = _path(s)
-    start = round((s.ramp_time + s.lift_time) / s.timestep)
+    start = round(s.ramp_time / s.timestep) + round(s.lift_time / s.timestep)
     n = round(1 / s.shake_frequency / s.timestep)
     turns = path[start:start + 2 * n]
     centres = turns[:, :3, :3] @ tcp + turns[:, :3, 3]
@@ -72,3 +72,11 @@ def test_a_shake_together_is_one_cycle_of_both_turns_and_the_push_at_once() -> N
     axis = np.array([relative[2, 1] - relative[1, 2], relative[0, 2] - relative[2, 0], relative[1, 0] - relative[0, 1]])
     approach = top[:3, :3] @ np.array([0.0, 0.0, 1.0])
     assert abs(axis @ approach) / np.linalg.norm(axis) < s.shake_angle  # across it, to second order
+
+
+def test_a_hold_of_no_time_adds_no_step() -> None:
+    s = MujocoSettings(hold_time=0.0)
+    _, _, path = _path(s)
+    assert len(path) == round(s.ramp_time / s.timestep) + round(s.lift_time / s.timestep) + \
+        round(1 / s.shake_frequency / s.timestep)
+

@@ -79,6 +79,14 @@ def test_a_negative_gap_or_a_drop_inside_the_thresholds_is_refused(bad) -> None:
         MujocoSettings(**bad)
 
 
+@pytest.mark.parametrize("bad", [{"ramp_time": 0.0}, {"lift_time": 0.0}, {"settle_time": -0.01}, {"hold_time": -0.01}])
+def test_a_load_without_a_ramp_or_a_lift_or_a_negative_settle_or_hold_is_refused(bad) -> None:  # type: ignore[no-untyped-def]
+    from planner.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="ramp_time and lift_time"):
+        MujocoSettings(**bad)
+
+
 @pytest.mark.parametrize("bad", [{"effort_scale": 0.0}, {"friction_scale": -1.0}, {"torsion_scale": -0.1},
                                  {"friction_cap": 0.0}])
 def test_scales_out_of_range_are_refused(bad) -> None:  # type: ignore[no-untyped-def]
@@ -438,3 +446,15 @@ def test_an_object_is_pulled_along_its_own_down_and_a_table_wins(pinched, monkey
     for plane, expected in ((None, down), (np.array([0.0, 0.0, 1.0, -0.02]), [0.0, 0.0, -1.0])):
         loaded = _weight_along(monkeypatch, hand, turned, replace(grasp, table_plane=plane))
         assert loaded and np.allclose(loaded, expected, rtol=0, atol=1e-12)
+
+
+def test_a_settle_of_no_time_takes_no_step(pinched, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    hand, obj, grasp = pinched
+    steps = _Steps(monkeypatch)
+    settled = trial(hand, obj, grasp, replace(MujocoSettings(), settle_time=0.01))
+    with_settle = steps.count
+    steps.count = 0
+    at_once = trial(hand, obj, grasp, replace(MujocoSettings(), settle_time=0.0))
+    assert settled.reason == at_once.reason == "held"
+    assert with_settle - steps.count == 5  # 0.01 s of 2 ms steps, and nothing for none
+
