@@ -76,6 +76,8 @@ class FingerClosing:
     _axes: dict[str, np.ndarray]
     _bounds: dict[tuple, dict[str, float]]
     _motions: dict[tuple, DofMotion]
+    _radius: dict[str, float]  # link with geometry -> [m] its radius about its own frame (:meth:`_measure_arms`)
+    _above: dict[str, tuple[str, float]]  # link -> (parent link, [m] bound of the distance between their frames)
 
     if TYPE_CHECKING:  # the queries of planner.plan.closing.Grasper
         def _obstacles(self, reach: float, link: str | None = None) -> Closest: ...
@@ -211,20 +213,38 @@ class FingerClosing:
     def _arm(self, top: str, link: str) -> float:
         """Largest distance [m] from the origin of link ``top`` (a joint's
         child frame, on its axis) to any point of ``link`` below it, in any
-        configuration: the link's radius about its own frame (from its box,
-        corners included) plus the distances between the frames up the chain,
-        each the fixed offset of a revolute or fixed joint, or that plus the
-        whole travel of a prismatic one (triangle inequality)."""
-        frame = self.sim.link_pose(self.body, link)[:3, 3]
-        lo, hi = self.sim.link_aabb(self.body, link)
-        corners = np.array(np.meshgrid(*zip(lo, hi))).T.reshape(-1, 3)
-        total = float(np.max(np.linalg.norm(corners - frame, axis=1)))
+        configuration: the link's radius about its own frame plus the distances
+        between the frames up the chain (triangle inequality), each measured
+        once with the hand (:meth:`_measure_arms`), so that the bound, and every
+        closing, is the same whichever pose the grasper closed first."""
+        total = self._radius[link]
         while link != top:
-            joint = self.sim.parent_joint(self.body, link)
-            parent = self.sim.link_pose(self.body, joint.parent)[:3, 3]
-            total += float(np.linalg.norm(frame - parent)) + joint.travel
-            link, frame = joint.parent, parent
+            link, offset = self._above[link]
+            total += offset
         return total
+
+    def _measure_arms(self) -> None:
+        """Measure what :meth:`_arm` adds up, once per grasper (moves the hand; the caller puts it back).
+
+        A link's radius: the largest distance from its frame to a corner of its box in its own frame
+        (PyBullet's box, margins included), read with the hand placed so that the link's frame is the world
+        frame; a box read in another frame would be larger, by how the link is turned. A frame's offset: its
+        distance to its parent link's frame with every finger joint at its lower limit (constant for a revolute
+        or fixed joint), plus the whole travel of a prismatic one."""
+        self.sim.set_pose(self.body, np.eye(4))
+        self.sim.set_joints(self.body, {j.name: j.lower for j in self.hand.joints})
+        frames = {link: self.sim.link_pose(self.body, link) for link in self.body.links}
+        self._radius, self._above = {}, {}
+        for link in self.geometry:
+            self.sim.set_pose(self.body, np.linalg.inv(frames[link]))
+            lo, hi = self.sim.link_aabb(self.body, link)
+            corners = np.array(np.meshgrid(*zip(lo, hi))).T.reshape(-1, 3)
+            self._radius[link] = float(np.max(np.linalg.norm(corners, axis=1)))
+        for link, index in self.body.links.items():
+            if index >= 0:
+                joint = self.sim.parent_joint(self.body, link)
+                offset = float(np.linalg.norm(frames[link][:3, 3] - frames[joint.parent][:3, 3])) + joint.travel
+                self._above[link] = (joint.parent, offset)
 
     def _speeds_now(self, dof: _Dof) -> dict[str, float]:
         """Upper bound of each moved link's point speed [m per unit s] in the current configuration."""
