@@ -106,28 +106,34 @@ class FingerClosing:
         s = self.settings
         q = dict(joints)
         dofs = self._dofs(preshape)
+        live: list[_Dof] = []
         for _ in range(s.max_iterations):
-            live = [d for d in dofs if d.active]
-            if not live:
-                break
-            motions = [self._motion(d.rates) for d in live]  # the lists below run along ``live``
-            speeds = [self._speeds(d) if self.reference else m.speeds(self, d) for d, m in zip(live, motions)]
+            if not live:  # the live DOFs and what they move, read again only once one stops or breaks away
+                live = [d for d in dofs if d.active]
+                if not live:
+                    break
+                motions = [self._motion(d.rates) for d in live]  # the lists below run along ``live``
+                speeds = [] if self.reference else [m.speeds(self, d) for d, m in zip(live, motions)]
+                movers: dict[str, list[int]] = {}  # link -> the live DOFs that move it, in ``live``'s order
+                for k, d in enumerate(live):
+                    for link in d.links:
+                        movers.setdefault(link, []).append(k)
+                sharing = {link: len(ks) for link, ks in movers.items()}
+                translating = frozenset().union(*(m.translating for m in motions))
+            if self.reference:  # its bounds, of the configuration now
+                speeds = [self._speeds(d) for d in live]
             rooms = [m.room(q) for m in motions]
             caps = [m.cap(room) for m, room in zip(motions, rooms)]
-            sharing: dict[str, int] = {}
-            for d in live:
-                for link in d.links:
-                    sharing[link] = sharing.get(link, 0) + 1
             pairs, gaps = {}, {}
-            translating = frozenset().union(*(m.translating for m in motions))
-            for link in sharing:
-                # several DOFs may move one link (a fingertip under three joints): their motions add up
-                reach = sum(speed.get(link, 0.0) * cap for speed, cap in zip(speeds, caps)) + s.contact_tol + s.gap
+            for link, ks in movers.items():
+                # several DOFs may move one link (a fingertip under three joints): their motions add up (the
+                # DOFs that do not move it would add 0.0: left out, the same sum to the bit)
+                reach = sum(speeds[k][link] * caps[k] for k in ks) + s.contact_tol + s.gap
                 if sharing[link] == 1 and link in translating:
                     pairs[link] = self._obstacles(reach, link)  # the directional bound reads the pairs
                 else:
                     gaps[link] = self._obstacle_gap(reach, link)
-            steps = [0.0] * len(live)
+            steps, reread = [0.0] * len(live), False
             for k, (d, m, speed, ds, room) in enumerate(zip(live, motions, speeds, caps, rooms)):
                 touched = set()
                 for link in d.links:
@@ -148,9 +154,11 @@ class FingerClosing:
                 if touched and d.after is not None and touched <= d.trigger:
                     # breakaway: the touching links stop, the rest of the finger closes on
                     d.rates, d.links, d.after = d.after, self._moved(d.after), None
+                    reread = True
                     continue
                 if touched or room <= JOINT_LIMIT_SLACK:
                     d.active = False
+                    reread = True
                     continue
                 steps[k] = min(ds, room)
             moved = {}
@@ -160,6 +168,8 @@ class FingerClosing:
                         q[j] += r * step
                         moved[j] = q[j]
             self.sim.set_joints(self.body, moved)
+            if reread:
+                live = []
         return q
 
     def _motion(self, rates: dict[str, float]) -> DofMotion:
