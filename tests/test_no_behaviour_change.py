@@ -69,7 +69,9 @@ squeeze and the number of ends as in 25, only the ends' values differ); 27 (issu
 takes no reach slot, its end ranking for it: three of the grasps as planned change reachability, score or rank); 28
 (issues 24, 26: a squeeze that turns back bisects its last turn: none of these runs' squeezes turns back, the digest
 is 27's, the squeezes and their ends included; the mug's change); 29 (a turn about another axis at a bracket's
-middle is a turn, not a half of the bracket: none of these runs' squeezes turns back, the digest is 28's).
+middle is a turn, not a half of the bracket: none of these runs' squeezes turns back, the digest is 28's); 30 (issue
+24: a finger's speed bound from the hand alone, not from the first pose a grasper closed: the Barrett's 64 grasps
+close a little differently, the Panda's 19 are 29's).
 """
 
 from __future__ import annotations

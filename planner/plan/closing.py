@@ -119,6 +119,9 @@ class Grasper(FingerClosing, ContactReading, ObstacleQueries):
         self._place(np.eye(4), {})
         self._axes: dict[str, np.ndarray] = {j.name: self.sim.joint_axis_in_base(self.body, j.name)
                                              for j in self.hand.joints if j.kind == "prismatic"}
+        if not self.reference:  # the speed bounds' parts, from the hand alone (not from the first pose closed)
+            self._measure_arms()
+            self._place(np.eye(4), {j.name: 0.0 for j in self.hand.joints})
         self._bounds: dict[tuple, dict[str, float]] = {}
         self._motions: dict[tuple, DofMotion] = {}
         self._relative: dict[tuple, list[np.ndarray]] = {}

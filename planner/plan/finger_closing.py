@@ -76,6 +76,8 @@ class FingerClosing:
     _axes: dict[str, np.ndarray]
     _bounds: dict[tuple, dict[str, float]]
     _motions: dict[tuple, DofMotion]
+    _radius: dict[str, float]  # link with geometry -> [m] its radius about its own frame (:meth:`_measure_arms`)
+    _above: dict[str, tuple[str, float]]  # link -> (parent link, [m] bound of the distance between their frames)
 
     if TYPE_CHECKING:  # the queries of planner.plan.closing.Grasper
         def _obstacles(self, reach: float, link: str | None = None, near: bool = False) -> Closest: ...
@@ -109,28 +111,34 @@ class FingerClosing:
         velocities: dict[tuple, np.ndarray | None] = {}  # the hand stays put while its fingers close: read once
         # translating links expected near the surface hulls at this step (ObstacleQueries._closest_near)
         near = {link for d in dofs for link in d.links} if near_first else set()
+        live: list[_Dof] = []
         for _ in range(s.max_iterations):
-            live = [d for d in dofs if d.active]
-            if not live:
-                break
-            motions = [self._motion(d.rates) for d in live]  # the lists below run along ``live``
-            speeds = [self._speeds(d) if self.reference else m.speeds(self, d) for d, m in zip(live, motions)]
+            if not live:  # the live DOFs and what they move, read again only once one stops or breaks away
+                live = [d for d in dofs if d.active]
+                if not live:
+                    break
+                motions = [self._motion(d.rates) for d in live]  # the lists below run along ``live``
+                speeds = [] if self.reference else [m.speeds(self, d) for d, m in zip(live, motions)]
+                movers: dict[str, list[int]] = {}  # link -> the live DOFs that move it, in ``live``'s order
+                for k, d in enumerate(live):
+                    for link in d.links:
+                        movers.setdefault(link, []).append(k)
+                sharing = {link: len(ks) for link, ks in movers.items()}
+                translating = frozenset().union(*(m.translating for m in motions))
+            if self.reference:  # its bounds, of the configuration now
+                speeds = [self._speeds(d) for d in live]
             rooms = [m.room(q) for m in motions]
             caps = [m.cap(room) for m, room in zip(motions, rooms)]
-            sharing: dict[str, int] = {}
-            for d in live:
-                for link in d.links:
-                    sharing[link] = sharing.get(link, 0) + 1
             pairs, gaps = {}, {}
-            translating = frozenset().union(*(m.translating for m in motions))
-            for link in sharing:
-                # several DOFs may move one link (a fingertip under three joints): their motions add up
-                reach = sum(speed.get(link, 0.0) * cap for speed, cap in zip(speeds, caps)) + s.contact_tol + s.gap
+            for link, ks in movers.items():
+                # several DOFs may move one link (a fingertip under three joints): their motions add up (the
+                # DOFs that do not move it would add 0.0: left out, the same sum to the bit)
+                reach = sum(speeds[k][link] * caps[k] for k in ks) + s.contact_tol + s.gap
                 if sharing[link] == 1 and link in translating:
                     pairs[link] = self._obstacles(reach, link, link in near)  # the directional bound reads the pairs
                 else:
                     gaps[link] = self._obstacle_gap(reach, link)
-            steps = [0.0] * len(live)
+            steps, reread = [0.0] * len(live), False
             moving: list[tuple[int, str, np.ndarray]] = []  # (DOF along ``live``, link, velocity): directional bounds
             for k, (d, m, speed, ds, room) in enumerate(zip(live, motions, speeds, caps, rooms)):
                 touched = set()
@@ -158,9 +166,11 @@ class FingerClosing:
                 if touched and d.after is not None and touched <= d.trigger:
                     # breakaway: the touching links stop, the rest of the finger closes on
                     d.rates, d.links, d.after = d.after, self._moved(d.after), None
+                    reread = True
                     continue
                 if touched or room <= JOINT_LIMIT_SLACK:
                     d.active = False
+                    reread = True
                     continue
                 steps[k] = min(ds, room)
             near = {link for k, link, velocity in moving
@@ -172,6 +182,8 @@ class FingerClosing:
                         q[j] += r * step
                         moved[j] = q[j]
             self.sim.set_joints(self.body, moved)
+            if reread:
+                live = []
         return q
 
     def _near_after(self, pairs: Closest, moved: np.ndarray) -> bool:
@@ -234,20 +246,38 @@ class FingerClosing:
     def _arm(self, top: str, link: str) -> float:
         """Largest distance [m] from the origin of link ``top`` (a joint's
         child frame, on its axis) to any point of ``link`` below it, in any
-        configuration: the link's radius about its own frame (from its box,
-        corners included) plus the distances between the frames up the chain,
-        each the fixed offset of a revolute or fixed joint, or that plus the
-        whole travel of a prismatic one (triangle inequality)."""
-        frame = self.sim.link_pose(self.body, link)[:3, 3]
-        lo, hi = self.sim.link_aabb(self.body, link)
-        corners = np.array(np.meshgrid(*zip(lo, hi))).T.reshape(-1, 3)
-        total = float(np.max(np.linalg.norm(corners - frame, axis=1)))
+        configuration: the link's radius about its own frame plus the distances
+        between the frames up the chain (triangle inequality), each measured
+        once with the hand (:meth:`_measure_arms`), so that the bound, and every
+        closing, is the same whichever pose the grasper closed first."""
+        total = self._radius[link]
         while link != top:
-            joint = self.sim.parent_joint(self.body, link)
-            parent = self.sim.link_pose(self.body, joint.parent)[:3, 3]
-            total += float(np.linalg.norm(frame - parent)) + joint.travel
-            link, frame = joint.parent, parent
+            link, offset = self._above[link]
+            total += offset
         return total
+
+    def _measure_arms(self) -> None:
+        """Measure what :meth:`_arm` adds up, once per grasper (moves the hand; the caller puts it back).
+
+        A link's radius: the largest distance from its frame to a corner of its box in its own frame
+        (PyBullet's box, margins included), read with the hand placed so that the link's frame is the world
+        frame; a box read in another frame would be larger, by how the link is turned. A frame's offset: its
+        distance to its parent link's frame with every finger joint at its lower limit (constant for a revolute
+        or fixed joint), plus the whole travel of a prismatic one."""
+        self.sim.set_pose(self.body, np.eye(4))
+        self.sim.set_joints(self.body, {j.name: j.lower for j in self.hand.joints})
+        frames = {link: self.sim.link_pose(self.body, link) for link in self.body.links}
+        self._radius, self._above = {}, {}
+        for link in self.geometry:
+            self.sim.set_pose(self.body, np.linalg.inv(frames[link]))
+            lo, hi = self.sim.link_aabb(self.body, link)
+            corners = np.array(np.meshgrid(*zip(lo, hi))).T.reshape(-1, 3)
+            self._radius[link] = float(np.max(np.linalg.norm(corners, axis=1)))
+        for link, index in self.body.links.items():
+            if index >= 0:
+                joint = self.sim.parent_joint(self.body, link)
+                offset = float(np.linalg.norm(frames[link][:3, 3] - frames[joint.parent][:3, 3])) + joint.travel
+                self._above[link] = (joint.parent, offset)
 
     def _speeds_now(self, dof: _Dof) -> dict[str, float]:
         """Upper bound of each moved link's point speed [m per unit s] in the current configuration."""

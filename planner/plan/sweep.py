@@ -45,8 +45,9 @@ if TYPE_CHECKING:  # sampling imports trimesh: `grasp --help` reads these settin
 #: such a grasp reached by its squeeze's epsilon. 26: that end is its squeeze's last closing, not closed again.
 #: 27: a parent whose end is kept takes no reach slot (the end ranks for it: planner.db.ranking). 28: a squeeze
 #: that turns back bisects its last turn (planner.plan.squeeze.bracketed). 29: at a bracket's middle, a turn about
-#: another axis is a turn, not a half of the bracket.
-ALGORITHM_VERSION = 29
+#: another axis is a turn, not a half of the bracket. 30: a finger's speed bound from the hand alone (its links'
+#: own boxes), not from the first pose a grasper closed: closings no longer depend on the order of work.
+ALGORITHM_VERSION = 30
 
 #: Named in the digest of sweeps on a table only (those of the object alone stay
 #: as they were), bumped when a change alters only which grasps they produce.

@@ -1,0 +1,93 @@
+"""Closing the fingers (:mod:`planner.plan.finger_closing`): a closing does not depend on which poses the grasper
+closed before it, and the speed bounds it steps by hold in every configuration."""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from planner.geometry.solid import prepare
+from planner.plan import sampling
+from planner.plan.closing import Closed, Grasper, Rejected
+from planner.sim import Sim
+from planner.specs.hands import load_hand
+from planner.specs.objects import ObjectSpec
+from planner.specs.preshapes import load_preshapes
+
+SEED = 0
+RAYS = 6
+#: [rad] the roll between two rays' candidates: each candidate turns the hand another way, and so its links' boxes
+ROLL_STEP = 0.7
+#: [m] round-off of a point moved by a joint, read back from the simulator
+POINT_TOL = 1e-9
+#: [rad] the joint step the bound is checked over (small: the bound is a speed)
+DQ = 1e-3
+CONFIGURATIONS = 20
+
+
+def _closings(grasper: Grasper, candidates: list, order: list[int]) -> dict[int, Closed | Rejected]:
+    return {i: grasper.close(*candidates[i]) for i in order}
+
+
+@pytest.mark.parametrize("name", ["barrett", "allegro"])
+def test_a_closing_does_not_depend_on_the_poses_closed_before(name: str) -> None:
+    """The same candidates closed in two orders, each by a new grasper: every closing the same to the last bit.
+    Before: the speed bound of a finger's links was read from the links' world boxes at the first pose closed, so
+    closed joints moved by up to 3e-3 rad (Barrett) and 0.12 rad (Allegro) with the order."""
+    hand = load_hand(name)
+    obj = prepare(ObjectSpec(name="box", kind="box", dims=(0.06, 0.045, 0.09), mass=0.2))
+    shape = next(s for s in load_preshapes(hand) if not s.table)
+    rays = sampling.sample(obj.mesh, sampler="surface", count=RAYS, rng=np.random.default_rng(SEED))
+    candidates = [(rays.points[i], rays.directions[i], ROLL_STEP * i, 0.0, shape, obj.torque_scale)
+                  for i in range(len(rays))]
+    runs = []
+    for order in (list(range(len(candidates))), list(reversed(range(len(candidates))))):
+        with Sim() as sim:
+            runs.append(_closings(Grasper.for_mesh(sim, hand, obj.mesh), candidates, order))
+    closed = [i for i, c in runs[0].items() if isinstance(c, Closed)]
+    assert len(closed) >= 2, "the test needs closings to compare"
+    for i in runs[0]:
+        a, b = runs[0][i], runs[1][i]
+        assert type(a) is type(b)
+        if isinstance(a, Closed):
+            assert isinstance(b, Closed)
+            assert a.closed_joints == b.closed_joints, f"candidate {i}"
+            assert np.array_equal(a.contacts.points, b.contacts.points)
+
+
+def _corners(sim: Sim, grasper: Grasper, link: str, frame: np.ndarray) -> np.ndarray:
+    """(8, 3) [m] world corners of ``link``'s box in its own frame, the link at ``frame`` (4, 4)."""
+    body = grasper.body
+    home = sim.link_pose(body, link)
+    base = sim.link_pose(body, next(n for n, i in body.links.items() if i == -1))
+    sim.set_pose(body, base @ np.linalg.inv(home))  # the link's frame at the world's: its box in its own frame
+    lo, hi = sim.link_aabb(body, link)
+    sim.set_pose(body, base)
+    local = np.array(list(itertools.product(*zip(lo, hi))))
+    return local @ frame[:3, :3].T + frame[:3, 3]
+
+
+@pytest.mark.parametrize("name", ["barrett", "allegro"])
+def test_the_speed_bounds_hold_in_every_configuration(name: str) -> None:
+    """At seeded configurations within the joint limits, a small step of each finger DOF moves no corner of a
+    moved link's own box (which holds the link's collision shape) farther than the DOF's bound times the step."""
+    hand = load_hand(name)
+    rng = np.random.default_rng(SEED)
+    shape = next(s for s in load_preshapes(hand) if not s.table)
+    with Sim() as sim:
+        grasper = Grasper.for_mesh(sim, hand, prepare(ObjectSpec(name="s", kind="sphere", dims=(0.01,),
+                                                                 mass=0.1)).mesh)
+        body = grasper.body
+        dofs = grasper._dofs(shape)
+        for _ in range(CONFIGURATIONS):
+            q = {j.name: float(rng.uniform(j.lower, j.upper)) for j in hand.joints}
+            for dof in dofs:
+                speeds = grasper._speeds(dof)
+                grasper._place(np.eye(4), q)
+                before = {link: _corners(sim, grasper, link, sim.link_pose(body, link)) for link in dof.links}
+                grasper._place(np.eye(4), {j: q[j] + r * DQ for j, r in dof.rates.items()})
+                for link in dof.links:
+                    moved = np.linalg.norm(_corners(sim, grasper, link, sim.link_pose(body, link)) - before[link],
+                                           axis=1)
+                    assert moved.max() <= speeds[link] * DQ + POINT_TOL, (link, moved.max(), speeds[link] * DQ)
+                grasper._place(np.eye(4), q)
