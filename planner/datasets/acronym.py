@@ -16,7 +16,7 @@ ACRONYM's published layout, readable by its own tools (``acronym_tools``:
                              frame (+z approach, fingers along x) in the object frame
     grasps/qualities/flex/object_in_gripper  int64 (N,)  1 = success, as ``--label``
                              chooses (planner.datasets.labels); attribute ``label_source``:
-                             "p_hold_trial", "trial", "p_hold", "force_closure" (a closure
+                             "file_label", "p_hold_trial", "trial", "p_hold", "force_closure" (a closure
                              flag) or "mixed"
     grasps/qualities/label_from  str (N,)  where each row's label came from
     grasps/qualities/flex/object_motion_during_{closing,shaking}_{linear,angular}
@@ -113,6 +113,7 @@ from planner.datasets.acronym_columns import (
     joints_of,
     measures_of,
     openings_of,
+    own_file,
     per_grasp,
     trial_columns,
     trials_of,
@@ -346,14 +347,14 @@ def read_labels(path: Path) -> np.ndarray:
 
 
 def read_file_labels(path: Path) -> list[FileLabel | None]:
-    """Per pose, the success label a foreign file gives it (``flex/object_in_gripper``: FleX's, a user's outcomes),
-    kept on import; None in files without it and in this project's, whose own label it is (``label_from``)."""
+    """Per pose, the label of the file it came from, kept on import: a foreign file's ``flex/object_in_gripper``
+    (FleX's, a user's outcomes); one of ours (:func:`own_file`) keeps them in ``file_label_*``. None: none given."""
     with open_file(path) as f:
-        n = len(f["grasps/transforms"])
-        if f"grasps/{FLEX}object_in_gripper" not in f or "grasps/qualities/label_from" in f:
-            return [None] * n
-    source = f"{path.name} grasps/{FLEX}object_in_gripper"
-    return [FileLabel(bool(v), source) for v in read_labels(path).tolist()]
+        g, n = f["grasps"], len(f["grasps/transforms"])
+        if own_file(g) or f"{FLEX}object_in_gripper" not in g:  # ours: its object_in_gripper is its own label
+            check_columns(path, g, n, ("file_label",))
+            return file_labels_of(g, n)
+    return [FileLabel(bool(v), f"{path.name} grasps/{FLEX}object_in_gripper") for v in read_labels(path).tolist()]
 
 
 def read_simulation(path: Path) -> list[tuple[Trial | None, RobustEpsilon | None, Trial | None]]:

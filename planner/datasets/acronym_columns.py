@@ -149,6 +149,15 @@ def file_labels_of(g: Any, n: int) -> list[FileLabel | None]:
             for ok, source in zip(columns["success"], columns["source"])]
 
 
+def own_file(g: Any) -> bool:
+    """Whether ``grasps/`` group ``g`` is of one of this project's exports, whose ``object_in_gripper`` is its own
+    label (:mod:`planner.datasets.labels`), never a file's: every export since the first carries
+    ``qualities/epsilon`` and that label's attribute ``label_source``, since 2026-12-02 ``qualities/label_from``."""
+    label = g.get(f"{FLEX}object_in_gripper")
+    return "qualities/epsilon" in g or "qualities/label_from" in g or (label is not None
+                                                                       and "label_source" in label.attrs)
+
+
 def trials_of(g: Any, group: str, n: int) -> list[Trial | None]:
     """The n rows' results of one trial group (None: not simulated, success -1)."""
     columns = trial_columns(g, group, n)

@@ -18,7 +18,7 @@ ACRONYM export (see :mod:`planner.datasets.acronym`)::
                 "density", "volume", "com", "inertia", "up", "p_hold_outside"},
      "gripper": {"type", "configuration", "configuration_joints", "joint_names", "export_frame"},
      "grasps": {"transforms": [N x 4 x 4], "object_in_gripper": [N booleans], "label_source": str,
-                "label_from": [N str: p_hold_trial, trial, p_hold or force_closure],
+                "label_from": [N str: file_label, p_hold_trial, trial, p_hold or force_closure],
                 "object_motion_during_closing_linear": [N], ..., "epsilon": [N], ...}}
 
 ``object.file`` is ``meshes/{object}.obj`` (relative to DIR) and

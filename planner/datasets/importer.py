@@ -78,6 +78,7 @@ from planner.run import pool
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, load_hand
 from planner.specs.objects import ObjectSpec
+from planner.specs.physical import check_physical
 from planner.specs.preshapes import load_preshapes, sweep_preshapes
 from planner.specs.up import up_axis
 
@@ -151,6 +152,7 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
     own meshes stand on ``"+y"``); a file that gives neither mass nor friction is said with the values taken."""
     reader = formats.reader(fmt)
     up = None if up is None else up_axis(up, "", "--up")
+    check_physical(mass, None, friction, prefix="--")  # as the option given, not as a file's object's
     plans = [_plan(Path(p), fmt, reader, hand, object_name, rescore, up=up, given=(mass, friction)) for p in paths]
     # every file's poses (and a lossless file's joints and contacts) read and checked before the database is opened:
     # a refused import (a NaN in grasps/transforms, a joint outside its limits, contacts that are not JSON) left an

@@ -42,8 +42,8 @@ EXPORT_COLUMNS = (("object_scale", "float64", "scale that turns `object_file` in
                    "metres)"),
                   ("object_file", "string", "the object's mesh, `meshes/{object}.obj`, relative to the export folder"),
                   ("label", "int64", "success label as `--label` chooses: 1 holds, 0 drops (see `label_from`)"),
-                  ("label_from", "string", "where the label came from: `p_hold_trial` (p_hold updated by the "
-                   "trial's verdict, >= 0.5), `trial` (the dynamic trial: MuJoCo's, else PyBullet's), `p_hold` "
+                  ("label_from", "string", "where the label came from: `file_label` (the label of the file the "
+                   "grasp was imported from), `p_hold_trial` (p_hold updated by the trial's verdict, >= 0.5), `trial` (the dynamic trial: MuJoCo's, else PyBullet's), `p_hold` "
                    "(p_hold >= 0.5) or `force_closure` (a closure flag, not a success label)"),
                   ("p_hold_outside", "string", "where the object lies outside the labelled objects the hand's "
                    "p_hold model was fitted on (`density 1,322 kg/m^3 (labels: 150-157 kg/m^3); friction 0.5 "

@@ -110,7 +110,8 @@ def _validation(group: str) -> list[Field]:
     return [declared(table, "grasp_id", "id", "int", "", v, "the grasp (`grasps.id`; the primary key)",
                      name=f"{prefix}grasp_id", key=True),
             *_from_record(g.cls, table, prefix, group, g.engine, g.ranked, v),
-            declared(table, "seed", "", "int", "", v, "seed of the noise (0 for a file's label)", name=f"{prefix}seed"),
+            declared(table, "seed", "", "int", "", v, "0: a file's label has no noise" if group == "file_label" else
+                     "seed of the noise", name=f"{prefix}seed"),
             declared(table, "settings", "", "text", "", v, "JSON settings that made it", name=f"{prefix}settings")]
 
 

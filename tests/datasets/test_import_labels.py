@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 from helpers import grasp, one_line_error
 
+from tests.datasets.support import export
 from tests.datasets.test_importer import foreign_file
 
 
@@ -75,3 +76,35 @@ def test_a_file_whose_labels_are_not_0_or_1_is_refused_before_the_database_is_ma
     code, _, err = grasp("import", str(foreign), "--db", str(tmp_path / "bad.db"))
     one_line_error(code, err, 2, "crate.h5: grasps/qualities/flex/object_in_gripper", "0/1")
     assert not (tmp_path / "bad.db").exists()
+
+
+def test_an_own_export_written_before_label_from_keeps_no_label_when_re_scored(db: Path, tmp_path: Path) -> None:
+    """Our exports before 2026-12-02 wrote no ``label_from``: their ``object_in_gripper`` (a trial's verdict, the
+    force-closure flag) was taken, under ``--rescore``, as the labels of the file they came from."""
+    path = export(db, "acronym", tmp_path / "ours", "--object", "box") / "box__panda.h5"
+    with h5py.File(path, "r+") as f:  # as those files were written
+        del f["grasps/qualities/label_from"], f["grasps/qualities/file_label_success"]
+        del f["grasps/qualities/file_label_source"]
+        assert set(f["grasps/qualities/flex/object_in_gripper"][()].tolist()) == {0, 1}
+    code, out, err = grasp("import", str(path), "--rescore", "--db", str(tmp_path / "again.db"))
+    assert code == 0 and "re-scored" in out and "labels kept" not in out, out + err
+    assert _stored(tmp_path / "again.db") == {}
+
+
+def test_an_export_of_a_files_labels_re_scored_keeps_them(db: Path, tmp_path: Path) -> None:
+    """An export keeps the labels of the file its grasps were imported from in ``file_label_*``; re-scored
+    (``--rescore``) it came back without them: its ``label_from`` said it was ours, and nothing else was read."""
+    foreign, _ = _labelled(db, tmp_path)
+    first = tmp_path / "first.db"
+    assert grasp("import", str(foreign), "--db", str(first))[0] == 0
+    out_dir = tmp_path / "out"
+    code, _, err = grasp("export", "--db", str(first), "--format", "acronym", "--out", str(out_dir), "--label",
+                         "force_closure")
+    assert code == 0, err
+    with h5py.File(out_dir / "crate__panda.h5", "r") as f:
+        given = f["grasps/qualities/file_label_success"][()].tolist()
+    code, out, err = grasp("import", str(out_dir / "crate__panda.h5"), "--rescore", "--db", str(tmp_path / "re.db"))
+    assert code == 0 and "the file's labels kept" in out, out + err
+    again = _stored(tmp_path / "re.db")  # re-scored: a grasp's candidate is its row in the export
+    assert again and all(s == given[row] and src == "crate.h5 grasps/qualities/flex/object_in_gripper"
+                         for row, (s, src) in again.items())

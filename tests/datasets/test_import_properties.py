@@ -66,3 +66,16 @@ def test_calibrate_says_the_mass_it_takes_for_a_file_without_one(db: Path, tmp_p
         read_for_rescoring(foreign)
     said = [r.getMessage() for r in caplog.records if "object/mass" in r.getMessage()]
     assert len(said) == 1 and "0.2 kg (the default)" in said[0] and "set object/mass in the file" in said[0], said
+
+
+@pytest.mark.parametrize(("option", "value", "said"), [("--mass", "-1", "--mass must be a positive number [kg]"),
+                                                        ("--mass", "nan", "--mass must be a positive number [kg]"),
+                                                        ("--friction", "5", "--friction must lie in (0, 3]")])
+def test_a_bad_mass_or_friction_is_refused_as_the_option_given(db: Path, tmp_path: Path, option: str, value: str,
+                                                                said: str) -> None:
+    """A bad --mass was refused as the object's ("object '.../crate.obj': mass must be ..."), not as the option the
+    user typed."""
+    foreign = _without(foreign_file(db, tmp_path, "box", "crate")[0], "mass", "friction")
+    code, _, err = grasp("import", str(foreign), "--db", str(tmp_path / "a.db"), option, value)
+    one_line_error(code, err, 2, said, f"got {float(value)}")
+    assert not (tmp_path / "a.db").exists()

@@ -4,8 +4,8 @@ MuJoCo trial of each hand's two best (one of them tried by both engines), an
 object whose mass and friction are not the registry's; then each export,
 read back (ACRONYM by ``grasp import``, the others by the plain readers
 below), gives the same value of every declared field the format carries,
-the settled epsilon, the Panda's p_hold and the trial results included, and the object's mass,
-friction and density. What each format carries is derived from the
+the settled epsilon, the Panda's p_hold, the trial results and an imported file's labels included,
+and the object's mass, friction and density. What each format carries is derived from the
 declaration (:mod:`planner.record.fields`) and each format's own mapping;
 :data:`NOT_CARRIED` says what each leaves out, so a new field that a format
 drops fails here instead of vanishing."""
@@ -101,6 +101,9 @@ def swept(tmp_path_factory: pytest.TempPathFactory) -> Path:
         # a squeeze's end comes back as one (the field set), beside grasps closed where planned (NULL)
         conn.execute("UPDATE grasps SET squeezed_from_turn = 0.375 WHERE id = (SELECT MIN(id) FROM grasps WHERE "
                      "hand = 'panda')")
+        # an imported file's own labels, held and dropped, on every third grasp (the others have none)
+        conn.execute("INSERT INTO file_labels SELECT id, id / 3 % 2, 'r3.h5 grasps/qualities/flex/object_in_gripper',"
+                     " 0, '{}' FROM grasps WHERE id % 3 = 0")
     code, _, err = grasp("validate", "--db", str(db), "--top", "1", "--robust", "2", "--workers", "1",
                          "--engine", "pybullet")
     assert code == 0, err
@@ -273,6 +276,8 @@ def test_every_hand_comes_back_through_every_format(fmt: str, swept: Path, tmp_p
                if hand == "barrett" and row["force_closure"]]  # only force-closure grasps settle
     assert settled and all(settled)
     assert all((row["p_hold"] is not None) == (hand == "panda") for (hand, _), row in expected.items())
+    # an imported file's labels, held and dropped, beside grasps without one
+    assert {row["file_label_success"] for row in expected.values()} == {True, False, None}
     # the squeeze's force closure: 1 and 0 of the Panda's, NULL of the hands that do not squeeze
     squeezed = {(hand, row["squeezed_force_closure"]) for (hand, _), row in expected.items()}
     assert {("panda", True), ("panda", False), ("barrett", None), ("allegro", None)} <= squeezed, squeezed
