@@ -25,9 +25,9 @@ ratio test (ties: the largest pivot; no pivot below ``LP_PIVOT_TOL`` of its row)
 
 Every answer is checked from the original data before it is used: an optimum
 by its basis recomputed (each basic value and reduced cost >= -``LP_TOL``, not
-relative to the largest, and the negative basic values moving each row by
-``LP_TOL`` of that row's own terms at most: the basis is optimal, so its
-objective is the program's optimum); an infeasible program by the leaving row of B^-1 A (>= 0 on
+relative to the largest, and those values, the negative ones set to 0,
+solving each row to ``LP_TOL`` of that row's own terms: the basis is optimal,
+so its objective is the program's optimum); an infeasible program by the leaving row of B^-1 A (>= 0 on
 every column to ``FARKAS_TOL`` of that column's own scale, tau's to s <= ``LP_TOL``,
 negative on the right-hand side: a Farkas certificate). A program whose check
 fails, or that did not finish in ``MAX_PIVOTS``, is solved by HiGHS. The same
@@ -222,13 +222,12 @@ def _checked(matrix: np.ndarray, rhs: np.ndarray, status: np.ndarray, basis: np.
 
 
 def _rows_hold(basic: np.ndarray, x: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """(m,) whether the basic values ``x`` (m, n) of the bases ``basic`` (m, n, n) are feasible in every row on
-    that row's own scale: x with its negative values set to 0 solves the program whose right-hand side moved by
-    B x^-, which must be within LP_TOL of the row's terms |B_k| x^+ + |b_k|. An absolute bound on x alone passed
-    a slack of -5.6e-10 in a motor row of bound 0 whose terms were 5.6e-10 too (rows scaled by 1e-4, the wrench
-    by 1e5): the forces broke the row by all they pushed on it, and s was 50 where no force balances the load."""
-    roundoff = x >= -LP_ROUNDOFF * np.abs(x).max(axis=1, keepdims=True)
-    low = np.where(roundoff, 0.0, np.minimum(x, 0.0))  # x^-, 0 where within round-off of 0
-    high = np.where(roundoff, np.maximum(x, 0.0), 0.0)  # x^+
-    moved = np.abs(np.einsum("mij,mj->mi", basic, low))
-    return (moved <= LP_TOL * (np.einsum("mij,mj->mi", np.abs(basic), high) + np.abs(rhs))).all(axis=1)
+    """(m,) whether the basic values ``x`` (m, n) of the bases ``basic`` (m, n, n), the negative ones and those
+    within round-off of 0 (``LP_ROUNDOFF`` of the largest) set to 0, solve B x = b in every row to LP_TOL of that
+    row's own terms |B_k| x + |b_k|, recomputed from the data: not implied by each x >= -LP_TOL. A slack of
+    -5.6e-10 in a motor row of bound 0 whose terms were 5.6e-10 too (rows scaled by 1e-4, the wrench by 1e5) was
+    a force the row forbids, and s 50 where no force balances the load; a bound of 8.6e12 left B^-1 b (B of
+    condition ~1e29) off the wrench rows by 1e-3 of their terms, s 0.0138 where 0.0104 holds."""
+    kept = np.where(x > LP_ROUNDOFF * np.abs(x).max(axis=1, keepdims=True), x, 0.0)
+    residual = rhs - np.einsum("mij,mj->mi", basic, kept)
+    return (np.abs(residual) <= LP_TOL * (np.einsum("mij,mj->mi", np.abs(basic), kept) + np.abs(rhs))).all(axis=1)
