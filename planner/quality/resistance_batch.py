@@ -27,8 +27,8 @@ Every answer is checked from the original data before it is used: an optimum
 by its basis recomputed (each basic value and reduced cost >= -``LP_TOL``, not
 relative to the largest, and those values, the negative ones set to 0,
 solving each row to ``LP_TOL`` of that row's own terms: the basis is optimal,
-so its objective is the program's optimum); an infeasible program by the leaving row of B^-1 A (>= 0 on
-every column to ``FARKAS_TOL`` of that column's own scale, tau's to s <= ``LP_TOL``,
+so its objective is the program's optimum); an infeasible program by the
+leaving row of B^-1 A (>= 0 on every column to ``FARKAS_TOL`` of that column's own scale, tau's to s <= ``LP_TOL``,
 negative on the right-hand side: a Farkas certificate). A program whose check
 fails, or that did not finish in ``MAX_PIVOTS``, is solved by HiGHS. The same
 optima as ``solve``: to 8e-11 g on the 22,218 (grasp, direction) programs of the Panda's mug and
@@ -227,7 +227,7 @@ def _rows_hold(basic: np.ndarray, x: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     row's own terms |B_k| x + |b_k|, recomputed from the data: not implied by each x >= -LP_TOL. A slack of
     -5.6e-10 in a motor row of bound 0 whose terms were 5.6e-10 too (rows scaled by 1e-4, the wrench by 1e5) was
     a force the row forbids, and s 50 where no force balances the load; a bound of 8.6e12 left B^-1 b (B of
-    condition ~1e29) off the wrench rows by 1e-3 of their terms, s 0.0138 where 0.0104 holds."""
+    condition ~1e29) off five rows by up to 5% of their terms, s 0.0138 where 0.0104 holds."""
     kept = np.where(x > LP_ROUNDOFF * np.abs(x).max(axis=1, keepdims=True), x, 0.0)
     residual = rhs - np.einsum("mij,mj->mi", basic, kept)
     return (np.abs(residual) <= LP_TOL * (np.einsum("mij,mj->mi", np.abs(basic), kept) + np.abs(rhs))).all(axis=1)
