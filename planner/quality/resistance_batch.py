@@ -25,9 +25,10 @@ ratio test (ties: the largest pivot; no pivot below ``LP_PIVOT_TOL`` of its row)
 
 Every answer is checked from the original data before it is used: an optimum
 by its basis recomputed (each basic value and reduced cost >= -``LP_TOL``, not
-relative to the largest: the basis is optimal, so its objective is the
-program's optimum); an infeasible program by the leaving row of B^-1 A (>= 0 on
-every column to ``FARKAS_TOL`` of that column's own scale, tau's to s <= ``LP_TOL``,
+relative to the largest, and those values, the negative ones set to 0,
+solving each row to ``LP_TOL`` of that row's own terms: the basis is optimal,
+so its objective is the program's optimum); an infeasible program by the
+leaving row of B^-1 A (>= 0 on every column to ``FARKAS_TOL`` of that column's own scale, tau's to s <= ``LP_TOL``,
 negative on the right-hand side: a Farkas certificate). A program whose check
 fails, or that did not finish in ``MAX_PIVOTS``, is solved by HiGHS. The same
 optima as ``solve``: to 8e-11 g on the 22,218 (grasp, direction) programs of the Panda's mug and
@@ -46,7 +47,7 @@ import numpy as np
 import scipy.linalg
 
 from planner.quality.resistance import ResistanceProgram, row_space, solve
-from planner.quality.tolerances import FARKAS_TOL, LP_PIVOT_TOL, LP_TOL, RANK_TOL
+from planner.quality.tolerances import FARKAS_TOL, LP_PIVOT_TOL, LP_ROUNDOFF, LP_TOL, RANK_TOL
 
 #: Pivots of one stack before its programs still running go to HiGHS (the Panda's: ~10, at most ~35).
 MAX_PIVOTS = 100
@@ -201,7 +202,7 @@ def _checked(matrix: np.ndarray, rhs: np.ndarray, status: np.ndarray, basis: np.
     scale = 1.0 + np.abs(x).max(axis=1)
     # each basic value >= -LP_TOL on its own: one of the largest's round-off would let a small one be negative
     # enough to be another vertex (a program of slack ~4e3 took x = -1.8e-6 for 0: s 17.21, not 13.77 g)
-    optimal = (status == 1) & (x.min(axis=1) >= -LP_TOL) & (reduced.min(axis=1) >= -LP_TOL)
+    optimal = (status == 1) & (x.min(axis=1) >= -LP_TOL) & (reduced.min(axis=1) >= -LP_TOL) & _rows_hold(b, x, rhs)
     t = np.where(on_tau, x, 0.0).sum(axis=1) + 1.0 / cap
     out[optimal] = np.minimum(1.0 / t[optimal], cap[optimal])
     # infeasible: the row of B^-1 whose basic value is most negative, >= 0 on every column of A
@@ -218,3 +219,15 @@ def _checked(matrix: np.ndarray, rhs: np.ndarray, status: np.ndarray, basis: np.
     proven = (status == 2) & clean.all(axis=1) & (yb < -LP_TOL * scale) & bounded
     out[proven] = 0.0
     return out
+
+
+def _rows_hold(basic: np.ndarray, x: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """(m,) whether the basic values ``x`` (m, n) of the bases ``basic`` (m, n, n), the negative ones and those
+    within round-off of 0 (``LP_ROUNDOFF`` of the largest) set to 0, solve B x = b in every row to LP_TOL of that
+    row's own terms |B_k| x + |b_k|, recomputed from the data: not implied by each x >= -LP_TOL. A slack of
+    -5.6e-10 in a motor row of bound 0 whose terms were 5.6e-10 too (rows scaled by 1e-4, the wrench by 1e5) was
+    a force the row forbids, and s 50 where no force balances the load; a bound of 8.6e12 left B^-1 b (B of
+    condition ~1e29) off five rows by up to 5% of their terms, s 0.0138 where 0.0104 holds."""
+    kept = np.where(x > LP_ROUNDOFF * np.abs(x).max(axis=1, keepdims=True), x, 0.0)
+    residual = rhs - np.einsum("mij,mj->mi", basic, kept)
+    return (np.abs(residual) <= LP_TOL * (np.einsum("mij,mj->mi", np.abs(basic), kept) + np.abs(rhs))).all(axis=1)

@@ -100,9 +100,15 @@ INERTIA_TOL = 1e-9
 GRAVITY = 9.81
 
 #: The batched dual simplex of the weight resistance (:mod:`planner.quality.resistance_batch`): a basic value
-#: above -LP_TOL x (1 + the largest) and a reduced cost above -LP_TOL count as feasible and optimal. HiGHS's own
-#: feasibility tolerances are 1e-7; a basis that passes at 1e-9 gives the optimum to ~1e-10 g.
+#: above -LP_TOL, the values (the negative ones set to 0) solving each row to LP_TOL of that row's own terms, and a
+#: reduced cost above -LP_TOL, count as feasible and optimal. HiGHS's own feasibility tolerances are 1e-7; a basis
+#: that passes at 1e-9 gives the optimum to ~1e-10 g.
 LP_TOL = 1e-9
+#: ... and a basic value within LP_ROUNDOFF x the largest of 0 is round-off of B^-1 b, a 0, where each row is
+#: checked on its own terms: the Barrett's mug unit's programs pass from 1e-15 on (values ~1e-16 of the largest in
+#: its degenerate motor rows of bound 0, whose every term is 0); the slack of -5.6e-10 that gave 50 g for 0 was
+#: 8.6e-10 of the largest.
+LP_ROUNDOFF = 1e-12
 #: ... and a pivot smaller than LP_PIVOT_TOL x the largest entry of its row is not taken: a smaller one blew a
 #: Barrett program's tableau up to inf (its answer then came from HiGHS, but after a detour).
 LP_PIVOT_TOL = 1e-7

@@ -214,8 +214,11 @@ def test_a_basis_a_little_infeasible_beside_a_large_value_is_not_taken_for_the_o
     a certificate negative by less than LP_TOL of the table's largest entry (a motor bound of 1e7) 'proved'
     0 where 0.099 g holds (seed 13); others gave 50 g for 0 (seeds 15, 64), and 0 for 50 g (seed 1107: a
     certificate entry -1.8e-8, a generator 1e-9 from parallel to another), and 0 for 2e-6 g (seed 1110: a motor
-    bound of 1.7e8 N, the certificate's tolerance on tau's column ~1e-4). Now HiGHS solves them."""
-    for seed in (1, 13, 15, 20, 24, 64, 98, 107, 143, 1107, 1110):
+    bound of 1.7e8 N, the certificate's tolerance on tau's column ~1e-4), and 50 for 0 (seed 6412842: a slack of
+    -5.6e-10, within LP_TOL, in a motor row of bound 0 whose terms were 5.6e-10: a force the row forbids), and
+    0.0138 for 0.0104 g (seed 2371: a motor bound of 8.6e12 left B^-1 b off five rows by up to 5% of their
+    terms, every basic value and reduced cost within LP_TOL). Now HiGHS solves them."""
+    for seed in (1, 13, 15, 20, 24, 64, 98, 107, 143, 1107, 1110, 2371, 6412842):
         programs = adversarial_programs(np.random.default_rng(seed))
         for prog, got in zip(programs, solve_many(programs, SPHERE14)):
             assert_close(got, tight_reference(prog, SPHERE14), rel=1e-6, abs_=1e-6, what=f"seed {seed}")
