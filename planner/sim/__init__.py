@@ -394,8 +394,7 @@ class Sim:
         rows = self._rows(a, b, max_distance, link_a)
         if not rows:
             return _EMPTY
-        # one conversion of every row (on A, on B, normal, distance, link) instead of one per column: the same
-        # values, ~0.6x the cost (closing asks ~7 times a grasp, ~100 rows from a scan's mesh)
+        # every row at once (on A, on B, normal, distance, link): the same values, ~0.6x one conversion per column
         flat = np.array([r[5] + r[6] + r[7] + (r[8], r[3]) for r in rows], float)
         return Closest(flat[:, 10].astype(int), flat[:, 9].copy(), flat[:, 0:3].copy(), flat[:, 3:6].copy(),
                        flat[:, 6:9].copy())
