@@ -112,6 +112,15 @@ def turn(contacts: HandContacts, sides: tuple[frozenset[str], frozenset[str]], p
     (3,) (hand frame, unit) lies along the wall's normal: the difference of the mean contact normals of the
     two fingers' links ``sides`` (``share`` < 1: that share of the way); None when a finger has no contact, the
     axis already lies along it, or the normals give no wall's normal (opposite means cancelling, or not finite)."""
+    whole = turning(contacts, sides, pose, axis)
+    return None if whole is None else turned(pose, *whole, share)
+
+
+def turning(contacts: HandContacts, sides: tuple[frozenset[str], frozenset[str]], pose: np.ndarray,
+            axis: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """What :func:`turn` turns ``pose`` by, whatever the share: ((3,) [rad] the whole turn's rotation vector, object
+    frame; (3,) [m] the contacts' centre it turns about), or None where :func:`turn` gives None. Read once a closing:
+    every share of the turn, :func:`turned`, is made from it (the same values as reading it again)."""
     on = [np.array([link in side for link in contacts.links]) for side in sides]
     if not all(s.any() for s in on):
         return None
@@ -124,8 +133,13 @@ def turn(contacts: HandContacts, sides: tuple[frozenset[str], frozenset[str]], p
     angle = float(np.arctan2(np.linalg.norm(cross), along @ wall))
     if angle < MIN_TURN:
         return None
-    rotation = Rotation.from_rotvec(cross / np.linalg.norm(cross) * angle * share).as_matrix()
-    centre = contacts.points[on[0] | on[1]].mean(axis=0)
+    return cross / np.linalg.norm(cross) * angle, contacts.points[on[0] | on[1]].mean(axis=0)
+
+
+def turned(pose: np.ndarray, whole: np.ndarray, centre: np.ndarray, share: float = 1.0) -> np.ndarray:
+    """(4, 4) the hand ``pose`` (4, 4) turned by ``share`` of the rotation vector ``whole`` (3,) [rad] about
+    ``centre`` (3,) [m] (object frame; :func:`turning`)."""
+    rotation = Rotation.from_rotvec(whole * share).as_matrix()
     out = np.eye(4)
     out[:3, :3] = rotation @ pose[:3, :3]
     out[:3, 3] = rotation @ (pose[:3, 3] - centre) + centre
@@ -181,14 +195,16 @@ def _squeezed(grasper: Grasper, closed: Closed, preshape: Preshape, planned: Qua
         joints = dict(closed.closed_joints)
         joints[master.name] += -np.sign(master.close) * REOPEN
         joints = hand.full_configuration({j.name: joints[j.name] for j in hand.driven})
-        whole = turn(closed.contacts, sides, closed.pose, axis)
-        if whole is None:
+        by = turning(closed.contacts, sides, closed.pose, axis)
+        if by is None:
             break
+        whole = turned(closed.pose, *by)
         bracket = bracketed(bracket, before, closed.pose, whole)
         middle = [] if bracket is None else [midway(*bracket)]  # where that overlaps, or no bracket: the turn's shares
-        turned = itertools.chain(middle, (turn(closed.contacts, sides, closed.pose, axis, share) for share in SHARES))
-        pose = next((p for p in turned if p is None or not (grasper.overlaps_at(p, joints)
-                                                             or through_table(grasper, start, p))), None)
+        shares = (whole if share == 1.0 else turned(closed.pose, *by, share) for share in SHARES)  # whole: made once
+        tried = itertools.chain(middle, shares)
+        pose = next((p for p in tried if not (grasper.overlaps_at(p, joints) or through_table(grasper, start, p))),
+                    None)
         if pose is None:
             break
         if not any(pose is m for m in middle):
@@ -213,13 +229,17 @@ def bracketed(bracket: Bracket | None, before: np.ndarray | None, pose: np.ndarr
     where ``whole`` turns back the way it came (cosine above :data:`REVERSED`), else None. At a bracket's middle
     too, a turn about another axis (the cosine with either end's not above :data:`REVERSED`: on the quick start's
     mug 11 of 327 until ALGORITHM_VERSION 29, which halved the bracket by that cosine's sign) is taken as a turn."""
+    way = rotvec(pose, whole)  # read once: each cosine below is of the turn from ``pose`` to ``whole``
+    toward = 0.0
     if bracket is not None:
-        toward = cosine(pose, whole, bracket[1])
+        toward = _cosine(way, rotvec(pose, bracket[1]))
         if abs(toward) > REVERSED:
             return (pose, bracket[1]) if toward > 0.0 else (bracket[0], pose)
-    if before is not None and cosine(pose, whole, before) > REVERSED:
-        return before, pose
-    return None
+    if before is None:
+        return None
+    # after a closing at a bracket's middle, ``before`` is the bracket's end (the same array): its cosine is read
+    back = toward if bracket is not None and before is bracket[1] else _cosine(way, rotvec(pose, before))
+    return (before, pose) if back > REVERSED else None
 
 
 def rotvec(source: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -230,7 +250,11 @@ def rotvec(source: np.ndarray, target: np.ndarray) -> np.ndarray:
 def cosine(pose: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     """The cosine between the turns from ``pose`` to ``a`` and from ``pose`` to ``b`` (all (4, 4)); 0 where either
     does not turn."""
-    u, v = rotvec(pose, a), rotvec(pose, b)
+    return _cosine(rotvec(pose, a), rotvec(pose, b))
+
+
+def _cosine(u: np.ndarray, v: np.ndarray) -> float:
+    """The cosine between the rotation vectors ``u`` (3,) and ``v`` (3,) [rad]; 0 where either is 0."""
     norms = float(np.linalg.norm(u) * np.linalg.norm(v))
     return float(u @ v) / norms if norms > 0.0 else 0.0
 

@@ -16,7 +16,7 @@ from scipy.spatial.transform import Rotation
 from planner.datasets.importer import RescoreUnit, rescore_poses
 from planner.geometry.solid import load_object
 from planner.plan import keeping, unit
-from planner.plan.squeeze import bracketed, midway, squeezes, turn
+from planner.plan.squeeze import SHARES, bracketed, cosine, midway, squeezes, turn, turned, turning
 from planner.plan.sweep import SweepSettings
 from planner.record.contacts import HandContacts
 from planner.specs.hands import load_hand
@@ -328,3 +328,57 @@ def test_at_a_brackets_middle_a_turn_about_another_axis_is_a_turn_not_a_half(lea
     whole = np.eye(4)
     whole[:3, :3] = Rotation.from_rotvec([0.3, 0.0, 0.3 * lean]).as_matrix() @ middle[:3, :3]
     assert bracketed((low, high), high, middle, whole) is None
+
+
+def test_every_share_of_a_turn_is_made_from_one_reading_of_the_contacts() -> None:
+    """The squeeze reads a closing's turn once (:func:`turning`) and makes each share from it (:func:`turned`): the
+    same poses, bit for bit, as :func:`turn` reading the contacts again for each share; None where it gives None."""
+    rng = np.random.default_rng(7)
+    sides, axis = (frozenset({"a"}), frozenset({"b"})), np.array([0.0, 1.0, 0.0])
+    for _ in range(50):
+        normals = rng.normal(size=(6, 3))
+        normals /= np.linalg.norm(normals, axis=1)[:, None]
+        contacts = HandContacts(rng.normal(scale=0.01, size=(6, 3)), normals, ("a", "a", "b", "b", "a", "b"))
+        pose = np.eye(4)
+        pose[:3, :3] = Rotation.from_rotvec(rng.normal(size=3)).as_matrix()
+        pose[:3, 3] = rng.normal(scale=0.1, size=3)
+        by = turning(contacts, sides, pose, axis)
+        assert by is not None
+        for share in SHARES:
+            assert np.array_equal(turned(pose, *by, share), turn(contacts, sides, pose, axis, share))
+    assert turning(HandContacts(np.zeros((1, 3)), np.array([[0.0, 1.0, 0.0]]), ("a",)), sides, np.eye(4), axis) is None
+
+
+def test_bracketed_reads_each_cosine_as_the_plain_rule_does() -> None:
+    """:func:`bracketed` reads the turn from ``pose`` once (and, after a closing at a bracket's middle, the cosine with
+    the bracket's end once for both ends of its rule): the same brackets as the rule written plainly, on random
+    poses."""
+    def plain(bracket, before, pose, whole):  # type: ignore[no-untyped-def]
+        if bracket is not None:
+            toward = cosine(pose, whole, bracket[1])
+            if abs(toward) > 0.7:
+                return (pose, bracket[1]) if toward > 0.0 else (bracket[0], pose)
+        if before is not None and cosine(pose, whole, before) > 0.7:
+            return before, pose
+        return None
+
+    rng = np.random.default_rng(3)
+
+    def near(pose: np.ndarray) -> np.ndarray:
+        out = np.eye(4)
+        out[:3, :3] = Rotation.from_rotvec(rng.normal(scale=0.2, size=3)).as_matrix() @ pose[:3, :3]
+        return out
+
+    answers = set()
+    for _ in range(200):
+        low = near(np.eye(4))
+        high = near(low)
+        pose = midway(low, high)
+        whole = near(pose)
+        for bracket, before in (((low, high), high), ((low, high), low), (None, high), ((low, high), None),
+                                (None, None)):
+            got, want = bracketed(bracket, before, pose, whole), plain(bracket, before, pose, whole)
+            assert (got is None) == (want is None)
+            assert got is None or all(a is b for a, b in zip(got, want))
+            answers.add(None if got is None else tuple(id(a) for a in got) == (id(before), id(pose)))
+    assert answers == {None, True, False}  # each answer drawn: none, a new bracket, a half
