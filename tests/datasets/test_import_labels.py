@@ -9,6 +9,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pandas as pd
+import pytest
 from helpers import grasp, one_line_error
 
 from tests.datasets.support import export
@@ -108,3 +109,31 @@ def test_an_export_of_a_files_labels_re_scored_keeps_them(db: Path, tmp_path: Pa
     again = _stored(tmp_path / "re.db")  # re-scored: a grasp's candidate is its row in the export
     assert again and all(s == given[row] and src == "crate.h5 grasps/qualities/flex/object_in_gripper"
                          for row, (s, src) in again.items())
+
+
+@pytest.mark.parametrize("model", [False, True], ids=["no-model", "shipped-model"])
+def test_the_report_compares_p_hold_and_the_score_with_an_imported_files_own_labels(
+        db: Path, tmp_path: Path, model: bool, request: pytest.FixtureRequest) -> None:
+    """`grasp report` on a database whose only outcomes were an imported file's labels said "no validated grasps"
+    (exit 2): the labels the user imported were never compared with p_hold or the score. Now a section names them by
+    their source, apart from this project's trials, with the ROC AUCs against them; where a p_hold model applies,
+    its reliability table against them too (the diagram's curve, its ECE)."""
+    if model:
+        request.getfixturevalue("shipped_models")
+    foreign, _ = _labelled(db, tmp_path)
+    first = tmp_path / "first.db"
+    assert grasp("import", str(foreign), "--db", str(first))[0] == 0
+    stored = _stored(first)
+    held = sum(s for s, _ in stored.values())
+    code, out, err = grasp("report", "--db", str(first), "--out", str(tmp_path / "r"))
+    assert code == 0, err
+    source = "crate.h5 grasps/qualities/flex/object_in_gripper"
+    text = (tmp_path / "r" / "report.md").read_text()
+    aucs = "ROC AUC of p_hold against them " if model else "dropped; ROC AUC of the analytic score against them "
+    for said in (out, text):
+        assert f"panda: the imported files' own labels ({source}; the files', not a trial of this project's): " \
+               f"{len(stored)} grasps, {held} held, {len(stored) - held} dropped; " in said and aucs in said, said
+        ece = f"panda: ECE of p_hold (the imported files' own labels ({source}), {len(stored)} grasps) = "
+        assert (ece in said) == model
+    assert "trials: " not in text and "No validated grasps: " in text
+    assert (tmp_path / "r" / "reliability_panda.png").exists() == model

@@ -153,7 +153,21 @@ def test_the_analytic_score_is_read_without_the_trials_it_is_scored_against() ->
     rep = report.HandReport("panda", rule=RankingRule(), grasps=grasps)
     assert np.allclose(rep.measure("analytic"), [0.9, 0.8, 0.3, 0.2])
     assert np.allclose(report.untried_analytic(RankingRule(), grasps), [0.9, 0.8, 0.3, 0.2])
-    assert dict(report._summary_rows(rep))["verdicts from"] == "MuJoCo 4, PyBullet 0"  # the report says whose
+    assert dict(report._summary_rows(rep))["verdicts from"] == "MuJoCo 4"  # the report says whose
+
+
+def test_the_reliability_legend_names_only_the_engines_whose_trials_it_draws() -> None:
+    """The quick start's report drew p_hold against 3 MuJoCo trials under the legend "trials: MuJoCo 3, PyBullet 0",
+    which read as a PyBullet trial that held none."""
+    from planner.calibration.metrics import reliability
+    from planner.record.grasp import Trial
+
+    held = Trial(True, 2, 0.0, 0.0, 0.0, 0.0, "held")
+    for tried, said in ((dict(mujoco=held), "trials: MuJoCo 3"), (dict(validation=held), "trials: PyBullet 3")):
+        grasps = [replace(made_up(i, 0.05), p_hold=0.9, **tried) for i in range(3)]
+        cal = report.HandCalibration("panda", "shipped", None, reliability(np.ones(3), np.full(3, 0.9)),
+                                     engines=report.engines(grasps))
+        assert [label for label, _ in cal.curves()] == [said]
 
 
 def test_a_trial_with_one_outcome_only_says_no_auc_can_be_made() -> None:
