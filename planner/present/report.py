@@ -189,6 +189,22 @@ def collect(db_path: Path, allow_empty: bool = False) -> list[HandReport]:
 
 
 def _plot(report: HandReport) -> bytes:
+    import matplotlib.pyplot as plt
+
+    fig = decile_figure(report)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=100)
+    plt.close(fig)
+    return buffer.getvalue()
+
+
+#: [pt] the decile chart's tick labels (at 6 pt, "0.004-0.006" under a bar could not be read).
+TICK_SIZE = 8
+
+
+def decile_figure(report: HandReport):  # type: ignore[no-untyped-def]
+    """The success rate by epsilon decile as a matplotlib figure, each bar's grasps written on it; fewer
+    grasps than ten deciles make fewer bins, said as bins of equal count, not deciles."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -197,17 +213,17 @@ def _plot(report: HandReport) -> bytes:
     eps, ok = report.measure("epsilon"), report.success
     bins = deciles(eps, ok)
     fig, ax = plt.subplots(figsize=(6, 3.2))
-    ax.bar(range(len(bins)), [b[2] for b in bins], color="#4a7bb7")
-    ax.set_xticks(range(len(bins)), [f"{b[0]:.3f}-\n{b[1]:.3f}" for b in bins], fontsize=6)
-    ax.set_ylim(0, 1)
-    ax.set_xlabel("epsilon decile")
+    bars = ax.bar(range(len(bins)), [b[2] for b in bins], color="#4a7bb7")
+    ax.bar_label(bars, [f"n={b[3]}" for b in bins], fontsize=TICK_SIZE)
+    ax.set_xticks(range(len(bins)), [f"{b[0]:.3f}-\n{b[1]:.3f}" for b in bins], fontsize=TICK_SIZE)
+    ax.set_ylim(0, 1.12)  # room for the counts over a bar of 1
+    ax.set_yticks(np.linspace(0, 1, 6))
+    ax.set_xlabel("epsilon decile" if len(bins) == 10 else f"epsilon, {len(bins)} bins of equal count (too few grasps "
+                  "for deciles)" if len(eps) < 10 else f"epsilon, {len(bins)} bins (deciles of tied values merged)")
     ax.set_ylabel("simulated success rate")
-    ax.set_title(f"{report.hand}: success by epsilon decile ({len(eps)} grasps)")
+    ax.set_title(f"{report.hand}: success by epsilon ({len(eps)} grasps)")
     fig.tight_layout()
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=100)
-    plt.close(fig)
-    return buffer.getvalue()
+    return fig
 
 
 #: An AUC over fewer grasps than this of either class (held, slipped) is
