@@ -127,6 +127,8 @@ class ImportResult:
     rejected: dict[str, int]
     error: str | None = None  # re-scoring failed: stored as a failed unit, retried by the next import
     labels: tuple[int, int] = (0, 0)  # the grasps stored with their file's label: (held, dropped)
+    #: a skipped file's labels the database holds none of (its grasps imported before it kept a file's labels, v16)
+    unstored_labels: int = 0
 
     def to_json(self) -> dict:
         return {**self.__dict__, "path": str(self.path)}
@@ -181,7 +183,10 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
         rescoring: dict[int, _Rescoring] = {}
         for i, plan in enumerate(plans):
             if (plan.spec.name, 0) in db.units_done(plan.hand.name, plan.settings.digest, 0):
-                finish(i, ImportResult(plan.path, plan.spec.name, plan.hand.name, 0, 0, not plan.lossless, True, {}))
+                given = sum(label is not None for label in labels[i])
+                unstored = given if given and not db.file_label_count(plan.spec.name, plan.hand.name) else 0
+                finish(i, ImportResult(plan.path, plan.spec.name, plan.hand.name, 0, 0, not plan.lossless, True, {},
+                                       unstored_labels=unstored))
             elif plan.lossless:
                 finish(i, _import_lossless(db, plan, rule))
             else:

@@ -137,3 +137,43 @@ def test_the_report_compares_p_hold_and_the_score_with_an_imported_files_own_lab
         assert (ece in said) == model
     assert "trials: " not in text and "No validated grasps: " in text
     assert (tmp_path / "r" / "reliability_panda.png").exists() == model
+
+
+def test_the_exports_note_on_a_hand_without_p_hold_says_the_files_labels_come_first(db: Path, tmp_path: Path) -> None:
+    """The export's note said that a hand without a p_hold model had "its grasps no trial tried labelled by the
+    force-closure flag": every grasp of an imported labelled file is labelled by the file's own label."""
+    import json
+
+    foreign, _ = _labelled(db, tmp_path)
+    first = tmp_path / "first.db"
+    assert grasp("import", str(foreign), "--db", str(first))[0] == 0
+    for fmt in ("acronym", "parquet"):
+        code, out, err = grasp("export", "--db", str(first), "--format", fmt, "--out", str(tmp_path / fmt))
+        assert code == 0, err
+        notes = json.loads((tmp_path / fmt / f"export-{fmt}.json").read_text())["notes"]
+        said = [n for n in notes if "has no calibrated p_hold model" in n]
+        assert len(said) == 1 and "its grasps that neither an imported file labels (label_from file_label) nor a " \
+            "trial tried are labelled by the force-closure flag" in said[0], notes
+        assert said[0] in err + out
+
+
+def test_a_file_imported_before_its_labels_were_kept_says_so_when_skipped(db: Path, tmp_path: Path) -> None:
+    """A database that imported a labelled file before schema v16 holds its grasps, not its labels; importing the file
+    again said only "already imported; skipped", the labels nowhere. Now a note says they are missing and how to get
+    them (the migrated database's file_labels table is empty: made so here)."""
+    foreign, _ = _labelled(db, tmp_path)
+    first = tmp_path / "first.db"
+    assert grasp("import", str(foreign), "--db", str(first))[0] == 0
+    code, out, err = grasp("import", str(foreign), "--db", str(first))
+    assert code == 0 and "already imported as crate/panda; skipped" in out and "labels are not in" not in err, err
+    with sqlite3.connect(first) as conn:
+        n = conn.execute("SELECT COUNT(*) FROM file_labels").fetchone()[0]
+        conn.execute("DELETE FROM file_labels")
+    conn.close()
+    code, out, err = grasp("import", str(foreign), "--db", str(first))
+    assert code == 0 and "already imported as crate/panda; skipped" in out, err
+    with h5py.File(foreign, "r") as f:
+        given = len(f["grasps/qualities/flex/object_in_gripper"])
+    assert given >= n > 0
+    assert f"note: {foreign}: its {given} labels are not in {first} (imported before the database kept a file's own " \
+           "labels); import it into a new --db to keep them" in err, err
