@@ -26,7 +26,8 @@ def _stored(db: Path) -> tuple[float, float]:
 
 
 def test_a_file_without_mass_says_the_mass_taken_or_takes_the_users(db: Path, tmp_path: Path) -> None:
-    """A file without object/mass was taken at 0.2 kg without a word."""
+    """A file without object/mass was taken at 0.2 kg without a word; then the word was said again for the file
+    skipped as imported before, which nothing measures again."""
     foreign, _ = foreign_file(db, tmp_path, "box", "crate")
     friction = h5py.File(foreign, "r")["object/friction"][()]
     _without(foreign, "mass")
@@ -36,6 +37,8 @@ def test_a_file_without_mass_says_the_mass_taken_or_takes_the_users(db: Path, tm
     assert len(said) == 1 and "crate.h5: no object/mass" in said[0] and "0.2 kg (the default)" in said[0] \
         and "--mass" in said[0], err
     assert _stored(tmp_path / "a.db") == (0.2, friction)
+    code, out, err = grasp("import", str(foreign), "--db", str(tmp_path / "a.db"))  # again: skipped, not measured
+    assert code == 0 and "already imported" in out and "object/mass" not in err, err
     code, _, err = grasp("import", str(foreign), "--db", str(tmp_path / "b.db"), "--mass", "0.05")
     assert code == 0 and "object/mass" not in err, err
     assert _stored(tmp_path / "b.db") == (0.05, friction)
