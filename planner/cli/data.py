@@ -77,8 +77,8 @@ def export(db_path: Path, fmt: str, out_dir: Path, objects: tuple[str, ...], han
 @click.option("--up", help="The objects' up where a file gives none (object/up): +x -x +y -y +z -z; ACRONYM's own "
               "meshes stand on +y [default: the mesh file's, +z for an OBJ].")
 @click.option("--mass", type=float, help="One mass [kg] for the object of every file of the command that gives none "
-              "(object/mass); a file whose own differs is refused: files of different masses go in commands of their "
-              "own [default: a mesh's sidecar TOML, the registry's, else 0.2, said on stderr].")
+              "(object/mass); a file whose own object/mass differs is refused: import the files that lack one in a "
+              "command of their own [default: a mesh's sidecar TOML, the registry's, else 0.2, said on stderr].")
 @click.option("--friction", type=float, help="One Coulomb friction coefficient, 0 < mu <= 3, for the object of every "
               "file of the command that gives none (object/friction), as --mass [default: a mesh's sidecar TOML, the "
               "registry's, else 0.5, said].")
