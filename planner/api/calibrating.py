@@ -41,10 +41,11 @@ def report(db_path: Path, out: Path) -> Path:
 
 def calibration_errors(db_path: Path) -> list[str]:
     """Per hand with a p_hold model: the expected calibration error of each of
-    its reliability tables (held out on its labels; against stored trials)."""
+    its reliability tables (held out on its labels; against stored trials; against the imported files' own
+    labels); and per hand whose grasps an imported file labels, how p_hold and the score rank those labels."""
     from planner.present import report as reporting
 
-    return reporting.ece_lines(reporting.calibration(Path(db_path)))
+    return reporting.ece_lines(reporting.calibration(Path(db_path))) + reporting.file_lines(reporting.labelled(db_path))
 
 
 def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB, poses: int | None = 200, seed: int = 0,

@@ -10,8 +10,8 @@ import numpy as np
 
 from planner.calibration.metrics import Reliability
 
-#: Room about [0, 1] on the success axis: a bin every grasp of which held (or dropped) was drawn on the frame's
-#: edge, its marker cut in half.
+#: Room about [0, 1] on both axes: a bin every grasp of which held (or dropped), or predicted at ~1 (or ~0), was drawn
+#: on the frame's edge, its marker cut in half.
 MARGIN = 0.03
 
 
@@ -55,7 +55,7 @@ def figure(curves: Sequence[tuple[str, Reliability]], title: str):  # type: igno
                 label=textwrap.fill(f"{label} (ECE {r.ece:.3f})", LABEL_WIDTH))
         centres = (r.edges[:-1] + r.edges[1:]) / 2
         counts.bar(centres - 0.05 + width * (k + 0.5), r.count, width=width * 0.9, label=label)
-    ax.set_xlim(0, 1)
+    ax.set_xlim(-MARGIN, 1 + MARGIN)  # a bin at p_hold ~1 (the mug's best grasps) sat on the right edge, cut
     ax.set_ylim(-MARGIN, 1 + MARGIN)
     ax.set_ylabel("observed success rate")
     fig.suptitle(title, fontsize=9)

@@ -76,10 +76,12 @@ def export(db_path: Path, fmt: str, out_dir: Path, objects: tuple[str, ...], han
               "own files), backed off while it collides.")
 @click.option("--up", help="The objects' up where a file gives none (object/up): +x -x +y -y +z -z; ACRONYM's own "
               "meshes stand on +y [default: the mesh file's, +z for an OBJ].")
-@click.option("--mass", type=float, help="The objects' mass [kg] where a file gives none (object/mass) [default: "
-              "a mesh's sidecar TOML, the registry's, else 0.2, said on stderr].")
-@click.option("--friction", type=float, help="The objects' Coulomb friction coefficient where a file gives none "
-              "(object/friction), 0 < mu <= 3 [default: a mesh's sidecar TOML, the registry's, else 0.5, said].")
+@click.option("--mass", type=float, help="One mass [kg] for the object of every file of the command that gives none "
+              "(object/mass); a file whose own object/mass differs is refused: import the files that lack one in a "
+              "command of their own [default: a mesh's sidecar TOML, the registry's, else 0.2, said on stderr].")
+@click.option("--friction", type=float, help="One Coulomb friction coefficient, 0 < mu <= 3, for the object of every "
+              "file of the command that gives none (object/friction), as --mass [default: a mesh's sidecar TOML, the "
+              "registry's, else 0.5, said].")
 @click.option("--workers", type=click.IntRange(min=1), default=api.default_workers(),
               show_default="all cores",
               help="Worker processes for re-scoring.")
@@ -96,6 +98,9 @@ def import_files(paths: tuple[Path, ...], fmt: str, db_path: Path, hand: str | N
             return
         if r.skipped:
             click.echo(f"{r.path}: already imported as {r.object}/{r.hand}; skipped")
+            if r.unstored_labels:  # imported before schema v16: its grasps are stored, its labels never were
+                click.echo(f"note: {r.path}: its {r.unstored_labels} labels are not in {db_path} (imported before "
+                           "the database kept a file's own labels); import it into a new --db to keep them", err=True)
             return
         if r.error:
             return  # one error line each at the end

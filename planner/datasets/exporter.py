@@ -268,8 +268,9 @@ def _export(db_path: Path, fmt: str, out_dir: Path, objects: Sequence[str], hand
         specs = {h: load_hand(h) for h in sorted({h for _, h in pairs})}  # unknown hands fail up front
         models = {h: db.model(h) for h in specs}  # read once: a model with trees is ~0.3 MB of JSON
         if sel.label == BEST:
-            summary.notes += [f"hand '{h}' has no calibrated p_hold model: its grasps no trial tried are labelled by "
-                              "the force-closure flag (label_from force_closure), which is not a success label; "
+            summary.notes += [f"hand '{h}' has no calibrated p_hold model: its grasps that neither an imported file "
+                              "labels (label_from file_label) nor a trial tried are labelled by the force-closure flag "
+                              "(label_from force_closure), which is not a success label; "
                               "`grasp validate --all --force-closure` gives each a trial's verdict"
                               for h, model in models.items() if model is None]
         if isinstance(writer, TableWriter) and writer.notes is not None:

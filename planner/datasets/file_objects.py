@@ -63,7 +63,8 @@ def object_spec(h: AcronymHeader, object_name: str | None, command: str = "impor
     for key, given, own in (("mass", mass, h.mass), ("friction", friction, h.friction)):
         if given is not None and own is not None and not math.isclose(given, own, rel_tol=PROPERTY_RTOL):
             raise InputError(f"{h.path}: its object/{key} is {own:g}, and --{key} gives {given:g}: its grasps were "
-                             f"measured with the file's; leave --{key} out for this file")
+                             f"measured with the file's; leave --{key} out for this file (--{key} is one value "
+                             f"for every file of the command: give it in a command of the files without object/{key})")
     props = {"mass": h.mass if h.mass is not None else mass,
              "friction": h.friction if h.friction is not None else friction, "up": h.up if h.up is not None else up}
     return _with_inertial(h, _object_spec(h, object_name, command, props))

@@ -127,6 +127,8 @@ class ImportResult:
     rejected: dict[str, int]
     error: str | None = None  # re-scoring failed: stored as a failed unit, retried by the next import
     labels: tuple[int, int] = (0, 0)  # the grasps stored with their file's label: (held, dropped)
+    #: a skipped file's labels the database holds none of (its grasps imported before it kept a file's labels, v16)
+    unstored_labels: int = 0
 
     def to_json(self) -> dict:
         return {**self.__dict__, "path": str(self.path)}
@@ -140,6 +142,7 @@ class _Plan:
     lossless: bool
     settings: ImportSettings
     reader: Reader
+    note: str | None = None  # the mass and friction taken where the file gives none: said unless it is skipped
 
 
 def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", hand: str | None = None,
@@ -181,8 +184,14 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
         rescoring: dict[int, _Rescoring] = {}
         for i, plan in enumerate(plans):
             if (plan.spec.name, 0) in db.units_done(plan.hand.name, plan.settings.digest, 0):
-                finish(i, ImportResult(plan.path, plan.spec.name, plan.hand.name, 0, 0, not plan.lossless, True, {}))
-            elif plan.lossless:
+                given = sum(label is not None for label in labels[i])
+                unstored = given if given and not db.file_label_count(plan.spec.name, plan.hand.name) else 0
+                finish(i, ImportResult(plan.path, plan.spec.name, plan.hand.name, 0, 0, not plan.lossless, True, {},
+                                       unstored_labels=unstored))
+                continue
+            if plan.note:  # not for a file skipped as imported before: nothing of it is measured again
+                preparing.warned(plan.note)
+            if plan.lossless:
                 finish(i, _import_lossless(db, plan, rule))
             else:
                 rescoring[i] = _Rescoring(plan, time.perf_counter(), poses[i], openings[i], labels[i])
@@ -313,8 +322,7 @@ def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: s
     header = reader.header(path)
     spec = load_hand(hand or hand_name(path, header.gripper))
     obj = object_spec(header, object_name, command, up, *given)
-    if note and (line := unstated(header, obj, command, given)):  # every measure and trial reads them: said
-        preparing.warned(line)
+    line = unstated(header, obj, command, given) if note else None  # every measure and trial reads them: said
     lossless = not rescore and header.extras
     if lossless:  # its contacts, joints and measures are of the file's mesh and hand: stored as they are
         if header.mesh_sha256 and prepare(obj).mesh_hash != header.mesh_sha256:
@@ -329,7 +337,8 @@ def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: s
     with open(path, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):
             digest.update(block)
-    return _Plan(path, spec, obj, lossless, ImportSettings(fmt, str(path), digest.hexdigest(), not lossless), reader)
+    return _Plan(path, spec, obj, lossless, ImportSettings(fmt, str(path), digest.hexdigest(), not lossless), reader,
+                 line)
 
 
 def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: Counter, first: int = 0,
@@ -381,4 +390,6 @@ def read_for_rescoring(path: Path, hand: str | None = None, fmt: str = "acronym"
     where the file gives none."""
     reader = formats.reader(fmt)
     plan = _plan(Path(path), fmt, reader, hand, None, True, "calibrate", note=note)
+    if plan.note:
+        preparing.warned(plan.note)
     return plan.hand, plan.spec, reader.poses(plan.path, plan.hand)

@@ -11,8 +11,7 @@ measures, asks the hand's p_hold model (:meth:`Database.model`:
 the :class:`~planner.db.ranking.RankingRule` for the scores, writes both
 (``grasps.p_hold``, ``grasps.score``) and re-ranks each (object, hand) in
 the rule's order. Records read back carry the stored p_hold; a new model
-(stored, or shipped with a new version: ``meta.p_hold_models``) re-makes
-both for every grasp of its hand.
+(stored, or shipped with a new version: ``meta.p_hold_models``) re-makes both for every grasp of its hand.
 """
 
 from __future__ import annotations
@@ -259,10 +258,11 @@ class Database(Writing, UnitReads):
             cur.close()
 
     @_reads
-    def validated(self) -> list[Grasp]:
-        """Every grasp with a dynamic trial (PyBullet's or MuJoCo's), by hand, object and rank."""
-        return _grasps(self._conn.execute(self._select("LEFT JOIN") + " WHERE v.grasp_id IS NOT NULL OR "
-                                          "mj.grasp_id IS NOT NULL ORDER BY g.hand, g.object, g.rank").fetchall())
+    def validated(self, *, file_labels: bool = False) -> list[Grasp]:
+        """Every grasp a dynamic trial tried (PyBullet's, MuJoCo's; ``file_labels``: an imported file labelled)."""
+        where = "fl.grasp_id IS NOT NULL" if file_labels else "v.grasp_id IS NOT NULL OR mj.grasp_id IS NOT NULL"
+        return _grasps(self._conn.execute(f"{self._select('LEFT JOIN')} WHERE {where} ORDER BY g.hand, g.object, g.rank"
+                                          ).fetchall())
 
     def _select(self, join: str) -> str:
         """The grasps query; an older file read read-only is not migrated: a

@@ -88,6 +88,12 @@ class UnitReads:
                                       (obj, hand)).fetchone()[0])
 
     @_reads
+    def file_label_count(self, obj: str, hand: str) -> int:
+        """How many grasps of ``obj`` for ``hand`` carry the label of the file they were imported from."""
+        return int(self._conn.execute("SELECT COUNT(*) FROM file_labels fl JOIN grasps g ON g.id = fl.grasp_id WHERE "
+                                      "g.object = ? AND g.hand = ?", (obj, hand)).fetchone()[0])
+
+    @_reads
     def names_by_source(self) -> dict[tuple[str, float], list[str]]:
         """(source, scale) -> the names of the objects stored from that file at that scale."""
         out: dict[tuple[str, float], list[str]] = {}

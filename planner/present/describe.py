@@ -158,15 +158,30 @@ def describe(grasp: Grasp, hand: HandFrame, world: np.ndarray | None = None,
     if g.file_label is not None:  # an imported file's own label (FleX's, a user's outcomes)
         lines.append(f"    label of the file it was imported from ({g.file_label.source}): "
                      f"{'held' if g.file_label.success else 'dropped'}")
-    if m is not None and "cannot_hold_weight" in m.reasons and held_by:
-        down = "table's down" if g.table_plane is not None else f"object's down, {'-+'[up[0] == '-']}{up[1]}"
-        lines.append(f"    its weight: the {held_by[-1]} held it loaded along one direction (the {down}); "
-                     f"cannot_hold_weight is the worst of {DIRECTIONS} "
-                     f"directions, where the fingers' force limits hold {m.resist_worst:.1f} times its weight: hold "
-                     "it as it stands, do not turn it")
+    if m is not None and "cannot_hold_weight" in m.reasons:
+        lines += _weight_lines(g, m.resist_worst, held_by, up)
     for stage, joints in (arm or {}).items():
         lines.append(f"    arm at {stage} [rad]: " + ", ".join(f"{k} {_fixed(v, 4)}" for k, v in joints.items()))
     return lines
+
+
+def _weight_lines(g: Grasp, worst: float, held_by: list[str], up: str) -> list[str]:
+    """Why a grasp flagged ``cannot_hold_weight`` can still hold (and p_hold say so): the flag is the worst of
+    the 14 directions its weight may take about the hand, a trial and the labels p_hold was fitted on load one,
+    the object's down. Nothing where a trial dropped it (its verdict says what is true)."""
+    down = "the table's down" if g.table_plane is not None else f"the object's down, {'-+'[up[0] == '-']}{up[1]}"
+    if held_by:
+        return [f"    its weight: the {held_by[-1]} held it loaded along one direction ({down}); cannot_hold_weight is "
+                f"the worst of {DIRECTIONS} directions, where the fingers' force limits hold {worst:.1f} times its "
+                "weight: hold it as it stands, do not turn it"]
+    if g.validation is not None or g.mujoco is not None:
+        return []
+    said = ("p_hold says how often labelled grasps with these measures held loaded along their object's down: both "
+            "can be true (held as it stands, not turned over)" if g.p_hold is not None else "it may still hold as it "
+            "stands")
+    return [f"    its weight: cannot_hold_weight says that with its weight turned to the worst of {DIRECTIONS} "
+            f"directions about the hand the fingers' force limits hold {worst:.1f} times it (a static bound); {said}; "
+            f"not tried yet: `grasp validate` loads it along {down}, at its own mass and friction"]
 
 
 def p_hold_terms(grasp: Grasp, model: LogisticModel) -> dict[str, dict[str, float]]:

@@ -51,6 +51,13 @@ FOV = 40.0  # [deg] vertical field of view
 FRAME_MARGIN = 1.08
 CONTACT_MARK = 7.0  # [pt] radius of a contact's mark drawn over the picture
 COM_MARK = 11.0  # [pt] diameter of the centre of mass's mark (a black disc, a white rim and centre)
+#: cos 53 deg: a view closer than this to the back of the hand (the approach reversed) sees the palm, not the grasp
+#: (a Barrett's third view of the box showed its palm alone); :func:`clear_of_the_palm` turns it to the side.
+BEHIND_THE_PALM = 0.6
+#: [rad] a side view turned this far towards the fingertips, looking a little into the grasp.
+TOWARDS_THE_FINGERS = math.radians(20.0)
+#: The least sine of the eye's elevation above a table top, for a view turned to the side.
+TABLE_ELEVATION = 0.2
 #: Viewing directions (from the target towards the eye), before scaling.
 VIEWS = (np.array([1.0, -1.2, 0.8]), np.array([-1.0, -0.4, 0.5]), np.array([0.3, 1.2, -0.25]))
 
@@ -99,12 +106,14 @@ def grasp_views(hand: HandSpec, obj: PreparedObject, grasp: Grasp, size: tuple[i
             up = obj.up
             turn = rotation_onto([0.0, 0.0, 1.0], up)
         views = []
+        approach = np.asarray(grasp.pose, float)[:3, :3] @ np.asarray(hand.approach, float)
         for view in VIEWS:
             if grasp.table_plane is not None:
                 view = turn @ np.array([view[0], view[1], abs(view[2])])
             elif obj.spec.up != "+z":
                 view = turn @ view
-            view = view / np.linalg.norm(view)
+            view = clear_of_the_palm(view / np.linalg.norm(view), approach, up if grasp.table_plane is not None
+                                     else None)
             distance = FRAME_MARGIN * framing_distance(corners - target, view, up, size, FOV)
             eye = target + view * distance
             far = distance + float(np.linalg.norm(hi - lo)) + 1.0  # behind the farthest corner, whatever the size
@@ -112,6 +121,24 @@ def grasp_views(hand: HandSpec, obj: PreparedObject, grasp: Grasp, size: tuple[i
                               project(grasp.contacts.points, eye, target, up, size, FOV),
                               project(np.asarray(obj.com, float)[None], eye, target, up, size, FOV)))
         return views
+
+
+def clear_of_the_palm(view: np.ndarray, approach: np.ndarray, table_up: np.ndarray | None = None) -> np.ndarray:
+    """The unit viewing direction ``view`` (3,) (from the target towards the eye), unless it looks at the back of the
+    hand (within :data:`BEHIND_THE_PALM` of the unit ``approach`` (3,) reversed: the palm then hides the object and
+    the fingers, a Barrett's or an Allegro's whole grasp): then the side view nearest it, across the approach,
+    turned :data:`TOWARDS_THE_FINGERS` towards the fingertips; ``table_up`` (3,): a table's up, the eye kept above it.
+    Object frame."""
+    if float(view @ approach) > -BEHIND_THE_PALM:
+        return view
+    side = view - float(view @ approach) * approach
+    if np.linalg.norm(side) < 1e-6:  # straight behind: any side
+        side = np.cross(approach, [1.0, 0.0, 0.0] if abs(approach[0]) < 0.9 else [0.0, 1.0, 0.0])
+    side /= np.linalg.norm(side)
+    turned = math.cos(TOWARDS_THE_FINGERS) * side + math.sin(TOWARDS_THE_FINGERS) * approach
+    if table_up is not None and float(turned @ table_up) < TABLE_ELEVATION:  # never under the table top
+        turned = turned + (TABLE_ELEVATION - float(turned @ table_up)) * table_up
+    return turned / np.linalg.norm(turned)
 
 
 def framing_distance(points: np.ndarray, view: np.ndarray, up: np.ndarray, size: tuple[int, int], fov: float

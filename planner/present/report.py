@@ -34,11 +34,21 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.calibration.metrics import Reliability, reliability, roc_auc
+from planner.calibration.metrics import roc_auc
 from planner.db.failures import no_grasps
 from planner.db.ranking import RankingRule, first_measures, ranks_first, rule_measures
 from planner.db.store import open_db
 from planner.errors import InputError
+from planner.present.reliability import (
+    FileLabels,
+    HandCalibration,
+    calibration,
+    ece_lines,
+    engines,
+    file_lines,
+    labelled,
+    reliability_png,
+)
 from planner.record import fields
 from planner.record.grasp import Grasp
 
@@ -159,86 +169,6 @@ def deciles(eps: np.ndarray, success: np.ndarray) -> list[tuple[float, float, fl
     return out
 
 
-@dataclass(frozen=True)
-class HandCalibration:
-    """A hand's p_hold model as the report shows it: where it came from, its
-    held-out reliability table (None: not recorded) and p_hold against the
-    stored trials (None: no trial of a grasp with p_hold); outside: per
-    object of the hand outside the labelled objects the model was fitted on,
-    how (:meth:`~planner.calibration.logistic.LogisticModel.outside`);
-    held_out_ece: the 95% interval over objects of the held-out ECE that
-    the fit recorded (``ece_lo``, ``ece_hi`` of its figures; None: a fit
-    that predates them)."""
-
-    hand: str
-    source: str
-    held_out: Reliability | None
-    trials: Reliability | None
-    outside: dict[str, list[str]] = field(default_factory=dict)
-    held_out_ece: tuple[float, float] | None = None
-
-    engines: str = ""  # whose verdicts ``trials`` holds (:func:`engines`)
-
-    def curves(self) -> list[tuple[str, Reliability]]:
-        return [(label, r) for label, r in (("held out on its labels: the model's source", self.held_out),
-                                            (f"trials: {self.engines}", self.trials)) if r is not None]
-
-
-def calibration(db_path: Path) -> list[HandCalibration]:
-    """Every hand of the database that has a p_hold model: a hand with grasps (its stored or shipped model), or
-    one ``grasp calibrate`` stored a model for (a database with no grasps yet: its held-out figures)."""
-    with open_db(Path(db_path), create=False, readonly=True) as db:
-        out = []
-        for hand in sorted({h for _, h in db.pairs()} | set(db.calibrated_hands())):
-            model = db.model(hand)
-            if model is None:
-                continue
-            tried = [g for g in db.validated() if g.hand == hand and g.p_hold is not None]
-            trials = reliability(np.array([g.trial.success for g in tried], float),  # type: ignore[union-attr]
-                                 np.array([g.p_hold for g in tried], float)) if tried else None
-            rows = {name: db.object_row(name) for name in db.objects_for(hand)}
-            outside = {name: model.outside(row.properties()) for name, row in rows.items() if row is not None}
-            lo, hi = (model.figures.get(f"ece_{end}", math.nan) for end in ("lo", "hi"))
-            source = db.model_source(hand)
-            source = f"{source}: {model.source}" if source == "shipped" and model.source else source
-            out.append(HandCalibration(hand, source, model.held_out, trials,
-                                       {name: why for name, why in outside.items() if why},
-                                       (lo, hi) if math.isfinite(lo) and math.isfinite(hi) else None,
-                                       engines(tried)))
-    return out
-
-
-def engines(grasps: Sequence[Grasp]) -> str:
-    """Whose verdicts label ``grasps`` (each its :attr:`Grasp.trial`): ``MuJoCo 120, PyBullet 298``."""
-    mujoco = sum(g.mujoco is not None for g in grasps)
-    return f"MuJoCo {mujoco}, PyBullet {len(grasps) - mujoco}" + (
-        " (MuJoCo's verdict where both tried a grasp)" if any(g.mujoco and g.validation for g in grasps) else "")
-
-
-def ece_lines(cals: list[HandCalibration]) -> list[str]:
-    """One line per hand and reliability table: its expected calibration error."""
-    lines = []
-    for c in cals:
-        for label, r in c.curves():
-            lines.append(f"{c.hand}: ECE of p_hold ({label}, {int(r.count.sum())} grasps) = {r.ece:.4f}"
-                         + (_interval(c.held_out_ece) if r is c.held_out else ""))
-        lines += [f"{c.hand}: p_hold of {name} is extrapolated, outside the labelled objects it was fitted on: "
-                  f"{'; '.join(why)}" for name, why in sorted(c.outside.items())]
-    return lines
-
-
-def _interval(ece: tuple[float, float] | None) -> str:
-    if ece is None:
-        return " (no interval: the model's fit predates them; `grasp calibrate` records one)"
-    return f" [{ece[0]:.4f}, {ece[1]:.4f}] (95% over objects: a bootstrap drawing the labelled objects)"
-
-
-def _reliability_png(c: HandCalibration) -> bytes:
-    from planner.calibration.plot import reliability_png
-
-    return reliability_png(c.curves(), f"p_hold of the {c.hand}: predicted vs observed success")
-
-
 def collect(db_path: Path, allow_empty: bool = False) -> list[HandReport]:
     with open_db(Path(db_path), create=False, readonly=True) as db:
         grasps = db.validated()
@@ -259,6 +189,22 @@ def collect(db_path: Path, allow_empty: bool = False) -> list[HandReport]:
 
 
 def _plot(report: HandReport) -> bytes:
+    import matplotlib.pyplot as plt
+
+    fig = decile_figure(report)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=100)
+    plt.close(fig)
+    return buffer.getvalue()
+
+
+#: [pt] the decile chart's tick labels (at 6 pt, "0.004-0.006" under a bar could not be read).
+TICK_SIZE = 8
+
+
+def decile_figure(report: HandReport):  # type: ignore[no-untyped-def]
+    """The success rate by epsilon decile as a matplotlib figure, each bar's grasps written on it; fewer
+    grasps than ten deciles make fewer bins, said as bins of equal count, not deciles."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -267,17 +213,17 @@ def _plot(report: HandReport) -> bytes:
     eps, ok = report.measure("epsilon"), report.success
     bins = deciles(eps, ok)
     fig, ax = plt.subplots(figsize=(6, 3.2))
-    ax.bar(range(len(bins)), [b[2] for b in bins], color="#4a7bb7")
-    ax.set_xticks(range(len(bins)), [f"{b[0]:.3f}-\n{b[1]:.3f}" for b in bins], fontsize=6)
-    ax.set_ylim(0, 1)
-    ax.set_xlabel("epsilon decile")
+    bars = ax.bar(range(len(bins)), [b[2] for b in bins], color="#4a7bb7")
+    ax.bar_label(bars, [f"n={b[3]}" for b in bins], fontsize=TICK_SIZE)
+    ax.set_xticks(range(len(bins)), [f"{b[0]:.3f}-\n{b[1]:.3f}" for b in bins], fontsize=TICK_SIZE)
+    ax.set_ylim(0, 1.12)  # room for the counts over a bar of 1
+    ax.set_yticks(np.linspace(0, 1, 6))
+    ax.set_xlabel("epsilon decile" if len(bins) == 10 else f"epsilon, {len(bins)} bins of equal count (too few grasps "
+                  "for deciles)" if len(eps) < 10 else f"epsilon, {len(bins)} bins (deciles of tied values merged)")
     ax.set_ylabel("simulated success rate")
-    ax.set_title(f"{report.hand}: success by epsilon decile ({len(eps)} grasps)")
+    ax.set_title(f"{report.hand}: success by epsilon ({len(eps)} grasps)")
     fig.tight_layout()
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=100)
-    plt.close(fig)
-    return buffer.getvalue()
+    return fig
 
 
 #: An AUC over fewer grasps than this of either class (held, slipped) is
@@ -341,19 +287,26 @@ def _per_object(report: HandReport) -> list[tuple[str, ...]]:
     return out
 
 
-#: Said where the database has no trials, only a p_hold model's held-out figures (`grasp calibrate` into it).
-NO_TRIALS = "No validated grasps: the p_hold model's held-out figures only; `grasp validate --db {db}` tries grasps."
+#: Said where the database has no trials, only a p_hold model's held-out figures (`grasp calibrate` into it) or an
+#: imported file's labels.
+NO_TRIALS = ("No validated grasps: the p_hold model's held-out figures and the imported files' own labels only (no "
+             "trial of this project's); `grasp validate --db {db}` tries grasps.")
+
+
+#: The heading of the imported files' own labels (``grasp import``; :func:`planner.present.reliability.labelled`).
+FILES = "The imported files' own labels"
 
 
 def write(db_path: Path, out: Path) -> Path:
-    cals = [c for c in calibration(db_path) if c.curves()]
-    reports = collect(db_path, allow_empty=bool(cals))
+    cals, files = [c for c in calibration(db_path) if c.curves()], labelled(db_path)
+    reports = collect(db_path, allow_empty=bool(cals or files))
     if out.suffix.lower() == ".html":
-        return _write_html(reports, cals, out, db_path)
-    return _write_markdown(reports, cals, out, db_path)
+        return _write_html(reports, cals, files, out, db_path)
+    return _write_markdown(reports, cals, files, out, db_path)
 
 
-def _write_html(reports: list[HandReport], cals: list[HandCalibration], out: Path, db_path: Path) -> Path:
+def _write_html(reports: list[HandReport], cals: list[HandCalibration], files: dict[str, FileLabels], out: Path,
+                db_path: Path) -> Path:
     parts = [f"<html><head><meta charset='utf-8'><title>grasp report</title></head><body>"
              f"<h1>Simulated success vs scores</h1><p>database: {html.escape(str(db_path))}</p>"]
     parts += [f"<p>{html.escape(NO_TRIALS.format(db=shlex.quote(str(db_path))))}</p>"] if not reports else []
@@ -369,14 +322,18 @@ def _write_html(reports: list[HandReport], cals: list[HandCalibration], out: Pat
     for c in cals:
         parts.append(f"<h2>p_hold of hand {html.escape(c.hand)}</h2><p>model: {html.escape(c.source)}</p><ul>")
         parts += [f"<li>{html.escape(line)}</li>" for line in ece_lines([c])]
-        parts.append(f"</ul><img src='data:image/png;base64,{base64.b64encode(_reliability_png(c)).decode()}'>")
+        parts.append(f"</ul><img src='data:image/png;base64,{base64.b64encode(reliability_png(c)).decode()}'>")
+    if files:
+        parts.append(f"<h2>{FILES}</h2><ul>" + "".join(f"<li>{html.escape(line)}</li>" for line in file_lines(files))
+                     + "</ul>")
     parts.append("</body></html>")
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("\n".join(parts), encoding="utf-8")
     return out
 
 
-def _write_markdown(reports: list[HandReport], cals: list[HandCalibration], out: Path, db_path: Path) -> Path:
+def _write_markdown(reports: list[HandReport], cals: list[HandCalibration], files: dict[str, FileLabels],
+                    out: Path, db_path: Path) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     lines = ["# Simulated success vs scores", "", f"database: `{db_path}`", ""]
     lines += [NO_TRIALS.format(db=shlex.quote(str(db_path))), ""] if not reports else []
@@ -391,10 +348,11 @@ def _write_markdown(reports: list[HandReport], cals: list[HandCalibration], out:
         lines.append("")
     for c in cals:
         png = out / f"reliability_{c.hand}.png"
-        png.write_bytes(_reliability_png(c))
+        png.write_bytes(reliability_png(c))
         lines += [f"## p_hold of hand {c.hand}", "", f"model: `{c.source}`", ""]
         lines += [f"- {line}" for line in ece_lines([c])]
         lines += ["", f"![reliability diagram]({png.name})", ""]
+    lines += [f"## {FILES}", "", *(f"- {line}" for line in file_lines(files)), ""] if files else []
     path = out / "report.md"
     path.write_text("\n".join(lines), encoding="utf-8")
     return path

@@ -66,3 +66,14 @@ def test_a_bin_of_one_grasp_is_drawn_beside_a_bin_of_two_and_no_count_draws_no_w
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert plot.reliability_png([("none", reliability(np.zeros(0), np.zeros(0)))], "p_hold").startswith(b"\x89PNG")
+
+
+def test_a_bin_predicted_at_one_is_drawn_whole() -> None:
+    """The quick start's report drew the mug's 3 trials (p_hold >0.999) on the frame's right edge, the marker cut in
+    half; the counts' bars share the axis."""
+    import matplotlib.pyplot as plt
+
+    fig = plot.figure([("trials: MuJoCo 3", reliability(np.ones(3), np.full(3, 0.9999)))], "p_hold")
+    ax, counts = fig.axes
+    assert ax.get_xlim()[0] < 0.0 and ax.get_xlim()[1] > 1.0 and counts.get_xlim() == ax.get_xlim()
+    plt.close(fig)

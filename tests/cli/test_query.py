@@ -386,6 +386,28 @@ def test_a_held_grasp_that_cannot_hold_its_weight_in_every_direction_says_why_bo
     assert "    MuJoCo trial: dropped (slipped)" in lines and not any("its weight:" in line for line in lines)
 
 
+def test_an_untried_grasp_that_cannot_hold_its_weight_in_every_direction_says_what_each_figure_means() -> None:
+    """The quick start's `grasp best` printed the mug's #1 grasp with 'p_hold >0.999' and 'feasibility
+    cannot_hold_weight' at once and nothing more (the line saying why both can be true came only after a trial held
+    it): the flag is the worst of 14 directions of the weight, p_hold is of a load along the object's down."""
+    from dataclasses import replace
+
+    from planner.present.describe import describe
+    from planner.record.measures import Measures
+    from planner.specs.hands import load_hand
+    from tests.helpers import made_up
+
+    weak = Measures(0.2, 5.2, 0.01, 0.01, 0.97, ("cannot_hold_weight",))
+    lines = describe(replace(made_up(1, 0.01), measures=weak, p_hold=0.9995), load_hand("panda"))
+    said = [line for line in lines if line.startswith("    its weight: ")]
+    assert len(said) == 1 and "worst of 14 directions about the hand the fingers' force limits hold 0.2 times it" \
+        in said[0] and "p_hold says how often labelled grasps" in said[0] and "not tried yet" in said[0], lines
+    assert "loads it along the object's down, +y," in describe(replace(made_up(1, 0.01), measures=weak),
+                                                             load_hand("panda"), up="-y")[-1]
+    no_model = describe(replace(made_up(1, 0.01), measures=weak, p_hold=None), load_hand("panda"))[-1]
+    assert no_model.startswith("    its weight: ") and "p_hold" not in no_model
+
+
 def test_a_coordinate_that_rounds_to_zero_is_printed_without_a_sign(box_db: Path) -> None:
     """`grasp best` printed "(0.021, -0.000, 0.109)" and its JSON -0.0 where a value lay a hair below zero."""
     from dataclasses import replace

@@ -9,6 +9,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pandas as pd
+import pytest
 from helpers import grasp, one_line_error
 
 from tests.datasets.support import export
@@ -108,3 +109,71 @@ def test_an_export_of_a_files_labels_re_scored_keeps_them(db: Path, tmp_path: Pa
     again = _stored(tmp_path / "re.db")  # re-scored: a grasp's candidate is its row in the export
     assert again and all(s == given[row] and src == "crate.h5 grasps/qualities/flex/object_in_gripper"
                          for row, (s, src) in again.items())
+
+
+@pytest.mark.parametrize("model", [False, True], ids=["no-model", "shipped-model"])
+def test_the_report_compares_p_hold_and_the_score_with_an_imported_files_own_labels(
+        db: Path, tmp_path: Path, model: bool, request: pytest.FixtureRequest) -> None:
+    """`grasp report` on a database whose only outcomes were an imported file's labels said "no validated grasps"
+    (exit 2): the labels the user imported were never compared with p_hold or the score. Now a section names them by
+    their source, apart from this project's trials, with the ROC AUCs against them; where a p_hold model applies,
+    its reliability table against them too (the diagram's curve, its ECE)."""
+    if model:
+        request.getfixturevalue("shipped_models")
+    foreign, _ = _labelled(db, tmp_path)
+    first = tmp_path / "first.db"
+    assert grasp("import", str(foreign), "--db", str(first))[0] == 0
+    stored = _stored(first)
+    held = sum(s for s, _ in stored.values())
+    code, out, err = grasp("report", "--db", str(first), "--out", str(tmp_path / "r"))
+    assert code == 0, err
+    source = "crate.h5 grasps/qualities/flex/object_in_gripper"
+    text = (tmp_path / "r" / "report.md").read_text()
+    aucs = "ROC AUC of p_hold against them " if model else "dropped; ROC AUC of the analytic score against them "
+    for said in (out, text):
+        assert f"panda: the imported files' own labels ({source}; the files', not a trial of this project's): " \
+               f"{len(stored)} grasps, {held} held, {len(stored) - held} dropped; " in said and aucs in said, said
+        ece = f"panda: ECE of p_hold (the imported files' own labels ({source}), {len(stored)} grasps) = "
+        assert (ece in said) == model
+    assert "trials: " not in text and "No validated grasps: " in text
+    assert (tmp_path / "r" / "reliability_panda.png").exists() == model
+
+
+def test_the_exports_note_on_a_hand_without_p_hold_says_the_files_labels_come_first(db: Path, tmp_path: Path) -> None:
+    """The export's note said that a hand without a p_hold model had "its grasps no trial tried labelled by the
+    force-closure flag": every grasp of an imported labelled file is labelled by the file's own label."""
+    import json
+
+    foreign, _ = _labelled(db, tmp_path)
+    first = tmp_path / "first.db"
+    assert grasp("import", str(foreign), "--db", str(first))[0] == 0
+    for fmt in ("acronym", "parquet"):
+        code, out, err = grasp("export", "--db", str(first), "--format", fmt, "--out", str(tmp_path / fmt))
+        assert code == 0, err
+        notes = json.loads((tmp_path / fmt / f"export-{fmt}.json").read_text())["notes"]
+        said = [n for n in notes if "has no calibrated p_hold model" in n]
+        assert len(said) == 1 and "its grasps that neither an imported file labels (label_from file_label) nor a " \
+            "trial tried are labelled by the force-closure flag" in said[0], notes
+        assert said[0] in err + out
+
+
+def test_a_file_imported_before_its_labels_were_kept_says_so_when_skipped(db: Path, tmp_path: Path) -> None:
+    """A database that imported a labelled file before schema v16 holds its grasps, not its labels; importing the file
+    again said only "already imported; skipped", the labels nowhere. Now a note says they are missing and how to get
+    them (the migrated database's file_labels table is empty: made so here)."""
+    foreign, _ = _labelled(db, tmp_path)
+    first = tmp_path / "first.db"
+    assert grasp("import", str(foreign), "--db", str(first))[0] == 0
+    code, out, err = grasp("import", str(foreign), "--db", str(first))
+    assert code == 0 and "already imported as crate/panda; skipped" in out and "labels are not in" not in err, err
+    with sqlite3.connect(first) as conn:
+        n = conn.execute("SELECT COUNT(*) FROM file_labels").fetchone()[0]
+        conn.execute("DELETE FROM file_labels")
+    conn.close()
+    code, out, err = grasp("import", str(foreign), "--db", str(first))
+    assert code == 0 and "already imported as crate/panda; skipped" in out, err
+    with h5py.File(foreign, "r") as f:
+        given = len(f["grasps/qualities/flex/object_in_gripper"])
+    assert given >= n > 0
+    assert f"note: {foreign}: its {given} labels are not in {first} (imported before the database kept a file's own " \
+           "labels); import it into a new --db to keep them" in err, err

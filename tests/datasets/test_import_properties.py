@@ -26,7 +26,8 @@ def _stored(db: Path) -> tuple[float, float]:
 
 
 def test_a_file_without_mass_says_the_mass_taken_or_takes_the_users(db: Path, tmp_path: Path) -> None:
-    """A file without object/mass was taken at 0.2 kg without a word."""
+    """A file without object/mass was taken at 0.2 kg without a word; then the word was said again for the file
+    skipped as imported before, which nothing measures again."""
     foreign, _ = foreign_file(db, tmp_path, "box", "crate")
     friction = h5py.File(foreign, "r")["object/friction"][()]
     _without(foreign, "mass")
@@ -36,6 +37,8 @@ def test_a_file_without_mass_says_the_mass_taken_or_takes_the_users(db: Path, tm
     assert len(said) == 1 and "crate.h5: no object/mass" in said[0] and "0.2 kg (the default)" in said[0] \
         and "--mass" in said[0], err
     assert _stored(tmp_path / "a.db") == (0.2, friction)
+    code, out, err = grasp("import", str(foreign), "--db", str(tmp_path / "a.db"))  # again: skipped, not measured
+    assert code == 0 and "already imported" in out and "object/mass" not in err, err
     code, _, err = grasp("import", str(foreign), "--db", str(tmp_path / "b.db"), "--mass", "0.05")
     assert code == 0 and "object/mass" not in err, err
     assert _stored(tmp_path / "b.db") == (0.05, friction)
@@ -52,6 +55,24 @@ def test_a_file_without_friction_says_it_and_a_files_own_mass_is_not_replaced(db
     code, _, err = grasp("import", str(foreign), "--db", str(tmp_path / "b.db"), "--friction", "0.8")
     assert code == 0 and "object/friction" not in err, err
     assert _stored(tmp_path / "b.db") == (mass, 0.8)
+
+
+def test_one_mass_for_a_command_of_several_files_is_said_so_in_its_help_and_its_error(db: Path,
+                                                                                     tmp_path: Path) -> None:
+    """Two files, one with its own object/mass and one without: `--mass` for the second was refused for the first,
+    "leave --mass out for this file", which a command of both cannot; its help said "the objects' mass"."""
+    import shutil
+
+    foreign, _ = foreign_file(db, tmp_path, "box", "crate")
+    bare = _without(Path(shutil.copy(foreign, foreign.with_name("bare.h5"))), "mass")
+    mass = float(h5py.File(foreign, "r")["object/mass"][()])
+    code, _, err = grasp("import", str(foreign), str(bare), "--db", str(tmp_path / "a.db"), "--mass", str(mass * 2))
+    one_line_error(code, err, 2, "crate.h5: its object/mass", "leave --mass out for this file (--mass is one value "
+                   "for every file of the command: give it in a command of the files without object/mass)")
+    assert not (tmp_path / "a.db").exists()
+    code, out, _ = grasp("import", "--help")
+    assert code == 0 and "One mass [kg] for the object of every file of the command that gives none" in \
+        " ".join(out.split())
 
 
 def test_calibrate_says_the_mass_it_takes_for_a_file_without_one(db: Path, tmp_path: Path,

@@ -260,3 +260,37 @@ def test_a_long_title_does_not_shrink_the_views(tmp_path: Path) -> None:
     save_sheet([([blank] * 3, title)], out)
     h, w = image.imread(out).shape[:2]
     assert w >= 3 * width * 0.95 and h >= height * 0.95, (w, h)
+
+
+def test_no_view_looks_at_the_back_of_the_hand(db: Path, tmp_path: Path) -> None:
+    """`grasp show` of a Barrett grasp drew its third view from behind the palm: the palm alone, no object, no
+    finger on it. The box and its best grasp turned together so that the hand approaches straight towards the third
+    view's camera: every view still shows the object (before, the third showed 0.1% of its pixels as box)."""
+    from dataclasses import replace
+
+    from planner.db.store import open_db
+    from planner.geometry.frames import rotation_onto
+    from planner.geometry.solid import load_object
+    from planner.present.render import BEHIND_THE_PALM, VIEWS, clear_of_the_palm, grasp_views
+    from planner.record.contacts import HandContacts
+    from planner.specs.hands import load_hand
+
+    hand, box = load_hand("panda"), load_object("box")
+    with open_db(db, create=False, readonly=True) as store:
+        grasp = store.best("box", "panda", 1)[0]
+    third = VIEWS[2] / np.linalg.norm(VIEWS[2])
+    pose = np.eye(4)
+    pose[:3, :3] = rotation_onto(np.asarray(grasp.pose)[:3, :3] @ hand.approach, -third)
+    box.mesh.copy().apply_transform(pose).export(tmp_path / "turned.obj")
+    c = grasp.contacts
+    turned = replace(grasp, pose=pose @ grasp.pose, contacts=HandContacts(c.points @ pose[:3, :3].T,
+                                                                          c.normals @ pose[:3, :3].T, c.links))
+    views = grasp_views(hand, load_object(str(tmp_path / "turned.obj")), turned, size=(160, 130))
+    assert all(colour_share(v.image, OBJECT_RGBA) > 0.01 for v in views), [colour_share(v.image, OBJECT_RGBA)
+                                                                          for v in views]
+    up = np.array([0.0, 0.0, 1.0])
+    for approach in (-third, -up, np.array([1.0, 0.0, 0.0])):  # a table's views, all from above it, stay above
+        for view in (-approach, third * [1, 1, -1], up, np.array([-1.0, 0.0, 0.1]) / np.hypot(1.0, 0.1)):
+            if view @ up > 0:
+                seen = clear_of_the_palm(view, approach, up)
+                assert np.isclose(np.linalg.norm(seen), 1.0) and seen @ approach > -BEHIND_THE_PALM and seen @ up > 0

@@ -153,7 +153,21 @@ def test_the_analytic_score_is_read_without_the_trials_it_is_scored_against() ->
     rep = report.HandReport("panda", rule=RankingRule(), grasps=grasps)
     assert np.allclose(rep.measure("analytic"), [0.9, 0.8, 0.3, 0.2])
     assert np.allclose(report.untried_analytic(RankingRule(), grasps), [0.9, 0.8, 0.3, 0.2])
-    assert dict(report._summary_rows(rep))["verdicts from"] == "MuJoCo 4, PyBullet 0"  # the report says whose
+    assert dict(report._summary_rows(rep))["verdicts from"] == "MuJoCo 4"  # the report says whose
+
+
+def test_the_reliability_legend_names_only_the_engines_whose_trials_it_draws() -> None:
+    """The quick start's report drew p_hold against 3 MuJoCo trials under the legend "trials: MuJoCo 3, PyBullet 0",
+    which read as a PyBullet trial that held none."""
+    from planner.calibration.metrics import reliability
+    from planner.record.grasp import Trial
+
+    held = Trial(True, 2, 0.0, 0.0, 0.0, 0.0, "held")
+    for tried, said in ((dict(mujoco=held), "trials: MuJoCo 3"), (dict(validation=held), "trials: PyBullet 3")):
+        grasps = [replace(made_up(i, 0.05), p_hold=0.9, **tried) for i in range(3)]
+        cal = report.HandCalibration("panda", "shipped", None, reliability(np.ones(3), np.full(3, 0.9)),
+                                     engines=report.engines(grasps))
+        assert [label for label, _ in cal.curves()] == [said]
 
 
 def test_a_trial_with_one_outcome_only_says_no_auc_can_be_made() -> None:
@@ -182,3 +196,23 @@ def test_the_analytic_order_puts_first_the_grasps_the_database_ranks_first() -> 
 
     sweep = [one(0, 0.9, False), one(1, 0.2, True), one(2, 0.8, None), replace(made_up(3, 0.05), id=103, p_hold=0.1)]
     assert report.analytic_order(RankingRule(), sweep) == [101, 103, 100, 102]
+
+
+def test_the_decile_chart_of_a_few_grasps_says_its_bins_and_counts_in_readable_type() -> None:
+    """The quick start's report (`validate --top 3`) drew three bars titled "epsilon decile", each of one grasp
+    unsaid, under tick labels of 6 pt."""
+    import matplotlib.pyplot as plt
+
+    from planner.present.report import TICK_SIZE, decile_figure
+    from planner.record.grasp import Trial
+
+    rep = report.HandReport("panda")
+    for i, eps in enumerate([0.004, 0.02, 0.06]):
+        rep.grasps.append(replace(made_up(i, epsilon=eps, fc=True), id=i, rank=i + 1,
+                                  mujoco=Trial(True, 2, 0.0, 0.0, 0.0, 0.0, "held")))
+    fig = decile_figure(rep)
+    ax = fig.axes[0]
+    assert ax.get_xlabel().startswith("epsilon, 3 bins of equal count")
+    assert [t.get_text() for t in ax.texts] == ["n=1"] * 3 and ax.get_ylim()[1] > 1.0
+    assert all(t.get_fontsize() >= TICK_SIZE >= 8 for t in ax.get_xticklabels())
+    plt.close(fig)

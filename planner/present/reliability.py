@@ -1,0 +1,175 @@
+"""``grasp report``'s p_hold section: each hand's p_hold model against what labels its grasps.
+
+Three sets of labels, each its own reliability table (predicted p_hold vs observed success per decile) with its
+expected calibration error, drawn as one diagram per hand (``reliability_<hand>.png``):
+
+* the model's held-out predictions on the labels it was fitted on (its source: the shipped model's ACRONYM dev
+  set, or ``grasp calibrate``'s files);
+* the stored trials of this project (MuJoCo's, else PyBullet's: :func:`engines` says whose);
+* the labels of the files the grasps were imported from (``grasp import``: ACRONYM's
+  ``grasps/qualities/flex/object_in_gripper``, FleX's verdicts in ACRONYM's own files, a user's outcomes in
+  theirs), named by their source, with the ROC AUC of p_hold and of the analytic score against them. These are
+  the file's, not a trial of this project's: they are never mixed with the trials.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from planner.calibration.metrics import Reliability, reliability, roc_auc
+from planner.db.store import open_db
+from planner.record.grasp import Grasp
+
+
+@dataclass(frozen=True)
+class FileLabels:
+    """The grasps of one hand an imported file labels, as the report compares them.
+
+    count, held: how many, and how many of them the files label held; sources: the distinct
+    :attr:`~planner.record.grasp.FileLabel.source` of their labels (a file and dataset each), sorted;
+    p_hold: the reliability table of p_hold against the labels (None: no model applies to the hand);
+    auc_p_hold, auc_score: ROC AUC of p_hold and of the analytic score (the ranking rule without trials)
+    against the labels (NaN: one class only, or not computed).
+    """
+
+    count: int
+    held: int
+    sources: tuple[str, ...]
+    p_hold: Reliability | None
+    auc_p_hold: float
+    auc_score: float
+
+    @property
+    def named(self) -> str:
+        """The labels' source as said: the one source, else how many and the first."""
+        first = self.sources[0] if self.sources else "unknown"
+        return first if len(self.sources) <= 1 else f"{len(self.sources)} sources: {first}, ..."
+
+
+def file_labels(grasps: Sequence[Grasp], scores: np.ndarray) -> FileLabels:
+    """:class:`FileLabels` of ``grasps`` (each with a file label) and their analytic ``scores`` (n,)."""
+    y = np.array([g.file_label.success for g in grasps], float)  # type: ignore[union-attr]
+    p = np.array([math.nan if g.p_hold is None else g.p_hold for g in grasps], float)
+    modelled = bool(np.isfinite(p).any())
+    return FileLabels(len(grasps), int(y.sum()), tuple(sorted({g.file_label.source for g in grasps})),  # type: ignore[union-attr]
+                      reliability(y, p) if modelled else None, roc_auc(y, p) if modelled else math.nan,
+                      roc_auc(y, np.asarray(scores, float)))
+
+
+@dataclass(frozen=True)
+class HandCalibration:
+    """A hand's p_hold model as the report shows it: where it came from, its
+    held-out reliability table (None: not recorded) and p_hold against the
+    stored trials (None: no trial of a grasp with p_hold); outside: per
+    object of the hand outside the labelled objects the model was fitted on,
+    how (:meth:`~planner.calibration.logistic.LogisticModel.outside`);
+    held_out_ece: the 95% interval over objects of the held-out ECE that
+    the fit recorded (``ece_lo``, ``ece_hi`` of its figures; None: a fit
+    that predates them); files: its grasps' imported files' own labels (None: none has one)."""
+
+    hand: str
+    source: str
+    held_out: Reliability | None
+    trials: Reliability | None
+    outside: dict[str, list[str]] = field(default_factory=dict)
+    held_out_ece: tuple[float, float] | None = None
+
+    engines: str = ""  # whose verdicts ``trials`` holds (:func:`engines`)
+    files: FileLabels | None = None
+
+    def curves(self) -> list[tuple[str, Reliability]]:
+        files = None if self.files is None else self.files.p_hold
+        return [(label, r) for label, r in (("held out on its labels: the model's source", self.held_out),
+                                            (f"trials: {self.engines}", self.trials),
+                                            (f"the imported files' own labels ({self._files_named()})", files))
+                if r is not None]
+
+    def _files_named(self) -> str:
+        return "" if self.files is None else self.files.named
+
+
+def labelled(db_path: Path) -> dict[str, FileLabels]:
+    """Per hand whose grasps an imported file labels (``grasp import``), how p_hold and the score meet the labels."""
+    from planner.present.report import untried_analytic
+
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        grasps, rule = db.validated(file_labels=True), db.rule()
+    hands = sorted({g.hand for g in grasps})
+    return {hand: file_labels(mine, untried_analytic(rule, mine))
+            for hand in hands for mine in [[g for g in grasps if g.hand == hand]]}
+
+
+def calibration(db_path: Path) -> list[HandCalibration]:
+    """Every hand of the database that has a p_hold model: a hand with grasps (its stored or shipped model), or
+    one ``grasp calibrate`` stored a model for (a database with no grasps yet: its held-out figures)."""
+    files = labelled(db_path)
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        out = []
+        for hand in sorted({h for _, h in db.pairs()} | set(db.calibrated_hands())):
+            model = db.model(hand)
+            if model is None:
+                continue
+            tried = [g for g in db.validated() if g.hand == hand and g.p_hold is not None]
+            trials = reliability(np.array([g.trial.success for g in tried], float),  # type: ignore[union-attr]
+                                 np.array([g.p_hold for g in tried], float)) if tried else None
+            rows = {name: db.object_row(name) for name in db.objects_for(hand)}
+            outside = {name: model.outside(row.properties()) for name, row in rows.items() if row is not None}
+            lo, hi = (model.figures.get(f"ece_{end}", math.nan) for end in ("lo", "hi"))
+            source = db.model_source(hand)
+            source = f"{source}: {model.source}" if source == "shipped" and model.source else source
+            out.append(HandCalibration(hand, source, model.held_out, trials,
+                                       {name: why for name, why in outside.items() if why},
+                                       (lo, hi) if math.isfinite(lo) and math.isfinite(hi) else None,
+                                       engines(tried), files.get(hand)))
+    return out
+
+
+def engines(grasps: Sequence[Grasp]) -> str:
+    """Whose verdicts label ``grasps`` (each its :attr:`Grasp.trial`): ``MuJoCo 120, PyBullet 298``; an engine that
+    labels none is left out (a legend's "PyBullet 0" read as a trial that held none)."""
+    mujoco = sum(g.mujoco is not None for g in grasps)
+    return ", ".join(f"{name} {n}" for name, n in (("MuJoCo", mujoco), ("PyBullet", len(grasps) - mujoco)) if n) + (
+        " (MuJoCo's verdict where both tried a grasp)" if any(g.mujoco and g.validation for g in grasps) else "")
+
+
+def ece_lines(cals: list[HandCalibration]) -> list[str]:
+    """One line per hand and reliability table: its expected calibration error."""
+    lines = []
+    for c in cals:
+        for label, r in c.curves():
+            lines.append(f"{c.hand}: ECE of p_hold ({label}, {int(r.count.sum())} grasps) = {r.ece:.4f}"
+                         + (_interval(c.held_out_ece) if r is c.held_out else ""))
+        lines += [f"{c.hand}: p_hold of {name} is extrapolated, outside the labelled objects it was fitted on: "
+                  f"{'; '.join(why)}" for name, why in sorted(c.outside.items())]
+    return lines
+
+
+def file_lines(files: dict[str, FileLabels]) -> list[str]:
+    """One line per hand whose grasps an imported file labels: how many, from where, and how p_hold (where a
+    model applies) and the analytic score rank them."""
+    lines = []
+    for hand, f in sorted(files.items()):
+        aucs = "; ".join(f"ROC AUC of {name} against them {auc:.3f}" for name, auc in
+                         (("p_hold", f.auc_p_hold), ("the analytic score", f.auc_score)) if math.isfinite(auc))
+        lines.append(f"{hand}: the imported files' own labels ({f.named}; the files', not a trial of this project's): "
+                     f"{f.count} grasps, {f.held} held, {f.count - f.held} dropped"
+                     + (f"; {aucs}" if aucs else "; no ROC AUC without both outcomes"))
+    return lines
+
+
+def _interval(ece: tuple[float, float] | None) -> str:
+    if ece is None:
+        return " (no interval: the model's fit predates them; `grasp calibrate` records one)"
+    return f" [{ece[0]:.4f}, {ece[1]:.4f}] (95% over objects: a bootstrap drawing the labelled objects)"
+
+
+def reliability_png(c: HandCalibration) -> bytes:
+    """The hand's reliability diagram (every table of :meth:`HandCalibration.curves`) as PNG."""
+    from planner.calibration.plot import reliability_png as png
+
+    return png(c.curves(), f"p_hold of the {c.hand}: predicted vs observed success")
