@@ -24,7 +24,8 @@ torsional ``mu x torsion_radius``.
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from functools import partial
 
 import mujoco
 import numpy as np
@@ -46,6 +47,10 @@ mujoco.set_mju_user_warning(lambda message: log.warning("MuJoCo: %s", message))
 
 #: MuJoCo's warnings of a diverged state (each followed by a reset of the state).
 _DIVERGED = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
+
+
+#: (4, 4) the identity, copied for a pose (np.eye's call cost more than the copy, read ~10 times a trial)
+_EYE = np.eye(4)
 
 
 def _quat(rotation: np.ndarray) -> np.ndarray:
@@ -102,6 +107,8 @@ class World:
         self._links = (np.array([g for g, _ in chains], int), np.array([j for _, j in chains], int),
                        np.array([m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE for _, j in chains], bool))
         self._margins = m.geom_margin.copy()
+        #: the warnings of a diverged state, as indices of MuJoCo's warning counters (read at once)
+        self._diverging = np.array([int(w) for w in _DIVERGED])
 
     # -- placing -------------------------------------------------------------------
     def reset(self, hand_pose: np.ndarray, joints: Mapping[str, float], object_pose: np.ndarray | None = None) -> None:
@@ -233,6 +240,15 @@ class World:
     def set_target(self, joint: str, target: float) -> None:
         self.data.ctrl[self.motors[joint]] = target
 
+    def servo_io(self) -> tuple[np.ndarray, dict[str, int], np.ndarray, dict[str, int]]:
+        """(the motors' targets (nu,) [rad or m], each joint's index in it, the joints' speeds (nv,) [rad/s or
+        m/s], each joint's index in it): views of the state, for a loop that sets targets and reads speeds every
+        step without a method call per joint and step (``ctrl[i[name]] = x`` is :meth:`set_target`,
+        ``qvel[k[name]]`` :meth:`joint_speed`); valid as long as the world."""
+        m = self.model
+        return (self.data.ctrl, dict(self.motors), self.data.qvel,
+                {name: int(m.jnt_dofadr[j]) for name, j in self.joints.items()})
+
     def couple(self, joint: str, engaged: bool) -> None:
         """Engage or release the gear (equality constraint) of a mimic joint."""
         self.data.eq_active[self.gears[joint]] = int(engaged)
@@ -264,14 +280,18 @@ class World:
         for _ in range(n):
             mujoco.mj_step(m, d)
 
+    def stepper(self) -> Callable[[], None]:
+        """One :meth:`step` as a call without arguments (for a loop that steps one at a time)."""
+        return partial(mujoco.mj_step, self.model, self.data)
+
     def diverged(self) -> bool:
         """Whether the state has diverged since the last :meth:`reset`:
         MuJoCo met a non-finite or huge position, velocity or acceleration
         (it then resets the state to the model's defaults, hand and object
         at the origin, and counts a warning), or the state is not finite now."""
         d = self.data
-        return (any(d.warning[w].number for w in _DIVERGED)
-                or not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))))
+        return bool(d.warning.number[self._diverging].any()
+                    or not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()))
 
     @property
     def time(self) -> float:
@@ -280,7 +300,7 @@ class World:
     # -- reading -------------------------------------------------------------------
     def object_pose(self) -> np.ndarray:
         """(4, 4) the object frame in the world."""
-        pose = np.eye(4)
+        pose = _EYE.copy()
         pose[:3, :3] = self.data.xmat[self.object_body].reshape(3, 3)
         pose[:3, 3] = self.data.xpos[self.object_body]
         return pose
@@ -288,7 +308,7 @@ class World:
     def hand_pose(self) -> np.ndarray:
         """(4, 4) the hand's root frame in the world (where the weld holds it, not its target)."""
         body = self._hand_body
-        pose = np.eye(4)
+        pose = _EYE.copy()
         pose[:3, :3] = self.data.xmat[body].reshape(3, 3)
         pose[:3, 3] = self.data.xpos[body]
         return pose
