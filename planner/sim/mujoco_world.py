@@ -99,6 +99,9 @@ class World:
                            for g in range(m.ngeom) if m.geom_contype[g] == HAND_BITS}
         self.object_geoms = frozenset(g for g in range(m.ngeom) if int(m.geom_bodyid[g]) == self.object_body)
         self._ranges, self._solrefs = m.jnt_range.copy(), m.jnt_solref.copy()
+        #: views of the arrays read or written every step of closing (each attribute read makes a new view)
+        self._range, self._solref, self._qpos = m.jnt_range, m.jnt_solref, self.data.qpos
+        self._qpos_of = {name: int(m.jnt_qposadr[j]) for name, j in self.joints.items()}
         self._force = np.zeros(6)
         self._hand_body = int(m.jnt_bodyid[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, HAND_BASE)])
         #: hand geom -> the finger joints (ids) between it and the hand's root
@@ -257,11 +260,11 @@ class World:
         """Move ``joint``'s limits [rad or m] (a ratchet, a brake: ``lower`` = ``upper`` holds it there),
         as stiff as the contacts (the engine's contact time constant) until the next :meth:`reset`."""
         i = self.joints[joint]
-        self.model.jnt_range[i] = (lower, upper)
-        self.model.jnt_solref[i] = self._held
+        self._range[i] = (lower, upper)
+        self._solref[i] = self._held
 
     def joint_position(self, joint: str) -> float:
-        return float(self.data.qpos[self.model.jnt_qposadr[self.joints[joint]]])
+        return float(self._qpos[self._qpos_of[joint]])
 
     def motor_force(self, joint: str) -> float:
         """[N or N m] the force ``joint``'s motor applies now (within its force range)."""

@@ -468,12 +468,17 @@ def test_closing_sets_its_targets_and_reads_its_speeds_without_a_call_per_step(p
     hand, obj, grasp = pinched
     expected = trial(hand, obj, grasp)
     calls = {"set_target": 0, "joint_speed": 0}
-    for name in calls:
-        def counted(world, *args, _name=name, _f=getattr(World, name)):  # type: ignore[no-untyped-def]
-            calls[_name] += 1
-            return _f(world, *args)
 
-        monkeypatch.setattr(World, name, counted)
+    def counting(name: str):  # type: ignore[no-untyped-def]
+        method = getattr(World, name)
+
+        def counted(world, *args):  # type: ignore[no-untyped-def]
+            calls[name] += 1
+            return method(world, *args)
+        return counted
+
+    for name in calls:
+        monkeypatch.setattr(World, name, counting(name))
     assert trial(hand, obj, grasp) == expected and expected.reason == "held"
     assert calls == {"set_target": 0, "joint_speed": 0}
 
