@@ -31,6 +31,7 @@ import mujoco
 import numpy as np
 
 from planner.errors import SimulationError
+from planner.geometry.frames import rows_cross
 from planner.sim.mujoco_mjcf import HAND_BASE, HAND_BITS, OBJECT, TARGET, Builder, Solid, quats
 from planner.specs.hands import HandSpec
 from planner.validation.mujoco_settings import Engine
@@ -201,7 +202,7 @@ class World:
         for name, v in speeds.items():
             rate[self.joints[name]] = abs(v)
         g, j, slide = self._links
-        arm = np.where(slide, 1.0, np.linalg.norm(np.cross(d.geom_xpos[g] - d.xanchor[j], d.xaxis[j]), axis=1)
+        arm = np.where(slide, 1.0, np.linalg.norm(rows_cross(d.geom_xpos[g] - d.xanchor[j], d.xaxis[j]), axis=1)
                        + m.geom_rbound[g])
         bound = np.bincount(g, rate[j] * arm, minlength=m.ngeom)
         moving = {int(i): float(bound[i]) for i in np.flatnonzero(bound > 0.0)}
