@@ -24,12 +24,14 @@ torsional ``mu x torsion_radius``.
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from functools import partial
 
 import mujoco
 import numpy as np
 
 from planner.errors import SimulationError
+from planner.geometry.frames import rows_cross
 from planner.sim.mujoco_mjcf import HAND_BASE, HAND_BITS, OBJECT, TARGET, Builder, Solid, quats
 from planner.specs.hands import HandSpec
 from planner.validation.mujoco_settings import Engine
@@ -46,6 +48,10 @@ mujoco.set_mju_user_warning(lambda message: log.warning("MuJoCo: %s", message))
 
 #: MuJoCo's warnings of a diverged state (each followed by a reset of the state).
 _DIVERGED = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
+
+
+#: (4, 4) the identity, copied for a pose (np.eye's call cost more than the copy, read ~10 times a trial)
+_EYE = np.eye(4)
 
 
 def _quat(rotation: np.ndarray) -> np.ndarray:
@@ -94,6 +100,9 @@ class World:
                            for g in range(m.ngeom) if m.geom_contype[g] == HAND_BITS}
         self.object_geoms = frozenset(g for g in range(m.ngeom) if int(m.geom_bodyid[g]) == self.object_body)
         self._ranges, self._solrefs = m.jnt_range.copy(), m.jnt_solref.copy()
+        #: views of the arrays read or written every step of closing (each attribute read makes a new view)
+        self._range, self._solref, self._qpos = m.jnt_range, m.jnt_solref, self.data.qpos
+        self._qpos_of = {name: int(m.jnt_qposadr[j]) for name, j in self.joints.items()}
         self._force = np.zeros(6)
         self._hand_body = int(m.jnt_bodyid[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, HAND_BASE)])
         #: hand geom -> the finger joints (ids) between it and the hand's root
@@ -102,6 +111,8 @@ class World:
         self._links = (np.array([g for g, _ in chains], int), np.array([j for _, j in chains], int),
                        np.array([m.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE for _, j in chains], bool))
         self._margins = m.geom_margin.copy()
+        #: the warnings of a diverged state, as indices of MuJoCo's warning counters (read at once)
+        self._diverging = np.array([int(w) for w in _DIVERGED])
 
     # -- placing -------------------------------------------------------------------
     def reset(self, hand_pose: np.ndarray, joints: Mapping[str, float], object_pose: np.ndarray | None = None) -> None:
@@ -191,7 +202,7 @@ class World:
         for name, v in speeds.items():
             rate[self.joints[name]] = abs(v)
         g, j, slide = self._links
-        arm = np.where(slide, 1.0, np.linalg.norm(np.cross(d.geom_xpos[g] - d.xanchor[j], d.xaxis[j]), axis=1)
+        arm = np.where(slide, 1.0, np.linalg.norm(rows_cross(d.geom_xpos[g] - d.xanchor[j], d.xaxis[j]), axis=1)
                        + m.geom_rbound[g])
         bound = np.bincount(g, rate[j] * arm, minlength=m.ngeom)
         moving = {int(i): float(bound[i]) for i in np.flatnonzero(bound > 0.0)}
@@ -233,6 +244,15 @@ class World:
     def set_target(self, joint: str, target: float) -> None:
         self.data.ctrl[self.motors[joint]] = target
 
+    def servo_io(self) -> tuple[np.ndarray, dict[str, int], np.ndarray, dict[str, int]]:
+        """(the motors' targets (nu,) [rad or m], each joint's index in it, the joints' speeds (nv,) [rad/s or
+        m/s], each joint's index in it): views of the state, for a loop that sets targets and reads speeds every
+        step without a method call per joint and step (``ctrl[i[name]] = x`` is :meth:`set_target`,
+        ``qvel[k[name]]`` :meth:`joint_speed`); valid as long as the world."""
+        m = self.model
+        return (self.data.ctrl, dict(self.motors), self.data.qvel,
+                {name: int(m.jnt_dofadr[j]) for name, j in self.joints.items()})
+
     def couple(self, joint: str, engaged: bool) -> None:
         """Engage or release the gear (equality constraint) of a mimic joint."""
         self.data.eq_active[self.gears[joint]] = int(engaged)
@@ -241,11 +261,11 @@ class World:
         """Move ``joint``'s limits [rad or m] (a ratchet, a brake: ``lower`` = ``upper`` holds it there),
         as stiff as the contacts (the engine's contact time constant) until the next :meth:`reset`."""
         i = self.joints[joint]
-        self.model.jnt_range[i] = (lower, upper)
-        self.model.jnt_solref[i] = self._held
+        self._range[i] = (lower, upper)
+        self._solref[i] = self._held
 
     def joint_position(self, joint: str) -> float:
-        return float(self.data.qpos[self.model.jnt_qposadr[self.joints[joint]]])
+        return float(self._qpos[self._qpos_of[joint]])
 
     def motor_force(self, joint: str) -> float:
         """[N or N m] the force ``joint``'s motor applies now (within its force range)."""
@@ -264,14 +284,18 @@ class World:
         for _ in range(n):
             mujoco.mj_step(m, d)
 
+    def stepper(self) -> Callable[[], None]:
+        """One :meth:`step` as a call without arguments (for a loop that steps one at a time)."""
+        return partial(mujoco.mj_step, self.model, self.data)
+
     def diverged(self) -> bool:
         """Whether the state has diverged since the last :meth:`reset`:
         MuJoCo met a non-finite or huge position, velocity or acceleration
         (it then resets the state to the model's defaults, hand and object
         at the origin, and counts a warning), or the state is not finite now."""
         d = self.data
-        return (any(d.warning[w].number for w in _DIVERGED)
-                or not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))))
+        return bool(d.warning.number[self._diverging].any()
+                    or not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()))
 
     @property
     def time(self) -> float:
@@ -280,7 +304,7 @@ class World:
     # -- reading -------------------------------------------------------------------
     def object_pose(self) -> np.ndarray:
         """(4, 4) the object frame in the world."""
-        pose = np.eye(4)
+        pose = _EYE.copy()
         pose[:3, :3] = self.data.xmat[self.object_body].reshape(3, 3)
         pose[:3, 3] = self.data.xpos[self.object_body]
         return pose
@@ -288,7 +312,7 @@ class World:
     def hand_pose(self) -> np.ndarray:
         """(4, 4) the hand's root frame in the world (where the weld holds it, not its target)."""
         body = self._hand_body
-        pose = np.eye(4)
+        pose = _EYE.copy()
         pose[:3, :3] = self.data.xmat[body].reshape(3, 3)
         pose[:3, 3] = self.data.xpos[body]
         return pose

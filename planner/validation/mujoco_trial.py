@@ -90,6 +90,8 @@ from planner.validation.mujoco_settings import DIVERGED, MujocoSettings
 from planner.validation.mujoco_worlds import world_for
 from planner.validation.tolerances import DEFAULT_LEVER, GRAVITY
 
+#: (4, 4) the identity, copied (np.eye's call cost more than the copy)
+_EYE = np.eye(4)
 #: Why a MuJoCo trial ended as it did (``Trial.reason``).
 REASONS = ("held", "slipped", "squeezed_out", "no_contact", "start_overlap", DIVERGED)
 #: [s] how often a trial reads its contacts while loaded (an early verdict once no finger touches) and
@@ -137,7 +139,8 @@ def trials(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp], setting
     s = settings or MujocoSettings()
     world = world_for(hand, obj, s, obj.mass if mass is None else mass)
     mu = contact_friction(obj.friction if friction is None else friction, s)
-    return [_Run(world, hand, g, s, mu, obj.up).run() for g in grasps]
+    known: dict[str, tuple[dict[str, float], tuple[frozenset[str], ...]]] = {}  # a preshape's rates and fingers
+    return [_Run(world, hand, g, s, mu, obj.up, known).run() for g in grasps]
 
 
 def contact_friction(mu: float, s: MujocoSettings) -> float:
@@ -172,13 +175,19 @@ class _Run:
     s: MujocoSettings
     mu: float
     up: np.ndarray = field(default_factory=lambda: UP)  # (3,) the object's up as it stands, object frame
+    #: preshape -> its closing rates and fingers, worked out once for a hand's trials (they depend on nothing else)
+    known: dict[str, tuple[dict[str, float], tuple[frozenset[str], ...]]] = field(default_factory=dict)
     rates: dict[str, float] = field(init=False)
     fingers: tuple[frozenset[str], ...] = field(init=False)
     pose: np.ndarray = field(init=False)
 
     def __post_init__(self) -> None:
-        self.rates = fg.closing_rates(self.hand, self.grasp.preshape)
-        self.fingers = fg.fingers(self.hand, self.rates)
+        preshape = self.grasp.preshape
+        if preshape not in self.known:
+            rates = fg.closing_rates(self.hand, preshape)
+            self.known[preshape] = (rates, fg.fingers(self.hand, rates))
+        rates, self.fingers = self.known[preshape]
+        self.rates = dict(rates)  # the run's own (read only today)
         self.pose = np.asarray(self.grasp.pose, float)
 
     # -- phases ----------------------------------------------------------------------
@@ -248,6 +257,8 @@ class _Run:
         floor: dict[str, float] = {}
         still = 0.0
         first = self._skip_free_travel(moving) if s.free_travel_gap > 0 else 0
+        ctrl, motor, qvel, dof = w.servo_io()  # every step: views, not a method call per joint
+        step, stall = w.stepper(), s.stall_speed
         for i in range(first, steps(closing_time(s, moving.values()), dt)):
             t = (i + 1) * dt
             done = True
@@ -255,14 +266,18 @@ class _Run:
                 at = target.at(t)
                 if worm:
                     at = worm_target(w, hand, name, target, at, t, lead[name], moving, floor)
-                w.set_target(name, at)
+                ctrl[motor[name]] = at
                 done &= at == target.end
-            w.step()
+            step()
             if (i + 1) % every == 0:
                 self._check()
             if clutches:
                 break_away(w, hand, self.rates, s, clutches, w.touching_links(), moving, t, fastest)
-            stalled = all(abs(w.joint_speed(name)) * lever[name] < s.stall_speed for name in moving)
+            stalled = True
+            for name in moving:
+                if not abs(qvel.item(dof[name])) * lever[name] < stall:
+                    stalled = False
+                    break
             still = still + dt if stalled and (done or i * dt > s.stall_time) else 0.0
             if still >= s.stall_time:
                 break
@@ -350,7 +365,7 @@ class _Run:
         frame = w.object_pose()
         frame[:3, 3] = w.centre_of_mass()
         hand = w.hand_pose()
-        inverse = np.eye(4)
+        inverse = _EYE.copy()
         inverse[:3, :3] = hand[:3, :3].T
         inverse[:3, 3] = -hand[:3, :3].T @ hand[:3, 3]
         return inverse @ frame

@@ -458,3 +458,51 @@ def test_a_settle_of_no_time_takes_no_step(pinched, monkeypatch) -> None:  # typ
     assert settled.reason == at_once.reason == "held"
     assert with_settle - steps.count == 5  # 0.01 s of 2 ms steps, and nothing for none
 
+
+
+def test_closing_sets_its_targets_and_reads_its_speeds_without_a_call_per_step(pinched, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    # the closing loop writes the servos' targets and reads the joints' speeds through the world's views
+    # (World.servo_io), the same numbers as World.set_target / World.joint_speed without their calls each step
+    from planner.sim.mujoco_world import World
+
+    hand, obj, grasp = pinched
+    expected = trial(hand, obj, grasp)
+    calls = {"set_target": 0, "joint_speed": 0}
+
+    def counting(name: str):  # type: ignore[no-untyped-def]
+        method = getattr(World, name)
+
+        def counted(world, *args):  # type: ignore[no-untyped-def]
+            calls[name] += 1
+            return method(world, *args)
+        return counted
+
+    for name in calls:
+        monkeypatch.setattr(World, name, counting(name))
+    assert trial(hand, obj, grasp) == expected and expected.reason == "held"
+    assert calls == {"set_target": 0, "joint_speed": 0}
+
+
+def test_the_views_are_the_worlds_targets_and_speeds(pinched) -> None:  # type: ignore[no-untyped-def]
+    from planner.validation.mujoco_worlds import world_for
+
+    hand, obj, grasp = pinched
+    w = world_for(hand, obj, MujocoSettings(), obj.mass)
+    w.reset(np.asarray(grasp.pose, float), fg.open_start(hand, grasp, fg.closing_rates(hand, grasp.preshape)))
+    ctrl, motor, qvel, dof = w.servo_io()
+    name = hand.driven[0].name
+    w.drive(name, 0.0, 100.0, 1.0, 10.0)
+    ctrl[motor[name]] = 0.01
+    w.step(5)
+    assert w.data.ctrl[w.motors[name]] == 0.01 and qvel[dof[name]] == w.joint_speed(name) != 0.0
+
+
+def test_a_preshapes_closing_rates_are_worked_out_once_for_a_batch(pinched, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    hand, obj, grasp = pinched
+    off = backed_off(grasp, hand, 0.06)
+    alone = [trial(hand, obj, g) for g in (grasp, off, grasp)]
+    calls = []
+    rates = fg.closing_rates
+    monkeypatch.setattr(fg, "closing_rates", lambda h, preshape: calls.append(preshape) or rates(h, preshape))
+    assert trials(hand, obj, [grasp, off, grasp]) == alone
+    assert calls == [grasp.preshape]
