@@ -41,16 +41,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
-
-try:  # scipy's own loop behind connected_components, without its graph checks and transpose (see _components)
-    from scipy.sparse.csgraph._traversal import _connected_components_undirected
-except ImportError:  # pragma: no cover
-    _connected_components_undirected = None
 
 from planner.geometry.frames import tangent_bases
+from planner.plan.patch_clusters import by_node as _by_node  # noqa: F401 - the clusters' helpers under their
+from planner.plan.patch_clusters import cluster as _cluster  # names before they moved (tests read them here)
+from planner.plan.patch_clusters import components as _components  # noqa: F401
+from planner.plan.patch_clusters import components_reference as _components_reference  # noqa: F401
 from planner.plan.patch_surfaces import (
     BOUND,
     SLACK,
@@ -101,8 +97,7 @@ def link_regions(link: str, surface: LinkSurface, pose: np.ndarray, obj: ObjectS
     s = obj.settings
     lo, hi = obj.mesh.bounds
     points = surface.points @ pose[:3, :3].T + pose[:3, 3]
-    within = (points > lo - BOX_MARGIN) & (points < hi + BOX_MARGIN)
-    idx = np.flatnonzero(within[:, 0] & within[:, 1] & within[:, 2])  # np.all(axis=1), at half the cost
+    idx = _in_box(points, lo - BOX_MARGIN, hi + BOX_MARGIN)
     if len(idx) == 0:
         return []
     idx, nearest = _band(surface, pose, points, idx, obj)
@@ -115,6 +110,18 @@ def link_regions(link: str, surface: LinkSurface, pose: np.ndarray, obj: ObjectS
     idx, closest, gap, smooth, face = idx[keep], closest[keep], gap[keep], smooth[keep], nearest[2][keep]
     normals = obj.contact_normals(closest, face, smooth, surface.normals[idx] @ pose[:3, :3].T, feature.take(keep))
     return _link_regions(link, surface, points, idx, weight, closest, gap, floor, normals, s)
+
+
+def _in_box(points: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """(n,) ascending indices of the ``points`` (k, 3) strictly inside the box ``low``..``high`` (3,): a coordinate
+    at a time against a number (comparing (k, 3) with (3,) runs numpy's inner loop over 3 elements: 4x the time)."""
+    x, y, z = points.T
+    inside = (x > low[0]) & (x < high[0])
+    inside &= y > low[1]
+    inside &= y < high[1]
+    inside &= z > low[2]
+    inside &= z < high[2]
+    return np.flatnonzero(inside)
 
 
 def _subsample(idx: np.ndarray, nearest: tuple[np.ndarray, ...], s: PatchSettings
@@ -192,53 +199,6 @@ def _band_reference(points: np.ndarray, idx: np.ndarray, obj: ObjectSurface) -> 
     return idx[bound <= bound.min() + s.depth + s.prefilter]
 
 
-def _cluster(points: np.ndarray, normals: np.ndarray, radius: float, split_angle: float,
-             pairs: np.ndarray | None = None) -> np.ndarray:
-    """(k,) labels: connected components of samples closer than ``radius``
-    whose normals differ by less than ``split_angle``; ``pairs`` (p, 2):
-    the pairs closer than ``radius`` when already known, ascending by their
-    first sample (:meth:`LinkSurface.pairs_among`)."""
-    known = pairs is not None
-    if pairs is None:
-        pairs = cKDTree(points).query_pairs(radius, output_type="ndarray") if len(points) > 1 else np.zeros((0, 2), int)
-    if len(pairs):  # take and compress: a third of the time of fancy indexing and a boolean mask
-        first, second = pairs.T
-        similar = np.einsum("ij,ij->i", normals.take(first, axis=0), normals.take(second, axis=0)) > np.cos(split_angle)
-        pairs = pairs.compress(similar, axis=0)
-    if not known:  # the graph's rows; their order within a row changes no label (numbered by smallest member)
-        pairs = pairs[_by_node(pairs[:, 0], len(points))]
-    return _components(len(points), pairs)
-
-
-def _by_node(nodes: np.ndarray, n: int) -> np.ndarray:
-    """The order that sorts ``nodes`` (p,) (ints in 0..n-1) ascending: a stable sort, numpy's radix sort where
-    they fit 16 bits (every patch: a few hundred samples), half the cost of a comparison sort of its thousands of
-    pairs; ties in any order give the same components (:func:`_components`)."""
-    return np.argsort(nodes.astype(np.int16) if n <= np.iinfo(np.int16).max else nodes, kind="stable")
-
-
-def _components(n: int, pairs: np.ndarray) -> np.ndarray:
-    """(n,) int32 labels of the connected components of the undirected graph on n nodes with edges ``pairs``
-    (p, 2), ascending by their first node, numbered by their smallest node: ``connected_components`` of their
-    CSR graph (:func:`_components_reference`), by the loop it runs, given both directions' rows at once (its
-    graph checks and transpose cost more than the search on a patch's few hundred samples)."""
-    if _connected_components_undirected is None:  # pragma: no cover
-        return _components_reference(n, pairs)
-    first, second = pairs[:, 0].astype(np.int32), pairs[:, 1].astype(np.int32)
-    back = _by_node(second, n)  # the other direction's rows; their order within a row changes no label
-    nodes = np.arange(n + 1)
-    labels = np.full(n, -1, np.int32)
-    _connected_components_undirected(second, np.searchsorted(first, nodes).astype(np.int32), first[back],
-                                     np.searchsorted(second[back], nodes).astype(np.int32), labels)
-    return labels
-
-
-def _components_reference(n: int, pairs: np.ndarray) -> np.ndarray:
-    """:func:`_components` through scipy's public ``connected_components``."""
-    graph = csr_matrix((np.ones(len(pairs)), pairs[:, 1], np.searchsorted(pairs[:, 0], np.arange(n + 1))), shape=(n, n))
-    return connected_components(graph, directed=False)[1]
-
-
 def _plane(points: np.ndarray, normal: np.ndarray) -> np.ndarray:
     """(k, 2) coordinates in the tangent plane through the points' centroid."""
     l_vec, o_vec = (v[0] for v in tangent_bases(normal[None]))
@@ -309,8 +269,7 @@ def _together(links: list[tuple[str, LinkSurface, np.ndarray]], obj: ObjectSurfa
     placed = []  # (link, surface, pose, points (k, 3), in-box samples, their cells)
     for link, surface, pose in links:
         points = surface.points @ pose[:3, :3].T + pose[:3, 3]
-        within = (points > lo - BOX_MARGIN) & (points < hi + BOX_MARGIN)
-        idx = np.flatnonzero(within[:, 0] & within[:, 1] & within[:, 2])
+        idx = _in_box(points, lo - BOX_MARGIN, hi + BOX_MARGIN)
         if len(idx):
             chosen = np.flatnonzero(np.bincount(surface.cells.cell[idx], minlength=len(surface.cells.centres)))
             placed.append((link, surface, pose, points, idx, chosen))

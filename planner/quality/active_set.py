@@ -113,6 +113,7 @@ class L1Support:
     def __init__(self, wrenches: np.ndarray) -> None:
         self.wrenches = wrenches
         self._gens = np.ascontiguousarray(wrenches.T)
+        self._block_rows = next(blocks(1, len(wrenches))).stop  # the directions of one block (:func:`blocks`)
 
     def value(self, dirs: np.ndarray) -> np.ndarray:
         """(f,) h(u) for directions (f, 6)."""
@@ -124,6 +125,8 @@ class L1Support:
 
     def _by_block(self, fn: Callable[[np.ndarray], np.ndarray], dirs: np.ndarray) -> np.ndarray:
         dirs = np.ascontiguousarray(dirs)         # strided operands are 4x slower
+        if len(dirs) <= self._block_rows:  # one block (every round of the Panda's and the Barrett's): no generator
+            return fn(dirs)
         parts = [fn(dirs[rows]) for rows in blocks(len(dirs), len(self.wrenches))]
         return parts[0] if len(parts) == 1 else np.concatenate(parts)
 

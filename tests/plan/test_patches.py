@@ -377,3 +377,20 @@ def test_pairs_ordered_by_node_give_the_components_of_any_order(seed: int, n: in
     assert order.tobytes() == np.argsort(first, kind="stable").tobytes()
     pairs = np.column_stack([first, rng.integers(0, n, count)])[order]
     assert np.array_equal(patches._components(n, pairs), patches._components_reference(n, pairs))
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 500))
+def test_samples_in_the_box_a_coordinate_at_a_time_are_those_of_all_at_once(seed: int, k: int) -> None:
+    """Points inside, outside, on a face of the box (bounds excluded) and NaN: the rows the (k, 3) comparison keeps."""
+    from planner.plan.patches import _in_box
+
+    rng = np.random.default_rng(seed)
+    low, high = rng.uniform(-0.1, 0.0, 3), rng.uniform(0.0, 0.1, 3)
+    points = rng.uniform(-0.15, 0.15, (k, 3))
+    on = rng.random((k, 3)) < 0.1
+    points[on] = np.where(rng.random(int(on.sum())) < 0.5, np.broadcast_to(low, (k, 3))[on],
+                          np.broadcast_to(high, (k, 3))[on])
+    points[rng.random((k, 3)) < 0.02] = np.nan
+    within = (points > low) & (points < high)
+    assert np.array_equal(_in_box(points, low, high), np.flatnonzero(within.all(axis=1)))
