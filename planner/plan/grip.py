@@ -122,8 +122,9 @@ class GripSurface:
 
     def box(self, lo: np.ndarray, hi: np.ndarray, coarse: bool = False) -> np.ndarray:
         """Indices (ascending) of the samples (of :attr:`coarse` if ``coarse``)
-        inside the axis-aligned box ``lo``..``hi`` (3,) [m], bounds included;
-        the same as :meth:`box_reference`."""
+        inside the axis-aligned box ``lo``..``hi`` (3,) [m], bounds included
+        but x's upper one (a sample at exactly ``hi[0]`` is left out); the same
+        as :meth:`box_reference`."""
         x, y, z = self._columns[int(coarse)]
         a, b = np.searchsorted(x, [lo[0], hi[0]], side="left")
         idx = np.flatnonzero((y[a:b] >= lo[1]) & (y[a:b] <= hi[1]))
