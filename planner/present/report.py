@@ -160,6 +160,8 @@ def deciles(eps: np.ndarray, success: np.ndarray) -> list[tuple[float, float, fl
     if len(eps) == 0:
         return []
     edges = np.unique(np.quantile(eps, np.linspace(0, 1, 11)))
+    if len(edges) == 1:  # one epsilon for all (one grasp; none force closure, 0): one bin, not none
+        return [(float(edges[0]), float(edges[0]), float(np.mean(success)), len(eps))]
     out = []
     for i in range(len(edges) - 1):
         lo, hi = edges[i], edges[i + 1]
@@ -218,8 +220,9 @@ def decile_figure(report: HandReport):  # type: ignore[no-untyped-def]
     ax.set_xticks(range(len(bins)), [f"{b[0]:.3f}-\n{b[1]:.3f}" for b in bins], fontsize=TICK_SIZE)
     ax.set_ylim(0, 1.12)  # room for the counts over a bar of 1
     ax.set_yticks(np.linspace(0, 1, 6))
-    ax.set_xlabel("epsilon decile" if len(bins) == 10 else f"epsilon, {len(bins)} bins of equal count (too few grasps "
-                  "for deciles)" if len(eps) < 10 else f"epsilon, {len(bins)} bins (deciles of tied values merged)")
+    ax.set_xlabel("epsilon decile" if len(bins) == 10 else "epsilon, one bin (every grasp's the same)" if len(bins) == 1
+                  else f"epsilon, {len(bins)} bins of equal count (too few grasps for deciles)" if len(eps) < 10
+                  else f"epsilon, {len(bins)} bins (deciles of tied values merged)")
     ax.set_ylabel("simulated success rate")
     ax.set_title(f"{report.hand}: success by epsilon ({len(eps)} grasps)")
     fig.tight_layout()

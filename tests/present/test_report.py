@@ -216,3 +216,23 @@ def test_the_decile_chart_of_a_few_grasps_says_its_bins_and_counts_in_readable_t
     assert [t.get_text() for t in ax.texts] == ["n=1"] * 3 and ax.get_ylim()[1] > 1.0
     assert all(t.get_fontsize() >= TICK_SIZE >= 8 for t in ax.get_xticklabels())
     plt.close(fig)
+
+
+@pytest.mark.parametrize("eps", [[0.05], [0.0] * 12], ids=["one-grasp", "none-force-closure"])
+def test_the_decile_chart_of_grasps_of_one_epsilon_draws_them_in_one_bin(eps: list[float]) -> None:
+    """`grasp validate --top 1`, or trials of grasps none force closure (epsilon 0 each): every quantile is the one
+    value, so no bin was made; the chart drew no bar and said "epsilon, 0 bins of equal count"."""
+    import matplotlib.pyplot as plt
+
+    from planner.present.report import decile_figure
+    from planner.record.grasp import Trial
+
+    ok = np.arange(len(eps)) % 2 == 0
+    assert report.deciles(np.array(eps), ok.astype(float)) == [(eps[0], eps[0], float(ok.mean()), len(eps))]
+    rep = report.HandReport("panda")
+    for i, (e, held) in enumerate(zip(eps, ok)):
+        rep.grasps.append(replace(made_up(i, epsilon=e, fc=e > 0), id=i, rank=i + 1,
+                                  mujoco=Trial(bool(held), 2, 0.0, 0.0, 0.0, 0.0, "held" if held else "dropped")))
+    ax = decile_figure(rep).axes[0]
+    assert [t.get_text() for t in ax.texts] == [f"n={len(eps)}"] and ax.get_xlabel().startswith("epsilon, one bin")
+    plt.close("all")
