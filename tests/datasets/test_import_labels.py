@@ -136,6 +136,9 @@ def test_the_report_compares_p_hold_and_the_score_with_an_imported_files_own_lab
         ece = f"panda: ECE of p_hold (the imported files' own labels ({source}), {len(stored)} grasps) = "
         assert (ece in said) == model
     assert "trials: " not in text and "No validated grasps: " in text
+    # without a model (the Barrett's), no held-out figure to show: it was said to be there
+    assert ("No validated grasps: the p_hold model's held-out figures and the imported files' own labels only" in
+            text) == model and ("No validated grasps: the imported files' own labels only" in text) != model, text
     assert (tmp_path / "r" / "reliability_panda.png").exists() == model
 
 
