@@ -99,8 +99,9 @@ def import_files(paths: tuple[Path, ...], fmt: str, db_path: Path, hand: str | N
         if r.skipped:
             click.echo(f"{r.path}: already imported as {r.object}/{r.hand}; skipped")
             if r.unstored_labels:  # imported before schema v16: its grasps are stored, its labels never were
-                click.echo(f"note: {r.path}: its {r.unstored_labels} labels are not in {db_path} (imported before "
-                           "the database kept a file's own labels); import it into a new --db to keep them", err=True)
+                click.echo(f"note: {r.path}: the labels of its {r.unstored_labels} grasps stored are not in {db_path} "
+                           "(imported before the database kept a file's own labels); import it into a new --db to "
+                           "keep them", err=True)
             return
         if r.error:
             return  # one error line each at the end

@@ -127,7 +127,8 @@ class ImportResult:
     rejected: dict[str, int]
     error: str | None = None  # re-scoring failed: stored as a failed unit, retried by the next import
     labels: tuple[int, int] = (0, 0)  # the grasps stored with their file's label: (held, dropped)
-    #: a skipped file's labels the database holds none of (its grasps imported before it kept a file's labels, v16)
+    #: a skipped file's stored grasps whose file row has a label the database holds none of (imported before it
+    #: kept a file's labels, v16)
     unstored_labels: int = 0
 
     def to_json(self) -> dict:
@@ -184,8 +185,11 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
         rescoring: dict[int, _Rescoring] = {}
         for i, plan in enumerate(plans):
             if (plan.spec.name, 0) in db.units_done(plan.hand.name, plan.settings.digest, 0):
-                given = sum(label is not None for label in labels[i])
-                unstored = given if given and not db.file_label_count(plan.spec.name, plan.hand.name) else 0
+                # its stored grasps whose file row has a label, where none of them carries it (not a file of
+                # which no pose was kept, nor the labels of poses dropped: a new import keeps neither)
+                stored = db.unit_file_labels(plan.spec.name, plan.hand.name, plan.settings.digest, 0)
+                unstored = 0 if any(stored.values()) or not labels[i] else \
+                    sum(labels[i][c] is not None for c in stored if 0 <= c < len(labels[i]))
                 finish(i, ImportResult(plan.path, plan.spec.name, plan.hand.name, 0, 0, not plan.lossless, True, {},
                                        unstored_labels=unstored))
                 continue

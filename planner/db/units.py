@@ -88,10 +88,14 @@ class UnitReads:
                                       (obj, hand)).fetchone()[0])
 
     @_reads
-    def file_label_count(self, obj: str, hand: str) -> int:
-        """How many grasps of ``obj`` for ``hand`` carry the label of the file they were imported from."""
-        return int(self._conn.execute("SELECT COUNT(*) FROM file_labels fl JOIN grasps g ON g.id = fl.grasp_id WHERE "
-                                      "g.object = ? AND g.hand = ?", (obj, hand)).fetchone()[0])
+    def unit_file_labels(self, obj: str, hand: str, settings_hash: str, seed: int) -> dict[int, bool]:
+        """Candidate -> whether it carries the label of the file it was imported from, of each grasp that the
+        finished unit of ``obj`` for ``hand`` with these settings (an import: its file's digest) stored."""
+        rows = self._conn.execute("SELECT g.candidate, MAX(fl.grasp_id IS NOT NULL) AS labelled FROM units u JOIN "
+                                  "grasps g ON g.unit_id = u.id LEFT JOIN file_labels fl ON fl.grasp_id = g.id WHERE "
+                                  "u.object = ? AND u.hand = ? AND u.settings_hash = ? AND u.seed = ? AND "
+                                  "u.status = 'done' GROUP BY g.candidate", (obj, hand, settings_hash, seed))
+        return {int(r["candidate"]): bool(r["labelled"]) for r in rows}
 
     @_reads
     def names_by_source(self) -> dict[tuple[str, float], list[str]]:

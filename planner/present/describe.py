@@ -21,6 +21,7 @@ import numpy as np
 
 from planner.geometry.gravity import DIRECTIONS
 from planner.geometry.quaternion import canonical_xyzw
+from planner.plan.measures import MIN_RESISTANCE
 from planner.record import fields
 from planner.record.grasp import Grasp
 from planner.record.tolerances import RESISTANCE_CAP
@@ -74,7 +75,11 @@ def _fixed(x: float, digits: int) -> str:
 def times_weight(resist: float) -> str:
     """A weight resistance [multiples of the weight] as said: one at the measure's cap is a bound, not a value
     (a Barrett grasp "holds 50.0 times its weight", worst and mean, read as measured)."""
-    return f"at least {RESISTANCE_CAP:.0f}" if resist >= RESISTANCE_CAP else f"{resist:.1f}"
+    if resist >= RESISTANCE_CAP:
+        return f"at least {RESISTANCE_CAP:.0f}"
+    if resist < MIN_RESISTANCE <= round(resist, 1):  # 0.96 said "1.0" beside the flag cannot_hold_weight
+        return f"{math.floor(resist * 100) / 100:.2f}"
+    return f"{resist:.1f}"
 
 
 def xyz(v: np.ndarray, digits: int = 3) -> str:
@@ -172,16 +177,16 @@ def _weight_lines(g: Grasp, worst: float, held_by: list[str], up: str) -> list[s
     down = "the table's down" if g.table_plane is not None else f"the object's down, {'-+'[up[0] == '-']}{up[1]}"
     if held_by:
         return [f"    its weight: the {held_by[-1]} held it loaded along one direction ({down}); cannot_hold_weight is "
-                f"the worst of {DIRECTIONS} directions, where the fingers' force limits hold {worst:.1f} times its "
-                "weight: hold it as it stands, do not turn it"]
+                f"the worst of {DIRECTIONS} directions, where the fingers' force limits hold {times_weight(worst)} "
+                "times its weight: hold it as it stands, do not turn it"]
     if g.validation is not None or g.mujoco is not None:
         return []
     said = ("p_hold says how often labelled grasps with these measures held loaded along their object's down: both "
             "can be true (held as it stands, not turned over)" if g.p_hold is not None else "it may still hold as it "
             "stands")
     return [f"    its weight: cannot_hold_weight says that with its weight turned to the worst of {DIRECTIONS} "
-            f"directions about the hand the fingers' force limits hold {worst:.1f} times it (a static bound); {said}; "
-            f"not tried yet: `grasp validate` loads it along {down}, at its own mass and friction"]
+            f"directions about the hand the fingers' force limits hold {times_weight(worst)} times it (a static "
+            f"bound); {said}; not tried yet: `grasp validate` loads it along {down}, at its own mass and friction"]
 
 
 def p_hold_terms(grasp: Grasp, model: LogisticModel) -> dict[str, dict[str, float]]:

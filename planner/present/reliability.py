@@ -14,6 +14,7 @@ expected calibration error, drawn as one diagram per hand (``reliability_<hand>.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -34,7 +35,8 @@ class FileLabels:
     :attr:`~planner.record.grasp.FileLabel.source` of their labels (a file and dataset each), sorted;
     p_hold: the reliability table of p_hold against the labels (None: no model applies to the hand);
     auc_p_hold, auc_score: ROC AUC of p_hold and of the analytic score (the ranking rule without trials)
-    against the labels (NaN: one class only, or not computed).
+    against the labels (NaN: one class only, or not computed); in_sample: how many of them are of a file whose
+    labels the hand's p_hold model was fitted on (``grasp calibrate`` of the imported file): not a check of it.
     """
 
     count: int
@@ -43,6 +45,7 @@ class FileLabels:
     p_hold: Reliability | None
     auc_p_hold: float
     auc_score: float
+    in_sample: int = 0
 
     @property
     def named(self) -> str:
@@ -51,14 +54,31 @@ class FileLabels:
         return first if len(self.sources) <= 1 else f"{len(self.sources)} sources: {first}, ..."
 
 
-def file_labels(grasps: Sequence[Grasp], scores: np.ndarray) -> FileLabels:
-    """:class:`FileLabels` of ``grasps`` (each with a file label) and their analytic ``scores`` (n,)."""
+def file_labels(grasps: Sequence[Grasp], scores: np.ndarray, fitted: frozenset[str] = frozenset()) -> FileLabels:
+    """:class:`FileLabels` of ``grasps`` (each with a file label) and their analytic ``scores`` (n,); ``fitted``:
+    the names of the files the hand's p_hold model was fitted on (:func:`fitted_on`)."""
     y = np.array([g.file_label.success for g in grasps], float)  # type: ignore[union-attr]
     p = np.array([math.nan if g.p_hold is None else g.p_hold for g in grasps], float)
     modelled = bool(np.isfinite(p).any())
+    in_sample = sum(_file_name(g.file_label.source) in fitted for g in grasps) if modelled else 0  # type: ignore[union-attr]
     return FileLabels(len(grasps), int(y.sum()), tuple(sorted({g.file_label.source for g in grasps})),  # type: ignore[union-attr]
                       reliability(y, p) if modelled else None, roc_auc(y, p) if modelled else math.nan,
-                      roc_auc(y, np.asarray(scores, float)))
+                      roc_auc(y, np.asarray(scores, float)), in_sample)
+
+
+def fitted_on(source: str) -> frozenset[str]:
+    """The names of the label files a model stored by ``grasp calibrate`` was fitted on (its source's ``labels``,
+    each as :func:`planner.calibration.labels.label_names` spelt it); none for another source (the shipped one)."""
+    try:
+        labels = json.loads(source).get("labels", [])
+    except (ValueError, AttributeError):
+        return frozenset()
+    return frozenset(Path(str(name)).name for name in labels)
+
+
+def _file_name(source: str) -> str:
+    """The file of a :attr:`~planner.record.grasp.FileLabel.source` (``crate.h5 grasps/qualities/flex/...``)."""
+    return source.rpartition(" grasps/")[0] or source
 
 
 @dataclass(frozen=True)
@@ -90,7 +110,11 @@ class HandCalibration:
                 if r is not None]
 
     def _files_named(self) -> str:
-        return "" if self.files is None else self.files.named
+        if self.files is None:
+            return ""
+        f = self.files
+        return f.named + (f"; in-sample: {f.in_sample} of them of the files p_hold was fitted on" if f.in_sample
+                          else "")
 
 
 def labelled(db_path: Path) -> dict[str, FileLabels]:
@@ -99,9 +123,9 @@ def labelled(db_path: Path) -> dict[str, FileLabels]:
 
     with open_db(Path(db_path), create=False, readonly=True) as db:
         grasps, rule = db.validated(file_labels=True), db.rule()
-    hands = sorted({g.hand for g in grasps})
-    return {hand: file_labels(mine, untried_analytic(rule, mine))
-            for hand in hands for mine in [[g for g in grasps if g.hand == hand]]}
+        fitted = {hand: fitted_on(db.model_source(hand)) for hand in {g.hand for g in grasps}}
+    return {hand: file_labels(mine, untried_analytic(rule, mine), fitted[hand])
+            for hand in sorted(fitted) for mine in [[g for g in grasps if g.hand == hand]]}
 
 
 def calibration(db_path: Path) -> list[HandCalibration]:
@@ -158,8 +182,15 @@ def file_lines(files: dict[str, FileLabels]) -> list[str]:
                          (("p_hold", f.auc_p_hold), ("the analytic score", f.auc_score)) if math.isfinite(auc))
         lines.append(f"{hand}: the imported files' own labels ({f.named}; the files', not a trial of this project's): "
                      f"{f.count} grasps, {f.held} held, {f.count - f.held} dropped"
-                     + (f"; {aucs}" if aucs else "; no ROC AUC without both outcomes"))
+                     + (f"; {aucs}" if aucs else "; no ROC AUC without both outcomes") + _in_sample(f))
     return lines
+
+
+def _in_sample(f: FileLabels) -> str:
+    """Said where p_hold was fitted on some of these labels: its figures against them are no check of it."""
+    return (f"; in-sample: the p_hold model was fitted on the labels of the files of {f.in_sample} of these "
+            f"{f.count} grasps (`grasp calibrate`), so p_hold's figures against them are no check of it"
+            if f.in_sample else "")
 
 
 def _interval(ece: tuple[float, float] | None) -> str:

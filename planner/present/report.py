@@ -160,6 +160,8 @@ def deciles(eps: np.ndarray, success: np.ndarray) -> list[tuple[float, float, fl
     if len(eps) == 0:
         return []
     edges = np.unique(np.quantile(eps, np.linspace(0, 1, 11)))
+    if len(edges) == 1:  # one epsilon for all (one grasp; none force closure, 0): one bin, not none
+        return [(float(edges[0]), float(edges[0]), float(np.mean(success)), len(eps))]
     out = []
     for i in range(len(edges) - 1):
         lo, hi = edges[i], edges[i + 1]
@@ -218,8 +220,9 @@ def decile_figure(report: HandReport):  # type: ignore[no-untyped-def]
     ax.set_xticks(range(len(bins)), [f"{b[0]:.3f}-\n{b[1]:.3f}" for b in bins], fontsize=TICK_SIZE)
     ax.set_ylim(0, 1.12)  # room for the counts over a bar of 1
     ax.set_yticks(np.linspace(0, 1, 6))
-    ax.set_xlabel("epsilon decile" if len(bins) == 10 else f"epsilon, {len(bins)} bins of equal count (too few grasps "
-                  "for deciles)" if len(eps) < 10 else f"epsilon, {len(bins)} bins (deciles of tied values merged)")
+    ax.set_xlabel("epsilon decile" if len(bins) == 10 else "epsilon, one bin (every grasp's the same)" if len(bins) == 1
+                  else f"epsilon, {len(bins)} bins of equal count (too few grasps for deciles)" if len(eps) < 10
+                  else f"epsilon, {len(bins)} bins (deciles of tied values merged)")
     ax.set_ylabel("simulated success rate")
     ax.set_title(f"{report.hand}: success by epsilon ({len(eps)} grasps)")
     fig.tight_layout()
@@ -288,9 +291,18 @@ def _per_object(report: HandReport) -> list[tuple[str, ...]]:
 
 
 #: Said where the database has no trials, only a p_hold model's held-out figures (`grasp calibrate` into it) or an
-#: imported file's labels.
-NO_TRIALS = ("No validated grasps: the p_hold model's held-out figures and the imported files' own labels only (no "
-             "trial of this project's); `grasp validate --db {db}` tries grasps.")
+#: imported file's labels: {shown}, those of the two it has.
+NO_TRIALS = ("No validated grasps: {shown} only (no trial of this project's); `grasp validate --db {db}` tries "
+             "grasps.")
+
+
+def no_trials(db_path: Path, cals: list[HandCalibration], files: dict[str, FileLabels]) -> str:
+    """:data:`NO_TRIALS` naming what the report shows instead: a hand without a p_hold model (the Barrett's) has no
+    held-out figures, a database nothing was imported into no file's labels."""
+    held_out = any(c.held_out is not None for c in cals)
+    shown = [what for what, there in (("the p_hold model's held-out figures", held_out),
+                                      ("the imported files' own labels", bool(files))) if there]
+    return NO_TRIALS.format(shown=" and ".join(shown), db=shlex.quote(str(db_path)))
 
 
 #: The heading of the imported files' own labels (``grasp import``; :func:`planner.present.reliability.labelled`).
@@ -309,7 +321,7 @@ def _write_html(reports: list[HandReport], cals: list[HandCalibration], files: d
                 db_path: Path) -> Path:
     parts = [f"<html><head><meta charset='utf-8'><title>grasp report</title></head><body>"
              f"<h1>Simulated success vs scores</h1><p>database: {html.escape(str(db_path))}</p>"]
-    parts += [f"<p>{html.escape(NO_TRIALS.format(db=shlex.quote(str(db_path))))}</p>"] if not reports else []
+    parts += [f"<p>{html.escape(no_trials(db_path, cals, files))}</p>"] if not reports else []
     for rep in reports:
         parts.append(f"<h2>hand {html.escape(rep.hand)}</h2><table border=1 cellpadding=3>")
         parts += [f"<tr><td>{html.escape(k)}</td><td>{html.escape(v)}</td></tr>" for k, v in _summary_rows(rep)]
@@ -336,7 +348,7 @@ def _write_markdown(reports: list[HandReport], cals: list[HandCalibration], file
                     out: Path, db_path: Path) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     lines = ["# Simulated success vs scores", "", f"database: `{db_path}`", ""]
-    lines += [NO_TRIALS.format(db=shlex.quote(str(db_path))), ""] if not reports else []
+    lines += [no_trials(db_path, cals, files), ""] if not reports else []
     for rep in reports:
         png = out / f"deciles_{rep.hand}.png"
         png.write_bytes(_plot(rep))

@@ -408,6 +408,23 @@ def test_an_untried_grasp_that_cannot_hold_its_weight_in_every_direction_says_wh
     assert no_model.startswith("    its weight: ") and "p_hold" not in no_model
 
 
+def test_a_grasp_flagged_cannot_hold_weight_is_never_said_to_hold_its_weight_once() -> None:
+    """A worst-direction resistance of 0.96 (under the flag's 1.0) was printed "holds 1.0 times its weight" and "the
+    fingers' force limits hold 1.0 times it" beside feasibility cannot_hold_weight."""
+    from dataclasses import replace
+
+    from planner.present.describe import describe, times_weight
+    from planner.record.measures import Measures
+    from planner.specs.hands import load_hand
+    from tests.helpers import made_up
+
+    assert [times_weight(r) for r in (0.94, 0.96, 0.999, 1.0, 1.04)] == ["0.9", "0.96", "0.99", "1.0", "1.0"]
+    weak = Measures(0.96, 5.2, 0.01, 0.01, 0.97, ("cannot_hold_weight",))
+    text = "\n".join(describe(replace(made_up(1, 0.01), measures=weak, p_hold=0.9995), load_hand("panda")))
+    assert "holds 0.96 times its weight" in text and "force limits hold 0.96 times it" in text, text
+    assert "1.0 times" not in text, text
+
+
 def test_a_coordinate_that_rounds_to_zero_is_printed_without_a_sign(box_db: Path) -> None:
     """`grasp best` printed "(0.021, -0.000, 0.109)" and its JSON -0.0 where a value lay a hair below zero."""
     from dataclasses import replace

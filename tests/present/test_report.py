@@ -216,3 +216,49 @@ def test_the_decile_chart_of_a_few_grasps_says_its_bins_and_counts_in_readable_t
     assert [t.get_text() for t in ax.texts] == ["n=1"] * 3 and ax.get_ylim()[1] > 1.0
     assert all(t.get_fontsize() >= TICK_SIZE >= 8 for t in ax.get_xticklabels())
     plt.close(fig)
+
+
+@pytest.mark.parametrize("eps", [[0.05], [0.0] * 12], ids=["one-grasp", "none-force-closure"])
+def test_the_decile_chart_of_grasps_of_one_epsilon_draws_them_in_one_bin(eps: list[float]) -> None:
+    """`grasp validate --top 1`, or trials of grasps none force closure (epsilon 0 each): every quantile is the one
+    value, so no bin was made; the chart drew no bar and said "epsilon, 0 bins of equal count"."""
+    import matplotlib.pyplot as plt
+
+    from planner.present.report import decile_figure
+    from planner.record.grasp import Trial
+
+    ok = np.arange(len(eps)) % 2 == 0
+    assert report.deciles(np.array(eps), ok.astype(float)) == [(eps[0], eps[0], float(ok.mean()), len(eps))]
+    rep = report.HandReport("panda")
+    for i, (e, held) in enumerate(zip(eps, ok)):
+        rep.grasps.append(replace(made_up(i, epsilon=e, fc=e > 0), id=i, rank=i + 1,
+                                  mujoco=Trial(bool(held), 2, 0.0, 0.0, 0.0, 0.0, "held" if held else "dropped")))
+    ax = decile_figure(rep).axes[0]
+    assert [t.get_text() for t in ax.texts] == [f"n={len(eps)}"] and ax.get_xlabel().startswith("epsilon, one bin")
+    plt.close("all")
+
+
+def test_file_labels_p_hold_was_fitted_on_are_said_to_be_in_sample() -> None:
+    """`grasp calibrate crate.h5 can.h5 --db X` of the files imported into X: the report set p_hold against their
+    labels (ECE 0.0135, better than its held-out 0.0610) as the imported files' own check of it, though the model was
+    fitted on those very labels."""
+    import json
+
+    from planner.present.reliability import HandCalibration, file_labels, file_lines, fitted_on
+    from planner.record.grasp import FileLabel
+
+    source = json.dumps({"command": "grasp calibrate", "labels": ["crate.h5", "b/can.h5"], "poses_per_file": 100})
+    assert fitted_on(source) == {"crate.h5", "can.h5"} and fitted_on("shipped") == frozenset()
+    grasps = [replace(made_up(i, 0.05), p_hold=0.2 + 0.1 * i,
+                      file_label=FileLabel(i % 2 == 1, f"{'crate' if i < 3 else 'mug'}.h5 grasps/qualities/flex/"
+                                           "object_in_gripper")) for i in range(5)]
+    scores = np.array([g.p_hold for g in grasps])
+    mine = file_labels(grasps, scores, fitted_on(source))
+    assert mine.in_sample == 3 and file_labels(grasps, scores).in_sample == 0
+    assert "in-sample: the p_hold model was fitted on the labels of the files of 3 of these 5 grasps" in \
+        file_lines({"panda": mine})[0]
+    assert "in-sample" not in file_lines({"panda": file_labels(grasps, scores)})[0]
+    cal = HandCalibration("panda", source, None, None, files=mine)
+    assert [label for label, _ in cal.curves()] == ["the imported files' own labels (2 sources: crate.h5 grasps/"
+                                                    "qualities/flex/object_in_gripper, ...; in-sample: 3 of them of "
+                                                    "the files p_hold was fitted on)"]
