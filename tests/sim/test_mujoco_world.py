@@ -170,6 +170,34 @@ def test_the_clearance_is_the_distance_to_the_object_and_the_speed_bounds_every_
     assert world.clearance(closing, 0.05)[0] == 0.05  # nothing within reach
 
 
+def two_halves(mass: float = 0.2) -> Solid:
+    """The cube of :func:`cube` as two convex parts (its -x and +x halves): an object MuJoCo keeps a
+    bounding-volume tree of."""
+    side = 0.04
+    corners = np.array([[x, y, z] for x in (0, 1) for y in (-1, 1) for z in (-1, 1)], float) * side / 2
+    halves = (corners * (-1.0, 1.0, 1.0), corners)
+    return Solid("hulls", (), halves, mass, np.zeros(3), np.eye(3) * mass * side ** 2 / 6)
+
+
+def test_the_clearance_sees_an_object_of_parts_within_reach() -> None:
+    # the Panda's pads 2 cm off the sides of a cube of two parts: the moving pads' boxes do not meet the boxes of
+    # the object's bounding-volume tree, which MuJoCo prunes at the bodies' margins (compiled 0; before 2026-12-07
+    # the probe set only the geoms' and read nothing within 5 cm: gap 0.05)
+    hand = load_hand("panda")
+    world = build(hand, two_halves())
+    pose = np.diag([-1.0, 1.0, -1.0, 1.0])
+    pose[:3, 3] = -pose[:3, :3] @ hand.tcp
+    opening = 0.02 + 0.02
+    world.reset(pose, {"panda_finger_joint1": opening, "panda_finger_joint2": opening})
+    closing = {"panda_finger_joint1": -0.05, "panda_finger_joint2": -0.05}
+    gap, _ = world.clearance(closing, 0.05)
+    assert_close(gap, 0.02, 0.0005)  # as the one-part cube's 5 mm above
+    margins = (world.model.geom_margin.copy(), world.model.body_margin.copy())
+    world.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_MIDPHASE  # every pair of geoms, no tree
+    assert world.clearance(closing, 0.05)[0] == gap
+    assert np.array_equal(world.model.geom_margin, margins[0]) and np.array_equal(world.model.body_margin, margins[1])
+
+
 def test_the_speed_bound_of_a_revolute_finger_holds_its_fastest_point() -> None:
     # the Barrett's finger 1 turning at 1 rad/s on both joints: no vertex of its links moves faster
     hand = load_hand("barrett")
