@@ -37,7 +37,11 @@ class Engine:
     ``contact_damping``: the contacts' solref (time constant, damping ratio),
     the time constant at least twice the step; ``weld_time`` [s]: the hand's
     weld to its target; ``multiccd``: several contact points per pair of
-    convex shapes (flat faces on flat pads) instead of one.
+    convex shapes (flat faces on flat pads) instead of one: MuJoCo 4's
+    default, and what every trial ran with (until 2026-12-07 the setting read
+    False while MuJoCo 4 ignored it: the model wrote only an "enable" flag,
+    which MuJoCo 4, where multi-contact is on unless disabled, does not
+    need; False now disables it).
     """
 
     timestep: float = 0.002
@@ -46,7 +50,7 @@ class Engine:
     contact_time: float = 0.005
     contact_damping: float = 1.0
     weld_time: float = 0.005
-    multiccd: bool = False
+    multiccd: bool = True
 
 
 @dataclass(frozen=True)

@@ -252,3 +252,15 @@ def test_link_inertia_replaces_the_urdfs_moments_of_the_links_it_names() -> None
     assert after.body_mass[left] == before.body_mass[left]
     assert_close(after.body_ipos[left], before.body_ipos[left], 0.0)
     assert_close(after.body_inertia[right], before.body_inertia[right], 0.0)
+
+
+def test_multiccd_is_what_the_setting_says() -> None:
+    # MuJoCo 4 makes several contact points per pair of convex shapes unless told not to: the setting's
+    # False wrote no flag at all (only True wrote "enable"), so every trial ran with it while its record said
+    # False. Now True (the default) is MuJoCo's default and False disables it.
+    from planner.validation.mujoco_settings import Engine, MujocoSettings
+    flag = mujoco.mjtDisableBit.mjDSBL_MULTICCD
+    hand = load_hand("panda")
+    assert MujocoSettings().multiccd and Engine().multiccd
+    assert not build(hand, cube(), Engine()).model.opt.disableflags & flag
+    assert build(hand, cube(), Engine(multiccd=False)).model.opt.disableflags & flag
