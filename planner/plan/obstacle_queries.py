@@ -6,7 +6,8 @@ Far from the object the surface hulls (:mod:`planner.geometry.hulls`) answer, wh
 true ones (they contain the surface); within ``near`` of them the exact mesh, a long range cut to ``exact_reach``
 (:class:`Bounded`); a box test before each query of the hulls skips the links too far for any pair
 (:meth:`ObstacleQueries._beyond`). A finger closing expects near the hulls asks the exact mesh first
-(:meth:`ObstacleQueries._closest_near`: the same pairs, one query of the hulls fewer).
+(:meth:`ObstacleQueries._closest_near`: the same pairs, one query of the hulls fewer); a revolute finger's link
+whose bracket (:class:`HullBracket`) shows it near the hulls asks the exact mesh alone.
 """
 
 from __future__ import annotations
