@@ -6,25 +6,27 @@ Far from the object the surface hulls (:mod:`planner.geometry.hulls`) answer, wh
 true ones (they contain the surface); within ``near`` of them the exact mesh, a long range cut to ``exact_reach``
 (:class:`Bounded`); a box test before each query of the hulls skips the links too far for any pair
 (:meth:`ObstacleQueries._beyond`). A finger closing expects near the hulls asks the exact mesh first
-(:meth:`ObstacleQueries._closest_near`: the same pairs, one query of the hulls fewer).
+(:meth:`ObstacleQueries._closest_near`: the same pairs, one query of the hulls fewer); a revolute finger's link
+whose bracket (:class:`HullBracket`) shows it near the hulls asks the exact mesh alone.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from planner.plan.contact_reading import NO_PAIRS
-from planner.plan.tolerances import CLOSING_SPEED_MIN, NEAR_SLACK
+from planner.plan.tolerances import BRACKET_SLACK, CLOSING_SPEED_MIN, NEAR_SLACK
 from planner.sim import Body, Closest, Sim
 from planner.specs.hands import HandSpec
 
 if TYPE_CHECKING:
     from planner.plan.closing_types import CloseSettings
 
-__all__ = ["BROADPHASE_SLACK", "Bounded", "ObstacleQueries"]
+__all__ = ["BROADPHASE_SLACK", "Bounded", "HullBracket", "ObstacleQueries"]
 
 #: [m] The broadphase (:meth:`Grasper._beyond`) skips a query of the surface hulls when a link's box is
 #: farther than the query's range plus this from theirs. PyBullet's boxes hold its shapes with their
@@ -38,6 +40,27 @@ class Bounded(Closest):
     not listed is at least that far."""
 
     reach: float = np.inf
+
+
+class HullBracket:
+    """What a link's query of the surface hulls would answer where it is now, bracketed: ``low`` <= its gap
+    (:meth:`ObstacleQueries._obstacle_gap`'s ``distance + offset`` [m], inf without a pair in range) <= ``high``.
+    Set by each query (a pair's gap, a range no pair was within, the boxes' gap) and widened by each step by the
+    link's speed bound times the step (:meth:`moved`): a link ``low`` shows far from the hulls is asked only if its
+    gap could bound the step (:mod:`planner.plan.finger_closing`), one ``high`` shows near asks the exact mesh
+    alone, whose answer then decides (exact: the same gaps, fewer queries)."""
+
+    __slots__ = ("high", "low")
+
+    def __init__(self) -> None:
+        self.low, self.high = -math.inf, math.inf
+
+    def set(self, low: float, high: float = math.inf) -> None:
+        self.low, self.high = low - BRACKET_SLACK, high + BRACKET_SLACK
+
+    def moved(self, travel: float) -> None:
+        """The link moved by at most ``travel`` [m]."""
+        self.low, self.high = self.low - travel, self.high + travel
 
 
 class ObstacleQueries:
@@ -105,16 +128,25 @@ class ObstacleQueries:
                   ("links", "distance", "on_a", "on_b", "normal_b")]
         return Bounded(*joined, pairs.reach) if isinstance(pairs, Bounded) else Closest(*joined)
 
-    def _obstacle_gap(self, reach: float, link: str) -> float:
+    def _obstacle_gap(self, reach: float, link: str, bracket: HullBracket | None = None) -> float:
         """:meth:`_gap` of :meth:`_obstacles` (``reach``, ``link``), the same value without making the pairs:
-        what closing a finger reads of a link that does not only translate."""
+        what closing a finger reads of a link that does not only translate. ``bracket``: the link's (without a
+        table), read (a link near the hulls asks the exact mesh alone) and set anew."""
         self.queries += 1
         index, offset, s, bound = self.body.links[link], self.hand.distance_offset, self.settings, np.inf
         uid, query = self.body.uid, self.sim.min_distance
         distance = np.nan
-        if self.far_body is not None:  # no pair within the range: inf, and nothing near the hulls
-            distance = np.inf if self._beyond(index, reach - offset) else query(uid, self.far_body, reach - offset,
-                                                                                 index)
+        if self.far_body is not None and not (bracket is not None and bracket.high <= min(s.near, reach)):
+            box = self._box_gap(index)  # no pair within the range: inf, and nothing near the hulls
+            distance = np.inf if box > reach - offset + BROADPHASE_SLACK else query(uid, self.far_body,
+                                                                                    reach - offset, index)
+            if bracket is not None:
+                if box > reach - offset + BROADPHASE_SLACK:
+                    bracket.set(box + offset - BROADPHASE_SLACK)
+                elif math.isinf(distance):
+                    bracket.set(reach)
+                else:
+                    bracket.set(distance + offset, distance + offset)
         if not distance + offset > s.near:  # near the hulls (or none): the exact mesh, a long reach cut
             if self.far_body is not None and reach > s.exact_reach:
                 bound = s.exact_reach
@@ -126,9 +158,14 @@ class ObstacleQueries:
     def _beyond(self, index: int, distance: float) -> bool:
         """Is link ``index`` of the hand, as placed, farther than ``distance`` [m] from the surface hulls by
         the two boxes (then PyBullet finds no pair within ``distance``: its query costs 2-6x this test)?"""
+        return self._box_gap(index) > distance + BROADPHASE_SLACK
+
+    def _box_gap(self, index: int) -> float:
+        """[m] The gap between the boxes of link ``index`` as placed and of the surface hulls along the axis that
+        parts them most (at most their true gap; <= 0 where they overlap)."""
         (ax, ay, az), (bx, by, bz) = self.sim.link_box(self.body.uid, index)
         (lx, ly, lz), (hx, hy, hz) = self._far_box
-        return max(lx - bx, ax - hx, ly - by, ay - hy, lz - bz, az - hz) > distance + BROADPHASE_SLACK
+        return max(lx - bx, ax - hx, ly - by, ay - hy, lz - bz, az - hz)
 
     def _gap(self, closest: Closest) -> float:
         gap = closest.min_distance + self.hand.distance_offset

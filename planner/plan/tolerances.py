@@ -30,6 +30,9 @@ JOINT_LIMIT_SLACK = 1e-9
 #: their gap is the smaller; PyBullet's margins and round-off put a hull's gap at most ~0.02 mm above the
 #: mesh's where both touch a finger (the peer's scan), this many times over.
 NEAR_SLACK = 0.0005
+#: [m] How far PyBullet's gap of a link to the surface hulls may stray from the change its motion allows (a finger's
+#: bracket of that gap, :class:`planner.plan.obstacle_queries.HullBracket`): GJK converges to ~1e-9 m here.
+BRACKET_SLACK = 1e-5
 #: The OpenRAVE box sampler grows the object's bounding box by this much.
 BOX_MARGIN = 0.01
 #: Antipodal sampler: a chord thinner than this is a sliver or a skin, not

@@ -11,6 +11,7 @@ from planner.geometry.proxy import ProxySettings, collision_proxy, distances
 from planner.geometry.solid import PreparedObject, load_object, prepare
 from planner.plan import sampling
 from planner.plan.closing import Closed, Grasper, Rejected
+from planner.plan.obstacle_queries import HullBracket
 from planner.plan.unit import grasp_quality
 from planner.sim import Sim
 from planner.specs.hands import HandSpec, hand_names, load_hand
@@ -264,11 +265,11 @@ def test_a_links_gap_without_its_pairs_equals_the_gap_of_its_pairs(table: bool) 
         grasper = Grasper.for_object(sim, hand, obj, table=top if table else None)
         s, read = grasper.settings, grasper._obstacle_gap
 
-        def checked(reach: float, link: str) -> float:
+        def checked(reach: float, link: str, bracket: HullBracket | None = None) -> float:
             before = grasper.queries
             want = grasper._gap(grasper._obstacles(reach, link))
             middle = grasper.queries
-            got = read(reach, link)
+            got = read(reach, link, bracket)
             assert got == want and grasper.queries - middle == middle - before
             seen.add("none" if np.isinf(got) else "far" if got > s.near else "cut" if reach > s.exact_reach else "near")
             return got
@@ -293,11 +294,11 @@ def test_the_broadphase_changes_no_read_and_skips_queries() -> None:
         gap, closest, beyond = grasper._obstacle_gap, grasper._closest, grasper._beyond
 
         def without(read, *args):  # type: ignore[no-untyped-def]
-            kept, grasper._beyond = grasper._beyond, lambda index, distance: False  # type: ignore[method-assign]
+            kept, grasper._box_gap = grasper._box_gap, lambda index: -np.inf  # type: ignore[method-assign]
             try:
                 return read(*args)
             finally:
-                grasper._beyond = kept  # type: ignore[method-assign]
+                grasper._box_gap = kept  # type: ignore[method-assign]
 
         def counted(index: int, distance: float) -> bool:
             nonlocal skipped, asked
@@ -305,8 +306,19 @@ def test_the_broadphase_changes_no_read_and_skips_queries() -> None:
             skipped, asked = skipped + int(out), asked + int(not out)
             return out
 
-        def checked_gap(reach: float, link: str) -> float:
-            got = gap(reach, link)
+        hulls = [0]
+        query = grasper.sim.min_distance
+
+        def hull_counted(a: int, b: int, distance: float, link: int | None = None) -> float:
+            hulls[0] += b == grasper.far_body
+            return query(a, b, distance, link)
+
+        def checked_gap(reach: float, link: str, bracket: HullBracket | None = None) -> float:
+            nonlocal skipped, asked
+            before = hulls[0]
+            got = gap(reach, link, bracket)
+            made = hulls[0] - before
+            skipped, asked = skipped + int(not made), asked + made
             assert got == without(gap, reach, link)
             return got
 
@@ -318,7 +330,7 @@ def test_the_broadphase_changes_no_read_and_skips_queries() -> None:
             return got
 
         grasper._obstacle_gap, grasper._closest = checked_gap, checked_closest  # type: ignore[method-assign]
-        grasper._beyond = counted  # type: ignore[method-assign]
+        grasper._beyond, grasper.sim.min_distance = counted, hull_counted  # type: ignore[method-assign]
         for i in range(len(rays)):
             for shape in shapes:
                 grasper.close(rays.points[i], rays.directions[i], 0.0, 0.0, shape, obj.torque_scale)

@@ -1,14 +1,19 @@
 """Closing the fingers (:mod:`planner.plan.finger_closing`): a closing does not depend on which poses the grasper
-closed before it, and the speed bounds it steps by hold in every configuration."""
+closed before it, the speed bounds it steps by hold in every configuration, and a link's bracket of its gap to the
+surface hulls holds it and spares queries without changing a closing."""
 
 import itertools
+from collections import Counter
 
 import numpy as np
 import pytest
 
-from planner.geometry.solid import prepare
+from planner.geometry.solid import load_object, prepare
 from planner.plan import sampling
 from planner.plan.closing import Closed, Grasper, Rejected
+from planner.plan.obstacle_queries import HullBracket
+from planner.plan.sweep import SweepSettings
+from planner.plan.unit import UnitSpec, run_unit
 from planner.sim import Sim
 from planner.specs.hands import load_hand
 from planner.specs.objects import ObjectSpec
@@ -91,3 +96,69 @@ def test_the_speed_bounds_hold_in_every_configuration(name: str) -> None:
                                            axis=1)
                     assert moved.max() <= speeds[link] * DQ + POINT_TOL, (link, moved.max(), speeds[link] * DQ)
                 grasper._place(np.eye(4), q)
+
+
+#: Rays of the small default Barrett units below (40 candidates a ray).
+UNIT_RAYS = 2
+
+
+def _barrett_unit(name: str, bracketing: bool, monkeypatch: pytest.MonkeyPatch) -> tuple[list, Counter]:
+    """A small default Barrett unit on ``name``: its grasps and how often each body was asked for a gap
+    (``bracketing`` False: no link's bracket is ever set, every link asked at every step, as before)."""
+    asked: Counter = Counter()
+    query = Sim.min_distance
+
+    def counted(sim: Sim, a: int, b: int, distance: float, link=None):  # type: ignore[no-untyped-def]
+        asked["mesh" if b in sim.meshes else "hulls"] += 1
+        return query(sim, a, b, distance, link)
+
+    with monkeypatch.context() as m:
+        m.setattr(Sim, "min_distance", counted)
+        if not bracketing:
+            m.setattr(HullBracket, "set", lambda self, low, high=np.inf: None)
+        result = run_unit(UnitSpec(name, "barrett", SweepSettings(approaches=UNIT_RAYS, chunk=0, reach_placements=0),
+                                   SEED))
+    assert result.error is None and len(result.grasps) > 0
+    return result.grasps, asked
+
+
+@pytest.mark.parametrize("name", ["box", "random_002"])
+def test_a_link_far_from_the_hulls_is_asked_only_when_it_may_bound_its_finger(
+        name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A default Barrett unit stores the same grasps, bit for bit, whether closing asks every link at every step
+    or skips the links whose bracket shows they can neither touch nor bound their finger's step (and asks a link
+    it shows near the hulls the exact mesh alone); it asks the hulls far less often, the mesh no more."""
+    want, before = _barrett_unit(name, False, monkeypatch)
+    got, after = _barrett_unit(name, True, monkeypatch)
+    assert len(got) == len(want)
+    for x, y in zip(got, want):
+        assert np.array_equal(x.pose, y.pose) and dict(x.closed_joints) == dict(y.closed_joints)
+        assert x.epsilon == y.epsilon and x.force_closure == y.force_closure
+        assert np.array_equal(x.contacts.points, y.contacts.points)
+    assert after["hulls"] < 0.85 * before["hulls"]
+    assert after["mesh"] <= before["mesh"]
+
+
+def test_a_links_bracket_holds_its_gap_to_the_hulls_at_every_step(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each time closing asks a link for its gap, the gap to the surface hulls PyBullet gives there lies within
+    the bracket the link's earlier answers and steps left (a link with none yet: every bracket open)."""
+    hand, obj = load_hand("barrett"), load_object("mug")
+    shape = next(s for s in load_preshapes(hand) if not s.table)
+    rays = sampling.sample(obj.mesh, sampler="surface", count=RAYS, rng=np.random.default_rng(SEED))
+    checked: list[float] = []
+    gap = Grasper._obstacle_gap
+
+    def checking(self: Grasper, reach: float, link: str, bracket: HullBracket | None = None) -> float:
+        if bracket is not None and self.far_body is not None:
+            hulls = self.sim.min_distance(self.body.uid, self.far_body, 1.0, self.body.links[link])
+            hulls += hand.distance_offset
+            assert bracket.low <= hulls <= bracket.high, (link, bracket.low, hulls, bracket.high)
+            checked.append(bracket.high - bracket.low)
+        return gap(self, reach, link, bracket)
+
+    monkeypatch.setattr(Grasper, "_obstacle_gap", checking)
+    with Sim() as sim:
+        grasper = Grasper.for_object(sim, hand, obj)
+        for i in range(len(rays)):
+            grasper.close(rays.points[i], rays.directions[i], ROLL_STEP * i, 0.0, shape, obj.torque_scale)
+    assert sum(np.isfinite(checked)) > 50, "the test needs bracketed links to check"

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pytest
 from helpers import NUM_TOL, assert_close
@@ -116,3 +118,45 @@ def test_a_mesh_beyond_pybullets_index_limit_collides_and_draws_whole() -> None:
             seen.append(int((np.abs(image.astype(int) - image[0, 0]).sum(axis=2) > 30).sum()))
             sim.remove_body(body)
     assert seen[1] > 500 and seen[0] == pytest.approx(seen[1], rel=0.05)
+
+
+def _state(sim: Sim, uid: int) -> list:
+    """Every joint's position and velocity and every link's frames and box, as PyBullet holds them."""
+    c, n = sim.client, pb.getNumJoints(uid, physicsClientId=sim.client)
+    return ([pb.getJointState(uid, i, physicsClientId=c)[:2] for i in range(n)]
+            + [pb.getLinkState(uid, i, computeForwardKinematics=1, physicsClientId=c) for i in range(n)]
+            + [pb.getAABB(uid, i, physicsClientId=c) for i in range(-1, n)])
+
+
+@pytest.mark.parametrize("name", ["barrett", "allegro"])
+def test_setting_joints_together_leaves_the_state_of_setting_each(name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``set_joints`` asks PyBullet once for all the joints it sets (each call updates every link's frames), and
+    leaves the hand, to the bit, as one ``resetJointState`` per joint would, from moving joints too. Before: one
+    call per joint."""
+    hand, rng = load_hand(name), np.random.default_rng(0)
+    with Sim() as sim:
+        body = sim.load_urdf(hand.urdf)
+        sim.set_pose(body, a_pose())
+        for _ in range(20):
+            values = {j.name: float(rng.uniform(j.lower, j.upper)) for j in hand.joints if rng.random() < 0.7}
+            pb.resetJointStatesMultiDof(body.uid, list(body.joints.values()), [[0.3]] * len(body.joints),
+                                        [[1.0]] * len(body.joints), physicsClientId=sim.client)
+            sim.set_joints(body, values)
+            got = _state(sim, body.uid)
+            pb.resetJointStatesMultiDof(body.uid, list(body.joints.values()), [[0.3]] * len(body.joints),
+                                        [[1.0]] * len(body.joints), physicsClientId=sim.client)
+            for joint, value in values.items():
+                pb.resetJointState(body.uid, body.joints[joint], value, physicsClientId=sim.client)
+            assert got == _state(sim, body.uid)
+        calls: list[str] = []
+        for kind in ("resetJointState", "resetJointStatesMultiDof"):
+            monkeypatch.setattr(pb, kind, _counted(calls, kind, getattr(pb, kind)))
+        sim.set_joints(body, {j.name: j.lower for j in hand.joints})
+        assert len(calls) == 1
+
+
+def _counted(calls: list[str], kind: str, call: Callable) -> Callable:
+    def counted(*args: object, **kwargs: object) -> object:
+        calls.append(kind)
+        return call(*args, **kwargs)
+    return counted
