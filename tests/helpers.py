@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import shutil
 import sqlite3
+from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 
@@ -134,3 +135,19 @@ def damaged(db: Path, out: Path) -> Path:
             fh.seek((root - 1) * size)
             fh.write(b"\xff" * size)
     return out
+
+
+def counting_queries(m: object, method: str) -> Counter:
+    """Counts every call of ``planner.sim.Sim.<method>`` (``closest``, ``min_distance``: ``(sim, a, b, distance,
+    link)``) by the body asked, ``mesh`` (an object's exact mesh) or ``hulls`` (anything else), patched through the
+    monkeypatch context ``m`` for as long as it lasts."""
+    from planner.sim import Sim
+    asked: Counter = Counter()
+    query = getattr(Sim, method)
+
+    def counted(sim: Sim, a: int, b: int, distance: float, link=None):  # type: ignore[no-untyped-def]
+        asked["mesh" if b in sim.meshes else "hulls"] += 1
+        return query(sim, a, b, distance, link)
+
+    m.setattr(Sim, method, counted)  # type: ignore[attr-defined]
+    return asked

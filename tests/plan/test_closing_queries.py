@@ -7,6 +7,7 @@ from dataclasses import fields
 
 import numpy as np
 import pytest
+from helpers import counting_queries
 
 from planner.geometry.solid import load_object
 from planner.plan.closing import Grasper
@@ -23,15 +24,8 @@ POINTS = 24
 def _unit(name: str, hulls_first: bool, monkeypatch: pytest.MonkeyPatch) -> tuple[list, Counter]:
     """A small default Panda unit on ``name``, its grasps and how often each body was asked (``hulls_first``: the
     way every query of a finger asked before, the hulls first)."""
-    asked: Counter = Counter()
-    closest = Sim.closest
-
-    def counted(sim: Sim, a: int, b: int, distance: float, link=None):  # type: ignore[no-untyped-def]
-        asked["mesh" if b in sim.meshes else "hulls"] += 1
-        return closest(sim, a, b, distance, link)
-
     with monkeypatch.context() as m:
-        m.setattr(Sim, "closest", counted)
+        asked = counting_queries(m, "closest")
         if hulls_first:
             m.setattr(Grasper, "_closest_near", lambda self, reach, link: self._closest(reach, link))
         result = run_unit(UnitSpec(name, "panda", SweepSettings(approaches=POINTS, chunk=0, reach_placements=0), SEED))

@@ -7,6 +7,7 @@ from collections import Counter
 
 import numpy as np
 import pytest
+from helpers import counting_queries
 
 from planner.geometry.solid import load_object, prepare
 from planner.plan import sampling
@@ -105,15 +106,8 @@ UNIT_RAYS = 2
 def _barrett_unit(name: str, bracketing: bool, monkeypatch: pytest.MonkeyPatch) -> tuple[list, Counter]:
     """A small default Barrett unit on ``name``: its grasps and how often each body was asked for a gap
     (``bracketing`` False: no link's bracket is ever set, every link asked at every step, as before)."""
-    asked: Counter = Counter()
-    query = Sim.min_distance
-
-    def counted(sim: Sim, a: int, b: int, distance: float, link=None):  # type: ignore[no-untyped-def]
-        asked["mesh" if b in sim.meshes else "hulls"] += 1
-        return query(sim, a, b, distance, link)
-
     with monkeypatch.context() as m:
-        m.setattr(Sim, "min_distance", counted)
+        asked = counting_queries(m, "min_distance")
         if not bracketing:
             m.setattr(HullBracket, "set", lambda self, low, high=np.inf: None)
         result = run_unit(UnitSpec(name, "barrett", SweepSettings(approaches=UNIT_RAYS, chunk=0, reach_placements=0),

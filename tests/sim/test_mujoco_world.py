@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from helpers import assert_close
 
-from planner.sim.mujoco_world import Solid, build
+from planner.sim.mujoco_world import Solid, World, build
 from planner.specs.hands import hand_names, load_hand
 
 #: [rad or m] a joint within this of where its coupling puts it (the gear is a stiff equality constraint).
@@ -153,21 +153,30 @@ def test_the_model_text_writes_mujocos_own_quaternions() -> None:
 QUAT_TOL = 1e-14
 
 
-def test_the_clearance_is_the_distance_to_the_object_and_the_speed_bounds_every_point() -> None:
-    # the Panda from above a cube, its pads 5 mm off the cube's sides (fingers 2.5 cm apart + 5 mm each side)
+#: The Panda's fingers closing at 5 cm/s.
+CLOSING = {"panda_finger_joint1": -0.05, "panda_finger_joint2": -0.05}
+
+
+def _panda_above(solid: Solid, gap: float) -> World:
+    """A world of the Panda from above ``solid`` (4 cm across), its pads ``gap`` [m] off the solid's sides."""
     hand = load_hand("panda")
-    world = build(hand, cube())
+    world = build(hand, solid)
     pose = np.diag([-1.0, 1.0, -1.0, 1.0])
     pose[:3, 3] = -pose[:3, :3] @ hand.tcp
-    opening = 0.02 + 0.005
+    opening = 0.02 + gap
     world.reset(pose, {"panda_finger_joint1": opening, "panda_finger_joint2": opening})
-    closing = {"panda_finger_joint1": -0.05, "panda_finger_joint2": -0.05}
-    gap, speed = world.clearance(closing, 0.05)
+    return world
+
+
+def test_the_clearance_is_the_distance_to_the_object_and_the_speed_bounds_every_point() -> None:
+    # the Panda from above a cube, its pads 5 mm off the cube's sides (fingers 2.5 cm apart + 5 mm each side)
+    world = _panda_above(cube(), 0.005)
+    gap, speed = world.clearance(CLOSING, 0.05)
     assert_close(gap, 0.005, 0.0005)  # the pads' faces, as the contact test above places them (<2 mm deep)
     assert_close(speed, 0.05, 1e-12)  # a slide: its own speed
     assert world.clearance({}, 0.05) == (0.05, 0.0)  # nothing moves: no gap to close
     world.reset(far_away(), {})
-    assert world.clearance(closing, 0.05)[0] == 0.05  # nothing within reach
+    assert world.clearance(CLOSING, 0.05)[0] == 0.05  # nothing within reach
 
 
 def two_halves(mass: float = 0.2) -> Solid:
@@ -183,18 +192,12 @@ def test_the_clearance_sees_an_object_of_parts_within_reach() -> None:
     # the Panda's pads 2 cm off the sides of a cube of two parts: the moving pads' boxes do not meet the boxes of
     # the object's bounding-volume tree, which MuJoCo prunes at the bodies' margins (compiled 0; before 2026-12-07
     # the probe set only the geoms' and read nothing within 5 cm: gap 0.05)
-    hand = load_hand("panda")
-    world = build(hand, two_halves())
-    pose = np.diag([-1.0, 1.0, -1.0, 1.0])
-    pose[:3, 3] = -pose[:3, :3] @ hand.tcp
-    opening = 0.02 + 0.02
-    world.reset(pose, {"panda_finger_joint1": opening, "panda_finger_joint2": opening})
-    closing = {"panda_finger_joint1": -0.05, "panda_finger_joint2": -0.05}
-    gap, _ = world.clearance(closing, 0.05)
+    world = _panda_above(two_halves(), 0.02)
+    gap, _ = world.clearance(CLOSING, 0.05)
     assert_close(gap, 0.02, 0.0005)  # as the one-part cube's 5 mm above
     margins = (world.model.geom_margin.copy(), world.model.body_margin.copy())
     world.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_MIDPHASE  # every pair of geoms, no tree
-    assert world.clearance(closing, 0.05)[0] == gap
+    assert world.clearance(CLOSING, 0.05)[0] == gap
     assert np.array_equal(world.model.geom_margin, margins[0]) and np.array_equal(world.model.body_margin, margins[1])
 
 
