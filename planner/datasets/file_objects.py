@@ -25,6 +25,7 @@ from planner.specs.objects import (
     DEFAULT_MASS,
     PROPERTY_RTOL,
     ObjectSpec,
+    file_values,
     is_registered,
     resolve_spec,
 )
@@ -88,6 +89,20 @@ def unstated(h: AcronymHeader, spec: ObjectSpec, command: str = "import",
     said = ", ".join(used[key] for key in missing) + (f" (the default{'s' * (len(missing) > 1)})" if default else "")
     return (f"{h.path}: no {' or '.join(f'object/{key}' for key in missing)}: object '{spec.name}' is taken at "
             f"{said}; if it is not the object's own, {how}")
+
+
+def unstated_up(h: AcronymHeader, spec: ObjectSpec, up: str | None = None) -> str | None:
+    """The line said where the file gives no ``object/up``, the run (``up``: its ``--up``) none either and the
+    object is a user's file whose sidecar gives none: the up ``spec`` is taken standing on (its file's default,
+    ``+z`` for an OBJ), which its grip measures, p_hold and the MuJoCo trial's weight read. ACRONYM's own meshes
+    stand on ``+y``: untold, they were measured lying on their side. None where the up is known."""
+    if h.up is not None or up is not None or not spec.user_file:
+        return None  # a built-in's up is the registry's (every one Z-up)
+    if any("up" in given for _, given in file_values(spec.source, spec)):
+        return None
+    kind = Path(spec.source).suffix.lower() or "mesh"
+    return (f"{h.path}: no object/up: object '{spec.name}' is taken standing on {spec.up} (a {kind} file's "
+            f"default); if it stands on another axis, pass --up AXIS (ACRONYM's own meshes stand on +y: --up +y)")
 
 
 def _with_inertial(h: AcronymHeader, spec: ObjectSpec) -> ObjectSpec:

@@ -57,7 +57,7 @@ import numpy as np
 
 from planner import prepare as preparing
 from planner.datasets import formats
-from planner.datasets.file_objects import HAND_ALIASES, hand_name, object_spec, unstated
+from planner.datasets.file_objects import HAND_ALIASES, hand_name, object_spec, unstated, unstated_up
 from planner.datasets.import_checks import check_objects
 from planner.datasets.registry import Openings, Reader
 from planner.db.hand_files import check_hand_files
@@ -143,7 +143,8 @@ class _Plan:
     lossless: bool
     settings: ImportSettings
     reader: Reader
-    note: str | None = None  # the mass and friction taken where the file gives none: said unless it is skipped
+    #: the mass and friction, and the up, taken where the file gives none: said unless it is skipped
+    notes: tuple[str, ...] = ()
 
 
 def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", hand: str | None = None,
@@ -193,8 +194,8 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
                 finish(i, ImportResult(plan.path, plan.spec.name, plan.hand.name, 0, 0, not plan.lossless, True, {},
                                        unstored_labels=unstored))
                 continue
-            if plan.note:  # not for a file skipped as imported before: nothing of it is measured again
-                preparing.warned(plan.note)
+            for note in plan.notes:  # not for a file skipped as imported before: nothing of it is measured again
+                preparing.warned(note)
             if plan.lossless:
                 finish(i, _import_lossless(db, plan, rule))
             else:
@@ -326,7 +327,9 @@ def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: s
     header = reader.header(path)
     spec = load_hand(hand or hand_name(path, header.gripper))
     obj = object_spec(header, object_name, command, up, *given)
-    line = unstated(header, obj, command, given) if note else None  # every measure and trial reads them: said
+    # every measure and trial reads them: said; ``grasp calibrate`` has no --up (the shipped model's files stood on +z)
+    lines = (unstated(header, obj, command, given), unstated_up(header, obj, up) if command == "import" else None)
+    notes = tuple(line for line in lines if line) if note else ()
     lossless = not rescore and header.extras
     if lossless:  # its contacts, joints and measures are of the file's mesh and hand: stored as they are
         if header.mesh_sha256 and prepare(obj).mesh_hash != header.mesh_sha256:
@@ -342,7 +345,7 @@ def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: s
         for block in iter(lambda: fh.read(1 << 20), b""):
             digest.update(block)
     return _Plan(path, spec, obj, lossless, ImportSettings(fmt, str(path), digest.hexdigest(), not lossless), reader,
-                 line)
+                 notes)
 
 
 def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: Counter, first: int = 0,
@@ -394,6 +397,6 @@ def read_for_rescoring(path: Path, hand: str | None = None, fmt: str = "acronym"
     where the file gives none."""
     reader = formats.reader(fmt)
     plan = _plan(Path(path), fmt, reader, hand, None, True, "calibrate", note=note)
-    if plan.note:
-        preparing.warned(plan.note)
+    for line in plan.notes:
+        preparing.warned(line)
     return plan.hand, plan.spec, reader.poses(plan.path, plan.hand)

@@ -100,3 +100,21 @@ def test_a_bad_mass_or_friction_is_refused_as_the_option_given(db: Path, tmp_pat
     code, _, err = grasp("import", str(foreign), "--db", str(tmp_path / "a.db"), option, value)
     one_line_error(code, err, 2, said, f"got {float(value)}")
     assert not (tmp_path / "a.db").exists()
+
+
+def test_a_file_without_up_says_the_up_taken_and_how_to_choose_it(db: Path, tmp_path: Path) -> None:
+    """A file without object/up (every ACRONYM file) was imported standing on +z without a word, though ACRONYM's
+    meshes stand on +y: its com_height, gravity_arm and p_hold read the up."""
+    foreign, _ = foreign_file(db, tmp_path, "box", "crate")
+    code, _, err = grasp("import", str(foreign), "--db", str(tmp_path / "a.db"))
+    assert code == 0, err
+    said = [line for line in err.splitlines() if "object/up" in line]
+    assert len(said) == 1 and "crate.h5: no object/up" in said[0] and "standing on +z" in said[0] \
+        and "--up" in said[0] and "+y" in said[0], err
+    code, _, err = grasp("import", str(foreign), "--db", str(tmp_path / "b.db"), "--up", "+y")
+    assert code == 0 and "object/up" not in err, err
+    with sqlite3.connect(tmp_path / "b.db") as conn:
+        assert conn.execute("SELECT up FROM objects").fetchone()[0] == "+y"
+    (tmp_path / "foreign" / "meshes" / "crate.toml").write_text('up = "+x"\n')  # the mesh's sidecar tells it
+    code, _, err = grasp("import", str(foreign), "--db", str(tmp_path / "c.db"))
+    assert code == 0 and "object/up" not in err, err
