@@ -96,6 +96,10 @@ def import_files(paths: tuple[Path, ...], fmt: str, db_path: Path, hand: str | N
     def progress(r: api.ImportResult) -> None:
         if as_json:
             return
+        if r.same_as is not None:  # a failed one's error is said at the end, for each path given
+            if not r.error:
+                click.echo(f"{r.path}: the same file as {r.same_as} ({r.object}/{r.hand}); imported once")
+            return
         if r.skipped:
             click.echo(f"{r.path}: already imported as {r.object}/{r.hand}; skipped")
             if r.unstored_labels:  # imported before schema v16: its grasps are stored, its labels never were

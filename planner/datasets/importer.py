@@ -59,6 +59,7 @@ from planner import prepare as preparing
 from planner.datasets import formats
 from planner.datasets.file_objects import HAND_ALIASES, hand_name, object_spec, unstated, unstated_up
 from planner.datasets.import_checks import check_objects
+from planner.datasets.import_result import ImportResult, ImportSettings
 from planner.datasets.registry import Openings, Reader
 from planner.db.hand_files import check_hand_files
 from planner.db.ranking import RankingRule
@@ -91,48 +92,6 @@ MAX_BACK_OFF = 0.02
 #: Poses per re-scoring unit of work: a few seconds of closing each, so two
 #: workers share even a single file.
 RESCORE_CHUNK = 50
-#: Bumped when an import of the same file would store different grasps.
-IMPORT_VERSION = 1
-
-
-@dataclass(frozen=True)
-class ImportSettings:
-    """The settings of an import unit (the ``units`` row's settings and hash)."""
-
-    format: str
-    file: str
-    sha256: str
-    rescore: bool
-
-    def to_json(self) -> str:
-        return json.dumps({"import": self.format, "file": self.file, "sha256": self.sha256,
-                           "rescore": self.rescore, "import_version": IMPORT_VERSION}, sort_keys=True)
-
-    @property
-    def digest(self) -> str:
-        """Content, not path: the same file imported from elsewhere is the same unit."""
-        key = json.dumps([self.format, self.sha256, self.rescore, IMPORT_VERSION])
-        return hashlib.sha256(key.encode()).hexdigest()[:16]
-
-
-@dataclass(frozen=True)
-class ImportResult:
-    path: Path
-    object: str
-    hand: str
-    grasps: int
-    force_closure: int
-    rescored: bool
-    skipped: bool  # already imported: nothing written
-    rejected: dict[str, int]
-    error: str | None = None  # re-scoring failed: stored as a failed unit, retried by the next import
-    labels: tuple[int, int] = (0, 0)  # the grasps stored with their file's label: (held, dropped)
-    #: a skipped file's stored grasps whose file row has a label the database holds none of (imported before it
-    #: kept a file's labels, v16)
-    unstored_labels: int = 0
-
-    def to_json(self) -> dict:
-        return {**self.__dict__, "path": str(self.path)}
 
 
 @dataclass(frozen=True)
@@ -159,15 +118,22 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
     up = None if up is None else up_axis(up, "", "--up")
     check_physical(mass, None, friction, prefix="--")  # as the option given, not as a file's object's
     plans = [_plan(Path(p), fmt, reader, hand, object_name, rescore, up=up, given=(mass, friction)) for p in paths]
+    first: dict[tuple[str, str, str], int] = {}  # a unit's first file in the command: the rest are said, not read
+    same = {i: first.setdefault((plan.hand.name, plan.spec.name, plan.settings.digest), i) for i, plan in
+            enumerate(plans)}
+    plans_read = [plan for i, plan in enumerate(plans) if same[i] == i]
     # every file's poses (and a lossless file's joints and contacts) read and checked before the database is opened:
     # a refused import (a NaN in grasps/transforms, a joint outside its limits, contacts that are not JSON) left an
     # empty database and its lock file at --db. A lossless file is read twice (here and when written) rather than
     # held: an export of many objects would be held whole
-    poses = [plan.reader.poses(plan.path, plan.hand) for plan in plans]
-    openings = [None if plan.lossless or plan.reader.openings is None else plan.reader.openings(plan.path, plan.hand)
-                for plan in plans]
-    labels = [[] if plan.lossless or plan.reader.labels is None else plan.reader.labels(plan.path) for plan in plans]
+    poses = [plan.reader.poses(plan.path, plan.hand) if same[i] == i else None for i, plan in enumerate(plans)]
+    openings = [None if plan.lossless or plan.reader.openings is None or same[i] != i else
+                plan.reader.openings(plan.path, plan.hand) for i, plan in enumerate(plans)]
+    labels = [[] if plan.lossless or plan.reader.labels is None or same[i] != i else plan.reader.labels(plan.path)
+              for i, plan in enumerate(plans)]
     for plan, file_poses in zip(plans, poses):
+        if file_poses is None:
+            continue
         if plan.lossless:  # and its trials' columns
             plan.reader.grasps(plan.path, plan.hand, plan.spec.name, file_poses)
             plan.reader.simulation(plan.path)
@@ -177,14 +143,19 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
         results[index] = result
         if progress:
             progress(result)
+        for j in (j for j, i in same.items() if i == index != j):  # said after the file it is the same as
+            finish(j, ImportResult(plans[j].path, result.object, result.hand, 0, 0, result.rescored, True, {},
+                                   result.error, same_as=result.path))
 
     with open_for_writing(Path(db_path)) as db:
-        check_objects(db, plans)
+        check_objects(db, plans_read)
         check_hand_files(db, {p.hand.name for p in plans})
         rule = db.rule()
         db.apply_rule(rule)
         rescoring: dict[int, _Rescoring] = {}
         for i, plan in enumerate(plans):
+            if same[i] != i:
+                continue
             if (plan.spec.name, 0) in db.units_done(plan.hand.name, plan.settings.digest, 0):
                 # its stored grasps whose file row has a label, where none of them carries it (not a file of
                 # which no pose was kept, nor the labels of poses dropped: a new import keeps neither)

@@ -417,3 +417,29 @@ def test_an_export_does_not_replace_another_databases_mesh(db: Path, tmp_path: P
     code, _, err = grasp("export", "--db", str(db), "--format", "acronym", "--out", str(out))
     assert code == 2 and "holds another mesh than this database's 'box'" in err, err
     assert {p.name: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+
+
+def test_one_file_given_twice_is_read_and_scored_once_and_said_so(db: Path, tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """`grasp import a.h5 a.h5` re-scored the file twice (stored once) and printed its line twice."""
+    foreign, _ = foreign_file(db, tmp_path, "box", "crate")
+    closed = Counter[str]()
+    rescore = importer.rescore_poses
+
+    def counted(unit: importer.RescoreUnit) -> importer.Rescored:
+        closed["poses"] += len(unit.poses)
+        return rescore(unit)
+
+    monkeypatch.setattr(importer, "rescore_poses", counted)
+    again = foreign.parent / ".." / "grasps" / foreign.name  # the same file by another path
+    code, out, err = grasp("import", str(foreign), str(again), "--db", str(tmp_path / "a.db"), "--workers", "1")
+    assert code == 0, err
+    lines = out.splitlines()
+    assert len(lines) == 2 and "re-scored" in lines[0], out
+    assert lines[1] == f"{again}: the same file as {foreign} (crate/panda); imported once", out
+    with h5py.File(foreign, "r") as f:
+        assert closed["poses"] == len(f["grasps/transforms"])
+    code, out, err = grasp("import", str(foreign), str(foreign), "--db", str(tmp_path / "a.db"), "--json")
+    assert code == 0, err
+    said = json.loads(out)
+    assert [r["skipped"] for r in said] == [True, True] and said[1]["same_as"] == str(foreign), out
