@@ -39,7 +39,14 @@ from planner.api.building import (  # noqa: F401 - re-exported
     table_supports,
     unit_row,
 )
-from planner.api.calibrating import calibrate, calibration_errors, report, shipped_figures
+from planner.api.calibrating import (
+    calibrate,
+    calibration_errors,
+    fitted_on,
+    report,
+    report_and_errors,
+    shipped_figures,
+)
 from planner.api.describing import check_db, default_workers, hand, hands, objects, stored_objects
 from planner.api.on_table import (  # noqa: F401 - re-exported
     TABLE_AT,
@@ -104,9 +111,9 @@ __all__ = [
     "ExportSummary", "Grasp",
     "GenerateProgress", "ImportResult", "RankingRule", "ReachableGrasp", "SAMPLERS", "SAMPLER_DEFAULTS", "Summary",
     "SweepSettings", "UnitResult", "ValidationSummary",
-    "best", "best_at", "calibrate", "calibration_errors", "check_db", "default_workers", "export", "generate",
-    "hand", "hands", "import_files", "objects", "plan_units", "report", "resolve_object", "shipped_figures", "show",
-    "stored_names",
+    "best", "best_at", "calibrate", "calibration_errors", "check_db", "default_workers", "export", "fitted_on",
+    "generate", "hand", "hands", "import_files", "objects", "plan_units", "report", "report_and_errors",
+    "resolve_object", "shipped_figures", "show", "stored_names",
     "stored_objects", "validate",
 ]
 

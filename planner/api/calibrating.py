@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from planner.api.resolving import DEFAULT_DB
-from planner.db.store import open_for_writing
+from planner.db.store import open_db, open_for_writing
 from planner.errors import InputError
 from planner.specs.inputs import check_output, check_seed, writing
 
@@ -28,6 +28,13 @@ def report(db_path: Path, out: Path) -> Path:
     """The calibration report of ``db_path``: ``out.html``, or a folder with
     ``report.md`` and PNGs (the reliability diagram of each hand's p_hold
     among them); returns the file written."""
+    return report_and_errors(db_path, out)[0]
+
+
+def report_and_errors(db_path: Path, out: Path) -> tuple[Path, list[str]]:
+    """:func:`report` and :func:`calibration_errors` of ``db_path`` from one read of its p_hold section (its grasps
+    an imported file labels, its trials, each hand's model): the file written and the lines."""
+    from planner.present import reliability
     from planner.present import report as reporting
 
     suffix = Path(out).suffix.lower()
@@ -35,17 +42,31 @@ def report(db_path: Path, out: Path) -> Path:
         raise InputError(f"--out {out}: the report is an .html file or a folder (report.md and its PNGs in it), "
                          f"not a {suffix} file: give {Path(out).with_suffix('.html')} or a folder")
     out = check_output(Path(out), "--out", folder=suffix != ".html")
+    found = reliability.read(Path(db_path))
     with writing(out, "--out"):
-        return reporting.write(Path(db_path), out)
+        path = reporting.write(Path(db_path), out, found)
+    return path, reliability.ece_lines(found[0]) + reliability.file_lines(found[1])
 
 
 def calibration_errors(db_path: Path) -> list[str]:
     """Per hand with a p_hold model: the expected calibration error of each of
     its reliability tables (held out on its labels; against stored trials; against the imported files' own
     labels); and per hand whose grasps an imported file labels, how p_hold and the score rank those labels."""
-    from planner.present import report as reporting
+    from planner.present import reliability
 
-    return reporting.ece_lines(reporting.calibration(Path(db_path))) + reporting.file_lines(reporting.labelled(db_path))
+    cals, files = reliability.read(Path(db_path))
+    return reliability.ece_lines(cals) + reliability.file_lines(files)
+
+
+def fitted_on(db_path: Path, hand: str, file: Path) -> bool:
+    """Whether ``hand``'s p_hold model in ``db_path`` (the stored one, else the shipped one) was fitted on the
+    labels of ``file`` (by its name): p_hold and the score against those labels are in-sample, no check of it."""
+    from planner.present import reliability
+
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        model = db.model(hand)
+        return model is not None and reliability.in_sample(reliability.fitted_on(db.model_source(hand), model.labels),
+                                                           file)
 
 
 def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB, poses: int | None = 200, seed: int = 0,

@@ -102,7 +102,7 @@ def calibrate(data: LabelledSet, *, folds: int = 5, features: Sequence[str] = DE
         figures.update(trial_figures(data, cv))
         updates[data.engine] = fit_update(data.engine, cv.p[tried], data.verdicts[tried], data.labels[tried])
     model = replace(model, source=source, figures={k_: v for k_, v in figures.items() if math.isfinite(v)},
-                    held_out=table, updates=updates, domain=domain(data))
+                    held_out=table, updates=updates, domain=domain(data), labels=tuple(sorted(set(data.files))))
     return Calibration(model, cv, figures, per_object(data, cv.p), table)
 
 

@@ -68,7 +68,9 @@ class LogisticModel:
     that engine is used as it is); domain: per property of :data:`DOMAIN`,
     (low, high) over the labelled objects it was fitted on (empty: not
     known, a model stored before 2026-12-05): :meth:`outside` says where an
-    object's p_hold is extrapolated.
+    object's p_hold is extrapolated; labels: the names of the label files it
+    was fitted on (empty: not recorded, a model made before 2026-12-07): an
+    imported file's labels among them are in-sample (``grasp report`` says so).
     """
 
     hand: str
@@ -88,9 +90,11 @@ class LogisticModel:
     domain: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     tree_features: tuple[str, ...] = ()
     tree_turns: tuple[tuple[int, ...], ...] = ()
+    labels: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "tree_features", tuple(self.tree_features))
+        object.__setattr__(self, "labels", tuple(str(name) for name in self.labels))
         object.__setattr__(self, "tree_turns", tuple(tuple(int(i) for i in t) for t in self.tree_turns))
         width = len(self.features) + len(self.tree_features)
         if any(sorted(t) != list(range(width)) for t in self.tree_turns):
@@ -219,7 +223,8 @@ class LogisticModel:
                 **({"updates": {k: u.to_dict() for k, u in self.updates.items()}} if self.updates else {}),
                 **({"domain": {k: list(v) for k, v in self.domain.items()}} if self.domain else {}),
                 **({"tree_features": list(self.tree_features)} if self.tree_features else {}),
-                **({"tree_turns": [list(t) for t in self.tree_turns]} if self.tree_turns else {})}
+                **({"tree_turns": [list(t) for t in self.tree_turns]} if self.tree_turns else {}),
+                **({"labels": list(self.labels)} if self.labels else {})}
 
     @classmethod
     def from_dict(cls, data: Mapping) -> LogisticModel:
@@ -235,7 +240,8 @@ class LogisticModel:
                        {str(k): TrialUpdate.from_dict(k, v) for k, v in dict(data.get("updates", {})).items()},
                        {str(k): tuple(float(x) for x in v) for k, v in dict(data.get("domain", {})).items()},
                        tuple(str(f) for f in data.get("tree_features", ())),
-                       tuple(tuple(int(i) for i in t) for t in data.get("tree_turns", ())))
+                       tuple(tuple(int(i) for i in t) for t in data.get("tree_turns", ())),
+                       tuple(str(name) for name in data.get("labels", ())))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"calibration model: missing or bad field ({exc})") from None
 
@@ -253,8 +259,8 @@ class LogisticModel:
                   *([f"tree_features = {json.dumps(list(self.tree_features))}"] if self.tree_features else []),
                   *([f"tree_turns = {json.dumps([list(t) for t in self.tree_turns])}"] if self.tree_turns else []),
                   f"mean = {_floats(self.mean)}", f"scale = {_floats(self.scale)}", f"coef = {_floats(self.coef)}",
-                  f"intercept = {self.intercept!r}", f"l2 = {self.l2!r}", f"source = {json.dumps(self.source)}", "",
-                  "[figures]"]
+                  f"intercept = {self.intercept!r}", f"l2 = {self.l2!r}", f"source = {json.dumps(self.source)}",
+                  *([f"labels = {json.dumps(list(self.labels))}"] if self.labels else []), "", "[figures]"]
         lines += [f"{k} = {float(v)!r}" for k, v in sorted(self.figures.items())]
         if self.knots:
             lines += ["", "[knots]  # restricted cubic spline knots per feature (the feature's input units)"]

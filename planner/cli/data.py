@@ -114,6 +114,9 @@ def import_files(paths: tuple[Path, ...], fmt: str, db_path: Path, hand: str | N
         kept = f"; the file's labels kept: {r.labels[0]} held, {r.labels[1]} dropped" if sum(r.labels) else ""
         click.echo(f"{r.path}: {how} {r.grasps} grasps ({r.force_closure} force-closure) as {r.object}/{r.hand}"
                    f"{dropped}{kept}")
+        if kept and api.fitted_on(db_path, r.hand, r.path):
+            click.echo(f"note: {r.path}: the {r.hand}'s p_hold model was fitted on this file's labels: p_hold and the "
+                       "score against them (`grasp report`) are in-sample, no check of it", err=True)
 
     show_preparation(not as_json)  # a mesh repaired (ACRONYM's are often open): one line each, the first time only
     results = api.import_files(paths, db_path, fmt=fmt, hand=hand, object_name=object_name, rescore=rescore,

@@ -84,8 +84,9 @@ def report(db_path: Path, out: Path) -> None:
     """How well epsilon, robust epsilon and reachability predict simulated success; the
     reliability diagram and expected calibration error of p_hold; and how much of each object's
     surface its top grasps' contacts cover."""
-    click.echo(str(api.report(db_path, out)))
-    for line in api.calibration_errors(db_path):
+    path, lines = api.report_and_errors(db_path, out)
+    click.echo(str(path))
+    for line in lines:
         click.echo(line)
     for line in api.coverage(db_path):
         click.echo(line.line())

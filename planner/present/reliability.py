@@ -60,20 +60,33 @@ def file_labels(grasps: Sequence[Grasp], scores: np.ndarray, fitted: frozenset[s
     y = np.array([g.file_label.success for g in grasps], float)  # type: ignore[union-attr]
     p = np.array([math.nan if g.p_hold is None else g.p_hold for g in grasps], float)
     modelled = bool(np.isfinite(p).any())
-    in_sample = sum(_file_name(g.file_label.source) in fitted for g in grasps) if modelled else 0  # type: ignore[union-attr]
+    keys = {_key(name) for name in fitted}
+    in_sample = sum(_key(_file_name(g.file_label.source)) in keys for g in grasps) if modelled else 0  # type: ignore[union-attr]
     return FileLabels(len(grasps), int(y.sum()), tuple(sorted({g.file_label.source for g in grasps})),  # type: ignore[union-attr]
                       reliability(y, p) if modelled else None, roc_auc(y, p) if modelled else math.nan,
                       roc_auc(y, np.asarray(scores, float)), in_sample)
 
 
-def fitted_on(source: str) -> frozenset[str]:
-    """The names of the label files a model stored by ``grasp calibrate`` was fitted on (its source's ``labels``,
-    each as :func:`planner.calibration.labels.label_names` spelt it); none for another source (the shipped one)."""
+def fitted_on(source: str, labels: Sequence[str] = ()) -> frozenset[str]:
+    """The names of the label files a model was fitted on: its ``labels`` (:attr:`LogisticModel.labels`: the
+    shipped model's dev-set files, ``grasp calibrate``'s) and those a source stored by ``grasp calibrate`` names
+    (its ``labels``, each as :func:`planner.calibration.labels.label_names` spelt it; a model stored before the
+    model kept them)."""
     try:
-        labels = json.loads(source).get("labels", [])
+        named = json.loads(source).get("labels", [])
     except (ValueError, AttributeError):
-        return frozenset()
-    return frozenset(Path(str(name)).name for name in labels)
+        named = []
+    return frozenset(Path(str(name)).name for name in [*named, *labels])
+
+
+def in_sample(fitted: frozenset[str], file: str | Path) -> bool:
+    """Whether the labels of ``file`` (a path or name) are among those a model fitted on ``fitted``
+    (:func:`fitted_on`) was fitted on; ``crate`` and ``crate.h5`` are one file (a benchmark fits on stems)."""
+    return _key(Path(file).name) in {_key(name) for name in fitted}
+
+
+def _key(name: str) -> str:
+    return name[:-3] if name.lower().endswith(".h5") else name
 
 
 def _file_name(source: str) -> str:
@@ -119,38 +132,46 @@ class HandCalibration:
 
 def labelled(db_path: Path) -> dict[str, FileLabels]:
     """Per hand whose grasps an imported file labels (``grasp import``), how p_hold and the score meet the labels."""
-    from planner.present.report import untried_analytic
-
-    with open_db(Path(db_path), create=False, readonly=True) as db:
-        grasps, rule = db.validated(file_labels=True), db.rule()
-        fitted = {hand: fitted_on(db.model_source(hand)) for hand in {g.hand for g in grasps}}
-    return {hand: file_labels(mine, untried_analytic(rule, mine), fitted[hand])
-            for hand in sorted(fitted) for mine in [[g for g in grasps if g.hand == hand]]}
+    return read(db_path)[1]
 
 
 def calibration(db_path: Path) -> list[HandCalibration]:
     """Every hand of the database that has a p_hold model: a hand with grasps (its stored or shipped model), or
     one ``grasp calibrate`` stored a model for (a database with no grasps yet: its held-out figures)."""
-    files = labelled(db_path)
+    return read(db_path)[0]
+
+
+def read(db_path: Path) -> tuple[list[HandCalibration], dict[str, FileLabels]]:
+    """:func:`calibration` and :func:`labelled` of ``db_path`` from one read: its grasps an imported file labels,
+    its tried grasps and each hand's model, each read once."""
+    from planner.present.report import untried_analytic
+
     with open_db(Path(db_path), create=False, readonly=True) as db:
+        marked, rule, tried_all = db.validated(file_labels=True), db.rule(), db.validated()
+        modelled = sorted({h for _, h in db.pairs()} | set(db.calibrated_hands()))
+        hands = sorted(set(modelled) | {g.hand for g in marked})
+        models, sources = {h: db.model(h) for h in hands}, {h: db.model_source(h) for h in hands}
+        files = {hand: file_labels(mine, untried_analytic(rule, mine), fitted_on(
+            sources[hand], () if models[hand] is None else models[hand].labels))  # type: ignore[union-attr]
+            for hand in sorted({g.hand for g in marked}) for mine in [[g for g in marked if g.hand == hand]]}
         out = []
-        for hand in sorted({h for _, h in db.pairs()} | set(db.calibrated_hands())):
-            model = db.model(hand)
+        for hand in modelled:
+            model = models[hand]
             if model is None:
                 continue
-            tried = [g for g in db.validated() if g.hand == hand and g.p_hold is not None]
+            tried = [g for g in tried_all if g.hand == hand and g.p_hold is not None]
             trials = reliability(np.array([g.trial.success for g in tried], float),  # type: ignore[union-attr]
                                  np.array([g.p_hold for g in tried], float)) if tried else None
             rows = {name: db.object_row(name) for name in db.objects_for(hand)}
             outside = {name: model.outside(row.properties()) for name, row in rows.items() if row is not None}
             lo, hi = (model.figures.get(f"ece_{end}", math.nan) for end in ("lo", "hi"))
-            source = db.model_source(hand)
+            source = sources[hand]
             source = f"{source}: {model.source}" if source == "shipped" and model.source else source
             out.append(HandCalibration(hand, source, model.held_out, trials,
                                        {name: why for name, why in outside.items() if why},
                                        (lo, hi) if math.isfinite(lo) and math.isfinite(hi) else None,
                                        engines(tried), files.get(hand)))
-    return out
+    return out, files
 
 
 def engines(grasps: Sequence[Grasp]) -> str:
@@ -189,8 +210,8 @@ def file_lines(files: dict[str, FileLabels]) -> list[str]:
 def _in_sample(f: FileLabels) -> str:
     """Said where p_hold was fitted on some of these labels: its figures against them are no check of it."""
     return (f"; in-sample: the p_hold model was fitted on the labels of the files of {f.in_sample} of these "
-            f"{f.count} grasps (`grasp calibrate`), so p_hold's figures against them are no check of it"
-            if f.in_sample else "")
+            f"{f.count} grasps, so p_hold's figures (and the score's, which ranks by p_hold) against them are no "
+            "check of it" if f.in_sample else "")
 
 
 def _interval(ece: tuple[float, float] | None) -> str:

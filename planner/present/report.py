@@ -39,7 +39,7 @@ from planner.db.failures import no_grasps
 from planner.db.ranking import RankingRule, first_measures, ranks_first, rule_measures
 from planner.db.store import open_db
 from planner.errors import InputError
-from planner.present.reliability import (
+from planner.present.reliability import (  # noqa: F401 - calibration and labelled re-exported
     FileLabels,
     HandCalibration,
     calibration,
@@ -47,6 +47,7 @@ from planner.present.reliability import (
     engines,
     file_lines,
     labelled,
+    read,
     reliability_png,
 )
 from planner.record import fields
@@ -309,8 +310,11 @@ def no_trials(db_path: Path, cals: list[HandCalibration], files: dict[str, FileL
 FILES = "The imported files' own labels"
 
 
-def write(db_path: Path, out: Path) -> Path:
-    cals, files = [c for c in calibration(db_path) if c.curves()], labelled(db_path)
+def write(db_path: Path, out: Path, found: tuple[list[HandCalibration], dict[str, FileLabels]] | None = None) -> Path:
+    """The report of ``db_path`` at ``out``; ``found``: its p_hold section as
+    :func:`planner.present.reliability.read` read it (None: read here)."""
+    cals, files = found or read(db_path)
+    cals = [c for c in cals if c.curves()]
     reports = collect(db_path, allow_empty=bool(cals or files))
     if out.suffix.lower() == ".html":
         return _write_html(reports, cals, files, out, db_path)

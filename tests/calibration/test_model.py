@@ -191,3 +191,20 @@ def test_one_penalty_given_is_not_chosen_by_an_inner_cross_validation(monkeypatc
     assert calls == []
     assert model_module.choose_l2(table, y, groups, "panda", grid=(0.3, 3.0), splines=()) in (0.3, 3.0)
     assert len(calls) == 2 * 5  # two penalties, five folds each
+
+
+def test_a_fitted_model_names_its_label_files_and_they_travel_with_it(tmp_path) -> None:
+    """A model's source named no files (the shipped one's: "46 files of ../shared/labelled/acronym_dev"), so an
+    imported file's labels it was fitted on could not be told in-sample: the fit records them."""
+    from planner.calibration.fitting import calibrate
+    from planner.calibration.labels import LabelledSet
+
+    table, y, groups = synthetic(400, groups=4)
+    files = tuple(f"{g}_0.5.h5" for g in groups)
+    model = calibrate(LabelledSet(table, y, tuple(groups), files, "panda"), folds=2, trees=None).model
+    assert model.labels == tuple(sorted(set(files)))
+    path = tmp_path / "panda.toml"
+    path.write_text(model.to_toml())
+    for back in (load_model(path), LogisticModel.from_json(model.to_json())):
+        assert back.labels == model.labels
+    assert "labels" not in replace(model, labels=()).to_dict()  # a model without them: the same JSON as before

@@ -194,3 +194,54 @@ def test_a_skipped_file_none_of_whose_poses_was_kept_says_nothing_of_its_labels(
     assert code == 0 and "re-scored 0 grasps" in out, out + err
     code, out, err = grasp("import", str(foreign), "--db", str(first))
     assert code == 0 and "already imported as crate/panda; skipped" in out and "labels" not in err, err
+
+
+def test_report_reads_the_file_labelled_grasps_once(db: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`grasp report` read the grasps an imported file labels four times (the report's p_hold section and its
+    lines, each through both `calibration` and `labelled`): now once, its figures the same."""
+    from planner.db.store import Database
+
+    foreign, _ = _labelled(db, tmp_path)
+    first = tmp_path / "first.db"
+    assert grasp("import", str(foreign), "--db", str(first))[0] == 0
+    reads = []
+    validated = Database.validated
+
+    def counted(self: Database, **kwargs: bool) -> list:
+        reads.append(kwargs.get("file_labels", False))
+        return validated(self, **kwargs)
+
+    monkeypatch.setattr(Database, "validated", counted)
+    code, out, err = grasp("report", "--db", str(first), "--out", str(tmp_path / "r"))
+    assert code == 0, err
+    assert reads.count(True) == 1, reads
+    assert "panda: the imported files' own labels (crate.h5 grasps/qualities/flex/object_in_gripper; " in out, out
+
+
+def test_a_file_the_shipped_model_was_fitted_on_is_said_in_sample(db: Path, tmp_path: Path,
+                                                                 shipped_models: None) -> None:
+    """Importing one of the dev set's tuning files gave p_hold's figures against its labels as a check of p_hold,
+    though the shipped model was fitted on those labels (its source named no files): the model now names its files,
+    and import and report say so."""
+    from planner.calibration.model import default_model
+
+    fitted = default_model("panda").labels  # type: ignore[union-attr]
+    assert len(fitted) == 46 and all(name.endswith(".h5") for name in fitted)
+    foreign, _ = foreign_file(db, tmp_path, "box", fitted[0].removesuffix(".h5"))  # a file of that name, made here
+    with h5py.File(foreign, "r+") as f:
+        key = "grasps/qualities/flex/object_in_gripper"
+        f[key][...] = np.arange(len(f[key])) % 2
+    mine = tmp_path / "mine.db"
+    code, out, err = grasp("import", str(foreign), "--db", str(mine))
+    assert code == 0, err
+    said = [line for line in err.splitlines() if "in-sample" in line]
+    assert len(said) == 1 and said[0].startswith(f"note: {foreign}: the panda's p_hold model was fitted on this "
+                                                 "file's labels"), err
+    code, out, err = grasp("report", "--db", str(mine), "--out", str(tmp_path / "r"))
+    assert code == 0, err
+    assert "in-sample: the p_hold model was fitted on the labels of the files of" in out, out
+    other, _ = _labelled(db, tmp_path)  # crate.h5: not one of them
+    code, out, err = grasp("import", str(other), "--db", str(tmp_path / "other.db"))
+    assert code == 0 and "in-sample" not in err, err
+    code, out, err = grasp("report", "--db", str(tmp_path / "other.db"), "--out", str(tmp_path / "r2"))
+    assert code == 0 and "in-sample" not in out, out
