@@ -252,3 +252,19 @@ def report_failures(failed: dict[str, str]) -> None:
         click.echo(f"grasp: error: {name}: {error}", err=True)
     if failed:
         sys.exit(InputError.exit_code)
+
+
+def missing_folder(path: Path) -> Path | None:
+    """The outermost folder above the file ``path`` that does not exist yet, which writing it makes (as ``export``
+    makes its ``--out``): said after the write, so a mistyped folder is seen; None where its folder exists."""
+    missing = None
+    for folder in Path(path).absolute().parents:
+        if folder.exists():
+            return missing
+        missing = folder
+    return missing
+
+
+def made(folder: Path | None) -> str:
+    """The words :func:`missing_folder`'s folder, made by a write, is said with ("" where none was made)."""
+    return "" if folder is None or not folder.is_dir() else f" (made the folder {folder})"

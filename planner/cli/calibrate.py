@@ -24,8 +24,10 @@ FEW_OBJECTS = 10
 @click.option("--hand", help="The hand, if the files' gripper/type does not say it.")
 @click.option("--workers", type=int, default=api.default_workers(), show_default="all cores",
               help="Worker processes for re-scoring the sampled poses.")
-@click.option("--model-out", type=click.Path(path_type=Path), help="Also write the model as TOML.")
-@click.option("--plot", type=click.Path(path_type=Path), help="Write the held-out reliability diagram (PNG).")
+@click.option("--model-out", type=click.Path(path_type=Path),
+              help="Also write the model as TOML (a missing folder above it is made).")
+@click.option("--plot", type=click.Path(path_type=Path),
+              help="Write the held-out reliability diagram (PNG; a missing folder above it is made).")
 @click.option("--no-store", is_flag=True, help="Fit and report only; leave the database alone.")
 @click.option("--trees/--no-trees", default=True, show_default=True,
               help="Boost interaction trees on the additive model (--no-trees: one curve per measure alone).")

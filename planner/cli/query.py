@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from planner import api
-from planner.cli.app import db_option, diverse_options, echo_json, floats, spacing, unused
+from planner.cli.app import db_option, diverse_options, echo_json, floats, made, missing_folder, spacing, unused
 from planner.errors import NotFoundError
 from planner.specs.hands import hand_frame
 
@@ -162,16 +162,18 @@ def _frames_json(g: api.Grasp, world: object = None, rule: object = None, model:
 @db_option
 @click.option("--rank", type=int, default=1, show_default=True, help="Which grasp (1 = best).")
 @click.option("--top", type=int, help="A contact sheet of the K best grasps instead.")
-@click.option("--out", type=click.Path(path_type=Path), default=Path("grasp.png"), show_default=True)
+@click.option("--out", type=click.Path(path_type=Path), default=Path("grasp.png"), show_default=True,
+              help="The PNG written (a folder missing above it is made, and said).")
 @diverse_options
 def show(object_name: str, hand: str, db_path: Path, rank: int, top: int | None, out: Path, diverse: bool,
          min_translation: float, min_rotation: float) -> None:
     """Render grasps (hand closed on the object, contacts, friction cones) to a PNG."""
     if top is not None:
         unused(["rank"], "--top draws the K best instead")
+    folder = missing_folder(out)
     grasps = api.show(object_name, hand, out, db_path=db_path, rank=rank, top=top,
                       spacing=spacing(diverse, min_translation, min_rotation))
-    click.echo(f"{out}: {len(grasps)} grasp(s) from {len(grasps) and 3} viewpoints")
+    click.echo(f"{out}: {len(grasps)} grasp(s) from {len(grasps) and 3} viewpoints{made(folder)}")
 
 
 def _misses(misses: list[tuple[int, str]]) -> str:

@@ -8,7 +8,16 @@ from pathlib import Path
 import click
 
 from planner import api
-from planner.cli.app import db_option, echo_json, report_failures, share, show_preparation, unused
+from planner.cli.app import (
+    db_option,
+    echo_json,
+    made,
+    missing_folder,
+    report_failures,
+    share,
+    show_preparation,
+    unused,
+)
 from planner.validation.mujoco_settings import DEFAULT_ENGINE, ENGINES
 
 
@@ -79,13 +88,15 @@ def _tried(summary: api.ValidationSummary, engine: str, closure_only: bool) -> s
 @click.command()
 @db_option
 @click.option("--out", type=click.Path(path_type=Path), default=Path("report.html"), show_default=True,
-              help="report.html (one self-contained file) or a folder (report.md + PNGs).")
+              help="report.html (one self-contained file) or a folder (report.md + PNGs); a folder missing above "
+              "it is made, and said.")
 def report(db_path: Path, out: Path) -> None:
     """How well epsilon, robust epsilon and reachability predict simulated success; the
     reliability diagram and expected calibration error of p_hold; and how much of each object's
     surface its top grasps' contacts cover."""
+    folder = missing_folder(out)  # a folder --out is the report's own: made as export's is
     path, lines = api.report_and_errors(db_path, out)
-    click.echo(str(path))
+    click.echo(f"{path}{made(folder)}")
     for line in lines:
         click.echo(line)
     for line in api.coverage(db_path):

@@ -503,3 +503,23 @@ def test_best_at_a_pose_says_which_better_ranks_it_left_out(box_db: Path, monkey
     assert code == 0, err
     [note] = [line for line in out.splitlines() if line.startswith("note: stored grasps the arm does not reach")]
     assert "#1: no IK solution for the grasp" in note
+
+
+def test_show_makes_a_missing_folder_only_when_it_writes_and_says_so(box_db: Path, tmp_path: Path) -> None:
+    """`grasp show --out /new/dir/x.png` made the folder without a word (a mistyped folder went unseen). As every
+    --out of the project (export's folder, report's, calibrate's --model-out and --plot), a missing folder is made,
+    now said; a refused show makes none, and the help says what happens."""
+    code, _, err = grasp("show", "box", "--hand", "panda", "--db", str(box_db), "--rank", "5000",
+                         "--out", str(tmp_path / "refused" / "deeper" / "s.png"))
+    assert code == 2 and not (tmp_path / "refused").exists(), err
+    out_png = tmp_path / "new" / "deeper" / "s.png"
+    code, out, err = grasp("show", "box", "--hand", "panda", "--db", str(box_db), "--out", str(out_png))
+    assert code == 0 and out_png.stat().st_size > 1000, err
+    assert out.strip() == f"{out_png}: 1 grasp(s) from 3 viewpoints (made the folder {tmp_path / 'new'})", out
+    code, out, err = grasp("show", "box", "--hand", "panda", "--db", str(box_db), "--out", str(out_png))
+    assert code == 0 and "made the folder" not in out, out
+    for command, option in (("show", "--out"), ("report", "--out"), ("calibrate", "--model-out"),
+                            ("calibrate", "--plot")):
+        code, out, _ = grasp(command, "--help")
+        said = " ".join(out.split())
+        assert code == 0 and "missing" in said[said.index(option):][:200], (command, option, said)
