@@ -443,3 +443,5 @@ def test_one_file_given_twice_is_read_and_scored_once_and_said_so(db: Path, tmp_
     assert code == 0, err
     said = json.loads(out)
     assert [r["skipped"] for r in said] == [True, True] and said[1]["same_as"] == str(foreign), out
+    code, out, err = grasp("import", str(foreign), str(foreign), "--db", str(tmp_path / "a.db"))
+    assert code == 0 and out.splitlines()[1] == f"{foreign}: given again (crate/panda); imported once", out
