@@ -70,8 +70,11 @@ def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1, spac
             if writer is not None and _sweeps(writer.command, {name, key}, hand):  # not "run" the very run going on
                 raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path} yet: "
                                  f"{writer.doing('writing it')}; try again once a unit of it has finished")
+            hands = sorted({h for o, h in db.pairs() if o == key})  # asked with another hand than it was swept with
+            also = f"; '{key}' has grasps for {', '.join(hands)} (--hand)" if hands else ""
             raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}; objects with grasps: "
-                             f"{', '.join(known) or '(none)'}; run `{generate_command(name, row, hand, db_path)}`")
+                             f"{', '.join(known) or '(none)'}{also}; run "
+                             f"`{generate_command(name, row, hand, db_path)}`")
     return grasps
 
 

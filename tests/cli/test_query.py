@@ -523,3 +523,10 @@ def test_show_makes_a_missing_folder_only_when_it_writes_and_says_so(box_db: Pat
         code, out, _ = grasp(command, "--help")
         said = " ".join(out.split())
         assert code == 0 and "missing" in said[said.index(option):][:200], (command, option, said)
+
+
+def test_best_with_another_hand_than_the_object_was_swept_with_names_its_hands(box_db: Path) -> None:
+    """`grasp best box --hand barrett` on a database of the Panda's box grasps said "objects with grasps: (none)",
+    as if the database were empty, and told to sweep again: the hand asked was the mistake."""
+    code, _, err = grasp("best", "box", "--hand", "barrett", "--db", str(box_db))
+    one_line_error(code, err, 2, "no grasps of 'box' for hand 'barrett'", "'box' has grasps for panda (--hand)")
