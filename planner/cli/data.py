@@ -75,7 +75,8 @@ def export(db_path: Path, fmt: str, out_dir: Path, objects: tuple[str, ...], han
               "that open hand is within its limits and free at the pose, else from the widest preshape (ACRONYM's "
               "own files), backed off while it collides.")
 @click.option("--up", help="The objects' up where a file gives none (object/up): +x -x +y -y +z -z; ACRONYM's own "
-              "meshes stand on +y [default: the mesh file's, +z for an OBJ].")
+              "meshes stand on +y [default: a mesh's sidecar TOML, else the mesh file's, +z for an OBJ, said on "
+              "stderr].")
 @click.option("--mass", type=float, help="One mass [kg] for the object of every file of the command that gives none "
               "(object/mass); a file whose own object/mass differs is refused: import the files that lack one in a "
               "command of their own [default: a mesh's sidecar TOML, the registry's, else 0.2, said on stderr].")
