@@ -121,7 +121,6 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
     first: dict[tuple[str, str, str], int] = {}  # a unit's first file in the command: the rest are said, not read
     same = {i: first.setdefault((plan.hand.name, plan.spec.name, plan.settings.digest), i) for i, plan in
             enumerate(plans)}
-    plans_read = [plan for i, plan in enumerate(plans) if same[i] == i]
     # every file's poses (and a lossless file's joints and contacts) read and checked before the database is opened:
     # a refused import (a NaN in grasps/transforms, a joint outside its limits, contacts that are not JSON) left an
     # empty database and its lock file at --db. A lossless file is read twice (here and when written) rather than
@@ -148,7 +147,7 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
                                    result.error, same_as=result.path))
 
     with open_for_writing(Path(db_path)) as db:
-        check_objects(db, plans_read)
+        check_objects(db, plans)  # every file's: the same bytes beside another mesh are another object, refused
         check_hand_files(db, {p.hand.name for p in plans})
         rule = db.rule()
         db.apply_rule(rule)

@@ -445,3 +445,18 @@ def test_one_file_given_twice_is_read_and_scored_once_and_said_so(db: Path, tmp_
     assert [r["skipped"] for r in said] == [True, True] and said[1]["same_as"] == str(foreign), out
     code, out, err = grasp("import", str(foreign), str(foreign), "--db", str(tmp_path / "a.db"))
     assert code == 0 and out.splitlines()[1] == f"{foreign}: given again (crate/panda); imported once", out
+
+
+def test_the_same_bytes_beside_another_mesh_are_not_said_the_same_file(db: Path, tmp_path: Path) -> None:
+    """Two copies of one file whose object/file finds another mesh beside each (d1's box, d2's sphere, both
+    'crate') were said "the same file" and the second object dropped unseen: refused, as before the copies were
+    read once, with the two paths."""
+    first, _ = foreign_file(db, tmp_path / "d1", "box", "crate")
+    second = tmp_path / "d2" / "foreign" / "grasps" / "crate.h5"
+    second.parent.mkdir(parents=True)
+    (tmp_path / "d2" / "foreign" / "meshes").mkdir()
+    shutil.copyfile(first, second)
+    load_object("sphere").mesh.export(tmp_path / "d2" / "foreign" / "meshes" / "crate.obj")
+    code, out, err = grasp("import", str(first), str(second), "--db", str(tmp_path / "a.db"), "--workers", "1")
+    one_line_error(code, err, 2, f"{second} and {first} name one object 'crate' with other meshes")
+    assert "the same file" not in out, out
