@@ -260,7 +260,8 @@ class LogisticModel:
                   *([f"tree_turns = {json.dumps([list(t) for t in self.tree_turns])}"] if self.tree_turns else []),
                   f"mean = {_floats(self.mean)}", f"scale = {_floats(self.scale)}", f"coef = {_floats(self.coef)}",
                   f"intercept = {self.intercept!r}", f"l2 = {self.l2!r}", f"source = {json.dumps(self.source)}",
-                  *([f"labels = {json.dumps(list(self.labels))}"] if self.labels else []), "", "[figures]"]
+                  *([f"labels = [{', '.join(map(_toml_string, self.labels))}]"] if self.labels else []), "",
+                  "[figures]"]
         lines += [f"{k} = {float(v)!r}" for k, v in sorted(self.figures.items())]
         if self.knots:
             lines += ["", "[knots]  # restricted cubic spline knots per feature (the feature's input units)"]
@@ -329,6 +330,13 @@ def _reliability(data: Mapping) -> Reliability:
 
 def _floats(a: np.ndarray) -> str:
     return "[" + ", ".join("nan" if math.isnan(v) else repr(float(v)) for v in a) + "]"
+
+
+def _toml_string(text: str) -> str:
+    """``text`` as an ASCII TOML basic string: JSON's escapes write a character beyond U+FFFF (a file name's emoji)
+    as two surrogates, which TOML refuses (the model written could not be read back): here one ``\\U`` escape."""
+    return '"' + "".join(c if " " <= c < "\x7f" and c not in '"\\' else
+                         f"\\u{ord(c):04x}" if ord(c) < 0x10000 else f"\\U{ord(c):08x}" for c in text) + '"'
 
 
 def load_model(path: Path) -> LogisticModel:

@@ -208,3 +208,13 @@ def test_a_fitted_model_names_its_label_files_and_they_travel_with_it(tmp_path) 
     for back in (load_model(path), LogisticModel.from_json(model.to_json())):
         assert back.labels == model.labels
     assert "labels" not in replace(model, labels=()).to_dict()  # a model without them: the same JSON as before
+
+
+def test_a_model_whose_label_files_have_any_names_reads_back_from_its_toml(tmp_path) -> None:
+    """The label files' names were written as JSON strings: a name beyond U+FFFF (an emoji) became two surrogate
+    escapes TOML refuses, so `grasp calibrate --model-out` wrote a model no one could read back."""
+    table, y, groups = synthetic(200, groups=4)
+    model = replace(fit(table, y, "panda", l2=1.0), labels=("mug😀.h5", "tasse_é.h5", 'a"b\\c.h5', "plain.h5"))
+    path = tmp_path / "panda.toml"
+    path.write_text(model.to_toml(), encoding="ascii")
+    assert load_model(path).labels == model.labels
