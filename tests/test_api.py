@@ -43,7 +43,7 @@ def test_best_and_plan_check_inputs_before_any_work(box_db: Path) -> None:
     assert [g.rank for g in api.best("box", "panda", db_path=box_db, top=2)] == [1, 2]
     with pytest.raises(InputError, match="--top must be at least 1"):
         api.best("box", "panda", db_path=box_db, top=0)
-    with pytest.raises(InputError, match="no grasps of 'sphere' for hand 'panda'.*objects with grasps: box"):
+    with pytest.raises(InputError, match="no grasps of 'sphere' for hand 'panda'.*objects with grasps for panda: box"):
         api.best("sphere", "panda", db_path=box_db)
     with pytest.raises(InputError, match="no objects given"):
         api.plan_units([], "panda", SweepSettings(), 0)

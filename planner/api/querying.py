@@ -72,7 +72,7 @@ def best(name: str, hand: str, *, db_path: Path = DEFAULT_DB, top: int = 1, spac
                                  f"{writer.doing('writing it')}; try again once a unit of it has finished")
             hands = sorted({h for o, h in db.pairs() if o == key})  # asked with another hand than it was swept with
             also = f"; '{key}' has grasps for {', '.join(hands)} (--hand)" if hands else ""
-            raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}; objects with grasps: "
+            raise InputError(f"no grasps of '{key}' for hand '{hand}' in {db_path}; objects with grasps for {hand}: "
                              f"{', '.join(known) or '(none)'}{also}; run "
                              f"`{generate_command(name, row, hand, db_path)}`")
     return grasps

@@ -530,3 +530,4 @@ def test_best_with_another_hand_than_the_object_was_swept_with_names_its_hands(b
     as if the database were empty, and told to sweep again: the hand asked was the mistake."""
     code, _, err = grasp("best", "box", "--hand", "barrett", "--db", str(box_db))
     one_line_error(code, err, 2, "no grasps of 'box' for hand 'barrett'", "'box' has grasps for panda (--hand)")
+    assert "objects with grasps: (none)" not in err and "objects with grasps for barrett: (none)" in err, err
