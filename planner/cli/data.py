@@ -100,7 +100,7 @@ def import_files(paths: tuple[Path, ...], fmt: str, db_path: Path, hand: str | N
         if r.same_as is not None:  # a failed one's error is said at the end, for each path given
             if not r.error:
                 same = "given again" if r.same_as == r.path else f"the same file as {r.same_as}"
-                click.echo(f"{r.path}: {same} ({r.object}/{r.hand}); imported once")
+                click.echo(f"{r.path}: {same} ({r.object}/{r.hand}); read once")
             return
         if r.skipped:
             click.echo(f"{r.path}: already imported as {r.object}/{r.hand}; skipped")

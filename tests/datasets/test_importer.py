@@ -436,7 +436,7 @@ def test_one_file_given_twice_is_read_and_scored_once_and_said_so(db: Path, tmp_
     assert code == 0, err
     lines = out.splitlines()
     assert len(lines) == 2 and "re-scored" in lines[0], out
-    assert lines[1] == f"{again}: the same file as {foreign} (crate/panda); imported once", out
+    assert lines[1] == f"{again}: the same file as {foreign} (crate/panda); read once", out
     with h5py.File(foreign, "r") as f:
         assert closed["poses"] == len(f["grasps/transforms"])
     code, out, err = grasp("import", str(foreign), str(foreign), "--db", str(tmp_path / "a.db"), "--json")
@@ -444,7 +444,7 @@ def test_one_file_given_twice_is_read_and_scored_once_and_said_so(db: Path, tmp_
     said = json.loads(out)
     assert [r["skipped"] for r in said] == [True, True] and said[1]["same_as"] == str(foreign), out
     code, out, err = grasp("import", str(foreign), str(foreign), "--db", str(tmp_path / "a.db"))
-    assert code == 0 and out.splitlines()[1] == f"{foreign}: given again (crate/panda); imported once", out
+    assert code == 0 and out.splitlines()[1] == f"{foreign}: given again (crate/panda); read once", out
 
 
 def test_the_same_bytes_beside_another_mesh_are_not_said_the_same_file(db: Path, tmp_path: Path) -> None:
