@@ -41,8 +41,8 @@ from planner.validation.shake import ShakeSettings, recorded, trials
 
 log = logging.getLogger(__name__)
 
-#: Grasps per worker task: enough to amortise a task's set-up in the worker
-#: (the object rebuilt, BLAS limited to one thread: ~5 ms) and its write,
+#: Grasps per worker task: enough to amortise a task's set-up and write (the
+#: object rebuilt and BLAS limited, ~5 ms, until both were kept per process),
 #: few enough to spread over the workers. A PyBullet trial (40-90 ms) or
 #: robust samples make a grasp long: BATCH; a MuJoCo trial alone (~8 ms) is
 #: short: MUJOCO_BATCH (measured, 4,086 trials of 4 random objects, one
