@@ -100,6 +100,8 @@ def main() -> None:
           f"start: {uptime()}", flush=True)
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
+        for side in ("tree", "against"):
+            (folder / side).mkdir()
         trees = [(args.tree or "checkout", unpack(args.tree, folder / "tree") if args.tree else ROOT)]
         if args.against:
             trees.append((args.against, unpack(args.against, folder / "against")))
