@@ -8,13 +8,34 @@ while it waits; with two worker processes on two cores the spinning threads
 take cores from the other worker. Units and validation tasks therefore run
 with BLAS limited to one thread (threadpoolctl, which also reaches the
 OpenBLAS scipy loads on first use), restored afterwards for an API caller.
+
+Finding the loaded libraries (threadpoolctl reads ``/proc/self/maps``) cost
+~2-3 ms a call, once per ``grasp validate`` task of 32 trials (~0.08 ms a
+trial): the libraries found are kept and looked for again only once a module
+has been imported since (a BLAS library comes with the extension module that
+loads it).
 """
 
 from __future__ import annotations
 
-from threadpoolctl import threadpool_limits
+import sys
+from contextlib import AbstractContextManager
+
+from threadpoolctl import ThreadpoolController
+
+#: (modules imported when it was made, the controller of the libraries then loaded)
+_FOUND: list[tuple[int, ThreadpoolController]] = []
 
 
-def one_blas_thread() -> threadpool_limits:
+def one_blas_thread() -> AbstractContextManager:
     """A context manager: BLAS libraries loaded now use one thread inside it."""
-    return threadpool_limits(limits=1, user_api="blas")
+    return loaded_libraries().limit(limits=1, user_api="blas")
+
+
+def loaded_libraries() -> ThreadpoolController:
+    """threadpoolctl's controller of the libraries loaded now: the kept one unless a module was imported
+    since it was made."""
+    if not _FOUND or _FOUND[-1][0] != len(sys.modules):
+        controller = ThreadpoolController()
+        _FOUND[:] = [(len(sys.modules), controller)]
+    return _FOUND[-1][1]

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -107,15 +108,30 @@ class Trees:
 
     def evaluate(self, x: np.ndarray) -> np.ndarray:
         """(n,) the term for inputs ``x`` (n, k): every tree at once, one
-        level per step."""
-        x32 = np.asarray(x, float).astype(np.float32)
-        node = np.broadcast_to(self.roots, (len(x32), len(self.roots))).copy()
-        rows = np.arange(len(x32))[:, None]
-        for _ in range(self.depth):
-            inner = self.left[node] != LEAF
-            go_left = x32[rows, np.where(inner, self.feature[node], 0)] <= self.threshold[node]
-            node = np.where(inner, np.where(go_left, self.left[node], self.right[node]), node)
+        level per step (a leaf its own child both ways, :meth:`_walk`: no
+        test of which nodes are inner; ~2x faster than with it, the same
+        leaves, summed in the same order)."""
+        x32 = np.ascontiguousarray(np.asarray(x, float).astype(np.float32))
+        feature, children = self._walk
+        threshold, roots = self.threshold, self.roots
+        if len(x32) == 0 or len(roots) == 0:
+            return self.value[np.zeros((len(x32), len(roots)), np.int64)].sum(axis=1)
+        at = (np.arange(len(x32)) * x32.shape[1])[:, None]  # a row's start in the flat inputs
+        flat = x32.ravel()
+        # the first level reads one column per tree; node (n, t) kept C-ordered: the sum's order is the rows'
+        node = np.ascontiguousarray(children[2 * roots + ~(x32[:, feature[roots]] <= threshold[roots])])
+        for _ in range(self.depth - 1):
+            node = children[2 * node + ~(flat[at + feature[node]] <= threshold[node])]
         return self.value[node].sum(axis=1)
+
+    @cached_property
+    def _walk(self) -> tuple[np.ndarray, np.ndarray]:
+        """(m,) each node's split input (0 at a leaf) and (2 m,) its children, left then right (a leaf's both
+        itself: a walk that reached it stays)."""
+        leaf = self.left == LEAF
+        own = np.arange(len(self.left))
+        children = np.stack([np.where(leaf, own, self.left), np.where(leaf, own, self.right)], axis=1).ravel()
+        return np.where(leaf, 0, self.feature), children
 
     def evaluate_reference(self, x: np.ndarray) -> np.ndarray:
         """:meth:`evaluate` one grasp and one tree at a time."""

@@ -23,7 +23,6 @@ import numpy as np
 from planner import prepare
 from planner.db.failures import no_grasps
 from planner.db.hand_files import check_hand_files
-from planner.db.objects import stored_object
 from planner.db.ranking import RankingRule, first_of
 from planner.db.store import Database, ObjectRow, Validated, open_for_writing
 from planner.errors import InputError, PlannerError
@@ -35,14 +34,15 @@ from planner.sim import Sim
 from planner.specs.hands import load_hand
 from planner.specs.inputs import check_seed
 from planner.threads import one_blas_thread
+from planner.validation import kept_objects
 from planner.validation.mujoco_settings import DEFAULT_ENGINE, DIVERGED, ENGINES, MujocoSettings
 from planner.validation.robust import NoiseSettings, robust_epsilon
 from planner.validation.shake import ShakeSettings, recorded, trials
 
 log = logging.getLogger(__name__)
 
-#: Grasps per worker task: enough to amortise a task's set-up in the worker
-#: (the object rebuilt, BLAS limited to one thread: ~5 ms) and its write,
+#: Grasps per worker task: enough to amortise a task's set-up and write (the
+#: object rebuilt and BLAS limited, ~5 ms, until both were kept per process),
 #: few enough to spread over the workers. A PyBullet trial (40-90 ms) or
 #: robust samples make a grasp long: BATCH; a MuJoCo trial alone (~8 ms) is
 #: short: MUJOCO_BATCH (measured, 4,086 trials of 4 random objects, one
@@ -97,7 +97,7 @@ def run_task(task: Task) -> TaskResult:
 
 def _run_task(task: Task, out: TaskResult) -> None:
     hand = load_hand(task.hand)
-    obj = stored_object(task.row)
+    obj = kept_objects.stored(task.row)  # the worker's own, built by its first task of the object
     if task.engine == "mujoco":
         from planner.validation import mujoco_trial  # loads MuJoCo: only where asked for
 
@@ -202,10 +202,14 @@ def plan(db: Database, objects: list[str] | None, hands: list[str] | None, selec
 def execute(tasks: list[Task], workers: int) -> Iterator[TaskResult]:
     """Run ``tasks`` in the crash-safe pool (in this process if ``workers``
     <= 1), yielding each result as it finishes; a task whose worker died
-    twice comes back with its error."""
-    with closing(pool.execute(run_task, tasks, workers)) as outcomes:
-        for task, outcome, _ in outcomes:
-            yield outcome if isinstance(outcome, TaskResult) else TaskResult(task, error=str(outcome))
+    twice comes back with its error. The objects this process kept are dropped at the end
+    (:mod:`~planner.validation.kept_objects`)."""
+    try:
+        with closing(pool.execute(run_task, tasks, workers)) as outcomes:
+            for task, outcome, _ in outcomes:
+                yield outcome if isinstance(outcome, TaskResult) else TaskResult(task, error=str(outcome))
+    finally:
+        kept_objects.forget()
 
 
 def decompose(row: ObjectRow, report: Report) -> bool:
@@ -215,7 +219,7 @@ def decompose(row: ObjectRow, report: Report) -> bool:
     from planner.validation.parts import PRIMITIVES
 
     with one_blas_thread():
-        obj = stored_object(row)
+        obj = kept_objects.stored(row)
         if obj.spec.kind in PRIMITIVES or ready_parts(obj.mesh, obj.mesh_hash) is not None:
             return False
         refuse_known_timeout(obj.mesh_hash)  # not announced as started when it ran out of this time limit before

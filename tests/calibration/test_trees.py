@@ -191,3 +191,22 @@ def test_the_turned_hand_sees_the_same_grasp(tmp_path: Path) -> None:
         assert_close(again.predict(test), model.predict(test), 0.0)
     with pytest.raises(InputError, match="each of tree_turns must order the trees' 78 inputs"):
         replace(model, tree_turns=((0,) * (len(FEATS) + 75),))
+
+
+def test_a_walk_stays_at_a_leaf_reached_early_and_nan_goes_right() -> None:
+    """Three trees of depth 2, 1 and 0 (a root that is a leaf): every grasp reaches its leaf of each whatever
+    the depth walked; a NaN input is not <= any threshold (goes right), as in scikit-learn's float32 walk."""
+    # tree 0: node 0 splits input 1 at 0.5 -> node 1 (splits input 0 at 0.0 -> leaves 3, 4) | leaf 2
+    # tree 1: node 5 splits input 0 at 1.0 -> leaves 6 | 7;  tree 2: node 8 a leaf
+    trees = Trees(roots=np.array([0, 5, 8]), feature=np.array([1, 0, LEAF, LEAF, LEAF, 0, LEAF, LEAF, LEAF]),
+                  threshold=np.array([0.5, 0.0, -2, -2, -2, 1.0, -2, -2, -2]),
+                  left=np.array([1, 3, LEAF, LEAF, LEAF, 6, LEAF, LEAF, LEAF]),
+                  right=np.array([2, 4, LEAF, LEAF, LEAF, 7, LEAF, LEAF, LEAF]),
+                  value=np.array([0, 0, 4.0, 1.0, 2.0, 0, 16.0, 32.0, 64.0]))
+    x = np.array([[-1.0, 0.0], [0.5, 0.5], [2.0, 0.7], [np.nan, 0.0], [0.0, np.nan]])
+    want = np.array([1 + 16 + 64, 2 + 16 + 64, 4 + 32 + 64, 2 + 32 + 64, 4 + 16 + 64], float)
+    assert trees.depth == 2
+    np.testing.assert_array_equal(trees.evaluate(x), want)
+    np.testing.assert_array_equal(trees.evaluate_reference(x), want)
+    np.testing.assert_array_equal(trees.evaluate(np.asfortranarray(x)), want)
+    assert trees.evaluate(np.zeros((0, 2))).shape == (0,)
