@@ -143,16 +143,25 @@ class FingerClosing:
             pairs, gaps, later = {}, {}, {}
             for link, ks in movers.items():
                 # several DOFs may move one link (a fingertip under three joints): their motions add up (the
-                # DOFs that do not move it would add 0.0: left out, the same sum to the bit)
-                reach = sum(speeds[k][link] * caps[k] for k in ks) + s.contact_tol + s.gap
-                if sharing[link] == 1 and link in translating:
-                    pairs[link] = self._obstacles(reach, link, link in near)  # the directional bound reads the pairs
-                elif not bracketing or sharing[link] > 1:
-                    gaps[link] = self._obstacle_gap(reach, link)
-                elif brackets.setdefault(link, HullBracket()).low > s.near:  # far: asked only if it may bound
-                    later[link] = reach
+                # DOFs that do not move it would add 0.0: left out, the same sum to the bit; one DOF's motion is
+                # its sum's, 0 + x, to the bit)
+                if len(ks) == 1:
+                    k = ks[0]
+                    reach = speeds[k][link] * caps[k] + s.contact_tol + s.gap
                 else:
-                    gaps[link] = self._obstacle_gap(reach, link, brackets[link])
+                    reach = sum(speeds[k][link] * caps[k] for k in ks) + s.contact_tol + s.gap
+                if len(ks) == 1 and link in translating:
+                    pairs[link] = self._obstacles(reach, link, link in near)  # the directional bound reads the pairs
+                elif not bracketing or len(ks) > 1:
+                    gaps[link] = self._obstacle_gap(reach, link)
+                else:
+                    bracket = brackets.get(link)
+                    if bracket is None:
+                        bracket = brackets[link] = HullBracket()
+                    if bracket.low > s.near:  # far: asked only if it may bound
+                        later[link] = reach
+                    else:
+                        gaps[link] = self._obstacle_gap(reach, link, bracket)
             steps, reread = [0.0] * len(live), False
             moving: list[tuple[int, str, np.ndarray]] = []  # (DOF along ``live``, link, velocity): directional bounds
             for k, (d, m, speed, ds, room) in enumerate(zip(live, motions, speeds, caps, rooms)):
@@ -208,10 +217,11 @@ class FingerClosing:
                         q[j] += r * step
                         moved[j] = q[j]
             self.sim.set_joints(self.body, moved)
-            if brackets:
-                for link, ks in movers.items():
-                    if link in brackets:
-                        brackets[link].moved(sum(speeds[k][link] * steps[k] for k in ks))
+            for link, bracket in brackets.items():  # a stopped finger's links keep theirs
+                ks = movers.get(link)
+                if ks:
+                    bracket.moved(speeds[ks[0]][link] * steps[ks[0]] if len(ks) == 1
+                                  else sum(speeds[k][link] * steps[k] for k in ks))
             if reread:
                 live = []
         return q

@@ -7,7 +7,8 @@ true ones (they contain the surface); within ``near`` of them the exact mesh, a 
 (:class:`Bounded`); a box test before each query of the hulls skips the links too far for any pair
 (:meth:`ObstacleQueries._beyond`). A finger closing expects near the hulls asks the exact mesh first
 (:meth:`ObstacleQueries._closest_near`: the same pairs, one query of the hulls fewer); a revolute finger's link
-whose bracket (:class:`HullBracket`) shows it near the hulls asks the exact mesh alone.
+whose bracket (:class:`HullBracket`) shows it near the hulls asks the exact mesh alone, one it expects near asks
+the exact mesh first.
 """
 
 from __future__ import annotations
@@ -48,7 +49,8 @@ class HullBracket:
     Set by each query (a pair's gap, a range no pair was within, the boxes' gap) and widened by each step by the
     link's speed bound times the step (:meth:`moved`): a link ``low`` shows far from the hulls is asked only if its
     gap could bound the step (:mod:`planner.plan.finger_closing`), one ``high`` shows near asks the exact mesh
-    alone, whose answer then decides (exact: the same gaps, fewer queries)."""
+    alone, whose answer then decides (exact: the same gaps, fewer queries); one :meth:`expected` near asks it first
+    (:meth:`ObstacleQueries._obstacle_gap`)."""
 
     __slots__ = ("high", "low")
 
@@ -57,6 +59,11 @@ class HullBracket:
 
     def set(self, low: float, high: float = math.inf) -> None:
         self.low, self.high = low - BRACKET_SLACK, high + BRACKET_SLACK
+
+    def expected(self) -> float:
+        """[m] A guess of the gap now (inf or NaN when no query set both ends): the last answer less half the travel
+        since (a link closes at about half its speed bound), a guess only: which query to ask first."""
+        return 0.75 * self.low + 0.25 * self.high
 
     def moved(self, travel: float) -> None:
         """The link moved by at most ``travel`` [m]."""
@@ -135,22 +142,28 @@ class ObstacleQueries:
         self.queries += 1
         index, offset, s, bound = self.body.links[link], self.hand.distance_offset, self.settings, np.inf
         uid, query = self.body.uid, self.sim.min_distance
-        distance = np.nan
+        cut = s.exact_reach if self.far_body is not None and reach > s.exact_reach else np.inf  # near: a long reach cut
+        distance = exact = np.nan
         if self.far_body is not None and not (bracket is not None and bracket.high <= min(s.near, reach)):
-            box = self._box_gap(index)  # no pair within the range: inf, and nothing near the hulls
-            distance = np.inf if box > reach - offset + BROADPHASE_SLACK else query(uid, self.far_body,
-                                                                                    reach - offset, index)
-            if bracket is not None:
-                if box > reach - offset + BROADPHASE_SLACK:
-                    bracket.set(box + offset - BROADPHASE_SLACK)
-                elif math.isinf(distance):
-                    bracket.set(reach)
-                else:
-                    bracket.set(distance + offset, distance + offset)
+            if bracket is not None and bracket.expected() <= s.near - 2 * NEAR_SLACK:
+                # expected near: the exact mesh first (what the hulls' being near leads to); a pair nearer than near
+                # by NEAR_SLACK shows the hulls, which contain the surface, nearer still: their query is left out (a
+                # wrong guess costs a query, never the answer; the bracket is not set: it still holds)
+                exact = query(uid, self.object_body, min(reach, cut) - offset, index)
+            if not exact + offset <= s.near - NEAR_SLACK:
+                box = self._box_gap(index)  # no pair within the range: inf, and nothing near the hulls
+                distance = np.inf if box > reach - offset + BROADPHASE_SLACK else query(uid, self.far_body,
+                                                                                        reach - offset, index)
+                if bracket is not None:
+                    if box > reach - offset + BROADPHASE_SLACK:
+                        bracket.set(box + offset - BROADPHASE_SLACK)
+                    elif math.isinf(distance):
+                        bracket.set(reach)
+                    else:
+                        bracket.set(distance + offset, distance + offset)
         if not distance + offset > s.near:  # near the hulls (or none): the exact mesh, a long reach cut
-            if self.far_body is not None and reach > s.exact_reach:
-                bound = s.exact_reach
-            distance = query(uid, self.object_body, min(reach, bound) - offset, index)
+            bound = cut
+            distance = exact if exact == exact else query(uid, self.object_body, min(reach, bound) - offset, index)
         if self.table_body is not None:
             distance = min(distance, query(uid, self.table_body, reach - offset, index))
         return min(distance + offset, bound)

@@ -21,8 +21,7 @@ from planner.geometry.quaternion import quaternion_xyzw
 
 
 def _import_quietly():  # type: ignore[no-untyped-def]
-    """pybullet prints its build time on stderr at import, from C; keep the
-    CLI's stderr for real messages by pointing fd 2 at /dev/null meanwhile."""
+    """pybullet prints its build time on stderr at import, from C: fd 2 points at /dev/null meanwhile (the CLI's)."""
     sys.stderr.flush()
     saved = os.dup(2)
     devnull = os.open(os.devnull, os.O_WRONLY)
@@ -239,8 +238,7 @@ class Sim:
         return Body(uid, links, joints, axes, inertial, None if identity else np.linalg.inv(inertial))
 
     def set_pose(self, body: Body, pose: np.ndarray) -> None:
-        """Place the base *link frame* at ``pose`` (PyBullet itself places the
-        base's centre of mass, hence the inertial offset)."""
+        """Place the base *link frame* at ``pose`` (PyBullet places the base's centre of mass: the inertial offset)."""
         position, orientation = pose_to_pb(pose if body.inertial_inv is None else pose @ body.inertial)
         pb.resetBasePositionAndOrientation(body.uid, position, orientation, physicsClientId=self.client)
 
@@ -378,6 +376,8 @@ class Sim:
         if isinstance(link_a, tuple):  # several links of ``a``: their rows in the order the whole body's query gives
             return [row for m in self.groups.get(a, [a]) for n in self.groups.get(b, [b]) for index in link_a
                     for row in pb.getClosestPoints(m, n, max_distance, linkIndexA=index, physicsClientId=self.client)]
+        if link_a is not None and a not in self.groups and b not in self.groups:  # one link, one body: one query
+            return pb.getClosestPoints(a, b, max_distance, linkIndexA=link_a, physicsClientId=self.client)
         kwargs = {} if link_a is None else {"linkIndexA": link_a}
         if a in self.groups or b in self.groups:
             return [row for member_a in self.groups.get(a, [a]) for member_b in self.groups.get(b, [b])
@@ -387,7 +387,7 @@ class Sim:
 
     def min_distance(self, a: int, b: int, max_distance: float, link_a: int | None = None) -> float:
         """[m] :meth:`closest`'s ``min_distance`` (inf without pairs), without making the pairs' arrays."""
-        return min((row[8] for row in self._rows(a, b, max_distance, link_a)), default=np.inf)
+        return min([row[8] for row in self._rows(a, b, max_distance, link_a)], default=np.inf)  # a list: ~0.6x
 
     def closest(self, a: int, b: int, max_distance: float, link_a: int | tuple[int, ...] | None = None) -> Closest:
         """Closest-point pairs between bodies ``a`` and ``b`` within ``max_distance`` [m] (of link(s) ``link_a``)."""

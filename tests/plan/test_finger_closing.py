@@ -103,13 +103,17 @@ def test_the_speed_bounds_hold_in_every_configuration(name: str) -> None:
 UNIT_RAYS = 2
 
 
-def _barrett_unit(name: str, bracketing: bool, monkeypatch: pytest.MonkeyPatch) -> tuple[list, Counter]:
+def _barrett_unit(name: str, bracketing: bool, monkeypatch: pytest.MonkeyPatch, guess: bool = True
+                  ) -> tuple[list, Counter]:
     """A small default Barrett unit on ``name``: its grasps and how often each body was asked for a gap
-    (``bracketing`` False: no link's bracket is ever set, every link asked at every step, as before)."""
+    (``bracketing`` False: no link's bracket is ever set, every link asked at every step, as before; ``guess``
+    False: no link is expected near, the hulls asked before the mesh)."""
     with monkeypatch.context() as m:
         asked = counting_queries(m, "min_distance")
         if not bracketing:
             m.setattr(HullBracket, "set", lambda self, low, high=np.inf: None)
+        if not guess:
+            m.setattr(HullBracket, "expected", lambda self: np.inf, raising=False)
         result = run_unit(UnitSpec(name, "barrett", SweepSettings(approaches=UNIT_RAYS, chunk=0, reach_placements=0),
                                    SEED))
     assert result.error is None and len(result.grasps) > 0
@@ -123,7 +127,7 @@ def test_a_link_far_from_the_hulls_is_asked_only_when_it_may_bound_its_finger(
     or skips the links whose bracket shows they can neither touch nor bound their finger's step (and asks a link
     it shows near the hulls the exact mesh alone); it asks the hulls far less often, the mesh no more."""
     want, before = _barrett_unit(name, False, monkeypatch)
-    got, after = _barrett_unit(name, True, monkeypatch)
+    got, after = _barrett_unit(name, True, monkeypatch, guess=False)  # the brackets alone
     assert len(got) == len(want)
     for x, y in zip(got, want):
         assert np.array_equal(x.pose, y.pose) and dict(x.closed_joints) == dict(y.closed_joints)
@@ -156,3 +160,60 @@ def test_a_links_bracket_holds_its_gap_to_the_hulls_at_every_step(monkeypatch: p
         for i in range(len(rays)):
             grasper.close(rays.points[i], rays.directions[i], ROLL_STEP * i, 0.0, shape, obj.torque_scale)
     assert sum(np.isfinite(checked)) > 50, "the test needs bracketed links to check"
+
+
+def test_a_link_expected_near_the_hulls_asks_the_exact_mesh_first(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A link whose bracket expects it near the surface hulls (but cannot show it) asks the exact mesh first: where
+    that finds it near, the hulls are not asked (one query instead of two) and the gap is the one the
+    hulls-then-mesh path gives, bit for bit; where it does not (a guess gone wrong), the hulls decide as before,
+    the same gap."""
+    hand, obj = load_hand("barrett"), load_object("mug")
+    shape = next(s for s in load_preshapes(hand) if not s.table)
+    rays = sampling.sample(obj.mesh, sampler="surface", count=RAYS, rng=np.random.default_rng(SEED))
+    reach = 0.05
+    with Sim() as sim:
+        grasper = Grasper.for_object(sim, hand, obj)
+        closed = next(c for i in range(len(rays)) if isinstance(
+            c := grasper.close(rays.points[i], rays.directions[i], ROLL_STEP * i, 0.0, shape, obj.torque_scale),
+            Closed))
+        link = closed.contacts.links[0]  # touching, the hand as it closed
+
+        def hulls() -> float:  # the gap a bracket holds
+            return sim.min_distance(grasper.body.uid, grasper.far_body, 1.0, grasper.body.links[link]) + \
+                hand.distance_offset
+
+        for back in (0.0, *np.arange(0.002, 0.03, 0.001)):  # touching; then backed off until the guess is wrong
+            pose = closed.pose.copy()
+            pose[:3, 3] -= back * (pose[:3, :3] @ hand.approach)
+            grasper._place(pose, dict(closed.closed_joints))
+            want = grasper._obstacle_gap(reach, link)  # no bracket: the hulls, then the mesh if they are near
+            bracket = HullBracket()
+            bracket.set(-0.001, 0.0075)  # holds the gap, does not show it near (> 3 mm), expects it within 2 mm
+            if not bracket.low <= hulls() <= bracket.high:  # (it does not show the link near: high > 3 mm)
+                continue
+            with monkeypatch.context() as m:
+                asked = counting_queries(m, "min_distance")
+                got = grasper._obstacle_gap(reach, link, bracket)
+            assert got == want
+            if back == 0.0:
+                assert want <= grasper.settings.near - 0.001 and asked == Counter(mesh=1)
+            elif want > grasper.settings.near:
+                assert asked == Counter(mesh=1, hulls=1)  # the guess gone wrong costs a query, not the answer
+                break
+        else:
+            pytest.fail("no pose the guess was wrong at")
+
+
+def test_the_exact_mesh_first_stores_the_same_grasps_with_fewer_queries_of_the_hulls(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A default Barrett unit stores the same grasps, bit for bit, whether a link its bracket expects near the hulls
+    asks the exact mesh first or not; the hulls are asked less often, the mesh about as often."""
+    want, before = _barrett_unit("mug", True, monkeypatch, guess=False)
+    got, after = _barrett_unit("mug", True, monkeypatch)
+    assert len(got) == len(want)
+    for x, y in zip(got, want):
+        assert np.array_equal(x.pose, y.pose) and dict(x.closed_joints) == dict(y.closed_joints)
+        assert x.epsilon == y.epsilon and x.force_closure == y.force_closure
+        assert np.array_equal(x.contacts.points, y.contacts.points)
+    assert after["hulls"] < 0.95 * before["hulls"]
+    assert after["mesh"] < 1.1 * before["mesh"]
