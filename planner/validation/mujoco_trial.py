@@ -120,7 +120,10 @@ def recorded(settings: MujocoSettings, hand: HandSpec) -> str:
     slow = {"closing": "whole_travel"} if closing_time(settings, [
         Target(j.lower, hand.actuators.closing_speed, j.upper, 0.0) for j in hand.driven]) > settings.max_close_time \
         else {}
-    return json.dumps({"engine": "mujoco", "mujoco": VERSION, **asdict(settings), "hand": hand.name,
+    # until 2026-12-07 a multiccd recorded False ran with multi-contact all the same (MuJoCo 4 ignored the setting):
+    # a trial run without it says so, apart from those (validate re-tries them)
+    off = {} if settings.multiccd else {"multiccd_flag": "disable"}
+    return json.dumps({"engine": "mujoco", "mujoco": VERSION, **asdict(settings), **off, "hand": hand.name,
                        "actuators": asdict(hand.actuators), "breakaway": [j.name for j in hand.joints if j.breakaway],
                        "breakaway_effort": BREAKAWAY, "torsion_radius": torsion, **worm, **slow, **fg.inertia(hand)},
                       sort_keys=True)
