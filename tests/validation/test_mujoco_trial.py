@@ -356,6 +356,25 @@ def test_a_trial_without_multi_contact_is_recorded_apart_from_those_that_ran_wit
     assert "multiccd_flag" not in recorded(MujocoSettings(), hand)  # the default (multi-contact on) records as before
 
 
+def test_the_panda_runs_its_trials_without_islands_and_records_it() -> None:
+    # chosen per hand against external labels (HAND_ENGINE): the Panda's trial solves hand and object as one
+    # system; the other hands' as MuJoCo does by default, their recorded settings as before (no re-try)
+    import mujoco
+
+    from planner.validation.mujoco_worlds import world_for
+
+    panda, barrett = load_hand("panda"), load_hand("barrett")
+    obj = box(0.04)
+    flag = mujoco.mjtDisableBit.mjDSBL_ISLAND
+    assert world_for(panda, obj, MujocoSettings(), obj.mass).model.opt.disableflags & flag
+    assert not world_for(panda, obj, MujocoSettings(islands=True), obj.mass).model.opt.disableflags & flag
+    assert not world_for(barrett, obj, MujocoSettings(), obj.mass).model.opt.disableflags & flag
+    assert json.loads(recorded(MujocoSettings(), panda))["islands"] is False
+    assert recorded(MujocoSettings(), panda) != recorded(MujocoSettings(islands=True), panda)
+    assert "islands" not in json.loads(recorded(MujocoSettings(), barrett))
+    assert recorded(MujocoSettings(), barrett) == recorded(MujocoSettings(islands=True), barrett)
+
+
 def _no_contacts():  # type: ignore[no-untyped-def]
     from planner.record.contacts import HandContacts
 
