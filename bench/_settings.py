@@ -19,6 +19,7 @@ def parse(pairs: list[str], cls: type, tool: str) -> dict:
         if value.lower() == "none" and "None" in str(kind):  # an optional setting switched off (friction_cap)
             out[key] = None
             continue
+        kind = str(kind).split(" | ")[0]  # an optional setting's own type (islands: bool | None)
         out[key] = value if kind == "str" else (value.lower() in ("1", "true", "yes")) if kind == "bool" \
             else int(value) if kind == "int" else float(value)
     return out

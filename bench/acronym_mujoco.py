@@ -16,6 +16,9 @@ category and per object, verdicts by reason against the label, and CPU ms per tr
 ``holds_flex_drops.png``; MuJoCo drops what FleX holds, ``drops_flex_holds.png``) of the first configuration:
 the hand closed at the file's pose as the planner closes it, titled with FleX's own record of the object's
 motion while closing and shaking (what to look at before calling either engine wrong).
+``--render-moved DIR``: the same pictures of up to ``--per-outcome`` poses of each kind whose verdict the grid's
+second configuration moved from the first's (toward FleX, ``moved_toward_flex*.png``; away,
+``moved_away_from_flex*.png``; four to a sheet).
 
     python bench/acronym_mujoco.py [--per-file 10] [--sample-seed 1] [--set shake_angle=0.3] [--pybullet]
 
@@ -65,6 +68,20 @@ def trial_code() -> str:
         if p.name not in ("run.py", "robust.py"):  # what runs and stores trials, not the trials
             h.update(p.read_bytes())
     return h.hexdigest()[:10]
+
+
+def parts_ready(path: Path) -> bool:
+    """Whether the object of a grasp file collides without running CoACD (a primitive, or its convex parts, simplified
+    or not, cached on disk): ``--ready`` keeps only those files (CoACD costs minutes a mesh on a busy machine)."""
+    from planner import assets
+    from planner.geometry.decompose import ready_parts
+    from planner.validation.parts import MAX_VERTICES, PRIMITIVES, SIMPLIFY_VERSION
+
+    _hand, obj, _poses = _prepared(path)
+    tolerance = MujocoSettings().part_tolerance
+    name = assets.sha256_bytes(json.dumps([obj.mesh_hash, float(tolerance), MAX_VERTICES, SIMPLIFY_VERSION]).encode())
+    return obj.spec.kind in PRIMITIVES or (assets.cache_dir("simplified") / f"{name[:24]}.npz").is_file() or \
+        ready_parts(obj.mesh, obj.mesh_hash) is not None
 
 
 def picked(result: ae.FileResult, n: int, seed: int) -> list[int]:
@@ -178,36 +195,61 @@ def show(name: str, s: dict) -> None:
 
 def render(results: list[ae.FileResult], verdicts: dict[str, dict], out: Path, per_kind: int, seed: int) -> None:
     """Up to ``per_kind`` pictures of each kind of disagreement with FleX (drawn at random, ``seed``)."""
-    import h5py
-
-    from planner.present.render import grasp_views, save_sheet
-
     kinds: dict[str, list] = {"holds_flex_drops": [], "drops_flex_holds": []}
     for r in results:
         for p, (held, reason, _cpu) in verdicts.get(r.path.stem, {}).items():
             flex = int(r.labels[p])
             if reason != "diverged" and bool(held) != bool(flex):
-                kinds["holds_flex_drops" if held else "drops_flex_holds"].append((r, p, reason))
+                kinds["holds_flex_drops" if held else "drops_flex_holds"].append((r, p, f"MuJoCo {reason}"))
     rng = np.random.default_rng(seed)
     for kind, cases in kinds.items():
-        picked_cases = [cases[i] for i in sorted(rng.permutation(len(cases))[:per_kind])]
-        panels = []
-        for r, p, reason in picked_cases:
-            hand, obj, poses = _prepared(r.path)
-            grasp = next(g for g in r.grasps if g.candidate == p)
-            grasp = replace(grasp, pose=poses[r.rows[p]])
-            with h5py.File(r.path, "r") as f:
-                q = f["grasps/qualities/flex"]
-                motion = [float(q[f"object_motion_during_{phase}_{kind_}"][r.rows[p]])
-                          for phase in ("closing", "shaking") for kind_ in ("linear", "angular")]
-            panels.append((grasp_views(hand, obj, grasp),
-                           f"{r.path.stem[:40]} row {r.rows[p]}: FleX {'holds' if r.labels[p] else 'drops'} "
-                           f"(object moved {100 * motion[0]:.1f} cm / {motion[1]:.2f} rad closing, "
-                           f"{100 * motion[2]:.1f} cm / {motion[3]:.2f} rad shaking); MuJoCo {reason}; "
-                           f"width {1000 * (grasp.width or 0.0):.1f} mm"))
-        if panels:
-            save_sheet(panels, out / f"{kind}.png")
-            print(f"wrote {out / f'{kind}.png'} ({len(panels)} of {len(cases)})", file=sys.stderr)
+        sheet([cases[i] for i in sorted(rng.permutation(len(cases))[:per_kind])], out / f"{kind}.png", len(cases))
+
+
+def render_moved(results: list[ae.FileResult], first: dict[str, dict], other: dict[str, dict], out: Path,
+                 per_kind: int, seed: int) -> None:
+    """Pictures of up to ``per_kind`` poses (drawn at random, ``seed``) of those whose verdict ``other`` moved from
+    ``first``'s toward FleX's (``moved_toward_flex*.png``: now as FleX) and away (``moved_away_from_flex*.png``), four
+    to a sheet."""
+    kinds: dict[str, list] = {"moved_toward_flex": [], "moved_away_from_flex": []}
+    for r in results:
+        a, b = first.get(r.path.stem, {}), other.get(r.path.stem, {})
+        for p in sorted(set(a) & set(b)):
+            if "diverged" not in (a[p][1], b[p][1]) and bool(a[p][0]) != bool(b[p][0]):
+                toward = bool(b[p][0]) == bool(r.labels[p])
+                kinds["moved_toward_flex" if toward else "moved_away_from_flex"].append(
+                    (r, p, f"MuJoCo {a[p][1]} -> {b[p][1]}"))
+    rng = np.random.default_rng(seed)
+    for kind, cases in kinds.items():
+        drawn = [cases[i] for i in sorted(rng.permutation(len(cases))[:per_kind])]
+        for k in range(0, len(drawn), 4):
+            sheet(drawn[k:k + 4], out / f"{kind}{k // 4}.png", len(cases))
+
+
+def sheet(cases: list[tuple[ae.FileResult, int, str]], path: Path, of: int) -> None:
+    """One row per (file, sampled position, verdict text): the hand closed at the file's pose as the planner
+    closes it, titled with FleX's record of the object's motion."""
+    import h5py
+
+    from planner.present.render import grasp_views, save_sheet
+
+    panels = []
+    for r, p, verdict in cases:
+        hand, obj, poses = _prepared(r.path)
+        grasp = next(g for g in r.grasps if g.candidate == p)
+        grasp = replace(grasp, pose=poses[r.rows[p]])
+        with h5py.File(r.path, "r") as f:
+            q = f["grasps/qualities/flex"]
+            motion = [float(q[f"object_motion_during_{phase}_{kind_}"][r.rows[p]])
+                      for phase in ("closing", "shaking") for kind_ in ("linear", "angular")]
+        panels.append((grasp_views(hand, obj, grasp),
+                       f"{r.path.stem[:40]} row {r.rows[p]}: FleX {'holds' if r.labels[p] else 'drops'} "
+                       f"(object moved {100 * motion[0]:.1f} cm / {motion[1]:.2f} rad closing, "
+                       f"{100 * motion[2]:.1f} cm / {motion[3]:.2f} rad shaking); {verdict}; "
+                       f"width {1000 * (grasp.width or 0.0):.1f} mm"))
+    if panels:
+        save_sheet(panels, path)
+        print(f"wrote {path} ({len(panels)} of {of})", file=sys.stderr)
 
 
 def main() -> int:
@@ -219,6 +261,7 @@ def main() -> int:
     parser.add_argument("--sample-seed", type=int, default=1)
     parser.add_argument("--objects", nargs="*", help="only these Category_id objects (tuning side)")
     parser.add_argument("--files", type=int, default=0, help="only the first N files (0: all)")
+    parser.add_argument("--ready", action="store_true", help="only files whose object's convex parts are cached")
     parser.add_argument("--set", dest="overrides", nargs="*", default=[], help="MujocoSettings key=value")
     parser.add_argument("--grid", type=Path, help="JSON list of MujocoSettings overrides, each run")
     parser.add_argument("--pose", choices=("original", "planned"), default="original",
@@ -229,10 +272,15 @@ def main() -> int:
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--render", type=Path, help="draw disagreements with FleX into this folder")
     parser.add_argument("--per-outcome", type=int, default=4, help="pictures per kind of disagreement")
+    parser.add_argument("--render-moved", type=Path, help="draw poses whose verdict the grid's second "
+                                                          "configuration moved into this folder")
     args = parser.parse_args()
     files = ae.dev_files(args.dev, False, args.objects)
     if args.files:
         files = files[:args.files]
+    if args.ready:
+        files = [p for p in files if parts_ready(p)]
+        print(f"{len(files)} files whose objects' parts are cached", file=sys.stderr)
     code = args.code or ae.source_hash()
     results = [ae.rescore_file(p, args.poses, args.seed, 1, args.cache, code) for p in files]
     base = parse(args.overrides, MujocoSettings, "acronym_mujoco")
@@ -258,6 +306,8 @@ def main() -> int:
     report["cpu_seconds"] = time.process_time() - start
     if args.render:
         render(results, verdicts[0], args.render, args.per_outcome, args.sample_seed)
+    if args.render_moved and len(verdicts) > 1:
+        render_moved(results, verdicts[0], verdicts[1], args.render_moved, args.per_outcome, args.sample_seed)
     if args.pybullet:
         settings_pb = ShakeSettings()
         verdicts = {r.path.stem: run(r, picked(r, args.per_file, args.sample_seed), "pybullet", settings_pb,

@@ -22,9 +22,11 @@ on 2026-12-05 before any of them was swept).
 ``--grid FILE.json`` (a list of MujocoSettings overrides, dicts; ``{}`` is today's defaults) runs the MuJoCo trial
 alone, every configuration on every grasp one after the other (so the machine's load falls on each alike), and
 prints per configuration its CPU ms per trial and its verdicts against the first configuration's, grasp by
-grasp (how many agree, held -> dropped, dropped -> held, and which):
+grasp (how many agree, held -> dropped, dropped -> held, and which), and the share of objects whose top-1 (and of
+the top-10 grasps) held; with ``--pybullet`` also PyBullet's trial once a grasp (default settings) and each
+configuration's agreement with it (grasps where that configuration has a verdict):
 
-    python bench/mujoco_protocols.py --split tuning --hands panda --grid grid.json --top 20
+    python bench/mujoco_protocols.py --split tuning --hands panda --grid grid.json --top 20 [--pybullet]
 """
 
 from __future__ import annotations
@@ -119,10 +121,12 @@ def trialled(db: Path, hand_name: str, objects: tuple[str, ...], top: int) -> li
     return rows
 
 
-def compared(db: Path, hand_name: str, objects: tuple[str, ...], top: int, grid: list[dict]) -> list[dict]:
-    """``--grid``: one row per grasp, the MuJoCo trial's (held, reason, CPU s) under each configuration."""
+def compared(db: Path, hand_name: str, objects: tuple[str, ...], top: int, grid: list[dict],
+             pybullet: bool = False) -> list[dict]:
+    """``--grid``: one row per grasp, the MuJoCo trial's (held, reason, CPU s) under each configuration
+    (``runs``) and, with ``pybullet``, PyBullet's at its default settings (``pybullet``)."""
     from planner.specs.hands import load_hand
-    from planner.validation import mujoco_trial
+    from planner.validation import mujoco_trial, shake
     from planner.validation.mujoco_settings import MujocoSettings
 
     hand = load_hand(hand_name)
@@ -137,7 +141,12 @@ def compared(db: Path, hand_name: str, objects: tuple[str, ...], top: int, grid:
                 start = time.process_time()
                 t = mujoco_trial.trials(hand, obj, [g], s)[0]
                 runs.append([bool(t.success), t.reason, time.process_time() - start])
-            rows.append({"object": name, "rank": g.rank, "candidate": g.candidate, "runs": runs})
+            row = {"object": name, "rank": g.rank, "candidate": g.candidate, "runs": runs}
+            if pybullet:
+                start = time.process_time()
+                t = shake.trials(hand, obj, [g])[0]
+                row["pybullet"] = [bool(t.success), t.reason, time.process_time() - start]
+            rows.append(row)
         print(f"{hand_name}/{name}: {len(grasps)} grasps", file=sys.stderr, flush=True)
     return rows
 
@@ -153,6 +162,30 @@ def show_compared(hand: str, grid: list[dict], rows: list[dict]) -> None:
               f"first's {len(both) - len(lost) - len(gained)} of {len(both)} "
               f"({(len(both) - len(lost) - len(gained)) / max(1, len(both)):.4f}); held {sum(b[0] for b in now)}; "
               f"held -> dropped {lost}; dropped -> held {gained}; diverged {len(rows) - len(both)}", flush=True)
+        print(f"    {held_shares(rows, k)}", flush=True)
+
+
+def held_shares(rows: list[dict], k: int) -> dict:
+    """Configuration ``k``'s share of objects whose top-1 grasp held (its best-ranked grasp with a verdict), of the
+    top-10 grasps held, and, where the rows have PyBullet's verdicts, its agreement with them (and PyBullet's
+    top-1 on the same grasps)."""
+    rows = [r for r in rows if r["runs"][k][1] != DIVERGED]
+    if not rows:
+        return {}
+    best = {}
+    for r in rows:
+        if r["object"] not in best or r["rank"] < best[r["object"]]["rank"]:
+            best[r["object"]] = r
+    top10 = [r for r in rows if sum(q["object"] == r["object"] and q["rank"] < r["rank"] for q in rows) < 10]
+    out = {"grasps": len(rows), "objects": len(best),
+           "top1_held": float(np.mean([r["runs"][k][0] for r in best.values()])),
+           "top10_held": float(np.mean([r["runs"][k][0] for r in top10]))}
+    if all("pybullet" in r for r in rows):
+        out["agree_pybullet"] = int(sum(bool(r["runs"][k][0]) == bool(r["pybullet"][0]) for r in rows))
+        out["agree_pybullet_share"] = out["agree_pybullet"] / len(rows)
+        out["top1_held_pybullet"] = float(np.mean([r["pybullet"][0] for r in best.values()]))
+        out["top1_held_both"] = float(np.mean([r["runs"][k][0] and r["pybullet"][0] for r in best.values()]))
+    return out
 
 
 def summary(rows: list[dict]) -> dict:
@@ -197,6 +230,7 @@ def main() -> int:
     parser.add_argument("--db-dir", type=Path, default=Path("out"))
     parser.add_argument("--json", type=Path, help="also write every row and the summaries here")
     parser.add_argument("--grid", type=Path, help="JSON list of MujocoSettings overrides: the MuJoCo trial alone")
+    parser.add_argument("--pybullet", action="store_true", help="with --grid: also PyBullet's trial, agreement with it")
     args = parser.parse_args()
     if args.split:
         args.objects = split_objects(args.split)
@@ -206,7 +240,8 @@ def main() -> int:
         db = database(hand, tuple(args.objects), args.db_dir)
         if args.grid:
             grid = json.loads(args.grid.read_text())
-            report[hand] = {"grid": grid, "rows": compared(db, hand, tuple(args.objects), args.top, grid)}
+            report[hand] = {"grid": grid, "rows": compared(db, hand, tuple(args.objects), args.top, grid,
+                                                                  args.pybullet)}
             show_compared(hand, grid, report[hand]["rows"])
             continue
         rows = trialled(db, hand, tuple(args.objects), args.top)

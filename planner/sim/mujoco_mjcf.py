@@ -207,7 +207,8 @@ class Builder:
                                 f'polycoef="{j.offset:.10g} {j.multiplier:.10g} 0 0 0" solref="0.004 1"/>')
         actuators = [f'<position name="motor:{j.name}" joint="{j.name}" kp="0" forcelimited="true" '
                      'forcerange="-1 1"/>' for j in self.hand.joints]
-        flags = "" if engine.multiccd else '<flag multiccd="disable"/>'  # MuJoCo 4: on unless disabled
+        off = ([] if engine.multiccd else ['multiccd="disable"']) + ([] if engine.islands else ['island="disable"'])
+        flags = f"<flag {' '.join(off)}/>" if off else ""  # MuJoCo 4: both on unless disabled
         return f"""<mujoco model="grasp">
 <compiler angle="radian" autolimits="true"/>
 <option timestep="{engine.timestep:.10g}" iterations="{engine.iterations}" integrator="implicitfast"

@@ -7,7 +7,7 @@ MuJoCo (nor PyBullet) to read them."""
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 from planner.errors import ConfigError
 
@@ -41,7 +41,9 @@ class Engine:
     default, and what every trial ran with (until 2026-12-07 the setting read
     False while MuJoCo 4 ignored it: the model wrote only an "enable" flag,
     which MuJoCo 4, where multi-contact is on unless disabled, does not
-    need; False now disables it).
+    need; False now disables it); ``islands``: MuJoCo 4 solves the
+    constraints of bodies that do not touch apart (its default, on); False
+    solves them as one system.
     """
 
     timestep: float = 0.002
@@ -51,6 +53,17 @@ class Engine:
     contact_damping: float = 1.0
     weld_time: float = 0.005
     multiccd: bool = True
+    islands: bool = True
+
+
+#: Engine settings a hand's MuJoCo trials take where :class:`MujocoSettings` leaves them to the hand (None), each
+#: chosen for that hand against external labels; a hand not named takes :class:`Engine`'s. The Panda without
+#: islands (2026-12-07, bench/RESULTS.md): on every closed pose of the 31 tuning files of the ACRONYM dev set whose
+#: parts were cached (6,200), 1 verdict moved, toward FleX (4,878 -> 4,879 agree), 3.9% less CPU a trial; the
+#: Barrett's 500 best grasps of the 50 tuning random objects: 1 moved, away from PyBullet's (462 -> 461), so the
+#: Barrett keeps them. Multi-contact off, measured the same way, agreed less with FleX (4,836: 92 poses away, 50
+#: toward) and cost the Barrett two top-1 grasps: on for every hand.
+HAND_ENGINE: dict[str, dict[str, bool]] = {"panda": {"islands": False}}
 
 
 @dataclass(frozen=True)
@@ -61,7 +74,8 @@ class MujocoSettings:
     Engine: ``timestep``, Newton ``iterations``, ``impratio`` (friction
     harder than the normal force, elliptic cones), ``contact_time`` (contact
     stiffness: solref time constant, >= 2 timesteps), ``multiccd`` (several
-    contact points per pair of convex shapes).
+    contact points per pair of convex shapes), ``islands`` (None: the
+    hand's, :data:`HAND_ENGINE`, else :class:`Engine`'s: :meth:`for_hand`).
 
     Hand: the closing motors squeeze with ``effort_scale`` times their
     published effort (a gripper set to a lower force), and the soft pads'
@@ -156,7 +170,15 @@ class MujocoSettings:
     time to slip) 7 of 800, closing from 1 mm instead of 3 mm 8 of 800; all
     five together 41 of 2,600 (25 away from FleX) and 23 of 2,323 of the
     planner's own grasps (all dropped -> held). None adopted: each is 6-42%
-    fewer steps and agrees with FleX less on the poses it changes.
+    fewer steps and agrees with FleX less on the poses it changes. An eighth
+    (issue 24, 2026-12-07 evening, bench/RESULTS.md), every closed pose of
+    the 31 tuning files whose parts were cached (6,200): multi-contact off
+    (-10% CPU) moved 142 verdicts, 92 away from FleX (flat pads on knife
+    handles and hat brims turned out between them), and two of the Barrett's
+    50 top-1 grasps on tuning random objects (+17% CPU there): kept on;
+    islands off moved one Panda verdict, toward FleX (-3.9% CPU), and one of
+    500 Barrett grasps, away from PyBullet's: off for the Panda alone
+    (:data:`HAND_ENGINE`).
     """
 
     timestep: float = Engine.timestep  # the engine's defaults (Engine, above)
@@ -164,6 +186,7 @@ class MujocoSettings:
     impratio: float = Engine.impratio
     contact_time: float = Engine.contact_time
     multiccd: bool = Engine.multiccd
+    islands: bool | None = None  # None: the hand's (for_hand: HAND_ENGINE, else Engine's)
     effort_scale: float = 1.0
     torsion_scale: float = 1.0
     friction_scale: float = 1.0
@@ -209,3 +232,10 @@ class MujocoSettings:
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), sort_keys=True)
+
+    def for_hand(self, hand: str) -> MujocoSettings:
+        """These settings as the hand named ``hand`` runs them: what they leave to it (None) filled in from its
+        :data:`HAND_ENGINE` entry, else :class:`Engine`'s default."""
+        if self.islands is not None:
+            return self
+        return replace(self, islands=HAND_ENGINE.get(hand, {}).get("islands", Engine.islands))

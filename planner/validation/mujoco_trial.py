@@ -111,7 +111,9 @@ SETTLE_LAGS = 5
 
 
 def recorded(settings: MujocoSettings, hand: HandSpec) -> str:
-    """What decides a hand's MuJoCo trials, as stored with each result (JSON)."""
+    """What decides a hand's MuJoCo trials, as stored with each result (JSON): ``settings`` as the hand runs them
+    (:meth:`MujocoSettings.for_hand`)."""
+    settings = settings.for_hand(hand.name)
     torsion = {link: m.torsion_radius for link, m in sorted(hand.contacts.items()) if m.model == "soft"}
     worm = {} if hand.actuators.backdrivable else {"worm_gear": {"motor_stalls_with_finger": True, "ratchet": RATCHET}}
     # a hand whose fingers may need longer than max_close_time to close (the Allegro at 0.5 rad/s, until
@@ -120,7 +122,12 @@ def recorded(settings: MujocoSettings, hand: HandSpec) -> str:
     slow = {"closing": "whole_travel"} if closing_time(settings, [
         Target(j.lower, hand.actuators.closing_speed, j.upper, 0.0) for j in hand.driven]) > settings.max_close_time \
         else {}
-    return json.dumps({"engine": "mujoco", "mujoco": VERSION, **asdict(settings), "hand": hand.name,
+    # until 2026-12-07 a multiccd recorded False ran with multi-contact all the same (MuJoCo 4 ignored the setting):
+    # a trial run without it says so, apart from those (validate re-tries them)
+    off = {} if settings.multiccd else {"multiccd_flag": "disable"}
+    # islands: on in every trial until 2026-12-07, where a trial records nothing of them (as before); off, it says so
+    fields = {k: v for k, v in asdict(settings).items() if k != "islands" or not v}
+    return json.dumps({"engine": "mujoco", "mujoco": VERSION, **fields, **off, "hand": hand.name,
                        "actuators": asdict(hand.actuators), "breakaway": [j.name for j in hand.joints if j.breakaway],
                        "breakaway_effort": BREAKAWAY, "torsion_radius": torsion, **worm, **slow, **fg.inertia(hand)},
                       sort_keys=True)
@@ -136,7 +143,7 @@ def trials(hand: HandSpec, obj: PreparedObject, grasps: Sequence[Grasp], setting
            friction: float | None = None, mass: float | None = None) -> list[Trial]:
     """Shake-test grasps of one object in MuJoCo, one after the other in one
     world (each from a fresh state: the results do not depend on the order)."""
-    s = settings or MujocoSettings()
+    s = (settings or MujocoSettings()).for_hand(hand.name)
     world = world_for(hand, obj, s, obj.mass if mass is None else mass)
     mu = contact_friction(obj.friction if friction is None else friction, s)
     known: dict[str, tuple[dict[str, float], tuple[frozenset[str], ...]]] = {}  # a preshape's rates and fingers

@@ -34,8 +34,11 @@ def solid(obj: PreparedObject, mass: float, tolerance: float) -> Solid:
 
 def world_for(hand: HandSpec, obj: PreparedObject, s: MujocoSettings, mass: float) -> World:
     """The world a trial of ``hand`` on ``obj`` at ``mass`` [kg] runs in with
-    settings ``s``: built once per process and kept (the last :data:`KEPT`)."""
-    engine = Engine(s.timestep, s.iterations, s.impratio, s.contact_time, 1.0, s.contact_time, s.multiccd)
+    settings ``s`` as the hand runs them (:meth:`MujocoSettings.for_hand`): built once per process and kept (the
+    last :data:`KEPT`)."""
+    s = s.for_hand(hand.name)
+    engine = Engine(s.timestep, s.iterations, s.impratio, s.contact_time, 1.0, s.contact_time, s.multiccd,
+                    bool(s.islands))
     soft = tuple(sorted(link for link, c in hand.contacts.items() if c.model == "soft" and c.torsion_radius > 0))
     inertia = tuple(sorted(hand.link_inertia.items()))
     # its centre of mass and inertia too: one mesh may be two objects, each with its own (a URDF's, a sidecar's)

@@ -267,3 +267,14 @@ def test_multiccd_is_what_the_setting_says() -> None:
     assert MujocoSettings().multiccd and Engine().multiccd
     assert not build(hand, cube(), Engine()).model.opt.disableflags & flag
     assert build(hand, cube(), Engine(multiccd=False)).model.opt.disableflags & flag
+
+
+def test_islands_are_what_the_engine_says() -> None:
+    # MuJoCo 4 solves bodies that do not touch apart unless told not to; both switches off write one flag element
+    from planner.validation.mujoco_settings import Engine
+    islands, multiccd = mujoco.mjtDisableBit.mjDSBL_ISLAND, mujoco.mjtDisableBit.mjDSBL_MULTICCD
+    hand = load_hand("panda")
+    assert Engine().islands and not build(hand, cube(), Engine()).model.opt.disableflags & islands
+    alone = build(hand, cube(), Engine(islands=False)).model.opt.disableflags
+    both = build(hand, cube(), Engine(multiccd=False, islands=False)).model.opt.disableflags
+    assert alone & islands and not alone & multiccd and both & islands and both & multiccd

@@ -6,6 +6,7 @@ box; the verdicts do not depend on the order of the grasps."""
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 
 import numpy as np
@@ -344,6 +345,34 @@ def test_an_object_swinging_far_past_the_thresholds_ends_the_trial_early_as_slip
 def test_the_stored_settings_name_the_engine_and_the_hand() -> None:
     text = recorded(MujocoSettings(), load_hand("barrett"))
     assert '"engine": "mujoco"' in text and '"hand": "barrett"' in text and "bh_j12_joint" in text
+
+
+def test_a_trial_without_multi_contact_is_recorded_apart_from_those_that_ran_with_it() -> None:
+    # until 2026-12-07 MuJoCo 4 ran every trial with multi-contact while the setting recorded "multiccd": false;
+    # a trial run without it now must not read as one of those (validate would keep their verdicts as its own)
+    hand = load_hand("panda")
+    off = json.loads(recorded(MujocoSettings(multiccd=False), hand))
+    assert off["multiccd"] is False and off["multiccd_flag"] == "disable"
+    assert "multiccd_flag" not in recorded(MujocoSettings(), hand)  # the default (multi-contact on) records as before
+
+
+def test_the_panda_runs_its_trials_without_islands_and_records_it() -> None:
+    # chosen per hand against external labels (HAND_ENGINE): the Panda's trial solves hand and object as one
+    # system; the other hands' as MuJoCo does by default, their recorded settings as before (no re-try)
+    import mujoco
+
+    from planner.validation.mujoco_worlds import world_for
+
+    panda, barrett = load_hand("panda"), load_hand("barrett")
+    obj = box(0.04)
+    flag = mujoco.mjtDisableBit.mjDSBL_ISLAND
+    assert world_for(panda, obj, MujocoSettings(), obj.mass).model.opt.disableflags & flag
+    assert not world_for(panda, obj, MujocoSettings(islands=True), obj.mass).model.opt.disableflags & flag
+    assert not world_for(barrett, obj, MujocoSettings(), obj.mass).model.opt.disableflags & flag
+    assert json.loads(recorded(MujocoSettings(), panda))["islands"] is False
+    assert recorded(MujocoSettings(), panda) != recorded(MujocoSettings(islands=True), panda)
+    assert "islands" not in json.loads(recorded(MujocoSettings(), barrett))
+    assert recorded(MujocoSettings(), barrett) == recorded(MujocoSettings(islands=True), barrett)
 
 
 def _no_contacts():  # type: ignore[no-untyped-def]
