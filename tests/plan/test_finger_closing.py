@@ -120,6 +120,15 @@ def _barrett_unit(name: str, bracketing: bool, monkeypatch: pytest.MonkeyPatch, 
     return result.grasps, asked
 
 
+def _assert_same_grasps(got: list, want: list) -> None:
+    """The same grasps, bit for bit: poses, closed joints, epsilon, force closure and contact points."""
+    assert len(got) == len(want)
+    for x, y in zip(got, want):
+        assert np.array_equal(x.pose, y.pose) and dict(x.closed_joints) == dict(y.closed_joints)
+        assert x.epsilon == y.epsilon and x.force_closure == y.force_closure
+        assert np.array_equal(x.contacts.points, y.contacts.points)
+
+
 @pytest.mark.parametrize("name", ["box", "random_002"])
 def test_a_link_far_from_the_hulls_is_asked_only_when_it_may_bound_its_finger(
         name: str, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -128,11 +137,7 @@ def test_a_link_far_from_the_hulls_is_asked_only_when_it_may_bound_its_finger(
     it shows near the hulls the exact mesh alone); it asks the hulls far less often, the mesh no more."""
     want, before = _barrett_unit(name, False, monkeypatch)
     got, after = _barrett_unit(name, True, monkeypatch, guess=False)  # the brackets alone
-    assert len(got) == len(want)
-    for x, y in zip(got, want):
-        assert np.array_equal(x.pose, y.pose) and dict(x.closed_joints) == dict(y.closed_joints)
-        assert x.epsilon == y.epsilon and x.force_closure == y.force_closure
-        assert np.array_equal(x.contacts.points, y.contacts.points)
+    _assert_same_grasps(got, want)
     assert after["hulls"] < 0.85 * before["hulls"]
     assert after["mesh"] <= before["mesh"]
 
@@ -210,10 +215,6 @@ def test_the_exact_mesh_first_stores_the_same_grasps_with_fewer_queries_of_the_h
     asks the exact mesh first or not; the hulls are asked less often, the mesh about as often."""
     want, before = _barrett_unit("mug", True, monkeypatch, guess=False)
     got, after = _barrett_unit("mug", True, monkeypatch)
-    assert len(got) == len(want)
-    for x, y in zip(got, want):
-        assert np.array_equal(x.pose, y.pose) and dict(x.closed_joints) == dict(y.closed_joints)
-        assert x.epsilon == y.epsilon and x.force_closure == y.force_closure
-        assert np.array_equal(x.contacts.points, y.contacts.points)
+    _assert_same_grasps(got, want)
     assert after["hulls"] < 0.95 * before["hulls"]
     assert after["mesh"] < 1.1 * before["mesh"]
