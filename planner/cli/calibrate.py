@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from planner import api
-from planner.cli.app import db_option, show_preparation
+from planner.cli.app import db_option, made, missing_folder, show_preparation
 
 #: Below this many objects the bootstrap's intervals (drawn from the objects at hand) are said to be too narrow.
 FEW_OBJECTS = 10
@@ -46,6 +46,7 @@ def calibrate(labels: tuple[Path, ...], db_path: Path, poses: int, seed: int, fo
         click.echo(f"{path}: {closed} of {sampled} poses closed on the object", err=True)
 
     show_preparation()  # a labelled file's mesh repaired: one line each, the first time only
+    folders = {path: missing_folder(path) for path in (model_out, plot) if path is not None}  # said once written
     result = api.calibrate(list(labels), db_path=None if no_store else db_path, poses=poses or None, seed=seed,
                            folds=folds, hand=hand, workers=workers, model_out=model_out, plot=plot,
                            progress=progress, trees=trees, trial=trial, engine=engine)
@@ -70,6 +71,9 @@ def calibrate(labels: tuple[Path, ...], db_path: Path, poses: int, seed: int, fo
         width = "n/a" if math.isnan(o["auc_width"]) else f"{o['auc_width']:.3f}"
         click.echo(f"  {Path(o['object']).stem}: {o['grasps']} grasps, success {o['success_rate']:.2f}, "
                    f"AUC {auc} (width {width})")
+    for path, what in ((model_out, "the fitted model"), (plot, "its reliability diagram")):
+        if path is not None:
+            click.echo(f"{path}: {what}{made(folders[path])}")
     if not no_store:
         click.echo(f"stored in {db_path}: best, exports and reports of {result.model.hand} grasps use it")
         shipped = api.shipped_figures(result.model.hand)

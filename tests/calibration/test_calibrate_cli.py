@@ -39,10 +39,12 @@ def test_calibrate_fits_reports_and_stores_a_model_that_best_and_exports_use(val
     assert len(files) == 2
     db = tmp_path / "g.db"
     shutil.copy(validated_db, db)
-    png = tmp_path / "rel.png"
+    png = tmp_path / "plots" / "rel.png"  # a folder made by the write, and said
     code, out, err = grasp("calibrate", *map(str, files), "--db", str(db), "--poses", "12", "--folds", "2",
                            "--plot", str(png), "--model-out", str(tmp_path / "m.toml"))
     assert code == 0, err
+    assert f"{png}: its reliability diagram (made the folder {png.parent})" in out.splitlines(), out
+    assert f"{tmp_path / 'm.toml'}: the fitted model" in out.splitlines(), out  # its folder was there
     assert "held out (2 folds grouped by object)" in out and "ECE" in out and "stored in" in out
     assert "95% intervals over objects" in out and "from so few objects they understate the spread" in out
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and (tmp_path / "m.toml").read_text().startswith("# p_hold")
