@@ -12,6 +12,7 @@ import functools
 import json
 import math
 import os
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -69,8 +70,9 @@ class LogisticModel:
     (low, high) over the labelled objects it was fitted on (empty: not
     known, a model stored before 2026-12-05): :meth:`outside` says where an
     object's p_hold is extrapolated; labels: the names of the label files it
-    was fitted on (empty: not recorded, a model made before 2026-12-07): an
-    imported file's labels among them are in-sample (``grasp report`` says so).
+    was fitted on (empty: not recorded, a model made before 2026-12-07); label_hashes: the sha256 (hex) of
+    each one's bytes, in their order (empty: not recorded: a file is matched by its name): an imported file's
+    labels among them are in-sample (``grasp import``, ``report`` and ``best`` say so).
     """
 
     hand: str
@@ -91,10 +93,15 @@ class LogisticModel:
     tree_features: tuple[str, ...] = ()
     tree_turns: tuple[tuple[int, ...], ...] = ()
     labels: tuple[str, ...] = ()
+    label_hashes: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "tree_features", tuple(self.tree_features))
         object.__setattr__(self, "labels", tuple(str(name) for name in self.labels))
+        object.__setattr__(self, "label_hashes", tuple(str(h).lower() for h in self.label_hashes))
+        if self.label_hashes and (len(self.label_hashes) != len(self.labels)
+                                  or not all(re.fullmatch("[0-9a-f]{64}", h) for h in self.label_hashes)):
+            raise InputError("calibration model: label_hashes must be one sha256 (64 hex digits) per file of labels")
         object.__setattr__(self, "tree_turns", tuple(tuple(int(i) for i in t) for t in self.tree_turns))
         width = len(self.features) + len(self.tree_features)
         if any(sorted(t) != list(range(width)) for t in self.tree_turns):
@@ -135,8 +142,7 @@ class LogisticModel:
 
     @property
     def columns(self) -> tuple[str, ...]:
-        """The model's input columns: each feature, and ``feature~j`` for
-        the j-th spline column of a spline feature."""
+        """The model's input columns: each feature, and ``feature~j`` for the j-th spline column of a spline one."""
         return columns(self.features, self.knots)
 
     def inputs(self, table: Mapping[str, np.ndarray]) -> np.ndarray:
@@ -179,8 +185,7 @@ class LogisticModel:
         return out
 
     def standardised(self, table: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """Each feature's standardised input ``(x - mean) / scale``, (n,) per
-        feature name (its first column: the input itself, for a spline feature)."""
+        """Each feature's standardised input ``(x - mean) / scale``, (n,) per feature name (a spline's: its input's)."""
         z = self._z(self.inputs(table))
         cols = self.columns
         return {name: z[:, cols.index(name)] for name in self.features}
@@ -224,7 +229,8 @@ class LogisticModel:
                 **({"domain": {k: list(v) for k, v in self.domain.items()}} if self.domain else {}),
                 **({"tree_features": list(self.tree_features)} if self.tree_features else {}),
                 **({"tree_turns": [list(t) for t in self.tree_turns]} if self.tree_turns else {}),
-                **({"labels": list(self.labels)} if self.labels else {})}
+                **({"labels": list(self.labels)} if self.labels else {}),
+                **({"label_hashes": list(self.label_hashes)} if self.label_hashes else {})}
 
     @classmethod
     def from_dict(cls, data: Mapping) -> LogisticModel:
@@ -241,7 +247,8 @@ class LogisticModel:
                        {str(k): tuple(float(x) for x in v) for k, v in dict(data.get("domain", {})).items()},
                        tuple(str(f) for f in data.get("tree_features", ())),
                        tuple(tuple(int(i) for i in t) for t in data.get("tree_turns", ())),
-                       tuple(str(name) for name in data.get("labels", ())))
+                       tuple(str(name) for name in data.get("labels", ())),
+                       tuple(str(h) for h in data.get("label_hashes", ())))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"calibration model: missing or bad field ({exc})") from None
 
@@ -260,7 +267,8 @@ class LogisticModel:
                   *([f"tree_turns = {json.dumps([list(t) for t in self.tree_turns])}"] if self.tree_turns else []),
                   f"mean = {_floats(self.mean)}", f"scale = {_floats(self.scale)}", f"coef = {_floats(self.coef)}",
                   f"intercept = {self.intercept!r}", f"l2 = {self.l2!r}", f"source = {json.dumps(self.source)}",
-                  *([f"labels = [{', '.join(map(_toml_string, self.labels))}]"] if self.labels else []), "",
+                  *([f"labels = [{', '.join(map(_toml_string, self.labels))}]"] if self.labels else []),
+                  *([f"label_hashes = {json.dumps(list(self.label_hashes))}"] if self.label_hashes else []), "",
                   "[figures]"]
         lines += [f"{k} = {float(v)!r}" for k, v in sorted(self.figures.items())]
         if self.knots:
@@ -357,8 +365,7 @@ SHIPPED_ENV = "GRASP_SHIPPED_MODELS"
 
 
 def default_model(hand: str) -> LogisticModel | None:
-    """The shipped model of ``hand`` (``calibration/<hand>.toml``), None if
-    there is none or ``$GRASP_SHIPPED_MODELS`` is "0"."""
+    """The shipped model of ``hand`` (``calibration/<hand>.toml``), None if there is none or it is switched off."""
     if os.environ.get(SHIPPED_ENV, "1") == "0":
         return None
     return _shipped(hand)
