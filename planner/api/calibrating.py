@@ -60,13 +60,14 @@ def calibration_errors(db_path: Path) -> list[str]:
 
 def fitted_on(db_path: Path, hand: str, file: Path) -> bool:
     """Whether ``hand``'s p_hold model in ``db_path`` (the stored one, else the shipped one) was fitted on the
-    labels of ``file`` (by its name): p_hold and the score against those labels are in-sample, no check of it."""
+    labels of ``file`` (by its bytes' sha256 where the model records its files', else by its name): p_hold and the
+    score against those labels are in-sample, no check of it."""
+    from planner.calibration.labels import file_digest
     from planner.present import reliability
 
     with open_db(Path(db_path), create=False, readonly=True) as db:
-        model = db.model(hand)
-        return model is not None and reliability.in_sample(reliability.fitted_on(db.model_source(hand), model.labels),
-                                                           file)
+        fitted = reliability.of_model(db.model_source(hand), db.model(hand))
+    return fitted is not None and fitted.holds(file, file_digest(Path(file)) if fitted.hashes else None)
 
 
 def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB, poses: int | None = 200, seed: int = 0,

@@ -101,8 +101,10 @@ def calibrate(data: LabelledSet, *, folds: int = 5, features: Sequence[str] = DE
     if data.verdicts is not None and np.any(tried := ~np.isnan(data.verdicts)):
         figures.update(trial_figures(data, cv))
         updates[data.engine] = fit_update(data.engine, cv.p[tried], data.verdicts[tried], data.labels[tried])
+    files = tuple(sorted(set(data.files)))
+    hashes = tuple(data.hashes[f] for f in files) if all(f in data.hashes for f in files) else ()
     model = replace(model, source=source, figures={k_: v for k_, v in figures.items() if math.isfinite(v)},
-                    held_out=table, updates=updates, domain=domain(data), labels=tuple(sorted(set(data.files))))
+                    held_out=table, updates=updates, domain=domain(data), labels=files, label_hashes=hashes)
     return Calibration(model, cv, figures, per_object(data, cv.p), table)
 
 

@@ -60,7 +60,8 @@ class LabelledSet:
     or ``validation``), NaN not tried (None: no trial asked for); objects:
     per file, its object's properties (the names of
     :data:`~planner.calibration.logistic.DOMAIN`, their units), from which a
-    fitted model's domain comes.
+    fitted model's domain comes; hashes: per file, the sha256 of its bytes (where known: a fitted model records
+    them beside the files' names).
     """
 
     table: dict[str, np.ndarray]
@@ -73,6 +74,7 @@ class LabelledSet:
     verdicts: np.ndarray | None = None
     engine: str = ""
     objects: dict[str, dict[str, float]] = field(default_factory=dict)
+    hashes: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         n = len(self.labels)
@@ -102,7 +104,8 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
     objects: dict[str, dict[str, float]] = {}
     rejected: Counter = Counter()
     said = set[str]()
-    for path, name in zip(map(Path, paths), label_names(paths)):
+    hashes: dict[str, str] = {}
+    for path, (name, digest) in zip(map(Path, paths), label_files(paths)):
         spec_hand, spec, all_poses = importer.read_for_rescoring(path, hand_name, note=True)
         y = acronym.read_labels(path)
         rows = sample_rows(len(all_poses), poses, seed, path.stem)
@@ -122,7 +125,7 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
         if order and trial:
             verdicts.append(_tried(spec_hand, spec, [grasps[i] for i in order], trial, seed, path.stem, engine))
         if order:
-            objects[name] = object_properties(spec)
+            objects[name], hashes[name] = object_properties(spec), digest
             tables.append(features.of_grasps([grasps[i] for i in order]))
             labels.append(y[rows[order]])
             groups += [group(spec)] * len(order)
@@ -134,12 +137,17 @@ def labelled(paths: Sequence[Path], *, poses: int | None = 200, seed: int = 0, h
     table = {k: np.concatenate([t[k] for t in tables]) for k in features.TABLE}
     return LabelledSet(table, np.concatenate(labels), tuple(groups), tuple(files), hand_name, sampled,
                        dict(rejected), np.concatenate(verdicts) if trial else None,
-                       TRIAL_GROUPS[engine] if trial else "", objects)
+                       TRIAL_GROUPS[engine] if trial else "", objects, hashes)
 
 
 def label_names(paths: Sequence[Path]) -> list[str]:
     """Each file's name as shown and stored: the shortest tail of its resolved path that no other of ``paths``
     shares; a file given twice, or two files of the same bytes, are refused."""
+    return [name for name, _ in label_files(paths)]
+
+
+def label_files(paths: Sequence[Path]) -> list[tuple[str, str]]:
+    """Each file's name (:func:`label_names`) and the sha256 of its bytes (:func:`file_digest`)."""
     resolved = [Path(p).resolve() for p in paths]
     seen: dict[Path, Path] = {}
     for given, path in zip(map(Path, paths), resolved):
@@ -149,7 +157,7 @@ def label_names(paths: Sequence[Path]) -> list[str]:
         seen[path] = given
     contents: dict[str, Path] = {}
     for given, path in zip(map(Path, paths), resolved):
-        digest = _digest(path)
+        digest = file_digest(path)
         if digest in contents:
             raise InputError(f"{given}: the same bytes as {contents[digest]} (a copy): its labels would count twice; "
                              "give each file once")
@@ -160,14 +168,14 @@ def label_names(paths: Sequence[Path]) -> list[str]:
         while k < len(path.parts) and any(o != path and o.parts[-k:] == path.parts[-k:] for o in resolved):
             k += 1
         out.append(str(Path(*path.parts[-k:])))
-    return out
+    return list(zip(out, contents))
 
 
 #: [bytes] read at a time to hash a label file (an HDF5 file may be large).
 _BLOCK = 1 << 20
 
 
-def _digest(path: Path) -> str:
+def file_digest(path: Path) -> str:
     """sha256 of a file's bytes (a name of its own where it cannot be read: the reader says why, by name)."""
     import hashlib
 

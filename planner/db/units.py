@@ -98,6 +98,20 @@ class UnitReads:
         return {int(r["candidate"]): bool(r["labelled"]) for r in rows}
 
     @_reads
+    def label_file_hashes(self) -> dict[int, str]:
+        """Unit id -> the sha256 of the file whose own labels its grasps carry (``grasp import``'s, kept in each file
+        label row's settings), for every unit with such grasps."""
+        rows = self._conn.execute("SELECT g.unit_id, MIN(fl.settings) AS settings FROM file_labels fl JOIN grasps g "
+                                  "ON g.id = fl.grasp_id GROUP BY g.unit_id")
+        out = {}
+        for r in rows:
+            imported = json.loads(r["settings"] or "{}").get("imported", "{}")
+            digest = (json.loads(imported) if isinstance(imported, str) else imported).get("sha256")
+            if digest:
+                out[int(r["unit_id"])] = str(digest)
+        return out
+
+    @_reads
     def names_by_source(self) -> dict[tuple[str, float], list[str]]:
         """(source, scale) -> the names of the objects stored from that file at that scale."""
         out: dict[tuple[str, float], list[str]] = {}

@@ -16,15 +16,19 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from planner.calibration.metrics import Reliability, reliability, roc_auc
 from planner.db.store import open_db
 from planner.record.grasp import Grasp
+
+if TYPE_CHECKING:
+    from planner.calibration.logistic import LogisticModel
 
 
 @dataclass(frozen=True)
@@ -54,35 +58,71 @@ class FileLabels:
         return first if len(self.sources) <= 1 else f"{len(self.sources)} sources: {first}, ..."
 
 
-def file_labels(grasps: Sequence[Grasp], scores: np.ndarray, fitted: frozenset[str] = frozenset()) -> FileLabels:
+def file_labels(grasps: Sequence[Grasp], scores: np.ndarray, fitted: FittedOn | None = None,
+                hashes: Mapping[int, str] | None = None) -> FileLabels:
     """:class:`FileLabels` of ``grasps`` (each with a file label) and their analytic ``scores`` (n,); ``fitted``:
-    the names of the files the hand's p_hold model was fitted on (:func:`fitted_on`)."""
+    the files the hand's p_hold model was fitted on (:func:`fitted_on`); ``hashes``: unit id -> the sha256 of the
+    file whose labels the unit's grasps carry (:meth:`~planner.db.units.UnitReads.label_file_hashes`)."""
     y = np.array([g.file_label.success for g in grasps], float)  # type: ignore[union-attr]
     p = np.array([math.nan if g.p_hold is None else g.p_hold for g in grasps], float)
     modelled = bool(np.isfinite(p).any())
-    keys = {_key(name) for name in fitted}
-    in_sample = sum(_key(_file_name(g.file_label.source)) in keys for g in grasps) if modelled else 0  # type: ignore[union-attr]
+    in_sample = count_in_sample(grasps, fitted, hashes) if modelled else 0
     return FileLabels(len(grasps), int(y.sum()), tuple(sorted({g.file_label.source for g in grasps})),  # type: ignore[union-attr]
                       reliability(y, p) if modelled else None, roc_auc(y, p) if modelled else math.nan,
                       roc_auc(y, np.asarray(scores, float)), in_sample)
 
 
-def fitted_on(source: str, labels: Sequence[str] = ()) -> frozenset[str]:
-    """The names of the label files a model was fitted on: its ``labels`` (:attr:`LogisticModel.labels`: the
-    shipped model's dev-set files, ``grasp calibrate``'s) and those a source stored by ``grasp calibrate`` names
-    (its ``labels``, each as :func:`planner.calibration.labels.label_names` spelt it; a model stored before the
-    model kept them)."""
+def count_in_sample(grasps: Sequence[Grasp], fitted: FittedOn | None, hashes: Mapping[int, str] | None) -> int:
+    """How many of ``grasps`` carry the labels of a file ``fitted`` holds (:func:`file_labels`'s arguments)."""
+    if fitted is None:
+        return 0
+    hashes = hashes or {}
+    return sum(g.file_label is not None and fitted.holds(_file_name(g.file_label.source), hashes.get(g.unit_id or -1))
+               for g in grasps)
+
+
+@dataclass(frozen=True)
+class FittedOn:
+    """The label files a p_hold model was fitted on, as an imported file is matched against them.
+
+    names: their names; hashes: the sha256 (hex) of each one's bytes (empty: the model records none, one made
+    before 2026-12-08, and a file is matched by its name alone: another file of that name is taken for it)."""
+
+    names: frozenset[str] = frozenset()
+    hashes: frozenset[str] = frozenset()
+
+    def holds(self, file: str | Path, sha256: str | None = None) -> bool:
+        """Whether the labels of ``file`` (a path or name; ``sha256``: of its bytes, None: not known) are among
+        them: by content where the model records hashes (a copy under another name is one of them; another file
+        of one of their names is not), else by name (``crate`` and ``crate.h5`` are one file: a benchmark fits on
+        stems)."""
+        if self.hashes:
+            return sha256 is not None and sha256.lower() in self.hashes
+        return _key(Path(file).name) in {_key(name) for name in self.names}
+
+
+def fitted_on(source: str, labels: Sequence[str] = (), hashes: Sequence[str] = ()) -> FittedOn:
+    """The label files a model was fitted on: its ``labels`` and ``hashes`` (:attr:`LogisticModel.labels`,
+    :attr:`LogisticModel.label_hashes`: the shipped model's dev-set files, ``grasp calibrate``'s) and the names a
+    source stored by ``grasp calibrate`` gives (its ``labels``, each as
+    :func:`planner.calibration.labels.label_names` spelt it; a model stored before the model kept them)."""
     try:
         named = json.loads(source).get("labels", [])
     except (ValueError, AttributeError):
         named = []
-    return frozenset(Path(str(name)).name for name in [*named, *labels])
+    return FittedOn(frozenset(Path(str(name)).name for name in [*named, *labels]),
+                    frozenset(str(h).lower() for h in hashes))
 
 
-def in_sample(fitted: frozenset[str], file: str | Path) -> bool:
-    """Whether the labels of ``file`` (a path or name) are among those a model fitted on ``fitted``
-    (:func:`fitted_on`) was fitted on; ``crate`` and ``crate.h5`` are one file (a benchmark fits on stems)."""
-    return _key(Path(file).name) in {_key(name) for name in fitted}
+def of_model(source: str, model: LogisticModel | None) -> FittedOn | None:
+    """:func:`fitted_on` of a hand's model and its stored source; None: the hand has no model."""
+    return None if model is None else fitted_on(source, model.labels, model.label_hashes)
+
+
+def in_sample(fitted: FittedOn, file: str | Path, sha256: str | None = None) -> bool:
+    """Whether the labels of ``file`` are among those a model fitted on ``fitted`` was fitted on
+    (:meth:`FittedOn.holds`)."""
+    return fitted.holds(file, sha256)
 
 
 def _key(name: str) -> str:
@@ -151,8 +191,8 @@ def read(db_path: Path) -> tuple[list[HandCalibration], dict[str, FileLabels]]:
         modelled = sorted({h for _, h in db.pairs()} | set(db.calibrated_hands()))
         hands = sorted(set(modelled) | {g.hand for g in marked})
         models, sources = {h: db.model(h) for h in hands}, {h: db.model_source(h) for h in hands}
-        files = {hand: file_labels(mine, untried_analytic(rule, mine), fitted_on(
-            sources[hand], () if models[hand] is None else models[hand].labels))  # type: ignore[union-attr]
+        hashes = db.label_file_hashes() if marked else {}
+        files = {hand: file_labels(mine, untried_analytic(rule, mine), of_model(sources[hand], models[hand]), hashes)
             for hand in sorted({g.hand for g in marked}) for mine in [[g for g in marked if g.hand == hand]]}
         out = []
         for hand in modelled:

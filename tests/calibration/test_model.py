@@ -210,6 +210,29 @@ def test_a_fitted_model_names_its_label_files_and_they_travel_with_it(tmp_path) 
     assert "labels" not in replace(model, labels=()).to_dict()  # a model without them: the same JSON as before
 
 
+def test_a_fitted_model_records_its_label_files_hashes_and_they_travel_with_it(tmp_path) -> None:
+    """A model named its files alone: another file of one of those names was taken for it. The fit records each
+    file's sha256 (``LabelledSet.hashes``) beside its name, in the names' order, through TOML and JSON."""
+    from planner.calibration.fitting import calibrate
+    from planner.calibration.labels import LabelledSet
+
+    table, y, groups = synthetic(400, groups=4)
+    files = tuple(f"{g}_0.5.h5" for g in groups)
+    hashes = {name: f"{i:064x}" for i, name in enumerate(sorted(set(files), reverse=True))}
+    model = calibrate(LabelledSet(table, y, tuple(groups), files, "panda", hashes=hashes), folds=2, trees=None).model
+    assert model.label_hashes == tuple(hashes[name] for name in model.labels) and len(model.labels) == 4
+    path = tmp_path / "panda.toml"
+    path.write_text(model.to_toml(), encoding="ascii")
+    for back in (load_model(path), LogisticModel.from_json(model.to_json())):
+        assert back.label_hashes == model.label_hashes and back.labels == model.labels
+    assert "label_hashes" not in replace(model, label_hashes=()).to_dict()  # none: the same JSON as before
+    assert calibrate(LabelledSet(table, y, tuple(groups), files, "panda"), folds=2, trees=None).model.label_hashes == ()
+    with pytest.raises(InputError, match="label_hashes"):
+        replace(model, label_hashes=model.label_hashes[:3])
+    with pytest.raises(InputError, match="label_hashes"):
+        replace(model, label_hashes=("not a hash",) * 4)
+
+
 def test_a_model_whose_label_files_have_any_names_reads_back_from_its_toml(tmp_path) -> None:
     """The label files' names were written as JSON strings: a name beyond U+FFFF (an emoji) became two surrogate
     escapes TOML refuses, so `grasp calibrate --model-out` wrote a model no one could read back."""

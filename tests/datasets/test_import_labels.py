@@ -3,6 +3,7 @@ re-scored grasps, shown by ``grasp best``, exported again (as the label and as `
 
 from __future__ import annotations
 
+import shutil
 import sqlite3
 from pathlib import Path
 
@@ -218,30 +219,59 @@ def test_report_reads_the_file_labelled_grasps_once(db: Path, tmp_path: Path, mo
     assert "panda: the imported files' own labels (crate.h5 grasps/qualities/flex/object_in_gripper; " in out, out
 
 
-def test_a_file_the_shipped_model_was_fitted_on_is_said_in_sample(db: Path, tmp_path: Path,
-                                                                 shipped_models: None) -> None:
-    """Importing one of the dev set's tuning files gave p_hold's figures against its labels as a check of p_hold,
-    though the shipped model was fitted on those labels (its source named no files): the model now names its files,
-    and import and report say so."""
+def test_a_file_named_as_one_the_shipped_model_was_fitted_on_is_not_said_in_sample(db: Path, tmp_path: Path,
+                                                                                  shipped_models: None) -> None:
+    """The shipped model names the dev set's tuning files and records their bytes' sha256: a file made here under one
+    of those names was told "fitted on this file's labels" (matched by name), its labels never seen by the fit."""
     from planner.calibration.model import default_model
 
-    fitted = default_model("panda").labels  # type: ignore[union-attr]
-    assert len(fitted) == 46 and all(name.endswith(".h5") for name in fitted)
-    foreign, _ = foreign_file(db, tmp_path, "box", fitted[0].removesuffix(".h5"))  # a file of that name, made here
+    model = default_model("panda")
+    assert model is not None and len(model.labels) == len(model.label_hashes) == 46
+    foreign, _ = foreign_file(db, tmp_path, "box", model.labels[0].removesuffix(".h5"))  # that name, made here
     with h5py.File(foreign, "r+") as f:
         key = "grasps/qualities/flex/object_in_gripper"
         f[key][...] = np.arange(len(f[key])) % 2
     mine = tmp_path / "mine.db"
     code, out, err = grasp("import", str(foreign), "--db", str(mine))
-    assert code == 0, err
-    said = [line for line in err.splitlines() if "in-sample" in line]
-    assert len(said) == 1 and said[0].startswith(f"note: {foreign}: the panda's p_hold model was fitted on this "
-                                                 "file's labels"), err
+    assert code == 0 and "the file's labels kept" in out and "in-sample" not in err, err
     code, out, err = grasp("report", "--db", str(mine), "--out", str(tmp_path / "r"))
-    assert code == 0, err
-    assert "in-sample: the p_hold model was fitted on the labels of the files of" in out, out
-    other, _ = _labelled(db, tmp_path)  # crate.h5: not one of them
-    code, out, err = grasp("import", str(other), "--db", str(tmp_path / "other.db"))
-    assert code == 0 and "in-sample" not in err, err
-    code, out, err = grasp("report", "--db", str(tmp_path / "other.db"), "--out", str(tmp_path / "r2"))
-    assert code == 0 and "in-sample" not in out, out
+    assert code == 0 and "the imported files' own labels" in out and "in-sample" not in out, out
+
+
+def test_in_sample_is_told_by_the_label_files_bytes_not_their_names(db: Path, tmp_path: Path,
+                                                                    shipped_models: None) -> None:
+    """A model fitted on robot/mug/outcomes.h5 told an import of robot/cup/outcomes.h5 "fitted on this file's labels"
+    (matched by name), and a renamed copy of a fitted file was not told: a model that records its files' sha256 is
+    matched by content; one that records none keeps the name."""
+    from dataclasses import replace
+
+    from planner.calibration.labels import file_digest
+    from planner.calibration.model import default_model
+    from planner.db.store import open_for_writing
+
+    fitted, _ = _labelled(db, tmp_path)  # foreign/grasps/crate.h5
+    other = tmp_path / "cup" / "foreign" / "grasps" / "crate.h5"
+    shutil.copytree(tmp_path / "foreign", other.parents[1])
+    with h5py.File(other, "r+") as f:  # the same name, other labels: other bytes
+        f["grasps/qualities/flex/object_in_gripper"][0] ^= 1
+    renamed = fitted.with_name("renamed.h5")
+    shutil.copy(fitted, renamed)
+    shipped = default_model("panda")
+    assert shipped is not None
+    by_bytes = replace(shipped, labels=("crate.h5",), label_hashes=(file_digest(fitted),))
+    by_name = replace(shipped, labels=("crate.h5",), label_hashes=())
+
+    def said(model: object, path: Path, name: str) -> tuple[bool, bool]:
+        out_db = tmp_path / f"{name}.db"
+        with open_for_writing(out_db) as base:
+            base.write_model(model, "test", base.rule())  # type: ignore[arg-type]
+        code, _, err = grasp("import", str(path), "--db", str(out_db))
+        assert code == 0, err
+        code, out, rep = grasp("report", "--db", str(out_db), "--out", str(tmp_path / f"{name}_r"))
+        assert code == 0, rep
+        return "fitted on this file's labels" in err, "in-sample: the p_hold model was fitted on" in out
+
+    assert said(by_bytes, fitted, "fitted") == (True, True)
+    assert said(by_bytes, other, "other") == (False, False)
+    assert said(by_bytes, renamed, "renamed") == (True, True)
+    assert said(by_name, other, "named") == (True, True)  # no hashes: the name rule, as before

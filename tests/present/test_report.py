@@ -244,11 +244,11 @@ def test_file_labels_p_hold_was_fitted_on_are_said_to_be_in_sample() -> None:
     fitted on those very labels."""
     import json
 
-    from planner.present.reliability import HandCalibration, file_labels, file_lines, fitted_on
+    from planner.present.reliability import FittedOn, HandCalibration, file_labels, file_lines, fitted_on
     from planner.record.grasp import FileLabel
 
     source = json.dumps({"command": "grasp calibrate", "labels": ["crate.h5", "b/can.h5"], "poses_per_file": 100})
-    assert fitted_on(source) == {"crate.h5", "can.h5"} and fitted_on("shipped") == frozenset()
+    assert fitted_on(source).names == {"crate.h5", "can.h5"} and fitted_on("shipped") == FittedOn()
     grasps = [replace(made_up(i, 0.05), p_hold=0.2 + 0.1 * i,
                       file_label=FileLabel(i % 2 == 1, f"{'crate' if i < 3 else 'mug'}.h5 grasps/qualities/flex/"
                                            "object_in_gripper")) for i in range(5)]
@@ -262,3 +262,26 @@ def test_file_labels_p_hold_was_fitted_on_are_said_to_be_in_sample() -> None:
     assert [label for label, _ in cal.curves()] == ["the imported files' own labels (2 sources: crate.h5 grasps/"
                                                     "qualities/flex/object_in_gripper, ...; in-sample: 3 of them of "
                                                     "the files p_hold was fitted on)"]
+
+
+def test_file_labels_are_in_sample_by_their_files_bytes_where_the_model_records_them() -> None:
+    """Matched by name, a model fitted on robot/mug/outcomes.h5 made robot/cup/outcomes.h5's grasps in-sample and a
+    renamed copy of the fitted file's not: a model with its files' sha256 is matched by the grasps' files' bytes."""
+    from planner.present.reliability import file_labels, fitted_on
+    from planner.record.grasp import FileLabel
+
+    mug, cup = "a" * 64, "b" * 64
+    source = '{"command": "grasp calibrate", "labels": ["mug/outcomes.h5"]}'
+    fitted = fitted_on(source, ("mug/outcomes.h5",), (mug.upper(),))
+    named = [(1, "outcomes.h5"), (1, "outcomes.h5"), (2, "outcomes.h5"), (3, "copy.h5"), (4, "outcomes.h5")]
+    grasps = [replace(made_up(i, 0.05), p_hold=0.5, unit_id=unit,
+                      file_label=FileLabel(i % 2 == 1, f"{name} grasps/qualities/flex/object_in_gripper"))
+              for i, (unit, name) in enumerate(named)]
+    hashes = {1: mug, 2: cup, 3: mug}  # unit 4: no hash known
+    scores = np.full(5, 0.5)
+    assert file_labels(grasps, scores, fitted, hashes).in_sample == 3  # the fitted file's two, its renamed copy's
+    assert fitted.holds("cup/outcomes.h5", cup) is False and fitted.holds("x/copy.h5", mug) is True
+    assert fitted.holds("mug/outcomes.h5") is False  # the model has hashes: no name alone makes a file its
+    by_name = fitted_on(source, ("mug/outcomes.h5",))  # a model that records none: the name rule
+    assert file_labels(grasps, scores, by_name, hashes).in_sample == 4
+    assert by_name.holds("cup/outcomes", cup) and not by_name.holds("copy.h5", mug)
