@@ -43,6 +43,7 @@ from planner.api.calibrating import (
     calibrate,
     calibration_errors,
     fitted_on,
+    in_sample_grasps,
     report,
     report_and_errors,
     shipped_figures,
@@ -112,8 +113,8 @@ __all__ = [
     "GenerateProgress", "ImportResult", "RankingRule", "ReachableGrasp", "SAMPLERS", "SAMPLER_DEFAULTS", "Summary",
     "SweepSettings", "UnitResult", "ValidationSummary",
     "best", "best_at", "calibrate", "calibration_errors", "check_db", "default_workers", "export", "fitted_on",
-    "generate", "hand", "hands", "import_files", "objects", "plan_units", "report", "report_and_errors",
-    "resolve_object", "shipped_figures", "show", "stored_names",
+    "generate", "hand", "hands", "import_files", "in_sample_grasps", "objects", "plan_units", "report",
+    "report_and_errors", "resolve_object", "shipped_figures", "show", "stored_names",
     "stored_objects", "validate",
 ]
 

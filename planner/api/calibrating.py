@@ -18,6 +18,7 @@ from planner.specs.inputs import check_output, check_seed, writing
 
 if TYPE_CHECKING:
     from planner.calibration.fitting import Calibration
+    from planner.record.grasp import Grasp
 
 
 #: Suffixes of files ``grasp report --out`` does not write (``--out report.png`` made a folder of that name).
@@ -68,6 +69,19 @@ def fitted_on(db_path: Path, hand: str, file: Path) -> bool:
     with open_db(Path(db_path), create=False, readonly=True) as db:
         fitted = reliability.of_model(db.model_source(hand), db.model(hand))
     return fitted is not None and fitted.holds(file, file_digest(Path(file)) if fitted.hashes else None)
+
+
+def in_sample_grasps(db_path: Path, hand: str, grasps: Sequence[Grasp]) -> int:
+    """How many of ``grasps`` (``hand``'s, read from ``db_path``) carry the labels of a file ``hand``'s p_hold model
+    there was fitted on (as :func:`fitted_on` matches it): their p_hold against those labels is no check of it."""
+    from planner.present import reliability
+
+    if not any(g.file_label is not None for g in grasps):
+        return 0
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        fitted = reliability.of_model(db.model_source(hand), db.model(hand))
+        hashes = db.label_file_hashes() if fitted is not None and fitted.hashes else {}
+    return reliability.count_in_sample(grasps, fitted, hashes)
 
 
 def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB, poses: int | None = 200, seed: int = 0,

@@ -71,6 +71,7 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
         for g in grasps:
             _print_grasp(g, rule=rule, model=model, up=up)
         _extrapolated(grasps[0].object, hand, db_path, outside)
+        _in_sample(grasps, hand, db_path)
         return
     if apart is not None:
         raise click.BadParameter("--diverse is not yet available with --object-pose")
@@ -102,6 +103,16 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
         click.echo(f"note: stored grasps the arm does not reach with the object at {object_pose}: {_misses(misses)}")
     name = found[0].grasp.object  # the notes plain `best` gives (a p_hold extrapolated, ...) hold here too
     _extrapolated(name, hand, db_path, api.p_hold_outside(name, hand, db_path=db_path))
+    _in_sample([r.grasp for r in found], hand, db_path)
+
+
+def _in_sample(grasps: list[api.Grasp], hand: str, db_path: Path) -> None:
+    """One note where p_hold was fitted on the labels some of these grasps carry (their imported file's)."""
+    n = api.in_sample_grasps(db_path, hand, grasps)
+    if n:
+        click.echo(f"note: in-sample: {n} of these grasps carry the labels of a file the {hand}'s p_hold model was "
+                   "fitted on (the file they were imported from): their p_hold against those labels is no check of it",
+                   err=True)
 
 
 def _extrapolated(name: str, hand: str, db_path: Path, outside: list[str]) -> None:
