@@ -77,7 +77,8 @@ def count_in_sample(grasps: Sequence[Grasp], fitted: FittedOn | None, hashes: Ma
     if fitted is None:
         return 0
     hashes = hashes or {}
-    return sum(g.file_label is not None and fitted.holds(_file_name(g.file_label.source), hashes.get(g.unit_id or -1))
+    return sum(g.file_label is not None and fitted.holds(_file_name(g.file_label.source),
+                                                         None if g.unit_id is None else hashes.get(g.unit_id))
                for g in grasps)
 
 
