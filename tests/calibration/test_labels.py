@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import shutil
 from pathlib import Path
 
@@ -122,7 +123,10 @@ def test_files_of_one_name_in_two_folders_are_two_files_and_a_file_given_twice_i
         domain = d.model_domain("panda")
         source = json.loads(d.model_source("panda"))
         masses = [d.object_row(name).properties()["mass"] for name in ("box", "sphere")]  # type: ignore[union-attr]
+        model = d.model("panda")
     assert source["labels"] == ["day1/grasps.h5", "day2/grasps.h5"]
+    assert model is not None and model.labels == ("day1/grasps.h5", "day2/grasps.h5")  # and each file's bytes' hash:
+    assert model.label_hashes == tuple(hashlib.sha256(p.read_bytes()).hexdigest() for p in days)  # in-sample by them
     assert domain["mass"] == pytest.approx((min(masses), max(masses)), rel=1e-3) and masses[0] != masses[1]
     monkeypatch.chdir(box.parent)  # overlapping globs give one file twice, spelt alike or not
     code, _, err = grasp("calibrate", str(box), box.name, str(sphere), *FAST_FIT)
