@@ -48,7 +48,7 @@ import tomllib
 
 from planner.calibration import features
 from planner.calibration.fitting import calibrate
-from planner.calibration.labels import LabelledSet, object_properties
+from planner.calibration.labels import LabelledSet, file_digest, object_properties
 from planner.calibration.metrics import (
     INTERVAL_SEED,
     agreement,
@@ -419,7 +419,8 @@ def labelled_set(results: list[FileResult]) -> LabelledSet:
     groups = tuple(object_key(r.path)[1] for r in results for _ in range(int(r.closed.sum())))
     stems = tuple(r.path.stem for r in results for _ in range(int(r.closed.sum())))
     objects = {r.path.stem: object_properties(importer.read_for_rescoring(r.path)[1]) for r in results if r.grasps}
-    return LabelledSet(table, labels, groups, stems, "panda", objects=objects)
+    hashes = {r.path.stem: file_digest(r.path) for r in results if r.grasps}  # in-sample told by the bytes
+    return LabelledSet(table, labels, groups, stems, "panda", objects=objects, hashes=hashes)
 
 
 def print_table(report: dict) -> None:
