@@ -87,7 +87,7 @@ class FittedOn:
     """The label files a p_hold model was fitted on, as an imported file is matched against them.
 
     names: their names; hashes: the sha256 (hex) of each one's bytes (empty: the model records none, one made
-    before 2026-12-08, and a file is matched by its name alone: another file of that name is taken for it)."""
+    before 2026-12-07 evening, and a file is matched by its name alone: another file of that name is taken for it)."""
 
     names: frozenset[str] = frozenset()
     hashes: frozenset[str] = frozenset()
