@@ -69,6 +69,8 @@ def build(hand: HandSpec, solid: Solid, engine: Engine | None = None) -> World:
         model = mujoco.MjModel.from_xml_string(xml)
     except ValueError as exc:
         raise SimulationError(f"MuJoCo cannot build hand '{hand.name}' with this object: {exc}") from exc
+    # the model's text (mujoco_mjcf) writes the elliptic cone every trial ran with until 2026-12-07; another is set here
+    model.opt.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL if engine.cone == "pyramidal" else mujoco.mjtCone.mjCONE_ELLIPTIC
     return World(hand, model, engine)
 
 

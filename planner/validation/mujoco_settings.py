@@ -25,6 +25,8 @@ DIVERGED = "diverged"
 #: the object rests on it), or the object frame's -y whatever the object's up (FleX's world for ACRONYM's meshes),
 #: along the hand's approach (a pick from above), or nowhere (the shake alone).
 DOWN = ("-z", "-y", "approach", "none")
+#: MuJoCo's friction cones (``Engine.cone``): elliptic (every trial until 2026-12-07), or pyramidal (its default).
+CONES = ("elliptic", "pyramidal")
 
 
 @dataclass(frozen=True)
@@ -43,7 +45,8 @@ class Engine:
     which MuJoCo 4, where multi-contact is on unless disabled, does not
     need; False now disables it); ``islands``: MuJoCo 4 solves the
     constraints of bodies that do not touch apart (its default, on); False
-    solves them as one system.
+    solves them as one system; ``cone``: the friction cone (:data:`CONES`),
+    elliptic (impratio applies to it) or pyramidal (MuJoCo's default).
     """
 
     timestep: float = 0.002
@@ -54,6 +57,7 @@ class Engine:
     weld_time: float = 0.005
     multiccd: bool = True
     islands: bool = True
+    cone: str = "elliptic"
 
 
 #: Engine settings a hand's MuJoCo trials take where :class:`MujocoSettings` leaves them to the hand (None), each
@@ -75,7 +79,8 @@ class MujocoSettings:
     harder than the normal force, elliptic cones), ``contact_time`` (contact
     stiffness: solref time constant, >= 2 timesteps), ``multiccd`` (several
     contact points per pair of convex shapes), ``islands`` (None: the
-    hand's, :data:`HAND_ENGINE`, else :class:`Engine`'s: :meth:`for_hand`).
+    hand's, :data:`HAND_ENGINE`, else :class:`Engine`'s: :meth:`for_hand`),
+    ``cone`` (the friction cone, :data:`CONES`).
 
     Hand: the closing motors squeeze with ``effort_scale`` times their
     published effort (a gripper set to a lower force), and the soft pads'
@@ -187,6 +192,7 @@ class MujocoSettings:
     contact_time: float = Engine.contact_time
     multiccd: bool = Engine.multiccd
     islands: bool | None = None  # None: the hand's (for_hand: HAND_ENGINE, else Engine's)
+    cone: str = Engine.cone
     effort_scale: float = 1.0
     torsion_scale: float = 1.0
     friction_scale: float = 1.0
@@ -214,6 +220,8 @@ class MujocoSettings:
     part_tolerance: float = 0.0005  # convex parts simplified to within this of their hulls (as PyBullet's)
 
     def __post_init__(self) -> None:
+        if self.cone not in CONES:
+            raise ConfigError(f"cone must be one of {', '.join(CONES)}, got {self.cone!r}")
         if self.down not in DOWN:
             raise ConfigError(f"down must be one of {', '.join(DOWN)}, got {self.down!r}")
         if self.friction_cap is not None and not self.friction_cap > 0:

@@ -86,7 +86,7 @@ from planner.validation.mujoco_fingers import (
     worm_target,
 )
 from planner.validation.mujoco_load import down_along, load_path, motion, steps
-from planner.validation.mujoco_settings import DIVERGED, MujocoSettings
+from planner.validation.mujoco_settings import DIVERGED, Engine, MujocoSettings
 from planner.validation.mujoco_worlds import world_for
 from planner.validation.tolerances import DEFAULT_LEVER, GRAVITY
 
@@ -126,7 +126,9 @@ def recorded(settings: MujocoSettings, hand: HandSpec) -> str:
     # a trial run without it says so, apart from those (validate re-tries them)
     off = {} if settings.multiccd else {"multiccd_flag": "disable"}
     # islands: on in every trial until 2026-12-07, where a trial records nothing of them (as before); off, it says so
-    fields = {k: v for k, v in asdict(settings).items() if k != "islands" or not v}
+    # and the cone: elliptic in every trial until 2026-12-07, where a trial records nothing of it (as before)
+    fields = {k: v for k, v in asdict(settings).items()
+              if not (k == "islands" and v) and not (k == "cone" and v == Engine.cone)}
     return json.dumps({"engine": "mujoco", "mujoco": VERSION, **fields, **off, "hand": hand.name,
                        "actuators": asdict(hand.actuators), "breakaway": [j.name for j in hand.joints if j.breakaway],
                        "breakaway_effort": BREAKAWAY, "torsion_radius": torsion, **worm, **slow, **fg.inertia(hand)},

@@ -38,7 +38,7 @@ def world_for(hand: HandSpec, obj: PreparedObject, s: MujocoSettings, mass: floa
     last :data:`KEPT`)."""
     s = s.for_hand(hand.name)
     engine = Engine(s.timestep, s.iterations, s.impratio, s.contact_time, 1.0, s.contact_time, s.multiccd,
-                    bool(s.islands))
+                    bool(s.islands), s.cone)
     soft = tuple(sorted(link for link, c in hand.contacts.items() if c.model == "soft" and c.torsion_radius > 0))
     inertia = tuple(sorted(hand.link_inertia.items()))
     # its centre of mass and inertia too: one mesh may be two objects, each with its own (a URDF's, a sidecar's)

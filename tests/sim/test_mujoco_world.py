@@ -278,3 +278,12 @@ def test_islands_are_what_the_engine_says() -> None:
     alone = build(hand, cube(), Engine(islands=False)).model.opt.disableflags
     both = build(hand, cube(), Engine(multiccd=False, islands=False)).model.opt.disableflags
     assert alone & islands and not alone & multiccd and both & islands and both & multiccd
+
+
+def test_the_cone_is_what_the_engine_says() -> None:
+    # every trial ran with elliptic cones; a pyramidal one (bench grids) reaches the compiled model
+    from planner.validation.mujoco_settings import Engine
+    hand = load_hand("panda")
+    assert Engine().cone == "elliptic"
+    assert build(hand, cube(), Engine()).model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
+    assert build(hand, cube(), Engine(cone="pyramidal")).model.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL

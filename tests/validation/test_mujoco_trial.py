@@ -375,6 +375,24 @@ def test_the_panda_runs_its_trials_without_islands_and_records_it() -> None:
     assert recorded(MujocoSettings(), barrett) == recorded(MujocoSettings(islands=True), barrett)
 
 
+def test_a_trial_with_another_cone_runs_it_and_is_recorded_apart() -> None:
+    # the settings reach the world the trial runs in; the default (elliptic, as every stored trial) records as before,
+    # a pyramidal cone says so (validate re-tries stored trials of the other)
+    import mujoco
+
+    from planner.errors import ConfigError
+    from planner.validation.mujoco_worlds import world_for
+
+    hand, obj = load_hand("panda"), box(0.04)
+    assert world_for(hand, obj, MujocoSettings(cone="pyramidal"), obj.mass).model.opt.cone == \
+        mujoco.mjtCone.mjCONE_PYRAMIDAL
+    assert world_for(hand, obj, MujocoSettings(), obj.mass).model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
+    assert "cone" not in json.loads(recorded(MujocoSettings(), hand))
+    assert json.loads(recorded(MujocoSettings(cone="pyramidal"), hand))["cone"] == "pyramidal"
+    with pytest.raises(ConfigError):
+        MujocoSettings(cone="round")
+
+
 def _no_contacts():  # type: ignore[no-untyped-def]
     from planner.record.contacts import HandContacts
 
