@@ -187,18 +187,19 @@ class MujocoSettings:
     own options: a step spends a third in the narrowphase, a third (Panda)
     to two fifths (Barrett) in the solver, at 1.6-1.9 Newton iterations (at
     most 12-15: the cap of 50 never binds; a cap of 5 lets the Barrett hold
-    15% of its grasps). Alternating on 124 Panda poses (and 75 Barrett
-    grasps), none saves 5% at the same verdicts: tolerance 1e-4 or 1e-6,
-    ls_tolerance 0.1, ccd_tolerance 1e-4 and 10 ccd_iterations save nothing
-    (within 2%); ls_iterations 5,
-    the Euler integrator and iteration caps move 55-99 verdicts; CG, libccd,
-    a sparse Jacobian and no warm start cost 10-51% more. Float round-off
-    alone (a sparse Jacobian) moves 3 of 124, so only an exact change keeps
-    the verdicts. The pyramidal cone (``cone``), on the 6,200 poses: -13.7%
-    CPU, 641 verdicts moved (337 toward FleX, 304 away: pooled 0.787 ->
-    0.792, per object 0.7707 -> 0.7705, hats 0.94 -> 0.79), the Barrett's 52 of 500 (top-1 48 -> 46 of 50, agreement
-    with PyBullet 462 -> 416): elliptic stays. Convex parts simplified to 1
-    or 2 mm (``part_tolerance``): 3-4% less CPU, 8-9 of 310 moved.
+    15% of its grasps, 8 changes nothing). Alternating on 124 Panda poses
+    (and 75 Barrett grasps), none saves 5% at the same verdicts: tolerance
+    1e-4, 1e-6 or 1e-10, ls_tolerance 0.1, ccd_tolerance 1e-4 and 10
+    ccd_iterations save nothing (within 3.5%); ls_iterations 5, the Euler
+    integrator and caps of 1-3 iterations move 55-102 verdicts; CG, libccd,
+    a sparse Jacobian and no warm start cost 9-51% more. Changes at
+    round-off (tolerances, 20 line-search steps) move 0-3 of 124, so only an
+    exact change keeps the verdicts. The pyramidal cone (``cone``), on the
+    6,200 poses: -13.7% CPU, 641 verdicts moved (337 toward FleX, 304 away:
+    pooled 0.787 -> 0.792, per object 0.7707 -> 0.7705, hats 0.94 -> 0.79),
+    the Barrett's 52 of 500 (top-1 48 -> 46 of 50, agreement with PyBullet
+    462 -> 416): elliptic stays. Convex parts simplified to 1 or 2 mm
+    (``part_tolerance``): 3-4% less CPU, 8-9 of 310 moved.
     """
 
     timestep: float = Engine.timestep  # the engine's defaults (Engine, above)
