@@ -65,8 +65,9 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
         outside = api.p_hold_outside(grasps[0].object, hand, db_path=db_path)
         up = api.object_up(grasps[0].object, db_path=db_path)
         if as_json:
+            flags = api.in_sample(db_path, hand, grasps)
             echo_json([{**g.to_json(), "frames": _frames_json(g, None, rule, model), "p_hold_outside": outside,
-                        "object_up": up} for g in grasps])
+                        "object_up": up, "in_sample": s} for g, s in zip(grasps, flags)])
             return
         for g in grasps:
             _print_grasp(g, rule=rule, model=model, up=up)
@@ -83,8 +84,9 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
     world = api.object_pose_matrix(pose)
     if as_json:
         outside = api.p_hold_outside(found[0].grasp.object, hand, db_path=db_path) if found else []
-        echo_json([{**r.to_json(), "frames": _frames_json(r.grasp, world, rule, model), "p_hold_outside": outside}
-                   for r in found])
+        flags = api.in_sample(db_path, hand, [r.grasp for r in found])
+        echo_json([{**r.to_json(), "frames": _frames_json(r.grasp, world, rule, model), "p_hold_outside": outside,
+                    "in_sample": s} for r, s in zip(found, flags)])
         return
     if not found:
         table = "" if api.planned_on_table(object_name, hand, pose, db_path=db_path) else (
@@ -214,7 +216,9 @@ def _on_table(name: str, hand: str, db_path: Path, top: int, table_at: str, pose
     if as_json:
         outside = api.p_hold_outside(name, hand, db_path=db_path)
         echo_json([{**t.to_json(), "grasps": [{**r.to_json(), "frames": _frames_json(r.grasp, t.object_pose, rule,
-                                                                                       model)} for r in t.grasps],
+                                                                                       model), "in_sample": s}
+                                              for r, s in zip(t.grasps, api.in_sample(db_path, hand,
+                                                                                      [r.grasp for r in t.grasps]))],
                     "p_hold_outside": outside} for t in tables])
     for i, t in enumerate(tables if not as_json else ()):
         pose = ",".join(repr(v) for v in t.object_pose7())  # whole: the same command with it repeats the search
@@ -228,6 +232,7 @@ def _on_table(name: str, hand: str, db_path: Path, top: int, table_at: str, pose
     shown = [r.grasp.object for t in tables for r in t.grasps]
     if shown and not as_json:
         _extrapolated(shown[0], hand, db_path, api.p_hold_outside(shown[0], hand, db_path=db_path))
+        _in_sample([r.grasp for t in tables for r in t.grasps], hand, db_path)
     if not any(t.grasps for t in tables):
         planned = any(api.planned_on_table(name, hand, t.object_pose7(), db_path=db_path) for t in tables)
         table = "" if planned else f", or grasps planned on the table (`{api.table_command(name, hand, db_path)}`)"
