@@ -308,3 +308,7 @@ def test_best_json_says_which_grasps_are_in_sample(db: Path, tmp_path: Path, shi
         code, out, err = grasp("best", "crate", "--hand", "panda", "--db", str(out_db), "--top", "2", "--json")
         assert code == 0, err
         assert [g["in_sample"] for g in json.loads(out)] == [name == "fitted"] * 2, out
+        code, out, err = grasp("best", "crate", "--hand", "panda", "--db", str(out_db), "--on-table", "--no-plan",
+                               "--stable-poses", "1")
+        assert code == 0, err
+        assert ("note: in-sample: " in err) == (name == "fitted"), err  # as plain `best` says it
