@@ -81,13 +81,6 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
     base = floats(robot_base, "--robot-base")
     found = api.best_at(object_name, hand, pose, db_path=db_path, top=top, robot_base=base,
                         max_candidates=max_candidates, misses=misses, plan=plan, seed=seed)
-    world = api.object_pose_matrix(pose)
-    if as_json:
-        outside = api.p_hold_outside(found[0].grasp.object, hand, db_path=db_path) if found else []
-        flags = api.in_sample(db_path, hand, [r.grasp for r in found])
-        echo_json([{**r.to_json(), "frames": _frames_json(r.grasp, world, rule, model), "p_hold_outside": outside,
-                    "in_sample": s} for r, s in zip(found, flags)])
-        return
     if not found:
         table = "" if api.planned_on_table(object_name, hand, pose, db_path=db_path) else (
             ", grasps planned on the table in this resting pose (none is stored; "
@@ -97,6 +90,13 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
                             f"reachable with the object at {object_pose} ({_misses(misses)}); try more of them "
                             f"(--max-candidates {max_candidates * 10}), an object pose nearer the arm{table}{spot}, "
                             "--on-table, or check --robot-base")
+    world = api.object_pose_matrix(pose)
+    if as_json:
+        outside = api.p_hold_outside(found[0].grasp.object, hand, db_path=db_path)
+        flags = api.in_sample(db_path, hand, [r.grasp for r in found])
+        echo_json([{**r.to_json(), "frames": _frames_json(r.grasp, world, rule, model), "p_hold_outside": outside,
+                    "in_sample": s} for r, s in zip(found, flags)])
+        return
     up = api.object_up(found[0].grasp.object, db_path=db_path)
     for r in found:
         _print_grasp(r.grasp, world, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp}, rule,

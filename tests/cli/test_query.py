@@ -272,6 +272,16 @@ def test_an_unreachable_pose_explains_the_miss(box_db: Path) -> None:
                    "nearest ranks tried #1: ", "of 4 tried: ", "--max-candidates 40")
 
 
+def test_an_unreachable_pose_with_json_is_the_same_error(box_db: Path) -> None:
+    """With --json the same miss printed `[]` and exited 0: a script could not tell "none reachable" from success,
+    nor why (the README: exit 1 where `best --object-pose` finds no reachable grasp)."""
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--object-pose",
+                           "3,0,0.05,0,0,0,1", "--max-candidates", "4", "--json")
+    one_line_error(code, err, 1, "none of the 4 best grasps of 'box' for hand 'panda' is reachable",
+                   "nearest ranks tried #1: ")
+    assert out == "", out
+
+
 def test_quaternions_match_scipy() -> None:
     from scipy.spatial.transform import Rotation
 
