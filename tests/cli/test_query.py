@@ -372,6 +372,10 @@ def test_best_says_when_its_ranks_predate_stored_trial_verdicts(box_db: Path, tm
     code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(db))
     assert code == 0 and out.startswith("#1 box/panda"), err
     assert "note: the ranks of box's panda grasps predate trial verdicts" in err and f"--db {db}` re-ranks" in err
+    for pose in ([], ["--object-pose", "0.5,0,0.04,0,0,0,1"]):  # with --json: said on stderr as well (was silent)
+        code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(db), "--json", *pose)
+        assert code == 0 and json.loads(out), err
+        assert "note: the ranks of box's panda grasps predate trial verdicts" in err, (pose, err)
 
 
 def test_a_held_grasp_that_cannot_hold_its_weight_in_every_direction_says_why_both_hold() -> None:
