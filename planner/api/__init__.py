@@ -70,6 +70,7 @@ from planner.api.querying import (  # noqa: F401 - re-exported
     ranking_rule,
     ranks_stale,
     stored_names,
+    untold_ups,
 )
 from planner.api.reaching import (  # noqa: F401 - re-exported
     CANDIDATE_BATCH,

@@ -299,7 +299,8 @@ def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: s
     spec = load_hand(hand or hand_name(path, header.gripper))
     obj = object_spec(header, object_name, command, up, *given)
     # every measure and trial reads them: said; ``grasp calibrate`` has no --up (the shipped model's files stood on +z)
-    lines = (unstated(header, obj, command, given), unstated_up(header, obj, up) if command == "import" else None)
+    untold = unstated_up(header, obj, up) if command == "import" else None
+    lines = (unstated(header, obj, command, given), untold)
     notes = tuple(line for line in lines if line) if note else ()
     lossless = not rescore and header.extras
     if lossless:  # its contacts, joints and measures are of the file's mesh and hand: stored as they are
@@ -315,8 +316,8 @@ def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: s
     with open(path, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):
             digest.update(block)
-    return _Plan(path, spec, obj, lossless, ImportSettings(fmt, str(path), digest.hexdigest(), not lossless), reader,
-                 notes)
+    settings = ImportSettings(fmt, str(path), digest.hexdigest(), not lossless, obj.up if untold else None)
+    return _Plan(path, spec, obj, lossless, settings, reader, notes)
 
 
 def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: Counter, first: int = 0,
