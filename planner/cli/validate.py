@@ -69,11 +69,11 @@ def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], to
                       if summary.rounds > 1 else "")
                    + (f"; stopped at {summary.cap} tried of {', '.join(summary.capped)}: its best {top} are not "
                       "all tried (run again to go on)" if summary.capped else ""))
-    _untold(db_path, objects, hands, as_json)
+    _untold(db_path, objects, hands)
     report_failures(summary.failed_tasks)
 
 
-def _untold(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], as_json: bool) -> None:
+def _untold(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...]) -> None:
     """A note on stderr per object an import took standing on an up no one gave: its trials load it along that
     up's reverse, along its side where it stands otherwise (an ACRONYM mesh, on +y, imported without --up)."""
     for (name, hand), up in sorted(api.untold_ups(db_path=db_path, objects=list(objects) or None,
