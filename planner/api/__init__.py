@@ -43,6 +43,7 @@ from planner.api.calibrating import (
     calibrate,
     calibration_errors,
     fitted_on,
+    in_sample,
     in_sample_grasps,
     report,
     report_and_errors,
@@ -69,6 +70,7 @@ from planner.api.querying import (  # noqa: F401 - re-exported
     ranking_rule,
     ranks_stale,
     stored_names,
+    untold_ups,
 )
 from planner.api.reaching import (  # noqa: F401 - re-exported
     CANDIDATE_BATCH,
@@ -113,7 +115,7 @@ __all__ = [
     "GenerateProgress", "ImportResult", "RankingRule", "ReachableGrasp", "SAMPLERS", "SAMPLER_DEFAULTS", "Summary",
     "SweepSettings", "UnitResult", "ValidationSummary",
     "best", "best_at", "calibrate", "calibration_errors", "check_db", "default_workers", "export", "fitted_on",
-    "generate", "hand", "hands", "import_files", "in_sample_grasps", "objects", "plan_units", "report",
+    "generate", "hand", "hands", "import_files", "in_sample", "in_sample_grasps", "objects", "plan_units", "report",
     "report_and_errors", "resolve_object", "shipped_figures", "show", "stored_names",
     "stored_objects", "validate",
 ]

@@ -74,14 +74,20 @@ def fitted_on(db_path: Path, hand: str, file: Path) -> bool:
 def in_sample_grasps(db_path: Path, hand: str, grasps: Sequence[Grasp]) -> int:
     """How many of ``grasps`` (``hand``'s, read from ``db_path``) carry the labels of a file ``hand``'s p_hold model
     there was fitted on (as :func:`fitted_on` matches it): their p_hold against those labels is no check of it."""
+    return sum(in_sample(db_path, hand, grasps))
+
+
+def in_sample(db_path: Path, hand: str, grasps: Sequence[Grasp]) -> tuple[bool, ...]:
+    """Per grasp of ``grasps`` (``hand``'s, read from ``db_path``), whether it carries the labels of a file
+    ``hand``'s p_hold model there was fitted on (:func:`in_sample_grasps`; ``best --json``'s ``in_sample``)."""
     from planner.present import reliability
 
     if not any(g.file_label is not None for g in grasps):
-        return 0
+        return (False,) * len(grasps)
     with open_db(Path(db_path), create=False, readonly=True) as db:
         fitted = reliability.of_model(db.model_source(hand), db.model(hand))
         hashes = db.label_file_hashes() if fitted is not None and fitted.hashes else {}
-    return reliability.count_in_sample(grasps, fitted, hashes)
+    return reliability.in_sample_flags(grasps, fitted, hashes)
 
 
 def calibrate(label_files: Sequence[Path], *, db_path: Path | None = DEFAULT_DB, poses: int | None = 200, seed: int = 0,

@@ -114,6 +114,17 @@ def object_up(name: str, *, db_path: Path = DEFAULT_DB) -> str:
         return "+z" if row is None else row.up
 
 
+def untold_ups(*, db_path: Path = DEFAULT_DB, objects: Sequence[str] | None = None,
+               hands: Sequence[str] | None = None) -> dict[tuple[str, str], str]:
+    """(object, hand) -> the up an import took the object standing on without being told (its file had no
+    ``object/up``, nor was ``--up``, a sidecar or the registry's given; :meth:`UnitReads.untold_ups`), for
+    ``objects`` and ``hands`` (None: all): its MuJoCo trials load it along that up's reverse."""
+    with open_db(Path(db_path), create=False, readonly=True) as db:
+        found = db.untold_ups()
+    return {(o, h): up for (o, h), up in found.items()
+            if (objects is None or o in objects) and (hands is None or h in hands)}
+
+
 def mesh_modified(name: str, *, db_path: Path = DEFAULT_DB) -> str | None:
     """Where the stored object ``name``'s mesh file was modified after its last unit finished: the file (its grasps
     were planned on the mesh as it was, which ``best`` does not read); None: not modified, or not a file."""

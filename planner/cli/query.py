@@ -65,8 +65,10 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
         outside = api.p_hold_outside(grasps[0].object, hand, db_path=db_path)
         up = api.object_up(grasps[0].object, db_path=db_path)
         if as_json:
+            flags = api.in_sample(db_path, hand, grasps)
             echo_json([{**g.to_json(), "frames": _frames_json(g, None, rule, model), "p_hold_outside": outside,
-                        "object_up": up} for g in grasps])
+                        "object_up": up, "in_sample": s} for g, s in zip(grasps, flags)])
+            _extrapolated(grasps[0].object, hand, db_path, [])  # its notes on stderr (p_hold_outside is a key)
             return
         for g in grasps:
             _print_grasp(g, rule=rule, model=model, up=up)
@@ -80,12 +82,6 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
     base = floats(robot_base, "--robot-base")
     found = api.best_at(object_name, hand, pose, db_path=db_path, top=top, robot_base=base,
                         max_candidates=max_candidates, misses=misses, plan=plan, seed=seed)
-    world = api.object_pose_matrix(pose)
-    if as_json:
-        outside = api.p_hold_outside(found[0].grasp.object, hand, db_path=db_path) if found else []
-        echo_json([{**r.to_json(), "frames": _frames_json(r.grasp, world, rule, model), "p_hold_outside": outside}
-                   for r in found])
-        return
     if not found:
         table = "" if api.planned_on_table(object_name, hand, pose, db_path=db_path) else (
             ", grasps planned on the table in this resting pose (none is stored; "
@@ -95,6 +91,14 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
                             f"reachable with the object at {object_pose} ({_misses(misses)}); try more of them "
                             f"(--max-candidates {max_candidates * 10}), an object pose nearer the arm{table}{spot}, "
                             "--on-table, or check --robot-base")
+    world = api.object_pose_matrix(pose)
+    if as_json:
+        outside = api.p_hold_outside(found[0].grasp.object, hand, db_path=db_path)
+        flags = api.in_sample(db_path, hand, [r.grasp for r in found])
+        echo_json([{**r.to_json(), "frames": _frames_json(r.grasp, world, rule, model), "p_hold_outside": outside,
+                    "in_sample": s} for r, s in zip(found, flags)])
+        _extrapolated(found[0].grasp.object, hand, db_path, [])
+        return
     up = api.object_up(found[0].grasp.object, db_path=db_path)
     for r in found:
         _print_grasp(r.grasp, world, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp}, rule,
@@ -214,7 +218,9 @@ def _on_table(name: str, hand: str, db_path: Path, top: int, table_at: str, pose
     if as_json:
         outside = api.p_hold_outside(name, hand, db_path=db_path)
         echo_json([{**t.to_json(), "grasps": [{**r.to_json(), "frames": _frames_json(r.grasp, t.object_pose, rule,
-                                                                                       model)} for r in t.grasps],
+                                                                                       model), "in_sample": s}
+                                              for r, s in zip(t.grasps, api.in_sample(db_path, hand,
+                                                                                      [r.grasp for r in t.grasps]))],
                     "p_hold_outside": outside} for t in tables])
     for i, t in enumerate(tables if not as_json else ()):
         pose = ",".join(repr(v) for v in t.object_pose7())  # whole: the same command with it repeats the search
@@ -226,8 +232,10 @@ def _on_table(name: str, hand: str, db_path: Path, top: int, table_at: str, pose
             _print_grasp(r.grasp, t.object_pose, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp}, rule,
                          model, api.object_up(r.grasp.object, db_path=db_path))
     shown = [r.grasp.object for t in tables for r in t.grasps]
-    if shown and not as_json:
-        _extrapolated(shown[0], hand, db_path, api.p_hold_outside(shown[0], hand, db_path=db_path))
+    if shown:  # with --json its notes on stderr, p_hold_outside and in_sample as keys
+        _extrapolated(shown[0], hand, db_path, [] if as_json else api.p_hold_outside(shown[0], hand, db_path=db_path))
+        if not as_json:
+            _in_sample([r.grasp for t in tables for r in t.grasps], hand, db_path)
     if not any(t.grasps for t in tables):
         planned = any(api.planned_on_table(name, hand, t.object_pose7(), db_path=db_path) for t in tables)
         table = "" if planned else f", or grasps planned on the table (`{api.table_command(name, hand, db_path)}`)"

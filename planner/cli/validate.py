@@ -69,7 +69,23 @@ def validate(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...], to
                       if summary.rounds > 1 else "")
                    + (f"; stopped at {summary.cap} tried of {', '.join(summary.capped)}: its best {top} are not "
                       "all tried (run again to go on)" if summary.capped else ""))
+    _untold(db_path, objects, hands)
     report_failures(summary.failed_tasks)
+
+
+def _untold(db_path: Path, objects: tuple[str, ...], hands: tuple[str, ...]) -> None:
+    """A note on stderr per object an import took standing on an up no one gave: its trials load it along that
+    up's reverse, along its side where it stands otherwise (an ACRONYM mesh, on +y, imported without --up)."""
+    for (name, hand), up in sorted(api.untold_ups(db_path=db_path, objects=list(objects) or None,
+                                                  hands=list(hands) or None).items()):
+        click.echo(f"note: '{name}' ({hand}) was imported from a file without object/up and taken standing on {up} "
+                   f"(no --up, sidecar or registry gave one): its trials load it along its frame's {_down(up)}; if "
+                   "it stands on another axis (ACRONYM's own meshes stand on +y), these verdicts are of it lying on "
+                   "its side: import the file again with --up AXIS into another --db", err=True)
+
+
+def _down(up: str) -> str:
+    return ("-" if up.startswith("+") else "+") + up[1:]
 
 
 def _tried(summary: api.ValidationSummary, engine: str, closure_only: bool) -> str:

@@ -20,16 +20,28 @@ if TYPE_CHECKING:
     from planner.datasets.importer import _Plan as Plan
 
 
-def check_objects(db: Database, plans: Sequence[Plan]) -> None:
-    """One name, one object, before anything is written: a file's object against the one the database stores under
-    its name (mesh, mass properties, mass and friction; :func:`planner.db.objects.differs`) and against the other
-    files' of this import that name it."""
+def check_files(plans: Sequence[Plan]) -> list[PreparedObject]:
+    """One name, one object among the files of this import (mesh, scale, mass, friction, up), before the database is
+    opened: a refused import leaves no empty database at --db. Each file's object, in the order of ``plans``."""
+    objs = [prepare(plan.spec) for plan in plans]
+    named: dict[str, tuple[Path, PreparedObject]] = {}
+    for plan, obj in zip(plans, objs):
+        first = named.setdefault(plan.spec.name, (plan.path, obj))
+        why = _apart(first[1], obj)
+        if why:
+            raise InputError(f"{plan.path} and {first[0]} name one object '{plan.spec.name}' with {why}: import them "
+                             "into different --db")
+    return objs
+
+
+def check_objects(db: Database, plans: Sequence[Plan], objs: Sequence[PreparedObject]) -> None:
+    """One name, one object, before anything is written: a file's object (``objs``, :func:`check_files`') against
+    the one the database stores under its name (mesh, mass properties, mass and friction;
+    :func:`planner.db.objects.differs`)."""
     from planner.db.objects import differs
 
-    named: dict[str, tuple[Path, PreparedObject]] = {}
-    for plan in plans:
+    for plan, obj in zip(plans, objs):
         name = plan.spec.name
-        obj = prepare(plan.spec)
         row = db.object_row(name)
         why = differs(row, obj) if row is not None else None
         if why:
@@ -37,10 +49,18 @@ def check_objects(db: Database, plans: Sequence[Plan]) -> None:
         done = (name, 0) in db.units_done(plan.hand.name, plan.settings.digest, 0)  # imported before: skipped
         if row is not None and plan.lossless and not done:
             check_not_stored(db, plan)
-        first = named.setdefault(name, (plan.path, obj))
-        if first[1].mesh_hash != obj.mesh_hash or not math.isclose(first[1].mass, obj.mass, rel_tol=PROPERTY_RTOL):
-            raise InputError(f"{plan.path} and {first[0]} name one object '{name}' with other meshes, scales or "
-                             "masses: import them into different --db")
+
+
+def _apart(first: PreparedObject, obj: PreparedObject) -> str | None:
+    """How two files' objects of one name differ (None: they do not): a copy of one file read beside a sidecar of
+    another friction or up was taken at the first's without a word."""
+    if first.mesh_hash != obj.mesh_hash or not math.isclose(first.mass, obj.mass, rel_tol=PROPERTY_RTOL):
+        return "other meshes, scales or masses"
+    if not math.isclose(first.friction, obj.friction, rel_tol=PROPERTY_RTOL):
+        return f"friction {first.friction:g} and {obj.friction:g}"
+    if first.spec.up != obj.spec.up:
+        return f"up {first.spec.up} and {obj.spec.up}"
+    return None
 
 
 def check_not_stored(db: Database, plan: Plan) -> None:

@@ -20,10 +20,14 @@ class ImportSettings:
     file: str
     sha256: str
     rescore: bool
+    #: the up the object was taken standing on untold (the file gives no object/up, nor did --up, a sidecar or
+    #: the registry): ``grasp validate`` says it; None where told. Not part of :attr:`digest`
+    up_taken: str | None = None
 
     def to_json(self) -> str:
+        taken = {} if self.up_taken is None else {"up_taken": self.up_taken}
         return json.dumps({"import": self.format, "file": self.file, "sha256": self.sha256,
-                           "rescore": self.rescore, "import_version": IMPORT_VERSION}, sort_keys=True)
+                           "rescore": self.rescore, "import_version": IMPORT_VERSION, **taken}, sort_keys=True)
 
     @property
     def digest(self) -> str:

@@ -58,7 +58,7 @@ import numpy as np
 from planner import prepare as preparing
 from planner.datasets import formats
 from planner.datasets.file_objects import HAND_ALIASES, hand_name, object_spec, unstated, unstated_up
-from planner.datasets.import_checks import check_objects
+from planner.datasets.import_checks import check_files, check_objects
 from planner.datasets.import_result import ImportResult, ImportSettings
 from planner.datasets.registry import Openings, Reader
 from planner.db.hand_files import check_hand_files
@@ -136,6 +136,7 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
         if plan.lossless:  # and its trials' columns
             plan.reader.grasps(plan.path, plan.hand, plan.spec.name, file_poses)
             plan.reader.simulation(plan.path)
+    objs = check_files(plans)  # every file's: the same bytes beside another mesh (sidecar) are another object
     results: dict[int, ImportResult] = {}
 
     def finish(index: int, result: ImportResult) -> None:
@@ -147,7 +148,7 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
                                    result.error, same_as=result.path))
 
     with open_for_writing(Path(db_path)) as db:
-        check_objects(db, plans)  # every file's: the same bytes beside another mesh are another object, refused
+        check_objects(db, plans, objs)
         check_hand_files(db, {p.hand.name for p in plans})
         rule = db.rule()
         db.apply_rule(rule)
@@ -298,7 +299,8 @@ def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: s
     spec = load_hand(hand or hand_name(path, header.gripper))
     obj = object_spec(header, object_name, command, up, *given)
     # every measure and trial reads them: said; ``grasp calibrate`` has no --up (the shipped model's files stood on +z)
-    lines = (unstated(header, obj, command, given), unstated_up(header, obj, up) if command == "import" else None)
+    untold = unstated_up(header, obj, up) if command == "import" else None
+    lines = (unstated(header, obj, command, given), untold)
     notes = tuple(line for line in lines if line) if note else ()
     lossless = not rescore and header.extras
     if lossless:  # its contacts, joints and measures are of the file's mesh and hand: stored as they are
@@ -314,8 +316,8 @@ def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: s
     with open(path, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):
             digest.update(block)
-    return _Plan(path, spec, obj, lossless, ImportSettings(fmt, str(path), digest.hexdigest(), not lossless), reader,
-                 notes)
+    settings = ImportSettings(fmt, str(path), digest.hexdigest(), not lossless, obj.up if untold else None)
+    return _Plan(path, spec, obj, lossless, settings, reader, notes)
 
 
 def _rescore(poses: np.ndarray, hand: HandSpec, obj: PreparedObject, rejected: Counter, first: int = 0,

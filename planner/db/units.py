@@ -112,6 +112,19 @@ class UnitReads:
         return out
 
     @_reads
+    def untold_ups(self) -> dict[tuple[str, str], str]:
+        """(object, hand) -> the up an import took its object standing on untold (its unit's settings' ``up_taken``:
+        the file gave no object/up, nor --up, a sidecar or the registry), where it is still the object's stored up."""
+        rows = self._conn.execute("SELECT DISTINCT u.object, u.hand, u.settings, o.up FROM units u JOIN objects o ON "
+                                  "o.name = u.object WHERE u.status = 'done' AND u.settings LIKE '%\"up_taken\"%'")
+        out = {}
+        for r in rows:
+            taken = json.loads(r["settings"]).get("up_taken")
+            if taken is not None and taken == r["up"]:
+                out[(r["object"], r["hand"])] = str(taken)
+        return out
+
+    @_reads
     def names_by_source(self) -> dict[tuple[str, float], list[str]]:
         """(source, scale) -> the names of the objects stored from that file at that scale."""
         out: dict[tuple[str, float], list[str]] = {}

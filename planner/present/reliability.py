@@ -74,12 +74,19 @@ def file_labels(grasps: Sequence[Grasp], scores: np.ndarray, fitted: FittedOn | 
 
 def count_in_sample(grasps: Sequence[Grasp], fitted: FittedOn | None, hashes: Mapping[int, str] | None) -> int:
     """How many of ``grasps`` carry the labels of a file ``fitted`` holds (:func:`file_labels`'s arguments)."""
+    return sum(in_sample_flags(grasps, fitted, hashes))
+
+
+def in_sample_flags(grasps: Sequence[Grasp], fitted: FittedOn | None,
+                    hashes: Mapping[int, str] | None) -> tuple[bool, ...]:
+    """Per grasp of ``grasps``, whether it carries the labels of a file ``fitted`` holds (:func:`file_labels`'s
+    arguments; ``fitted`` None: no model, none is)."""
     if fitted is None:
-        return 0
+        return (False,) * len(grasps)
     hashes = hashes or {}
-    return sum(g.file_label is not None and fitted.holds(_file_name(g.file_label.source),
-                                                         None if g.unit_id is None else hashes.get(g.unit_id))
-               for g in grasps)
+    return tuple(g.file_label is not None and fitted.holds(_file_name(g.file_label.source),
+                                                           None if g.unit_id is None else hashes.get(g.unit_id))
+                 for g in grasps)
 
 
 @dataclass(frozen=True)

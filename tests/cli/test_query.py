@@ -272,6 +272,16 @@ def test_an_unreachable_pose_explains_the_miss(box_db: Path) -> None:
                    "nearest ranks tried #1: ", "of 4 tried: ", "--max-candidates 40")
 
 
+def test_an_unreachable_pose_with_json_is_the_same_error(box_db: Path) -> None:
+    """With --json the same miss printed `[]` and exited 0: a script could not tell "none reachable" from success,
+    nor why (the README: exit 1 where `best --object-pose` finds no reachable grasp)."""
+    code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--object-pose",
+                           "3,0,0.05,0,0,0,1", "--max-candidates", "4", "--json")
+    one_line_error(code, err, 1, "none of the 4 best grasps of 'box' for hand 'panda' is reachable",
+                   "nearest ranks tried #1: ")
+    assert out == "", out
+
+
 def test_quaternions_match_scipy() -> None:
     from scipy.spatial.transform import Rotation
 
@@ -362,6 +372,10 @@ def test_best_says_when_its_ranks_predate_stored_trial_verdicts(box_db: Path, tm
     code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(db))
     assert code == 0 and out.startswith("#1 box/panda"), err
     assert "note: the ranks of box's panda grasps predate trial verdicts" in err and f"--db {db}` re-ranks" in err
+    for pose in ([], ["--object-pose", "0.5,0,0.04,0,0,0,1"]):  # with --json: said on stderr as well (was silent)
+        code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(db), "--json", *pose)
+        assert code == 0 and json.loads(out), err
+        assert "note: the ranks of box's panda grasps predate trial verdicts" in err, (pose, err)
 
 
 def test_a_held_grasp_that_cannot_hold_its_weight_in_every_direction_says_why_both_hold() -> None:

@@ -284,3 +284,31 @@ def test_in_sample_is_told_by_the_label_files_bytes_not_their_names(db: Path, tm
     assert said(by_bytes, other, "other") == (False, False, False)
     assert said(by_bytes, renamed, "renamed") == (True, True, True)
     assert said(by_name, other, "named") == (True, True, True)  # no hashes: the name rule, as before
+
+
+def test_best_json_says_which_grasps_are_in_sample(db: Path, tmp_path: Path, shipped_models: None) -> None:
+    """`best` printed an in-sample note where its grasps carry the labels of a file p_hold was fitted on; `--json`,
+    what a script reads, had no such field."""
+    import json
+    from dataclasses import replace
+
+    from planner.calibration.labels import file_digest
+    from planner.calibration.model import default_model
+    from planner.db.store import open_for_writing
+
+    fitted, _ = _labelled(db, tmp_path)
+    shipped = default_model("panda")
+    assert shipped is not None
+    for name, hashes in (("fitted", (file_digest(fitted),)), ("other", ("0" * 64,))):
+        out_db = tmp_path / f"{name}.db"
+        with open_for_writing(out_db) as base:
+            base.write_model(replace(shipped, labels=("crate.h5",), label_hashes=hashes), "test", base.rule())
+        code, _, err = grasp("import", str(fitted), "--db", str(out_db))
+        assert code == 0, err
+        code, out, err = grasp("best", "crate", "--hand", "panda", "--db", str(out_db), "--top", "2", "--json")
+        assert code == 0, err
+        assert [g["in_sample"] for g in json.loads(out)] == [name == "fitted"] * 2, out
+        code, out, err = grasp("best", "crate", "--hand", "panda", "--db", str(out_db), "--on-table", "--no-plan",
+                               "--stable-poses", "1")
+        assert code == 0, err
+        assert ("note: in-sample: " in err) == (name == "fitted"), err  # as plain `best` says it

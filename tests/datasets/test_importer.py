@@ -460,3 +460,44 @@ def test_the_same_bytes_beside_another_mesh_are_not_said_the_same_file(db: Path,
     code, out, err = grasp("import", str(first), str(second), "--db", str(tmp_path / "a.db"), "--workers", "1")
     one_line_error(code, err, 2, f"{second} and {first} name one object 'crate' with other meshes")
     assert "the same file" not in out, out
+
+
+@pytest.mark.parametrize("sidecar", ["friction = 0.9", 'up = "+y"'])
+def test_copies_of_one_file_beside_one_mesh_with_other_sidecars_are_refused(db: Path, tmp_path: Path,
+                                                                           sidecar: str) -> None:
+    """Two copies of one file (no object/friction, no object/up) beside copies of one mesh, one with a sidecar of
+    another friction or up: read once as "the same file", the first's friction (up) taken for both without a word.
+    Refused with the two paths and what differs, as two meshes under one name are."""
+    first, _ = foreign_file(db, tmp_path / "d1", "box", "crate")
+    with h5py.File(first, "r+") as f:
+        del f["object/friction"]
+    second = tmp_path / "d2" / "foreign" / "grasps" / "crate.h5"
+    shutil.copytree(tmp_path / "d1" / "foreign", second.parents[1])
+    (second.parents[1] / "meshes" / "crate.toml").write_text(sidecar + "\n")
+    out_db = tmp_path / "a.db"
+    code, out, err = grasp("import", str(first), str(second), "--db", str(out_db), "--workers", "1")
+    what = "friction 0.5 and 0.9" if "friction" in sidecar else "up +z and +y"
+    one_line_error(code, err, 2, f"{second} and {first} name one object 'crate' with {what}")
+    assert "the same file" not in out and not out_db.exists(), out
+
+
+def test_validate_says_an_imported_objects_up_was_taken_untold(db: Path, tmp_path: Path) -> None:
+    """A file without object/up imported without --up stands on +z: its MuJoCo trials load it along -z and
+    `validate` said "held" with no word of it (an ACRONYM mug, on +y, tried lying on its side); the import's
+    one line was the only warning. Told (--up), nothing is said; the unit's digest is the same either way."""
+    foreign, _ = foreign_file(db, tmp_path, "box", "crate")
+    for told, name in (([], "untold"), (["--up", "+z"], "told")):
+        out_db = tmp_path / f"{name}.db"
+        code, _, err = grasp("import", str(foreign), "--db", str(out_db), "--workers", "1", *told)
+        assert code == 0 and ("no object/up" in err) == (not told), err
+        code, out, err = grasp("validate", "--db", str(out_db), "--top", "1", "--robust", "0", "--workers", "1")
+        assert code == 0 and "validated 1 grasps" in out, err
+        said = [line for line in err.splitlines() if "taken standing on +z" in line]
+        assert said == ([] if told else ["note: 'crate' (panda) was imported from a file without object/up and "
+                                         "taken standing on +z (no --up, sidecar or registry gave one): its trials "
+                                         "load it along its frame's -z; if it stands on another axis (ACRONYM's own "
+                                         "meshes stand on +y), these verdicts are of it lying on its side: import "
+                                         "the file again with --up AXIS into another --db"]), err
+    with sqlite3.connect(tmp_path / "untold.db") as a, sqlite3.connect(tmp_path / "told.db") as b:
+        assert a.execute("SELECT settings_hash FROM units").fetchall() == \
+            b.execute("SELECT settings_hash FROM units").fetchall()
