@@ -27,7 +27,7 @@ def check_files(plans: Sequence[Plan]) -> list[PreparedObject]:
     named: dict[str, tuple[Path, PreparedObject]] = {}
     for plan, obj in zip(plans, objs):
         first = named.setdefault(plan.spec.name, (plan.path, obj))
-        why = _apart(first[1], obj)
+        why = _apart(obj, first[1])  # its values in the order the paths are said
         if why:
             raise InputError(f"{plan.path} and {first[0]} name one object '{plan.spec.name}' with {why}: import them "
                              "into different --db")
@@ -52,8 +52,8 @@ def check_objects(db: Database, plans: Sequence[Plan], objs: Sequence[PreparedOb
 
 
 def _apart(first: PreparedObject, obj: PreparedObject) -> str | None:
-    """How two files' objects of one name differ (None: they do not): a copy of one file read beside a sidecar of
-    another friction or up was taken at the first's without a word."""
+    """How two files' objects of one name differ, ``first``'s value said first (None: they do not): a copy of one
+    file read beside a sidecar of another friction or up was taken at the first's without a word."""
     if first.mesh_hash != obj.mesh_hash or not math.isclose(first.mass, obj.mass, rel_tol=PROPERTY_RTOL):
         return "other meshes, scales or masses"
     if not math.isclose(first.friction, obj.friction, rel_tol=PROPERTY_RTOL):

@@ -476,7 +476,9 @@ def test_copies_of_one_file_beside_one_mesh_with_other_sidecars_are_refused(db: 
     (second.parents[1] / "meshes" / "crate.toml").write_text(sidecar + "\n")
     out_db = tmp_path / "a.db"
     code, out, err = grasp("import", str(first), str(second), "--db", str(out_db), "--workers", "1")
-    what = "friction 0.5 and 0.9" if "friction" in sidecar else "up +z and +y"
+    # each value beside its path: the second's (its sidecar's) first, as its path is (the values were said the
+    # other way round, "d2 and d1 ... friction 0.5 and 0.9" where d2's is 0.9)
+    what = "friction 0.9 and 0.5" if "friction" in sidecar else "up +y and +z"
     one_line_error(code, err, 2, f"{second} and {first} name one object 'crate' with {what}")
     assert "the same file" not in out and not out_db.exists(), out
 
@@ -501,3 +503,4 @@ def test_validate_says_an_imported_objects_up_was_taken_untold(db: Path, tmp_pat
     with sqlite3.connect(tmp_path / "untold.db") as a, sqlite3.connect(tmp_path / "told.db") as b:
         assert a.execute("SELECT settings_hash FROM units").fetchall() == \
             b.execute("SELECT settings_hash FROM units").fetchall()
+
