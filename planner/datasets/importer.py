@@ -137,6 +137,8 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
             plan.reader.grasps(plan.path, plan.hand, plan.spec.name, file_poses)
             plan.reader.simulation(plan.path)
     objs = check_files(plans)  # every file's: the same bytes beside another mesh (sidecar) are another object
+    told = {same[i] for i, plan in enumerate(plans) if plan.settings.up_taken is None}  # a copy's sidecar gave it
+    plans = [replace(p, settings=replace(p.settings, up_taken=None)) if i in told else p for i, p in enumerate(plans)]
     results: dict[int, ImportResult] = {}
 
     def finish(index: int, result: ImportResult) -> None:
@@ -157,6 +159,8 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
             if same[i] != i:
                 continue
             if (plan.spec.name, 0) in db.units_done(plan.hand.name, plan.settings.digest, 0):
+                if plan.settings.up_taken is None:  # told now (--up, a sidecar): `validate` says it no more
+                    db.up_told(plan.spec.name, plan.hand.name, plan.settings.digest)
                 # its stored grasps whose file row has a label, where none of them carries it (not a file of
                 # which no pose was kept, nor the labels of poses dropped: a new import keeps neither)
                 stored = db.unit_file_labels(plan.spec.name, plan.hand.name, plan.settings.digest, 0)

@@ -504,3 +504,23 @@ def test_validate_says_an_imported_objects_up_was_taken_untold(db: Path, tmp_pat
         assert a.execute("SELECT settings_hash FROM units").fetchall() == \
             b.execute("SELECT settings_hash FROM units").fetchall()
 
+
+def test_an_up_told_later_is_no_longer_said_untold(db: Path, tmp_path: Path) -> None:
+    """The same file imported again with --up (skipped: imported before), or read once beside a copy whose sidecar
+    gives the up: the up is told, yet the unit kept `up_taken` and `validate` went on saying no one gave it."""
+    from planner import api
+
+    foreign, _ = foreign_file(db, tmp_path / "d1", "box", "crate")
+    out_db = tmp_path / "a.db"
+    code, _, err = grasp("import", str(foreign), "--db", str(out_db), "--workers", "1")
+    assert code == 0 and api.untold_ups(db_path=out_db) == {("crate", "panda"): "+z"}, err
+    code, out, err = grasp("import", str(foreign), "--db", str(out_db), "--workers", "1", "--up", "+z")
+    assert code == 0 and "skipped" in out and api.untold_ups(db_path=out_db) == {}, (out, err)
+    copy = tmp_path / "d2" / "foreign" / "grasps" / "crate.h5"
+    shutil.copytree(tmp_path / "d1" / "foreign", copy.parents[1])
+    (copy.parents[1] / "meshes" / "crate.toml").write_text('up = "+z"\n')
+    for order in ((foreign, copy), (copy, foreign)):
+        out_db = tmp_path / f"{order[0].parents[2].name}.db"
+        code, out, err = grasp("import", *map(str, order), "--db", str(out_db), "--workers", "1")
+        assert code == 0 and "the same file" in out and api.untold_ups(db_path=out_db) == {}, (out, err)
+
