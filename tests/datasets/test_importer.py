@@ -524,3 +524,15 @@ def test_an_up_told_later_is_no_longer_said_untold(db: Path, tmp_path: Path) -> 
         code, out, err = grasp("import", *map(str, order), "--db", str(out_db), "--workers", "1")
         assert code == 0 and "the same file" in out and api.untold_ups(db_path=out_db) == {}, (out, err)
 
+
+def test_validate_in_pybullet_does_not_say_an_untold_up(db: Path, tmp_path: Path) -> None:
+    """PyBullet's shake loads the object along the hand's six axes whatever its up: the note that "its trials load
+    it along its frame's -z" (MuJoCo's) was said of its verdicts too."""
+    foreign, _ = foreign_file(db, tmp_path, "box", "crate")
+    out_db = tmp_path / "a.db"
+    code, _, err = grasp("import", str(foreign), "--db", str(out_db), "--workers", "1")
+    assert code == 0 and "no object/up" in err, err
+    code, out, err = grasp("validate", "--db", str(out_db), "--top", "1", "--robust", "0", "--workers", "1",
+                           "--engine", "pybullet")
+    assert code == 0 and "validated 1 grasps in pybullet" in out, err
+    assert "taken standing on" not in err, err
