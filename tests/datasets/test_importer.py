@@ -462,11 +462,11 @@ def test_the_same_bytes_beside_another_mesh_are_not_said_the_same_file(db: Path,
     assert "the same file" not in out, out
 
 
-@pytest.mark.parametrize("sidecar", ["friction = 0.9", 'up = "+y"'])
+@pytest.mark.parametrize("sidecar", ["friction = 0.9", 'up = "+y"', "com = [0.01, 0, 0]"])
 def test_copies_of_one_file_beside_one_mesh_with_other_sidecars_are_refused(db: Path, tmp_path: Path,
                                                                            sidecar: str) -> None:
     """Two copies of one file (no object/friction, no object/up) beside copies of one mesh, one with a sidecar of
-    another friction or up: read once as "the same file", the first's friction (up) taken for both without a word.
+    another friction, up or centre of mass: read once as "the same file", the first's taken for both without a word.
     Refused with the two paths and what differs, as two meshes under one name are."""
     first, _ = foreign_file(db, tmp_path / "d1", "box", "crate")
     with h5py.File(first, "r+") as f:
@@ -478,7 +478,8 @@ def test_copies_of_one_file_beside_one_mesh_with_other_sidecars_are_refused(db: 
     code, out, err = grasp("import", str(first), str(second), "--db", str(out_db), "--workers", "1")
     # each value beside its path: the second's (its sidecar's) first, as its path is (the values were said the
     # other way round, "d2 and d1 ... friction 0.5 and 0.9" where d2's is 0.9)
-    what = "friction 0.9 and 0.5" if "friction" in sidecar else "up +y and +z"
+    what = {"f": "friction 0.9 and 0.5", "u": "up +y and +z",  # a com as well: read once, the second's dropped
+            "c": "centres of mass [0.01, 0, 0] and [0, 0, 0] m (or other inertias)"}[sidecar[0]]
     one_line_error(code, err, 2, f"{second} and {first} name one object 'crate' with {what}")
     assert "the same file" not in out and not out_db.exists(), out
 
