@@ -137,7 +137,8 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
             plan.reader.grasps(plan.path, plan.hand, plan.spec.name, file_poses)
             plan.reader.simulation(plan.path)
     objs = check_files(plans)  # every file's: the same bytes beside another mesh (sidecar) are another object
-    told = {same[i] for i, plan in enumerate(plans) if plan.settings.up_taken is None}  # a copy's sidecar gave it
+    # a unit's up is told where any copy of its file's is (a sidecar's beside one; check_files: the same up)
+    told = {same[i] for i, plan in enumerate(plans) if plan.settings.up_taken is None}
     plans = [replace(p, settings=replace(p.settings, up_taken=None)) if i in told else p for i, p in enumerate(plans)]
     results: dict[int, ImportResult] = {}
 
