@@ -57,7 +57,7 @@ import numpy as np
 
 from planner import prepare as preparing
 from planner.datasets import formats
-from planner.datasets.file_objects import HAND_ALIASES, hand_name, object_spec, unstated, unstated_up
+from planner.datasets.file_objects import HAND_ALIASES, hand_name, object_spec, replaced, unstated, unstated_up
 from planner.datasets.import_checks import check_files, check_objects
 from planner.datasets.import_result import ImportResult, ImportSettings
 from planner.datasets.registry import Openings, Reader
@@ -305,7 +305,7 @@ def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: s
     obj = object_spec(header, object_name, command, up, *given)
     # every measure and trial reads them: said; ``grasp calibrate`` has no --up (the shipped model's files stood on +z)
     untold = unstated_up(header, obj, up) if command == "import" else None
-    lines = (unstated(header, obj, command, given), untold)
+    lines = (unstated(header, obj, command, given), untold, replaced(header, obj))
     notes = tuple(line for line in lines if line) if note else ()
     lossless = not rescore and header.extras
     if lossless:  # its contacts, joints and measures are of the file's mesh and hand: stored as they are

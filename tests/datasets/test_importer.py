@@ -537,3 +537,21 @@ def test_validate_in_pybullet_does_not_say_an_untold_up(db: Path, tmp_path: Path
                            "--engine", "pybullet")
     assert code == 0 and "validated 1 grasps in pybullet" in out, err
     assert "taken standing on" not in err, err
+
+
+def test_a_files_own_values_replacing_its_meshs_sidecar_are_said(db: Path, tmp_path: Path) -> None:
+    """A file with its own object/friction and object/up beside a mesh whose sidecar gives others: the file's are
+    taken (its grasps were measured with them), and the sidecar's were dropped without a word (`generate` says a
+    replaced sidecar value)."""
+    foreign, _ = foreign_file(db, tmp_path, "box", "crate")
+    with h5py.File(foreign, "r+") as f:
+        f["object/up"] = "+z"
+        friction = float(f["object/friction"][()])
+    (foreign.parents[1] / "meshes" / "crate.toml").write_text(f'friction = {friction * 2}\nup = "+y"\n')
+    out_db = tmp_path / "a.db"
+    code, _, err = grasp("import", str(foreign), "--db", str(out_db), "--workers", "1")
+    assert code == 0, err
+    assert f"{foreign}: its object/friction {friction:g} replaces crate.toml's friction {friction * 2:g}; its " \
+           "object/up +z replaces crate.toml's up +y (its grasps were measured with the file's)" in err, err
+    with sqlite3.connect(out_db) as conn:
+        assert conn.execute("SELECT friction, up FROM objects").fetchone() == (friction, "+z")
