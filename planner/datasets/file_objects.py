@@ -105,6 +105,27 @@ def unstated_up(h: AcronymHeader, spec: ObjectSpec, up: str | None = None) -> st
             f"default); if it stands on another axis, pass --up AXIS (ACRONYM's own meshes stand on +y: --up +y)")
 
 
+def replaced(h: AcronymHeader, spec: ObjectSpec) -> str | None:
+    """The line said where the file's own ``object/mass``, ``object/friction`` or ``object/up`` replaces another
+    value the sidecar beside its mesh gives (its grasps were measured with the file's; ``grasp generate`` on the
+    mesh takes the sidecar's); None where none does."""
+    own = {"mass": h.mass, "friction": h.friction, "up": h.up}
+    said = []
+    for where, given in file_values(spec.source, spec):
+        for key, value in own.items():
+            other = given.get(key)
+            if value is None or other is None or _same(key, value, other):
+                continue
+            said.append(f"its object/{key} {value:g} replaces {where}'s {key} {other:g}" if key != "up" else
+                        f"its object/up {value} replaces {where}'s up {other}")
+    return f"{h.path}: {'; '.join(said)} (its grasps were measured with the file's)" if said else None
+
+
+def _same(key: str, value: object, other: object) -> bool:
+    return value == other if key == "up" else math.isclose(float(value), float(other),  # type: ignore[arg-type]
+                                                           rel_tol=PROPERTY_RTOL)
+
+
 def _with_inertial(h: AcronymHeader, spec: ObjectSpec) -> ObjectSpec:
     """``spec`` with the centre of mass and inertia this project's own file (one with ``object/mesh_sha256``)
     gives where they are not its mesh's at uniform density (a URDF's or a sidecar's when it was planned): its

@@ -14,6 +14,7 @@ from planner.db.store import Database
 from planner.errors import InputError
 from planner.geometry.frames import same_poses
 from planner.geometry.solid import PreparedObject, prepare
+from planner.record.field import same_inertial
 from planner.specs.objects import PROPERTY_RTOL
 
 if TYPE_CHECKING:
@@ -27,7 +28,7 @@ def check_files(plans: Sequence[Plan]) -> list[PreparedObject]:
     named: dict[str, tuple[Path, PreparedObject]] = {}
     for plan, obj in zip(plans, objs):
         first = named.setdefault(plan.spec.name, (plan.path, obj))
-        why = _apart(first[1], obj)
+        why = _apart(obj, first[1])  # its values in the order the paths are said
         if why:
             raise InputError(f"{plan.path} and {first[0]} name one object '{plan.spec.name}' with {why}: import them "
                              "into different --db")
@@ -52,15 +53,22 @@ def check_objects(db: Database, plans: Sequence[Plan], objs: Sequence[PreparedOb
 
 
 def _apart(first: PreparedObject, obj: PreparedObject) -> str | None:
-    """How two files' objects of one name differ (None: they do not): a copy of one file read beside a sidecar of
-    another friction or up was taken at the first's without a word."""
+    """How two files' objects of one name differ, ``first``'s value said first (None: they do not): a copy of one
+    file read beside a sidecar of another friction, up or centre of mass was taken at the first's without a word."""
     if first.mesh_hash != obj.mesh_hash or not math.isclose(first.mass, obj.mass, rel_tol=PROPERTY_RTOL):
         return "other meshes, scales or masses"
     if not math.isclose(first.friction, obj.friction, rel_tol=PROPERTY_RTOL):
         return f"friction {first.friction:g} and {obj.friction:g}"
     if first.spec.up != obj.spec.up:
         return f"up {first.spec.up} and {obj.spec.up}"
+    if not same_inertial(first.com, first.inertia, obj.com, obj.inertia):  # a sidecar's com (or a URDF's inertia)
+        return f"centres of mass {_point(first.com)} and {_point(obj.com)} m (or other inertias)"
     return None
+
+
+def _point(values: np.ndarray) -> str:
+    """A centre of mass (3,) [m] as said: to 0.1 um (a mesh's own centre at 1e-17 said 0), no negative zeros."""
+    return "[" + ", ".join(f"{v:.4g}" for v in np.round(np.ravel(values), 7) + 0.0) + "]"
 
 
 def check_not_stored(db: Database, plan: Plan) -> None:

@@ -57,7 +57,7 @@ import numpy as np
 
 from planner import prepare as preparing
 from planner.datasets import formats
-from planner.datasets.file_objects import HAND_ALIASES, hand_name, object_spec, unstated, unstated_up
+from planner.datasets.file_objects import HAND_ALIASES, hand_name, object_spec, replaced, unstated, unstated_up
 from planner.datasets.import_checks import check_files, check_objects
 from planner.datasets.import_result import ImportResult, ImportSettings
 from planner.datasets.registry import Openings, Reader
@@ -137,6 +137,9 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
             plan.reader.grasps(plan.path, plan.hand, plan.spec.name, file_poses)
             plan.reader.simulation(plan.path)
     objs = check_files(plans)  # every file's: the same bytes beside another mesh (sidecar) are another object
+    # a unit's up is told where any copy of its file's is (a sidecar's beside one; check_files: the same up)
+    told = {same[i] for i, plan in enumerate(plans) if plan.settings.up_taken is None}
+    plans = [replace(p, settings=replace(p.settings, up_taken=None)) if i in told else p for i, p in enumerate(plans)]
     results: dict[int, ImportResult] = {}
 
     def finish(index: int, result: ImportResult) -> None:
@@ -157,6 +160,8 @@ def import_files(paths: Sequence[Path], db_path: Path, *, fmt: str = "acronym", 
             if same[i] != i:
                 continue
             if (plan.spec.name, 0) in db.units_done(plan.hand.name, plan.settings.digest, 0):
+                if plan.settings.up_taken is None:  # told now (--up, a sidecar): `validate` says it no more
+                    db.up_told(plan.spec.name, plan.hand.name, plan.settings.digest)
                 # its stored grasps whose file row has a label, where none of them carries it (not a file of
                 # which no pose was kept, nor the labels of poses dropped: a new import keeps neither)
                 stored = db.unit_file_labels(plan.spec.name, plan.hand.name, plan.settings.digest, 0)
@@ -300,7 +305,7 @@ def _plan(path: Path, fmt: str, reader: Reader, hand: str | None, object_name: s
     obj = object_spec(header, object_name, command, up, *given)
     # every measure and trial reads them: said; ``grasp calibrate`` has no --up (the shipped model's files stood on +z)
     untold = unstated_up(header, obj, up) if command == "import" else None
-    lines = (unstated(header, obj, command, given), untold)
+    lines = (unstated(header, obj, command, given), untold, replaced(header, obj))
     notes = tuple(line for line in lines if line) if note else ()
     lossless = not rescore and header.extras
     if lossless:  # its contacts, joints and measures are of the file's mesh and hand: stored as they are

@@ -203,6 +203,19 @@ class Writing:
                 self._set_meta(conn, "p_hold_models", json.dumps(known, sort_keys=True))
         return int(unit_id)  # type: ignore[arg-type]
 
+    def up_told(self, obj: str, hand: str, settings_hash: str) -> None:
+        """``obj``'s import units for ``hand`` of the file ``settings_hash`` (its digest) that took the object's up
+        untold (their settings' ``up_taken``): told now (the same file imported again with --up or beside a
+        sidecar's up; the up is the stored one, else the import is refused), their settings without it."""
+        rows = self._conn.execute("SELECT id, settings FROM units WHERE object = ? AND hand = ? AND settings_hash = ? "
+                                  "AND settings LIKE '%\"up_taken\"%'", (obj, hand, settings_hash)).fetchall()
+        if not rows:  # nothing written
+            return
+        with self._transaction() as conn:
+            for unit_id, settings in rows:
+                kept = {k: v for k, v in json.loads(settings).items() if k != "up_taken"}
+                conn.execute("UPDATE units SET settings = ? WHERE id = ?", (json.dumps(kept, sort_keys=True), unit_id))
+
     def remove_sweep(self, obj: str, hand: str, seed: int, settings: str) -> int:
         """Remove every unit of ``obj`` for ``hand`` with ``seed`` and
         ``settings`` (JSON, as stored), their grasps and the grasps' trials

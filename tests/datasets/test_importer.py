@@ -462,11 +462,11 @@ def test_the_same_bytes_beside_another_mesh_are_not_said_the_same_file(db: Path,
     assert "the same file" not in out, out
 
 
-@pytest.mark.parametrize("sidecar", ["friction = 0.9", 'up = "+y"'])
+@pytest.mark.parametrize("sidecar", ["friction = 0.9", 'up = "+y"', "com = [0.01, 0, 0]"])
 def test_copies_of_one_file_beside_one_mesh_with_other_sidecars_are_refused(db: Path, tmp_path: Path,
                                                                            sidecar: str) -> None:
     """Two copies of one file (no object/friction, no object/up) beside copies of one mesh, one with a sidecar of
-    another friction or up: read once as "the same file", the first's friction (up) taken for both without a word.
+    another friction, up or centre of mass: read once as "the same file", the first's taken for both without a word.
     Refused with the two paths and what differs, as two meshes under one name are."""
     first, _ = foreign_file(db, tmp_path / "d1", "box", "crate")
     with h5py.File(first, "r+") as f:
@@ -476,7 +476,10 @@ def test_copies_of_one_file_beside_one_mesh_with_other_sidecars_are_refused(db: 
     (second.parents[1] / "meshes" / "crate.toml").write_text(sidecar + "\n")
     out_db = tmp_path / "a.db"
     code, out, err = grasp("import", str(first), str(second), "--db", str(out_db), "--workers", "1")
-    what = "friction 0.5 and 0.9" if "friction" in sidecar else "up +z and +y"
+    # each value beside its path: the second's (its sidecar's) first, as its path is (the values were said the
+    # other way round, "d2 and d1 ... friction 0.5 and 0.9" where d2's is 0.9)
+    what = {"f": "friction 0.9 and 0.5", "u": "up +y and +z",  # a com as well: read once, the second's dropped
+            "c": "centres of mass [0.01, 0, 0] and [0, 0, 0] m (or other inertias)"}[sidecar[0]]
     one_line_error(code, err, 2, f"{second} and {first} name one object 'crate' with {what}")
     assert "the same file" not in out and not out_db.exists(), out
 
@@ -501,3 +504,54 @@ def test_validate_says_an_imported_objects_up_was_taken_untold(db: Path, tmp_pat
     with sqlite3.connect(tmp_path / "untold.db") as a, sqlite3.connect(tmp_path / "told.db") as b:
         assert a.execute("SELECT settings_hash FROM units").fetchall() == \
             b.execute("SELECT settings_hash FROM units").fetchall()
+
+
+def test_an_up_told_later_is_no_longer_said_untold(db: Path, tmp_path: Path) -> None:
+    """The same file imported again with --up (skipped: imported before), or read once beside a copy whose sidecar
+    gives the up: the up is told, yet the unit kept `up_taken` and `validate` went on saying no one gave it."""
+    from planner import api
+
+    foreign, _ = foreign_file(db, tmp_path / "d1", "box", "crate")
+    out_db = tmp_path / "a.db"
+    code, _, err = grasp("import", str(foreign), "--db", str(out_db), "--workers", "1")
+    assert code == 0 and api.untold_ups(db_path=out_db) == {("crate", "panda"): "+z"}, err
+    code, out, err = grasp("import", str(foreign), "--db", str(out_db), "--workers", "1", "--up", "+z")
+    assert code == 0 and "skipped" in out and api.untold_ups(db_path=out_db) == {}, (out, err)
+    copy = tmp_path / "d2" / "foreign" / "grasps" / "crate.h5"
+    shutil.copytree(tmp_path / "d1" / "foreign", copy.parents[1])
+    (copy.parents[1] / "meshes" / "crate.toml").write_text('up = "+z"\n')
+    for order in ((foreign, copy), (copy, foreign)):
+        out_db = tmp_path / f"{order[0].parents[2].name}.db"
+        code, out, err = grasp("import", *map(str, order), "--db", str(out_db), "--workers", "1")
+        assert code == 0 and "the same file" in out and api.untold_ups(db_path=out_db) == {}, (out, err)
+
+
+def test_validate_in_pybullet_does_not_say_an_untold_up(db: Path, tmp_path: Path) -> None:
+    """PyBullet's shake loads the object along the hand's six axes whatever its up: the note that "its trials load
+    it along its frame's -z" (MuJoCo's) was said of its verdicts too."""
+    foreign, _ = foreign_file(db, tmp_path, "box", "crate")
+    out_db = tmp_path / "a.db"
+    code, _, err = grasp("import", str(foreign), "--db", str(out_db), "--workers", "1")
+    assert code == 0 and "no object/up" in err, err
+    code, out, err = grasp("validate", "--db", str(out_db), "--top", "1", "--robust", "0", "--workers", "1",
+                           "--engine", "pybullet")
+    assert code == 0 and "validated 1 grasps in pybullet" in out, err
+    assert "taken standing on" not in err, err
+
+
+def test_a_files_own_values_replacing_its_meshs_sidecar_are_said(db: Path, tmp_path: Path) -> None:
+    """A file with its own object/friction and object/up beside a mesh whose sidecar gives others: the file's are
+    taken (its grasps were measured with them), and the sidecar's were dropped without a word (`generate` says a
+    replaced sidecar value)."""
+    foreign, _ = foreign_file(db, tmp_path, "box", "crate")
+    with h5py.File(foreign, "r+") as f:
+        f["object/up"] = "+z"
+        friction = float(f["object/friction"][()])
+    (foreign.parents[1] / "meshes" / "crate.toml").write_text(f'friction = {friction * 2}\nup = "+y"\n')
+    out_db = tmp_path / "a.db"
+    code, _, err = grasp("import", str(foreign), "--db", str(out_db), "--workers", "1")
+    assert code == 0, err
+    assert f"{foreign}: its object/friction {friction:g} replaces crate.toml's friction {friction * 2:g}; its " \
+           "object/up +z replaces crate.toml's up +y (its grasps were measured with the file's)" in err, err
+    with sqlite3.connect(out_db) as conn:
+        assert conn.execute("SELECT friction, up FROM objects").fetchone() == (friction, "+z")
