@@ -39,6 +39,7 @@ unchanged.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
@@ -130,8 +131,18 @@ def _subsample(idx: np.ndarray, nearest: tuple[np.ndarray, ...], s: PatchSetting
     patch, as a seeded subsample that keeps its shape and area, each standing for ``weight`` samples."""
     if len(idx) <= s.max_exact:
         return idx, nearest, 1.0
-    at = np.searchsorted(idx, np.sort(np.random.default_rng(s.seed).choice(idx, s.max_exact, replace=False)))
+    at = _subsample_at(s.seed, len(idx), s.max_exact)
     return idx[at], tuple(a[at] for a in nearest), len(idx) / s.max_exact
+
+
+@lru_cache(maxsize=1024)
+def _subsample_at(seed: int, n: int, size: int) -> np.ndarray:
+    """(size,) ascending positions of a seeded subsample of n: those ``default_rng(seed).choice(idx, size,
+    replace=False)`` takes of any ascending ``idx`` (n,) (its positions depend on n alone), once per n (a flat
+    face's bands repeat their sizes); read-only."""
+    at = np.sort(np.random.default_rng(seed).choice(n, size, replace=False))
+    at.flags.writeable = False
+    return at
 
 
 def _link_regions(link: str, surface: LinkSurface, points: np.ndarray, idx: np.ndarray, weight: float,
