@@ -154,17 +154,23 @@ def _link_regions(link: str, surface: LinkSurface, points: np.ndarray, idx: np.n
     pairs = surface.pairs_among(idx, s.link_radius) if weight == 1.0 else None
     labels = _cluster(points[idx], normals, s.link_radius * np.sqrt(weight), s.split_angle, pairs)
     out = []
+    if len(labels) and not labels.any():  # one region (labels count from 0): every sample, without masks
+        return [] if gap.min() > floor + s.touch else [_region(link, closest, normals, weight * float(
+            surface.area[idx].sum()))]
     for label in np.unique(labels):
         sel = labels == label
         if gap[sel].min() > floor + s.touch:
             continue  # the fringe around a nearby feature, not touching
-        mean = normals[sel].mean(axis=0)
-        mean /= np.linalg.norm(mean)
-        points_in = closest[sel]
-        uv = _plane(points_in, mean) if len(points_in) >= 2 else None
-        out.append(Region(link, points_in, normals[sel], weight * float(surface.area[idx[sel]].sum()),
-                          _width(uv), mean, uv))
+        out.append(_region(link, closest[sel], normals[sel], weight * float(surface.area[idx[sel]].sum())))
     return out
+
+
+def _region(link: str, points: np.ndarray, normals: np.ndarray, area: float) -> Region:
+    """The :class:`Region` of ``points`` (k, 3) with contact ``normals`` (k, 3) and ``area`` [m^2]."""
+    mean = normals.mean(axis=0)
+    mean /= np.linalg.norm(mean)
+    uv = _plane(points, mean) if len(points) >= 2 else None
+    return Region(link, points, normals, area, _width(uv), mean, uv)
 
 
 def _band(surface: LinkSurface, pose: np.ndarray, points: np.ndarray, idx: np.ndarray,
@@ -329,9 +335,12 @@ def _together(links: list[tuple[str, LinkSurface, np.ndarray]], obj: ObjectSurfa
 
 def _split(arrays: tuple[np.ndarray, ...], parts: list[np.ndarray]) -> list[list[np.ndarray]]:
     """Each of ``arrays`` (n, ...) cut in the lengths of ``parts`` (n in all): ``out[k][i]``, array k's rows of part
-    i (a query made for the parts together, split back)."""
-    cuts = np.cumsum([len(p) for p in parts])[:-1]
-    return [np.split(a, cuts) for a in arrays]
+    i (a query made for the parts together, split back), views as ``np.split`` gives them, by slices (its set-up
+    costs more than the cut of a grasp's two or three parts)."""
+    ends = [0]
+    for part in parts:
+        ends.append(ends[-1] + len(part))
+    return [[a[i:j] for i, j in zip(ends[:-1], ends[1:])] for a in arrays]
 
 
 def discretise(found: list[Region], settings: PatchSettings) -> HandContacts:
