@@ -68,9 +68,10 @@ def components(n: int, pairs: np.ndarray) -> np.ndarray:
     no label)."""
     if _connected_components_undirected is None:  # pragma: no cover
         return components_reference(n, pairs[by_node(pairs[:, 0], n)])
-    ends = np.empty(2 * len(pairs), np.int32)  # rows: every first, then every second; columns: the other end
-    ends[:len(pairs)], ends[len(pairs):] = pairs[:, 0], pairs[:, 1]
-    other = np.roll(ends, len(pairs))
+    p = len(pairs)
+    ends, other = np.empty(2 * p, np.int32), np.empty(2 * p, np.int32)  # rows: every first, then every second
+    ends[:p], ends[p:] = pairs[:, 0], pairs[:, 1]
+    other[:p], other[p:] = ends[p:], ends[:p]  # columns: the other end
     start, neighbours = np.empty(n + 1, np.int32), np.empty(len(ends), np.int32)
     coo_tocsr(n, n, len(ends), ends, other, np.zeros(len(ends), np.int8), start, neighbours,
               np.empty(len(ends), np.int8))  # no values: a byte each, unread
