@@ -105,26 +105,3 @@ def test_the_components_of_pairs_in_any_order_are_scipys(seed: int, n: int, coun
     want = components_reference(n, pairs[np.argsort(pairs[:, 0], kind="stable")])
     assert got.dtype == want.dtype and np.array_equal(got, want)
 
-
-@settings(max_examples=40, deadline=None)
-@given(st.integers(0, 2**32 - 1), st.integers(0, 2**16), st.integers(1, 50), st.integers(0, 3000))
-def test_a_subsample_is_the_seeded_choice_of_its_band_and_made_once_per_size(seed: int, start: int, size: int,
-                                                                          extra: int) -> None:
-    """The subsample of a band (ascending sample indices, any gaps) is the sorted seeded choice the sweep took of
-    it (rng.choice of the indices themselves), its nearest rows follow it, and a second band of the same size
-    takes its positions from the cache."""
-    from planner.plan.patches import PatchSettings, _subsample, _subsample_at
-
-    rng = np.random.default_rng(seed)
-    n = size + 1 + extra
-    idx = start + np.cumsum(rng.integers(1, 5, n))
-    nearest = (rng.normal(size=(n, 3)), rng.random(n), rng.integers(0, 99, n))
-    s = PatchSettings(max_exact=size, seed=seed % 7)
-    want = np.sort(np.random.default_rng(s.seed).choice(idx, size, replace=False))
-    _subsample_at.cache_clear()
-    got, near, weight = _subsample(idx, nearest, s)
-    at = np.searchsorted(idx, want)
-    assert got.tobytes() == want.tobytes() and weight == n / size
-    assert all(a.tobytes() == b[at].tobytes() for a, b in zip(near, nearest))
-    _subsample(idx + 1, nearest, s)
-    assert _subsample_at.cache_info().hits == 1
