@@ -305,6 +305,7 @@ def _together(links: list[tuple[str, LinkSurface, np.ndarray]], obj: ObjectSurfa
     if not maybe:
         return []
     asked = [m[3][m[4]] for m in maybe]
+    maybe, asked = _bounded(maybe, asked, obj)
     banded = []  # (link, surface, pose, points, band samples, weight, their closest points, distances, faces)
     for (link, surface, pose, points, idx), closest, distance, face in zip(maybe, *_split(
             obj.nearest(np.concatenate(asked)), asked)):
@@ -331,6 +332,23 @@ def _together(links: list[tuple[str, LinkSurface, np.ndarray]], obj: ObjectSurfa
     for (link, surface, _, points, idx, weight, closest, _, gap, floor), normal in zip(patch, normals):
         out += _link_regions(link, surface, points, idx, weight, closest, gap, floor, normal, s)
     return out
+
+
+def _bounded(maybe: list[tuple], asked: list[np.ndarray], obj: ObjectSurface) -> tuple[list[tuple], list[np.ndarray]]:
+    """Of each link's samples to measure (``maybe``: (link, surface, pose, points, samples); ``asked``: their points
+    (k, 3)), those whose own lower distance bound (:meth:`ObjectSurface.bounds`, the grid's without a cell's radius)
+    is within depth + prefilter of the least upper bound among them, and their points: the samples of the band and
+    the nearest of them all are among them (triangle inequality, as :func:`_band`), so the band is the same, for
+    fewer exact queries (a tree search costs 2-3 us a point on a mesh of hundreds of faces, a look-up well under
+    one: a fifth to a third fewer points on the mug and random_002; on the box's 12 faces about even)."""
+    s = obj.settings
+    kept_maybe, kept_asked = [], []
+    for (link, surface, pose, points, idx), rows, lower, upper in zip(maybe, asked, *_split(
+            obj.bounds(np.concatenate(asked)), asked)):
+        near = lower <= upper.min() + s.depth + s.prefilter + 2 * SLACK
+        kept_maybe.append((link, surface, pose, points, idx[near]))
+        kept_asked.append(rows[near])
+    return kept_maybe, kept_asked
 
 
 def _split(arrays: tuple[np.ndarray, ...], parts: list[np.ndarray]) -> list[list[np.ndarray]]:

@@ -3,6 +3,7 @@ plain way it replaces: a band's subsample, a link's pairs among a band, the join
 patch of one region."""
 
 import numpy as np
+import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
@@ -126,3 +127,58 @@ def test_a_links_regions_are_those_of_a_mask_per_region(seed: int, k: int, bent:
             assert getattr(a, name).tobytes() == getattr(b, name).tobytes()
         assert (a.plane is None and b.plane is None) or a.plane.tobytes() == b.plane.tobytes()
 
+
+
+def _finger_near(name: str, seed: int):  # type: ignore[no-untyped-def]
+    """(surface, finger, pose): the Panda's left finger placed near a random point of the object ``name``, turned
+    anyway, within a few millimetres of it."""
+    from scipy.spatial.transform import Rotation
+
+    from planner.geometry.solid import load_object
+    from planner.plan.patches import ObjectSurface
+
+    surface = ObjectSurface(load_object(name).mesh)
+    finger = hand_surfaces(load_hand("panda"), surface.settings)["panda_leftfinger"]
+    rng = np.random.default_rng(seed)
+    at = surface.mesh.sample(1, seed=seed)[0]
+    pose = np.eye(4)
+    pose[:3, :3] = Rotation.random(random_state=seed).as_matrix()
+    pose[:3, 3] = at - pose[:3, :3] @ finger.points[rng.integers(len(finger.points))] + rng.normal(scale=0.002, size=3)
+    return surface, finger, pose
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**31), st.sampled_from(["mug", "random_002", "box"]))
+def test_the_links_regions_together_are_each_links_own(seed: int, name: str) -> None:
+    """Two fingers near the object asked together (each sample's own bound read before its exact distance): the
+    regions, field by field to the bit, of each link's own link_regions (every sample of its cells measured)."""
+    from planner.plan.patches import _together, link_regions
+
+    surface, finger, pose = _finger_near(name, seed)
+    _, right, other = _finger_near(name, seed + 1)
+    got = _together([("l", finger, pose), ("r", right, other)], surface)
+    want = link_regions("l", finger, pose, surface) + link_regions("r", right, other, surface)
+    assert len(got) == len(want)
+    for a, b in zip(got, want):
+        assert (a.link, a.area, a.diameter) == (b.link, b.area, b.diameter)
+        for field in ("points", "normals", "normal"):
+            assert getattr(a, field).tobytes() == getattr(b, field).tobytes()
+        assert (a.plane is None and b.plane is None) or a.plane.tobytes() == b.plane.tobytes()
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_only_samples_whose_own_bound_may_be_in_the_band_are_measured(seed: int) -> None:
+    """The exact closest points are asked only of samples whose own lower bound is within depth + prefilter of the
+    least upper bound of the samples of their cells (fewer than every sample of those cells on the mug)."""
+    from planner.plan.patch_surfaces import SLACK
+    from planner.plan.patches import _together
+
+    surface, finger, pose = _finger_near("mug", seed)
+    s, asked = surface.settings, []
+    nearest = surface.nearest
+    surface.nearest = lambda points: asked.append(np.array(points)) or nearest(points)  # type: ignore[method-assign]
+    _together([("l", finger, pose)], surface)
+    if not asked:
+        return  # nothing of the finger within reach
+    lower, upper = surface.bounds(asked[0])
+    assert np.all(lower <= upper.min() + s.depth + s.prefilter + 2 * SLACK)
