@@ -278,7 +278,8 @@ def _together(links: list[tuple[str, LinkSurface, np.ndarray]], obj: ObjectSurfa
     object query of theirs (the grid's distance bounds, the exact closest points, the signed gaps, the closest
     points' features and the contact normals) answers each row from that row alone, so the links' rows go in one
     call each instead of one per link (a Panda grasp's two fingers: half the calls, 7-10% of the patches' CPU on
-    captured units); the features only of the samples within ``depth`` (the patch), not of the whole band. Each
+    captured units); the features only of the samples within ``depth`` (the patch), not of the whole band; the
+    exact closest points only of the samples whose own bound may lie in the band (:func:`_bounded`). Each
     link's matrix products (its pose applied to its samples, cells and normals) keep their shapes: a product's
     rows are BLAS's bits for that shape (one row takes another kernel)."""
     s = obj.settings
