@@ -222,9 +222,11 @@ class DistanceBounds:
     spacing: float
     shape: tuple[int, int, int]
     _values: np.ndarray = field(init=False, repr=False)
+    _last: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self._values = np.full(int(np.prod(self.shape)), np.nan)
+        self._last = np.array(self.shape, float) - 1  # the last node along each axis
 
     @classmethod
     def around(cls, mesh: MeshDistance, low: ArrayLike, high: ArrayLike, spacing: float,
@@ -242,7 +244,8 @@ class DistanceBounds:
     def bounds(self, points: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """(lower (n,), upper (n,)) [m] of the distances of ``points`` (n, 3) [m]."""
         query = np.asarray(points, float).reshape(-1, 3)
-        cell = np.clip(np.rint((query - self.origin) / self.spacing), 0, np.array(self.shape) - 1).astype(np.int64)
+        # np.clip's values without its set-up (NaN stays NaN: ravel_multi_index refuses it)
+        cell = np.minimum(np.maximum(np.rint((query - self.origin) / self.spacing), 0.0), self._last).astype(np.int64)
         flat = np.ravel_multi_index(cell.T, self.shape)
         value = self._values[flat]
         missing = np.isnan(value)
@@ -251,5 +254,6 @@ class DistanceBounds:
             nodes = self.origin + np.column_stack(np.unravel_index(new, self.shape)) * self.spacing
             self._values[new] = self.mesh.nearest(nodes).distance
             value = self._values[flat]
-        off = np.linalg.norm(query - (self.origin + cell * self.spacing), axis=1)
+        rel = query - (self.origin + cell * self.spacing)
+        off = np.sqrt(np.add.reduce(rel * rel, axis=1))  # np.linalg.norm(rel, axis=1)'s own reduction
         return value - off, value + off

@@ -8,10 +8,11 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-try:  # scipy's own loop behind connected_components, without its graph checks and transpose (see components)
+try:  # scipy's own loops behind connected_components and a COO matrix's CSR, without their checks (see components)
+    from scipy.sparse._sparsetools import coo_tocsr
     from scipy.sparse.csgraph._traversal import _connected_components_undirected
 except ImportError:  # pragma: no cover
-    _connected_components_undirected = None
+    _connected_components_undirected = coo_tocsr = None
 
 #: [rad] how far inside half the split angle every normal of a patch must lie for all its pairs to count as similar
 #: without their dot products (:func:`all_similar`; speed only: the same pairs).
@@ -24,17 +25,14 @@ def cluster(points: np.ndarray, normals: np.ndarray, radius: float, split_angle:
              pairs: np.ndarray | None = None) -> np.ndarray:
     """(k,) labels: connected components of samples closer than ``radius``
     whose normals differ by less than ``split_angle``; ``pairs`` (p, 2):
-    the pairs closer than ``radius`` when already known, ascending by their
-    first sample (:meth:`LinkSurface.pairs_among`)."""
-    known = pairs is not None
+    the pairs closer than ``radius`` when already known
+    (:meth:`LinkSurface.pairs_among`), in any order."""
     if pairs is None:
         pairs = cKDTree(points).query_pairs(radius, output_type="ndarray") if len(points) > 1 else np.zeros((0, 2), int)
     if len(pairs) and not all_similar(normals, split_angle):  # take and compress: a third of the time of fancy
         first, second = pairs.T  # indexing and a boolean mask
         similar = np.einsum("ij,ij->i", normals.take(first, axis=0), normals.take(second, axis=0)) > np.cos(split_angle)
         pairs = pairs.compress(similar, axis=0)
-    if not known:  # the graph's rows; their order within a row changes no label (numbered by smallest member)
-        pairs = pairs[by_node(pairs[:, 0], len(points))]
     return components(len(points), pairs)
 
 
@@ -63,21 +61,27 @@ def by_node(nodes: np.ndarray, n: int) -> np.ndarray:
 
 def components(n: int, pairs: np.ndarray) -> np.ndarray:
     """(n,) int32 labels of the connected components of the undirected graph on n nodes with edges ``pairs``
-    (p, 2), ascending by their first node, numbered by their smallest node: ``connected_components`` of their
-    CSR graph (:func:`components_reference`), by the loop it runs, given both directions' rows at once (its
-    graph checks and transpose cost more than the search on a patch's few hundred samples)."""
+    (p, 2), in any order, numbered by their smallest node: ``connected_components`` of their CSR graph
+    (:func:`components_reference`), by the loop it runs, given a CSR of both directions' rows at once, made by
+    the counting sort behind scipy's COO-to-CSR conversion (its graph checks and transpose, or a sort of the
+    pairs, cost more than the search on a patch's few hundred samples; the order of a node's neighbours changes
+    no label)."""
     if _connected_components_undirected is None:  # pragma: no cover
-        return components_reference(n, pairs)
-    first, second = pairs[:, 0].astype(np.int32), pairs[:, 1].astype(np.int32)
-    back = by_node(second, n)  # the other direction's rows; their order within a row changes no label
-    nodes = np.arange(n + 1)
+        return components_reference(n, pairs[by_node(pairs[:, 0], n)])
+    p = len(pairs)
+    ends, other = np.empty(2 * p, np.int32), np.empty(2 * p, np.int32)  # rows: every first, then every second
+    ends[:p], ends[p:] = pairs[:, 0], pairs[:, 1]
+    other[:p], other[p:] = ends[p:], ends[:p]  # columns: the other end
+    start, neighbours = np.empty(n + 1, np.int32), np.empty(len(ends), np.int32)
+    coo_tocsr(n, n, len(ends), ends, other, np.zeros(len(ends), np.int8), start, neighbours,
+              np.empty(len(ends), np.int8))  # no values: a byte each, unread
     labels = np.full(n, -1, np.int32)
-    _connected_components_undirected(second, np.searchsorted(first, nodes).astype(np.int32), first[back],
-                                     np.searchsorted(second[back], nodes).astype(np.int32), labels)
+    _connected_components_undirected(neighbours, start, neighbours, start, labels)
     return labels
 
 
 def components_reference(n: int, pairs: np.ndarray) -> np.ndarray:
-    """:func:`components` through scipy's public ``connected_components``."""
+    """:func:`components` through scipy's public ``connected_components``, of ``pairs`` ascending by their first
+    node."""
     graph = csr_matrix((np.ones(len(pairs)), pairs[:, 1], np.searchsorted(pairs[:, 0], np.arange(n + 1))), shape=(n, n))
     return connected_components(graph, directed=False)[1]

@@ -19,6 +19,7 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
+from planner.geometry.barycentric import barycentric
 from planner.geometry.cones import nearest_in_cone, nearest_in_wedge
 from planner.geometry.distance import DistanceBounds, MeshDistance
 from planner.geometry.normals import ScaleNormals
@@ -91,15 +92,16 @@ class LinkSurface:
             pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
             self._near[radius] = (np.searchsorted(pairs[:, 0], np.arange(len(self.points) + 1)), pairs[:, 1])
         start, partner = self._near[radius]
-        first, last = start[idx], start[idx + 1]
-        count = last - first
-        rows = np.repeat(np.arange(len(idx)), count)
-        at = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count) + np.repeat(first, count)
+        first, count = start[idx], start[idx + 1] - start[idx]
+        at = np.repeat(first - np.cumsum(count) + count, count)  # each sample's partners: its run of the link's list
+        at += np.arange(len(at))
         position = np.full(len(self.points), -1)
         position[idx] = np.arange(len(idx))
         cols = position[partner[at]]
         keep = cols >= 0
-        return np.column_stack([rows[keep], cols[keep]])
+        out = np.empty((int(np.count_nonzero(keep)), 2), np.int64)
+        out[:, 0], out[:, 1] = np.repeat(np.arange(len(idx)), count)[keep], cols[keep]
+        return out
 
     @cached_property
     def cells(self) -> Cells:
@@ -349,8 +351,7 @@ class ObjectSurface:
 
     def _feature(self, closest: np.ndarray, tri: np.ndarray) -> Feature:
         """The :class:`Feature` of points ``closest`` (n, 3) on faces ``tri`` (n,)."""
-        bary = trimesh.triangles.points_to_barycentric(self.mesh.triangles[tri], closest)
-        on = bary >= 1e-6  # the face's vertices the point is not opposite to
+        on = barycentric(self.mesh.triangles[tri], closest) >= 1e-6  # the vertices the point is not opposite to
         first = self.mesh.faces[tri, np.argmax(on, axis=1)]
         last = self.mesh.faces[tri, 2 - np.argmax(on[:, ::-1], axis=1)]
         return Feature(on.sum(axis=1), first, last)

@@ -204,3 +204,30 @@ def test_a_large_box_gets_wider_spacing_not_more_nodes() -> None:
     assert np.prod(grid.shape) <= 50_000 and grid.spacing > 0.001
     last = grid.origin + (np.array(grid.shape) - 1) * grid.spacing  # the box is covered, not much more
     assert np.all(last >= [1.0, 2.0, 3.0]) and np.all(last - grid.spacing < [1.0, 2.0, 3.0])
+
+
+def _bounds_reference(grid: DistanceBounds, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """DistanceBounds.bounds as it was before 2026-12-07 (np.clip, np.linalg.norm)."""
+    query = np.asarray(points, float).reshape(-1, 3)
+    cell = np.clip(np.rint((query - grid.origin) / grid.spacing), 0, np.array(grid.shape) - 1).astype(np.int64)
+    value = grid.mesh.nearest(grid.origin + cell * grid.spacing).distance
+    off = np.linalg.norm(query - (grid.origin + cell * grid.spacing), axis=1)
+    return value - off, value + off
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.floats(0.001, 0.02), st.integers(0, 300))
+def test_the_grids_bounds_are_those_of_the_plain_way(seed: int, spacing: float, n: int) -> None:
+    """Points inside the grid, on its nodes and far off it: the bounds of np.clip and np.linalg.norm, to the bit;
+    a NaN point is refused as before."""
+    mesh = lumpy(seed % 50)
+    tree = MeshDistance(mesh.vertices, mesh.faces)
+    rng = np.random.default_rng(seed)
+    lo, hi = mesh.bounds
+    grid = DistanceBounds.around(tree, lo - 0.01, hi + 0.01, spacing, 10**5)
+    points = np.vstack([rng.uniform(lo - 0.02, hi + 0.02, size=(n, 3)) * 10.0 ** rng.uniform(-3, 1),
+                        grid.origin + rng.integers(0, 5, size=(3, 3)) * grid.spacing])
+    got, want = grid.bounds(points), _bounds_reference(grid, points)
+    assert all(a.tobytes() == b.tobytes() for a, b in zip(got, want))
+    with pytest.raises(ValueError), np.errstate(invalid="ignore"):
+        grid.bounds(np.array([[np.nan, 0.0, 0.0]]))

@@ -89,3 +89,19 @@ def test_regions_are_the_same_with_and_without_the_short_cut(seed: int, k: int, 
             assert np.array_equal(cluster(points, normals, radius, split, pairs), want)
         finally:
             patch_clusters.all_similar = saved
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 300), st.integers(0, 2000))
+def test_the_components_of_pairs_in_any_order_are_scipys(seed: int, n: int, count: int) -> None:
+    """Pairs in any order (a tree's, unsorted), either end first, repeated or a node with itself: the labels and
+    dtype of scipy's public connected_components (numbered by their smallest node), so a tree's pairs need no
+    sort before :func:`components`."""
+    from planner.plan.patch_clusters import components_reference
+
+    rng = np.random.default_rng(seed)
+    pairs = rng.integers(0, n, size=(count, 2))
+    got = components(n, pairs)
+    want = components_reference(n, pairs[np.argsort(pairs[:, 0], kind="stable")])
+    assert got.dtype == want.dtype and np.array_equal(got, want)
+
