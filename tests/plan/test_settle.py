@@ -218,3 +218,20 @@ def test_a_settled_grasp_reads_its_preshapes_synergy_once(barrett_units, monkeyp
     assert len(read) == 3
     assert [(c.points.tobytes(), c.normals.tobytes(), c.links) for c in after] == [
         (c.points.tobytes(), c.normals.tobytes(), c.links) for c in before]
+
+
+def test_the_settle_does_not_measure_how_far_closing_moved_the_object(barrett_units, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """The settle reads the contacts only: the closing's rotation angle (~0.2 ms a grasp) is left to the trial."""
+    from planner.validation import shake
+    from planner.validation.settings import settle_settings
+
+    settled, planned = barrett_units
+    hand, obj = load_hand("barrett"), settled.obj
+    grasps = [g.as_stored() for g in planned.grasps[:2]]
+    turned = []
+    angle_between = shake.angle_between
+    monkeypatch.setattr(shake, "angle_between", lambda a, b: turned.append(1) or angle_between(a, b))
+    shake.settled_contacts(hand, obj, grasps, settle_settings(hand.settle_dynamics))
+    assert turned == []
+    shake.trials(hand, obj, grasps[:1])
+    assert len(turned) >= 1
