@@ -28,12 +28,14 @@ def set_contacts(dyn: Dynamics, hand: HandSpec, body: Body, grasp: Grasp) -> Non
     to_hand = np.linalg.inv(np.asarray(grasp.pose, float))
     points = grasp.contacts.points @ to_hand[:3, :3].T + to_hand[:3, 3]
     normals = grasp.contacts.normals @ to_hand[:3, :3].T
-    links = np.array(grasp.contacts.links, dtype=object)
+    by_link: dict[str, list[int]] = {}  # each link's contacts, in their order (the rows a mask would take)
+    for i, link in enumerate(grasp.contacts.links):
+        by_link.setdefault(link, []).append(i)
     for name, index in body.links.items():
         model = hand.contacts.get(name)
         radius = model.torsion_radius if model is not None and model.model == "soft" else 0.0
-        on = links == name
-        if radius > 0.0 and np.any(on):
+        on = by_link.get(name)
+        if radius > 0.0 and on:
             to_link = np.linalg.inv(dyn.sim.link_pose(body, name))
             patch = has_patch(link_planes(hand.urdf, name), points[on] @ to_link[:3, :3].T + to_link[:3, 3],
                               normals[on] @ to_link[:3, :3].T)

@@ -29,10 +29,11 @@ def synergy(hand: HandSpec, preshape: str) -> dict[str, float]:
     return dict(shapes[preshape].close) if preshape in shapes else {}
 
 
-def closing_rates(hand: HandSpec, preshape: str) -> dict[str, float]:
+def closing_rates(hand: HandSpec, preshape: str, close: Mapping[str, float] | None = None) -> dict[str, float]:
     """Closing rate of every finger joint [rad or m per unit of closing] for
-    the grasp's preshape (:meth:`~planner.specs.hands.HandSpec.joint_rates`)."""
-    return hand.joint_rates(synergy(hand, preshape))
+    the grasp's preshape (:meth:`~planner.specs.hands.HandSpec.joint_rates`);
+    ``close``: its :func:`synergy` if already at hand (None: read)."""
+    return hand.joint_rates(synergy(hand, preshape) if close is None else close)
 
 
 def fingers(hand: HandSpec, rates: Mapping[str, float]) -> tuple[frozenset[str], ...]:
@@ -46,32 +47,47 @@ def fingers(hand: HandSpec, rates: Mapping[str, float]) -> tuple[frozenset[str],
 def levers(hand: HandSpec, grasp: Grasp, axes: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> dict[str, float]:
     """[m] for each revolute joint that moves a link with a planned contact:
     the largest distance from its axis (``axes[name]`` = (point, unit
-    direction), hand frame, closed configuration) to those contacts."""
+    direction), hand frame, closed configuration) to those contacts.
+
+    Every (joint, contact) pair at once: each row's arm is the one a joint
+    at a time gave (``np.cross``'s products, the norm's sum of squares in its
+    order), the largest per joint the same, to the bit."""
     to_hand = np.linalg.inv(np.asarray(grasp.pose, float))
     points = grasp.contacts.points @ to_hand[:3, :3].T + to_hand[:3, 3]
-    links = np.array(grasp.contacts.links, dtype=object)
-    out = {}
+    links = grasp.contacts.links
+    names: list[str] = []
+    rows: list[int] = []
+    starts: list[int] = []
+    ends: list[np.ndarray] = []
     for j in hand.joints:
         if j.kind != "revolute" or j.name not in axes or not len(points):
             continue
-        on = points[np.isin(links, j.moves)]
-        if len(on):
-            origin, axis = axes[j.name]
-            arm = rows_cross(on - origin, np.broadcast_to(axis, on.shape))  # np.cross's, to the bit
-            out[j.name] = float(np.max(np.linalg.norm(arm, axis=1)))
-    return out
+        on = [i for i, link in enumerate(links) if link in j.moves]
+        if on:
+            names.append(j.name)
+            starts.append(len(rows))
+            rows += on
+            ends.append(np.broadcast_to(np.concatenate(axes[j.name]), (len(on), 6)))
+    if not names:
+        return {}
+    at = np.concatenate(ends) if len(ends) > 1 else ends[0]
+    arm = rows_cross(points[rows] - at[:, :3], at[:, 3:])  # np.cross's, to the bit
+    return dict(zip(names, np.maximum.reduceat(np.linalg.norm(arm, axis=1), starts).tolist()))
 
 
-def clearance(hand: HandSpec, grasp: Grasp, axes: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> float:
+def clearance(hand: HandSpec, grasp: Grasp, axes: Mapping[str, tuple[np.ndarray, np.ndarray]],
+              close: Mapping[str, float] | None = None) -> float:
     """[m] the smallest open travel left at the contacts of a touching finger:
     the sweep's open margin (:meth:`~planner.specs.hands.HandSpec.open_travel`)
     of the planned (closed) configuration, ``axes`` = (point, unit direction)
-    of every finger joint's axis there, hand frame. Near 0, the open hand
+    of every finger joint's axis there, hand frame; ``close``: the grasp's
+    :func:`synergy` if already at hand (None: read). Near 0, the open hand
     could not have been put around the object (no squeeze travel). ``inf``
     if nothing touches."""
     to_hand = np.linalg.inv(np.asarray(grasp.pose, float))
     points = grasp.contacts.points @ to_hand[:3, :3].T + to_hand[:3, 3]
-    return hand.open_travel(synergy(hand, grasp.preshape), grasp.closed_joints, points, grasp.contacts.links, axes)
+    close = synergy(hand, grasp.preshape) if close is None else close
+    return hand.open_travel(close, grasp.closed_joints, points, grasp.contacts.links, axes)
 
 
 def start_joints(hand: HandSpec, grasp: Grasp, rates: Mapping[str, float], lever: Mapping[str, float],

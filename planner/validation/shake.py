@@ -127,6 +127,7 @@ class _Run:
     body: Body
     uid: int
     fingers: tuple[frozenset[int], ...]
+    rates: dict[str, float]  # the grasp's closing rates (:func:`~planner.validation.fingers.closing_rates`)
     clutches: list[Breakaway] = field(default_factory=list)  # still engaged
     closed: np.ndarray = field(default_factory=lambda: np.eye(4))
     com: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -233,12 +234,13 @@ def _set_up(dyn: Dynamics, hand: HandSpec, obj: PreparedObject, shape: Shape, ph
     (which stay)."""
     own = hand_body is None
     body = dyn.add_hand(hand.urdf, hand.link_inertia) if hand_body is None else hand_body
-    rates = fg.closing_rates(hand, grasp.preshape)
+    close = fg.synergy(hand, grasp.preshape)  # read once a grasp: the preshapes' file is looked at each time
+    rates = fg.closing_rates(hand, grasp.preshape, close)
     dyn.set_joints(body, hand.full_configuration({j.name: grasp.closed_joints.get(j.name, j.lower)
                                                       for j in hand.driven}))
     axes = joint_axes(dyn.sim, hand, body)
     lever = fg.levers(hand, grasp, axes)
-    if fg.clearance(hand, grasp, axes) < s.min_clearance:
+    if fg.clearance(hand, grasp, axes, close) < s.min_clearance:
         if own:
             dyn.remove(body.uid)
         return _flag("no_clearance")
@@ -259,7 +261,7 @@ def _set_up(dyn: Dynamics, hand: HandSpec, obj: PreparedObject, shape: Shape, ph
         return _flag("start_overlap")
     clutches = drive_fingers(dyn, hand, body, rates, grasp.closed_joints, s.gear_erp)
     finger_links = tuple(frozenset(body.links[n] for n in f) for f in fg.fingers(hand, rates))
-    return _Run(grasp, body, uid, finger_links, clutches, own_hand=own, own_object=object_uid is None)
+    return _Run(grasp, body, uid, finger_links, rates, clutches, own_hand=own, own_object=object_uid is None)
 
 
 #: (4, 4) where the object of :func:`_in_turn`'s world waits between grasps: far from the hand, in no contact.
@@ -276,18 +278,22 @@ def _add_object(dyn: Dynamics, obj: PreparedObject, shape: Shape, physical: _Phy
 def _simulate(dyn: Dynamics, hand: HandSpec, runs: dict[int, _Run], s: ShakeSettings,
               on_settled: Settled | None = None, load: bool = True) -> dict[int, Trial]:
     """Close, settle and (``load``) shake the runs of one world; without
-    ``load`` the verdicts say only whether a finger still touches."""
-    start = {k: dyn.object_pose(r.uid) for k, r in runs.items()}
+    ``load`` the verdicts say only whether a finger still touches (how far
+    closing moved the object is not measured: the settle reads only the
+    contacts, and the rotation's angle cost ~0.2 ms a grasp; a run without a
+    finger on the object is ``no_contact``)."""
+    start = {k: dyn.object_pose(r.uid) for k, r in runs.items()} if load else {}
     _close(dyn, hand, runs, _steps(s.close_time, s.dt))
     if not hand.actuators.backdrivable:
         for r in runs.values():
-            hold_closed(dyn, hand, r.body, fg.closing_rates(hand, r.grasp.preshape))
+            hold_closed(dyn, hand, r.body, r.rates)
     dyn.step(_steps(s.settle_time, s.dt))
     active = []
     for k, r in runs.items():
-        r.closed, r.com = dyn.object_pose(r.uid), dyn.centre_of_mass(r.uid)
-        r.closing = (float(np.linalg.norm(r.closed[:3, 3] - start[k][:3, 3])),
-                     angle_between(start[k][:3, :3], r.closed[:3, :3]))
+        if load:
+            r.closed, r.com = dyn.object_pose(r.uid), dyn.centre_of_mass(r.uid)
+            r.closing = (float(np.linalg.norm(r.closed[:3, 3] - start[k][:3, 3])),
+                         angle_between(start[k][:3, :3], r.closed[:3, :3]))
         if on_settled is not None:
             on_settled(r.grasp, HandContacts(*dyn.contact_points(r.body, r.uid)))
         links = dyn.touching_links(r.body, r.uid)

@@ -197,3 +197,41 @@ def test_grasps_tried_in_turn_share_one_object_body(barrett_units, monkeypatch: 
     assert sum(len(c) > 0 for c in contacts) == 4 and len(made) == 1
     shake.trials(hand, obj, grasps)
     assert len(made) == 2
+
+
+def test_a_settled_grasp_reads_its_preshapes_synergy_once(barrett_units, monkeypatch: pytest.MonkeyPatch) -> None:  # type: ignore[no-untyped-def]
+    """The settle's set-up reads the grasp's closing synergy once (its rates, its clearance and the worm gears'
+    hold after closing took it three times, each a look at the preshapes' file): the same contacts."""
+    from planner.validation import fingers as fg
+    from planner.validation import shake
+    from planner.validation.settings import settle_settings
+
+    settled, planned = barrett_units
+    hand, obj = load_hand("barrett"), settled.obj
+    grasps = [g.as_stored() for g in planned.grasps[:3]]
+    s = settle_settings(hand.settle_dynamics)
+    before = shake.settled_contacts(hand, obj, grasps, s)
+    read = []
+    synergy = fg.synergy
+    monkeypatch.setattr(fg, "synergy", lambda h, preshape: read.append(preshape) or synergy(h, preshape))
+    after = shake.settled_contacts(hand, obj, grasps, s)
+    assert len(read) == 3
+    assert [(c.points.tobytes(), c.normals.tobytes(), c.links) for c in after] == [
+        (c.points.tobytes(), c.normals.tobytes(), c.links) for c in before]
+
+
+def test_the_settle_does_not_measure_how_far_closing_moved_the_object(barrett_units, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """The settle reads the contacts only: the closing's rotation angle (~0.2 ms a grasp) is left to the trial."""
+    from planner.validation import shake
+    from planner.validation.settings import settle_settings
+
+    settled, planned = barrett_units
+    hand, obj = load_hand("barrett"), settled.obj
+    grasps = [g.as_stored() for g in planned.grasps[:2]]
+    turned = []
+    angle_between = shake.angle_between
+    monkeypatch.setattr(shake, "angle_between", lambda a, b: turned.append(1) or angle_between(a, b))
+    shake.settled_contacts(hand, obj, grasps, settle_settings(hand.settle_dynamics))
+    assert turned == []
+    shake.trials(hand, obj, grasps[:1])
+    assert len(turned) >= 1

@@ -126,3 +126,38 @@ def test_the_start_is_a_gap_short_of_the_grasp_with_mimics_in_step() -> None:
     start = fg.start_joints(barrett, grasp, fg.closing_rates(barrett, "wrap"), {"bh_j32_joint": 0.1}, 0.005)
     assert start["bh_j32_joint"] == pytest.approx(0.95) and start["bh_j33_joint"] == pytest.approx(0.95 * 0.3333)
     assert start["bh_j11_joint"] == start["bh_j21_joint"] == 0.5  # the spread holds
+
+
+def _levers_joint_by_joint(hand, grasp, axes):  # type: ignore[no-untyped-def]
+    """The levers as they were worked out before, one joint at a time (the reference)."""
+    from planner.geometry.frames import rows_cross
+
+    to_hand = np.linalg.inv(np.asarray(grasp.pose, float))
+    points = grasp.contacts.points @ to_hand[:3, :3].T + to_hand[:3, 3]
+    links = np.array(grasp.contacts.links, dtype=object)
+    out = {}
+    for j in hand.joints:
+        if j.kind != "revolute" or j.name not in axes or not len(points):
+            continue
+        on = points[np.isin(links, j.moves)]
+        if len(on):
+            origin, axis = axes[j.name]
+            out[j.name] = float(np.max(np.linalg.norm(rows_cross(on - origin, np.broadcast_to(axis, on.shape)),
+                                                      axis=1)))
+    return out
+
+
+@given(st.integers(0, 2**32 - 1), st.integers(0, 12), st.sampled_from(["barrett", "allegro", "panda"]))
+def test_levers_of_every_joint_at_once_are_those_joint_by_joint_to_the_bit(seed, n, name) -> None:  # type: ignore[no-untyped-def]
+    hand = load_hand(name)
+    rng = np.random.default_rng(seed)
+    names = [link for j in hand.joints for link in j.moves] + ["palm_or_other"]
+    links = tuple(names[i] for i in rng.integers(0, len(names), n))
+    contacts = HandContacts(rng.normal(0.0, 0.1, (n, 3)), rng.normal(size=(n, 3)), links)
+    pose = np.eye(4)
+    pose[:3, :3] = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    pose[:3, 3] = rng.normal(0.0, 0.2, 3)
+    axes = {j.name: (rng.normal(0.0, 0.1, 3), rng.normal(size=3)) for j in hand.joints if rng.random() < 0.8}
+    grasp = as_row_of(name, pose, {}, contacts)
+    got, want = fg.levers(hand, grasp, axes), _levers_joint_by_joint(hand, grasp, axes)
+    assert list(got) == list(want) and all(repr(got[k]) == repr(want[k]) for k in want)
