@@ -120,13 +120,18 @@ def test_a_links_regions_are_those_of_a_mask_per_region(seed: int, k: int, bent:
     floor = float(gap.min())
     got = patches._link_regions("f", finger, points, idx, weight, closest, gap, floor, normals, s)
     want = _link_regions_reference("f", finger, points, idx, weight, closest, gap, floor, normals, s)
+    _assert_same_regions(got, want)
+
+
+
+def _assert_same_regions(got, want) -> None:  # type: ignore[no-untyped-def]
+    """Regions field by field to the bit, in the same order."""
     assert len(got) == len(want)
     for a, b in zip(got, want):
         assert (a.link, a.area, a.diameter) == (b.link, b.area, b.diameter)
-        for name in ("points", "normals", "normal"):
-            assert getattr(a, name).tobytes() == getattr(b, name).tobytes()
+        for field in ("points", "normals", "normal"):
+            assert getattr(a, field).tobytes() == getattr(b, field).tobytes()
         assert (a.plane is None and b.plane is None) or a.plane.tobytes() == b.plane.tobytes()
-
 
 
 def _finger_near(name: str, seed: int):  # type: ignore[no-untyped-def]
@@ -158,12 +163,7 @@ def test_the_links_regions_together_are_each_links_own(seed: int, name: str) -> 
     _, right, other = _finger_near(name, seed + 1)
     got = _together([("l", finger, pose), ("r", right, other)], surface)
     want = link_regions("l", finger, pose, surface) + link_regions("r", right, other, surface)
-    assert len(got) == len(want)
-    for a, b in zip(got, want):
-        assert (a.link, a.area, a.diameter) == (b.link, b.area, b.diameter)
-        for field in ("points", "normals", "normal"):
-            assert getattr(a, field).tobytes() == getattr(b, field).tobytes()
-        assert (a.plane is None and b.plane is None) or a.plane.tobytes() == b.plane.tobytes()
+    _assert_same_regions(got, want)
 
 
 @pytest.mark.parametrize("seed", range(8))
