@@ -97,17 +97,25 @@ def best(object_name: str, hand: str, db_path: Path, top: int, object_pose: str 
         flags = api.in_sample(db_path, hand, [r.grasp for r in found])
         echo_json([{**r.to_json(), "frames": _frames_json(r.grasp, world, rule, model), "p_hold_outside": outside,
                     "in_sample": s} for r, s in zip(found, flags)])
+        _unreached(misses, object_pose, err=True)  # stdout stays one JSON document
         _extrapolated(found[0].grasp.object, hand, db_path, [])
         return
     up = api.object_up(found[0].grasp.object, db_path=db_path)
     for r in found:
         _print_grasp(r.grasp, world, {"the grasp": r.arm_grasp, "the pre-grasp": r.arm_pregrasp}, rule,
                      model, up)
-    if any(rank for rank, _ in misses):  # the ranks left out between those shown (#2 and #3 shown, #1 not: why?)
-        click.echo(f"note: stored grasps the arm does not reach with the object at {object_pose}: {_misses(misses)}")
+    _unreached(misses, object_pose, err=False)
     name = found[0].grasp.object  # the notes plain `best` gives (a p_hold extrapolated, ...) hold here too
     _extrapolated(name, hand, db_path, api.p_hold_outside(name, hand, db_path=db_path))
     _in_sample([r.grasp for r in found], hand, db_path)
+
+
+def _unreached(misses: list[tuple[int, str]], object_pose: str, err: bool) -> None:
+    """The ranks tried and left out between those shown (#2 and #3 shown, #1 not: why?), under the grasps
+    (``err``: on stderr, beside ``--json``'s list)."""
+    if any(rank for rank, _ in misses):
+        click.echo(f"note: stored grasps the arm does not reach with the object at {object_pose}: {_misses(misses)}",
+                   err=err)
 
 
 def _in_sample(grasps: list[api.Grasp], hand: str, db_path: Path) -> None:

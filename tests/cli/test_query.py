@@ -499,9 +499,12 @@ def test_show_of_a_diverse_rank_past_the_last_says_how_many_diverse_there_are(bo
                    f"{diverse})")
 
 
-def test_best_at_a_pose_says_which_better_ranks_it_left_out(box_db: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize("as_json", [False, True])
+def test_best_at_a_pose_says_which_better_ranks_it_left_out(box_db: Path, monkeypatch: pytest.MonkeyPatch,
+                                                            as_json: bool) -> None:
     """`grasp best mug --object-pose ... --top 2` printed #2 and #3 and nothing about #1: the ranks tried and not
-    reached are said under the grasps, as a miss says them."""
+    reached are said under the grasps, as a miss says them; with --json on stderr (said nowhere until 2026-12-07),
+    stdout one JSON document."""
     from planner import api
 
     real = api.best_at
@@ -513,10 +516,12 @@ def test_best_at_a_pose_says_which_better_ranks_it_left_out(box_db: Path, monkey
 
     monkeypatch.setattr(api, "best_at", best_at)
     code, out, err = grasp("best", "box", "--hand", "panda", "--db", str(box_db), "--object-pose",
-                           "0.5,0,0.05,0,0,0,1", "--max-candidates", "20")
+                           "0.5,0,0.05,0,0,0,1", "--max-candidates", "20", *(["--json"] if as_json else []))
     assert code == 0, err
-    [note] = [line for line in out.splitlines() if line.startswith("note: stored grasps the arm does not reach")]
+    [note] = [line for line in (err if as_json else out).splitlines()
+              if line.startswith("note: stored grasps the arm does not reach")]
     assert "#1: no IK solution for the grasp" in note
+    assert ("note: stored grasps" in out) is not as_json  # with --json stdout is the list alone
 
 
 def test_show_makes_a_missing_folder_only_when_it_writes_and_says_so(box_db: Path, tmp_path: Path) -> None:
